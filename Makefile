@@ -1,0 +1,33 @@
+# Two commands for a fresh machine with only python3: `make run` and `make test`.
+PYTHON ?= python3
+VENV ?= .venv
+PY := $(VENV)/bin/python
+STAMP := $(VENV)/.installed-stamp
+
+.PHONY: run test lint install bench clean
+
+$(STAMP): pyproject.toml
+	$(PYTHON) -m venv $(VENV)
+	$(PY) -m pip install --quiet --upgrade pip
+	$(PY) -m pip install --quiet -e '.[dev]'
+	touch $(STAMP)
+
+install: $(STAMP)
+
+## Start the station TUI on simulated devices and a local SQLite database.
+run: install
+	$(VENV)/bin/station
+
+lint: install
+	$(VENV)/bin/ruff check .
+
+## Install, lint and run the default test suite (no slow tests; see `make bench`).
+test: lint
+	$(PY) -m pytest -q
+
+## Benchmarks print figures; they never fail on timings.
+bench: install
+	$(PY) -m bench
+
+clean:
+	rm -rf $(VENV) build *.egg-info

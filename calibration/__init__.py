@@ -1,0 +1,1 @@
+"""Camera, table and projector geometry, assembly-error measurement, simulator parameter fitting."""

@@ -1,0 +1,93 @@
+"""The ``station`` command line.
+
+Subcommands live one area per module in :mod:`station.commands`; each module defines
+``register(subparsers) -> None`` which adds its parsers and sets ``func=run(args) -> int`` on them. Modules are
+discovered, so adding a command never edits this file.
+
+Exit codes: 0 success, 1 a negative but valid outcome (e.g. a simulated contraption failed), 2 bad input or a
+device error (one clear line on stderr, never a traceback), 130 interrupted.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import pkgutil
+import sys
+from collections.abc import Sequence
+
+from calibration.errors import CalibrationError
+from design.errors import DesignError
+from drivers.errors import DriverError
+from projector.errors import ProjectorError
+from station import __version__
+from station.errors import StationError
+
+#: Errors that are the user's input or the world's state, not a bug: one line on stderr, exit 2.
+USER_ERRORS = (DesignError, DriverError, CalibrationError, ProjectorError, StationError)
+
+
+def command_modules() -> list[str]:
+    """Names of the modules in :mod:`station.commands`, sorted for a stable help text."""
+    import station.commands as package
+
+    return sorted(
+        f"{package.__name__}.{info.name}"
+        for info in pkgutil.iter_modules(package.__path__)
+        if not info.name.startswith("_")
+    )
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The full argument parser, with every discovered subcommand."""
+    parser = argparse.ArgumentParser(
+        prog="station",
+        description="Crafting Chaos station: drawing machines and chain-reaction contraptions. "
+        "Without a command, starts the terminal UI on simulated devices.",
+    )
+    parser.add_argument("--version", action="version", version=f"station {__version__}")
+    subparsers = parser.add_subparsers(dest="command", metavar="COMMAND")
+    for name in command_modules():
+        module = importlib.import_module(name)
+        module.register(subparsers)
+    return parser
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Entry point of the ``station`` console script."""
+    argv = list(sys.argv[1:] if argv is None else argv)
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    if getattr(args, "func", None) is None:
+        if args.command is None:
+            return run_tui()
+        parser.parse_args([args.command, "--help"])
+        return 2
+    try:
+        return int(args.func(args) or 0)
+    except USER_ERRORS as error:
+        print(f"station: error: {error}", file=sys.stderr)
+        return 2
+    except FileNotFoundError as error:
+        print(f"station: error: no such file: {error.filename}", file=sys.stderr)
+        return 2
+    except (IsADirectoryError, PermissionError) as error:
+        print(f"station: error: cannot use {error.filename}: {error.strerror}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print("station: interrupted", file=sys.stderr)
+        return 130
+    except BrokenPipeError:
+        return 0
+
+
+def run_tui() -> int:
+    """Start the Textual app on the station's default (simulated devices, local SQLite)."""
+    from station.tui.app import StationApp
+
+    StationApp().run()
+    return 0
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())

@@ -1,0 +1,77 @@
+"""The station's Textual app."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+from textual.app import App
+from textual.binding import Binding
+
+from station.db import open_database
+from station.devices import DeviceEntry, default_devices
+from station.paths import database_path
+from station.tui.registry import ScreenEntry, discover_screens
+from station.tui.screens.home import HomeScreen
+
+
+class StationApp(App):
+    """Crafting Chaos station.
+
+    Parameters
+    ----------
+    devices : tuple of DeviceEntry, optional
+        Devices to show and use; every device simulated by default.
+    database : path, optional
+        The SQLite trial database; the user's data directory by default.
+    """
+
+    TITLE = "Crafting Chaos station"
+    SUB_TITLE = "simulated devices"
+    BINDINGS = [
+        Binding("ctrl+q", "quit", "Quit", priority=True),
+        Binding("escape", "home", "Home"),
+    ]
+
+    def __init__(self, devices: tuple[DeviceEntry, ...] | None = None, database: str | Path | None = None) -> None:
+        super().__init__()
+        self.devices = devices if devices is not None else default_devices()
+        self.database_path = Path(database) if database is not None else database_path()
+        self.database = open_database(self.database_path)
+        self.areas: list[ScreenEntry] = discover_screens()
+        if all(d.simulated for d in self.devices):
+            self.sub_title = "all devices simulated"
+        else:
+            self.sub_title = f"{sum(not d.simulated for d in self.devices)} real device(s)"
+
+    def on_mount(self) -> None:
+        self.install_screen(HomeScreen(self.areas, self.devices, str(self.database_path)), name="home")
+        for entry in self.areas:
+            self.install_screen(entry.factory(), name=entry.name)
+        self.push_screen("home")
+
+    def device_state(self, device: DeviceEntry) -> str:
+        """A short state for the home screen; drivers refine this as they connect."""
+        return "ready (simulated)" if device.simulated else "not connected"
+
+    def action_open_area(self, name: str) -> None:
+        """Show an area screen on top of home (one level deep: Escape returns home)."""
+        while len(self.screen_stack) > 2:
+            self.pop_screen()
+        if self.screen.name != "home" and len(self.screen_stack) > 1:
+            self.pop_screen()
+        self.push_screen(name)
+
+    def action_home(self) -> None:
+        while len(self.screen_stack) > 2:
+            self.pop_screen()
+        if self.screen.name != "home" and len(self.screen_stack) > 1:
+            self.pop_screen()
+
+    def open_design(self, machine: str, params: dict[str, Any]) -> None:
+        """Open a drawing-machine design on the Drawing machines screen (used by sketch retrieval and others)."""
+        self.action_open_area("drawing")
+        self.get_screen("drawing").load_design(machine, params)
+
+    def on_unmount(self) -> None:
+        self.database.close()

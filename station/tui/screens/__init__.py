@@ -1,0 +1,1 @@
+"""Area screens of the TUI; see :mod:`station.tui.registry` for the module contract."""

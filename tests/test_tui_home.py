@@ -1,0 +1,31 @@
+from __future__ import annotations
+
+from textual.widgets import DataTable
+
+from station.devices import default_devices
+from station.tui.app import StationApp
+from station.tui.registry import discover_screens
+
+
+async def test_home_shows_simulated_devices_and_database(tmp_path):
+    app = StationApp(database=tmp_path / "t.sqlite3")
+    async with app.run_test() as pilot:
+        await pilot.pause()
+        assert app.screen.name == "home"
+        table = app.screen.query_one("#devices", DataTable)
+        assert table.row_count == len(default_devices())
+        modes = {table.get_row(key)[2] for key in table.rows}
+        assert modes == {"simulated"}
+        assert str(tmp_path / "t.sqlite3") in str(app.screen.query_one("#database").render())
+
+
+async def test_every_area_opens_and_escape_returns_home(tmp_path):
+    app = StationApp(database=tmp_path / "t.sqlite3")
+    async with app.run_test() as pilot:
+        for entry in discover_screens():
+            await pilot.press(entry.key)
+            await pilot.pause()
+            assert app.screen.name == entry.name
+            await pilot.press("escape")
+            await pilot.pause()
+            assert app.screen.name == "home"
