@@ -1,0 +1,741 @@
+"""The drawing-machine model API shared by every machine (thesis 3.3 and Appendix A).
+
+A machine is a :class:`DrawingMachine` subclass that declares
+
+* its design parameters (:class:`Parameter`: discrete gear radii, which are positive integers so that the pattern
+  is finite (A.5), and continuous lengths and angles, each with a default and a closed box of bounds);
+* its constraint system (:class:`Constraint`: one named, evaluable inequality per line of Appendix A, with the
+  category of A.1.2 it belongs to and a message in words and numbers);
+* its kinematics, as a vectorized function of the parameters and of time returning complex positions.
+
+Everything else (validation, violations, exact period, sampling uniform in time or arc length, batch sampling,
+slider bounds) is implemented here once, vectorized with numpy, so a new machine is mostly its equations.
+
+Conventions: lengths are in gear-radius units (the physical scale is chosen at fabrication); angles are radians;
+time ``t`` is the rotation angle of the machine's driving part, and one pattern spans ``[0, period(params)]``.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Iterable, Mapping, Sequence
+from dataclasses import dataclass
+from typing import Any, ClassVar, Literal
+
+import numpy as np
+
+from design.errors import ConstraintViolation, parameter_error
+
+#: Arbitrary integer bound B_r of Appendix A on gear radii (radii are strictly smaller). With coprime radii below
+#: 30, a pattern needs at most 29 turns of a gear: long enough for rich patterns, short enough to plot.
+MAX_GEAR_RADIUS = 30
+
+#: The categories of constraints of Appendix A.1.2, in the order the thesis gives them.
+CATEGORIES = (
+    "finite pattern",
+    "compatible curvatures",
+    "valid layout",
+    "symmetry reduction",
+    "drawing bounds",
+    "singularity avoidance",
+    "practical dimensions",
+)
+
+Params = dict[str, float]
+Spacing = Literal["time", "arclength"]
+
+
+@dataclass(frozen=True)
+class Parameter:
+    """One design parameter of a machine.
+
+    Attributes
+    ----------
+    name : str
+        Public name (part of the contract, e.g. ``"r_f"``).
+    kind : {"discrete", "continuous"}
+        Discrete parameters are gear radii: positive integers.
+    default : float
+        Value in the machine's default (feasible) design.
+    lower, upper : float
+        Closed box of allowed values (the constraints may cut it further, see
+        :meth:`DrawingMachine.feasible_interval`).
+    description : str
+        What the parameter is, in words.
+    unit : str
+        ``"gear radius"`` for lengths (and radii), ``"rad"`` for angles, ``""`` for ratios.
+    category : str
+        The constraint category of A.1.2 its box bounds come from.
+    equation : str
+        The thesis equation of the box bounds (e.g. ``"A.7"``), if any.
+    """
+
+    name: str
+    kind: Literal["discrete", "continuous"]
+    default: float
+    lower: float
+    upper: float
+    description: str
+    unit: str = "gear radius"
+    category: str = "practical dimensions"
+    equation: str = ""
+
+    @property
+    def is_discrete(self) -> bool:
+        return self.kind == "discrete"
+
+    def as_dict(self) -> dict[str, Any]:
+        """Plain-JSON description (used by ``station machines --json``)."""
+        return {
+            "name": self.name,
+            "kind": self.kind,
+            "default": self.default,
+            "lower": self.lower,
+            "upper": self.upper,
+            "unit": self.unit,
+            "description": self.description,
+        }
+
+
+@dataclass(frozen=True)
+class Constraint:
+    """One inequality of a machine's constraint system.
+
+    Attributes
+    ----------
+    name : str
+        Short identifier, unique within the machine (e.g. ``"pen_inside_gear"``).
+    category : str
+        One of :data:`CATEGORIES`.
+    equation : str
+        Thesis equation number (``"A.9"``), or ``""`` for a constraint the station adds (documented in its message).
+    margin : callable
+        ``margin(P) -> ndarray``: how much the inequality holds, vectorized over parameter arrays ``P`` (a mapping
+        name -> array, all broadcastable). Satisfied when ``margin >= 0`` (``> 0`` if ``strict``).
+    message : callable
+        ``message(p) -> str`` for scalar parameters ``p``: what must hold, in words and numbers
+        (e.g. ``"l1 must exceed r_g1 + r_p1 = 6.5, got 5"``).
+    strict : bool
+        Whether equality violates the constraint.
+    depends : tuple of str
+        Parameters the margin depends on (to skip constraints when computing one parameter's slider bounds).
+    """
+
+    name: str
+    category: str
+    equation: str
+    margin: Callable[[Mapping[str, np.ndarray]], np.ndarray]
+    message: Callable[[Mapping[str, float]], str]
+    strict: bool = True
+    depends: tuple[str, ...] = ()
+
+    def satisfied(self, margin: np.ndarray) -> np.ndarray:
+        margin = np.asarray(margin)
+        return (margin > 0) if self.strict else (margin >= 0)
+
+
+@dataclass(frozen=True)
+class Violation:
+    """A violated constraint: its name, a message in words and numbers, and its margin (<= 0; how far off)."""
+
+    constraint: str
+    message: str
+    margin: float
+    category: str = ""
+    equation: str = ""
+
+
+# --- shapes of a mechanism preview -------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class Circle:
+    """A gear (its primitive circle), a turntable, or a pivot's path: ``center`` (x, y) and ``radius``."""
+
+    label: str
+    center: tuple[float, float]
+    radius: float
+    kind: str = "circle"
+
+
+@dataclass(frozen=True)
+class Ellipse:
+    """An elliptic gear: ``center``, semi-axes ``a`` (along ``angle``) and ``b``."""
+
+    label: str
+    center: tuple[float, float]
+    a: float
+    b: float
+    angle: float
+    kind: str = "ellipse"
+
+    def polyline(self, n: int = 96) -> np.ndarray:
+        """Closed (n, 2) outline of the ellipse."""
+        u = np.linspace(0.0, 2.0 * np.pi, n)
+        z = (self.a * np.cos(u) + 1j * self.b * np.sin(u)) * np.exp(1j * self.angle) + complex(*self.center)
+        return np.column_stack([z.real, z.imag])
+
+
+@dataclass(frozen=True)
+class Segment:
+    """An arm, rod or radius marker from ``start`` to ``end``."""
+
+    label: str
+    start: tuple[float, float]
+    end: tuple[float, float]
+    kind: str = "segment"
+
+
+@dataclass(frozen=True)
+class Point:
+    """A joint, pivot or the pen: a ``position``."""
+
+    label: str
+    position: tuple[float, float]
+    kind: str = "point"
+
+
+Shape = Circle | Ellipse | Segment | Point
+
+
+def _xy(z: complex) -> tuple[float, float]:
+    return (float(np.real(z)), float(np.imag(z)))
+
+
+# --- the base class ----------------------------------------------------------------------------------------------
+
+
+class DrawingMachine:
+    """Base class of drawing-machine models; subclasses declare parameters, constraints and kinematics.
+
+    Subclasses set ``name``, ``title``, ``description``, ``parameters`` and implement :meth:`constraints`,
+    :meth:`_period`, :meth:`_positions` and :meth:`mechanism`. Instances hold no design state: every method takes
+    the design's parameters (a mapping name -> value; missing names take their defaults).
+    """
+
+    name: ClassVar[str] = ""
+    title: ClassVar[str] = ""
+    description: ClassVar[str] = ""
+    parameters: ClassVar[tuple[Parameter, ...]] = ()
+    #: Name of the gear whose reduced radius is the order of rotational symmetry of the pattern (thesis 3.4.2).
+    symmetry_gear: ClassVar[str] = ""
+
+    def __init__(self) -> None:
+        self._by_name = {p.name: p for p in self.parameters}
+        self._constraints: tuple[Constraint, ...] = tuple(self._box_constraints()) + tuple(self.constraints())
+        names = [c.name for c in self._constraints]
+        if len(set(names)) != len(names):  # pragma: no cover - a programming error in a model
+            raise TypeError(f"{type(self).__name__}: duplicate constraint names {names}")
+
+    def __repr__(self) -> str:
+        return f"<{type(self).__name__} {self.name!r}>"
+
+    # -- to implement --------------------------------------------------------------------------------------------
+
+    def constraints(self) -> Iterable[Constraint]:
+        """The machine's constraints beyond parameter boxes and integrality (which the base adds)."""
+        raise NotImplementedError
+
+    def _period(self, P: Mapping[str, np.ndarray]) -> np.ndarray:
+        """Vectorized period (time length of one closed pattern)."""
+        raise NotImplementedError
+
+    def _positions(self, P: Mapping[str, np.ndarray], t: np.ndarray) -> np.ndarray:
+        """Vectorized pen positions as complex numbers, broadcasting ``P`` against ``t``."""
+        raise NotImplementedError
+
+    def mechanism(self, params: Mapping[str, float], t: float, frame: str = "drawing") -> list[Shape]:
+        """Positions of the machine's parts at time ``t`` (gears as circles, arms as segments, joints and pen).
+
+        Parameters
+        ----------
+        params : mapping
+            Design parameters (validated).
+        t : float
+            Time (same scale as :meth:`curve`).
+        frame : {"drawing", "fixed"}
+            ``"drawing"`` (default) expresses the parts in the frame of the paper, so the pen point equals
+            ``curve(params, [t])[0]`` and the preview overlays the pattern; ``"fixed"`` in the machine's base frame
+            (differs only for turntable machines, whose paper rotates).
+        """
+        raise NotImplementedError
+
+    # -- parameters ----------------------------------------------------------------------------------------------
+
+    @property
+    def parameter_names(self) -> tuple[str, ...]:
+        return tuple(p.name for p in self.parameters)
+
+    @property
+    def discrete_names(self) -> tuple[str, ...]:
+        return tuple(p.name for p in self.parameters if p.is_discrete)
+
+    @property
+    def continuous_names(self) -> tuple[str, ...]:
+        return tuple(p.name for p in self.parameters if not p.is_discrete)
+
+    def parameter(self, name: str) -> Parameter:
+        """The :class:`Parameter` called ``name`` (``ParameterError`` if there is none)."""
+        try:
+            return self._by_name[name]
+        except KeyError:
+            raise parameter_error(self.name, name, f"one of {', '.join(self.parameter_names)}", name) from None
+
+    def defaults(self) -> Params:
+        """The default design (feasible), discrete values as ints."""
+        return {p.name: (int(p.default) if p.is_discrete else float(p.default)) for p in self.parameters}
+
+    def all_constraints(self) -> tuple[Constraint, ...]:
+        """Every constraint, box bounds and integrality first."""
+        return self._constraints
+
+    def complete(self, params: Mapping[str, Any] | None) -> Params:
+        """Fill missing names with defaults and convert to numbers; no bounds or constraint check.
+
+        Raises
+        ------
+        ParameterError
+            For an unknown name, a value that is not a finite real number.
+        """
+        values = self.defaults()
+        for name, value in (params or {}).items():
+            parameter = self.parameter(name)
+            expected = "an integer gear radius" if parameter.is_discrete else "a finite real number"
+            if isinstance(value, (bool, np.bool_)):
+                raise parameter_error(self.name, name, expected, value)
+            try:
+                number = float(value)
+            except (TypeError, ValueError):
+                raise parameter_error(self.name, name, expected, value) from None
+            if not math.isfinite(number):
+                raise parameter_error(self.name, name, expected, value)
+            if parameter.is_discrete and number == round(number):
+                values[name] = int(round(number))
+            else:
+                values[name] = number
+        return values
+
+    def validate(self, params: Mapping[str, Any] | None = None) -> Params:
+        """Complete ``params`` with defaults, coerce gear radii to int, and check every constraint.
+
+        Returns
+        -------
+        dict
+            The complete, checked design.
+
+        Raises
+        ------
+        ParameterError
+            Unknown name, not a number, a gear radius that is not an integer, a value outside its box bounds.
+        ConstraintViolation
+            The first violated constraint of Appendix A, with a message in words and numbers; ``constraint`` and
+            ``margin`` attributes say which and by how much.
+        """
+        values = self.complete(params)
+        for parameter in self.parameters:
+            value = values[parameter.name]
+            if parameter.is_discrete:
+                expected = f"an integer gear radius in [{parameter.lower:g}, {parameter.upper:g}]"
+                if not isinstance(value, int) or not parameter.lower <= value <= parameter.upper:
+                    raise parameter_error(self.name, parameter.name, expected, value)
+            elif not parameter.lower <= value <= parameter.upper:
+                expected = f"in [{parameter.lower:g}, {parameter.upper:g}] ({parameter.unit or 'ratio'})"
+                raise parameter_error(self.name, parameter.name, expected, value)
+        found = self.violations(values)
+        if found:
+            first = found[0]
+            more = f" (and {len(found) - 1} more: {', '.join(v.constraint for v in found[1:])})" if found[1:] else ""
+            where = f"{first.category}, {first.equation}" if first.equation else first.category
+            raise ConstraintViolation(
+                f"{self.name}: constraint {first.constraint!r} ({where}) violated: {first.message}{more}",
+                constraint=first.constraint,
+                margin=first.margin,
+            )
+        return values
+
+    def violations(self, params: Mapping[str, Any] | None = None) -> list[Violation]:
+        """Every violated constraint (box bounds and integrality included); empty when the design is feasible."""
+        values = self.complete(params)
+        P = {k: np.float64(v) for k, v in values.items()}
+        found = []
+        with np.errstate(all="ignore"):
+            for constraint in self._constraints:
+                margin = float(constraint.margin(P))
+                if not bool(constraint.satisfied(margin)):
+                    found.append(
+                        Violation(
+                            constraint.name,
+                            constraint.message(values),
+                            margin if math.isfinite(margin) else -math.inf,
+                            constraint.category,
+                            constraint.equation,
+                        )
+                    )
+        return found
+
+    def is_feasible(self, params: Mapping[str, Any] | None = None) -> bool:
+        """Whether the design satisfies every constraint."""
+        return not self.violations(params)
+
+    def as_arrays(self, rows: Any) -> dict[str, np.ndarray]:
+        """Parameter rows as a dict of 1-d float arrays (missing names take their defaults).
+
+        ``rows`` is a sequence of mappings, a mapping of name -> array, or a (k, p) array whose columns follow
+        :attr:`parameter_names`.
+        """
+        defaults = self.defaults()
+        if isinstance(rows, Mapping):
+            for name in rows:
+                self.parameter(name)
+            arrays = {name: np.atleast_1d(np.asarray(rows.get(name, defaults[name]), dtype=float)) for name in defaults}
+            k = max(a.size for a in arrays.values())
+            return {name: np.broadcast_to(a, (k,)).astype(float) for name, a in arrays.items()}
+        if isinstance(rows, np.ndarray) and rows.ndim == 2 and rows.dtype != object:
+            if rows.shape[1] != len(self.parameters):
+                raise parameter_error(
+                    self.name,
+                    "rows",
+                    f"an array with {len(self.parameters)} columns {self.parameter_names}",
+                    rows.shape,
+                )
+            return {name: rows[:, i].astype(float) for i, name in enumerate(self.parameter_names)}
+        completed = [self.complete(row) for row in rows]
+        return {name: np.array([row[name] for row in completed], dtype=float) for name in self.parameter_names}
+
+    def feasible_mask(self, rows: Any) -> np.ndarray:
+        """Vectorized feasibility of many designs (see :meth:`as_arrays` for ``rows``): a bool array."""
+        P = self.as_arrays(rows)
+        k = len(next(iter(P.values())))
+        ok = np.ones(k, dtype=bool)
+        with np.errstate(all="ignore"):
+            for constraint in self._constraints:
+                ok &= np.broadcast_to(constraint.satisfied(constraint.margin(P)), (k,))
+        return ok
+
+    # -- period and curves ---------------------------------------------------------------------------------------
+
+    def period(self, params: Mapping[str, Any] | None = None) -> float:
+        """Time length of one closed pattern (lcm rule of A.1.1 on the integer gear radii)."""
+        values = self.validate(params)
+        return float(self._period({k: np.float64(v) for k, v in values.items()}))
+
+    def turns(self, params: Mapping[str, Any] | None = None) -> int:
+        """Whole turns of the driving part in one period (``period / 2 pi``)."""
+        return int(round(self.period(params) / (2.0 * np.pi)))
+
+    def curve(self, params: Mapping[str, Any] | None, t: Any) -> np.ndarray:
+        """Pen positions at times ``t``: an array of shape ``(len(t), 2)`` (vectorized, validated design)."""
+        values = self.validate(params)
+        t = np.asarray(t, dtype=float)
+        z = self._positions({k: np.float64(v) for k, v in values.items()}, t)
+        return np.stack([z.real, z.imag], axis=-1)
+
+    def sample(self, params: Mapping[str, Any] | None = None, n: int = 1024, spacing: Spacing = "time") -> np.ndarray:
+        """One period of the pattern as ``n`` points, uniform in time or in arc length; closed (last == first).
+
+        Parameters
+        ----------
+        params : mapping
+            The design (validated).
+        n : int
+            Number of points, at least 3 (the last one repeats the first).
+        spacing : {"time", "arclength"}
+            ``"time"`` samples the driving angle uniformly; ``"arclength"`` makes consecutive points equidistant
+            along the curve (what plotters and curve distances want).
+        """
+        values = self.validate(params)
+        return self._sample_arrays({k: np.array([v], dtype=float) for k, v in values.items()}, n, spacing)[0]
+
+    def sample_many(self, rows: Any, n: int = 256, spacing: Spacing = "time", check: bool = True) -> np.ndarray:
+        """Batch sampling of many designs at once: an array of shape ``(k, n, 2)``.
+
+        Parameters
+        ----------
+        rows : sequence of mappings, mapping of arrays, or (k, p) array
+            The designs (see :meth:`as_arrays`; columns of an array follow :attr:`parameter_names`).
+        n : int
+            Points per pattern (closed: ``out[:, -1] == out[:, 0]``).
+        spacing : {"time", "arclength"}
+            As in :meth:`sample`.
+        check : bool
+            Raise ``ConstraintViolation`` naming the first infeasible row (default). Pass ``False`` only for rows
+            already filtered with :meth:`feasible_mask` (it skips the check for speed).
+        """
+        P = self.as_arrays(rows)
+        if check:
+            ok = self.feasible_mask(P)
+            if not ok.all():
+                index = int(np.flatnonzero(~ok)[0])
+                row = {name: float(a[index]) for name, a in P.items()}
+                try:
+                    self.validate(row)
+                except Exception as error:
+                    raise type(error)(f"row {index}: {error}") from None
+        return self._sample_arrays(P, n, spacing)
+
+    def _sample_arrays(self, P: Mapping[str, np.ndarray], n: int, spacing: str) -> np.ndarray:
+        if spacing not in ("time", "arclength"):
+            raise parameter_error(self.name, "spacing", "'time' or 'arclength'", spacing)
+        if not isinstance(n, (int, np.integer)) or n < 3:
+            raise parameter_error(self.name, "n", "an integer number of points >= 3", n)
+        k = len(next(iter(P.values())))
+        column = {name: a.reshape(k, 1) for name, a in P.items()}
+        period = np.broadcast_to(self._period(column), (k, 1))
+        if spacing == "time":
+            t = period * np.linspace(0.0, 1.0, n)[None, :]
+        else:
+            t = self._arclength_times(column, period, n)
+        z = self._positions(column, t)
+        z[:, -1] = z[:, 0]  # exact closure: the last point is the first, not a rounding error away
+        return np.stack([z.real, z.imag], axis=-1)
+
+    def _arclength_times(self, P: Mapping[str, np.ndarray], period: np.ndarray, n: int) -> np.ndarray:
+        """Times at which the curves are equidistant in arc length, by inverting a dense cumulative length."""
+        k = period.shape[0]
+        dense = max(16 * n, 4096)
+        u = np.linspace(0.0, 1.0, dense)
+        t_dense = period * u[None, :]
+        z = self._positions(P, t_dense)
+        steps = np.abs(np.diff(z, axis=1))
+        length = np.concatenate([np.zeros((k, 1)), np.cumsum(steps, axis=1)], axis=1)
+        total = length[:, -1:]
+        total = np.where(total > 0, total, 1.0)
+        fraction = length / total
+        target = np.linspace(0.0, 1.0, n)
+        # One searchsorted for all rows: offset each row's (non-decreasing) fractions by its row index.
+        offset = np.arange(k)[:, None] * 2.0
+        flat = (fraction + offset).ravel()
+        goal = (target[None, :] + offset).ravel()
+        index = np.clip(np.searchsorted(flat, goal, side="right") - 1, 0, flat.size - 2)
+        index = np.minimum(index, (np.arange(k)[:, None] * dense + dense - 2).repeat(n, axis=1).ravel())
+        f0, f1 = flat[index], flat[index + 1]
+        weight = np.where(f1 > f0, (goal - f0) / np.where(f1 > f0, f1 - f0, 1.0), 0.0)
+        column = index % dense
+        times = (column + np.clip(weight, 0.0, 1.0)) / (dense - 1)
+        return period * times.reshape(k, n)
+
+    # -- slider bounds -------------------------------------------------------------------------------------------
+
+    def feasible_interval(
+        self, params: Mapping[str, Any] | None, name: str, *, grid: int = 257, tolerance: float = 1e-11
+    ) -> tuple[float, float]:
+        """The interval of feasible values of one continuous parameter, the others fixed (slider bounds).
+
+        The constraints are evaluated, vectorized, on a grid over the parameter's box; the feasible run that
+        contains the current value (or, if it is infeasible, the nearest run) is returned, its ends refined by
+        bracketing (16 points per round) down to ``tolerance`` times the box width. Both ends are feasible values;
+        a value ``tolerance``-ish outside is not (strict inequalities are approached from inside). A feasible set
+        narrower than the grid step can be missed (then the nearest wider run is returned).
+
+        Raises
+        ------
+        ParameterError
+            Unknown or discrete ``name``, or a bad value elsewhere.
+        ConstraintViolation
+            When no value of ``name`` makes the design feasible (e.g. the gear radii are not coprime).
+        """
+        parameter = self.parameter(name)
+        if parameter.is_discrete:
+            raise parameter_error(self.name, name, f"a continuous parameter ({', '.join(self.continuous_names)})", name)
+        values = self.complete(params)
+        current = float(values[name])
+        lower, upper = float(parameter.lower), float(parameter.upper)
+        others = {k: np.float64(v) for k, v in values.items() if k != name}
+        relevant = [c for c in self._constraints if not c.depends or name in c.depends]
+        fixed = [c for c in self._constraints if c.depends and name not in c.depends]
+
+        with np.errstate(all="ignore"):
+            for constraint in fixed:
+                if not bool(constraint.satisfied(constraint.margin(others | {name: np.float64(current)}))):
+                    message = constraint.message(values)
+                    raise ConstraintViolation(
+                        f"{self.name}: no value of {name} is feasible: constraint {constraint.name!r} "
+                        f"({constraint.category}) does not depend on it and is violated: {message}",
+                        constraint=constraint.name,
+                    )
+
+            def feasible(x: np.ndarray) -> np.ndarray:
+                P = dict(others)
+                P[name] = x
+                ok = np.ones(x.shape, dtype=bool)
+                for constraint in relevant:
+                    ok &= np.broadcast_to(constraint.satisfied(constraint.margin(P)), x.shape)
+                return ok
+
+            xs = np.linspace(lower, upper, grid)
+            inside = lower <= current <= upper
+            if inside:
+                xs = np.sort(np.append(xs, current))
+            ok = feasible(xs)
+            if not ok.any():
+                raise ConstraintViolation(
+                    f"{self.name}: no value of {name} in [{lower:g}, {upper:g}] is feasible with the other "
+                    f"parameters fixed ({', '.join(f'{k}={v:g}' for k, v in values.items() if k != name)})",
+                    constraint="",
+                )
+            # Runs of consecutive feasible grid points.
+            edges = np.diff(np.concatenate([[0], ok.astype(np.int8), [0]]))
+            starts = np.flatnonzero(edges == 1)
+            stops = np.flatnonzero(edges == -1) - 1
+            position = int(np.searchsorted(xs, current))
+            position = min(max(position, 0), len(xs) - 1)
+            containing = np.flatnonzero((starts <= position) & (stops >= position))
+            if containing.size and ok[position]:
+                run = int(containing[0])
+            else:
+                distance = np.minimum(np.abs(xs[starts] - current), np.abs(xs[stops] - current))
+                run = int(np.argmin(distance))
+            i0, i1 = int(starts[run]), int(stops[run])
+            width = max(upper - lower, 1e-300)
+            lo = xs[i0] if i0 == 0 else self._refine(feasible, xs[i0 - 1], xs[i0], tolerance * width)
+            hi = xs[i1] if i1 == len(xs) - 1 else self._refine(feasible, xs[i1 + 1], xs[i1], tolerance * width)
+            lo, hi = (self._snap(feasible, x, 4 * tolerance * width) for x in (lo, hi))
+        return float(lo), float(hi)
+
+    @staticmethod
+    def _snap(feasible: Callable[[np.ndarray], np.ndarray], x: float, reach: float) -> float:
+        """Snap a refined end to the round number it approximates when that is still feasible.
+
+        Non-strict analytic bounds (``d <= r_r``) are then returned exactly (3.0, not 2.99999999992); strict ones
+        (``d > 0``) keep their inside approximation because the round value is infeasible.
+        """
+        rounded = float(f"{x:.9g}")
+        if rounded != x and abs(rounded - x) <= reach and bool(feasible(np.array([rounded]))[0]):
+            return rounded
+        return x
+
+    @staticmethod
+    def _refine(feasible: Callable[[np.ndarray], np.ndarray], bad: float, good: float, tolerance: float) -> float:
+        """Shrink a bracket [bad, good] (infeasible, feasible) around a boundary; return the feasible end."""
+        while abs(good - bad) > tolerance:
+            probes = np.linspace(bad, good, 18)[1:-1]
+            ok = feasible(probes)
+            # The feasible end is the first feasible probe seen from the bad side (the run must stay connected).
+            if ok.any():
+                first = int(np.argmax(ok))
+                new_good = probes[first]
+                new_bad = probes[first - 1] if first > 0 else bad
+            else:
+                new_bad, new_good = probes[-1], good
+            if new_bad == bad and new_good == good:  # pragma: no cover - floating point stall
+                break
+            bad, good = new_bad, new_good
+        return good
+
+    # -- misc ----------------------------------------------------------------------------------------------------
+
+    def describe(self) -> dict[str, Any]:
+        """Plain-JSON description: name, title, parameters, constraints (used by ``station machines --json``)."""
+        return {
+            "name": self.name,
+            "title": self.title,
+            "description": self.description,
+            "parameters": [p.as_dict() for p in self.parameters],
+            "defaults": self.defaults(),
+            "constraints": [
+                {"name": c.name, "category": c.category, "equation": c.equation, "strict": c.strict}
+                for c in self._constraints
+            ],
+        }
+
+    def _box_constraints(self) -> Iterable[Constraint]:
+        """Box bounds and integrality of every parameter, as constraints (so violations() lists them too)."""
+        for parameter in self.parameters:
+            yield from _box_constraints_of(parameter)
+
+
+def _box_constraints_of(parameter: Parameter) -> Iterable[Constraint]:
+    name, lower, upper, unit = parameter.name, parameter.lower, parameter.upper, parameter.unit
+    if parameter.is_discrete:
+        yield Constraint(
+            f"{name}_integer",
+            "finite pattern",
+            "A.5",
+            lambda P, n=name: -np.abs(P[n] - np.rint(P[n])),
+            lambda p, n=name: (
+                f"{n} must be a whole number (gear radii are integers so the pattern closes), got {p[n]:g}"
+            ),
+            strict=False,
+            depends=(name,),
+        )
+    yield Constraint(
+        f"{name}_min",
+        parameter.category,
+        parameter.equation,
+        lambda P, n=name, lo=lower: P[n] - lo,
+        lambda p, n=name, lo=lower, u=unit: f"{n} must be at least {lo:g}{' ' + u if u else ''}, got {p[n]:g}",
+        strict=False,
+        depends=(name,),
+    )
+    yield Constraint(
+        f"{name}_max",
+        parameter.category,
+        parameter.equation,
+        lambda P, n=name, hi=upper: hi - P[n],
+        lambda p, n=name, hi=upper, u=unit: f"{n} must be at most {hi:g}{' ' + u if u else ''}, got {p[n]:g}",
+        strict=False,
+        depends=(name,),
+    )
+
+
+def gcd_margin(*arrays: np.ndarray) -> np.ndarray:
+    """Margin of a coprimality constraint: 0 when the integers are coprime, 1 - gcd (< 0) otherwise."""
+    ints = [np.rint(np.asarray(a)).astype(np.int64) for a in arrays]
+    g = ints[0]
+    for other in ints[1:]:
+        g = np.gcd(g, other)
+    return (1 - g).astype(float)
+
+
+def gear_period(driving_radius: np.ndarray, *radii: np.ndarray) -> np.ndarray:
+    """Exact period of a gear train by the lcm rule of A.1.1, vectorized over integer radii.
+
+    A gear of radius r meshing (directly or through the train) with the driving part of radius ``driving_radius``
+    turns once every ``2 pi r / driving_radius`` units of time; the pattern closes when every gear has made a
+    whole number of turns: ``T = 2 pi lcm(driving_radius, *radii) / driving_radius``.
+    """
+    base = np.rint(np.asarray(driving_radius)).astype(np.int64)
+    multiple = base
+    for r in radii:
+        multiple = np.lcm(multiple, np.rint(np.asarray(r)).astype(np.int64))
+    return 2.0 * np.pi * multiple / base
+
+
+def rotate(z: np.ndarray, angle: np.ndarray) -> np.ndarray:
+    """Rotate complex positions by ``angle`` (radians, counter-clockwise)."""
+    return z * np.exp(1j * angle)
+
+
+def format_number(x: float) -> str:
+    """Numbers in messages: short but exact enough to see why a constraint fails."""
+    return f"{x:.6g}"
+
+
+def shapes_to_jsonable(shapes: Sequence[Shape]) -> list[dict[str, Any]]:
+    """Plain-JSON form of :meth:`DrawingMachine.mechanism` shapes."""
+    out = []
+    for shape in shapes:
+        item = {"kind": shape.kind, "label": shape.label}
+        item.update({k: v for k, v in shape.__dict__.items() if k not in ("kind", "label")})
+        out.append(item)
+    return out
+
+
+__all__ = [
+    "CATEGORIES",
+    "MAX_GEAR_RADIUS",
+    "Circle",
+    "Constraint",
+    "DrawingMachine",
+    "Ellipse",
+    "Parameter",
+    "Point",
+    "Segment",
+    "Shape",
+    "Violation",
+    "format_number",
+    "gcd_margin",
+    "gear_period",
+    "rotate",
+    "shapes_to_jsonable",
+]
