@@ -15,6 +15,7 @@ BUILTINS = [
 #: Extra feasible designs per machine (besides the defaults) with coprime radii and a long period.
 DESIGNS = {
     "spirograph": [{"r_f": 7, "r_r": 5, "d": 3.1}, {"r_f": 13, "r_r": 8, "d": 8.0}, {"r_f": 9, "r_r": 2, "d": 0.7}],
+    "elliptic_spirograph": [{"r_f": 7, "r_r": 5, "e": 0.3, "d": 3.1}, {"r_f": 11, "r_r": 4, "e": 0.7, "d": 2.0}],
 }
 
 

@@ -1,0 +1,87 @@
+"""Pattern pictures: SVG (svgwrite) written to a text stream, PNG (Pillow, antialiased by supersampling).
+
+Both take a list of (n, 2) polylines in drawing units, fit them in the picture with a margin (y up, as in the
+thesis's figures) and draw them with the given colors.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import BinaryIO, TextIO
+
+import numpy as np
+
+DEFAULT_COLORS = ("#1f3b73", "#c0392b", "#888888", "#27ae60")
+
+
+def _frame(polylines: Sequence[np.ndarray], size: int, margin: float) -> tuple[np.ndarray, float, float]:
+    """Center and scale mapping drawing units to pixels (same scale on both axes, y pointing up)."""
+    points = np.concatenate([np.asarray(p, dtype=float).reshape(-1, 2) for p in polylines])
+    lo, hi = points.min(axis=0), points.max(axis=0)
+    center = (lo + hi) / 2.0
+    extent = float(max(hi[0] - lo[0], hi[1] - lo[1], 1e-12))
+    scale = size * (1.0 - 2.0 * margin) / extent
+    return center, scale, size / 2.0
+
+
+def _to_pixels(polyline: np.ndarray, center: np.ndarray, scale: float, half: float) -> np.ndarray:
+    p = (np.asarray(polyline, dtype=float) - center) * scale
+    return np.column_stack([half + p[:, 0], half - p[:, 1]])
+
+
+def write_svg(
+    stream: TextIO,
+    polylines: Sequence[np.ndarray],
+    *,
+    size: int = 800,
+    margin: float = 0.05,
+    colors: Sequence[str] = DEFAULT_COLORS,
+    stroke_width: float = 1.2,
+    title: str = "",
+) -> None:
+    """Write the polylines as an SVG document (size x size px, white background) to ``stream``."""
+    import svgwrite
+
+    drawing = svgwrite.Drawing(size=(f"{size}px", f"{size}px"), viewBox=f"0 0 {size} {size}")
+    if title:
+        drawing.set_desc(title=title)
+    drawing.add(drawing.rect((0, 0), (size, size), fill="white"))
+    center, scale, half = _frame(polylines, size, margin)
+    for index, polyline in enumerate(polylines):
+        pixels = _to_pixels(polyline, center, scale, half)
+        drawing.add(
+            drawing.polyline(
+                [(round(x, 3), round(y, 3)) for x, y in pixels],
+                fill="none",
+                stroke=colors[index % len(colors)],
+                stroke_width=stroke_width,
+                stroke_linejoin="round",
+            )
+        )
+    drawing.write(stream, pretty=False)
+    stream.write("\n")
+
+
+def write_png(
+    stream: BinaryIO,
+    polylines: Sequence[np.ndarray],
+    *,
+    size: int = 800,
+    margin: float = 0.05,
+    colors: Sequence[str] = DEFAULT_COLORS,
+    line_width: float = 1.5,
+    supersample: int = 4,
+) -> None:
+    """Draw the polylines with Pillow at ``supersample`` times the size, then downsample (antialiasing)."""
+    from PIL import Image, ImageDraw
+
+    big = size * supersample
+    image = Image.new("RGB", (big, big), "white")
+    draw = ImageDraw.Draw(image)
+    center, scale, half = _frame(polylines, big, margin)
+    width = max(1, int(round(line_width * supersample)))
+    for index, polyline in enumerate(polylines):
+        pixels = _to_pixels(polyline, center, scale, half)
+        draw.line([tuple(p) for p in pixels.tolist()], fill=colors[index % len(colors)], width=width, joint="curve")
+    image = image.resize((size, size), Image.Resampling.LANCZOS)
+    image.save(stream, format="PNG")
