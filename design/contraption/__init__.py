@@ -1,0 +1,70 @@
+"""Chain-reaction contraptions (thesis chapter 4): scenario files, primitives, events, causal-graph supervision.
+
+Public API (used by the robust-layout helper and the station)::
+
+    from design.contraption import load_scenario, simulate, check_validity, Simulator
+    scenario = load_scenario("examples/scenarios/simple.toml")
+    space = scenario.design_space          # .names .lower .upper .dim .to_normalized() .from_normalized()
+    scenario.content_hash                  # sha256 of the canonical content (cache key)
+    scenario.events                        # event names, file order
+    problems = check_validity(scenario, x) # [] means physically valid
+    result = simulate(scenario, x)         # .success .n_successful_events .events[name].state/.time .duration .steps
+    with Simulator(scenario) as sim:       # one pybullet DIRECT client reused across many runs
+        results = [sim.run(x) for x in layouts]
+"""
+
+from design.contraption.errors import LayoutError, ScenarioFormatError, SimulationError
+from design.contraption.scenario import (
+    EVENTS,
+    PRIMITIVES,
+    DesignSpace,
+    EventSpec,
+    ObjectSpec,
+    Scenario,
+    Settings,
+    Transform,
+    layout_from_data,
+    load_layout,
+    load_scenario,
+    scenario_from_data,
+)
+from design.contraption.simulation import (
+    ASLEEP,
+    AWAKE,
+    FAILURE,
+    SUCCESS,
+    EventOutcome,
+    SimulationResult,
+    Simulator,
+    ValidityProblem,
+    check_validity,
+    simulate,
+)
+
+__all__ = [
+    "ASLEEP",
+    "AWAKE",
+    "EVENTS",
+    "FAILURE",
+    "PRIMITIVES",
+    "SUCCESS",
+    "DesignSpace",
+    "EventOutcome",
+    "EventSpec",
+    "LayoutError",
+    "ObjectSpec",
+    "Scenario",
+    "ScenarioFormatError",
+    "Settings",
+    "SimulationError",
+    "SimulationResult",
+    "Simulator",
+    "Transform",
+    "ValidityProblem",
+    "check_validity",
+    "layout_from_data",
+    "load_layout",
+    "load_scenario",
+    "scenario_from_data",
+    "simulate",
+]
