@@ -1,0 +1,313 @@
+"""One interface to run simulations: in-process, local worker processes or a Dask cluster, with a disk cache.
+
+:class:`SimulationExecutor` maps a batch of normalized layouts to per-event success booleans. It
+
+- looks every layout up in a :class:`SimulationCache` first (SQLite, keyed by the scenario's content hash and the
+  layout), so a repeated or interrupted run re-simulates nothing it already knows;
+- sends the rest to a backend: ``"inline"`` (this process, for cheap synthetic problems), ``"processes"`` (local
+  worker processes, one per core by default, each preparing its own pybullet client once) or ``"dask"`` (a
+  ``distributed`` cluster given by scheduler address or client);
+- stores each result as soon as it arrives (an interruption loses at most the simulations still running);
+- calls ``on_result(n_new)`` after each arrival (progress), and ``should_stop()`` between arrivals (a TUI's cancel
+  button): a stop raises :class:`SimulationCancelled`, Ctrl-C raises ``KeyboardInterrupt``; both keep the cache.
+"""
+
+from __future__ import annotations
+
+import os
+import signal
+import sqlite3
+import threading
+from collections.abc import Callable
+from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
+from pathlib import Path
+
+import numpy as np
+
+from design.robust.problem import LayoutProblem, RobustError, as_layout_batch
+
+
+class SimulationCancelled(RobustError):
+    """A run was stopped on request (``should_stop`` returned True); the cache keeps every finished simulation."""
+
+
+def layout_key(u: np.ndarray) -> str:
+    """Cache key of one normalized layout: its values rounded to 12 decimals (exact repeats hit)."""
+    return ",".join(f"{v:.12f}" for v in np.asarray(u, dtype=float))
+
+
+class SimulationCache:
+    """Simulation outcomes on disk, keyed by scenario content hash and layout.
+
+    Parameters
+    ----------
+    path : path or None
+        SQLite file; ``None`` keeps the cache in memory (nothing survives the process).
+    """
+
+    def __init__(self, path: str | Path | None) -> None:
+        self.path = Path(path) if path is not None else None
+        if self.path is not None:
+            self.path.parent.mkdir(parents=True, exist_ok=True)
+        self._lock = threading.Lock()
+        self._connection = sqlite3.connect(str(self.path) if self.path else ":memory:", check_same_thread=False)
+        self._connection.execute(
+            "CREATE TABLE IF NOT EXISTS simulations (scenario TEXT NOT NULL, layout TEXT NOT NULL, "
+            "events TEXT NOT NULL, PRIMARY KEY (scenario, layout))"
+        )
+        self._connection.commit()
+
+    def get_many(self, scenario: str, keys: list[str]) -> dict[str, np.ndarray]:
+        """The known outcomes among ``keys``."""
+        found: dict[str, np.ndarray] = {}
+        with self._lock:
+            for start in range(0, len(keys), 500):
+                chunk = keys[start : start + 500]
+                marks = ",".join("?" * len(chunk))
+                rows = self._connection.execute(
+                    f"SELECT layout, events FROM simulations WHERE scenario = ? AND layout IN ({marks})",
+                    [scenario, *chunk],
+                ).fetchall()
+                for layout, events in rows:
+                    found[layout] = np.array([c == "1" for c in events], dtype=bool)
+        return found
+
+    def put(self, scenario: str, key: str, events: np.ndarray) -> None:
+        """Store one outcome (committed at once, so an interruption keeps it)."""
+        text = "".join("1" if e else "0" for e in np.asarray(events, dtype=bool))
+        with self._lock:
+            self._connection.execute(
+                "INSERT OR REPLACE INTO simulations (scenario, layout, events) VALUES (?, ?, ?)", (scenario, key, text)
+            )
+            self._connection.commit()
+
+    def count(self, scenario: str | None = None) -> int:
+        """Number of stored outcomes (of one scenario, or all)."""
+        with self._lock:
+            if scenario is None:
+                return self._connection.execute("SELECT COUNT(*) FROM simulations").fetchone()[0]
+            return self._connection.execute(
+                "SELECT COUNT(*) FROM simulations WHERE scenario = ?", (scenario,)
+            ).fetchone()[0]
+
+    def close(self) -> None:
+        with self._lock:
+            self._connection.close()
+
+
+# --- worker-side state: one prepared problem per process (one pybullet client per process) ---------------------
+_WORKER_PROBLEMS: dict[str, LayoutProblem] = {}
+
+
+def _init_process_worker(problem: LayoutProblem) -> None:
+    # Ctrl-C is the parent's business: it cancels and keeps the cache; workers just get terminated.
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    problem.prepare_worker()
+    _WORKER_PROBLEMS[problem.content_hash] = problem
+
+
+def _simulate_in_worker(content_hash: str, U: np.ndarray) -> np.ndarray:
+    problem = _WORKER_PROBLEMS[content_hash]
+    return np.stack([np.asarray(problem.simulate(u), dtype=bool) for u in U])
+
+
+def _simulate_on_dask_worker(problem: LayoutProblem, U: np.ndarray) -> np.ndarray:
+    # Dask workers are long-lived: prepare each scenario once per worker process and keep it.
+    prepared = _WORKER_PROBLEMS.get(problem.content_hash)
+    if prepared is None:
+        problem.prepare_worker()
+        _WORKER_PROBLEMS[problem.content_hash] = prepared = problem
+    return np.stack([np.asarray(prepared.simulate(u), dtype=bool) for u in U])
+
+
+class SimulationExecutor:
+    """Runs a problem's simulations with a cache; use as a context manager (it owns worker processes).
+
+    Parameters
+    ----------
+    problem : LayoutProblem
+        The scenario.
+    backend : {"auto", "inline", "processes", "dask"}
+        ``"auto"``: Dask when ``scheduler`` is given, else worker processes when ``workers`` > 1, else inline.
+    workers : int or None
+        Local worker processes (``None``: one per core).
+    scheduler : str or distributed.Client or None
+        A Dask scheduler address (``tcp://HOST:PORT``) or an existing client.
+    cache_path : path or None
+        SQLite cache file; ``None`` for an in-memory cache.
+    chunk_size : int
+        Layouts per task sent to a worker (larger amortizes overhead for cheap simulations).
+    """
+
+    def __init__(
+        self,
+        problem: LayoutProblem,
+        backend: str = "auto",
+        workers: int | None = None,
+        scheduler=None,
+        cache_path: str | Path | None = None,
+        chunk_size: int = 1,
+    ) -> None:
+        if backend not in {"auto", "inline", "processes", "dask"}:
+            raise RobustError(f"executor: backend must be one of auto, inline, processes, dask, got {backend!r}")
+        if workers is not None and (int(workers) != workers or workers < 1):
+            raise RobustError(f"executor: workers must be a positive integer, got {workers!r}")
+        if int(chunk_size) != chunk_size or chunk_size < 1:
+            raise RobustError(f"executor: chunk_size must be a positive integer, got {chunk_size!r}")
+        self.problem = problem
+        self.workers = int(workers) if workers is not None else (os.cpu_count() or 1)
+        if backend == "auto":
+            backend = "dask" if scheduler is not None else ("processes" if self.workers > 1 else "inline")
+        if backend == "dask" and scheduler is None:
+            raise RobustError("executor: the dask backend needs a scheduler address or client")
+        self.backend = backend
+        self.scheduler = scheduler
+        self.chunk_size = int(chunk_size)
+        self.cache = SimulationCache(cache_path)
+        self.n_simulated = 0  # new simulations actually run
+        self.n_cache_hits = 0
+        self._pool: ProcessPoolExecutor | None = None
+        self._client = None
+        self._owns_client = False
+        self._remote_problem = None
+        self._inline_prepared = False
+
+    # -- lifecycle ------------------------------------------------------------------------------------------
+    def __enter__(self) -> SimulationExecutor:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close(kill=exc[0] is not None)
+
+    def close(self, kill: bool = False) -> None:
+        """Stop worker processes (``kill`` terminates running simulations) and close the cache."""
+        if self._pool is not None:
+            if kill:
+                for process in list(getattr(self._pool, "_processes", {}).values()):
+                    process.terminate()
+            self._pool.shutdown(wait=not kill, cancel_futures=True)
+            self._pool = None
+        self._remote_problem = None
+        if self._client is not None and self._owns_client:
+            self._client.close()
+        self._client = None
+        self.cache.close()
+
+    def _ensure_pool(self) -> ProcessPoolExecutor:
+        if self._pool is None:
+            import multiprocessing
+
+            # forkserver/spawn: never fork a process that runs threads (the TUI) or holds a pybullet client.
+            method = "forkserver" if "forkserver" in multiprocessing.get_all_start_methods() else "spawn"
+            self._pool = ProcessPoolExecutor(
+                max_workers=self.workers,
+                mp_context=multiprocessing.get_context(method),
+                initializer=_init_process_worker,
+                initargs=(self.problem,),
+            )
+        return self._pool
+
+    def _ensure_client(self):
+        if self._client is None:
+            if isinstance(self.scheduler, str):
+                from distributed import Client
+
+                self._client = Client(self.scheduler)
+                self._owns_client = True
+            else:
+                self._client = self.scheduler
+        return self._client
+
+    # -- running --------------------------------------------------------------------------------------------
+    def run(
+        self,
+        U: np.ndarray,
+        on_result: Callable[[int], None] | None = None,
+        should_stop: Callable[[], bool] | None = None,
+    ) -> np.ndarray:
+        """Per-event success ``(n, n_events)`` of each normalized layout of ``U`` (all must be valid)."""
+        U = as_layout_batch(self.problem, U)
+        n_events = len(self.problem.event_names)
+        out = np.zeros((len(U), n_events), dtype=bool)
+        if len(U) == 0:
+            return out
+        keys = [layout_key(u) for u in U]
+        scenario = self.problem.content_hash
+        known = self.cache.get_many(scenario, keys)
+        todo: dict[str, list[int]] = {}
+        for i, key in enumerate(keys):
+            if key in known:
+                out[i] = known[key]
+            else:
+                todo.setdefault(key, []).append(i)
+        self.n_cache_hits += len(U) - sum(len(v) for v in todo.values())
+        if todo:
+            for _key, rows, events in self._simulate(U, todo, should_stop, on_result):
+                out[rows] = events
+        return out
+
+    def _simulate(self, U, todo, should_stop, on_result):
+        """Yield ``(key, rows, events)`` for every new layout, storing each in the cache first."""
+        items = list(todo.items())
+        chunks = [items[i : i + self.chunk_size] for i in range(0, len(items), self.chunk_size)]
+        scenario = self.problem.content_hash
+
+        def finish(chunk, results):
+            for (key, _rows), events in zip(chunk, results):
+                self.cache.put(scenario, key, events)
+                self.n_simulated += 1
+            if on_result is not None:
+                on_result(len(chunk))
+            return [(key, rows, events) for (key, rows), events in zip(chunk, results)]
+
+        if self.backend == "inline":
+            if not self._inline_prepared:
+                self.problem.prepare_worker()
+                self._inline_prepared = True
+            for chunk in chunks:
+                if should_stop is not None and should_stop():
+                    raise SimulationCancelled("simulations stopped on request; finished ones are cached")
+                batch = U[[rows[0] for _, rows in chunk]]
+                results = np.stack([np.asarray(self.problem.simulate(u), dtype=bool) for u in batch])
+                yield from finish(chunk, results)
+            return
+
+        if self.backend == "processes":
+            pool = self._ensure_pool()
+            futures = {
+                pool.submit(_simulate_in_worker, scenario, U[[rows[0] for _, rows in chunk]]): chunk
+                for chunk in chunks
+            }
+        else:
+            client = self._ensure_client()
+            if self._remote_problem is None:
+                # Scattered once per executor and kept: re-scattering the same object can drop its data.
+                self._remote_problem = client.scatter(self.problem, broadcast=True, hash=False)
+            remote_problem = self._remote_problem
+            futures = {
+                client.submit(
+                    _simulate_on_dask_worker, remote_problem, U[[rows[0] for _, rows in chunk]], pure=False
+                ): chunk
+                for chunk in chunks
+            }
+        pending = set(futures)
+        try:
+            while pending:
+                if should_stop is not None and should_stop():
+                    raise SimulationCancelled("simulations stopped on request; finished ones are cached")
+                if self.backend == "processes":
+                    done, pending = wait(pending, timeout=0.2, return_when=FIRST_COMPLETED)
+                else:
+                    from distributed import wait as dask_wait
+
+                    try:
+                        result = dask_wait(list(pending), timeout=0.5, return_when="FIRST_COMPLETED")
+                    except TimeoutError:
+                        continue  # poll should_stop again
+                    done, pending = set(result.done), set(result.not_done)
+                for future in done:
+                    yield from finish(futures[future], future.result())
+        except BaseException:
+            for future in pending:
+                future.cancel()
+            raise

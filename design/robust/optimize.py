@@ -1,0 +1,74 @@
+"""Layout optimization (thesis 4.7): smooth-minimum energy of the per-event probabilities under SLSQP."""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy.optimize import minimize
+
+from design.robust.problem import LayoutProblem, RobustError
+
+
+def smooth_minimum(z: np.ndarray, alpha: float) -> np.ndarray:
+    """S_α(z) = Σ zᵢ e^(-α zᵢ) / Σ e^(-α zⱼ) along the last axis (tends to min(z) as α grows)."""
+    z = np.asarray(z, dtype=float)
+    shifted = -alpha * (z - z.min(axis=-1, keepdims=True))  # shift for stability; cancels in the ratio
+    weights = np.exp(shifted)
+    return np.sum(z * weights, axis=-1) / np.sum(weights, axis=-1)
+
+
+def energy(psp, u: np.ndarray, alpha: float) -> float:
+    """E(x) = -S_α(r(x)) over the PSP's learned factors (quasi-deterministic ones are constant)."""
+    factors = psp.learned_factors
+    if not factors:
+        return -1.0
+    r = psp.factor_probabilities(np.atleast_2d(u))[0, factors]
+    return -float(smooth_minimum(r, alpha))
+
+
+def _last_valid_on_segment(problem: LayoutProblem, start: np.ndarray, end: np.ndarray, steps: int = 30) -> np.ndarray:
+    """The valid point closest to ``end`` on [start, end], by bisection from a valid ``start``."""
+    if problem.is_valid(end[None, :])[0]:
+        return end
+    low, high = 0.0, 1.0
+    for _ in range(steps):
+        middle = 0.5 * (low + high)
+        if problem.is_valid((start + middle * (end - start))[None, :])[0]:
+            low = middle
+        else:
+            high = middle
+    return start + low * (end - start)
+
+
+def optimize_layout(problem: LayoutProblem, psp, start: np.ndarray, alpha: float = 10.0,
+                    max_iterations: int = 100) -> tuple[np.ndarray, dict]:
+    """Minimize the smooth-minimum energy from a valid ``start`` under bounds and validity constraints.
+
+    SLSQP gets the problem's validity margins as inequality constraints when it has them; whatever SLSQP returns,
+    the result is pulled back along the segment from ``start`` until it is physically valid, and it is never worse
+    in energy than ``start``. So the returned layout is always valid.
+
+    Returns
+    -------
+    u : ndarray
+        The optimized normalized layout.
+    info : dict
+        ``energy_start``, ``energy``, ``iterations``, ``message``.
+    """
+    start = np.asarray(start, dtype=float)
+    if start.shape != (problem.dim,) or not problem.is_valid(start[None, :])[0]:
+        raise RobustError(f"{problem.name}: the optimization must start from a valid layout of {problem.dim} values")
+    e0 = energy(psp, start, alpha)
+    if not psp.learned_factors:
+        return start, {"energy_start": e0, "energy": e0, "iterations": 0, "message": "no learned factor"}
+    constraints = []
+    if problem.validity_margins(start) is not None:
+        constraints.append({"type": "ineq", "fun": lambda u: np.atleast_1d(problem.validity_margins(u)).ravel()})
+    result = minimize(
+        lambda u: energy(psp, np.clip(u, 0.0, 1.0), alpha), start, method="SLSQP",
+        bounds=[(0.0, 1.0)] * problem.dim, constraints=constraints, options={"maxiter": max_iterations, "ftol": 1e-10},
+    )
+    u = _last_valid_on_segment(problem, start, np.clip(result.x, 0.0, 1.0))
+    e = energy(psp, u, alpha)
+    if not e <= e0:
+        u, e = start, e0
+    return u, {"energy_start": e0, "energy": e, "iterations": int(result.nit), "message": str(result.message)}

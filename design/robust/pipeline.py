@@ -1,0 +1,338 @@
+"""The robust-layout pipeline end to end, the method comparison, and progress reporting.
+
+:func:`optimize_robust_layout` runs exploration (Algorithm 1), the (factorized) PSP with query synthesis
+(Algorithm 2) and Platt calibration, then SLSQP from the best sample, and re-simulates the result, all within a
+simulation budget. :func:`compare_methods` runs ours and the baselines B1-B3 at the same budget over several seeds
+and measures ρ_g of each result on one shared evaluation set (Table 4.2, Figure 4.18).
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from design.robust.baselines import baseline_b1, baseline_b2, baseline_b3
+from design.robust.executor import SimulationExecutor
+from design.robust.optimize import optimize_layout
+from design.robust.problem import LayoutProblem, RobustError
+from design.robust.psp import EventModel, FactorizedPSP, explore
+from design.robust.robustness import EvaluationSet, RobustnessCurve, evaluation_set, robustness_curve
+from design.robust.settings import PSPSettings, RobustnessSettings
+
+METHODS = ("ours", "b1", "b2", "b3")
+
+
+@dataclass(frozen=True)
+class Progress:
+    """What a long run reports: its phase, simulations used of the budget, CV accuracy and best PSP so far."""
+
+    phase: str
+    simulations: int
+    budget: int
+    cv_accuracy: float | None = None
+    best_psp: float | None = None
+    detail: str = ""
+
+
+ProgressCallback = Callable[[Progress], None]
+
+
+class BudgetExhausted(RobustError):
+    """More simulations were requested than the budget allows (a programming error in a method)."""
+
+
+class BudgetedOracle:
+    """Counts simulations against a budget, reports progress, and runs them through an executor."""
+
+    def __init__(self, executor: SimulationExecutor, budget: int | None, progress: ProgressCallback | None = None,
+                 should_stop: Callable[[], bool] | None = None) -> None:
+        self.executor = executor
+        self.budget = budget
+        self.used = 0
+        self.progress = progress
+        self.should_stop = should_stop
+        self.phase = "start"
+        self.cv_accuracy: float | None = None
+        self.best_psp: float | None = None
+
+    def remaining(self) -> int:
+        return self.budget - self.used if self.budget is not None else 10**9
+
+    def report(self, detail: str = "") -> None:
+        if self.progress is not None:
+            self.progress(Progress(self.phase, self.used, self.budget or self.used, self.cv_accuracy,
+                                   self.best_psp, detail))
+
+    def __call__(self, U: np.ndarray) -> np.ndarray:
+        U = np.atleast_2d(U)
+        if self.budget is not None and self.used + len(U) > self.budget:
+            raise BudgetExhausted(f"{len(U)} more simulations would exceed the budget of {self.budget}")
+
+        def one_done(n: int) -> None:
+            self.used += n
+            self.report()
+
+        start = self.used
+        events = self.executor.run(U, on_result=one_done, should_stop=self.should_stop)
+        self.used = start + len(U)  # cache hits count too: the budget is the method's, not the machine's
+        self.report()
+        return events
+
+
+@dataclass
+class RobustLayout:
+    """Result of :func:`optimize_robust_layout` (normalized layouts; ``problem.to_real`` gives real units)."""
+
+    scenario: str
+    content_hash: str
+    parameter_names: tuple[str, ...]
+    event_names: tuple[str, ...]
+    u: np.ndarray
+    u_best_sample: np.ndarray
+    psp: float
+    psp_best_sample: float
+    factor_names: tuple[str, ...]
+    factor_probabilities: np.ndarray
+    subspaces: dict[str, tuple[str, ...]]
+    quasi_deterministic: tuple[str, ...]
+    cv_accuracy: float
+    simulated_events: np.ndarray
+    simulated_success: bool
+    n_simulations: int
+    n_new_simulations: int
+    budget: int | None
+    seconds: float
+    seed: int
+    optimizer: dict = field(default_factory=dict)
+    model: FactorizedPSP | None = None
+
+    def to_json(self, problem: LayoutProblem) -> dict:
+        """The LAYOUT.json content: hash, parameters in real units and normalized, predictions, budget used."""
+        real = problem.to_real(self.u)
+        return {
+            "format": "chaos-station robust layout 1",
+            "scenario": self.scenario,
+            "content_hash": self.content_hash,
+            "parameters": [
+                {"name": name, "value": float(real[i]), "normalized": float(self.u[i]),
+                 "lower": float(problem.lower[i]), "upper": float(problem.upper[i])}
+                for i, name in enumerate(self.parameter_names)
+            ],
+            "predicted_psp": float(self.psp),
+            "event_probabilities": {name: float(p) for name, p in zip(self.factor_names, self.factor_probabilities)},
+            "quasi_deterministic_events": list(self.quasi_deterministic),
+            "event_subspaces": {k: list(v) for k, v in self.subspaces.items()},
+            "cv_accuracy": float(self.cv_accuracy),
+            "simulated_success": bool(self.simulated_success),
+            "simulated_events": {name: bool(s) for name, s in zip(self.event_names, self.simulated_events)},
+            "simulations_used": int(self.n_simulations),
+            "simulation_budget": self.budget,
+            "best_sample": {"normalized": [float(v) for v in self.u_best_sample],
+                            "predicted_psp": float(self.psp_best_sample)},
+            "seed": self.seed,
+            "seconds": round(self.seconds, 3),
+        }
+
+
+def optimize_robust_layout(
+    problem: LayoutProblem,
+    executor: SimulationExecutor,
+    budget: int | None = None,
+    seed: int = 0,
+    settings: PSPSettings | None = None,
+    progress: ProgressCallback | None = None,
+    should_stop: Callable[[], bool] | None = None,
+) -> RobustLayout:
+    """Ours: exploration, PSP (factorized by default), optimization, re-simulation, within ``budget`` simulations.
+
+    Parameters
+    ----------
+    budget : int, optional
+        Hard cap on simulations (``None``: the thesis's stopping rules only). At least 20.
+    seed : int
+        Seeds every random process.
+    progress : callable, optional
+        Receives :class:`Progress` after every simulation and phase change.
+    should_stop : callable, optional
+        Polled between simulations; True stops with :class:`~design.robust.executor.SimulationCancelled`.
+    """
+    settings = settings or PSPSettings()
+    if budget is not None and (isinstance(budget, bool) or int(budget) != budget or budget < 20):
+        raise RobustError(f"{problem.name}: the simulation budget must be an integer >= 20, got {budget!r}")
+    started = time.perf_counter()
+    new_before = executor.n_simulated
+    oracle = BudgetedOracle(executor, budget, progress, should_stop)
+    learning_budget = None if budget is None else budget - 1  # one simulation is kept to check the result
+    exploration_cap = None if budget is None else max(10, int(settings.exploration_share * learning_budget))
+
+    oracle.phase = "exploration"
+    oracle.report()
+    samples = explore(problem, oracle, settings, seed, exploration_cap)
+
+    oracle.phase = "active learning"
+
+    def model_trained(model: EventModel) -> None:
+        if model.classifier is not None:
+            oracle.cv_accuracy = model.classifier.cv_accuracy_
+        oracle.report(f"event {model.event}")
+
+    def remaining_for_learning() -> int:
+        return oracle.remaining() - 1 if budget is not None else 10**9
+
+    psp = FactorizedPSP(settings, random_state=seed).fit(problem, samples, oracle, remaining_for_learning,
+                                                         model_trained)
+    oracle.cv_accuracy = psp.cv_accuracy_
+    scores = psp.predict_proba(samples.U)
+    # The best sample: highest PSP among simulated layouts, simulated successes first (they are known to work).
+    ranking = np.lexsort((-scores, ~samples.success))
+    best = int(ranking[0])
+    u_best, psp_best = samples.U[best], float(scores[best])
+    oracle.best_psp = psp_best
+
+    oracle.phase = "optimization"
+    oracle.report()
+    u, info = optimize_layout(problem, psp, u_best, settings.smooth_min_alpha, settings.optimizer_max_iterations)
+    oracle.best_psp = float(psp.predict_proba(u)[0])
+
+    oracle.phase = "check"
+    events = oracle(u[None, :])[0]
+    if not events.all() and settings.fallback_to_best_sample and samples.success[best]:
+        u, events = u_best, samples.events[best]
+        info = {**info, "fallback": "the optimized layout failed in simulation; kept the best sample"}
+    factors = psp.factor_probabilities(u)[0]
+    oracle.best_psp = float(np.prod(factors))
+    oracle.phase = "done"
+    oracle.report()
+    names = problem.parameter_names
+    return RobustLayout(
+        scenario=problem.name,
+        content_hash=problem.content_hash,
+        parameter_names=tuple(names),
+        event_names=tuple(problem.event_names),
+        u=u,
+        u_best_sample=u_best,
+        psp=float(np.prod(factors)),
+        psp_best_sample=psp_best,
+        factor_names=tuple(m.event for m in psp.models_),
+        factor_probabilities=factors,
+        subspaces={m.event: tuple(names[i] for i in m.subspace) for m in psp.models_ if not m.quasi_deterministic},
+        quasi_deterministic=tuple(m.event for m in psp.models_ if m.quasi_deterministic),
+        cv_accuracy=psp.cv_accuracy_,
+        simulated_events=np.asarray(events, dtype=bool),
+        simulated_success=bool(np.all(events)),
+        n_simulations=oracle.used,
+        n_new_simulations=executor.n_simulated - new_before,
+        budget=budget,
+        seconds=time.perf_counter() - started,
+        seed=seed,
+        optimizer=info,
+        model=psp,
+    )
+
+
+# --------------------------------------------------------------------------------------------------------------
+# Comparison with the baselines
+# --------------------------------------------------------------------------------------------------------------
+@dataclass
+class MethodRun:
+    """One run of one method: its layout, simulations, time and robustness."""
+
+    method: str
+    seed: int
+    u: np.ndarray
+    n_simulations: int
+    seconds: float
+    curve: RobustnessCurve
+
+
+@dataclass
+class Comparison:
+    """Runs of every method, the shared evaluation set and the budget given to the baselines."""
+
+    scenario: str
+    budget: int
+    evaluation_size: int
+    runs: list[MethodRun]
+
+    def table(self) -> list[dict]:
+        """Per method: ρ_g mean and standard error, mean time and simulations (Table 4.2)."""
+        rows = []
+        for method in dict.fromkeys(r.method for r in self.runs):
+            runs = [r for r in self.runs if r.method == method]
+            values = np.array([r.curve.global_robustness for r in runs])
+            sem = float(values.std(ddof=1) / np.sqrt(len(values))) if len(values) > 1 else 0.0
+            rows.append({
+                "method": method,
+                "runs": len(runs),
+                "rho_g_mean": float(values.mean()),
+                "rho_g_sem": sem,
+                "seconds_mean": float(np.mean([r.seconds for r in runs])),
+                "simulations_mean": float(np.mean([r.n_simulations for r in runs])),
+            })
+        return rows
+
+    def mean_curves(self) -> dict[str, tuple[np.ndarray, np.ndarray, np.ndarray]]:
+        """Per method: ε, mean ρ_l and its standard error (Figure 4.18)."""
+        curves = {}
+        for method in dict.fromkeys(r.method for r in self.runs):
+            stack = np.array([r.curve.local for r in self.runs if r.method == method])
+            sem = stack.std(axis=0, ddof=1) / np.sqrt(len(stack)) if len(stack) > 1 else np.zeros(stack.shape[1])
+            curves[method] = (self.runs[0].curve.epsilon, stack.mean(axis=0), sem)
+        return curves
+
+
+def compare_methods(
+    problem: LayoutProblem,
+    executor: SimulationExecutor,
+    methods: Sequence[str] = METHODS,
+    runs: int = 5,
+    budget: int | None = None,
+    seed: int = 0,
+    settings: PSPSettings | None = None,
+    robustness: RobustnessSettings | None = None,
+    progress: ProgressCallback | None = None,
+    should_stop: Callable[[], bool] | None = None,
+) -> Comparison:
+    """Ours and the baselines at the same simulation budget over ``runs`` seeds, scored by ρ_g (thesis 4.8.3).
+
+    As in the thesis, when "ours" is among the methods its runs come first and the baselines get B = the mean number
+    of simulations ours used; ``budget`` caps ours (and is B when ours is not compared).
+    """
+    unknown = sorted(set(methods) - set(METHODS))
+    if unknown or not methods:
+        raise RobustError(f"compare: methods must be among {', '.join(METHODS)}, got {list(methods)}")
+    if isinstance(runs, bool) or int(runs) != runs or runs < 1:
+        raise RobustError(f"compare: runs must be a positive integer, got {runs!r}")
+    if "ours" not in methods and budget is None:
+        raise RobustError("compare: without 'ours', give the baselines' simulation budget")
+    robustness = robustness or RobustnessSettings()
+    unbounded = BudgetedOracle(executor, None, progress, should_stop)
+    unbounded.phase = "evaluation set"
+    evaluation: EvaluationSet = evaluation_set(problem, unbounded, robustness.n_evaluation)
+    results: list[MethodRun] = []
+    ordered = [m for m in METHODS if m in methods]
+    baseline_budget = budget
+    for method in ordered:
+        for run in range(runs):
+            run_seed = seed + run
+            started = time.perf_counter()
+            if method == "ours":
+                layout = optimize_robust_layout(problem, executor, budget, run_seed, settings, progress, should_stop)
+                u, used = layout.u, layout.n_simulations
+            else:
+                oracle = BudgetedOracle(executor, None, progress, should_stop)
+                oracle.phase = f"{method} run {run + 1}/{runs}"
+                function = {"b1": baseline_b1, "b2": baseline_b2, "b3": baseline_b3}[method]
+                kwargs = {} if method == "b1" else {"settings": robustness}
+                result = function(problem, oracle, int(baseline_budget), run_seed, **kwargs)
+                u, used = result.u, result.n_simulations
+            seconds = time.perf_counter() - started
+            unbounded.phase = f"robustness of {method}"
+            curve = robustness_curve(problem, unbounded, evaluation, u, robustness, seed=run_seed)
+            results.append(MethodRun(method, run_seed, u, used, seconds, curve))
+        if method == "ours":
+            baseline_budget = int(round(np.mean([r.n_simulations for r in results if r.method == "ours"])))
+    return Comparison(problem.name, int(baseline_budget or 0), len(evaluation.U), results)

@@ -1,0 +1,89 @@
+"""Drawing physically valid layouts: Sobol sequences, uniform draws, Gaussian mixtures and balls (normalized space)."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+import numpy as np
+from scipy.stats import qmc
+
+from design.robust.problem import LayoutProblem, RobustError
+
+#: Candidate batches tried before giving up on finding enough valid layouts.
+MAX_DRAW_ROUNDS = 200
+
+
+def sample_physically_valid(
+    problem: LayoutProblem, draw: Callable[[int], np.ndarray], n: int, what: str = "layouts"
+) -> np.ndarray:
+    """``n`` valid layouts from ``draw(m) -> (m, d)`` candidates; candidates outside ``[0, 1]^d`` are rejected.
+
+    Raises
+    ------
+    RobustError
+        If ``MAX_DRAW_ROUNDS`` batches do not give ``n`` valid layouts (the distribution lies in D∅).
+    """
+    if n <= 0:
+        return np.zeros((0, problem.dim))
+    kept: list[np.ndarray] = []
+    count = 0
+    batch = max(2 * n, 16)
+    for _ in range(MAX_DRAW_ROUNDS):
+        candidates = np.atleast_2d(draw(batch))
+        in_box = np.all((candidates >= 0.0) & (candidates <= 1.0), axis=1)
+        candidates = candidates[in_box]
+        if len(candidates):
+            candidates = candidates[problem.is_valid(candidates)]
+        kept.append(candidates)
+        count += len(candidates)
+        if count >= n:
+            return np.concatenate(kept)[:n]
+    raise RobustError(
+        f"{problem.name}: found only {count} physically valid {what} of {n} after {MAX_DRAW_ROUNDS} draws"
+    )
+
+
+def sobol_valid(problem: LayoutProblem, n: int, seed: int) -> np.ndarray:
+    """The first ``n`` valid points of a scrambled Sobol sequence (seeded)."""
+    engine = qmc.Sobol(d=problem.dim, scramble=True, seed=seed)
+
+    def draw(m: int) -> np.ndarray:
+        # Whole powers of two keep the sequence's balance properties (and scipy quiet).
+        return engine.random_base2(int(np.ceil(np.log2(max(m, 2)))))
+
+    return sample_physically_valid(problem, draw, n, "Sobol points")
+
+
+def uniform_valid(problem: LayoutProblem, n: int, rng: np.random.Generator) -> np.ndarray:
+    """``n`` valid layouts drawn uniformly in ``[0, 1]^d``."""
+    return sample_physically_valid(problem, lambda m: rng.random((m, problem.dim)), n, "uniform layouts")
+
+
+def gaussian_mixture_draw(
+    centers: np.ndarray, weights: np.ndarray, scales: np.ndarray, rng: np.random.Generator
+) -> Callable[[int], np.ndarray]:
+    """A sampler of the mixture Σ wᵢ N(cᵢ, diag(sᵢ²)); ``scales`` is ``(k, d)`` standard deviations."""
+    centers = np.atleast_2d(centers)
+    weights = np.asarray(weights, dtype=float)
+    weights = weights / weights.sum() if weights.sum() > 0 else np.full(len(centers), 1.0 / len(centers))
+    scales = np.broadcast_to(np.asarray(scales, dtype=float), centers.shape)
+
+    def draw(m: int) -> np.ndarray:
+        which = rng.choice(len(centers), size=m, p=weights)
+        return centers[which] + rng.standard_normal((m, centers.shape[1])) * scales[which]
+
+    return draw
+
+
+def ball_draw(center: np.ndarray, radius: float, rng: np.random.Generator) -> Callable[[int], np.ndarray]:
+    """A uniform sampler of the Euclidean ball of ``radius`` around ``center``."""
+    center = np.asarray(center, dtype=float)
+    d = len(center)
+
+    def draw(m: int) -> np.ndarray:
+        directions = rng.standard_normal((m, d))
+        directions /= np.linalg.norm(directions, axis=1, keepdims=True)
+        radii = radius * rng.random(m) ** (1.0 / d)
+        return center + directions * radii[:, None]
+
+    return draw

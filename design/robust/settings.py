@@ -1,0 +1,147 @@
+"""Every default of thesis sections 4.5-4.8 as a named setting (frozen dataclasses)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, fields, replace
+
+from design.robust.problem import RobustError
+
+
+@dataclass(frozen=True)
+class PSPSettings:
+    """Settings of the PSP pipeline (thesis 4.5-4.7); defaults are the thesis's unless noted.
+
+    Attributes
+    ----------
+    n_initial : int
+        N₀ˢ, Sobol points of the initial exploration step (500).
+    n_per_step : int
+        Nₖˢ, points drawn per adaptive exploration step (10).
+    n_successes : int
+        N⁺, global successes that end the exploration (200).
+    max_exploration_steps : int
+        kᵉ, maximum adaptive exploration steps (500).
+    exploration_sigma : float
+        σ, diagonal covariance of each Gaussian of the exploration mixture, in normalized units (0.01, i.e. a
+        standard deviation of 0.1).
+    target_accuracy : float
+        Cross-validated accuracy that ends active learning (0.9).
+    max_active_steps : int
+        k¹, maximum active-learning steps per classifier (5).
+    n_queries : int
+        Nˢ, layouts simulated per query-synthesis step (10, as Nₖˢ).
+    query_oversampling : int
+        Candidates drawn per kept query (10: "10 Nˢ" in Algorithm 2).
+    cv_folds : int
+        Stratified folds of the hyper-parameter search and of Platt calibration (3).
+    c_grid, gamma_grid : tuple of float
+        Logarithmic ranges searched for the SVM's C and γ (γ on standardized data). The thesis does not give the
+        ranges; these are ours.
+    quasi_deterministic : float
+        Events whose conditional success rate is at least this get no classifier (0.95).
+    mutual_information_threshold : float
+        A parameter belongs to an event's subspace if its mutual information (nats) with the event exceeds this
+        (0.2). When no parameter does, the parameters with at least half the largest value are kept (ours).
+    factorize : bool
+        Per-event factorized PSP (4.6) or one classifier of global success (4.5).
+    smooth_min_alpha : float
+        α of the smooth minimum energy (4.7); the thesis does not give its value; 10 is ours.
+    optimizer_max_iterations : int
+        SLSQP iteration limit.
+    exploration_share : float
+        When a simulation budget is given, the largest part of it the exploration may use (ours: the thesis has
+        no budget for its own method, it measures one).
+    fallback_to_best_sample : bool
+        If the optimized layout fails when re-simulated, return the best simulated sample instead (ours).
+    """
+
+    n_initial: int = 500
+    n_per_step: int = 10
+    n_successes: int = 200
+    max_exploration_steps: int = 500
+    exploration_sigma: float = 0.01
+    target_accuracy: float = 0.9
+    max_active_steps: int = 5
+    n_queries: int = 10
+    query_oversampling: int = 10
+    cv_folds: int = 3
+    c_grid: tuple[float, ...] = (0.1, 1.0, 10.0, 100.0, 1000.0)
+    gamma_grid: tuple[float, ...] = (0.01, 0.1, 1.0, 10.0)
+    quasi_deterministic: float = 0.95
+    mutual_information_threshold: float = 0.2
+    factorize: bool = True
+    smooth_min_alpha: float = 10.0
+    optimizer_max_iterations: int = 100
+    exploration_share: float = 0.75
+    fallback_to_best_sample: bool = True
+
+    def __post_init__(self) -> None:
+        positive_ints = ("n_initial", "n_per_step", "n_successes", "max_exploration_steps", "n_queries",
+                         "query_oversampling", "optimizer_max_iterations")
+        for name in positive_ints:
+            value = getattr(self, name)
+            if isinstance(value, bool) or int(value) != value or value < 1:
+                raise RobustError(f"PSP settings: {name} must be a positive integer, got {value!r}")
+        if int(self.cv_folds) != self.cv_folds or self.cv_folds < 2:
+            raise RobustError(f"PSP settings: cv_folds must be an integer >= 2, got {self.cv_folds!r}")
+        if self.max_active_steps < 0:
+            raise RobustError(f"PSP settings: max_active_steps must be >= 0, got {self.max_active_steps!r}")
+        for name in ("target_accuracy", "quasi_deterministic", "exploration_share"):
+            value = getattr(self, name)
+            if not 0.0 < value <= 1.0:
+                raise RobustError(f"PSP settings: {name} must be in (0, 1], got {value!r}")
+        for name in ("exploration_sigma", "smooth_min_alpha"):
+            if not getattr(self, name) > 0:
+                raise RobustError(f"PSP settings: {name} must be > 0, got {getattr(self, name)!r}")
+        if self.mutual_information_threshold < 0:
+            raise RobustError(
+                f"PSP settings: mutual_information_threshold must be >= 0, got {self.mutual_information_threshold!r}"
+            )
+        for name in ("c_grid", "gamma_grid"):
+            grid = getattr(self, name)
+            if not grid or any(not v > 0 for v in grid):
+                raise RobustError(f"PSP settings: {name} must be a non-empty list of positive numbers, got {grid!r}")
+
+    def with_changes(self, **changes) -> PSPSettings:
+        """A copy with some settings changed (unknown names raise)."""
+        known = {f.name for f in fields(self)}
+        unknown = sorted(set(changes) - known)
+        if unknown:
+            raise RobustError(f"PSP settings: unknown setting(s) {unknown}; known: {sorted(known)}")
+        return replace(self, **changes)
+
+
+@dataclass(frozen=True)
+class RobustnessSettings:
+    """Settings of the robustness measures and baselines (thesis 4.8.3, Appendix C.3).
+
+    Attributes
+    ----------
+    n_evaluation : int
+        Size of the Sobol evaluation set (the thesis used 100K-1M; ours is smaller by default for a 2-core machine).
+    epsilon_step : float
+        l_ε, the step of the ρ_l curve (1/30).
+    thickness_factor : float
+        η = thickness_factor · l_ε, the ball "thickness" (0.1).
+    n_local : int
+        Layouts simulated in B_η(x*) and added to the evaluation set (100).
+    baseline_radius : float
+        ε of the baselines' objective ρ_l(x, 0.1) (0.1).
+    """
+
+    n_evaluation: int = 2048
+    epsilon_step: float = 1.0 / 30.0
+    thickness_factor: float = 0.1
+    n_local: int = 100
+    baseline_radius: float = 0.1
+
+    def __post_init__(self) -> None:
+        for name in ("n_evaluation", "n_local"):
+            value = getattr(self, name)
+            if isinstance(value, bool) or int(value) != value or value < 1:
+                raise RobustError(f"robustness settings: {name} must be a positive integer, got {value!r}")
+        for name in ("epsilon_step", "baseline_radius"):
+            if not 0 < getattr(self, name) <= 1:
+                raise RobustError(f"robustness settings: {name} must be in (0, 1], got {getattr(self, name)!r}")
+        if not self.thickness_factor >= 0:
+            raise RobustError(f"robustness settings: thickness_factor must be >= 0, got {self.thickness_factor!r}")

@@ -1,0 +1,117 @@
+"""PSP learning on synthetic scenarios with known success regions: classifiers, calibration, factorization."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from sklearn.metrics import roc_auc_score
+
+from design.robust import CalibratedSVM, FactorizedPSP, PSPSettings, RobustError, explore, synthetic_chain
+from design.robust.psp import fit_platt
+from design.robust.sampling import sobol_valid
+
+SMALL = PSPSettings(n_initial=160, n_successes=40, max_exploration_steps=20)
+
+
+def disc_data(n=300, seed=0):
+    rng = np.random.default_rng(seed)
+    X = rng.random((n, 2))
+    y = np.linalg.norm(X - [0.5, 0.5], axis=1) < 0.3
+    return X, y
+
+
+def test_calibrated_svm_separates_a_disc_and_ranks_probabilities():
+    X, y = disc_data()
+    model = CalibratedSVM(random_state=0).fit(X, y)
+    assert model.cv_accuracy_ > 0.9
+    assert set(model.best_params_) == {"C", "gamma"}
+    points = np.array([[0.5, 0.5], [0.5, 0.75], [0.5, 0.95], [0.05, 0.05]])
+    p = model.success_probability(points)
+    assert np.all((p >= 0) & (p <= 1))
+    assert p[0] > 0.8 and p[-1] < 0.2
+    assert p[0] >= p[1] > p[2]  # deeper inside ranks higher
+    proba = model.predict_proba(points)
+    np.testing.assert_allclose(proba.sum(axis=1), 1.0)
+    # Platt is fitted once, after the search: a < 0 means higher scores give higher probabilities.
+    assert model.platt_[0] < 0
+
+
+def test_classifier_with_too_few_of_one_class_predicts_a_constant():
+    X, y = disc_data(40)
+    y[:] = False
+    y[:2] = True
+    model = CalibratedSVM(cv_folds=3).fit(X, y)
+    assert model.constant_ == pytest.approx(3 / 42)
+    np.testing.assert_allclose(model.success_probability(X[:5]), 3 / 42)
+
+
+def test_classifier_rejects_mismatched_input():
+    with pytest.raises(RobustError, match="one label per row"):
+        CalibratedSVM().fit(np.zeros((5, 2)), np.zeros(4, dtype=bool))
+
+
+def test_platt_fit_is_monotone_and_bounded():
+    rng = np.random.default_rng(1)
+    scores = rng.normal(size=400)
+    labels = rng.random(400) < 1 / (1 + np.exp(-3 * scores))
+    a, b = fit_platt(scores, labels)
+    assert a < 0
+    p = 1 / (1 + np.exp(a * np.array([-2.0, 0.0, 2.0]) + b))
+    assert p[0] < p[1] < p[2]
+
+
+def test_exploration_finds_successes_and_respects_its_cap():
+    problem = synthetic_chain()
+    samples = explore(problem, problem.simulate_batch, SMALL, seed=3, max_simulations=200)
+    assert len(samples.U) <= 200
+    assert problem.is_valid(samples.U).all()
+    assert samples.success.sum() >= 20
+
+
+def test_exploration_moves_towards_partial_successes():
+    # A tiny success region far from most Sobol points: adaptive steps must sample around partial successes.
+    problem = synthetic_chain()
+    settings = PSPSettings(n_initial=32, n_successes=200, max_exploration_steps=15)
+    samples = explore(problem, problem.simulate_batch, settings, seed=0)
+    later = samples.events[32:]
+    first = samples.events[:32]
+    assert later.sum(axis=1).mean() > first.sum(axis=1).mean()
+
+
+def test_factorized_psp_learns_the_known_regions():
+    problem = synthetic_chain()
+    samples = explore(problem, problem.simulate_batch, SMALL, seed=0, max_simulations=200)
+    psp = FactorizedPSP(SMALL, random_state=0).fit(problem, samples, problem.simulate_batch)
+    by_event = {m.event: m for m in psp.models_}
+    # start and last always follow their parents: no classifier (quasi-deterministic).
+    assert by_event["start"].quasi_deterministic and by_event["last"].quasi_deterministic
+    assert not by_event["first"].quasi_deterministic
+    # "second" depends on roll only; "first" on x (and maybe z), never on roll.
+    assert by_event["second"].subspace == (2,)
+    assert 0 in by_event["first"].subspace and 2 not in by_event["first"].subspace
+    test = sobol_valid(problem, 512, seed=99)
+    truth = problem.simulate_batch(test).all(axis=1)
+    p = psp.predict_proba(test)
+    assert np.all((p >= 0) & (p <= 1))
+    assert roc_auc_score(truth, p) > 0.9
+    centre, outside = np.array([[0.35, 0.5, 0.6]]), np.array([[0.95, 0.1, 0.05]])
+    assert psp.predict_proba(centre)[0] > 0.6 > 0.1 > psp.predict_proba(outside)[0]
+
+
+def test_global_psp_without_factorization():
+    problem = synthetic_chain()
+    settings = SMALL.with_changes(factorize=False)
+    samples = explore(problem, problem.simulate_batch, settings, seed=1, max_simulations=200)
+    psp = FactorizedPSP(settings, random_state=1).fit(problem, samples)
+    assert [m.event for m in psp.models_] == ["global success"]
+    test = sobol_valid(problem, 256, seed=5)
+    assert roc_auc_score(problem.simulate_batch(test).all(axis=1), psp.predict_proba(test)) > 0.85
+
+
+def test_settings_validation_names_the_setting():
+    with pytest.raises(RobustError, match="n_initial"):
+        PSPSettings(n_initial=0)
+    with pytest.raises(RobustError, match="target_accuracy"):
+        PSPSettings(target_accuracy=1.5)
+    with pytest.raises(RobustError, match="unknown setting"):
+        PSPSettings().with_changes(sigma=3)

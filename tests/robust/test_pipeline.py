@@ -1,0 +1,236 @@
+"""Optimization, robustness, baselines, executor backends and cache, on synthetic scenarios."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from design.robust import (
+    FactorizedPSP,
+    PSPSettings,
+    RobustError,
+    RobustnessSettings,
+    SimulationCache,
+    SimulationCancelled,
+    SimulationExecutor,
+    baseline_b1,
+    baseline_b2,
+    baseline_b3,
+    compare_methods,
+    explore,
+    optimize_layout,
+    optimize_robust_layout,
+    robustness_curve,
+    smooth_minimum,
+    synthetic_branching,
+    synthetic_chain,
+)
+from design.robust.problem import EllipsoidEvent, SyntheticProblem
+from design.robust.robustness import evaluation_set, local_robustness_from_points
+
+SMALL = PSPSettings(n_initial=128, n_successes=40, max_exploration_steps=20)
+
+
+def test_smooth_minimum_goes_from_mean_to_minimum():
+    z = np.array([0.2, 0.9, 0.7])
+    assert smooth_minimum(z, 1e-9) == pytest.approx(z.mean())
+    assert smooth_minimum(z, 200.0) == pytest.approx(0.2, abs=1e-3)
+    assert 0.2 < smooth_minimum(z, 10.0) < z.mean()
+
+
+def squeezed_problem():
+    # The success region's centre lies inside the impossible ball: the optimizer is pulled towards D∅.
+    return SyntheticProblem(
+        name="SQUEEZED",
+        parameter_names=("a", "b"),
+        lower_bounds=(0.0, 0.0),
+        upper_bounds=(1.0, 1.0),
+        events=(EllipsoidEvent("go"), EllipsoidEvent("hit", ("go",), (0, 1), (0.5, 0.5), (0.35, 0.35))),
+        forbidden_center=(0.55, 0.5),
+        forbidden_radius=0.15,
+    )
+
+
+class BooleanOnly(SyntheticProblem):
+    """The same scenario, but it only answers valid/invalid (no margins for SLSQP)."""
+
+    def validity_margins(self, u):
+        return None
+
+
+@pytest.mark.parametrize("margins", [True, False])
+def test_optimization_never_returns_an_invalid_layout(margins):
+    base = squeezed_problem()
+    problem = base if margins else BooleanOnly(**{k: getattr(base, k) for k in (
+        "name", "parameter_names", "lower_bounds", "upper_bounds", "events", "forbidden_center", "forbidden_radius")})
+    samples = explore(problem, problem.simulate_batch, SMALL, seed=0, max_simulations=150)
+    psp = FactorizedPSP(SMALL, random_state=0).fit(problem, samples)
+    rng = np.random.default_rng(0)
+    starts = samples.U[samples.success][:6]
+    for start in starts:
+        u, info = optimize_layout(problem, psp, start, alpha=10.0)
+        assert problem.is_valid(u[None, :])[0], (start, u)
+        assert np.all((u >= 0) & (u <= 1))
+        assert info["energy"] <= info["energy_start"] + 1e-12
+    with pytest.raises(RobustError, match="valid layout"):
+        optimize_layout(problem, psp, np.array([0.55, 0.5]))
+    del rng
+
+
+def test_pipeline_finds_a_robust_valid_layout_within_budget():
+    problem = synthetic_chain()
+    progress = []
+    with SimulationExecutor(problem, backend="inline") as executor:
+        result = optimize_robust_layout(problem, executor, budget=250, seed=2, settings=SMALL,
+                                        progress=progress.append)
+    assert result.n_simulations <= 250
+    assert problem.is_valid(result.u[None, :])[0]
+    assert result.simulated_success
+    # The optimized layout is inside the known success region (the disc and the roll interval), and the
+    # optimization did not lower the predicted probability of the best sample.
+    assert np.linalg.norm((result.u[:2] - [0.35, 0.5]) / [0.25, 0.3]) < 1
+    assert abs(result.u[2] - 0.6) < 0.25
+    assert result.optimizer["energy"] <= result.optimizer["energy_start"]
+    assert 0 <= result.psp <= 1
+    phases = [p.phase for p in progress]
+    assert phases[0] == "exploration" and phases[-1] == "done"
+    assert {"active learning", "optimization"} <= set(phases)
+    assert all(p.simulations <= p.budget for p in progress)
+    payload = result.to_json(problem)
+    assert payload["content_hash"] == problem.content_hash
+    assert [p["name"] for p in payload["parameters"]] == ["x", "z", "roll"]
+    roll = payload["parameters"][2]
+    assert roll["value"] == pytest.approx(15 + 60 * roll["normalized"])
+    assert set(payload["event_probabilities"]) == {"start", "first", "second", "last"}
+
+
+def test_pipeline_is_reproducible_and_the_cache_avoids_resimulation(tmp_path):
+    problem = synthetic_chain()
+    cache = tmp_path / "sims.sqlite3"
+    with SimulationExecutor(problem, backend="inline", cache_path=cache) as executor:
+        first = optimize_robust_layout(problem, executor, budget=200, seed=4, settings=SMALL)
+    assert first.n_new_simulations > 0
+    with SimulationExecutor(problem, backend="inline", cache_path=cache) as executor:
+        second = optimize_robust_layout(problem, executor, budget=200, seed=4, settings=SMALL)
+        assert executor.n_simulated == 0
+    np.testing.assert_array_equal(first.u, second.u)
+    assert second.n_simulations == first.n_simulations
+
+
+class CountingProblem(SyntheticProblem):
+    def simulate(self, u):
+        CountingProblem.calls += 1
+        return super().simulate(u)
+
+
+def counting_chain():
+    base = synthetic_chain("COUNTING")
+    return CountingProblem(**{k: getattr(base, k) for k in (
+        "name", "parameter_names", "lower_bounds", "upper_bounds", "events", "forbidden_center", "forbidden_radius")})
+
+
+def test_an_interrupted_run_keeps_its_simulations(tmp_path):
+    problem = counting_chain()
+    cache = tmp_path / "sims.sqlite3"
+    CountingProblem.calls = 0
+    with pytest.raises(SimulationCancelled):
+        with SimulationExecutor(problem, backend="inline", cache_path=cache) as executor:
+            optimize_robust_layout(problem, executor, budget=200, seed=7, settings=SMALL,
+                                   should_stop=lambda: CountingProblem.calls >= 60)
+    assert SimulationCache(cache).count(problem.content_hash) == 60
+    CountingProblem.calls = 0
+    with SimulationExecutor(problem, backend="inline", cache_path=cache) as executor:
+        result = optimize_robust_layout(problem, executor, budget=200, seed=7, settings=SMALL)
+        assert executor.n_cache_hits >= 60
+    assert CountingProblem.calls == result.n_new_simulations == result.n_simulations - 60
+
+
+def test_process_and_dask_backends_give_the_local_result():
+    distributed = pytest.importorskip("distributed")
+    problem = synthetic_chain()
+    settings = PSPSettings(n_initial=64, n_successes=20, max_exploration_steps=4, max_active_steps=1)
+    with SimulationExecutor(problem, backend="inline") as executor:
+        inline = optimize_robust_layout(problem, executor, budget=90, seed=5, settings=settings)
+    with SimulationExecutor(problem, workers=2, chunk_size=16) as executor:
+        assert executor.backend == "processes"
+        local = optimize_robust_layout(problem, executor, budget=90, seed=5, settings=settings)
+    cluster_options = {"n_workers": 1, "threads_per_worker": 2, "processes": False, "dashboard_address": None}
+    with distributed.LocalCluster(**cluster_options) as cluster:
+        with distributed.Client(cluster) as client:
+            with SimulationExecutor(problem, scheduler=client, chunk_size=16) as executor:
+                assert executor.backend == "dask"
+                remote = optimize_robust_layout(problem, executor, budget=90, seed=5, settings=settings)
+    np.testing.assert_array_equal(inline.u, local.u)
+    np.testing.assert_array_equal(inline.u, remote.u)
+    assert inline.n_simulations == local.n_simulations == remote.n_simulations
+
+
+def test_executor_rejects_bad_settings_and_layouts():
+    problem = synthetic_chain()
+    with pytest.raises(RobustError, match="backend"):
+        SimulationExecutor(problem, backend="gpu")
+    with pytest.raises(RobustError, match="workers"):
+        SimulationExecutor(problem, workers=0)
+    with pytest.raises(RobustError, match="scheduler"):
+        SimulationExecutor(problem, backend="dask")
+    with SimulationExecutor(problem, backend="inline") as executor:
+        with pytest.raises(RobustError, match="3 columns"):
+            executor.run(np.zeros((2, 2)))
+        with pytest.raises(RobustError, match=r"\[0, 1\]"):
+            executor.run(np.full((1, 3), 1.5))
+    with SimulationExecutor(problem, backend="inline") as executor:
+        with pytest.raises(RobustError, match="budget"):
+            optimize_robust_layout(problem, executor, budget=5)
+
+
+def test_local_robustness_counts_successes_in_balls():
+    U = np.array([[0.5, 0.5], [0.55, 0.5], [0.7, 0.5], [0.9, 0.5]])
+    success = np.array([True, True, False, True])
+    rho = local_robustness_from_points(np.array([0.5, 0.5]), U, success, np.array([0.0, 0.1, 0.25, 0.5]), 0.0)
+    np.testing.assert_allclose(rho, [1.0, 1.0, 2 / 3, 3 / 4])
+    empty = local_robustness_from_points(np.array([0.0, 0.0]), U, success, np.array([0.0]), 0.0)
+    assert empty[0] == 0.0
+
+
+def test_robustness_curve_prefers_the_centre_of_the_success_region():
+    problem = synthetic_chain()
+    settings = RobustnessSettings(n_evaluation=512, n_local=30)
+    evaluation = evaluation_set(problem, problem.simulate_batch, settings.n_evaluation)
+    centre = robustness_curve(problem, problem.simulate_batch, evaluation, np.array([0.35, 0.5, 0.6]), settings)
+    edge = robustness_curve(problem, problem.simulate_batch, evaluation, np.array([0.35, 0.5, 0.38]), settings)
+    invalid = robustness_curve(problem, problem.simulate_batch, evaluation, np.array([0.8, 0.8, 0.2]), settings)
+    assert centre.local[0] == pytest.approx(1.0)
+    assert 0 <= edge.global_robustness < centre.global_robustness <= 1
+    assert centre.local[0] > centre.local[-1]
+    assert invalid.global_robustness == 0 and not invalid.valid
+    assert len(centre.epsilon) == 31
+
+
+def test_baselines_respect_their_budget():
+    problem = synthetic_branching(dim=4)
+    b1 = baseline_b1(problem, problem.simulate_batch, 200, seed=0)
+    assert b1.n_simulations <= 200 and problem.simulate_batch(b1.u[None, :]).all()
+    b2 = baseline_b2(problem, problem.simulate_batch, 200, seed=0)
+    b3 = baseline_b3(problem, problem.simulate_batch, 200, seed=0)
+    for result in (b2, b3):
+        assert result.n_simulations <= 200
+        assert problem.is_valid(result.u[None, :])[0]
+        assert 0 <= result.score <= 1
+    with pytest.raises(RobustError, match="budget"):
+        baseline_b2(problem, problem.simulate_batch, 0, seed=0)
+
+
+def test_comparison_gives_the_baselines_our_budget():
+    problem = synthetic_branching(dim=4)
+    with SimulationExecutor(problem, backend="inline") as executor:
+        comparison = compare_methods(problem, executor, ["ours", "b1", "b2"], runs=2, budget=200, settings=SMALL,
+                                     robustness=RobustnessSettings(n_evaluation=512, n_local=20))
+    rows = {r["method"]: r for r in comparison.table()}
+    assert set(rows) == {"ours", "b1", "b2"}
+    assert comparison.budget == round(rows["ours"]["simulations_mean"])
+    assert rows["b2"]["simulations_mean"] <= comparison.budget
+    assert all(0 <= r["rho_g_mean"] <= 1 for r in rows.values())
+    eps, mean, sem = comparison.mean_curves()["ours"]
+    assert len(eps) == len(mean) == len(sem) == 31
+    with pytest.raises(RobustError, match="methods"):
+        compare_methods(problem, executor, ["b4"])
