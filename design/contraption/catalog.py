@@ -1,0 +1,27 @@
+"""The example scenarios shipped in ``examples/scenarios`` and how to name them on a command line."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+#: The repository's example scenarios (a source checkout; installed copies look here too).
+EXAMPLES_DIR = Path(__file__).resolve().parents[2] / "examples" / "scenarios"
+
+
+def example_names() -> list[str]:
+    """Stems of the example scenario files, sorted."""
+    if not EXAMPLES_DIR.is_dir():
+        return []
+    return sorted(p.stem for p in EXAMPLES_DIR.iterdir() if p.suffix in (".toml", ".json"))
+
+
+def resolve_scenario_path(text: str) -> Path:
+    """A path as given if it exists, else an example by name (``simple``, ``ballrun``...), else the path as given."""
+    path = Path(text)
+    if path.exists():
+        return path
+    for suffix in (".toml", ".json"):
+        candidate = EXAMPLES_DIR / f"{text.lower()}{suffix}"
+        if candidate.exists():
+            return candidate
+    return path

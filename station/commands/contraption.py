@@ -1,0 +1,208 @@
+"""``station simulate`` and ``station scenario check``: chain-reaction contraptions from scenario files."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+import numpy as np
+
+from design.contraption import (
+    LayoutError,
+    Scenario,
+    Simulator,
+    load_layout,
+    load_scenario,
+)
+from design.contraption.catalog import example_names, resolve_scenario_path
+from station.cli_util import emit_json, output_suffix
+from station.errors import UsageError
+
+
+def register(subparsers) -> None:
+    examples = ", ".join(example_names()) or "none found"
+    simulate = subparsers.add_parser(
+        "simulate",
+        help="simulate a contraption scenario under its causal graph",
+        description="Simulate one layout of a scenario (pybullet) and report the causal graph's outcome. "
+        f"SCENARIO is a .toml/.json file or an example name ({examples}). "
+        "Exit 0 when the causal graph succeeds, 1 when it fails (or the layout is physically impossible), "
+        "2 on bad input.",
+    )
+    simulate.add_argument("scenario", metavar="SCENARIO")
+    layout = simulate.add_mutually_exclusive_group()
+    layout.add_argument(
+        "--layout",
+        metavar="FILE|NAME",
+        help='a layout file (JSON/TOML: {"track.x": -0.06, ...} or {"x": [...]}) or a layout named in the scenario',
+    )
+    layout.add_argument("--x", metavar="V1,V2,...", help="the design parameters in order, real units (m, degrees)")
+    simulate.add_argument("--json", action="store_true", help="print the result as JSON on stdout")
+    simulate.add_argument("--render", metavar="OUT.png", help="write top and side views at start and end")
+    simulate.add_argument("--no-early-stop", action="store_true", help="run to max_duration instead of stopping")
+    simulate.set_defaults(func=run_simulate)
+
+    scenario = subparsers.add_parser("scenario", help="scenario files: check")
+    actions = scenario.add_subparsers(dest="scenario_command", metavar="ACTION")
+    check = actions.add_parser(
+        "check",
+        help="validate a scenario file and list its design parameters",
+        description="Validate a scenario file (errors name the file, the field and what was expected) and print "
+        "its objects, causal graph and design parameters with their ranges.",
+    )
+    check.add_argument("scenario", metavar="SCENARIO")
+    check.add_argument("--json", action="store_true", help="print the report as JSON")
+    check.set_defaults(func=run_scenario_check)
+    scenario.set_defaults(func=lambda args: _missing_action(scenario))
+
+
+def _missing_action(parser: argparse.ArgumentParser) -> int:
+    parser.print_help(sys.stderr)
+    return 2
+
+
+def _load(text: str) -> Scenario:
+    return load_scenario(resolve_scenario_path(text))
+
+
+def parse_layout(args, scenario: Scenario) -> np.ndarray:
+    """The layout vector from ``--layout`` / ``--x`` (the scenario's own layout when neither is given)."""
+    space = scenario.design_space
+    if args.x is not None:
+        parts = [p for p in args.x.split(",") if p.strip()]
+        try:
+            values = [float(p) for p in parts]
+        except ValueError:
+            raise UsageError(f"--x {args.x!r}: expected comma-separated numbers") from None
+        if len(values) != space.dim:
+            raise UsageError(
+                f"--x: expected {space.dim} values ({', '.join(space.names)}), got {len(values)}"
+            )
+        return space.check_bounds(np.array(values), what="--x")
+    if args.layout is not None:
+        path = Path(args.layout)
+        if path.suffix.lower() not in (".json", ".toml") and args.layout in scenario.layouts:
+            return scenario.layout(args.layout)
+        if not path.exists() and path.suffix.lower() not in (".json", ".toml"):
+            raise LayoutError(
+                f"--layout {args.layout!r}: no such file and no layout of that name "
+                f"(the scenario has {sorted(scenario.layouts) or 'none'})"
+            )
+        return load_layout(path, scenario)
+    return scenario.default_layout()
+
+
+def run_simulate(args) -> int:
+    scenario = _load(args.scenario)
+    x = parse_layout(args, scenario)
+    if args.render:
+        output_suffix(args.render, {".png"})
+    with Simulator(scenario) as sim:
+        problems = sim.check_validity(x)
+        if problems:
+            if args.json:
+                emit_json(
+                    {
+                        "scenario": scenario.name,
+                        "valid": False,
+                        "success": False,
+                        "layout": scenario.design_space.as_dict(x),
+                        "problems": [
+                            {"kind": p.kind, "objects": list(p.objects), "amount": p.amount, "message": p.message}
+                            for p in problems
+                        ],
+                    }
+                )
+            else:
+                print(f"{scenario.name}: layout is physically impossible:")
+                for problem in problems:
+                    print(f"  - {problem.message}")
+            return 1
+        print(f"simulating {scenario.name} ({len(scenario.objects)} objects, {len(scenario.events)} events)...",
+              file=sys.stderr)
+        result = sim.run(x, early_stop=not args.no_early_stop, record=bool(args.render))
+    if args.render:
+        from design.contraption.render import render_result
+
+        render_result(scenario, result, args.render)
+        print(f"wrote {args.render}", file=sys.stderr)
+    if args.json:
+        data = result.to_dict()
+        data = {"scenario": scenario.name, "valid": True, "layout": scenario.design_space.as_dict(x), **data}
+        emit_json(data)
+    else:
+        print(_result_text(scenario, result))
+    return 0 if result.success else 1
+
+
+def _fmt_time(value) -> str:
+    return "-" if value is None else f"{value:.3f} s"
+
+
+def _result_text(scenario: Scenario, result) -> str:
+    lines = [
+        f"{scenario.name}: {'SUCCESS' if result.success else 'FAILURE'} "
+        f"({result.n_successful_events}/{len(result.events)} events, {result.duration:.3f} s simulated, "
+        f"{result.steps} steps{', stopped early' if result.early_stopped else ''})",
+        "",
+        f"{'event':<24} {'state':<8} {'woke':>9} {'at':>9}  label",
+    ]
+    for name in scenario.events:
+        outcome = result.events[name]
+        label = scenario.event(name).label
+        lines.append(
+            f"{name:<24} {outcome.state:<8} {_fmt_time(outcome.woke):>9} {_fmt_time(outcome.time):>9}  {label}"
+        )
+    return "\n".join(lines)
+
+
+def run_scenario_check(args) -> int:
+    scenario = _load(args.scenario)
+    space = scenario.design_space
+    if args.json:
+        emit_json(
+            {
+                "scenario": scenario.name,
+                "file": scenario.source,
+                "valid": True,
+                "content_hash": scenario.content_hash,
+                "objects": [{"name": o.name, "type": o.type, "parent": o.parent} for o in scenario.objects],
+                "events": [
+                    {"name": e.name, "type": e.type, "after": list(e.after), "join": e.join, "label": e.label}
+                    for e in scenario.event_specs
+                ],
+                "design_space": [
+                    {"name": n, "lower": lo, "upper": hi, "default": d}
+                    for n, lo, hi, d in zip(space.names, space.lower, space.upper, space.default)
+                ],
+                "layouts": {k: space.as_dict(v) for k, v in scenario.layouts.items()},
+            }
+        )
+        return 0
+    settings = scenario.settings
+    lines = [
+        f"{scenario.source}: valid scenario {scenario.name!r}",
+        f"  {scenario.description}" if scenario.description else "",
+        f"  settings: time step {settings.time_step:g} s, event timeout {settings.event_timeout:g} s, "
+        f"max duration {settings.max_duration:g} s",
+        f"  content hash: {scenario.content_hash[:16]}",
+        f"  objects ({len(scenario.objects)}): "
+        + ", ".join(f"{o.name} ({o.type})" for o in scenario.objects),
+        f"  causal graph ({len(scenario.events)} events, root {scenario.root}):",
+    ]
+    for event in scenario.event_specs:
+        after = ""
+        if event.after:
+            joined = " & " if event.join == "all" else " | "
+            after = f" after {joined.join(event.after)}"
+        extra = f", holds {event.duration:g} s" if event.duration else ""
+        lines.append(f"    {event.name} [{event.type}]{after}{extra}: {event.label}")
+    lines.append(f"  design parameters ({space.dim}):")
+    for name, lo, hi, default in zip(space.names, space.lower, space.upper, space.default):
+        unit = "deg" if name.rsplit(".", 1)[1] in ("heading", "pitch", "roll") else "m"
+        lines.append(f"    {name:<28} [{lo:g}, {hi:g}] {unit}   default {default:g}")
+    if scenario.layouts:
+        lines.append(f"  named layouts: {', '.join(sorted(scenario.layouts))}")
+    print("\n".join(line for line in lines if line))
+    return 0
