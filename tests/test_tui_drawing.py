@@ -1,0 +1,128 @@
+from __future__ import annotations
+
+import numpy as np
+from textual.widgets import Select
+
+from design.machines import get_machine
+from station.tui.app import StationApp
+from station.tui.screens.drawing import mechanism_to_drawing
+from station.tui.widgets.canvas import PatternCanvas
+from station.tui.widgets.parameter import ParameterControl
+
+
+async def settle(app, pilot):
+    await pilot.pause()
+    await app.workers.wait_for_complete()
+    await pilot.pause()
+
+
+async def open_drawing(tmp_path):
+    app = StationApp(database=tmp_path / "t.sqlite3")
+    return app
+
+
+async def test_slider_move_changes_pattern_and_undo_restores_it(tmp_path):
+    app = await open_drawing(tmp_path)
+    async with app.run_test(size=(140, 40)) as pilot:
+        await pilot.press("d")
+        await settle(app, pilot)
+        screen = app.screen
+        assert screen.name == "drawing"
+        before = screen.pattern.copy()
+        d_before = screen.params["d"]
+        control = screen.query_one("#param-d", ParameterControl)
+        control.focus()
+        await pilot.press("right", "right", "right")
+        await settle(app, pilot)
+        assert screen.params["d"] > d_before
+        assert not np.allclose(screen.pattern, before)
+        canvas = screen.query_one("#canvas", PatternCanvas)
+        assert np.allclose(canvas.polylines[0], screen.pattern)
+        for _ in range(3):
+            await pilot.press("ctrl+z")
+        await settle(app, pilot)
+        assert screen.params["d"] == d_before
+        assert np.allclose(screen.pattern, before)
+
+
+async def test_slider_never_leaves_feasible_interval(tmp_path):
+    app = await open_drawing(tmp_path)
+    async with app.run_test(size=(140, 40)) as pilot:
+        await pilot.press("d")
+        await settle(app, pilot)
+        screen = app.screen
+        control = screen.query_one("#param-d", ParameterControl)
+        control.focus()
+        await pilot.press("end")
+        await settle(app, pilot)
+        lower, upper = screen.machine.feasible_interval(screen.params, "d")
+        assert screen.params["d"] == control.state.upper
+        assert lower <= screen.params["d"] <= upper
+        assert screen.machine.is_feasible(screen.params)
+        await pilot.press("right")
+        await settle(app, pilot)
+        assert screen.params["d"] <= upper
+
+
+async def test_gear_stepper_only_reaches_feasible_designs_and_rebounds_sliders(tmp_path):
+    app = await open_drawing(tmp_path)
+    async with app.run_test(size=(140, 40)) as pilot:
+        await pilot.press("d")
+        await settle(app, pilot)
+        screen = app.screen
+        control = screen.query_one("#param-r_r", ParameterControl)
+        control.focus()
+        seen = []
+        for key in ["right"] * 3 + ["left"] * 6:
+            await pilot.press(key)
+            await settle(app, pilot)
+            seen.append(dict(screen.params))
+        assert all(screen.machine.is_feasible(p) for p in seen)
+        # Up: r_r stops below the ring (r_f = 5); down: the pen distance is pulled inside the smaller gear.
+        assert max(p["r_r"] for p in seen) == 4
+        assert seen[-1]["r_r"] < 2 and seen[-1]["d"] < 2.0
+        d_control = screen.query_one("#param-d", ParameterControl)
+        assert (d_control.state.lower, d_control.state.upper) == screen.machine.feasible_interval(screen.params, "d")
+
+
+async def test_switching_machine_rebuilds_controls_and_load_design(tmp_path):
+    app = await open_drawing(tmp_path)
+    async with app.run_test(size=(140, 40)) as pilot:
+        await pilot.press("d")
+        await settle(app, pilot)
+        screen = app.screen
+        screen.query_one("#machine", Select).value = "cycloid_drawing_machine"
+        await settle(app, pilot)
+        names = {c.parameter_name for c in screen.query(ParameterControl)}
+        assert names == set(get_machine("cycloid_drawing_machine").parameter_names)
+        app.open_design("spirograph", {"r_f": 7, "r_r": 2, "d": 1.0})
+        await settle(app, pilot)
+        assert screen.current_design() == ("spirograph", {"r_f": 7, "r_r": 2, "d": 1.0})
+        assert {c.parameter_name for c in screen.query(ParameterControl)} == {"r_f", "r_r", "d"}
+        # A bad design is reported, and the current one stays.
+        app.open_design("spirograph", {"r_f": 7, "r_r": 9, "d": 1.0})
+        await settle(app, pilot)
+        assert screen.current_design()[1]["r_r"] == 2
+
+
+async def test_animation_draws_mechanism(tmp_path):
+    app = await open_drawing(tmp_path)
+    async with app.run_test(size=(140, 40)) as pilot:
+        await pilot.press("d")
+        await settle(app, pilot)
+        screen = app.screen
+        canvas = screen.query_one("#canvas", PatternCanvas)
+        await pilot.press("p")
+        await pilot.pause(0.3)
+        assert screen.animating and screen.time > 0
+        assert len(canvas.polylines) > 2  # pattern, traced part, mechanism parts
+        await pilot.press("p")
+        assert not screen.animating
+
+
+def test_mechanism_shapes_become_polylines_and_markers():
+    model = get_machine("elliptic_spirograph")
+    polylines, markers = mechanism_to_drawing(model.mechanism(model.defaults(), 0.5))
+    assert len(polylines) >= 3
+    assert all(p.ndim == 2 and p.shape[1] == 2 for p in polylines)
+    assert markers
