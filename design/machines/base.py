@@ -423,6 +423,21 @@ class DrawingMachine:
         """Whole turns of the driving part in one period (``period / 2 pi``)."""
         return int(round(self.period(params) / (2.0 * np.pi)))
 
+    def symmetry_order(self, params: Mapping[str, Any] | None = None) -> int:
+        """Order of rotational symmetry of the pattern (generic designs; thesis 3.4.2).
+
+        Shifting time so that every other gear is back in place rotates the pattern about the center; with
+        ``r`` the radius of :attr:`symmetry_gear` (the ring or turntable) and ``m`` the lcm of the other gear
+        radii, the pattern repeats ``r / gcd(r, m)`` times per turn (e.g. Spirograph: ``r_f / gcd(r_f, r_r)``).
+        """
+        values = self.validate(params)
+        lead = int(values[self.symmetry_gear])
+        others = 1
+        for name in self.discrete_names:
+            if name != self.symmetry_gear:
+                others = math.lcm(others, int(values[name]))
+        return lead // math.gcd(lead, others)
+
     def curve(self, params: Mapping[str, Any] | None, t: Any) -> np.ndarray:
         """Pen positions at times ``t``: an array of shape ``(len(t), 2)`` (vectorized, validated design)."""
         values = self.validate(params)
