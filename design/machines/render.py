@@ -14,6 +14,32 @@ import numpy as np
 DEFAULT_COLORS = ("#1f3b73", "#c0392b", "#888888", "#27ae60")
 
 
+def shape_polylines(shapes, *, circle_points: int = 97, marker: float = 0.0) -> list[np.ndarray]:
+    """Polylines of mechanism shapes (:meth:`DrawingMachine.mechanism`): outlines of circles and ellipses,
+    segments, and small crosses for points (``marker`` is the cross's half size; 0 picks 1.5% of the extent).
+    """
+    lines: list[np.ndarray] = []
+    points: list[tuple[float, float]] = []
+    angles = np.linspace(0.0, 2.0 * np.pi, circle_points)
+    for shape in shapes:
+        if callable(getattr(shape, "polyline", None)):
+            lines.append(np.asarray(shape.polyline(circle_points), dtype=float))
+        elif hasattr(shape, "radius"):
+            cx, cy = shape.center
+            lines.append(np.column_stack([cx + shape.radius * np.cos(angles), cy + shape.radius * np.sin(angles)]))
+        elif hasattr(shape, "start"):
+            lines.append(np.array([shape.start, shape.end], dtype=float))
+        elif hasattr(shape, "position"):
+            points.append(tuple(shape.position))
+    if points:
+        everything = np.concatenate(lines + [np.array(points)])
+        size = marker or 0.015 * float(np.ptp(everything, axis=0).max() or 1.0)
+        for x, y in points:
+            lines.append(np.array([[x - size, y], [x + size, y]]))
+            lines.append(np.array([[x, y - size], [x, y + size]]))
+    return lines
+
+
 def _frame(polylines: Sequence[np.ndarray], size: int, margin: float) -> tuple[np.ndarray, float, float]:
     """Center and scale mapping drawing units to pixels (same scale on both axes, y pointing up)."""
     points = np.concatenate([np.asarray(p, dtype=float).reshape(-1, 2) for p in polylines])
