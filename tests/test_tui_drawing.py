@@ -3,7 +3,7 @@ from __future__ import annotations
 import numpy as np
 from textual.widgets import Select
 
-from design.machines import get_machine
+from design.machines import get_machine, machine_names
 from station.tui.app import StationApp
 from station.tui.screens.drawing import mechanism_to_drawing
 from station.tui.widgets.canvas import PatternCanvas
@@ -91,10 +91,11 @@ async def test_switching_machine_rebuilds_controls_and_load_design(tmp_path):
         await pilot.press("d")
         await settle(app, pilot)
         screen = app.screen
-        screen.query_one("#machine", Select).value = "cycloid_drawing_machine"
+        other = next(name for name in machine_names() if name != screen.machine.name)
+        screen.query_one("#machine", Select).value = other
         await settle(app, pilot)
         names = {c.parameter_name for c in screen.query(ParameterControl)}
-        assert names == set(get_machine("cycloid_drawing_machine").parameter_names)
+        assert names == set(get_machine(other).parameter_names)
         app.open_design("spirograph", {"r_f": 7, "r_r": 2, "d": 1.0})
         await settle(app, pilot)
         assert screen.current_design() == ("spirograph", {"r_f": 7, "r_r": 2, "d": 1.0})
