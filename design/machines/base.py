@@ -445,6 +445,46 @@ class DrawingMachine:
         z = self._positions({k: np.float64(v) for k, v in values.items()}, t)
         return np.stack([z.real, z.imag], axis=-1)
 
+    def period_many(self, rows: Any, check: bool = True) -> np.ndarray:
+        """Periods of many designs at once, shape ``(k,)`` (see :meth:`as_arrays` for ``rows``)."""
+        P = self._checked_arrays(rows, check)
+        k = len(next(iter(P.values())))
+        return np.broadcast_to(self._period(P), (k,)).astype(float)
+
+    def curve_many(self, rows: Any, t: Any, check: bool = True) -> np.ndarray:
+        """Positions of many designs at given times: an array of shape ``(k, n, 2)``.
+
+        Parameters
+        ----------
+        rows : sequence of mappings, mapping of arrays, or (k, p) array
+            The designs (see :meth:`as_arrays`).
+        t : array of shape (n,) or (k, n)
+            Times, shared by all designs or one row per design (e.g. ``fractions * period_many(rows)[:, None]``).
+        check : bool
+            Raise for an infeasible row (default); ``False`` for rows already filtered with :meth:`feasible_mask`.
+        """
+        P = self._checked_arrays(rows, check)
+        k = len(next(iter(P.values())))
+        t = np.asarray(t, dtype=float)
+        if t.ndim == 1:
+            t = np.broadcast_to(t, (k, t.size))
+        if t.ndim != 2 or t.shape[0] != k:
+            raise parameter_error(self.name, "t", f"an array of shape (n,) or ({k}, n)", t.shape)
+        z = self._positions({name: a.reshape(k, 1) for name, a in P.items()}, t)
+        return np.stack([z.real, z.imag], axis=-1)
+
+    def _checked_arrays(self, rows: Any, check: bool) -> dict[str, np.ndarray]:
+        P = self.as_arrays(rows)
+        if check:
+            ok = self.feasible_mask(P)
+            if not ok.all():
+                index = int(np.flatnonzero(~ok)[0])
+                try:
+                    self.validate({name: float(a[index]) for name, a in P.items()})
+                except Exception as error:
+                    raise type(error)(f"row {index}: {error}") from None
+        return P
+
     def sample(self, params: Mapping[str, Any] | None = None, n: int = 1024, spacing: Spacing = "time") -> np.ndarray:
         """One period of the pattern as ``n`` points, uniform in time or in arc length; closed (last == first).
 
@@ -476,17 +516,7 @@ class DrawingMachine:
             Raise ``ConstraintViolation`` naming the first infeasible row (default). Pass ``False`` only for rows
             already filtered with :meth:`feasible_mask` (it skips the check for speed).
         """
-        P = self.as_arrays(rows)
-        if check:
-            ok = self.feasible_mask(P)
-            if not ok.all():
-                index = int(np.flatnonzero(~ok)[0])
-                row = {name: float(a[index]) for name, a in P.items()}
-                try:
-                    self.validate(row)
-                except Exception as error:
-                    raise type(error)(f"row {index}: {error}") from None
-        return self._sample_arrays(P, n, spacing)
+        return self._sample_arrays(self._checked_arrays(rows, check), n, spacing)
 
     def _sample_arrays(self, P: Mapping[str, np.ndarray], n: int, spacing: str) -> np.ndarray:
         if spacing not in ("time", "arclength"):
@@ -504,30 +534,52 @@ class DrawingMachine:
         z[:, -1] = z[:, 0]  # exact closure: the last point is the first, not a rounding error away
         return np.stack([z.real, z.imag], axis=-1)
 
+    #: Dense evaluations per output point when inverting the arc length (at least ``ARCLENGTH_MIN_DENSE``).
+    ARCLENGTH_OVERSAMPLING: ClassVar[int] = 8
+    ARCLENGTH_MIN_DENSE: ClassVar[int] = 2048
+
     def _arclength_times(self, P: Mapping[str, np.ndarray], period: np.ndarray, n: int) -> np.ndarray:
-        """Times at which the curves are equidistant in arc length, by inverting a dense cumulative length."""
+        """Times at which the curves are equidistant in arc length (vectorized over designs).
+
+        1. Evaluate each curve densely and accumulate its length, each chord corrected to its arc by the turning
+           angle ``theta`` at its ends (``arc = chord (1 + theta^2 / 24)`` on a circle through three points).
+        2. Invert the cumulative length by linear interpolation (one ``searchsorted`` for every design).
+        3. One Newton step inside each dense interval, measuring the length reached with the chord to the
+           interpolated point, which removes the error of assuming a constant speed within the interval.
+        Relative spacing errors are ~1e-4 at 256 points (larger across cusps, where chords cannot follow arcs).
+        """
         k = period.shape[0]
-        dense = max(16 * n, 4096)
-        u = np.linspace(0.0, 1.0, dense)
-        t_dense = period * u[None, :]
-        z = self._positions(P, t_dense)
-        steps = np.abs(np.diff(z, axis=1))
-        length = np.concatenate([np.zeros((k, 1)), np.cumsum(steps, axis=1)], axis=1)
-        total = length[:, -1:]
-        total = np.where(total > 0, total, 1.0)
-        fraction = length / total
-        target = np.linspace(0.0, 1.0, n)
-        # One searchsorted for all rows: offset each row's (non-decreasing) fractions by its row index.
-        offset = np.arange(k)[:, None] * 2.0
-        flat = (fraction + offset).ravel()
-        goal = (target[None, :] + offset).ravel()
-        index = np.clip(np.searchsorted(flat, goal, side="right") - 1, 0, flat.size - 2)
-        index = np.minimum(index, (np.arange(k)[:, None] * dense + dense - 2).repeat(n, axis=1).ravel())
-        f0, f1 = flat[index], flat[index + 1]
-        weight = np.where(f1 > f0, (goal - f0) / np.where(f1 > f0, f1 - f0, 1.0), 0.0)
-        column = index % dense
-        times = (column + np.clip(weight, 0.0, 1.0)) / (dense - 1)
-        return period * times.reshape(k, n)
+        dense = max(self.ARCLENGTH_OVERSAMPLING * n, self.ARCLENGTH_MIN_DENSE)
+        h = period / (dense - 1)  # (k, 1) dense time step
+        z = self._positions(P, h * np.arange(dense)[None, :])
+        dz = np.diff(z, axis=1)
+        chord = np.abs(dz)
+        safe = np.where(dz == 0, 1.0, dz)
+        turn = np.abs(np.angle(safe[:, 1:] / safe[:, :-1]))
+        theta = np.empty_like(chord)
+        theta[:, 1:-1] = 0.5 * (turn[:, 1:] + turn[:, :-1])
+        theta[:, 0], theta[:, -1] = turn[:, 0], turn[:, -1]
+        arc = chord * (1.0 + theta * theta / 24.0)
+        length = np.concatenate([np.zeros((k, 1)), np.cumsum(arc, axis=1)], axis=1)
+        total = np.where(length[:, -1:] > 0, length[:, -1:], 1.0)
+        target = np.linspace(0.0, 1.0, n)[None, :] * total
+        # One searchsorted for all rows: offset each row's (non-decreasing) normalized lengths by 2 x its index.
+        offset = 2.0 * np.arange(k)[:, None]
+        flat = (length / total + offset).ravel()
+        goal = (target / total + offset).ravel()
+        index = np.searchsorted(flat, goal, side="right").reshape(k, n) - 1 - dense * np.arange(k)[:, None]
+        index = np.clip(index, 0, dense - 2)
+        rows = np.arange(k)[:, None]
+        start, step, step_chord = length[rows, index], arc[rows, index], chord[rows, index]
+        moving = step > 0
+        weight = np.clip(np.where(moving, (target - start) / np.where(moving, step, 1.0), 0.0), 0.0, 1.0)
+        t = (index + weight) * h
+        # Newton step: the length reached at t is the interval's arc times the chord fraction to z(t).
+        reached = start + step * np.abs(self._positions(P, t) - z[rows, index]) / np.where(moving, step_chord, 1.0)
+        speed = np.where(moving, step / h, 1.0)
+        t = np.clip(t + np.where(moving, (target - reached) / speed, 0.0), index * h, (index + 1) * h)
+        t[:, 0], t[:, -1] = 0.0, period[:, 0]
+        return t
 
     # -- slider bounds -------------------------------------------------------------------------------------------
 

@@ -118,6 +118,23 @@ def test_sample_many_matches_sample(name):
 
 
 @pytest.mark.parametrize("name", BUILTINS)
+def test_curve_many_and_period_many(name):
+    machine = get_machine(name)
+    rows = designs(name)
+    periods = machine.period_many(rows)
+    np.testing.assert_allclose(periods, [machine.period(row) for row in rows])
+    fractions = np.linspace(0, 1, 50)
+    batch = machine.curve_many(rows, fractions[None, :] * periods[:, None])
+    shared = machine.curve_many(rows, fractions * 3.0)
+    assert batch.shape == shared.shape == (len(rows), 50, 2)
+    for row, period, points, common in zip(rows, periods, batch, shared):
+        np.testing.assert_allclose(points, machine.curve(row, fractions * period), atol=1e-12)
+        np.testing.assert_allclose(common, machine.curve(row, fractions * 3.0), atol=1e-12)
+    with pytest.raises(ParameterError, match="shape"):
+        machine.curve_many(rows, np.zeros((len(rows) + 1, 3)))
+
+
+@pytest.mark.parametrize("name", BUILTINS)
 def test_sample_many_names_the_infeasible_row(name):
     machine = get_machine(name)
     bad = dict(machine.defaults())
