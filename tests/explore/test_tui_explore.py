@@ -1,0 +1,93 @@
+"""The Explore screen: PoIs on the canvas, invariants from keys, invariant-space sliders, send back to Drawing."""
+
+from __future__ import annotations
+
+import numpy as np
+from textual.widgets import DataTable
+
+from design.explore import CURVATURE
+from station.tui.app import StationApp
+from station.tui.widgets.explore_canvas import ExploreCanvas
+from station.tui.widgets.explore_slider import InvariantSlider
+
+
+async def settle(app, pilot):
+    for _ in range(3):
+        await pilot.pause()
+        await app.workers.wait_for_complete()
+    await pilot.pause()
+
+
+async def test_explore_screen_full_session(tmp_path):
+    app = StationApp(database=tmp_path / "t.sqlite3")
+    async with app.run_test(size=(150, 45)) as pilot:
+        await pilot.press("d")
+        await settle(app, pilot)
+        app.get_screen("drawing").load_design("cycloid_drawing_machine", {})
+        await settle(app, pilot)
+        await pilot.press("x")
+        await settle(app, pilot)
+        screen = app.screen
+        assert screen.name == "explore"
+        explorer = screen.explorer
+        assert explorer is not None and explorer.machine.name == "cycloid_drawing_machine"
+        table = screen.query_one("#pois", DataTable)
+        assert table.row_count == len(explorer.pois) > 0
+        canvas = screen.query_one("#canvas", ExploreCanvas)
+        assert len(canvas.markers) == len(explorer.pois)
+        # Base parameters as sliders before any invariant.
+        assert [w.label for w in screen.query(InvariantSlider)] == list(explorer.names)
+
+        # Select the first curvature maximum with the keyboard and freeze its curvature.
+        first = next(p.id for p in explorer.pois if p.kind == CURVATURE)
+        table.focus()
+        table.move_cursor(row=first)
+        await pilot.press("enter")
+        await settle(app, pilot)
+        assert screen.selected == [first]
+        await pilot.press("2")
+        await settle(app, pilot)
+        assert [inv.label for inv in explorer.invariants] == [f"curvature:{first}"]
+        sliders = list(screen.query(InvariantSlider))
+        assert [w.label for w in sliders] == [s.name for s in explorer.sliders]
+        assert sliders[0].label == "axis 1" and len(sliders) < len(explorer.names)
+        screen.action_cycle_poi(1)  # move the highlight away: the frozen PoI shows as ◆
+        assert sum(m.char == "◆" for m in canvas.markers) == 1
+
+        # Move the first slider: live preview (two curves drawn), then release: re-projection.
+        before = explorer.base_design
+        sliders[0].focus()
+        await pilot.press("right", "right")
+        await settle(app, pilot)
+        assert len(canvas.polylines) == 2
+        assert explorer.values[0] != 0
+        await pilot.press("enter")
+        await settle(app, pilot)
+        assert explorer.base_design != before
+        assert "released" in screen.last_message and f"curvature:{first}" in screen.last_message
+        assert explorer.invariant_errors()[f"curvature:{first}"] < 0.02
+        assert len(canvas.polylines) == 1
+
+        # Send the explored design back to the Drawing machines screen.
+        await pilot.press("o")
+        await settle(app, pilot)
+        assert app.screen.name == "drawing"
+        machine, params = app.screen.current_design()
+        assert machine == "cycloid_drawing_machine"
+        assert all(np.isclose(params[k], v) for k, v in explorer.design.items())
+
+
+async def test_over_constrained_is_reported_and_the_screen_stays_usable(tmp_path):
+    app = StationApp(database=tmp_path / "t.sqlite3")
+    async with app.run_test(size=(150, 45)) as pilot:
+        await pilot.press("x")  # from home: the Drawing screen's current design (a Spirograph: 1 parameter)
+        await settle(app, pilot)
+        screen = app.screen
+        assert screen.name == "explore"
+        await pilot.press("1")  # position of the highlighted PoI: over-constrained with one parameter
+        await settle(app, pilot)
+        assert "over-constrained" in screen.last_message
+        assert screen.explorer.invariants == []
+        await pilot.press("n", "n")
+        await settle(app, pilot)
+        assert screen.highlighted == 2
