@@ -106,3 +106,50 @@ def test_bad_input_exits_2_with_one_line(capsys, argv, message):
     assert out == ""
     assert err.count("\n") == 1 and err.startswith("station: error: ")
     assert message in err
+
+
+def test_design_file_round_trip_and_set_wins(capsys, tmp_path):
+    first = tmp_path / "first.json"
+    assert run(capsys, "pattern", "hoot_nanny", "--set", "l1=13", "--out", str(first))[0] == 0
+    code, out, _ = run(capsys, "pattern", "hoot_nanny", "--design", str(first), "--set", "l2=7.5", "--json")
+    assert code == 0
+    params = json.loads(out)["params"]
+    assert params["l1"] == 13 and params["l2"] == 7.5
+    flat = tmp_path / "flat.json"
+    flat.write_text(json.dumps({"r_f": 7, "r_r": 2}))
+    code, out, _ = run(capsys, "pattern", "spirograph", "--design", str(flat), "--json")
+    assert json.loads(out)["params"] == {"r_f": 7, "r_r": 2, "d": 2.0}
+
+
+def test_example_designs_are_feasible(capsys):
+    from pathlib import Path
+
+    examples = sorted((Path(__file__).parents[2] / "examples" / "patterns").glob("*.json"))
+    assert len(examples) >= 4
+    for path in examples:
+        machine = json.loads(path.read_text())["machine"]
+        code, out, err = run(capsys, "pattern", machine, "--design", str(path), "--points", "64", "--json")
+        assert code == 0, err
+
+
+@pytest.mark.parametrize(
+    "content, message",
+    [
+        ("{not json", "not valid JSON"),
+        ("[1, 2]", "expected a JSON object, got list"),
+        ('{"machine": "hoot_nanny", "params": {}}', "field 'machine' is 'hoot_nanny', but the command draws"),
+        ('{"params": [1]}', "field 'params' must be an object"),
+        ('{"params": {"d": "x"}}', "parameter 'd' must be a finite real number"),
+    ],
+)
+def test_bad_design_file_exits_2_naming_the_file(capsys, tmp_path, content, message):
+    path = tmp_path / "bad.json"
+    path.write_text(content)
+    code, out, err = run(capsys, "pattern", "spirograph", "--design", str(path))
+    assert code == 2 and out == ""
+    assert err.count("\n") == 1 and message in err
+
+
+def test_missing_design_file_exits_2(capsys, tmp_path):
+    code, _, err = run(capsys, "pattern", "spirograph", "--design", str(tmp_path / "nope.json"))
+    assert code == 2 and "nope.json" in err and err.count("\n") == 1
