@@ -232,3 +232,34 @@ def test_validate_reports_constraint_name_and_margin():
     assert info.value.constraint == "pen_inside_gear"
     assert info.value.margin == pytest.approx(-1.5)
     assert "d must be at most r_r = 3, got 4.5" in str(info.value)
+
+
+def random_feasible_designs(machine, k, seed):
+    """``k`` feasible designs by rejection sampling in the boxes (gear radii 1..12, lengths up to 25)."""
+    rng = np.random.default_rng(seed)
+    rows = {}
+    for p in machine.parameters:
+        if p.kind == "discrete":
+            rows[p.name] = rng.integers(max(1, int(p.lower)), 13, 200_000).astype(float)
+        else:
+            rows[p.name] = rng.uniform(p.lower, min(p.upper, 25.0), 200_000)
+    ok = np.flatnonzero(machine.feasible_mask(rows))[:k]
+    assert ok.size == k
+    discrete = set(machine.discrete_names)
+    return [{name: (int(v[i]) if name in discrete else float(v[i])) for name, v in rows.items()} for i in ok]
+
+
+@pytest.mark.parametrize("name", BUILTINS)
+def test_feasible_interval_on_random_feasible_designs(name):
+    machine = get_machine(name)
+    for design in random_feasible_designs(machine, 12, seed=11):
+        for parameter in machine.continuous_names:
+            lo, hi = machine.feasible_interval(design, parameter)
+            box = machine.parameter(parameter)
+            assert lo <= design[parameter] <= hi
+            inside = np.linspace(lo, hi, 41)
+            assert machine.feasible_mask({**design, parameter: inside}).all(), (design, parameter)
+            step = 1e-7 * (box.upper - box.lower)
+            outside = [x for x, edge in ((lo - step, lo > box.lower), (hi + step, hi < box.upper)) if edge]
+            if outside:
+                assert not machine.feasible_mask({**design, parameter: np.array(outside)}).any(), (design, parameter)
