@@ -1,0 +1,231 @@
+"""Kerf compensation and nesting of parts on a sheet.
+
+Kerf: the laser removes a strip ``kerf`` wide centred on its path, so the path runs half a kerf *outside* a part's
+outline and half a kerf *inside* its holes: a shapely buffer of ``+kerf/2`` does both at once on a polygon with
+holes (round joins keep gear tips round).
+
+Nesting: a deterministic bottom-left fill on a raster of the sheet. Parts are placed largest first; for each part
+and each of four rotations, the free positions are found at once by correlating the sheet's occupancy with the
+part's footprint (an FFT), the lowest-then-leftmost free position wins. Rings' open centres stay free, so small
+gears nest inside ring gears. Every placement is then checked exactly with shapely (gap kept to every other part).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+import shapely
+from scipy.signal import fftconvolve
+from shapely.geometry import Polygon, box
+
+from design.errors import ConstraintViolation, parameter_error
+from design.fabrication.parts import Part
+
+__all__ = ["kerf_compensate", "Placement", "Sheet", "nest_parts"]
+
+
+def kerf_compensate(shape: Polygon, kerf: float) -> Polygon:
+    """The laser path outline for ``shape``: outline offset outward and holes inward by ``kerf/2`` (mm)."""
+    if not (math.isfinite(kerf) and 0.0 <= kerf <= 2.0):
+        raise parameter_error("fabrication", "kerf", "a width in [0, 2] mm", kerf)
+    if kerf == 0:
+        return shape
+    grown = shape.buffer(kerf / 2.0, quad_segs=16, join_style="round")
+    if isinstance(grown, Polygon):
+        return grown
+    return max(grown.geoms, key=lambda g: g.area)
+
+
+@dataclass(frozen=True)
+class Placement:
+    """Where one part goes: rotated by ``angle`` degrees about its origin, then moved by ``(dx, dy)`` mm."""
+
+    index: int
+    angle: float
+    dx: float
+    dy: float
+
+
+@dataclass(frozen=True)
+class Sheet:
+    """A nested sheet.
+
+    Attributes
+    ----------
+    width, height, gap, kerf : float
+        Sheet size, least distance between cut paths, kerf (mm).
+    placements : tuple of Placement
+        One per part, in the order of ``parts``.
+    parts : tuple of Part
+        Parts as placed on the sheet (designed outlines, sheet coordinates, y up from the front-left corner).
+    cut_shapes : tuple of Polygon
+        Kerf-compensated outlines as placed: the laser follows their boundaries.
+    """
+
+    width: float
+    height: float
+    gap: float
+    kerf: float
+    placements: tuple[Placement, ...]
+    parts: tuple[Part, ...]
+    cut_shapes: tuple[Polygon, ...]
+
+    @property
+    def parts_area(self) -> float:
+        """Material area of the parts (mm²)."""
+        return float(sum(p.shape.area for p in self.parts))
+
+    @property
+    def used_width(self) -> float:
+        """Width of the sheet's corner rectangle that holds every part (mm)."""
+        return float(max(s.bounds[2] for s in self.cut_shapes)) + self.gap if self.cut_shapes else 0.0
+
+    @property
+    def used_height(self) -> float:
+        """Height of the sheet's corner rectangle that holds every part (mm)."""
+        return float(max(s.bounds[3] for s in self.cut_shapes)) + self.gap if self.cut_shapes else 0.0
+
+    @property
+    def usage(self) -> float:
+        """Fraction of the whole sheet's area that ends up in parts."""
+        return self.parts_area / (self.width * self.height)
+
+    @property
+    def envelope_usage(self) -> float:
+        """Fraction of the used corner rectangle (``used_width × used_height``) that ends up in parts: how densely
+        the parts are packed; the rest of the sheet stays usable."""
+        used = self.used_width * self.used_height
+        return self.parts_area / used if used > 0 else 0.0
+
+
+def _raster(shape: Polygon, resolution: float, origin: tuple[float, float], size: tuple[int, int]) -> np.ndarray:
+    """A 0/1 mask of ``shape`` on a grid of ``size = (rows, cols)`` cells of ``resolution`` mm from ``origin``."""
+    mask = np.zeros(size, dtype=np.uint8)
+
+    def pixels(ring) -> np.ndarray:
+        xy = (np.asarray(ring.coords) - np.asarray(origin)) / resolution
+        return np.round(xy * 16).astype(np.int32)  # 4 fractional bits for cv2's sub-pixel polygons
+
+    geoms = getattr(shape, "geoms", [shape])
+    for geom in geoms:
+        cv2.fillPoly(mask, [pixels(geom.exterior)], 1, lineType=cv2.LINE_8, shift=4)
+        for hole in geom.interiors:
+            cv2.fillPoly(mask, [pixels(hole)], 0, lineType=cv2.LINE_8, shift=4)
+    # Conservative: a cell partly covered counts as covered.
+    return cv2.dilate(mask, np.ones((3, 3), np.uint8))
+
+
+def nest_parts(parts: Sequence[Part], width: float, height: float, gap: float = 3.0, kerf: float = 0.0,
+               resolution: float | None = None) -> Sheet:
+    """Place every part on a ``width`` × ``height`` mm sheet, at least ``gap`` mm apart and from the edges.
+
+    Raises
+    ------
+    ConstraintViolation
+        When a part cannot be placed (the message names it and its size).
+    """
+    for name, value in (("sheet width", width), ("sheet height", height)):
+        if not (math.isfinite(value) and value > 0):
+            raise parameter_error("fabrication", name, "a positive length (mm)", value)
+    if not (math.isfinite(gap) and gap >= 0):
+        raise parameter_error("fabrication", "gap", "a non-negative length (mm)", gap)
+    if resolution is None:
+        resolution = max(0.5, max(width, height) / 800.0)
+    cols, rows = int(math.ceil(width / resolution)), int(math.ceil(height / resolution))
+    occupied = np.zeros((rows, cols), dtype=np.float32)
+    # The footprint (part + gap) must stay on the sheet, so parts keep the gap from the edges too.
+    cut_shapes = [kerf_compensate(p.shape, kerf) for p in parts]
+    order = sorted(range(len(parts)), key=lambda i: (-cut_shapes[i].area, parts[i].name))
+    placements: dict[int, Placement] = {}
+    placed_shapes: list[Polygon] = []
+    for index in order:
+        placement = _place_one(index, cut_shapes[index], occupied, placed_shapes, resolution, gap, width, height)
+        if placement is None:
+            bx = cut_shapes[index].bounds
+            raise ConstraintViolation(
+                f"sheet {width:g}x{height:g} mm: no room for part {parts[index].name!r} "
+                f"({bx[2] - bx[0]:.1f}x{bx[3] - bx[1]:.1f} mm) with a {gap:g} mm gap; use a larger sheet "
+                "(--sheet WxH) or a smaller scale", constraint="sheet size")
+        placements[index] = placement
+        placed = _moved(cut_shapes[index], placement)
+        placed_shapes.append(placed)
+        # Occupy the placed part (holes stay free for smaller parts).
+        occupied = np.maximum(occupied, _raster(placed, resolution, (0.0, 0.0), (rows, cols)).astype(np.float32))
+    ordered = tuple(placements[i] for i in range(len(parts)))
+    placed_parts = tuple(p.transformed(pl.angle, pl.dx, pl.dy) for p, pl in zip(parts, ordered))
+    placed_cuts = tuple(_moved(s, pl) for s, pl in zip(cut_shapes, ordered))
+    return Sheet(float(width), float(height), float(gap), float(kerf), ordered, placed_parts, placed_cuts)
+
+
+def _moved(shape: Polygon, placement: Placement) -> Polygon:
+    rotated = shapely.affinity.rotate(shape, placement.angle, origin=(0, 0))
+    return shapely.affinity.translate(rotated, placement.dx, placement.dy)
+
+
+def _place_one(index: int, shape: Polygon, occupied: np.ndarray, placed: list[Polygon], resolution: float,
+               gap: float, width: float, height: float) -> Placement | None:
+    if placed:
+        bounds = np.array([p.bounds for p in placed])
+        envelope = (float(bounds[:, 2].max()), float(bounds[:, 3].max()))
+    else:
+        envelope = (0.0, 0.0)
+    best: tuple[tuple[float, float], Placement] | None = None
+    # Quarter turns that keep labels readable (never upside down).
+    for angle in (0.0, 90.0):
+        rotated = shapely.affinity.rotate(shape, angle, origin=(0, 0))
+        # The footprint is the part grown by the gap: where it is free, the part keeps the gap to everything.
+        footprint = rotated.buffer(gap, quad_segs=8) if gap > 0 else rotated
+        minx, miny, maxx, maxy = footprint.bounds
+        rows = int(math.ceil((maxy - miny) / resolution)) + 3
+        cols = int(math.ceil((maxx - minx) / resolution)) + 3
+        if rows > occupied.shape[0] or cols > occupied.shape[1]:
+            continue
+        mask = _raster(footprint, resolution, (minx - resolution, miny - resolution), (rows, cols))
+        # overlap[y, x] = number of occupied cells under the mask placed with its corner at cell (y, x).
+        overlap = fftconvolve(occupied, mask[::-1, ::-1].astype(np.float32), mode="valid")
+        free = np.argwhere(overlap < 0.5)
+        if free.size == 0:
+            continue
+        # Score every free position at once: the smallest envelope (from the sheet's corner) of everything placed so
+        # far plus this part, then the lowest top edge, then the leftmost. The envelope term sends small parts into
+        # the free centres of ring gears instead of next to them.
+        smin_x, smin_y, smax_x, smax_y = rotated.bounds
+        dx = free[:, 1] * resolution - (minx - resolution)
+        dy = free[:, 0] * resolution - (miny - resolution)
+        right = np.maximum(envelope[0], smax_x + dx)
+        top = np.maximum(envelope[1], smax_y + dy)
+        score = np.lexsort((np.round(dx, 6), np.round(smax_y + dy, 6), np.round(right * top, 3)))
+        for pick in score[:16]:
+            candidate = Placement(index, angle, float(dx[pick]), float(dy[pick]))
+            moved = _moved(shape, candidate)
+            if not _fits(moved, placed, gap, width, height):
+                continue
+            key = (round(float(right[pick] * top[pick]), 3), round(moved.bounds[3], 6), float(dx[pick]))
+            if best is None or key < best[0]:
+                best = (key, candidate)
+            break
+    return None if best is None else best[1]
+
+
+def _fits(shape: Polygon, placed: list[Polygon], gap: float, width: float, height: float) -> bool:
+    minx, miny, maxx, maxy = shape.bounds
+    tolerance = 1e-6
+    if minx < gap - tolerance or miny < gap - tolerance or maxx > width - gap + tolerance \
+            or maxy > height - gap + tolerance:
+        return False
+    if placed:
+        # Prepared geometries make the distance test use GEOS's indexed facet distance.
+        others = np.array(placed, dtype=object)
+        shapely.prepare(others)
+        if np.any(shapely.dwithin(others, shape, gap - 1e-6)):
+            return False
+    return True
+
+
+def sheet_outline(sheet: Sheet) -> Polygon:
+    """The sheet as a polygon (for previews)."""
+    return box(0.0, 0.0, sheet.width, sheet.height)

@@ -1,0 +1,392 @@
+"""The flat parts of each drawing machine, as 2D outlines with holes (mm), derived from a design's parameters.
+
+A model's lengths are in gear-radius units (Appendix A); ``scale`` is millimetres per unit. Every gear's pitch
+curve is its primitive × scale, so the cut machine draws the modelled pattern (scaled). Connectors (axles, pins,
+spacers, pen holders) are bought or 3D-printed, as in the thesis (3.6.3): the flat parts carry holes for them.
+
+Parts per machine:
+
+- Spirograph: fixed ring gear (internal, with mounting holes), rolling gear (with the pen hole at ``d``);
+- elliptic Spirograph: fixed ring gear, elliptic rolling gear (pen hole on the major axis at ``d``);
+- Cycloid Drawing Machine: turntable gear, external gear (axle + slider pin at ``r_S``), the pen arm (pivot hole at
+  the fulcrum, a slot where the slider pin slides, the pen hole at ``d_FH``), base plate (axles of both gears and the
+  fulcrum at their model positions);
+- Hoot-Nanny: turntable gear, two external gears (axle + pivot pin at ``r_Pi``), two arms (pivot hole, pen hole at
+  ``l_i``), base plate (axles of the three gears).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from types import MappingProxyType
+from typing import Any
+
+import numpy as np
+import shapely.affinity as affinity
+from shapely.geometry import LineString, MultiPoint, Point, Polygon
+
+from design.errors import ConstraintViolation, parameter_error
+from design.fabrication.gears import (
+    Gear,
+    GearSettings,
+    ellipse_axes,
+    elliptic_gear,
+    external_gear,
+    ring_gear,
+    teeth_per_unit,
+)
+from design.fabrication.labels import place_label
+
+__all__ = ["Hardware", "Part", "machine_parts", "FABRICABLE_MACHINES"]
+
+FABRICABLE_MACHINES = ("spirograph", "elliptic_spirograph", "cycloid_drawing_machine", "hoot_nanny")
+
+
+@dataclass(frozen=True)
+class Hardware:
+    """Physical sizes of what the flat parts hold (mm).
+
+    Parameters
+    ----------
+    pen_hole : float
+        Diameter of the pen hole (a ballpoint refill tip by default).
+    axle_hole : float
+        Diameter of gear axles (an M4 bolt by default).
+    pin_hole : float
+        Diameter of pivot and slider pins (M3).
+    arm_width : float
+        Width of arms and of the base plate's border around each axle.
+    rim : float
+        Width of a ring gear's plain rim outside its tooth roots.
+    wall : float
+        Least material left between a hole and an edge.
+    label_height : float
+        Height of engraved capitals.
+    """
+
+    pen_hole: float = 3.0
+    axle_hole: float = 4.2
+    pin_hole: float = 3.2
+    arm_width: float = 12.0
+    rim: float = 10.0
+    wall: float = 1.5
+    label_height: float = 4.0
+
+    def __post_init__(self) -> None:
+        for name in ("pen_hole", "axle_hole", "pin_hole", "arm_width", "rim", "wall", "label_height"):
+            value = getattr(self, name)
+            if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
+                raise parameter_error("hardware", name, "a positive length (mm)", value)
+
+
+@dataclass(frozen=True)
+class Part:
+    """One flat part to cut.
+
+    Attributes
+    ----------
+    name : str
+        Unique within a machine, e.g. ``"rolling gear"``.
+    shape : shapely Polygon
+        Material (mm) with its holes, as designed (before kerf compensation).
+    engrave : tuple of (n, 2) arrays
+        Label strokes to engrave, in the part's coordinates.
+    info : mapping
+        Facts for the parts list (teeth, module, pitch radius, hole positions, ...).
+    notes : tuple of str
+        Warnings for the maker.
+    """
+
+    name: str
+    shape: Polygon
+    engrave: tuple[np.ndarray, ...] = ()
+    info: Mapping[str, Any] = field(default_factory=lambda: MappingProxyType({}))
+    notes: tuple[str, ...] = ()
+
+    def transformed(self, angle_deg: float, dx: float, dy: float) -> Part:
+        """The part rotated by ``angle_deg`` about the origin, then translated."""
+        shape = affinity.translate(affinity.rotate(self.shape, angle_deg, origin=(0, 0)), dx, dy)
+        c, s = math.cos(math.radians(angle_deg)), math.sin(math.radians(angle_deg))
+        rotation = np.array([[c, s], [-s, c]])
+        engrave = tuple(stroke @ rotation + np.array([dx, dy]) for stroke in self.engrave)
+        return Part(self.name, shape, engrave, self.info, self.notes)
+
+
+def _disc(centre: tuple[float, float], diameter: float) -> Polygon:
+    return Point(centre).buffer(diameter / 2.0, quad_segs=16)
+
+
+def _with_holes(part_name: str, shape: Polygon, holes: list[tuple[str, tuple[float, float], float]],
+                wall: float) -> Polygon:
+    """``shape`` minus round holes; every hole keeps ``wall`` of material to the edge and to the other holes."""
+    boundary = shape.exterior
+    discs = []
+    for hole_name, centre, diameter in holes:
+        disc = _disc(centre, diameter)
+        margin = boundary.distance(disc) if shape.contains(disc) else -1.0
+        if margin < wall:
+            raise ConstraintViolation(
+                f"{part_name}: the {hole_name} ({diameter:g} mm at {centre[0]:.1f}, {centre[1]:.1f} mm) leaves "
+                f"{max(margin, 0.0):.2f} mm of material to the edge, expected at least {wall:g} mm; use a larger "
+                "scale or a smaller hole",
+                constraint=f"{part_name} {hole_name}", margin=float(margin - wall))
+        for other_name, other in discs:
+            gap = disc.distance(other)
+            if gap < wall:
+                raise ConstraintViolation(
+                    f"{part_name}: the {hole_name} and the {other_name} are {gap:.2f} mm apart, expected at least "
+                    f"{wall:g} mm; use a larger scale or smaller holes",
+                    constraint=f"{part_name} {hole_name}", margin=float(gap - wall))
+        discs.append((hole_name, disc))
+    for _, disc in discs:
+        shape = shape.difference(disc)
+    return shape
+
+
+def _label(shape: Polygon, text: str, hardware: Hardware, near=(0.0, 0.0)) -> tuple[np.ndarray, ...]:
+    return tuple(place_label(shape, text, hardware.label_height, near=near))
+
+
+def _root_radius(gear: Gear) -> float:
+    return gear.pitch_radius - gear.settings.dedendum * gear.module
+
+
+def _gear_info(gear: Gear, model_radius: float, scale: float) -> dict[str, Any]:
+    info: dict[str, Any] = {
+        "kind": gear.kind,
+        "teeth": gear.teeth,
+        "module_mm": round(gear.module, 5),
+        "pressure_angle_deg": gear.settings.pressure_angle,
+        "pitch_radius_mm": round(gear.pitch_radius, 5),
+        "model_radius": model_radius,
+        "model_radius_times_scale_mm": round(model_radius * scale, 5),
+    }
+    if gear.kind != "elliptic":
+        info["base_radius_mm"] = round(gear.base_radius, 5)
+    if gear.kind == "elliptic":
+        info["semi_axes_mm"] = [round(gear.pitch.a, 5), round(gear.pitch.b, 5)]
+        info["perimeter_mm"] = round(gear.pitch.perimeter, 5)
+    return info
+
+
+def _gear_part(name: str, code: str, gear: Gear, model_radius: float, scale: float, hardware: Hardware,
+               holes: list[tuple[str, tuple[float, float], float]], label_near=(0.0, 0.0),
+               extra_info: Mapping[str, Any] | None = None) -> Part:
+    shape = _with_holes(name, gear.outline, holes, hardware.wall)
+    info = _gear_info(gear, model_radius, scale)
+    info["holes"] = [{"name": n, "at_mm": [round(c[0], 3), round(c[1], 3)], "diameter_mm": d} for n, c, d in holes]
+    if extra_info:
+        info.update(extra_info)
+    text = f"{code} Z{gear.teeth}"
+    return Part(name, shape, _label(shape, text, hardware, label_near), MappingProxyType(info), tuple(gear.notes()))
+
+
+def _bar(name: str, length_points: list[float], width: float) -> Polygon:
+    """A straight arm along +x covering ``[min, max]`` of ``length_points``, with round ends."""
+    lo, hi = min(length_points), max(length_points)
+    return LineString([(lo, 0.0), (hi, 0.0)]).buffer(width / 2.0, quad_segs=16)
+
+
+def _plate(points: list[tuple[float, float]], border: float) -> Polygon:
+    """A base plate: the convex hull of discs of radius ``border`` around every axle."""
+    return MultiPoint(points).convex_hull.buffer(border, quad_segs=16)
+
+
+# ---------------------------------------------------------------------------------------------------------------
+# The four machines.
+
+
+def _spirograph(p: Mapping[str, float], scale: float, settings: GearSettings, hw: Hardware) -> list[Part]:
+    k = teeth_per_unit(scale, settings)
+    module = 2.0 * scale / k
+    r_f, r_r, d = int(p["r_f"]), int(p["r_r"]), float(p["d"])
+    rolling = external_gear(k * r_r, module, settings)
+    ring = ring_gear(k * r_f, module, hw.rim, settings, cutter_teeth=min(k * r_r, k * r_f - 2))
+    return [_ring_part(ring, r_f, scale, hw),
+            _gear_part("rolling gear", "ROLL", rolling, r_r, scale, hw,
+                       [("pen hole", (d * scale, 0.0), hw.pen_hole)], label_near=(-0.5 * rolling.pitch_radius, 0),
+                       extra_info={"pen_distance_mm": round(d * scale, 4)})]
+
+
+def _ring_part(ring: Gear, model_radius: float, scale: float, hw: Hardware) -> Part:
+    mount = ring.pitch_radius + ring.settings.dedendum * ring.module + hw.rim / 2.0
+    holes = [(f"mounting hole {i + 1}", (mount * math.cos(a), mount * math.sin(a)), hw.axle_hole)
+             for i, a in enumerate(np.radians([90.0, 210.0, 330.0]))]
+    return _gear_part("fixed ring", "RING", ring, model_radius, scale, hw, holes, label_near=(0.0, -mount),
+                      extra_info={"outer_radius_mm": round(mount + hw.rim / 2.0, 4)})
+
+
+def _elliptic_spirograph(p: Mapping[str, float], scale: float, settings: GearSettings, hw: Hardware) -> list[Part]:
+    k = teeth_per_unit(scale, settings)
+    module = 2.0 * scale / k
+    r_f, r_r, e, d = int(p["r_f"]), int(p["r_r"]), float(p["e"]), float(p["d"])
+    rolling = elliptic_gear(k * r_r, module, e, settings)
+    # Cut the ring with the largest circular cutter the ellipse resembles (its flattest arc, radius a²/b), so that
+    # the ring's tips clear the ellipse everywhere along its roll.
+    a, b = ellipse_axes(k * r_r * module / 2.0, e)
+    cutter = int(math.floor(2.0 * (a * a / b) / module))
+    ring = ring_gear(k * r_f, module, hw.rim, settings, cutter_teeth=max(6, min(cutter, k * r_f - 2)))
+    return [_ring_part(ring, r_f, scale, hw),
+            _gear_part("elliptic gear", "ELLIPSE", rolling, r_r, scale, hw,
+                       [("pen hole", (d * scale, 0.0), hw.pen_hole)], label_near=(-0.4 * a, 0.0),
+                       extra_info={"pen_distance_mm": round(d * scale, 4), "eccentricity": e})]
+
+
+def _axle_gear(name: str, code: str, radius: int, k: int, module: float, scale: float, settings: GearSettings,
+               hw: Hardware, pin: tuple[str, float] | None = None) -> list[Part]:
+    """A gear on an axle, with a pin at a model distance from its centre.
+
+    A pin near the rim (the models allow it anywhere inside the pitch circle) would cut the teeth: it then goes on
+    a *crank disc* bolted on top of the gear (two fixing holes on both), which carries the pin at the same radius.
+    """
+    gear = external_gear(k * radius, module, settings)
+    holes = [("axle hole", (0.0, 0.0), hw.axle_hole)]
+    notes: list[str] = []
+    extra: list[Part] = []
+    if pin is not None:
+        pin_name, distance = pin
+        at = distance * scale
+        room = _root_radius(gear) - hw.wall - hw.pin_hole / 2.0
+        if at < (hw.axle_hole + hw.pin_hole) / 2.0 + hw.wall:
+            notes.append(f"{name}: the {pin_name} at {at:.2f} mm is on the axle; no separate hole cut")
+        elif at <= room - 0.5 * module:
+            holes.append((pin_name, (at, 0.0), hw.pin_hole))
+        else:
+            fix_radius = 0.5 * (hw.axle_hole / 2.0 + _root_radius(gear))
+            fixing = [(f"fixing hole {i + 1}", (0.0, sign * fix_radius), hw.pin_hole) for i, sign in enumerate((1, -1))]
+            holes.extend(fixing)
+            crank_radius = at + max(hw.pin_hole / 2.0 + 2.0 * hw.wall, hw.arm_width / 2.0)
+            crank_name = f"{name} crank"
+            crank_shape = _with_holes(crank_name, Point(0.0, 0.0).buffer(crank_radius, quad_segs=32),
+                                      [("axle hole", (0.0, 0.0), hw.axle_hole), *fixing,
+                                       (pin_name, (at, 0.0), hw.pin_hole)], hw.wall)
+            extra.append(Part(crank_name, crank_shape,
+                              _label(crank_shape, f"{code} CRANK", hw, near=(-0.5 * crank_radius, 0.0)),
+                              MappingProxyType({"radius_mm": round(crank_radius, 3), "pin_at_mm": round(at, 4)}),
+                              (f"the {pin_name} at {at:.1f} mm would cut the teeth of the {name}: it is on a crank "
+                               f"disc bolted on top of the gear (fixing holes {fix_radius:.1f} mm from the axle); "
+                               "raise it on spacers so that it clears the neighbouring gear",)))
+    part = _gear_part(name, code, gear, radius, scale, hw, holes, label_near=(-0.5 * gear.pitch_radius, 0.0))
+    if notes:
+        part = Part(part.name, part.shape, part.engrave, part.info, part.notes + tuple(notes))
+    return [part, *extra]
+
+
+def _cycloid(p: Mapping[str, float], scale: float, settings: GearSettings, hw: Hardware) -> list[Part]:
+    k = teeth_per_unit(scale, settings)
+    module = 2.0 * scale / k
+    r_t, r_e = int(p["r_t"]), int(p["r_e"])
+    d_tf, theta_te, r_s, d_fh = (float(p[n]) for n in ("d_tf", "theta_te", "r_s", "d_fh"))
+    turntable = _axle_gear("turntable gear", "TURNTABLE", r_t, k, module, scale, settings, hw)
+    external = _axle_gear("external gear", "GEAR E", r_e, k, module, scale, settings, hw, pin=("slider pin hole", r_s))
+    # Model positions (Appendix A.2.3): G_T at the origin, fulcrum F on +x, G_E at angle theta_TE.
+    g_e = (r_t + r_e) * np.array([math.cos(theta_te), math.sin(theta_te)])
+    fulcrum = np.array([d_tf, 0.0])
+    d_fe = float(np.linalg.norm(g_e - fulcrum))
+    # The arm pivots at F and the slider pin slides in its slot between d_FE - r_S and d_FE + r_S from F.
+    slot_lo, slot_hi = (d_fe - r_s) * scale, (d_fe + r_s) * scale
+    end = hw.arm_width / 2.0
+    arm = _bar("pen arm", [-end, slot_hi + end], hw.arm_width)
+    slot = LineString([(slot_lo, 0.0), (max(slot_hi, slot_lo + 1e-3), 0.0)]).buffer((hw.pin_hole + 0.2) / 2.0,
+                                                                                   quad_segs=16)
+    arm_holes = [("pivot hole", (0.0, 0.0), hw.pin_hole), ("pen hole", (d_fh * scale, 0.0), hw.pen_hole)]
+    arm_shape = _with_holes("pen arm", arm, arm_holes, hw.wall)
+    pen_to_slot = slot.distance(_disc((d_fh * scale, 0.0), hw.pen_hole))
+    if pen_to_slot < hw.wall:
+        raise ConstraintViolation(f"pen arm: the pen hole is {pen_to_slot:.2f} mm from the slider slot, expected at "
+                                  f"least {hw.wall:g} mm", constraint="pen arm slot", margin=pen_to_slot - hw.wall)
+    arm_shape = arm_shape.difference(slot)
+    arm_part = Part("pen arm", arm_shape, _label(arm_shape, "ARM", hw, near=((d_fh * scale + slot_lo) / 2, 0)),
+                    MappingProxyType({"length_mm": round(slot_hi + 2 * end, 3), "pivot_to_pen_mm": d_fh * scale,
+                                      "slot_mm": [round(slot_lo, 3), round(slot_hi, 3)]}))
+    axles = [("turntable axle", (0.0, 0.0), hw.axle_hole),
+             ("external gear axle", tuple(g_e * scale), hw.axle_hole),
+             ("fulcrum pivot", tuple(fulcrum * scale), hw.pin_hole)]
+    plate = _plate([a[1] for a in axles], hw.arm_width)
+    plate_shape = _with_holes("base plate", plate, axles, hw.wall)
+    plate_part = Part("base plate", plate_shape, _label(plate_shape, "BASE", hw, near=tuple(g_e * scale / 2)),
+                      MappingProxyType({"axles_mm": {n: [round(c[0], 3), round(c[1], 3)] for n, c, _ in axles}}))
+    return [*turntable, *external, arm_part, plate_part]
+
+
+def _hoot_nanny(p: Mapping[str, float], scale: float, settings: GearSettings, hw: Hardware) -> list[Part]:
+    k = teeth_per_unit(scale, settings)
+    module = 2.0 * scale / k
+    r_t, r_g1, r_g2 = int(p["r_t"]), int(p["r_g1"]), int(p["r_g2"])
+    theta_12, r_p1, r_p2, l1, l2 = (float(p[n]) for n in ("theta_12", "r_p1", "r_p2", "l1", "l2"))
+    parts = [
+        *_axle_gear("turntable gear", "TURNTABLE", r_t, k, module, scale, settings, hw),
+        *_axle_gear("gear 1", "GEAR 1", r_g1, k, module, scale, settings, hw, pin=("pivot pin hole", r_p1)),
+        *_axle_gear("gear 2", "GEAR 2", r_g2, k, module, scale, settings, hw, pin=("pivot pin hole", r_p2)),
+    ]
+    for index, length in ((1, l1), (2, l2)):
+        name = f"arm {index}"
+        end = hw.arm_width / 2.0
+        bar = _bar(name, [0.0, length * scale], hw.arm_width)
+        shape = _with_holes(name, bar, [("pivot hole", (0.0, 0.0), hw.pin_hole),
+                                        ("pen hole", (length * scale, 0.0), hw.pen_hole)], hw.wall)
+        parts.append(Part(name, shape, _label(shape, f"ARM {index}", hw, near=(length * scale / 2, 0)),
+                          MappingProxyType({"length_mm": round(length * scale + 2 * end, 3),
+                                            "pivot_to_pen_mm": round(length * scale, 4)})))
+    g1 = np.array([r_t + r_g1, 0.0]) * scale
+    g2 = (r_t + r_g2) * np.array([math.cos(theta_12), math.sin(theta_12)]) * scale
+    axles = [("turntable axle", (0.0, 0.0), hw.axle_hole), ("gear 1 axle", tuple(g1), hw.axle_hole),
+             ("gear 2 axle", tuple(g2), hw.axle_hole)]
+    plate = _plate([a[1] for a in axles], hw.arm_width)
+    shape = _with_holes("base plate", plate, axles, hw.wall)
+    parts.append(Part("base plate", shape, _label(shape, "BASE", hw, near=tuple((g1 + g2) / 3)),
+                      MappingProxyType({"axles_mm": {n: [round(c[0], 3), round(c[1], 3)] for n, c, _ in axles}})))
+    return parts
+
+
+_BUILDERS = {
+    "spirograph": _spirograph,
+    "elliptic_spirograph": _elliptic_spirograph,
+    "cycloid_drawing_machine": _cycloid,
+    "hoot_nanny": _hoot_nanny,
+}
+
+
+def machine_parts(machine: str, params: Mapping[str, float], scale: float,
+                  settings: GearSettings | None = None, hardware: Hardware | None = None) -> list[Part]:
+    """The flat parts of one drawing machine at ``scale`` mm per model unit.
+
+    Parameters
+    ----------
+    machine : str
+        A machine name from :mod:`design.machines` (``"spirograph"``, ``"elliptic_spirograph"``,
+        ``"cycloid_drawing_machine"``, ``"hoot_nanny"``).
+    params : mapping
+        The design's parameters; completed with defaults and validated by the machine's model.
+    scale : float
+        Millimetres per model unit (e.g. 5: a radius-3 gear gets a 15 mm pitch radius).
+    settings : GearSettings, optional
+        Tooth system (module, pressure angle, ...).
+    hardware : Hardware, optional
+        Hole and arm sizes.
+
+    Raises
+    ------
+    ParameterError
+        Unknown machine, bad parameter or scale.
+    ConstraintViolation
+        The design is infeasible, or a hole does not fit in its part at this scale.
+    """
+    from design.machines import get_machine
+
+    settings = settings if settings is not None else GearSettings()
+    hardware = hardware if hardware is not None else Hardware()
+    if machine not in _BUILDERS:
+        raise parameter_error("fabrication", "machine", f"one of {list(FABRICABLE_MACHINES)}", machine)
+    if not (isinstance(scale, (int, float)) and math.isfinite(scale) and scale > 0):
+        raise parameter_error("fabrication", "scale", "a positive number of mm per model unit", scale)
+    model = get_machine(machine)
+    validated = model.validate(params)
+    violations = model.violations(validated)
+    if violations:
+        first = violations[0]
+        raise ConstraintViolation(f"{machine}: the design is not feasible: {first.message}",
+                                  constraint=first.constraint, margin=first.margin)
+    return _BUILDERS[machine](validated, float(scale), settings, hardware)

@@ -1,0 +1,223 @@
+"""``station fabricate``: the laser-cut parts of a drawing machine, nested on a sheet, with the laser job.
+
+    station fabricate spirograph --set r_f=5 --set r_r=3 --set d=2 --scale 8 --out build/spiro
+
+writes ``parts.svg`` (mm, layers engrave/cut), ``laser.gcode`` (GRBL 1.1), ``parts.json`` (parts, sizes, sheet usage,
+job estimate) and ``sheet.png`` (preview) into the output folder.
+"""
+
+from __future__ import annotations
+
+import io
+import json
+import re
+import sys
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from station.cli_util import emit_json, parse_assignments, to_jsonable
+from station.errors import UsageError
+
+DEFAULT_KERF = 0.15
+DEFAULT_GAP = 3.0
+
+
+@dataclass
+class FabricationResult:
+    """Everything one fabrication run produced (kept in memory for the TUI, written to files by the CLI)."""
+
+    machine: str
+    params: dict[str, Any]
+    scale: float
+    sheet: Any
+    job: Any
+    svg: str
+    gcode: str
+    png: bytes
+    summary: dict[str, Any]
+
+
+def parse_sheet(text: str) -> tuple[float, float]:
+    """``"300x200"`` → ``(300.0, 200.0)`` mm."""
+    match = re.fullmatch(r"\s*(\d+(?:\.\d*)?)\s*[xX×]\s*(\d+(?:\.\d*)?)\s*(?:mm)?\s*", text or "")
+    if not match or float(match.group(1)) <= 0 or float(match.group(2)) <= 0:
+        raise UsageError(f"--sheet {text!r}: expected WIDTHxHEIGHT in mm, e.g. --sheet 300x200")
+    return float(match.group(1)), float(match.group(2))
+
+
+def fabricate(machine: str, params: dict[str, float], scale: float, *, kerf: float = DEFAULT_KERF,
+              sheet_size: tuple[float, float] | None = None, gap: float = DEFAULT_GAP, profile=None,
+              material: str | None = None, gear_settings=None, hardware=None, progress=None) -> FabricationResult:
+    """Parts → kerf → nesting → SVG, PNG, laser job. Raises the design/driver errors for bad input.
+
+    ``progress``, optional: called with short messages while working.
+    """
+    from design.fabrication import machine_parts, nest_parts, render_png, sheet_paths, write_svg
+    from drivers.laser_job import (
+        check_work_area,
+        material_settings,
+        plan_laser_job,
+        travel_moves,
+        write_laser_gcode,
+    )
+    from drivers.profiles import builtin_profile
+
+    say = progress or (lambda _message: None)
+    profile = profile if profile is not None else builtin_profile("laser")
+    engrave_ops, cut_ops, material_name = material_settings(profile, material)
+    started = time.perf_counter()
+    say(f"generating the parts of {machine} at {scale:g} mm per unit")
+    parts = machine_parts(machine, params, scale, gear_settings, hardware)
+    generated = time.perf_counter() - started
+    width, height = sheet_size if sheet_size is not None else (profile.width, profile.height)
+    say(f"nesting {len(parts)} parts on a {width:g}x{height:g} mm sheet (kerf {kerf:g} mm, gap {gap:g} mm)")
+    sheet = nest_parts(parts, width, height, gap=gap, kerf=kerf)
+    say("ordering the laser job")
+    paths = sheet_paths(sheet)
+    xmin, ymin, _, _ = profile.work_bounds()
+    job = plan_laser_job(paths["engrave"], paths["cut"], engrave_ops, cut_ops, profile.laser.max_power,
+                         profile.plot.travel_feed, offset=(xmin, ymin), start=(xmin, ymin),
+                         metadata={"machine": machine, "scale": f"{scale:g} mm per unit",
+                                   "material": material_name, "profile": profile.name})
+    check_work_area(job, profile.work_bounds(), profile.name)
+    gcode = io.StringIO()
+    write_laser_gcode(job, gcode, profile.work_bounds(), profile.laser.laser_mode, profile.name)
+    svg = io.StringIO()
+    write_svg(sheet, svg, title=f"{machine} parts at {scale:g} mm per unit")
+    # The preview shows travel in sheet coordinates.
+    moves = [m - [xmin, ymin] for m in travel_moves(job)]
+    png = render_png(sheet, travel=moves)
+    estimate = job.estimate_seconds()
+    summary = {
+        "machine": machine,
+        "params": dict(params),
+        "scale_mm_per_unit": scale,
+        "kerf_mm": kerf,
+        "gap_mm": gap,
+        "sheet_mm": [width, height],
+        "sheet_usage": round(sheet.usage, 4),
+        "envelope_usage": round(sheet.envelope_usage, 4),
+        "used_mm": [round(sheet.used_width, 2), round(sheet.used_height, 2)],
+        "generation_seconds": round(generated, 3),
+        "parts": [_part_summary(part, cut, placement)
+                  for part, cut, placement in zip(sheet.parts, sheet.cut_shapes, sheet.placements)],
+        "job": {
+            "profile": profile.name,
+            "material": material_name,
+            "engrave": {"power": engrave_ops.power, "feed_mm_min": engrave_ops.feed, "passes": engrave_ops.passes},
+            "cut": {"power": cut_ops.power, "feed_mm_min": cut_ops.feed, "passes": cut_ops.passes},
+            "paths": len(job.paths),
+            "travel_mm_unordered": round(job.travel_unordered, 1),
+            "travel_mm": round(job.travel, 1),
+            "estimate_seconds": {k: round(v, 1) for k, v in estimate.items()},
+            "extent_mm": [list(map(float, job.extent()[0])), list(map(float, job.extent()[1]))],
+        },
+    }
+    return FabricationResult(machine, dict(params), scale, sheet, job, svg.getvalue(), gcode.getvalue(), png,
+                             summary)
+
+
+def _part_summary(part, cut_shape, placement) -> dict[str, Any]:
+    minx, miny, maxx, maxy = part.shape.bounds
+    return {
+        "name": part.name,
+        "size_mm": [round(maxx - minx, 2), round(maxy - miny, 2)],
+        "bbox_on_sheet_mm": [round(v, 3) for v in cut_shape.bounds],
+        "area_mm2": round(part.shape.area, 1),
+        "holes": len(part.shape.interiors),
+        "placement": {"angle_deg": placement.angle, "dx_mm": round(placement.dx, 3), "dy_mm": round(placement.dy, 3)},
+        "info": to_jsonable(dict(part.info)),
+        "notes": list(part.notes),
+    }
+
+
+def write_outputs(result: FabricationResult, out: Path) -> dict[str, Path]:
+    """Write parts.svg, laser.gcode, parts.json and sheet.png into ``out`` (created)."""
+    out.mkdir(parents=True, exist_ok=True)
+    files = {"svg": out / "parts.svg", "gcode": out / "laser.gcode", "json": out / "parts.json",
+             "png": out / "sheet.png"}
+    files["svg"].write_text(result.svg, encoding="utf-8")
+    files["gcode"].write_text(result.gcode, encoding="utf-8")
+    files["json"].write_text(json.dumps(to_jsonable(result.summary), indent=2, allow_nan=False) + "\n",
+                             encoding="utf-8")
+    files["png"].write_bytes(result.png)
+    return files
+
+
+def register(subparsers) -> None:
+    from design.fabrication import FABRICABLE_MACHINES
+
+    parser = subparsers.add_parser(
+        "fabricate",
+        help="laser-cut parts of a drawing machine: gears, arms, plates; SVG, G-code, preview",
+        description="Generate the flat parts of a drawing machine (involute and elliptic gears, ring gears, arms, "
+                    "base plate) at a physical scale, compensate the kerf, nest them on a sheet, and write "
+                    "DIR/parts.svg, DIR/laser.gcode, DIR/parts.json and DIR/sheet.png.",
+    )
+    parser.add_argument("machine", choices=FABRICABLE_MACHINES, metavar="MACHINE",
+                        help=f"one of {', '.join(FABRICABLE_MACHINES)}")
+    parser.add_argument("--set", action="append", default=[], metavar="NAME=VALUE",
+                        help="a design parameter (repeatable); unset parameters keep the model's defaults")
+    parser.add_argument("--scale", type=float, required=True, metavar="MM_PER_UNIT",
+                        help="millimetres per model unit (gear radius 1 = this many mm)")
+    parser.add_argument("--kerf", type=float, default=DEFAULT_KERF, metavar="MM",
+                        help=f"laser kerf width, compensated on every contour (default {DEFAULT_KERF})")
+    parser.add_argument("--sheet", default=None, metavar="WxH", help="sheet size in mm (default: the work area)")
+    parser.add_argument("--gap", type=float, default=DEFAULT_GAP, metavar="MM",
+                        help=f"least distance between parts and to the sheet's edges (default {DEFAULT_GAP})")
+    parser.add_argument("--profile", default="laser", metavar="PROFILE.toml",
+                        help="laser machine profile (a TOML file or a built-in name; default: laser)")
+    parser.add_argument("--material", default=None, metavar="NAME",
+                        help="material from the profile's [materials.NAME] table (default plywood_3mm)")
+    parser.add_argument("--module", type=float, default=1.5, metavar="MM",
+                        help="nominal gear module; the one used makes every gear's tooth count an integer")
+    parser.add_argument("--pressure-angle", type=float, default=20.0, metavar="DEG", help="default 20")
+    parser.add_argument("--backlash", type=float, default=0.15, metavar="MM",
+                        help="circumferential backlash of each mesh (default 0.15)")
+    parser.add_argument("--pen-hole", type=float, default=3.0, metavar="MM", help="pen hole diameter (default 3)")
+    parser.add_argument("--axle-hole", type=float, default=4.2, metavar="MM", help="axle hole diameter (default 4.2)")
+    parser.add_argument("--pin-hole", type=float, default=3.2, metavar="MM",
+                        help="pivot and slider pin hole diameter (default 3.2)")
+    parser.add_argument("--out", required=True, metavar="DIR", help="output folder")
+    parser.add_argument("--json", action="store_true", help="print the summary (parts.json) on stdout as JSON")
+    parser.set_defaults(func=run_fabricate)
+
+
+def run_fabricate(args) -> int:
+    from design.fabrication import GearSettings, Hardware
+    from drivers.profiles import load_profile
+
+    params = parse_assignments(args.set)
+    sheet_size = parse_sheet(args.sheet) if args.sheet is not None else None
+    profile = load_profile(args.profile)
+    settings = GearSettings(module=args.module, pressure_angle=args.pressure_angle, backlash=args.backlash)
+    hardware = Hardware(pen_hole=args.pen_hole, axle_hole=args.axle_hole, pin_hole=args.pin_hole)
+
+    def progress(message: str) -> None:
+        print(f"fabricate: {message}", file=sys.stderr, flush=True)
+
+    result = fabricate(args.machine, params, args.scale, kerf=args.kerf, sheet_size=sheet_size, gap=args.gap,
+                       profile=profile, material=args.material, gear_settings=settings, hardware=hardware,
+                       progress=progress)
+    files = write_outputs(result, Path(args.out))
+    summary = result.summary
+    if args.json:
+        emit_json(summary)
+        return 0
+    print(f"{args.machine} at {args.scale:g} mm/unit: {len(summary['parts'])} parts on a "
+          f"{summary['sheet_mm'][0]:g}x{summary['sheet_mm'][1]:g} mm sheet, sheet usage "
+          f"{100 * summary['sheet_usage']:.1f}% (parts fill {100 * summary['envelope_usage']:.1f}% of their "
+          f"{summary['used_mm'][0]:.0f}x{summary['used_mm'][1]:.0f} mm envelope)")
+    for part in summary["parts"]:
+        teeth = f", {part['info']['teeth']} teeth" if "teeth" in part["info"] else ""
+        print(f"  {part['name']}: {part['size_mm'][0]:.1f}x{part['size_mm'][1]:.1f} mm{teeth}")
+        for note in part["notes"]:
+            print(f"    note: {note}")
+    job = summary["job"]
+    print(f"laser job ({job['material']} on {job['profile']}): about {job['estimate_seconds']['total'] / 60:.1f} min, "
+          f"travel {job['travel_mm']:.0f} mm (unordered {job['travel_mm_unordered']:.0f} mm)")
+    for name, path in files.items():
+        print(f"  {name}: {path}")
+    return 0
