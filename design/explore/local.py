@@ -65,11 +65,11 @@ class BatchCurve:
         rows = self.rows(X)
         k = len(next(iter(rows.values())))
         T = np.broadcast_to(np.asarray(T, dtype=float), (k,) + np.shape(T)[-1:])
-        column = {name: a.reshape(k, 1) for name, a in rows.items()}
-        # The models' vectorized kinematics (design.machines.base.DrawingMachine._positions): parameters broadcast
-        # against times, so every design and time is one numpy call.
+        # The models' batch evaluation: every design and time in one numpy call. No feasibility check here: callers
+        # filter designs with feasible() (a probe just past a constraint only yields a lost PoI, never a crash).
         with np.errstate(all="ignore"):
-            return np.asarray(self.machine._positions(column, T), dtype=complex)
+            xy = self.machine.curve_many(rows, T, check=False)
+        return xy[..., 0] + 1j * xy[..., 1]
 
     def derivatives(self, X: np.ndarray, T: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Position, first and second time derivatives at times ``T`` (five-point stencils, one batched call)."""

@@ -19,7 +19,11 @@ def run_json(capsys, *argv):
 
 
 def test_json_has_pois_sliders_and_moves_in_the_pattern_frame(capsys):
-    doc = run_json(capsys, "cycloid_drawing_machine", "--keep", "curvature:0", "--move", "0=1", "--move", "1=-0.5")
+    design = ["--set", "r_t=7", "--set", "r_e=4", "--set", "d_tf=9", "--set", "theta_te=2.4", "--set", "r_s=3.5"]
+    doc = run_json(
+        capsys, "cycloid_drawing_machine", *design, "--set", "d_fh=10.5",
+        "--keep", "curvature:0", "--move", "0=1", "--move", "1=-0.5",
+    )
     model = get_machine("cycloid_drawing_machine")
     assert {"pois", "sliders", "moves"} <= doc.keys()
     for p in doc["pois"]:

@@ -23,6 +23,14 @@ VISIBLE = 0.003
 LIMITS = {"position": 0.01, "distance": 0.01, "radial": 0.01, "curvature": 0.02, "angle": 1.0}
 
 MACHINES = ["elliptic_spirograph", "cycloid_drawing_machine", "hoot_nanny"]
+#: The designs the cases start from (pinned, so that a change of the models' defaults does not change the tests).
+DESIGNS = {
+    "elliptic_spirograph": {"r_f": 5, "r_r": 3, "e": 0.4, "d": 1.5},
+    "cycloid_drawing_machine": {"r_t": 7, "r_e": 4, "d_tf": 9.0, "theta_te": 2.4, "r_s": 3.5, "d_fh": 10.5},
+    "hoot_nanny": {
+        "r_t": 10, "r_g1": 3, "r_g2": 2, "theta_12": 1.2, "r_p1": 2.8, "r_p2": 1.8, "l1": 13.5, "l2": 7.2,
+    },
+}
 
 
 def pick(explorer: Explorer, kind: str) -> list[int]:
@@ -74,7 +82,7 @@ def independent_error(kind, before_pois, ids, invariant, explorer: Explorer) -> 
 @pytest.mark.parametrize("kind", ["position", "curvature", "angle", "radial", "distance"])
 @pytest.mark.parametrize("machine", MACHINES)
 def test_a_slider_move_changes_the_drawing_and_keeps_the_invariant(machine, kind):
-    explorer = Explorer(machine)
+    explorer = Explorer(machine, DESIGNS[machine])
     ids = pick(explorer, kind)
     before_pois = explorer.pois
     invariant = explorer.add_invariant(kind, ids)
@@ -92,7 +100,7 @@ def test_a_slider_move_changes_the_drawing_and_keeps_the_invariant(machine, kind
     [("cycloid_drawing_machine", ["radial", "curvature"]), ("hoot_nanny", ["curvature", "radial"])],
 )
 def test_combined_invariants_all_hold(machine, kinds):
-    explorer = Explorer(machine)
+    explorer = Explorer(machine, DESIGNS[machine])
     ids = pick(explorer, kinds[0])
     invariants = [explorer.add_invariant(kind, ids) for kind in kinds]
     assert len(explorer.sliders) < len(explorer.names)
@@ -124,7 +132,7 @@ def test_spirograph_has_one_parameter_so_most_invariants_are_over_constrained():
 def test_dimension_is_at_most_what_the_constraints_leave():
     # sigma_var may drop a free direction along which the samples spread little (a tight feasible range, or a
     # strongly non-linear invariant), as in the thesis; it never keeps more than the constraints leave.
-    explorer = Explorer("hoot_nanny")
+    explorer = Explorer("hoot_nanny", DESIGNS["hoot_nanny"])
     maxima = [p.id for p in explorer.pois if p.kind == CURVATURE]
     explorer.add_invariant("position", [maxima[0]])
     assert 1 <= len(explorer.sliders) <= len(explorer.names) - 2
@@ -134,7 +142,7 @@ def test_dimension_is_at_most_what_the_constraints_leave():
 
 
 def test_bounds_are_recomputed_on_every_move_and_stay_feasible():
-    explorer = Explorer("cycloid_drawing_machine")
+    explorer = Explorer("cycloid_drawing_machine", DESIGNS["cycloid_drawing_machine"])
     explorer.add_invariant("curvature", pick(explorer, "curvature"))
     first = [(s.lower, s.upper) for s in explorer.sliders]
     for s in explorer.sliders:
@@ -154,7 +162,7 @@ def test_bounds_are_recomputed_on_every_move_and_stay_feasible():
 
 
 def test_release_without_invariants_is_a_plain_parameter_move():
-    explorer = Explorer("elliptic_spirograph")
+    explorer = Explorer("elliptic_spirograph", DESIGNS["elliptic_spirograph"])
     assert [s.name for s in explorer.sliders] == list(explorer.names)
     moved = explorer.move(1, 1.0)
     d0 = explorer.base_design["d"]
@@ -165,7 +173,7 @@ def test_release_without_invariants_is_a_plain_parameter_move():
 
 
 def test_basis_stays_consistent_across_releases():
-    explorer = Explorer("cycloid_drawing_machine")
+    explorer = Explorer("cycloid_drawing_machine", DESIGNS["cycloid_drawing_machine"])
     explorer.add_invariant("position", pick(explorer, "position"))
     for _ in range(2):
         previous = explorer.basis
@@ -177,7 +185,7 @@ def test_basis_stays_consistent_across_releases():
 
 
 def test_bad_invariants_and_moves_are_refused_clearly():
-    explorer = Explorer("elliptic_spirograph")
+    explorer = Explorer("elliptic_spirograph", DESIGNS["elliptic_spirograph"])
     maxima = [p.id for p in explorer.pois if p.kind == CURVATURE]
     crossings = [p.id for p in explorer.pois if p.kind == INTERSECTION]
     with pytest.raises(InvariantSpecError, match="type must be one of"):

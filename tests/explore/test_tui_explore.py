@@ -23,7 +23,9 @@ async def test_explore_screen_full_session(tmp_path):
     async with app.run_test(size=(150, 45)) as pilot:
         await pilot.press("d")
         await settle(app, pilot)
-        app.get_screen("drawing").load_design("cycloid_drawing_machine", {})
+        app.get_screen("drawing").load_design(
+            "cycloid_drawing_machine", {"r_t": 7, "r_e": 4, "d_tf": 9.0, "theta_te": 2.4, "r_s": 3.5, "d_fh": 10.5}
+        )
         await settle(app, pilot)
         await pilot.press("x")
         await settle(app, pilot)
