@@ -260,6 +260,10 @@ class DrawingMachine:
         """
         raise NotImplementedError
 
+    def _check_frame(self, frame: str) -> None:
+        if frame not in ("drawing", "fixed"):
+            raise parameter_error(self.name, "frame", "'drawing' or 'fixed'", frame)
+
     # -- parameters ----------------------------------------------------------------------------------------------
 
     @property

@@ -177,6 +177,7 @@ class CycloidDrawingMachine(DrawingMachine):
         return pen * np.exp(-1j * t)  # into the turntable's frame (A.52)
 
     def mechanism(self, params: Mapping[str, float], t: float, frame: str = "drawing") -> list[Shape]:
+        self._check_frame(frame)
         p = self.validate(params)
         P = {k: np.float64(v) for k, v in p.items()}
         gear, slider, pen = self._fixed_frame(P, np.float64(t))

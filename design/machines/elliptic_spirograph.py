@@ -183,6 +183,7 @@ class EllipticSpirograph(DrawingMachine):
         return contact + np.exp(1j * psi) * (P["d"] - on_ellipse)
 
     def mechanism(self, params: Mapping[str, float], t: float, frame: str = "drawing") -> list[Shape]:
+        self._check_frame(frame)
         p = self.validate(params)
         P = {k: np.float64(v) for k, v in p.items()}
         contact, psi, on_ellipse, a, b = self._state(P, np.float64(t))

@@ -235,6 +235,7 @@ class HootNanny(DrawingMachine):
         return pen * np.exp(-1j * t)
 
     def mechanism(self, params: Mapping[str, float], t: float, frame: str = "drawing") -> list[Shape]:
+        self._check_frame(frame)
         p = self.validate(params)
         g1, g2, p1, p2, pen = self._fixed_frame(_arrays(p), np.float64(t))
         turn = np.exp(-1j * t) if frame == "drawing" else 1.0

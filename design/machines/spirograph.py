@@ -103,6 +103,7 @@ class Spirograph(DrawingMachine):
         return (r_f - r_r) * np.exp(1j * t) + d * np.exp(-1j * (q - 1.0) * t)
 
     def mechanism(self, params: Mapping[str, float], t: float, frame: str = "drawing") -> list[Shape]:
+        self._check_frame(frame)
         p = self.validate(params)
         r_f, r_r, d = p["r_f"], p["r_r"], p["d"]
         center = (r_f - r_r) * np.exp(1j * t)

@@ -263,3 +263,17 @@ def test_feasible_interval_on_random_feasible_designs(name):
             outside = [x for x, edge in ((lo - step, lo > box.lower), (hi + step, hi < box.upper)) if edge]
             if outside:
                 assert not machine.feasible_mask({**design, parameter: np.array(outside)}).any(), (design, parameter)
+
+
+@pytest.mark.parametrize("name", BUILTINS)
+def test_mechanism_frames(name):
+    machine = get_machine(name)
+    design = machine.defaults()
+    drawing = machine.mechanism(design, 1.3)
+    fixed = machine.mechanism(design, 1.3, frame="fixed")
+    assert [s.label for s in drawing] == [s.label for s in fixed]
+    pen_drawing = next(s.position for s in drawing if s.label == "pen")
+    pen_fixed = next(s.position for s in fixed if s.label == "pen")
+    assert np.hypot(*pen_drawing) == pytest.approx(np.hypot(*pen_fixed))  # same point, frames differ by a rotation
+    with pytest.raises(ParameterError, match="frame"):
+        machine.mechanism(design, 1.3, frame="paper")
