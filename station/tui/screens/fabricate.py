@@ -1,0 +1,268 @@
+"""Fabricate screen: the laser-cut parts of the current drawing machine, nested on a sheet, and the laser job.
+
+Opened from the Drawing machines screen (key f there, or f on the home screen), it takes that screen's current
+design. The nested sheet is drawn as a picture in the terminal (two pixels per cell with half blocks), beside the
+parts list and the job estimate. Enter in a field regenerates; w writes parts.svg, laser.gcode, parts.json and
+sheet.png into the station's data folder; s sends the job to the laser on the Machines screen (frame first, then run).
+"""
+
+from __future__ import annotations
+
+import io
+import time
+from pathlib import Path
+
+from PIL import Image
+from rich.style import Style
+from rich.text import Text
+from textual import on, work
+from textual.app import ComposeResult
+from textual.binding import Binding
+from textual.containers import Horizontal, Vertical
+from textual.screen import Screen
+from textual.widget import Widget
+from textual.widgets import DataTable, Footer, Header, Input, Label, Static
+
+from design.errors import DesignError
+from design.machines import get_machine
+from drivers.errors import DriverError
+from station.commands.fabricate import DEFAULT_GAP, DEFAULT_KERF, FabricationResult, fabricate, parse_sheet
+from station.errors import StationError
+from station.paths import data_dir
+from station.tui.registry import ScreenEntry
+
+DEFAULT_MACHINE = "spirograph"
+DEFAULT_SCALE = 8.0
+
+
+class HalfBlockPicture(Widget):
+    """A picture drawn with ``▀`` half blocks: each terminal cell shows two pixels (top: foreground, bottom:
+    background), scaled to fit the widget and keep the picture's aspect ratio (cells are twice as tall as wide)."""
+
+    DEFAULT_CSS = "HalfBlockPicture { width: 1fr; height: 1fr; }"
+
+    def __init__(self, *, id: str | None = None) -> None:
+        super().__init__(id=id)
+        self.image: Image.Image | None = None
+
+    def set_png(self, png: bytes | None) -> None:
+        self.image = Image.open(io.BytesIO(png)).convert("RGB") if png else None
+        self.refresh()
+
+    def render(self) -> Text:
+        return self.render_text(self.size.width, self.size.height)
+
+    def render_text(self, width: int, height: int) -> Text:
+        """The picture as rich text of at most ``width`` × ``height`` cells."""
+        if self.image is None or width < 2 or height < 2:
+            return Text("(no sheet yet)", style="dim")
+        image_w, image_h = self.image.size
+        fit = min(width / image_w, 2 * height / image_h)
+        cols, rows = max(1, int(image_w * fit)), max(2, int(image_h * fit) // 2 * 2)
+        pixels = self.image.resize((cols, rows), Image.Resampling.BOX).load()
+        text = Text(no_wrap=True, overflow="crop")
+        for row in range(0, rows, 2):
+            for col in range(cols):
+                top, bottom = pixels[col, row], pixels[col, row + 1]
+                text.append("▀", Style(color=f"rgb({top[0]},{top[1]},{top[2]})",
+                                       bgcolor=f"rgb({bottom[0]},{bottom[1]},{bottom[2]})"))
+            if row + 2 < rows:
+                text.append("\n")
+        return text
+
+
+class FabricateScreen(Screen):
+    """Parts, nesting and laser job of the current design."""
+
+    CSS = """
+    FabricateScreen #sidebar { width: 60; border-right: solid $primary-darken-2; }
+    FabricateScreen #design { height: auto; padding: 0 1; text-style: bold; }
+    FabricateScreen .field { height: 3; }
+    FabricateScreen .field Label { width: 16; padding: 1 1 0 1; }
+    FabricateScreen .field Input { width: 1fr; }
+    FabricateScreen #parts { height: 1fr; }
+    FabricateScreen #job { height: auto; padding: 0 1; }
+    FabricateScreen #status { height: auto; padding: 0 1; color: $text-muted; }
+    FabricateScreen #sheet { border: round $primary-darken-1; }
+    """
+
+    BINDINGS = [
+        Binding("g", "generate", "Regenerate"),
+        Binding("w", "write", "Write files"),
+        Binding("s", "send", "Send to laser"),
+        Binding("r", "reload", "Reload design"),
+    ]
+
+    def __init__(self) -> None:
+        super().__init__(name="fabricate")
+        self.design: tuple[str, dict] | None = None
+        self.result: FabricationResult | None = None
+        self.last_message = ""
+
+    def compose(self) -> ComposeResult:
+        yield Header()
+        with Horizontal():
+            with Vertical(id="sidebar"):
+                yield Static("", id="design")
+                with Horizontal(classes="field"):
+                    yield Label("scale mm/unit")
+                    yield Input(str(DEFAULT_SCALE), id="scale")
+                with Horizontal(classes="field"):
+                    yield Label("kerf mm")
+                    yield Input(str(DEFAULT_KERF), id="kerf")
+                with Horizontal(classes="field"):
+                    yield Label("sheet WxH mm")
+                    yield Input("", placeholder="work area", id="sheet-size")
+                with Horizontal(classes="field"):
+                    yield Label("material")
+                    yield Input("", placeholder="plywood_3mm", id="material")
+                yield DataTable(id="parts", cursor_type="row", zebra_stripes=True)
+                yield Static("", id="job")
+                yield Static("", id="status")
+            yield HalfBlockPicture(id="sheet")
+        yield Footer()
+
+    def on_mount(self) -> None:
+        self.query_one("#parts", DataTable).add_columns("part", "size mm", "teeth", "notes")
+
+    def on_screen_resume(self) -> None:
+        design = self._drawing_design()
+        if design != self.design or self.result is None:
+            self.design = design
+            self.action_generate()
+
+    def _drawing_design(self) -> tuple[str, dict]:
+        try:
+            machine, params = self.app.get_screen("drawing").current_design()
+            return machine, dict(params)
+        except Exception:  # no Drawing screen installed or not ready: a default design
+            model = get_machine(DEFAULT_MACHINE)
+            return model.name, model.defaults()
+
+    # --- actions ---------------------------------------------------------------------------------------------------
+    def action_reload(self) -> None:
+        self.design = self._drawing_design()
+        self.action_generate()
+
+    def action_generate(self) -> None:
+        if self.design is None:
+            self.design = self._drawing_design()
+        try:
+            options = self._options()
+        except (ValueError, StationError) as error:
+            self._set_status(f"[red]{error}[/red]")
+            return
+        machine, params = self.design
+        self.query_one("#design", Static).update(
+            f"{get_machine(machine).title}: " + ", ".join(f"{k}={v:g}" for k, v in params.items()))
+        self._set_status(f"generating the parts at {options['scale']:g} mm per unit…")
+        self._generate(machine, dict(params), options)
+
+    @on(Input.Submitted)
+    def _field_submitted(self, _event: Input.Submitted) -> None:
+        self.action_generate()
+
+    def _options(self) -> dict:
+        def number(widget_id: str, name: str) -> float:
+            text = self.query_one(f"#{widget_id}", Input).value.strip()
+            try:
+                value = float(text)
+            except ValueError:
+                raise StationError(f"{name} must be a number, got {text!r}") from None
+            return value
+
+        sheet_text = self.query_one("#sheet-size", Input).value.strip()
+        material = self.query_one("#material", Input).value.strip() or None
+        return {"scale": number("scale", "scale"), "kerf": number("kerf", "kerf"),
+                "sheet_size": parse_sheet(sheet_text) if sheet_text else None, "material": material}
+
+    @work(thread=True, exclusive=True, group="fabricate")
+    def _generate(self, machine: str, params: dict, options: dict) -> None:
+        started = time.perf_counter()
+        try:
+            result = fabricate(machine, params, options["scale"], kerf=options["kerf"],
+                               sheet_size=options["sheet_size"], gap=DEFAULT_GAP, material=options["material"],
+                               progress=lambda m: self.app.call_from_thread(self._set_status, f"{m}…"))
+        except (DesignError, DriverError, StationError) as error:
+            self.app.call_from_thread(self._failed, str(error))
+            return
+        self.app.call_from_thread(self._show, result, time.perf_counter() - started)
+
+    def _failed(self, message: str) -> None:
+        self.result = None
+        self.query_one("#parts", DataTable).clear()
+        self.query_one("#job", Static).update("")
+        self.query_one(HalfBlockPicture).set_png(None)
+        self._set_status(f"[red]cannot fabricate this design: {message}[/red]")
+
+    def _show(self, result: FabricationResult, seconds: float) -> None:
+        self.result = result
+        table = self.query_one("#parts", DataTable)
+        table.clear()
+        for part in result.summary["parts"]:
+            width, height = part["size_mm"]
+            teeth = str(part["info"].get("teeth", ""))
+            table.add_row(part["name"], f"{width:.0f}×{height:.0f}", teeth, "; ".join(part["notes"])[:60])
+        job = result.summary["job"]
+        estimate = job["estimate_seconds"]
+        self.query_one("#job", Static).update(
+            f"sheet {result.summary['sheet_mm'][0]:g}×{result.summary['sheet_mm'][1]:g} mm, "
+            f"usage {100 * result.summary['sheet_usage']:.1f}% "
+            f"(parts fill {100 * result.summary['envelope_usage']:.0f}% of their corner)\n"
+            f"laser: {job['material']} on {job['profile']}, about {estimate['total'] / 60:.1f} min "
+            f"(cut {estimate['cut'] / 60:.1f}, engrave {estimate['engrave'] / 60:.1f}, "
+            f"travel {estimate['travel'] / 60:.1f})\n"
+            f"travel {job['travel_mm']:.0f} mm (unordered {job['travel_mm_unordered']:.0f} mm), "
+            f"{len(result.gcode.splitlines())} G-code lines")
+        self.query_one(HalfBlockPicture).set_png(result.png)
+        self._set_status(f"{len(result.summary['parts'])} parts in {seconds:.1f} s — w: write files, s: send to laser")
+
+    def action_write(self) -> Path | None:
+        from station.commands.fabricate import write_outputs
+
+        if self.result is None:
+            self._set_status("nothing to write yet")
+            return None
+        stamp = time.strftime("%Y%m%d-%H%M%S")
+        folder = data_dir() / "fabrication" / f"{self.result.machine}-{stamp}"
+        files = write_outputs(self.result, folder)
+        self._set_status(f"written to {folder}")
+        self.notify(f"parts.svg, laser.gcode, parts.json, sheet.png in {folder}", title="Fabrication files")
+        return files["gcode"]
+
+    def action_send(self) -> None:
+        """Hand the job to the Machines screen's laser queue (it frames first, then runs)."""
+        if self.result is None:
+            self._set_status("nothing to send yet")
+            return
+        try:
+            machines = self.app.get_screen("machines")
+        except Exception:
+            machines = None
+        queue = getattr(machines, "queue_job", None) if machines is not None else None
+        if queue is None:
+            path = self.action_write()
+            self._set_status(f"the Machines screen cannot take jobs here; the G-code is in {path}")
+            return
+        title = f"{self.result.machine} parts ({self.result.summary['job']['material']})"
+        try:
+            queue("laser", self.result.gcode, title=title)
+        except (DriverError, StationError, ValueError) as error:
+            self._set_status(f"[red]the laser refused the job: {error}[/red]")
+            return
+        self._set_status(f"sent to the laser: {title}")
+        self.app.action_open_area("machines")
+
+    def _set_status(self, message: str) -> None:
+        self.last_message = message
+        self.query_one("#status", Static).update(message)
+
+
+SCREEN = ScreenEntry(
+    name="fabricate",
+    key="f",
+    title="Fabricate",
+    description="laser-cut the current drawing machine: gears, arms, plates, nested sheet, laser job",
+    factory=FabricateScreen,
+    order=40,
+)

@@ -1,0 +1,68 @@
+"""Fabricate screen: takes the Drawing screen's design, shows the sheet, parts and estimate, writes files."""
+
+from __future__ import annotations
+
+from textual.widgets import DataTable, Input, Static
+
+from station.tui.app import StationApp
+from station.tui.screens.fabricate import FabricateScreen, HalfBlockPicture
+
+
+async def wait_for(pilot, screen, condition, steps=300):
+    for _ in range(steps):
+        await pilot.pause(0.05)
+        if condition():
+            return
+    raise AssertionError(f"timed out; status: {screen.last_message}")
+
+
+async def test_fabricate_shows_the_current_design_sheet_and_parts(tmp_path):
+    app = StationApp(database=tmp_path / "t.sqlite3")
+    async with app.run_test(size=(160, 50)) as pilot:
+        await pilot.press("d")
+        for _ in range(5):
+            await pilot.pause(0.05)
+        app.open_design("spirograph", {"r_f": 5, "r_r": 2, "d": 1.0})
+        for _ in range(5):
+            await pilot.pause(0.05)
+        assert app.get_screen("drawing").current_design()[1]["r_r"] == 2
+        await pilot.press("escape")
+        await pilot.press("f")
+        screen = app.screen
+        assert isinstance(screen, FabricateScreen)
+        await wait_for(pilot, screen, lambda: screen.result is not None)
+        assert screen.result.params["r_r"] == 2
+        table = screen.query_one("#parts", DataTable)
+        assert table.row_count == 2
+        names = {table.get_row_at(i)[0] for i in range(table.row_count)}
+        assert names == {"fixed ring", "rolling gear"}
+        assert "min" in str(screen.query_one("#job", Static).render())
+        picture = screen.query_one(HalfBlockPicture)
+        text = picture.render_text(60, 20)
+        assert "▀" in text.plain and len(text.spans) > 100
+        # Another scale: regenerate with Enter in the field.
+        field = screen.query_one("#scale", Input)
+        field.value = "6"
+        field.focus()
+        await pilot.press("enter")
+        await wait_for(pilot, screen, lambda: screen.result is not None and screen.result.scale == 6.0)
+        # Write the files.
+        gcode = screen.action_write()
+        assert gcode is not None and gcode.exists() and gcode.read_text().rstrip().endswith("M5 S0")
+        assert (gcode.parent / "sheet.png").exists()
+
+
+async def test_a_bad_field_is_reported_without_a_crash(tmp_path):
+    app = StationApp(database=tmp_path / "t.sqlite3")
+    async with app.run_test(size=(160, 50)) as pilot:
+        await pilot.press("f")
+        screen = app.screen
+        await wait_for(pilot, screen, lambda: screen.result is not None)
+        screen.query_one("#sheet-size", Input).value = "tiny"
+        screen.action_generate()
+        await pilot.pause()
+        assert "--sheet" in screen.last_message
+        screen.query_one("#sheet-size", Input).value = "60x60"
+        screen.action_generate()
+        await wait_for(pilot, screen, lambda: "cannot fabricate" in screen.last_message)
+        assert screen.result is None
