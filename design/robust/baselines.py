@@ -52,7 +52,7 @@ def baseline_b1(problem: LayoutProblem, oracle: Oracle, budget: int, seed: int, 
     If the budget runs out first, the layout with the most successful events is returned.
     """
     _check_budget(problem, budget)
-    rng = np.random.default_rng(seed)
+    rng = np.random.default_rng([seed, 1])
     best_u, best_count, used = None, -1, 0
     while used < budget:
         U = uniform_valid(problem, min(batch, budget - used), rng)
@@ -76,7 +76,7 @@ def baseline_b2(problem: LayoutProblem, oracle: Oracle, budget: int, seed: int,
     """B2: ⌊B/d²⌋ uniform layouts scored by ρ_l(x, 0.1) from d² simulations each; the best."""
     _check_budget(problem, budget)
     settings = settings or RobustnessSettings()
-    rng = np.random.default_rng(seed)
+    rng = np.random.default_rng([seed, 2])
     centers = uniform_valid(problem, _evaluations(problem, budget), rng)
     scores, used = [], 0
     for u in centers:
@@ -92,7 +92,7 @@ def baseline_b3(problem: LayoutProblem, oracle: Oracle, budget: int, seed: int,
     """B3: Gaussian-process Bayesian optimization of ρ_l(x, 0.1), ⌊B/d²⌋ evaluations."""
     _check_budget(problem, budget)
     settings = settings or RobustnessSettings()
-    rng = np.random.default_rng(seed)
+    rng = np.random.default_rng([seed, 3])
     n_evaluations = _evaluations(problem, budget)
     n_initial = max(2, min(n_evaluations, int(round(B3_INITIAL_FRACTION * n_evaluations))))
     X = list(uniform_valid(problem, n_initial, rng))
@@ -110,13 +110,18 @@ def baseline_b3(problem: LayoutProblem, oracle: Oracle, budget: int, seed: int,
             # Hyper-parameters at their bounds are expected on a flat, noisy objective; not worth a warning.
             warnings.simplefilter("ignore", ConvergenceWarning)
             gp.fit(np.asarray(X), np.asarray(y))
-        candidates = uniform_valid(problem, B3_CANDIDATES, rng)
+        # Expected improvement on raw uniform candidates; validity (which may cost a physics query each) is
+        # checked lazily, best candidate first.
+        candidates = rng.random((B3_CANDIDATES, problem.dim))
         mean, std = gp.predict(candidates, return_std=True)
         best = max(y)
         std = np.maximum(std, 1e-12)
         z = (mean - best) / std
         improvement = (mean - best) * norm.cdf(z) + std * norm.pdf(z)
-        u = candidates[int(np.argmax(improvement))]
+        u = next((candidates[i] for i in np.argsort(-improvement) if problem.is_valid(candidates[i][None, :])[0]),
+                 None)
+        if u is None:
+            u = uniform_valid(problem, 1, rng)[0]
         score, n = estimate_local_robustness(problem, oracle, u, settings.baseline_radius, problem.dim**2, rng)
         X.append(u)
         y.append(score)

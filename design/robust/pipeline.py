@@ -48,9 +48,10 @@ class BudgetedOracle:
     """Counts simulations against a budget, reports progress, and runs them through an executor."""
 
     def __init__(self, executor: SimulationExecutor, budget: int | None, progress: ProgressCallback | None = None,
-                 should_stop: Callable[[], bool] | None = None) -> None:
+                 should_stop: Callable[[], bool] | None = None, expected: int | None = None) -> None:
         self.executor = executor
         self.budget = budget
+        self.expected = expected  # shown as the total when there is no budget (e.g. an evaluation set)
         self.used = 0
         self.progress = progress
         self.should_stop = should_stop
@@ -63,7 +64,8 @@ class BudgetedOracle:
 
     def report(self, detail: str = "") -> None:
         if self.progress is not None:
-            self.progress(Progress(self.phase, self.used, self.budget or self.used, self.cv_accuracy,
+            total = self.budget or max(self.expected or 0, self.used)
+            self.progress(Progress(self.phase, self.used, total, self.cv_accuracy,
                                    self.best_psp, detail))
 
     def __call__(self, U: np.ndarray) -> np.ndarray:
@@ -170,7 +172,8 @@ def optimize_robust_layout(
 
     oracle.phase = "exploration"
     oracle.report()
-    samples = explore(problem, oracle, settings, seed, exploration_cap)
+    initial_cap = None if budget is None else max(10, int(settings.initial_share * learning_budget))
+    samples = explore(problem, oracle, settings, seed, exploration_cap, initial_cap)
 
     oracle.phase = "active learning"
 
@@ -309,7 +312,7 @@ def compare_methods(
     if "ours" not in methods and budget is None:
         raise RobustError("compare: without 'ours', give the baselines' simulation budget")
     robustness = robustness or RobustnessSettings()
-    unbounded = BudgetedOracle(executor, None, progress, should_stop)
+    unbounded = BudgetedOracle(executor, None, progress, should_stop, expected=robustness.n_evaluation)
     unbounded.phase = "evaluation set"
     evaluation: EvaluationSet = evaluation_set(problem, unbounded, robustness.n_evaluation)
     results: list[MethodRun] = []

@@ -189,14 +189,18 @@ def explore(
     settings,
     seed: int,
     max_simulations: int | None = None,
+    initial_cap: int | None = None,
 ) -> Samples:
     """Algorithm 1: Sobol start, then a Gaussian mixture around the top N⁺ partially successful layouts.
 
-    Stops when N⁺ global successes are found, after kᵉ steps, or when ``max_simulations`` are used.
+    Stops when N⁺ global successes are found, after kᵉ steps, or when ``max_simulations`` are used; the Sobol start
+    uses at most ``initial_cap`` simulations.
     """
     rng = np.random.default_rng(seed)
     cap = max_simulations if max_simulations is not None else np.inf
     n0 = int(min(settings.n_initial, cap))
+    if initial_cap is not None:
+        n0 = max(1, min(n0, int(initial_cap)))
     U0 = sobol_valid(problem, n0, seed)
     samples = Samples(U0, oracle(U0))
     n_events = len(problem.event_names)
@@ -314,8 +318,8 @@ class FactorizedPSP:
         events = self.samples_.events
         if not parents:
             condition = np.ones(len(events), dtype=bool)
-        elif column is not None and self._joins.get(self.event_names_[column], "and") == "or":
-            condition = events[:, parents].any(axis=1)  # an OR join wakes up when any parent succeeded
+        elif column is not None and self._joins.get(self.event_names_[column], "all") == "any":
+            condition = events[:, parents].any(axis=1)  # an "any" join wakes up when one parent succeeded
         else:
             condition = events[:, parents].all(axis=1)
         labels = events[:, column] if column is not None else events.all(axis=1)

@@ -51,6 +51,9 @@ class PSPSettings:
     exploration_share : float
         When a simulation budget is given, the largest part of it the exploration may use (ours: the thesis has
         no budget for its own method, it measures one).
+    initial_share : float
+        When a simulation budget is given, the largest part of it the initial Sobol sample may use, so that small
+        budgets still leave room for adaptive steps (ours).
     fallback_to_best_sample : bool
         If the optimized layout fails when re-simulated, return the best simulated sample instead (ours).
     """
@@ -73,6 +76,7 @@ class PSPSettings:
     smooth_min_alpha: float = 10.0
     optimizer_max_iterations: int = 100
     exploration_share: float = 0.75
+    initial_share: float = 0.5
     fallback_to_best_sample: bool = True
 
     def __post_init__(self) -> None:
@@ -86,7 +90,7 @@ class PSPSettings:
             raise RobustError(f"PSP settings: cv_folds must be an integer >= 2, got {self.cv_folds!r}")
         if self.max_active_steps < 0:
             raise RobustError(f"PSP settings: max_active_steps must be >= 0, got {self.max_active_steps!r}")
-        for name in ("target_accuracy", "quasi_deterministic", "exploration_share"):
+        for name in ("target_accuracy", "quasi_deterministic", "exploration_share", "initial_share"):
             value = getattr(self, name)
             if not 0.0 < value <= 1.0:
                 raise RobustError(f"PSP settings: {name} must be in (0, 1], got {value!r}")

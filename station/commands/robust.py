@@ -1,0 +1,306 @@
+"""``station optimize``, ``station robustness`` and ``station compare``: robust contraption layouts (thesis 4.5-4.8).
+
+Simulations are cached in the station's cache directory (keyed by scenario content and layout), so a repeated or
+interrupted command re-simulates nothing it already knows. Ctrl-C stops cleanly and keeps the cache.
+"""
+
+from __future__ import annotations
+
+import json
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+from design.errors import FileFormatError
+from design.robust import (
+    METHODS,
+    Progress,
+    PSPSettings,
+    RobustnessSettings,
+    SimulationExecutor,
+    compare_methods,
+    evaluation_set,
+    optimize_robust_layout,
+    robustness_curve,
+)
+from design.robust.pipeline import BudgetedOracle
+from design.robust.plot import plot_robustness
+from station.cli_util import emit_json, output_suffix
+from station.errors import UsageError
+from station.paths import cache_dir
+
+#: Simulation budgets measured by the thesis for its own method (Table 4.1), used as the default budget.
+THESIS_BUDGETS = {"CAUSALITYSWITCH": 614, "BALLRUN": 1120, "LONGCHAIN": 1915, "TEAPOTADVENTURE": 2420}
+DEFAULT_BUDGET = 600
+
+
+def simulation_cache_path() -> Path:
+    """The shared simulation cache of every robust-layout command and the TUI."""
+    return cache_dir() / "robust-simulations.sqlite3"
+
+
+class ProgressBar:
+    """A one-line progress bar on stderr: phase, simulations of the budget, CV accuracy, best PSP."""
+
+    def __init__(self, stream=None, width: int = 28, interval: float = 0.1) -> None:
+        self.stream = stream or sys.stderr
+        self.width = width
+        self.interval = interval
+        self._last = 0.0
+        self._shown = False
+        self._phase = None
+        self._tty = bool(getattr(self.stream, "isatty", lambda: False)())
+
+    def __call__(self, progress: Progress) -> None:
+        now = time.monotonic()
+        if not self._tty:
+            # A log file, not a terminal: one line per phase instead of a redrawn bar.
+            if progress.phase != self._phase:
+                self._phase = progress.phase
+                self.stream.write(f"{progress.phase}: {progress.simulations}/{progress.budget} simulations\n")
+                self.stream.flush()
+            return
+        if now - self._last < self.interval and progress.phase != "done":
+            return
+        self._last = now
+        fraction = min(progress.simulations / progress.budget, 1.0) if progress.budget else 0.0
+        filled = int(round(fraction * self.width))
+        bar = "#" * filled + "." * (self.width - filled)
+        extra = ""
+        if progress.cv_accuracy is not None:
+            extra += f"  cv {progress.cv_accuracy:.2f}"
+        if progress.best_psp is not None:
+            extra += f"  best PSP {progress.best_psp:.2f}"
+        line = f"\r[{bar}] {progress.simulations}/{progress.budget} {progress.phase}{extra}"
+        self.stream.write(line.ljust(100)[:100])
+        self.stream.flush()
+        self._shown = True
+
+    def close(self) -> None:
+        if self._shown:
+            self.stream.write("\n")
+            self.stream.flush()
+            self._shown = False
+
+
+def _load_problem(path: str):
+    from design.robust.contraption import load_problem
+
+    return load_problem(path)
+
+
+def _positive(value: int | None, option: str, minimum: int = 1) -> None:
+    if value is not None and value < minimum:
+        raise UsageError(f"{option} must be an integer >= {minimum}, got {value}")
+
+
+def _executor(problem, args) -> SimulationExecutor:
+    _positive(args.workers, "--workers")
+    return SimulationExecutor(problem, workers=args.workers, scheduler=args.scheduler,
+                              cache_path=simulation_cache_path(), chunk_size=1)
+
+
+def _interrupted(executor: SimulationExecutor | None) -> None:
+    kept = executor.cache.count() if executor is not None else 0
+    print(f"\nstation: interrupted; {kept} simulations are kept in the cache", file=sys.stderr)
+
+
+def add_common(parser, budget: bool = True) -> None:
+    parser.add_argument("scenario", help="scenario file (e.g. examples/scenarios/simple.toml)")
+    if budget:
+        parser.add_argument("--budget", type=int, default=None,
+                            help=f"simulation budget (default: the thesis's Table 4.1 budget, else {DEFAULT_BUDGET})")
+    parser.add_argument("--seed", type=int, default=0, help="seed of every random process (default 0)")
+    parser.add_argument("--workers", type=int, default=None, help="local worker processes (default: all cores)")
+    parser.add_argument("--scheduler", default=None, metavar="tcp://HOST:PORT",
+                        help="run simulations on a Dask distributed cluster instead of local processes")
+
+
+def register(subparsers) -> None:
+    optimize = subparsers.add_parser(
+        "optimize", help="find a robust layout of a contraption scenario (PSP + optimization, thesis 4.5-4.7)",
+        description="Learn the parametric success probability of a scenario from simulations and optimize its "
+        "layout; writes LAYOUT.json (content hash, parameters real and normalized, predicted probabilities).",
+    )
+    add_common(optimize)
+    optimize.add_argument("--out", required=True, metavar="LAYOUT.json", help="output layout file")
+    optimize.add_argument("--global-psp", action="store_true", help="one classifier of global success (no per-event "
+                          "factorization, thesis 4.5 instead of 4.6)")
+    optimize.add_argument("--json", action="store_true", help="also print the layout as JSON on stdout")
+    optimize.set_defaults(func=run_optimize)
+
+    robustness = subparsers.add_parser(
+        "robustness", help="local robustness curve ρ_l and global robustness ρ_g of a layout (thesis 4.8.3)",
+    )
+    robustness.add_argument("scenario", help="scenario file")
+    robustness.add_argument("layout", help="LAYOUT.json written by `station optimize`")
+    robustness.add_argument("--eval", type=int, default=RobustnessSettings().n_evaluation, metavar="N",
+                            help="size of the Sobol evaluation set (default %(default)s)")
+    robustness.add_argument("--local", type=int, default=RobustnessSettings().n_local, metavar="N",
+                            help="layouts simulated around the layout (ball thickness, default %(default)s)")
+    robustness.add_argument("--seed", type=int, default=0, help="seed of the local samples (default 0)")
+    robustness.add_argument("--workers", type=int, default=None, help="local worker processes (default: all cores)")
+    robustness.add_argument("--scheduler", default=None, metavar="tcp://HOST:PORT", help="Dask scheduler")
+    robustness.add_argument("--plot", metavar="OUT.png", help="draw the ρ_l curve")
+    robustness.add_argument("--json", action="store_true", help="print the result as JSON")
+    robustness.set_defaults(func=run_robustness)
+
+    compare = subparsers.add_parser(
+        "compare", help="ours vs baselines B1-B3 at the same simulation budget (thesis Table 4.2, Figure 4.18)",
+    )
+    add_common(compare)
+    compare.add_argument("--methods", default=",".join(METHODS), help="comma-separated among ours,b1,b2,b3")
+    compare.add_argument("--runs", type=int, default=5, metavar="T", help="seeds per method (default 5)")
+    compare.add_argument("--eval", type=int, default=RobustnessSettings().n_evaluation, metavar="N",
+                         help="size of the Sobol evaluation set (default %(default)s)")
+    compare.add_argument("--local", type=int, default=RobustnessSettings().n_local, metavar="N",
+                         help="layouts simulated around each result (ball thickness, default %(default)s)")
+    compare.add_argument("--plot", metavar="OUT.png", help="draw the mean ρ_l curves (Figure 4.18)")
+    compare.add_argument("--json", action="store_true", help="print the table as JSON")
+    compare.set_defaults(func=run_compare)
+
+
+def default_budget(problem, budget: int | None) -> int:
+    if budget is None:
+        return THESIS_BUDGETS.get(problem.name.upper(), DEFAULT_BUDGET)
+    _positive(budget, "--budget", 20)
+    return budget
+
+
+def run_optimize(args) -> int:
+    out = Path(args.out)
+    output_suffix(out, {".json"})
+    problem = _load_problem(args.scenario)
+    budget = default_budget(problem, args.budget)
+    settings = PSPSettings(factorize=not args.global_psp)
+    bar = ProgressBar()
+    executor = None
+    try:
+        with _executor(problem, args) as executor:
+            result = optimize_robust_layout(problem, executor, budget, args.seed, settings, progress=bar)
+    except KeyboardInterrupt:
+        bar.close()
+        _interrupted(executor)
+        raise
+    bar.close()
+    payload = result.to_json(problem)
+    out.write_text(json.dumps(payload, indent=2) + "\n", encoding="utf-8")
+    if args.json:
+        emit_json(payload)
+    else:
+        print(f"{problem.name}: predicted PSP {result.psp:.3f}, simulated "
+              f"{'success' if result.simulated_success else 'FAILURE'}, {result.n_simulations} simulations "
+              f"({result.n_new_simulations} new), {result.seconds:.1f} s -> {out}")
+        for name, value in zip(problem.parameter_names, problem.to_real(result.u)):
+            print(f"  {name:24s} {value: .5g}")
+        for name, p in zip(result.factor_names, result.factor_probabilities):
+            print(f"  P({name}) = {p:.3f}")
+    return 0 if result.simulated_success else 1
+
+
+def read_layout(path: str, problem) -> np.ndarray:
+    """The normalized layout of a LAYOUT.json, checked against the scenario (hash and parameter names)."""
+    try:
+        data = json.loads(Path(path).read_text(encoding="utf-8"))
+    except json.JSONDecodeError as error:
+        raise FileFormatError(f"{path}: not JSON ({error.msg} at line {error.lineno})") from None
+    if not isinstance(data, dict) or not isinstance(data.get("parameters"), list):
+        raise FileFormatError(f"{path}: field 'parameters' must be a list of {{name, value}}")
+    if data.get("content_hash") not in (None, problem.content_hash):
+        raise FileFormatError(f"{path}: field 'content_hash' is of another scenario content than {problem.name} "
+                              f"({str(data.get('content_hash'))[:12]}... vs {problem.content_hash[:12]}...)")
+    values = {}
+    for i, entry in enumerate(data["parameters"]):
+        if not isinstance(entry, dict) or not isinstance(entry.get("name"), str) or \
+                not isinstance(entry.get("value"), (int, float)):
+            raise FileFormatError(f"{path}: parameters[{i}] must be an object with a name and a numeric value")
+        values[entry["name"]] = float(entry["value"])
+    missing = [n for n in problem.parameter_names if n not in values]
+    if missing:
+        raise FileFormatError(f"{path}: field 'parameters' lacks {missing} (expected {list(problem.parameter_names)})")
+    x = np.array([values[n] for n in problem.parameter_names])
+    u = problem.to_normalized(x)
+    if np.any(u < -1e-9) or np.any(u > 1 + 1e-9):
+        raise FileFormatError(f"{path}: a parameter is outside the scenario's ranges")
+    return np.clip(u, 0.0, 1.0)
+
+
+def run_robustness(args) -> int:
+    _positive(args.eval, "--eval")
+    if args.plot:
+        output_suffix(args.plot, {".png"})
+    problem = _load_problem(args.scenario)
+    u = read_layout(args.layout, problem)
+    _positive(args.local, "--local")
+    settings = RobustnessSettings(n_evaluation=args.eval, n_local=args.local)
+    bar = ProgressBar()
+    executor = None
+    try:
+        with _executor(problem, args) as executor:
+            oracle = BudgetedOracle(executor, None, bar, expected=settings.n_evaluation + settings.n_local)
+            oracle.phase = "evaluation set"
+            evaluation = evaluation_set(problem, oracle, settings.n_evaluation)
+            oracle.phase = "local samples"
+            curve = robustness_curve(problem, oracle, evaluation, u, settings, seed=args.seed)
+    except KeyboardInterrupt:
+        bar.close()
+        _interrupted(executor)
+        raise
+    bar.close()
+    if args.plot:
+        plot_robustness({"layout": (curve.epsilon, curve.local, np.zeros_like(curve.local))}, args.plot,
+                        f"{problem.name}: {Path(args.layout).name}")
+    payload = {"scenario": problem.name, "valid": curve.valid, "rho_g": curve.global_robustness,
+               "epsilon": curve.epsilon, "rho_l": curve.local, "evaluation_size": len(evaluation.U),
+               "evaluation_success_rate": float(evaluation.success.mean())}
+    if args.json:
+        emit_json(payload)
+    else:
+        print(f"{problem.name}: rho_g = {curve.global_robustness:.3f} over {len(evaluation.U)} evaluation layouts"
+              f" ({100 * evaluation.success.mean():.0f}% succeed)" + ("" if curve.valid else "; layout INVALID"))
+        for eps, rho in list(zip(curve.epsilon, curve.local))[::3]:
+            print(f"  eps {eps:4.2f}  rho_l {rho:5.3f}  {'#' * int(round(40 * rho))}")
+    return 0
+
+
+def run_compare(args) -> int:
+    methods = [m.strip().lower() for m in args.methods.split(",") if m.strip()]
+    unknown = sorted(set(methods) - set(METHODS))
+    if unknown or not methods:
+        raise UsageError(f"--methods: expected a comma-separated list among {','.join(METHODS)}, got {args.methods!r}")
+    _positive(args.runs, "--runs")
+    _positive(args.eval, "--eval")
+    if args.plot:
+        output_suffix(args.plot, {".png"})
+    _positive(args.local, "--local")
+    robustness = RobustnessSettings(n_evaluation=args.eval, n_local=args.local)
+    problem = _load_problem(args.scenario)
+    budget = default_budget(problem, args.budget)
+    bar = ProgressBar()
+    executor = None
+    try:
+        with _executor(problem, args) as executor:
+            comparison = compare_methods(problem, executor, methods, args.runs, budget, args.seed,
+                                         robustness=robustness, progress=bar)
+    except KeyboardInterrupt:
+        bar.close()
+        _interrupted(executor)
+        raise
+    bar.close()
+    rows = comparison.table()
+    if args.plot:
+        title = f"{problem.name} (T = {args.runs}, B = {comparison.budget})"
+        plot_robustness(comparison.mean_curves(), args.plot, title)
+    if args.json:
+        emit_json({"scenario": problem.name, "budget": comparison.budget,
+                   "evaluation_size": comparison.evaluation_size, "methods": rows})
+        return 0
+    print(f"{problem.name}: d = {problem.dim}, budget B = {comparison.budget}, T = {args.runs} runs, "
+          f"evaluation set {comparison.evaluation_size}")
+    print(f"  {'method':6s} {'rho_g mean ± s.e.':>20s} {'time (s)':>9s} {'sims':>7s}")
+    for row in rows:
+        print(f"  {row['method']:6s} {row['rho_g_mean']:12.3f} ± {row['rho_g_sem']:.3f} {row['seconds_mean']:9.1f} "
+              f"{row['simulations_mean']:7.0f}")
+    return 0

@@ -1,0 +1,121 @@
+"""The robust-layout pipeline on the real SIMPLE scenario (pybullet), and the station commands."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+from sklearn.metrics import roc_auc_score
+
+from design.robust import FactorizedPSP, PSPSettings, SimulationExecutor, explore, optimize_robust_layout
+from design.robust.sampling import sobol_valid
+from station.cli import main
+
+ROOT = Path(__file__).resolve().parents[2]
+SIMPLE = ROOT / "examples" / "scenarios" / "simple.toml"
+TINY = PSPSettings(n_initial=48, n_successes=20, max_exploration_steps=3, max_active_steps=1)
+
+pytestmark = pytest.mark.skipif(not SIMPLE.exists(), reason="the SIMPLE scenario file is missing")
+
+
+@pytest.fixture(scope="module")
+def simple():
+    from design.robust.contraption import load_problem
+
+    return load_problem(SIMPLE)
+
+
+@pytest.fixture(scope="module")
+def simple_data(simple):
+    # One shared simulated sample of SIMPLE (explored) and a held-out Sobol set with its simulated truth.
+    samples = explore(simple, lambda U: np.stack([simple.simulate(u) for u in U]), TINY, seed=0, max_simulations=70)
+    held_out = sobol_valid(simple, 64, seed=777)
+    truth = np.array([simple.simulate(u).all() for u in held_out])
+    return samples, held_out, truth
+
+
+def test_simple_problem_mirrors_the_scenario(simple):
+    assert simple.parameter_names == ("track.x", "track.z", "track.roll")
+    assert simple.event_parents["ball_hits_domino"] == ("ball_rolls",)
+    np.testing.assert_allclose(simple.to_real(simple.to_normalized([-0.06, 0.06, 30.0])), [-0.06, 0.06, 30.0])
+    # The track buried in the floor is impossible (D∅); the file's own layout is valid.
+    assert not simple.is_valid(np.array([[0.5, 0.0, 0.9]]))[0]
+    assert simple.validity_margins(np.array([0.5, 0.0, 0.9]))[0] < 0
+    assert simple.is_valid(simple.initial_layout()[None, :])[0]
+
+
+def test_simple_psp_separates_success_from_failure(simple, simple_data):
+    samples, held_out, truth = simple_data
+    assert 0 < truth.sum() < len(truth)
+    psp = FactorizedPSP(TINY, random_state=0).fit(simple, samples)
+    p = psp.predict_proba(held_out)
+    assert np.all((p >= 0) & (p <= 1))
+    assert roc_auc_score(truth, p) > 0.7
+    assert p[truth].mean() > p[~truth].mean()
+
+
+def test_simple_optimization_is_valid_and_cached(simple, tmp_path):
+    cache = tmp_path / "cache.sqlite3"
+    with SimulationExecutor(simple, workers=1, cache_path=cache) as executor:
+        first = optimize_robust_layout(simple, executor, budget=60, seed=1, settings=TINY)
+    assert simple.is_valid(first.u[None, :])[0]
+    assert first.n_simulations <= 60
+    with SimulationExecutor(simple, workers=1, cache_path=cache) as executor:
+        second = optimize_robust_layout(simple, executor, budget=60, seed=1, settings=TINY)
+        assert executor.n_simulated == 0
+    np.testing.assert_array_equal(first.u, second.u)
+
+
+def test_cli_optimize_then_robustness(tmp_path, capsys):
+    out = tmp_path / "layout.json"
+    code = main(["optimize", str(SIMPLE), "--budget", "30", "--workers", "1", "--seed", "2", "--out", str(out)])
+    assert code in (0, 1)
+    layout = json.loads(out.read_text())
+    assert layout["scenario"] == "SIMPLE" and len(layout["content_hash"]) == 64
+    assert [p["name"] for p in layout["parameters"]] == ["track.x", "track.z", "track.roll"]
+    for p in layout["parameters"]:
+        assert p["lower"] <= p["value"] <= p["upper"] and 0 <= p["normalized"] <= 1
+    assert 0 <= layout["predicted_psp"] <= 1
+    assert set(layout["event_probabilities"]) == {"ball_rolls", "ball_hits_domino", "first_topples",
+                                                  "last_topples", "last_stops"}
+    assert layout["simulations_used"] <= layout["simulation_budget"] == 30
+    assert code == (0 if layout["simulated_success"] else 1)
+    capsys.readouterr()
+    plot = tmp_path / "curve.png"
+    code = main(["robustness", str(SIMPLE), str(out), "--eval", "48", "--local", "20", "--workers", "1", "--json",
+                 "--plot", str(plot)])
+    assert code == 0
+    result = json.loads(capsys.readouterr().out)
+    assert 0 <= result["rho_g"] <= 1 and len(result["rho_l"]) == 31
+    assert plot.stat().st_size > 1000
+
+
+def test_cli_compare_prints_a_table(tmp_path, capsys):
+    plot = tmp_path / "compare.png"
+    code = main(["compare", str(SIMPLE), "--methods", "ours,b1", "--runs", "2", "--budget", "24", "--eval", "32",
+                 "--local", "8", "--workers", "1", "--json", "--plot", str(plot)])
+    assert code == 0
+    table = json.loads(capsys.readouterr().out)
+    assert [row["method"] for row in table["methods"]] == ["ours", "b1"]
+    assert all(0 <= row["rho_g_mean"] <= 1 for row in table["methods"])
+    assert plot.exists()
+
+
+def test_cli_bad_input_is_one_clear_line(tmp_path, capsys):
+    assert main(["optimize", str(SIMPLE), "--out", str(tmp_path / "x.txt")]) == 2
+    assert "expected one of .json" in capsys.readouterr().err
+    assert main(["compare", str(SIMPLE), "--methods", "ours,b9"]) == 2
+    assert "--methods" in capsys.readouterr().err
+    assert main(["optimize", str(SIMPLE), "--budget", "5", "--out", str(tmp_path / "x.json")]) == 2
+    assert "--budget" in capsys.readouterr().err
+    other = tmp_path / "other.json"
+    other.write_text(json.dumps({"content_hash": "0" * 64, "parameters": []}))
+    assert main(["robustness", str(SIMPLE), str(other)]) == 2
+    assert "content_hash" in capsys.readouterr().err
+    broken = tmp_path / "broken.json"
+    broken.write_text("{")
+    assert main(["robustness", str(SIMPLE), str(broken)]) == 2
+    assert "not JSON" in capsys.readouterr().err
+    assert main(["optimize", str(tmp_path / "nope.toml"), "--out", str(tmp_path / "y.json")]) == 2
