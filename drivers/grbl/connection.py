@@ -1,0 +1,695 @@
+"""A live connection to one GRBL 1.1 controller.
+
+Threads
+-------
+- a reader thread reads the port, splits lines and dispatches every message (ok/error to the oldest pending line,
+  alarms, banners, status reports, push messages) and keeps a rolling log of the traffic;
+- a status thread writes ``?`` at most every ``poll_interval`` s (5 Hz by default) and runs the watchdogs: a lost
+  ``ok`` (status shows the machine idle with empty planner and RX buffer while lines are still counted as pending)
+  and a silent or vanished port;
+- the calling thread streams lines (:meth:`GrblConnection.stream`) by character counting against GRBL's serial RX
+  buffer (size from ``$I``), or send-response for what GRBL's interface rules require (``$`` commands, ``G10``,
+  ``G28.1``, ``G30.1``).
+
+Real-time bytes (``?``, ``!``, ``~``, 0x18, 0x85, overrides) are written at once by :meth:`realtime`: G-code waits in
+this object's memory, never in the port, and at most one RX buffer of G-code (128 bytes) is ever in flight, so a
+real-time byte never waits behind queued G-code.
+
+After any banner (power-up or reset) or alarm, the character counter is cleared; after an alarm, ``ok`` lines are
+ignored until the reset banner (the soft-limit line's ``ok`` arrives only after the reset). An ``ok`` is never
+invented: a lost one stops the stream with a clear message.
+"""
+
+from __future__ import annotations
+
+import functools
+import threading
+import time
+from collections import deque
+from collections.abc import Callable, Iterable, Sequence
+from dataclasses import dataclass, field
+
+import serial
+
+from drivers.errors import DeviceStateError, PortError, ProtocolError
+from drivers.gcode import clean_line, tokenize
+from drivers.grbl.protocol import (
+    Alarm,
+    Banner,
+    Error,
+    Feedback,
+    Garbled,
+    Ok,
+    SettingLine,
+    StatusReport,
+    needs_sync,
+    parse_line,
+)
+
+__all__ = ["GrblConnection", "LineResult", "StreamStopped", "open_port"]
+
+DEFAULT_RX_SIZE = 128
+DEFAULT_PLANNER_SIZE = 15
+
+
+def open_port(url: str, baud: int = 115200, timeout: float = 0.05) -> serial.SerialBase:
+    """Open ``url`` with :func:`serial.serial_for_url` (device path, ``socket://``, ``loop://``, ``sim://``)."""
+    import drivers.sim
+
+    drivers.sim.register()
+    try:
+        return serial.serial_for_url(url, baudrate=baud, timeout=timeout, write_timeout=2.0)
+    except (serial.SerialException, ValueError, OSError) as error:
+        raise PortError(f"cannot open port {url!r}: {error}") from None
+
+
+class StreamStopped(DeviceStateError):
+    """Streaming stopped before every line was acknowledged (fault, alarm, error, abort). ``.reason`` says why."""
+
+    def __init__(self, message: str, reason: str, first_unconfirmed: int | None = None) -> None:
+        super().__init__(message)
+        self.reason = reason
+        self.first_unconfirmed = first_unconfirmed
+        self.results: list[LineResult] = []
+
+
+@dataclass
+class LineResult:
+    """What happened to one streamed line (``index`` into the caller's list)."""
+
+    index: int
+    text: str
+    status: str = "pending"  # pending, ok, error, unconfirmed
+    error: int | None = None
+    replies: list = field(default_factory=list)
+
+
+@dataclass
+class _Pending:
+    result: LineResult
+    nbytes: int
+    dwell: float
+    done: threading.Event = field(default_factory=threading.Event)
+
+
+class GrblConnection:
+    """One GRBL controller behind a port URL.
+
+    Parameters
+    ----------
+    url : str
+        Port URL (``/dev/ttyUSB0``, ``socket://host:port``, ``sim://grbl?profile=laser`` ...).
+    baud : int
+        Baud rate (115200 for GRBL 1.1).
+    poll_interval : float
+        Seconds between status requests (``?``); GRBL asks for at most 5 Hz on real machines.
+    lost_ok_timeout : float
+        Seconds the "idle, buffers empty, lines pending" condition must hold before a lost ``ok`` is declared.
+        With the 5 Hz poll the loss is reported within ``lost_ok_timeout + poll_interval`` (2 s by default).
+    silence_timeout : float
+        Seconds without any byte from the controller (despite polling) after which the port counts as vanished.
+    """
+
+    def __init__(
+        self,
+        url: str,
+        baud: int = 115200,
+        *,
+        poll_interval: float = 0.2,
+        lost_ok_timeout: float = 1.5,
+        silence_timeout: float = 0.8,
+        banner_timeout: float = 3.0,
+        reply_timeout: float = 10.0,
+        log_size: int = 4000,
+    ) -> None:
+        self.url = url
+        self.baud = baud
+        self.poll_interval = poll_interval
+        self.lost_ok_timeout = lost_ok_timeout
+        self.silence_timeout = silence_timeout
+        self.banner_timeout = banner_timeout
+        self.reply_timeout = reply_timeout
+        self.log: deque[tuple[float, str, str]] = deque(maxlen=log_size)
+        self.port = None
+        self.rx_size = DEFAULT_RX_SIZE
+        self.planner_size = DEFAULT_PLANNER_SIZE
+        self.options = ""
+        self.version = ""
+        self.settings: dict[int, float] = {}
+        self.offsets: dict[str, tuple[float, ...]] = {}
+        self.parser_state = ""
+        self.status: StatusReport | None = None
+        self.status_time = 0.0
+        self.wco: tuple[float, ...] | None = None
+        self.alarm: Alarm | None = None
+        self.position_lost = False
+        self.fault: str | None = None
+        self.messages: deque[str] = deque(maxlen=200)
+        self._lock = threading.RLock()
+        self._cond = threading.Condition(self._lock)
+        self._write_lock = threading.Lock()
+        self._pending: deque[_Pending] = deque()
+        self._ignore_oks = False
+        self._expect_banner = False
+        self._banner_count = 0
+        self._last_rx = 0.0
+        self._lost_since: float | None = None
+        self._lost_entry: _Pending | None = None
+        self._alarm_count = 0
+        self.replies_accepted = 0  # ok/error lines matched to a sent line (never more than the controller sent)
+        self._fault_count = 0
+        self._reset_since_alarm = False
+        self._stop = threading.Event()
+        self._threads: list[threading.Thread] = []
+        self._listeners: list[Callable[[str, object], None]] = []
+        self._line_buffer = bytearray()
+
+    # ------------------------------------------------------------------ life cycle
+
+    def open(self) -> GrblConnection:
+        """Open the port, wait for the banner (soft-reset if none comes), read ``$I``, ``$$``, ``$#``, ``$G``.
+
+        Makes sure status reports carry ``Bf`` (``$10`` bit 1), which the lost-``ok`` watchdog needs.
+        """
+        self.port = open_port(self.url, self.baud)
+        self._stop.clear()
+        self._last_rx = time.monotonic()
+        reader = threading.Thread(target=self._read_loop, name="grbl-reader", daemon=True)
+        self._threads = [reader]
+        banners = self._banner_count
+        reader.start()
+        if not self._wait_for(lambda: self._banner_count > banners, self.banner_timeout):
+            self._log("info", "no banner after opening; sending soft reset")
+            self.soft_reset()
+        if self._banner_count == banners:
+            self.close()
+            raise PortError(f"{self.url}: no GRBL banner (is it a GRBL 1.1 controller at {self.baud} baud?)")
+        poller = threading.Thread(target=self._status_loop, name="grbl-status", daemon=True)
+        self._threads.append(poller)
+        poller.start()  # before the first queries: the lost-reply watchdog needs status reports
+        self.refresh()
+        if int(self.settings.get(10, 0)) & 2 == 0:
+            value = int(self.settings.get(10, 1)) | 2
+            self._log("info", f"status reports need buffer data: setting $10={value}")
+            self.command(f"$10={value}", timeout=2.0, retries=2)  # idempotent
+            self.settings[10] = value
+        self._wait_for(lambda: self.status is not None, 2.0)
+        return self
+
+    def refresh(self) -> None:
+        """Re-read ``$I`` (RX buffer size, options), ``$$`` (settings), ``$#`` (offsets) and ``$G`` (modal state)."""
+        for reply in self.command("$I", retries=2):
+            if isinstance(reply, Feedback) and reply.kind == "OPT":
+                parts = reply.text.split(",")
+                self.options = parts[0]
+                if len(parts) >= 3 and parts[2].strip().isdigit():
+                    self.rx_size = int(parts[2])
+                if len(parts) >= 2 and parts[1].strip().isdigit():
+                    self.planner_size = int(parts[1])
+            elif isinstance(reply, Feedback) and reply.kind == "VER":
+                self.version = reply.text
+        self.settings = {r.key: r.value for r in self.command("$$", retries=2) if isinstance(r, SettingLine)}
+        self.offsets = {}
+        for reply in self.command("$#", retries=2):
+            if isinstance(reply, Feedback):
+                values = reply.text.split(":")[0]
+                try:
+                    self.offsets[reply.kind] = tuple(float(v) for v in values.split(","))
+                except ValueError:
+                    continue
+        for reply in self.command("$G", retries=2):
+            if isinstance(reply, Feedback) and reply.kind == "GC":
+                self.parser_state = reply.text
+
+    def close(self) -> None:
+        self._stop.set()
+        with self._cond:
+            self._cond.notify_all()
+        for thread in self._threads:
+            if thread is not threading.current_thread():
+                thread.join(timeout=2.0)
+        self._threads = []
+        if self.port is not None:
+            try:
+                self.port.close()
+            except (OSError, serial.SerialException):
+                pass
+
+    def __enter__(self) -> GrblConnection:
+        return self.open()
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+    def add_listener(self, callback: Callable[[str, object], None]) -> None:
+        """``callback(event, data)`` from the reader/status threads: events ``status``, ``message``, ``alarm``,
+        ``fault``, ``banner``, ``log``."""
+        self._listeners.append(callback)
+
+    def _notify(self, event: str, data: object) -> None:
+        for callback in list(self._listeners):
+            try:
+                callback(event, data)
+            except Exception:  # noqa: BLE001 - a broken listener must not kill the reader
+                pass
+
+    # ------------------------------------------------------------------ properties
+
+    @property
+    def machine_space(self) -> str:
+        """``"negative"`` (GRBL default: machine coordinates from -travel to 0) or ``"positive"`` (the build option
+        HOMING_FORCE_SET_ORIGIN, ``Z`` in ``[OPT:...]``)."""
+        return "positive" if "Z" in self.options else "negative"
+
+    @property
+    def travel(self) -> tuple[float, float, float]:
+        return (self.settings.get(130, 0.0), self.settings.get(131, 0.0), self.settings.get(132, 0.0))
+
+    @property
+    def laser_mode(self) -> bool:
+        return int(self.settings.get(32, 0)) == 1
+
+    @property
+    def pending_count(self) -> int:
+        with self._lock:
+            return len(self._pending)
+
+    @property
+    def pending_bytes(self) -> int:
+        with self._lock:
+            return sum(p.nbytes for p in self._pending)
+
+    def work_offset(self) -> tuple[float, float, float]:
+        """WCO = active G54..G59 offset + G92 (+ TLO on Z), from ``$#``/``$G`` or the last status report."""
+        if self.wco is not None:
+            return tuple(self.wco)
+        wcs = "G54"
+        for word in self.parser_state.split():
+            if word in ("G54", "G55", "G56", "G57", "G58", "G59"):
+                wcs = word
+        base = self.offsets.get(wcs, (0.0, 0.0, 0.0))
+        g92 = self.offsets.get("G92", (0.0, 0.0, 0.0))
+        tlo = self.offsets.get("TLO", (0.0,))[0]
+        return (base[0] + g92[0], base[1] + g92[1], base[2] + g92[2] + tlo)
+
+    # ------------------------------------------------------------------ writing
+
+    def _write(self, data: bytes) -> None:
+        if self.position_lost:
+            raise DeviceStateError(f"{self.url}: position lost ({self.fault}); reconnect and home before sending")
+        try:
+            with self._write_lock:
+                self.port.write(data)
+        except (serial.SerialException, OSError) as error:
+            self._port_lost(f"write failed: {error}")
+            raise PortError(f"{self.url}: port vanished ({error}); position lost") from None
+        if data not in (b"?",):
+            self._log("out", data.decode("latin-1").rstrip("\n") if data[:1] not in (b"\x18",) else "<soft reset>")
+
+    def realtime(self, byte: bytes) -> None:
+        """Send one real-time byte now: ``?`` status, ``!`` hold, ``~`` start, 0x18 reset, 0x85 jog cancel,
+        0x90-0x9D overrides."""
+        if len(byte) != 1:
+            raise ValueError("a real-time command is one byte")
+        if byte == b"\x18":
+            with self._lock:
+                self._expect_banner = True
+        self._write(byte)
+
+    def feed_hold(self) -> None:
+        self.realtime(b"!")
+
+    def cycle_start(self) -> None:
+        self.realtime(b"~")
+
+    def jog_cancel(self) -> None:
+        self.realtime(b"\x85")
+
+    def soft_reset(self, wait: bool = True, timeout: float | None = None) -> bool:
+        """Send 0x18 (stops motion at once, laser off). With ``wait``, wait for the reset banner. The character
+        counter is cleared when the banner arrives."""
+        banners = self._banner_count
+        self.realtime(b"\x18")
+        if not wait:
+            return True
+        return self._wait_for(lambda: self._banner_count > banners or self.position_lost,
+                              timeout or self.banner_timeout) and not self.position_lost
+
+    def command(self, line: str, timeout: float | None = None, retries: int = 0) -> list:
+        """Send-response: send ``line`` alone (after every pending line is answered) and return the messages that
+        came with its ``ok``.
+
+        ``retries`` re-sends a line whose reply was lost: only for read-only queries (``$I``, ``$$``, ``$#``,
+        ``$G``), which change nothing if they ran twice.
+
+        Raises
+        ------
+        ProtocolError
+            On ``error:N`` (with the meaning in words).
+        DeviceStateError
+            On an alarm, a lost reply (timeout) or a lost port.
+        """
+        for attempt in range(retries + 1):
+            try:
+                results = self.stream([line], sync_all=True, timeout=timeout)
+                break
+            except StreamStopped as stopped:
+                if attempt < retries and (self.recover_lost_ok() or self._recover_timeout(stopped)):
+                    self._log("info", f"resending {line!r} after its reply was lost (read-only query)")
+                    continue
+                raise
+        result = results[0]
+        if result.status == "error":
+            error = Error(result.error)
+            raise ProtocolError(f"{self.url}: {line!r} -> {error}")
+        return result.replies
+
+    def stream(
+        self,
+        lines: Sequence[str],
+        *,
+        sync_all: bool = False,
+        on_ack: Callable[[LineResult], None] | None = None,
+        on_sent: Callable[[int], None] | None = None,
+        stop: threading.Event | None = None,
+        stop_on_error: bool = True,
+        timeout: float | None = None,
+    ) -> list[LineResult]:
+        """Stream ``lines`` (raw G-code; comments and whitespace are stripped) and wait for every reply.
+
+        Character counting keeps at most ``rx_size`` bytes unacknowledged; lines that need it (``$``, ``G10``,
+        ``G28.1``, ``G30.1``), or every line with ``sync_all`` (send-response), go alone.
+
+        Raises
+        ------
+        StreamStopped
+            When the stream could not finish: alarm, error (with ``stop_on_error``), lost ``ok``, reset, lost port,
+            or ``stop`` set. Lines already sent are never re-sent; their results say ``unconfirmed``.
+        """
+        results: list[LineResult] = []
+        reply_timeout = timeout or self.reply_timeout
+        since = (self._alarm_count, self._fault_count)  # only alarms and faults from now on stop this stream
+        cursor = [0]  # next result to report through on_ack, in order
+
+        def report() -> None:
+            while cursor[0] < len(results) and results[cursor[0]].status in ("ok", "error"):
+                result = results[cursor[0]]
+                cursor[0] += 1
+                if on_ack:
+                    on_ack(result)
+                if result.status == "error" and stop_on_error and len(lines) > 1:
+                    raise StreamStopped(f"line {result.index + 1} ({result.text!r}): {Error(result.error)}",
+                                        "error")
+
+        try:
+            for index, raw in enumerate(lines):
+                block = clean_line(raw) if not raw.lstrip().startswith("$") else "".join(raw.split())
+                result = LineResult(index, block)
+                results.append(result)
+                if not block:
+                    result.status = "ok"
+                    report()
+                    continue
+                data = (block + "\n").encode("latin-1")
+                if len(data) > self.rx_size:
+                    raise ProtocolError(f"line {index + 1} is {len(data)} bytes, longer than GRBL's RX buffer "
+                                        f"({self.rx_size}): {block[:40]!r}...")
+                sync = sync_all or needs_sync(block)
+                dwell = _dwell_seconds(block) + (60.0 if block.startswith("$H") else 0.0)
+                with self._cond:
+                    ready = self._no_pending if sync else functools.partial(self._has_room, len(data))
+                    self._wait_locked(ready, stop, reply_timeout, "waiting for buffer space", since)
+                    entry = _Pending(result, len(data), dwell)
+                    self._pending.append(entry)
+                    self._lost_since = None
+                try:
+                    self._write(data)
+                except (PortError, DeviceStateError):
+                    raise StreamStopped(f"{self.url}: {self.fault or 'port lost'}", "fault") from None
+                if on_sent:
+                    on_sent(index)
+                if sync:
+                    with self._cond:
+                        self._wait_locked(entry.done.is_set, stop, reply_timeout + entry.dwell,
+                                          f"waiting for the reply to {block!r}", since)
+                report()
+            with self._cond:
+                self._wait_locked(lambda: not self._pending, stop,
+                                  reply_timeout + sum(p.dwell for p in self._pending), "waiting for the last replies",
+                                  since)
+            report()
+        except StreamStopped as stopped:
+            stopped.first_unconfirmed = self._first_unconfirmed(results)
+            stopped.results = results
+            raise
+        return results
+
+    def _no_pending(self) -> bool:
+        return not self._pending
+
+    def _has_room(self, size: int) -> bool:
+        return self._pending_bytes() + size <= self.rx_size
+
+    def _pending_bytes(self) -> int:
+        return sum(p.nbytes for p in self._pending)
+
+    def _first_unconfirmed(self, results: list[LineResult]) -> int | None:
+        for result in results:
+            if result.status in ("pending", "unconfirmed"):
+                return result.index
+        return None
+
+    def _wait_locked(self, ready, stop, timeout, what: str, since: tuple[int, int]) -> None:
+        deadline = time.monotonic() + timeout
+        while not ready():
+            if self.position_lost or self._fault_count > since[1]:
+                raise StreamStopped(f"{self.url}: {self.fault}", "fault")
+            if self._alarm_count > since[0]:
+                alarm = self.alarm or Alarm(0)
+                raise StreamStopped(f"{self.url}: {alarm}; {alarm.recovery}", "alarm")
+            if stop is not None and stop.is_set():
+                raise StreamStopped(f"{self.url}: stopped", "stopped")
+            if self._stop.is_set():
+                raise StreamStopped(f"{self.url}: connection closed", "closed")
+            remaining = deadline - time.monotonic()
+            if remaining <= 0:
+                raise StreamStopped(f"{self.url}: no reply after {timeout:.1f} s {what}", "timeout")
+            self._cond.wait(min(remaining, 0.1))
+
+    def _wait_for(self, predicate, timeout: float) -> bool:
+        deadline = time.monotonic() + timeout
+        with self._cond:
+            while not predicate():
+                remaining = deadline - time.monotonic()
+                if remaining <= 0 or self._stop.is_set():
+                    return predicate()
+                self._cond.wait(min(remaining, 0.1))
+        return True
+
+    def expect_reset(self) -> None:
+        """Announce a banner caused on purpose by a command (``$C`` leaving check mode resets GRBL)."""
+        with self._lock:
+            self._expect_banner = True
+
+    def recover_lost_ok(self) -> bool:
+        """After a lost-``ok`` fault (the controller was idle with empty buffers throughout), clear the character
+        counter and the fault. The lost lines stay ``unconfirmed``; nothing is marked ``ok``. Returns False if the
+        fault is something else."""
+        with self._cond:
+            if self.position_lost or not (self.fault or "").startswith("lost ok"):
+                return False
+            self._clear_counter("lost ok")
+            self.fault = None
+            self._lost_since = None
+            return True
+
+    def _recover_timeout(self, stopped: StreamStopped) -> bool:
+        # a send-response query without a reply (before status polling runs): nothing else is in flight
+        if stopped.reason != "timeout" or self.position_lost:
+            return False
+        with self._cond:
+            self._clear_counter("reply timeout")
+        return True
+
+    def clear_fault(self) -> None:
+        """Forget a lost-``ok`` fault or an alarm record after the user dealt with it (not a lost position)."""
+        with self._cond:
+            if not self.position_lost:
+                self.fault = None
+            self._lost_since = None
+
+    # ------------------------------------------------------------------ reading
+
+    def _log(self, direction: str, text: str) -> None:
+        entry = (time.monotonic(), direction, text)
+        self.log.append(entry)
+        self._notify("log", entry)
+
+    def _read_loop(self) -> None:
+        while not self._stop.is_set():
+            try:
+                waiting = self.port.in_waiting
+                data = self.port.read(max(1, min(waiting, 4096)))
+            except (serial.SerialException, OSError, TypeError, AttributeError) as error:
+                if not self._stop.is_set():
+                    self._port_lost(f"read failed: {error}")
+                return
+            if not data:
+                continue
+            self._last_rx = time.monotonic()
+            self._line_buffer += data
+            while True:
+                index = self._line_buffer.find(b"\n")
+                if index < 0:
+                    break
+                raw = bytes(self._line_buffer[:index]).rstrip(b"\r")
+                del self._line_buffer[: index + 1]
+                self._handle(raw.decode("latin-1"))
+
+    def _handle(self, text: str) -> None:
+        if not text:
+            return
+        message = parse_line(text)
+        if not isinstance(message, StatusReport):
+            self._log("in", text)
+        with self._cond:
+            if isinstance(message, (Ok, Error)):
+                self._reply(message, text)
+            elif isinstance(message, StatusReport):
+                self.status = message
+                self.status_time = time.monotonic()
+                if message.wco is not None:
+                    self.wco = message.wco
+                if self.alarm is not None and self._reset_since_alarm and message.state != "Alarm":
+                    self.alarm = None  # unlocked or homed after the alarm's reset
+                self._check_lost_ok(message)
+            elif isinstance(message, Alarm):
+                self.alarm = message
+                self._alarm_count += 1
+                self._reset_since_alarm = False
+                self.messages.append(str(message))
+                self._clear_counter("alarm")
+                self._ignore_oks = True  # the line that raised it may still be answered after the reset
+            elif isinstance(message, Banner):
+                self.version = self.version or message.version
+                unexpected = not self._expect_banner
+                self._expect_banner = False
+                self._ignore_oks = False
+                self._clear_counter("reset")
+                self._banner_count += 1
+                self._reset_since_alarm = True
+                self.wco = None
+                if unexpected and self._banner_count > 1 and not self.position_lost:
+                    # the controller restarted on its own (power, USB or DTR glitch): its position is gone
+                    self.position_lost = True
+                    self._fault_count += 1
+                    self.fault = "the controller restarted by itself: position lost; reconnect and home"
+            elif isinstance(message, (Feedback, SettingLine)):
+                if self._pending:
+                    self._pending[0].result.replies.append(message)
+                if isinstance(message, Feedback) and message.kind == "MSG":
+                    self.messages.append(message.text)
+            elif isinstance(message, Garbled):
+                self._log("info", f"ignored unrecognized line {text!r}")
+            self._cond.notify_all()
+        if isinstance(message, StatusReport):
+            self._notify("status", message)
+        elif isinstance(message, Alarm):
+            self._notify("alarm", message)
+        elif isinstance(message, Banner):
+            self._notify("banner", message)
+        elif isinstance(message, Feedback):
+            self._notify("message", message)
+
+    def _reply(self, message, text: str) -> None:
+        if self._ignore_oks:
+            self._log("info", f"ignored {text!r} that arrived between an alarm and the reset banner")
+            return
+        if not self._pending:
+            self._log("info", f"ignored {text!r}: no line is waiting for a reply")
+            return
+        entry = self._pending.popleft()
+        self.replies_accepted += 1
+        if isinstance(message, Ok):
+            entry.result.status = "ok"
+        else:
+            entry.result.status = "error"
+            entry.result.error = message.code
+            self.messages.append(f"{entry.result.text}: {message}")
+        entry.done.set()
+        self._lost_since = None
+
+    def _clear_counter(self, why: str) -> None:
+        for entry in self._pending:
+            entry.result.status = "unconfirmed"
+            entry.done.set()
+        if self._pending:
+            self._log("info", f"{why}: {len(self._pending)} line(s) never answered; counter cleared")
+        self._pending.clear()
+
+    def _check_lost_ok(self, status: StatusReport) -> None:
+        if status.planner_free is None or status.rx_free is None:
+            # no buffer data yet ($10 without bit 1, while connecting): only a lone send-response line can be judged
+            empty = len(self._pending) == 1 and needs_sync(self._pending[0].result.text)
+        else:
+            empty = status.planner_free == self.planner_size and status.rx_free == self.rx_size
+        quiet = bool(self._pending) and status.state == "Idle" and empty
+        if not quiet:
+            self._lost_since = None
+            return
+        now = time.monotonic()
+        if self._lost_since is None:
+            self._lost_since = now
+            return
+        allowance = sum(p.dwell for p in self._pending)
+        fresh = self.fault is None or (self.fault.startswith("lost ok") and self._lost_entry is not self._pending[0])
+        if now - self._lost_since >= self.lost_ok_timeout + allowance and fresh:
+            self._lost_entry = self._pending[0]
+            first = self._pending[0].result
+            self.fault = (
+                f"lost ok: the controller is idle with empty buffers but {len(self._pending)} line(s) from line "
+                f"{first.index + 1} ({first.text!r}) were never acknowledged; stream stopped"
+            )
+            self._fault_count += 1
+            self._log("fault", self.fault)
+            self._notify("fault", self.fault)
+
+    def _port_lost(self, why: str) -> None:
+        with self._cond:
+            if self.position_lost:
+                return
+            self.position_lost = True
+            self._fault_count += 1
+            self.fault = f"port vanished ({why}): position lost; reconnect and home before running a job"
+            self._log("fault", self.fault)
+            self._cond.notify_all()
+        self._notify("fault", self.fault)
+
+    def _status_loop(self) -> None:
+        while not self._stop.wait(self.poll_interval):
+            if self.position_lost:
+                return
+            if time.monotonic() - self._last_rx > self.silence_timeout:
+                self._port_lost(f"no byte from the controller for {self.silence_timeout:.1f} s")
+                return
+            try:
+                self._write(b"?")
+            except (PortError, DeviceStateError):
+                return
+
+
+def _dwell_seconds(block: str) -> float:
+    if "G4" not in block:
+        return 0.0
+    try:
+        words = tokenize(block)
+    except ValueError:
+        return 0.0
+    if ("G", 4.0) in words:
+        return next((v for letter, v in words if letter == "P"), 0.0)
+    return 0.0
+
+
+def iter_clean(lines: Iterable[str]) -> list[str]:
+    """Cleaned, non-empty blocks of a program."""
+    return [b for b in (clean_line(line) for line in lines) if b]

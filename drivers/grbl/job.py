@@ -1,0 +1,481 @@
+"""Jobs on a GRBL machine: pre-flight, dry run, frame, start, hold, resume, abort, resume from line N.
+
+Safety rules (they are the point of this module)
+------------------------------------------------
+- A job whose extent (work coordinates + the current work offset) leaves the machine's travel (``$130``-``$132``)
+  is refused before any byte of it is sent.
+- A laser job (a laser profile, or a controller in laser mode) is refused unless ``$32=1`` is confirmed by re-reading
+  the settings; every laser job ends with ``M5 S0``.
+- Abort sends the soft reset (0x18) at once, which stops motion and switches the laser off in the controller; then
+  ``M5 S0`` is sent as soon as the controller accepts G-code again. Errors, alarms and a lost ``ok`` take the same
+  path. A vanished port leaves the machine "position lost": nothing resumes on its own.
+- Progress comes from acknowledged lines corrected by the planner's fill, and the job is complete only when the
+  machine is idle after the last line (``G4 P0`` is answered when all motion is done), so it always reaches 100 %.
+"""
+
+from __future__ import annotations
+
+import math
+import threading
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from functools import cached_property
+from pathlib import Path
+
+import numpy as np
+
+from drivers.errors import DeviceStateError, JobRefused
+from drivers.gcode import Toolpath, clean_line, interpret
+from drivers.grbl.connection import GrblConnection, StreamStopped
+
+__all__ = ["Job", "JobProgress", "JobResult", "JobRunner", "frame_lines"]
+
+
+@dataclass
+class Job:
+    """A G-code program to run.
+
+    Parameters
+    ----------
+    name : str
+    lines : list of str
+        The program, one block per line (as in the file; line numbers below are 1-based into this list).
+    laser : bool
+        A laser job (refused unless laser mode ``$32=1``; always ends with ``M5 S0``).
+    pen_up : sequence of str
+        Lines that make the tool safe for travel (pen up / laser off); used when resuming from a line.
+    """
+
+    name: str
+    lines: list[str]
+    laser: bool = False
+    pen_up: Sequence[str] = ("M5",)
+
+    @classmethod
+    def from_text(cls, name: str, text: str, **kwargs) -> Job:
+        return cls(name, text.splitlines(), **kwargs)
+
+    @classmethod
+    def from_file(cls, path: str | Path, **kwargs) -> Job:
+        path = Path(path)
+        return cls.from_text(path.name, path.read_text(encoding="utf-8"), **kwargs)
+
+    @cached_property
+    def toolpath(self) -> Toolpath:
+        return interpret(self.lines)
+
+    def extent(self) -> tuple[np.ndarray, np.ndarray] | None:
+        return self.toolpath.extent()
+
+
+@dataclass
+class JobProgress:
+    """A snapshot of a running job."""
+
+    state: str = "idle"
+    lines_total: int = 0
+    lines_sent: int = 0
+    lines_acked: int = 0
+    fraction: float = 0.0
+    elapsed: float = 0.0
+    eta: float | None = None
+    message: str = ""
+
+
+@dataclass
+class JobResult:
+    """How a job ended.
+
+    ``state`` is ``done``, ``aborted``, ``stopped`` (lost ``ok``, error, alarm), ``refused`` or ``position_lost``.
+    ``resume_line`` (1-based) is where to continue with ``from_line``, when that is safe to suggest.
+    """
+
+    state: str
+    message: str
+    lines_total: int
+    lines_acked: int
+    elapsed: float
+    resume_line: int | None = None
+    errors: list[tuple[int, str]] = field(default_factory=list)
+    laser_off: bool = True
+
+    @property
+    def ok(self) -> bool:
+        return self.state == "done"
+
+
+def frame_lines(
+    lo: Sequence[float], hi: Sequence[float], *, laser_power: float | None = None, feed: float = 3000.0,
+    pen_up: Sequence[str] = (),
+) -> list[str]:
+    """A job that traces the rectangle ``lo``-``hi`` (work mm): with the laser at ``laser_power`` (an S value,
+    low enough not to mark) or with the pen up."""
+    x0, y0, x1, y1 = lo[0], lo[1], hi[0], hi[1]
+    corners = [(x1, y0), (x1, y1), (x0, y1), (x0, y0)]
+    lines = ["G21 G90 G94", *pen_up, f"G0 X{x0:.3f} Y{y0:.3f}"]
+    if laser_power is not None:
+        lines.append(f"M3 S{laser_power:g}")
+        lines += [f"G1 X{x:.3f} Y{y:.3f} F{feed:g}" for x, y in corners]
+        lines.append("M5 S0")
+    else:
+        lines += [f"G0 X{x:.3f} Y{y:.3f}" for x, y in corners]
+    return lines
+
+
+class JobRunner:
+    """Runs one job on a connection.
+
+    Parameters
+    ----------
+    connection : GrblConnection
+    job : Job
+    from_line : int
+        1-based line to start from; the modal state (units, distance mode, feed, power, position) of the lines
+        before is rebuilt first.
+    dry_run : bool
+        Run in GRBL's check mode (``$C``): every line is parsed, nothing moves; errors are collected.
+    on_progress : callable, optional
+        Called with a :class:`JobProgress` (from the job thread).
+    """
+
+    def __init__(
+        self,
+        connection: GrblConnection,
+        job: Job,
+        *,
+        from_line: int = 1,
+        dry_run: bool = False,
+        on_progress: Callable[[JobProgress], None] | None = None,
+    ) -> None:
+        if from_line < 1 or from_line > max(1, len(job.lines)):
+            raise JobRefused(f"job {job.name!r}: from_line must be between 1 and {len(job.lines)}, got {from_line}")
+        self.connection = connection
+        self.job = job
+        self.from_line = from_line
+        self.dry_run = dry_run
+        self.on_progress = on_progress
+        self.progress = JobProgress(lines_total=len(job.lines))
+        self.result: JobResult | None = None
+        self._stop = threading.Event()
+        self._aborted = False
+        self._thread: threading.Thread | None = None
+        self._start_time = 0.0
+        self._hold_started: float | None = None
+        self._held = 0.0
+        self._lines: list[str] = []
+        self._origin: list[int] = []  # job line index of each streamed line (-1 for added lines)
+        self._durations = np.zeros(0)
+
+    # ------------------------------------------------------------------ pre-flight
+
+    @property
+    def is_laser(self) -> bool:
+        return self.job.laser or self.connection.laser_mode
+
+    def preflight(self) -> dict:
+        """Check the job against the machine before any motion; returns what was checked.
+
+        Raises
+        ------
+        DeviceStateError
+            Position lost, alarm, or the machine is busy.
+        JobRefused
+            Outside the travel, laser mode not confirmed, a line longer than the RX buffer.
+        """
+        conn = self.connection
+        if conn.position_lost:
+            raise DeviceStateError(f"{conn.url}: position lost ({conn.fault}); reconnect and home ($H) first")
+        status = conn.status
+        if status is not None and status.state == "Alarm":
+            raise DeviceStateError(f"{conn.url}: machine is in alarm ({conn.alarm or 'locked'}); "
+                                   "home ($H) or unlock ($X) first")
+        if status is not None and status.state not in ("Idle", "Check"):
+            raise DeviceStateError(f"{conn.url}: machine is busy ({status.label}); wait for Idle")
+        conn.refresh()  # confirm the settings and offsets now, not from the connect time
+        if self.is_laser and not conn.laser_mode:
+            raise JobRefused(
+                f"job {self.job.name!r}: laser job refused: laser mode is off ($32={int(conn.settings.get(32, 0))}); "
+                "with $32=0 the laser stays on while stopped and burns. Set $32=1 first"
+            )
+        for number, raw in enumerate(self.job.lines, start=1):
+            if len(clean_line(raw)) + 1 > conn.rx_size:
+                raise JobRefused(f"job {self.job.name!r}: line {number} is longer than GRBL's RX buffer "
+                                 f"({conn.rx_size} bytes)")
+        self._lines, self._origin = self._build_lines()
+        toolpath = interpret(self._lines)
+        rapid = min(conn.settings.get(110, 500.0), conn.settings.get(111, 500.0))
+        durations = toolpath.durations(rapid_rate=rapid)
+        self._durations = durations
+        checked = {"lines": len(self._lines), "estimate_s": float(durations.sum())}
+        extent = toolpath.extent()
+        if extent is not None:
+            lo, hi = extent
+            wco = np.array(conn.work_offset())
+            travel = np.array(conn.travel)
+            if conn.machine_space == "positive":
+                allowed_lo, allowed_hi = np.zeros(3), travel
+            else:
+                allowed_lo, allowed_hi = -travel, np.zeros(3)
+            mlo, mhi = lo + wco, hi + wco
+            moving = hi - lo > 1e-9
+            moving[:2] = True  # X and Y are always checked
+            bad = [
+                f"{axis} {wlo:.2f}..{whi:.2f} (machine {mlo_:.2f}..{mhi_:.2f}, travel {alo:.2f}..{ahi:.2f})"
+                for axis, wlo, whi, mlo_, mhi_, alo, ahi, check in zip(
+                    "XYZ", lo, hi, mlo, mhi, allowed_lo, allowed_hi, moving)
+                if check and (mlo_ < alo - 1e-3 or mhi_ > ahi + 1e-3)
+            ]
+            if bad and travel[:2].min() > 0:
+                raise JobRefused(f"job {self.job.name!r} leaves the machine's travel ($130-$132 with work offset "
+                                 f"{', '.join(f'{v:.2f}' for v in wco)}): " + "; ".join(bad))
+            checked.update(extent_lo=lo.tolist(), extent_hi=hi.tolist(), work_offset=wco.tolist())
+        return checked
+
+    def _build_lines(self) -> tuple[list[str], list[int]]:
+        start = self.from_line - 1
+        lines: list[str] = []
+        origin: list[int] = []
+        if start > 0:
+            state = self.job.toolpath.states[start]
+            for line in state.preamble(self.job.pen_up if not self.is_laser else ("M5",)):
+                lines.append(line)
+                origin.append(-1)
+        for index in range(start, len(self.job.lines)):
+            lines.append(self.job.lines[index])
+            origin.append(index)
+        if self.is_laser and not self.dry_run:
+            lines.append("M5 S0")
+            origin.append(-1)
+        if not self.dry_run:
+            lines.append("G4 P0")  # answered only when every motion is finished
+            origin.append(-1)
+        return lines, origin
+
+    # ------------------------------------------------------------------ control
+
+    def start(self) -> threading.Thread:
+        """Run in a background thread (see :attr:`result` when it ends)."""
+        self._thread = threading.Thread(target=self.run, name=f"job-{self.job.name}", daemon=True)
+        self._thread.start()
+        return self._thread
+
+    def wait(self, timeout: float | None = None) -> JobResult | None:
+        if self._thread is not None:
+            self._thread.join(timeout)
+        return self.result
+
+    def hold(self) -> None:
+        """Feed hold (``!``): decelerates to a stop; in laser mode the laser is off while held."""
+        self.connection.feed_hold()
+        if self._hold_started is None:
+            self._hold_started = time.monotonic()
+        self.progress.state = "holding"
+
+    def resume(self) -> None:
+        """Cycle start (``~``) after a hold."""
+        self.connection.cycle_start()
+        if self._hold_started is not None:
+            self._held += time.monotonic() - self._hold_started
+            self._hold_started = None
+        self.progress.state = "running"
+
+    def abort(self) -> None:
+        """Stop now: soft reset (0x18) first, then the job thread switches the laser off with ``M5 S0``."""
+        self._aborted = True
+        self._stop.set()
+        try:
+            self.connection.soft_reset(wait=False)
+        except Exception:  # noqa: BLE001 - the port may already be gone; the job thread reports it
+            pass
+
+    # ------------------------------------------------------------------ running
+
+    def _update(self, state: str | None = None, message: str | None = None) -> None:
+        p = self.progress
+        if state:
+            p.state = state
+        if message is not None:
+            p.message = message
+        now = time.monotonic()
+        held = self._held + (now - self._hold_started if self._hold_started else 0.0)
+        p.elapsed = max(0.0, now - self._start_time - held) if self._start_time else 0.0
+        total = float(self._durations.sum()) if len(self._durations) else 0.0
+        status = self.connection.status
+        in_planner = 0
+        if status is not None and status.planner_free is not None:
+            in_planner = max(0, self.connection.planner_size - status.planner_free)
+        executed = max(0, self._acked_streamed - in_planner)
+        done = float(self._durations[:executed].sum()) if executed else 0.0
+        if total > 0:
+            p.fraction = min(1.0, done / total)
+        elif self._lines:
+            p.fraction = executed / len(self._lines)
+        if p.state == "done":
+            p.fraction = 1.0
+            p.eta = 0.0
+        elif done > 0 and p.elapsed > 0.5:
+            rate = done / p.elapsed  # estimated seconds of job per real second: corrects the estimate
+            p.eta = (total - done) / max(rate, 1e-6)
+        else:
+            p.eta = total if total else None
+        if self.on_progress:
+            self.on_progress(p)
+
+    def run(self) -> JobResult:
+        """Run the job (blocking) and return its :class:`JobResult`; never raises for device trouble."""
+        conn = self.connection
+        self._acked_streamed = 0
+        self._start_time = 0.0
+        conn.recover_lost_ok()  # a lost reply of an earlier command: the next stream starts from an empty counter
+        try:
+            self._update("preflight")
+            self.preflight()
+        except (JobRefused, DeviceStateError) as error:
+            state = "position_lost" if conn.position_lost else "refused"
+            return self._finish(state, str(error), laser_off=True)
+        job_acked = [0]
+
+        def on_ack(result) -> None:
+            self._acked_streamed = result.index + 1
+            if self._origin[result.index] >= 0:
+                job_acked[0] += 1
+                self.progress.lines_acked = job_acked[0]
+            self._update()
+
+        def on_sent(index: int) -> None:
+            self.progress.lines_sent = index + 1
+
+        self._start_time = time.monotonic()
+        try:
+            if self.dry_run:
+                return self._dry_run(on_ack)
+            self._update("running")
+            conn.stream(self._lines, on_ack=on_ack, on_sent=on_sent, stop=self._stop, timeout=math.inf)
+        except StreamStopped as stopped:
+            return self._stopped(stopped)
+        return self._finish("done", f"job {self.job.name!r} done: {len(self.job.lines)} lines", laser_off=True)
+
+    def _dry_run(self, on_ack) -> JobResult:
+        conn = self.connection
+        self._update("dry-run")
+        conn.command("$C")
+        errors: list[tuple[int, str]] = []
+        try:
+            results = conn.stream(self._lines, on_ack=on_ack, stop=self._stop, stop_on_error=False,
+                                  timeout=math.inf)
+            for result in results:
+                if result.status == "error":
+                    line = self._origin[result.index] + 1
+                    errors.append((line, f"line {line} {result.text!r}: error:{result.error}"))
+        except StreamStopped as stopped:
+            conn.soft_reset()
+            return self._finish("stopped", f"dry run stopped: {stopped}", laser_off=True)
+        conn.expect_reset()
+        try:
+            conn.command("$C")  # leaving check mode resets GRBL
+        except DeviceStateError:
+            pass
+        conn._wait_for(lambda: conn.status is not None and conn.status.state == "Idle", 2.0)
+        from drivers.grbl.protocol import error_meaning
+
+        errors = [(line, f"{text} ({error_meaning(int(text.rsplit(':', 1)[1]))})") for line, text in errors]
+        if errors:
+            return self._finish("stopped", f"dry run: {len(errors)} line(s) rejected", errors=errors)
+        return self._finish("done", f"dry run: all {len(self.job.lines)} lines accepted (check mode)")
+
+    def _stopped(self, stopped: StreamStopped) -> JobResult:
+        conn = self.connection
+        if conn.position_lost:
+            return self._finish("position_lost", str(conn.fault), laser_off=False)
+        reason = stopped.reason
+        aborted = self._aborted or reason == "stopped"
+        status_before = conn.status
+        lost_ok = reason == "fault" and "lost ok" in (conn.fault or "")
+        fault_text = conn.fault
+        # Leave the machine safe: a reset stops everything and switches the laser off in the controller.
+        # (After an abort the reset was sent already; alarms 1 and 2 need one to continue.)
+        if not aborted:
+            conn.soft_reset(wait=True)
+        else:
+            conn._wait_for(lambda: not conn._expect_banner or conn.position_lost, conn.banner_timeout)
+        conn._wait_for(lambda: conn.status is not None and conn.status.state in ("Idle", "Alarm"), 1.0)
+        if lost_ok:
+            conn.clear_fault()  # dealt with: the reset emptied GRBL's buffers and the counter
+        laser_off = self._laser_off()
+        resume = None
+        if lost_ok:
+            resume = self._resume_after_lost_ok(stopped, status_before)
+            waiting = sum(1 for r in stopped.results if r.status in ("pending", "unconfirmed"))
+            message = (f"lost ok: the controller went idle with empty buffers while {waiting} line(s) still waited "
+                       "for a reply (no ok was assumed); stream stopped, machine reset while idle (position kept), "
+                       "laser off")
+            conn._log("info", f"job {self.job.name!r}: {fault_text}")
+            if resume == 0:
+                return self._finish("done", f"job {self.job.name!r} done (every line ran; {message})",
+                                    laser_off=laser_off)
+            if resume is not None:
+                message += f"; resume from line {resume}"
+            return self._finish("stopped", message, laser_off=laser_off, resume=resume)
+        if aborted:
+            alarm = conn.alarm
+            message = "aborted: soft reset sent, laser off"
+            if alarm is not None:
+                message += f"; {alarm}; {alarm.recovery}"
+            return self._finish("aborted", message, laser_off=laser_off)
+        message = f"job stopped: {stopped}"
+        if conn.alarm is not None and reason == "alarm":
+            message = f"job stopped by {conn.alarm}; {conn.alarm.recovery}"
+        return self._finish("stopped", message, laser_off=laser_off)
+
+    def _laser_off(self) -> bool:
+        """Send ``M5 S0`` if the controller accepts G-code; in alarm lock the reset already switched it off."""
+        conn = self.connection
+        if conn.position_lost:
+            return False
+        status = conn.status
+        if status is not None and status.state == "Alarm":
+            return True  # GRBL's reset kills the spindle/laser; G-code is locked out until $X/$H
+        try:
+            conn.command("M5 S0", timeout=3.0)
+            return True
+        except StreamStopped:
+            # its reply was lost: the controller is idle with empty buffers, so M5 S0 ran or the reset that
+            # preceded it already switched the laser off
+            conn.recover_lost_ok()
+            return not conn.position_lost
+        except Exception:  # noqa: BLE001
+            return status is not None
+
+    def _resume_after_lost_ok(self, stopped: StreamStopped, status) -> int | None:
+        """Where to resume after a lost ``ok``: the machine stands at the end of the last line it executed."""
+        conn = self.connection
+        if status is None or status.mpos is None:
+            return None
+        wco = np.array(conn.work_offset())
+        position = np.array(status.mpos) - wco
+        toolpath = interpret(self._lines)
+        first = stopped.first_unconfirmed if stopped.first_unconfirmed is not None else 0
+        sent = self.progress.lines_sent
+        candidates = range(min(sent, len(self._lines)) - 1, max(first, 1) - 2, -1)
+        for index in candidates:
+            state = toolpath.states[index + 1]
+            if state.position_known and np.allclose(state.position[:2], position[:2], atol=0.01):
+                # the next line of the job that was not executed (0: none left, the job ran to its end)
+                for later in range(index + 1, len(self._lines)):
+                    if self._origin[later] >= 0:
+                        return self._origin[later] + 1
+                return 0
+        for later in range(first, len(self._lines)):
+            if self._origin[later] >= 0:
+                return self._origin[later] + 1
+        return None
+
+    def _finish(self, state: str, message: str, *, laser_off: bool = True, resume: int | None = None,
+                errors: list | None = None) -> JobResult:
+        self._update(state, message)
+        self.result = JobResult(
+            state=state, message=message, lines_total=len(self.job.lines), lines_acked=self.progress.lines_acked,
+            elapsed=self.progress.elapsed, resume_line=resume, errors=errors or [], laser_off=laser_off,
+        )
+        return self.result

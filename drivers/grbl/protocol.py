@@ -1,0 +1,301 @@
+"""GRBL 1.1 messages: parsing of every line a GRBL controller sends, and the meaning of its codes in words."""
+
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass
+
+__all__ = [
+    "ALARM_CODES",
+    "ERROR_CODES",
+    "SYNC_COMMANDS",
+    "Alarm",
+    "Banner",
+    "Error",
+    "Feedback",
+    "Garbled",
+    "Ok",
+    "SettingLine",
+    "StatusReport",
+    "alarm_meaning",
+    "error_meaning",
+    "needs_sync",
+    "parse_line",
+]
+
+#: GRBL 1.1 error codes (doc/csv/error_codes_en_US.csv).
+ERROR_CODES: dict[int, str] = {
+    1: "G-code words consist of a letter and a value. Letter was not found.",
+    2: "Missing the expected G-code word value or numeric value format is not valid.",
+    3: "Grbl '$' system command was not recognized or supported.",
+    4: "Negative value received for an expected positive value.",
+    5: "Homing cycle failure. Homing is not enabled via settings.",
+    6: "Minimum step pulse time must be greater than 3usec.",
+    7: "An EEPROM read failed. Auto-restoring affected EEPROM to default values.",
+    8: "Grbl '$' command cannot be used unless Grbl is IDLE. Ensures smooth operation during a job.",
+    9: "G-code commands are locked out during alarm or jog state.",
+    10: "Soft limits cannot be enabled without homing also enabled.",
+    11: "Max characters per line exceeded. Received command line was not executed.",
+    12: "Grbl '$' setting value cause the step rate to exceed the maximum supported.",
+    13: "Safety door detected as opened and door state initiated.",
+    14: "Build info or startup line exceeded EEPROM line length limit. Line not stored.",
+    15: "Jog target exceeds machine travel. Jog command has been ignored.",
+    16: "Jog command has no '=' or contains prohibited g-code.",
+    17: "Laser mode requires PWM output.",
+    20: "Unsupported or invalid g-code command found in block.",
+    21: "More than one g-code command from same modal group found in block.",
+    22: "Feed rate has not yet been set or is undefined.",
+    23: "G-code command in block requires an integer value.",
+    24: "More than one g-code command that requires axis words found in block.",
+    25: "Repeated g-code word found in block.",
+    26: "No axis words found in block for g-code command or current modal state which requires them.",
+    27: "Line number value is invalid.",
+    28: "G-code command is missing a required value word.",
+    29: "G59.x work coordinate systems are not supported.",
+    30: "G53 only allowed with G0 and G1 motion modes.",
+    31: "Axis words found in block when no command or current modal state uses them.",
+    32: "G2 and G3 arcs require at least one in-plane axis word.",
+    33: "Motion command target is invalid.",
+    34: "Arc radius value is invalid.",
+    35: "G2 and G3 arcs require at least one in-plane offset word.",
+    36: "Unused value words found in block.",
+    37: "G43.1 dynamic tool length offset is not assigned to configured tool length axis.",
+    38: "Tool number greater than max supported value.",
+}
+
+#: GRBL 1.1 alarm codes (doc/csv/alarm_codes_en_US.csv).
+ALARM_CODES: dict[int, str] = {
+    1: "Hard limit triggered. Machine position is likely lost due to sudden halt. Re-homing is highly recommended.",
+    2: "Soft limit alarm. G-code motion target exceeds machine travel. Machine position retained. "
+    "Alarm may be safely unlocked.",
+    3: "Reset while in motion. Machine position is likely lost due to sudden halt. Re-homing is highly recommended.",
+    4: "Probe fail. Probe is not in the expected initial state before starting probe cycle.",
+    5: "Probe fail. Probe did not contact the workpiece within the programmed travel.",
+    6: "Homing fail. The active homing cycle was reset.",
+    7: "Homing fail. Safety door was opened during homing cycle.",
+    8: "Homing fail. Pull off travel failed to clear limit switch. Try increasing pull-off or check wiring.",
+    9: "Homing fail. Could not find limit switch within search distances.",
+    10: "Homing fail. Second dual axis limit switch failed to trigger within configured search distance.",
+}
+
+#: Recovery advice per alarm, shown with the alarm.
+ALARM_RECOVERY: dict[int, str] = {
+    1: "check what hit the limit switch, then reset and home ($H)",
+    2: "reset, then unlock ($X) or home ($H); the job goes outside the machine's travel: check its extent and "
+    "the work offset",
+    3: "position is lost: home ($H) before any job (or unlock with $X only if you re-zero by hand)",
+    4: "check the probe wiring, then reset and unlock ($X)",
+    5: "move the probe closer to the work, then reset and unlock ($X)",
+    6: "home again ($H)",
+    7: "close the door, then home again ($H)",
+    8: "check the limit switches and the pull-off ($27), then home again ($H)",
+    9: "check the limit switches and the homing directions ($23), then home again ($H)",
+    10: "check the second limit switch of the dual axis, then home again ($H)",
+}
+
+
+def error_meaning(code: int) -> str:
+    return ERROR_CODES.get(code, "Unknown error code.")
+
+
+def alarm_meaning(code: int) -> str:
+    return ALARM_CODES.get(code, "Unknown alarm code.")
+
+
+@dataclass(frozen=True)
+class Ok:
+    """``ok``: the line was accepted (parsed and planned), not executed."""
+
+
+@dataclass(frozen=True)
+class Error:
+    code: int
+
+    @property
+    def meaning(self) -> str:
+        return error_meaning(self.code)
+
+    def __str__(self) -> str:
+        return f"error:{self.code} ({self.meaning})"
+
+
+@dataclass(frozen=True)
+class Alarm:
+    code: int
+
+    @property
+    def meaning(self) -> str:
+        return alarm_meaning(self.code)
+
+    @property
+    def recovery(self) -> str:
+        return ALARM_RECOVERY.get(self.code, "reset, then unlock ($X) or home ($H)")
+
+    def __str__(self) -> str:
+        return f"ALARM:{self.code} ({self.meaning})"
+
+
+@dataclass(frozen=True)
+class Banner:
+    """The welcome line after power-up or a soft reset: ``Grbl 1.1h ['$' for help]``."""
+
+    version: str
+
+
+@dataclass(frozen=True)
+class Feedback:
+    """A bracketed push message: ``[MSG:...]``, ``[GC:...]``, ``[OPT:...]``, ``[VER:...]``, ``[G54:...]`` ..."""
+
+    kind: str
+    text: str
+
+
+@dataclass(frozen=True)
+class SettingLine:
+    key: int
+    value: float
+
+
+@dataclass(frozen=True)
+class Garbled:
+    """A line that is none of the above (noise, a corrupted reply)."""
+
+    text: str
+
+
+def _vector(text: str) -> tuple[float, ...]:
+    return tuple(float(v) for v in text.split(","))
+
+
+@dataclass(frozen=True)
+class StatusReport:
+    """A parsed ``<...>`` status report. Absent fields are None.
+
+    Attributes
+    ----------
+    state : str
+        ``Idle``, ``Run``, ``Hold``, ``Jog``, ``Alarm``, ``Door``, ``Check``, ``Home``, ``Sleep``.
+    substate : int or None
+        ``Hold:0`` (complete) / ``Hold:1`` (in progress), ``Door:n``.
+    mpos, wpos, wco : 3-tuples or None
+        Machine position, work position, work coordinate offset (WPos = MPos - WCO).
+    planner_free, rx_free : int or None
+        ``Bf``: free planner blocks and free bytes of the serial RX buffer.
+    """
+
+    state: str
+    substate: int | None = None
+    mpos: tuple[float, ...] | None = None
+    wpos: tuple[float, ...] | None = None
+    wco: tuple[float, ...] | None = None
+    planner_free: int | None = None
+    rx_free: int | None = None
+    line_number: int | None = None
+    feed: float | None = None
+    spindle: float | None = None
+    overrides: tuple[int, ...] | None = None
+    pins: str = ""
+    accessories: str = ""
+
+    @classmethod
+    def parse(cls, text: str) -> StatusReport:
+        """Parse ``<Idle|MPos:0.000,0.000,0.000|Bf:15,128|FS:0,0>``. Raises ValueError if malformed."""
+        if not (text.startswith("<") and text.endswith(">")):
+            raise ValueError(f"not a status report: {text!r}")
+        fields = text[1:-1].split("|")
+        state, _, sub = fields[0].partition(":")
+        if state not in ("Idle", "Run", "Hold", "Jog", "Alarm", "Door", "Check", "Home", "Sleep"):
+            raise ValueError(f"unknown state {fields[0]!r} in {text!r}")
+        values: dict = {"state": state, "substate": int(sub) if sub else None}
+        for item in fields[1:]:
+            name, sep, data = item.partition(":")
+            if not sep:
+                raise ValueError(f"malformed field {item!r} in {text!r}")
+            if name == "MPos":
+                values["mpos"] = _vector(data)
+            elif name == "WPos":
+                values["wpos"] = _vector(data)
+            elif name == "WCO":
+                values["wco"] = _vector(data)
+            elif name == "Bf":
+                planner, rx = (int(v) for v in data.split(","))
+                values["planner_free"], values["rx_free"] = planner, rx
+            elif name == "Ln":
+                values["line_number"] = int(data)
+            elif name == "FS":
+                feed, spindle = _vector(data)
+                values["feed"], values["spindle"] = feed, spindle
+            elif name == "F":
+                values["feed"] = float(data)
+            elif name == "Ov":
+                values["overrides"] = tuple(int(v) for v in data.split(","))
+            elif name == "Pn":
+                values["pins"] = data
+            elif name == "A":
+                values["accessories"] = data
+            else:
+                raise ValueError(f"unknown field {name!r} in {text!r}")
+        for key in ("mpos", "wpos", "wco"):
+            if values.get(key) is not None and len(values[key]) < 3:
+                raise ValueError(f"short {key} in {text!r}")
+        return cls(**values)
+
+    @property
+    def label(self) -> str:
+        return self.state if self.substate is None else f"{self.state}:{self.substate}"
+
+    def work_position(self, wco: tuple[float, ...] | None) -> tuple[float, ...] | None:
+        if self.wpos is not None:
+            return self.wpos
+        if self.mpos is not None and wco is not None:
+            return tuple(m - w for m, w in zip(self.mpos, wco))
+        return None
+
+    def machine_position(self, wco: tuple[float, ...] | None) -> tuple[float, ...] | None:
+        if self.mpos is not None:
+            return self.mpos
+        if self.wpos is not None and wco is not None:
+            return tuple(p + w for p, w in zip(self.wpos, wco))
+        return None
+
+
+_BANNER = re.compile(r"^Grbl (\S+) \['\$' for help\]$")
+_SETTING = re.compile(r"^\$(\d+)=([-+]?\d*\.?\d+)$")
+
+
+def parse_line(text: str):
+    """Classify one line (without its line ending) sent by GRBL."""
+    if text == "ok":
+        return Ok()
+    if text.startswith("error:") and text[6:].isdigit():
+        return Error(int(text[6:]))
+    if text.startswith("ALARM:") and text[6:].isdigit():
+        return Alarm(int(text[6:]))
+    if text.startswith("<"):
+        try:
+            return StatusReport.parse(text)
+        except ValueError:
+            return Garbled(text)
+    match = _BANNER.match(text)
+    if match:
+        return Banner(match.group(1))
+    if text.startswith("[") and text.endswith("]") and ":" in text:
+        kind, _, body = text[1:-1].partition(":")
+        if kind.isalnum():
+            return Feedback(kind, body)
+    match = _SETTING.match(text)
+    if match:
+        return SettingLine(int(match.group(1)), float(match.group(2)))
+    return Garbled(text)
+
+
+_SYNC = re.compile(r"^\$(?!J=)|G0*10(?![\d.])|G0*28\.1|G0*30\.1")
+
+#: What must be sent with send-response (nothing else in flight): ``$`` commands (EEPROM writes disable GRBL's
+#: serial interrupts), ``G10``, ``G28.1``, ``G30.1`` (EEPROM writes). ``$J=`` jogs stream like G-code.
+SYNC_COMMANDS = ("$...", "G10", "G28.1", "G30.1")
+
+
+def needs_sync(block: str) -> bool:
+    """True if a cleaned block must be sent alone and its reply awaited (GRBL's interface rules)."""
+    return bool(_SYNC.search(block))

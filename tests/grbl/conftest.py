@@ -1,0 +1,47 @@
+"""Fixtures of the GRBL suite: the machine under test is the simulator, or a real controller whose port URL is in
+CHAOS_STATION_GRBL_PORT (those runs are skipped when it is unset)."""
+
+from __future__ import annotations
+
+import os
+
+import pytest
+
+from drivers.grbl import GrblConnection
+
+REAL_PORT = os.environ.get("CHAOS_STATION_GRBL_PORT", "")
+
+#: Fast settings for the simulator: motion 50x faster than real time, status at 20 Hz, short watchdogs.
+FAST = {"poll_interval": 0.05, "lost_ok_timeout": 0.3, "silence_timeout": 0.6}
+
+
+def sim_url(profile: str = "laser", **query) -> str:
+    query.setdefault("time_scale", 0.02)
+    return f"sim://grbl?profile={profile}&" + "&".join(f"{k}={v}" for k, v in query.items())
+
+
+@pytest.fixture
+def make_connection():
+    """Open connections and close them at the end of the test."""
+    opened: list[GrblConnection] = []
+
+    def make(url: str, **kwargs) -> GrblConnection:
+        options = dict(FAST) if url.startswith("sim://") else {}
+        options.update(kwargs)
+        conn = GrblConnection(url, **options).open()
+        opened.append(conn)
+        return conn
+
+    yield make
+    for conn in opened:
+        conn.close()
+
+
+@pytest.fixture(params=["sim", "real"])
+def machine_url(request) -> str:
+    """The same tests against the simulated GRBL and, when CHAOS_STATION_GRBL_PORT is set, a real one."""
+    if request.param == "real":
+        if not REAL_PORT:
+            pytest.skip("set CHAOS_STATION_GRBL_PORT to a GRBL 1.1 port URL to run against a real machine")
+        return REAL_PORT
+    return sim_url("laser")
