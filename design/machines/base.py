@@ -594,9 +594,12 @@ class DrawingMachine:
 
         The constraints are evaluated, vectorized, on a grid over the parameter's box; the feasible run that
         contains the current value (or, if it is infeasible, the nearest run) is returned, its ends refined by
-        bracketing (16 points per round) down to ``tolerance`` times the box width. Both ends are feasible values;
-        a value ``tolerance``-ish outside is not (strict inequalities are approached from inside). A feasible set
-        narrower than the grid step can be missed (then the nearest wider run is returned).
+        bracketing (48 points per round, both ends at once) down to ``tolerance`` times the box width. Where the
+        constraints closing an end are affine in the parameter (box bounds, ``d <= r_r``, ``l1 > r_g1 + r_p1``,
+        ...) the end is then solved exactly (moved a few ulps inside for a strict inequality); otherwise
+        (curvatures, drawing bounds, distances between gears) the bracketed end is returned. Both ends are
+        feasible values; a value just outside is not. A feasible set narrower than the grid step can be missed
+        (then the nearest wider run is returned).
 
         Raises
         ------
@@ -633,6 +636,12 @@ class DrawingMachine:
                     ok &= np.broadcast_to(constraint.satisfied(constraint.margin(P)), x.shape)
                 return ok
 
+            def margins(constraint: Constraint, x: np.ndarray) -> np.ndarray:
+                return np.broadcast_to(constraint.margin(dict(others) | {name: x}), x.shape).astype(float)
+
+            def exact(good: float, bad: float, inner: float) -> float:
+                return self._exact_end(relevant, margins, feasible, good, bad, inner)
+
             xs = np.linspace(lower, upper, grid)
             inside = lower <= current <= upper
             if inside:
@@ -658,40 +667,87 @@ class DrawingMachine:
                 run = int(np.argmin(distance))
             i0, i1 = int(starts[run]), int(stops[run])
             width = max(upper - lower, 1e-300)
-            lo = xs[i0] if i0 == 0 else self._refine(feasible, xs[i0 - 1], xs[i0], tolerance * width)
-            hi = xs[i1] if i1 == len(xs) - 1 else self._refine(feasible, xs[i1 + 1], xs[i1], tolerance * width)
-            lo, hi = (self._snap(feasible, x, 4 * tolerance * width) for x in (lo, hi))
-        return float(lo), float(hi)
+            middle = 0.5 * (xs[i0] + xs[i1])
+            ends = [xs[i0], xs[i1]]
+            brackets = {0: (xs[i0 - 1], xs[i0])} if i0 > 0 else {}
+            if i1 < len(xs) - 1:
+                brackets[1] = (xs[i1 + 1], xs[i1])
+            refined = self._refine(feasible, list(brackets.values()), tolerance * width)
+            for side, (good, bad) in zip(brackets, refined):
+                ends[side] = exact(good, bad, middle)
+        return float(ends[0]), float(ends[1])
 
     @staticmethod
-    def _snap(feasible: Callable[[np.ndarray], np.ndarray], x: float, reach: float) -> float:
-        """Snap a refined end to the round number it approximates when that is still feasible.
+    def _exact_end(
+        relevant: Sequence[Constraint],
+        margins: Callable[[Constraint, np.ndarray], np.ndarray],
+        feasible: Callable[[np.ndarray], np.ndarray],
+        good: float,
+        bad: float,
+        inner: float,
+    ) -> float:
+        """Replace a bracketed end by the exact root when the constraints that close it are affine in the parameter.
 
-        Non-strict analytic bounds (``d <= r_r``) are then returned exactly (3.0, not 2.99999999992); strict ones
-        (``d > 0``) keep their inside approximation because the round value is infeasible.
+        The constraints violated at ``bad`` are the ones that end the feasible run. If each is affine in the
+        parameter (checked on three points between the end and ``inner``, a point well inside the run), its
+        root is solved for; the most restrictive root, moved inward by a few ulps until it is feasible (strict
+        inequalities), is the end. Otherwise (curvature, drawing bounds) the bracketed end is kept.
         """
-        rounded = float(f"{x:.9g}")
-        if rounded != x and abs(rounded - x) <= reach and bool(feasible(np.array([rounded]))[0]):
-            return rounded
-        return x
+        closing = [c for c in relevant if not bool(c.satisfied(margins(c, np.array([bad])))[0])]
+        if not closing or inner == good:
+            return good
+        probes = np.array([good, 0.5 * (good + inner), inner])
+        roots = []
+        for constraint in closing:
+            m = margins(constraint, probes)
+            slope = (m[2] - m[0]) / (probes[2] - probes[0])
+            predicted = m[0] + slope * (probes[1] - probes[0])
+            scale = np.abs(m).max() + 1e-300
+            if slope == 0 or not np.isfinite(m).all() or abs(predicted - m[1]) > 1e-9 * scale:
+                return good
+            roots.append(good - m[0] / slope)
+        root = max(roots) if bad < good else min(roots)
+        if not abs(root - good) <= 2.0 * abs(good - bad) + 1e-300:
+            return good
+        direction = np.inf if bad < good else -np.inf
+        for _ in range(8):
+            if bool(feasible(np.array([root]))[0]):
+                return float(root)
+            root = float(np.nextafter(root, direction))
+        return good
 
     @staticmethod
-    def _refine(feasible: Callable[[np.ndarray], np.ndarray], bad: float, good: float, tolerance: float) -> float:
-        """Shrink a bracket [bad, good] (infeasible, feasible) around a boundary; return the feasible end."""
-        while abs(good - bad) > tolerance:
-            probes = np.linspace(bad, good, 18)[1:-1]
-            ok = feasible(probes)
-            # The feasible end is the first feasible probe seen from the bad side (the run must stay connected).
-            if ok.any():
-                first = int(np.argmax(ok))
-                new_good = probes[first]
-                new_bad = probes[first - 1] if first > 0 else bad
-            else:
-                new_bad, new_good = probes[-1], good
-            if new_bad == bad and new_good == good:  # pragma: no cover - floating point stall
+    def _refine(
+        feasible: Callable[[np.ndarray], np.ndarray],
+        brackets: Sequence[tuple[float, float]],
+        tolerance: float,
+        probes: int = 48,
+    ) -> list[tuple[float, float]]:
+        """Shrink brackets (bad, good) (infeasible, feasible) around boundaries, all in one evaluation per round.
+
+        Returns ``(good, bad)`` per bracket, ``|good - bad| <= tolerance``. The new feasible end is the first
+        feasible probe seen from the bad side (so the run containing ``good`` stays connected).
+        """
+        bad = np.array([b for b, _ in brackets], dtype=float)
+        good = np.array([g for _, g in brackets], dtype=float)
+        fractions = np.linspace(0.0, 1.0, probes + 2)[1:-1]
+        for _ in range(64):  # each round divides the bracket by probes + 1; 64 rounds is never reached
+            active = np.abs(good - bad) > tolerance
+            if not active.any():
                 break
-            bad, good = new_bad, new_good
-        return good
+            points = bad[active, None] + (good - bad)[active, None] * fractions[None, :]
+            ok = feasible(points.ravel()).reshape(points.shape)
+            first = np.argmax(ok, axis=1)
+            found = ok.any(axis=1)
+            rows = np.arange(points.shape[0])
+            new_good = np.where(found, points[rows, first], good[active])
+            previous = np.where(first > 0, points[rows, np.maximum(first - 1, 0)], bad[active])
+            new_bad = np.where(found, previous, points[:, -1])
+            stalled = (new_good == good[active]) & (new_bad == bad[active])
+            if stalled.all():  # pragma: no cover - floating point stall
+                break
+            good[active], bad[active] = new_good, new_bad
+        return [(float(g), float(b)) for g, b in zip(good, bad)]
 
     # -- misc ----------------------------------------------------------------------------------------------------
 
