@@ -239,7 +239,8 @@ def _axle_gear(name: str, code: str, radius: int, k: int, module: float, scale: 
     """A gear on an axle, with a pin at a model distance from its centre.
 
     A pin near the rim (the models allow it anywhere inside the pitch circle) would cut the teeth: it then goes on
-    a *crank disc* bolted on top of the gear (two fixing holes on both), which carries the pin at the same radius.
+    a *crank disc* bolted on top of the gear (two fixing holes on both, or glued when the gear is too small for
+    them), which carries the pin at the same radius.
     """
     gear = external_gear(k * radius, module, settings)
     holes = [("axle hole", (0.0, 0.0), hw.axle_hole)]
@@ -254,9 +255,15 @@ def _axle_gear(name: str, code: str, radius: int, k: int, module: float, scale: 
         elif at <= room - 0.5 * module:
             holes.append((pin_name, (at, 0.0), hw.pin_hole))
         else:
-            fix_radius = 0.5 * (hw.axle_hole / 2.0 + _root_radius(gear))
+            fix_radius = max(0.5 * (hw.axle_hole / 2.0 + _root_radius(gear)),
+                             (hw.axle_hole + hw.pin_hole) / 2.0 + hw.wall + 0.01)
             fixing = [(f"fixing hole {i + 1}", (0.0, sign * fix_radius), hw.pin_hole) for i, sign in enumerate((1, -1))]
-            holes.extend(fixing)
+            if fix_radius + hw.pin_hole / 2.0 + hw.wall <= _root_radius(gear):
+                holes.extend(fixing)
+                fastening = f"bolted on top of the gear (fixing holes {fix_radius:.1f} mm from the axle)"
+            else:
+                fixing = []
+                fastening = "glued on top of the gear, centred on the axle (no room for fixing holes)"
             crank_radius = at + max(hw.pin_hole / 2.0 + 2.0 * hw.wall, hw.arm_width / 2.0)
             crank_name = f"{name} crank"
             crank_shape = _with_holes(crank_name, Point(0.0, 0.0).buffer(crank_radius, quad_segs=32),
@@ -266,8 +273,7 @@ def _axle_gear(name: str, code: str, radius: int, k: int, module: float, scale: 
                               _label(crank_shape, f"{code} CRANK", hw, near=(-0.5 * crank_radius, 0.0)),
                               MappingProxyType({"radius_mm": round(crank_radius, 3), "pin_at_mm": round(at, 4)}),
                               (f"the {pin_name} at {at:.1f} mm would cut the teeth of the {name}: it is on a crank "
-                               f"disc bolted on top of the gear (fixing holes {fix_radius:.1f} mm from the axle); "
-                               "raise it on spacers so that it clears the neighbouring gear",)))
+                               f"disc {fastening}; raise it on spacers so that it clears the neighbouring gear",)))
     part = _gear_part(name, code, gear, radius, scale, hw, holes, label_near=(-0.5 * gear.pitch_radius, 0.0))
     if notes:
         part = Part(part.name, part.shape, part.engrave, part.info, part.notes + tuple(notes))
