@@ -223,3 +223,15 @@ def test_hoot_nanny_pairwise_common_divisors_are_allowed():
     # Figure 3.8's radii (4, 3, 2): r_t and r_g2 share 2, but the three share nothing.
     assert hoot.is_feasible(HOOT_DESIGNS[1])
     assert hoot.period(HOOT_DESIGNS[1]) == pytest.approx(2 * np.pi * 3)
+
+
+def test_affine_slider_bounds_are_exact():
+    _, hi = hoot.feasible_interval(hoot.defaults(), "r_p1")  # strict r_p1 < r_g1 = 3 (A.58)
+    assert hi == np.nextafter(3.0, 0.0)
+    lo, _ = cdm.feasible_interval(cdm.defaults(), "d_tf")  # strict d_tf > r_t = 7 (A.42)
+    assert lo == np.nextafter(7.0, 8.0)
+    _, hi = cdm.feasible_interval(cdm.defaults(), "r_s")  # strict r_s < r_e = 4 (A.44)
+    assert hi == np.nextafter(4.0, 0.0)
+    # Non-affine ends (here the drawing bound A.67) are bracketed: feasible, and infeasible just outside.
+    lo, _ = hoot.feasible_interval(hoot.defaults(), "l1")
+    assert hoot.violations(hoot.defaults() | {"l1": lo - 1e-9})[0].constraint == "pen_on_turntable"
