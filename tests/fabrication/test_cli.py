@@ -1,0 +1,62 @@
+"""``station fabricate``: output files, summary, errors as one line."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+from PIL import Image
+
+from drivers.gcode import interpret
+from station.cli import main
+
+
+def test_fabricate_writes_svg_gcode_json_png(tmp_path, capsys):
+    out = tmp_path / "spiro"
+    code = main(["fabricate", "spirograph", "--set", "r_f=5", "--set", "r_r=3", "--set", "d=1.5", "--scale", "6",
+                 "--kerf", "0.2", "--sheet", "250x180", "--out", str(out)])
+    assert code == 0
+    text = capsys.readouterr().out
+    assert "fixed ring" in text and "rolling gear" in text and "sheet usage" in text
+    summary = json.loads((out / "parts.json").read_text())
+    assert summary["sheet_mm"] == [250, 180] and summary["kerf_mm"] == 0.2
+    assert {p["name"] for p in summary["parts"]} == {"fixed ring", "rolling gear"}
+    assert 0 < summary["sheet_usage"] < 1
+    assert summary["job"]["travel_mm"] <= summary["job"]["travel_mm_unordered"]
+    assert summary["job"]["material"] == "plywood_3mm"
+    lines = (out / "laser.gcode").read_text().splitlines()
+    path = interpret(lines)
+    lo, hi = path.extent()
+    assert lo.min() >= 0 and hi[0] <= 250 and hi[1] <= 180
+    assert np.all(path.power[path.rapid] == 0)
+    assert lines[-1] == "M5 S0"
+    assert (out / "parts.svg").read_text().count('inkscape:groupmode="layer"') == 2
+    assert Image.open(out / "sheet.png").size[0] > 100
+
+
+@pytest.mark.parametrize("machine", ["cycloid_drawing_machine", "hoot_nanny"])
+def test_fabricate_turntable_machines_as_json(tmp_path, capsys, machine):
+    code = main(["fabricate", machine, "--scale", "6", "--material", "cardboard_2mm", "--out", str(tmp_path),
+                 "--json"])
+    assert code == 0
+    summary = json.loads(capsys.readouterr().out)
+    names = {p["name"] for p in summary["parts"]}
+    assert {"turntable gear", "base plate"} <= names
+    assert summary["job"]["cut"]["passes"] == 1  # cardboard_2mm
+
+
+def test_bad_inputs_are_one_line_errors(tmp_path, capsys):
+    assert main(["fabricate", "spirograph", "--scale", "6", "--sheet", "big", "--out", str(tmp_path)]) == 2
+    assert "--sheet" in capsys.readouterr().err
+    assert main(["fabricate", "spirograph", "--scale", "6", "--material", "gold", "--out", str(tmp_path)]) == 2
+    assert "no material 'gold'" in capsys.readouterr().err
+    assert main(["fabricate", "spirograph", "--scale", "30", "--sheet", "100x100", "--out", str(tmp_path)]) == 2
+    err = capsys.readouterr().err
+    assert err.splitlines()[-1].startswith("station: error:") and "no room for part" in err
+    assert "Traceback" not in err
+    assert main(["fabricate", "spirograph", "--scale", "6", "--set", "r_r=7", "--out", str(tmp_path)]) == 2
+    assert "station: error:" in capsys.readouterr().err
+    # A sheet larger than the laser's work area: refused with the extent.
+    assert main(["fabricate", "spirograph", "--scale", "40", "--sheet", "900x900", "--out", str(tmp_path)]) == 2
+    assert "work area" in capsys.readouterr().err
