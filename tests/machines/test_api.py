@@ -277,3 +277,16 @@ def test_mechanism_frames(name):
     assert np.hypot(*pen_drawing) == pytest.approx(np.hypot(*pen_fixed))  # same point, frames differ by a rotation
     with pytest.raises(ParameterError, match="frame"):
         machine.mechanism(design, 1.3, frame="paper")
+
+
+@pytest.mark.parametrize("name", BUILTINS)
+def test_every_box_and_integrality_constraint_is_a_parameter_error(name):
+    machine = get_machine(name)
+    for parameter in machine.parameters:
+        cases = [(f"{parameter.name}_max", parameter.upper + 1), (f"{parameter.name}_min", parameter.lower - 1)]
+        if parameter.kind == "discrete":
+            cases.append((f"{parameter.name}_integer", parameter.default + 0.5))
+        for constraint, value in cases:
+            assert constraint in [v.constraint for v in machine.violations({parameter.name: value})]
+            with pytest.raises(ParameterError, match=f"parameter '{parameter.name}' must be"):
+                machine.validate({parameter.name: value})

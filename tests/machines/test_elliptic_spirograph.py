@@ -50,17 +50,22 @@ def test_rolls_inside_the_ring_without_slipping(design):
         assert velocity < 1e-6 * design["r_f"]
 
 
-@pytest.mark.parametrize(
-    "constraint, params, message",
-    [
-        ("rolling_gear_inside", {"r_f": 4, "r_r": 5, "e": 0.1, "d": 1.0}, "r_r must be smaller than r_f = 4, got 5"),
-        ("eccentricity_below_one", {"e": 1.0}, "e must be smaller than 1"),
-        ("compatible_curvatures", {"r_f": 5, "r_r": 3, "e": 0.9, "d": 1.0}, "a must be below sqrt(b r_f) = 2.96"),
-        ("pen_inside_gear", {"r_f": 5, "r_r": 3, "e": 0.4, "d": 3.2}, "d must be at most the semi-major axis a = 3.1"),
-        ("coprime_radii", {"r_f": 9, "r_r": 6, "e": 0.1, "d": 1.0}, "gcd(9, 6) = 3"),
-        ("pen_offset_positive", {"d": 0.0}, "d must be greater than 0"),
-    ],
-)
+CONSTRAINT_CASES = [
+    ("rolling_gear_inside", {"r_f": 4, "r_r": 5, "e": 0.1, "d": 1.0}, "r_r must be smaller than r_f = 4, got 5"),
+    ("eccentricity_below_one", {"e": 1.0}, "e must be smaller than 1"),
+    ("compatible_curvatures", {"r_f": 5, "r_r": 3, "e": 0.9, "d": 1.0}, "a must be below sqrt(b r_f) = 2.96"),
+    ("pen_inside_gear", {"r_f": 5, "r_r": 3, "e": 0.4, "d": 3.2}, "d must be at most the semi-major axis a = 3.1"),
+    ("coprime_radii", {"r_f": 9, "r_r": 6, "e": 0.1, "d": 1.0}, "gcd(9, 6) = 3"),
+    ("pen_offset_positive", {"d": 0.0}, "d must be greater than 0"),
+]
+
+
+def test_constraint_cases_cover_every_named_constraint():
+    box = {c.name for c in elliptic._box_constraints()}
+    assert {case[0] for case in CONSTRAINT_CASES} == {c.name for c in elliptic.all_constraints()} - box
+
+
+@pytest.mark.parametrize("constraint, params, message", CONSTRAINT_CASES)
 def test_each_constraint_raises(constraint, params, message):
     with pytest.raises(ConstraintViolation) as info:
         elliptic.validate(params)

@@ -27,16 +27,21 @@ def test_period_is_the_lcm_rule(r_f, r_r):
     assert spirograph.turns({"r_f": r_f, "r_r": r_r, "d": 0.5}) == r_r
 
 
-@pytest.mark.parametrize(
-    "constraint, params, message",
-    [
-        ("rolling_gear_inside", {"r_f": 5, "r_r": 7, "d": 1.0}, "r_r must be smaller than r_f = 5, got 7"),
-        ("rolling_gear_inside", {"r_f": 5, "r_r": 5, "d": 1.0}, "r_r must be smaller than r_f = 5, got 5"),
-        ("pen_inside_gear", {"r_f": 5, "r_r": 3, "d": 3.5}, "d must be at most r_r = 3, got 3.5"),
-        ("coprime_radii", {"r_f": 6, "r_r": 4, "d": 1.0}, "gcd(6, 4) = 2"),
-        ("pen_offset_positive", {"r_f": 5, "r_r": 3, "d": 0.0}, "d must be greater than 0"),
-    ],
-)
+CONSTRAINT_CASES = [
+    ("rolling_gear_inside", {"r_f": 5, "r_r": 7, "d": 1.0}, "r_r must be smaller than r_f = 5, got 7"),
+    ("rolling_gear_inside", {"r_f": 5, "r_r": 5, "d": 1.0}, "r_r must be smaller than r_f = 5, got 5"),
+    ("pen_inside_gear", {"r_f": 5, "r_r": 3, "d": 3.5}, "d must be at most r_r = 3, got 3.5"),
+    ("coprime_radii", {"r_f": 6, "r_r": 4, "d": 1.0}, "gcd(6, 4) = 2"),
+    ("pen_offset_positive", {"r_f": 5, "r_r": 3, "d": 0.0}, "d must be greater than 0"),
+]
+
+
+def test_constraint_cases_cover_every_named_constraint():
+    box = {c.name for c in spirograph._box_constraints()}
+    assert {case[0] for case in CONSTRAINT_CASES} == {c.name for c in spirograph.all_constraints()} - box
+
+
+@pytest.mark.parametrize("constraint, params, message", CONSTRAINT_CASES)
 def test_each_constraint_raises(constraint, params, message):
     with pytest.raises(ConstraintViolation) as info:
         spirograph.validate(params)

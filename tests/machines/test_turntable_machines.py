@@ -178,17 +178,22 @@ def test_cycloid_kinematics_by_hand():
     assert np.hypot(*points.T).max() == pytest.approx(bound, rel=1e-6)
 
 
-@pytest.mark.parametrize(
-    "constraint, params, message",
-    [
-        ("fulcrum_outside_turntable", {"d_tf": 6.5}, "d_tf must exceed r_t = 7"),
-        ("pen_offset_positive", {"d_fh": 0.0}, "d_fh must be greater than 0"),
-        ("pen_before_gear", {"d_fh": 14.8}, "d_fh must be smaller than d_fe - r_e = 14.6549"),
-        ("slider_inside_gear", {"r_s": 4.5}, "r_s must be smaller than r_e = 4, got 4.5"),
-        ("coprime_radii", {"r_t": 8}, "gcd(8, 4) = 4"),
-        ("pen_on_turntable", {"d_fh": 1.0}, "must be below r_t = 7, got 8.19315"),
-    ],
-)
+CDM_CASES = [
+    ("fulcrum_outside_turntable", {"d_tf": 6.5}, "d_tf must exceed r_t = 7"),
+    ("pen_offset_positive", {"d_fh": 0.0}, "d_fh must be greater than 0"),
+    ("pen_before_gear", {"d_fh": 14.8}, "d_fh must be smaller than d_fe - r_e = 14.6549"),
+    ("slider_inside_gear", {"r_s": 4.5}, "r_s must be smaller than r_e = 4, got 4.5"),
+    ("coprime_radii", {"r_t": 8}, "gcd(8, 4) = 4"),
+    ("pen_on_turntable", {"d_fh": 1.0}, "must be below r_t = 7, got 8.19315"),
+]
+
+
+def test_cdm_cases_cover_every_named_constraint():
+    box = {c.name for c in cdm._box_constraints()}
+    assert {case[0] for case in CDM_CASES} == {c.name for c in cdm.all_constraints()} - box
+
+
+@pytest.mark.parametrize("constraint, params, message", CDM_CASES)
 def test_cycloid_each_constraint_raises(constraint, params, message):
     with pytest.raises(ConstraintViolation) as info:
         cdm.validate(params)
@@ -196,22 +201,27 @@ def test_cycloid_each_constraint_raises(constraint, params, message):
     assert message in str(info.value)
 
 
-@pytest.mark.parametrize(
-    "constraint, params, message",
-    [
-        ("pivot1_inside_gear", {"r_p1": 3.2}, "r_p1 must be smaller than r_g1 = 3, got 3.2"),
-        ("pivot2_inside_gear", {"r_p2": 2.5}, "r_p2 must be smaller than r_g2 = 2, got 2.5"),
-        ("gears_apart", {"theta_12": 0.3}, "|G1G2| = 3.86458 must exceed r_g1 + r_g2 = 5"),
-        ("arm1_long_enough", {"l1": 5.0}, "l1 must exceed r_g1 + r_p1 = 5.8, got 5"),
-        ("arm1_short_enough", {"l1": 20.5}, "l1 must be below 2 r_t + r_g1 - r_p1 = 20.2, got 20.5"),
-        ("arm2_long_enough", {"l2": 3.0}, "l2 must exceed r_g2 + r_p2 = 3.8, got 3"),
-        ("arm2_short_enough", {"l2": 20.5}, "l2 must be below 2 r_t + r_g2 - r_p2 = 20.2, got 20.5"),
-        ("coprime_radii", {"r_t": 8, "r_g1": 4, "r_g2": 2}, "gcd(8, 4, 2) = 2"),
-        ("arms_reach", {"l1": 10.0, "l2": 6.0}, "l1 + l2 must exceed |G1G2| + r_p1 + r_p2 = 18.7402, got 16"),
-        ("arms_not_folded", {"l1": 16.0, "l2": 4.5}, "|l1 - l2| must be below |G1G2| - r_p1 - r_p2 = 9.54017"),
-        ("pen_on_turntable", {"l1": 15.5}, "within r_t = 10 of the turntable's center, got 11.8045"),
-    ],
-)
+HOOT_CASES = [
+    ("pivot1_inside_gear", {"r_p1": 3.2}, "r_p1 must be smaller than r_g1 = 3, got 3.2"),
+    ("pivot2_inside_gear", {"r_p2": 2.5}, "r_p2 must be smaller than r_g2 = 2, got 2.5"),
+    ("gears_apart", {"theta_12": 0.3}, "|G1G2| = 3.86458 must exceed r_g1 + r_g2 = 5"),
+    ("arm1_long_enough", {"l1": 5.0}, "l1 must exceed r_g1 + r_p1 = 5.8, got 5"),
+    ("arm1_short_enough", {"l1": 20.5}, "l1 must be below 2 r_t + r_g1 - r_p1 = 20.2, got 20.5"),
+    ("arm2_long_enough", {"l2": 3.0}, "l2 must exceed r_g2 + r_p2 = 3.8, got 3"),
+    ("arm2_short_enough", {"l2": 20.5}, "l2 must be below 2 r_t + r_g2 - r_p2 = 20.2, got 20.5"),
+    ("coprime_radii", {"r_t": 8, "r_g1": 4, "r_g2": 2}, "gcd(8, 4, 2) = 2"),
+    ("arms_reach", {"l1": 10.0, "l2": 6.0}, "l1 + l2 must exceed |G1G2| + r_p1 + r_p2 = 18.7402, got 16"),
+    ("arms_not_folded", {"l1": 16.0, "l2": 4.5}, "|l1 - l2| must be below |G1G2| - r_p1 - r_p2 = 9.54017"),
+    ("pen_on_turntable", {"l1": 15.5}, "within r_t = 10 of the turntable's center, got 11.8045"),
+]
+
+
+def test_hoot_cases_cover_every_named_constraint():
+    box = {c.name for c in hoot._box_constraints()}
+    assert {case[0] for case in HOOT_CASES} == {c.name for c in hoot.all_constraints()} - box
+
+
+@pytest.mark.parametrize("constraint, params, message", HOOT_CASES)
 def test_hoot_nanny_each_constraint_raises(constraint, params, message):
     with pytest.raises(ConstraintViolation) as info:
         hoot.validate(params)
