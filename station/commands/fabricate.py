@@ -54,7 +54,15 @@ def fabricate(machine: str, params: dict[str, float], scale: float, *, kerf: flo
 
     ``progress``, optional: called with short messages while working.
     """
-    from design.fabrication import machine_parts, nest_parts, render_png, sheet_paths, write_svg
+    from design.fabrication import (
+        FABRICABLE_MACHINES,
+        machine_parts,
+        nest_parts,
+        render_png,
+        sheet_paths,
+        write_svg,
+    )
+    from design.machines import get_machine
     from drivers.laser_job import (
         check_work_area,
         material_settings,
@@ -65,6 +73,9 @@ def fabricate(machine: str, params: dict[str, float], scale: float, *, kerf: flo
     from drivers.profiles import builtin_profile
 
     say = progress or (lambda _message: None)
+    if machine in FABRICABLE_MACHINES:
+        # The summary records the complete design (defaults filled in), as the parts were made from it.
+        params = dict(get_machine(machine).validate(params))
     profile = profile if profile is not None else builtin_profile("laser")
     engrave_ops, cut_ops, material_name = material_settings(profile, material)
     started = time.perf_counter()

@@ -175,3 +175,36 @@ def test_laser_is_dark_on_every_travel_on_the_simulated_machine(laser_mode):
         if block.rapid:
             during = [s.power for s in record.samples if previous_end < s.t < block.t_end]
             assert all(p == 0 for p in during)
+
+
+def test_a_fabricated_job_is_framed_then_run_by_the_grbl_driver():
+    """The maker's sequence: set the sheet's corner as work origin, frame the job at low power, then cut."""
+    from drivers.grbl import GrblConnection, Job, JobRunner, frame_lines
+    from station.commands.fabricate import fabricate
+
+    profile = builtin_profile("laser")
+    result = fabricate("spirograph", {"r_f": 5, "r_r": 3, "d": 1.0}, 3.0, sheet_size=(120.0, 80.0),
+                       material="cardboard_2mm")
+    conn = GrblConnection("sim://grbl?profile=laser&time_scale=0.0005", poll_interval=0.05, lost_ok_timeout=0.3,
+                          silence_timeout=0.6).open()
+    try:
+        # Machine space is negative (GRBL default): work X0 Y0 at the front-left corner of the travel.
+        conn.command("G10 L2 P1 X-400 Y-400")
+        conn.refresh()
+        lo, hi = result.job.extent()
+        frame = Job("frame", frame_lines(lo, hi, laser_power=profile.laser.frame_power * profile.laser.max_power),
+                    laser=True)
+        framed = JobRunner(conn, frame).run()
+        assert framed.state == "done", framed.message
+        job = Job.from_text("parts", result.gcode, laser=True)
+        runner = JobRunner(conn, job)
+        checked = runner.preflight()
+        assert checked["lines"] >= len(result.gcode.splitlines())
+        done = runner.run()
+        assert done.state == "done", done.message
+        record = conn.port.machine.snapshot()
+    finally:
+        conn.close()
+    cuts = [b for b in record.executed if not b.rapid and b.power > 0]
+    assert cuts and all(b.power == 0 for b in record.executed if b.rapid)
+    assert max(b.power for b in cuts) == pytest.approx(0.8 * profile.laser.max_power)
