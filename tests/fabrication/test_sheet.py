@@ -148,3 +148,52 @@ def test_bad_scale_and_machine_are_refused():
         machine_parts("spirograph", {}, -1.0)
     with pytest.raises(ParameterError, match="machine"):
         machine_parts("harmonograph", {}, 5.0)
+
+
+def test_cycloid_machine_parts_sit_at_the_model_positions():
+    params = {"r_t": 7, "r_e": 4, "d_tf": 9.0, "theta_te": 2.4, "r_s": 2.0, "d_fh": 10.5}
+    scale = 8.0
+    parts = {p.name: p for p in machine_parts("cycloid_drawing_machine", params, scale)}
+    plate = parts["base plate"]
+    axles = plate.info["axles_mm"]
+    g_e = np.array(axles["external gear axle"])
+    assert axles["turntable axle"] == [0.0, 0.0]
+    assert axles["fulcrum pivot"] == pytest.approx([9.0 * scale, 0.0])
+    # The gears mesh where the plate holds them: centre distance = (r_T + r_E) × scale = sum of pitch radii.
+    pitch_sum = parts["turntable gear"].info["pitch_radius_mm"] + parts["external gear"].info["pitch_radius_mm"]
+    assert np.linalg.norm(g_e) == pytest.approx(pitch_sum, abs=1e-3)
+    assert math.atan2(g_e[1], g_e[0]) == pytest.approx(2.4, abs=1e-4)
+    for name in axles:
+        assert not plate.shape.contains(Point(axles[name]))
+    # The slider pin's whole range fits the arm's slot; the pen hole is at d_FH from the pivot.
+    arm = parts["pen arm"]
+    d_fe = np.linalg.norm(g_e - np.array(axles["fulcrum pivot"])) / scale
+    lo, hi = arm.info["slot_mm"]
+    assert (lo, hi) == pytest.approx(((d_fe - 2.0) * scale, (d_fe + 2.0) * scale), abs=1e-3)
+    for x in np.linspace(lo, hi, 9):
+        assert not arm.shape.intersects(Point(x, 0.0).buffer(1.5))  # a 3 mm pin slides freely
+    assert not arm.shape.contains(Point(10.5 * scale, 0.0))
+    assert arm.shape.contains(Point((10.5 * scale + lo) / 2, 0.0))
+    # r_S = 2 is well inside the external gear: its slider pin hole is in the gear itself, no crank.
+    assert "external gear crank" not in parts
+    assert not parts["external gear"].shape.contains(Point(2.0 * scale, 0.0))
+
+
+def test_hoot_nanny_arms_and_near_rim_pins():
+    params = {"r_t": 10, "r_g1": 3, "r_g2": 2, "theta_12": 1.2, "r_p1": 2.8, "r_p2": 1.0, "l1": 13.5, "l2": 7.2}
+    scale = 6.0
+    parts = {p.name: p for p in machine_parts("hoot_nanny", params, scale)}
+    assert parts["arm 1"].info["pivot_to_pen_mm"] == pytest.approx(13.5 * scale)
+    assert parts["arm 2"].info["pivot_to_pen_mm"] == pytest.approx(7.2 * scale)
+    teeth = {name: parts[name].info["teeth"] for name in ("turntable gear", "gear 1", "gear 2")}
+    assert teeth["turntable gear"] * 3 == teeth["gear 1"] * 10 and teeth["gear 1"] * 2 == teeth["gear 2"] * 3
+    # r_P1 = 2.8 of 3 would cut gear 1's teeth: the pin is on a crank disc at the same radius.
+    crank = parts["gear 1 crank"]
+    assert crank.info["pin_at_mm"] == pytest.approx(2.8 * scale)
+    assert not crank.shape.contains(Point(2.8 * scale, 0.0))
+    assert crank.notes and "crank" in crank.notes[0]
+    # r_P2 = 1.0 fits in gear 2 itself.
+    assert "gear 2 crank" not in parts
+    assert not parts["gear 2"].shape.contains(Point(1.0 * scale, 0.0))
+    g2 = parts["base plate"].info["axles_mm"]["gear 2 axle"]
+    assert np.hypot(*g2) == pytest.approx((10 + 2) * scale, abs=1e-3)
