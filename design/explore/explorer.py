@@ -22,7 +22,7 @@ import numpy as np
 from design.explore.errors import ExploreError, InvariantSpecError, OverConstrainedError
 from design.explore.invariants import ERROR_UNIT, Invariant, make_invariant
 from design.explore.local import BatchCurve, LocalPoI, track_local
-from design.explore.poi import CURVATURE, PointOfInterest, cumulative_arclength, detect_pois
+from design.explore.poi import CURVATURE, PointOfInterest, cumulative_arclength, detect_pois, menger_curvature
 from design.explore.shape import bbox_diagonal, shape_distance
 from design.explore.subspace import Subspace, compute_subspace, jacobian, line_interval
 from design.explore.tracking import track_poi
@@ -86,7 +86,9 @@ class ReleaseResult:
     shape_change : float
         :func:`~design.explore.shape.shape_distance` between the design before the move and after re-projection.
     converged : bool
-        Whether the re-projection met its tolerance.
+        Whether the re-projection met its tolerance (if not, the design stays where it was before the move).
+    fraction : float
+        Fraction of the move that was kept: below 1 when the invariants could only be kept over a shorter move.
     warning : str
         Anything the user should know (e.g. the subspace could not be updated).
     """
@@ -100,6 +102,7 @@ class ReleaseResult:
     lost: list[str] = field(default_factory=list)
     shape_change: float = 0.0
     converged: bool = True
+    fraction: float = 1.0
     warning: str = ""
 
 
@@ -136,7 +139,7 @@ class Explorer:
         *,
         n_points: int = 4096,
         neighborhood: float = 0.2,
-        sigma_poi: float = 0.25,
+        sigma_poi: float = 0.1,
         budget: int = 1024,
         keep_fraction: float = 0.25,
         pull: bool = True,
@@ -311,9 +314,9 @@ class Explorer:
         before_curve = self.curve
         u_moved = self._u()
         params_moved = self._design_at(u_moved)
-        converged = True
+        converged, fraction = True, 1.0
         if self.invariants:
-            u_new, refs_new, converged = self._reproject(u_moved)
+            u_new, refs_new, converged, fraction = self._reproject(u_moved)
         else:
             u_new, refs_new = u_moved, dict(self._refs)
         features_before = self._features(u_moved[None, :], self._refs)
@@ -328,7 +331,15 @@ class Explorer:
         self._refs = {key: self._updated_ref(ref, features_after[key]) for key, ref in refs_new.items()}
         self._detect()
         lost = self._map_ids()
-        warning = "" if converged else "re-projection did not reach its tolerance; errors are reported as found"
+        if not converged:
+            warning = (
+                "no design near the move keeps the invariants (a PoI is lost or the invariants cannot be met): "
+                "the design did not change"
+            )
+        elif fraction < 1.0:
+            warning = f"the invariants could only be kept over {fraction:.0%} of the move"
+        else:
+            warning = ""
         previous = self._subspace.basis if not self._subspace.redundant else None
         try:
             self._recompute_subspace(previous=previous)
@@ -350,6 +361,7 @@ class Explorer:
             lost=[f"poi {old_ids.get(k)}" for k in lost],
             shape_change=shape_distance(before_curve, self.curve, self.size),
             converged=converged,
+            fraction=fraction,
             warning=warning,
         )
 
@@ -380,6 +392,7 @@ class Explorer:
         self._times = times
         self._arclength = cumulative_arclength(self.curve)
         self._pois = detect_pois(self.curve, times, self.rel_prominence)
+        self._median_curvature = float(np.median(np.abs(menger_curvature(self.curve))))
 
     def _local_ref(self, poi: PointOfInterest) -> LocalPoI:
         """Tracking window of a PoI: half the time to its nearest neighbour of the same kind (Eq. 3.14 in time)."""
@@ -393,7 +406,9 @@ class Explorer:
             separation = min(separation, self.period - separation)
             window = min(0.25 * separation, self.period / 40)
         window = max(window, 1e-4 * self.period)
-        return LocalPoI(poi.kind, tuple(poi.times), tuple(poi.xy), window, self.period)
+        # Half the detector's prominence threshold: a maximum fading below it is lost rather than followed.
+        min_prominence = 0.5 * self.rel_prominence * self._median_curvature
+        return LocalPoI(poi.kind, tuple(poi.times), tuple(poi.xy), window, self.period, min_prominence)
 
     def _refined_poi(self, poi: PointOfInterest, ref: LocalPoI) -> PointOfInterest:
         f = track_local(self._curves, self._x0[None, :], ref, np.inf, self.size)
@@ -474,32 +489,47 @@ class Explorer:
             [line_interval(self._feasible_u, u, basis[k], float(self.values[k])) for k in range(len(basis))]
         ).reshape(len(basis), 2)
 
-    def _reproject(self, u_moved: np.ndarray) -> tuple[np.ndarray, dict[int, LocalPoI], bool]:
+    def _reproject(self, u_moved: np.ndarray) -> tuple[np.ndarray, dict[int, LocalPoI], bool, float]:
         """Nearest design to ``u_moved`` that keeps the invariants: minimum-norm Gauss-Newton, with continuation.
 
-        The move is split into 1, 2, 4 then 8 steps when a PoI cannot be tracked over the whole move; each step's
-        projection becomes the tracking reference of the next.
+        The move is split into 1, 2, 4 then 8 steps when a PoI cannot be tracked over the whole move: each step
+        starts from the previous projection plus the step's share of the move (the last one from ``u_moved``
+        itself when that works), and each projection is the tracking reference of the next step. If even that
+        fails, shorter moves (1/2, 1/4, 1/8 of the way) are tried.
+
+        Returns
+        -------
+        u, refs, converged, fraction
+            The projected point, the PoI references there, whether the tolerance was met, and the fraction of the
+            move that was kept (1 unless a shorter move had to be taken).
         """
-        best = (np.inf, np.zeros_like(u_moved), dict(self._refs))
-        for pieces in (1, 2, 4, 8):
-            refs = dict(self._refs)
-            u = np.zeros_like(u_moved)
-            ok = True
-            for j in range(1, pieces + 1):
-                start = u_moved * j / pieces
-                u, norm, ok = self._gauss_newton(start, refs)
-                if not np.isfinite(norm):
-                    ok = False
+        for fraction in (1.0, 0.5, 0.25, 0.125):
+            target = u_moved * fraction
+            for pieces in (1, 2, 4, 8):
+                result = self._continuation(target, pieces)
+                if result is not None:
+                    return result[0], result[1], True, fraction
+        return np.zeros_like(u_moved), dict(self._refs), False, 0.0
+
+    def _continuation(self, target: np.ndarray, pieces: int):
+        refs = dict(self._refs)
+        u = np.zeros_like(target)
+        for j in range(1, pieces + 1):
+            starts = [u + target / pieces]
+            if j == pieces:
+                starts.insert(0, target)
+            for start in starts:
+                projected, norm, ok = self._gauss_newton(start, refs)
+                if ok:
                     break
-                features = self._features(u[None, :], refs)
-                refs = {key: self._updated_ref(ref, features[key]) for key, ref in refs.items()}
-                if norm < best[0] and j == pieces:
-                    best = (norm, u.copy(), dict(refs))
-                if not ok:
-                    break
-            if ok:
-                return u, refs, True
-        return best[1], best[2], False
+            if not ok:
+                return None
+            u = projected
+            features = self._features(u[None, :], refs)
+            if any(f["lost"][0] for f in features.values()):
+                return None
+            refs = {key: self._updated_ref(ref, features[key]) for key, ref in refs.items()}
+        return u, refs
 
     def _gauss_newton(self, u: np.ndarray, refs: Mapping[int, LocalPoI], iterations: int = 20, tol: float = 1e-5):
         def residual(U):

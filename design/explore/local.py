@@ -106,6 +106,9 @@ class LocalPoI:
         Half-width (in time) of the search for a curvature maximum; also the largest time shift accepted.
     period : float
         The pattern's period (times are modulo it).
+    min_prominence : float
+        A curvature maximum whose peak rises less than this above the lowest curvature on either side within the
+        window is lost (it is fading away; the full detection would not see it either).
     """
 
     kind: str
@@ -113,6 +116,7 @@ class LocalPoI:
     xy: tuple[float, float]
     window: float
     period: float
+    min_prominence: float = 0.0
 
 
 @dataclass
@@ -139,6 +143,12 @@ def track_curvature_maximum(curves: BatchCurve, X: np.ndarray, ref: LocalPoI, si
     # Among the local maxima, the one nearest to t0 (Eq. 3.14 in time).
     closeness = np.where(interior, -np.abs(offsets[1:-1])[None, :], -np.inf)
     index = np.argmax(closeness, axis=1) + 1
+    # Prominence within the window: the peak above the higher of the lowest values on its left and on its right.
+    left_low = np.minimum.accumulate(kappa, axis=1)
+    right_low = np.minimum.accumulate(kappa[:, ::-1], axis=1)[:, ::-1]
+    rows = np.arange(k)
+    prominence = kappa[rows, index] - np.maximum(left_low[rows, index], right_low[rows, index])
+    found &= prominence >= ref.min_prominence
     t = t0 + offsets[index]
     step = np.full(k, offsets[1] - offsets[0])
     for _ in range(12):

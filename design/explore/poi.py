@@ -144,8 +144,8 @@ def detect_curvature_maxima(
     times : (n,) array, optional
         Parameter time of each point, to report the PoI's time.
     rel_prominence : float
-        A peak must rise above its surroundings by this fraction of the median ``|kappa|`` (and of the mean
-        ``|kappa|``, whichever is larger): discretization ripples stay far below it.
+        A peak must rise above its surroundings by this fraction of the median ``|kappa|`` (the median, not the
+        mean, so that a few very sharp loops do not hide the gentle maxima): discretization ripples stay far below.
 
     Returns
     -------
@@ -158,7 +158,7 @@ def detect_curvature_maxima(
     finite = np.isfinite(kappa)
     if not finite.any():
         return []
-    typical = max(float(np.median(kappa[finite])), float(np.mean(kappa[finite])), 1e-300)
+    typical = max(float(np.median(kappa[finite])), 1e-300)
     # The curve is closed: look for peaks on three copies so that peaks near the seam have their full context.
     tiled = np.tile(np.nan_to_num(kappa, posinf=np.finfo(float).max / 4), 3)
     peaks, _ = find_peaks(tiled, prominence=rel_prominence * typical)

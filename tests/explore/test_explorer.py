@@ -205,3 +205,49 @@ def test_bad_invariants_and_moves_are_refused_clearly():
     with pytest.raises(ExploreError, match="finite"):
         explorer.move(0, float("nan"))
     assert explorer.invariants == []
+
+
+def random_feasible_design(model, rng) -> dict:
+    while True:
+        params = {}
+        for p in model.parameters:
+            if p.kind == "discrete":
+                params[p.name] = int(rng.integers(max(1, p.lower), 11))
+            else:
+                params[p.name] = float(rng.uniform(p.lower, min(p.upper, 20.0)))
+        if model.is_feasible(params):
+            return params
+
+
+@pytest.mark.parametrize("machine", MACHINES)
+def test_random_designs_a_release_is_never_silently_wrong(machine):
+    """On seeded random designs and PoIs: a converged release keeps every invariant within the limits; a failed one
+    leaves the design where it was and says so. Over-constrained invariants are refused."""
+    rng = np.random.default_rng(7)
+    model = Explorer(machine, DESIGNS[machine]).machine
+    checked = 0
+    for _ in range(2):
+        params = random_feasible_design(model, rng)
+        for kind in ("position", "curvature", "angle", "radial", "distance"):
+            explorer = Explorer(machine, params)
+            maxima = [p.id for p in explorer.pois if p.kind == CURVATURE]
+            crossings = [p.id for p in explorer.pois if p.kind == INTERSECTION]
+            pool = crossings if kind == "angle" else maxima
+            if len(pool) < 2:
+                continue
+            ids = [int(i) for i in rng.choice(pool, 2 if kind == "distance" else 1, replace=False)]
+            try:
+                invariant = explorer.add_invariant(kind, ids)
+            except OverConstrainedError:
+                continue
+            s = explorer.sliders[0]
+            value = 1.0 if s.upper >= 1.0 else max(s.lower, -1.0)
+            base = explorer.base_design
+            explorer.move(0, value)
+            result = explorer.release()
+            if result.converged:
+                assert result.errors_after[invariant.label] < LIMITS[kind], (params, kind, ids)
+                checked += 1
+            else:
+                assert result.params == base and result.warning
+    assert checked >= 4
