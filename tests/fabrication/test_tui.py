@@ -66,3 +66,19 @@ async def test_a_bad_field_is_reported_without_a_crash(tmp_path):
         screen.action_generate()
         await wait_for(pilot, screen, lambda: "cannot fabricate" in screen.last_message)
         assert screen.result is None
+
+
+async def test_send_queues_the_laser_job_on_the_machines_screen(tmp_path):
+    app = StationApp(database=tmp_path / "t.sqlite3")
+    async with app.run_test(size=(160, 50)) as pilot:
+        await pilot.press("f")
+        screen = app.screen
+        await wait_for(pilot, screen, lambda: screen.result is not None)
+        await pilot.press("s")
+        machines = app.get_screen("machines")
+        await wait_for(pilot, screen, lambda: getattr(machines, "jobs", None))
+        assert app.screen.name == "machines"
+        entry = machines.jobs[-1]
+        assert entry.device == "laser" and entry.job.laser
+        assert entry.job.lines == screen.result.gcode.splitlines()
+        assert "sent to the laser" in screen.last_message

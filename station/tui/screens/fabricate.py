@@ -2,8 +2,10 @@
 
 Opened from the Drawing machines screen (key f there, or f on the home screen), it takes that screen's current
 design. The nested sheet is drawn as a picture in the terminal (two pixels per cell with half blocks), beside the
-parts list and the job estimate. Enter in a field regenerates; w writes parts.svg, laser.gcode, parts.json and
-sheet.png into the station's data folder; s sends the job to the laser on the Machines screen (frame first, then run).
+parts list and the job estimate. Tab reaches the fields (scale, kerf, sheet, material); Enter there regenerates.
+From the parts table: g regenerates, r reloads the Drawing screen's design, w writes parts.svg, laser.gcode,
+parts.json and sheet.png into the station's data folder, s queues the job for the laser on the Machines screen
+(where f frames it and g runs it).
 """
 
 from __future__ import annotations
@@ -123,7 +125,10 @@ class FabricateScreen(Screen):
         yield Footer()
 
     def on_mount(self) -> None:
-        self.query_one("#parts", DataTable).add_columns("part", "size mm", "teeth", "notes")
+        table = self.query_one("#parts", DataTable)
+        table.add_columns("part", "size mm", "teeth", "notes")
+        # The keys (g, w, s, r) act while the table has focus; Tab reaches the fields, Enter there regenerates.
+        table.focus()
 
     def on_screen_resume(self) -> None:
         design = self._drawing_design()
@@ -160,6 +165,7 @@ class FabricateScreen(Screen):
 
     @on(Input.Submitted)
     def _field_submitted(self, _event: Input.Submitted) -> None:
+        self.query_one("#parts", DataTable).focus()
         self.action_generate()
 
     def _options(self) -> dict:
@@ -245,13 +251,19 @@ class FabricateScreen(Screen):
             self._set_status(f"the Machines screen cannot take jobs here; the G-code is in {path}")
             return
         title = f"{self.result.machine} parts ({self.result.summary['job']['material']})"
+        # Show the Machines screen first, so that its queue table exists when the job arrives.
+        self.app.action_open_area("machines")
+        self.app.call_after_refresh(self._queue_on_machines, queue, self.result.gcode, title)
+
+    def _queue_on_machines(self, queue, gcode: str, title: str) -> None:
         try:
-            queue("laser", self.result.gcode, title=title)
+            queue("laser", gcode, title=title, laser=True)
         except (DriverError, StationError, ValueError) as error:
             self._set_status(f"[red]the laser refused the job: {error}[/red]")
+            self.notify(str(error), severity="error", title="Job not queued")
             return
         self._set_status(f"sent to the laser: {title}")
-        self.app.action_open_area("machines")
+        self.notify(f"{title}: on the Machines screen, f frames the job, g starts it", title="Laser job queued")
 
     def _set_status(self, message: str) -> None:
         self.last_message = message
