@@ -3,7 +3,7 @@
 >>> from design.explore import Explorer, detect_pois
 """
 
-from design.explore.errors import ExploreError, InvariantSpecError, OverConstrainedError, PoILostError
+from design.explore.errors import ExploreError, InvariantSpecError, OverConstrainedError
 from design.explore.explorer import Explorer, MoveResult, ReleaseResult, Slider
 from design.explore.invariants import ERROR_UNIT, INVARIANT_TYPES, Invariant, make_invariant, parse_keep
 from design.explore.poi import (
@@ -34,7 +34,6 @@ __all__ = [
     "InvariantSpecError",
     "MoveResult",
     "OverConstrainedError",
-    "PoILostError",
     "PointOfInterest",
     "ReleaseResult",
     "Slider",

@@ -25,7 +25,3 @@ class OverConstrainedError(ExploreError):
     def __init__(self, message: str, invariants: tuple[str, ...] = ()):
         super().__init__(message)
         self.invariants = tuple(invariants)
-
-
-class PoILostError(ExploreError):
-    """A Point of Interest an invariant depends on cannot be tracked on the new design."""
