@@ -7,12 +7,34 @@ client (the core's :func:`~design.contraption.simulate` reuses one DIRECT client
 
 from __future__ import annotations
 
+import threading
 from pathlib import Path
 
 import numpy as np
 
-from design.contraption import SUCCESS, Scenario, check_validity, load_scenario, simulate
+from design.contraption import SUCCESS, Scenario, Simulator, check_validity, load_scenario, simulate
 from design.robust.problem import RobustError
+
+_clients = threading.local()
+
+
+def thread_client():
+    """This thread's pybullet DIRECT client, made once.
+
+    The core's :func:`~design.contraption.bullet.direct_client` silences pybullet's banner by duplicating the
+    stdout/stderr file descriptors; under a Textual app (whose streams report unusable descriptors) that raises
+    ``OSError``, so we then connect without silencing (pybullet prints one ``argv[0]=`` line).
+    """
+    client = getattr(_clients, "client", None)
+    if client is None:
+        from design.contraption.bullet import BulletClient, direct_client, pybullet
+
+        try:
+            client = direct_client()
+        except OSError:
+            client = BulletClient(connection_mode=pybullet.DIRECT)
+        _clients.client = client
+    return client
 
 
 class ContraptionProblem:
@@ -69,13 +91,15 @@ class ContraptionProblem:
         return np.clip(self.to_normalized(self.scenario.default_layout()), 0.0, 1.0)
 
     def _excess(self, u: np.ndarray) -> float:
-        problems = check_validity(self.scenario, self.to_real(u))
+        problems = check_validity(self.scenario, self.to_real(u), client=thread_client())
         return float(sum(max(p.amount - p.tolerance, 0.0) for p in problems)) + (1e-6 if problems else 0.0)
 
     def is_valid(self, U: np.ndarray) -> np.ndarray:
         U = np.atleast_2d(np.asarray(U, dtype=float))
         inside = np.all((U >= 0) & (U <= 1), axis=1)
-        return np.array([bool(ok) and not check_validity(self.scenario, self.to_real(u)) for u, ok in zip(U, inside)])
+        client = thread_client()
+        return np.array([bool(ok) and not check_validity(self.scenario, self.to_real(u), client=client)
+                         for u, ok in zip(U, inside)])
 
     def validity_margins(self, u: np.ndarray) -> np.ndarray | None:
         """One constraint: minus the total interpenetration / rope stretch beyond tolerance (metres), 0 if valid.
@@ -90,8 +114,36 @@ class ContraptionProblem:
         _ = self.scenario
 
     def simulate(self, u: np.ndarray) -> np.ndarray:
-        result = simulate(self.scenario, self.to_real(u), early_stop=True)
+        result = simulate(self.scenario, self.to_real(u), early_stop=True, client=thread_client())
         return np.array([result.events[name].state == SUCCESS for name in self.event_names], dtype=bool)
+
+
+def render_layouts(problem: ContraptionProblem, layouts: list[tuple[str, np.ndarray]], path=None,
+                   panel_size: tuple[int, int] = (560, 420)):
+    """Side views (x-z) of normalized layouts placed side by side (e.g. initial | optimized), as a Pillow image.
+
+    Each layout is drawn on its own (the core's renderer frames every row on the first snapshot's bounds, which
+    would crop a layout that moved far), then the side-view panels are pasted next to each other.
+    """
+    from PIL import Image
+
+    from design.contraption.render import render_views
+
+    panels = []
+    with Simulator(problem.scenario, client=thread_client()) as simulator:
+        for caption, u in layouts:
+            snapshot = simulator.build(problem.to_real(u)).snapshot()
+            picture = render_views(problem.scenario, [(caption, snapshot)], panel_size=panel_size)
+            # Top view left, side view right: keep the right half.
+            panels.append(picture.crop((picture.width - panel_size[0], 0, picture.width, picture.height)))
+    combined = Image.new("RGB", (sum(p.width for p in panels), max(p.height for p in panels)), "white")
+    left = 0
+    for panel in panels:
+        combined.paste(panel, (left, 0))
+        left += panel.width
+    if path is not None:
+        combined.save(path)
+    return combined
 
 
 def load_problem(path: str | Path) -> ContraptionProblem:

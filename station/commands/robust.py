@@ -86,9 +86,11 @@ class ProgressBar:
 
 
 def _load_problem(path: str):
+    """A scenario file, or an example by name (``simple``, ``ballrun``...), as a robust-layout problem."""
+    from design.contraption.catalog import resolve_scenario_path
     from design.robust.contraption import load_problem
 
-    return load_problem(path)
+    return load_problem(resolve_scenario_path(path))
 
 
 def _positive(value: int | None, option: str, minimum: int = 1) -> None:
@@ -103,12 +105,13 @@ def _executor(problem, args) -> SimulationExecutor:
 
 
 def _interrupted(executor: SimulationExecutor | None) -> None:
-    kept = executor.cache.count() if executor is not None else 0
-    print(f"\nstation: interrupted; {kept} simulations are kept in the cache", file=sys.stderr)
+    new = executor.n_simulated if executor is not None else 0
+    print(f"\nstation: stopping; the {new} new simulations of this run are kept in the cache "
+          f"({simulation_cache_path()})", file=sys.stderr)
 
 
 def add_common(parser, budget: bool = True) -> None:
-    parser.add_argument("scenario", help="scenario file (e.g. examples/scenarios/simple.toml)")
+    parser.add_argument("scenario", help="scenario file or example name (e.g. simple, examples/scenarios/simple.toml)")
     if budget:
         parser.add_argument("--budget", type=int, default=None,
                             help=f"simulation budget (default: the thesis's Table 4.1 budget, else {DEFAULT_BUDGET})")

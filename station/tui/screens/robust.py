@@ -1,0 +1,255 @@
+"""Optimize screen: a robust layout of a contraption scenario, with live progress (thesis 4.5-4.7).
+
+Pick a scenario, set the simulation budget and seed, press o (or the button): the PSP is learned from simulations
+and the layout optimized in a thread worker while a panel shows the phase, simulations done of the budget, the
+cross-validated accuracy and the best PSP. Then the predicted per-event probabilities, the optimized layout beside
+the scenario's initial one (a table and side views) and the result's own simulation are shown. s stops a run
+cleanly (finished simulations stay in the cache); w writes the layout JSON to the station's data folder.
+"""
+
+from __future__ import annotations
+
+import io
+import json
+import threading
+from pathlib import Path
+
+import numpy as np
+from textual import on, work
+from textual.app import ComposeResult
+from textual.binding import Binding
+from textual.containers import Horizontal, Vertical
+from textual.screen import Screen
+from textual.widgets import Button, DataTable, Footer, Header, Input, Label, ProgressBar, Select, Static
+
+from design.contraption.catalog import EXAMPLES_DIR, example_names
+from design.errors import DesignError
+from design.robust import Progress, PSPSettings, RobustLayout, SimulationCancelled, SimulationExecutor
+from design.robust import optimize_robust_layout as run_pipeline
+from station.commands.robust import DEFAULT_BUDGET, THESIS_BUDGETS, simulation_cache_path
+from station.paths import data_dir
+from station.tui.registry import ScreenEntry
+from station.tui.screens.fabricate import HalfBlockPicture
+
+
+def scenario_choices() -> list[tuple[str, str]]:
+    """(label, path) of the example scenarios."""
+    choices = []
+    for name in example_names():
+        for suffix in (".toml", ".json"):
+            path = EXAMPLES_DIR / f"{name}{suffix}"
+            if path.exists():
+                choices.append((name, str(path)))
+                break
+    return choices
+
+
+class RobustScreen(Screen):
+    """Optimize a contraption layout with live progress, then show probabilities and layouts."""
+
+    CSS = """
+    RobustScreen #controls { width: 36; padding: 0 1; }
+    RobustScreen #controls Input { width: 100%; }
+    RobustScreen #controls Button { width: 100%; margin-top: 1; }
+    RobustScreen #progress-panel { height: auto; border: round $accent; padding: 0 1; }
+    RobustScreen #bar { width: 100%; }
+    RobustScreen #results { width: 1fr; }
+    RobustScreen #tables { height: auto; max-height: 50%; }
+    RobustScreen #events, RobustScreen #layout { width: 1fr; height: auto; max-height: 20; }
+    RobustScreen #picture { height: 1fr; min-height: 8; }
+    RobustScreen .heading { text-style: bold; margin-top: 1; }
+    """
+
+    BINDINGS = [
+        Binding("o", "optimize", "Optimize"),
+        Binding("s", "stop", "Stop"),
+        Binding("w", "write", "Write layout"),
+    ]
+
+    def __init__(self) -> None:
+        super().__init__(name="optimize")
+        #: Local worker processes (None: all cores); tests set 1 to simulate in the worker thread.
+        self.simulation_workers: int | None = None
+        #: PSP settings (thesis defaults); tests shrink them.
+        self.psp_settings = PSPSettings()
+        self.result: RobustLayout | None = None
+        self.problem = None
+        self._stop = threading.Event()
+        self._optimizing = False
+
+    def compose(self) -> ComposeResult:
+        yield Header()
+        with Horizontal():
+            with Vertical(id="controls"):
+                yield Label("Scenario", classes="heading")
+                choices = scenario_choices()
+                yield Select([(label, path) for label, path in choices], id="scenario", allow_blank=not choices,
+                             value=choices[0][1] if choices else Select.BLANK)
+                yield Label("Simulation budget")
+                yield Input(str(DEFAULT_BUDGET), id="budget", type="integer")
+                yield Label("Seed")
+                yield Input("0", id="seed", type="integer")
+                yield Button("Optimize (o)", id="optimize", variant="primary")
+                yield Button("Stop (s)", id="stop", disabled=True)
+                yield Static("", id="status")
+            with Vertical(id="results"):
+                with Vertical(id="progress-panel"):
+                    yield ProgressBar(id="bar", total=DEFAULT_BUDGET, show_eta=False)
+                    yield Static("Pick a scenario and press o.", id="progress")
+                with Horizontal(id="tables"):
+                    yield DataTable(id="events", cursor_type="row", zebra_stripes=True)
+                    yield DataTable(id="layout", cursor_type="row", zebra_stripes=True)
+                yield HalfBlockPicture(id="picture")
+        yield Footer()
+
+    def on_mount(self) -> None:
+        self.query_one("#events", DataTable).add_columns("event", "predicted P", "simulated")
+        self.query_one("#layout", DataTable).add_columns("parameter", "initial", "optimized", "range")
+
+    # -- controls ----------------------------------------------------------------------------------------------
+    @on(Select.Changed, "#scenario")
+    def _scenario_changed(self, event: Select.Changed) -> None:
+        if event.value is Select.BLANK:
+            return
+        name = Path(str(event.value)).stem.upper()
+        if name in THESIS_BUDGETS:
+            self.query_one("#budget", Input).value = str(THESIS_BUDGETS[name])
+
+    @on(Button.Pressed, "#optimize")
+    def _optimize_pressed(self) -> None:
+        self.action_optimize()
+
+    @on(Button.Pressed, "#stop")
+    def _stop_pressed(self) -> None:
+        self.action_stop()
+
+    def _set_status(self, text: str) -> None:
+        self.query_one("#status", Static).update(text)
+
+    def _read_int(self, widget_id: str, name: str, minimum: int) -> int | None:
+        text = self.query_one(f"#{widget_id}", Input).value.strip()
+        try:
+            value = int(text)
+        except ValueError:
+            value = None
+        if value is None or value < minimum:
+            self._set_status(f"[red]{name} must be an integer >= {minimum}, got {text!r}[/red]")
+            return None
+        return value
+
+    def action_optimize(self) -> None:
+        if self._optimizing:
+            self._set_status("a run is in progress; s stops it")
+            return
+        scenario = self.query_one("#scenario", Select).value
+        if scenario is Select.BLANK:
+            self._set_status("[red]no scenario chosen[/red]")
+            return
+        budget = self._read_int("budget", "budget", 20)
+        seed = self._read_int("seed", "seed", 0)
+        if budget is None or seed is None:
+            return
+        self._stop.clear()
+        self._optimizing = True
+        self.query_one("#optimize", Button).disabled = True
+        self.query_one("#stop", Button).disabled = False
+        bar = self.query_one("#bar", ProgressBar)
+        bar.update(total=budget, progress=0)
+        self._set_status(f"optimizing {Path(str(scenario)).stem} ...")
+        self.run_optimization(str(scenario), budget, seed)
+
+    def action_stop(self) -> None:
+        if self._optimizing:
+            self._stop.set()
+            self._set_status("stopping (finished simulations stay cached) ...")
+
+    def action_write(self) -> None:
+        if self.result is None or self.problem is None:
+            self._set_status("nothing to write yet")
+            return
+        folder = data_dir() / "layouts"
+        folder.mkdir(parents=True, exist_ok=True)
+        path = folder / f"{self.result.scenario.lower()}-seed{self.result.seed}.json"
+        path.write_text(json.dumps(self.result.to_json(self.problem), indent=2) + "\n", encoding="utf-8")
+        self._set_status(f"wrote {path}")
+
+    # -- the work (a thread) -----------------------------------------------------------------------------------
+    @work(thread=True, exclusive=True, group="robust")
+    def run_optimization(self, scenario_path: str, budget: int, seed: int) -> None:
+        from design.robust.contraption import load_problem, render_layouts
+
+        try:
+            problem = load_problem(scenario_path)
+            cache = simulation_cache_path()
+            with SimulationExecutor(problem, workers=self.simulation_workers, cache_path=cache) as executor:
+                result = run_pipeline(problem, executor, budget, seed, self.psp_settings,
+                                      progress=self._progress_from_thread, should_stop=self._stop.is_set)
+            picture = io.BytesIO()
+            render_layouts(problem, [("initial", problem.initial_layout()), ("optimized", result.u)]).save(
+                picture, format="PNG")
+        except SimulationCancelled:
+            self.app.call_from_thread(self._finished, None, None, None, "stopped; finished simulations are cached")
+            return
+        except (DesignError, OSError) as error:
+            self.app.call_from_thread(self._finished, None, None, None, f"[red]cannot optimize: {error}[/red]")
+            return
+        self.app.call_from_thread(self._finished, problem, result, picture.getvalue(), "")
+
+    def _progress_from_thread(self, progress: Progress) -> None:
+        self.app.call_from_thread(self._show_progress, progress)
+
+    def _show_progress(self, progress: Progress) -> None:
+        self.query_one("#bar", ProgressBar).update(total=progress.budget, progress=progress.simulations)
+        parts = [f"[b]{progress.phase}[/b]", f"simulations {progress.simulations}/{progress.budget}"]
+        if progress.cv_accuracy is not None:
+            parts.append(f"CV accuracy {progress.cv_accuracy:.2f}")
+        if progress.best_psp is not None:
+            parts.append(f"best PSP {progress.best_psp:.3f}")
+        if progress.detail:
+            parts.append(progress.detail)
+        self.query_one("#progress", Static).update("   ".join(parts))
+
+    def _finished(self, problem, result: RobustLayout | None, png: bytes | None, message: str) -> None:
+        self._optimizing = False
+        self.query_one("#optimize", Button).disabled = False
+        self.query_one("#stop", Button).disabled = True
+        if result is None:
+            self._set_status(message)
+            return
+        self.problem, self.result = problem, result
+        events = self.query_one("#events", DataTable)
+        events.clear()
+        simulated = dict(zip(result.event_names, result.simulated_events))
+        labels = getattr(problem, "event_labels", {})
+        for name, p in zip(result.factor_names, result.factor_probabilities):
+            note = " (quasi-det.)" if name in result.quasi_deterministic else ""
+            events.add_row(labels.get(name, name), f"{p:.3f}{note}",
+                           "success" if simulated.get(name) else "failure", key=name)
+        events.add_row("[b]PSP (product)[/b]", f"{result.psp:.3f}",
+                       "success" if result.simulated_success else "failure", key="__psp__")
+        layout = self.query_one("#layout", DataTable)
+        layout.clear()
+        initial = problem.to_real(problem.initial_layout())
+        optimized = problem.to_real(result.u)
+        for i, name in enumerate(problem.parameter_names):
+            layout.add_row(name, f"{initial[i]:.4g}", f"{optimized[i]:.4g}",
+                           f"[{problem.lower[i]:.4g}, {problem.upper[i]:.4g}]", key=name)
+        self.query_one("#picture", HalfBlockPicture).set_png(png)
+        verdict = "succeeds" if result.simulated_success else "FAILS"
+        self._set_status(f"{result.scenario}: PSP {result.psp:.3f}; the optimized layout {verdict} in simulation; "
+                         f"{result.n_simulations} simulations ({result.n_new_simulations} new), "
+                         f"{result.seconds:.1f} s. w writes it.")
+        moved = float(np.linalg.norm(result.u - problem.initial_layout()))
+        self.query_one("#progress", Static).update(
+            f"[b]done[/b]   simulations {result.n_simulations}/{result.budget}   CV accuracy "
+            f"{result.cv_accuracy:.2f}   PSP {result.psp:.3f}   moved {moved:.2f} (normalized) from the initial layout")
+
+
+SCREEN = ScreenEntry(
+    name="optimize",
+    key="o",
+    title="Robust layouts",
+    description="optimize a contraption layout for robustness (PSP, per-event probabilities)",
+    factory=RobustScreen,
+    order=55,
+)

@@ -1,0 +1,82 @@
+"""The Optimize screen: live progress, then per-event probabilities and the optimized layout beside the initial."""
+
+from __future__ import annotations
+
+import asyncio
+
+import pytest
+from textual.widgets import Button, DataTable, Input, ProgressBar, Select, Static
+
+from design.robust import PSPSettings
+from station.tui.app import StationApp
+from station.tui.screens.robust import RobustScreen, scenario_choices
+
+TINY = PSPSettings(n_initial=24, n_successes=10, max_exploration_steps=2, max_active_steps=1)
+
+pytestmark = pytest.mark.skipif(not any(n == "simple" for n, _ in scenario_choices()), reason="no SIMPLE scenario")
+
+
+async def wait_until_idle(app, pilot, seconds=120):
+    for _ in range(int(seconds * 10)):
+        await pilot.pause(0.1)
+        if not app.screen._optimizing:
+            return
+    raise AssertionError("the optimization did not finish")
+
+
+def open_screen(app) -> RobustScreen:
+    screen = app.screen
+    assert isinstance(screen, RobustScreen)
+    screen.simulation_workers = 1
+    screen.psp_settings = TINY
+    return screen
+
+
+async def test_optimize_shows_progress_probabilities_and_layouts(tmp_path):
+    app = StationApp(database=tmp_path / "t.sqlite3")
+    async with app.run_test(size=(160, 50)) as pilot:
+        await pilot.press("o")
+        await pilot.pause()
+        assert app.screen.name == "optimize"
+        screen = open_screen(app)
+        simple = dict(scenario_choices())["simple"]
+        screen.query_one("#scenario", Select).value = simple
+        screen.query_one("#budget", Input).value = "24"
+        seen = []
+        original = screen._show_progress
+        screen._show_progress = lambda progress: (seen.append(progress), original(progress))
+        screen.query_one("#optimize", Button).press()
+        await pilot.pause()
+        await wait_until_idle(app, pilot)
+        assert seen and seen[-1].phase == "done"
+        assert {p.phase for p in seen} >= {"exploration", "optimization"}
+        events = screen.query_one("#events", DataTable)
+        assert events.row_count == 6  # five events and the product
+        layout = screen.query_one("#layout", DataTable)
+        assert [str(layout.get_row(k)[0]) for k in layout.rows] == ["track.x", "track.z", "track.roll"]
+        assert screen.query_one("#bar", ProgressBar).progress == screen.result.n_simulations
+        assert "PSP" in str(screen.query_one("#status", Static).render())
+        assert screen.query_one("#picture").image is not None
+        await pilot.press("w")
+        await pilot.pause()
+        assert "wrote" in str(screen.query_one("#status", Static).render())
+
+
+async def test_stop_ends_a_run_cleanly_and_bad_budget_is_refused(tmp_path):
+    app = StationApp(database=tmp_path / "t.sqlite3")
+    async with app.run_test(size=(160, 50)) as pilot:
+        await pilot.press("o")
+        await pilot.pause()
+        screen = open_screen(app)
+        screen.query_one("#budget", Input).value = "3"
+        screen.action_optimize()
+        await pilot.pause()
+        assert "budget must be an integer >= 20" in str(screen.query_one("#status", Static).render())
+        assert not screen._optimizing
+        screen.query_one("#budget", Input).value = "200"
+        screen.action_optimize()
+        await asyncio.sleep(0.5)
+        screen.action_stop()
+        await wait_until_idle(app, pilot)
+        assert "stopped" in str(screen.query_one("#status", Static).render())
+        assert screen.result is None and not screen.query_one("#optimize", Button).disabled
