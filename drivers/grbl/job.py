@@ -314,7 +314,7 @@ class JobRunner:
         if p.state == "done":
             p.fraction = 1.0
             p.eta = 0.0
-        elif done > 0 and p.elapsed > 0.5:
+        elif done > 0 and p.elapsed > 0.2:
             rate = done / p.elapsed  # estimated seconds of job per real second: corrects the estimate
             p.eta = (total - done) / max(rate, 1e-6)
         else:

@@ -1,0 +1,299 @@
+"""``station plot``, ``station ports``, ``station send``: from a drawing-machine pattern to G-code to a GRBL machine.
+
+``station plot`` takes a pattern (a drawing machine with parameters, or the JSON of ``station pattern --json``),
+scales and centres it on the paper of a machine profile, simplifies the polyline within a tolerance and writes G-code.
+``station send`` streams a G-code file to a GRBL controller (real port or ``sim://grbl?...``) with pre-flight,
+dry run (check mode), frame, resume from a line, and a progress bar.
+"""
+
+from __future__ import annotations
+
+import json
+import sys
+import threading
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from drivers.errors import DeviceStateError, JobRefused
+from drivers.gcode import WriterOptions, fit_polylines, simplify_polylines, write_plot_gcode
+from drivers.grbl import GrblConnection, Job, JobRunner, frame_lines, list_ports
+from drivers.profiles import MachineProfile, load_profile
+from station.cli_util import emit_json, output_suffix, parse_assignments
+from station.errors import UsageError
+
+DEFAULT_POINTS = 4096
+
+
+def register(subparsers) -> None:
+    plot = subparsers.add_parser(
+        "plot",
+        help="write a plot job (G-code) for a drawing-machine pattern",
+        description="Sample MACHINE's pattern (or read --pattern FILE.json from `station pattern --json`), scale and "
+        "centre it on the profile's paper, simplify the polyline within the tolerance and write G-code for a GRBL "
+        "pen plotter (pen up/down from the profile) or laser (M4 power, dark G0 travels).",
+        epilog="examples: station plot spirograph --set d=2.5 --size 150 --out spiro.gcode\n"
+        "          station pattern hoot_nanny --json > hn.json && station plot --pattern hn.json "
+        "--profile examples/profiles/grbl_pen_plotter.toml --out hn.gcode",
+    )
+    plot.add_argument("machine", nargs="?", help="drawing machine name (see `station machines`)")
+    plot.add_argument("--set", action="append", metavar="NAME=VALUE", help="a machine parameter (repeatable)")
+    plot.add_argument("--pattern", metavar="FILE.json", help="a pattern written by `station pattern --json`")
+    plot.add_argument("--profile", default="plotter",
+                      help="machine profile TOML, or a built-in: plotter (default), laser")
+    plot.add_argument("--size", type=float, metavar="MM", help="largest side of the drawing (default: fit the paper)")
+    plot.add_argument("--tolerance", type=float, metavar="MM", help="simplification tolerance (default: profile's)")
+    plot.add_argument("--points", type=int, default=DEFAULT_POINTS, help="samples of the pattern (default 4096)")
+    plot.add_argument("--power", type=float, default=0.3, help="laser power as a fraction of max (laser profiles)")
+    plot.add_argument("--out", metavar="JOB.gcode", help="output file (default: standard output)")
+    plot.add_argument("--json", action="store_true", help="print a JSON summary on stdout (needs --out)")
+    plot.set_defaults(func=run_plot)
+
+    ports = subparsers.add_parser(
+        "ports",
+        help="list serial ports and GRBL controllers",
+        description="List serial ports (each probed for a GRBL banner) and the simulated GRBL machines.",
+    )
+    ports.add_argument("--no-probe", action="store_true", help="do not open the ports to look for GRBL")
+    ports.add_argument("--baud", type=int, default=115200)
+    ports.add_argument("--json", action="store_true")
+    ports.set_defaults(func=run_ports)
+
+    send = subparsers.add_parser(
+        "send",
+        help="stream a G-code job to a GRBL machine",
+        description="Stream JOB.gcode to a GRBL 1.1 controller by character counting, after a pre-flight check "
+        "against the machine's travel ($130-$132 and the work offset). Laser jobs need laser mode ($32=1) and always "
+        "end with M5 S0. Ctrl-C aborts (soft reset, laser off).",
+        epilog='example: station send spiro.gcode --port "sim://grbl?profile=plotter&time_scale=0.01"',
+    )
+    send.add_argument("job", metavar="JOB.gcode")
+    send.add_argument("--port", help="port URL (default: the profile's port)")
+    send.add_argument("--profile", default=None, help="machine profile TOML or built-in name (plotter, laser)")
+    send.add_argument("--baud", type=int, default=None)
+    send.add_argument("--laser", action="store_true", help="treat as a laser job (also implied by a laser profile)")
+    send.add_argument("--dry-run", action="store_true", help="check mode ($C): parse every line, move nothing")
+    send.add_argument("--frame", action="store_true",
+                      help="only trace the job's bounding box (pen up, or laser at the profile's frame power)")
+    send.add_argument("--from-line", type=int, default=1, metavar="N", help="resume from line N (1-based)")
+    send.add_argument("--json", action="store_true", help="print the result as JSON")
+    send.set_defaults(func=run_send)
+
+
+# ----------------------------------------------------------------------------------------------------------- plot
+
+
+def _profile(name: str | None, default: str = "plotter") -> MachineProfile:
+    return load_profile(name or default)
+
+
+def pattern_polylines(args) -> tuple[list[np.ndarray], dict[str, Any]]:
+    """The pattern as polylines plus a description, from ``MACHINE --set`` or ``--pattern FILE.json``."""
+    if args.pattern and args.machine:
+        raise UsageError("give either MACHINE (with --set) or --pattern FILE.json, not both")
+    if args.pattern:
+        if args.set:
+            raise UsageError("--set applies to MACHINE, not to --pattern FILE.json")
+        path = Path(args.pattern)
+        try:
+            document = json.loads(path.read_text(encoding="utf-8"))
+        except json.JSONDecodeError as error:
+            raise UsageError(f"--pattern {path}: not valid JSON ({error.msg} at line {error.lineno})") from None
+        if not isinstance(document, dict) or "points" not in document:
+            raise UsageError(f"--pattern {path}: expected the JSON of `station pattern --json` with a 'points' list")
+        try:
+            points = np.asarray(document["points"], dtype=float)
+        except (TypeError, ValueError):
+            raise UsageError(f"--pattern {path}: 'points' must be a list of [x, y] numbers") from None
+        if points.ndim != 2 or points.shape[1] != 2 or len(points) < 2 or not np.all(np.isfinite(points)):
+            raise UsageError(f"--pattern {path}: 'points' must be at least two finite [x, y] pairs, "
+                             f"got shape {points.shape}")
+        return [points], {"machine": document.get("machine", ""), "params": document.get("params", {})}
+    if not args.machine:
+        raise UsageError("give a drawing MACHINE (see `station machines`) or --pattern FILE.json")
+    if args.points < 16:
+        raise UsageError(f"--points must be at least 16, got {args.points}")
+    from design.machines import get_machine
+
+    model = get_machine(args.machine)
+    params = model.validate(parse_assignments(args.set))
+    points = model.sample(params, n=args.points, spacing="arclength")
+    return [np.asarray(points, dtype=float)], {"machine": model.name, "params": params}
+
+
+def plot_job(polylines, profile: MachineProfile, size: float | None, tolerance: float | None, power: float = 0.3):
+    """Fit, simplify and write: returns (gcode_text, fitted polylines, simplified polylines, options)."""
+    import io
+
+    if profile.kind == "plotter":
+        paper = profile.paper
+        box = (paper.margin, paper.margin, paper.width - paper.margin, paper.height - paper.margin)
+    else:
+        x0, y0, x1, y1 = profile.work_bounds()
+        margin = 5.0
+        box = (x0 + margin, y0 + margin, x1 - margin, y1 - margin)
+    tolerance = profile.plot.tolerance if tolerance is None else tolerance
+    if tolerance < 0:
+        raise UsageError(f"--tolerance must be >= 0 mm, got {tolerance}")
+    if size is not None and size <= 0:
+        raise UsageError(f"--size must be positive (mm), got {size}")
+    if not 0 < power <= 1:
+        raise UsageError(f"--power must be a fraction in (0, 1], got {power}")
+    fitted = fit_polylines(polylines, box, size)
+    simplified = simplify_polylines(fitted, tolerance)
+    options = WriterOptions.from_profile(profile, power=power, comment=f"chaos-station plot job for {profile.name}")
+    stream = io.StringIO()
+    write_plot_gcode(simplified, stream, options)
+    return stream.getvalue(), fitted, simplified, options
+
+
+def run_plot(args) -> int:
+    profile = _profile(args.profile)
+    if args.json and not args.out:
+        raise UsageError("--json prints a summary and needs --out for the G-code")
+    if args.out:
+        output_suffix(args.out, {".gcode", ".nc", ".ngc", ".txt"})
+    polylines, description = pattern_polylines(args)
+    text, fitted, simplified, options = plot_job(polylines, profile, args.size, args.tolerance, args.power)
+    if args.out:
+        Path(args.out).write_text(text, encoding="utf-8")
+    else:
+        sys.stdout.write(text)
+    stacked = np.concatenate(fitted)
+    length = float(sum(np.linalg.norm(np.diff(p, axis=0), axis=1).sum() for p in simplified))
+    summary = {
+        "machine": description["machine"],
+        "params": description["params"],
+        "profile": profile.name,
+        "out": args.out,
+        "points_in": int(sum(len(p) for p in fitted)),
+        "points_out": int(sum(len(p) for p in simplified)),
+        "tolerance_mm": profile.plot.tolerance if args.tolerance is None else args.tolerance,
+        "extent_mm": [float(v) for v in (*stacked.min(axis=0), *stacked.max(axis=0))],
+        "draw_length_mm": length,
+        "draw_time_s": length / options.draw_feed * 60.0,
+        "lines": text.count("\n"),
+    }
+    if args.json:
+        emit_json(summary)
+    print(
+        f"plot: {summary['points_in']} -> {summary['points_out']} points (tolerance {summary['tolerance_mm']:g} mm), "
+        f"{length:.0f} mm of drawing, about {summary['draw_time_s'] / 60:.1f} min at F{options.draw_feed:g}"
+        + (f"; wrote {args.out}" if args.out else ""),
+        file=sys.stderr,
+    )
+    return 0
+
+
+# ----------------------------------------------------------------------------------------------------------- ports
+
+
+def run_ports(args) -> int:
+    ports = list_ports(probe_ports=not args.no_probe, baud=args.baud)
+    if args.json:
+        emit_json([vars(p) if not hasattr(p, "__dataclass_fields__") else dict(p.__dict__) for p in ports])
+        return 0
+    if not ports:
+        print("no serial ports")
+        return 1
+    for port in ports:
+        grbl = f"GRBL {port.grbl}" if port.grbl else ("not probed" if args.no_probe else "no GRBL banner")
+        kind = "simulated" if port.simulated else "serial"
+        print(f"{port.url:40s} {kind:9s} {grbl:16s} {port.description}")
+    return 0
+
+
+# ----------------------------------------------------------------------------------------------------------- send
+
+
+class ProgressBar:
+    """A one-line progress bar on stderr, at most 10 updates per second."""
+
+    def __init__(self, stream=None, width: int = 30) -> None:
+        self.stream = stream or sys.stderr
+        self.width = width
+        self._last = 0.0
+        self._lock = threading.Lock()
+
+    def __call__(self, progress, force: bool = False) -> None:
+        now = time.monotonic()
+        with self._lock:
+            if not force and now - self._last < 0.1:
+                return
+            self._last = now
+            filled = int(round(progress.fraction * self.width))
+            eta = "--:--" if progress.eta is None else f"{int(progress.eta) // 60:d}:{int(progress.eta) % 60:02d}"
+            self.stream.write(
+                f"\r[{'#' * filled}{'.' * (self.width - filled)}] {progress.fraction * 100:5.1f}% "
+                f"{progress.lines_acked}/{progress.lines_total} lines  ETA {eta}  {progress.state:10s}"
+            )
+            self.stream.flush()
+
+    def close(self) -> None:
+        self.stream.write("\n")
+        self.stream.flush()
+
+
+def run_send(args) -> int:
+    profile = _profile(args.profile) if args.profile else None
+    path = Path(args.job)
+    if not path.is_file():
+        raise UsageError(f"job {str(path)!r}: no such file")
+    laser = args.laser or (profile is not None and profile.is_laser)
+    pen_up = tuple(profile.pen.up_commands()) if profile is not None and profile.pen else ("M5",)
+    job = Job.from_file(path, laser=laser, pen_up=pen_up)
+    if args.from_line < 1 or args.from_line > len(job.lines):
+        raise UsageError(f"--from-line must be between 1 and {len(job.lines)} (lines in {path.name}), "
+                         f"got {args.from_line}")
+    url = args.port or (profile.port if profile else None)
+    if not url:
+        raise UsageError("give --port URL (e.g. /dev/ttyUSB0 or sim://grbl?profile=plotter) or --profile")
+    baud = args.baud or (profile.baud if profile else 115200)
+    if args.frame:
+        extent = job.extent()
+        if extent is None:
+            raise UsageError(f"job {path.name}: no motion to frame")
+        lo, hi = extent
+        if laser:
+            power = (profile.laser.frame_power * profile.laser.max_power) if profile and profile.laser else 10.0
+            lines = frame_lines(lo, hi, laser_power=power, feed=min(3000.0, profile.max_feed if profile else 3000.0))
+        else:
+            lines = frame_lines(lo, hi, pen_up=pen_up)
+        job = Job(f"frame of {path.name}", lines, laser=laser, pen_up=pen_up)
+    bar = None if args.json else ProgressBar()
+    with GrblConnection(url, baud) as conn:
+        runner = JobRunner(conn, job, from_line=1 if args.frame else args.from_line, dry_run=args.dry_run,
+                           on_progress=bar)
+        runner.start()
+        try:
+            while runner.wait(0.2) is None:
+                pass
+        except KeyboardInterrupt:
+            runner.abort()
+            runner.wait(10.0)
+            if bar:
+                bar.close()
+            raise
+        result = runner.result
+        if bar:
+            bar(runner.progress, force=True)
+            bar.close()
+    document = {
+        "job": str(path), "port": url, "state": result.state, "message": result.message,
+        "lines_total": result.lines_total, "lines_acked": result.lines_acked, "elapsed_s": result.elapsed,
+        "resume_line": result.resume_line, "errors": result.errors, "laser_off": result.laser_off,
+        "dry_run": args.dry_run, "frame": args.frame,
+    }
+    if args.json:
+        emit_json(document)
+    elif result.state not in ("refused", "position_lost"):  # those are raised: one line from station.cli
+        print(result.message, file=sys.stderr)
+        for _, text in result.errors:
+            print(f"  {text}", file=sys.stderr)
+    if result.state == "refused":
+        raise JobRefused(result.message)
+    if result.state == "position_lost":
+        raise DeviceStateError(result.message)
+    return 0 if result.state == "done" else 1

@@ -1,0 +1,559 @@
+"""Machines screen: the GRBL plotter and laser, live.
+
+Connects to the station's devices (simulated by default), shows the live status (state, work and machine position,
+planner and RX buffer), a console, jog, home/unlock, and a job queue with frame, dry run, start, hold, resume and
+abort, with progress and ETA. Other screens hand jobs over with :meth:`MachinesScreen.queue_job`; ``n`` plots the
+Drawing screen's current design as a job for the selected device.
+
+Keys: c connect/disconnect · v switch device · h home · u unlock · arrows jog X/Y, PgUp/PgDn jog Z, [ ] step ·
+f frame · y dry run · g start · p hold · r resume · ctrl+x abort (always works, even in the console) · a abort ·
+n plot the current design · : console.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from textual import on, work
+from textual.app import ComposeResult
+from textual.binding import Binding
+from textual.containers import Horizontal, Vertical
+from textual.screen import Screen
+from textual.widgets import DataTable, Footer, Header, Input, Label, ProgressBar, RichLog, Static
+
+from drivers.errors import DriverError
+from drivers.gcode import drawn_polylines
+from drivers.grbl import GrblConnection, Job, JobRunner, frame_lines
+from drivers.grbl.protocol import Feedback, StatusReport
+from drivers.profiles import MachineProfile, builtin_profile
+from station.errors import StationError
+from station.tui.registry import ScreenEntry
+from station.tui.widgets.canvas import PatternCanvas
+
+JOG_STEPS = (0.1, 1.0, 10.0, 50.0)
+
+
+@dataclass
+class QueuedJob:
+    """A job waiting on (or done by) one device."""
+
+    number: int
+    title: str
+    device: str
+    job: Job
+    state: str = "queued"
+    message: str = ""
+
+
+class MachinesScreen(Screen):
+    """Live GRBL machines and their job queue."""
+
+    CSS = """
+    MachinesScreen #left { width: 62; }
+    MachinesScreen #status { height: auto; padding: 0 1; border: round $primary; }
+    MachinesScreen #queue { height: 10; }
+    MachinesScreen #progress-row { height: 3; padding: 0 1; }
+    MachinesScreen #progress-label { padding: 0 1; }
+    MachinesScreen #console { height: 1fr; border: round $primary-darken-2; }
+    MachinesScreen #console-input { dock: bottom; }
+    MachinesScreen #preview { border: round $primary-darken-2; }
+    MachinesScreen #message { height: auto; padding: 0 1; }
+    """
+
+    BINDINGS = [
+        Binding("ctrl+x", "abort", "Abort", priority=True),
+        Binding("c", "connect", "Connect"),
+        Binding("v", "switch_device", "Device"),
+        Binding("g", "start", "Start"),
+        Binding("p", "hold", "Hold"),
+        Binding("r", "resume", "Resume"),
+        Binding("a", "abort", "Abort", show=False),
+        Binding("f", "frame", "Frame"),
+        Binding("y", "dry_run", "Dry run"),
+        Binding("h", "home", "Home"),
+        Binding("u", "unlock", "Unlock"),
+        Binding("n", "plot_design", "Plot design"),
+        Binding("left", "jog(-1, 0, 0)", "Jog", show=False),
+        Binding("right", "jog(1, 0, 0)", "Jog", show=False),
+        Binding("up", "jog(0, 1, 0)", "Jog", show=False),
+        Binding("down", "jog(0, -1, 0)", "Jog", show=False),
+        Binding("pageup", "jog(0, 0, 1)", "Jog Z", show=False),
+        Binding("pagedown", "jog(0, 0, -1)", "Jog Z", show=False),
+        Binding("left_square_bracket", "step(-1)", "Step-", show=False),
+        Binding("right_square_bracket", "step(1)", "Step+", show=False),
+        Binding("colon", "console", "Console"),
+    ]
+
+    def __init__(self) -> None:
+        super().__init__(name="machines")
+        self.connections: dict[str, GrblConnection] = {}
+        self.jobs: list[QueuedJob] = []
+        self.runner: JobRunner | None = None
+        self.running_job: QueuedJob | None = None
+        self.device_index = 0
+        self.jog_step_index = 2
+        self.last_message = ""
+        self._job_counter = 0
+        self._connecting: set[str] = set()
+        self._auto_connected = False
+
+    # ------------------------------------------------------------------ layout
+
+    def compose(self) -> ComposeResult:
+        yield Header()
+        with Horizontal():
+            with Vertical(id="left"):
+                yield Static("", id="status")
+                table = DataTable(id="queue", cursor_type="row")
+                table.can_focus = False
+                yield table
+                with Horizontal(id="progress-row"):
+                    yield ProgressBar(total=100, show_eta=False, id="progress")
+                    yield Label("", id="progress-label")
+                yield Static("", id="message")
+            with Vertical():
+                yield PatternCanvas(id="preview")
+                yield RichLog(id="console", max_lines=500, wrap=False, markup=False)
+                yield Input(placeholder=": G-code or $ command, Enter sends", id="console-input")
+        yield Footer()
+
+    def on_mount(self) -> None:
+        table = self.query_one("#queue", DataTable)
+        table.add_columns("#", "job", "device", "lines", "state")
+        self._render_status()
+
+    def on_screen_resume(self) -> None:
+        # connect to the selected device the first time the screen is shown (simulated ones need no hardware)
+        if not self._auto_connected:
+            self._auto_connected = True
+            device = self.device
+            if device is not None and device.simulated:
+                self.action_connect()
+
+    def on_unmount(self) -> None:
+        self.shutdown()
+
+    def shutdown(self) -> None:
+        """Stop the job and close every connection (the app is closing)."""
+        if self.runner is not None and self.runner.result is None:
+            self.runner.abort()
+        for conn in list(self.connections.values()):
+            conn.close()
+        self.connections.clear()
+
+    # ------------------------------------------------------------------ devices
+
+    @property
+    def serial_devices(self) -> list:
+        return [d for d in getattr(self.app, "devices", ()) if d.kind in ("plotter", "laser")]
+
+    @property
+    def device(self):
+        devices = self.serial_devices
+        return devices[self.device_index % len(devices)] if devices else None
+
+    def profile_for(self, device) -> MachineProfile:
+        return builtin_profile("laser" if device.kind == "laser" else "plotter")
+
+    def connection(self, name: str | None = None) -> GrblConnection | None:
+        device = self.device if name is None else next((d for d in self.serial_devices if d.name == name), None)
+        return self.connections.get(device.name) if device is not None else None
+
+    def action_switch_device(self) -> None:
+        if self.serial_devices:
+            self.device_index = (self.device_index + 1) % len(self.serial_devices)
+            self._render_status()
+            self._say(f"device: {self.device.label}")
+
+    def action_connect(self) -> None:
+        device = self.device
+        if device is None:
+            self._say("no plotter or laser configured")
+            return
+        if device.name in self.connections:
+            conn = self.connections.pop(device.name)
+            if self.running_job is not None and self.running_job.device == device.name and self.runner:
+                self.runner.abort()
+            conn.close()
+            self._say(f"{device.name}: disconnected")
+            self._render_status()
+            return
+        if device.name in self._connecting:
+            return
+        self._connecting.add(device.name)
+        self._say(f"{device.name}: connecting to {device.url} ...")
+        self._connect_worker(device)
+
+    @work(thread=True, exclusive=False, group="connect")
+    def _connect_worker(self, device) -> None:
+        try:
+            conn = GrblConnection(device.url)
+            conn.add_listener(lambda event, data, name=device.name: self._listener(name, event, data))
+            conn.open()
+        except (DriverError, OSError) as error:
+            self._from_thread(self._say, f"[red]{device.name}: {error}[/red]")
+            self._from_thread(self._connecting.discard, device.name)
+            return
+        self._from_thread(self._connected, device.name, conn)
+
+    def _connected(self, name: str, conn: GrblConnection) -> None:
+        self._connecting.discard(name)
+        self.connections[name] = conn
+        self._say(f"{name}: GRBL {conn.version} connected (RX buffer {conn.rx_size} bytes, "
+                  f"{'laser mode' if conn.laser_mode else 'spindle mode'})")
+        self._render_status()
+
+    def _from_thread(self, callback, *args) -> None:
+        try:
+            self.app.call_from_thread(callback, *args)
+        except RuntimeError:  # the app is gone (shutting down)
+            pass
+
+    def _listener(self, name: str, event: str, data) -> None:
+        if event == "status":
+            if self.device is not None and self.device.name == name:
+                self._from_thread(self._render_status)
+        elif event == "log":
+            _, direction, text = data
+            if direction == "in" and text == "ok" and self.running_job is not None:
+                return  # thousands of oks during a job drown the console
+            self._from_thread(self._console, f"{name} {'>' if direction == 'out' else '<'} {text}"
+                              if direction in ("in", "out") else f"{name} ! {text}")
+        elif event in ("alarm", "fault"):
+            self._from_thread(self._say, f"[red]{name}: {data}[/red]")
+            self._from_thread(self._render_status)
+        elif event == "message" and isinstance(data, Feedback) and data.kind == "MSG":
+            self._from_thread(self._say, f"{name}: {data.text}")
+
+    # ------------------------------------------------------------------ status
+
+    def _render_status(self) -> None:
+        device = self.device
+        lines = []
+        if device is None:
+            lines.append("no plotter or laser configured")
+        else:
+            conn = self.connections.get(device.name)
+            lines.append(f"[b]{device.label}[/b]  {device.url}")
+            if conn is None:
+                lines.append("not connected (c connects)")
+            else:
+                status: StatusReport | None = conn.status
+                state = "position lost" if conn.position_lost else (status.label if status else "?")
+                colour = "red" if conn.position_lost or state.startswith("Alarm") else (
+                    "yellow" if state.startswith(("Hold", "Door")) else "green")
+                lines.append(f"state [{colour}]{state}[/{colour}]   jog step {JOG_STEPS[self.jog_step_index]:g} mm")
+                if status is not None:
+                    wco = conn.wco or conn.work_offset()
+                    wpos = status.work_position(wco)
+                    mpos = status.machine_position(wco)
+                    if wpos:
+                        lines.append("WPos " + "  ".join(f"{a} {v:8.3f}" for a, v in zip("XYZ", wpos)))
+                    if mpos:
+                        lines.append("MPos " + "  ".join(f"{a} {v:8.3f}" for a, v in zip("XYZ", mpos)))
+                    if status.planner_free is not None:
+                        lines.append(f"planner {conn.planner_size - status.planner_free}/{conn.planner_size} blocks"
+                                     f"   RX {conn.rx_size - status.rx_free}/{conn.rx_size} bytes"
+                                     f"   feed {status.feed or 0:.0f} mm/min  S {status.spindle or 0:.0f}")
+                if conn.alarm is not None:
+                    lines.append(f"[red]{conn.alarm}[/red]")
+                    lines.append(f"  recovery: {conn.alarm.recovery}")
+                if conn.fault:
+                    lines.append(f"[red]{conn.fault}[/red]")
+        try:
+            self.query_one("#status", Static).update("\n".join(lines))
+        except Exception:  # noqa: BLE001 - not mounted yet
+            pass
+
+    @property
+    def status_text(self) -> str:
+        return str(self.query_one("#status", Static).render())
+
+    def _say(self, message: str) -> None:
+        self.last_message = message
+        try:
+            self.query_one("#message", Static).update(message)
+        except Exception:  # noqa: BLE001
+            pass
+        self._console(message)
+
+    def _console(self, text: str) -> None:
+        try:
+            self.query_one("#console", RichLog).write(text)
+        except Exception:  # noqa: BLE001
+            pass
+
+    # ------------------------------------------------------------------ queue
+
+    def queue_job(self, device: str, gcode: str, title: str | None = None, *, laser: bool | None = None,
+                  name: str | None = None) -> QueuedJob:
+        """Queue a G-code job for ``device`` (a device name such as ``"plotter"`` / ``"laser"``, or a kind).
+
+        Other screens use this (the Fabricate screen sends its laser job, the Drawing screen a plot). The job is
+        checked (pre-flight) when it starts; nothing moves until the user presses ``g`` (or ``f`` to frame).
+
+        Returns the queued entry (``.state`` follows the job).
+        """
+        target = next((d for d in self.serial_devices if d.name == device), None)
+        if target is None:
+            target = next((d for d in self.serial_devices if d.kind == device), None)
+        if target is None:
+            known = ", ".join(d.name for d in self.serial_devices) or "none"
+            raise StationError(f"no device {device!r} for the job; known: {known}")
+        if not gcode.strip():
+            raise StationError("the job is empty")
+        profile = self.profile_for(target)
+        is_laser = target.kind == "laser" if laser is None else laser
+        pen_up = tuple(profile.pen.up_commands()) if profile.pen else ("M5",)
+        self._job_counter += 1
+        entry = QueuedJob(self._job_counter, title or name or f"job {self._job_counter}", target.name,
+                          Job(title or name or f"job-{self._job_counter}", gcode.splitlines(), laser=is_laser,
+                              pen_up=pen_up))
+        self.jobs.append(entry)
+        self._refresh_queue()
+        self.device_index = self.serial_devices.index(target)
+        self._show_preview(entry)
+        self._render_status()
+        self._say(f"queued {entry.title!r} for {target.name} ({len(entry.job.lines)} lines): f frames, g starts")
+        return entry
+
+    def _refresh_queue(self) -> None:
+        try:
+            table = self.query_one("#queue", DataTable)
+        except Exception:  # noqa: BLE001
+            return
+        table.clear()
+        for entry in self.jobs:
+            table.add_row(str(entry.number), entry.title[:28], entry.device, str(len(entry.job.lines)), entry.state)
+
+    def _show_preview(self, entry: QueuedJob) -> None:
+        try:
+            pen = self.profile_for(next(d for d in self.serial_devices if d.name == entry.device)).pen
+            if entry.job.laser or pen is None:
+                polylines = drawn_polylines(entry.job.lines)
+            else:
+                polylines = drawn_polylines(entry.job.lines, pen.down_commands(), pen.up_commands())
+            self.query_one("#preview", PatternCanvas).set_polylines(polylines)
+        except Exception:  # noqa: BLE001 - a preview is a nicety; the job itself is checked at start
+            pass
+
+    def next_job(self) -> QueuedJob | None:
+        device = self.device
+        for entry in self.jobs:
+            if entry.state in ("queued", "stopped", "framed", "checked") and (device is None or
+                                                                             entry.device == device.name):
+                return entry
+        return None
+
+    # ------------------------------------------------------------------ job control
+
+    def _ready_connection(self) -> GrblConnection | None:
+        conn = self.connection()
+        if conn is None:
+            self._say("not connected: press c")
+            return None
+        if self.runner is not None and self.runner.result is None:
+            self._say("a job is running: p holds, r resumes, ctrl+x aborts")
+            return None
+        return conn
+
+    def action_start(self) -> None:
+        self._run_next(mode="run")
+
+    def action_frame(self) -> None:
+        self._run_next(mode="frame")
+
+    def action_dry_run(self) -> None:
+        self._run_next(mode="dry")
+
+    def _run_next(self, mode: str, from_line: int = 1) -> None:
+        conn = self._ready_connection()
+        if conn is None:
+            return
+        entry = self.next_job()
+        if entry is None:
+            self._say("no queued job for this device (n plots the current design)")
+            return
+        job = entry.job
+        if mode == "frame":
+            extent = job.extent()
+            if extent is None:
+                self._say("nothing to frame")
+                return
+            profile = self.profile_for(self.device)
+            lo, hi = extent
+            if job.laser and profile.laser:
+                lines = frame_lines(lo, hi, laser_power=profile.laser.frame_power * profile.laser.max_power,
+                                    feed=min(3000.0, profile.max_feed))
+            else:
+                lines = frame_lines(lo, hi, pen_up=job.pen_up)
+            job = Job(f"frame of {entry.title}", lines, laser=job.laser, pen_up=job.pen_up)
+        resume = from_line
+        if mode == "run" and entry.state == "stopped" and entry.message.startswith("resume:"):
+            resume = int(entry.message.split(":")[1])
+        runner = JobRunner(conn, job, from_line=resume, dry_run=mode == "dry", on_progress=self._progress_cb)
+        self.runner = runner
+        self.running_job = entry
+        entry.state = {"run": "running", "frame": "framing", "dry": "checking"}[mode]
+        self._refresh_queue()
+        self._say(f"{entry.state} {entry.title!r} on {entry.device}")
+        self._job_worker(runner, entry, mode)
+
+    def _progress_cb(self, progress) -> None:
+        self._from_thread(self._show_progress, progress)
+
+    def _show_progress(self, progress) -> None:
+        try:
+            self.query_one("#progress", ProgressBar).update(progress=progress.fraction * 100)
+            eta = "--:--" if progress.eta is None else f"{int(progress.eta) // 60}:{int(progress.eta) % 60:02d}"
+            self.query_one("#progress-label", Label).update(
+                f"{progress.fraction * 100:5.1f}%  {progress.lines_acked}/{progress.lines_total} lines  ETA {eta}  "
+                f"{progress.state}")
+        except Exception:  # noqa: BLE001
+            pass
+
+    @work(thread=True, exclusive=False, group="job")
+    def _job_worker(self, runner: JobRunner, entry: QueuedJob, mode: str) -> None:
+        result = runner.run()
+        self._from_thread(self._job_done, runner, entry, mode, result)
+
+    def _job_done(self, runner, entry: QueuedJob, mode: str, result) -> None:
+        if self.runner is runner:
+            self.runner = None
+            self.running_job = None
+        if mode == "frame":
+            entry.state = "framed" if result.ok else "queued"
+        elif mode == "dry":
+            entry.state = "checked" if result.ok else "queued"
+        else:
+            entry.state = result.state
+            if result.state == "stopped" and result.resume_line:
+                entry.message = f"resume:{result.resume_line}"
+        self._refresh_queue()
+        colour = "green" if result.ok else "red"
+        self._say(f"[{colour}]{result.message}[/{colour}]")
+        for _, text in result.errors[:5]:
+            self._console(f"  {text}")
+        self._show_progress(runner.progress)
+        self._render_status()
+
+    def action_hold(self) -> None:
+        if self.runner is not None and self.runner.result is None:
+            self.runner.hold()
+        elif (conn := self.connection()) is not None:
+            self._safe(conn.feed_hold)
+        self._say("feed hold (r resumes)")
+
+    def action_resume(self) -> None:
+        if self.runner is not None and self.runner.result is None:
+            self.runner.resume()
+        elif (conn := self.connection()) is not None:
+            self._safe(conn.cycle_start)
+        self._say("resume")
+
+    def action_abort(self) -> None:
+        """Soft reset now (motion stops, laser off); a running job then sends M5 S0. Always available."""
+        if self.runner is not None and self.runner.result is None:
+            self.runner.abort()
+            self._say("[red]abort: soft reset sent[/red]")
+            return
+        conn = self.connection()
+        if conn is not None:
+            self._safe(conn.soft_reset, False)
+            self._say("[red]abort: soft reset sent (no job was running)[/red]")
+        else:
+            self._say("abort: not connected")
+
+    def _safe(self, callback, *args) -> None:
+        try:
+            callback(*args)
+        except (DriverError, OSError) as error:
+            self._say(f"[red]{error}[/red]")
+
+    # ------------------------------------------------------------------ manual control
+
+    def action_step(self, direction: int) -> None:
+        self.jog_step_index = max(0, min(len(JOG_STEPS) - 1, self.jog_step_index + direction))
+        self._render_status()
+
+    def action_jog(self, dx: int, dy: int, dz: int) -> None:
+        conn = self._ready_connection()
+        if conn is None:
+            return
+        step = JOG_STEPS[self.jog_step_index]
+        feed = 1000.0 if dz else 3000.0
+        words = " ".join(f"{axis}{d * step:g}" for axis, d in zip("XYZ", (dx, dy, dz)) if d)
+        self._send_worker(f"$J=G91 G21 {words} F{feed:g}")
+
+    def action_home(self) -> None:
+        if self._ready_connection() is not None:
+            self._send_worker("$H")
+
+    def action_unlock(self) -> None:
+        if self._ready_connection() is not None:
+            self._send_worker("$X")
+
+    def action_console(self) -> None:
+        self.query_one("#console-input", Input).focus()
+
+    @on(Input.Submitted, "#console-input")
+    def _console_submitted(self, event: Input.Submitted) -> None:
+        line = event.value.strip()
+        event.input.value = ""
+        if not line:
+            return
+        if self._ready_connection() is not None:
+            self._send_worker(line)
+
+    @work(thread=True, exclusive=False, group="send")
+    def _send_worker(self, line: str) -> None:
+        conn = self.connection()
+        if conn is None:
+            return
+        try:
+            replies = conn.command(line, timeout=90.0)
+            for reply in replies:
+                if isinstance(reply, Feedback):
+                    self._from_thread(self._console, f"  [{reply.kind}:{reply.text}]")
+        except (DriverError, OSError) as error:
+            self._from_thread(self._say, f"[red]{line}: {error}[/red]")
+        self._from_thread(self._render_status)
+
+    def action_plot_design(self) -> None:
+        """Queue the Drawing screen's current design as a plot job for the selected device."""
+        try:
+            machine, params = self.app.get_screen("drawing").current_design()
+        except Exception:  # noqa: BLE001 - no drawing screen in this app
+            machine, params = "spirograph", {}
+        device = self.device
+        if device is None:
+            self._say("no plotter or laser configured")
+            return
+        self._plot_worker(machine, params, device.name, device.kind)
+
+    @work(thread=True, exclusive=False, group="plot")
+    def _plot_worker(self, machine: str, params: dict, device: str, kind: str) -> None:
+        from design.errors import DesignError
+        from design.machines import get_machine
+        from station.commands.machines_io import plot_job
+
+        try:
+            model = get_machine(machine)
+            values = model.validate(params)
+            points = model.sample(values, n=4096, spacing="arclength")
+            profile = builtin_profile("laser" if kind == "laser" else "plotter")
+            text, *_ = plot_job([points], profile, None, None)
+        except (DesignError, DriverError, StationError) as error:
+            self._from_thread(self._say, f"[red]cannot plot {machine}: {error}[/red]")
+            return
+        self._from_thread(self.queue_job, device, text, f"{machine} plot")
+
+
+SCREEN = ScreenEntry(
+    name="machines",
+    key="m",
+    title="Machines",
+    description="GRBL plotter and laser: status, console, jog, frame, start, hold, abort, progress",
+    factory=MachinesScreen,
+    order=50,
+)

@@ -1,0 +1,103 @@
+"""Machines screen, driven with Textual's pilot against fast simulated machines."""
+
+from __future__ import annotations
+
+import asyncio
+
+from textual.widgets import DataTable
+
+from drivers.gcode import clean_line
+from station.devices import DeviceEntry
+from station.tui.app import StationApp
+
+FAST_DEVICES = (
+    DeviceEntry("plotter", "plotter", "sim://grbl?profile=plotter&time_scale=0.01", True),
+    DeviceEntry("laser", "laser", "sim://grbl?profile=laser&time_scale=0.05", True),
+)
+
+
+async def _until(pilot, predicate, timeout=15.0):
+    loop = asyncio.get_running_loop()
+    deadline = loop.time() + timeout
+    while not predicate():
+        assert loop.time() < deadline, "condition not reached in time"
+        await pilot.pause(0.05)
+
+
+def _square(n=4, size=20.0, laser=False):
+    lines = ["G21", "G90"]
+    lines += ["M4 S500"] if laser else ["M3 S50"]
+    for i in range(n):
+        x0 = 20 + i * (size + 5)
+        lines += [f"G0 X{x0} Y20", "M3 S30" if not laser else "",
+                  f"G1 X{x0 + size} Y20 F3000", f"G1 X{x0 + size} Y{20 + size}", f"G1 X{x0} Y{20 + size}",
+                  f"G1 X{x0} Y20", "M3 S50" if not laser else ""]
+    lines.append("G0 X0 Y0")
+    return "\n".join(line for line in lines if line)
+
+
+async def test_machines_screen_connects_runs_a_queued_job_and_shows_progress(tmp_path):
+    app = StationApp(devices=FAST_DEVICES, database=tmp_path / "t.sqlite3")
+    async with app.run_test(size=(160, 48)) as pilot:
+        await pilot.press("m")
+        await pilot.pause()
+        screen = app.screen
+        assert screen.name == "machines"
+        await _until(pilot, lambda: "plotter" in screen.connections)  # simulated devices connect by themselves
+        conn = screen.connections["plotter"]
+        await _until(pilot, lambda: conn.status is not None)
+        await _until(pilot, lambda: "Idle" in screen.status_text)
+        assert "planner" in screen.status_text and "RX" in screen.status_text
+        gcode = _square()
+        entry = screen.queue_job("plotter", gcode, title="squares")
+        table = screen.query_one("#queue", DataTable)
+        assert table.row_count == 1
+        await pilot.press("g")
+        await _until(pilot, lambda: entry.state == "done", timeout=30)
+        assert "100.0%" in str(screen.query_one("#progress-label").render())
+        executed = [b.text for b in conn.port.machine.snapshot().executed]
+        expected = [clean_line(x) for x in gcode.splitlines() if clean_line(x).startswith(("G0", "G1"))]
+        assert executed == expected
+
+
+async def test_abort_key_works_from_the_console_and_leaves_the_laser_off(tmp_path):
+    app = StationApp(devices=FAST_DEVICES, database=tmp_path / "t.sqlite3")
+    async with app.run_test(size=(160, 48)) as pilot:
+        await pilot.press("m")
+        await pilot.pause()
+        screen = app.screen
+        await _until(pilot, lambda: "plotter" in screen.connections)
+        await pilot.press("v")  # switch to the laser
+        assert screen.device.name == "laser"
+        await pilot.press("c")
+        await _until(pilot, lambda: "laser" in screen.connections)
+        conn = screen.connections["laser"]
+        entry = screen.queue_job("laser", _square(n=8, size=40, laser=True), title="burn")
+        await pilot.press("g")
+        await _until(pilot, lambda: screen.runner is not None and screen.runner.progress.lines_acked > 5)
+        await pilot.press("colon")  # focus the console: ctrl+x must still abort
+        await pilot.press("ctrl+x")
+        await _until(pilot, lambda: entry.state == "aborted", timeout=15)
+        record = conn.port.machine.snapshot()
+        assert record.resets
+        after = [s for s in record.samples if s.t >= record.resets[-1]]
+        assert after and all(s.power == 0.0 for s in after)
+        assert "ALARM:3" in screen.status_text  # reset during motion: guided recovery is shown
+        screen.set_focus(None)  # leave the console input
+        await pilot.pause()
+        await pilot.press("h")  # home clears the alarm
+        await _until(pilot, lambda: conn.status is not None and conn.status.state == "Idle", timeout=15)
+
+
+async def test_queue_job_refuses_unknown_device(tmp_path):
+    app = StationApp(devices=FAST_DEVICES, database=tmp_path / "t.sqlite3")
+    async with app.run_test() as pilot:
+        await pilot.press("m")
+        await pilot.pause()
+        screen = app.screen
+        try:
+            screen.queue_job("mill", "G0 X1")
+        except Exception as error:  # noqa: BLE001
+            assert "no device 'mill'" in str(error)
+        else:
+            raise AssertionError("expected a refusal")
