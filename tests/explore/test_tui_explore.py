@@ -93,3 +93,25 @@ async def test_over_constrained_is_reported_and_the_screen_stays_usable(tmp_path
         await pilot.press("n", "n")
         await settle(app, pilot)
         assert screen.highlighted == 2
+
+
+async def test_a_click_on_the_canvas_selects_the_nearest_poi(tmp_path):
+    from station.tui.widgets.canvas import world_to_cell
+
+    app = StationApp(database=tmp_path / "t.sqlite3")
+    async with app.run_test(size=(150, 45)) as pilot:
+        await pilot.press("x")
+        await settle(app, pilot)
+        screen = app.screen
+        canvas = screen.query_one("#canvas", ExploreCanvas)
+        target = screen.explorer.pois[3]
+        bounds = canvas.current_bounds()
+        col, row = world_to_cell(target.xy, canvas.size.width, canvas.size.height, bounds)
+        world = canvas.cell_to_world(col, row)
+        assert world_to_cell(world, canvas.size.width, canvas.size.height, bounds) == (col, row)
+        border = canvas.styles.gutter  # the click offset is relative to the widget's outer region
+        await pilot.click(ExploreCanvas, offset=(col + border.left, row + border.top))
+        await settle(app, pilot)
+        picked = screen.explorer.pois[screen.selected[-1]]
+        # The PoI nearest to the clicked cell's centre: the target, or one at least as near (sharing its cell).
+        assert np.hypot(*np.subtract(picked.xy, world)) <= np.hypot(*np.subtract(target.xy, world)) + 1e-9

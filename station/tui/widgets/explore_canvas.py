@@ -61,7 +61,10 @@ class ExploreCanvas(PatternCanvas):
         return (float((2 * col + 0.5) / scale + x0), float(y0 - (4 * row + 1.5) / scale))
 
     def on_click(self, event: events.Click) -> None:
-        xy = self.cell_to_world(event.x, event.y)
+        offset = event.get_content_offset(self)  # relative to the drawing area (inside the border)
+        if offset is None:
+            return
+        xy = self.cell_to_world(offset.x, offset.y)
         if xy is not None:
             self.post_message(self.Clicked(xy))
 
