@@ -115,8 +115,8 @@ class Explorer:
         The machine (name in :mod:`design.machines` or a model).
     params : mapping, optional
         The starting design (defaults completed, validated).
-    n_points : int
-        Samples of the curve for PoI detection.
+    n_points : int, optional
+        Samples of the curve for PoI detection (default: about 400 per turn of the driving gear, 4096 to 20000).
     neighborhood : float
         Normalization of each continuous parameter: a slider unit moves a parameter by at most this fraction of its
         feasible range at the starting design (thesis: the grid resolution adapts per dimension to that range).
@@ -137,7 +137,7 @@ class Explorer:
         machine,
         params: Mapping[str, float] | None = None,
         *,
-        n_points: int = 4096,
+        n_points: int | None = None,
         neighborhood: float = 0.2,
         sigma_poi: float = 0.1,
         budget: int = 1024,
@@ -150,7 +150,6 @@ class Explorer:
 
             machine = get_machine(machine)
         self.machine = machine
-        self.n_points = int(n_points)
         self.sigma_poi = float(sigma_poi)
         self.budget = int(budget)
         self.keep_fraction = float(keep_fraction)
@@ -161,6 +160,9 @@ class Explorer:
         if not self.names:
             raise ExploreError(f"{machine.name}: no continuous parameter to explore")
         self.period = float(machine.period(self._params))
+        turns = self.period / (2 * np.pi)
+        # ~400 samples per turn of the driving gear keeps every loop resolved; bounded for long patterns.
+        self.n_points = int(n_points) if n_points is not None else int(np.clip(400 * turns, 4096, 20000))
         self._x0 = np.array([self._params[n] for n in self.names], dtype=float)
         widths = []
         for name in self.names:

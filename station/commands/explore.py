@@ -40,7 +40,10 @@ def register(subparsers) -> None:
     parser.add_argument(
         "--move", action="append", default=[], metavar="K=V", help="move slider K to V and release (repeatable)"
     )
-    parser.add_argument("--points", type=int, default=4096, metavar="N", help="curve samples for PoI detection")
+    parser.add_argument(
+        "--points", type=int, default=None, metavar="N",
+        help="curve samples for PoI detection (default: ~400 per turn of the driving gear, 4096 to 20000)",
+    )
     parser.add_argument("--out", metavar="FILE.png", help="picture of the first and last designs with their PoIs")
     parser.add_argument("--json", action="store_true", help="print everything as one JSON document")
     parser.set_defaults(func=run_explore)
@@ -69,7 +72,7 @@ def _errors(values: dict[str, float]) -> list[dict[str, Any]]:
 
 def run_explore(args) -> int:
     model = get_machine(args.machine)
-    if not 256 <= args.points <= 200_000:
+    if args.points is not None and not 256 <= args.points <= 200_000:
         raise UsageError(f"--points must be an integer in [256, 200000], got {args.points}")
     suffix = output_suffix(args.out, {".png"}) if args.out else None
     keeps = [parse_keep(spec) for spec in args.keep]
