@@ -15,7 +15,9 @@ A scenario is a data file (TOML or JSON, never executed). Its top-level tables:
     ``[objects.ranges]`` (``component = [min, max]``: makes the component a design parameter),
     ``[objects.shape]`` (the primitive's shape parameters), ``[objects.physics]`` (``mass`` — 0 or absent is
     static —, ``friction``, ``rolling_friction``, ``spinning_friction``, ``restitution``, ``linear_damping``,
-    ``angular_damping``), ``[objects.tag]`` (optional AprilTag: ``id``, ``x``, ``y``, ``z``, ``size`` on the part).
+    ``angular_damping``), ``[objects.tag]`` (optional AprilTag: ``id``, ``x``, ``y``, ``z``, ``size`` on the part),
+    ``sleeping`` (true: the bodies start asleep and are not simulated until something touches them — for parts
+    resting stably, a large speed-up; default true for DominoRun, false otherwise).
 ``[[events]]``
     ``name``, ``type`` (see :data:`EVENTS`), the event's parameters (object names; a domino of a run is
     ``run[0]``, ``run[-1]``), ``after`` (parent events; none for the single root), ``join`` (``"all"``: every parent
@@ -85,6 +87,7 @@ _NAME = re.compile(r"^[A-Za-z_][A-Za-z0-9_\-]*$")
 # ---------------------------------------------------------------------------------------------------------------
 
 REQUIRED = ...
+Y_AXIS = (0.0, 1.0, 0.0)
 
 #: Shape parameters of each primitive (thesis App. C.1). ``body`` says whether the primitive makes rigid bodies.
 PRIMITIVES: dict[str, dict[str, Any]] = {
@@ -114,11 +117,11 @@ PRIMITIVES: dict[str, dict[str, Any]] = {
             "wall_thickness": ("pos", REQUIRED),
         },
     },
-    "Pivot": {"body": False, "params": {"body": ("body", REQUIRED), "other": ("body", None), "axis": ("axis", "y")}},
+    "Pivot": {"body": False, "params": {"body": ("body", REQUIRED), "other": ("body", None), "axis": ("axis", Y_AXIS)}},
     "Fastener": {"body": False, "params": {"bodies": ("bodies", REQUIRED)}},
     "Lever": {
         "body": True,
-        "params": {"size": ("vec3pos", REQUIRED), "pivot": ("vec3", (0.0, 0.0, 0.0)), "axis": ("axis", "y")},
+        "params": {"size": ("vec3pos", REQUIRED), "pivot": ("vec3", (0.0, 0.0, 0.0)), "axis": ("axis", Y_AXIS)},
     },
     "Pulley": {"body": True, "params": {"radius": ("pos", REQUIRED), "height": ("pos", REQUIRED)}},
     "DominoRun": {
@@ -233,6 +236,12 @@ class ObjectSpec:
     physics: Physics = field(default_factory=Physics)
     tag: Tag | None = None
     index: int = 0
+    sleeping: bool | None = None
+
+    @property
+    def starts_asleep(self) -> bool:
+        """Whether the bodies start asleep (not simulated until something touches them)."""
+        return self.type == "DominoRun" if self.sleeping is None else self.sleeping
 
     @property
     def has_body(self) -> bool:
@@ -707,7 +716,14 @@ def _objects(check: _Checker, top: dict) -> list[ObjectSpec]:
     for i, item in enumerate(items):
         path = f"objects[{i}]"
         table = check.table(item, path)
-        check.only(table, path, ("name", "type", "parent", "transform", "ranges", "shape", "physics", "tag"))
+        check.only(
+            table, path, ("name", "type", "parent", "transform", "ranges", "shape", "physics", "tag", "sleeping")
+        )
+        sleeping = None
+        if "sleeping" in table:
+            if not isinstance(table["sleeping"], bool):
+                raise check.fail(f"{path}.sleeping", f"expected true or false, got {_kind(table['sleeping'])}")
+            sleeping = table["sleeping"]
         if "name" not in table:
             raise check.fail(f"{path}.name", "missing; expected an object name")
         name = check.string(table["name"], f"{path}.name", pattern=_NAME, what="a name of letters, digits, _ or -")
@@ -786,6 +802,7 @@ def _objects(check: _Checker, top: dict) -> list[ObjectSpec]:
                 physics=physics,
                 tag=tag,
                 index=i,
+                sleeping=sleeping,
             )
         )
     return objects
