@@ -19,9 +19,11 @@ from scipy.sparse.csgraph import connected_components
 
 from design.sketch.errors import SketchError
 
-#: Largest number of strokes solved exactly. Measured by ``bench_sketch`` on a 2-core machine: the MILP with lazy
-#: subtour cuts takes ~0.01-0.05 s up to 16 strokes, ~0.1-0.4 s at 24-32 and grows quickly beyond.
-EXACT_MAX_STROKES = 24
+#: Largest number of strokes solved exactly. Measured by ``bench_sketch`` on a 2-core machine (random strokes, the
+#: hard case): the MILP with lazy subtour cuts takes ~0.03 s up to 16 strokes, 0.1-0.3 s at 24-32, ~1 s at 48-64.
+EXACT_MAX_STROKES = 40
+#: Most strokes (symmetry copies included) a tour is computed for.
+MAX_TOUR_STROKES = 400
 #: Cutting-plane rounds before giving up on the exact tour and falling back to the heuristic.
 MAX_CUT_ROUNDS = 60
 
@@ -87,6 +89,11 @@ def order_strokes(strokes: list[np.ndarray], method: str = "auto", time_limit: f
     if method not in {"auto", "exact", "heuristic"}:
         raise SketchError(f"stroke ordering: method must be 'auto', 'exact' or 'heuristic', got {method!r}")
     n = len(strokes)
+    if n > MAX_TOUR_STROKES:
+        raise SketchError(
+            f"stroke ordering: {n} strokes (symmetry copies included) is too many; expected at most "
+            f"{MAX_TOUR_STROKES}: draw fewer strokes or give a smaller symmetry order"
+        )
     if n == 1:
         return StrokeOrder((0,), (False,), tour_gap_length(strokes, (0,), (False,)), "trivial")
     if method == "heuristic" or (method == "auto" and n > EXACT_MAX_STROKES):
@@ -180,6 +187,7 @@ def _heuristic(strokes: list[np.ndarray], starts: int = 8) -> StrokeOrder:
     ends = stroke_ends(strokes).reshape(-1, 2, 2)
     n = len(strokes)
     best: tuple[float, list[int], list[bool]] | None = None
+    starts = starts if n <= 64 else 2 if n <= 160 else 1  # each start costs O(n^2) per improvement round
     for first in np.unique(np.linspace(0, n - 1, min(starts, n)).astype(int)):
         order, rev = _nearest_neighbour(ends, int(first))
         for _ in range(50):
@@ -215,70 +223,69 @@ def _nearest_neighbour(ends: np.ndarray, first: int) -> tuple[list[int], list[bo
     return order, rev
 
 
-def _head(ends: np.ndarray, stroke: int, backwards: bool) -> np.ndarray:
-    return ends[stroke, 1 if backwards else 0]
-
-
-def _tail(ends: np.ndarray, stroke: int, backwards: bool) -> np.ndarray:
-    return ends[stroke, 0 if backwards else 1]
-
-
-def _dist(a: np.ndarray, b: np.ndarray) -> float:
-    return float(np.hypot(*(a - b)))
+def _heads_tails(ends: np.ndarray, order: list[int], rev: list[bool]) -> tuple[np.ndarray, np.ndarray]:
+    """Entry and exit points of the strokes in tour order, ``(n, 2)`` each."""
+    o = np.asarray(order)
+    r = np.asarray(rev, dtype=int)
+    return ends[o, r], ends[o, 1 - r]
 
 
 def _two_opt(ends: np.ndarray, order: list[int], rev: list[bool]) -> bool:
+    """One pass of best-improvement 2-opt moves from each tour position (vectorized over the run's end)."""
     n = len(order)
     changed = False
     for i in range(n - 1):
-        for j in range(i + 1, n):
-            if i == 0 and j == n - 1:
-                continue
-            # connections (i-1 -> i) and (j -> j+1) become (i-1 -> j reversed) and (i reversed -> j+1)
-            before = _tail(ends, order[i - 1], rev[i - 1])
-            after = _head(ends, order[(j + 1) % n], rev[(j + 1) % n])
-            head_i, tail_j = _head(ends, order[i], rev[i]), _tail(ends, order[j], rev[j])
-            old = _dist(before, head_i) + _dist(tail_j, after)
-            new = _dist(before, tail_j) + _dist(head_i, after)
-            if new < old - 1e-12:
-                order[i : j + 1] = order[i : j + 1][::-1]
-                rev[i : j + 1] = [not r for r in rev[i : j + 1][::-1]]
-                changed = True
+        heads, tails = _heads_tails(ends, order, rev)
+        j = np.arange(i + 1, n)
+        if i == 0:
+            j = j[:-1]
+        if not len(j):
+            continue
+        before = tails[i - 1]
+        after = heads[(j + 1) % n]
+        old = np.linalg.norm(before - heads[i]) + np.linalg.norm(tails[j] - after, axis=1)
+        new = np.linalg.norm(before - tails[j], axis=1) + np.linalg.norm(heads[i] - after, axis=1)
+        gain = old - new
+        best = int(np.argmax(gain))
+        if gain[best] > 1e-12:
+            k = int(j[best])
+            order[i : k + 1] = order[i : k + 1][::-1]
+            rev[i : k + 1] = [not r for r in rev[i : k + 1][::-1]]
+            changed = True
     return changed
 
 
 def _or_opt(ends: np.ndarray, order: list[int], rev: list[bool]) -> bool:
+    """One pass of Or-opt moves: each stroke is moved to its best other place and direction, if that is shorter."""
     n = len(order)
     if n < 4:
         return False
     changed = False
-    i = 0
-    while i < n:
-        stroke, backwards = order[i], rev[i]
-        prev_tail = _tail(ends, order[i - 1], rev[i - 1])
-        next_head = _head(ends, order[(i + 1) % n], rev[(i + 1) % n])
+    for i in range(n):
+        heads, tails = _heads_tails(ends, order, rev)
+        stroke = order[i]
+        prev_tail, next_head = tails[i - 1], heads[(i + 1) % n]
         removed = (
-            _dist(prev_tail, _head(ends, stroke, backwards))
-            + _dist(_tail(ends, stroke, backwards), next_head)
-            - _dist(prev_tail, next_head)
+            np.linalg.norm(prev_tail - heads[i])
+            + np.linalg.norm(tails[i] - next_head)
+            - np.linalg.norm(prev_tail - next_head)
         )
-        rest_order = order[:i] + order[i + 1 :]
-        rest_rev = rev[:i] + rev[i + 1 :]
-        best_gain, best_at, best_dir = 1e-12, -1, backwards
-        for j in range(n - 1):  # insert between rest[j] and rest[j+1]
-            a = _tail(ends, rest_order[j], rest_rev[j])
-            b = _head(ends, rest_order[(j + 1) % (n - 1)], rest_rev[(j + 1) % (n - 1)])
-            for direction in (False, True):
-                added = (
-                    _dist(a, _head(ends, stroke, direction)) + _dist(_tail(ends, stroke, direction), b) - _dist(a, b)
-                )
-                gain = removed - added
-                if gain > best_gain:
-                    best_gain, best_at, best_dir = gain, j, direction
+        keep = np.r_[0:i, i + 1 : n]
+        a = tails[keep]  # insert after rest[j] ...
+        b = heads[np.roll(keep, -1)]  # ... and before rest[j + 1]
+        gap = np.linalg.norm(a - b, axis=1)
+        best_gain, best_at, best_dir = 1e-12, -1, False
+        for direction in (False, True):
+            head, tail = ends[stroke, int(direction)], ends[stroke, 1 - int(direction)]
+            added = np.linalg.norm(a - head, axis=1) + np.linalg.norm(tail - b, axis=1) - gap
+            j = int(np.argmin(added))
+            if removed - added[j] > best_gain:
+                best_gain, best_at, best_dir = removed - added[j], j, direction
         if best_at >= 0:
+            rest_order = [order[k] for k in keep]
+            rest_rev = [rev[k] for k in keep]
             rest_order.insert(best_at + 1, stroke)
             rest_rev.insert(best_at + 1, best_dir)
             order[:], rev[:] = rest_order, rest_rev
             changed = True
-        i += 1
     return changed

@@ -251,6 +251,9 @@ class SketchRetriever:
         timings["prepare"] = time.perf_counter() - clock
         known_symmetry = sketch.symmetry if sketch.symmetry > 1 else None
         estimated = estimate_symmetry(prepared.spectrum)
+        # Trust the spectrum's symmetry order when the two strongest peaks are clear (a near-circle is not).
+        clear = len(prepared.spectrum.peaks) >= 2 and prepared.spectrum.magnitude(int(prepared.spectrum.peaks[1])) > 0.1
+        lead = known_symmetry or (estimated if estimated > 1 and clear else None)
         pool: list[Candidate] = []
         reports: list[MachineReport] = []
         for name in self.machine_names:
@@ -265,7 +268,11 @@ class SketchRetriever:
                     if known_symmetry is None and estimated > 1:
                         hypotheses.append(RadiiHypothesis((estimated,) + (None,) * (n_gears - 1), 0.0))
                     matched = database.rows_matching(hypotheses)
-                    rows = matched if len(matched) else None
+                    if len(matched):
+                        rows = matched
+                    elif lead is not None:
+                        # The leading radius is the symmetry order: a machine without it cannot draw the sketch.
+                        rows = database.rows_matching([RadiiHypothesis((lead,), 0.0)])
             match = database.bank.match(prepared.coefficients, rows=rows, mirror=mirror)
             indices = np.arange(len(database)) if rows is None else rows
             pool.extend(_best_per_radii(database, indices, match.distance, top + refine))
@@ -311,7 +318,7 @@ def _best_per_radii(database: CandidateDatabase, rows: np.ndarray, distance: np.
 def curve_distance(machine, params: Mapping[str, float], coefficients: np.ndarray, mirror: bool = False) -> float:
     """Distance from one design's curve to a sketch's coefficients (same measure as the database)."""
     harmonics = len(coefficients) // 2
-    points = max(DEFAULT_POINTS, 4 * harmonics)
+    points = max(512, 4 * harmonics)
     curve = machine.sample(params, n=points + 1, spacing="arclength")[:-1]
     bank = SpectrumBank(low_spectrum(curve, harmonics)[None])
     return float(bank.match(coefficients, mirror=mirror).distance[0])

@@ -1,0 +1,137 @@
+"""``station retrieve``: find drawing-machine designs from a rough sketch (thesis 3.4).
+
+The sketch (JSON or SVG strokes, optionally one symmetric sector with ``--symmetry K``) is ordered, fitted with a
+closed spline and compared with every machine's candidate database (built once, cached in the station's cache
+directory). Prints the ranked candidates, one per distinct machine and gear radii.
+"""
+
+from __future__ import annotations
+
+import math
+import sys
+from pathlib import Path
+
+from design.machines import get_machine, machine_names
+from design.sketch import DatabaseSettings, SketchRetriever, load_sketch
+from design.sketch.candidates import default_settings, stderr_progress
+from design.sketch.contact_sheet import render_contact_sheet
+from station.cli_util import emit_json
+from station.errors import UsageError
+from station.paths import cache_dir
+
+
+def register(subparsers) -> None:
+    parser = subparsers.add_parser(
+        "retrieve",
+        help="find drawing-machine designs that match a rough sketch (JSON or SVG strokes)",
+        description="Sketch-based pattern retrieval (thesis 3.4). The strokes are copied K times around the sketch "
+        "centre (--symmetry), joined by the shortest closed tour, smoothed by a closed cubic spline and compared "
+        "with each machine's candidate designs (coprime gear radii from the Farey sequence, continuous parameters "
+        "on a feasible grid) by a symmetric Procrustes distance, minimized over direction and start point. "
+        "The first run builds the candidate databases (about half a minute) and caches them.",
+        epilog='sketch JSON: [[[x, y], ...], ...] or {"strokes": [...], "symmetry": K, "center": [x, y]}.  '
+        "example: station retrieve examples/sketches/trefoil-sector.json --top 5 --out /tmp/retrieval",
+    )
+    parser.add_argument("sketch", metavar="SKETCH", help="a .json or .svg sketch file")
+    parser.add_argument("--symmetry", type=int, metavar="K", help="rotational symmetry order (copies strokes K times)")
+    parser.add_argument("--center", metavar="X,Y", help="centre of the symmetry copies (default: from the file)")
+    parser.add_argument(
+        "--machine",
+        action="append",
+        default=[],
+        metavar="NAME",
+        help=f"search only this machine (repeatable; default all: {', '.join(machine_names())})",
+    )
+    parser.add_argument("--top", type=int, default=5, metavar="N", help="number of candidates (default 5)")
+    parser.add_argument(
+        "--refine", type=int, default=0, metavar="N", help="refine the continuous parameters of the N best (default 0)"
+    )
+    parser.add_argument(
+        "--smoothing", type=float, default=0.01, metavar="S", help="spline smoothing, fraction of the sketch size"
+    )
+    parser.add_argument("--no-prune", action="store_true", help="compare every candidate (skip the Fourier pruning)")
+    parser.add_argument("--mirror", action="store_true", help="also accept mirror images of the patterns")
+    parser.add_argument(
+        "--grid", type=int, metavar="V", help="values per continuous parameter in the databases (default 4)"
+    )
+    parser.add_argument("--json", action="store_true", help="print [{machine, params, distance}, ...] as JSON")
+    parser.add_argument("--out", metavar="DIR", help="also write a contact sheet PNG of the sketch vs the candidates")
+    parser.set_defaults(func=run_retrieve)
+
+
+def _parse_center(text: str | None) -> tuple[float, float] | None:
+    if text is None:
+        return None
+    parts = text.split(",")
+    try:
+        values = tuple(float(p) for p in parts)
+    except ValueError:
+        values = ()
+    if len(values) != 2 or not all(math.isfinite(v) for v in values):
+        raise UsageError(f"--center {text!r}: expected two numbers X,Y, e.g. --center 0,0")
+    return values  # type: ignore[return-value]
+
+
+def _format_params(params: dict[str, float]) -> str:
+    return " ".join(f"{k}={v}" if isinstance(v, int) else f"{k}={v:.4g}" for k, v in params.items())
+
+
+def run_retrieve(args) -> int:
+    known = machine_names()
+    for name in args.machine:
+        if name not in known:
+            raise UsageError(f"--machine {name!r}: unknown machine; expected one of {', '.join(known)}")
+    if not 1 <= args.top <= 100:
+        raise UsageError(f"--top must be an integer in [1, 100], got {args.top}")
+    if not 0 <= args.refine <= 20:
+        raise UsageError(f"--refine must be an integer in [0, 20], got {args.refine}")
+    if not math.isfinite(args.smoothing) or not 0 <= args.smoothing <= 0.5:
+        raise UsageError(f"--smoothing must be a number in [0, 0.5], got {args.smoothing}")
+    if args.grid is not None and not 1 <= args.grid <= 8:
+        raise UsageError(f"--grid must be an integer in [1, 8], got {args.grid}")
+    out_dir = Path(args.out) if args.out else None
+    if out_dir is not None and out_dir.exists() and not out_dir.is_dir():
+        raise UsageError(f"--out {args.out!r}: expected a directory, got an existing file")
+    sketch = load_sketch(args.sketch, symmetry=args.symmetry, center=_parse_center(args.center))
+    machines = list(dict.fromkeys(args.machine)) or None
+    settings = None
+    if args.grid is not None:
+        from dataclasses import replace
+
+        settings = {n: replace(default_settings(n), values_per_dimension=args.grid) for n in machines or known}
+    retriever = SketchRetriever(machines, cache_dir=cache_dir(), settings=settings, progress=stderr_progress)
+    result = retriever.query(
+        sketch, top=args.top, prune=not args.no_prune, refine=args.refine, smoothing=args.smoothing, mirror=args.mirror
+    )
+    if out_dir is not None:
+        sheet = out_dir / f"{Path(args.sketch).stem}-candidates.png"
+        labelled = [
+            (
+                f"#{i} {c.machine} {'/'.join(map(str, c.radii))}\ndistance {c.distance:.4f}",
+                get_machine(c.machine).sample(c.params, n=2048, spacing="arclength"),
+            )
+            for i, c in enumerate(result.candidates, start=1)
+        ]
+        render_contact_sheet(sheet, result.prepared.strokes, result.prepared.curve, labelled)
+        print(f"contact sheet: {sheet}", file=sys.stderr)
+    if args.json:
+        emit_json([c.to_json() for c in result.candidates])
+        return 0
+    order = result.prepared.order
+    print(
+        f"sketch: {len(sketch.strokes)} stroke(s), symmetry {sketch.symmetry}, {len(result.prepared.strokes)} after "
+        f"copies, tour {order.method}; query {result.timings['total']:.2f} s"
+    )
+    for report in result.reports:
+        how = f"{report.candidates_compared}/{report.candidates_total} compared"
+        if report.pruned and report.hypotheses:
+            radii = ", ".join("/".join("?" if r is None else str(r) for r in h.radii) for h in report.hypotheses[:4])
+            how += f" (radii {radii})"
+        print(f"  {report.machine}: {how}")
+    for i, candidate in enumerate(result.candidates, start=1):
+        flag = " refined" if candidate.refined else ""
+        print(f"{i:2d}. {candidate.distance:.4f}  {candidate.machine:24s} {_format_params(candidate.params)}{flag}")
+    return 0
+
+
+__all__ = ["DatabaseSettings", "register", "run_retrieve"]
