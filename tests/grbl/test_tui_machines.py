@@ -12,7 +12,7 @@ from station.tui.app import StationApp
 
 FAST_DEVICES = (
     DeviceEntry("plotter", "plotter", "sim://grbl?profile=plotter&time_scale=0.01", True),
-    DeviceEntry("laser", "laser", "sim://grbl?profile=laser&time_scale=0.05", True),
+    DeviceEntry("laser", "laser", "sim://grbl?profile=laser&time_scale=0.3", True),
 )
 
 
@@ -46,8 +46,8 @@ async def test_machines_screen_connects_runs_a_queued_job_and_shows_progress(tmp
         await _until(pilot, lambda: "plotter" in screen.connections)  # simulated devices connect by themselves
         conn = screen.connections["plotter"]
         await _until(pilot, lambda: conn.status is not None)
-        await _until(pilot, lambda: "Idle" in screen.status_text)
-        assert "planner" in screen.status_text and "RX" in screen.status_text
+        await _until(pilot, lambda: "Idle" in screen.status_text and "planner" in screen.status_text)
+        assert "RX 0/128 bytes" in screen.status_text
         gcode = _square()
         entry = screen.queue_job("plotter", gcode, title="squares")
         table = screen.query_one("#queue", DataTable)
@@ -75,6 +75,7 @@ async def test_abort_key_works_from_the_console_and_leaves_the_laser_off(tmp_pat
         entry = screen.queue_job("laser", _square(n=8, size=40, laser=True), title="burn")
         await pilot.press("g")
         await _until(pilot, lambda: screen.runner is not None and screen.runner.progress.lines_acked > 5)
+        assert entry.state == "running"
         await pilot.press("colon")  # focus the console: ctrl+x must still abort
         await pilot.press("ctrl+x")
         await _until(pilot, lambda: entry.state == "aborted", timeout=15)
