@@ -105,6 +105,20 @@ def rasterize(
     return codes, owner
 
 
+def cells_of(
+    xy: np.ndarray, cells_w: int, cells_h: int, bounds: tuple[float, float, float, float]
+) -> tuple[np.ndarray, np.ndarray]:
+    """Columns and rows of the cells showing world points ``xy`` (n, 2); may fall outside the grid."""
+    scale, x0, y0 = fit_transform(bounds, 2 * cells_w, 4 * cells_h)
+    xy = np.asarray(xy, dtype=float).reshape(-1, 2)
+    finite = np.all(np.isfinite(xy), axis=1)
+    columns = np.full(len(xy), -1, dtype=np.int64)
+    rows = np.full(len(xy), -1, dtype=np.int64)
+    columns[finite] = np.rint((xy[finite, 0] - x0) * scale).astype(np.int64) // 2
+    rows[finite] = np.rint((y0 - xy[finite, 1]) * scale).astype(np.int64) // 4
+    return columns, rows
+
+
 def world_to_cell(
     xy: tuple[float, float], cells_w: int, cells_h: int, bounds: tuple[float, float, float, float]
 ) -> tuple[int, int] | None:
@@ -190,11 +204,12 @@ class PatternCanvas(Widget):
         codes, owner = rasterize(self._polylines, width, height, bounds)
         chars = np.where(codes > 0, codes.astype(np.uint32) + 0x2800, ord(" "))
         overlay: dict[tuple[int, int], Marker] = {}
-        if bounds is not None:
-            for marker in self._markers:
-                cell = world_to_cell(marker.xy, width, height, bounds)
-                if cell is not None:
-                    overlay[cell] = marker
+        if bounds is not None and self._markers:
+            # One fit for all markers (thousands of points of interest are common on busy patterns).
+            columns, rows = cells_of(np.array([m.xy for m in self._markers], dtype=float), width, height, bounds)
+            for marker, col, row in zip(self._markers, columns, rows):
+                if 0 <= col < width and 0 <= row < height:
+                    overlay[(int(col), int(row))] = marker
         styles = [Style(color=c) for c in self._colors]
         # Markers take their cell: give them a layer index of their own past the polylines.
         marker_styles = {}
