@@ -1,0 +1,88 @@
+"""The Sketch retrieval screen: draw on the pad, find designs in a worker, open one on the Drawing screen."""
+
+from __future__ import annotations
+
+import math
+
+import pytest
+
+import station.tui.screens.sketch as sketch_screen
+from design.sketch import SketchRetriever
+from design.sketch.candidates import DatabaseSettings
+from station.tui.app import StationApp
+from station.tui.widgets.sketch_pad import SketchPad
+
+SMALL = {"spirograph": DatabaseSettings(max_radius=6, values_per_dimension=3, harmonics=48, points=256)}
+
+
+@pytest.fixture
+def small_retriever(monkeypatch, tmp_path):
+    def make(progress):
+        return SketchRetriever(["spirograph"], cache_dir=tmp_path, settings=SMALL, progress=progress)
+
+    monkeypatch.setattr(sketch_screen, "make_retriever", make)
+
+
+async def wait_for_candidates(app, pilot, screen):
+    for _ in range(200):
+        await pilot.pause(0.05)
+        if screen.candidates and screen.query("CandidatePreview"):
+            return
+    raise AssertionError(f"no candidates; status: {screen.query_one('#status').render()}")
+
+
+async def test_draw_sector_find_and_open(tmp_path, small_retriever):
+    app = StationApp(database=tmp_path / "t.sqlite3")
+    async with app.run_test(size=(140, 44)) as pilot:
+        await pilot.press("s")
+        await pilot.pause()
+        assert app.screen.name == "sketch"
+        screen = app.screen
+        pad = screen.query_one("#pad", SketchPad)
+        # a mouse stroke on the pad: press, drag, release
+        await pilot.mouse_down("#pad", offset=(10, 5))
+        await pilot.hover("#pad", offset=(14, 7))
+        await pilot.mouse_up("#pad", offset=(16, 8))
+        await pilot.pause()
+        assert len(pad.strokes) == 1 and len(pad.strokes[0]) >= 2
+        pad.clear()
+        # one third of a trefoil-like hypotrochoid (r_f = 3, r_r = 2), drawn in pad coordinates around the centre
+        cx, cy = pad.center()
+        points = []
+        for i in range(40):
+            t = 0.2 + (2 * math.pi * 2 / 3) * i / 39
+            x = math.cos(t) + 1.3 * math.cos(t / 2)
+            y = math.sin(t) - 1.3 * math.sin(t / 2)
+            points.append((cx + 12 * x, cy + 12 * y))
+        pad.add_stroke(points)
+        symmetry = screen.query_one("#symmetry")
+        symmetry.value = "3"
+        await pilot.pause()
+        assert pad.symmetry == 3
+        await pilot.press("f")
+        await wait_for_candidates(app, pilot, screen)
+        best = screen.candidates[0]
+        assert best.machine == "spirograph" and best.params["r_f"] == 3
+        await pilot.click("#candidate-1")
+        await pilot.pause()
+        assert app.screen.name == "drawing"
+        machine, params = app.screen.current_design()
+        assert machine == "spirograph" and params["r_f"] == best.params["r_f"] and params["r_r"] == best.params["r_r"]
+
+
+async def test_bad_sketch_and_symmetry_show_a_message(tmp_path, small_retriever):
+    app = StationApp(database=tmp_path / "t.sqlite3")
+    async with app.run_test(size=(140, 44)) as pilot:
+        await pilot.press("s")
+        await pilot.pause()
+        screen = app.screen
+        await pilot.press("f")  # nothing drawn
+        await pilot.pause()
+        assert "empty" in str(screen.query_one("#status").render())
+        screen.query_one("#symmetry").value = "99"
+        await pilot.pause()
+        screen.action_find()
+        assert "symmetry order" in str(screen.query_one("#status").render())
+        await pilot.press("3")  # no candidate yet
+        await pilot.pause()
+        assert app.screen.name == "sketch"
