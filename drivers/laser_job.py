@@ -164,12 +164,23 @@ def _two_opt(entry: np.ndarray, exit_: np.ndarray, start: np.ndarray, max_rounds
         d_e_next = np.nan_to_num(np.linalg.norm(e[:, None, :] - next_entry[None, :, :], axis=2), nan=0.0)
         gain = d_prev_e + d_x_next - d_prev_x - d_e_next
         gain = np.triu(gain, k=1)
-        best = np.unravel_index(int(np.argmax(gain)), gain.shape)
-        if gain[best] <= 1e-9:
+        candidates = np.flatnonzero(gain > 1e-9)
+        if candidates.size == 0:
             break
-        i, j = best
-        order[i:j + 1] = order[i:j + 1][::-1].copy()
-        flipped[i:j + 1] = ~flipped[i:j + 1][::-1]
+        # Apply the best reversal and every other improving one that does not touch it: reversals of runs at
+        # least one path apart change disjoint travel moves, so their gains add up. Rounds then scale with the
+        # number of independent improvements, not with their total.
+        if candidates.size > 4 * n:
+            candidates = candidates[np.argpartition(gain.ravel()[candidates], -4 * n)[-4 * n:]]
+        candidates = candidates[np.argsort(-gain.ravel()[candidates], kind="stable")]
+        taken = np.zeros(n + 2, dtype=bool)
+        for flat in candidates:
+            i, j = divmod(int(flat), n)
+            if taken[i:j + 3].any():  # the run, its neighbours' moves included
+                continue
+            taken[i:j + 3] = True
+            order[i:j + 1] = order[i:j + 1][::-1].copy()
+            flipped[i:j + 1] = ~flipped[i:j + 1][::-1]
     return np.stack([order, flipped.astype(int)])
 
 
