@@ -145,8 +145,18 @@ def _with_holes(part_name: str, shape: Polygon, holes: list[tuple[str, tuple[flo
     return shape
 
 
+def _short_code(text: str) -> str:
+    """A fallback label for small parts: initials and numbers, e.g. ``"GEAR 1 CRANK"`` → ``"G1C"``."""
+    words = [w for w in text.split() if not (w.startswith("Z") and w[1:].isdigit())]
+    return "".join(w if w.isdigit() else w[0] for w in words)
+
+
 def _label(shape: Polygon, text: str, hardware: Hardware, near=(0.0, 0.0)) -> tuple[np.ndarray, ...]:
-    return tuple(place_label(shape, text, hardware.label_height, near=near))
+    """The label's strokes, or a short code when the full text finds no room in the part."""
+    strokes = place_label(shape, text, hardware.label_height, near=near)
+    if not strokes and _short_code(text) != text:
+        strokes = place_label(shape, _short_code(text), hardware.label_height, near=near, min_height=1.5)
+    return tuple(strokes)
 
 
 def _root_radius(gear: Gear) -> float:
