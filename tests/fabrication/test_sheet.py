@@ -9,6 +9,7 @@ import xml.etree.ElementTree as ET
 
 import numpy as np
 import pytest
+import shapely
 from PIL import Image
 from shapely.geometry import Point, box
 
@@ -197,3 +198,13 @@ def test_hoot_nanny_arms_and_near_rim_pins():
     assert not parts["gear 2"].shape.contains(Point(1.0 * scale, 0.0))
     g2 = parts["base plate"].info["axles_mm"]["gear 2 axle"]
     assert np.hypot(*g2) == pytest.approx((10 + 2) * scale, abs=1e-3)
+
+
+@pytest.mark.parametrize("machine", ["cycloid_drawing_machine", "hoot_nanny"])
+def test_every_part_gets_a_label_even_small_ones(machine):
+    parts = machine_parts(machine, {}, 5.0)
+    for part in parts:
+        assert part.engrave, f"{part.name} has no label"
+        strokes = np.concatenate(part.engrave)
+        # Every stroke point inside the material, clear of the holes.
+        assert shapely.contains_xy(part.shape, strokes[:, 0], strokes[:, 1]).all()
