@@ -40,6 +40,12 @@ async def test_fabricate_shows_the_current_design_sheet_and_parts(tmp_path):
         picture = screen.query_one(HalfBlockPicture)
         text = picture.render_text(60, 20)
         assert "▀" in text.plain and len(text.spans) > 100
+        # z zooms on the corner the parts use, z again shows the whole sheet.
+        whole = picture.image.size
+        await pilot.press("z")
+        assert picture.crop is not None and picture.image.size[0] < whole[0]
+        await pilot.press("z")
+        assert picture.crop is None and picture.image.size == whole
         # Another scale: regenerate with Enter in the field.
         field = screen.query_one("#scale", Input)
         field.value = "6"

@@ -3,9 +3,9 @@
 Opened from the Drawing machines screen (key f there, or f on the home screen), it takes that screen's current
 design. The nested sheet is drawn as a picture in the terminal (two pixels per cell with half blocks), beside the
 parts list and the job estimate. Tab reaches the fields (scale, kerf, sheet, material); Enter there regenerates.
-From the parts table: g regenerates, r reloads the Drawing screen's design, w writes parts.svg, laser.gcode,
-parts.json and sheet.png into the station's data folder, s queues the job for the laser on the Machines screen
-(where f frames it and g runs it).
+From the parts table: g regenerates, r reloads the Drawing screen's design, z zooms on the parts, w writes
+parts.svg, laser.gcode, parts.json and sheet.png into the station's data folder, s queues the job for the laser on
+the Machines screen (where f frames it and g runs it).
 """
 
 from __future__ import annotations
@@ -45,10 +45,23 @@ class HalfBlockPicture(Widget):
 
     def __init__(self, *, id: str | None = None) -> None:
         super().__init__(id=id)
+        self.full: Image.Image | None = None
         self.image: Image.Image | None = None
+        self.crop: tuple[float, float, float, float] | None = None
 
     def set_png(self, png: bytes | None) -> None:
-        self.image = Image.open(io.BytesIO(png)).convert("RGB") if png else None
+        self.full = Image.open(io.BytesIO(png)).convert("RGB") if png else None
+        self.set_crop(self.crop)
+
+    def set_crop(self, crop: tuple[float, float, float, float] | None) -> None:
+        """Show only ``(left, top, right, bottom)`` of the picture (fractions), or all of it (None)."""
+        self.crop = crop
+        if self.full is not None and crop is not None:
+            w, h = self.full.size
+            box = (int(crop[0] * w), int(crop[1] * h), max(int(crop[2] * w), 1), max(int(crop[3] * h), 1))
+            self.image = self.full.crop(box)
+        else:
+            self.image = self.full
         self.refresh()
 
     def render(self) -> Text:
@@ -93,6 +106,7 @@ class FabricateScreen(Screen):
         Binding("w", "write", "Write files"),
         Binding("s", "send", "Send to laser"),
         Binding("r", "reload", "Reload design"),
+        Binding("z", "zoom", "Zoom to parts"),
     ]
 
     def __init__(self) -> None:
@@ -222,6 +236,18 @@ class FabricateScreen(Screen):
             f"{len(result.gcode.splitlines())} G-code lines")
         self.query_one(HalfBlockPicture).set_png(result.png)
         self._set_status(f"{len(result.summary['parts'])} parts in {seconds:.1f} s — w: write files, s: send to laser")
+
+    def action_zoom(self) -> None:
+        """Toggle between the whole sheet and the corner the parts use."""
+        picture = self.query_one(HalfBlockPicture)
+        if picture.crop is not None or self.result is None:
+            picture.set_crop(None)
+            return
+        sheet = self.result.sheet
+        # The PNG's top row is the sheet's far edge (y up on the sheet): the parts sit in the bottom-left corner.
+        right = min(1.0, sheet.used_width / sheet.width)
+        top = max(0.0, 1.0 - sheet.used_height / sheet.height)
+        picture.set_crop((0.0, top, right, 1.0))
 
     def action_write(self) -> Path | None:
         from station.commands.fabricate import write_outputs
