@@ -114,7 +114,8 @@ def main() -> None:
     cases = benchmark_set(retriever, cases_per_machine, seed)
     print(
         f"benchmark set: {len(cases)} sketches (seed {seed}): noise, uneven subsampling, 1-4 strokes with gaps, "
-        f"{sum(c.sector for c in cases)} drawn as one symmetric sector with k given"
+        f"{sum(c.sector for c in cases)} drawn as one symmetric sector with k given; "
+        f"{sum(c.rejected for c in cases)} near-circle designs (detail < 2 %, radii not identifiable) drawn again"
     )
     modes = {"pruned": {"prune": True}, "unpruned": {"prune": False}, "pruned+refine3": {"prune": True, "refine": 3}}
     for mode, options in modes.items():

@@ -89,11 +89,13 @@ class DatabaseSettings:
             )
 
 
-#: Default settings per machine: richer radii for the cheap machines, smaller for the Hoot-Nanny whose five
-#: continuous parameters already give 4^5 = 1024 designs per radii triple.
+#: Default settings per machine. The thesis' 4 values per continuous parameter for the Cycloid Drawing Machine and
+#: the Hoot-Nanny (4^4 and 4^5 designs per radii combination); the Spirograph's one continuous parameter and the
+#: elliptic Spirograph's two get 12 and 6 values, which costs little (hundreds of designs) and finds their close
+#: matches without refinement. Smaller radii for the Hoot-Nanny, whose database is the largest.
 DEFAULT_SETTINGS: dict[str, DatabaseSettings] = {
-    "spirograph": DatabaseSettings(max_radius=12),
-    "elliptic_spirograph": DatabaseSettings(max_radius=10),
+    "spirograph": DatabaseSettings(max_radius=12, values_per_dimension=12),
+    "elliptic_spirograph": DatabaseSettings(max_radius=10, values_per_dimension=6),
     "cycloid_drawing_machine": DatabaseSettings(max_radius=7),
     # the model needs a turntable of radius >= 5 to hold the pen inside it (A.64); small external gears
     "hoot_nanny": DatabaseSettings(max_radius=8, max_other_radius=5),

@@ -34,6 +34,9 @@ from design.sketch.strokes import Sketch, check_symmetry
 
 #: Most candidates a query may return.
 MAX_TOP = 100
+#: When the best pruned candidate of a machine is farther than this, the search widens (leading radius only, then
+#: every candidate unless the symmetry order was given). Good matches of the benchmark sketches are below 0.02.
+PRUNE_FALLBACK_DISTANCE = 0.05
 
 
 @dataclass(frozen=True)
@@ -260,22 +263,31 @@ class SketchRetriever:
             database = self.database(name)
             begin = time.perf_counter()
             hypotheses: list[RadiiHypothesis] = []
-            rows = None
+            stages: list[np.ndarray | None] = [None]
             if prune:
                 n_gears = database.radii.shape[1]
+                stages = []
                 if n_gears in (2, 3):
                     hypotheses = radii_hypotheses(prepared.spectrum, n_gears, known_symmetry)
                     if known_symmetry is None and estimated > 1:
                         hypotheses.append(RadiiHypothesis((estimated,) + (None,) * (n_gears - 1), 0.0))
-                    matched = database.rows_matching(hypotheses)
-                    if len(matched):
-                        rows = matched
-                    elif lead is not None:
-                        # The leading radius is the symmetry order: a machine without it cannot draw the sketch.
-                        rows = database.rows_matching([RadiiHypothesis((lead,), 0.0)])
-            match = database.bank.match(prepared.coefficients, rows=rows, mirror=mirror)
+                    stages.append(database.rows_matching(hypotheses))
+                if lead is not None:
+                    # The leading radius is the symmetry order: a machine without it cannot draw the sketch.
+                    stages.append(database.rows_matching([RadiiHypothesis((lead,), 0.0)]))
+                if known_symmetry is None:
+                    stages.append(None)  # an estimated symmetry may be wrong: everything, as a last resort
+            # Widen the search while the pruned candidates all match poorly (a peak misread, a wrong estimate).
+            rows: np.ndarray | None = None
+            distances = np.zeros(0)
+            for stage, rows in enumerate(stages):
+                if rows is not None and len(rows) == 0 and stage < len(stages) - 1:
+                    continue
+                distances = database.bank.match(prepared.coefficients, rows=rows, mirror=mirror).distance
+                if len(distances) and distances.min() <= PRUNE_FALLBACK_DISTANCE:
+                    break
             indices = np.arange(len(database)) if rows is None else rows
-            pool.extend(_best_per_radii(database, indices, match.distance, top + refine))
+            pool.extend(_best_per_radii(database, indices, distances, top + refine))
             reports.append(
                 MachineReport(
                     name, len(database), len(indices), hypotheses, rows is not None, time.perf_counter() - begin

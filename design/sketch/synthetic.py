@@ -2,9 +2,10 @@
 
 A case takes a random feasible design of a machine (radii among the database's combinations, continuous parameters
 uniform over their feasible set, not on the database grid), samples its curve, and turns it into what a maker would
-draw: either the whole pattern or, when it is rotationally symmetric, one symmetric sector with ``k`` given; cut into
-1-4 strokes separated by gaps; subsampled unevenly; jittered with noise; randomly rotated, scaled, moved, with the
-strokes in random order and direction.
+draw: either the whole pattern or, when it is rotationally symmetric, one symmetric sector with ``k`` given; cut
+into 1-4 strokes separated by gaps (pen lifts of 2-6 % of the pattern's size); subsampled unevenly at a roughly
+constant spatial rate; jittered with noise (0.6 % of the size); randomly rotated, scaled and moved, with the strokes
+in random order and direction. Near-circles, whose radii no sketch can tell, are drawn again.
 """
 
 from __future__ import annotations
@@ -28,6 +29,7 @@ class SyntheticCase:
     sketch: Sketch
     sector: bool
     strokes: int
+    rejected: int = 0
 
 
 def random_design(
@@ -50,6 +52,20 @@ def random_design(
     return None
 
 
+def pattern_detail(curve: np.ndarray) -> float:
+    """How far a closed curve is from a circle: the energy fraction outside its strongest harmonic (arc length).
+
+    A near-circle (e.g. a Spirograph with a tiny pen offset) looks the same, within a hand's noise, as the
+    near-circles every other machine and radii draw, so its radii cannot be told from a sketch.
+    """
+    from design.sketch.spline import resample_closed
+
+    z = resample_closed(curve, 1024) @ np.array([1.0, 1j])
+    power = np.abs(np.fft.fft(z - z.mean())) ** 2
+    total = power.sum()
+    return float(1.0 - power.max() / total) if total > 0 else 0.0
+
+
 def make_case(
     machine,
     radii: dict[str, int],
@@ -57,7 +73,9 @@ def make_case(
     symmetry: int = 1,
     noise: float = 0.006,
     sector_probability: float = 0.4,
-    points_per_stroke: tuple[int, int] = (40, 140),
+    points_per_size: tuple[float, float] = (25.0, 60.0),
+    min_detail: float = 0.02,
+    tries: int = 20,
 ) -> SyntheticCase | None:
     """One synthetic sketch of a random design with the given radii.
 
@@ -74,10 +92,24 @@ def make_case(
         may be drawn (probability ``sector_probability``).
     noise : float
         Standard deviation of the jitter, as a fraction of the pattern's size.
-    points_per_stroke : (int, int)
-        Range of the number of points a stroke keeps (uneven subsampling).
+    points_per_size : (float, float)
+        Range of the sampling density of a stroke, in points per pattern size (bounding-box diagonal) of stroke
+        length: a hand or a tablet samples at a roughly constant spatial rate, so a long intricate stroke keeps
+        more points. The spacing along the stroke is uneven (the hand slows down and speeds up).
+    min_detail : float
+        Designs whose :func:`pattern_detail` is below this are drawn again (up to ``tries`` times): a near-circle
+        cannot tell its radii. The number of designs drawn again is reported in ``rejected``.
     """
-    design = random_design(machine, radii, rng)
+    design = None
+    rejected = 0
+    for _ in range(tries):
+        design = random_design(machine, radii, rng)
+        if design is None:
+            return None
+        if pattern_detail(machine.sample(design, n=2048, spacing="arclength")[:-1]) >= min_detail:
+            break
+        rejected += 1
+        design = None
     if design is None:
         return None
     sector = symmetry > 1 and rng.random() < sector_probability
@@ -90,7 +122,7 @@ def make_case(
     curve = machine.curve(design, t)
     size = float(np.linalg.norm(np.ptp(curve, axis=0)))
     n_strokes = int(rng.integers(1, 5))
-    # stroke boundaries along the arc length, each followed by a gap of 1-4 % of the drawn length
+    # stroke boundaries along the arc length, each followed by a pen lift of 2-6 % of the pattern's size
     length = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(curve, axis=0), axis=1))])
     total = length[-1]
     cuts = np.sort(rng.uniform(0.05, 0.95, n_strokes - 1)) * total if n_strokes > 1 else np.array([])
@@ -99,18 +131,19 @@ def make_case(
         edges = edges + rng.random() * total  # random start on the closed curve
     strokes = []
     for a, b in zip(edges[:-1], edges[1:]):
-        gap = rng.uniform(0.01, 0.04) * (total if not sector else total / 2)
+        gap = rng.uniform(0.02, 0.06) * size
         a_, b_ = a + gap / 2, b - gap / 2
         if b_ - a_ < 0.02 * total:
             continue
-        s = np.linspace(a_, b_, 400)
+        s = np.linspace(a_, b_, max(400, int(40 * (b_ - a_) / size)))
         s_mod = np.mod(s, total) if not sector else s
         piece = np.column_stack([np.interp(s_mod, length, curve[:, 0]), np.interp(s_mod, length, curve[:, 1])])
-        count = int(rng.integers(*points_per_stroke))
+        count = int(np.clip(rng.uniform(*points_per_size) * (b_ - a_) / size, 12, 3000))
         # uneven subsampling: a hand slows down and speeds up
         warp = np.cumsum(rng.uniform(0.3, 1.7, count))
         warp = (warp - warp[0]) / (warp[-1] - warp[0])
-        piece = resample_open(piece, 400)[np.round(warp * 399).astype(int)]
+        dense = max(400, 4 * count)
+        piece = resample_open(piece, dense)[np.round(warp * (dense - 1)).astype(int)]
         piece = piece + rng.normal(0.0, noise * size, piece.shape)
         strokes.append(piece)
     if not strokes:
@@ -126,4 +159,4 @@ def make_case(
     centre = shift  # the machine's patterns are centred on the origin (ring or turntable centre)
     sketch = make_sketch(strokes, symmetry=symmetry if sector else 1, center=centre, source="synthetic")
     roles_radii = tuple(int(v) for v in radii.values())
-    return SyntheticCase(machine.name, design, roles_radii, sketch, sector, len(strokes))
+    return SyntheticCase(machine.name, design, roles_radii, sketch, sector, len(strokes), rejected)
