@@ -12,24 +12,33 @@ import sys
 def quiet_stdout():
     """Send the C-level stdout and stderr to /dev/null for the duration (pybullet's banner lines)."""
     saved: list[tuple[int, int]] = []
-    for stream in (sys.stdout, sys.stderr):
+    for stream, fd in ((sys.stdout, 1), (sys.stderr, 2)):
+        # By number: under a TUI or a capture, sys.stdout is not fd 1, but pybullet's C code still writes there.
         try:
-            stream.flush()
-            fd = stream.fileno()
-        except (AttributeError, OSError, ValueError):  # captured or replaced stream: nothing to silence
+            if stream is not None:
+                stream.flush()
+        except (AttributeError, OSError, ValueError):
+            pass
+        try:
+            saved.append((fd, os.dup(fd)))
+        except OSError:  # no such descriptor: nothing to silence
             continue
-        saved.append((fd, os.dup(fd)))
-    null = os.open(os.devnull, os.O_WRONLY)
     try:
-        for fd, _ in saved:
-            os.dup2(null, fd)
+        null = os.open(os.devnull, os.O_WRONLY)
+    except OSError:  # pragma: no cover
+        null = None
+    try:
+        if null is not None:
+            for fd, _ in saved:
+                os.dup2(null, fd)
         yield
     finally:
         _flush_c_stdio()
         for fd, copy in saved:
             os.dup2(copy, fd)
             os.close(copy)
-        os.close(null)
+        if null is not None:
+            os.close(null)
 
 
 def _flush_c_stdio() -> None:

@@ -1,0 +1,268 @@
+"""Contraption screen: load a chain-reaction scenario, see its causal graph, simulate a layout and watch it unfold.
+
+Type an example name (``simple``, ``ballrun``, ...) or a path and press Enter. The table lists the causal graph's
+events (with their parents and join), and their states during and after a simulation; the canvas shows the side
+view (x-z) of the bodies, redrawn at each change of state.
+
+Keys: r simulate · l next layout (file default, then the file's named layouts) · t real-time pacing on/off.
+"""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+from scipy.spatial import ConvexHull, QhullError
+from textual import on, work
+from textual.app import ComposeResult
+from textual.binding import Binding
+from textual.containers import Horizontal, Vertical
+from textual.screen import Screen
+from textual.widgets import DataTable, Footer, Header, Input, Static
+
+from design.contraption import Scenario, Simulator, load_scenario
+from design.contraption.bullet import direct_client
+from design.contraption.catalog import example_names, resolve_scenario_path
+from design.errors import DesignError
+from station.tui.registry import ScreenEntry
+from station.tui.widgets.canvas import PatternCanvas
+
+STATE_STYLE = {"asleep": "dim", "awake": "bold yellow", "success": "bold green", "failure": "bold red"}
+TYPE_COLOURS = {
+    "Ball": "red",
+    "DominoRun": "dark_orange",
+    "Track": "blue",
+    "Lever": "green",
+    "Goblet": "magenta",
+    "Pulley": "cyan",
+}
+
+
+def side_view_polylines(scenario: Scenario, snapshot) -> tuple[list[np.ndarray], list[str]]:
+    """Closed outlines (x, z) of every body's parts, with a colour per primitive type."""
+    kinds = {o.name: o.type for o in scenario.objects}
+    lines, colours = [], []
+    for _label, name, pose, spec in snapshot:
+        for part in spec.parts:
+            if part.kind == "plane":
+                continue
+            points = pose.apply(part.surface_points(16))[:, [0, 2]]
+            try:
+                hull = points[ConvexHull(points).vertices]
+            except QhullError:
+                hull = points[[np.argmin(points[:, 0]), np.argmax(points[:, 0])]]
+            lines.append(np.vstack([hull, hull[:1]]))
+            colours.append(TYPE_COLOURS.get(kinds.get(name, ""), "white"))
+    return lines, colours
+
+
+class ContraptionScreen(Screen):
+    """Scenario, causal graph, simulation."""
+
+    CSS = """
+    ContraptionScreen #left { width: 1fr; min-width: 60; }
+    ContraptionScreen #summary { height: auto; padding: 0 1; }
+    ContraptionScreen #events { height: 1fr; }
+    ContraptionScreen #status { height: auto; padding: 0 1; }
+    ContraptionScreen #view { width: 1fr; border: round $primary-darken-2; }
+    """
+
+    BINDINGS = [
+        Binding("r", "simulate", "Simulate"),
+        Binding("l", "next_layout", "Next layout"),
+        Binding("t", "toggle_pacing", "Real time on/off"),
+    ]
+
+    def __init__(self) -> None:
+        super().__init__(name="contraption")
+        self.scenario: Scenario | None = None
+        self.layout_names: list[str] = ["file default"]
+        self.layout_index = 0
+        self.realtime = True
+        self.running = False
+        self.result = None
+        self._bounds = None
+        self._client = None  # one pybullet client for the screen's life (runs are sequential)
+
+    def compose(self) -> ComposeResult:
+        yield Header(show_clock=False)
+        with Horizontal():
+            with Vertical(id="left"):
+                yield Input(
+                    placeholder=f"scenario: {', '.join(example_names())} or a path, then Enter", id="scenario-input"
+                )
+                yield Static("", id="summary")
+                yield DataTable(id="events", cursor_type="row", zebra_stripes=True)
+                yield Static("", id="status")
+            yield PatternCanvas(id="view")
+        yield Footer()
+
+    def on_mount(self) -> None:
+        table = self.query_one("#events", DataTable)
+        for column, width in (("event", None), ("type", None), ("after", None), ("state", 8), ("woke", 6),
+                              ("at", 6)):
+            table.add_column(column, key=column, width=width)
+        self.load("simple")
+        table.focus()  # keys go to the screen's bindings until the user clicks or tabs into the scenario field
+
+    # -- loading -------------------------------------------------------------------------------------------------
+    @on(Input.Submitted, "#scenario-input")
+    def _submitted(self, event: Input.Submitted) -> None:
+        if event.value.strip() and self.load(event.value.strip()):
+            self.query_one("#events", DataTable).focus()
+
+    def load(self, text: str) -> bool:
+        """Load a scenario by example name or path; errors are shown, never raised."""
+        if self.running:
+            self.set_status("[yellow]a simulation is running[/]")
+            return False
+        try:
+            scenario = load_scenario(resolve_scenario_path(text))
+        except (DesignError, OSError) as error:
+            self.set_status(f"[red]{error}[/]")
+            return False
+        self.scenario = scenario
+        order = {"success": 0, "failure": 1}
+        self.layout_names = ["file default", *sorted(scenario.layouts, key=lambda n: (order.get(n, 2), n))]
+        self.layout_index = self.layout_names.index("success") if "success" in scenario.layouts else 0
+        self.result = None
+        self._fill_events()
+        self._show_summary()
+        self._draw_layout()
+        self.set_status(f"loaded {scenario.source}; press r to simulate")
+        return True
+
+    def current_layout(self) -> np.ndarray:
+        name = self.layout_names[self.layout_index]
+        return self.scenario.default_layout() if name == "file default" else self.scenario.layout(name)
+
+    def _show_summary(self) -> None:
+        s = self.scenario
+        space = s.design_space
+        params = ", ".join(
+            f"{n}={v:g}" for n, v in zip(space.names, self.current_layout())
+        ) or "none"
+        text = (
+            f"[b]{s.name}[/b] — {s.description}\n"
+            f"{len(s.objects)} objects, {len(s.events)} events (root {s.root}), {space.dim} design parameters\n"
+            f"layout [b]{self.layout_names[self.layout_index]}[/b]: {params}"
+        )
+        self.query_one("#summary", Static).update(text)
+
+    def _fill_events(self) -> None:
+        table = self.query_one("#events", DataTable)
+        table.clear()
+        for spec in self.scenario.event_specs:
+            joined = (" & " if spec.join == "all" else " | ").join(spec.after) or "(root)"
+            state = "awake" if not spec.after else "asleep"
+            table.add_row(spec.name, spec.type, joined, self._styled(state), "", "", key=spec.name)
+
+    @staticmethod
+    def _styled(state: str) -> str:
+        from rich.text import Text
+
+        return Text(state, style=STATE_STYLE.get(state, ""))
+
+    def set_status(self, text: str) -> None:
+        self.query_one("#status", Static).update(text)
+
+    def _draw(self, snapshot) -> None:
+        lines, colours = side_view_polylines(self.scenario, snapshot)
+        self.query_one("#view", PatternCanvas).set_polylines(lines, colours, bounds=self._bounds)
+
+    def _draw_layout(self) -> None:
+        try:
+            if self._client is None:
+                self._client = direct_client()
+            with Simulator(self.scenario, client=self._client) as sim:
+                world = sim.build(self.current_layout())
+                snapshot = world.snapshot()
+        except DesignError as error:  # pragma: no cover - a validated scenario builds
+            self.set_status(f"[red]{error}[/]")
+            return
+        lines, _ = side_view_polylines(self.scenario, snapshot)
+        if lines:
+            stacked = np.concatenate(lines)
+            lo, hi = stacked.min(axis=0), stacked.max(axis=0)
+            pad = 0.1 * (hi - lo) + 1e-3
+            self._bounds = (lo[0] - pad[0], lo[1] - pad[1], hi[0] + pad[0], hi[1] + pad[1])
+        self._draw(snapshot)
+
+    # -- actions -------------------------------------------------------------------------------------------------
+    def action_next_layout(self) -> None:
+        if self.scenario is None or self.running:
+            return
+        self.layout_index = (self.layout_index + 1) % len(self.layout_names)
+        self._fill_events()
+        self._show_summary()
+        self._draw_layout()
+
+    def action_toggle_pacing(self) -> None:
+        self.realtime = not self.realtime
+        self.set_status(f"real-time pacing {'on' if self.realtime else 'off'}")
+
+    def action_simulate(self) -> None:
+        if self.scenario is None or self.running:
+            return
+        self.running = True
+        self._fill_events()
+        self.set_status("simulating…")
+        self.simulate_worker(self.scenario, self.current_layout(), self.realtime)
+
+    @work(thread=True, exclusive=True, group="contraption")
+    def simulate_worker(self, scenario: Scenario, x: np.ndarray, realtime: bool) -> None:
+        started = time.perf_counter()
+        if self._client is None:
+            self._client = direct_client()
+        with Simulator(scenario, client=self._client) as sim:
+            problems = sim.check_validity(x)
+            if problems:
+                message = "; ".join(p.message for p in problems)
+                self.app.call_from_thread(self._finished, None, f"[red]impossible layout:[/] {message}")
+                return
+
+            def on_change(t: float, states: dict[str, str]) -> None:
+                if realtime:
+                    # Pace the run so that a person can follow the events (simulated time = wall time).
+                    delay = started + t - time.perf_counter()
+                    if delay > 0:
+                        time.sleep(delay)
+                snapshot = sim.world.snapshot()
+                self.app.call_from_thread(self._update_states, t, states, snapshot)
+
+            result = sim.run(x, on_change=on_change, record=True)
+        verdict = "[bold green]SUCCESS[/]" if result.success else "[bold red]FAILURE[/]"
+        summary = (
+            f"{verdict}: {result.n_successful_events}/{len(result.events)} events, "
+            f"{result.duration:.2f} s simulated in {result.steps} steps"
+        )
+        self.app.call_from_thread(self._finished, result, summary)
+
+    def _update_states(self, t: float, states: dict[str, str], snapshot) -> None:
+        table = self.query_one("#events", DataTable)
+        for name, state in states.items():
+            table.update_cell(name, "state", self._styled(state))
+        self.set_status(f"t = {t:.3f} s")
+        self._draw(snapshot)
+
+    def _finished(self, result, summary: str) -> None:
+        self.running = False
+        self.result = result
+        if result is not None:
+            table = self.query_one("#events", DataTable)
+            for name, outcome in result.events.items():
+                table.update_cell(name, "state", self._styled(outcome.state))
+                table.update_cell(name, "woke", "" if outcome.woke is None else f"{outcome.woke:.3f}")
+                table.update_cell(name, "at", "" if outcome.time is None else f"{outcome.time:.3f}")
+            self._draw(result.end)
+        self.set_status(summary)
+
+
+SCREEN = ScreenEntry(
+    name="contraption",
+    key="c",
+    title="Contraptions",
+    description="chain-reaction scenarios: causal graph, simulation, event states",
+    factory=ContraptionScreen,
+    order=20,
+)
