@@ -25,7 +25,7 @@ from typing import Any
 
 import numpy as np
 import shapely.affinity as affinity
-from shapely.geometry import LineString, MultiPoint, Point, Polygon
+from shapely.geometry import LineString, MultiPoint, Point, Polygon, box
 
 from design.errors import ConstraintViolation, parameter_error
 from design.fabrication.gears import (
@@ -156,6 +156,22 @@ def _label(shape: Polygon, text: str, hardware: Hardware, near=(0.0, 0.0)) -> tu
     strokes = place_label(shape, text, hardware.label_height, near=near)
     if not strokes and _short_code(text) != text:
         strokes = place_label(shape, _short_code(text), hardware.label_height, near=near, min_height=1.5)
+    return tuple(strokes)
+
+
+def _plate_labels(shape: Polygon, main: tuple[str, tuple[float, float]],
+                  marks: list[tuple[str, tuple[float, float]]], hardware: Hardware) -> tuple[np.ndarray, ...]:
+    """The plate's name plus a small mark next to each axle (which part goes where); labels never overlap."""
+    strokes: list[np.ndarray] = []
+    room = shape
+    for index, (text, near) in enumerate([main, *marks]):
+        height = hardware.label_height if index == 0 else 0.75 * hardware.label_height
+        placed = place_label(room, text, height, near=near, min_height=1.5)
+        if placed:
+            points = np.concatenate(placed)
+            lo, hi = points.min(axis=0), points.max(axis=0)
+            room = room.difference(box(*lo, *hi).buffer(1.0))
+            strokes.extend(placed)
     return tuple(strokes)
 
 
@@ -322,7 +338,9 @@ def _cycloid(p: Mapping[str, float], scale: float, settings: GearSettings, hw: H
              ("fulcrum pivot", tuple(fulcrum * scale), hw.pin_hole)]
     plate = _plate([a[1] for a in axles], hw.arm_width)
     plate_shape = _with_holes("base plate", plate, axles, hw.wall)
-    plate_part = Part("base plate", plate_shape, _label(plate_shape, "BASE", hw, near=tuple(g_e * scale / 2)),
+    marks = [("T", (0.0, 0.0)), ("E", tuple(g_e * scale)), ("F", tuple(fulcrum * scale))]
+    plate_part = Part("base plate", plate_shape,
+                      _plate_labels(plate_shape, ("BASE", tuple(g_e * scale / 2)), marks, hw),
                       MappingProxyType({"axles_mm": {n: [round(c[0], 3), round(c[1], 3)] for n, c, _ in axles}}))
     return [*turntable, *external, arm_part, plate_part]
 
@@ -352,7 +370,8 @@ def _hoot_nanny(p: Mapping[str, float], scale: float, settings: GearSettings, hw
              ("gear 2 axle", tuple(g2), hw.axle_hole)]
     plate = _plate([a[1] for a in axles], hw.arm_width)
     shape = _with_holes("base plate", plate, axles, hw.wall)
-    parts.append(Part("base plate", shape, _label(shape, "BASE", hw, near=tuple((g1 + g2) / 3)),
+    marks = [("T", (0.0, 0.0)), ("G1", tuple(g1)), ("G2", tuple(g2))]
+    parts.append(Part("base plate", shape, _plate_labels(shape, ("BASE", tuple((g1 + g2) / 3)), marks, hw),
                       MappingProxyType({"axles_mm": {n: [round(c[0], 3), round(c[1], 3)] for n, c, _ in axles}})))
     return parts
 
