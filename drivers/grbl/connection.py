@@ -156,6 +156,7 @@ class GrblConnection:
         self._lost_since: float | None = None
         self._lost_entry: _Pending | None = None
         self._alarm_count = 0
+        self.max_pending_bytes = 0  # the most G-code bytes ever unacknowledged (never above rx_size)
         self.replies_accepted = 0  # ok/error lines matched to a sent line (never more than the controller sent)
         self._fault_count = 0
         self._reset_since_alarm = False
@@ -193,8 +194,18 @@ class GrblConnection:
             self._log("info", f"status reports need buffer data: setting $10={value}")
             self.command(f"$10={value}", timeout=2.0, retries=2)  # idempotent
             self.settings[10] = value
-        self._wait_for(lambda: self.status is not None, 2.0)
+        self.fresh_status()
         return self
+
+    def fresh_status(self, timeout: float = 2.0) -> StatusReport | None:
+        """Ask for a status report now and wait for one newer than this call (None if none came)."""
+        asked = time.monotonic()
+        try:
+            self.realtime(b"?")
+        except (PortError, DeviceStateError):
+            return None
+        self._wait_for(lambda: self.status_time > asked or self.position_lost, timeout)
+        return self.status if self.status_time > asked else None
 
     def refresh(self) -> None:
         """Re-read ``$I`` (RX buffer size, options), ``$$`` (settings), ``$#`` (offsets) and ``$G`` (modal state)."""
@@ -210,6 +221,7 @@ class GrblConnection:
                 self.version = reply.text
         self.settings = {r.key: r.value for r in self.command("$$", retries=2) if isinstance(r, SettingLine)}
         self.offsets = {}
+        self.wco = None  # until a status report brings it again, the offsets below are the truth
         for reply in self.command("$#", retries=2):
             if isinstance(reply, Feedback):
                 values = reply.text.split(":")[0]
@@ -418,9 +430,10 @@ class GrblConnection:
                 dwell = _dwell_seconds(block) + (60.0 if block.startswith("$H") else 0.0)
                 with self._cond:
                     ready = self._no_pending if sync else functools.partial(self._has_room, len(data))
-                    self._wait_locked(ready, stop, reply_timeout, "waiting for buffer space", since)
+                    self._wait_locked(ready, stop, reply_timeout, "waiting for buffer space", since, report)
                     entry = _Pending(result, len(data), dwell)
                     self._pending.append(entry)
+                    self.max_pending_bytes = max(self.max_pending_bytes, self._pending_bytes())
                     self._lost_since = None
                 try:
                     self._write(data)
@@ -431,13 +444,15 @@ class GrblConnection:
                 if sync:
                     with self._cond:
                         self._wait_locked(entry.done.is_set, stop, reply_timeout + entry.dwell,
-                                          f"waiting for the reply to {block!r}", since)
+                                          f"waiting for the reply to {block!r}", since, report)
                 report()
             with self._cond:
                 self._wait_locked(lambda: not self._pending, stop,
                                   reply_timeout + sum(p.dwell for p in self._pending), "waiting for the last replies",
-                                  since)
+                                  since, report)
             report()
+            if any(r.status == "unconfirmed" for r in results):
+                raise StreamStopped(f"{self.url}: the controller was reset; lines sent were never answered", "reset")
         except StreamStopped as stopped:
             stopped.first_unconfirmed = self._first_unconfirmed(results)
             stopped.results = results
@@ -459,9 +474,11 @@ class GrblConnection:
                 return result.index
         return None
 
-    def _wait_locked(self, ready, stop, timeout, what: str, since: tuple[int, int]) -> None:
+    def _wait_locked(self, ready, stop, timeout, what: str, since: tuple[int, int], tick=None) -> None:
+        # called with self._cond held; ``tick`` (progress reporting) runs with the lock released
         deadline = time.monotonic() + timeout
-        while not ready():
+        while True:
+            # faults first: an alarm or a reset empties the counter, which must not read as "all answered"
             if self.position_lost or self._fault_count > since[1]:
                 raise StreamStopped(f"{self.url}: {self.fault}", "fault")
             if self._alarm_count > since[0]:
@@ -471,10 +488,18 @@ class GrblConnection:
                 raise StreamStopped(f"{self.url}: stopped", "stopped")
             if self._stop.is_set():
                 raise StreamStopped(f"{self.url}: connection closed", "closed")
+            if ready():
+                return
             remaining = deadline - time.monotonic()
             if remaining <= 0:
                 raise StreamStopped(f"{self.url}: no reply after {timeout:.1f} s {what}", "timeout")
             self._cond.wait(min(remaining, 0.1))
+            if tick is not None:
+                self._cond.release()
+                try:
+                    tick()
+                finally:
+                    self._cond.acquire()
 
     def _wait_for(self, predicate, timeout: float) -> bool:
         deadline = time.monotonic() + timeout

@@ -166,6 +166,9 @@ class JobRunner:
         self._lines: list[str] = []
         self._origin: list[int] = []  # job line index of each streamed line (-1 for added lines)
         self._durations = np.zeros(0)
+        self._cumulative = np.zeros(0)
+        self._last_report = 0.0
+        self._acked_streamed = 0
 
     # ------------------------------------------------------------------ pre-flight
 
@@ -186,7 +189,7 @@ class JobRunner:
         conn = self.connection
         if conn.position_lost:
             raise DeviceStateError(f"{conn.url}: position lost ({conn.fault}); reconnect and home ($H) first")
-        status = conn.status
+        status = conn.fresh_status() or conn.status
         if status is not None and status.state == "Alarm":
             raise DeviceStateError(f"{conn.url}: machine is in alarm ({conn.alarm or 'locked'}); "
                                    "home ($H) or unlock ($X) first")
@@ -203,10 +206,17 @@ class JobRunner:
                 raise JobRefused(f"job {self.job.name!r}: line {number} is longer than GRBL's RX buffer "
                                  f"({conn.rx_size} bytes)")
         self._lines, self._origin = self._build_lines()
-        toolpath = interpret(self._lines)
+        # start from where the machine stands: relative moves and the first travel are then checked too
+        start = None
+        if status is not None:
+            wpos = status.work_position(conn.work_offset())
+            if wpos is not None:
+                start = wpos
+        toolpath = interpret(self._lines, start=start)
         rapid = min(conn.settings.get(110, 500.0), conn.settings.get(111, 500.0))
         durations = toolpath.durations(rapid_rate=rapid)
         self._durations = durations
+        self._cumulative = np.cumsum(durations)
         checked = {"lines": len(self._lines), "estimate_s": float(durations.sum())}
         extent = toolpath.extent()
         if extent is not None:
@@ -268,9 +278,10 @@ class JobRunner:
     def hold(self) -> None:
         """Feed hold (``!``): decelerates to a stop; in laser mode the laser is off while held."""
         self.connection.feed_hold()
-        if self._hold_started is None:
-            self._hold_started = time.monotonic()
-        self.progress.state = "holding"
+        if self.result is None:
+            if self._hold_started is None:
+                self._hold_started = time.monotonic()
+            self.progress.state = "holding"
 
     def resume(self) -> None:
         """Cycle start (``~``) after a hold."""
@@ -278,7 +289,8 @@ class JobRunner:
         if self._hold_started is not None:
             self._held += time.monotonic() - self._hold_started
             self._hold_started = None
-        self.progress.state = "running"
+        if self.result is None:
+            self.progress.state = "running"
 
     def abort(self) -> None:
         """Stop now: soft reset (0x18) first, then the job thread switches the laser off with ``M5 S0``."""
@@ -300,13 +312,14 @@ class JobRunner:
         now = time.monotonic()
         held = self._held + (now - self._hold_started if self._hold_started else 0.0)
         p.elapsed = max(0.0, now - self._start_time - held) if self._start_time else 0.0
-        total = float(self._durations.sum()) if len(self._durations) else 0.0
+        total = float(self._cumulative[-1]) if len(self._cumulative) else 0.0
         status = self.connection.status
         in_planner = 0
         if status is not None and status.planner_free is not None:
             in_planner = max(0, self.connection.planner_size - status.planner_free)
         executed = max(0, self._acked_streamed - in_planner)
-        done = float(self._durations[:executed].sum()) if executed else 0.0
+        executed = min(executed, len(self._cumulative))
+        done = float(self._cumulative[executed - 1]) if executed else 0.0
         if total > 0:
             p.fraction = min(1.0, done / total)
         elif self._lines:
@@ -319,7 +332,9 @@ class JobRunner:
             p.eta = (total - done) / max(rate, 1e-6)
         else:
             p.eta = total if total else None
-        if self.on_progress:
+        # at most 10 updates a second, but every change of state
+        if self.on_progress and (state or now - self._last_report >= 0.1):
+            self._last_report = now
             self.on_progress(p)
 
     def run(self) -> JobResult:
@@ -433,7 +448,7 @@ class JobRunner:
         conn = self.connection
         if conn.position_lost:
             return False
-        status = conn.status
+        status = conn.fresh_status() or conn.status
         if status is not None and status.state == "Alarm":
             return True  # GRBL's reset kills the spindle/laser; G-code is locked out until $X/$H
         try:

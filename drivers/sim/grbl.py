@@ -21,7 +21,8 @@ URL query parameters (``sim://grbl?profile=laser&time_scale=0.05&seed=3``)
 ``profile`` (``plotter``/``laser``), ``name`` (share one machine between opens), ``time_scale`` (real seconds per
 simulated second), ``latency`` (seconds each way), ``wire`` (0 disables the baud-rate transfer time), ``seed``,
 ``drop`` / ``corrupt`` / ``stray`` / ``delay`` (probabilities per reply line), ``delay_max`` (seconds),
-``disconnect_at`` (the N-th G-code line received unplugs the port), ``locked`` (power up in alarm), and
+``disconnect_at`` (the N-th G-code line received unplugs the port), ``drop_reply_at`` (the reply to the N-th
+G-code line is lost), ``locked`` (power up in alarm), and
 ``s<N>=<value>`` to override setting ``$N``.
 """
 
@@ -89,6 +90,7 @@ class SimConfig:
     delay: float = 0.0
     delay_max: float = 0.05
     disconnect_at: int = 0
+    drop_reply_at: int = 0
     locked: bool = False
     settings: dict[int, float] = field(default_factory=dict)
 
@@ -99,7 +101,7 @@ class SimConfig:
         for key, value in query.items():
             if key in floats:
                 setattr(config, key, float(value))
-            elif key in ("seed", "disconnect_at"):
+            elif key in ("seed", "disconnect_at", "drop_reply_at"):
                 setattr(config, key, int(value))
             elif key in ("wire", "locked"):
                 setattr(config, key, value.lower() in ("1", "true", "yes", "on"))
@@ -364,6 +366,7 @@ class SimulatedGrbl:
         self._planner: deque[_Block] = deque()
         self._gen = None
         self._wait = None
+        self._line_no: int | None = None
         self._halted = False
         self._owed_ok = False
         self._check_mode = False
@@ -652,6 +655,9 @@ class SimulatedGrbl:
             self._gen = None
             self._wait = None
             status = stop.value or 0
+            if self.config.drop_reply_at and self._line_no == self.config.drop_reply_at:
+                self._line_no = None  # fault injection: this one reply never leaves the machine
+                return
             self._emit("ok" if status == 0 else f"error:{status}", "reply")
         except _Halt:
             self._gen = None
@@ -678,6 +684,7 @@ class SimulatedGrbl:
                     self._out_cond.notify_all()
                 return
         self.record.received.append(text)
+        self._line_no = None if text.startswith("$") else self._gcode_lines
         if text.startswith("$"):
             self._gen = self._system_command(text)
         else:

@@ -1,0 +1,238 @@
+"""The GRBL driver against the simulated machine and, with CHAOS_STATION_GRBL_PORT set, a real controller.
+
+Tests that move the machine, reset it in motion or need the simulator's record run on the simulator only."""
+
+from __future__ import annotations
+
+import time
+
+import pytest
+
+from drivers.errors import PortError, ProtocolError
+from drivers.gcode import clean_line
+from drivers.grbl import GrblConnection, Job, JobRunner, StreamStopped, frame_lines, list_ports, probe
+
+from .conftest import sim_url
+
+
+def _sim_only(url: str) -> None:
+    if not url.startswith("sim://"):
+        pytest.skip("moves the machine or needs the simulator's record")
+
+
+def _motion(lines):
+    return [clean_line(x) for x in lines if clean_line(x).startswith(("G0", "G1"))]
+
+
+SQUARE = ["G21", "G90", "M4 S400", "G0 X10 Y10", "G1 X60 Y10 F3000", "G1 X60 Y60", "G1 X10 Y60", "G1 X10 Y10",
+          "G0 X0 Y0"]
+
+
+# ------------------------------------------------------------------ both sim and real
+
+
+def test_connect_reads_buffer_size_settings_and_status(machine_url, make_connection):
+    conn = make_connection(machine_url)
+    assert conn.rx_size >= 128 and conn.planner_size >= 15
+    assert {10, 30, 32, 130, 131, 132} <= set(conn.settings)
+    assert int(conn.settings[10]) & 2  # buffer data in status reports
+    assert conn.status is not None and conn.status.planner_free is not None
+    assert conn.version.startswith("1.1")
+    assert any(direction == "in" for _, direction, _ in conn.log)
+
+
+def test_command_errors_carry_their_meaning(machine_url, make_connection):
+    conn = make_connection(machine_url)
+    with pytest.raises(ProtocolError, match=r"error:20 \(Unsupported or invalid g-code"):
+        conn.command("G41")
+    assert conn.command("$G")[0].kind == "GC"
+
+
+def test_dry_run_in_check_mode_reports_bad_lines_and_moves_nothing(machine_url, make_connection):
+    conn = make_connection(machine_url)
+    job = Job("check", ["G91", "G1 X-0.1 F100", "G41", "G1 X0.1", "G90"])
+    result = JobRunner(conn, job, dry_run=True).run()
+    assert result.state == "stopped"
+    assert [line for line, _ in result.errors] == [3]
+    assert "error:20" in result.errors[0][1] and "Unsupported" in result.errors[0][1]
+    assert conn.status.state == "Idle"  # leaving check mode reset the controller
+    if machine_url.startswith("sim://"):
+        assert conn.port.machine.snapshot().executed == []
+
+
+def test_job_outside_the_travel_is_refused_before_any_motion(machine_url, make_connection):
+    conn = make_connection(machine_url)
+    received_before = len(conn.port.machine.snapshot().received) if machine_url.startswith("sim://") else 0
+    result = JobRunner(conn, Job("huge", ["G90", "G0 X5000 Y5000"])).run()
+    assert result.state == "refused" and "leaves the machine's travel" in result.message
+    if machine_url.startswith("sim://"):
+        new = conn.port.machine.snapshot().received[received_before:]
+        assert all(line.startswith("$") for line in new), new  # only the pre-flight's queries
+
+
+# ------------------------------------------------------------------ simulator only
+
+
+def test_job_runs_to_100_percent_and_ends_with_laser_off(make_connection):
+    conn = make_connection(sim_url("laser"))
+    updates = []
+    result = JobRunner(conn, Job("square", SQUARE, laser=True), on_progress=updates.append).run()
+    assert result.ok and result.laser_off
+    assert updates[-1].fraction == 1.0 and updates[-1].eta == 0.0 and updates[-1].state == "done"
+    record = conn.port.machine.snapshot()
+    assert [b.text for b in record.executed] == _motion(SQUARE)
+    assert [b.power for b in record.executed] == [0, 400, 400, 400, 400, 0]
+    gcode = [line for line in record.received if not line.startswith("$")]
+    assert gcode[-2:] == ["M5S0", "G4P0"]  # every laser job ends with M5 S0, then waits for the motion
+    assert record.samples[-1].power == 0.0
+    assert record.overflow_bytes == 0 and conn.max_pending_bytes <= conn.rx_size
+
+
+def test_character_counting_keeps_the_buffer_full_but_never_overfull(make_connection):
+    conn = make_connection(sim_url("laser", time_scale=0.05))
+    lines = ["G21 G90 F3000"] + [f"G1 X{10 + (i % 40) * 0.5:.1f} Y{10 + (i // 40) * 0.5:.1f}" for i in range(400)]
+    results = conn.stream(lines)
+    assert all(r.status == "ok" for r in results)
+    assert conn.rx_size - 20 < conn.max_pending_bytes <= conn.rx_size
+    assert conn.port.machine.snapshot().overflow_bytes == 0
+
+
+def test_laser_job_refused_unless_laser_mode(make_connection):
+    conn = make_connection(sim_url("laser", s32=0))
+    result = JobRunner(conn, Job("burn", SQUARE, laser=True)).run()
+    assert result.state == "refused" and "$32=0" in result.message
+    assert all(line.startswith("$") for line in conn.port.machine.snapshot().received)
+
+
+def test_work_offset_moves_the_allowed_area(make_connection):
+    conn = make_connection(sim_url("laser"))
+    assert JobRunner(conn, Job("ok", ["G90", "G0 X300 Y300"])).run().ok
+    conn.command("G10 L20 P1 X0 Y0")  # work zero where the head now stands (machine -100, -100)
+    result = JobRunner(conn, Job("shifted", ["G90", "G0 X10 Y150"])).run()
+    assert result.state == "refused" and "Y 0.00..150.00 (machine -100.00..50.00" in result.message
+
+
+def test_soft_limit_alarm_clears_counter_and_the_late_ok_is_ignored(make_connection):
+    conn = make_connection(sim_url("laser"))
+    with pytest.raises(StreamStopped) as stopped:
+        conn.stream(["G90", "G0 X10 Y10", "G0 X900", "G0 X20", "G0 X30"])  # straight to the controller
+    assert stopped.value.reason == "alarm" and conn.alarm.code == 2
+    assert conn.pending_count == 0
+    assert conn.soft_reset()
+    assert any("ignored 'ok'" in text for _, kind, text in conn.log if kind == "info")
+    assert conn.status is None or conn.pending_count == 0
+    assert any(getattr(r, "text", "") == "Caution: Unlocked" for r in conn.command("$X"))
+    results = conn.stream(["G0 X20 Y20", "G0 X30 Y30", "G4 P0"])  # G4 P0 is answered once motion is done
+    assert [r.status for r in results] == ["ok", "ok", "ok"]
+    record = conn.port.machine.snapshot()
+    # GRBL stops the move in progress (feed hold, reset): the first block never completes
+    assert [b.text for b in record.executed] == ["G0X20Y20", "G0X30Y30"]
+
+
+def test_abort_resets_at_once_laser_off_and_alarm_recovery(make_connection):
+    conn = make_connection(sim_url("laser", time_scale=0.5))
+    runner = JobRunner(conn, Job("square", SQUARE, laser=True))
+    runner.start()
+    while runner.progress.lines_acked < 5:
+        time.sleep(0.01)
+    aborted = time.monotonic()
+    runner.abort()
+    result = runner.wait(10)
+    assert result.state == "aborted" and result.laser_off and "ALARM:3" in result.message
+    record = conn.port.machine.snapshot()
+    reset = next(t for t in record.resets if t >= aborted)
+    assert all(s.power == 0.0 for s in record.samples if s.t >= reset)
+    assert JobRunner(conn, Job("again", SQUARE, laser=True)).run().state == "refused"  # locked: home first
+    conn.command("$H")
+    conn._wait_for(lambda: conn.status.state == "Idle" and conn.alarm is None, 5)
+    assert conn.alarm is None
+    assert JobRunner(conn, Job("again", SQUARE, laser=True)).run().ok
+
+
+def test_lost_ok_at_the_end_is_reported_without_inventing_it(make_connection):
+    lines = ["G21", "G90", "M4 S300", "F2000"] + [f"G1 X{10 + i} Y{10 + 2 * i}" for i in range(12)] + ["G0 X0 Y0"]
+    conn = make_connection(sim_url("laser", drop_reply_at=9))
+    result = JobRunner(conn, Job("walk", lines, laser=True)).run()
+    # counting goes on past one lost ok; at the end the machine is idle, empty, at the last line's end point
+    assert result.ok and "lost ok" in result.message
+    assert [b.text for b in conn.port.machine.snapshot().executed] == _motion(lines)
+
+
+def test_lost_ok_stops_the_job_and_resume_runs_every_line_once(make_connection):
+    walk = [f"G1 X{10 + i} Y{10 + 2 * i}" for i in range(12)]
+    # G28.1 goes by send-response: its lost reply stalls the stream mid-job
+    lines = ["G21", "G90", "M4 S300", "F2000", *walk[:6], "G28.1", *walk[6:], "G0 X0 Y0"]
+    conn = make_connection(sim_url("laser", drop_reply_at=11))
+    job = Job("walk", lines, laser=True)
+    first = JobRunner(conn, job).run()
+    assert first.state == "stopped" and "lost ok" in first.message and "no ok was assumed" in first.message
+    assert first.resume_line == 12
+    record = conn.port.machine.snapshot()
+    assert record.samples[-1].power == 0.0
+    second = JobRunner(conn, job, from_line=first.resume_line).run()
+    assert second.ok, second.message
+    executed = [b.text for b in conn.port.machine.snapshot().executed]
+    assert executed == _motion(lines)
+    assert conn.replies_accepted <= conn.port.machine.snapshot().replies_delivered
+
+
+def test_vanished_port_means_position_lost_and_no_resume(make_connection):
+    conn = make_connection(sim_url("plotter"))
+    conn.port.machine.unplug()
+    assert conn._wait_for(lambda: conn.position_lost, 5.0)
+    assert "position lost" in conn.fault
+    result = JobRunner(conn, Job("square", SQUARE)).run()
+    assert result.state == "position_lost"
+
+
+def test_resume_from_line_rebuilds_the_modal_state(make_connection):
+    conn = make_connection(sim_url("laser"))
+    lines = ["G21", "G90", "M4 S300", "G0 X10 Y10", "G1 X20 Y10 F1200", "G1 X20 Y20", "G1 X10 Y20"]
+    assert JobRunner(conn, Job("part", lines[:5], laser=True)).run().ok
+    result = JobRunner(conn, Job("rest", lines, laser=True), from_line=6).run()
+    assert result.ok
+    record = conn.port.machine.snapshot()
+    tail = [b for b in record.executed][-2:]
+    assert [b.text for b in tail] == ["G1X20Y20", "G1X10Y20"]
+    assert [b.power for b in tail] == [300, 300] and [b.feed for b in tail] == [1200, 1200]
+    received = record.received
+    index = received.index("G1X20Y20")
+    assert received[index - 4: index] == ["M5", "G0X20Y10", "M4S300", "F1200"]
+
+
+def test_hold_and_resume(make_connection):
+    conn = make_connection(sim_url("laser", time_scale=0.5))
+    runner = JobRunner(conn, Job("square", SQUARE, laser=True))
+    runner.start()
+    while runner.progress.lines_acked < 5:
+        time.sleep(0.01)
+    runner.hold()
+    assert conn._wait_for(lambda: conn.status.label == "Hold:0", 3)
+    assert conn.port.machine.snapshot().samples[-1].power == 0.0
+    runner.resume()
+    result = runner.wait(20)
+    assert result.ok and runner.progress.state == "done"
+
+
+def test_frame_traces_the_bounding_box(make_connection):
+    conn = make_connection(sim_url("laser"))
+    job = Job("square", SQUARE, laser=True)
+    lo, hi = job.toolpath.extent(include_rapids=False)
+    frame = Job("frame", frame_lines(lo, hi, laser_power=10, feed=3000), laser=True)
+    assert JobRunner(conn, frame).run().ok
+    blocks = conn.port.machine.snapshot().executed
+    wco = conn.work_offset()
+    corners = [(round(b.end[0] - wco[0], 3), round(b.end[1] - wco[1], 3)) for b in blocks]
+    assert corners == [(10, 10), (60, 10), (60, 60), (10, 60), (10, 10)]
+    assert [b.power for b in blocks] == [0, 10, 10, 10, 10]
+
+
+def test_open_errors_and_discovery():
+    with pytest.raises(PortError, match="sim://mill"):
+        GrblConnection("sim://mill").open()
+    with pytest.raises(PortError, match="no GRBL banner"):
+        GrblConnection("loop://", banner_timeout=0.3).open()
+    assert probe("sim://grbl?profile=laser") == "1.1h"
+    assert probe("loop://", timeout=0.3) == ""
+    urls = [p.url for p in list_ports(probe_ports=False)]
+    assert "sim://grbl?profile=plotter" in urls and "sim://grbl?profile=laser" in urls

@@ -1,0 +1,223 @@
+"""The simulated GRBL 1.1, byte for byte through pyserial's URL interface."""
+
+from __future__ import annotations
+
+import time
+
+import pytest
+import serial
+
+import drivers.sim  # noqa: F401 - registers sim://
+
+BANNER = b"\r\nGrbl 1.1h ['$' for help]\r\n"
+UNLOCK = b"[MSG:'$H'|'$X' to unlock]\r\n"
+
+
+class Raw:
+    """A raw port: write bytes, read until an expected ending."""
+
+    def __init__(self, url: str) -> None:
+        self.port = serial.serial_for_url(url, timeout=0.02)
+        self.machine = self.port.machine
+
+    def read_until(self, ending: bytes, timeout: float = 5.0) -> bytes:
+        data = b""
+        deadline = time.monotonic() + timeout
+        while not data.endswith(ending):
+            assert time.monotonic() < deadline, f"no {ending!r} in {data!r}"
+            data += self.port.read(4096)
+        return data
+
+    def ask(self, text: str, ending: bytes = b"ok\r\n") -> bytes:
+        self.port.write(text.encode() + b"\n")
+        return self.read_until(ending)
+
+    def status(self) -> str:
+        self.port.write(b"?")
+        line = self.read_until(b">\r\n").decode()
+        return line[line.rindex("<"):].strip()
+
+    def wait_state(self, state: str, timeout: float = 5.0) -> str:
+        deadline = time.monotonic() + timeout
+        while True:
+            report = self.status()
+            if report.startswith(f"<{state}"):
+                return report
+            assert time.monotonic() < deadline, report
+            time.sleep(0.01)
+
+
+@pytest.fixture
+def raw():
+    opened = []
+
+    def make(query: str = "profile=laser&time_scale=0.02") -> Raw:
+        port = Raw(f"sim://grbl?{query}")
+        opened.append(port)
+        assert port.read_until(UNLOCK if "locked=1" in query else BANNER) in (BANNER, BANNER + UNLOCK)
+        return port
+
+    yield make
+    for port in opened:
+        port.port.close()
+
+
+def test_banner_info_settings_and_parser_state(raw):
+    port = raw()
+    assert port.ask("$I") == b"[VER:1.1h.20190825:]\r\n[OPT:V,15,128]\r\nok\r\n"
+    settings = port.ask("$$").decode()
+    assert settings.startswith("$0=10\r\n$1=25\r\n") and "$10=1\r\n" in settings and "$11=0.010\r\n" in settings
+    assert "$30=1000\r\n" in settings and "$32=1\r\n" in settings and "$130=400.000\r\n" in settings
+    assert port.ask("$G") == b"[GC:G0 G54 G17 G21 G90 G94 M5 M9 T0 F0 S0]\r\nok\r\n"
+    offsets = port.ask("$#").decode()
+    assert offsets.startswith("[G54:-400.000,-400.000,0.000]\r\n[G55:0.000,0.000,0.000]\r\n")
+    assert offsets.endswith("[TLO:0.000]\r\n[PRB:0.000,0.000,0.000:0]\r\nok\r\n")
+    assert port.status() == "<Idle|MPos:0.000,0.000,0.000|FS:0,0|WCO:-400.000,-400.000,0.000>"
+    assert port.ask("$10=3") == b"ok\r\n"
+    assert port.status() == "<Idle|MPos:0.000,0.000,0.000|Bf:15,128|FS:0,0>"
+
+
+@pytest.mark.parametrize(
+    ("line", "reply"),
+    [("G41", b"error:20\r\n"), ("G1 X1", b"error:22\r\n"), ("G0 X1 X2", b"error:25\r\n"), ("G0 G1 X1", b"error:21\r\n"),
+     ("$99=1", b"error:3\r\n"), ("X", b"error:2\r\n"), ("5", b"error:1\r\n"), ("G4", b"error:28\r\n"),
+     ("G1 F-5", b"error:4\r\n"), ("$H", b"ok\r\n"), ("", b"ok\r\n"), ("G0 X10 (comment) Y10", b"ok\r\n")],
+)
+def test_replies_and_error_codes(raw, line, reply):
+    port = raw()
+    port.port.write(line.encode() + b"\n")
+    assert port.read_until(b"\r\n").endswith(reply)
+
+
+def test_locked_after_power_up_then_unlock(raw):
+    port = raw("profile=plotter&locked=1")
+    assert port.ask("G0 X1", b"error:9\r\n") == b"error:9\r\n"
+    assert port.status().startswith("<Alarm|")
+    assert port.ask("$X") == b"[MSG:Caution: Unlocked]\r\nok\r\n"
+    assert port.ask("G0 X1") == b"ok\r\n"
+
+
+def test_soft_limit_alarm_withholds_ok_until_reset(raw):
+    port = raw()
+    port.port.write(b"G0 X500\n")  # machine X = 500 - 400 = 100 > 0: outside the travel
+    assert port.read_until(b"Reset to continue]\r\n") == b"ALARM:2\r\n[MSG:Reset to continue]\r\n"
+    assert port.status().startswith("<Alarm|")
+    port.port.write(b"\x18")
+    assert port.read_until(UNLOCK) == b"ok\r\n" + BANNER + UNLOCK
+    assert port.machine.snapshot().alarms == [2]
+    assert port.ask("G0 X1", b"error:9\r\n") == b"error:9\r\n"
+
+
+def test_reset_during_motion_is_alarm_3_and_lock(raw):
+    port = raw("profile=laser&time_scale=1")
+    assert port.ask("G1 X200 F600") == b"ok\r\n"
+    port.wait_state("Run")
+    port.port.write(b"\x18")
+    assert port.read_until(UNLOCK) == b"ALARM:3\r\n" + BANNER + UNLOCK
+    assert port.status().startswith("<Alarm|")
+
+
+def test_planner_and_rx_buffer_in_bf(raw):
+    port = raw("profile=laser&time_scale=1")
+    port.ask("$10=3")
+    lines = [f"G1X{10 + i}F60" for i in range(17)]  # 1 mm at 1 mm/s each: the planner fills
+    for line in lines[:15]:
+        assert port.ask(line) == b"ok\r\n"
+    port.port.write((lines[15] + "\n" + lines[16] + "\n").encode())
+    time.sleep(0.1)
+    # 15 blocks planned; line 16 is out of the RX buffer but blocked in the parser; line 17 waits in the buffer
+    report = port.status()
+    assert report.startswith("<Run|") and f"|Bf:0,{128 - len(lines[16]) - 1}|" in report
+    port.port.write(b"\x18")
+
+
+def test_rx_overflow_is_recorded(raw):
+    port = raw("profile=laser&time_scale=1")
+    port.port.write(b"G1X10F60\n")
+    port.port.write(b"G1X11F60\n" * 30)  # 270 bytes at once: a correct streamer never does this
+    time.sleep(0.3)
+    assert port.machine.snapshot().overflow_bytes > 0
+
+
+def test_motion_takes_time_at_the_commanded_feed(raw):
+    port = raw("profile=laser&time_scale=0.02")
+    port.ask("G1 X20 F600")  # from work X400 (machine 0) to X20 (machine -380): 380 mm at 10 mm/s
+    port.wait_state("Idle", timeout=10)
+    record = port.machine.snapshot()
+    block = record.executed[-1]
+    start = next(s for s in record.samples if s.state == "Run")
+    assert block.end == (-380.0, 0.0, 0.0)
+    assert block.t_end - start.t == pytest.approx(380 / 10 * 0.02, rel=1e-6)
+
+
+def test_laser_mode_power_feed_hold_and_m5(raw):
+    port = raw("profile=laser&time_scale=1")
+    port.ask("G0 X10 Y10")
+    port.ask("M3 S500")
+    port.ask("G1 X30 F600")
+    port.wait_state("Run")
+    port.port.write(b"!")
+    port.wait_state("Hold:0")
+    record = port.machine.snapshot()
+    assert record.samples[-1].power == 0.0  # laser mode: dark while held
+    port.port.write(b"~")
+    port.wait_state("Idle", timeout=10)
+    port.ask("M5")
+    record = port.machine.snapshot()
+    rapid, cut = record.executed[-2:]
+    assert rapid.power == 0.0 and cut.power == 500.0
+    assert record.samples[-1].power == 0.0
+
+
+def test_spindle_mode_servo_holds_its_value(raw):
+    port = raw("profile=plotter&time_scale=0.01")
+    port.ask("M3 S30")
+    assert port.machine.snapshot().samples[-1].power == 30.0  # the pen servo keeps its position while idle
+
+
+def test_check_mode_moves_nothing_and_leaves_by_reset(raw):
+    port = raw()
+    assert port.ask("$C") == b"[MSG:Enabled]\r\nok\r\n"
+    assert port.status().startswith("<Check|")
+    assert port.ask("G1 X10 Y10 F100") == b"ok\r\n"
+    assert port.ask("G41", b"error:20\r\n").endswith(b"error:20\r\n")
+    port.port.write(b"$C\n")
+    assert port.read_until(BANNER) == b"[MSG:Disabled]\r\nok\r\n" + BANNER
+    assert port.machine.snapshot().executed == []
+
+
+def test_jog_cancel_and_jog_limits(raw):
+    port = raw("profile=laser&time_scale=1")
+    assert port.ask("$J=G91 X-50 F600") == b"ok\r\n"
+    port.wait_state("Jog")
+    port.port.write(b"\x85")
+    port.wait_state("Idle")
+    assert port.ask("$J=G91 X1000 F600", b"error:15\r\n").endswith(b"error:15\r\n")
+    assert port.ask("$J=G91 X1 M3 F600", b"error:16\r\n").endswith(b"error:16\r\n")
+    assert port.ask("$J=G91 X1", b"error:22\r\n").endswith(b"error:22\r\n")
+
+
+def test_homing_and_disabled_homing(raw):
+    port = raw("profile=laser&time_scale=0.05")
+    assert port.ask("$H") == b"ok\r\n"
+    assert port.status().startswith("<Idle|MPos:-1.000,-1.000,-1.000")
+    plain = raw("profile=laser&s22=0&s20=0")
+    assert plain.ask("$H", b"error:5\r\n").endswith(b"error:5\r\n")
+
+
+def test_unplug_makes_reads_and_writes_fail(raw):
+    port = raw()
+    port.machine.unplug()
+    with pytest.raises(serial.SerialException):
+        port.port.read(10)
+    with pytest.raises(serial.SerialException):
+        port.port.write(b"?")
+
+
+def test_bad_urls():
+    with pytest.raises(serial.SerialException, match="unknown simulated device"):
+        serial.serial_for_url("sim://mill")
+    with pytest.raises(serial.SerialException, match="unknown sim option 'bogus'"):
+        serial.serial_for_url("sim://grbl?bogus=1")
+    with pytest.raises(serial.SerialException, match="unknown sim profile"):
+        serial.serial_for_url("sim://grbl?profile=router")
