@@ -24,8 +24,8 @@ def small_retriever(monkeypatch, tmp_path):
 
 
 async def wait_for_candidates(app, pilot, screen):
-    for _ in range(200):
-        await pilot.pause(0.05)
+    for _ in range(600):  # the worker builds a small database first; generous for a loaded machine
+        await pilot.pause(0.1)
         if screen.candidates and screen.query("CandidatePreview"):
             return
     raise AssertionError(f"no candidates; status: {screen.query_one('#status').render()}")
