@@ -18,12 +18,32 @@ from design.robust.problem import RobustError
 _clients = threading.local()
 
 
+def _connect_with_fd1_silenced(client_class, pybullet):
+    """Connect with file descriptor 1 on /dev/null (pybullet's C banner), whatever ``sys.stdout`` is."""
+    import ctypes
+    import os
+
+    saved = os.dup(1)
+    null = os.open(os.devnull, os.O_WRONLY)
+    try:
+        os.dup2(null, 1)
+        return client_class(connection_mode=pybullet.DIRECT)
+    finally:
+        try:
+            ctypes.CDLL(None).fflush(None)
+        except (OSError, AttributeError):  # pragma: no cover
+            pass
+        os.dup2(saved, 1)
+        os.close(saved)
+        os.close(null)
+
+
 def thread_client():
     """This thread's pybullet DIRECT client, made once.
 
     The core's :func:`~design.contraption.bullet.direct_client` silences pybullet's banner by duplicating the
     stdout/stderr file descriptors; under a Textual app (whose streams report unusable descriptors) that raises
-    ``OSError``, so we then connect without silencing (pybullet prints one ``argv[0]=`` line).
+    ``OSError``, so we then silence file descriptor 1 ourselves around the connection.
     """
     client = getattr(_clients, "client", None)
     if client is None:
@@ -32,7 +52,7 @@ def thread_client():
         try:
             client = direct_client()
         except OSError:
-            client = BulletClient(connection_mode=pybullet.DIRECT)
+            client = _connect_with_fd1_silenced(BulletClient, pybullet)
         _clients.client = client
     return client
 

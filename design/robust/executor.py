@@ -14,9 +14,11 @@
 
 from __future__ import annotations
 
+import contextlib
 import os
 import signal
 import sqlite3
+import sys
 import threading
 from collections.abc import Callable
 from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
@@ -93,6 +95,30 @@ class SimulationCache:
     def close(self) -> None:
         with self._lock:
             self._connection.close()
+
+
+@contextlib.contextmanager
+def usable_std_streams():
+    """Put the process's real stdout/stderr back while starting worker processes, if they were replaced.
+
+    multiprocessing passes ``sys.stderr.fileno()`` to the processes it starts; under a Textual app that is -1 and
+    starting a worker fails ("bad value(s) in fds_to_keep").
+    """
+    def unusable(stream) -> bool:
+        try:
+            return stream.fileno() < 0
+        except (AttributeError, OSError, ValueError):
+            return True
+
+    saved = sys.stdout, sys.stderr
+    swap = unusable(sys.stderr) or unusable(sys.stdout)
+    if swap:
+        sys.stdout, sys.stderr = sys.__stdout__, sys.__stderr__
+    try:
+        yield
+    finally:
+        if swap:
+            sys.stdout, sys.stderr = saved
 
 
 # --- worker-side state: one prepared problem per process (one pybullet client per process) ---------------------
@@ -273,11 +299,12 @@ class SimulationExecutor:
             return
 
         if self.backend == "processes":
-            pool = self._ensure_pool()
-            futures = {
-                pool.submit(_simulate_in_worker, scenario, U[[rows[0] for _, rows in chunk]]): chunk
-                for chunk in chunks
-            }
+            with usable_std_streams():  # submitting may start worker processes
+                pool = self._ensure_pool()
+                futures = {
+                    pool.submit(_simulate_in_worker, scenario, U[[rows[0] for _, rows in chunk]]): chunk
+                    for chunk in chunks
+                }
         else:
             client = self._ensure_client()
             if self._remote_problem is None:

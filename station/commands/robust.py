@@ -165,9 +165,16 @@ def register(subparsers) -> None:
     compare.set_defaults(func=run_compare)
 
 
+def thesis_budget(name: str) -> int:
+    """The thesis's budget for a scenario named like one of Table 4.1 (``CAUSALITYSWITCH (ball faster)``,
+    ``causalityswitch_ball``...), else :data:`DEFAULT_BUDGET`."""
+    upper = name.upper()
+    return next((b for key, b in THESIS_BUDGETS.items() if upper.startswith(key)), DEFAULT_BUDGET)
+
+
 def default_budget(problem, budget: int | None) -> int:
     if budget is None:
-        return THESIS_BUDGETS.get(problem.name.upper(), DEFAULT_BUDGET)
+        return thesis_budget(problem.name)
     _positive(budget, "--budget", 20)
     return budget
 

@@ -26,7 +26,7 @@ from design.contraption.catalog import EXAMPLES_DIR, example_names
 from design.errors import DesignError
 from design.robust import Progress, PSPSettings, RobustLayout, SimulationCancelled, SimulationExecutor
 from design.robust import optimize_robust_layout as run_pipeline
-from station.commands.robust import DEFAULT_BUDGET, THESIS_BUDGETS, simulation_cache_path
+from station.commands.robust import DEFAULT_BUDGET, simulation_cache_path, thesis_budget
 from station.paths import data_dir
 from station.tui.registry import ScreenEntry
 from station.tui.screens.fabricate import HalfBlockPicture
@@ -60,10 +60,11 @@ class RobustScreen(Screen):
     RobustScreen .heading { text-style: bold; margin-top: 1; }
     """
 
+    # Priority: the screen's inputs take integers only, so these letters are never typed into them.
     BINDINGS = [
-        Binding("o", "optimize", "Optimize"),
-        Binding("s", "stop", "Stop"),
-        Binding("w", "write", "Write layout"),
+        Binding("o", "optimize", "Optimize", priority=True),
+        Binding("s", "stop", "Stop", priority=True),
+        Binding("w", "write", "Write layout", priority=True),
     ]
 
     def __init__(self) -> None:
@@ -111,9 +112,7 @@ class RobustScreen(Screen):
     def _scenario_changed(self, event: Select.Changed) -> None:
         if event.value is Select.BLANK:
             return
-        name = Path(str(event.value)).stem.upper()
-        if name in THESIS_BUDGETS:
-            self.query_one("#budget", Input).value = str(THESIS_BUDGETS[name])
+        self.query_one("#budget", Input).value = str(thesis_budget(Path(str(event.value)).stem))
 
     @on(Button.Pressed, "#optimize")
     def _optimize_pressed(self) -> None:
