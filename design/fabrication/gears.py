@@ -23,8 +23,9 @@ from dataclasses import dataclass, field
 import numpy as np
 import shapely
 import shapely.affinity
+import shapely.errors
 from scipy.special import ellipe, ellipeinc
-from shapely.geometry import MultiPolygon, Polygon
+from shapely.geometry import LineString, MultiPolygon, Polygon
 
 from design.errors import ParameterError, parameter_error
 
@@ -466,31 +467,51 @@ def ring_gear(teeth: int, module: float, rim: float, settings: GearSettings = Ge
     cutter_coords = np.asarray(_largest(cutter).exterior.coords)
     rc = zc * module / 2.0
     distance = pitch.radius - rc
-    # Cutter centre angle phi over one ring pitch (then replicated): the cutter spins so that its pitch circle rolls
-    # without slipping inside the ring's: spin = phi·(1 - z/zc). At phi = 0 a cutter tooth points at +x, cutting the
-    # ring's space centred on +x, so ring tooth 0 is centred at half a pitch... we rotate the result below.
+    # The cutter's centre goes round at angle phi while it spins so that its pitch circle rolls without slipping
+    # inside the ring's: spin = phi·(1 - z/zc). At phi = 0 a cutter tooth points at +x and cuts the ring's space
+    # centred on +x. The motion is equivariant under a rotation by one ring pitch, so the cut over phi in [0, pitch)
+    # rotated z times is the cut over a whole turn.
     steps = max(8, int(math.ceil(2 * settings.steps_per_pitch)))
     phis = np.linspace(0.0, 2.0 * math.pi / teeth, steps, endpoint=False)
-    near = Polygon(_circle(1.0, 64))
     positions = []
     for phi in phis:
         spin = phi * (1.0 - teeth / zc)
         placed = _rotate(cutter_coords, spin) + distance * np.array([math.cos(phi), math.sin(phi)])
         positions.append(placed)
     cuts = shapely.polygons(np.stack(positions))
-    # Only the teeth near the contact cut; clipping to a window there keeps the Booleans small.
-    window = shapely.affinity.scale(near, 6 * module, 6 * module, origin=(0, 0))
-    window = shapely.affinity.translate(window, pitch.radius, 0.0)
-    window = window.union(shapely.affinity.rotate(window, 360.0 / teeth, origin=(0, 0)))
-    local_cut = shapely.union_all(shapely.intersection(cuts, window))
-    spaces = shapely.union_all([shapely.affinity.rotate(local_cut, 360.0 * k / teeth, origin=(0, 0))
-                                for k in range(teeth)])
-    outer = Polygon(_circle(pitch.radius + hf + rim, max(256, 12 * teeth)))
-    inner = Polygon(_circle(pitch.radius - ha, max(256, 24 * teeth)))
+    # Vertex counts that are multiples of the tooth count keep the blank periodic, like the cut.
+    outer = Polygon(_circle(pitch.radius + hf + rim, teeth * max(12, -(-256 // teeth))))
+    inner = Polygon(_circle(pitch.radius - ha, teeth * max(24, -(-256 // teeth))))
     blank = outer.difference(inner)
+    # Only what the cutter can reach of the blank matters: the blank within the cutter's tip circle, anywhere
+    # along this pitch of its path (with a module of margin). Clipping to it keeps the Booleans small, and every
+    # tooth that touches the blank, even far from the contact (tip trimming), is kept.
+    reach = rc + hf + RING_CLEARANCE * module + module
+    path = LineString([distance * np.array([math.cos(a), math.sin(a)])
+                       for a in np.linspace(0.0, 2.0 * math.pi / teeth, 5)])
+    window = blank.intersection(path.buffer(reach, quad_segs=32))
+    swept = shapely.union_all(shapely.intersection(cuts, window))
+    # Build the ring one pitch-wide sector at a time: the sector [0, pitch) is cut by the sweep above rotated by
+    # the few whole pitches k that reach it (rotating the sweep by k pitches is the cutter k pitches further on).
+    pitch_angle = 2.0 * math.pi / teeth
+    sweep_points = np.asarray(shapely.get_coordinates(swept))
+    angles = np.arctan2(sweep_points[:, 1], sweep_points[:, 0])
+    k_range = range(int(math.floor(-angles.max() / pitch_angle)), int(math.ceil(1.0 - angles.min() / pitch_angle)) + 1)
+    far = 2.0 * (pitch.radius + hf + rim)
+    sector = Polygon([(0.0, 0.0), (far, 0.0), (far * math.cos(pitch_angle), far * math.sin(pitch_angle))])
+    rotated = [shapely.affinity.rotate(swept, k * pitch_angle, origin=(0, 0), use_radians=True) for k in k_range]
+    cut_here = shapely.union_all(shapely.intersection(np.array(rotated, dtype=object), sector.buffer(module)))
+    piece = blank.intersection(sector).difference(cut_here)
+    pieces = [shapely.affinity.rotate(piece, j * pitch_angle, origin=(0, 0), use_radians=True) for j in range(teeth)]
+    # Adjacent sectors share their edges up to rounding: snapped to a 1 nm grid they tile the ring exactly, and
+    # GEOS's coverage union merges such a tiling fast.
+    tiles = shapely.set_precision(np.array(pieces, dtype=object), 1e-6)
+    try:
+        ring = _largest(shapely.coverage_union_all(tiles))
+    except shapely.errors.GEOSException:  # rounding left the tiles unevenly noded: the general union copes
+        ring = _largest(shapely.union_all(tiles, grid_size=1e-6))
     # Ring spaces are centred where cutter teeth were, i.e. on +x: rotate by half a pitch so that a ring *tooth* is
     # centred on +x, like the other gears.
-    ring = _largest(blank.difference(spaces))
     ring = shapely.affinity.rotate(ring, 180.0 / teeth, origin=(0, 0))
     outline = _tidy(ring)
     return Gear("internal", teeth, module, pitch, outline, settings)
