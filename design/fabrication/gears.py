@@ -245,6 +245,19 @@ def _rack_tooth(settings: GearSettings, module: float, space_width: float, heigh
     return outline
 
 
+def _rack_reach(alpha: float, ha: float, hf: float, p: float, radius: float) -> float:
+    """How far (arc length) from a tooth space the rack cutter must roll to finish cutting it.
+
+    The envelope is formed along the line of action, within ``(ha + hf)/tan α`` of the pitch point (plus a pitch for
+    the tooth's width and the tip fillet). It never needs to go further than where the rack tooth leaves the blank
+    of a pitch curve of radius ``radius`` (the flattest place); this also keeps small gears from being swept more
+    than half a turn.
+    """
+    along_action = (ha + hf) / math.tan(alpha) + p
+    leaves_blank = math.sqrt((ha + hf) * (2.0 * radius + ha - hf)) + p
+    return min(along_action, leaves_blank)
+
+
 def _place(outline: np.ndarray, origin: np.ndarray, tangent: np.ndarray, normal: np.ndarray, shift: np.ndarray):
     """Rack outline ``(K, 2)`` placed at ``N`` frames: ``origin + (u + shift)·tangent + v·normal`` → ``(N, K, 2)``."""
     u = outline[None, :, 0] + shift[:, None]
@@ -374,7 +387,7 @@ def _circular_external(teeth: int, module: float, settings: GearSettings, addend
     tooth = _rack_tooth(settings, module, space, height=ha + 0.5 * module, depth=hf)
     # One tooth space (centred on arc length p/2) is cut while the rack rolls across it; every other space is the
     # same cut rotated, because the rolling motion on a circle is equivariant under rotation by one pitch.
-    reach = (ha + hf) / math.tan(settings.alpha) + p
+    reach = _rack_reach(settings.alpha, ha, hf, p, pitch.radius)
     steps = max(8, int(math.ceil(2 * reach / p * settings.steps_per_pitch)))
     s = p / 2.0 + np.linspace(-reach, reach, steps)
     origin, tangent, normal = pitch.frame(s)
@@ -406,7 +419,7 @@ def elliptic_gear(teeth: int, module: float, eccentricity: float, settings: Gear
     ha, hf = settings.addendum * module, settings.dedendum * module
     space = p / 2.0 + settings.backlash / 2.0
     tooth = _rack_tooth(settings, module, space, height=ha + 0.5 * module, depth=hf)
-    reach = (ha + hf) / math.tan(settings.alpha) + p
+    reach = _rack_reach(settings.alpha, ha, hf, p, pitch.max_curvature_radius)
     per_space = max(8, int(math.ceil(2 * reach / p * settings.steps_per_pitch)))
     offsets = np.linspace(-reach, reach, per_space)
     centres = (np.arange(teeth) + 0.5) * p
