@@ -22,6 +22,7 @@ import sys
 import threading
 from collections.abc import Callable
 from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
+from concurrent.futures.process import BrokenProcessPool
 from pathlib import Path
 
 import numpy as np
@@ -333,7 +334,14 @@ class SimulationExecutor:
                         continue  # poll should_stop again
                     done, pending = set(result.done), set(result.not_done)
                 for future in done:
-                    yield from finish(futures[future], future.result())
+                    try:
+                        results = future.result()
+                    except BrokenProcessPool:
+                        raise RobustError(
+                            f"{self.problem.name}: a simulation worker process died (out of memory or killed?); "
+                            "finished simulations are cached, run again to continue"
+                        ) from None
+                    yield from finish(futures[future], results)
         except BaseException:
             for future in pending:
                 future.cancel()

@@ -24,6 +24,7 @@ from sklearn.svm import SVC
 
 from design.robust.problem import LayoutProblem, RobustError, topological_events
 from design.robust.sampling import gaussian_mixture_draw, sample_physically_valid, sobol_valid
+from design.robust.settings import PSPSettings
 
 #: An oracle simulates valid normalized layouts ``(n, d)`` and returns per-event success ``(n, n_events)``.
 Oracle = Callable[[np.ndarray], np.ndarray]
@@ -288,8 +289,6 @@ class FactorizedPSP:
         on_model : callable, optional
             Called after each classifier (re)training (progress).
         """
-        from design.robust.settings import PSPSettings
-
         settings = self.settings if self.settings is not None else PSPSettings()
         if samples.U.ndim != 2 or samples.U.shape[1] != problem.dim:
             raise RobustError(f"{problem.name}: samples must have {problem.dim} columns, got {samples.U.shape}")
