@@ -20,7 +20,7 @@ import cv2
 import numpy as np
 import shapely
 from scipy.signal import fftconvolve
-from shapely.geometry import Polygon, box
+from shapely.geometry import Polygon
 
 from design.errors import ConstraintViolation, parameter_error
 from design.fabrication.parts import Part
@@ -225,7 +225,3 @@ def _fits(shape: Polygon, placed: list[Polygon], gap: float, width: float, heigh
             return False
     return True
 
-
-def sheet_outline(sheet: Sheet) -> Polygon:
-    """The sheet as a polygon (for previews)."""
-    return box(0.0, 0.0, sheet.width, sheet.height)

@@ -209,7 +209,7 @@ def _gear_part(name: str, code: str, gear: Gear, model_radius: float, scale: flo
     return Part(name, shape, _label(shape, text, hardware, label_near), MappingProxyType(info), tuple(gear.notes()))
 
 
-def _bar(name: str, length_points: list[float], width: float) -> Polygon:
+def _bar(length_points: list[float], width: float) -> Polygon:
     """A straight arm along +x covering ``[min, max]`` of ``length_points``, with round ends."""
     lo, hi = min(length_points), max(length_points)
     return LineString([(lo, 0.0), (hi, 0.0)]).buffer(width / 2.0, quad_segs=16)
@@ -320,7 +320,7 @@ def _cycloid(p: Mapping[str, float], scale: float, settings: GearSettings, hw: H
     # The arm pivots at F and the slider pin slides in its slot between d_FE - r_S and d_FE + r_S from F.
     slot_lo, slot_hi = (d_fe - r_s) * scale, (d_fe + r_s) * scale
     end = hw.arm_width / 2.0
-    arm = _bar("pen arm", [-end, slot_hi + end], hw.arm_width)
+    arm = _bar([-end, slot_hi + end], hw.arm_width)
     slot = LineString([(slot_lo, 0.0), (max(slot_hi, slot_lo + 1e-3), 0.0)]).buffer((hw.pin_hole + 0.2) / 2.0,
                                                                                    quad_segs=16)
     arm_holes = [("pivot hole", (0.0, 0.0), hw.pin_hole), ("pen hole", (d_fh * scale, 0.0), hw.pen_hole)]
@@ -358,7 +358,7 @@ def _hoot_nanny(p: Mapping[str, float], scale: float, settings: GearSettings, hw
     for index, length in ((1, l1), (2, l2)):
         name = f"arm {index}"
         end = hw.arm_width / 2.0
-        bar = _bar(name, [0.0, length * scale], hw.arm_width)
+        bar = _bar([0.0, length * scale], hw.arm_width)
         shape = _with_holes(name, bar, [("pivot hole", (0.0, 0.0), hw.pin_hole),
                                         ("pen hole", (length * scale, 0.0), hw.pen_hole)], hw.wall)
         parts.append(Part(name, shape, _label(shape, f"ARM {index}", hw, near=(length * scale / 2, 0)),
