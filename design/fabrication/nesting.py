@@ -221,7 +221,10 @@ def _fits(shape: Polygon, placed: list[Polygon], gap: float, width: float, heigh
         # Prepared geometries make the distance test use GEOS's indexed facet distance.
         others = np.array(placed, dtype=object)
         shapely.prepare(others)
-        if np.any(shapely.dwithin(others, shape, gap - 1e-6)):
+        if gap > 1e-6:
+            if np.any(shapely.dwithin(others, shape, gap - 1e-6)):
+                return False
+        elif np.any(shapely.overlaps(others, shape) | shapely.contains(others, shape) | shapely.within(others, shape)):
             return False
     return True
 

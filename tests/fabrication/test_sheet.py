@@ -208,3 +208,9 @@ def test_every_part_gets_a_label_even_small_ones(machine):
         strokes = np.concatenate(part.engrave)
         # Every stroke point inside the material, clear of the holes.
         assert shapely.contains_xy(part.shape, strokes[:, 0], strokes[:, 1]).all()
+
+
+def test_nesting_without_a_gap_still_never_overlaps():
+    sheet = nest_parts(synthetic_parts(seed=4), 260, 220, gap=0.0)
+    for a, b in itertools.combinations(sheet.cut_shapes, 2):
+        assert a.intersection(b).area < 1e-9
