@@ -236,3 +236,14 @@ def test_open_errors_and_discovery():
     assert probe("loop://", timeout=0.3) == ""
     urls = [p.url for p in list_ports(probe_ports=False)]
     assert "sim://grbl?profile=plotter" in urls and "sim://grbl?profile=laser" in urls
+
+
+def test_error_mid_job_stops_it_with_the_laser_off(make_connection):
+    conn = make_connection(sim_url("laser", time_scale=0.2))
+    lines = SQUARE[:6] + ["G41"] + SQUARE[6:]
+    result = JobRunner(conn, Job("bad", lines, laser=True)).run()
+    assert result.state == "stopped" and "error:20" in result.message and result.laser_off
+    record = conn.port.machine.snapshot()
+    reset = record.resets[-1]
+    assert all(s.power == 0.0 for s in record.samples if s.t >= reset)
+    assert "M5S0" in record.received[record.received.index("G41"):]

@@ -52,8 +52,9 @@ class MachinesScreen(Screen):
     MachinesScreen #left { width: 62; }
     MachinesScreen #status { height: auto; padding: 0 1; border: round $primary; }
     MachinesScreen #queue { height: 10; }
-    MachinesScreen #progress-row { height: 3; padding: 0 1; }
-    MachinesScreen #progress-label { padding: 0 1; }
+    MachinesScreen #progress-row { height: 2; padding: 0 1; }
+    MachinesScreen #progress { height: 1; }
+    MachinesScreen #progress-label { height: 1; width: 1fr; }
     MachinesScreen #console { height: 1fr; border: round $primary-darken-2; }
     MachinesScreen #console-input { dock: bottom; }
     MachinesScreen #preview { border: round $primary-darken-2; }
@@ -107,7 +108,7 @@ class MachinesScreen(Screen):
                 table = DataTable(id="queue", cursor_type="row")
                 table.can_focus = False
                 yield table
-                with Horizontal(id="progress-row"):
+                with Vertical(id="progress-row"):
                     yield ProgressBar(total=100, show_eta=False, id="progress")
                     yield Label("", id="progress-label")
                 yield Static("", id="message")
