@@ -24,8 +24,9 @@ from scipy.sparse.csgraph import connected_components
 from design.sketch.errors import SketchError
 
 #: Largest number of strokes solved exactly. Measured by ``bench_sketch`` on a 2-core machine (random strokes, the
-#: hard case): the MILP with lazy subtour cuts takes ~0.03 s up to 16 strokes, 0.1-0.3 s at 24-32, ~1 s at 48-64.
-EXACT_MAX_STROKES = 40
+#: hard case): the MILP with lazy subtour cuts takes ~0.03 s up to 16 strokes, 0.1-0.4 s at 24-32, 0.8-2.5 s at
+#: 48-64; the heuristic takes 0.1-0.2 s there and its tours are 1-5 % longer.
+EXACT_MAX_STROKES = 32
 #: Most strokes (symmetry copies included) a tour is computed for.
 MAX_TOUR_STROKES = 400
 #: Cutting-plane rounds before giving up on the exact tour and falling back to the heuristic.
