@@ -26,8 +26,9 @@ async def test_fabricate_shows_the_current_design_sheet_and_parts(tmp_path):
         for _ in range(5):
             await pilot.pause(0.05)
         assert app.get_screen("drawing").current_design()[1]["r_r"] == 2
-        await pilot.press("escape")
-        await pilot.press("f")
+        # "Fabricate" from the Drawing machines screen itself.
+        app.get_screen("drawing").action_fabricate()
+        await pilot.pause()
         screen = app.screen
         assert isinstance(screen, FabricateScreen)
         await wait_for(pilot, screen, lambda: screen.result is not None)
