@@ -4,10 +4,11 @@ Kerf: the laser removes a strip ``kerf`` wide centred on its path, so the path r
 outline and half a kerf *inside* its holes: a shapely buffer of ``+kerf/2`` does both at once on a polygon with
 holes (round joins keep gear tips round).
 
-Nesting: a deterministic bottom-left fill on a raster of the sheet. Parts are placed largest first; for each part
-and each of four rotations, the free positions are found at once by correlating the sheet's occupancy with the
-part's footprint (an FFT), the lowest-then-leftmost free position wins. Rings' open centres stay free, so small
-gears nest inside ring gears. Every placement is then checked exactly with shapely (gap kept to every other part).
+Nesting: a deterministic bottom-left fill on a raster of the sheet. Parts are placed largest first. For each part,
+upright and turned by 90° (labels never end upside down), the free positions are found at once by correlating the
+sheet's occupancy with the part's footprint (an FFT). The position that keeps the envelope of all placed parts
+smallest wins (then the lowest, then the leftmost). Rings' open centres stay free, so small gears nest inside ring
+gears. Every placement is then checked exactly with shapely (gap kept to every other part).
 """
 
 from __future__ import annotations
