@@ -69,7 +69,7 @@ class SketchScreen(Screen):
     CSS = """
     SketchScreen #side { width: 48; }
     SketchScreen #controls { height: auto; padding: 0 1; }
-    SketchScreen #controls Input { width: 10; }
+    SketchScreen #controls Input { width: 12; }
     SketchScreen #controls Button { min-width: 8; margin-left: 1; }
     SketchScreen #status { height: auto; padding: 0 1; color: $text-muted; }
     SketchScreen #candidates { height: 1fr; }
