@@ -211,26 +211,31 @@ def rotation(angle: float) -> np.ndarray:
 
 
 def symmetrize(strokes: list[np.ndarray], k: int, center: np.ndarray) -> list[np.ndarray]:
-    """Copy each stroke ``k`` times by rotations of ``2 pi j / k`` around ``center``; coinciding copies are dropped.
+    """Copy each stroke ``k`` times by rotations of ``2 pi j / k`` around ``center``; copies that retrace kept
+    strokes are dropped.
 
-    A copy coincides with another when a stroke is itself symmetric (e.g. a full circle drawn with ``k`` given).
+    A copy retraces a kept stroke when a stroke is itself symmetric (e.g. a whole circle around the centre drawn
+    with ``k`` given): 90 % of its points lie within half a point spacing of the kept strokes' points. Keeping it
+    would make the closed tour go round the same curve ``k`` times.
     """
+    from scipy.spatial import cKDTree
+
     if k <= 1:
         return [np.asarray(s, dtype=float) for s in strokes]
     center = np.asarray(center, dtype=float)
-    copies: list[np.ndarray] = []
+    kept: list[np.ndarray] = []
+    tree = None
     for j in range(k):
         rot = rotation(2.0 * math.pi * j / k)
-        copies.extend((s - center) @ rot.T + center for s in strokes)
-    scale = max(float(np.ptp(np.concatenate(copies), axis=0).max()), 1e-300)
-    kept: list[np.ndarray] = []
-    for copy in copies:
-        if not any(
-            o.shape == copy.shape
-            and (np.allclose(o, copy, atol=1e-9 * scale) or np.allclose(o[::-1], copy, atol=1e-9 * scale))
-            for o in kept
-        ):
+        for stroke in strokes:
+            copy = (stroke - center) @ rot.T + center
+            if tree is not None and len(copy) >= 2:
+                spacing = np.median(np.linalg.norm(np.diff(copy, axis=0), axis=1))
+                near, _ = tree.query(copy, distance_upper_bound=0.5 * spacing + 1e-12)
+                if np.mean(np.isfinite(near)) >= 0.9:
+                    continue
             kept.append(copy)
+        tree = cKDTree(np.concatenate(kept))
     return kept
 
 

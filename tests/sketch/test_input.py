@@ -120,14 +120,17 @@ def test_path_parser_relative_commands():
     assert np.allclose(poly, [[1, 1], [2, 1], [2, 2], [1, 2], [1, 1]])
 
 
-def test_symmetry_copies_rotate_around_centre_and_drop_coincident_copies():
+def test_symmetry_copies_rotate_around_centre_and_drop_retracing_copies():
     stroke = np.array([[1.0, 0.0], [1.5, 0.2]])
     copies = symmetrize([stroke], 4, np.zeros(2))
     assert len(copies) == 4
     assert np.allclose(copies[1][0], [0.0, 1.0])
-    full_circle = np.column_stack([np.cos(np.linspace(0, 2 * np.pi, 9)), np.sin(np.linspace(0, 2 * np.pi, 9))])
-    # a full circle with 8-fold symmetry: every copy is the circle itself (walked from another start); kept as is
-    # when the points differ, but an exact duplicate (k = 1 copy of itself) is dropped
-    assert len(symmetrize([full_circle], 1, np.zeros(2))) == 1
     centred = symmetrize([stroke], 2, np.array([1.0, 0.0]))
     assert np.allclose(centred[1][1], [0.5, -0.2])
+    # a whole circle around the centre with k = 4: every copy retraces it, only the stroke itself is kept
+    angle = np.linspace(0, 2 * np.pi, 97)
+    circle = np.column_stack([np.cos(angle), np.sin(angle)])
+    assert len(symmetrize([circle], 4, np.zeros(2))) == 1
+    # ... also with a sampling that does not line up with the rotation
+    odd = np.column_stack([np.cos(angle * 0.999 + 0.1), np.sin(angle * 0.999 + 0.1)])
+    assert len(symmetrize([odd], 5, np.zeros(2))) == 1
