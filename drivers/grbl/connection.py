@@ -337,6 +337,24 @@ class GrblConnection:
     def jog_cancel(self) -> None:
         self.realtime(b"\x85")
 
+    #: Real-time override bytes of GRBL 1.1.
+    OVERRIDES = {
+        ("feed", "reset"): b"\x90", ("feed", "+10"): b"\x91", ("feed", "-10"): b"\x92", ("feed", "+1"): b"\x93",
+        ("feed", "-1"): b"\x94", ("rapid", "100"): b"\x95", ("rapid", "50"): b"\x96", ("rapid", "25"): b"\x97",
+        ("spindle", "reset"): b"\x99", ("spindle", "+10"): b"\x9a", ("spindle", "-10"): b"\x9b",
+        ("spindle", "+1"): b"\x9c", ("spindle", "-1"): b"\x9d", ("spindle", "stop"): b"\x9e",
+    }
+
+    def override(self, kind: str, action: str) -> None:
+        """Feed, rapid or spindle override: ``override("feed", "+10")``, ``override("rapid", "50")``,
+        ``override("spindle", "reset")`` ... (see :attr:`OVERRIDES`)."""
+        try:
+            byte = self.OVERRIDES[(kind, action)]
+        except KeyError:
+            known = ", ".join(f"{k}:{a}" for k, a in self.OVERRIDES)
+            raise ValueError(f"unknown override {kind}:{action}; known: {known}") from None
+        self.realtime(byte)
+
     def soft_reset(self, wait: bool = True, timeout: float | None = None) -> bool:
         """Send 0x18 (stops motion at once, laser off). With ``wait``, wait for the reset banner. The character
         counter is cleared when the banner arrives."""

@@ -217,6 +217,7 @@ class SimulatedGrbl:
         self._out_ready = bytearray()
         self._in_last = 0.0
         self._out_last = 0.0
+        self._muted = False
         self._running = True
         self._gcode_lines = 0
         # EEPROM: work coordinate systems G54..G59 (machine mm), G28/G30 positions
@@ -290,6 +291,12 @@ class SimulatedGrbl:
             self._cond.notify_all()
         self._thread.join(timeout=2.0)
 
+    def mute(self) -> None:
+        """Simulate a hung controller or a dead cable that raises no error: nothing is sent any more."""
+        with self._out_cond:
+            self._muted = True
+            self._out_wire.clear()
+
     def unplug(self) -> None:
         """Simulate a vanished port (USB cable pulled): reads and writes fail from now on."""
         with self._cond:
@@ -341,7 +348,7 @@ class SimulatedGrbl:
 
     def _push(self, data: bytes, extra: float = 0.0) -> None:
         with self._out_cond:
-            if not self.connected:
+            if not self.connected or self._muted:
                 return
             now = time.monotonic()
             deliver = max(now + self.config.latency + extra, self._out_last) + len(data) * self.byte_time

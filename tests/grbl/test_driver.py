@@ -247,3 +247,46 @@ def test_error_mid_job_stops_it_with_the_laser_off(make_connection):
     reset = record.resets[-1]
     assert all(s.power == 0.0 for s in record.samples if s.t >= reset)
     assert "M5S0" in record.received[record.received.index("G41"):]
+
+
+def test_silent_port_counts_as_vanished(make_connection):
+    conn = make_connection(sim_url("plotter"))
+    conn.port.machine.mute()  # no error, just silence
+    assert conn._wait_for(lambda: conn.position_lost, 5.0)
+    assert "no byte from the controller" in conn.fault
+
+
+def test_feed_override_reaches_the_controller(make_connection):
+    conn = make_connection(sim_url("laser"))
+    conn.override("feed", "+10")
+    conn.override("rapid", "25")
+    conn._wait_for(lambda: conn.port.machine.overrides[:2] == [110, 25], 2.0)
+    assert conn.port.machine.overrides[:2] == [110, 25]
+    with pytest.raises(ValueError, match="unknown override"):
+        conn.override("feed", "+50")
+
+
+def test_plot_job_executed_by_the_machine_matches_the_pattern(make_connection):
+    """The plot path, read back from what the simulator executed, follows the pattern within the tolerance."""
+    import numpy as np
+    from shapely import LineString, Point
+
+    from drivers.profiles import builtin_profile
+    from station.commands.machines_io import plot_job
+
+    t = np.linspace(0, 2 * np.pi, 1500)
+    pattern = np.column_stack([np.cos(2 * t) + 0.5 * np.cos(7 * t), np.sin(3 * t)])
+    profile = builtin_profile("plotter")
+    text, fitted, _, options = plot_job([pattern], profile, 100.0, 0.05)
+    conn = make_connection(sim_url("plotter", time_scale=0.005))
+    result = JobRunner(conn, Job("plot", text.splitlines(), pen_up=options.pen_up)).run()
+    assert result.ok, result.message
+    wco = np.array(conn.work_offset())
+    blocks = conn.port.machine.snapshot().executed
+    first = next(i for i, b in enumerate(blocks) if not b.rapid and b.power == profile.pen.down)
+    drawing = [blocks[first - 1]] + [b for b in blocks[first:] if not b.rapid and b.power == profile.pen.down]
+    drawn = np.array([np.array(b.end) - wco for b in drawing])[:, :2]  # from where the pen went down
+    path = LineString(fitted[0])
+    assert max(path.distance(Point(p)) for p in drawn) <= 1e-3  # executed vertices lie on the pattern
+    executed_path = LineString(drawn)
+    assert max(executed_path.distance(Point(p)) for p in fitted[0][1:]) <= 0.05 + 1e-3

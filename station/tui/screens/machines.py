@@ -7,7 +7,7 @@ Drawing screen's current design as a job for the selected device.
 
 Keys: c connect/disconnect · v switch device · h home · u unlock · arrows jog X/Y, PgUp/PgDn jog Z, [ ] step ·
 f frame · y dry run · g start · p hold · r resume · ctrl+x abort (always works, even in the console) · a abort ·
-n plot the current design · : console.
++ / - / = feed override · n plot the current design · : console.
 """
 
 from __future__ import annotations
@@ -83,6 +83,9 @@ class MachinesScreen(Screen):
         Binding("left_square_bracket", "step(-1)", "Step-", show=False),
         Binding("right_square_bracket", "step(1)", "Step+", show=False),
         Binding("colon", "console", "Console"),
+        Binding("plus", "override('feed', '+10')", "Feed +10%", show=False),
+        Binding("minus", "override('feed', '-10')", "Feed -10%", show=False),
+        Binding("equals_sign", "override('feed', 'reset')", "Feed 100%", show=False),
     ]
 
     def __init__(self) -> None:
@@ -472,6 +475,12 @@ class MachinesScreen(Screen):
             self._say(f"[red]{error}[/red]")
 
     # ------------------------------------------------------------------ manual control
+
+    def action_override(self, kind: str, action: str) -> None:
+        conn = self.connection()
+        if conn is not None:
+            self._safe(conn.override, kind, action)
+            self._say(f"{kind} override {action}")
 
     def action_step(self, direction: int) -> None:
         self.jog_step_index = max(0, min(len(JOG_STEPS) - 1, self.jog_step_index + direction))
