@@ -255,7 +255,8 @@ class GrblConnection:
 
     def add_listener(self, callback: Callable[[str, object], None]) -> None:
         """``callback(event, data)`` from the reader/status threads: events ``status``, ``message``, ``alarm``,
-        ``fault``, ``banner``, ``log``."""
+        ``fault``, ``banner``, ``log``. Callbacks must return quickly and never block (some run while the
+        connection's lock is held): hand the data to your own thread or queue."""
         self._listeners.append(callback)
 
     def _notify(self, event: str, data: object) -> None:

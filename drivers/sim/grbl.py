@@ -739,8 +739,8 @@ class SimulatedGrbl:
             m = self.modal
             spindle = f"M{m['spindle']}"
             self._emit(f"[GC:G{m['motion']} G{m['wcs']} G{m['plane']} G{m['units']} G{m['distance']} "
-                       f"G{m['feedmode']} {spindle} M{m['coolant']} T{self.tool} F{self.feed:g} "
-                       f"S{self.spindle_speed:g}]")
+                       f"G{m['feedmode']} {spindle} M{m['coolant']} T{self.tool} F{self.feed:.0f} "
+                       f"S{self.spindle_speed:.0f}]")
             return 0
         if text == "$I":
             if not idle_or_alarm:
@@ -995,13 +995,16 @@ class SimulatedGrbl:
             if not self._check_mode:
                 yield "sync"  # EEPROM write
             self.coords[n] = data
+            self._wco_counter = 0  # GRBL reports the new offset in the next status report
             return 0
         if nonmodal == 92.0:
             for i, v in axis_words.items():
                 self.g92[i] = self._gc_pos[i] - self.coords[self.modal["wcs"]][i] - v * unit
+            self._wco_counter = 0
             return 0
         if nonmodal == 92.1:
             self.g92 = np.zeros(3)
+            self._wco_counter = 0
             return 0
         if nonmodal in (28.1, 30.1):
             if not self._check_mode:

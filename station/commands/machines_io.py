@@ -8,6 +8,7 @@ dry run (check mode), frame, resume from a line, and a progress bar.
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import sys
 import threading
@@ -193,7 +194,7 @@ def run_plot(args) -> int:
 def run_ports(args) -> int:
     ports = list_ports(probe_ports=not args.no_probe, baud=args.baud)
     if args.json:
-        emit_json([vars(p) if not hasattr(p, "__dataclass_fields__") else dict(p.__dict__) for p in ports])
+        emit_json([dataclasses.asdict(p) for p in ports])
         return 0
     if not ports:
         print("no serial ports")

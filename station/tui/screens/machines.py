@@ -12,6 +12,7 @@ f frame · y dry run · g start · p hold · r resume · ctrl+x abort (always wo
 
 from __future__ import annotations
 
+import queue
 from dataclasses import dataclass
 
 from textual import on, work
@@ -99,6 +100,7 @@ class MachinesScreen(Screen):
         self.last_message = ""
         self._job_counter = 0
         self._connecting: set[str] = set()
+        self._calls: queue.SimpleQueue = queue.SimpleQueue()
         self._auto_connected = False
 
     # ------------------------------------------------------------------ layout
@@ -125,6 +127,7 @@ class MachinesScreen(Screen):
         table = self.query_one("#queue", DataTable)
         table.add_columns("#", "job", "device", "lines", "state")
         self._render_status()
+        self.set_interval(0.05, self._drain_calls)
 
     def on_screen_resume(self) -> None:
         # connect to the selected device the first time the screen is shown (simulated ones need no hardware)
@@ -208,10 +211,23 @@ class MachinesScreen(Screen):
         self._render_status()
 
     def _from_thread(self, callback, *args) -> None:
-        try:
-            self.app.call_from_thread(callback, *args)
-        except RuntimeError:  # the app is gone (shutting down)
-            pass
+        # Never blocks: driver threads call this (sometimes holding the connection's lock), and the UI thread may
+        # be waiting for that lock (abort). A timer on the UI thread runs the queued calls.
+        self._calls.put((callback, args))
+
+    def _drain_calls(self) -> None:
+        status_pending = False
+        for _ in range(500):
+            try:
+                callback, args = self._calls.get_nowait()
+            except queue.Empty:
+                break
+            if callback == self._render_status:
+                status_pending = True  # many status reports, one render
+                continue
+            callback(*args)
+        if status_pending:
+            self._render_status()
 
     def _listener(self, name: str, event: str, data) -> None:
         if event == "status":
@@ -219,8 +235,8 @@ class MachinesScreen(Screen):
                 self._from_thread(self._render_status)
         elif event == "log":
             _, direction, text = data
-            if direction == "in" and text == "ok" and self.running_job is not None:
-                return  # thousands of oks during a job drown the console
+            if self.running_job is not None and (direction == "out" or (direction == "in" and text == "ok")):
+                return  # thousands of lines and oks during a job drown the console (conn.log keeps them)
             self._from_thread(self._console, f"{name} {'>' if direction == 'out' else '<'} {text}"
                               if direction in ("in", "out") else f"{name} ! {text}")
         elif event in ("alarm", "fault"):
