@@ -11,7 +11,8 @@ EXAMPLES = example_names()
 
 
 def test_every_thesis_scenario_is_shipped():
-    assert {"simple", "branching", "ballrun", "causalityswitch_ball", "causalityswitch_dominoes"} <= set(EXAMPLES)
+    assert {"simple", "branching", "ballrun", "causalityswitch_ball", "causalityswitch_dominoes", "longchain",
+            "teapotadventure"} <= set(EXAMPLES)
 
 
 @pytest.mark.parametrize("name", EXAMPLES)
