@@ -307,17 +307,22 @@ class GrblConnection:
 
     # ------------------------------------------------------------------ writing
 
-    def _write(self, data: bytes) -> None:
+    def _write(self, data: bytes, stop: threading.Event | None = None) -> bool:
+        """Write bytes; returns False (nothing written) if ``stop`` is set. ``stop`` is checked under the write
+        lock, so a line is never written after an abort's soft reset (it would run on the reset machine)."""
         if self.position_lost:
             raise DeviceStateError(f"{self.url}: position lost ({self.fault}); reconnect and home before sending")
         try:
             with self._write_lock:
+                if stop is not None and stop.is_set():
+                    return False
                 self.port.write(data)
         except (serial.SerialException, OSError) as error:
             self._port_lost(f"write failed: {error}")
             raise PortError(f"{self.url}: port vanished ({error}); position lost") from None
         if data not in (b"?",):
             self._log("out", data.decode("latin-1").rstrip("\n") if data[:1] not in (b"\x18",) else "<soft reset>")
+        return True
 
     def realtime(self, byte: bytes) -> None:
         """Send one real-time byte now: ``?`` status, ``!`` hold, ``~`` start, 0x18 reset, 0x85 jog cancel,
@@ -455,9 +460,14 @@ class GrblConnection:
                     self.max_pending_bytes = max(self.max_pending_bytes, self._pending_bytes())
                     self._lost_since = None
                 try:
-                    self._write(data)
+                    written = self._write(data, stop)
                 except (PortError, DeviceStateError):
                     raise StreamStopped(f"{self.url}: {self.fault or 'port lost'}", "fault") from None
+                if not written:
+                    with self._cond:
+                        if entry in self._pending:
+                            self._pending.remove(entry)
+                    raise StreamStopped(f"{self.url}: stopped", "stopped")
                 if on_sent:
                     on_sent(index)
                 if sync:

@@ -295,7 +295,7 @@ class JobRunner:
     def abort(self) -> None:
         """Stop now: soft reset (0x18) first, then the job thread switches the laser off with ``M5 S0``."""
         self._aborted = True
-        self._stop.set()
+        self._stop.set()  # first: the stream writes no line after this (checked under the port's write lock)
         try:
             self.connection.soft_reset(wait=False)
         except Exception:  # noqa: BLE001 - the port may already be gone; the job thread reports it
