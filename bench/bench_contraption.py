@@ -52,10 +52,12 @@ def main() -> None:
         n = len(layouts)
         same_label = np.mean([a.success == b.success for a, b in zip(early, full)])
         # Events decided before the early stop keep their state and time in the full run.
-        same_events = np.mean([
-            all(b.events[k] == v for k, v in a.events.items() if v.state in ("success", "failure"))
-            for a, b in zip(early, full)
-        ])
+        same_events = np.mean(
+            [
+                all(b.events[k] == v for k, v in a.events.items() if v.state in ("success", "failure"))
+                for a, b in zip(early, full)
+            ]
+        )
         speedup = full_time / early_time
         steps_ratio = sum(r.steps for r in full) / sum(r.steps for r in early)
         speedups.append(speedup)

@@ -82,6 +82,7 @@ def render_views(
     *,
     panel_size: tuple[int, int] = (560, 420),
     title: str | None = None,
+    ropes: Sequence[Sequence[np.ndarray]] | None = None,
 ) -> Image.Image:
     """Draw each snapshot in top and side views (one row per snapshot) and optionally save a PNG.
 
@@ -92,6 +93,8 @@ def render_views(
         E.g. ``[("start", result.start), ("end", result.end)]`` from a run with ``record=True``.
     path : path, optional
         Where to write the PNG.
+    ropes : sequence of lists of (n, 3) arrays, optional
+        For each snapshot, the polylines of its ropes (drawn as thin dark lines).
     """
     kinds = {obj.name: obj.type for obj in scenario.objects}
     lo, hi = _body_bounds(snapshots[0][1])
@@ -144,6 +147,9 @@ def render_views(
                 fill = _colour(name, kinds.get(name, ""))
                 outline = tuple(int(c * 0.55) for c in fill)
                 draw.polygon([tuple(p) for p in polygon], fill=fill, outline=outline)
+            for rope in (ropes[row] if ropes is not None and row < len(ropes) else []):
+                points = to_px(np.asarray(rope, dtype=float))
+                draw.line([tuple(p) for p in points], fill=(60, 40, 20), width=1)
             for name, positions in labels.items():
                 anchor = np.asarray(positions[0])[None]
                 px, py = to_px(anchor)[0]
@@ -184,5 +190,9 @@ def render_result(scenario, result, path: str | Path | None = None) -> Image.Ima
         f"{result.duration:.2f} s simulated"
     )
     return render_views(
-        scenario, [("start", result.start), (f"end (t = {result.duration:.2f} s)", result.end)], path, title=title
+        scenario,
+        [("start", result.start), (f"end (t = {result.duration:.2f} s)", result.end)],
+        path,
+        title=title,
+        ropes=[result.ropes_start, result.ropes_end],
     )

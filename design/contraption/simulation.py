@@ -52,6 +52,8 @@ class SimulationResult:
     start: list | None = None
     end: list | None = None
     timeline: list[tuple[float, str, str]] = field(default_factory=list)
+    ropes_start: list = field(default_factory=list)
+    ropes_end: list = field(default_factory=list)
 
     @property
     def n_successful_events(self) -> int:
@@ -273,6 +275,7 @@ class Simulator:
         limit = settings.max_duration if max_duration is None else max_duration
         n_steps = int(round(limit / dt))
         start = world.snapshot() if record else None
+        ropes_start = [np.array(world.rope_path(rope)[0]) for rope in world.ropes] if record else []
         supervisor = Supervisor(self.scenario, world)
         if on_change is not None:
             on_change(0.0, dict(supervisor.state))
@@ -294,6 +297,7 @@ class Simulator:
         if verdict is None or not early_stop:
             verdict = supervisor.verdict()
         end = world.snapshot() if record else None
+        ropes_end = [np.array(world.rope_path(rope)[0]) for rope in world.ropes] if record else []
         return SimulationResult(
             success=bool(verdict),
             events=supervisor.outcomes(),
@@ -303,6 +307,8 @@ class Simulator:
             start=start,
             end=end,
             timeline=list(supervisor.timeline),
+            ropes_start=ropes_start,
+            ropes_end=ropes_end,
         )
 
 
