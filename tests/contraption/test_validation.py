@@ -220,3 +220,28 @@ def test_fuzz_whole_document(value):
         scenario_from_data(value, file="doc.json")
     except ScenarioFormatError:
         pass
+
+
+def test_apriltag_on_a_part():
+    def mutate(d):
+        d["objects"][1]["tag"] = {"id": 7, "x": 0.0, "y": 0.0, "z": 0.01, "size": 0.015}
+
+    tag = load(mutate).object("box").tag
+    assert (tag.id, tag.z, tag.size) == (7, 0.01, 0.015)
+
+    def bad(d):
+        d["objects"][1]["tag"] = {"id": -1}
+
+    assert "objects[1].tag.id" in str(error_of(bad))
+
+    def missing(d):
+        d["objects"][1]["tag"] = {"size": 0.02}
+
+    assert "objects[1].tag.id: missing" in str(error_of(missing))
+
+
+def test_sleeping_flag_defaults_and_type():
+    scenario = load(lambda d: d["objects"][2].__setitem__("sleeping", True))
+    assert scenario.object("ball").starts_asleep and not scenario.object("box").starts_asleep
+    error = error_of(lambda d: d["objects"][2].__setitem__("sleeping", "yes"))
+    assert "objects[2].sleeping: expected true or false" in str(error)
