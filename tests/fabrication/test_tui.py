@@ -47,6 +47,10 @@ async def test_fabricate_shows_the_current_design_sheet_and_parts(tmp_path):
         assert picture.crop is not None and picture.image.size[0] < whole[0]
         await pilot.press("z")
         assert picture.crop is None and picture.image.size == whole
+        # Moving through the parts shows each one's facts in full.
+        table.move_cursor(row=1)
+        await pilot.pause()
+        assert "rolling gear" in screen.part_text and "module" in screen.part_text
         # Another scale: regenerate with Enter in the field.
         field = screen.query_one("#scale", Input)
         field.value = "6"

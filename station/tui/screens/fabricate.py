@@ -96,6 +96,7 @@ class FabricateScreen(Screen):
     FabricateScreen .field Label { width: 16; padding: 1 1 0 1; }
     FabricateScreen .field Input { width: 1fr; }
     FabricateScreen #parts { height: 1fr; }
+    FabricateScreen #part { height: auto; padding: 0 1; color: $warning; }
     FabricateScreen #job { height: auto; padding: 0 1; }
     FabricateScreen #status { height: auto; padding: 0 1; color: $text-muted; }
     FabricateScreen #sheet { border: round $primary-darken-1; }
@@ -114,6 +115,7 @@ class FabricateScreen(Screen):
         self.design: tuple[str, dict] | None = None
         self.result: FabricationResult | None = None
         self.last_message = ""
+        self.part_text = ""
 
     def compose(self) -> ComposeResult:
         yield Header()
@@ -133,6 +135,7 @@ class FabricateScreen(Screen):
                     yield Label("material")
                     yield Input("", placeholder="plywood_3mm", id="material")
                 yield DataTable(id="parts", cursor_type="row", zebra_stripes=True)
+                yield Static("", id="part")
                 yield Static("", id="job")
                 yield Static("", id="status")
             yield HalfBlockPicture(id="sheet")
@@ -212,6 +215,7 @@ class FabricateScreen(Screen):
         self.result = None
         self.query_one("#parts", DataTable).clear()
         self.query_one("#job", Static).update("")
+        self.query_one("#part", Static).update("")
         self.query_one(HalfBlockPicture).set_png(None)
         self._set_status(f"[red]cannot fabricate this design: {message}[/red]")
 
@@ -236,6 +240,25 @@ class FabricateScreen(Screen):
             f"{len(result.gcode.splitlines())} G-code lines")
         self.query_one(HalfBlockPicture).set_png(result.png)
         self._set_status(f"{len(result.summary['parts'])} parts in {seconds:.1f} s — w: write files, s: send to laser")
+
+    @on(DataTable.RowHighlighted, "#parts")
+    def _part_highlighted(self, event: DataTable.RowHighlighted) -> None:
+        """The highlighted part's facts and notes in full (the table truncates them)."""
+        if self.result is None or event.cursor_row is None:
+            return
+        parts = self.result.summary["parts"]
+        if not 0 <= event.cursor_row < len(parts):
+            return
+        part = parts[event.cursor_row]
+        info = part["info"]
+        holes = part["holes"]
+        facts = [f"{part['name']}: {part['size_mm'][0]:.1f}×{part['size_mm'][1]:.1f} mm, "
+                 f"{holes} hole{'' if holes == 1 else 's'}"]
+        if "teeth" in info:
+            facts.append(f"{info['teeth']} teeth, module {info['module_mm']:.3f} mm, pitch radius "
+                         f"{info['pitch_radius_mm']:.2f} mm")
+        self.part_text = "; ".join(facts) + "".join(f"\nnote: {note}" for note in part["notes"])
+        self.query_one("#part", Static).update(self.part_text)
 
     def action_zoom(self) -> None:
         """Toggle between the whole sheet and the corner the parts use."""
