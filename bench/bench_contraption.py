@@ -65,6 +65,7 @@ def main() -> None:
         agreements.append(same_label)
         print(
             f"{scenario.name[:26]:<26} {n:>3} {n / early_time:>12.2f} {n / full_time:>12.2f} {speedup:>8.2f}x "
+            f"{steps_ratio:>10.2f}x "
             f"{same_label:>10.0%} {same_events:>11.0%} {sum(r.success for r in early):>9}",
             flush=True,
         )
