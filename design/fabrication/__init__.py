@@ -13,7 +13,7 @@ from design.fabrication.gears import (
     ring_gear,
     teeth_per_unit,
 )
-from design.fabrication.nesting import Placement, Sheet, kerf_compensate, nest_parts
+from design.fabrication.nesting import Placement, Sheet, kerf_compensate, nest_parts, nest_sheets
 from design.fabrication.parts import FABRICABLE_MACHINES, Hardware, Part, machine_parts
 
 __all__ = [
@@ -30,6 +30,7 @@ __all__ = [
     "machine_parts",
     "min_teeth_without_undercut",
     "nest_parts",
+    "nest_sheets",
     "render_png",
     "ring_gear",
     "sheet_paths",

@@ -26,7 +26,7 @@ from shapely.geometry import Polygon
 from design.errors import ConstraintViolation, parameter_error
 from design.fabrication.parts import Part
 
-__all__ = ["kerf_compensate", "Placement", "Sheet", "nest_parts"]
+__all__ = ["kerf_compensate", "Placement", "Sheet", "nest_parts", "nest_sheets"]
 
 
 def kerf_compensate(shape: Polygon, kerf: float) -> Polygon:
@@ -60,7 +60,7 @@ class Sheet:
     width, height, gap, kerf : float
         Sheet size, least distance between cut paths, kerf (mm).
     placements : tuple of Placement
-        One per part, in the order of ``parts``.
+        One per part on this sheet, in the order the parts were given; ``index`` is the part's position there.
     parts : tuple of Part
         Parts as placed on the sheet (designed outlines, sheet coordinates, y up from the front-left corner).
     cut_shapes : tuple of Polygon
@@ -120,46 +120,93 @@ def _raster(shape: Polygon, resolution: float, origin: tuple[float, float], size
     return cv2.dilate(mask, np.ones((3, 3), np.uint8))
 
 
+def _check_sheet(width: float, height: float, gap: float) -> None:
+    for name, value in (("sheet width", width), ("sheet height", height)):
+        if not (math.isfinite(value) and value > 0):
+            raise parameter_error("fabrication", name, "a positive length (mm)", value)
+    if not (math.isfinite(gap) and gap >= 0):
+        raise parameter_error("fabrication", "gap", "a non-negative length (mm)", gap)
+
+
+def _no_room(part: Part, cut_shape: Polygon, width: float, height: float, gap: float) -> ConstraintViolation:
+    bx = cut_shape.bounds
+    return ConstraintViolation(
+        f"sheet {width:g}x{height:g} mm: no room for part {part.name!r} ({bx[2] - bx[0]:.1f}x{bx[3] - bx[1]:.1f} mm) "
+        f"with a {gap:g} mm gap; use a larger sheet (--sheet WxH) or a smaller scale", constraint="sheet size")
+
+
 def nest_parts(parts: Sequence[Part], width: float, height: float, gap: float = 3.0, kerf: float = 0.0,
                resolution: float | None = None) -> Sheet:
-    """Place every part on a ``width`` × ``height`` mm sheet, at least ``gap`` mm apart and from the edges.
+    """Place every part on one ``width`` × ``height`` mm sheet, at least ``gap`` mm apart and from the edges.
 
     Raises
     ------
     ConstraintViolation
         When a part cannot be placed (the message names it and its size).
     """
-    for name, value in (("sheet width", width), ("sheet height", height)):
-        if not (math.isfinite(value) and value > 0):
-            raise parameter_error("fabrication", name, "a positive length (mm)", value)
-    if not (math.isfinite(gap) and gap >= 0):
-        raise parameter_error("fabrication", "gap", "a non-negative length (mm)", gap)
+    sheets = nest_sheets(parts, width, height, gap, kerf, resolution, max_sheets=1)
+    return sheets[0]
+
+
+def nest_sheets(parts: Sequence[Part], width: float, height: float, gap: float = 3.0, kerf: float = 0.0,
+                resolution: float | None = None, max_sheets: int = 8) -> list[Sheet]:
+    """Place every part on as few ``width`` × ``height`` mm sheets as this greedy packing finds.
+
+    Parts are offered largest first to the first sheet; those that find no room there go to the next sheet, and so
+    on. Deterministic.
+
+    Raises
+    ------
+    ConstraintViolation
+        When a part does not fit even an empty sheet, or more than ``max_sheets`` would be needed.
+    """
+    _check_sheet(width, height, gap)
     if resolution is None:
         resolution = max(0.5, max(width, height) / 800.0)
+    cut_shapes = [kerf_compensate(p.shape, kerf) for p in parts]
+    remaining = sorted(range(len(parts)), key=lambda i: (-cut_shapes[i].area, parts[i].name))
+    sheets: list[Sheet] = []
+    while remaining:
+        if len(sheets) == max_sheets:
+            first = remaining[0]
+            if max_sheets == 1:
+                raise _no_room(parts[first], cut_shapes[first], width, height, gap)
+            raise ConstraintViolation(
+                f"the parts need more than {max_sheets} sheets of {width:g}x{height:g} mm; use a larger sheet "
+                "(--sheet WxH) or a smaller scale", constraint="sheet count")
+        placements, left = _fill_sheet(remaining, cut_shapes, resolution, gap, width, height)
+        if not placements:
+            first = remaining[0]
+            raise _no_room(parts[first], cut_shapes[first], width, height, gap)
+        indices = sorted(placements)  # keep the parts' given order on each sheet
+        ordered = tuple(placements[i] for i in indices)
+        sheets.append(Sheet(float(width), float(height), float(gap), float(kerf), ordered,
+                            tuple(parts[i].transformed(pl.angle, pl.dx, pl.dy) for i, pl in zip(indices, ordered)),
+                            tuple(_moved(cut_shapes[i], pl) for i, pl in zip(indices, ordered))))
+        remaining = left
+    return sheets
+
+
+def _fill_sheet(order: list[int], cut_shapes: list[Polygon], resolution: float, gap: float, width: float,
+                height: float) -> tuple[dict[int, Placement], list[int]]:
+    """Place what fits of ``order`` on one empty sheet; returns the placements and the parts left over."""
     cols, rows = int(math.ceil(width / resolution)), int(math.ceil(height / resolution))
     occupied = np.zeros((rows, cols), dtype=np.float32)
-    # The footprint (part + gap) must stay on the sheet, so parts keep the gap from the edges too.
-    cut_shapes = [kerf_compensate(p.shape, kerf) for p in parts]
-    order = sorted(range(len(parts)), key=lambda i: (-cut_shapes[i].area, parts[i].name))
     placements: dict[int, Placement] = {}
     placed_shapes: list[Polygon] = []
+    left: list[int] = []
     for index in order:
+        # The footprint (part + gap) must stay on the sheet, so parts keep the gap from the edges too.
         placement = _place_one(index, cut_shapes[index], occupied, placed_shapes, resolution, gap, width, height)
         if placement is None:
-            bx = cut_shapes[index].bounds
-            raise ConstraintViolation(
-                f"sheet {width:g}x{height:g} mm: no room for part {parts[index].name!r} "
-                f"({bx[2] - bx[0]:.1f}x{bx[3] - bx[1]:.1f} mm) with a {gap:g} mm gap; use a larger sheet "
-                "(--sheet WxH) or a smaller scale", constraint="sheet size")
+            left.append(index)
+            continue
         placements[index] = placement
         placed = _moved(cut_shapes[index], placement)
         placed_shapes.append(placed)
         # Occupy the placed part (holes stay free for smaller parts).
         occupied = np.maximum(occupied, _raster(placed, resolution, (0.0, 0.0), (rows, cols)).astype(np.float32))
-    ordered = tuple(placements[i] for i in range(len(parts)))
-    placed_parts = tuple(p.transformed(pl.angle, pl.dx, pl.dy) for p, pl in zip(parts, ordered))
-    placed_cuts = tuple(_moved(s, pl) for s, pl in zip(cut_shapes, ordered))
-    return Sheet(float(width), float(height), float(gap), float(kerf), ordered, placed_parts, placed_cuts)
+    return placements, left
 
 
 def _moved(shape: Polygon, placement: Placement) -> Polygon:

@@ -214,3 +214,22 @@ def test_nesting_without_a_gap_still_never_overlaps():
     sheet = nest_parts(synthetic_parts(seed=4), 260, 220, gap=0.0)
     for a, b in itertools.combinations(sheet.cut_shapes, 2):
         assert a.intersection(b).area < 1e-9
+
+
+def test_parts_too_many_for_one_sheet_go_on_more_sheets():
+    from design.fabrication import nest_sheets
+
+    parts = [Part(f"disc {i}", Point(0, 0).buffer(30)) for i in range(7)]
+    with pytest.raises(ConstraintViolation, match="no room"):
+        nest_parts(parts, 140, 140, gap=3)
+    sheets = nest_sheets(parts, 140, 140, gap=3)
+    assert len(sheets) >= 2
+    placed = sorted(pl.index for sheet in sheets for pl in sheet.placements)
+    assert placed == list(range(7))  # every part exactly once
+    for sheet in sheets:
+        for a, b in itertools.combinations(sheet.cut_shapes, 2):
+            assert a.distance(b) >= 3 - 1e-6
+    with pytest.raises(ConstraintViolation, match="more than 1 sheets|no room"):
+        nest_sheets(parts, 140, 140, gap=3, max_sheets=1)
+    with pytest.raises(ConstraintViolation, match="disc"):
+        nest_sheets([Part("disc", Point(0, 0).buffer(100))], 140, 140)
