@@ -530,6 +530,10 @@ class GrblConnection:
                 finally:
                     self._cond.acquire()
 
+    def wait_for(self, predicate, timeout: float) -> bool:
+        """Wait (at most ``timeout`` s) until ``predicate()`` is true; re-checked on every message and every 0.1 s."""
+        return self._wait_for(predicate, timeout)
+
     def _wait_for(self, predicate, timeout: float) -> bool:
         deadline = time.monotonic() + timeout
         with self._cond:

@@ -25,9 +25,10 @@ from pathlib import Path
 
 import numpy as np
 
-from drivers.errors import DeviceStateError, JobRefused
+from drivers.errors import DeviceStateError, JobRefused, ProtocolError
 from drivers.gcode import Toolpath, clean_line, interpret
 from drivers.grbl.connection import GrblConnection, StreamStopped
+from drivers.grbl.protocol import Error
 
 __all__ = ["Job", "JobProgress", "JobResult", "JobRunner", "frame_lines"]
 
@@ -374,27 +375,27 @@ class JobRunner:
     def _dry_run(self, on_ack) -> JobResult:
         conn = self.connection
         self._update("dry-run")
-        conn.command("$C")
+        try:
+            conn.command("$C")
+        except (ProtocolError, DeviceStateError) as error:
+            return self._finish("refused", f"dry run: cannot enter check mode: {error}")
         errors: list[tuple[int, str]] = []
         try:
             results = conn.stream(self._lines, on_ack=on_ack, stop=self._stop, stop_on_error=False,
                                   timeout=math.inf)
-            for result in results:
-                if result.status == "error":
-                    line = self._origin[result.index] + 1
-                    errors.append((line, f"line {line} {result.text!r}: error:{result.error}"))
         except StreamStopped as stopped:
-            conn.soft_reset()
+            conn.soft_reset()  # also leaves check mode
             return self._finish("stopped", f"dry run stopped: {stopped}", laser_off=True)
+        for result in results:
+            if result.status == "error":
+                line = self._origin[result.index] + 1
+                errors.append((line, f"line {line} {result.text!r}: {Error(result.error)}"))
         conn.expect_reset()
         try:
             conn.command("$C")  # leaving check mode resets GRBL
-        except DeviceStateError:
-            pass
-        conn._wait_for(lambda: conn.status is not None and conn.status.state == "Idle", 2.0)
-        from drivers.grbl.protocol import error_meaning
-
-        errors = [(line, f"{text} ({error_meaning(int(text.rsplit(':', 1)[1]))})") for line, text in errors]
+        except (ProtocolError, DeviceStateError):
+            conn.soft_reset()
+        conn.wait_for(lambda: conn.status is not None and conn.status.state == "Idle", 2.0)
         if errors:
             return self._finish("stopped", f"dry run: {len(errors)} line(s) rejected", errors=errors)
         return self._finish("done", f"dry run: all {len(self.job.lines)} lines accepted (check mode)")
@@ -413,8 +414,8 @@ class JobRunner:
         if not aborted:
             conn.soft_reset(wait=True)
         else:
-            conn._wait_for(lambda: not conn._expect_banner or conn.position_lost, conn.banner_timeout)
-        conn._wait_for(lambda: conn.status is not None and conn.status.state in ("Idle", "Alarm"), 1.0)
+            conn.wait_for(lambda: not conn._expect_banner or conn.position_lost, conn.banner_timeout)
+        conn.wait_for(lambda: conn.status is not None and conn.status.state in ("Idle", "Alarm"), 1.0)
         if lost_ok:
             conn.clear_fault()  # dealt with: the reset emptied GRBL's buffers and the counter
         laser_off = self._laser_off()

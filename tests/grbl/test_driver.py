@@ -144,7 +144,7 @@ def test_abort_resets_at_once_laser_off_and_alarm_recovery(make_connection):
     assert all(s.power == 0.0 for s in record.samples if s.t >= reset)
     assert JobRunner(conn, Job("again", SQUARE, laser=True)).run().state == "refused"  # locked: home first
     conn.command("$H")
-    conn._wait_for(lambda: conn.status.state == "Idle" and conn.alarm is None, 5)
+    conn.wait_for(lambda: conn.status.state == "Idle" and conn.alarm is None, 5)
     assert conn.alarm is None
     assert JobRunner(conn, Job("again", SQUARE, laser=True)).run().ok
 
@@ -179,7 +179,7 @@ def test_lost_ok_stops_the_job_and_resume_runs_every_line_once(make_connection):
 def test_vanished_port_means_position_lost_and_no_resume(make_connection):
     conn = make_connection(sim_url("plotter"))
     conn.port.machine.unplug()
-    assert conn._wait_for(lambda: conn.position_lost, 5.0)
+    assert conn.wait_for(lambda: conn.position_lost, 5.0)
     assert "position lost" in conn.fault
     result = JobRunner(conn, Job("square", SQUARE)).run()
     assert result.state == "position_lost"
@@ -207,7 +207,7 @@ def test_hold_and_resume(make_connection):
     while runner.progress.lines_acked < 5:
         time.sleep(0.01)
     runner.hold()
-    assert conn._wait_for(lambda: conn.status.label == "Hold:0", 3)
+    assert conn.wait_for(lambda: conn.status.label == "Hold:0", 3)
     assert conn.port.machine.snapshot().samples[-1].power == 0.0
     runner.resume()
     result = runner.wait(20)
@@ -252,7 +252,7 @@ def test_error_mid_job_stops_it_with_the_laser_off(make_connection):
 def test_silent_port_counts_as_vanished(make_connection):
     conn = make_connection(sim_url("plotter"))
     conn.port.machine.mute()  # no error, just silence
-    assert conn._wait_for(lambda: conn.position_lost, 5.0)
+    assert conn.wait_for(lambda: conn.position_lost, 5.0)
     assert "no byte from the controller" in conn.fault
 
 
@@ -260,7 +260,7 @@ def test_feed_override_reaches_the_controller(make_connection):
     conn = make_connection(sim_url("laser"))
     conn.override("feed", "+10")
     conn.override("rapid", "25")
-    conn._wait_for(lambda: conn.port.machine.overrides[:2] == [110, 25], 2.0)
+    conn.wait_for(lambda: conn.port.machine.overrides[:2] == [110, 25], 2.0)
     assert conn.port.machine.overrides[:2] == [110, 25]
     with pytest.raises(ValueError, match="unknown override"):
         conn.override("feed", "+50")
