@@ -322,8 +322,15 @@ def validity_problems(world: World) -> list[ValidityProblem]:
     problems: list[ValidityProblem] = []
     bodies = list(world.bodies.values())
     sizes = {b.label: b.spec.smallest_dimension() for b in bodies}
+    # Broad phase: only pairs whose bounding boxes overlap can interpenetrate (a big saving with many dominoes).
+    boxes = np.array([np.concatenate(client.getAABB(b.uid)) for b in bodies]).reshape(len(bodies), 6)
+    lower, upper = boxes[:, :3], boxes[:, 3:]
+    overlapping = np.all(
+        (lower[:, None, :] <= upper[None, :, :] + 1e-9) & (lower[None, :, :] <= upper[:, None, :] + 1e-9), axis=2
+    )
     for i, a in enumerate(bodies):
-        for b in bodies[i + 1:]:
+        for j in np.flatnonzero(overlapping[i, i + 1:]) + i + 1:
+            b = bodies[j]
             if frozenset((a.label, b.label)) in world.joined_pairs:
                 continue
             if frozenset((a.object_name, b.object_name)) in ignored:
