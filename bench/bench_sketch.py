@@ -123,10 +123,14 @@ def main() -> None:
         firsts: dict[str, list[bool]] = {n: [] for n in MACHINES}
         times = []
         compared = []
+        stages: dict[str, int] = {}
         for case in cases:
             result = retriever.query(case.sketch, top=5, **options)
             times.append(result.timings["total"])
             compared.append(sum(r.candidates_compared for r in result.reports))
+            for report in result.reports:
+                if report.machine == case.machine:
+                    stages[report.stage] = stages.get(report.stage, 0) + 1
             found = [(c.machine, c.radii) for c in result.candidates]
             hits[case.machine].append((case.machine, case.radii) in found)
             firsts[case.machine].append(bool(found) and found[0] == (case.machine, case.radii))
@@ -141,3 +145,5 @@ def main() -> None:
             f"{np.percentile(times, 90):.3f} s, max {np.max(times):.3f} s; candidates compared: median "
             f"{int(np.median(compared))} of {sum(len(retriever.database(n)) for n in MACHINES)}"
         )
+        if options.get("prune"):
+            print(f"    candidates of the true machine ranked from: {stages}")

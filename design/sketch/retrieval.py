@@ -34,8 +34,8 @@ from design.sketch.strokes import Sketch, check_symmetry
 
 #: Most candidates a query may return.
 MAX_TOP = 100
-#: When the best pruned candidate of a machine is farther than this, the search widens (leading radius only, then
-#: every candidate unless the symmetry order was given). Good matches of the benchmark sketches are below 0.02.
+#: When the best pruned candidate over every machine is farther than this, the search widens (leading radius only,
+#: then every candidate unless the symmetry order was given). Good matches of the benchmark sketches are below 0.02.
 PRUNE_FALLBACK_DISTANCE = 0.05
 
 
@@ -143,6 +143,7 @@ class MachineReport:
     hypotheses: list[RadiiHypothesis]
     pruned: bool
     seconds: float
+    stage: str = "all"
 
 
 @dataclass
@@ -257,42 +258,59 @@ class SketchRetriever:
         # Trust the spectrum's symmetry order when the two strongest peaks are clear (a near-circle is not).
         clear = len(prepared.spectrum.peaks) >= 2 and prepared.spectrum.magnitude(int(prepared.spectrum.peaks[1])) > 0.1
         lead = known_symmetry or (estimated if estimated > 1 and clear else None)
-        pool: list[Candidate] = []
-        reports: list[MachineReport] = []
+        plans: dict[str, tuple[list[RadiiHypothesis], list[np.ndarray | None], list[str]]] = {}
         for name in self.machine_names:
             database = self.database(name)
-            begin = time.perf_counter()
             hypotheses: list[RadiiHypothesis] = []
             stages: list[np.ndarray | None] = [None]
+            names: list[str] = ["all"]
             if prune:
                 n_gears = database.radii.shape[1]
-                stages = []
+                stages, names = [], []
                 if n_gears in (2, 3):
                     hypotheses = radii_hypotheses(prepared.spectrum, n_gears, known_symmetry)
                     if known_symmetry is None and estimated > 1:
                         hypotheses.append(RadiiHypothesis((estimated,) + (None,) * (n_gears - 1), 0.0))
                     stages.append(database.rows_matching(hypotheses))
+                    names.append("spectrum radii")
                 if lead is not None:
                     # The leading radius is the symmetry order: a machine without it cannot draw the sketch.
                     stages.append(database.rows_matching([RadiiHypothesis((lead,), 0.0)]))
+                    names.append("leading radius")
                 if known_symmetry is None:
+                    names.append("all")
                     stages.append(None)  # an estimated symmetry may be wrong: everything, as a last resort
-            # Widen the search while the pruned candidates all match poorly (a peak misread, a wrong estimate).
-            rows: np.ndarray | None = None
-            distances = np.zeros(0)
-            for stage, rows in enumerate(stages):
-                if rows is not None and len(rows) == 0 and stage < len(stages) - 1:
+            plans[name] = (hypotheses, stages, names)
+        # Widen the search, level by level for every machine, while no candidate matches well (a misread peak, a
+        # wrong symmetry estimate); a machine is not searched wider just because it cannot draw the sketch.
+        levels = max(len(stages) for _, stages, _ in plans.values())
+        results: dict[str, tuple[list[Candidate], int, str, float]] = {}
+        for level in range(levels):
+            for name, (_hypotheses, stages, names) in plans.items():
+                if level >= len(stages) or (name in results and level > 0 and _same(stages, level)):
                     continue
+                rows = stages[level]
+                begin = time.perf_counter()
+                database = self.database(name)
                 distances = database.bank.match(prepared.coefficients, rows=rows, mirror=mirror).distance
-                if len(distances) and distances.min() <= PRUNE_FALLBACK_DISTANCE:
-                    break
-            indices = np.arange(len(database)) if rows is None else rows
-            pool.extend(_best_per_radii(database, indices, distances, top + refine))
-            reports.append(
-                MachineReport(
-                    name, len(database), len(indices), hypotheses, rows is not None, time.perf_counter() - begin
+                indices = np.arange(len(database)) if rows is None else rows
+                spent = time.perf_counter() - begin + (results[name][3] if name in results else 0.0)
+                results[name] = (
+                    _best_per_radii(database, indices, distances, top + refine),
+                    len(indices),
+                    names[level],
+                    spent,
                 )
-            )
+            best = min((c.distance for found, *_ in results.values() for c in found), default=np.inf)
+            if best <= PRUNE_FALLBACK_DISTANCE:
+                break
+        pool: list[Candidate] = []
+        reports: list[MachineReport] = []
+        for name, (hypotheses, _, _) in plans.items():
+            found, compared, stage, spent = results.get(name, ([], 0, "none", 0.0))
+            pool.extend(found)
+            database = self.database(name)
+            reports.append(MachineReport(name, len(database), compared, hypotheses, stage != "all", spent, stage))
         timings["match"] = sum(r.seconds for r in reports)
         pool.sort(key=lambda c: c.distance)
         if refine:
@@ -305,6 +323,14 @@ class SketchRetriever:
             timings["refine"] = time.perf_counter() - begin
         timings["total"] = time.perf_counter() - clock
         return RetrievalResult(pool[:top], prepared, reports, timings)
+
+
+def _same(stages: list[np.ndarray | None], level: int) -> bool:
+    """Whether stage ``level`` holds the same rows as the one before (nothing new to compare)."""
+    a, b = stages[level - 1], stages[level]
+    if a is None or b is None:
+        return a is None and b is None
+    return len(a) == len(b) and bool(np.array_equal(a, b))
 
 
 def _best_per_radii(database: CandidateDatabase, rows: np.ndarray, distance: np.ndarray, keep: int) -> list[Candidate]:
