@@ -58,9 +58,10 @@ def plot_robustness(
     draw.rectangle([left, top, left + plot_w, top + plot_h], outline="black")
     draw.text((left + plot_w / 2 - 100, height - 30), "error eps on the normalized layout parameters",
               fill="black", font=font)
-    draw.text((8, top - 30), "local robustness rho_l(x*, eps)", fill="black", font=font)
+    draw.text((8, top - 24), "local robustness rho_l(x*, eps)", fill="black", font=font)
     if title:
-        draw.text((left + plot_w / 2 - 4 * len(title), 14), title, fill="black", font=font)
+        title_width = draw.textlength(title, font=font)
+        draw.text((left + plot_w - title_width, 14), title, fill="black", font=font)
 
     for index, (name, (epsilon, mean, sem)) in enumerate(curves.items()):
         colour = COLOURS.get(name, FALLBACK[index % len(FALLBACK)])
