@@ -8,6 +8,7 @@ Public API (used by the robust-layout helper and the station)::
     scenario.content_hash                  # sha256 of the canonical content (cache key)
     scenario.events                        # event names, file order
     problems = check_validity(scenario, x) # [] means physically valid
+    clearances(scenario, x)                # signed margins per close pair / rope (>= 0: valid), for optimizers
     result = simulate(scenario, x)         # .success .n_successful_events .events[name].state/.time .duration .steps
     with Simulator(scenario) as sim:       # one pybullet DIRECT client reused across many runs
         results = [sim.run(x) for x in layouts]
@@ -33,11 +34,13 @@ from design.contraption.simulation import (
     AWAKE,
     FAILURE,
     SUCCESS,
+    Clearance,
     EventOutcome,
     SimulationResult,
     Simulator,
     ValidityProblem,
     check_validity,
+    clearances,
     simulate,
 )
 
@@ -48,6 +51,7 @@ __all__ = [
     "FAILURE",
     "PRIMITIVES",
     "SUCCESS",
+    "Clearance",
     "DesignSpace",
     "EventOutcome",
     "EventSpec",
@@ -62,6 +66,7 @@ __all__ = [
     "Transform",
     "ValidityProblem",
     "check_validity",
+    "clearances",
     "layout_from_data",
     "load_layout",
     "load_scenario",

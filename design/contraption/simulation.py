@@ -312,19 +312,37 @@ class Simulator:
         )
 
 
-def validity_problems(world: World) -> list[ValidityProblem]:
-    """Interpenetrations beyond tolerance and over-stretched ropes of a freshly built world (see check_validity)."""
+@dataclass(frozen=True)
+class Clearance:
+    """How far a pair of bodies (or a rope) is from making a layout invalid.
+
+    ``distance`` is the signed distance between the two bodies (negative: interpenetration depth) or, for a rope,
+    its length minus the path the layout asks of it. ``margin = distance + tolerance`` is >= 0 exactly when this
+    pair is acceptable: a smooth-ish constraint for layout optimization (thesis 4.7).
+    """
+
+    kind: str
+    objects: tuple[str, ...]
+    distance: float
+    tolerance: float
+
+    @property
+    def margin(self) -> float:
+        return self.distance + self.tolerance
+
+
+def world_clearances(world: World, radius: float = 0.0) -> list[Clearance]:
+    """Clearances of the body pairs closer than ``radius`` (m) and of every rope, in a freshly built world."""
     client = world.client
-    scenario = world.scenario
-    settings = scenario.settings
+    settings = world.scenario.settings
     ignored = {frozenset(pair) for pair in settings.ignore_overlap}
     client.performCollisionDetection()
-    problems: list[ValidityProblem] = []
+    result: list[Clearance] = []
     bodies = list(world.bodies.values())
     sizes = {b.label: b.spec.smallest_dimension() for b in bodies}
-    # Broad phase: only pairs whose bounding boxes overlap can interpenetrate (a big saving with many dominoes).
+    # Broad phase: only pairs whose (grown) bounding boxes overlap can be that close (a big saving with dominoes).
     boxes = np.array([np.concatenate(client.getAABB(b.uid)) for b in bodies]).reshape(len(bodies), 6)
-    lower, upper = boxes[:, :3], boxes[:, 3:]
+    lower, upper = boxes[:, :3] - radius / 2, boxes[:, 3:] + radius / 2
     overlapping = np.all(
         (lower[:, None, :] <= upper[None, :, :] + 1e-9) & (lower[None, :, :] <= upper[:, None, :] + 1e-9), axis=2
     )
@@ -335,41 +353,49 @@ def validity_problems(world: World) -> list[ValidityProblem]:
                 continue
             if frozenset((a.object_name, b.object_name)) in ignored:
                 continue
-            tolerance = settings.overlap_tolerance * min(sizes[a.label], sizes[b.label])
-            points = client.getClosestPoints(a.uid, b.uid, 0.0)
+            points = client.getClosestPoints(a.uid, b.uid, radius)
             if not points:
                 continue
-            depth = -min(p[8] for p in points)
-            if depth > tolerance:
-                problems.append(
-                    ValidityProblem(
-                        kind="overlap",
-                        objects=(a.label, b.label),
-                        amount=depth,
-                        tolerance=tolerance,
-                        message=(
-                            f"{a.label} and {b.label} interpenetrate by {depth * 1000:.2f} mm "
-                            f"(tolerance {tolerance * 1000:.2f} mm)"
-                        ),
-                    )
-                )
+            tolerance = settings.overlap_tolerance * min(sizes[a.label], sizes[b.label])
+            result.append(Clearance("overlap", (a.label, b.label), min(p[8] for p in points), tolerance))
     for rope in world.ropes:
         _, length = world.rope_path(rope)
-        tolerance = 1e-3 * rope.length
-        if length > rope.length + tolerance:
-            problems.append(
-                ValidityProblem(
-                    kind="rope",
-                    objects=(rope.name,),
-                    amount=length - rope.length,
-                    tolerance=tolerance,
-                    message=(
-                        f"rope {rope.name} would have to stretch from {rope.length:.4f} m to {length:.4f} m "
-                        f"(too short by {(length - rope.length) * 1000:.1f} mm)"
-                    ),
-                )
+        result.append(Clearance("rope", (rope.name,), rope.length - length, 1e-3 * rope.length))
+    return result
+
+
+def validity_problems(world: World) -> list[ValidityProblem]:
+    """Interpenetrations beyond tolerance and over-stretched ropes of a freshly built world (see check_validity)."""
+    problems: list[ValidityProblem] = []
+    for c in world_clearances(world, 0.0):
+        if c.margin >= 0.0:
+            continue
+        amount = -c.distance
+        if c.kind == "overlap":
+            a, b = c.objects
+            message = (
+                f"{a} and {b} interpenetrate by {amount * 1000:.2f} mm (tolerance {c.tolerance * 1000:.2f} mm)"
             )
+        else:
+            rope = next(r for r in world.ropes if r.name == c.objects[0])
+            message = (
+                f"rope {rope.name} would have to stretch from {rope.length:.4f} m to {rope.length + amount:.4f} m "
+                f"(too short by {amount * 1000:.1f} mm)"
+            )
+        problems.append(ValidityProblem(c.kind, c.objects, amount, c.tolerance, message))
     return problems
+
+
+def clearances(scenario: Scenario, x_real=None, *, radius: float = 0.005, client=None) -> list[Clearance]:
+    """Signed clearances of the body pairs closer than ``radius`` and of the ropes, for layout ``x_real``.
+
+    Every ``margin`` is >= 0 exactly when :func:`check_validity` finds no problem (pairs farther apart than
+    ``radius`` are left out: their margin is larger than ``radius``).
+    """
+    if x_real is not None:
+        x_real = scenario.design_space.check_bounds(np.asarray(x_real, dtype=float))
+    sim = Simulator(scenario, client=client) if client is not None else _thread_simulator(scenario)
+    return world_clearances(sim.build(x_real), radius)
 
 
 _local = threading.local()

@@ -297,3 +297,23 @@ def test_interpenetration_names_the_pair_and_depth():
     assert problems[0].objects == ("a", "b")
     assert problems[0].amount == pytest.approx(0.01, abs=3e-4)
     assert "a and b interpenetrate by 10.0" in problems[0].message
+
+
+def test_clearances_are_signed_margins_matching_validity():
+    from design.contraption import clearances
+
+    s = scene([
+        {"name": "a", "type": "Box", "shape": {"size": [0.02, 0.02, 0.02]}, "physics": {"mass": 0.01},
+         "transform": {"z": 0.0101}, "ranges": {"x": [-0.05, 0.05]}},
+        {"name": "b", "type": "Box", "shape": {"size": [0.02, 0.02, 0.02]}, "physics": {"mass": 0.01},
+         "transform": {"x": 0.05, "z": 0.0101}},
+    ])
+
+    def margin(x):
+        found = [c for c in clearances(s, [x], radius=0.01) if c.objects == ("a", "b")]
+        return found[0].margin if found else None
+
+    assert margin(-0.05) is None  # 8 cm apart: beyond the radius
+    assert margin(0.025) == pytest.approx(0.005 + 0.001, abs=2e-4)  # 5 mm gap + 1 mm tolerance
+    assert margin(0.0295) > 0 and check_validity(s, [0.0295]) == []
+    assert margin(0.04) == pytest.approx(-0.01 + 0.001, abs=3e-4) and check_validity(s, [0.04])
