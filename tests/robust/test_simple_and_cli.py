@@ -119,3 +119,20 @@ def test_cli_bad_input_is_one_clear_line(tmp_path, capsys):
     assert main(["robustness", str(SIMPLE), str(broken)]) == 2
     assert "not JSON" in capsys.readouterr().err
     assert main(["optimize", str(tmp_path / "nope.toml"), "--out", str(tmp_path / "y.json")]) == 2
+
+
+def test_progress_bar_and_thesis_budgets():
+    import io
+
+    from design.robust import Progress
+    from station.commands.robust import DEFAULT_BUDGET, ProgressBar, thesis_budget
+
+    stream = io.StringIO()
+    bar = ProgressBar(stream)
+    bar(Progress("exploration", 0, 100))
+    bar(Progress("exploration", 5, 100))
+    bar(Progress("active learning", 60, 100, 0.91, None))
+    assert stream.getvalue().splitlines() == ["exploration: 0/100 simulations", "active learning: 60/100 simulations"]
+    assert thesis_budget("CAUSALITYSWITCH (ball faster)") == 614
+    assert thesis_budget("ballrun") == 1120
+    assert thesis_budget("SIMPLE") == DEFAULT_BUDGET
