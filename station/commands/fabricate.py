@@ -3,7 +3,8 @@
     station fabricate spirograph --set r_f=5 --set r_r=3 --set d=2 --scale 8 --out build/spiro
 
 writes ``parts.svg`` (mm, layers engrave/cut), ``laser.gcode`` (GRBL 1.1), ``parts.json`` (parts, sizes, sheet usage,
-job estimate) and ``sheet.png`` (preview) into the output folder.
+job estimate) and ``sheet.png`` (preview) into the output folder. Parts that do not fit one sheet go on further
+sheets: ``parts-2.svg``, ``laser-2.gcode``, ``sheet-2.png``...
 """
 
 from __future__ import annotations
@@ -25,18 +26,54 @@ DEFAULT_GAP = 3.0
 
 
 @dataclass
-class FabricationResult:
-    """Everything one fabrication run produced (kept in memory for the TUI, written to files by the CLI)."""
+class SheetOutput:
+    """One nested sheet with its files' contents: the laser job, SVG, G-code and preview."""
 
-    machine: str
-    params: dict[str, Any]
-    scale: float
+    index: int
     sheet: Any
     job: Any
     svg: str
     gcode: str
     png: bytes
+
+    @property
+    def suffix(self) -> str:
+        """File-name suffix: none for the first sheet, ``-2``, ``-3``... for the next ones."""
+        return "" if self.index == 1 else f"-{self.index}"
+
+
+@dataclass
+class FabricationResult:
+    """Everything one fabrication run produced (kept in memory for the TUI, written to files by the CLI).
+
+    ``sheet``, ``job``, ``svg``, ``gcode`` and ``png`` are the first sheet's; ``sheets`` has them all.
+    """
+
+    machine: str
+    params: dict[str, Any]
+    scale: float
+    sheets: list[SheetOutput]
     summary: dict[str, Any]
+
+    @property
+    def sheet(self) -> Any:
+        return self.sheets[0].sheet
+
+    @property
+    def job(self) -> Any:
+        return self.sheets[0].job
+
+    @property
+    def svg(self) -> str:
+        return self.sheets[0].svg
+
+    @property
+    def gcode(self) -> str:
+        return self.sheets[0].gcode
+
+    @property
+    def png(self) -> bytes:
+        return self.sheets[0].png
 
 
 def parse_sheet(text: str) -> tuple[float, float]:
@@ -49,15 +86,17 @@ def parse_sheet(text: str) -> tuple[float, float]:
 
 def fabricate(machine: str, params: dict[str, float], scale: float, *, kerf: float = DEFAULT_KERF,
               sheet_size: tuple[float, float] | None = None, gap: float = DEFAULT_GAP, profile=None,
-              material: str | None = None, gear_settings=None, hardware=None, progress=None) -> FabricationResult:
+              material: str | None = None, gear_settings=None, hardware=None, progress=None,
+              max_sheets: int = 4) -> FabricationResult:
     """Parts → kerf → nesting → SVG, PNG, laser job. Raises the design/driver errors for bad input.
 
-    ``progress``, optional: called with short messages while working.
+    ``progress``, optional: called with short messages while working. Parts that do not fit one sheet go on
+    further sheets (at most ``max_sheets``), each with its own job.
     """
     from design.fabrication import (
         FABRICABLE_MACHINES,
         machine_parts,
-        nest_parts,
+        nest_sheets,
         render_png,
         sheet_paths,
         write_svg,
@@ -83,24 +122,29 @@ def fabricate(machine: str, params: dict[str, float], scale: float, *, kerf: flo
     parts = machine_parts(machine, params, scale, gear_settings, hardware)
     generated = time.perf_counter() - started
     width, height = sheet_size if sheet_size is not None else (profile.width, profile.height)
-    say(f"nesting {len(parts)} parts on a {width:g}x{height:g} mm sheet (kerf {kerf:g} mm, gap {gap:g} mm)")
-    sheet = nest_parts(parts, width, height, gap=gap, kerf=kerf)
-    say("ordering the laser job")
-    paths = sheet_paths(sheet)
+    say(f"nesting {len(parts)} parts on {width:g}x{height:g} mm sheets (kerf {kerf:g} mm, gap {gap:g} mm)")
+    sheets = nest_sheets(parts, width, height, gap=gap, kerf=kerf, max_sheets=max_sheets)
     xmin, ymin, _, _ = profile.work_bounds()
-    job = plan_laser_job(paths["engrave"], paths["cut"], engrave_ops, cut_ops, profile.laser.max_power,
-                         profile.plot.travel_feed, offset=(xmin, ymin), start=(xmin, ymin),
-                         metadata={"machine": machine, "scale": f"{scale:g} mm per unit",
-                                   "material": material_name, "profile": profile.name})
-    check_work_area(job, profile.work_bounds(), profile.name)
-    gcode = io.StringIO()
-    write_laser_gcode(job, gcode, profile.work_bounds(), profile.laser.laser_mode, profile.name)
-    svg = io.StringIO()
-    write_svg(sheet, svg, title=f"{machine} parts at {scale:g} mm per unit")
-    # The preview shows travel in sheet coordinates.
-    moves = [m - [xmin, ymin] for m in travel_moves(job)]
-    png = render_png(sheet, travel=moves)
-    estimate = job.estimate_seconds()
+    outputs: list[SheetOutput] = []
+    for index, sheet in enumerate(sheets, start=1):
+        say(f"ordering the laser job of sheet {index} of {len(sheets)}")
+        paths = sheet_paths(sheet)
+        job = plan_laser_job(paths["engrave"], paths["cut"], engrave_ops, cut_ops, profile.laser.max_power,
+                             profile.plot.travel_feed, offset=(xmin, ymin), start=(xmin, ymin),
+                             metadata={"machine": machine, "scale": f"{scale:g} mm per unit",
+                                       "sheet": f"{index} of {len(sheets)}", "material": material_name,
+                                       "profile": profile.name})
+        check_work_area(job, profile.work_bounds(), profile.name)
+        gcode = io.StringIO()
+        write_laser_gcode(job, gcode, profile.work_bounds(), profile.laser.laser_mode, profile.name)
+        svg = io.StringIO()
+        write_svg(sheet, svg, title=f"{machine} parts at {scale:g} mm per unit, sheet {index} of {len(sheets)}")
+        # The preview shows travel in sheet coordinates.
+        moves = [m - [xmin, ymin] for m in travel_moves(job)]
+        outputs.append(SheetOutput(index, sheet, job, svg.getvalue(), gcode.getvalue(),
+                                   render_png(sheet, travel=moves)))
+    parts_area = sum(o.sheet.parts_area for o in outputs)
+    estimates = [o.job.estimate_seconds() for o in outputs]
     summary = {
         "machine": machine,
         "params": dict(params),
@@ -108,32 +152,51 @@ def fabricate(machine: str, params: dict[str, float], scale: float, *, kerf: flo
         "kerf_mm": kerf,
         "gap_mm": gap,
         "sheet_mm": [width, height],
-        "sheet_usage": round(sheet.usage, 4),
-        "envelope_usage": round(sheet.envelope_usage, 4),
-        "used_mm": [round(sheet.used_width, 2), round(sheet.used_height, 2)],
+        "sheet_count": len(outputs),
+        "sheet_usage": round(parts_area / (len(outputs) * width * height), 4),
         "generation_seconds": round(generated, 3),
-        "parts": [_part_summary(part, cut, placement)
-                  for part, cut, placement in zip(sheet.parts, sheet.cut_shapes, sheet.placements)],
+        "parts": [_part_summary(part, cut, placement, o.index)
+                  for o in outputs
+                  for part, cut, placement in zip(o.sheet.parts, o.sheet.cut_shapes, o.sheet.placements)],
+        "sheets": [{
+            "index": o.index,
+            "files": {"svg": f"parts{o.suffix}.svg", "gcode": f"laser{o.suffix}.gcode", "png": f"sheet{o.suffix}.png"},
+            "parts": [part.name for part in o.sheet.parts],
+            "usage": round(o.sheet.usage, 4),
+            "envelope_usage": round(o.sheet.envelope_usage, 4),
+            "used_mm": [round(o.sheet.used_width, 2), round(o.sheet.used_height, 2)],
+            "job": _job_summary(o.job),
+        } for o in outputs],
         "job": {
             "profile": profile.name,
             "material": material_name,
             "engrave": {"power": engrave_ops.power, "feed_mm_min": engrave_ops.feed, "passes": engrave_ops.passes},
             "cut": {"power": cut_ops.power, "feed_mm_min": cut_ops.feed, "passes": cut_ops.passes},
-            "paths": len(job.paths),
-            "travel_mm_unordered": round(job.travel_unordered, 1),
-            "travel_mm": round(job.travel, 1),
-            "estimate_seconds": {k: round(v, 1) for k, v in estimate.items()},
-            "extent_mm": [list(map(float, job.extent()[0])), list(map(float, job.extent()[1]))],
+            "paths": sum(len(o.job.paths) for o in outputs),
+            "travel_mm_unordered": round(sum(o.job.travel_unordered for o in outputs), 1),
+            "travel_mm": round(sum(o.job.travel for o in outputs), 1),
+            "estimate_seconds": {k: round(sum(e[k] for e in estimates), 1) for k in estimates[0]},
         },
     }
-    return FabricationResult(machine, dict(params), scale, sheet, job, svg.getvalue(), gcode.getvalue(), png,
-                             summary)
+    return FabricationResult(machine, dict(params), scale, outputs, summary)
 
 
-def _part_summary(part, cut_shape, placement) -> dict[str, Any]:
+def _job_summary(job) -> dict[str, Any]:
+    lo, hi = job.extent()
+    return {
+        "paths": len(job.paths),
+        "travel_mm_unordered": round(job.travel_unordered, 1),
+        "travel_mm": round(job.travel, 1),
+        "estimate_seconds": {k: round(v, 1) for k, v in job.estimate_seconds().items()},
+        "extent_mm": [[float(v) for v in lo], [float(v) for v in hi]],
+    }
+
+
+def _part_summary(part, cut_shape, placement, sheet_index: int) -> dict[str, Any]:
     minx, miny, maxx, maxy = part.shape.bounds
     return {
         "name": part.name,
+        "sheet": sheet_index,
         "size_mm": [round(maxx - minx, 2), round(maxy - miny, 2)],
         "bbox_on_sheet_mm": [round(v, 3) for v in cut_shape.bounds],
         "area_mm2": round(part.shape.area, 1),
@@ -145,15 +208,20 @@ def _part_summary(part, cut_shape, placement) -> dict[str, Any]:
 
 
 def write_outputs(result: FabricationResult, out: Path) -> dict[str, Path]:
-    """Write parts.svg, laser.gcode, parts.json and sheet.png into ``out`` (created)."""
+    """Write parts.svg, laser.gcode, sheet.png (``-2``, ``-3``... for further sheets) and parts.json into ``out``."""
     out.mkdir(parents=True, exist_ok=True)
-    files = {"svg": out / "parts.svg", "gcode": out / "laser.gcode", "json": out / "parts.json",
-             "png": out / "sheet.png"}
-    files["svg"].write_text(result.svg, encoding="utf-8")
-    files["gcode"].write_text(result.gcode, encoding="utf-8")
+    files: dict[str, Path] = {}
+    for o in result.sheets:
+        key = "" if o.index == 1 else f" {o.index}"
+        files[f"svg{key}"] = out / f"parts{o.suffix}.svg"
+        files[f"gcode{key}"] = out / f"laser{o.suffix}.gcode"
+        files[f"png{key}"] = out / f"sheet{o.suffix}.png"
+        files[f"svg{key}"].write_text(o.svg, encoding="utf-8")
+        files[f"gcode{key}"].write_text(o.gcode, encoding="utf-8")
+        files[f"png{key}"].write_bytes(o.png)
+    files["json"] = out / "parts.json"
     files["json"].write_text(json.dumps(to_jsonable(result.summary), indent=2, allow_nan=False) + "\n",
                              encoding="utf-8")
-    files["png"].write_bytes(result.png)
     return files
 
 
@@ -176,6 +244,9 @@ def register(subparsers) -> None:
     parser.add_argument("--kerf", type=float, default=DEFAULT_KERF, metavar="MM",
                         help=f"laser kerf width, compensated on every contour (default {DEFAULT_KERF})")
     parser.add_argument("--sheet", default=None, metavar="WxH", help="sheet size in mm (default: the work area)")
+    parser.add_argument("--max-sheets", type=int, default=4, metavar="N",
+                        help="parts that do not fit one sheet go on further sheets, up to N (default 4); "
+                             "sheet k > 1 writes parts-k.svg, laser-k.gcode, sheet-k.png")
     parser.add_argument("--gap", type=float, default=DEFAULT_GAP, metavar="MM",
                         help=f"least distance between parts and to the sheet's edges (default {DEFAULT_GAP})")
     parser.add_argument("--profile", default="laser", metavar="PROFILE.toml",
@@ -201,6 +272,8 @@ def run_fabricate(args) -> int:
     from drivers.profiles import load_profile
 
     params = parse_assignments(args.set)
+    if args.max_sheets < 1:
+        raise UsageError(f"--max-sheets must be at least 1, got {args.max_sheets}")
     sheet_size = parse_sheet(args.sheet) if args.sheet is not None else None
     profile = load_profile(args.profile)
     settings = GearSettings(module=args.module, pressure_angle=args.pressure_angle, backlash=args.backlash)
@@ -211,21 +284,26 @@ def run_fabricate(args) -> int:
 
     result = fabricate(args.machine, params, args.scale, kerf=args.kerf, sheet_size=sheet_size, gap=args.gap,
                        profile=profile, material=args.material, gear_settings=settings, hardware=hardware,
-                       progress=progress)
+                       progress=progress, max_sheets=args.max_sheets)
     files = write_outputs(result, Path(args.out))
     summary = result.summary
     if args.json:
         emit_json(summary)
         return 0
-    print(f"{args.machine} at {args.scale:g} mm/unit: {len(summary['parts'])} parts on a "
-          f"{summary['sheet_mm'][0]:g}x{summary['sheet_mm'][1]:g} mm sheet, sheet usage "
-          f"{100 * summary['sheet_usage']:.1f}% (parts fill {100 * summary['envelope_usage']:.1f}% of their "
-          f"{summary['used_mm'][0]:.0f}x{summary['used_mm'][1]:.0f} mm envelope)")
-    for part in summary["parts"]:
-        teeth = f", {part['info']['teeth']} teeth" if "teeth" in part["info"] else ""
-        print(f"  {part['name']}: {part['size_mm'][0]:.1f}x{part['size_mm'][1]:.1f} mm{teeth}")
-        for note in part["notes"]:
-            print(f"    note: {note}")
+    width, height = summary["sheet_mm"]
+    count = summary["sheet_count"]
+    print(f"{args.machine} at {args.scale:g} mm/unit: {len(summary['parts'])} parts on {count} sheet"
+          f"{'' if count == 1 else 's'} of {width:g}x{height:g} mm, sheet usage {100 * summary['sheet_usage']:.1f}%")
+    for sheet in summary["sheets"]:
+        used = sheet["used_mm"]
+        print(f"sheet {sheet['index']}: parts fill {100 * sheet['envelope_usage']:.1f}% of their "
+              f"{used[0]:.0f}x{used[1]:.0f} mm corner; laser about "
+              f"{sheet['job']['estimate_seconds']['total'] / 60:.1f} min")
+        for part in (p for p in summary["parts"] if p["sheet"] == sheet["index"]):
+            teeth = f", {part['info']['teeth']} teeth" if "teeth" in part["info"] else ""
+            print(f"  {part['name']}: {part['size_mm'][0]:.1f}x{part['size_mm'][1]:.1f} mm{teeth}")
+            for note in part["notes"]:
+                print(f"    note: {note}")
     job = summary["job"]
     print(f"laser job ({job['material']} on {job['profile']}): about {job['estimate_seconds']['total'] / 60:.1f} min, "
           f"travel {job['travel_mm']:.0f} mm (unordered {job['travel_mm_unordered']:.0f} mm)")

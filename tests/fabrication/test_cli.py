@@ -60,3 +60,24 @@ def test_bad_inputs_are_one_line_errors(tmp_path, capsys):
     # A sheet larger than the laser's work area: refused with the extent.
     assert main(["fabricate", "spirograph", "--scale", "40", "--sheet", "900x900", "--out", str(tmp_path)]) == 2
     assert "work area" in capsys.readouterr().err
+
+
+def test_parts_that_do_not_fit_one_sheet_go_on_more_sheets(tmp_path, capsys):
+    code = main(["fabricate", "hoot_nanny", "--scale", "5", "--sheet", "140x140", "--out", str(tmp_path), "--json"])
+    assert code == 0
+    summary = json.loads(capsys.readouterr().out)
+    count = summary["sheet_count"]
+    assert count >= 2 and len(summary["sheets"]) == count
+    assert sorted(p["name"] for p in summary["parts"]) == sorted(n for s in summary["sheets"] for n in s["parts"])
+    for sheet in summary["sheets"]:
+        for name in sheet["files"].values():
+            assert (tmp_path / name).exists()
+        lines = (tmp_path / sheet["files"]["gcode"]).read_text().splitlines()
+        lo, hi = interpret(lines).extent()
+        assert lo.min() >= 0 and hi[0] <= 140 and hi[1] <= 140
+    assert (tmp_path / "parts-2.svg").exists() and (tmp_path / "laser-2.gcode").exists()
+    assert summary["job"]["estimate_seconds"]["total"] == pytest.approx(
+        sum(s["job"]["estimate_seconds"]["total"] for s in summary["sheets"]), abs=0.5)
+    assert main(["fabricate", "hoot_nanny", "--scale", "5", "--sheet", "140x140", "--max-sheets", "1",
+                 "--out", str(tmp_path)]) == 2
+    assert "no room for part" in capsys.readouterr().err

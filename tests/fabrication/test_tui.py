@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from textual.widgets import DataTable, Input, Static
 
+from design.machines import get_machine
 from station.tui.app import StationApp
 from station.tui.screens.fabricate import FabricateScreen, HalfBlockPicture
 
@@ -93,3 +94,30 @@ async def test_send_queues_the_laser_job_on_the_machines_screen(tmp_path):
         assert entry.device == "laser" and entry.job.laser
         assert entry.job.lines == screen.result.gcode.splitlines()
         assert "sent to the laser" in screen.last_message
+
+
+async def test_several_sheets_are_shown_in_turn_and_all_sent(tmp_path):
+    app = StationApp(database=tmp_path / "t.sqlite3")
+    async with app.run_test(size=(160, 50)) as pilot:
+        await pilot.press("d")
+        for _ in range(5):
+            await pilot.pause(0.05)
+        app.open_design("hoot_nanny", get_machine("hoot_nanny").defaults())
+        for _ in range(5):
+            await pilot.pause(0.05)
+        app.get_screen("drawing").action_fabricate()
+        screen = app.get_screen("fabricate")
+        await wait_for(pilot, screen, lambda: screen.result is not None)
+        screen.query_one("#scale", Input).value = "5"
+        screen.query_one("#sheet-size", Input).value = "140x140"
+        screen.action_generate()
+        await wait_for(pilot, screen, lambda: screen.result is not None and len(screen.result.sheets) == 2)
+        assert "2 sheets" in screen.last_message
+        first = screen.query_one(HalfBlockPicture).full
+        await pilot.press("n")
+        assert screen.sheet_index == 1 and "sheet 2 of 2" in str(screen.query_one("#job", Static).render())
+        assert screen.query_one(HalfBlockPicture).full is not first
+        await pilot.press("s")
+        machines = app.get_screen("machines")
+        await wait_for(pilot, screen, lambda: len(getattr(machines, "jobs", [])) == 2)
+        assert [j.title.endswith(f"sheet {i}/2") for i, j in enumerate(machines.jobs, start=1)] == [True, True]

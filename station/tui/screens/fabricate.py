@@ -3,9 +3,9 @@
 Opened from the Drawing machines screen (key f there, or f on the home screen), it takes that screen's current
 design. The nested sheet is drawn as a picture in the terminal (two pixels per cell with half blocks), beside the
 parts list and the job estimate. Tab reaches the fields (scale, kerf, sheet, material); Enter there regenerates.
-From the parts table: g regenerates, r reloads the Drawing screen's design, z zooms on the parts, w writes
-parts.svg, laser.gcode, parts.json and sheet.png into the station's data folder, s queues the job for the laser on
-the Machines screen (where f frames it and g runs it).
+From the parts table: g regenerates, r reloads the Drawing screen's design, z zooms on the parts, n shows the next
+sheet (when the parts need several), w writes parts.svg, laser.gcode, parts.json and sheet.png into the station's
+data folder, s queues the jobs for the laser on the Machines screen (where f frames a job and g runs it).
 """
 
 from __future__ import annotations
@@ -108,6 +108,7 @@ class FabricateScreen(Screen):
         Binding("s", "send", "Send to laser"),
         Binding("r", "reload", "Reload design"),
         Binding("z", "zoom", "Zoom to parts"),
+        Binding("n", "next_sheet", "Next sheet"),
     ]
 
     def __init__(self) -> None:
@@ -116,6 +117,7 @@ class FabricateScreen(Screen):
         self.result: FabricationResult | None = None
         self.last_message = ""
         self.part_text = ""
+        self.sheet_index = 0
 
     def compose(self) -> ComposeResult:
         yield Header()
@@ -143,7 +145,7 @@ class FabricateScreen(Screen):
 
     def on_mount(self) -> None:
         table = self.query_one("#parts", DataTable)
-        table.add_columns("part", "size mm", "teeth", "notes")
+        table.add_columns("part", "sheet", "size mm", "teeth", "notes")
         # The keys (g, w, s, r) act while the table has focus; Tab reaches the fields, Enter there regenerates.
         table.focus()
 
@@ -226,20 +228,40 @@ class FabricateScreen(Screen):
         for part in result.summary["parts"]:
             width, height = part["size_mm"]
             teeth = str(part["info"].get("teeth", ""))
-            table.add_row(part["name"], f"{width:.0f}×{height:.0f}", teeth, "; ".join(part["notes"])[:60])
-        job = result.summary["job"]
+            table.add_row(part["name"], str(part["sheet"]), f"{width:.0f}×{height:.0f}", teeth,
+                          "; ".join(part["notes"])[:60])
+        self.show_sheet(0)
+        count = len(result.sheets)
+        more = f", {count} sheets (n: next sheet)" if count > 1 else ""
+        self._set_status(f"{len(result.summary['parts'])} parts in {seconds:.1f} s{more} — w: write files, "
+                         "s: send to laser")
+
+    def show_sheet(self, index: int) -> None:
+        """Show sheet ``index`` (0-based): its picture, usage and laser job."""
+        if self.result is None:
+            return
+        self.sheet_index = index % len(self.result.sheets)
+        output = self.result.sheets[self.sheet_index]
+        summary = self.result.summary
+        sheet = summary["sheets"][self.sheet_index]
+        job, material = sheet["job"], summary["job"]
         estimate = job["estimate_seconds"]
+        count = len(self.result.sheets)
         self.query_one("#job", Static).update(
-            f"sheet {result.summary['sheet_mm'][0]:g}×{result.summary['sheet_mm'][1]:g} mm, "
-            f"usage {100 * result.summary['sheet_usage']:.1f}% "
-            f"(parts fill {100 * result.summary['envelope_usage']:.0f}% of their corner)\n"
-            f"laser: {job['material']} on {job['profile']}, about {estimate['total'] / 60:.1f} min "
+            f"sheet {output.index} of {count}: {summary['sheet_mm'][0]:g}×{summary['sheet_mm'][1]:g} mm, "
+            f"usage {100 * sheet['usage']:.1f}% (parts fill {100 * sheet['envelope_usage']:.0f}% of their corner)\n"
+            f"laser: {material['material']} on {material['profile']}, about {estimate['total'] / 60:.1f} min "
             f"(cut {estimate['cut'] / 60:.1f}, engrave {estimate['engrave'] / 60:.1f}, "
             f"travel {estimate['travel'] / 60:.1f})\n"
             f"travel {job['travel_mm']:.0f} mm (unordered {job['travel_mm_unordered']:.0f} mm), "
-            f"{len(result.gcode.splitlines())} G-code lines")
-        self.query_one(HalfBlockPicture).set_png(result.png)
-        self._set_status(f"{len(result.summary['parts'])} parts in {seconds:.1f} s — w: write files, s: send to laser")
+            f"{len(output.gcode.splitlines())} G-code lines")
+        picture = self.query_one(HalfBlockPicture)
+        picture.crop = None
+        picture.set_png(output.png)
+
+    def action_next_sheet(self) -> None:
+        if self.result is not None:
+            self.show_sheet(self.sheet_index + 1)
 
     @on(DataTable.RowHighlighted, "#parts")
     def _part_highlighted(self, event: DataTable.RowHighlighted) -> None:
@@ -266,7 +288,7 @@ class FabricateScreen(Screen):
         if picture.crop is not None or self.result is None:
             picture.set_crop(None)
             return
-        sheet = self.result.sheet
+        sheet = self.result.sheets[self.sheet_index].sheet
         # The PNG's top row is the sheet's far edge (y up on the sheet): the parts sit in the bottom-left corner.
         right = min(1.0, sheet.used_width / sheet.width)
         top = max(0.0, 1.0 - sheet.used_height / sheet.height)
@@ -299,20 +321,25 @@ class FabricateScreen(Screen):
             path = self.action_write()
             self._set_status(f"the Machines screen cannot take jobs here; the G-code is in {path}")
             return
-        title = f"{self.result.machine} parts ({self.result.summary['job']['material']})"
-        # Show the Machines screen first, so that its queue table exists when the job arrives.
+        count = len(self.result.sheets)
+        material = self.result.summary["job"]["material"]
+        jobs = [(f"{self.result.machine} parts ({material})" + (f", sheet {o.index}/{count}" if count > 1 else ""),
+                 o.gcode) for o in self.result.sheets]
+        # Show the Machines screen first, so that its queue table exists when the jobs arrive.
         self.app.action_open_area("machines")
-        self.app.call_after_refresh(self._queue_on_machines, queue, self.result.gcode, title)
+        self.app.call_after_refresh(self._queue_on_machines, queue, jobs)
 
-    def _queue_on_machines(self, queue, gcode: str, title: str) -> None:
-        try:
-            queue("laser", gcode, title=title, laser=True)
-        except (DriverError, StationError, ValueError) as error:
-            self._set_status(f"[red]the laser refused the job: {error}[/red]")
-            self.notify(str(error), severity="error", title="Job not queued")
-            return
-        self._set_status(f"sent to the laser: {title}")
-        self.notify(f"{title}: on the Machines screen, f frames the job, g starts it", title="Laser job queued")
+    def _queue_on_machines(self, queue, jobs: list[tuple[str, str]]) -> None:
+        for title, gcode in jobs:
+            try:
+                queue("laser", gcode, title=title, laser=True)
+            except (DriverError, StationError, ValueError) as error:
+                self._set_status(f"[red]the laser refused the job: {error}[/red]")
+                self.notify(str(error), severity="error", title="Job not queued")
+                return
+        titles = ", ".join(title for title, _ in jobs)
+        self._set_status(f"sent to the laser: {titles}")
+        self.notify(f"{titles}: on the Machines screen, f frames a job, g starts it", title="Laser job queued")
 
     def _set_status(self, message: str) -> None:
         self.last_message = message
