@@ -81,3 +81,19 @@ def test_parts_that_do_not_fit_one_sheet_go_on_more_sheets(tmp_path, capsys):
     assert main(["fabricate", "hoot_nanny", "--scale", "5", "--sheet", "140x140", "--max-sheets", "1",
                  "--out", str(tmp_path)]) == 2
     assert "no room for part" in capsys.readouterr().err
+
+
+def test_a_centre_origin_profile_puts_the_sheet_in_its_work_area(tmp_path, capsys):
+    from drivers.profiles import BUILTIN_PROFILES
+
+    toml = BUILTIN_PROFILES["laser"].replace('origin = "front-left"', 'origin = "center"')
+    profile = tmp_path / "centre.toml"
+    profile.write_text(toml)
+    code = main(["fabricate", "spirograph", "--scale", "6", "--sheet", "200x150", "--profile", str(profile),
+                 "--out", str(tmp_path / "out"), "--json"])
+    assert code == 0
+    capsys.readouterr()
+    lo, hi = interpret((tmp_path / "out" / "laser.gcode").read_text().splitlines()).extent()
+    # The sheet's front-left corner sits at the work area's front-left corner (-200, -200).
+    assert lo[0] == pytest.approx(-200.0) and lo[1] == pytest.approx(-200.0)
+    assert hi[0] <= -200.0 + 200.0 and hi[1] <= -200.0 + 150.0
