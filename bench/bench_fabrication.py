@@ -27,14 +27,17 @@ MACHINES = ("spirograph", "elliptic_spirograph", "cycloid_drawing_machine", "hoo
 def _job(sheet, profile):
     engrave, cut, _ = material_settings(profile, None)
     paths = sheet_paths(sheet)
-    return plan_laser_job(paths["engrave"], paths["cut"], engrave, cut, profile.laser.max_power,
-                          profile.plot.travel_feed)
+    return plan_laser_job(
+        paths["engrave"], paths["cut"], engrave, cut, profile.laser.max_power, profile.plot.travel_feed
+    )
 
 
 def main() -> None:
     profile = builtin_profile("laser")
-    print(f"{'machine':26s} {'parts':>5s} {'generate s':>10s} {'nest s':>7s} {'sheet use':>9s} {'envelope':>8s} "
-          f"{'travel before mm':>16s} {'after mm':>9s} {'ratio':>6s} {'order s':>7s} {'job min':>7s}")
+    print(
+        f"{'machine':26s} {'parts':>5s} {'generate s':>10s} {'nest s':>7s} {'sheet use':>9s} {'envelope':>8s} "
+        f"{'travel before mm':>16s} {'after mm':>9s} {'ratio':>6s} {'order s':>7s} {'job min':>7s}"
+    )
     for machine in MACHINES:
         started = time.perf_counter()
         parts = machine_parts(machine, {}, 8.0)
@@ -45,9 +48,11 @@ def main() -> None:
         started = time.perf_counter()
         job = _job(sheet, profile)
         ordered = time.perf_counter() - started
-        print(f"{machine:26s} {len(parts):5d} {generated:10.2f} {nested:7.2f} {100 * sheet.usage:8.1f}% "
-              f"{100 * sheet.envelope_usage:7.1f}% {job.travel_unordered:16.0f} {job.travel:9.0f} "
-              f"{job.travel / job.travel_unordered:6.2f} {ordered:7.2f} {job.estimate_seconds()['total'] / 60:7.1f}")
+        print(
+            f"{machine:26s} {len(parts):5d} {generated:10.2f} {nested:7.2f} {100 * sheet.usage:8.1f}% "
+            f"{100 * sheet.envelope_usage:7.1f}% {job.travel_unordered:16.0f} {job.travel:9.0f} "
+            f"{job.travel / job.travel_unordered:6.2f} {ordered:7.2f} {job.estimate_seconds()['total'] / 60:7.1f}"
+        )
 
     # Every machine's parts on one sheet: a denser nesting problem and a longer tour.
     parts = []
@@ -59,10 +64,12 @@ def main() -> None:
     nested = time.perf_counter() - started
     job = _job(sheet, profile)
     plain = sum(len(p.engrave) for p in sheet.parts)
-    print(f"\nall four machines at 5 mm/unit: {len(parts)} parts nested in {nested:.2f} s, sheet usage "
-          f"{100 * sheet.usage:.1f}%, envelope {sheet.used_width:.0f}x{sheet.used_height:.0f} mm filled "
-          f"{100 * sheet.envelope_usage:.1f}%; {plain} label strokes; travel {job.travel_unordered:.0f} -> "
-          f"{job.travel:.0f} mm (ratio {job.travel / job.travel_unordered:.2f})")
+    print(
+        f"\nall four machines at 5 mm/unit: {len(parts)} parts nested in {nested:.2f} s, sheet usage "
+        f"{100 * sheet.usage:.1f}%, envelope {sheet.used_width:.0f}x{sheet.used_height:.0f} mm filled "
+        f"{100 * sheet.envelope_usage:.1f}%; {plain} label strokes; travel {job.travel_unordered:.0f} -> "
+        f"{job.travel:.0f} mm (ratio {job.travel / job.travel_unordered:.2f})"
+    )
 
     print("\ngear generation (module 1.5, 20 deg):")
     settings = GearSettings()
@@ -76,5 +83,6 @@ def main() -> None:
         started = time.perf_counter()
         ring_gear(teeth * 2, 1.5, 8.0, settings, cutter_teeth=teeth)
         t_ring = time.perf_counter() - started
-        print(f"  z={teeth:3d}: external {t_ext:.3f} s, elliptic (e=0.6) {t_ell:.3f} s, "
-              f"ring z={2 * teeth} {t_ring:.3f} s")
+        print(
+            f"  z={teeth:3d}: external {t_ext:.3f} s, elliptic (e=0.6) {t_ell:.3f} s, ring z={2 * teeth} {t_ring:.3f} s"
+        )
