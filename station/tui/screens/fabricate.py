@@ -90,7 +90,7 @@ class FabricateScreen(Screen):
     """Parts, nesting and laser job of the current design."""
 
     CSS = """
-    FabricateScreen #sidebar { width: 60; border-right: solid $primary-darken-2; }
+    FabricateScreen #sidebar { width: 45%; max-width: 60; min-width: 36; border-right: solid $primary-darken-2; }
     FabricateScreen #design { height: auto; padding: 0 1; text-style: bold; }
     FabricateScreen .field { height: 3; }
     FabricateScreen .field Label { width: 16; padding: 1 1 0 1; }
