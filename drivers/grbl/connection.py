@@ -413,7 +413,8 @@ class GrblConnection:
     ) -> list[LineResult]:
         """Stream ``lines`` (raw G-code; comments and whitespace are stripped) and wait for every reply.
 
-        Character counting keeps at most ``rx_size`` bytes unacknowledged; lines that need it (``$``, ``G10``,
+        Character counting keeps at most ``rx_size - 1`` bytes unacknowledged (GRBL's ring buffer holds one byte
+        less than its size); lines that need it (``$``, ``G10``,
         ``G28.1``, ``G30.1``), or every line with ``sync_all`` (send-response), go alone.
 
         Raises
@@ -447,7 +448,7 @@ class GrblConnection:
                     report()
                     continue
                 data = (block + "\n").encode("latin-1")
-                if len(data) > self.rx_size:
+                if len(data) > self.rx_size - 1:
                     raise ProtocolError(f"line {index + 1} is {len(data)} bytes, longer than GRBL's RX buffer "
                                         f"({self.rx_size}): {block[:40]!r}...")
                 sync = sync_all or needs_sync(block)
@@ -492,7 +493,8 @@ class GrblConnection:
         return not self._pending
 
     def _has_room(self, size: int) -> bool:
-        return self._pending_bytes() + size <= self.rx_size
+        # GRBL's RX ring buffer holds one byte less than its size (head never catches up with tail)
+        return self._pending_bytes() + size <= self.rx_size - 1
 
     def _pending_bytes(self) -> int:
         return sum(p.nbytes for p in self._pending)

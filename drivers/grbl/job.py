@@ -32,6 +32,9 @@ from drivers.grbl.protocol import Error
 
 __all__ = ["Job", "JobProgress", "JobResult", "JobRunner", "frame_lines"]
 
+#: GRBL's line buffer (LINE_BUFFER_SIZE): a block has at most 79 characters after comments and spaces are removed.
+LINE_BUFFER_SIZE = 80
+
 
 @dataclass
 class Job:
@@ -203,9 +206,10 @@ class JobRunner:
                 "with $32=0 the laser stays on while stopped and burns. Set $32=1 first"
             )
         for number, raw in enumerate(self.job.lines, start=1):
-            if len(clean_line(raw)) + 1 > conn.rx_size:
-                raise JobRefused(f"job {self.job.name!r}: line {number} is longer than GRBL's RX buffer "
-                                 f"({conn.rx_size} bytes)")
+            length = len(clean_line(raw))
+            if length >= LINE_BUFFER_SIZE or length + 1 > conn.rx_size - 1:
+                raise JobRefused(f"job {self.job.name!r}: line {number} has {length} characters; GRBL takes at most "
+                                 f"{LINE_BUFFER_SIZE - 1} (error:11 otherwise)")
         self._lines, self._origin = self._build_lines()
         # start from where the machine stands: relative moves and the first travel are then checked too
         start = None

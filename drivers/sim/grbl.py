@@ -2,7 +2,8 @@
 
 What it models
 --------------
-- The 128-byte serial RX buffer (``Bf`` second field), with overflow counted (a correct streamer never overflows it)
+- The 128-byte serial RX buffer (a ring buffer: 127 bytes usable; ``Bf`` second field reports 128 minus the bytes in
+  it, as GRBL's ``serial_get_rx_buffer_available`` does), with overflow counted (a correct streamer never overflows it)
   and GRBL's line reading (one line at a time, blocked while the planner is full).
 - The 15-block planner (``Bf`` first field) and motion that takes time: each block runs at its feed (``G0`` at
   ``$110``-``$112``), limited by acceleration (``$120``-``$122``) so that the machine can always stop within the
@@ -467,7 +468,7 @@ class SimulatedGrbl:
                     return
                 if byte in (REALTIME_STATUS, REALTIME_HOLD, REALTIME_START, REALTIME_RESET) or byte >= 0x80:
                     self._realtime(byte, now)
-                elif len(self._rx) < RX_BUFFER_SIZE:
+                elif len(self._rx) < RX_BUFFER_SIZE - 1:  # a ring buffer: one slot always stays empty
                     self._rx.append(byte)
                 else:
                     self.record.overflow_bytes += 1  # a real GRBL silently loses it
@@ -634,7 +635,7 @@ class SimulatedGrbl:
                     index = i
                     break
             if index < 0:
-                if len(self._rx) >= RX_BUFFER_SIZE:  # a line longer than the buffer: GRBL's line overflow
+                if len(self._rx) >= RX_BUFFER_SIZE - 1:  # a line longer than the buffer: GRBL's line overflow
                     self._rx.clear()
                     self._emit("error:11", "reply")
                 return

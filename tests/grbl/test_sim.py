@@ -131,6 +131,20 @@ def test_planner_and_rx_buffer_in_bf(raw):
     port.port.write(b"\x18")
 
 
+def test_rx_ring_buffer_holds_127_of_128_bytes(raw):
+    port = raw("profile=laser&time_scale=1")
+    port.ask("$10=3")
+    for i in range(15):
+        port.ask(f"G1X{10 + i}F60")  # the planner is full
+    port.port.write(b"G1X30F60\n")  # taken out of the buffer, blocked in the parser
+    time.sleep(0.05)
+    port.port.write(b"G1X31F60;" + b"x" * 119)  # 128 bytes of one unfinished line
+    time.sleep(0.1)
+    assert "|Bf:0,1|" in port.status()  # 127 bytes in: GRBL reports 128 - 127
+    assert port.machine.snapshot().overflow_bytes == 1
+    port.port.write(b"\x18")
+
+
 def test_rx_overflow_is_recorded(raw):
     port = raw("profile=laser&time_scale=1")
     port.port.write(b"G1X10F60\n")
