@@ -26,6 +26,8 @@ MAX_FILE_BYTES = 2_000_000
 MAX_STROKES = 500
 #: Most points over all strokes (before symmetry copies).
 MAX_POINTS = 200_000
+#: Largest coordinate accepted (any unit): beyond, squared distances overflow.
+MAX_COORDINATE = 1e12
 #: Largest symmetry order accepted.
 MAX_SYMMETRY = 64
 #: Points per curve segment when SVG Bezier curves and arcs are flattened.
@@ -173,6 +175,13 @@ def _stroke_array(stroke: object, index: int, source: str) -> np.ndarray:
     if np.any(bad):
         first = int(np.argmax(bad))
         raise SketchError(f"{where}, point {first}: coordinates must be finite numbers, got {points[first].tolist()}")
+    huge = np.any(np.abs(points) > MAX_COORDINATE, axis=1)
+    if np.any(huge):
+        first = int(np.argmax(huge))
+        raise SketchError(
+            f"{where}, point {first}: coordinates must be at most {MAX_COORDINATE:g} in size, "
+            f"got {points[first].tolist()}"
+        )
     return points
 
 

@@ -114,6 +114,16 @@ def run_retrieve(args) -> int:
         ]
         render_contact_sheet(sheet, result.prepared.strokes, result.prepared.curve, labelled)
         print(f"contact sheet: {sheet}", file=sys.stderr)
+    if not result.candidates:
+        lead = sketch.symmetry if sketch.symmetry > 1 else "the sketch's"
+        print(
+            f"station: no candidate: no machine's database has a design with leading gear radius {lead} "
+            f"(symmetry order); try a smaller --symmetry or --machine with larger radii",
+            file=sys.stderr,
+        )
+        if args.json:
+            emit_json([])
+        return 1
     if args.json:
         emit_json([c.to_json() for c in result.candidates])
         return 0

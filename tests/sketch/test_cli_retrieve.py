@@ -71,6 +71,14 @@ def test_bad_input_is_one_line_exit_2(tmp_path, capsys, name, text, args, words)
     assert "Traceback" not in err and err.count("\n") == 1
 
 
+def test_no_machine_has_the_symmetry_order(tmp_path, capsys):
+    path = _write(tmp_path, "k.json", '{"strokes": [[[1, 0], [2, 0.5], [1.5, 1]]], "symmetry": 40}')
+    assert main(["retrieve", path, "--machine", "spirograph", "--json"]) == 1
+    captured = capsys.readouterr()
+    assert json.loads(captured.out) == []
+    assert "no candidate" in captured.err and "40" in captured.err
+
+
 def test_huge_svg_and_missing_file(tmp_path, capsys):
     huge = tmp_path / "huge.svg"
     huge.write_bytes(b"<svg>" + b"<path d='M 0 0 L 1 1'/>" * 500_000 + b"</svg>")
