@@ -189,6 +189,9 @@ class SketchScreen(Screen):
         box = self.query_one("#candidates", VerticalScroll)
         box.remove_children()
         box.mount_all([CandidatePreview(i, c, curve) for i, (c, curve) in enumerate(zip(candidates, curves), 1)])
+        if not candidates:
+            self.set_status("no design: no machine has a gear radius equal to this symmetry order; try a smaller one")
+            return
         self.set_status(f"{len(candidates)} designs in {seconds:.2f} s; click one or press 1-{len(candidates)}")
 
     def action_open(self, rank: int) -> None:
