@@ -51,15 +51,21 @@ def test_bad_inputs_are_one_line_errors(tmp_path, capsys):
     assert "--sheet" in capsys.readouterr().err
     assert main(["fabricate", "spirograph", "--scale", "6", "--material", "gold", "--out", str(tmp_path)]) == 2
     assert "no material 'gold'" in capsys.readouterr().err
-    assert main(["fabricate", "spirograph", "--scale", "30", "--sheet", "100x100", "--out", str(tmp_path)]) == 2
+    assert main(["fabricate", "spirograph", "--scale", "15", "--sheet", "100x100", "--out", str(tmp_path)]) == 2
     err = capsys.readouterr().err
     assert err.splitlines()[-1].startswith("station: error:") and "no room for part" in err
     assert "Traceback" not in err
     assert main(["fabricate", "spirograph", "--scale", "6", "--set", "r_r=7", "--out", str(tmp_path)]) == 2
     assert "station: error:" in capsys.readouterr().err
-    # A sheet larger than the laser's work area: refused with the extent.
-    assert main(["fabricate", "spirograph", "--scale", "40", "--sheet", "900x900", "--out", str(tmp_path)]) == 2
-    assert "work area" in capsys.readouterr().err
+    # A sheet larger than a (small) laser's work area: refused with the extent.
+    from drivers.profiles import BUILTIN_PROFILES
+
+    small = tmp_path / "small.toml"
+    small.write_text(BUILTIN_PROFILES["laser"].replace('"400mm"', '"100mm"'))
+    assert main(["fabricate", "spirograph", "--scale", "8", "--sheet", "200x200", "--profile", str(small),
+                 "--out", str(tmp_path)]) == 2
+    err = capsys.readouterr().err
+    assert "work area" in err and "X 0..100 mm" in err
 
 
 def test_parts_that_do_not_fit_one_sheet_go_on_more_sheets(tmp_path, capsys):
