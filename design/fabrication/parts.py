@@ -13,6 +13,11 @@ Parts per machine:
   fulcrum at their model positions);
 - Hoot-Nanny: turntable gear, two external gears (axle + pivot pin at ``r_Pi``), two arms (pivot hole, pen hole at
   ``l_i``), base plate (axles of the three gears).
+
+A pin so near a gear's rim that its hole would cut the teeth goes on a crank disc bolted (or glued) on the gear.
+Holes that do not fit their part are refused with a :class:`~design.errors.ConstraintViolation` naming the part,
+the hole and the material left. Every part carries an engraved label (a short code on small parts); base plates
+are marked next to each axle.
 """
 
 from __future__ import annotations
