@@ -693,7 +693,7 @@ class GrblConnection:
             empty = len(self._pending) == 1 and needs_sync(self._pending[0].result.text)
         else:
             empty = status.planner_free == self.planner_size and status.rx_free == self.rx_size
-        quiet = bool(self._pending) and status.state == "Idle" and empty
+        quiet = bool(self._pending) and status.state in ("Idle", "Check") and empty  # Check: nothing ever moves
         if not quiet:
             self._lost_since = None
             return

@@ -300,3 +300,10 @@ def test_lines_longer_than_grbl_takes_are_refused(make_connection):
     long_line = "G1 X10 Y10 F1000 " + " ".join(["G1 X10.000000"] * 6)
     result = JobRunner(conn, Job("long", ["G90", long_line])).run()
     assert result.state == "refused" and "line 2 has" in result.message and "error:11" in result.message
+
+
+def test_lost_ok_in_check_mode_stops_the_dry_run(make_connection):
+    conn = make_connection(sim_url("laser", drop_reply_at=3))
+    result = JobRunner(conn, Job("check", ["G90", "G0 X10 Y10", "G1 X20 F500", "G1 Y20"]), dry_run=True).run()
+    assert result.state == "stopped" and "lost ok" in result.message
+    assert conn.wait_for(lambda: conn.status.state == "Idle", 3.0)  # the reset left check mode
