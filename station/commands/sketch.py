@@ -28,7 +28,7 @@ def register(subparsers) -> None:
         "centre (--symmetry), joined by the shortest closed tour, smoothed by a closed cubic spline and compared "
         "with each machine's candidate designs (coprime gear radii from the Farey sequence, continuous parameters "
         "on a feasible grid) by a symmetric Procrustes distance, minimized over direction and start point. "
-        "The first run builds the candidate databases (about half a minute) and caches them.",
+        "The first run builds the candidate databases (about 15 s) and caches them.",
         epilog='sketch JSON: [[[x, y], ...], ...] or {"strokes": [...], "symmetry": K, "center": [x, y]}.  '
         "example: station retrieve examples/sketches/trefoil-sector.json --top 5 --out /tmp/retrieval",
     )
@@ -52,7 +52,10 @@ def register(subparsers) -> None:
     parser.add_argument("--no-prune", action="store_true", help="compare every candidate (skip the Fourier pruning)")
     parser.add_argument("--mirror", action="store_true", help="also accept mirror images of the patterns")
     parser.add_argument(
-        "--grid", type=int, metavar="V", help="values per continuous parameter in the databases (default 4)"
+        "--grid",
+        type=int,
+        metavar="V",
+        help="values per continuous parameter in the databases (default: Spirograph 12, elliptic 6, others 4)",
     )
     parser.add_argument("--json", action="store_true", help="print [{machine, params, distance}, ...] as JSON")
     parser.add_argument("--out", metavar="DIR", help="also write a contact sheet PNG of the sketch vs the candidates")
