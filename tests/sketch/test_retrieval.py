@@ -146,7 +146,7 @@ def test_sector_sketch_with_symmetry_prunes_to_the_leading_radius(retriever):
 
 
 def test_refinement_never_worsens_and_stays_feasible(retriever):
-    sketch = load_sketch(EXAMPLES / "seven-loops.json")
+    sketch = load_sketch(EXAMPLES / "seven-star.json")
     result = retriever.query(sketch, top=3)
     best = result.candidates[0]
     machine = get_machine(best.machine)
