@@ -9,7 +9,8 @@ from station.tui.app import StationApp
 from station.tui.screens.fabricate import FabricateScreen, HalfBlockPicture
 
 
-async def wait_for(pilot, screen, condition, steps=300):
+async def wait_for(pilot, screen, condition, steps=2400):
+    # Generous: a loaded CI machine may take long to generate a sheet; the condition, not the clock, is tested.
     for _ in range(steps):
         await pilot.pause(0.05)
         if condition():
