@@ -127,3 +127,18 @@ def test_mechanism_shapes_become_polylines_and_markers():
     assert len(polylines) >= 3
     assert all(p.ndim == 2 and p.shape[1] == 2 for p in polylines)
     assert markers
+
+
+async def test_open_design_before_the_drawing_screen_was_ever_shown(tmp_path):
+    app = StationApp(database=tmp_path / "t.sqlite3")
+    async with app.run_test(size=(140, 40)) as pilot:
+        await pilot.pause()
+        app.open_design("cycloid_drawing_machine", get_machine("cycloid_drawing_machine").defaults())
+        await settle(app, pilot)
+        screen = app.screen
+        assert screen.name == "drawing"
+        assert screen.current_design()[0] == "cycloid_drawing_machine"
+        names = {c.parameter_name for c in screen.query(ParameterControl)}
+        assert names == set(get_machine("cycloid_drawing_machine").parameter_names)
+        assert screen.query_one("#machine", Select).value == "cycloid_drawing_machine"
+        assert screen.pattern is not None

@@ -146,6 +146,10 @@ class DrawingScreen(Screen):
             self.notify(str(error), severity="error", title="Cannot open design")
             return
         self._remember()
+        if not self.is_mounted:
+            # Never shown yet: compose and on_mount build the controls and the pattern from these.
+            self.machine, self.params = model, dict(validated)
+            return
         self._set_design(model, validated)
 
     def _set_design(self, model: Any, params: dict[str, float]) -> None:
