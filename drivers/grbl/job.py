@@ -289,8 +289,18 @@ class JobRunner:
             self.progress.state = "holding"
 
     def resume(self) -> None:
-        """Cycle start (``~``) after a hold."""
-        self.connection.cycle_start()
+        """Cycle start (``~``) after a hold. GRBL ignores it while still decelerating (``Hold:1``), so then it is
+        sent from a helper thread as soon as the hold is complete (never blocks the caller)."""
+        conn = self.connection
+        status = conn.status
+        if status is not None and status.label == "Hold:1":
+            def when_stopped() -> None:
+                conn.wait_for(lambda: conn.status is not None and conn.status.label != "Hold:1", 10.0)
+                conn.cycle_start()
+
+            threading.Thread(target=when_stopped, name="grbl-resume", daemon=True).start()
+        else:
+            conn.cycle_start()
         if self._hold_started is not None:
             self._held += time.monotonic() - self._hold_started
             self._hold_started = None

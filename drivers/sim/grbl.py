@@ -380,6 +380,7 @@ class SimulatedGrbl:
         self._check_mode = False
         self._hold = False
         self._hold_remaining = 0.0
+        self._decel: tuple[float, float, np.ndarray, np.ndarray, float] | None = None  # Hold:1 (decelerating)
         self._motion_t = 0.0
         self._gc_pos = self.mpos.copy()
         self.g92 = np.zeros(3)
@@ -411,6 +412,10 @@ class SimulatedGrbl:
         return None
 
     def _position(self, now: float) -> np.ndarray:
+        if self._decel is not None:
+            t0, t1, p0, p1, _ = self._decel
+            tau = min(1.0, max(0.0, (now - t0) / (t1 - t0))) if t1 > t0 else 1.0
+            return p0 + (p1 - p0) * (1.0 - (1.0 - tau) ** 2)  # constant deceleration
         block = self._current_block()
         if block is None or self._hold:
             return self.mpos.copy()
@@ -420,7 +425,7 @@ class SimulatedGrbl:
     def _block_power(self, block: _Block | None) -> float:
         if not self._laser_mode():
             return self._spindle_out
-        if block is None or block.rapid or block.jog or self._hold or block.spindle == 5:
+        if block is None or block.rapid or block.jog or (self._hold and self._decel is None) or block.spindle == 5:
             return 0.0
         return min(block.power, self.settings[30])
 
@@ -454,6 +459,8 @@ class SimulatedGrbl:
         block = self._current_block()
         if block is not None and not self._hold:
             times.append(block.t0 + block.duration)
+        if self._decel is not None:
+            times.append(self._decel[1])
         if self._wait is not None and self._wait[0] == "time":
             times.append(self._wait[1])
         if self._state == "Home":
@@ -509,18 +516,32 @@ class SimulatedGrbl:
     def _feed_hold(self, now: float) -> None:
         if self._state in ("Run", "Idle") and not self._halted:
             block = self._current_block()
-            if block is not None:
-                self.mpos = self._position(now)
-                self._hold_remaining = max(0.0, block.t0 + block.duration - now)
-            self._hold = True
-            self._state = "Hold:0"
-            self._sample(now, 0.0 if self._laser_mode() else None)
+            if block is not None and block.duration > 0:
+                # decelerate along the block at the axes' acceleration (Hold:1), then stop (Hold:0)
+                position = self._position(now)
+                direction = (block.end - block.seg_start) / max(np.linalg.norm(block.end - block.seg_start), 1e-12)
+                speed = np.linalg.norm(block.end - block.seg_start) / (block.duration / self.config.time_scale)
+                accel = np.array([self.settings[120], self.settings[121], self.settings[122]])
+                moving = np.abs(direction) > 1e-12
+                a = float(np.min(accel[moving] / np.abs(direction[moving]))) if moving.any() else 1.0
+                remaining = float(np.linalg.norm(block.end - position))
+                stop = min(speed * speed / (2 * a), remaining)
+                decel_time = (2 * stop / speed if speed > 0 else 0.0) * self.config.time_scale
+                left = max(0.0, (remaining - stop) / speed * self.config.time_scale) if speed > 0 else 0.0
+                self._decel = (now, now + decel_time, position, position + direction * stop, left)
+                self._hold = True
+                self._state = "Hold:1"
+                self._sample(now)
+            else:
+                self._hold = True
+                self._state = "Hold:0"
+                self._sample(now, 0.0 if self._laser_mode() else None)
             self._fill_changed(now)
         elif self._state == "Jog":
             self._realtime(REALTIME_JOG_CANCEL, now)
 
     def _cycle_start(self, now: float) -> None:
-        if self._state.startswith("Hold"):
+        if self._state == "Hold:0":  # GRBL ignores cycle start until the hold is complete
             self._hold = False
             block = self._current_block()
             if block is not None:
@@ -535,7 +556,9 @@ class SimulatedGrbl:
 
     def _soft_reset(self, now: float) -> None:
         alarm = 0
-        moving = self._current_block() is not None or self._state in ("Run", "Jog", "Home")
+        # a completed hold is not motion: resetting then keeps the position (no alarm)
+        moving = (self._current_block() is not None and self._state != "Hold:0") or self._state in (
+            "Run", "Jog", "Home", "Hold:1")
         if self._state == "Home":
             alarm = 6
         elif moving and not self._halted:
@@ -556,6 +579,12 @@ class SimulatedGrbl:
     # ------------------------------------------------------------------ motion
 
     def _advance(self, now: float) -> None:
+        if self._decel is not None and now >= self._decel[1]:
+            self.mpos = self._decel[3].copy()
+            self._hold_remaining = self._decel[4]
+            self._decel = None
+            self._state = "Hold:0"
+            self._sample(now, 0.0 if self._laser_mode() else None)
         if self._state == "Home" and now >= self._home_until:
             travel = self._travel()
             self.mpos = np.where(travel > 0, -self.settings[27], 0.0)

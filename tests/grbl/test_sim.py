@@ -235,3 +235,19 @@ def test_bad_urls():
         serial.serial_for_url("sim://grbl?bogus=1")
     with pytest.raises(serial.SerialException, match="unknown sim profile"):
         serial.serial_for_url("sim://grbl?profile=router")
+
+
+def test_feed_hold_decelerates_then_reset_keeps_the_position(raw):
+    port = raw("profile=laser&time_scale=1")
+    port.ask("M3 S200")
+    port.ask("G1 X100 F6000")  # 100 mm/s: stopping takes 5 mm at 1000 mm/s^2
+    port.wait_state("Run")
+    port.port.write(b"!")
+    port.wait_state("Hold:0")
+    states = [s.state for s in port.machine.snapshot().samples]
+    assert "Hold:1" in states and states[-1] == "Hold:0"
+    before = port.status()
+    port.port.write(b"\x18")  # reset after a completed hold: no ALARM:3, position kept
+    assert port.read_until(BANNER) == BANNER
+    after = port.status()
+    assert after.startswith("<Idle|") and after.split("|")[1] == before.split("|")[1]
