@@ -85,6 +85,7 @@ class JobProgress:
     elapsed: float = 0.0
     eta: float | None = None
     message: str = ""
+    current_line: int = 0  # 0-based job line the machine is (about) executing: acknowledged minus planned
 
 
 @dataclass
@@ -171,6 +172,7 @@ class JobRunner:
         self._origin: list[int] = []  # job line index of each streamed line (-1 for added lines)
         self._durations = np.zeros(0)
         self._cumulative = np.zeros(0)
+        self._last_origin = np.zeros(0, dtype=int)
         self._last_report = 0.0
         self._acked_streamed = 0
 
@@ -211,6 +213,7 @@ class JobRunner:
                 raise JobRefused(f"job {self.job.name!r}: line {number} has {length} characters; GRBL takes at most "
                                  f"{LINE_BUFFER_SIZE - 1} (error:11 otherwise)")
         self._lines, self._origin = self._build_lines()
+        self._last_origin = np.maximum.accumulate(np.array(self._origin, dtype=int))  # O(1) progress lookups
         # start from where the machine stands: relative moves and the first travel are then checked too
         start = None
         if status is not None:
@@ -335,6 +338,8 @@ class JobRunner:
         executed = max(0, self._acked_streamed - in_planner)
         executed = min(executed, len(self._cumulative))
         done = float(self._cumulative[executed - 1]) if executed else 0.0
+        if executed and len(self._last_origin):
+            p.current_line = max(int(self._last_origin[executed - 1]) + 1, self.from_line - 1)
         if total > 0:
             p.fraction = min(1.0, done / total)
         elif self._lines:

@@ -55,6 +55,8 @@ async def test_machines_screen_connects_runs_a_queued_job_and_shows_progress(tmp
         await pilot.press("g")
         await _until(pilot, lambda: entry.state == "done", timeout=30)
         assert "100.0%" in str(screen.query_one("#progress-label").render())
+        preview = screen.query_one("#preview")
+        assert len(preview.polylines) == 4 and set(preview._colors) == {"green"}  # every square drawn
         executed = [b.text for b in conn.port.machine.snapshot().executed]
         expected = [clean_line(x) for x in gcode.splitlines() if clean_line(x).startswith(("G0", "G1"))]
         assert executed == expected

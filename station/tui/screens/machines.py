@@ -13,8 +13,10 @@ f frame · y dry run · g start · p hold · r resume · ctrl+x abort (always wo
 from __future__ import annotations
 
 import queue
+import time
 from dataclasses import dataclass
 
+import numpy as np
 from textual import on, work
 from textual.app import ComposeResult
 from textual.binding import Binding
@@ -23,7 +25,6 @@ from textual.screen import Screen
 from textual.widgets import DataTable, Footer, Header, Input, Label, ProgressBar, RichLog, Static
 
 from drivers.errors import DriverError
-from drivers.gcode import drawn_polylines
 from drivers.grbl import GrblConnection, Job, JobRunner, frame_lines
 from drivers.grbl.protocol import Feedback, StatusReport
 from drivers.profiles import MachineProfile, builtin_profile
@@ -44,6 +45,28 @@ class QueuedJob:
     job: Job
     state: str = "queued"
     message: str = ""
+    runs: list | None = None  # drawing runs for the preview: (points (n, 2), 0-based line of each point)
+
+
+def drawing_runs(job: Job) -> list[tuple[np.ndarray, np.ndarray]]:
+    """Connected drawing moves of a job (feed moves; for a laser only with power on), each point with its line."""
+    path = job.toolpath
+    drawing = ~path.rapid & ((path.power > 0) if job.laser else True)
+    runs: list[tuple[np.ndarray, np.ndarray]] = []
+    points: list[np.ndarray] = []
+    lines: list[int] = []
+    last_end = None
+    for k in np.flatnonzero(drawing):
+        if last_end is None or np.any(np.abs(path.start[k] - last_end) > 1e-9):
+            if len(points) >= 2:
+                runs.append((np.array(points), np.array(lines)))
+            points, lines = [path.start[k][:2]], [int(path.line[k])]
+        points.append(path.end[k][:2])
+        lines.append(int(path.line[k]))
+        last_end = path.end[k]
+    if len(points) >= 2:
+        runs.append((np.array(points), np.array(lines)))
+    return runs
 
 
 class MachinesScreen(Screen):
@@ -101,6 +124,8 @@ class MachinesScreen(Screen):
         self._job_counter = 0
         self._connecting: set[str] = set()
         self._calls: queue.SimpleQueue = queue.SimpleQueue()
+        self._last_preview = 0.0
+        self._running_mode = ""
         self._auto_connected = False
 
     # ------------------------------------------------------------------ layout
@@ -346,14 +371,25 @@ class MachinesScreen(Screen):
         for entry in self.jobs:
             table.add_row(str(entry.number), entry.title[:28], entry.device, str(len(entry.job.lines)), entry.state)
 
-    def _show_preview(self, entry: QueuedJob) -> None:
+    def _show_preview(self, entry: QueuedJob, current_line: int | None = None) -> None:
+        """Draw the job's toolpath; with ``current_line``, what is done in green and the rest in grey."""
         try:
-            pen = self.profile_for(next(d for d in self.serial_devices if d.name == entry.device)).pen
-            if entry.job.laser or pen is None:
-                polylines = drawn_polylines(entry.job.lines)
-            else:
-                polylines = drawn_polylines(entry.job.lines, pen.down_commands(), pen.up_commands())
-            self.query_one("#preview", PatternCanvas).set_polylines(polylines)
+            if entry.runs is None:
+                entry.runs = drawing_runs(entry.job)
+            polylines, colors = [], []
+            for points, lines in entry.runs:
+                if current_line is None:
+                    polylines.append(points)
+                    colors.append("white")
+                    continue
+                cut = int(np.searchsorted(lines, current_line, side="right"))
+                if cut >= 2:
+                    polylines.append(points[:cut])
+                    colors.append("green")
+                if len(points) - max(cut - 1, 0) >= 2:
+                    polylines.append(points[max(cut - 1, 0):])
+                    colors.append("grey50")
+            self.query_one("#preview", PatternCanvas).set_polylines(polylines, colors)
         except Exception:  # noqa: BLE001 - a preview is a nicety; the job itself is checked at start
             pass
 
@@ -414,6 +450,7 @@ class MachinesScreen(Screen):
         runner = JobRunner(conn, job, from_line=resume, dry_run=mode == "dry", on_progress=self._progress_cb)
         self.runner = runner
         self.running_job = entry
+        self._running_mode = mode
         entry.state = {"run": "running", "frame": "framing", "dry": "checking"}[mode]
         self._refresh_queue()
         self._say(f"{entry.state} {entry.title!r} on {entry.device}")
@@ -423,6 +460,11 @@ class MachinesScreen(Screen):
         self._from_thread(self._show_progress, progress)
 
     def _show_progress(self, progress) -> None:
+        now = time.monotonic()
+        if (self.running_job is not None and self._running_mode == "run"
+                and (now - self._last_preview > 0.5 or progress.state != "running")):
+            self._last_preview = now
+            self._show_preview(self.running_job, progress.current_line)
         try:
             self.query_one("#progress", ProgressBar).update(progress=progress.fraction * 100)
             eta = "--:--" if progress.eta is None else f"{int(progress.eta) // 60}:{int(progress.eta) % 60:02d}"
@@ -438,6 +480,8 @@ class MachinesScreen(Screen):
         self._from_thread(self._job_done, runner, entry, mode, result)
 
     def _job_done(self, runner, entry: QueuedJob, mode: str, result) -> None:
+        if mode == "run":
+            self._show_preview(entry, len(entry.job.lines) if result.ok else runner.progress.current_line)
         if self.runner is runner:
             self.runner = None
             self.running_job = None
