@@ -832,6 +832,21 @@ def _check_shape(check: _Checker, kind: str, shape: dict, path: str) -> None:
             raise check.fail(path, "'spacing' and 'count' only go with a 'path'")
         if has_path and shape.get("count", 2) < 2:
             raise check.fail(f"{path}.count", "expected at least 2 dominoes along a path")
+        if has_path:
+            points = np.asarray(shape["path"], dtype=float)
+            lengths = np.linalg.norm(np.diff(points, axis=0), axis=1)
+            if np.any(lengths <= 1e-9):
+                i = int(np.argmax(lengths <= 1e-9))
+                raise check.fail(f"{path}.path[{i + 1}]", "expected a point distinct from the previous one")
+    elif kind == "Pivot":
+        if "other" in shape and shape["other"] == shape["body"]:
+            raise check.fail(f"{path}.other", "expected a body other than 'body' (or none: the world)")
+    elif kind == "Fastener":
+        if len(shape["bodies"]) == 2 and shape["bodies"][0] == shape["bodies"][1]:
+            raise check.fail(f"{path}.bodies", "expected two different bodies (or one: fastened to the world)")
+    elif kind in ("TensionRope", "RopePulley"):
+        if shape["ends"][0] == shape["ends"][1]:
+            raise check.fail(f"{path}.ends", "expected two different bodies")
 
 
 def _check_references(check: _Checker, objects: list[ObjectSpec], by_name: dict[str, ObjectSpec]) -> None:

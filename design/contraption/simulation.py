@@ -240,7 +240,10 @@ class Simulator:
     def build(self, x=None) -> World:
         if self.client is None:
             raise SimulationError("this simulator is closed")
-        self.world = build_world(self.client, self.scenario, x)
+        try:
+            self.world = build_world(self.client, self.scenario, x)
+        except pybullet.error as error:
+            raise SimulationError(f"{self.scenario.source}: pybullet could not build the scene: {error}") from None
         return self.world
 
     def check_validity(self, x=None) -> list[ValidityProblem]:

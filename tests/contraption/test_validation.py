@@ -245,3 +245,25 @@ def test_sleeping_flag_defaults_and_type():
     assert scenario.object("ball").starts_asleep and not scenario.object("box").starts_asleep
     error = error_of(lambda d: d["objects"][2].__setitem__("sleeping", "yes"))
     assert "objects[2].sleeping: expected true or false" in str(error)
+
+
+@pytest.mark.parametrize(
+    ("obj", "field", "words"),
+    [
+        ({"name": "run", "type": "DominoRun", "shape": {"size": [0.005, 0.02, 0.04], "path": [[0, 0], [0, 0], [0.1, 0]],
+                                                        "count": 4}}, "objects[3].shape.path[1]", "distinct"),
+        ({"name": "p", "type": "Pivot", "shape": {"body": "box", "other": "box"}}, "objects[3].shape.other",
+         "other than"),
+        ({"name": "f", "type": "Fastener", "shape": {"bodies": ["box", "box"]}}, "objects[3].shape.bodies",
+         "two different"),
+        ({"name": "r", "type": "TensionRope", "shape": {"ends": ["ball", "ball"]}}, "objects[3].shape.ends",
+         "two different"),
+        ({"name": "r", "type": "RopePulley", "shape": {"ends": ["ball", "box"], "pulleys": ["box"]}},
+         "objects[3].shape.pulleys[0]", "expected a Pulley"),
+        ({"name": "g", "type": "Goblet", "shape": {"height": 0.1, "radius_top": 0.01, "radius_bottom": 0.01,
+                                                   "thickness": 0.02}}, "objects[3].shape.thickness", "thinner"),
+    ],
+)
+def test_constraint_and_complex_primitive_errors(obj, field, words):
+    error = error_of(lambda d: d["objects"].append(obj))
+    assert field in str(error) and words in str(error)
