@@ -149,7 +149,7 @@ class GrblConnection:
         self._cond = threading.Condition(self._lock)
         self._write_lock = threading.Lock()
         self._pending: deque[_Pending] = deque()
-        self._ignore_oks = False
+        self._ignore_oks = 0  # stale replies still to come after an alarm (at most one: GRBL runs one line at a time)
         self._expect_banner = False
         self._banner_count = 0
         self._last_rx = 0.0
@@ -629,12 +629,13 @@ class GrblConnection:
                 self._reset_since_alarm = False
                 self.messages.append(str(message))
                 self._clear_counter("alarm")
-                self._ignore_oks = True  # the line that raised it may still be answered after the reset
+                # the line that raised it may still be answered: after the reset (soft limit) or at once (probe)
+                self._ignore_oks = 1
             elif isinstance(message, Banner):
                 self.version = self.version or message.version
                 unexpected = not self._expect_banner
                 self._expect_banner = False
-                self._ignore_oks = False
+                self._ignore_oks = 0
                 self._clear_counter("reset")
                 self._banner_count += 1
                 self._reset_since_alarm = True
@@ -663,6 +664,7 @@ class GrblConnection:
 
     def _reply(self, message, text: str) -> None:
         if self._ignore_oks:
+            self._ignore_oks -= 1
             self._log("info", f"ignored {text!r} that arrived between an alarm and the reset banner")
             return
         if not self._pending:

@@ -307,3 +307,20 @@ def test_lost_ok_in_check_mode_stops_the_dry_run(make_connection):
     result = JobRunner(conn, Job("check", ["G90", "G0 X10 Y10", "G1 X20 F500", "G1 Y20"]), dry_run=True).run()
     assert result.state == "stopped" and "lost ok" in result.message
     assert conn.wait_for(lambda: conn.status.state == "Idle", 3.0)  # the reset left check mode
+
+
+def test_one_stale_reply_after_an_alarm_is_ignored_even_without_a_reset():
+    """A probe-fail alarm is followed by the probe line's ok with no reset: that one ok is stale, the next is not."""
+    from drivers.grbl.connection import LineResult, _Pending
+
+    conn = GrblConnection("loop://")  # never opened: lines are fed to the parser directly
+    conn._pending.append(_Pending(LineResult(0, "G38.2Z-10F100"), 14, 0.0))
+    conn._handle("ALARM:4")
+    assert conn.pending_count == 0 and conn.alarm.code == 4
+    conn._handle("ok")  # the probe line's late reply
+    assert conn.replies_accepted == 0
+    unlock = LineResult(1, "$X")
+    conn._pending.append(_Pending(unlock, 3, 0.0))
+    conn._handle("[MSG:Caution: Unlocked]")
+    conn._handle("ok")
+    assert unlock.status == "ok" and conn.replies_accepted == 1
