@@ -340,10 +340,11 @@ class JobRunner:
         done = float(self._cumulative[executed - 1]) if executed else 0.0
         if executed and len(self._last_origin):
             p.current_line = max(int(self._last_origin[executed - 1]) + 1, self.from_line - 1)
+        # never backwards (a later status report may show a fuller planner than the acknowledgements suggested)
         if total > 0:
-            p.fraction = min(1.0, done / total)
+            p.fraction = max(p.fraction, min(1.0, done / total))
         elif self._lines:
-            p.fraction = executed / len(self._lines)
+            p.fraction = max(p.fraction, executed / len(self._lines))
         if p.state == "done":
             p.fraction = 1.0
             p.eta = 0.0

@@ -324,3 +324,20 @@ def test_one_stale_reply_after_an_alarm_is_ignored_even_without_a_reset():
     conn._handle("[MSG:Caution: Unlocked]")
     conn._handle("ok")
     assert unlock.status == "ok" and conn.replies_accepted == 1
+
+
+def test_eta_is_corrected_by_the_observed_rate(make_connection):
+    import dataclasses
+
+    conn = make_connection(sim_url("laser", time_scale=0.1))  # the machine runs 10x faster than estimated
+    lines = ["G21 G90 F3000"] + [f"G1 X{10 + (i % 2) * 20} Y{10 + i * 0.5}" for i in range(40)]
+    runner = JobRunner(conn, Job("zigzag", lines), on_progress=lambda p: updates.append(dataclasses.replace(p)))
+    updates: list = []
+    result = runner.run()
+    assert result.ok
+    estimate = float(runner._durations.sum())
+    mid = [u for u in updates if 0.2 < u.fraction < 0.8 and u.eta is not None and u.elapsed > 0.3]
+    assert mid, "progress was reported during the job"
+    # uncorrected, the ETA would be (1 - fraction) * estimate; observed 10x faster it is far less
+    assert all(u.eta < 0.5 * (1 - u.fraction) * estimate for u in mid)
+    assert [u.fraction for u in updates] == sorted(u.fraction for u in updates)
