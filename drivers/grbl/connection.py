@@ -107,7 +107,8 @@ class GrblConnection:
         Seconds the "idle, buffers empty, lines pending" condition must hold before a lost ``ok`` is declared.
         With the 5 Hz poll the loss is reported within ``lost_ok_timeout + poll_interval`` (2 s by default).
     silence_timeout : float
-        Seconds without any byte from the controller (despite polling) after which the port counts as vanished.
+        Seconds without any byte from the controller (despite polling) after which the port counts as vanished;
+        with the 5 Hz poll a silent port is noticed within ``silence_timeout + poll_interval`` (under 1 s).
     """
 
     def __init__(
@@ -117,7 +118,7 @@ class GrblConnection:
         *,
         poll_interval: float = 0.2,
         lost_ok_timeout: float = 1.5,
-        silence_timeout: float = 0.8,
+        silence_timeout: float = 0.7,
         banner_timeout: float = 3.0,
         reply_timeout: float = 10.0,
         log_size: int = 4000,
