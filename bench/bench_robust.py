@@ -3,8 +3,8 @@
 For each scenario, ours runs T times (seeds 0..T-1) under a budget cap; the baselines then get B = the mean number
 of simulations ours used, as in the thesis. Every result is scored by ρ_g on one shared Sobol evaluation set. The
 thesis used B = 614 / 1120 simulations, T = 10 and 100K-1M evaluation layouts; on a 2-core machine shared with
-others this bench uses smaller budgets and sets (the REDUCED configuration below, printed with the results), so
-compare orderings, not absolute values. ``CHAOS_BENCH_ROBUST=full`` uses the thesis budgets and T = 10 (hours).
+others this bench uses smaller budgets and sets by default (QUICK below; ``CHAOS_BENCH_ROBUST=reduced`` for larger
+ones, ``=full`` for the thesis budgets and T = 10, hours), so compare orderings, not absolute values.
 
 Figures: the table (ρ_g mean ± standard error, time, simulations) beside the thesis's Table 4.2, the ratio of our
 ρ_g to each baseline's, and a PNG of the mean ρ_l curves per scenario (path printed).
@@ -29,6 +29,12 @@ THESIS = {
 }
 
 #: (thesis name, scenario file stem, budget cap for ours, runs T, evaluation set size, local samples per result)
+#: The default: about 10 minutes on 2 idle cores (a CAUSALITYSWITCH simulation takes about 1 s of one core).
+QUICK = [
+    ("BALLRUN", "ballrun", 240, 5, 1024, 30),
+    ("CAUSALITYSWITCH", "causalityswitch_ball", 64, 5, 128, 8),
+]
+#: CHAOS_BENCH_ROBUST=reduced: about 40 minutes on 2 idle cores.
 REDUCED = [
     ("BALLRUN", "ballrun", 240, 5, 1024, 30),
     ("CAUSALITYSWITCH", "causalityswitch_ball", 120, 5, 256, 16),
@@ -52,20 +58,25 @@ def run_scenario(thesis_name, stem, budget, runs, n_eval, n_local, out_dir: Path
         # A fresh cache: every method pays for its own simulations (honest times); the evaluation set is
         # simulated once and shared by all methods within the run.
         with SimulationExecutor(problem, workers=None, cache_path=Path(cache_dir) / "sims.sqlite3") as executor:
-            comparison = compare_methods(problem, executor, ["ours", "b1", "b2", "b3"], runs, budget, seed=0,
-                                         robustness=robustness)
+            comparison = compare_methods(
+                problem, executor, ["ours", "b1", "b2", "b3"], runs, budget, seed=0, robustness=robustness
+            )
     rows = {r["method"]: r for r in comparison.table()}
     thesis = THESIS[thesis_name]
     wall = time.perf_counter() - started
-    print(f"{thesis_name} ({stem}): d = {problem.dim}, {len(problem.event_names)} events; our budget cap {budget}, "
-          f"baselines' B = {comparison.budget} (thesis B = {thesis['B']}); T = {runs} seeds; evaluation set "
-          f"{comparison.evaluation_size} layouts (+{n_local} local per result); wall {wall:.0f} s")
+    print(
+        f"{thesis_name} ({stem}): d = {problem.dim}, {len(problem.event_names)} events; our budget cap {budget}, "
+        f"baselines' B = {comparison.budget} (thesis B = {thesis['B']}); T = {runs} seeds; evaluation set "
+        f"{comparison.evaluation_size} layouts (+{n_local} local per result); wall {wall:.0f} s"
+    )
     print(f"  {'method':6s} {'rho_g mean ± s.e.':>19s} {'thesis':>7s} {'time (s)':>9s} {'thesis':>7s} {'sims':>6s}")
     for method in METHOD_ORDER:
         row = rows[method]
         index = METHOD_ORDER.index(method)
-        print(f"  {method:6s} {row['rho_g_mean']:11.3f} ± {row['rho_g_sem']:.3f} {thesis['rho'][index]:7.2f} "
-              f"{row['seconds_mean']:9.1f} {thesis['time'][index]:7d} {row['simulations_mean']:6.0f}")
+        print(
+            f"  {method:6s} {row['rho_g_mean']:11.3f} ± {row['rho_g_sem']:.3f} {thesis['rho'][index]:7.2f} "
+            f"{row['seconds_mean']:9.1f} {thesis['time'][index]:7d} {row['simulations_mean']:6.0f}"
+        )
     ours = rows["ours"]["rho_g_mean"]
     ratios = ", ".join(
         f"ours/{m} = {ours / rows[m]['rho_g_mean']:.2f}" if rows[m]["rho_g_mean"] > 0 else f"ours/{m} = inf"
@@ -76,18 +87,22 @@ def run_scenario(thesis_name, stem, budget, runs, n_eval, n_local, out_dir: Path
     best = max(rows, key=lambda m: rows[m]["rho_g_mean"])
     print(f"  highest mean rho_g: {best}")
     picture = plot_robustness(
-        {m: comparison.mean_curves()[m] for m in METHOD_ORDER}, out_dir / f"robustness-{stem}.png",
+        {m: comparison.mean_curves()[m] for m in METHOD_ORDER},
+        out_dir / f"robustness-{stem}.png",
         f"{thesis_name}: mean local robustness (T = {runs}, B = {comparison.budget})",
     )
     print(f"  local robustness plot: {picture}")
 
 
 def main() -> None:
-    full = os.environ.get("CHAOS_BENCH_ROBUST", "").lower() == "full"
-    configs = FULL if full else REDUCED
+    mode = os.environ.get("CHAOS_BENCH_ROBUST", "quick").lower()
+    configs = {"full": FULL, "reduced": REDUCED}.get(mode, QUICK)
     out_dir = Path(os.environ.get("CHAOS_BENCH_OUT", tempfile.gettempdir())) / "chaos-bench-robust"
     out_dir.mkdir(parents=True, exist_ok=True)
-    print(f"configuration: {'FULL (thesis budgets)' if full else 'REDUCED (smaller budgets and evaluation sets)'}; "
-          f"{os.cpu_count()} cores")
+    words = {"full": "FULL (thesis budgets, T = 10)", "reduced": "REDUCED (smaller budgets and evaluation sets)"}
+    print(
+        f"configuration: {words.get(mode, 'QUICK (small budgets and evaluation sets)')} "
+        f"(CHAOS_BENCH_ROBUST=quick|reduced|full); {os.cpu_count()} cores"
+    )
     for config in configs:
         run_scenario(*config, out_dir=out_dir)
