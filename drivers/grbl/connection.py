@@ -26,7 +26,7 @@ import functools
 import threading
 import time
 from collections import deque
-from collections.abc import Callable, Iterable, Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 
 import serial
@@ -751,8 +751,3 @@ def _dwell_seconds(block: str) -> float:
     if ("G", 4.0) in words:
         return next((v for letter, v in words if letter == "P"), 0.0)
     return 0.0
-
-
-def iter_clean(lines: Iterable[str]) -> list[str]:
-    """Cleaned, non-empty blocks of a program."""
-    return [b for b in (clean_line(line) for line in lines) if b]
