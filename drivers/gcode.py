@@ -349,8 +349,13 @@ def _arc_points(start, end, centre, clockwise: bool, axes=(0, 1), max_chord_erro
     return pts
 
 
-def interpret(lines: Sequence[str], start: Sequence[float] | None = None) -> Toolpath:
+def interpret(
+    lines: Sequence[str], start: Sequence[float] | None = None, wco: Sequence[float] | None = None
+) -> Toolpath:
     """Run GRBL's modal state machine over ``lines`` (work coordinates).
+
+    With ``wco`` (the work coordinate offset, machine = work + wco), ``G53`` moves in machine coordinates become
+    segments too (so that a pre-flight checks them); without it they leave the position unknown.
 
     Supports G0/G1/G2/G3 (IJK or R), G4, G17-G19, G20/G21, G90/G91, G54-G59, G92 is ignored (rare in jobs), M3/M4/M5,
     F, S; ``$`` commands and unknown words are passed over (the machine will judge them).
@@ -414,6 +419,20 @@ def interpret(lines: Sequence[str], start: Sequence[float] | None = None) -> Too
                 dwell_p = value
         if 4.0 in g_values:
             dwell[index] = dwell_p or 0.0
+            continue
+        if 53.0 in g_values and wco is not None and axis and state.motion in (0, 1):
+            target = state.position.copy()
+            for i, name in enumerate("XYZ"):
+                if name in axis:
+                    target[i] = axis[name] * unit - wco[i]
+            if state.position_known:
+                starts.append(state.position.copy())
+                ends.append(target.copy())
+                seg_line.append(index)
+                rapid.append(state.motion == 0)
+                feeds.append(np.nan if state.motion == 0 else state.feed)
+                powers.append(state.power if state.spindle in (3, 4) else 0.0)
+                state.position = target
             continue
         if any(v in (10.0, 28.0, 30.0, 53.0, 92.0, 28.1, 30.1, 92.1) for v in g_values):
             # offsets and machine-coordinate moves: not part of a job's drawing; position becomes unknown

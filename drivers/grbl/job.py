@@ -220,7 +220,7 @@ class JobRunner:
             wpos = status.work_position(conn.work_offset())
             if wpos is not None:
                 start = wpos
-        toolpath = interpret(self._lines, start=start)
+        toolpath = interpret(self._lines, start=start, wco=conn.work_offset())
         rapid = min(conn.settings.get(110, 500.0), conn.settings.get(111, 500.0))
         durations = toolpath.durations(rapid_rate=rapid)
         self._durations = durations

@@ -341,3 +341,11 @@ def test_eta_is_corrected_by_the_observed_rate(make_connection):
     # uncorrected, the ETA would be (1 - fraction) * estimate; observed 10x faster it is far less
     assert all(u.eta < 0.5 * (1 - u.fraction) * estimate for u in mid)
     assert [u.fraction for u in updates] == sorted(u.fraction for u in updates)
+
+
+def test_machine_coordinate_moves_are_checked_too(make_connection):
+    conn = make_connection(sim_url("laser"))
+    result = JobRunner(conn, Job("g53", ["G90", "G0 X10 Y10", "G53 G0 X50 Y-20"])).run()  # machine X 50 > 0
+    assert result.state == "refused" and "machine" in result.message
+    assert JobRunner(conn, Job("g53 ok", ["G90", "G0 X10 Y10", "G53 G0 X-50 Y-20"])).run().ok
+    assert conn.fresh_status().mpos[:2] == (-50.0, -20.0)
