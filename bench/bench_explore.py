@@ -75,13 +75,18 @@ def main() -> None:
     t_brute = best_time(lambda: brute_force_crossings(curve), repeats=2)
     print(f"  {n_max} curvature maxima, {len(pois) - n_max} crossings")
     print(f"  all PoIs {t_all * 1e3:.1f} ms (curvature maxima {t_max * 1e3:.1f} ms, crossings {t_int * 1e3:.1f} ms)")
-    print(f"  all-pairs crossing test (vectorized numpy) {t_brute * 1e3:.0f} ms: STRtree is {t_brute / t_int:.0f}x "
-          "faster")
+    print(
+        f"  all-pairs crossing test (vectorized numpy) {t_brute * 1e3:.0f} ms: STRtree is {t_brute / t_int:.0f}x faster"
+    )
 
-    print("\nOne invariant-subspace update (grid + pull + batch tracking + WPCA), one release (move 1.0 + "
-          "re-projection + update):")
-    print(f"  {'machine':<24} {'invariant':<10} {'k':>2} {'dim':>3} {'samples':>7} {'update':>9} {'release':>9} "
-          f"{'thesis-style est.':>18} {'error after':>12} {'shape change':>12}")
+    print(
+        "\nOne invariant-subspace update (grid + pull + batch tracking + WPCA), one release (move 1.0 + "
+        "re-projection + update):"
+    )
+    print(
+        f"  {'machine':<24} {'invariant':<10} {'k':>2} {'dim':>3} {'samples':>7} {'update':>9} {'release':>9} "
+        f"{'thesis-style est.':>18} {'error after':>12} {'shape change':>12}"
+    )
     for name, params, kind in CASES:
         explorer = Explorer(name, params)
         maxima = [p.id for p in explorer.pois if p.kind == CURVATURE]
@@ -105,14 +110,21 @@ def main() -> None:
         result = explorer.release()
         release = time.perf_counter() - start
         error = result.errors_after[invariant.label]
-        print(f"  {name:<24} {kind:<10} {k:>2} {len(explorer.sliders):>3} {explorer.subspace.n_samples:>7} "
-              f"{update * 1e3:>7.0f}ms {release * 1e3:>7.0f}ms {estimate:>7.1f}s ({estimate / update:>5.0f}x) "
-              f"{error:>12.2e} {result.shape_change:>11.2%}")
+        print(
+            f"  {name:<24} {kind:<10} {k:>2} {len(explorer.sliders):>3} {explorer.subspace.n_samples:>7} "
+            f"{update * 1e3:>7.0f}ms {release * 1e3:>7.0f}ms {estimate:>7.1f}s ({estimate / update:>5.0f}x) "
+            f"{error:>12.2e} {result.shape_change:>11.2%}"
+        )
         frozen = [i for ids in explorer.invariant_pois().values() for i in ids if i is not None]
         path = out_dir / f"{name}_{kind}.png"
         with path.open("wb") as stream:
-            write_png(stream, [before_curve, explorer.curve], [before_pois, explorer.pois], highlight=frozen,
-                      title=f"{name}: {invariant.label}, slider 0 moved by {value:+g}")
+            write_png(
+                stream,
+                [before_curve, explorer.curve],
+                [before_pois, explorer.pois],
+                highlight=frozen,
+                title=f"{name}: {invariant.label}, slider 0 moved by {value:+g}",
+            )
 
     print("\nPlain thesis grid (pull=False) vs pulled samples, Hoot-Nanny, position of the first curvature maximum:")
     for pull in (True, False):
@@ -120,8 +132,10 @@ def main() -> None:
         maxima = [p.id for p in explorer.pois if p.kind == CURVATURE]
         try:
             explorer.add_invariant("position", [maxima[0]])
-            print(f"  pull={pull!s:<5}: {explorer.subspace.n_good - 1} of {explorer.subspace.n_samples} neighbouring "
-                  f"samples above sigma_inv, {len(explorer.sliders)} slider(s) (the constraints leave at most 3)")
+            print(
+                f"  pull={pull!s:<5}: {explorer.subspace.n_good - 1} of {explorer.subspace.n_samples} neighbouring "
+                f"samples above sigma_inv, {len(explorer.sliders)} slider(s) (the constraints leave at most 3)"
+            )
         except OverConstrainedError:
             print(f"  pull={pull!s:<5}: over-constrained (no grid sample but the design itself above sigma_inv)")
     print(f"\npictures (before in yellow, after in blue, frozen PoIs in red): {out_dir}")
