@@ -104,3 +104,26 @@ async def test_queue_job_refuses_unknown_device(tmp_path):
             assert "no device 'mill'" in str(error)
         else:
             raise AssertionError("expected a refusal")
+
+
+async def test_plot_key_on_the_drawing_screen_plots_the_pattern_and_ends_pen_up(tmp_path):
+    app = StationApp(devices=FAST_DEVICES, database=tmp_path / "t.sqlite3")
+    async with app.run_test(size=(160, 48)) as pilot:
+        await pilot.press("d")
+        await pilot.pause()
+        machine, params = app.screen.current_design()
+        await pilot.press("l")
+        await _until(pilot, lambda: app.screen.name == "machines")
+        screen = app.screen
+        await _until(pilot, lambda: len(screen.jobs) == 1, timeout=30)
+        entry = screen.jobs[0]
+        assert entry.device == "plotter" and machine in entry.title
+        assert screen.device.name == "plotter"
+        await _until(pilot, lambda: "plotter" in screen.connections and screen.connections["plotter"].status)
+        await pilot.press("g")
+        await _until(pilot, lambda: entry.state == "done", timeout=60)
+        record = screen.connections["plotter"].port.machine.snapshot()
+        drawn = [b for b in record.executed if not b.rapid and b.text.startswith("G1")]
+        assert len(drawn) > 100  # the pattern's polyline, not a stand-in
+        pen_up = app.screen.profile_for(screen.device).pen.up
+        assert record.samples[-1].power == pen_up  # the servo is left holding the pen up

@@ -80,3 +80,33 @@ async def test_stop_ends_a_run_cleanly_and_bad_budget_is_refused(tmp_path):
         await wait_until_idle(app, pilot)
         assert "stopped" in str(screen.query_one("#status", Static).render())
         assert screen.result is None and not screen.query_one("#optimize", Button).disabled
+
+
+async def test_contraption_screen_opens_the_optimizer_on_its_scenario(tmp_path):
+    import shutil
+
+    from design.contraption.catalog import resolve_scenario_path
+
+    app = StationApp(database=tmp_path / "t.sqlite3")
+    async with app.run_test(size=(160, 50)) as pilot:
+        await pilot.press("c")
+        await pilot.pause()
+        contraption = app.screen
+        assert contraption.load("ballrun")
+        await pilot.press("o")
+        await pilot.pause()
+        assert app.screen.name == "optimize"
+        select = app.screen.query_one("#scenario", Select)
+        assert str(select.value).endswith("ballrun.toml")
+        # a scenario file of the user's own (not an example) is added to the list and chosen
+        own = tmp_path / "my_run.toml"
+        shutil.copy(resolve_scenario_path("simple"), own)
+        await pilot.press("escape")
+        await pilot.press("c")
+        await pilot.pause()
+        assert app.screen.load(str(own))
+        await pilot.press("o")
+        await pilot.pause()
+        select = app.screen.query_one("#scenario", Select)
+        assert select.value == str(own.resolve())
+        assert any(label == "my_run" for label, _ in select._options)

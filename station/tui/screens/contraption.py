@@ -10,6 +10,7 @@ Keys: r simulate · l next layout (file default, then the file's named layouts) 
 from __future__ import annotations
 
 import time
+from pathlib import Path
 
 import numpy as np
 from scipy.spatial import ConvexHull, QhullError
@@ -71,6 +72,7 @@ class ContraptionScreen(Screen):
         Binding("r", "simulate", "Simulate"),
         Binding("l", "next_layout", "Next layout"),
         Binding("t", "toggle_pacing", "Real time on/off"),
+        Binding("o", "optimize", "Optimize layout"),
     ]
 
     def __init__(self) -> None:
@@ -196,6 +198,17 @@ class ContraptionScreen(Screen):
         self._fill_events()
         self._show_summary()
         self._draw_layout()
+
+    def action_optimize(self) -> None:
+        """Open the Robust layouts screen on this scenario (its file; o there starts the optimization)."""
+        if self.scenario is None or not Path(self.scenario.source).is_file():
+            self.set_status("[yellow]load a scenario file first[/]")
+            return
+        if not any(entry.name == "optimize" for entry in self.app.areas):
+            self.notify("the robust-layouts area is not installed", severity="warning")
+            return
+        self.app.action_open_area("optimize")
+        self.app.get_screen("optimize").choose_scenario(self.scenario.source)
 
     def action_toggle_pacing(self) -> None:
         self.realtime = not self.realtime

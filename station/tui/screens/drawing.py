@@ -77,6 +77,7 @@ class DrawingScreen(Screen):
         Binding("ctrl+r", "reset", "Defaults"),
         Binding("x", "explore", "Explore"),
         Binding("f", "fabricate", "Fabricate"),
+        Binding("l", "plot", "Plot"),
     ]
 
     def __init__(self) -> None:
@@ -346,6 +347,15 @@ class DrawingScreen(Screen):
 
     def action_fabricate(self) -> None:
         self._open_if_installed("fabricate")
+
+    def action_plot(self) -> None:
+        """Queue this pattern on the pen plotter (Machines screen: f frames, g starts)."""
+        machine, params = self.current_design()
+        if not any(entry.name == "machines" for entry in self.app.areas):
+            self.notify("the machines area is not installed", severity="warning")
+            return
+        self.app.action_open_area("machines")
+        self.app.get_screen("machines").plot_design(machine, params, device="plotter")
 
 
 SCREEN = ScreenEntry(

@@ -595,11 +595,19 @@ class MachinesScreen(Screen):
             machine, params = self.app.get_screen("drawing").current_design()
         except Exception:  # noqa: BLE001 - no drawing screen in this app
             machine, params = "spirograph", {}
-        device = self.device
-        if device is None:
-            self._say("no plotter or laser configured")
+        self.plot_design(machine, params)
+
+    def plot_design(self, machine: str, params: dict, device: str | None = None) -> None:
+        """Turn a drawing-machine design into a plot job and queue it (in a worker: sampling takes a moment).
+
+        ``device`` is a device name or kind (``"plotter"``); by default the selected device.
+        """
+        target = self.device if device is None else next(
+            (d for d in self.serial_devices if device in (d.name, d.kind)), None)
+        if target is None:
+            self._say(f"no {device or 'plotter or laser'} configured")
             return
-        self._plot_worker(machine, params, device.name, device.kind)
+        self._plot_worker(machine, params, target.name, target.kind)
 
     @work(thread=True, exclusive=False, group="plot")
     def _plot_worker(self, machine: str, params: dict, device: str, kind: str) -> None:

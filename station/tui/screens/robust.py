@@ -19,6 +19,7 @@ from textual import on, work
 from textual.app import ComposeResult
 from textual.binding import Binding
 from textual.containers import Horizontal, Vertical
+from textual.css.query import NoMatches
 from textual.screen import Screen
 from textual.widgets import Button, DataTable, Footer, Header, Input, Label, ProgressBar, Select, Static
 
@@ -77,6 +78,7 @@ class RobustScreen(Screen):
         self.problem = None
         self._stop = threading.Event()
         self._optimizing = False
+        self._pending_scenario: str | None = None
 
     def compose(self) -> ComposeResult:
         yield Header()
@@ -106,6 +108,9 @@ class RobustScreen(Screen):
     def on_mount(self) -> None:
         self.query_one("#events", DataTable).add_columns("event", "predicted P", "simulated")
         self.query_one("#layout", DataTable).add_columns("parameter", "initial", "optimized", "range")
+        if self._pending_scenario is not None:
+            path, self._pending_scenario = self._pending_scenario, None
+            self.choose_scenario(path)
 
     # -- controls ----------------------------------------------------------------------------------------------
     @on(Select.Changed, "#scenario")
@@ -135,6 +140,22 @@ class RobustScreen(Screen):
             self._set_status(f"[red]{name} must be an integer >= {minimum}, got {text!r}[/red]")
             return None
         return value
+
+    def choose_scenario(self, path: str) -> None:
+        """Select the scenario file ``path`` (added to the list if it is not an example), ready for ``o``."""
+        try:
+            select = self.query_one("#scenario", Select)
+        except NoMatches:  # not composed yet: chosen on mount
+            self._pending_scenario = path
+            return
+        path = str(Path(path).resolve())
+        choices = {str(Path(value).resolve()): (label, value) for label, value in scenario_choices()}
+        if path in choices:
+            select.value = choices[path][1]
+            return
+        options = [*scenario_choices(), (Path(path).stem, path)]
+        select.set_options(options)
+        select.value = path
 
     def action_optimize(self) -> None:
         if self._optimizing:
