@@ -9,6 +9,7 @@ from collections.abc import Iterable
 from pathlib import Path
 from typing import Any, TextIO
 
+from design.errors import FileFormatError
 from station.errors import UsageError
 
 
@@ -72,3 +73,61 @@ def output_suffix(path: str | Path, allowed: Iterable[str]) -> str:
     if suffix not in allowed:
         raise UsageError(f"output file {str(path)!r}: expected one of {', '.join(allowed)}, got {suffix or 'none'!r}")
     return suffix
+
+
+def add_design_options(parser) -> None:
+    """``--design FILE.json`` and ``--set NAME=VALUE`` (repeatable, wins over the file) on a drawing-machine command."""
+    parser.add_argument(
+        "--design",
+        metavar="FILE.json",
+        help='start from a design file: what `station pattern --json` prints, or {"params": {...}}',
+    )
+    parser.add_argument(
+        "--set", action="append", metavar="NAME=VALUE", default=[], help="a parameter value (repeatable, wins)"
+    )
+
+
+def design_parameters(args, machine_name: str) -> dict[str, Any]:
+    """The parameters given by ``--design`` (if any), updated by ``--set``; unset ones take the machine's defaults."""
+    params = load_design(args.design, machine_name) if getattr(args, "design", None) else {}
+    params.update(parse_assignments(args.set))
+    return params
+
+
+def load_design(path: str | Path, machine_name: str) -> dict[str, Any]:
+    """Parameters from a design file: ``{"machine": ..., "params": {...}}`` (what ``--json`` prints), a flat
+    ``{name: value}`` mapping, or a ranked list of designs (what ``station retrieve --json`` prints), from which the
+    first one for ``machine_name`` is taken.
+
+    Raises
+    ------
+    FileFormatError
+        Not JSON, not an object or list, ``params`` not an object, a ``machine`` other than ``machine_name``, or a
+        list with no design for ``machine_name``.
+    """
+    path = Path(path)
+    try:
+        document = json.loads(path.read_text(encoding="utf-8"))
+    except json.JSONDecodeError as error:
+        raise FileFormatError(f"{path}: not valid JSON ({error.msg} at line {error.lineno})") from None
+    except UnicodeDecodeError:
+        raise FileFormatError(f"{path}: not a UTF-8 text file") from None
+    if isinstance(document, list):
+        ranked = [d for d in document if isinstance(d, dict) and d.get("machine") == machine_name]
+        if not ranked:
+            found = sorted({str(d.get("machine")) for d in document if isinstance(d, dict)})
+            raise FileFormatError(f"{path}: expected a list of designs with one for {machine_name!r}, "
+                                  f"found machines {found}")
+        document = ranked[0]
+    if not isinstance(document, dict):
+        raise FileFormatError(f"{path}: expected a JSON object, got {type(document).__name__}")
+    if "params" in document:
+        machine = document.get("machine", machine_name)
+        if machine != machine_name:
+            raise FileFormatError(f"{path}: field 'machine' is {machine!r}, but the command draws {machine_name!r}")
+        params = document["params"]
+        if not isinstance(params, dict):
+            raise FileFormatError(f"{path}: field 'params' must be an object of name: value, got {params!r:.60}")
+    else:
+        params = document
+    return dict(params)

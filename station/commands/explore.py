@@ -15,7 +15,7 @@ import numpy as np
 
 from design.explore import ERROR_UNIT, Explorer, parse_keep
 from design.machines import get_machine, machine_names
-from station.cli_util import emit_json, output_suffix, parse_assignments
+from station.cli_util import add_design_options, design_parameters, emit_json, output_suffix
 from station.errors import UsageError
 
 
@@ -33,7 +33,7 @@ def register(subparsers) -> None:
         "distance:P,Q.  example: station explore hoot_nanny --keep curvature:0 --keep radial:0 --move 0=1.0 --json",
     )
     parser.add_argument("machine", metavar="MACHINE", help=f"one of: {', '.join(machine_names())}")
-    parser.add_argument("--set", action="append", default=[], metavar="NAME=VALUE", help="a parameter (repeatable)")
+    add_design_options(parser)
     parser.add_argument(
         "--keep", action="append", default=[], metavar="TYPE:POI[,POI]", help="an invariant (repeatable)"
     )
@@ -77,7 +77,7 @@ def run_explore(args) -> int:
     suffix = output_suffix(args.out, {".png"}) if args.out else None
     keeps = [parse_keep(spec) for spec in args.keep]
     moves = [parse_move(text) for text in args.move]
-    explorer = Explorer(model, parse_assignments(args.set), n_points=args.points)
+    explorer = Explorer(model, design_parameters(args, model.name), n_points=args.points)
     first_curve, first_pois = explorer.curve, explorer.pois
     document: dict[str, Any] = {
         "machine": model.name,

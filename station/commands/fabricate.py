@@ -18,7 +18,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from station.cli_util import emit_json, parse_assignments, to_jsonable
+from station.cli_util import add_design_options, design_parameters, emit_json, to_jsonable
 from station.errors import UsageError
 
 DEFAULT_KERF = 0.15
@@ -237,8 +237,7 @@ def register(subparsers) -> None:
     )
     parser.add_argument("machine", choices=FABRICABLE_MACHINES, metavar="MACHINE",
                         help=f"one of {', '.join(FABRICABLE_MACHINES)}")
-    parser.add_argument("--set", action="append", default=[], metavar="NAME=VALUE",
-                        help="a design parameter (repeatable); unset parameters keep the model's defaults")
+    add_design_options(parser)
     parser.add_argument("--scale", type=float, required=True, metavar="MM_PER_UNIT",
                         help="millimetres per model unit (gear radius 1 = this many mm)")
     parser.add_argument("--kerf", type=float, default=DEFAULT_KERF, metavar="MM",
@@ -271,7 +270,7 @@ def run_fabricate(args) -> int:
     from design.fabrication import GearSettings, Hardware
     from drivers.profiles import load_profile
 
-    params = parse_assignments(args.set)
+    params = design_parameters(args, args.machine)
     if args.max_sheets < 1:
         raise UsageError(f"--max-sheets must be at least 1, got {args.max_sheets}")
     sheet_size = parse_sheet(args.sheet) if args.sheet is not None else None

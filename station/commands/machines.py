@@ -9,10 +9,9 @@ from typing import Any
 
 import numpy as np
 
-from design.errors import FileFormatError
 from design.machines import get_machine, machine_names, shapes_to_jsonable
 from design.machines.render import shape_polylines, write_png, write_svg
-from station.cli_util import emit_json, output_suffix, parse_assignments, to_jsonable
+from station.cli_util import add_design_options, design_parameters, emit_json, output_suffix, to_jsonable
 from station.errors import UsageError
 
 OUTPUT_SUFFIXES = {".svg", ".png", ".json"}
@@ -40,14 +39,7 @@ def register(subparsers) -> None:
         epilog="example: station pattern hoot_nanny --set r_t=10 --set l1=13 --points 4096 --out hn.png",
     )
     pattern.add_argument("machine", metavar="MACHINE", help=f"one of: {', '.join(machine_names())}")
-    pattern.add_argument(
-        "--design",
-        metavar="FILE.json",
-        help='start from a design file: a pattern JSON written by --json/--out, or {"params": {...}}',
-    )
-    pattern.add_argument(
-        "--set", action="append", metavar="NAME=VALUE", default=[], help="a parameter value (repeatable, wins)"
-    )
+    add_design_options(pattern)
     pattern.add_argument("--points", type=int, default=2048, metavar="N", help="points in the closed curve (2048)")
     pattern.add_argument(
         "--spacing",
@@ -100,36 +92,6 @@ def pattern_document(machine_name: str, params: dict[str, float], points: int, s
     }
 
 
-def load_design(path: str | Path, machine_name: str) -> dict[str, Any]:
-    """Parameters from a design file: ``{"machine": ..., "params": {...}}`` (what ``--json`` prints) or a flat
-    ``{name: value}`` mapping.
-
-    Raises
-    ------
-    FileFormatError
-        Not JSON, not an object, ``params`` not an object, or a ``machine`` other than ``machine_name``.
-    """
-    path = Path(path)
-    try:
-        document = json.loads(path.read_text(encoding="utf-8"))
-    except json.JSONDecodeError as error:
-        raise FileFormatError(f"{path}: not valid JSON ({error.msg} at line {error.lineno})") from None
-    except UnicodeDecodeError:
-        raise FileFormatError(f"{path}: not a UTF-8 text file") from None
-    if not isinstance(document, dict):
-        raise FileFormatError(f"{path}: expected a JSON object, got {type(document).__name__}")
-    if "params" in document:
-        machine = document.get("machine", machine_name)
-        if machine != machine_name:
-            raise FileFormatError(f"{path}: field 'machine' is {machine!r}, but the command draws {machine_name!r}")
-        params = document["params"]
-        if not isinstance(params, dict):
-            raise FileFormatError(f"{path}: field 'params' must be an object of name: value, got {params!r:.60}")
-    else:
-        params = document
-    return dict(params)
-
-
 def run_pattern(args) -> int:
     model = get_machine(args.machine)
     if not 3 <= args.points <= MAX_POINTS:
@@ -139,8 +101,7 @@ def run_pattern(args) -> int:
     if args.mechanism is not None and not math.isfinite(args.mechanism):
         raise UsageError(f"--mechanism must be a finite time, got {args.mechanism}")
     suffix = output_suffix(args.out, OUTPUT_SUFFIXES) if args.out else None
-    params = load_design(args.design, model.name) if args.design else {}
-    params.update(parse_assignments(args.set))
+    params = design_parameters(args, model.name)
     document = pattern_document(model.name, params, args.points, args.spacing)
     shapes = model.mechanism(document["params"], args.mechanism) if args.mechanism is not None else None
     if shapes is not None:

@@ -22,7 +22,7 @@ from drivers.errors import DeviceStateError, JobRefused
 from drivers.gcode import WriterOptions, fit_polylines, simplify_polylines, write_plot_gcode
 from drivers.grbl import GrblConnection, Job, JobRunner, frame_lines, list_ports
 from drivers.profiles import MachineProfile, load_profile
-from station.cli_util import emit_json, output_suffix, parse_assignments
+from station.cli_util import design_parameters, emit_json, output_suffix
 from station.errors import UsageError
 
 DEFAULT_POINTS = 4096
@@ -41,6 +41,8 @@ def register(subparsers) -> None:
     )
     plot.add_argument("machine", nargs="?", help="drawing machine name (see `station machines`)")
     plot.add_argument("--set", action="append", metavar="NAME=VALUE", help="a machine parameter (repeatable)")
+    plot.add_argument("--design", metavar="FILE.json",
+                      help='MACHINE\'s parameters from a design file (`station pattern --json`, {"params": {...}})')
     plot.add_argument("--pattern", metavar="FILE.json", help="a pattern written by `station pattern --json`")
     plot.add_argument("--profile", default="plotter",
                       help="machine profile TOML, or a built-in: plotter (default), laser")
@@ -95,8 +97,8 @@ def pattern_polylines(args) -> tuple[list[np.ndarray], dict[str, Any]]:
     if args.pattern and args.machine:
         raise UsageError("give either MACHINE (with --set) or --pattern FILE.json, not both")
     if args.pattern:
-        if args.set:
-            raise UsageError("--set applies to MACHINE, not to --pattern FILE.json")
+        if args.set or args.design:
+            raise UsageError("--set and --design apply to MACHINE, not to --pattern FILE.json")
         path = Path(args.pattern)
         try:
             document = json.loads(path.read_text(encoding="utf-8"))
@@ -119,7 +121,7 @@ def pattern_polylines(args) -> tuple[list[np.ndarray], dict[str, Any]]:
     from design.machines import get_machine
 
     model = get_machine(args.machine)
-    params = model.validate(parse_assignments(args.set))
+    params = model.validate(design_parameters(args, model.name))
     points = model.sample(params, n=args.points, spacing="arclength")
     return [np.asarray(points, dtype=float)], {"machine": model.name, "params": params}
 

@@ -136,7 +136,8 @@ def test_example_designs_are_feasible(capsys):
     "content, message",
     [
         ("{not json", "not valid JSON"),
-        ("[1, 2]", "expected a JSON object, got list"),
+        ("[1, 2]", "expected a list of designs with one for 'spirograph', found machines []"),
+        ("3", "expected a JSON object, got int"),
         ('{"machine": "hoot_nanny", "params": {}}', "field 'machine' is 'hoot_nanny', but the command draws"),
         ('{"params": [1]}', "field 'params' must be an object"),
         ('{"params": {"d": "x"}}', "parameter 'd' must be a finite real number"),
