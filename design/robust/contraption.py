@@ -12,8 +12,15 @@ from pathlib import Path
 
 import numpy as np
 
-from design.contraption import SUCCESS, Scenario, Simulator, check_validity, load_scenario, simulate
+from design.contraption import SUCCESS, Scenario, Simulator, check_validity, clearances, load_scenario, simulate
 from design.robust.problem import RobustError
+
+#: Body pairs closer than this (m) enter the validity constraint; the constraint is capped there, so a pair coming
+#: into range does not make it jump.
+CLEARANCE_RADIUS = 0.005
+#: Finite-difference step (normalized units) for the constraint's gradient: Bullet's closest-point distances are
+#: accurate to about a micrometre, so SLSQP's default step (1.5e-8) would differentiate noise.
+CLEARANCE_STEP = 1e-3
 
 _clients = threading.local()
 
@@ -110,10 +117,6 @@ class ContraptionProblem:
         """The scenario file's own layout, normalized."""
         return np.clip(self.to_normalized(self.scenario.default_layout()), 0.0, 1.0)
 
-    def _excess(self, u: np.ndarray) -> float:
-        problems = check_validity(self.scenario, self.to_real(u), client=thread_client())
-        return float(sum(max(p.amount - p.tolerance, 0.0) for p in problems)) + (1e-6 if problems else 0.0)
-
     def is_valid(self, U: np.ndarray) -> np.ndarray:
         U = np.atleast_2d(np.asarray(U, dtype=float))
         inside = np.all((U >= 0) & (U <= 1), axis=1)
@@ -122,12 +125,27 @@ class ContraptionProblem:
                          for u, ok in zip(U, inside)])
 
     def validity_margins(self, u: np.ndarray) -> np.ndarray | None:
-        """One constraint: minus the total interpenetration / rope stretch beyond tolerance (metres), 0 if valid.
+        """One constraint, ``>= 0`` exactly when the layout is physically valid: the smallest clearance (m).
 
-        The core reports only the problems of a layout, not distances between separate bodies, so the margin is
-        flat (0) on the valid side; the optimizer's pull-back along the segment to its start does the rest.
+        The clearance of a body pair is its signed distance plus its interpenetration tolerance; of a rope, its
+        slack. Pairs farther apart than :data:`CLEARANCE_RADIUS` are not measured and the value is capped there, so
+        the constraint is continuous and tells SLSQP how far the layout is from the wall on the valid side too.
         """
-        return np.array([-self._excess(np.clip(np.asarray(u, dtype=float).ravel(), 0.0, 1.0))])
+        u = np.clip(np.asarray(u, dtype=float).ravel(), 0.0, 1.0)
+        found = clearances(self.scenario, self.to_real(u), radius=CLEARANCE_RADIUS, client=thread_client())
+        return np.array([min([CLEARANCE_RADIUS, *(c.margin for c in found)])])
+
+    def validity_jacobian(self, u: np.ndarray) -> np.ndarray:
+        """Gradient of :meth:`validity_margins` by central differences of :data:`CLEARANCE_STEP` (one-sided at the
+        box's faces), shape ``(1, dim)``."""
+        u = np.clip(np.asarray(u, dtype=float).ravel(), 0.0, 1.0)
+        gradient = np.zeros((1, self.dim))
+        for i in range(self.dim):
+            low, high = u.copy(), u.copy()
+            low[i] = max(u[i] - CLEARANCE_STEP, 0.0)
+            high[i] = min(u[i] + CLEARANCE_STEP, 1.0)
+            gradient[0, i] = (self.validity_margins(high)[0] - self.validity_margins(low)[0]) / (high[i] - low[i])
+        return gradient
 
     def prepare_worker(self) -> None:
         """Load the scenario in this process (the core creates a pybullet client per thread on first use)."""

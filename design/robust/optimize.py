@@ -62,7 +62,10 @@ def optimize_layout(problem: LayoutProblem, psp, start: np.ndarray, alpha: float
         return start, {"energy_start": e0, "energy": e0, "iterations": 0, "message": "no learned factor"}
     constraints = []
     if problem.validity_margins(start) is not None:
-        constraints.append({"type": "ineq", "fun": lambda u: np.atleast_1d(problem.validity_margins(u)).ravel()})
+        constraint = {"type": "ineq", "fun": lambda u: np.atleast_1d(problem.validity_margins(u)).ravel()}
+        if hasattr(problem, "validity_jacobian"):
+            constraint["jac"] = lambda u: np.atleast_2d(problem.validity_jacobian(u))
+        constraints.append(constraint)
     result = minimize(
         lambda u: energy(psp, np.clip(u, 0.0, 1.0), alpha), start, method="SLSQP",
         bounds=[(0.0, 1.0)] * problem.dim, constraints=constraints, options={"maxiter": max_iterations, "ftol": 1e-10},

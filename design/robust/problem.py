@@ -8,7 +8,8 @@ scenario through :class:`LayoutProblem`:
 - ``is_valid(U)``: physical validity of a batch of normalized layouts (cheap, no simulation: the impossible region
   D∅ is known a priori);
 - ``validity_margins(u)``: a vector that is ``>= 0`` exactly when ``u`` is valid, used as SLSQP constraints, or
-  ``None`` when the scenario can only say yes or no;
+  ``None`` when the scenario can only say yes or no; optionally ``validity_jacobian(u)`` (shape ``(1, d)`` per
+  margin row) when finite differences at SLSQP's tiny default step would be noise;
 - ``simulate(u)``: simulate one valid layout and return one boolean per event (``True`` = the event's final state
   is success);
 - ``content_hash``: identifies the scenario's content (cache key with the layout).

@@ -46,6 +46,20 @@ def test_simple_problem_mirrors_the_scenario(simple):
     assert simple.is_valid(simple.initial_layout()[None, :])[0]
 
 
+def test_simple_validity_constraint_agrees_with_validity_and_has_a_slope(simple):
+    rng = np.random.default_rng(0)
+    U = rng.random((40, simple.dim))
+    margins = np.array([simple.validity_margins(u)[0] for u in U])
+    assert np.array_equal(margins >= 0, simple.is_valid(U))
+    assert (margins < 0).any() and (margins >= 0).any()
+    # Not flat: somewhere between an invalid layout and a valid one the gradient points towards validity.
+    bad = U[np.argmin(margins)]
+    gradient = simple.validity_jacobian(bad)
+    assert gradient.shape == (1, simple.dim) and np.linalg.norm(gradient) > 0
+    step = 0.01 * gradient[0] / np.linalg.norm(gradient)
+    assert simple.validity_margins(np.clip(bad + step, 0, 1))[0] > simple.validity_margins(bad)[0]
+
+
 def test_simple_psp_separates_success_from_failure(simple, simple_data):
     samples, held_out, truth = simple_data
     assert 0 < truth.sum() < len(truth)
