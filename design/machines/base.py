@@ -814,6 +814,29 @@ def gcd_margin(*arrays: np.ndarray) -> np.ndarray:
     return (1 - g).astype(float)
 
 
+def coprime_constraint(equation: str, *names: str) -> Constraint:
+    """The symmetry-reduction constraint of ``equation``: the gear radii ``names`` share no common divisor, else the
+    same pattern exists with smaller gears."""
+
+    def message(p: Mapping[str, float]) -> str:
+        values = [int(round(p[n])) for n in names]
+        shown = ", ".join(f"{p[n]:g}" for n in names)
+        listed = " and ".join(names) if len(names) == 2 else ", ".join(names[:-1]) + f" and {names[-1]}"
+        rule = "be coprime" if len(names) == 2 else "share no common divisor"
+        return (f"{listed} must {rule}, got gcd({shown}) = {math.gcd(*values)} "
+                "(the same pattern exists with smaller gears)")
+
+    return Constraint(
+        "coprime_radii",
+        "symmetry reduction",
+        equation,
+        lambda P: gcd_margin(*(P[n] for n in names)),
+        message,
+        strict=False,
+        depends=names,
+    )
+
+
 def gear_period(driving_radius: np.ndarray, *radii: np.ndarray) -> np.ndarray:
     """Exact period of a gear train by the lcm rule of A.1.1, vectorized over integer radii.
 

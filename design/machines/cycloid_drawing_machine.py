@@ -20,7 +20,6 @@ G_T F G_E (the thesis's formula after A.44 has ``d_fh`` where ``d_tf`` is meant)
 from __future__ import annotations
 
 from collections.abc import Iterable, Mapping
-from math import gcd
 
 import numpy as np
 
@@ -34,7 +33,7 @@ from design.machines.base import (
     Segment,
     Shape,
     _xy,
-    gcd_margin,
+    coprime_constraint,
     gear_period,
 )
 
@@ -135,18 +134,7 @@ class CycloidDrawingMachine(DrawingMachine):
             lambda p: f"r_s must be smaller than r_e = {p['r_e']:g}, got {p['r_s']:g}",
             depends=("r_e", "r_s"),
         )
-        yield Constraint(
-            "coprime_radii",
-            "symmetry reduction",
-            "A.45",
-            lambda P: gcd_margin(P["r_t"], P["r_e"]),
-            lambda p: (
-                f"r_t and r_e must be coprime, got gcd({p['r_t']:g}, {p['r_e']:g}) = "
-                f"{gcd(int(round(p['r_t'])), int(round(p['r_e'])))} (the same pattern exists with smaller gears)"
-            ),
-            strict=False,
-            depends=("r_t", "r_e"),
-        )
+        yield coprime_constraint("A.45", "r_t", "r_e")
         yield Constraint(
             "pen_on_turntable",
             "drawing bounds",

@@ -25,7 +25,6 @@ point has covered a whole number of both perimeters (A.13): ``T = 2 pi lcm(r_f, 
 from __future__ import annotations
 
 from collections.abc import Iterable, Mapping
-from math import gcd
 
 import numpy as np
 from scipy.special import ellipe, ellipeinc
@@ -41,7 +40,7 @@ from design.machines.base import (
     Segment,
     Shape,
     _xy,
-    gcd_margin,
+    coprime_constraint,
     gear_period,
 )
 
@@ -137,18 +136,7 @@ class EllipticSpirograph(DrawingMachine):
             strict=False,
             depends=("r_r", "e", "d"),
         )
-        yield Constraint(
-            "coprime_radii",
-            "symmetry reduction",
-            "A.24",
-            lambda P: gcd_margin(P["r_f"], P["r_r"]),
-            lambda p: (
-                f"r_f and r_r must be coprime, got gcd({p['r_f']:g}, {p['r_r']:g}) = "
-                f"{gcd(int(round(p['r_f'])), int(round(p['r_r'])))} (the same pattern exists with smaller gears)"
-            ),
-            strict=False,
-            depends=("r_f", "r_r"),
-        )
+        yield coprime_constraint("A.24", "r_f", "r_r")
         yield Constraint(
             "pen_offset_positive",
             "symmetry reduction",

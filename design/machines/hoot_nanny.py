@@ -29,7 +29,6 @@ Notes on the constraint system, where the station reads Appendix A carefully:
 from __future__ import annotations
 
 from collections.abc import Iterable, Mapping
-from math import gcd
 
 import numpy as np
 
@@ -43,7 +42,7 @@ from design.machines.base import (
     Segment,
     Shape,
     _xy,
-    gcd_margin,
+    coprime_constraint,
     gear_period,
 )
 
@@ -171,19 +170,7 @@ class HootNanny(DrawingMachine):
                 ),
                 depends=("r_t", r_p, r_g, l),
             )
-        yield Constraint(
-            "coprime_radii",
-            "symmetry reduction",
-            "A.62",
-            lambda P: gcd_margin(P["r_t"], P["r_g1"], P["r_g2"]),
-            lambda p: (
-                f"r_t, r_g1 and r_g2 must share no common divisor, got gcd({p['r_t']:g}, {p['r_g1']:g}, "
-                f"{p['r_g2']:g}) = {gcd(gcd(int(p['r_t']), int(p['r_g1'])), int(p['r_g2']))} "
-                f"(the same pattern exists with smaller gears)"
-            ),
-            strict=False,
-            depends=("r_t", "r_g1", "r_g2"),
-        )
+        yield coprime_constraint("A.62", "r_t", "r_g1", "r_g2")
         yield Constraint(
             "arms_reach",
             "singularity avoidance",

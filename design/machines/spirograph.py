@@ -13,7 +13,6 @@ ring once per ``r_f`` teeth; both gears are back after lcm(r_f, r_r) teeth).
 from __future__ import annotations
 
 from collections.abc import Iterable, Mapping
-from math import gcd
 
 import numpy as np
 
@@ -27,7 +26,7 @@ from design.machines.base import (
     Segment,
     Shape,
     _xy,
-    gcd_margin,
+    coprime_constraint,
     gear_period,
 )
 
@@ -72,18 +71,7 @@ class Spirograph(DrawingMachine):
             strict=False,
             depends=("r_r", "d"),
         )
-        yield Constraint(
-            "coprime_radii",
-            "symmetry reduction",
-            "A.10",
-            lambda P: gcd_margin(P["r_f"], P["r_r"]),
-            lambda p: (
-                f"r_f and r_r must be coprime, got gcd({p['r_f']:g}, {p['r_r']:g}) = "
-                f"{gcd(int(round(p['r_f'])), int(round(p['r_r'])))} (the same pattern exists with smaller gears)"
-            ),
-            strict=False,
-            depends=("r_f", "r_r"),
-        )
+        yield coprime_constraint("A.10", "r_f", "r_r")
         yield Constraint(
             "pen_offset_positive",
             "symmetry reduction",
