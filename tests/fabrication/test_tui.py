@@ -95,6 +95,8 @@ async def test_send_queues_the_laser_job_on_the_machines_screen(tmp_path):
         assert entry.device == "laser" and entry.job.laser
         assert entry.job.lines == screen.result.gcode.splitlines()
         assert "sent to the laser" in screen.last_message
+        # the simulated laser connects by itself, so frame/start work at once
+        await wait_for(pilot, screen, lambda: "laser" in machines.connections)
 
 
 async def test_several_sheets_are_shown_in_turn_and_all_sent(tmp_path):

@@ -359,6 +359,10 @@ class MachinesScreen(Screen):
         self.device_index = self.serial_devices.index(target)
         self._show_preview(entry)
         self._render_status()
+        if target.simulated and target.name not in self.connections and self.is_mounted:
+            # a simulated machine needs no hardware: connect it so that f/g work at once (a real one waits for c,
+            # since opening its port resets the board)
+            self.action_connect()
         self._say(f"queued {entry.title!r} for {target.name} ({len(entry.job.lines)} lines): f frames, g starts")
         return entry
 
