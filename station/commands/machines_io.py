@@ -8,6 +8,7 @@ dry run (check mode), frame, resume from a line, and a progress bar.
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import json
 import sys
@@ -23,7 +24,7 @@ from drivers.gcode import WriterOptions, fit_polylines, simplify_polylines, writ
 from drivers.grbl import GrblConnection, Job, JobRunner, frame_lines, list_ports
 from drivers.profiles import MachineProfile, load_profile
 from station.cli_util import design_parameters, emit_json, output_suffix
-from station.errors import UsageError
+from station.errors import StationError, UsageError
 
 DEFAULT_POINTS = 4096
 
@@ -239,6 +240,30 @@ class ProgressBar:
         self.stream.flush()
 
 
+@contextlib.contextmanager
+def _job_history():
+    """The station database's job history for ``station send``; a broken database warns once and is skipped."""
+    import sqlite3
+
+    from station.db import open_database
+    from station.joblog import JobLog
+    from station.paths import database_path
+
+    def warn(error: Exception) -> None:
+        print(f"station: warning: job history not written ({error})", file=sys.stderr)
+
+    try:
+        connection = open_database(database_path())
+    except (StationError, OSError, sqlite3.Error) as error:
+        warn(error)
+        yield JobLog(None)
+        return
+    try:
+        yield JobLog(connection, on_error=warn)
+    finally:
+        connection.close()
+
+
 def run_send(args) -> int:
     profile = _profile(args.profile) if args.profile else None
     path = Path(args.job)
@@ -266,20 +291,27 @@ def run_send(args) -> int:
             lines = frame_lines(lo, hi, pen_up=pen_up)
         job = Job(f"frame of {path.name}", lines, laser=laser, pen_up=pen_up)
     bar = None if args.json else ProgressBar()
-    with GrblConnection(url, baud) as conn:
+    kind = "frame" if args.frame else "dry run" if args.dry_run else "run"
+    with GrblConnection(url, baud) as conn, _job_history() as history:
         runner = JobRunner(conn, job, from_line=1 if args.frame else args.from_line, dry_run=args.dry_run,
                            on_progress=bar)
+        job_id = history.start(kind, url, str(path) if kind == "run" else f"{kind} of {path}", len(job.lines),
+                               "station send")
         runner.start()
         try:
-            while runner.wait(0.2) is None:
-                pass
+            while runner.wait(2.0) is None:
+                history.progress(job_id, runner.progress.lines_acked)
         except KeyboardInterrupt:
             runner.abort()
             runner.wait(10.0)
             if bar:
                 bar.close()
+            done = runner.result
+            history.finish(job_id, "aborted", runner.progress.lines_acked, "stopped by Ctrl-C",
+                           done.resume_line if done else None)
             raise
         result = runner.result
+        history.finish(job_id, result.state, result.lines_acked, result.message, result.resume_line)
         if bar:
             bar(runner.progress, force=True)
             bar.close()

@@ -8,6 +8,7 @@ from textual.widgets import DataTable
 
 from drivers.gcode import clean_line
 from station.devices import DeviceEntry
+from station.joblog import JobLog
 from station.tui.app import StationApp
 
 FAST_DEVICES = (
@@ -127,3 +128,11 @@ async def test_plot_key_on_the_drawing_screen_plots_the_pattern_and_ends_pen_up(
         assert len(drawn) > 100  # the pattern's polyline, not a stand-in
         pen_up = app.screen.profile_for(screen.device).pen.up
         assert record.samples[-1].power == pen_up  # the servo is left holding the pen up
+        # the job is in the station's history, and on the home screen
+        (logged,) = JobLog(app.database).recent()
+        assert (logged.kind, logged.device, logged.status) == ("run", "plotter", "done")
+        assert logged.lines_acked == logged.lines_total == len(entry.job.lines)
+        await pilot.press("escape")
+        await pilot.pause()
+        jobs = app.screen.query_one("#jobs", DataTable)
+        assert jobs.row_count == 1 and "done" in [str(c) for c in jobs.get_row_at(0)]

@@ -9,7 +9,11 @@ from textual.screen import Screen
 from textual.widgets import DataTable, Footer, Header, Static
 
 from station.devices import DeviceEntry
+from station.joblog import JobLog, local_time
 from station.tui.registry import ScreenEntry
+
+#: Jobs shown on the home screen (``station jobs`` lists more).
+RECENT_JOBS = 5
 
 
 class HomeScreen(Screen):
@@ -18,6 +22,7 @@ class HomeScreen(Screen):
     CSS = """
     HomeScreen #areas { height: auto; padding: 1 2; }
     HomeScreen #devices { height: auto; margin: 0 2; }
+    HomeScreen #jobs { height: auto; max-height: 8; margin: 0 2; }
     HomeScreen #database { padding: 1 2; color: $text-muted; }
     HomeScreen .heading { text-style: bold; padding: 0 2; margin-top: 1; }
     """
@@ -41,6 +46,8 @@ class HomeScreen(Screen):
             yield Static("\n".join(lines) or "No areas installed.", id="areas")
             yield Static("Devices", classes="heading")
             yield DataTable(id="devices", cursor_type="row", zebra_stripes=True)
+            yield Static("Recent machine jobs", classes="heading")
+            yield DataTable(id="jobs", cursor_type="row", zebra_stripes=True)
             yield Static(f"Database: {self.database}", id="database")
         yield Footer()
 
@@ -56,3 +63,22 @@ class HomeScreen(Screen):
                 self.app.device_state(device),
                 key=device.name,
             )
+        self.query_one("#jobs", DataTable).add_columns("#", "started", "kind", "device", "job", "state", "lines")
+        self.show_jobs()
+
+    def on_screen_resume(self) -> None:
+        self.show_jobs()
+
+    def show_jobs(self) -> None:
+        """The latest machine jobs from the station database (a job run elsewhere shows when home is shown again)."""
+        table = self.query_one("#jobs", DataTable)
+        table.clear()
+        records = JobLog(getattr(self.app, "database", None)).recent(RECENT_JOBS)
+        for record in records:
+            state = record.status
+            if record.resume_line and state != "done":
+                state += f" (resume at {record.resume_line})"
+            table.add_row(str(record.id), local_time(record.created_at), record.kind, record.device[:24],
+                          record.title[-40:], state, f"{record.lines_acked}/{record.lines_total}")
+        if not records:
+            table.add_row("", "", "", "", "no jobs yet: plot a pattern (d, then l) or cut parts (f)", "", "")

@@ -29,6 +29,7 @@ from drivers.grbl import GrblConnection, Job, JobRunner, frame_lines
 from drivers.grbl.protocol import Feedback, StatusReport
 from drivers.profiles import MachineProfile, builtin_profile
 from station.errors import StationError
+from station.joblog import JOB_KINDS, JobLog
 from station.tui.registry import ScreenEntry
 from station.tui.widgets.canvas import PatternCanvas
 
@@ -127,6 +128,17 @@ class MachinesScreen(Screen):
         self._last_preview = 0.0
         self._running_mode = ""
         self._auto_connected = False
+        self._log_ids: dict[int, int] = {}
+        self._job_log: JobLog | None = None
+        self._last_logged = 0.0
+
+    @property
+    def job_log(self) -> JobLog:
+        """The station database's job history (recording nothing in an app without a database)."""
+        if self._job_log is None:
+            self._job_log = JobLog(getattr(self.app, "database", None),
+                                   on_error=lambda error: self._console(f"job history not written: {error}"))
+        return self._job_log
 
     # ------------------------------------------------------------------ layout
 
@@ -453,6 +465,7 @@ class MachinesScreen(Screen):
             resume = int(entry.message.split(":")[1])
         runner = JobRunner(conn, job, from_line=resume, dry_run=mode == "dry", on_progress=self._progress_cb)
         self.runner = runner
+        self._log_start(runner, entry, mode, len(job.lines))
         self.running_job = entry
         self._running_mode = mode
         entry.state = {"run": "running", "frame": "framing", "dry": "checking"}[mode]
@@ -465,6 +478,8 @@ class MachinesScreen(Screen):
 
     def _show_progress(self, progress) -> None:
         now = time.monotonic()
+        if self.runner is not None:
+            self._log_progress(self.runner, progress.lines_acked)
         if (self.running_job is not None and self._running_mode == "run"
                 and (now - self._last_preview > 0.5 or progress.state != "running")):
             self._last_preview = now
@@ -483,7 +498,22 @@ class MachinesScreen(Screen):
         result = runner.run()
         self._from_thread(self._job_done, runner, entry, mode, result)
 
+    def _log_start(self, runner: JobRunner, entry: QueuedJob, mode: str, lines: int) -> None:
+        title = entry.title if mode == "run" else f"{JOB_KINDS[mode]} of {entry.title}"
+        self._log_ids[id(runner)] = self.job_log.start(JOB_KINDS[mode], entry.device, title, lines, "tui")
+
+    def _log_progress(self, runner: JobRunner, lines_acked: int) -> None:
+        now = time.monotonic()
+        if now - self._last_logged >= 2.0 and id(runner) in self._log_ids:
+            self._last_logged = now
+            self.job_log.progress(self._log_ids[id(runner)], lines_acked)
+
+    def _log_finish(self, runner: JobRunner, result) -> None:
+        job_id = self._log_ids.pop(id(runner), 0)
+        self.job_log.finish(job_id, result.state, result.lines_acked, result.message, result.resume_line)
+
     def _job_done(self, runner, entry: QueuedJob, mode: str, result) -> None:
+        self._log_finish(runner, result)
         if mode == "run":
             self._show_preview(entry, len(entry.job.lines) if result.ok else runner.progress.current_line)
         if self.runner is runner:

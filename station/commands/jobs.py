@@ -1,0 +1,52 @@
+"""``station jobs``: the history of machine jobs (plots, laser cuts, frames, dry runs) and where to resume them."""
+
+from __future__ import annotations
+
+from station.cli_util import emit_json
+from station.db import open_database
+from station.errors import UsageError
+from station.joblog import JobLog, JobRecord, local_time
+from station.paths import database_path
+
+
+def register(subparsers) -> None:
+    parser = subparsers.add_parser(
+        "jobs",
+        help="the history of machine jobs: how each ended and where to resume",
+        description="List the latest jobs streamed to a GRBL machine (from the Machines screen or `station send`), "
+        "newest first: kind (run, frame, dry run), device, state, lines confirmed, and the line to resume a stopped "
+        "job from (`station send JOB --from-line N`). A job whose station was killed shows as interrupted.",
+        epilog="example: station jobs --limit 5",
+    )
+    parser.add_argument("--limit", type=int, default=20, metavar="N", help="how many jobs (default 20)")
+    parser.add_argument("--json", action="store_true", help="print the jobs as JSON")
+    parser.set_defaults(func=run_jobs)
+
+
+def describe(record: JobRecord) -> str:
+    """One line for a job: ``#12  2026-12-01 16:20  run  plotter  star.gcode  done  197/197``."""
+    when = local_time(record.created_at)
+    line = (f"#{record.id:<4} {when}  {record.kind:<7} {record.device[:24]:<24} {record.title[:32]:<32} "
+            f"{record.status:<13} {record.lines_acked}/{record.lines_total}")
+    if record.resume_line and record.status not in ("done",):
+        line += f"  resume from line {record.resume_line}"
+    return line
+
+
+def run_jobs(args) -> int:
+    if not 1 <= args.limit <= 10_000:
+        raise UsageError(f"--limit must be an integer in [1, 10000], got {args.limit}")
+    connection = open_database(database_path())
+    try:
+        records = JobLog(connection).recent(args.limit)
+    finally:
+        connection.close()
+    if args.json:
+        emit_json({"database": str(database_path()), "jobs": [r.to_dict() for r in records]})
+        return 0
+    if not records:
+        print(f"no jobs yet (database {database_path()})")
+        return 0
+    for record in records:
+        print(describe(record))
+    return 0

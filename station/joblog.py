@@ -1,0 +1,149 @@
+"""The machine-job history in the station database: what ran on which machine, how it ended, where to resume.
+
+Every job the station streams (from the Machines screen or ``station send``) gets a row in the ``jobs`` table when it
+starts and its outcome when it ends. A job whose process died before it ended (the station was killed, the computer
+slept) is shown as ``interrupted``: its row still says ``running`` but the process that ran it is gone.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import sqlite3
+from collections.abc import Callable
+from dataclasses import dataclass
+from datetime import datetime, timezone
+from typing import Any
+
+#: The ``kind`` column by job mode: the job itself, its frame (bounding box traced), a dry run in check mode.
+JOB_KINDS = {"run": "run", "frame": "frame", "dry": "dry run"}
+
+#: Row states besides the job runner's own (done, stopped, aborted, error, refused, position_lost, ...).
+RUNNING, INTERRUPTED = "running", "interrupted"
+
+
+@dataclass(frozen=True)
+class JobRecord:
+    """One row of the job history."""
+
+    id: int
+    kind: str  # "run", "frame" or "dry run"
+    device: str
+    title: str
+    status: str
+    created_at: str
+    finished_at: str | None
+    lines_total: int
+    lines_acked: int
+    message: str
+    resume_line: int | None
+
+    def to_dict(self) -> dict[str, Any]:
+        return dict(self.__dict__)
+
+
+def _alive(pid: int | None) -> bool:
+    if not pid:
+        return False
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:  # someone else's live process
+        return True
+    return True
+
+
+def local_time(stamp: str) -> str:
+    """``2026-12-01T16:12:59.323Z`` (UTC, as SQLite writes it) as local ``2026-12-01 17:12``."""
+    try:
+        moment = datetime.fromisoformat(stamp.replace("Z", "+00:00"))
+    except ValueError:
+        return stamp[:16]
+    if moment.tzinfo is None:
+        moment = moment.replace(tzinfo=timezone.utc)
+    return moment.astimezone().strftime("%Y-%m-%d %H:%M")
+
+
+class JobLog:
+    """Start and finish job rows in an open station database (see :func:`station.db.open_database`).
+
+    The history never stops a job: with ``connection=None`` every call does nothing, and a database error (locked,
+    read-only, disk full) is passed to ``on_error`` once and the record is skipped.
+    """
+
+    def __init__(self, connection: sqlite3.Connection | None,
+                 on_error: Callable[[Exception], None] | None = None) -> None:
+        self.connection = connection
+        self.on_error = on_error
+        self._warned = False
+
+    def _write(self, statement: str, values: tuple) -> int:
+        if self.connection is None:
+            return 0
+        try:
+            with self.connection:
+                return int(self.connection.execute(statement, values).lastrowid or 0)
+        except sqlite3.Error as error:
+            if self.on_error is not None and not self._warned:
+                self._warned = True
+                self.on_error(error)
+            return 0
+
+    def _detail(self, job_id: int) -> dict[str, Any]:
+        if self.connection is None or not job_id:
+            return {}
+        try:
+            row = self.connection.execute("SELECT detail FROM jobs WHERE id = ?", (job_id,)).fetchone()
+            return json.loads(row[0]) if row and row[0] else {}
+        except (sqlite3.Error, json.JSONDecodeError):
+            return {}
+
+    def start(self, kind: str, device: str, title: str, lines_total: int, source: str = "") -> int:
+        """Record a job that starts now; returns its id for :meth:`progress` and :meth:`finish` (0: not recorded)."""
+        detail = {"title": title, "lines_total": int(lines_total), "lines_acked": 0, "message": "",
+                  "resume_line": None, "source": source, "pid": os.getpid()}
+        return self._write("INSERT INTO jobs (kind, device, status, detail) VALUES (?, ?, ?, ?)",
+                           (kind, device, RUNNING, json.dumps(detail)))
+
+    def progress(self, job_id: int, lines_acked: int) -> None:
+        """Record how far a running job has got (so an interrupted one still tells)."""
+        if not job_id:
+            return
+        detail = self._detail(job_id)
+        detail["lines_acked"] = int(lines_acked)
+        self._write("UPDATE jobs SET detail = ? WHERE id = ?", (json.dumps(detail), job_id))
+
+    def finish(self, job_id: int, status: str, lines_acked: int, message: str,
+               resume_line: int | None = None) -> None:
+        """Record how job ``job_id`` ended."""
+        if not job_id:
+            return
+        detail = self._detail(job_id)
+        detail.update(lines_acked=int(lines_acked), message=message, resume_line=resume_line)
+        self._write("UPDATE jobs SET status = ?, detail = ?, finished_at = strftime('%Y-%m-%dT%H:%M:%fZ', 'now') "
+                    "WHERE id = ?", (status, json.dumps(detail), job_id))
+
+    def recent(self, limit: int = 20) -> list[JobRecord]:
+        """The latest ``limit`` jobs, newest first."""
+        if self.connection is None:
+            return []
+        rows = self.connection.execute(
+            "SELECT id, kind, device, status, created_at, finished_at, detail FROM jobs ORDER BY id DESC LIMIT ?",
+            (int(limit),),
+        ).fetchall()
+        records = []
+        for job_id, kind, device, status, created, finished, text in rows:
+            try:
+                detail = json.loads(text) if text else {}
+            except json.JSONDecodeError:
+                detail = {"message": text}
+            if status == RUNNING and not _alive(detail.get("pid")):
+                status = INTERRUPTED
+            records.append(JobRecord(
+                id=job_id, kind=kind, device=device or "", title=str(detail.get("title", "")), status=status,
+                created_at=created, finished_at=finished, lines_total=int(detail.get("lines_total", 0)),
+                lines_acked=int(detail.get("lines_acked", 0)), message=str(detail.get("message", "")),
+                resume_line=detail.get("resume_line"),
+            ))
+        return records

@@ -1,0 +1,89 @@
+"""The machine-job history: rows for started, progressing and finished jobs; interrupted jobs; `station jobs`."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+
+import pytest
+
+from station import cli
+from station.db import open_database
+from station.joblog import INTERRUPTED, JobLog, local_time
+
+
+@pytest.fixture
+def log(tmp_path):
+    connection = open_database(tmp_path / "s.sqlite3")
+    yield JobLog(connection)
+    connection.close()
+
+
+def test_a_job_is_recorded_from_start_to_finish(log):
+    job_id = log.start("run", "plotter", "star.gcode", 197, "test")
+    (record,) = log.recent()
+    assert (record.id, record.status, record.lines_acked, record.lines_total) == (job_id, "running", 0, 197)
+    assert record.finished_at is None
+    log.progress(job_id, 80)
+    assert log.recent()[0].lines_acked == 80
+    log.finish(job_id, "stopped", 120, "job stopped at line 121", resume_line=110)
+    (record,) = log.recent()
+    assert (record.status, record.lines_acked, record.resume_line) == ("stopped", 120, 110)
+    assert record.message == "job stopped at line 121" and record.finished_at is not None
+
+
+def test_newest_first_and_limited(log):
+    ids = [log.start("frame", "laser", f"job {i}", 5) for i in range(4)]
+    assert [r.id for r in log.recent(3)] == ids[::-1][:3]
+
+
+def test_a_running_job_whose_process_is_gone_is_interrupted(log, tmp_path):
+    # a station process that started a job and died without finishing it
+    code = (
+        "import sys; from station.db import open_database; from station.joblog import JobLog; "
+        f"JobLog(open_database({str(tmp_path / 's.sqlite3')!r})).start('run', 'laser', 'cut.gcode', 10)"
+    )
+    subprocess.run([sys.executable, "-c", code], check=True)
+    (record,) = log.recent()
+    assert record.status == INTERRUPTED
+    mine = log.start("run", "laser", "mine.gcode", 10)  # this process is alive: still running
+    assert log.recent()[0].id == mine and log.recent()[0].status == "running"
+
+
+def test_database_errors_never_stop_a_job_and_are_reported_once(tmp_path):
+    connection = open_database(tmp_path / "s.sqlite3")
+    errors = []
+    log = JobLog(connection, on_error=errors.append)
+    connection.close()  # every statement now fails
+    assert log.start("run", "plotter", "a.gcode", 3) == 0
+    log.progress(1, 2)
+    log.finish(1, "done", 3, "ok")
+    assert len(errors) == 1
+    none = JobLog(None)
+    assert none.start("run", "plotter", "a.gcode", 3) == 0 and none.recent() == []
+
+
+@pytest.mark.parametrize(("stamp", "expected_date"), [
+    ("2026-12-01T16:12:59.323Z", "2026-12-01"), ("garbage-stamp-here", "garbage-stamp-he"),
+])
+def test_local_time_reads_sqlite_stamps(stamp, expected_date):
+    assert local_time(stamp).startswith(expected_date)
+
+
+def test_station_send_is_listed_by_station_jobs(capsys, tmp_path):
+    job = tmp_path / "square.gcode"
+    job.write_text("G21\nG90\nM3 S50\nG0 X10 Y10\nM3 S30\nG1 X20 Y10 F3000\nG1 X20 Y20\nM3 S50\n")
+    assert cli.main(["jobs"]) == 0
+    assert "no jobs yet" in capsys.readouterr().out
+    assert cli.main(["send", str(job), "--port", "sim://grbl?profile=plotter&time_scale=0.01"]) == 0
+    assert cli.main(["send", str(job), "--frame", "--port", "sim://grbl?profile=plotter&time_scale=0.01"]) == 0
+    capsys.readouterr()
+    assert cli.main(["jobs", "--json"]) == 0
+    jobs = json.loads(capsys.readouterr().out)["jobs"]
+    assert [(j["kind"], j["status"]) for j in jobs] == [("frame", "done"), ("run", "done")]
+    assert jobs[1]["title"] == str(job) and jobs[1]["lines_acked"] == jobs[1]["lines_total"] == 8
+    assert cli.main(["jobs", "--limit", "1"]) == 0
+    out = capsys.readouterr().out.splitlines()
+    assert len(out) == 1 and "frame of" in out[0] and "done" in out[0]
+    assert cli.main(["jobs", "--limit", "0"]) == 2
