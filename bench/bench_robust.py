@@ -44,9 +44,11 @@ FULL = [
     ("CAUSALITYSWITCH", "causalityswitch_ball", 614, 10, 8192, 100),
 ]
 METHOD_ORDER = ("b1", "b2", "b3", "ours")
+#: CHAOS_BENCH_ROBUST=causality614: CAUSALITYSWITCH at the thesis budget, ours vs B1 only (about 30 minutes).
+CAUSALITY_AT_THESIS_BUDGET = [("CAUSALITYSWITCH", "causalityswitch_ball", 614, 5, 1024, 30, ("ours", "b1"))]
 
 
-def run_scenario(thesis_name, stem, budget, runs, n_eval, n_local, out_dir: Path) -> None:
+def run_scenario(thesis_name, stem, budget, runs, n_eval, n_local, out_dir: Path, methods=METHOD_ORDER) -> None:
     path = EXAMPLES_DIR / f"{stem}.toml"
     if not path.exists():
         print(f"{thesis_name}: scenario file {path} is missing; skipped")
@@ -59,7 +61,7 @@ def run_scenario(thesis_name, stem, budget, runs, n_eval, n_local, out_dir: Path
         # simulated once and shared by all methods within the run.
         with SimulationExecutor(problem, workers=None, cache_path=Path(cache_dir) / "sims.sqlite3") as executor:
             comparison = compare_methods(
-                problem, executor, ["ours", "b1", "b2", "b3"], runs, budget, seed=0, robustness=robustness
+                problem, executor, list(methods), runs, budget, seed=0, robustness=robustness
             )
     rows = {r["method"]: r for r in comparison.table()}
     thesis = THESIS[thesis_name]
@@ -70,7 +72,7 @@ def run_scenario(thesis_name, stem, budget, runs, n_eval, n_local, out_dir: Path
         f"{comparison.evaluation_size} layouts (+{n_local} local per result); wall {wall:.0f} s"
     )
     print(f"  {'method':6s} {'rho_g mean ± s.e.':>19s} {'thesis':>7s} {'time (s)':>9s} {'thesis':>7s} {'sims':>6s}")
-    for method in METHOD_ORDER:
+    for method in (m for m in METHOD_ORDER if m in rows):
         row = rows[method]
         index = METHOD_ORDER.index(method)
         print(
@@ -80,14 +82,15 @@ def run_scenario(thesis_name, stem, budget, runs, n_eval, n_local, out_dir: Path
     ours = rows["ours"]["rho_g_mean"]
     ratios = ", ".join(
         f"ours/{m} = {ours / rows[m]['rho_g_mean']:.2f}" if rows[m]["rho_g_mean"] > 0 else f"ours/{m} = inf"
-        for m in ("b1", "b2", "b3")
+        for m in ("b1", "b2", "b3") if m in rows
     )
-    thesis_ratios = ", ".join(f"{thesis['rho'][3] / thesis['rho'][i]:.2f}" for i in range(3))
+    thesis_ratios = ", ".join(f"{thesis['rho'][3] / thesis['rho'][i]:.2f}" for i in range(3)
+                              if METHOD_ORDER[i] in rows)
     print(f"  ratios: {ratios}  (thesis: {thesis_ratios})")
     best = max(rows, key=lambda m: rows[m]["rho_g_mean"])
     print(f"  highest mean rho_g: {best}")
     picture = plot_robustness(
-        {m: comparison.mean_curves()[m] for m in METHOD_ORDER},
+        {m: comparison.mean_curves()[m] for m in METHOD_ORDER if m in rows},
         out_dir / f"robustness-{stem}.png",
         f"{thesis_name}: mean local robustness (T = {runs}, B = {comparison.budget})",
     )
@@ -96,13 +99,14 @@ def run_scenario(thesis_name, stem, budget, runs, n_eval, n_local, out_dir: Path
 
 def main() -> None:
     mode = os.environ.get("CHAOS_BENCH_ROBUST", "quick").lower()
-    configs = {"full": FULL, "reduced": REDUCED}.get(mode, QUICK)
+    configs = {"full": FULL, "reduced": REDUCED, "causality614": CAUSALITY_AT_THESIS_BUDGET}.get(mode, QUICK)
     out_dir = Path(os.environ.get("CHAOS_BENCH_OUT", tempfile.gettempdir())) / "chaos-bench-robust"
     out_dir.mkdir(parents=True, exist_ok=True)
-    words = {"full": "FULL (thesis budgets, T = 10)", "reduced": "REDUCED (smaller budgets and evaluation sets)"}
+    words = {"full": "FULL (thesis budgets, T = 10)", "reduced": "REDUCED (smaller budgets and evaluation sets)",
+             "causality614": "CAUSALITYSWITCH at the thesis budget, ours vs B1"}
     print(
         f"configuration: {words.get(mode, 'QUICK (small budgets and evaluation sets)')} "
-        f"(CHAOS_BENCH_ROBUST=quick|reduced|full); {os.cpu_count()} cores"
+        f"(CHAOS_BENCH_ROBUST=quick|reduced|full|causality614); {os.cpu_count()} cores"
     )
     for config in configs:
-        run_scenario(*config, out_dir=out_dir)
+        run_scenario(*config[:6], out_dir=out_dir, **({"methods": config[6]} if len(config) > 6 else {}))
