@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import numpy as np
 from textual.widgets import DataTable, Input
 
 from station.tui.app import StationApp
@@ -33,7 +34,7 @@ async def test_contraption_screen_simulates_and_updates_states(tmp_path):
         screen.realtime = False
         changes = []
         original = screen._update_states
-        screen._update_states = lambda t, states, snap: (changes.append(dict(states)), original(t, states, snap))
+        screen._update_states = lambda t, states, *rest: (changes.append(dict(states)), original(t, states, *rest))
         await pilot.press("r")
         await _wait_idle(app, pilot, screen)
         assert screen.result is not None and screen.result.success
@@ -68,3 +69,18 @@ async def test_contraption_screen_loads_by_name_and_reports_errors(tmp_path):
         await pilot.pause()
         assert screen.scenario.name == "BALLRUN"  # unchanged
         assert "missing.toml" in str(screen.query_one("#status").render())
+
+
+async def test_ropes_are_drawn_in_the_side_view(tmp_path):
+    app = StationApp(database=tmp_path / "t.sqlite3")
+    async with app.run_test(size=(160, 45)) as pilot:
+        await pilot.press("c")
+        await pilot.pause()
+        screen = app.screen
+        view = screen.query_one("#view", PatternCanvas)
+        assert "yellow" not in view._colors  # SIMPLE has no rope
+        assert screen.load("longchain")
+        await pilot.pause()
+        ropes = [line for line, colour in zip(view.polylines, view._colors) if colour == "yellow"]
+        assert len(ropes) == 1 and len(ropes[0]) == 3  # end, guide, end
+        np.testing.assert_allclose(ropes[0][1], [-0.454, 0.36])  # the fixed guide, in the (x, z) side view

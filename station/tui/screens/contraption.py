@@ -39,8 +39,17 @@ TYPE_COLOURS = {
 }
 
 
-def side_view_polylines(scenario: Scenario, snapshot) -> tuple[list[np.ndarray], list[str]]:
-    """Closed outlines (x, z) of every body's parts, with a colour per primitive type."""
+#: Colour of ropes in the side view.
+ROPE_COLOUR = "yellow"
+
+
+def world_ropes(world) -> list[np.ndarray]:
+    """Each rope's path now (end, guides, end) as an (n, 3) array."""
+    return [np.asarray(world.rope_path(rope)[0]) for rope in world.ropes]
+
+
+def side_view_polylines(scenario: Scenario, snapshot, ropes=()) -> tuple[list[np.ndarray], list[str]]:
+    """Closed outlines (x, z) of every body's parts, with a colour per primitive type, and the ropes' paths."""
     kinds = {o.name: o.type for o in scenario.objects}
     lines, colours = [], []
     for _label, name, pose, spec in snapshot:
@@ -54,6 +63,9 @@ def side_view_polylines(scenario: Scenario, snapshot) -> tuple[list[np.ndarray],
                 hull = points[[np.argmin(points[:, 0]), np.argmax(points[:, 0])]]
             lines.append(np.vstack([hull, hull[:1]]))
             colours.append(TYPE_COLOURS.get(kinds.get(name, ""), "white"))
+    for path in ropes:
+        lines.append(np.asarray(path, dtype=float)[:, [0, 2]])
+        colours.append(ROPE_COLOUR)
     return lines, colours
 
 
@@ -168,8 +180,8 @@ class ContraptionScreen(Screen):
     def set_status(self, text: str) -> None:
         self.query_one("#status", Static).update(text)
 
-    def _draw(self, snapshot) -> None:
-        lines, colours = side_view_polylines(self.scenario, snapshot)
+    def _draw(self, snapshot, ropes=()) -> None:
+        lines, colours = side_view_polylines(self.scenario, snapshot, ropes)
         self.query_one("#view", PatternCanvas).set_polylines(lines, colours, bounds=self._bounds)
 
     def _draw_layout(self) -> None:
@@ -179,16 +191,17 @@ class ContraptionScreen(Screen):
             with Simulator(self.scenario, client=self._client) as sim:
                 world = sim.build(self.current_layout())
                 snapshot = world.snapshot()
+                ropes = world_ropes(world)
         except DesignError as error:  # pragma: no cover - a validated scenario builds
             self.set_status(f"[red]{error}[/]")
             return
-        lines, _ = side_view_polylines(self.scenario, snapshot)
+        lines, _ = side_view_polylines(self.scenario, snapshot, ropes)
         if lines:
             stacked = np.concatenate(lines)
             lo, hi = stacked.min(axis=0), stacked.max(axis=0)
             pad = 0.1 * (hi - lo) + 1e-3
             self._bounds = (lo[0] - pad[0], lo[1] - pad[1], hi[0] + pad[0], hi[1] + pad[1])
-        self._draw(snapshot)
+        self._draw(snapshot, ropes)
 
     # -- actions -------------------------------------------------------------------------------------------------
     def action_next_layout(self) -> None:
@@ -241,7 +254,7 @@ class ContraptionScreen(Screen):
                     if delay > 0:
                         time.sleep(delay)
                 snapshot = sim.world.snapshot()
-                self.app.call_from_thread(self._update_states, t, states, snapshot)
+                self.app.call_from_thread(self._update_states, t, states, snapshot, world_ropes(sim.world))
 
             result = sim.run(x, on_change=on_change, record=True)
         verdict = "[bold green]SUCCESS[/]" if result.success else "[bold red]FAILURE[/]"
@@ -251,12 +264,12 @@ class ContraptionScreen(Screen):
         )
         self.app.call_from_thread(self._finished, result, summary)
 
-    def _update_states(self, t: float, states: dict[str, str], snapshot) -> None:
+    def _update_states(self, t: float, states: dict[str, str], snapshot, ropes=()) -> None:
         table = self.query_one("#events", DataTable)
         for name, state in states.items():
             table.update_cell(name, "state", self._styled(state))
         self.set_status(f"t = {t:.3f} s")
-        self._draw(snapshot)
+        self._draw(snapshot, ropes)
 
     def _finished(self, result, summary: str) -> None:
         self.running = False
@@ -267,7 +280,7 @@ class ContraptionScreen(Screen):
                 table.update_cell(name, "state", self._styled(outcome.state))
                 table.update_cell(name, "woke", "" if outcome.woke is None else f"{outcome.woke:.3f}")
                 table.update_cell(name, "at", "" if outcome.time is None else f"{outcome.time:.3f}")
-            self._draw(result.end)
+            self._draw(result.end, result.ropes_end)
         self.set_status(summary)
 
 
