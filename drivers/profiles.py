@@ -148,12 +148,17 @@ class LaserOperation:
 
 @dataclass(frozen=True)
 class Material:
-    """A laser material with its cut and engrave settings (thickness in mm)."""
+    """A laser material with its cut and engrave settings (thickness and kerf in mm).
+
+    ``kerf`` is the width of the strip the laser burns away in this material (measured with a kerf test: cut a
+    square, measure it); ``None`` when the profile does not say.
+    """
 
     name: str
     thickness: float
     cut: LaserOperation
     engrave: LaserOperation
+    kerf: float | None = None
 
     def operation(self, kind: str) -> LaserOperation:
         """``"cut"`` or ``"engrave"``."""
@@ -293,6 +298,17 @@ class MachineProfile:
             raise ProfileError(f"profile {self.name!r}: no material {name!r}; known: {known}") from None
 
 
+#: A kerf wider than this is surely a typo (a diode or CO2 laser burns 0.05-0.5 mm).
+MAX_KERF = 2.0
+
+
+def _kerf(value, where: str) -> float:
+    kerf = parse_length(value, where)
+    if not 0.0 <= kerf <= MAX_KERF:
+        raise ProfileError(f"{where}: expected a kerf between 0 and {MAX_KERF:g} mm, got {kerf:g} mm")
+    return kerf
+
+
 _KINDS = ("plotter", "laser")
 _ORIGINS = ("front-left", "center")
 _PEN_MODES = ("servo", "z")
@@ -417,7 +433,7 @@ def profile_from_dict(data: Mapping[str, Any], source: str = "<dict>") -> Machin
             where = f"{source} [materials.{mat_name}]"
             if not isinstance(mat, Mapping):
                 raise ProfileError(f"{where}: must be a table")
-            _check_keys(mat, {"thickness", "cut", "engrave"}, where)
+            _check_keys(mat, {"thickness", "cut", "engrave", "kerf"}, where)
             for key in ("cut", "engrave"):
                 if key not in mat:
                     raise ProfileError(f"{where}: missing table {key!r}")
@@ -427,6 +443,7 @@ def profile_from_dict(data: Mapping[str, Any], source: str = "<dict>") -> Machin
                                     allow_zero=True),
                 cut=_operation(mat["cut"], f"{where}.cut"),
                 engrave=_operation(mat["engrave"], f"{where}.engrave"),
+                kerf=_kerf(mat["kerf"], f"{where}.kerf") if "kerf" in mat else None,
             )
         for mat in materials.values():
             for op_name in ("cut", "engrave"):
@@ -569,21 +586,25 @@ tolerance = "0.05mm"
 
 [materials.plywood_3mm]
 thickness = "3mm"
+kerf = "0.15mm"
 cut = { power = 1.0, feed = "300mm/min", passes = 2 }
 engrave = { power = 0.35, feed = "3000mm/min", passes = 1 }
 
 [materials.mdf_3mm]
 thickness = "3mm"
+kerf = "0.15mm"
 cut = { power = 1.0, feed = "240mm/min", passes = 3 }
 engrave = { power = 0.3, feed = "3000mm/min", passes = 1 }
 
 [materials.cardboard_2mm]
 thickness = "2mm"
+kerf = "0.2mm"
 cut = { power = 0.8, feed = "600mm/min", passes = 1 }
 engrave = { power = 0.2, feed = "4000mm/min", passes = 1 }
 
 [materials.acrylic_3mm_black]
 thickness = "3mm"
+kerf = "0.12mm"
 cut = { power = 1.0, feed = "150mm/min", passes = 3 }
 engrave = { power = 0.4, feed = "2000mm/min", passes = 1 }
 """,

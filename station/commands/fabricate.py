@@ -22,6 +22,8 @@ from station.cli_util import add_design_options, design_parameters, emit_json, t
 from station.errors import UsageError
 
 DEFAULT_KERF = 0.15
+#: Where the kerf came from, in words (``kerf_source`` in parts.json).
+KERF_SOURCES = {"material": "from the material table", "default": "by default", "given": "as given"}
 DEFAULT_GAP = 3.0
 
 
@@ -84,14 +86,15 @@ def parse_sheet(text: str) -> tuple[float, float]:
     return float(match.group(1)), float(match.group(2))
 
 
-def fabricate(machine: str, params: dict[str, float], scale: float, *, kerf: float = DEFAULT_KERF,
+def fabricate(machine: str, params: dict[str, float], scale: float, *, kerf: float | None = None,
               sheet_size: tuple[float, float] | None = None, gap: float = DEFAULT_GAP, profile=None,
               material: str | None = None, gear_settings=None, hardware=None, progress=None,
               max_sheets: int = 4) -> FabricationResult:
     """Parts → kerf → nesting → SVG, PNG, laser job. Raises the design/driver errors for bad input.
 
     ``progress``, optional: called with short messages while working. Parts that do not fit one sheet go on
-    further sheets (at most ``max_sheets``), each with its own job.
+    further sheets (at most ``max_sheets``), each with its own job. ``kerf=None`` takes the material's kerf from the
+    profile, else :data:`DEFAULT_KERF`.
     """
     from design.fabrication import (
         FABRICABLE_MACHINES,
@@ -117,6 +120,11 @@ def fabricate(machine: str, params: dict[str, float], scale: float, *, kerf: flo
         params = dict(get_machine(machine).validate(params))
     profile = profile if profile is not None else builtin_profile("laser")
     engrave_ops, cut_ops, material_name = material_settings(profile, material)
+    if kerf is None:
+        material_kerf = profile.material(material_name).kerf
+        kerf, kerf_source = (DEFAULT_KERF, "default") if material_kerf is None else (material_kerf, "material")
+    else:
+        kerf_source = "given"
     started = time.perf_counter()
     say(f"generating the parts of {machine} at {scale:g} mm per unit")
     parts = machine_parts(machine, params, scale, gear_settings, hardware)
@@ -150,6 +158,7 @@ def fabricate(machine: str, params: dict[str, float], scale: float, *, kerf: flo
         "params": dict(params),
         "scale_mm_per_unit": scale,
         "kerf_mm": kerf,
+        "kerf_source": kerf_source,
         "gap_mm": gap,
         "sheet_mm": [width, height],
         "sheet_count": len(outputs),
@@ -240,8 +249,9 @@ def register(subparsers) -> None:
     add_design_options(parser)
     parser.add_argument("--scale", type=float, required=True, metavar="MM_PER_UNIT",
                         help="millimetres per model unit (gear radius 1 = this many mm)")
-    parser.add_argument("--kerf", type=float, default=DEFAULT_KERF, metavar="MM",
-                        help=f"laser kerf width, compensated on every contour (default {DEFAULT_KERF})")
+    parser.add_argument("--kerf", type=float, default=None, metavar="MM",
+                        help="laser kerf width, compensated on every contour (default: the material's kerf in the "
+                        f"profile, else {DEFAULT_KERF})")
     parser.add_argument("--sheet", default=None, metavar="WxH", help="sheet size in mm (default: the work area)")
     parser.add_argument("--max-sheets", type=int, default=4, metavar="N",
                         help="parts that do not fit one sheet go on further sheets, up to N (default 4); "
@@ -304,7 +314,8 @@ def run_fabricate(args) -> int:
             for note in part["notes"]:
                 print(f"    note: {note}")
     job = summary["job"]
-    print(f"laser job ({job['material']} on {job['profile']}): about {job['estimate_seconds']['total'] / 60:.1f} min, "
+    print(f"laser job ({job['material']} on {job['profile']}, kerf {summary['kerf_mm']:g} mm "
+          f"{KERF_SOURCES[summary['kerf_source']]}): about {job['estimate_seconds']['total'] / 60:.1f} min, "
           f"travel {job['travel_mm']:.0f} mm (unordered {job['travel_mm_unordered']:.0f} mm)")
     for name, path in files.items():
         print(f"  {name}: {path}")

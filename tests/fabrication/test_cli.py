@@ -103,3 +103,29 @@ def test_a_centre_origin_profile_puts_the_sheet_in_its_work_area(tmp_path, capsy
     # The sheet's front-left corner sits at the work area's front-left corner (-200, -200).
     assert lo[0] == pytest.approx(-200.0) and lo[1] == pytest.approx(-200.0)
     assert hi[0] <= -200.0 + 200.0 and hi[1] <= -200.0 + 150.0
+
+
+@pytest.mark.parametrize(("options", "kerf", "source"), [
+    (["--material", "cardboard_2mm"], 0.2, "material"),  # the built-in laser profile's cardboard kerf
+    (["--material", "acrylic_3mm_black"], 0.12, "material"),
+    (["--material", "cardboard_2mm", "--kerf", "0.05"], 0.05, "given"),
+])
+def test_kerf_defaults_to_the_material(tmp_path, capsys, options, kerf, source):
+    out = tmp_path / "spiro"
+    code = main(["fabricate", "spirograph", "--scale", "6", *options, "--out", str(out), "--json"])
+    assert code == 0
+    summary = json.loads(capsys.readouterr().out)
+    assert (summary["kerf_mm"], summary["kerf_source"]) == (kerf, source)
+
+
+def test_kerf_without_a_material_value_is_the_default(tmp_path, capsys):
+    profile = tmp_path / "laser.toml"
+    profile.write_text(
+        "[machine]\nkind = 'laser'\n[work_area]\nwidth = '400mm'\nheight = '400mm'\n[laser]\nmax_power = 1000\n"
+        "[materials.card]\nthickness = 2\ncut = {power = 1, feed = 300}\nengrave = {power = 0.2, feed = 1000}\n"
+    )
+    code = main(["fabricate", "spirograph", "--scale", "6", "--profile", str(profile), "--out", str(tmp_path / "o"),
+                 "--json"])
+    assert code == 0
+    summary = json.loads(capsys.readouterr().out)
+    assert (summary["kerf_mm"], summary["kerf_source"]) == (0.15, "default")

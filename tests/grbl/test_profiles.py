@@ -100,11 +100,23 @@ max_power = 1000
         ("[materials.x]\nthickness=3\ncut={power=1, feed=100, passes=0}\nengrave={power=0.1, feed=100}", "passes"),
         ("[plot]\ndraw_feed='9000mm/min'", "exceeds work_area.max_feed"),
         ("[pen]\nmode='servo'", "only for kind = 'plotter'"),
+        ("[materials.x]\nthickness=3\nkerf='3mm'\ncut={power=1, feed=100}\nengrave={power=0.1, feed=100}",
+         r"\[materials.x\].kerf: expected a kerf between 0 and 2 mm, got 3 mm"),
+        ("[materials.x]\nthickness=3\nkerf='-0.1mm'\ncut={power=1, feed=100}\nengrave={power=0.1, feed=100}",
+         r"\[materials.x\].kerf"),
     ],
 )
 def test_bad_profiles_name_the_field(extra, match):
     with pytest.raises(ProfileError, match=match):
         profile_from_toml(BASE + extra, "t.toml")
+
+
+@pytest.mark.parametrize(("kerf", "expected"), [("kerf = '0.2mm'", 0.2), ("kerf = 0.1", 0.1), ("", None)])
+def test_material_kerf_is_read_in_mm(kerf, expected):
+    profile = profile_from_toml(
+        BASE + f"[materials.x]\nthickness=3\n{kerf}\ncut={{power=1, feed=100}}\nengrave={{power=0.1, feed=100}}",
+        "t.toml")
+    assert profile.material("x").kerf == expected
 
 
 def test_missing_kind_and_bad_toml():

@@ -28,7 +28,7 @@ from textual.widgets import DataTable, Footer, Header, Input, Label, Static
 from design.errors import DesignError
 from design.machines import get_machine
 from drivers.errors import DriverError
-from station.commands.fabricate import DEFAULT_GAP, DEFAULT_KERF, FabricationResult, fabricate, parse_sheet
+from station.commands.fabricate import DEFAULT_GAP, KERF_SOURCES, FabricationResult, fabricate, parse_sheet
 from station.errors import StationError
 from station.paths import data_dir
 from station.tui.registry import ScreenEntry
@@ -129,7 +129,7 @@ class FabricateScreen(Screen):
                     yield Input(str(DEFAULT_SCALE), id="scale")
                 with Horizontal(classes="field"):
                     yield Label("kerf mm")
-                    yield Input(str(DEFAULT_KERF), id="kerf")
+                    yield Input("", placeholder="material's", id="kerf")
                 with Horizontal(classes="field"):
                     yield Label("sheet WxH mm")
                     yield Input("", placeholder="work area", id="sheet-size")
@@ -198,7 +198,8 @@ class FabricateScreen(Screen):
 
         sheet_text = self.query_one("#sheet-size", Input).value.strip()
         material = self.query_one("#material", Input).value.strip() or None
-        return {"scale": number("scale", "scale"), "kerf": number("kerf", "kerf"),
+        kerf_text = self.query_one("#kerf", Input).value.strip()
+        return {"scale": number("scale", "scale"), "kerf": number("kerf", "kerf") if kerf_text else None,
                 "sheet_size": parse_sheet(sheet_text) if sheet_text else None, "material": material}
 
     @work(thread=True, exclusive=True, group="fabricate")
@@ -250,7 +251,8 @@ class FabricateScreen(Screen):
         self.query_one("#job", Static).update(
             f"sheet {output.index} of {count}: {summary['sheet_mm'][0]:g}×{summary['sheet_mm'][1]:g} mm, "
             f"usage {100 * sheet['usage']:.1f}% (parts fill {100 * sheet['envelope_usage']:.0f}% of their corner)\n"
-            f"laser: {material['material']} on {material['profile']}, about {estimate['total'] / 60:.1f} min "
+            f"laser: {material['material']} on {material['profile']}, kerf {summary['kerf_mm']:g} mm "
+            f"{KERF_SOURCES[summary['kerf_source']]}, about {estimate['total'] / 60:.1f} min "
             f"(cut {estimate['cut'] / 60:.1f}, engrave {estimate['engrave'] / 60:.1f}, "
             f"travel {estimate['travel'] / 60:.1f})\n"
             f"travel {job['travel_mm']:.0f} mm (unordered {job['travel_mm_unordered']:.0f} mm), "
