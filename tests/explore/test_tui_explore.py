@@ -70,6 +70,30 @@ async def test_explore_screen_full_session(tmp_path):
         assert explorer.invariant_errors()[f"curvature:{first}"] < 0.02
         assert len(canvas.polylines) == 1
 
+        # ctrl+z undoes the release (the design before it), then the kept invariant; then nothing is left.
+        released = dict(explorer.design)
+        await pilot.press("ctrl+z")
+        await settle(app, pilot)
+        assert screen.explorer.base_design == before and screen.explorer.design != released
+        assert [inv.label for inv in screen.explorer.invariants] == [f"curvature:{first}"]
+        await pilot.press("ctrl+z")
+        await settle(app, pilot)
+        assert screen.explorer.invariants == [] and screen.explorer.base_design == before
+        assert [w.label for w in screen.query(InvariantSlider)] == list(screen.explorer.names)
+        await pilot.press("ctrl+z")
+        await settle(app, pilot)
+        assert screen.last_message == "nothing to undo"
+        # redo by hand: keep the invariant again and release, as before
+        screen.selected = [first]
+        await pilot.press("2")
+        await settle(app, pilot)
+        explorer = screen.explorer
+        sliders = list(screen.query(InvariantSlider))
+        sliders[0].focus()
+        await pilot.press("right", "right", "enter")
+        await settle(app, pilot)
+        assert explorer.base_design != before
+
         # Send the explored design back to the Drawing machines screen.
         await pilot.press("o")
         await settle(app, pilot)

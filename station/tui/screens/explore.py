@@ -11,6 +11,7 @@ Every computation runs in a thread worker; one lock serializes the explorer, so 
 
 from __future__ import annotations
 
+import copy
 import threading
 
 import numpy as np
@@ -30,6 +31,8 @@ from station.tui.widgets.explore_slider import InvariantSlider
 
 DEFAULT_MACHINE = "cycloid_drawing_machine"
 INVARIANT_KEYS = {"1": "position", "2": "curvature", "3": "angle", "4": "radial", "5": "distance"}
+#: How many explorer states ctrl+z can go back through.
+UNDO_DEPTH = 30
 
 
 class ExploreScreen(Screen):
@@ -57,6 +60,7 @@ class ExploreScreen(Screen):
         Binding("backspace", "drop_invariant", "Drop last"),
         Binding("o", "send_back", "Open in Drawing"),
         Binding("r", "reload", "Reload design"),
+        Binding("ctrl+z", "undo", "Undo"),
     ]
 
     def __init__(self) -> None:
@@ -68,6 +72,8 @@ class ExploreScreen(Screen):
         self.preview: np.ndarray | None = None
         self.loaded_design: tuple[str, dict] | None = None
         self.last_message = ""
+        #: Explorer states before each release or invariant change (newest last), for ctrl+z.
+        self.history: list[Explorer] = []
 
     def compose(self) -> ComposeResult:
         yield Header()
@@ -114,6 +120,7 @@ class ExploreScreen(Screen):
             return
         with self.lock:
             self.explorer = explorer
+            self.history.clear()  # a new design: the old states belong to another session
         self.app.call_from_thread(self._after_change, f"{len(explorer.pois)} points of interest found", True)
 
     @work(thread=True, group="explore-ops")
@@ -122,6 +129,7 @@ class ExploreScreen(Screen):
             explorer = self.explorer
             if explorer is None:
                 return
+            before = copy.deepcopy(explorer)
             try:
                 invariant = explorer.add_invariant(kind, ids)
             except OverConstrainedError as error:
@@ -130,6 +138,7 @@ class ExploreScreen(Screen):
             except DesignError as error:
                 self.app.call_from_thread(self._warn, str(error))
                 return
+            self._remember(before)
             redundant = explorer.subspace.redundant
             message = f"kept {invariant.label}: {len(explorer.sliders)} slider(s)"
             if redundant:
@@ -143,6 +152,7 @@ class ExploreScreen(Screen):
             if explorer is None or not explorer.invariants:
                 return
             label = explorer.invariants[-1].label
+            self._remember(copy.deepcopy(explorer))
             explorer.remove_invariant(len(explorer.invariants) - 1)
         self.app.call_from_thread(self._after_change, f"dropped {label}", True)
 
@@ -161,6 +171,7 @@ class ExploreScreen(Screen):
             explorer = self.explorer
             if explorer is None or index >= len(explorer.values):
                 return
+            self._remember(copy.deepcopy(explorer))
             explorer.move(index, value)
             result = explorer.release()
         errors = ", ".join(
@@ -172,6 +183,22 @@ class ExploreScreen(Screen):
         if result.warning:
             message += f"; {result.warning}"
         self.app.call_from_thread(self._after_change, message, False)
+
+    def _remember(self, state: Explorer) -> None:
+        """Keep ``state`` for undo (called by the workers with the lock held); a deep copy costs about 1 ms."""
+        self.history.append(state)
+        del self.history[:-UNDO_DEPTH]
+
+    @work(thread=True, group="explore-ops")
+    def _undo(self) -> None:
+        with self.lock:
+            if not self.history:
+                self.app.call_from_thread(self._set_status, "nothing to undo")
+                return
+            self.explorer = self.history.pop()
+            left = len(self.history)
+        self.app.call_from_thread(self._after_change, f"undone ({left} more step{'s' if left != 1 else ''} to undo)",
+                                  True)
 
     # --- UI updates (main thread) -------------------------------------------------------------------------------
     async def _after_change(self, message: str, reset_selection: bool) -> None:
@@ -319,6 +346,10 @@ class ExploreScreen(Screen):
 
     def action_drop_invariant(self) -> None:
         self._drop()
+
+    def action_undo(self) -> None:
+        """Go back to the explorer state before the last release, kept invariant or dropped invariant."""
+        self._undo()
 
     def action_reload(self) -> None:
         self.load(*self._drawing_design())
