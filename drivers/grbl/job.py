@@ -26,7 +26,7 @@ from pathlib import Path
 import numpy as np
 
 from drivers.errors import DeviceStateError, JobRefused, ProtocolError
-from drivers.gcode import Toolpath, clean_line, interpret
+from drivers.gcode import GcodeError, Toolpath, clean_line, interpret
 from drivers.grbl.connection import GrblConnection, StreamStopped
 from drivers.grbl.protocol import Error
 
@@ -62,8 +62,15 @@ class Job:
 
     @classmethod
     def from_file(cls, path: str | Path, **kwargs) -> Job:
+        """A job from a G-code text file (UTF-8 or ASCII); a file that is not text is refused with its name."""
         path = Path(path)
-        return cls.from_text(path.name, path.read_text(encoding="utf-8"), **kwargs)
+        try:
+            text = path.read_text(encoding="utf-8")
+        except UnicodeDecodeError as error:
+            raise JobRefused(
+                f"job {path.name!r}: not a G-code text file (byte {error.start} is not UTF-8 text)"
+            ) from None
+        return cls.from_text(path.name, text, **kwargs)
 
     @cached_property
     def toolpath(self) -> Toolpath:
@@ -274,14 +281,40 @@ class JobRunner:
 
     def start(self) -> threading.Thread:
         """Run in a background thread (see :attr:`result` when it ends)."""
-        self._thread = threading.Thread(target=self.run, name=f"job-{self.job.name}", daemon=True)
+        self._thread = threading.Thread(target=self.run_safely, name=f"job-{self.job.name}", daemon=True)
         self._thread.start()
         return self._thread
 
+    def run_safely(self) -> JobResult:
+        """:meth:`run`, but whatever goes wrong the job ends with a result and a reset machine (state ``"error"``).
+
+        What job threads and workers call: a bug must not leave a laser burning, nor a caller waiting for a thread
+        that died without a result.
+        """
+        try:
+            return self.run()
+        except Exception as error:  # noqa: BLE001 - the last line of defence; the message names the failure
+            laser_off = False
+            try:
+                self.connection.soft_reset(wait=True)  # GRBL's reset stops motion and the laser at once
+                laser_off = self._laser_off()
+            except Exception:  # noqa: BLE001 - the port may be the thing that failed
+                pass
+            self._finish("error", f"job {self.job.name!r} stopped by an internal error ({type(error).__name__}: "
+                         f"{error}); the machine was reset" + ("" if laser_off else "; check that the laser is off"),
+                         laser_off=laser_off)
+            return self.result
+
     def wait(self, timeout: float | None = None) -> JobResult | None:
+        """Wait up to ``timeout`` s for the job; its result, or None while it runs."""
         if self._thread is not None:
             self._thread.join(timeout)
         return self.result
+
+    @property
+    def running(self) -> bool:
+        """True while the job thread is alive (False before :meth:`start` and once it ended)."""
+        return self._thread is not None and self._thread.is_alive()
 
     def hold(self) -> None:
         """Feed hold (``!``): decelerates to a stop; in laser mode the laser is off while held."""
@@ -367,9 +400,10 @@ class JobRunner:
         try:
             self._update("preflight")
             self.preflight()
-        except (JobRefused, DeviceStateError) as error:
+        except (JobRefused, DeviceStateError, GcodeError) as error:
             state = "position_lost" if conn.position_lost else "refused"
-            return self._finish(state, str(error), laser_off=True)
+            message = f"job {self.job.name!r}: {error}" if isinstance(error, GcodeError) else str(error)
+            return self._finish(state, message, laser_off=True)
         job_acked = [0]
 
         def on_ack(result) -> None:

@@ -299,7 +299,7 @@ def run_send(args) -> int:
                                "station send")
         runner.start()
         try:
-            while runner.wait(2.0) is None:
+            while runner.wait(2.0) is None and runner.running:
                 history.progress(job_id, runner.progress.lines_acked)
         except KeyboardInterrupt:
             runner.abort()

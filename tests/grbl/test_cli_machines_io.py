@@ -72,6 +72,36 @@ def test_send_dry_run_frame_and_refusals(tmp_path, capsys):
     assert main(["send", str(tmp_path / "missing.gcode"), "--port", FAST_LASER]) == 2
 
 
+def test_send_refuses_files_that_are_not_gcode_in_one_line(tmp_path, capsys):
+    # these used to kill the job thread with a traceback and leave `station send` waiting forever
+    garbage = tmp_path / "garbage.gcode"
+    garbage.write_bytes(b"\x00\x01\n")
+    assert main(["send", str(garbage), "--port", FAST_PLOTTER]) == 2
+    err = capsys.readouterr().err
+    assert "job 'garbage.gcode': line 1: cannot parse" in err and "Traceback" not in err
+    binary = tmp_path / "image.gcode"
+    binary.write_bytes(b"\xff\xd8\xff\xe0JFIF")
+    assert main(["send", str(binary), "--port", FAST_PLOTTER]) == 2
+    assert "job 'image.gcode': not a G-code text file" in capsys.readouterr().err
+
+
+def test_an_unexpected_failure_in_the_job_thread_ends_the_job_safely(monkeypatch):
+    from drivers.grbl import GrblConnection, Job, JobRunner
+
+    def broken(self):
+        raise RuntimeError("a bug")
+
+    monkeypatch.setattr(JobRunner, "preflight", broken)
+    with GrblConnection(FAST_LASER) as conn:
+        runner = JobRunner(conn, Job.from_text("j", "G21\nM4 S500\nG1 X10 F600\n", laser=True))
+        runner.start()
+        result = runner.wait(20.0)
+        assert not runner.running
+        assert result is not None and result.state == "error" and "a bug" in result.message
+        assert result.laser_off
+        assert conn.port.machine.snapshot().samples[-1].power == 0
+
+
 def test_ports_lists_simulated_machines(capsys):
     assert main(["ports", "--no-probe", "--json"]) == 0
     ports = json.loads(capsys.readouterr().out)

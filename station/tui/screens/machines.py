@@ -495,7 +495,7 @@ class MachinesScreen(Screen):
 
     @work(thread=True, exclusive=False, group="job")
     def _job_worker(self, runner: JobRunner, entry: QueuedJob, mode: str) -> None:
-        result = runner.run()
+        result = runner.run_safely()
         self._from_thread(self._job_done, runner, entry, mode, result)
 
     def _log_start(self, runner: JobRunner, entry: QueuedJob, mode: str, lines: int) -> None:
