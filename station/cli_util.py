@@ -89,7 +89,7 @@ def add_design_options(parser) -> None:
 
 def design_parameters(args, machine_name: str) -> dict[str, Any]:
     """The parameters given by ``--design`` (if any), updated by ``--set``; unset ones take the machine's defaults."""
-    params = load_design(args.design, machine_name) if getattr(args, "design", None) else {}
+    params = load_design(args.design, machine_name) if args.design else {}
     params.update(parse_assignments(args.set))
     return params
 

@@ -23,8 +23,9 @@ from drivers.errors import DeviceStateError, JobRefused
 from drivers.gcode import WriterOptions, fit_polylines, simplify_polylines, write_plot_gcode
 from drivers.grbl import GrblConnection, Job, JobRunner, frame_lines, list_ports
 from drivers.profiles import MachineProfile, load_profile
-from station.cli_util import design_parameters, emit_json, output_suffix
+from station.cli_util import add_design_options, design_parameters, emit_json, output_suffix
 from station.errors import StationError, UsageError
+from station.joblog import JOB_KINDS, JobLog
 
 DEFAULT_POINTS = 4096
 
@@ -41,9 +42,7 @@ def register(subparsers) -> None:
         "--profile examples/profiles/grbl_pen_plotter.toml --out hn.gcode",
     )
     plot.add_argument("machine", nargs="?", help="drawing machine name (see `station machines`)")
-    plot.add_argument("--set", action="append", metavar="NAME=VALUE", help="a machine parameter (repeatable)")
-    plot.add_argument("--design", metavar="FILE.json",
-                      help='MACHINE\'s parameters from a design file (`station pattern --json`, {"params": {...}})')
+    add_design_options(plot)
     plot.add_argument("--pattern", metavar="FILE.json", help="a pattern written by `station pattern --json`")
     plot.add_argument("--profile", default="plotter",
                       help="machine profile TOML, or a built-in: plotter (default), laser")
@@ -246,7 +245,6 @@ def _job_history():
     import sqlite3
 
     from station.db import open_database
-    from station.joblog import JobLog
     from station.paths import database_path
 
     def warn(error: Exception) -> None:
@@ -291,7 +289,7 @@ def run_send(args) -> int:
             lines = frame_lines(lo, hi, pen_up=pen_up)
         job = Job(f"frame of {path.name}", lines, laser=laser, pen_up=pen_up)
     bar = None if args.json else ProgressBar()
-    kind = "frame" if args.frame else "dry run" if args.dry_run else "run"
+    kind = JOB_KINDS["frame" if args.frame else "dry" if args.dry_run else "run"]
     with GrblConnection(url, baud) as conn, _job_history() as history:
         runner = JobRunner(conn, job, from_line=1 if args.frame else args.from_line, dry_run=args.dry_run,
                            on_progress=bar)

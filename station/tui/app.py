@@ -7,6 +7,7 @@ from typing import Any
 
 from textual.app import App
 from textual.binding import Binding
+from textual.screen import Screen
 
 from station.db import open_database
 from station.devices import DeviceEntry, default_devices
@@ -67,6 +68,14 @@ class StationApp(App):
         if self.screen.name != "home" and len(self.screen_stack) > 1:
             self.pop_screen()
         self.push_screen(name)
+
+    def open_area_if_installed(self, name: str) -> Screen | None:
+        """Open area ``name`` and return its screen; an area that is not installed is a warning, not a crash."""
+        if not any(entry.name == name for entry in self.areas):
+            self.notify(f"the {name} area is not installed", severity="warning")
+            return None
+        self.action_open_area(name)
+        return self.get_screen(name)
 
     def action_home(self) -> None:
         while len(self.screen_stack) > 2:

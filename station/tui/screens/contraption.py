@@ -217,11 +217,9 @@ class ContraptionScreen(Screen):
         if self.scenario is None or not Path(self.scenario.source).is_file():
             self.set_status("[yellow]load a scenario file first[/]")
             return
-        if not any(entry.name == "optimize" for entry in self.app.areas):
-            self.notify("the robust-layouts area is not installed", severity="warning")
-            return
-        self.app.action_open_area("optimize")
-        self.app.get_screen("optimize").choose_scenario(self.scenario.source)
+        optimizer = self.app.open_area_if_installed("optimize")
+        if optimizer is not None:
+            optimizer.choose_scenario(self.scenario.source)
 
     def action_toggle_pacing(self) -> None:
         self.realtime = not self.realtime

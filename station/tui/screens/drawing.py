@@ -336,26 +336,18 @@ class DrawingScreen(Screen):
         self._remember()
         self._set_design(self.machine, self.machine.defaults())
 
-    def _open_if_installed(self, name: str) -> None:
-        if any(entry.name == name for entry in self.app.areas):
-            self.app.action_open_area(name)
-        else:
-            self.notify(f"the {name} area is not installed", severity="warning")
-
     def action_explore(self) -> None:
-        self._open_if_installed("explore")
+        self.app.open_area_if_installed("explore")
 
     def action_fabricate(self) -> None:
-        self._open_if_installed("fabricate")
+        self.app.open_area_if_installed("fabricate")
 
     def action_plot(self) -> None:
         """Queue this pattern on the pen plotter (Machines screen: f frames, g starts)."""
         machine, params = self.current_design()
-        if not any(entry.name == "machines" for entry in self.app.areas):
-            self.notify("the machines area is not installed", severity="warning")
-            return
-        self.app.action_open_area("machines")
-        self.app.get_screen("machines").plot_design(machine, params, device="plotter")
+        machines = self.app.open_area_if_installed("machines")
+        if machines is not None:
+            machines.plot_design(machine, params, device="plotter")
 
 
 SCREEN = ScreenEntry(

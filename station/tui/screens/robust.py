@@ -149,13 +149,12 @@ class RobustScreen(Screen):
             self._pending_scenario = path
             return
         path = str(Path(path).resolve())
-        choices = {str(Path(value).resolve()): (label, value) for label, value in scenario_choices()}
-        if path in choices:
-            select.value = choices[path][1]
-            return
-        options = [*scenario_choices(), (Path(path).stem, path)]
-        select.set_options(options)
-        select.value = path
+        choices = scenario_choices()
+        known = next((value for _, value in choices if str(Path(value).resolve()) == path), None)
+        if known is None:
+            select.set_options([*choices, (Path(path).stem, path)])
+            known = path
+        select.value = known
 
     def action_optimize(self) -> None:
         if self._optimizing:
