@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 from scipy.optimize import minimize
+from scipy.stats import qmc
 
 from design.robust.problem import LayoutProblem, RobustError
 
@@ -16,13 +17,30 @@ def smooth_minimum(z: np.ndarray, alpha: float) -> np.ndarray:
     return np.sum(z * weights, axis=-1) / np.sum(weights, axis=-1)
 
 
-def energy(psp, u: np.ndarray, alpha: float) -> float:
-    """E(x) = -S_α(r(x)) over the PSP's learned factors (quasi-deterministic ones are constant)."""
+def energy(psp, u: np.ndarray, alpha: float, offsets: np.ndarray | None = None) -> float:
+    """E(x) = -S_α(r(x)) over the PSP's learned factors (quasi-deterministic ones are constant).
+
+    With ``offsets`` (an ``(m, d)`` array), the mean of -S_α(r(x + δ)) over them, each point clipped to the design
+    space: the expected energy under a placement error.
+    """
     factors = psp.learned_factors
     if not factors:
         return -1.0
-    r = psp.factor_probabilities(np.atleast_2d(u))[0, factors]
-    return -float(smooth_minimum(r, alpha))
+    u = np.atleast_2d(u)
+    if offsets is not None and len(offsets):
+        u = np.clip(u + offsets, 0.0, 1.0)
+    r = psp.factor_probabilities(u)[:, factors]
+    return -float(np.mean(smooth_minimum(r, alpha)))
+
+
+def placement_offsets(dim: int, error: float, n: int, seed: int = 0) -> np.ndarray | None:
+    """``n`` fixed offsets in ``[-error, error]^dim`` (scrambled Sobol, the origin first), or None for no error."""
+    if error <= 0:
+        return None
+    points = qmc.Sobol(dim, scramble=True, seed=seed).random(n)
+    offsets = error * (2.0 * points - 1.0)
+    offsets[0] = 0.0
+    return offsets
 
 
 def _last_valid_on_segment(problem: LayoutProblem, start: np.ndarray, end: np.ndarray, steps: int = 30) -> np.ndarray:
@@ -40,12 +58,13 @@ def _last_valid_on_segment(problem: LayoutProblem, start: np.ndarray, end: np.nd
 
 
 def optimize_layout(problem: LayoutProblem, psp, start: np.ndarray, alpha: float = 10.0,
-                    max_iterations: int = 100) -> tuple[np.ndarray, dict]:
+                    max_iterations: int = 100, offsets: np.ndarray | None = None) -> tuple[np.ndarray, dict]:
     """Minimize the smooth-minimum energy from a valid ``start`` under bounds and validity constraints.
 
     SLSQP gets the problem's validity margins as inequality constraints when it has them; whatever SLSQP returns,
     the result is pulled back along the segment from ``start`` until it is physically valid, and it is never worse
-    in energy than ``start``. So the returned layout is always valid.
+    in energy than ``start``. So the returned layout is always valid. ``offsets`` (see :func:`placement_offsets`)
+    make the energy the mean over a placement error.
 
     Returns
     -------
@@ -57,7 +76,7 @@ def optimize_layout(problem: LayoutProblem, psp, start: np.ndarray, alpha: float
     start = np.asarray(start, dtype=float)
     if start.shape != (problem.dim,) or not problem.is_valid(start[None, :])[0]:
         raise RobustError(f"{problem.name}: the optimization must start from a valid layout of {problem.dim} values")
-    e0 = energy(psp, start, alpha)
+    e0 = energy(psp, start, alpha, offsets)
     if not psp.learned_factors:
         return start, {"energy_start": e0, "energy": e0, "iterations": 0, "message": "no learned factor"}
     constraints = []
@@ -67,11 +86,11 @@ def optimize_layout(problem: LayoutProblem, psp, start: np.ndarray, alpha: float
             constraint["jac"] = lambda u: np.atleast_2d(problem.validity_jacobian(u))
         constraints.append(constraint)
     result = minimize(
-        lambda u: energy(psp, np.clip(u, 0.0, 1.0), alpha), start, method="SLSQP",
+        lambda u: energy(psp, np.clip(u, 0.0, 1.0), alpha, offsets), start, method="SLSQP",
         bounds=[(0.0, 1.0)] * problem.dim, constraints=constraints, options={"maxiter": max_iterations, "ftol": 1e-10},
     )
     u = _last_valid_on_segment(problem, start, np.clip(result.x, 0.0, 1.0))
-    e = energy(psp, u, alpha)
+    e = energy(psp, u, alpha, offsets)
     if not e <= e0:
         u, e = start, e0
     return u, {"energy_start": e0, "energy": e, "iterations": int(result.nit), "message": str(result.message)}

@@ -16,7 +16,7 @@ import numpy as np
 
 from design.robust.baselines import baseline_b1, baseline_b2, baseline_b3
 from design.robust.executor import SimulationExecutor
-from design.robust.optimize import optimize_layout
+from design.robust.optimize import optimize_layout, placement_offsets
 from design.robust.problem import LayoutProblem, RobustError
 from design.robust.psp import EventModel, FactorizedPSP, explore
 from design.robust.robustness import EvaluationSet, RobustnessCurve, evaluation_set, robustness_curve
@@ -189,15 +189,22 @@ def optimize_robust_layout(
                                                          model_trained)
     oracle.cv_accuracy = psp.cv_accuracy_
     scores = psp.predict_proba(samples.U)
+    offsets = placement_offsets(problem.dim, settings.placement_error, settings.placement_samples, seed)
+    ranks = scores.copy()
+    if offsets is not None:
+        # Under a placement error, rank the successes by their mean PSP around them (the others keep theirs).
+        for i in np.flatnonzero(samples.success):
+            ranks[i] = psp.predict_proba(np.clip(samples.U[i] + offsets, 0.0, 1.0)).mean()
     # The best sample: highest PSP among simulated layouts, simulated successes first (they are known to work).
-    ranking = np.lexsort((-scores, ~samples.success))
+    ranking = np.lexsort((-ranks, ~samples.success))
     best = int(ranking[0])
     u_best, psp_best = samples.U[best], float(scores[best])
     oracle.best_psp = psp_best
 
     oracle.phase = "optimization"
     oracle.report()
-    u, info = optimize_layout(problem, psp, u_best, settings.smooth_min_alpha, settings.optimizer_max_iterations)
+    u, info = optimize_layout(problem, psp, u_best, settings.smooth_min_alpha, settings.optimizer_max_iterations,
+                              offsets)
     oracle.best_psp = float(psp.predict_proba(u)[0])
 
     oracle.phase = "check"

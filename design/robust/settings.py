@@ -56,6 +56,13 @@ class PSPSettings:
         budgets still leave room for adaptive steps (ours).
     fallback_to_best_sample : bool
         If the optimized layout fails when re-simulated, return the best simulated sample instead (ours).
+    placement_error : float
+        ε of a uniform placement error (normalized units) that the optimization averages its energy over:
+        0 optimizes the PSP at the point, as the thesis does; ε > 0 optimizes the mean over a fixed set of
+        :attr:`placement_samples` offsets in [-ε, ε]^d (clipped to the design space), which keeps the optimizer
+        away from corners where the classifiers extrapolate (ours).
+    placement_samples : int
+        Offsets of that mean (Sobol points, fixed by the seed).
     """
 
     n_initial: int = 500
@@ -78,10 +85,12 @@ class PSPSettings:
     exploration_share: float = 0.75
     initial_share: float = 0.5
     fallback_to_best_sample: bool = True
+    placement_error: float = 0.0
+    placement_samples: int = 64
 
     def __post_init__(self) -> None:
         positive_ints = ("n_initial", "n_per_step", "n_successes", "max_exploration_steps", "n_queries",
-                         "query_oversampling", "optimizer_max_iterations")
+                         "query_oversampling", "optimizer_max_iterations", "placement_samples")
         for name in positive_ints:
             value = getattr(self, name)
             if isinstance(value, bool) or int(value) != value or value < 1:
@@ -97,6 +106,8 @@ class PSPSettings:
         for name in ("exploration_sigma", "smooth_min_alpha"):
             if not getattr(self, name) > 0:
                 raise RobustError(f"PSP settings: {name} must be > 0, got {getattr(self, name)!r}")
+        if not 0.0 <= self.placement_error <= 0.5:
+            raise RobustError(f"PSP settings: placement_error must be in [0, 0.5], got {self.placement_error!r}")
         if self.mutual_information_threshold < 0:
             raise RobustError(
                 f"PSP settings: mutual_information_threshold must be >= 0, got {self.mutual_information_threshold!r}"

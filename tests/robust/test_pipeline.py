@@ -25,6 +25,7 @@ from design.robust import (
     synthetic_branching,
     synthetic_chain,
 )
+from design.robust.optimize import energy, placement_offsets
 from design.robust.problem import EllipsoidEvent, SyntheticProblem
 from design.robust.robustness import evaluation_set, local_robustness_from_points
 
@@ -36,6 +37,45 @@ def test_smooth_minimum_goes_from_mean_to_minimum():
     assert smooth_minimum(z, 1e-9) == pytest.approx(z.mean())
     assert smooth_minimum(z, 200.0) == pytest.approx(0.2, abs=1e-3)
     assert 0.2 < smooth_minimum(z, 10.0) < z.mean()
+
+
+class CornerPSP:
+    """A PSP of one learned factor: 1 on the whole square x + y >= 1.2 (its corner (1, 1) included), else 0.2."""
+
+    learned_factors = [0]
+
+    def factor_probabilities(self, U):
+        U = np.atleast_2d(U)
+        return np.where(U.sum(axis=1) >= 1.2, 1.0, 0.2)[:, None]
+
+
+def test_placement_error_energy_is_the_mean_over_clipped_offsets():
+    offsets = placement_offsets(2, 0.1, 32, seed=3)
+    assert offsets.shape == (32, 2) and np.all(np.abs(offsets) <= 0.1) and np.all(offsets[0] == 0)
+    assert np.array_equal(offsets, placement_offsets(2, 0.1, 32, seed=3))
+    assert placement_offsets(2, 0.0, 32) is None
+    psp = CornerPSP()
+    u = np.array([0.95, 0.28])
+    points = np.clip(u + offsets, 0, 1)
+    expected = -np.mean(np.where(points.sum(axis=1) >= 1.2, 1.0, 0.2))
+    assert energy(psp, u, 10.0, offsets) == pytest.approx(expected)
+    assert energy(psp, u, 10.0) == -1.0  # at the point itself the PSP cannot tell it from the interior
+    # Under a placement error, the layout on the edge of the success region scores worse than one inside it.
+    assert energy(psp, np.array([0.8, 0.8]), 10.0, offsets) < energy(psp, u, 10.0, offsets)
+    with pytest.raises(RobustError, match="placement_error"):
+        PSPSettings(placement_error=0.7)
+    with pytest.raises(RobustError, match="placement_samples"):
+        PSPSettings(placement_samples=0)
+
+
+def test_pipeline_with_a_placement_error_returns_a_valid_success():
+    problem = synthetic_chain()
+    settings = PSPSettings(n_initial=128, n_successes=40, max_exploration_steps=20, placement_error=0.1,
+                           placement_samples=16)
+    with SimulationExecutor(problem, backend="inline") as executor:
+        result = optimize_robust_layout(problem, executor, budget=250, seed=2, settings=settings)
+    assert problem.is_valid(result.u[None, :])[0] and result.simulated_success
+    assert np.linalg.norm((result.u[:2] - [0.35, 0.5]) / [0.25, 0.3]) < 1
 
 
 def squeezed_problem():
