@@ -131,6 +131,9 @@ def register(subparsers) -> None:
     optimize.add_argument("--out", required=True, metavar="LAYOUT.json", help="output layout file")
     optimize.add_argument("--global-psp", action="store_true", help="one classifier of global success (no per-event "
                           "factorization, thesis 4.5 instead of 4.6)")
+    optimize.add_argument("--placement-error", type=float, default=0.0, metavar="EPS",
+                          help="optimize the mean success probability under a uniform placement error of EPS "
+                          "(normalized units, e.g. 0.1) instead of at the point (default 0, the thesis's)")
     optimize.add_argument("--json", action="store_true", help="also print the layout as JSON on stdout")
     optimize.set_defaults(func=run_optimize)
 
@@ -184,7 +187,7 @@ def run_optimize(args) -> int:
     output_suffix(out, {".json"})
     problem = _load_problem(args.scenario)
     budget = default_budget(problem, args.budget)
-    settings = PSPSettings(factorize=not args.global_psp)
+    settings = PSPSettings(factorize=not args.global_psp, placement_error=args.placement_error)
     bar = ProgressBar()
     executor = None
     try:

@@ -133,6 +133,10 @@ def test_cli_bad_input_is_one_clear_line(tmp_path, capsys):
     assert main(["robustness", str(SIMPLE), str(broken)]) == 2
     assert "not JSON" in capsys.readouterr().err
     assert main(["optimize", str(tmp_path / "nope.toml"), "--out", str(tmp_path / "y.json")]) == 2
+    capsys.readouterr()
+    assert main(["optimize", str(SIMPLE), "--placement-error", "0.9", "--out", str(tmp_path / "z.json")]) == 2
+    assert "placement_error must be in [0, 0.5], got 0.9" in capsys.readouterr().err
+    assert not (tmp_path / "z.json").exists()
 
 
 def test_progress_bar_and_thesis_budgets():
