@@ -191,10 +191,11 @@ def optimize_robust_layout(
     scores = psp.predict_proba(samples.U)
     offsets = placement_offsets(problem.dim, settings.placement_error, settings.placement_samples, seed)
     ranks = scores.copy()
-    if offsets is not None:
+    successes = np.flatnonzero(samples.success)
+    if offsets is not None and len(successes):
         # Under a placement error, rank the successes by their mean PSP around them (the others keep theirs).
-        for i in np.flatnonzero(samples.success):
-            ranks[i] = psp.predict_proba(np.clip(samples.U[i] + offsets, 0.0, 1.0)).mean()
+        around = np.clip(samples.U[successes, None, :] + offsets[None, :, :], 0.0, 1.0)
+        ranks[successes] = psp.predict_proba(around.reshape(-1, problem.dim)).reshape(len(successes), -1).mean(axis=1)
     # The best sample: highest PSP among simulated layouts, simulated successes first (they are known to work).
     ranking = np.lexsort((-ranks, ~samples.success))
     best = int(ranking[0])

@@ -9,6 +9,13 @@ from station.tui.app import StationApp
 from station.tui.widgets.canvas import PatternCanvas
 
 
+async def open_contraption_screen(app, pilot):
+    """Press c on the home screen and return the Contraption screen."""
+    await pilot.press("c")
+    await pilot.pause()
+    return app.screen
+
+
 async def _wait_idle(app, pilot, screen, limit=400):
     for _ in range(limit):
         await pilot.pause(0.05)
@@ -20,9 +27,7 @@ async def _wait_idle(app, pilot, screen, limit=400):
 async def test_contraption_screen_simulates_and_updates_states(tmp_path):
     app = StationApp(database=tmp_path / "t.sqlite3")
     async with app.run_test(size=(160, 45)) as pilot:
-        await pilot.press("c")
-        await pilot.pause()
-        screen = app.screen
+        screen = await open_contraption_screen(app, pilot)
         assert screen.name == "contraption"
         table = screen.query_one("#events", DataTable)
         assert table.row_count == 5  # SIMPLE by default
@@ -55,9 +60,7 @@ async def test_contraption_screen_simulates_and_updates_states(tmp_path):
 async def test_contraption_screen_loads_by_name_and_reports_errors(tmp_path):
     app = StationApp(database=tmp_path / "t.sqlite3")
     async with app.run_test(size=(160, 45)) as pilot:
-        await pilot.press("c")
-        await pilot.pause()
-        screen = app.screen
+        screen = await open_contraption_screen(app, pilot)
         field = screen.query_one("#scenario-input", Input)
         field.value = "ballrun"
         await field.action_submit()
@@ -74,9 +77,7 @@ async def test_contraption_screen_loads_by_name_and_reports_errors(tmp_path):
 async def test_ropes_are_drawn_in_the_side_view(tmp_path):
     app = StationApp(database=tmp_path / "t.sqlite3")
     async with app.run_test(size=(160, 45)) as pilot:
-        await pilot.press("c")
-        await pilot.pause()
-        screen = app.screen
+        screen = await open_contraption_screen(app, pilot)
         view = screen.query_one("#view", PatternCanvas)
         assert "yellow" not in view._colors  # SIMPLE has no rope
         assert screen.load("longchain")
