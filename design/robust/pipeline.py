@@ -18,8 +18,15 @@ from design.robust.baselines import baseline_b1, baseline_b2, baseline_b3
 from design.robust.executor import SimulationExecutor
 from design.robust.optimize import optimize_layout, placement_offsets
 from design.robust.problem import LayoutProblem, RobustError
-from design.robust.psp import EventModel, FactorizedPSP, explore
-from design.robust.robustness import EvaluationSet, RobustnessCurve, evaluation_set, robustness_curve
+from design.robust.psp import EventModel, FactorizedPSP, Samples, explore
+from design.robust.robustness import (
+    EvaluationSet,
+    RobustnessCurve,
+    evaluation_set,
+    predicted_global_robustness,
+    robustness_curve,
+)
+from design.robust.sampling import ball_draw, sample_physically_valid, sobol_valid
 from design.robust.settings import PSPSettings, RobustnessSettings
 
 METHODS = ("ours", "b1", "b2", "b3")
@@ -139,6 +146,164 @@ class RobustLayout:
         }
 
 
+def optimize_from_samples(
+    problem: LayoutProblem,
+    psp: FactorizedPSP,
+    samples: Samples,
+    settings: PSPSettings,
+    seed: int = 0,
+    on_best_sample: Callable[[float], None] | None = None,
+) -> tuple[np.ndarray, dict, int, float]:
+    """Thesis 4.7 after learning: rank the simulated samples, then SLSQP from the best of them.
+
+    Samples rank by PSP, simulated successes first; under a placement error, successes rank by their mean PSP over
+    the offsets. SLSQP runs from the ``optimizer_starts`` best-ranked samples and the lowest energy wins (the first
+    start wins ties, so one start is the thesis's method).
+
+    Returns
+    -------
+    u : ndarray
+        The optimized normalized layout (valid, not yet simulated).
+    info : dict
+        The optimizer's report, with ``start_sample``, the row of ``samples`` it started from.
+    best : int
+        Row of the best-ranked sample (the fallback if ``u`` fails in simulation).
+    psp_best : float
+        Its PSP.
+    """
+    if settings.objective == "global_robustness":
+        return _optimize_predicted_robustness(problem, psp, samples, settings, seed, on_best_sample)
+    scores = psp.predict_proba(samples.U)
+    offsets = placement_offsets(problem.dim, settings.placement_error, settings.placement_samples, seed)
+    ranks = scores.copy()
+    successes = np.flatnonzero(samples.success)
+    if offsets is not None and len(successes):
+        around = np.clip(samples.U[successes, None, :] + offsets[None, :, :], 0.0, 1.0)
+        ranks[successes] = psp.predict_proba(around.reshape(-1, problem.dim)).reshape(len(successes), -1).mean(axis=1)
+    ranking = np.lexsort((-ranks, ~samples.success))
+    best = int(ranking[0])
+    psp_best = float(scores[best])
+    if on_best_sample is not None:
+        on_best_sample(psp_best)
+    results = []
+    for start in ranking[: max(settings.optimizer_starts, settings.verification_candidates)]:
+        candidate, candidate_info = optimize_layout(problem, psp, samples.U[start], settings.smooth_min_alpha,
+                                                    settings.optimizer_max_iterations, offsets)
+        results.append((candidate, {**candidate_info, "start_sample": int(start)}))
+    order = sorted(range(len(results)), key=lambda i: (results[i][1]["energy"], i))  # stable: first start on ties
+    u, info = results[order[0]]
+    info = {**info, "candidates": [results[i][0] for i in order]}
+    return u, info, best, psp_best
+
+
+def _optimize_predicted_robustness(problem, psp, samples, settings, seed, on_best_sample):
+    """``objective="global_robustness"``: the layout of highest ρ_g predicted by the PSP (see PSPSettings).
+
+    The best-ranked sample is the simulated success of highest ρ̂_g. Only the parameters in some event's subspace
+    move: the PSP says nothing about the others, so they keep the best sample's values, which are known to work.
+    Candidates are the samples and a Sobol sample of the design space (both with those parameters fixed); the best
+    is refined among valid layouts drawn in a small ball around it. The search is gradient-free because ρ̂_g counts
+    layouts in balls and is piecewise constant.
+    """
+    reference = sobol_valid(problem, settings.reference_layouts, seed + 1)
+    reference_probability = psp.predict_proba(reference)
+    robustness = RobustnessSettings()
+
+    def predicted(U: np.ndarray) -> np.ndarray:
+        return predicted_global_robustness(U, psp.predict_proba(U), reference, reference_probability, robustness)
+
+    sample_scores = predicted(samples.U)
+    ranking = np.lexsort((-sample_scores, ~samples.success))
+    best = int(ranking[0])
+    u_best = samples.U[best]
+    if on_best_sample is not None:
+        on_best_sample(float(psp.predict_proba(u_best)[0]))
+    free = sorted(set().union(*(m.subspace for m in psp.models_ if m.classifier is not None)))
+    u, score = u_best, float(sample_scores[best])
+    runners_up: list[np.ndarray] = []
+    if free:
+        fixed = [i for i in range(problem.dim) if i not in free]
+
+        def pinned(U: np.ndarray) -> np.ndarray:
+            U = np.array(U, dtype=float)
+            U[:, fixed] = u_best[fixed]
+            return U[problem.is_valid(U)]
+
+        pool = np.concatenate([pinned(samples.U), pinned(sobol_valid(problem, settings.candidate_layouts, seed + 2))])
+        if len(pool):
+            pool_scores = predicted(pool)
+            top = int(np.argmax(pool_scores))
+            if pool_scores[top] > score:
+                u, score = pool[top], float(pool_scores[top])
+        radius = np.zeros(problem.dim)
+        radius[free] = settings.refine_radius
+        rng = np.random.default_rng(seed)
+        draw = ball_draw(np.zeros(problem.dim), 1.0, rng)
+        try:
+            nearby = sample_physically_valid(problem, lambda m: u + radius * draw(m), settings.refine_layouts,
+                                             "layouts near the best candidate")
+        except RobustError:  # squeezed against the impossible region: keep the candidate
+            nearby = np.zeros((0, problem.dim))
+        if len(nearby):
+            nearby_scores = predicted(nearby)
+            if nearby_scores.max() > score:
+                u, score = nearby[int(np.argmax(nearby_scores))], float(nearby_scores.max())
+        if len(pool):  # runners-up for verification, best first
+            for i in np.argsort(-pool_scores, kind="stable")[: 4 * settings.verification_candidates]:
+                runners_up.append(pool[i])
+    info = {"energy_start": -float(sample_scores[best]), "energy": -score, "iterations": 0,
+            "candidates": [np.asarray(u, dtype=float), *runners_up],
+            "message": "highest predicted global robustness", "predicted_rho_g": score,
+            "predicted_rho_g_best_sample": float(sample_scores[best]), "start_sample": best,
+            "free_parameters": [problem.parameter_names[i] for i in free]}
+    return np.asarray(u, dtype=float), info, best, float(psp.predict_proba(u_best)[0])
+
+
+def verify_candidates(problem: LayoutProblem, oracle, candidates, settings: PSPSettings, seed: int = 0):
+    """Simulate the model's best candidates and keep the one that does best in simulation.
+
+    Each of the first ``verification_candidates`` distinct candidates (at least ``verification_radius`` apart) is
+    simulated together with ``verification_samples - 1`` valid layouts drawn uniformly in the ball of
+    ``verification_radius`` around it. The kept candidate succeeds itself and has the highest success rate in its
+    ball (the model's order breaks ties); if none succeeds itself, the model's first. With one candidate and one
+    sample this is the thesis's single re-simulation of the result.
+
+    Returns
+    -------
+    u : ndarray
+    events : ndarray
+        The simulated events of ``u`` itself.
+    report : list of dict
+        Per verified candidate: ``u``, ``success`` (its own simulation) and ``local_success_rate``.
+    """
+    distinct: list[np.ndarray] = []
+    for candidate in candidates:
+        candidate = np.asarray(candidate, dtype=float)
+        if all(np.linalg.norm(candidate - c) >= settings.verification_radius for c in distinct):
+            distinct.append(candidate)
+        if len(distinct) == settings.verification_candidates:
+            break
+    rng = np.random.default_rng(seed)
+    report, outcomes = [], []
+    for candidate in distinct:
+        layouts = candidate[None, :]
+        if settings.verification_samples > 1:
+            try:
+                around = sample_physically_valid(problem, ball_draw(candidate, settings.verification_radius, rng),
+                                                 settings.verification_samples - 1, "verification layouts")
+            except RobustError:  # squeezed against the impossible region: the candidate alone
+                around = np.zeros((0, problem.dim))
+            layouts = np.concatenate([layouts, around])
+        events = oracle(layouts)
+        success = events.all(axis=1)
+        outcomes.append((candidate, events[0]))
+        report.append({"u": [float(v) for v in candidate], "success": bool(success[0]),
+                       "local_success_rate": float(success.mean()), "simulations": len(layouts)})
+    ranked = sorted(range(len(report)), key=lambda i: (not report[i]["success"], -report[i]["local_success_rate"], i))
+    chosen = ranked[0]
+    return outcomes[chosen][0], outcomes[chosen][1], report
+
+
 def optimize_robust_layout(
     problem: LayoutProblem,
     executor: SimulationExecutor,
@@ -167,7 +332,14 @@ def optimize_robust_layout(
     started = time.perf_counter()
     new_before = executor.n_simulated
     oracle = BudgetedOracle(executor, budget, progress, should_stop)
-    learning_budget = None if budget is None else budget - 1  # one simulation is kept to check the result
+    # Kept to check the result: one simulation, or the verification of several candidates (see PSPSettings).
+    reserve = settings.verification_candidates * settings.verification_samples
+    if budget is not None and reserve > max(1, budget // 4):
+        # A small budget: fewer simulations per candidate, so verification never takes over a quarter of it.
+        per_candidate = max(1, (budget // 4) // settings.verification_candidates)
+        settings = settings.with_changes(verification_samples=per_candidate)
+        reserve = settings.verification_candidates * per_candidate
+    learning_budget = None if budget is None else budget - reserve
     exploration_cap = None if budget is None else max(10, int(settings.exploration_share * learning_budget))
 
     oracle.phase = "exploration"
@@ -183,33 +355,26 @@ def optimize_robust_layout(
         oracle.report(f"event {model.event}")
 
     def remaining_for_learning() -> int:
-        return oracle.remaining() - 1 if budget is not None else 10**9
+        return oracle.remaining() - reserve if budget is not None else 10**9
 
     psp = FactorizedPSP(settings, random_state=seed).fit(problem, samples, oracle, remaining_for_learning,
                                                          model_trained)
     oracle.cv_accuracy = psp.cv_accuracy_
-    scores = psp.predict_proba(samples.U)
-    offsets = placement_offsets(problem.dim, settings.placement_error, settings.placement_samples, seed)
-    ranks = scores.copy()
-    successes = np.flatnonzero(samples.success)
-    if offsets is not None and len(successes):
-        # Under a placement error, rank the successes by their mean PSP around them (the others keep theirs).
-        around = np.clip(samples.U[successes, None, :] + offsets[None, :, :], 0.0, 1.0)
-        ranks[successes] = psp.predict_proba(around.reshape(-1, problem.dim)).reshape(len(successes), -1).mean(axis=1)
-    # The best sample: highest PSP among simulated layouts, simulated successes first (they are known to work).
-    ranking = np.lexsort((-ranks, ~samples.success))
-    best = int(ranking[0])
-    u_best, psp_best = samples.U[best], float(scores[best])
-    oracle.best_psp = psp_best
 
-    oracle.phase = "optimization"
-    oracle.report()
-    u, info = optimize_layout(problem, psp, u_best, settings.smooth_min_alpha, settings.optimizer_max_iterations,
-                              offsets)
+    def best_sample_chosen(psp_best: float) -> None:
+        oracle.best_psp = psp_best
+        oracle.phase = "optimization"
+        oracle.report()
+
+    u, info, best, psp_best = optimize_from_samples(problem, psp, samples, settings, seed, best_sample_chosen)
+    u_best = samples.U[best]
     oracle.best_psp = float(psp.predict_proba(u)[0])
 
     oracle.phase = "check"
-    events = oracle(u[None, :])[0]
+    candidates = info.pop("candidates", [u])
+    u, events, verification = verify_candidates(problem, oracle, candidates, settings, seed)
+    if len(verification) > 1:
+        info = {**info, "verification": verification}
     if not events.all() and settings.fallback_to_best_sample and samples.success[best]:
         u, events = u_best, samples.events[best]
         info = {**info, "fallback": "the optimized layout failed in simulation; kept the best sample"}

@@ -69,6 +69,10 @@ class CalibratedSVM:
         Stratified folds (3).
     random_state : int
         Seed of the fold shuffling.
+    scoring : {"accuracy", "roc_auc", "neg_log_loss"}
+        What the search maximizes. The thesis's accuracy cannot tell a useful classifier from a constant one when
+        one class dominates (an event failing on 15 % of layouts is 85 % "accurate" by always saying success);
+        ROC AUC scores the ranking that Platt scaling turns into probabilities.
 
     Attributes
     ----------
@@ -80,7 +84,9 @@ class CalibratedSVM:
     best_params_ : dict
         Chosen C and γ.
     cv_accuracy_ : float
-        Mean stratified cross-validated accuracy of the chosen C, γ.
+        Mean stratified cross-validated accuracy of the chosen C, γ (whatever the scoring).
+    cv_score_ : float
+        Its mean cross-validated score under ``scoring``.
     platt_ : tuple of float
         (a, b) of ``p = 1 / (1 + exp(a f + b))``.
     support_indices_ : ndarray
@@ -88,11 +94,12 @@ class CalibratedSVM:
     """
 
     def __init__(self, c_grid=(0.1, 1.0, 10.0, 100.0, 1000.0), gamma_grid=(0.01, 0.1, 1.0, 10.0), cv_folds=3,
-                 random_state=0):
+                 random_state=0, scoring="accuracy"):
         self.c_grid = c_grid
         self.gamma_grid = gamma_grid
         self.cv_folds = cv_folds
         self.random_state = random_state
+        self.scoring = scoring
 
     def _folds(self) -> StratifiedKFold:
         return StratifiedKFold(n_splits=self.cv_folds, shuffle=True, random_state=self.random_state)
@@ -111,6 +118,7 @@ class CalibratedSVM:
             self.model_ = None
             self.best_params_ = {}
             self.cv_accuracy_ = max(n_pos, n_neg) / max(len(y), 1)
+            self.cv_score_ = float("nan")
             self.support_indices_ = np.zeros(0, dtype=int)
             return self
         self.constant_ = None
@@ -118,12 +126,14 @@ class CalibratedSVM:
             make_pipeline(StandardScaler(), SVC(kernel="rbf")),
             {"svc__C": list(self.c_grid), "svc__gamma": list(self.gamma_grid)},
             cv=self._folds(),
-            scoring="accuracy",
+            scoring={"chosen": self.scoring, "accuracy": "accuracy"},
+            refit="chosen",
         )
         search.fit(X, y)
         self.model_ = search.best_estimator_
         self.best_params_ = {"C": search.best_params_["svc__C"], "gamma": search.best_params_["svc__gamma"]}
-        self.cv_accuracy_ = float(search.best_score_)
+        self.cv_score_ = float(search.best_score_)
+        self.cv_accuracy_ = float(search.cv_results_["mean_test_accuracy"][search.best_index_])
         self.support_indices_ = np.asarray(self.model_[-1].support_, dtype=int)
         if calibrate:
             self.calibrate(X, y)
@@ -166,10 +176,14 @@ class CalibratedSVM:
 # --------------------------------------------------------------------------------------------------------------
 @dataclass
 class Samples:
-    """Simulated layouts: ``U`` ``(n, d)`` normalized, ``events`` ``(n, n_events)`` per-event success."""
+    """Simulated layouts: ``U`` ``(n, d)`` normalized, ``events`` ``(n, n_events)`` per-event success.
+
+    ``n_initial`` counts the leading rows that are the uniform (Sobol) start of the exploration, when known.
+    """
 
     U: np.ndarray
     events: np.ndarray
+    n_initial: int | None = None
 
     @property
     def n_successful_events(self) -> np.ndarray:
@@ -203,7 +217,7 @@ def explore(
     if initial_cap is not None:
         n0 = max(1, min(n0, int(initial_cap)))
     U0 = sobol_valid(problem, n0, seed)
-    samples = Samples(U0, oracle(U0))
+    samples = Samples(U0, oracle(U0), n_initial=len(U0))
     n_events = len(problem.event_names)
     variance = settings.exploration_sigma
     for _step in range(settings.max_exploration_steps):
@@ -324,10 +338,22 @@ class FactorizedPSP:
         labels = events[:, column] if column is not None else events.all(axis=1)
         return condition, labels
 
+    def _quasi_deterministic_rate(self, settings, condition, labels) -> float:
+        """The event's success rate given its parents, on the sample the setting names (see PSPSettings)."""
+        rows = condition.copy()
+        n_initial = self.samples_.n_initial
+        if settings.quasi_deterministic_sample == "initial" and n_initial is not None:
+            initial = rows.copy()
+            initial[n_initial:] = False
+            # Too few uniform rows where the parents succeeded say little; then use every explored row.
+            if initial.sum() >= settings.quasi_deterministic_min_rows:
+                rows = initial
+        return float(labels[rows].mean()) if rows.any() else 0.0
+
     def _fit_event(self, problem, settings, rng, name, parents, column, oracle, remaining, on_model) -> EventModel:
         condition, labels = self._labels(parents, column)
         X, y = self.samples_.U[condition], labels[condition]
-        rate = float(y.mean()) if len(y) else 0.0
+        rate = self._quasi_deterministic_rate(settings, condition, labels) if len(y) else 0.0
         if column is not None and len(y) and rate >= settings.quasi_deterministic:
             model = EventModel(name, (), True, rate, None, len(y))
             if on_model is not None:
@@ -337,7 +363,7 @@ class FactorizedPSP:
         if column is not None and len(y) and 0 < y.sum() < len(y):
             subspace = self._subspace(X, y, settings)
         seed = int(rng.integers(2**31))
-        classifier = CalibratedSVM(settings.c_grid, settings.gamma_grid, settings.cv_folds, seed)
+        classifier = CalibratedSVM(settings.c_grid, settings.gamma_grid, settings.cv_folds, seed, settings.cv_scoring)
         classifier.fit(X[:, subspace], y, calibrate=False)
         model = EventModel(name, subspace, False, rate, classifier, len(y))
         if on_model is not None:
@@ -354,7 +380,8 @@ class FactorizedPSP:
             self.samples_.add(queries, oracle(queries))
             condition, labels = self._labels(parents, column)
             X, y = self.samples_.U[condition], labels[condition]
-            classifier = CalibratedSVM(settings.c_grid, settings.gamma_grid, settings.cv_folds, seed)
+            classifier = CalibratedSVM(settings.c_grid, settings.gamma_grid, settings.cv_folds, seed,
+                                       settings.cv_scoring)
             classifier.fit(X[:, subspace], y, calibrate=False)
             model = EventModel(name, subspace, False, float(y.mean()), classifier, len(y), model.active_steps + 1)
             if on_model is not None:

@@ -107,3 +107,48 @@ def estimate_local_robustness(
     except Exception:  # noqa: BLE001 - no valid neighbour at all
         return 0.0, 0
     return float(oracle(neighbours).all(axis=1).mean()), len(neighbours)
+
+
+def predicted_global_robustness(
+    candidates: np.ndarray,
+    candidate_probability: np.ndarray,
+    reference: np.ndarray,
+    reference_probability: np.ndarray,
+    settings: RobustnessSettings | None = None,
+    chunk: int = 256,
+) -> np.ndarray:
+    """ρ_g's formula with predicted success probabilities in place of simulated successes.
+
+    For each candidate ``x``, ρ̂_l(x, ε) is the mean probability of the ``reference`` layouts within ε + η of x, the
+    candidate's own probability counted ``n_local`` times (the evaluation's local layouts in B_η(x)); ρ̂_g is its
+    integral over ε. With a calibrated PSP this is the expected ρ_g of the candidate under the model, so maximizing
+    it aims at what :func:`robustness_curve` measures rather than at the probability at a single point.
+
+    Parameters
+    ----------
+    candidates : ndarray, shape (m, d)
+    candidate_probability : ndarray, shape (m,)
+    reference : ndarray, shape (n, d)
+        Valid layouts spread over the design space (a Sobol sample).
+    reference_probability : ndarray, shape (n,)
+
+    Returns
+    -------
+    ndarray, shape (m,)
+    """
+    settings = settings or RobustnessSettings()
+    candidates = np.atleast_2d(np.asarray(candidates, dtype=float))
+    reference = np.asarray(reference, dtype=float)
+    epsilon = epsilon_grid(settings)
+    radii = epsilon + settings.thickness_factor * settings.epsilon_step
+    own = float(settings.n_local)
+    result = np.empty(len(candidates))
+    for begin in range(0, len(candidates), chunk):
+        block = candidates[begin:begin + chunk]
+        distances = np.sqrt(((block[:, None, :] - reference[None, :, :]) ** 2).sum(axis=-1))
+        inside = distances[:, None, :] <= radii[None, :, None]  # (block, radii, reference)
+        counts = inside.sum(axis=-1) + own
+        mass = inside @ reference_probability + own * candidate_probability[begin:begin + chunk, None]
+        rho = np.divide(mass, counts, out=np.zeros_like(mass), where=counts > 0)  # an empty ball scores 0
+        result[begin:begin + chunk] = np.trapezoid(rho, epsilon, axis=1)
+    return result

@@ -115,3 +115,61 @@ def test_settings_validation_names_the_setting():
         PSPSettings(target_accuracy=1.5)
     with pytest.raises(RobustError, match="unknown setting"):
         PSPSettings().with_changes(sigma=3)
+
+
+def concentrated_samples(problem, n_initial=128, n_explored=2000, seed=0):
+    """A uniform Sobol start, then many layouts where ``second`` always succeeds (as a mixture around successes)."""
+    from design.robust.psp import Samples
+
+    U0 = sobol_valid(problem, n_initial, seed=seed)
+    rng = np.random.default_rng(seed)
+    U1 = np.column_stack([
+        0.35 + 0.05 * rng.standard_normal(n_explored),
+        0.5 + 0.05 * rng.standard_normal(n_explored),
+        rng.uniform(0.5, 0.7, n_explored),
+    ])
+    U = np.concatenate([U0, U1])
+    return Samples(U, problem.simulate_batch(U), n_initial=n_initial)
+
+
+def test_quasi_deterministic_test_on_the_uniform_start_sees_through_concentrated_exploration():
+    problem = synthetic_chain()
+    samples = concentrated_samples(problem)
+    second = list(problem.event_names).index("second")
+    first = list(problem.event_names).index("first")
+    initial = samples.events[:128]
+    assert 0.3 < initial[initial[:, first], second].mean() < 0.7  # half the roll interval fails...
+    assert samples.events[samples.events[:, first], second].mean() > 0.95  # ...but hardly ever where explored
+    thesis = FactorizedPSP(PSPSettings(), random_state=0).fit(problem, samples)
+    ours = FactorizedPSP(PSPSettings(quasi_deterministic_sample="initial"), random_state=0).fit(problem, samples)
+    assert {m.event: m.quasi_deterministic for m in thesis.models_}["second"]
+    by_event = {m.event: m for m in ours.models_}
+    assert not by_event["second"].quasi_deterministic and by_event["second"].subspace == (2,)
+    assert by_event["start"].quasi_deterministic and by_event["last"].quasi_deterministic
+    # Too few uniform rows whose parents succeeded: the test falls back to every explored row.
+    strict = PSPSettings(quasi_deterministic_sample="initial", quasi_deterministic_min_rows=1000)
+    fallback = FactorizedPSP(strict, random_state=0).fit(problem, samples)
+    assert {m.event: m.quasi_deterministic for m in fallback.models_}["second"]
+
+
+def test_quasi_deterministic_settings_are_checked():
+    with pytest.raises(RobustError, match="quasi_deterministic_sample"):
+        PSPSettings(quasi_deterministic_sample="sobol")
+    with pytest.raises(RobustError, match="quasi_deterministic_min_rows"):
+        PSPSettings(quasi_deterministic_min_rows=0)
+    with pytest.raises(RobustError, match="optimizer_starts"):
+        PSPSettings(optimizer_starts=0)
+
+
+def test_roc_auc_search_ranks_a_rare_failure_region_and_still_reports_accuracy():
+    # A failure region on a fifth of the range that fails 60 % of the time: about 12 % failures overall.
+    rng = np.random.default_rng(2)
+    X = rng.random((500, 1))
+    y = ~((X[:, 0] < 0.2) & (rng.random(500) < 0.6))
+    model = CalibratedSVM(random_state=0, scoring="roc_auc").fit(X, y)
+    assert model.cv_score_ > 0.9  # the search's score is the AUC...
+    assert 0.8 < model.cv_accuracy_ < 0.95  # ...and the accuracy of the same C, γ is kept for the stopping rule
+    p = model.success_probability(np.array([[0.1], [0.6]]))
+    assert p[0] < 0.6 < 0.9 < p[1]
+    with pytest.raises(RobustError, match="cv_scoring"):
+        PSPSettings(cv_scoring="f1")

@@ -26,8 +26,14 @@ from design.robust import (
     synthetic_chain,
 )
 from design.robust.optimize import energy, placement_offsets
+from design.robust.pipeline import verify_candidates
 from design.robust.problem import EllipsoidEvent, SyntheticProblem
-from design.robust.robustness import evaluation_set, local_robustness_from_points
+from design.robust.robustness import (
+    epsilon_grid,
+    evaluation_set,
+    local_robustness_from_points,
+    predicted_global_robustness,
+)
 
 SMALL = PSPSettings(n_initial=128, n_successes=40, max_exploration_steps=20)
 
@@ -76,6 +82,95 @@ def test_pipeline_with_a_placement_error_returns_a_valid_success():
         result = optimize_robust_layout(problem, executor, budget=250, seed=2, settings=settings)
     assert problem.is_valid(result.u[None, :])[0] and result.simulated_success
     assert np.linalg.norm((result.u[:2] - [0.35, 0.5]) / [0.25, 0.3]) < 1
+
+
+def test_more_optimizer_starts_never_end_at_a_higher_energy():
+    problem = synthetic_branching()
+    single = SMALL.with_changes(placement_error=0.1, placement_samples=16)
+    results = {}
+    for starts in (1, 4):
+        with SimulationExecutor(problem, backend="inline") as executor:
+            results[starts] = optimize_robust_layout(problem, executor, budget=250, seed=1,
+                                                     settings=single.with_changes(optimizer_starts=starts))
+    assert results[4].optimizer["energy"] <= results[1].optimizer["energy"] + 1e-12
+    assert results[1].optimizer["start_sample"] == int(np.flatnonzero(
+        (results[1].model.samples_.U == results[1].u_best_sample).all(axis=1))[0])
+    for result in results.values():
+        assert problem.is_valid(result.u[None, :])[0]
+
+
+def test_predicted_global_robustness_is_the_evaluation_formula_with_probabilities():
+    rng = np.random.default_rng(0)
+    reference = rng.random((500, 3))
+    success = rng.random(500) < 0.4
+    candidates = rng.random((6, 3))
+    candidate_success = np.array([1, 0, 1, 0, 1, 1], dtype=bool)
+    settings = RobustnessSettings(n_local=1)
+    predicted = predicted_global_robustness(candidates, candidate_success.astype(float), reference,
+                                            success.astype(float), settings, chunk=4)
+    epsilon = epsilon_grid(settings)
+    for i, u in enumerate(candidates):
+        # One local layout in B_η(u): u itself with its own outcome.
+        rho = local_robustness_from_points(u, np.vstack([reference, u]), np.r_[success, candidate_success[i]],
+                                           epsilon, settings.thickness_factor * settings.epsilon_step)
+        assert predicted[i] == pytest.approx(np.trapezoid(rho, epsilon))
+
+
+def test_global_robustness_objective_finds_the_centre_of_the_success_region():
+    problem = synthetic_chain()
+    settings = SMALL.with_changes(objective="global_robustness", reference_layouts=512, candidate_layouts=512)
+    with SimulationExecutor(problem, backend="inline") as executor:
+        result = optimize_robust_layout(problem, executor, budget=250, seed=0, settings=settings)
+        point = optimize_robust_layout(problem, executor, budget=250, seed=0, settings=SMALL)
+    assert problem.is_valid(result.u[None, :])[0] and result.simulated_success
+    assert result.optimizer["predicted_rho_g"] >= result.optimizer["predicted_rho_g_best_sample"]
+    # Parameters outside every event's subspace keep the best sample's values; the others move inside the region.
+    free = [problem.parameter_names.index(name) for name in result.optimizer["free_parameters"]]
+    fixed = [i for i in range(problem.dim) if i not in free]
+    np.testing.assert_array_equal(result.u[fixed], result.u_best_sample[fixed])
+    centre, radii = np.array([0.35, 0.5, 0.6]), np.array([0.25, 0.3, 0.25])
+    assert {0, 2} <= set(free) and np.linalg.norm(((result.u - centre) / radii)[free]) < 0.7
+    robustness = RobustnessSettings(n_evaluation=512, n_local=10)
+    with SimulationExecutor(problem, backend="inline") as executor:
+        evaluation = evaluation_set(problem, executor.run, robustness.n_evaluation)
+        ours = robustness_curve(problem, executor.run, evaluation, result.u, robustness).global_robustness
+        thesis = robustness_curve(problem, executor.run, evaluation, point.u, robustness).global_robustness
+    assert ours >= thesis - 0.02
+    with pytest.raises(RobustError, match="objective"):
+        PSPSettings(objective="robust")
+
+
+def test_verification_keeps_the_candidate_that_does_best_in_simulation():
+    problem = synthetic_chain()
+    centre = np.array([0.35, 0.5, 0.6])
+    edge = np.array([0.35, 0.5, 0.6 + 0.245])  # succeeds itself, but about half its ball leaves the roll interval
+    outside = np.array([0.35, 0.5, 0.95])
+    settings = PSPSettings(verification_candidates=3, verification_samples=20, verification_radius=0.05)
+    u, events, report = verify_candidates(problem, problem.simulate_batch, [edge, outside, edge + 0.01, centre],
+                                          settings, seed=0)
+    np.testing.assert_array_equal(u, centre)
+    assert events.all()
+    # edge + 0.01 is closer than the radius to edge: not a distinct candidate, so centre is the third.
+    assert [r["u"] for r in report] == [list(edge), list(outside), list(centre)]
+    assert [r["success"] for r in report] == [True, False, True]
+    assert report[2]["local_success_rate"] == 1.0 > report[0]["local_success_rate"] > 0.2
+    assert report[1]["simulations"] == 20
+    # One candidate and one sample: the thesis's single re-simulation.
+    u, events, report = verify_candidates(problem, problem.simulate_batch, [outside, centre], PSPSettings(), seed=0)
+    np.testing.assert_array_equal(u, outside)
+    assert not events.all() and len(report) == 1
+
+
+def test_recommended_settings_fit_a_small_budget_and_return_a_verified_success():
+    problem = synthetic_branching()
+    settings = PSPSettings.recommended(n_initial=128, n_successes=40, max_exploration_steps=20)
+    with SimulationExecutor(problem, backend="inline") as executor:
+        result = optimize_robust_layout(problem, executor, budget=120, seed=0, settings=settings)
+    assert result.n_simulations <= 120
+    assert result.simulated_success and problem.is_valid(result.u[None, :])[0]
+    verified = result.optimizer["verification"]
+    assert len(verified) == 3 and sum(r["simulations"] for r in verified) <= 120 // 4
+    assert PSPSettings().cv_scoring == "accuracy" and settings.cv_scoring == "roc_auc"
 
 
 def squeezed_problem():
