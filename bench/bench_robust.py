@@ -46,8 +46,8 @@ FULL = [
 METHOD_ORDER = ("b1", "b2", "b3", "ours")
 #: CHAOS_BENCH_PLACEMENT_ERROR: ours optimizes the mean energy under this uniform placement error (0: the thesis's).
 PLACEMENT_ERROR = float(os.environ.get("CHAOS_BENCH_PLACEMENT_ERROR", "0"))
-#: CHAOS_BENCH_THESIS=1: ours exactly as the thesis published it (default: PSPSettings.recommended()).
-THESIS_SETTINGS = os.environ.get("CHAOS_BENCH_THESIS", "0") not in ("", "0")
+#: CHAOS_BENCH_RECOMMENDED=1: ours with PSPSettings.recommended() (default: the thesis's settings).
+RECOMMENDED_SETTINGS = os.environ.get("CHAOS_BENCH_RECOMMENDED", "0") not in ("", "0")
 #: CHAOS_BENCH_ROBUST=causality614: CAUSALITYSWITCH at the thesis budget, all four methods (about an hour).
 CAUSALITY_AT_THESIS_BUDGET = [("CAUSALITYSWITCH", "causalityswitch_ball", 614, 5, 1024, 30)]
 #: CHAOS_BENCH_ROBUST=causality614ours: the same, ours only (about 30 minutes; the evaluation set and each result's
@@ -69,8 +69,8 @@ def run_scenario(thesis_name, stem, budget, runs, n_eval, n_local, out_dir: Path
         with SimulationExecutor(problem, workers=None, cache_path=Path(cache_dir) / "sims.sqlite3") as executor:
             comparison = compare_methods(
                 problem, executor, list(methods), runs, budget, seed=0, robustness=robustness,
-                settings=(PSPSettings(placement_error=PLACEMENT_ERROR) if THESIS_SETTINGS
-                          else PSPSettings.recommended(placement_error=PLACEMENT_ERROR)),
+                settings=(PSPSettings.recommended(placement_error=PLACEMENT_ERROR) if RECOMMENDED_SETTINGS
+                          else PSPSettings(placement_error=PLACEMENT_ERROR)),
             )
     rows = {r["method"]: r for r in comparison.table()}
     thesis = THESIS[thesis_name]
@@ -118,7 +118,8 @@ def main() -> None:
     print(
         f"configuration: {words.get(mode, 'QUICK (small budgets and evaluation sets)')} "
         f"(CHAOS_BENCH_ROBUST=quick|reduced|full|causality614|causality614ours); ours with "
-        f"{'the thesis settings' if THESIS_SETTINGS else 'our settings'} (CHAOS_BENCH_THESIS), placement error "
+        f"{'PSPSettings.recommended()' if RECOMMENDED_SETTINGS else 'the thesis settings'} "
+        f"(CHAOS_BENCH_RECOMMENDED), placement error "
         f"{PLACEMENT_ERROR}; {os.cpu_count()} cores"
     )
     for config in configs:

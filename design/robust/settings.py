@@ -179,11 +179,11 @@ class PSPSettings:
 
     @classmethod
     def recommended(cls, **changes) -> PSPSettings:
-        """Ours: the thesis's method with the changes that made it beat the baselines on CAUSALITYSWITCH.
+        """The thesis's method with our changes: better on CAUSALITYSWITCH, worse on BALLRUN at a small budget.
 
-        ``PSPSettings()`` is the thesis's method as published. This one measures the quasi-deterministic test on the
-        uniform start, searches C, γ by ROC AUC, and verifies three candidates with 15 simulations each (see the
-        attributes and the README's robust-layouts section for the figures).
+        ``PSPSettings()`` is the thesis's method as published (the station's default). This one measures the
+        quasi-deterministic test on the uniform start, searches C, γ by ROC AUC, and verifies three candidates with
+        15 simulations each (see the attributes, and the README's robust-layouts section for the figures).
         """
         return cls(**{**RECOMMENDED_CHANGES, **changes})
 

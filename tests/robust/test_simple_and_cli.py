@@ -139,6 +139,17 @@ def test_cli_bad_input_is_one_clear_line(tmp_path, capsys):
     assert not (tmp_path / "z.json").exists()
 
 
+def test_cli_optimize_with_the_recommended_settings_stays_within_the_budget(tmp_path, capsys):
+    from station.commands.robust import psp_settings
+
+    assert psp_settings(False) == PSPSettings() and psp_settings(True) == PSPSettings.recommended()
+    out = tmp_path / "layout.json"
+    code = main(["optimize", str(SIMPLE), "--budget", "30", "--workers", "1", "--recommended", "--out", str(out)])
+    layout = json.loads(out.read_text())
+    assert layout["simulations_used"] <= 30
+    assert code == (0 if layout["simulated_success"] else 1)
+
+
 def test_progress_bar_and_thesis_budgets():
     import io
 

@@ -72,8 +72,8 @@ class RobustScreen(Screen):
         super().__init__(name="optimize")
         #: Local worker processes (None: all cores); tests set 1 to simulate in the worker thread.
         self.simulation_workers: int | None = None
-        #: PSP settings (ours: the thesis's method with our changes, see PSPSettings.recommended); tests shrink them.
-        self.psp_settings = PSPSettings.recommended()
+        #: PSP settings (the thesis's; PSPSettings.recommended() is the alternative); tests shrink them.
+        self.psp_settings = PSPSettings()
         self.result: RobustLayout | None = None
         self.problem = None
         self._stop = threading.Event()
