@@ -338,8 +338,9 @@ class SimulationExecutor:
                         results = future.result()
                     except BrokenProcessPool:
                         raise RobustError(
-                            f"{self.problem.name}: a simulation worker process died (out of memory or killed?); "
-                            "finished simulations are cached, run again to continue"
+                            f"{self.problem.name}: a simulation worker process died (out of memory, killed, or a "
+                            "script without an `if __name__ == '__main__':` guard, which worker processes "
+                            "re-import); finished simulations are cached, run again to continue"
                         ) from None
                     yield from finish(futures[future], results)
         except BaseException:
