@@ -146,6 +146,11 @@ class RobustLayout:
         }
 
 
+def _rank_samples(scores: np.ndarray, samples: Samples) -> np.ndarray:
+    """Rows of ``samples``, simulated successes first (they are known to work), then by decreasing score."""
+    return np.lexsort((-scores, ~samples.success))
+
+
 def optimize_from_samples(
     problem: LayoutProblem,
     psp: FactorizedPSP,
@@ -180,7 +185,7 @@ def optimize_from_samples(
     if offsets is not None and len(successes):
         around = np.clip(samples.U[successes, None, :] + offsets[None, :, :], 0.0, 1.0)
         ranks[successes] = psp.predict_proba(around.reshape(-1, problem.dim)).reshape(len(successes), -1).mean(axis=1)
-    ranking = np.lexsort((-ranks, ~samples.success))
+    ranking = _rank_samples(ranks, samples)
     best = int(ranking[0])
     psp_best = float(scores[best])
     if on_best_sample is not None:
@@ -213,7 +218,7 @@ def _optimize_predicted_robustness(problem, psp, samples, settings, seed, on_bes
         return predicted_global_robustness(U, psp.predict_proba(U), reference, reference_probability, robustness)
 
     sample_scores = predicted(samples.U)
-    ranking = np.lexsort((-sample_scores, ~samples.success))
+    ranking = _rank_samples(sample_scores, samples)
     best = int(ranking[0])
     u_best = samples.U[best]
     if on_best_sample is not None:
@@ -237,13 +242,8 @@ def _optimize_predicted_robustness(problem, psp, samples, settings, seed, on_bes
                 u, score = pool[top], float(pool_scores[top])
         radius = np.zeros(problem.dim)
         radius[free] = settings.refine_radius
-        rng = np.random.default_rng(seed)
-        draw = ball_draw(np.zeros(problem.dim), 1.0, rng)
-        try:
-            nearby = sample_physically_valid(problem, lambda m: u + radius * draw(m), settings.refine_layouts,
-                                             "layouts near the best candidate")
-        except RobustError:  # squeezed against the impossible region: keep the candidate
-            nearby = np.zeros((0, problem.dim))
+        nearby = _valid_in_ball(problem, u, radius, settings.refine_layouts, np.random.default_rng(seed),
+                                "layouts near the best candidate")
         if len(nearby):
             nearby_scores = predicted(nearby)
             if nearby_scores.max() > score:
@@ -284,24 +284,37 @@ def verify_candidates(problem: LayoutProblem, oracle, candidates, settings: PSPS
         if len(distinct) == settings.verification_candidates:
             break
     rng = np.random.default_rng(seed)
-    report, outcomes = [], []
-    for candidate in distinct:
-        layouts = candidate[None, :]
-        if settings.verification_samples > 1:
-            try:
-                around = sample_physically_valid(problem, ball_draw(candidate, settings.verification_radius, rng),
-                                                 settings.verification_samples - 1, "verification layouts")
-            except RobustError:  # squeezed against the impossible region: the candidate alone
-                around = np.zeros((0, problem.dim))
-            layouts = np.concatenate([layouts, around])
-        events = oracle(layouts)
-        success = events.all(axis=1)
-        outcomes.append((candidate, events[0]))
+    groups = [np.concatenate([candidate[None, :], _valid_in_ball(problem, candidate, settings.verification_radius,
+                                                                 settings.verification_samples - 1, rng,
+                                                                 "verification layouts")])
+              for candidate in distinct]
+    # One batch for every candidate: the workers share all of it instead of waiting at each candidate's end.
+    events = oracle(np.concatenate(groups))
+    report, firsts, start = [], [], 0
+    for candidate, group in zip(distinct, groups):
+        group_events = events[start:start + len(group)]
+        start += len(group)
+        success = group_events.all(axis=1)
+        firsts.append(group_events[0])
         report.append({"u": [float(v) for v in candidate], "success": bool(success[0]),
-                       "local_success_rate": float(success.mean()), "simulations": len(layouts)})
-    ranked = sorted(range(len(report)), key=lambda i: (not report[i]["success"], -report[i]["local_success_rate"], i))
-    chosen = ranked[0]
-    return outcomes[chosen][0], outcomes[chosen][1], report
+                       "local_success_rate": float(success.mean()), "simulations": len(group)})
+    chosen = min(range(len(report)), key=lambda i: (not report[i]["success"], -report[i]["local_success_rate"], i))
+    return distinct[chosen], firsts[chosen], report
+
+
+def _valid_in_ball(problem: LayoutProblem, centre: np.ndarray, radius, n: int, rng: np.random.Generator,
+                   what: str) -> np.ndarray:
+    """Up to ``n`` valid layouts uniform in the ball (an ellipsoid if ``radius`` is per axis) around ``centre``.
+
+    Empty when ``n`` is 0 or when the ball lies almost wholly in the impossible region.
+    """
+    if n <= 0:
+        return np.zeros((0, problem.dim))
+    unit = ball_draw(np.zeros(problem.dim), 1.0, rng)
+    try:
+        return sample_physically_valid(problem, lambda m: centre + radius * unit(m), n, what)
+    except RobustError:
+        return np.zeros((0, problem.dim))
 
 
 def optimize_robust_layout(

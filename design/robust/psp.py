@@ -171,6 +171,11 @@ class CalibratedSVM:
         return self.decision_function(X) > 0
 
 
+def _classifier(settings, seed: int) -> CalibratedSVM:
+    """An unfitted classifier with the settings' grids, folds and scoring."""
+    return CalibratedSVM(settings.c_grid, settings.gamma_grid, settings.cv_folds, seed, settings.cv_scoring)
+
+
 # --------------------------------------------------------------------------------------------------------------
 # Exploration (Algorithm 1)
 # --------------------------------------------------------------------------------------------------------------
@@ -340,11 +345,11 @@ class FactorizedPSP:
 
     def _quasi_deterministic_rate(self, settings, condition, labels) -> float:
         """The event's success rate given its parents, on the sample the setting names (see PSPSettings)."""
-        rows = condition.copy()
+        rows = condition
         n_initial = self.samples_.n_initial
         if settings.quasi_deterministic_sample == "initial" and n_initial is not None:
-            initial = rows.copy()
-            initial[n_initial:] = False
+            initial = np.zeros_like(condition)
+            initial[:n_initial] = condition[:n_initial]
             # Too few uniform rows where the parents succeeded say little; then use every explored row.
             if initial.sum() >= settings.quasi_deterministic_min_rows:
                 rows = initial
@@ -363,7 +368,7 @@ class FactorizedPSP:
         if column is not None and len(y) and 0 < y.sum() < len(y):
             subspace = self._subspace(X, y, settings)
         seed = int(rng.integers(2**31))
-        classifier = CalibratedSVM(settings.c_grid, settings.gamma_grid, settings.cv_folds, seed, settings.cv_scoring)
+        classifier = _classifier(settings, seed)
         classifier.fit(X[:, subspace], y, calibrate=False)
         model = EventModel(name, subspace, False, rate, classifier, len(y))
         if on_model is not None:
@@ -380,8 +385,7 @@ class FactorizedPSP:
             self.samples_.add(queries, oracle(queries))
             condition, labels = self._labels(parents, column)
             X, y = self.samples_.U[condition], labels[condition]
-            classifier = CalibratedSVM(settings.c_grid, settings.gamma_grid, settings.cv_folds, seed,
-                                       settings.cv_scoring)
+            classifier = _classifier(settings, seed)
             classifier.fit(X[:, subspace], y, calibrate=False)
             model = EventModel(name, subspace, False, float(y.mean()), classifier, len(y), model.active_steps + 1)
             if on_model is not None:

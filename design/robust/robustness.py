@@ -11,6 +11,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.spatial.distance import cdist
 
 from design.robust.problem import LayoutProblem
 from design.robust.sampling import ball_draw, sample_physically_valid, sobol_valid
@@ -50,18 +51,41 @@ def epsilon_grid(settings: RobustnessSettings) -> np.ndarray:
     return np.linspace(0.0, 1.0, steps + 1)
 
 
+def ball_means(
+    centres: np.ndarray,
+    points: np.ndarray,
+    values: np.ndarray,
+    radii: np.ndarray,
+    own_weight: float = 0.0,
+    own_values: np.ndarray | None = None,
+    chunk: int = 256,
+) -> np.ndarray:
+    """Mean of ``values`` over the ``points`` within each radius of each centre, ``(m, len(radii))``.
+
+    Each centre may count its own value ``own_weight`` times (the evaluation's local layouts in B_η(x)); an empty
+    ball scores 0. This is ρ_l when the values are simulated successes, and its expectation when they are
+    probabilities.
+    """
+    centres = np.atleast_2d(np.asarray(centres, dtype=float))
+    points = np.asarray(points, dtype=float)
+    values = np.asarray(values, dtype=float)
+    radii = np.asarray(radii, dtype=float)
+    own = np.zeros(len(centres)) if own_values is None else np.asarray(own_values, dtype=float)
+    result = np.empty((len(centres), len(radii)))
+    for begin in range(0, len(centres), chunk):
+        distances = cdist(centres[begin:begin + chunk], points)
+        inside = distances[:, None, :] <= radii[None, :, None]  # (block, radii, points)
+        counts = inside.sum(axis=-1) + own_weight
+        mass = inside @ values + own_weight * own[begin:begin + chunk, None]
+        result[begin:begin + chunk] = np.divide(mass, counts, out=np.zeros_like(mass), where=counts > 0)
+    return result
+
+
 def local_robustness_from_points(
     u: np.ndarray, U: np.ndarray, success: np.ndarray, epsilon: np.ndarray, thickness: float
 ) -> np.ndarray:
     """ρ_l(u, ε + η) for every ε, from simulated valid points ``U`` and their ``success`` (0 where empty)."""
-    distances = np.linalg.norm(U - u, axis=1)
-    order = np.argsort(distances)
-    sorted_distances = distances[order]
-    cumulative_success = np.concatenate([[0], np.cumsum(success[order])])
-    counts = np.searchsorted(sorted_distances, epsilon + thickness, side="right")
-    with np.errstate(invalid="ignore", divide="ignore"):
-        rho = np.where(counts > 0, cumulative_success[counts] / np.maximum(counts, 1), 0.0)
-    return rho
+    return ball_means(u, U, success, np.asarray(epsilon) + thickness)[0]
 
 
 def robustness_curve(
@@ -137,18 +161,8 @@ def predicted_global_robustness(
     ndarray, shape (m,)
     """
     settings = settings or RobustnessSettings()
-    candidates = np.atleast_2d(np.asarray(candidates, dtype=float))
-    reference = np.asarray(reference, dtype=float)
     epsilon = epsilon_grid(settings)
-    radii = epsilon + settings.thickness_factor * settings.epsilon_step
-    own = float(settings.n_local)
-    result = np.empty(len(candidates))
-    for begin in range(0, len(candidates), chunk):
-        block = candidates[begin:begin + chunk]
-        distances = np.sqrt(((block[:, None, :] - reference[None, :, :]) ** 2).sum(axis=-1))
-        inside = distances[:, None, :] <= radii[None, :, None]  # (block, radii, reference)
-        counts = inside.sum(axis=-1) + own
-        mass = inside @ reference_probability + own * candidate_probability[begin:begin + chunk, None]
-        rho = np.divide(mass, counts, out=np.zeros_like(mass), where=counts > 0)  # an empty ball scores 0
-        result[begin:begin + chunk] = np.trapezoid(rho, epsilon, axis=1)
-    return result
+    rho = ball_means(candidates, reference, reference_probability,
+                     epsilon + settings.thickness_factor * settings.epsilon_step,
+                     float(settings.n_local), candidate_probability, chunk)
+    return np.trapezoid(rho, epsilon, axis=1)
