@@ -53,6 +53,11 @@ CAUSALITY_AT_THESIS_BUDGET = [("CAUSALITYSWITCH", "causalityswitch_ball", 614, 5
 #: CHAOS_BENCH_ROBUST=causality614ours: the same, ours only (about 30 minutes; the evaluation set and each result's
 #: local samples are seeded as in causality614, so the baselines' figures from that run compare).
 CAUSALITY_OURS_AT_THESIS_BUDGET = [("CAUSALITYSWITCH", "causalityswitch_ball", 614, 5, 1024, 30, ("ours",))]
+#: CHAOS_BENCH_ROBUST=ballrun1120: BALLRUN at the thesis budget, all four methods. Only 1.5 % of BALLRUN's layouts
+#: succeed, so at the QUICK budget of 240 the baselines that search by ρ_l rarely find a success at all.
+BALLRUN_AT_THESIS_BUDGET = [("BALLRUN", "ballrun", 1120, 5, 1024, 30)]
+#: CHAOS_BENCH_ROBUST=ballrun1120ours: the same, ours only (seeded as in ballrun1120).
+BALLRUN_OURS_AT_THESIS_BUDGET = [("BALLRUN", "ballrun", 1120, 5, 1024, 30, ("ours",))]
 
 
 def run_scenario(thesis_name, stem, budget, runs, n_eval, n_local, out_dir: Path, methods=METHOD_ORDER) -> None:
@@ -109,15 +114,18 @@ def run_scenario(thesis_name, stem, budget, runs, n_eval, n_local, out_dir: Path
 def main() -> None:
     mode = os.environ.get("CHAOS_BENCH_ROBUST", "quick").lower()
     configs = {"full": FULL, "reduced": REDUCED, "causality614": CAUSALITY_AT_THESIS_BUDGET,
-               "causality614ours": CAUSALITY_OURS_AT_THESIS_BUDGET}.get(mode, QUICK)
+               "causality614ours": CAUSALITY_OURS_AT_THESIS_BUDGET, "ballrun1120": BALLRUN_AT_THESIS_BUDGET,
+               "ballrun1120ours": BALLRUN_OURS_AT_THESIS_BUDGET}.get(mode, QUICK)
     out_dir = Path(os.environ.get("CHAOS_BENCH_OUT", tempfile.gettempdir())) / "chaos-bench-robust"
     out_dir.mkdir(parents=True, exist_ok=True)
     words = {"full": "FULL (thesis budgets, T = 10)", "reduced": "REDUCED (smaller budgets and evaluation sets)",
              "causality614": "CAUSALITYSWITCH at the thesis budget",
-             "causality614ours": "CAUSALITYSWITCH at the thesis budget, ours only"}
+             "causality614ours": "CAUSALITYSWITCH at the thesis budget, ours only",
+             "ballrun1120": "BALLRUN at the thesis budget",
+             "ballrun1120ours": "BALLRUN at the thesis budget, ours only"}
     print(
         f"configuration: {words.get(mode, 'QUICK (small budgets and evaluation sets)')} "
-        f"(CHAOS_BENCH_ROBUST=quick|reduced|full|causality614|causality614ours); ours with "
+        f"(CHAOS_BENCH_ROBUST=quick|reduced|full|causality614|causality614ours|ballrun1120|ballrun1120ours); ours with "
         f"{'PSPSettings.recommended()' if RECOMMENDED_SETTINGS else 'the thesis settings'} "
         f"(CHAOS_BENCH_RECOMMENDED), placement error "
         f"{PLACEMENT_ERROR}; {os.cpu_count()} cores"

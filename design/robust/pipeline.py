@@ -26,7 +26,7 @@ from design.robust.robustness import (
     predicted_global_robustness,
     robustness_curve,
 )
-from design.robust.sampling import ball_draw, sample_physically_valid, sobol_valid
+from design.robust.sampling import sobol_valid, valid_in_ball
 from design.robust.settings import PSPSettings, RobustnessSettings
 
 METHODS = ("ours", "b1", "b2", "b3")
@@ -146,6 +146,70 @@ class RobustLayout:
         }
 
 
+@dataclass(frozen=True)
+class Optimized:
+    """What the optimization after learning found, before any of it is simulated.
+
+    Attributes
+    ----------
+    u : ndarray
+        The model's best layout (valid).
+    candidates : list of ndarray
+        Layouts worth verifying, best first (``u`` is the first).
+    info : dict
+        The optimizer's report (JSON-friendly), with ``start_sample``, the row of the samples it started from.
+    best_sample : int
+        Row of the best-ranked sample, the fallback if ``u`` fails in simulation.
+    psp_best_sample : float
+        Its PSP.
+    """
+
+    u: np.ndarray
+    candidates: list[np.ndarray]
+    info: dict
+    best_sample: int
+    psp_best_sample: float
+
+
+@dataclass(frozen=True)
+class BudgetPlan:
+    """How a simulation budget is shared out (all ``None`` without a budget).
+
+    Attributes
+    ----------
+    settings : PSPSettings
+        The settings, with ``verification_samples`` lowered when the budget is too small for them.
+    reserve : int
+        Simulations kept for checking the result (candidates x samples).
+    exploration_cap, initial_cap : int or None
+        Most simulations the exploration, and within it the Sobol start, may use.
+    """
+
+    settings: PSPSettings
+    reserve: int
+    exploration_cap: int | None
+    initial_cap: int | None
+
+
+def plan_budget(settings: PSPSettings, budget: int | None) -> BudgetPlan:
+    """Share ``budget`` between verification, the exploration (and its Sobol start) and active learning.
+
+    Verification never takes over a quarter of the budget: a small one gets fewer simulations per candidate. The
+    exploration may use ``exploration_share`` of the rest, its Sobol start ``initial_share``; active learning gets
+    what the exploration leaves.
+    """
+    reserve = settings.verification_candidates * settings.verification_samples
+    if budget is None:
+        return BudgetPlan(settings, reserve, None, None)
+    if reserve > max(1, budget // 4):
+        per_candidate = max(1, (budget // 4) // settings.verification_candidates)
+        settings = settings.with_changes(verification_samples=per_candidate)
+        reserve = settings.verification_candidates * per_candidate
+    learning = budget - reserve
+    return BudgetPlan(settings, reserve, max(10, int(settings.exploration_share * learning)),
+                      max(10, int(settings.initial_share * learning)))
+
+
 def _rank_samples(scores: np.ndarray, samples: Samples) -> np.ndarray:
     """Rows of ``samples``, simulated successes first (they are known to work), then by decreasing score."""
     return np.lexsort((-scores, ~samples.success))
@@ -158,23 +222,13 @@ def optimize_from_samples(
     settings: PSPSettings,
     seed: int = 0,
     on_best_sample: Callable[[float], None] | None = None,
-) -> tuple[np.ndarray, dict, int, float]:
+) -> Optimized:
     """Thesis 4.7 after learning: rank the simulated samples, then SLSQP from the best of them.
 
     Samples rank by PSP, simulated successes first; under a placement error, successes rank by their mean PSP over
-    the offsets. SLSQP runs from the ``optimizer_starts`` best-ranked samples and the lowest energy wins (the first
-    start wins ties, so one start is the thesis's method).
-
-    Returns
-    -------
-    u : ndarray
-        The optimized normalized layout (valid, not yet simulated).
-    info : dict
-        The optimizer's report, with ``start_sample``, the row of ``samples`` it started from.
-    best : int
-        Row of the best-ranked sample (the fallback if ``u`` fails in simulation).
-    psp_best : float
-        Its PSP.
+    the offsets. SLSQP runs from the ``optimizer_starts`` best-ranked samples (at least ``verification_candidates``
+    of them, so that each verified candidate is an optimum) and the lowest energy wins (the first start wins ties,
+    so one start is the thesis's method).
     """
     if settings.objective == "global_robustness":
         return _optimize_predicted_robustness(problem, psp, samples, settings, seed, on_best_sample)
@@ -197,8 +251,7 @@ def optimize_from_samples(
         results.append((candidate, {**candidate_info, "start_sample": int(start)}))
     order = sorted(range(len(results)), key=lambda i: (results[i][1]["energy"], i))  # stable: first start on ties
     u, info = results[order[0]]
-    info = {**info, "candidates": [results[i][0] for i in order]}
-    return u, info, best, psp_best
+    return Optimized(u, [results[i][0] for i in order], info, best, psp_best)
 
 
 def _optimize_predicted_robustness(problem, psp, samples, settings, seed, on_best_sample):
@@ -242,7 +295,7 @@ def _optimize_predicted_robustness(problem, psp, samples, settings, seed, on_bes
                 u, score = pool[top], float(pool_scores[top])
         radius = np.zeros(problem.dim)
         radius[free] = settings.refine_radius
-        nearby = _valid_in_ball(problem, u, radius, settings.refine_layouts, np.random.default_rng(seed),
+        nearby = valid_in_ball(problem, u, radius, settings.refine_layouts, np.random.default_rng(seed),
                                 "layouts near the best candidate")
         if len(nearby):
             nearby_scores = predicted(nearby)
@@ -251,12 +304,12 @@ def _optimize_predicted_robustness(problem, psp, samples, settings, seed, on_bes
         if len(pool):  # runners-up for verification, best first
             for i in np.argsort(-pool_scores, kind="stable")[: 4 * settings.verification_candidates]:
                 runners_up.append(pool[i])
+    u = np.asarray(u, dtype=float)
     info = {"energy_start": -float(sample_scores[best]), "energy": -score, "iterations": 0,
-            "candidates": [np.asarray(u, dtype=float), *runners_up],
             "message": "highest predicted global robustness", "predicted_rho_g": score,
             "predicted_rho_g_best_sample": float(sample_scores[best]), "start_sample": best,
             "free_parameters": [problem.parameter_names[i] for i in free]}
-    return np.asarray(u, dtype=float), info, best, float(psp.predict_proba(u_best)[0])
+    return Optimized(u, [u, *runners_up], info, best, float(psp.predict_proba(u_best)[0]))
 
 
 def verify_candidates(problem: LayoutProblem, oracle, candidates, settings: PSPSettings, seed: int = 0):
@@ -284,7 +337,7 @@ def verify_candidates(problem: LayoutProblem, oracle, candidates, settings: PSPS
         if len(distinct) == settings.verification_candidates:
             break
     rng = np.random.default_rng(seed)
-    groups = [np.concatenate([candidate[None, :], _valid_in_ball(problem, candidate, settings.verification_radius,
+    groups = [np.concatenate([candidate[None, :], valid_in_ball(problem, candidate, settings.verification_radius,
                                                                  settings.verification_samples - 1, rng,
                                                                  "verification layouts")])
               for candidate in distinct]
@@ -300,21 +353,6 @@ def verify_candidates(problem: LayoutProblem, oracle, candidates, settings: PSPS
                        "local_success_rate": float(success.mean()), "simulations": len(group)})
     chosen = min(range(len(report)), key=lambda i: (not report[i]["success"], -report[i]["local_success_rate"], i))
     return distinct[chosen], firsts[chosen], report
-
-
-def _valid_in_ball(problem: LayoutProblem, centre: np.ndarray, radius, n: int, rng: np.random.Generator,
-                   what: str) -> np.ndarray:
-    """Up to ``n`` valid layouts uniform in the ball (an ellipsoid if ``radius`` is per axis) around ``centre``.
-
-    Empty when ``n`` is 0 or when the ball lies almost wholly in the impossible region.
-    """
-    if n <= 0:
-        return np.zeros((0, problem.dim))
-    unit = ball_draw(np.zeros(problem.dim), 1.0, rng)
-    try:
-        return sample_physically_valid(problem, lambda m: centre + radius * unit(m), n, what)
-    except RobustError:
-        return np.zeros((0, problem.dim))
 
 
 def optimize_robust_layout(
@@ -345,20 +383,12 @@ def optimize_robust_layout(
     started = time.perf_counter()
     new_before = executor.n_simulated
     oracle = BudgetedOracle(executor, budget, progress, should_stop)
-    # Kept to check the result: one simulation, or the verification of several candidates (see PSPSettings).
-    reserve = settings.verification_candidates * settings.verification_samples
-    if budget is not None and reserve > max(1, budget // 4):
-        # A small budget: fewer simulations per candidate, so verification never takes over a quarter of it.
-        per_candidate = max(1, (budget // 4) // settings.verification_candidates)
-        settings = settings.with_changes(verification_samples=per_candidate)
-        reserve = settings.verification_candidates * per_candidate
-    learning_budget = None if budget is None else budget - reserve
-    exploration_cap = None if budget is None else max(10, int(settings.exploration_share * learning_budget))
+    plan = plan_budget(settings, budget)
+    settings, reserve = plan.settings, plan.reserve
 
     oracle.phase = "exploration"
     oracle.report()
-    initial_cap = None if budget is None else max(10, int(settings.initial_share * learning_budget))
-    samples = explore(problem, oracle, settings, seed, exploration_cap, initial_cap)
+    samples = explore(problem, oracle, settings, seed, plan.exploration_cap, plan.initial_cap)
 
     oracle.phase = "active learning"
 
@@ -379,13 +409,13 @@ def optimize_robust_layout(
         oracle.phase = "optimization"
         oracle.report()
 
-    u, info, best, psp_best = optimize_from_samples(problem, psp, samples, settings, seed, best_sample_chosen)
+    optimized = optimize_from_samples(problem, psp, samples, settings, seed, best_sample_chosen)
+    best, psp_best, info = optimized.best_sample, optimized.psp_best_sample, optimized.info
     u_best = samples.U[best]
-    oracle.best_psp = float(psp.predict_proba(u)[0])
+    oracle.best_psp = float(psp.predict_proba(optimized.u)[0])
 
     oracle.phase = "check"
-    candidates = info.pop("candidates", [u])
-    u, events, verification = verify_candidates(problem, oracle, candidates, settings, seed)
+    u, events, verification = verify_candidates(problem, oracle, optimized.candidates, settings, seed)
     if len(verification) > 1:
         info = {**info, "verification": verification}
     if not events.all() and settings.fallback_to_best_sample and samples.success[best]:

@@ -14,7 +14,7 @@ import numpy as np
 from scipy.spatial.distance import cdist
 
 from design.robust.problem import LayoutProblem
-from design.robust.sampling import ball_draw, sample_physically_valid, sobol_valid
+from design.robust.sampling import sobol_valid, valid_in_ball
 from design.robust.settings import RobustnessSettings
 
 Oracle = Callable[[np.ndarray], np.ndarray]
@@ -105,11 +105,7 @@ def robustness_curve(
     thickness = settings.thickness_factor * settings.epsilon_step
     U, success = evaluation.U, evaluation.success
     if thickness > 0 and settings.n_local > 0:
-        rng = np.random.default_rng(seed)
-        try:
-            local = sample_physically_valid(problem, ball_draw(u, thickness, rng), settings.n_local, "local layouts")
-        except Exception:  # noqa: BLE001 - a layout squeezed against D∅ may have too few valid neighbours
-            local = np.zeros((0, problem.dim))
+        local = valid_in_ball(problem, u, thickness, settings.n_local, np.random.default_rng(seed), "local layouts")
         if len(local):
             U = np.concatenate([U, local])
             success = np.concatenate([success, oracle(local).all(axis=1)])
@@ -126,9 +122,8 @@ def estimate_local_robustness(
     """
     if not problem.is_valid(np.asarray(u, dtype=float)[None, :])[0]:
         return 0.0, 0
-    try:
-        neighbours = sample_physically_valid(problem, ball_draw(u, radius, rng), n, "neighbours")
-    except Exception:  # noqa: BLE001 - no valid neighbour at all
+    neighbours = valid_in_ball(problem, u, radius, n, rng, "neighbours")
+    if not len(neighbours):
         return 0.0, 0
     return float(oracle(neighbours).all(axis=1).mean()), len(neighbours)
 

@@ -75,15 +75,34 @@ def gaussian_mixture_draw(
     return draw
 
 
-def ball_draw(center: np.ndarray, radius: float, rng: np.random.Generator) -> Callable[[int], np.ndarray]:
-    """A uniform sampler of the Euclidean ball of ``radius`` around ``center``."""
+def ball_draw(center: np.ndarray, radius, rng: np.random.Generator) -> Callable[[int], np.ndarray]:
+    """A uniform sampler of the ball of ``radius`` around ``center`` (an ellipsoid if ``radius`` is per axis)."""
     center = np.asarray(center, dtype=float)
     d = len(center)
+    radius = radius if np.ndim(radius) == 0 else np.asarray(radius, dtype=float)
 
     def draw(m: int) -> np.ndarray:
         directions = rng.standard_normal((m, d))
         directions /= np.linalg.norm(directions, axis=1, keepdims=True)
-        radii = radius * rng.random(m) ** (1.0 / d)
-        return center + directions * radii[:, None]
+        radii = rng.random(m) ** (1.0 / d)
+        if np.ndim(radius) == 0:
+            return center + directions * (radius * radii)[:, None]
+        return center + directions * radii[:, None] * radius
 
     return draw
+
+
+def valid_in_ball(
+    problem: LayoutProblem, center: np.ndarray, radius, n: int, rng: np.random.Generator, what: str = "layouts"
+) -> np.ndarray:
+    """Up to ``n`` valid layouts uniform in the ball of ``radius`` (scalar or per axis) around ``center``.
+
+    Empty when ``n`` is 0 or when the ball lies almost wholly in D∅, as it may for a layout squeezed against the
+    impossible region; callers score such a layout from what they have instead of failing.
+    """
+    if n <= 0:
+        return np.zeros((0, problem.dim))
+    try:
+        return sample_physically_valid(problem, ball_draw(center, radius, rng), n, what)
+    except RobustError:
+        return np.zeros((0, problem.dim))

@@ -8,7 +8,7 @@ from sklearn.metrics import roc_auc_score
 
 from design.robust import CalibratedSVM, FactorizedPSP, PSPSettings, RobustError, explore, synthetic_chain
 from design.robust.psp import fit_platt
-from design.robust.sampling import sobol_valid
+from design.robust.sampling import sobol_valid, valid_in_ball
 
 SMALL = PSPSettings(n_initial=160, n_successes=40, max_exploration_steps=20)
 
@@ -173,3 +173,37 @@ def test_roc_auc_search_ranks_a_rare_failure_region_and_still_reports_accuracy()
     assert p[0] < 0.6 < 0.9 < p[1]
     with pytest.raises(RobustError, match="cv_scoring"):
         PSPSettings(cv_scoring="f1")
+
+
+def test_valid_in_ball_draws_in_the_ball_or_ellipsoid_and_is_empty_where_nothing_is_valid():
+    problem = synthetic_chain()
+    centre = np.full(problem.dim, 0.5)
+    rng = np.random.default_rng(0)
+    ball = valid_in_ball(problem, centre, 0.1, 50, rng)
+    assert ball.shape == (50, problem.dim)
+    assert np.all(np.linalg.norm(ball - centre, axis=1) <= 0.1 + 1e-12)
+    assert problem.is_valid(ball).all()
+    radius = np.zeros(problem.dim)
+    radius[0] = 0.2
+    ellipsoid = valid_in_ball(problem, centre, radius, 20, rng)
+    assert np.all(np.abs(ellipsoid[:, 0] - 0.5) <= 0.2 + 1e-12)
+    np.testing.assert_array_equal(ellipsoid[:, 1:], 0.5)  # a zero radius pins that parameter
+    assert len(valid_in_ball(problem, centre, 0.1, 0, rng)) == 0
+    # Wholly outside the design space: nothing valid, an empty result rather than an error.
+    outside = valid_in_ball(problem, np.full(problem.dim, 3.0), 0.1, 5, rng)
+    assert outside.shape == (0, problem.dim)
+
+
+def test_valid_in_ball_lets_a_broken_validity_check_raise():
+    # Only "too few valid layouts" means an empty ball; any other error is a bug and must not read as robustness 0.
+    problem = synthetic_chain()
+
+    class Broken:
+        dim = problem.dim
+        name = problem.name
+
+        def is_valid(self, U):
+            raise ValueError("broken constraint")
+
+    with pytest.raises(ValueError, match="broken constraint"):
+        valid_in_ball(Broken(), np.full(problem.dim, 0.5), 0.1, 5, np.random.default_rng(0))

@@ -26,7 +26,7 @@ from design.robust import (
     synthetic_chain,
 )
 from design.robust.optimize import energy, placement_offsets
-from design.robust.pipeline import verify_candidates
+from design.robust.pipeline import plan_budget, verify_candidates
 from design.robust.problem import EllipsoidEvent, SyntheticProblem
 from design.robust.robustness import (
     epsilon_grid,
@@ -171,6 +171,24 @@ def test_recommended_settings_fit_a_small_budget_and_return_a_verified_success()
     verified = result.optimizer["verification"]
     assert len(verified) == 3 and sum(r["simulations"] for r in verified) <= 120 // 4
     assert PSPSettings().cv_scoring == "accuracy" and settings.cv_scoring == "roc_auc"
+
+
+@pytest.mark.parametrize(
+    ("budget", "candidates", "samples", "expected"),
+    [
+        # (budget, verified candidates, samples each) -> (samples each, reserve, exploration cap, Sobol cap)
+        (None, 3, 15, (15, 45, None, None)),
+        (614, 1, 1, (1, 1, 459, 306)),  # the thesis's single check
+        (614, 3, 15, (15, 45, 426, 284)),
+        (120, 3, 15, (10, 30, 67, 45)),  # at most a quarter of the budget
+        (20, 3, 15, (1, 3, 12, 10)),  # never less than one simulation per candidate, nor caps below 10
+    ],
+)
+def test_budget_plan_shares_out_the_budget(budget, candidates, samples, expected):
+    settings = PSPSettings(verification_candidates=candidates, verification_samples=samples)
+    plan = plan_budget(settings, budget)
+    assert (plan.settings.verification_samples, plan.reserve, plan.exploration_cap, plan.initial_cap) == expected
+    assert budget is None or plan.reserve <= max(budget // 4, candidates)
 
 
 def squeezed_problem():
