@@ -93,6 +93,9 @@ def run_scenario(thesis_name, stem, budget, runs, n_eval, n_local, out_dir: Path
             f"  {method:6s} {row['rho_g_mean']:11.3f} ± {row['rho_g_sem']:.3f} {thesis['rho'][index]:7.2f} "
             f"{row['seconds_mean']:9.1f} {thesis['time'][index]:7d} {row['simulations_mean']:6.0f}"
         )
+    for method in (m for m in METHOD_ORDER if m in rows):
+        per_seed = ", ".join(f"{r.curve.global_robustness:.3f}" for r in comparison.results if r.method == method)
+        print(f"  {method} per seed: {per_seed}")
     ours = rows["ours"]["rho_g_mean"]
     ratios = ", ".join(
         f"ours/{m} = {ours / rows[m]['rho_g_mean']:.2f}" if rows[m]["rho_g_mean"] > 0 else f"ours/{m} = inf"

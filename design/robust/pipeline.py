@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, field
+from dataclasses import asdict, dataclass, field
 
 import numpy as np
 
@@ -117,6 +117,8 @@ class RobustLayout:
     seed: int
     optimizer: dict = field(default_factory=dict)
     model: FactorizedPSP | None = None
+    #: The settings the run used (after :func:`plan_budget`), so that it can be repeated.
+    settings: PSPSettings | None = None
 
     def to_json(self, problem: LayoutProblem) -> dict:
         """The LAYOUT.json content: hash, parameters in real units and normalized, predictions, budget used."""
@@ -143,6 +145,8 @@ class RobustLayout:
                             "predicted_psp": float(self.psp_best_sample)},
             "seed": self.seed,
             "seconds": round(self.seconds, 3),
+            "psp_settings": None if self.settings is None else {
+                k: list(v) if isinstance(v, tuple) else v for k, v in asdict(self.settings).items()},
         }
 
 
@@ -449,6 +453,7 @@ def optimize_robust_layout(
         seed=seed,
         optimizer=info,
         model=psp,
+        settings=settings,
     )
 
 

@@ -34,6 +34,12 @@ from station.paths import cache_dir
 #: Simulation budgets measured by the thesis for its own method (Table 4.1), used as the default budget.
 THESIS_BUDGETS = {"CAUSALITYSWITCH": 614, "BALLRUN": 1120, "LONGCHAIN": 1915, "TEAPOTADVENTURE": 2420}
 DEFAULT_BUDGET = 600
+#: The PSP settings one can choose: the thesis's method as published, or ours (see PSPSettings.recommended).
+SETTINGS_CHOICES = {
+    "thesis": "the thesis's method as published",
+    "recommended": "ours: quasi-deterministic test on the uniform start, C/γ by ROC AUC, three verified candidates",
+}
+DEFAULT_SETTINGS = "thesis"
 
 
 def simulation_cache_path() -> Path:
@@ -134,9 +140,7 @@ def register(subparsers) -> None:
     optimize.add_argument("--placement-error", type=float, default=0.0, metavar="EPS",
                           help="optimize the mean success probability under a uniform placement error of EPS "
                           "(normalized units, e.g. 0.1) instead of at the point (default 0, the thesis's)")
-    optimize.add_argument("--recommended", action="store_true", help="our changes to the thesis's method "
-                          "(quasi-deterministic test on the uniform start, C/γ by ROC AUC, three verified "
-                          "candidates; better on CAUSALITYSWITCH, worse on BALLRUN at small budgets: see the README)")
+    add_settings_choice(optimize)
     optimize.add_argument("--json", action="store_true", help="also print the layout as JSON on stdout")
     optimize.set_defaults(func=run_optimize)
 
@@ -166,8 +170,7 @@ def register(subparsers) -> None:
                          help="size of the Sobol evaluation set (default %(default)s)")
     compare.add_argument("--local", type=int, default=RobustnessSettings().n_local, metavar="N",
                          help="layouts simulated around each result (ball thickness, default %(default)s)")
-    compare.add_argument("--recommended", action="store_true", help="run ours with our changes to the thesis's "
-                         "settings (see `station optimize --help`)")
+    add_settings_choice(compare)
     compare.add_argument("--plot", metavar="OUT.png", help="draw the mean ρ_l curves (Figure 4.18)")
     compare.add_argument("--json", action="store_true", help="print the table as JSON")
     compare.set_defaults(func=run_compare)
@@ -187,9 +190,20 @@ def default_budget(problem, budget: int | None) -> int:
     return budget
 
 
-def psp_settings(recommended: bool, **changes) -> PSPSettings:
-    """The thesis's settings as published (the default), or :meth:`PSPSettings.recommended`."""
-    return PSPSettings.recommended(**changes) if recommended else PSPSettings(**changes)
+def add_settings_choice(parser) -> None:
+    """``--settings thesis|recommended`` (and ``--recommended``, short for ``--settings recommended``)."""
+    parser.add_argument("--settings", choices=sorted(SETTINGS_CHOICES), default=DEFAULT_SETTINGS,
+                        help="PSP settings of ours: " + "; ".join(f"{k}: {v}" for k, v in SETTINGS_CHOICES.items())
+                        + " (default %(default)s; figures of both in the README)")
+    parser.add_argument("--recommended", dest="settings", action="store_const", const="recommended",
+                        help="short for --settings recommended")
+
+
+def psp_settings(choice: str, **changes) -> PSPSettings:
+    """The PSP settings named ``choice`` (a key of :data:`SETTINGS_CHOICES`) with ``changes``."""
+    if choice not in SETTINGS_CHOICES:
+        raise UsageError(f"--settings must be one of {', '.join(sorted(SETTINGS_CHOICES))}, got {choice!r}")
+    return PSPSettings.recommended(**changes) if choice == "recommended" else PSPSettings(**changes)
 
 
 def run_optimize(args) -> int:
@@ -197,7 +211,7 @@ def run_optimize(args) -> int:
     output_suffix(out, {".json"})
     problem = _load_problem(args.scenario)
     budget = default_budget(problem, args.budget)
-    settings = psp_settings(args.recommended, factorize=not args.global_psp, placement_error=args.placement_error)
+    settings = psp_settings(args.settings, factorize=not args.global_psp, placement_error=args.placement_error)
     bar = ProgressBar()
     executor = None
     try:
@@ -306,7 +320,7 @@ def run_compare(args) -> int:
     try:
         with _executor(problem, args) as executor:
             comparison = compare_methods(problem, executor, methods, args.runs, budget, args.seed,
-                                         settings=psp_settings(args.recommended), robustness=robustness, progress=bar)
+                                         settings=psp_settings(args.settings), robustness=robustness, progress=bar)
     except KeyboardInterrupt:
         bar.close()
         _interrupted(executor)

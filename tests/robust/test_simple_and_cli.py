@@ -140,14 +140,30 @@ def test_cli_bad_input_is_one_clear_line(tmp_path, capsys):
 
 
 def test_cli_optimize_with_the_recommended_settings_stays_within_the_budget(tmp_path, capsys):
-    from station.commands.robust import psp_settings
+    from station.commands.robust import DEFAULT_SETTINGS, psp_settings
 
-    assert psp_settings(False) == PSPSettings() and psp_settings(True) == PSPSettings.recommended()
+    assert psp_settings("thesis") == PSPSettings() and psp_settings("recommended") == PSPSettings.recommended()
+    assert DEFAULT_SETTINGS in ("thesis", "recommended")
     out = tmp_path / "layout.json"
     code = main(["optimize", str(SIMPLE), "--budget", "30", "--workers", "1", "--recommended", "--out", str(out)])
     layout = json.loads(out.read_text())
     assert layout["simulations_used"] <= 30
     assert code == (0 if layout["simulated_success"] else 1)
+    # The layout file says how it was made; a budget of 30 left 2 simulations per verified candidate.
+    settings = layout["psp_settings"]
+    assert settings["cv_scoring"] == "roc_auc" and settings["verification_candidates"] == 3
+    assert settings["verification_samples"] == 2
+    restored = PSPSettings(**{k: tuple(v) if isinstance(v, list) else v for k, v in settings.items()})
+    assert restored.cv_scoring == "roc_auc"
+    out_thesis = tmp_path / "thesis.json"
+    main(["optimize", str(SIMPLE), "--budget", "30", "--workers", "1", "--settings", "thesis",
+          "--out", str(out_thesis)])
+    assert json.loads(out_thesis.read_text())["psp_settings"]["cv_scoring"] == "accuracy"
+    capsys.readouterr()
+    with pytest.raises(SystemExit) as exit_info:
+        main(["optimize", str(SIMPLE), "--settings", "best", "--out", str(tmp_path / "x.json")])
+    assert exit_info.value.code == 2
+    assert "--settings" in capsys.readouterr().err and not (tmp_path / "x.json").exists()
 
 
 def test_progress_bar_and_thesis_budgets():

@@ -110,3 +110,21 @@ async def test_contraption_screen_opens_the_optimizer_on_its_scenario(tmp_path):
         select = app.screen.query_one("#scenario", Select)
         assert select.value == str(own.resolve())
         assert any(label == "my_run" for label, _ in select._options)
+
+
+async def test_the_settings_choice_reaches_the_pipeline(tmp_path):
+    app = StationApp(database=tmp_path / "t.sqlite3")
+    async with app.run_test(size=(160, 50)) as pilot:
+        await pilot.press("o")
+        await pilot.pause()
+        screen = app.screen
+        screen.simulation_workers = 1  # psp_settings stays None: the Select decides
+        screen.query_one("#scenario", Select).value = dict(scenario_choices())["simple"]
+        screen.query_one("#budget", Input).value = "24"
+        screen.query_one("#settings", Select).value = "recommended"
+        await pilot.press("o")
+        await pilot.pause()
+        await wait_until_idle(app, pilot)
+        assert screen.result is not None and screen.result.n_simulations <= 24
+        assert screen.result.settings.cv_scoring == "roc_auc"
+        assert screen.result.settings.verification_candidates == 3

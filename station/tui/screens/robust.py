@@ -27,7 +27,14 @@ from design.contraption.catalog import EXAMPLES_DIR, example_names
 from design.errors import DesignError
 from design.robust import Progress, PSPSettings, RobustLayout, SimulationCancelled, SimulationExecutor
 from design.robust import optimize_robust_layout as run_pipeline
-from station.commands.robust import DEFAULT_BUDGET, simulation_cache_path, thesis_budget
+from station.commands.robust import (
+    DEFAULT_BUDGET,
+    DEFAULT_SETTINGS,
+    SETTINGS_CHOICES,
+    psp_settings,
+    simulation_cache_path,
+    thesis_budget,
+)
 from station.paths import data_dir
 from station.tui.registry import ScreenEntry
 from station.tui.screens.fabricate import HalfBlockPicture
@@ -72,8 +79,8 @@ class RobustScreen(Screen):
         super().__init__(name="optimize")
         #: Local worker processes (None: all cores); tests set 1 to simulate in the worker thread.
         self.simulation_workers: int | None = None
-        #: PSP settings (the thesis's; PSPSettings.recommended() is the alternative); tests shrink them.
-        self.psp_settings = PSPSettings()
+        #: PSP settings that override the "Settings" choice (tests shrink them); None: the choice decides.
+        self.psp_settings: PSPSettings | None = None
         self.result: RobustLayout | None = None
         self.problem = None
         self._stop = threading.Event()
@@ -92,6 +99,11 @@ class RobustScreen(Screen):
                 yield Input(str(DEFAULT_BUDGET), id="budget", type="integer")
                 yield Label("Seed")
                 yield Input("0", id="seed", type="integer")
+                yield Label("Settings")
+                settings = Select([(name, name) for name in SETTINGS_CHOICES], id="settings", allow_blank=False,
+                                  value=DEFAULT_SETTINGS)
+                settings.tooltip = "\n".join(f"{k}: {v}" for k, v in SETTINGS_CHOICES.items())
+                yield settings
                 yield Button("Optimize (o)", id="optimize", variant="primary")
                 yield Button("Stop (s)", id="stop", disabled=True)
                 yield Static("", id="status")
@@ -175,7 +187,8 @@ class RobustScreen(Screen):
         bar = self.query_one("#bar", ProgressBar)
         bar.update(total=budget, progress=0)
         self._set_status(f"optimizing {Path(str(scenario)).stem} ...")
-        self.run_optimization(str(scenario), budget, seed)
+        settings = self.psp_settings or psp_settings(str(self.query_one("#settings", Select).value))
+        self.run_optimization(str(scenario), budget, seed, settings)
 
     def action_stop(self) -> None:
         if self._optimizing:
@@ -194,14 +207,14 @@ class RobustScreen(Screen):
 
     # -- the work (a thread) -----------------------------------------------------------------------------------
     @work(thread=True, exclusive=True, group="robust")
-    def run_optimization(self, scenario_path: str, budget: int, seed: int) -> None:
+    def run_optimization(self, scenario_path: str, budget: int, seed: int, settings: PSPSettings) -> None:
         from design.robust.contraption import load_problem, render_layouts
 
         try:
             problem = load_problem(scenario_path)
             cache = simulation_cache_path()
             with SimulationExecutor(problem, workers=self.simulation_workers, cache_path=cache) as executor:
-                result = run_pipeline(problem, executor, budget, seed, self.psp_settings,
+                result = run_pipeline(problem, executor, budget, seed, settings,
                                       progress=self._progress_from_thread, should_stop=self._stop.is_set)
             picture = io.BytesIO()
             render_layouts(problem, [("initial", problem.initial_layout()), ("optimized", result.u)]).save(
