@@ -5,7 +5,9 @@ Subcommands live one area per module in :mod:`station.commands`; each module def
 discovered, so adding a command never edits this file.
 
 Exit codes: 0 success, 1 a negative but valid outcome (e.g. a simulated contraption failed), 2 bad input or a
-device error (one clear line on stderr, never a traceback), 130 interrupted.
+device error (one clear line on stderr, never a traceback), 130 interrupted (Ctrl-C, or SIGTERM from ``kill``,
+which stops a command the same clean way: a laser job is aborted with the laser off, a simulation pool is shut
+down and its cache kept).
 """
 
 from __future__ import annotations
@@ -13,7 +15,9 @@ from __future__ import annotations
 import argparse
 import importlib
 import pkgutil
+import signal
 import sys
+import threading
 from collections.abc import Sequence
 
 from calibration.errors import CalibrationError
@@ -63,6 +67,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             return run_tui()
         parser.parse_args([args.command, "--help"])
         return 2
+    previous = _stop_cleanly_on_sigterm()
     try:
         return int(args.func(args) or 0)
     except USER_ERRORS as error:
@@ -79,6 +84,24 @@ def main(argv: Sequence[str] | None = None) -> int:
         return 130
     except BrokenPipeError:
         return 0
+    finally:
+        if previous is not None:
+            signal.signal(signal.SIGTERM, previous)
+
+
+def _raise_interrupt(signum, frame) -> None:
+    raise KeyboardInterrupt
+
+
+def _stop_cleanly_on_sigterm():
+    """Make SIGTERM raise KeyboardInterrupt, so every command's Ctrl-C clean-up also runs on ``kill``.
+
+    Without it the process dies at once: a streaming laser job gets no laser-off and simulation workers are left
+    running. Returns the previous handler (None when not on the main thread, where handlers cannot be set).
+    """
+    if threading.current_thread() is not threading.main_thread():
+        return None
+    return signal.signal(signal.SIGTERM, _raise_interrupt)
 
 
 def run_tui() -> int:

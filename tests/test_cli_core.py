@@ -63,3 +63,31 @@ def test_user_errors_are_one_line_exit_2(monkeypatch, capsys):
     assert cli.main(["boom"]) == 2
     err = capsys.readouterr().err
     assert err == "station: error: thing: field 'x' must be 1, got 2\n"
+
+
+def test_sigterm_stops_a_command_like_ctrl_c(monkeypatch, capsys):
+    # `kill PID` must run the same clean-up as Ctrl-C (laser off, worker pool shut down), then exit 130.
+    import os
+    import signal
+    import time
+
+    import station.commands.robust as robust
+
+    cleaned = []
+
+    def killed_midway(args):
+        try:
+            os.kill(os.getpid(), signal.SIGTERM)
+            time.sleep(5)  # the handler interrupts this
+        except KeyboardInterrupt:
+            cleaned.append(True)
+            raise
+        return 0
+
+    monkeypatch.setattr(robust, "run_optimize", killed_midway)
+    before = signal.getsignal(signal.SIGTERM)
+    started = time.monotonic()
+    assert cli.main(["optimize", "simple", "--out", "x.json"]) == 130
+    assert time.monotonic() - started < 4 and cleaned == [True]
+    assert "interrupted" in capsys.readouterr().err
+    assert signal.getsignal(signal.SIGTERM) == before  # restored for whoever called main

@@ -305,7 +305,7 @@ def run_send(args) -> int:
             if bar:
                 bar.close()
             done = runner.result
-            history.finish(job_id, "aborted", runner.progress.lines_acked, "stopped by Ctrl-C",
+            history.finish(job_id, "aborted", runner.progress.lines_acked, "stopped by Ctrl-C or SIGTERM",
                            done.resume_line if done else None)
             raise
         result = runner.result
