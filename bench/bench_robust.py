@@ -94,7 +94,7 @@ def run_scenario(thesis_name, stem, budget, runs, n_eval, n_local, out_dir: Path
             f"{row['seconds_mean']:9.1f} {thesis['time'][index]:7d} {row['simulations_mean']:6.0f}"
         )
     for method in (m for m in METHOD_ORDER if m in rows):
-        per_seed = ", ".join(f"{r.curve.global_robustness:.3f}" for r in comparison.results if r.method == method)
+        per_seed = ", ".join(f"{r.curve.global_robustness:.3f}" for r in comparison.runs if r.method == method)
         print(f"  {method} per seed: {per_seed}")
     ours = rows["ours"]["rho_g_mean"]
     ratios = ", ".join(

@@ -20,6 +20,7 @@ import signal
 import sqlite3
 import sys
 import threading
+import time
 from collections.abc import Callable
 from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 from concurrent.futures.process import BrokenProcessPool
@@ -126,11 +127,41 @@ def usable_std_streams():
 _WORKER_PROBLEMS: dict[str, LayoutProblem] = {}
 
 
-def _init_process_worker(problem: LayoutProblem) -> None:
+def _init_process_worker(problem: LayoutProblem, parent_pid: int | None = None) -> None:
     # Ctrl-C is the parent's business: it cancels and keeps the cache; workers just get terminated.
     signal.signal(signal.SIGINT, signal.SIG_IGN)
+    if parent_pid is not None:
+        threading.Thread(target=_exit_when_orphaned, args=(parent_pid,), daemon=True,
+                         name="orphan watchdog").start()
     problem.prepare_worker()
     _WORKER_PROBLEMS[problem.content_hash] = problem
+
+
+def _exit_when_orphaned(parent_pid: int, interval: float = 0.5) -> None:
+    """End this worker once the process that owns the pool is gone.
+
+    A parent killed without clean-up (``kill -9``, a crash, SIGTERM in a script without a handler) leaves forkserver
+    workers running its queued simulations for nobody, at full CPU, until they are killed by hand.
+    """
+    while True:
+        time.sleep(interval)
+        if _process_gone(parent_pid):
+            os._exit(1)
+
+
+def _process_gone(pid: int) -> bool:
+    """Whether ``pid`` has exited: it no longer exists, or it is a zombie that its own parent has not reaped."""
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return True
+    except PermissionError:  # it exists, it is just not ours to signal
+        return False
+    try:
+        with open(f"/proc/{pid}/stat", encoding="ascii", errors="replace") as stat:
+            return stat.read().rsplit(")", 1)[1].split()[0] == "Z"
+    except (OSError, IndexError):  # no /proc (macOS): a zombie parent keeps its workers until it is reaped
+        return False
 
 
 def _simulate_in_worker(content_hash: str, U: np.ndarray) -> np.ndarray:
@@ -230,7 +261,7 @@ class SimulationExecutor:
                 max_workers=self.workers,
                 mp_context=multiprocessing.get_context(method),
                 initializer=_init_process_worker,
-                initargs=(self.problem,),
+                initargs=(self.problem, os.getpid()),
             )
         return self._pool
 

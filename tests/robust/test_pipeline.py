@@ -25,6 +25,7 @@ from design.robust import (
     synthetic_branching,
     synthetic_chain,
 )
+from design.robust.executor import _process_gone
 from design.robust.optimize import energy, placement_offsets
 from design.robust.pipeline import plan_budget, verify_candidates
 from design.robust.problem import EllipsoidEvent, SyntheticProblem
@@ -387,3 +388,48 @@ def test_comparison_gives_the_baselines_our_budget():
     assert len(eps) == len(mean) == len(sem) == 31
     with pytest.raises(RobustError, match="methods"):
         compare_methods(problem, executor, ["b4"])
+
+
+ORPHANING_SCRIPT = """
+import os
+
+import numpy as np
+
+from design.robust import SimulationExecutor, synthetic_chain
+
+if __name__ == "__main__":
+    problem = synthetic_chain()
+    executor = SimulationExecutor(problem, workers=2)
+    executor.run(np.full((4, problem.dim), 0.5))
+    print(" ".join(str(pid) for pid in executor._pool._processes), flush=True)
+    os._exit(0)  # dies without any clean-up, like kill -9
+"""
+
+
+@pytest.mark.skipif(not __import__("os").path.exists("/proc/self/stat"), reason="reads process states from /proc")
+def test_worker_processes_end_when_their_parent_dies_without_clean_up(tmp_path):
+    import os
+    import subprocess
+    import sys
+    import time
+
+    script = tmp_path / "orphaning.py"
+    script.write_text(ORPHANING_SCRIPT)
+    out = tmp_path / "pids.txt"
+    with out.open("w") as stdout:  # a file, not a pipe: surviving workers would hold a pipe open
+        done = subprocess.run([sys.executable, str(script)], stdout=stdout, stderr=subprocess.PIPE, text=True,
+                              timeout=120)
+    assert done.returncode == 0, done.stderr
+    workers = [int(pid) for pid in out.read_text().split()]
+    assert workers  # the pool starts workers on demand: at least one ran a simulation
+
+    def alive(pid: int) -> bool:
+        return not _process_gone(pid)
+
+    deadline = time.monotonic() + 20
+    while any(alive(pid) for pid in workers) and time.monotonic() < deadline:
+        time.sleep(0.2)
+    left = [pid for pid in workers if alive(pid)]
+    for pid in left:  # do not leave them behind even when the test fails
+        os.kill(pid, 9)
+    assert not left, f"worker processes {left} outlived their parent"
