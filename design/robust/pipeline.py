@@ -22,6 +22,7 @@ from design.robust.psp import EventModel, FactorizedPSP, Samples, explore
 from design.robust.robustness import (
     EvaluationSet,
     RobustnessCurve,
+    estimated_global_robustness,
     evaluation_set,
     predicted_global_robustness,
     robustness_curve,
@@ -316,14 +317,17 @@ def _optimize_predicted_robustness(problem, psp, samples, settings, seed, on_bes
     return Optimized(u, [u, *runners_up], info, best, float(psp.predict_proba(u_best)[0]))
 
 
-def verify_candidates(problem: LayoutProblem, oracle, candidates, settings: PSPSettings, seed: int = 0):
+def verify_candidates(problem: LayoutProblem, oracle, candidates, settings: PSPSettings, seed: int = 0,
+                      reference: tuple[np.ndarray, np.ndarray] | None = None):
     """Simulate the model's best candidates and keep the one that does best in simulation.
 
     Each of the first ``verification_candidates`` distinct candidates (at least ``verification_radius`` apart) is
     simulated together with ``verification_samples - 1`` valid layouts drawn uniformly in the ball of
-    ``verification_radius`` around it. The kept candidate succeeds itself and has the highest success rate in its
-    ball (the model's order breaks ties); if none succeeds itself, the model's first. With one candidate and one
-    sample this is the thesis's single re-simulation of the result.
+    ``verification_radius`` around it. The kept candidate succeeds itself and has the highest score (the model's
+    order breaks ties); if none succeeds itself, the model's first. The score is the success rate in its ball, or
+    with ``verification_score="rho_g"`` and a ``reference`` (uniform layouts and their success), ρ_g estimated
+    from the reference as evaluation set and the ball as local layouts. With one candidate and one sample this is
+    the thesis's single re-simulation of the result.
 
     Returns
     -------
@@ -331,7 +335,7 @@ def verify_candidates(problem: LayoutProblem, oracle, candidates, settings: PSPS
     events : ndarray
         The simulated events of ``u`` itself.
     report : list of dict
-        Per verified candidate: ``u``, ``success`` (its own simulation) and ``local_success_rate``.
+        Per verified candidate: ``u``, ``success`` (its own simulation), ``local_success_rate`` and ``score``.
     """
     distinct: list[np.ndarray] = []
     for candidate in candidates:
@@ -353,9 +357,13 @@ def verify_candidates(problem: LayoutProblem, oracle, candidates, settings: PSPS
         start += len(group)
         success = group_events.all(axis=1)
         firsts.append(group_events[0])
+        score = float(success.mean())
+        if settings.verification_score == "rho_g" and reference is not None:
+            score = estimated_global_robustness(candidate, np.concatenate([reference[0], group]),
+                                                np.concatenate([reference[1], success]))
         report.append({"u": [float(v) for v in candidate], "success": bool(success[0]),
-                       "local_success_rate": float(success.mean()), "simulations": len(group)})
-    chosen = min(range(len(report)), key=lambda i: (not report[i]["success"], -report[i]["local_success_rate"], i))
+                       "local_success_rate": float(success.mean()), "score": score, "simulations": len(group)})
+    chosen = min(range(len(report)), key=lambda i: (not report[i]["success"], -report[i]["score"], i))
     return distinct[chosen], firsts[chosen], report
 
 
@@ -419,7 +427,8 @@ def optimize_robust_layout(
     oracle.best_psp = float(psp.predict_proba(optimized.u)[0])
 
     oracle.phase = "check"
-    u, events, verification = verify_candidates(problem, oracle, optimized.candidates, settings, seed)
+    start = samples.U[: samples.n_initial], samples.success[: samples.n_initial]
+    u, events, verification = verify_candidates(problem, oracle, optimized.candidates, settings, seed, start)
     if len(verification) > 1:
         info = {**info, "verification": verification}
     if not events.all() and settings.fallback_to_best_sample and samples.success[best]:

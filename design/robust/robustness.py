@@ -88,6 +88,16 @@ def local_robustness_from_points(
     return ball_means(u, U, success, np.asarray(epsilon) + thickness)[0]
 
 
+def estimated_global_robustness(
+    u: np.ndarray, U: np.ndarray, success: np.ndarray, settings: RobustnessSettings | None = None
+) -> float:
+    """ρ_g(u) computed from the simulated layouts ``U`` at hand (their ``success``), without new simulations."""
+    settings = settings or RobustnessSettings()
+    epsilon = epsilon_grid(settings)
+    rho = local_robustness_from_points(u, U, success, epsilon, settings.thickness_factor * settings.epsilon_step)
+    return float(np.trapezoid(rho, epsilon))
+
+
 def robustness_curve(
     problem: LayoutProblem,
     oracle: Oracle,

@@ -79,6 +79,11 @@ class PSPSettings:
         samples per candidate, so that verification takes at most a quarter of it.
     verification_radius : float
         Radius (normalized) of that ball, and the least distance between two verified candidates.
+    verification_score : {"local_rate", "rho_g"}
+        How verified candidates are compared (among those that succeed themselves): by the success rate in their
+        ball, or (ours) by ρ_g's own formula (4.8.3) estimated from the uniform Sobol start of the exploration as
+        the evaluation set and each candidate's ball as its local layouts. ``"rho_g"`` adds what the ball cannot
+        see: whether the candidate sits in a large success region. No extra simulations.
     optimizer_starts : int
         SLSQP runs from this many of the best-ranked samples (simulated successes first) and keeps the lowest
         energy; 1 is the thesis's single start from the best sample.
@@ -123,6 +128,7 @@ class PSPSettings:
     verification_candidates: int = 1
     verification_samples: int = 1
     verification_radius: float = 0.05
+    verification_score: str = "local_rate"
     objective: str = "point"
     reference_layouts: int = 2048
     candidate_layouts: int = 2048
@@ -161,6 +167,9 @@ class PSPSettings:
         if self.cv_scoring not in ("accuracy", "roc_auc", "neg_log_loss"):
             raise RobustError("PSP settings: cv_scoring must be 'accuracy', 'roc_auc' or 'neg_log_loss', "
                               f"got {self.cv_scoring!r}")
+        if self.verification_score not in ("local_rate", "rho_g"):
+            raise RobustError("PSP settings: verification_score must be 'local_rate' or 'rho_g', "
+                              f"got {self.verification_score!r}")
         if self.objective not in ("point", "global_robustness"):
             raise RobustError(f"PSP settings: objective must be 'point' or 'global_robustness', got {self.objective!r}")
         for name in ("refine_radius", "verification_radius"):

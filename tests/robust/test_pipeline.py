@@ -30,11 +30,14 @@ from design.robust.optimize import energy, placement_offsets
 from design.robust.pipeline import plan_budget, verify_candidates
 from design.robust.problem import EllipsoidEvent, SyntheticProblem
 from design.robust.robustness import (
+    EvaluationSet,
     epsilon_grid,
+    estimated_global_robustness,
     evaluation_set,
     local_robustness_from_points,
     predicted_global_robustness,
 )
+from design.robust.sampling import sobol_valid
 
 SMALL = PSPSettings(n_initial=128, n_successes=40, max_exploration_steps=20)
 
@@ -160,6 +163,30 @@ def test_verification_keeps_the_candidate_that_does_best_in_simulation():
     u, events, report = verify_candidates(problem, problem.simulate_batch, [outside, centre], PSPSettings(), seed=0)
     np.testing.assert_array_equal(u, outside)
     assert not events.all() and len(report) == 1
+
+
+def test_verification_by_estimated_rho_g_prefers_the_middle_of_the_success_region():
+    # Both candidates succeed throughout their small ball; only ρ_g's larger balls tell the middle from the side.
+    problem = synthetic_chain()
+    centre = np.array([0.35, 0.5, 0.6])
+    side = centre + [0.17, 0.0, 0.0]
+    reference = sobol_valid(problem, 256, seed=3)
+    reference = (reference, problem.simulate_batch(reference).all(axis=1))
+    by_rate = PSPSettings(verification_candidates=2, verification_samples=12)
+    u, _, report = verify_candidates(problem, problem.simulate_batch, [side, centre], by_rate, 0, reference)
+    assert [r["local_success_rate"] for r in report] == [1.0, 1.0]
+    np.testing.assert_array_equal(u, side)  # a tie: the model's order decides
+    by_rho = by_rate.with_changes(verification_score="rho_g")
+    u, _, report = verify_candidates(problem, problem.simulate_batch, [side, centre], by_rho, 0, reference)
+    np.testing.assert_array_equal(u, centre)
+    assert report[1]["score"] > report[0]["score"]
+    # The estimate is ρ_g's formula on the layouts at hand: with the same points it is what the evaluation measures.
+    no_local = RobustnessSettings(thickness_factor=0.0)
+    evaluation = EvaluationSet(*reference)
+    measured = robustness_curve(problem, problem.simulate_batch, evaluation, centre, no_local).global_robustness
+    assert estimated_global_robustness(centre, *reference, no_local) == pytest.approx(measured)
+    with pytest.raises(RobustError, match="verification_score"):
+        PSPSettings(verification_score="best")
 
 
 def test_recommended_settings_fit_a_small_budget_and_return_a_verified_success():
