@@ -46,8 +46,12 @@ FULL = [
 METHOD_ORDER = ("b1", "b2", "b3", "ours")
 #: CHAOS_BENCH_PLACEMENT_ERROR: ours optimizes the mean energy under this uniform placement error (0: the thesis's).
 PLACEMENT_ERROR = float(os.environ.get("CHAOS_BENCH_PLACEMENT_ERROR", "0"))
-#: CHAOS_BENCH_RECOMMENDED=1: ours with PSPSettings.recommended() (default: the thesis's settings).
-RECOMMENDED_SETTINGS = os.environ.get("CHAOS_BENCH_RECOMMENDED", "0") not in ("", "0")
+#: CHAOS_BENCH_SETTINGS=recommended|thesis: ours with PSPSettings.recommended() (the station's default) or with the
+#: thesis's settings as published.
+SETTINGS_NAME = os.environ.get("CHAOS_BENCH_SETTINGS", "recommended").lower()
+if SETTINGS_NAME not in ("recommended", "thesis"):
+    raise SystemExit(f"bench robust: CHAOS_BENCH_SETTINGS must be 'recommended' or 'thesis', got {SETTINGS_NAME!r}")
+RECOMMENDED_SETTINGS = SETTINGS_NAME == "recommended"
 #: CHAOS_BENCH_ROBUST=causality614: CAUSALITYSWITCH at the thesis budget, all four methods (about an hour).
 CAUSALITY_AT_THESIS_BUDGET = [("CAUSALITYSWITCH", "causalityswitch_ball", 614, 5, 1024, 30)]
 #: CHAOS_BENCH_ROBUST=causality614ours: the same, ours only (about 30 minutes; the evaluation set and each result's
@@ -130,7 +134,7 @@ def main() -> None:
         f"configuration: {words.get(mode, 'QUICK (small budgets and evaluation sets)')} "
         f"(CHAOS_BENCH_ROBUST=quick|reduced|full|causality614|causality614ours|ballrun1120|ballrun1120ours); ours with "
         f"{'PSPSettings.recommended()' if RECOMMENDED_SETTINGS else 'the thesis settings'} "
-        f"(CHAOS_BENCH_RECOMMENDED), placement error "
+        f"(CHAOS_BENCH_SETTINGS), placement error "
         f"{PLACEMENT_ERROR}; {os.cpu_count()} cores"
     )
     for config in configs:

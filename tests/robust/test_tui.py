@@ -121,10 +121,10 @@ async def test_the_settings_choice_reaches_the_pipeline(tmp_path):
         screen.simulation_workers = 1  # psp_settings stays None: the Select decides
         screen.query_one("#scenario", Select).value = dict(scenario_choices())["simple"]
         screen.query_one("#budget", Input).value = "24"
-        screen.query_one("#settings", Select).value = "recommended"
+        assert screen.query_one("#settings", Select).value == "recommended"  # the station's default
+        screen.query_one("#settings", Select).value = "thesis"
         await pilot.press("o")
         await pilot.pause()
         await wait_until_idle(app, pilot)
         assert screen.result is not None and screen.result.n_simulations <= 24
-        assert screen.result.settings.cv_scoring == "roc_auc"
-        assert screen.result.settings.verification_candidates == 3
+        assert screen.result.settings == PSPSettings()  # the thesis's, as published
