@@ -301,7 +301,7 @@ def _optimize_predicted_robustness(problem, psp, samples, settings, seed, on_bes
         radius = np.zeros(problem.dim)
         radius[free] = settings.refine_radius
         nearby = valid_in_ball(problem, u, radius, settings.refine_layouts, np.random.default_rng(seed),
-                                "layouts near the best candidate")
+                               "layouts near the best candidate")
         if len(nearby):
             nearby_scores = predicted(nearby)
             if nearby_scores.max() > score:
@@ -346,8 +346,8 @@ def verify_candidates(problem: LayoutProblem, oracle, candidates, settings: PSPS
             break
     rng = np.random.default_rng(seed)
     groups = [np.concatenate([candidate[None, :], valid_in_ball(problem, candidate, settings.verification_radius,
-                                                                 settings.verification_samples - 1, rng,
-                                                                 "verification layouts")])
+                                                                settings.verification_samples - 1, rng,
+                                                                "verification layouts")])
               for candidate in distinct]
     # One batch for every candidate: the workers share all of it instead of waiting at each candidate's end.
     events = oracle(np.concatenate(groups))
@@ -427,8 +427,8 @@ def optimize_robust_layout(
     oracle.best_psp = float(psp.predict_proba(optimized.u)[0])
 
     oracle.phase = "check"
-    start = samples.U[: samples.n_initial], samples.success[: samples.n_initial]
-    u, events, verification = verify_candidates(problem, oracle, optimized.candidates, settings, seed, start)
+    sobol_start = samples.U[: samples.n_initial], samples.success[: samples.n_initial]
+    u, events, verification = verify_candidates(problem, oracle, optimized.candidates, settings, seed, sobol_start)
     if len(verification) > 1:
         info = {**info, "verification": verification}
     if not events.all() and settings.fallback_to_best_sample and samples.success[best]:
