@@ -528,11 +528,14 @@ def compare_methods(
     robustness: RobustnessSettings | None = None,
     progress: ProgressCallback | None = None,
     should_stop: Callable[[], bool] | None = None,
+    on_run: Callable[[MethodRun], None] | None = None,
 ) -> Comparison:
     """Ours and the baselines at the same simulation budget over ``runs`` seeds, scored by ρ_g (thesis 4.8.3).
 
     As in the thesis, when "ours" is among the methods its runs come first and the baselines get B = the mean number
-    of simulations ours used; ``budget`` caps ours (and is B when ours is not compared).
+    of simulations ours used; ``budget`` caps ours (and is B when ours is not compared). Seeds are ``seed`` to
+    ``seed + runs - 1``, so a comparison can be extended by more seeds later; ``on_run`` receives each run as it
+    ends (a long comparison that is stopped keeps what it reported).
     """
     unknown = sorted(set(methods) - set(METHODS))
     if unknown or not methods:
@@ -566,6 +569,8 @@ def compare_methods(
             unbounded.phase = f"robustness of {method}"
             curve = robustness_curve(problem, unbounded, evaluation, u, robustness, seed=run_seed)
             results.append(MethodRun(method, run_seed, u, used, seconds, curve))
+            if on_run is not None:
+                on_run(results[-1])
         if method == "ours":
             baseline_budget = int(round(np.mean([r.n_simulations for r in results if r.method == "ours"])))
     return Comparison(problem.name, int(baseline_budget or 0), len(evaluation.U), results)

@@ -85,6 +85,14 @@ class ProgressBar:
         self.stream.flush()
         self._shown = True
 
+    def note(self, text: str) -> None:
+        """A line of its own above the bar (the bar is redrawn by the next progress report)."""
+        if self._shown:
+            self.stream.write("\r" + " " * 100 + "\r")
+            self._shown = False
+        self.stream.write(text + "\n")
+        self.stream.flush()
+
     def close(self) -> None:
         if self._shown:
             self.stream.write("\n")
@@ -320,8 +328,11 @@ def run_compare(args) -> int:
     executor = None
     try:
         with _executor(problem, args) as executor:
-            comparison = compare_methods(problem, executor, methods, args.runs, budget, args.seed,
-                                         settings=psp_settings(args.settings), robustness=robustness, progress=bar)
+            comparison = compare_methods(
+                problem, executor, methods, args.runs, budget, args.seed, settings=psp_settings(args.settings),
+                robustness=robustness, progress=bar,
+                on_run=lambda run: bar.note(f"{run.method} seed {run.seed}: rho_g {run.curve.global_robustness:.3f}, "
+                                            f"{run.n_simulations} simulations, {run.seconds:.1f} s"))
     except KeyboardInterrupt:
         bar.close()
         _interrupted(executor)

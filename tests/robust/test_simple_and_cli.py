@@ -111,10 +111,16 @@ def test_cli_compare_prints_a_table(tmp_path, capsys):
     code = main(["compare", str(SIMPLE), "--methods", "ours,b1", "--runs", "2", "--budget", "24", "--eval", "32",
                  "--local", "8", "--workers", "1", "--json", "--plot", str(plot)])
     assert code == 0
-    table = json.loads(capsys.readouterr().out)
+    captured = capsys.readouterr()
+    table = json.loads(captured.out)
     assert [row["method"] for row in table["methods"]] == ["ours", "b1"]
     assert all(0 <= row["rho_g_mean"] <= 1 for row in table["methods"])
     assert plot.exists()
+    # Each run is reported on stderr as it ends, so a stopped comparison keeps its finished figures.
+    runs = [line for line in captured.err.splitlines() if " seed " in line and "rho_g" in line]
+    assert [line.split(":")[0] for line in runs] == ["ours seed 0", "ours seed 1", "b1 seed 0", "b1 seed 1"]
+    ours = [float(line.split("rho_g ")[1].split(",")[0]) for line in runs[:2]]
+    assert np.mean(ours) == pytest.approx(table["methods"][0]["rho_g_mean"], abs=1e-3)
 
 
 def test_cli_bad_input_is_one_clear_line(tmp_path, capsys):
