@@ -279,8 +279,9 @@ def _optimize_predicted_robustness(problem, psp, samples, settings, seed, on_bes
     ranking = _rank_samples(sample_scores, samples)
     best = int(ranking[0])
     u_best = samples.U[best]
+    psp_best = float(psp.predict_proba(u_best)[0])
     if on_best_sample is not None:
-        on_best_sample(float(psp.predict_proba(u_best)[0]))
+        on_best_sample(psp_best)
     free = sorted(set().union(*(m.subspace for m in psp.models_ if m.classifier is not None)))
     u, score = u_best, float(sample_scores[best])
     runners_up: list[np.ndarray] = []
@@ -307,14 +308,13 @@ def _optimize_predicted_robustness(problem, psp, samples, settings, seed, on_bes
             if nearby_scores.max() > score:
                 u, score = nearby[int(np.argmax(nearby_scores))], float(nearby_scores.max())
         if len(pool):  # runners-up for verification, best first
-            for i in np.argsort(-pool_scores, kind="stable")[: 4 * settings.verification_candidates]:
-                runners_up.append(pool[i])
+            runners_up = list(pool[np.argsort(-pool_scores, kind="stable")[: 4 * settings.verification_candidates]])
     u = np.asarray(u, dtype=float)
     info = {"energy_start": -float(sample_scores[best]), "energy": -score, "iterations": 0,
             "message": "highest predicted global robustness", "predicted_rho_g": score,
             "predicted_rho_g_best_sample": float(sample_scores[best]), "start_sample": best,
             "free_parameters": [problem.parameter_names[i] for i in free]}
-    return Optimized(u, [u, *runners_up], info, best, float(psp.predict_proba(u_best)[0]))
+    return Optimized(u, [u, *runners_up], info, best, psp_best)
 
 
 def verify_candidates(problem: LayoutProblem, oracle, candidates, settings: PSPSettings, seed: int = 0,

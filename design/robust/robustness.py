@@ -92,10 +92,15 @@ def estimated_global_robustness(
     u: np.ndarray, U: np.ndarray, success: np.ndarray, settings: RobustnessSettings | None = None
 ) -> float:
     """ρ_g(u) computed from the simulated layouts ``U`` at hand (their ``success``), without new simulations."""
-    settings = settings or RobustnessSettings()
-    epsilon = epsilon_grid(settings)
-    rho = local_robustness_from_points(u, U, success, epsilon, settings.thickness_factor * settings.epsilon_step)
+    epsilon, rho = _curve_from_points(np.asarray(u, dtype=float), U, success, settings or RobustnessSettings())
     return float(np.trapezoid(rho, epsilon))
+
+
+def _curve_from_points(u, U, success, settings: RobustnessSettings) -> tuple[np.ndarray, np.ndarray]:
+    """The ε grid and ρ_l(u, ε + η) on it, from simulated layouts."""
+    epsilon = epsilon_grid(settings)
+    thickness = settings.thickness_factor * settings.epsilon_step
+    return epsilon, local_robustness_from_points(u, U, success, epsilon, thickness)
 
 
 def robustness_curve(
@@ -119,7 +124,7 @@ def robustness_curve(
         if len(local):
             U = np.concatenate([U, local])
             success = np.concatenate([success, oracle(local).all(axis=1)])
-    rho = local_robustness_from_points(u, U, success, epsilon, thickness)
+    epsilon, rho = _curve_from_points(u, U, success, settings)
     return RobustnessCurve(epsilon, rho, float(np.trapezoid(rho, epsilon)), True)
 
 

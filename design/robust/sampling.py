@@ -79,15 +79,12 @@ def ball_draw(center: np.ndarray, radius, rng: np.random.Generator) -> Callable[
     """A uniform sampler of the ball of ``radius`` around ``center`` (an ellipsoid if ``radius`` is per axis)."""
     center = np.asarray(center, dtype=float)
     d = len(center)
-    radius = radius if np.ndim(radius) == 0 else np.asarray(radius, dtype=float)
+    radius = np.asarray(radius, dtype=float)  # () or (d,): broadcasts either way
 
     def draw(m: int) -> np.ndarray:
         directions = rng.standard_normal((m, d))
         directions /= np.linalg.norm(directions, axis=1, keepdims=True)
-        radii = rng.random(m) ** (1.0 / d)
-        if np.ndim(radius) == 0:
-            return center + directions * (radius * radii)[:, None]
-        return center + directions * radii[:, None] * radius
+        return center + directions * (rng.random(m)[:, None] ** (1.0 / d) * radius)
 
     return draw
 
