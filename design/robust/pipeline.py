@@ -22,6 +22,7 @@ from design.robust.psp import EventModel, FactorizedPSP, Samples, explore
 from design.robust.robustness import (
     EvaluationSet,
     RobustnessCurve,
+    densest_successes,
     estimated_global_robustness,
     evaluation_set,
     predicted_global_robustness,
@@ -144,6 +145,8 @@ class RobustLayout:
             "simulation_budget": self.budget,
             "best_sample": {"normalized": [float(v) for v in self.u_best_sample],
                             "predicted_psp": float(self.psp_best_sample)},
+            "verification": self.optimizer.get("verification", []),
+            "fallback_to_best_sample": "fallback" in self.optimizer,
             "seed": self.seed,
             "seconds": round(self.seconds, 3),
             "psp_settings": None if self.settings is None else {
@@ -199,17 +202,20 @@ class BudgetPlan:
 def plan_budget(settings: PSPSettings, budget: int | None) -> BudgetPlan:
     """Share ``budget`` between verification, the exploration (and its Sobol start) and active learning.
 
+    Verification simulates ``verification_samples`` layouts for each of the model's candidates and each start
+    candidate.
     Verification never takes over a quarter of the budget: a small one gets fewer simulations per candidate. The
     exploration may use ``exploration_share`` of the rest, its Sobol start ``initial_share``; active learning gets
     what the exploration leaves.
     """
-    reserve = settings.verification_candidates * settings.verification_samples
+    verified = settings.verification_candidates + settings.verification_start_candidates
+    reserve = verified * settings.verification_samples
     if budget is None:
         return BudgetPlan(settings, reserve, None, None)
     if reserve > max(1, budget // 4):
-        per_candidate = max(1, (budget // 4) // settings.verification_candidates)
+        per_candidate = max(1, (budget // 4) // verified)
         settings = settings.with_changes(verification_samples=per_candidate)
-        reserve = settings.verification_candidates * per_candidate
+        reserve = verified * per_candidate
     learning = budget - reserve
     return BudgetPlan(settings, reserve, max(10, int(settings.exploration_share * learning)),
                       max(10, int(settings.initial_share * learning)))
@@ -318,13 +324,14 @@ def _optimize_predicted_robustness(problem, psp, samples, settings, seed, on_bes
 
 
 def verify_candidates(problem: LayoutProblem, oracle, candidates, settings: PSPSettings, seed: int = 0,
-                      reference: tuple[np.ndarray, np.ndarray] | None = None):
+                      reference: tuple[np.ndarray, np.ndarray] | None = None, additional=()):
     """Simulate the model's best candidates and keep the one that does best in simulation.
 
-    Each of the first ``verification_candidates`` distinct candidates (at least ``verification_radius`` apart) is
-    simulated together with ``verification_samples - 1`` valid layouts drawn uniformly in the ball of
-    ``verification_radius`` around it. The kept candidate succeeds itself and has the highest score (the model's
-    order breaks ties); if none succeeds itself, the model's first. The score is the success rate in its ball, or
+    Each of the first ``verification_candidates`` distinct candidates (at least ``verification_radius`` apart), then
+    each ``additional`` layout not within that distance of them (the start candidates), is simulated together with
+    ``verification_samples - 1`` valid layouts drawn uniformly in the ball of ``verification_radius`` around it.
+    The kept candidate succeeds itself and has the highest score (the model's order, then the additional layouts'
+    order, breaks ties); if none succeeds itself, the model's first. The score is the success rate in its ball, or
     with ``verification_score="rho_g"`` and a ``reference`` (uniform layouts and their success), ρ_g estimated
     from the reference as evaluation set and the ball as local layouts. With one candidate and one sample this is
     the thesis's single re-simulation of the result.
@@ -335,15 +342,22 @@ def verify_candidates(problem: LayoutProblem, oracle, candidates, settings: PSPS
     events : ndarray
         The simulated events of ``u`` itself.
     report : list of dict
-        Per verified candidate: ``u``, ``success`` (its own simulation), ``local_success_rate`` and ``score``.
+        Per verified candidate: ``u``, ``source`` ("model" or "start"), ``success`` (its own simulation),
+        ``local_success_rate``, ``score``, ``simulations`` and ``kept``.
     """
     distinct: list[np.ndarray] = []
-    for candidate in candidates:
-        candidate = np.asarray(candidate, dtype=float)
-        if all(np.linalg.norm(candidate - c) >= settings.verification_radius for c in distinct):
-            distinct.append(candidate)
-        if len(distinct) == settings.verification_candidates:
-            break
+
+    def add_distinct(layouts, limit: int) -> None:
+        for candidate in layouts:
+            if len(distinct) >= limit:
+                return
+            candidate = np.asarray(candidate, dtype=float)
+            if all(np.linalg.norm(candidate - c) >= settings.verification_radius for c in distinct):
+                distinct.append(candidate)
+
+    add_distinct(candidates, settings.verification_candidates)
+    n_model = len(distinct)
+    add_distinct(additional, n_model + len(additional))
     rng = np.random.default_rng(seed)
     groups = [np.concatenate([candidate[None, :], valid_in_ball(problem, candidate, settings.verification_radius,
                                                                 settings.verification_samples - 1, rng,
@@ -352,7 +366,7 @@ def verify_candidates(problem: LayoutProblem, oracle, candidates, settings: PSPS
     # One batch for every candidate: the workers share all of it instead of waiting at each candidate's end.
     events = oracle(np.concatenate(groups))
     report, firsts, start = [], [], 0
-    for candidate, group in zip(distinct, groups):
+    for index, (candidate, group) in enumerate(zip(distinct, groups)):
         group_events = events[start:start + len(group)]
         start += len(group)
         success = group_events.all(axis=1)
@@ -361,9 +375,12 @@ def verify_candidates(problem: LayoutProblem, oracle, candidates, settings: PSPS
         if settings.verification_score == "rho_g" and reference is not None:
             score = estimated_global_robustness(candidate, np.concatenate([reference[0], group]),
                                                 np.concatenate([reference[1], success]))
-        report.append({"u": [float(v) for v in candidate], "success": bool(success[0]),
+        report.append({"u": [float(v) for v in candidate], "source": "model" if index < n_model else "start",
+                       "success": bool(success[0]),
                        "local_success_rate": float(success.mean()), "score": score, "simulations": len(group)})
     chosen = min(range(len(report)), key=lambda i: (not report[i]["success"], -report[i]["score"], i))
+    for index, row in enumerate(report):
+        row["kept"] = index == chosen
     return distinct[chosen], firsts[chosen], report
 
 
@@ -428,9 +445,10 @@ def optimize_robust_layout(
 
     oracle.phase = "check"
     sobol_start = samples.U[: samples.n_initial], samples.success[: samples.n_initial]
-    u, events, verification = verify_candidates(problem, oracle, optimized.candidates, settings, seed, sobol_start)
-    if len(verification) > 1:
-        info = {**info, "verification": verification}
+    start_candidates = densest_successes(*sobol_start, settings.verification_start_candidates)
+    u, events, verification = verify_candidates(problem, oracle, optimized.candidates, settings, seed, sobol_start,
+                                                start_candidates)
+    info = {**info, "verification": verification}
     if not events.all() and settings.fallback_to_best_sample and samples.success[best]:
         u, events = u_best, samples.events[best]
         info = {**info, "fallback": "the optimized layout failed in simulation; kept the best sample"}

@@ -96,6 +96,27 @@ def estimated_global_robustness(
     return float(np.trapezoid(rho, epsilon))
 
 
+def densest_successes(
+    U: np.ndarray, success: np.ndarray, n: int, settings: RobustnessSettings | None = None
+) -> np.ndarray:
+    """The ``n`` successful layouts of a uniform sample ``U`` with the highest ρ_g estimated from the sample alone.
+
+    Each success is scored by ρ_g's formula with the sample as evaluation set (no local layouts: the layout itself
+    is the centre of its balls), so the ones surrounded by the most success at every scale come first. Ties keep
+    the sample's order. Returns ``(min(n, successes), d)``.
+    """
+    U = np.asarray(U, dtype=float)
+    success = np.asarray(success, dtype=bool)
+    successes = U[success]
+    if n < 1 or not len(successes):
+        return successes[:0]
+    settings = settings or RobustnessSettings()
+    epsilon = epsilon_grid(settings)
+    rho = ball_means(successes, U, success.astype(float), epsilon + settings.thickness_factor * settings.epsilon_step)
+    scores = np.trapezoid(rho, epsilon, axis=1)
+    return successes[np.argsort(-scores, kind="stable")[:n]]
+
+
 def _curve_from_points(u, U, success, settings: RobustnessSettings) -> tuple[np.ndarray, np.ndarray]:
     """The ε grid and ρ_l(u, ε + η) on it, from simulated layouts."""
     epsilon = epsilon_grid(settings)

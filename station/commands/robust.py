@@ -243,7 +243,26 @@ def run_optimize(args) -> int:
             print(f"  {name:24s} {value: .5g}")
         for name, p in zip(result.factor_names, result.factor_probabilities):
             print(f"  P({name}) = {p:.3f}")
+        _print_verification(result)
     return 0 if result.simulated_success else 1
+
+
+def _print_verification(result) -> None:
+    """Which candidates were simulated before one was kept, and why that one (a maker's "where did this come from")."""
+    report = result.optimizer.get("verification", [])
+    if not report:
+        return
+    settings = result.settings
+    radius = f", radius {settings.verification_radius:g}" if settings is not None else ""
+    score = "estimated rho_g" if settings is not None and settings.verification_score == "rho_g" else "score"
+    print(f"  checked {len(report)} candidate(s), {report[0]['simulations']} simulation(s) each{radius}:")
+    for row in report:
+        source = "optimum" if row["source"] == "model" else "start layout"
+        mark = "  <- kept" if row.get("kept") and "fallback" not in result.optimizer else ""
+        print(f"    {source:12s} {'works' if row['success'] else 'fails':5s}  local success "
+              f"{row['local_success_rate']:4.2f}  {score} {row['score']:.3f}{mark}")
+    if "fallback" in result.optimizer:
+        print("    none worked: kept the best simulated sample")
 
 
 def read_layout(path: str, problem) -> np.ndarray:

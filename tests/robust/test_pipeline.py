@@ -31,6 +31,7 @@ from design.robust.pipeline import plan_budget, verify_candidates
 from design.robust.problem import EllipsoidEvent, SyntheticProblem
 from design.robust.robustness import (
     EvaluationSet,
+    densest_successes,
     epsilon_grid,
     estimated_global_robustness,
     evaluation_set,
@@ -189,6 +190,45 @@ def test_verification_by_estimated_rho_g_prefers_the_middle_of_the_success_regio
         PSPSettings(verification_score="best")
 
 
+def test_densest_successes_come_from_the_middle_of_the_largest_success_region():
+    # Successes on a large disc and a small one; failures elsewhere.
+    U = np.random.default_rng(0).random((600, 2))
+    big = np.linalg.norm(U - [0.3, 0.3], axis=1) < 0.25
+    small = np.linalg.norm(U - [0.85, 0.85], axis=1) < 0.08
+    success = big | small
+    densest = densest_successes(U, success, 5)
+    assert densest.shape == (5, 2)
+    assert (np.linalg.norm(densest - [0.3, 0.3], axis=1) < 0.25).all()  # all on the large disc
+    # Ranked by ρ_g's formula on the sample: the first is the success it scores highest.
+    scores = [estimated_global_robustness(u, U, success) for u in U[success]]
+    assert estimated_global_robustness(densest[0], U, success) == pytest.approx(max(scores))
+    # Every success when n is large; none without successes or with n = 0; always successes of the sample.
+    assert len(densest_successes(U, success, 10_000)) == success.sum()
+    assert densest_successes(U, np.zeros(len(U), bool), 3).shape == (0, 2)
+    assert densest_successes(U, success, 0).shape == (0, 2)
+    assert {tuple(u) for u in densest_successes(U, success, 50)} <= {tuple(u) for u in U[success]}
+
+
+def test_start_candidates_are_verified_after_the_model_candidates_and_can_win():
+    problem = synthetic_chain()
+    centre = np.array([0.35, 0.5, 0.6])
+    edge = np.array([0.35, 0.5, 0.6 + 0.245])
+    outside = np.array([0.35, 0.5, 0.95])
+    settings = PSPSettings(verification_candidates=2, verification_samples=20, verification_start_candidates=2)
+    # The model offers a failure and an edge; the start offers the centre and (a duplicate of) the edge.
+    u, events, report = verify_candidates(problem, problem.simulate_batch, [outside, edge, centre], settings,
+                                          seed=0, additional=[centre, edge + 0.01])
+    np.testing.assert_array_equal(u, centre)
+    assert events.all()
+    assert [r["source"] for r in report] == ["model", "model", "start"]
+    assert [r["u"] for r in report] == [list(outside), list(edge), list(centre)]
+    # The budget plan reserves simulations for the start candidates too.
+    plan = plan_budget(settings, 614)
+    assert plan.reserve == 4 * 20
+    with pytest.raises(RobustError, match="verification_start_candidates"):
+        PSPSettings(verification_start_candidates=-1)
+
+
 def test_recommended_settings_fit_a_small_budget_and_return_a_verified_success():
     problem = synthetic_branching()
     settings = PSPSettings.recommended(n_initial=128, n_successes=40, max_exploration_steps=20)
@@ -197,7 +237,8 @@ def test_recommended_settings_fit_a_small_budget_and_return_a_verified_success()
     assert result.n_simulations <= 120
     assert result.simulated_success and problem.is_valid(result.u[None, :])[0]
     verified = result.optimizer["verification"]
-    assert len(verified) == 3 and sum(r["simulations"] for r in verified) <= 120 // 4
+    assert len(verified) == 6 and sum(r["simulations"] for r in verified) <= 120 // 4
+    assert [r["source"] for r in verified] == ["model"] * 3 + ["start"] * 3
     assert PSPSettings().cv_scoring == "accuracy" and settings.cv_scoring == "roc_auc"
 
 

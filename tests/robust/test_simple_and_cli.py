@@ -155,10 +155,18 @@ def test_cli_optimize_with_the_recommended_settings_stays_within_the_budget(tmp_
     layout = json.loads(out.read_text())
     assert layout["simulations_used"] <= 30
     assert code == (0 if layout["simulated_success"] else 1)
-    # The layout file says how it was made; a budget of 30 left 2 simulations per verified candidate.
+    # The layout file says how it was made; a budget of 30 left one simulation for each of the six verified
+    # candidates (three optima, three layouts of the start): a quarter of the budget at most.
     settings = layout["psp_settings"]
     assert settings["cv_scoring"] == "roc_auc" and settings["verification_candidates"] == 3
-    assert settings["verification_samples"] == 2
+    assert settings["verification_start_candidates"] == 3 and settings["verification_samples"] == 1
+    # Which candidates were checked, where each came from, and the one kept (unless none worked).
+    checked = layout["verification"]
+    assert {row["source"] for row in checked} <= {"model", "start"} and 1 <= len(checked) <= 6
+    assert sum(row["kept"] for row in checked) == 1
+    printed = capsys.readouterr().out
+    assert f"checked {len(checked)} candidate(s), 1 simulation(s) each, radius 0.01:" in printed
+    assert ("<- kept" in printed) != layout["fallback_to_best_sample"]
     restored = PSPSettings(**{k: tuple(v) if isinstance(v, list) else v for k, v in settings.items()})
     assert restored.cv_scoring == "roc_auc"
     out_thesis = tmp_path / "thesis.json"
