@@ -122,6 +122,17 @@ class RobustLayout:
     #: The settings the run used (after :func:`plan_budget`), so that it can be repeated.
     settings: PSPSettings | None = None
 
+    def kept_candidate(self) -> str:
+        """Where the layout came from, in words: the verified candidate kept, or the fallback to the best sample."""
+        if "fallback" in self.optimizer:
+            return "no checked candidate worked: the best simulated sample"
+        kept = next((row for row in self.optimizer.get("verification", []) if row.get("kept")), None)
+        if kept is None:
+            return "the model's optimum"
+        source = "an optimum of the model" if kept["source"] == "model" else "a success of the uniform start"
+        return (f"{source} (of {len(self.optimizer['verification'])} checked; local success "
+                f"{kept['local_success_rate']:.2f}, score {kept['score']:.3f})")
+
     def to_json(self, problem: LayoutProblem) -> dict:
         """The LAYOUT.json content: hash, parameters in real units and normalized, predictions, budget used."""
         real = problem.to_real(self.u)

@@ -239,6 +239,9 @@ def test_recommended_settings_fit_a_small_budget_and_return_a_verified_success()
     verified = result.optimizer["verification"]
     assert len(verified) == 6 and sum(r["simulations"] for r in verified) <= 120 // 4
     assert [r["source"] for r in verified] == ["model"] * 3 + ["start"] * 3
+    kept = next(r for r in verified if r["kept"])
+    source = "an optimum of the model" if kept["source"] == "model" else "a success of the uniform start"
+    assert result.kept_candidate().startswith(f"{source} (of 6 checked; local success")
     assert PSPSettings().cv_scoring == "accuracy" and settings.cv_scoring == "roc_auc"
 
 

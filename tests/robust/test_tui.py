@@ -55,7 +55,8 @@ async def test_optimize_shows_progress_probabilities_and_layouts(tmp_path):
         layout = screen.query_one("#layout", DataTable)
         assert [str(layout.get_row(k)[0]) for k in layout.rows] == ["track.x", "track.z", "track.roll"]
         assert screen.query_one("#bar", ProgressBar).progress == screen.result.n_simulations
-        assert "PSP" in str(screen.query_one("#status", Static).render())
+        status = str(screen.query_one("#status", Static).render())
+        assert "PSP" in status and f"kept {screen.result.kept_candidate()}" in status
         assert screen.query_one("#picture").image is not None
         await pilot.press("w")
         await pilot.pause()

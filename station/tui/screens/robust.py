@@ -270,7 +270,7 @@ class RobustScreen(Screen):
         verdict = "succeeds" if result.simulated_success else "FAILS"
         self._set_status(f"{result.scenario}: PSP {result.psp:.3f}; the optimized layout {verdict} in simulation; "
                          f"{result.n_simulations} simulations ({result.n_new_simulations} new), "
-                         f"{result.seconds:.1f} s. w writes it.")
+                         f"{result.seconds:.1f} s; kept {result.kept_candidate()}. w writes it.")
         moved = float(np.linalg.norm(result.u - problem.initial_layout()))
         self.query_one("#progress", Static).update(
             f"[b]done[/b]   simulations {result.n_simulations}/{result.budget}   CV accuracy "
