@@ -214,8 +214,7 @@ def plan_budget(settings: PSPSettings, budget: int | None) -> BudgetPlan:
     """Share ``budget`` between verification, the exploration (and its Sobol start) and active learning.
 
     Verification simulates ``verification_samples`` layouts for each of the model's candidates and each start
-    candidate.
-    Verification never takes over a quarter of the budget: a small one gets fewer simulations per candidate. The
+    candidate, and never takes over a quarter of the budget: a small one gets fewer simulations per candidate. The
     exploration may use ``exploration_share`` of the rest, its Sobol start ``initial_share``; active learning gets
     what the exploration leaves.
     """
@@ -463,6 +462,8 @@ def optimize_robust_layout(
     if not events.all() and settings.fallback_to_best_sample and samples.success[best]:
         u, events = u_best, samples.events[best]
         info = {**info, "fallback": "the optimized layout failed in simulation; kept the best sample"}
+        for row in verification:
+            row["kept"] = False
     factors = psp.factor_probabilities(u)[0]
     oracle.best_psp = float(np.prod(factors))
     oracle.phase = "done"

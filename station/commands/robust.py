@@ -258,7 +258,7 @@ def _print_verification(result) -> None:
     print(f"  checked {len(report)} candidate(s), {report[0]['simulations']} simulation(s) each{radius}:")
     for row in report:
         source = "optimum" if row["source"] == "model" else "start layout"
-        mark = "  <- kept" if row.get("kept") and "fallback" not in result.optimizer else ""
+        mark = "  <- kept" if row.get("kept") else ""
         print(f"    {source:12s} {'works' if row['success'] else 'fails':5s}  local success "
               f"{row['local_success_rate']:4.2f}  {score} {row['score']:.3f}{mark}")
     if "fallback" in result.optimizer:
