@@ -17,7 +17,9 @@ FAST_DEVICES = (
 )
 
 
-async def _until(pilot, predicate, timeout=15.0):
+async def _until(pilot, predicate, timeout=60.0):
+    # A liveness guard, not a timing check: it returns as soon as the predicate holds. 15 s was too tight on a
+    # 2-core machine running simulations beside the suite (the simulated GRBL polls in real time).
     loop = asyncio.get_running_loop()
     deadline = loop.time() + timeout
     while not predicate():
