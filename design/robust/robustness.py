@@ -92,8 +92,7 @@ def estimated_global_robustness(
     u: np.ndarray, U: np.ndarray, success: np.ndarray, settings: RobustnessSettings | None = None
 ) -> float:
     """ρ_g(u) computed from the simulated layouts ``U`` at hand (their ``success``), without new simulations."""
-    epsilon, rho = _curve_from_points(np.asarray(u, dtype=float), U, success, settings or RobustnessSettings())
-    return float(np.trapezoid(rho, epsilon))
+    return float(_global_from_points(u, U, success, settings or RobustnessSettings())[0])
 
 
 def densest_successes(
@@ -110,18 +109,27 @@ def densest_successes(
     successes = U[success]
     if n < 1 or not len(successes):
         return successes[:0]
-    settings = settings or RobustnessSettings()
-    epsilon = epsilon_grid(settings)
-    rho = ball_means(successes, U, success.astype(float), epsilon + settings.thickness_factor * settings.epsilon_step)
-    scores = np.trapezoid(rho, epsilon, axis=1)
+    scores = _global_from_points(successes, U, success.astype(float), settings or RobustnessSettings())
     return successes[np.argsort(-scores, kind="stable")[:n]]
+
+
+def _ball_radii(settings: RobustnessSettings) -> tuple[np.ndarray, np.ndarray]:
+    """The ε grid and the radii ε + η of ρ_l's balls."""
+    epsilon = epsilon_grid(settings)
+    return epsilon, epsilon + settings.thickness_factor * settings.epsilon_step
 
 
 def _curve_from_points(u, U, success, settings: RobustnessSettings) -> tuple[np.ndarray, np.ndarray]:
     """The ε grid and ρ_l(u, ε + η) on it, from simulated layouts."""
-    epsilon = epsilon_grid(settings)
-    thickness = settings.thickness_factor * settings.epsilon_step
-    return epsilon, local_robustness_from_points(u, U, success, epsilon, thickness)
+    epsilon, radii = _ball_radii(settings)
+    return epsilon, ball_means(u, U, success, radii)[0]
+
+
+def _global_from_points(centres, points, values, settings: RobustnessSettings, own_weight: float = 0.0,
+                        own_values=None, chunk: int = 256) -> np.ndarray:
+    """ρ_g's formula for each centre, with ``values`` of ``points`` in place of simulated successes (see ball_means)."""
+    epsilon, radii = _ball_radii(settings)
+    return np.trapezoid(ball_means(centres, points, values, radii, own_weight, own_values, chunk), epsilon, axis=1)
 
 
 def robustness_curve(
@@ -192,8 +200,5 @@ def predicted_global_robustness(
     ndarray, shape (m,)
     """
     settings = settings or RobustnessSettings()
-    epsilon = epsilon_grid(settings)
-    rho = ball_means(candidates, reference, reference_probability,
-                     epsilon + settings.thickness_factor * settings.epsilon_step,
-                     float(settings.n_local), candidate_probability, chunk)
-    return np.trapezoid(rho, epsilon, axis=1)
+    return _global_from_points(candidates, reference, reference_probability, settings, float(settings.n_local),
+                               candidate_probability, chunk)
