@@ -377,6 +377,7 @@ class SimulatedGrbl:
         self._line_no: int | None = None
         self._halted = False
         self._owed_ok = False
+        self._parse_time = time.monotonic()  # the time of the parser's current wake-up (see _step_parser)
         self._check_mode = False
         self._hold = False
         self._hold_remaining = 0.0
@@ -645,11 +646,14 @@ class SimulatedGrbl:
         self._planner.append(_Block(self._gc_pos.copy(), target.copy(), length, feed, rapid, power,
                                     self.modal["spindle"], self._gcode_lines, text, jog))
         self._gc_pos = target.copy()
-        self._fill_changed(time.monotonic())
+        self._fill_changed(self._parse_time)
 
     # ------------------------------------------------------------------ line processing
 
     def _step_parser(self, now: float) -> None:
+        # Everything the parser does in this wake-up happens at ``now``, the time motion is planned from. Reading the
+        # clock again here put a spindle change after the start of the block it precedes (seen under CPU load).
+        self._parse_time = now
         for _ in range(64):  # bounded work per wake-up keeps real-time bytes prompt
             if self._halted or self._state == "Home":
                 return
@@ -786,7 +790,7 @@ class SimulatedGrbl:
             if self._check_mode:
                 self._emit("[MSG:Disabled]")
                 self._emit("ok", "reply")
-                self._soft_reset(time.monotonic())
+                self._soft_reset(self._parse_time)
                 raise _Halt
             if self._state != "Idle":
                 return 8
@@ -806,7 +810,7 @@ class SimulatedGrbl:
             if not idle_or_alarm or self._check_mode:
                 return 8
             self._state = "Home"
-            self._home_until = time.monotonic() + 1.5 * self.config.time_scale
+            self._home_until = self._parse_time + 1.5 * self.config.time_scale
             self._wait = ("time", self._home_until)
             yield ("time", self._home_until)
             return 0
@@ -990,7 +994,7 @@ class SimulatedGrbl:
         if nonmodal == 4.0:
             if not self._check_mode:
                 yield "sync"
-                yield ("time", time.monotonic() + values["P"] * self.config.time_scale)
+                yield ("time", self._parse_time + values["P"] * self.config.time_scale)
         for key in ("plane", "units", "distance", "wcs"):
             if key in block.groups:
                 self.modal[key] = block.groups[key]
@@ -1081,7 +1085,7 @@ class SimulatedGrbl:
         speed = min(max(self.spindle_speed, self.settings[31]), self.settings[30]) if on else 0.0
         self._spindle_out = speed if on else 0.0
         if not self._check_mode:
-            self._sample(time.monotonic())
+            self._sample(self._parse_time)
 
     def _move(self, target: np.ndarray, rapid: bool, feed: float, text: str):
         if int(self.settings[20]) and not self._within_travel(target):
@@ -1098,7 +1102,7 @@ class SimulatedGrbl:
         self._plan(target, rapid, feed, text)
 
     def _soft_limit_alarm(self) -> None:
-        now = time.monotonic()
+        now = self._parse_time
         # GRBL feed-holds to a stop, then resets and waits for the user's reset: position is kept.
         self.mpos = self._position(now)
         self._planner.clear()
