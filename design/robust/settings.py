@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass, fields, replace
 
 from design.robust.problem import RobustError
@@ -212,6 +213,42 @@ class PSPSettings:
         settings and the baselines are in the README's robust-layouts section.
         """
         return cls(**{**RECOMMENDED_CHANGES, **changes})
+
+    @classmethod
+    def from_mapping(cls, data: Mapping, source: str = "PSP settings") -> PSPSettings:
+        """Settings from a JSON-like mapping, e.g. ``psp_settings`` of a LAYOUT.json, to repeat a run.
+
+        Names missing from ``data`` keep the thesis's defaults. Unknown names and values of the wrong type raise a
+        :class:`RobustError` naming ``source``, the setting and the expected type; lists become tuples.
+        """
+        if not isinstance(data, Mapping):
+            raise RobustError(f"{source}: expected a table of settings, got {type(data).__name__}")
+        known = {f.name: f for f in fields(cls)}
+        unknown = sorted(set(data) - set(known))
+        if unknown:
+            raise RobustError(f"{source}: unknown setting(s) {unknown}; known: {sorted(known)}")
+        values = {}
+        for name, value in data.items():
+            default = known[name].default
+            if isinstance(default, tuple):
+                ok = isinstance(value, (list, tuple)) and all(
+                    isinstance(v, (int, float)) and not isinstance(v, bool) for v in value)
+                expected, value = "a list of numbers", tuple(value) if ok else value
+            elif isinstance(default, bool):
+                ok, expected = isinstance(value, bool), "true or false"
+            elif isinstance(default, int):
+                ok, expected = isinstance(value, int) and not isinstance(value, bool), "an integer"
+            elif isinstance(default, float):
+                ok, expected = isinstance(value, (int, float)) and not isinstance(value, bool), "a number"
+            else:
+                ok, expected = isinstance(value, str), "a string"
+            if not ok:
+                raise RobustError(f"{source}: {name} must be {expected}, got {value!r}")
+            values[name] = value
+        try:
+            return cls(**values)
+        except RobustError as error:
+            raise RobustError(f"{source}: {str(error).removeprefix('PSP settings: ')}") from None
 
     def with_changes(self, **changes) -> PSPSettings:
         """A copy with some settings changed (unknown names raise)."""

@@ -18,6 +18,7 @@ from design.robust import (
     METHODS,
     Progress,
     PSPSettings,
+    RobustError,
     RobustnessSettings,
     SimulationExecutor,
     compare_methods,
@@ -146,7 +147,7 @@ def register(subparsers) -> None:
     optimize.add_argument("--out", required=True, metavar="LAYOUT.json", help="output layout file")
     optimize.add_argument("--global-psp", action="store_true", help="one classifier of global success (no per-event "
                           "factorization, thesis 4.5 instead of 4.6)")
-    optimize.add_argument("--placement-error", type=float, default=0.0, metavar="EPS",
+    optimize.add_argument("--placement-error", type=float, default=None, metavar="EPS",
                           help="optimize the mean success probability under a uniform placement error of EPS "
                           "(normalized units, e.g. 0.1) instead of at the point (default 0, the thesis's)")
     add_settings_choice(optimize)
@@ -200,19 +201,46 @@ def default_budget(problem, budget: int | None) -> int:
 
 
 def add_settings_choice(parser) -> None:
-    """``--settings thesis|recommended`` (and ``--recommended``, short for ``--settings recommended``)."""
-    parser.add_argument("--settings", choices=sorted(SETTINGS_CHOICES), default=DEFAULT_SETTINGS,
+    """``--settings thesis|recommended|LAYOUT.json`` (and ``--recommended``, short for ``--settings recommended``)."""
+    parser.add_argument("--settings", default=DEFAULT_SETTINGS, metavar="NAME|LAYOUT.json",
                         help="PSP settings of ours: " + "; ".join(f"{k}: {v}" for k, v in SETTINGS_CHOICES.items())
-                        + " (default %(default)s; figures of both in the README)")
+                        + "; or a LAYOUT.json of an earlier run, to repeat it with its settings (give its --seed "
+                        "and --budget too) (default %(default)s; figures of both in the README)")
     parser.add_argument("--recommended", dest="settings", action="store_const", const="recommended",
                         help="short for --settings recommended")
 
 
 def psp_settings(choice: str, **changes) -> PSPSettings:
-    """The PSP settings named ``choice`` (a key of :data:`SETTINGS_CHOICES`) with ``changes``."""
-    if choice not in SETTINGS_CHOICES:
-        raise UsageError(f"--settings must be one of {', '.join(sorted(SETTINGS_CHOICES))}, got {choice!r}")
-    return PSPSettings.recommended(**changes) if choice == "recommended" else PSPSettings(**changes)
+    """The PSP settings named ``choice`` (a key of :data:`SETTINGS_CHOICES`, or a LAYOUT.json's path) with
+    ``changes``."""
+    if choice in SETTINGS_CHOICES:
+        return PSPSettings.recommended(**changes) if choice == "recommended" else PSPSettings(**changes)
+    if not choice.lower().endswith(".json"):
+        raise UsageError(f"--settings must be one of {', '.join(sorted(SETTINGS_CHOICES))} or a LAYOUT.json, "
+                         f"got {choice!r}")
+    settings = settings_of_layout(choice)
+    return settings.with_changes(**changes) if changes else settings
+
+
+def settings_of_layout(path: str) -> PSPSettings:
+    """The PSP settings a LAYOUT.json recorded (``psp_settings``, as planned for its budget)."""
+    try:
+        data = json.loads(Path(path).read_text(encoding="utf-8"))
+    except FileNotFoundError:
+        raise UsageError(f"--settings: no such file {path}") from None
+    except (OSError, UnicodeDecodeError) as error:
+        raise FileFormatError(f"{path}: cannot be read ({error})") from None
+    except json.JSONDecodeError as error:
+        raise FileFormatError(f"{path}: not JSON ({error.msg} at line {error.lineno})") from None
+    if not isinstance(data, dict) or "psp_settings" not in data:
+        raise FileFormatError(f"{path}: field 'psp_settings' is missing (expected a LAYOUT.json written by "
+                              "'station optimize')")
+    if data["psp_settings"] is None:
+        raise FileFormatError(f"{path}: field 'psp_settings' is null (the run recorded no settings)")
+    try:
+        return PSPSettings.from_mapping(data["psp_settings"], f"{path}: field 'psp_settings'")
+    except RobustError as error:
+        raise FileFormatError(str(error)) from None
 
 
 def run_optimize(args) -> int:
@@ -220,7 +248,12 @@ def run_optimize(args) -> int:
     output_suffix(out, {".json"})
     problem = _load_problem(args.scenario)
     budget = default_budget(problem, args.budget)
-    settings = psp_settings(args.settings, factorize=not args.global_psp, placement_error=args.placement_error)
+    changes = {}
+    if args.global_psp:
+        changes["factorize"] = False
+    if args.placement_error is not None:
+        changes["placement_error"] = args.placement_error
+    settings = psp_settings(args.settings, **changes)
     bar = ProgressBar()
     executor = None
     try:

@@ -117,6 +117,31 @@ def test_settings_validation_names_the_setting():
         PSPSettings().with_changes(sigma=3)
 
 
+@pytest.mark.parametrize(("data", "message"), [
+    ({"n_initial": 1.5}, "S: n_initial must be an integer, got 1.5"),
+    ({"factorize": "no"}, "S: factorize must be true or false, got 'no'"),
+    ({"smooth_min_alpha": None}, "S: smooth_min_alpha must be a number, got None"),
+    ({"gamma_grid": 0.1}, "S: gamma_grid must be a list of numbers, got 0.1"),
+    ({"cv_scoring": 3}, "S: cv_scoring must be a string, got 3"),
+    ({"target_accuracy": 2}, "S: target_accuracy must be in (0, 1], got 2"),
+    ({"sigma": 3}, "S: unknown setting(s) ['sigma']"),
+    ([1, 2], "S: expected a table of settings, got list"),
+])
+def test_settings_from_a_mapping_name_the_bad_field(data, message):
+    with pytest.raises(RobustError) as error:
+        PSPSettings.from_mapping(data, "S")
+    assert str(error.value).startswith(message)
+
+
+def test_settings_round_trip_through_json():
+    import json
+    from dataclasses import asdict
+
+    for settings in (PSPSettings(), PSPSettings.recommended(c_grid=(1.0, 10.0), placement_error=0.1)):
+        assert PSPSettings.from_mapping(json.loads(json.dumps(asdict(settings)))) == settings
+    assert PSPSettings.from_mapping({"smooth_min_alpha": 5}) == PSPSettings(smooth_min_alpha=5)  # an int is a number
+
+
 def concentrated_samples(problem, n_initial=128, n_explored=2000, seed=0):
     """A uniform Sobol start, then many layouts where ``second`` always succeeds (as a mixture around successes)."""
     from design.robust.psp import Samples

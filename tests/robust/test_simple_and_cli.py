@@ -174,10 +174,43 @@ def test_cli_optimize_with_the_recommended_settings_stays_within_the_budget(tmp_
           "--out", str(out_thesis)])
     assert json.loads(out_thesis.read_text())["psp_settings"]["cv_scoring"] == "accuracy"
     capsys.readouterr()
-    with pytest.raises(SystemExit) as exit_info:
-        main(["optimize", str(SIMPLE), "--settings", "best", "--out", str(tmp_path / "x.json")])
-    assert exit_info.value.code == 2
-    assert "--settings" in capsys.readouterr().err and not (tmp_path / "x.json").exists()
+    assert main(["optimize", str(SIMPLE), "--settings", "best", "--out", str(tmp_path / "x.json")]) == 2
+    assert "--settings must be one of recommended, thesis or a LAYOUT.json, got 'best'" in capsys.readouterr().err
+    assert not (tmp_path / "x.json").exists()
+
+
+def test_cli_optimize_repeats_a_run_from_its_layout_file(tmp_path, capsys):
+    first, again = tmp_path / "first.json", tmp_path / "again.json"
+    common = ["optimize", str(SIMPLE), "--budget", "30", "--workers", "1", "--seed", "3"]
+    main([*common, "--settings", "thesis", "--global-psp", "--out", str(first)])
+    main([*common, "--settings", str(first), "--out", str(again)])
+    old, new = json.loads(first.read_text()), json.loads(again.read_text())
+    assert new["psp_settings"] == old["psp_settings"] and new["psp_settings"]["factorize"] is False
+    assert [p["normalized"] for p in new["parameters"]] == [p["normalized"] for p in old["parameters"]]
+    assert new["simulations_used"] == old["simulations_used"] and new["verification"] == old["verification"]
+    capsys.readouterr()
+    # A flag given beside the file changes its settings.
+    main([*common, "--settings", str(first), "--placement-error", "0.1", "--out", str(tmp_path / "eps.json")])
+    eps = json.loads((tmp_path / "eps.json").read_text())["psp_settings"]
+    assert eps["placement_error"] == 0.1 and eps["factorize"] is False
+
+    def refused(content, expected):
+        source = tmp_path / "source.json"
+        if content is not None:
+            source.write_text(content)
+        capsys.readouterr()
+        assert main([*common, "--settings", str(source), "--out", str(tmp_path / "x.json")]) == 2
+        assert expected in capsys.readouterr().err
+        source.unlink(missing_ok=True)
+
+    refused(None, "--settings: no such file")
+    refused("{", "source.json: not JSON")
+    refused('{"scenario": "SIMPLE"}', "source.json: field 'psp_settings' is missing")
+    refused('{"psp_settings": null}', "field 'psp_settings' is null")
+    refused('{"psp_settings": {"n_initial": "many"}}', "field 'psp_settings': n_initial must be an integer, got 'many'")
+    refused('{"psp_settings": {"cv_folds": 1}}', "field 'psp_settings': cv_folds must be an integer >= 2, got 1")
+    refused('{"psp_settings": {"speed": 3}}', "field 'psp_settings': unknown setting(s) ['speed']")
+    assert not (tmp_path / "x.json").exists()
 
 
 def test_progress_bar_and_thesis_budgets():
