@@ -58,26 +58,39 @@ def ball_means(
     radii: np.ndarray,
     own_weight: float = 0.0,
     own_values: np.ndarray | None = None,
-    chunk: int = 256,
+    max_pairs: int = 1 << 20,
 ) -> np.ndarray:
     """Mean of ``values`` over the ``points`` within each radius of each centre, ``(m, len(radii))``.
 
     Each centre may count its own value ``own_weight`` times (the evaluation's local layouts in B_η(x)); an empty
     ball scores 0. This is ρ_l when the values are simulated successes, and its expectation when they are
-    probabilities.
+    probabilities. Centres go in blocks of at most ``max_pairs`` centre-point distances.
     """
     centres = np.atleast_2d(np.asarray(centres, dtype=float))
     points = np.asarray(points, dtype=float)
     values = np.asarray(values, dtype=float)
     radii = np.asarray(radii, dtype=float)
     own = np.zeros(len(centres)) if own_values is None else np.asarray(own_values, dtype=float)
-    result = np.empty((len(centres), len(radii)))
-    for begin in range(0, len(centres), chunk):
-        distances = cdist(centres[begin:begin + chunk], points)
-        inside = distances[:, None, :] <= radii[None, :, None]  # (block, radii, points)
-        counts = inside.sum(axis=-1) + own_weight
-        mass = inside @ values + own_weight * own[begin:begin + chunk, None]
-        result[begin:begin + chunk] = np.divide(mass, counts, out=np.zeros_like(mass), where=counts > 0)
+    order = np.argsort(radii, kind="stable")
+    sorted_radii = radii[order]
+    n_radii = len(radii)
+    result = np.empty((len(centres), n_radii))
+    block = max(1, max_pairs // max(1, len(points)))
+    for begin in range(0, len(centres), block):
+        distances = cdist(centres[begin:begin + block], points)
+        rows = len(distances)
+        # Each point falls in every ball from the smallest radius that holds it on: count it there once, then a
+        # running sum over the radii (memory per pair, not per pair and radius).
+        first = np.searchsorted(sorted_radii, distances, side="left")
+        bins = (first + (n_radii + 1) * np.arange(rows)[:, None]).ravel()
+        size = rows * (n_radii + 1)
+        counts = np.bincount(bins, minlength=size).reshape(rows, n_radii + 1)[:, :n_radii].cumsum(axis=1)
+        mass = np.bincount(bins, weights=np.broadcast_to(values, distances.shape).ravel(), minlength=size)
+        mass = mass.reshape(rows, n_radii + 1)[:, :n_radii].cumsum(axis=1)
+        counts = counts + own_weight
+        mass = mass + own_weight * own[begin:begin + block, None]
+        means = np.divide(mass, counts, out=np.zeros_like(mass), where=counts > 0)
+        result[begin:begin + block, order] = means
     return result
 
 
@@ -126,10 +139,10 @@ def _curve_from_points(u, U, success, settings: RobustnessSettings) -> tuple[np.
 
 
 def _global_from_points(centres, points, values, settings: RobustnessSettings, own_weight: float = 0.0,
-                        own_values=None, chunk: int = 256) -> np.ndarray:
+                        own_values=None) -> np.ndarray:
     """ρ_g's formula for each centre, with ``values`` of ``points`` in place of simulated successes (see ball_means)."""
     epsilon, radii = _ball_radii(settings)
-    return np.trapezoid(ball_means(centres, points, values, radii, own_weight, own_values, chunk), epsilon, axis=1)
+    return np.trapezoid(ball_means(centres, points, values, radii, own_weight, own_values), epsilon, axis=1)
 
 
 def robustness_curve(
@@ -178,7 +191,6 @@ def predicted_global_robustness(
     reference: np.ndarray,
     reference_probability: np.ndarray,
     settings: RobustnessSettings | None = None,
-    chunk: int = 256,
 ) -> np.ndarray:
     """ρ_g's formula with predicted success probabilities in place of simulated successes.
 
@@ -201,4 +213,4 @@ def predicted_global_robustness(
     """
     settings = settings or RobustnessSettings()
     return _global_from_points(candidates, reference, reference_probability, settings, float(settings.n_local),
-                               candidate_probability, chunk)
+                               candidate_probability)

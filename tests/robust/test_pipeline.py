@@ -31,6 +31,7 @@ from design.robust.pipeline import plan_budget, verify_candidates
 from design.robust.problem import EllipsoidEvent, SyntheticProblem
 from design.robust.robustness import (
     EvaluationSet,
+    ball_means,
     densest_successes,
     epsilon_grid,
     estimated_global_robustness,
@@ -112,7 +113,7 @@ def test_predicted_global_robustness_is_the_evaluation_formula_with_probabilitie
     candidate_success = np.array([1, 0, 1, 0, 1, 1], dtype=bool)
     settings = RobustnessSettings(n_local=1)
     predicted = predicted_global_robustness(candidates, candidate_success.astype(float), reference,
-                                            success.astype(float), settings, chunk=4)
+                                            success.astype(float), settings)
     epsilon = epsilon_grid(settings)
     for i, u in enumerate(candidates):
         # One local layout in B_η(u): u itself with its own outcome.
@@ -188,6 +189,27 @@ def test_verification_by_estimated_rho_g_prefers_the_middle_of_the_success_regio
     assert estimated_global_robustness(centre, *reference, no_local) == pytest.approx(measured)
     with pytest.raises(RobustError, match="verification_score"):
         PSPSettings(verification_score="best")
+
+
+@pytest.mark.parametrize("max_pairs", [1, 37, 1 << 22])
+def test_ball_means_is_the_mean_over_each_ball_by_its_definition(max_pairs):
+    rng = np.random.default_rng(4)
+    centres, points = rng.uniform(size=(9, 3)), rng.uniform(size=(200, 3))
+    values, own = rng.uniform(size=200), rng.uniform(size=9)
+    points[0] = centres[0] + [0.25, 0, 0]  # exactly on a radius: inside (<=)
+    radii = np.array([0.5, 0.0, 0.25, 1e-3, 2.0])  # unsorted, one empty for every centre
+    expected = np.zeros((9, 5))
+    for i, c in enumerate(centres):
+        distance = np.linalg.norm(points - c, axis=1)
+        for k, r in enumerate(radii):
+            inside = distance <= r
+            count = inside.sum() + 2.5
+            expected[i, k] = (values[inside].sum() + 2.5 * own[i]) / count
+    got = ball_means(centres, points, values, radii, 2.5, own, max_pairs=max_pairs)
+    np.testing.assert_allclose(got, expected, rtol=1e-12)
+    bare = ball_means(centres, points, values, radii, max_pairs=max_pairs)
+    assert np.all(bare[:, 1] == 0)  # an empty ball scores 0
+    np.testing.assert_allclose(bare[0, 2], values[np.linalg.norm(points - centres[0], axis=1) <= 0.25].mean())
 
 
 def test_densest_successes_come_from_the_middle_of_the_largest_success_region():
