@@ -37,15 +37,15 @@ def boolean_cube(centres, points, values, radii, chunk=256):
     return result
 
 
-def best_of(function, repeats=3):
+def best_of(function, args, repeats=3):
     """Best time of ``repeats`` calls, the result, and the peak memory the call allocated (MB, numpy's included)."""
     times = []
     for _ in range(repeats):
         start = time.perf_counter()
-        out = function()
+        out = function(*args)
         times.append(time.perf_counter() - start)
     tracemalloc.start()
-    function()
+    function(*args)
     peak = tracemalloc.get_traced_memory()[1] / 1e6
     tracemalloc.stop()
     return min(times), out, peak
@@ -60,8 +60,9 @@ def main() -> None:
         centres, points = rng.uniform(size=(m, d)), rng.uniform(size=(n, d))
         values = (rng.uniform(size=n) < 0.3).astype(float)
         repeats = 1 if m * n > 10_000_000 else 3
-        cube_s, cube, cube_mb = best_of(lambda: boolean_cube(centres, points, values, radii), repeats)
-        running_s, running, running_mb = best_of(lambda: ball_means(centres, points, values, radii), repeats)
+        args = (centres, points, values, radii)
+        cube_s, cube, cube_mb = best_of(boolean_cube, args, repeats)
+        running_s, running, running_mb = best_of(ball_means, args, repeats)
         print(f"{label:40s} {m:8d} {n:9d} {cube_s:8.3f} {running_s:9.3f} {cube_s / running_s:5.1f}x "
               f"{np.abs(cube - running).max():9.1e} {cube_mb:12.0f} {running_mb:15.0f}")
 
