@@ -149,7 +149,8 @@ def register(subparsers) -> None:
                           "factorization, thesis 4.5 instead of 4.6)")
     optimize.add_argument("--placement-error", type=float, default=None, metavar="EPS",
                           help="optimize the mean success probability under a uniform placement error of EPS "
-                          "(normalized units, e.g. 0.1) instead of at the point (default 0, the thesis's)")
+                          "(normalized units, e.g. 0.1) instead of at the point (default: the settings', 0 in "
+                          "thesis and recommended)")
     add_settings_choice(optimize)
     optimize.add_argument("--json", action="store_true", help="also print the layout as JSON on stdout")
     optimize.set_defaults(func=run_optimize)
