@@ -83,6 +83,26 @@ async def test_stop_ends_a_run_cleanly_and_bad_budget_is_refused(tmp_path):
         assert screen.result is None and not screen.query_one("#optimize", Button).disabled
 
 
+async def test_enter_in_the_budget_field_starts_a_run_that_s_stops(tmp_path):
+    """Letter keys type into a focused field (o does nothing there); Enter starts, and s then stops the run."""
+    app = StationApp(database=tmp_path / "t.sqlite3")
+    async with app.run_test(size=(160, 50)) as pilot:
+        await pilot.press("o")
+        await pilot.pause()
+        screen = open_screen(app)
+        screen.query_one("#budget", Input).focus()
+        await pilot.press("end", *["backspace"] * 6, "2", "0", "0", "o")
+        await pilot.pause()
+        assert screen.query_one("#budget", Input).value == "200" and not screen._optimizing
+        await pilot.press("enter")
+        await pilot.pause()
+        assert screen._optimizing and not isinstance(app.focused, Input)
+        await asyncio.sleep(0.5)
+        await pilot.press("s")
+        await wait_until_idle(app, pilot)
+        assert "stopped" in str(screen.query_one("#status", Static).render())
+
+
 async def test_contraption_screen_opens_the_optimizer_on_its_scenario(tmp_path):
     import shutil
 

@@ -1,10 +1,10 @@
 """Optimize screen: a robust layout of a contraption scenario, with live progress (thesis 4.5-4.7).
 
-Pick a scenario, set the simulation budget and seed, press o (or the button): the PSP is learned from simulations
-and the layout optimized in a thread worker while a panel shows the phase, simulations done of the budget, the
-cross-validated accuracy and the best PSP. Then the predicted per-event probabilities, the optimized layout beside
-the scenario's initial one (a table and side views) and the result's own simulation are shown. s stops a run
-cleanly (finished simulations stay in the cache); w writes the layout JSON to the station's data folder.
+Pick a scenario, set the simulation budget and seed, press o (Enter in a field, or the button): the PSP is learned
+from simulations and the layout optimized in a thread worker while a panel shows the phase, simulations done of the
+budget, the cross-validated accuracy and the best PSP. Then the predicted per-event probabilities, the optimized
+layout beside the scenario's initial one (a table and side views) and the result's own simulation are shown. s stops
+a run cleanly (finished simulations stay in the cache); w writes the layout JSON to the station's data folder.
 """
 
 from __future__ import annotations
@@ -110,7 +110,7 @@ class RobustScreen(Screen):
             with Vertical(id="results"):
                 with Vertical(id="progress-panel"):
                     yield ProgressBar(id="bar", total=DEFAULT_BUDGET, show_eta=False)
-                    yield Static("Pick a scenario and press o.", id="progress")
+                    yield Static("Pick a scenario and press o (Enter in the budget or seed field).", id="progress")
                 with Horizontal(id="tables"):
                     yield DataTable(id="events", cursor_type="row", zebra_stripes=True)
                     yield DataTable(id="layout", cursor_type="row", zebra_stripes=True)
@@ -133,6 +133,13 @@ class RobustScreen(Screen):
 
     @on(Button.Pressed, "#optimize")
     def _optimize_pressed(self) -> None:
+        self.action_optimize()
+
+    @on(Input.Submitted, "#budget, #seed")
+    def _field_submitted(self) -> None:
+        # Letter keys type into a focused field, so o cannot start a run from there; Enter does, and focus leaves the
+        # field so that s can stop the run.
+        self.query_one("#events", DataTable).focus()
         self.action_optimize()
 
     @on(Button.Pressed, "#stop")
