@@ -86,3 +86,11 @@ async def test_bad_sketch_and_symmetry_show_a_message(tmp_path, small_retriever)
         await pilot.press("3")  # no candidate yet
         await pilot.pause()
         assert app.screen.name == "sketch"
+        # Enter in the symmetry field finds (f would type there) and gives the pad its keys back.
+        symmetry = screen.query_one("#symmetry")
+        symmetry.value = ""
+        symmetry.focus()
+        await pilot.press("2", "enter")
+        await pilot.pause()
+        assert "empty" in str(screen.query_one("#status").render())
+        assert app.focused is screen.query_one("#pad", SketchPad) and screen.pad.symmetry == 2

@@ -135,6 +135,12 @@ class SketchScreen(Screen):
         if k is not None:
             self.pad.set_symmetry(k)
 
+    @on(Input.Submitted, "#symmetry")
+    def _symmetry_submitted(self) -> None:
+        # A focused field takes letter keys (f would type there): Enter finds, and the pad gets the keys back.
+        self.pad.focus()
+        self.action_find()
+
     @on(Button.Pressed, "#find")
     def _find_pressed(self) -> None:
         self.action_find()
