@@ -219,20 +219,27 @@ def psp_settings(choice: str, **changes) -> PSPSettings:
     if not choice.lower().endswith(".json"):
         raise UsageError(f"--settings must be one of {', '.join(sorted(SETTINGS_CHOICES))} or a LAYOUT.json, "
                          f"got {choice!r}")
-    settings = settings_of_layout(choice)
-    return settings.with_changes(**changes) if changes else settings
+    return settings_of_layout(choice).with_changes(**changes)
+
+
+def _layout_json(path: str):
+    """The parsed content of a LAYOUT.json; text that is not JSON raises FileFormatError (OSError passes)."""
+    try:
+        return json.loads(Path(path).read_text(encoding="utf-8"))
+    except UnicodeDecodeError as error:
+        raise FileFormatError(f"{path}: cannot be read ({error})") from None
+    except json.JSONDecodeError as error:
+        raise FileFormatError(f"{path}: not JSON ({error.msg} at line {error.lineno})") from None
 
 
 def settings_of_layout(path: str) -> PSPSettings:
     """The PSP settings a LAYOUT.json recorded (``psp_settings``, as planned for its budget)."""
     try:
-        data = json.loads(Path(path).read_text(encoding="utf-8"))
+        data = _layout_json(path)
     except FileNotFoundError:
         raise UsageError(f"--settings: no such file {path}") from None
-    except (OSError, UnicodeDecodeError) as error:
+    except OSError as error:
         raise FileFormatError(f"{path}: cannot be read ({error})") from None
-    except json.JSONDecodeError as error:
-        raise FileFormatError(f"{path}: not JSON ({error.msg} at line {error.lineno})") from None
     if not isinstance(data, dict) or "psp_settings" not in data:
         raise FileFormatError(f"{path}: field 'psp_settings' is missing (expected a LAYOUT.json written by "
                               "'station optimize')")
@@ -301,10 +308,7 @@ def _print_verification(result) -> None:
 
 def read_layout(path: str, problem) -> np.ndarray:
     """The normalized layout of a LAYOUT.json, checked against the scenario (hash and parameter names)."""
-    try:
-        data = json.loads(Path(path).read_text(encoding="utf-8"))
-    except json.JSONDecodeError as error:
-        raise FileFormatError(f"{path}: not JSON ({error.msg} at line {error.lineno})") from None
+    data = _layout_json(path)
     if not isinstance(data, dict) or not isinstance(data.get("parameters"), list):
         raise FileFormatError(f"{path}: field 'parameters' must be a list of {{name, value}}")
     if data.get("content_hash") not in (None, problem.content_hash):

@@ -24,6 +24,13 @@ async def wait_until_idle(app, pilot, seconds=120):
     raise AssertionError("the optimization did not finish")
 
 
+async def open_from_home(app, pilot) -> RobustScreen:
+    """Press o on the home screen and return the optimize screen it opens."""
+    await pilot.press("o")
+    await pilot.pause()
+    return open_screen(app)
+
+
 def open_screen(app) -> RobustScreen:
     screen = app.screen
     assert isinstance(screen, RobustScreen)
@@ -66,9 +73,7 @@ async def test_optimize_shows_progress_probabilities_and_layouts(tmp_path):
 async def test_stop_ends_a_run_cleanly_and_bad_budget_is_refused(tmp_path):
     app = StationApp(database=tmp_path / "t.sqlite3")
     async with app.run_test(size=(160, 50)) as pilot:
-        await pilot.press("o")
-        await pilot.pause()
-        screen = open_screen(app)
+        screen = await open_from_home(app, pilot)
         screen.query_one("#budget", Input).value = "3"
         screen.action_optimize()
         await pilot.pause()
@@ -87,9 +92,7 @@ async def test_enter_in_the_budget_field_starts_a_run_that_s_stops(tmp_path):
     """Letter keys type into a focused field (o does nothing there); Enter starts, and s then stops the run."""
     app = StationApp(database=tmp_path / "t.sqlite3")
     async with app.run_test(size=(160, 50)) as pilot:
-        await pilot.press("o")
-        await pilot.pause()
-        screen = open_screen(app)
+        screen = await open_from_home(app, pilot)
         screen.query_one("#budget", Input).focus()
         await pilot.press("end", *["backspace"] * 6, "2", "0", "0", "o")
         await pilot.pause()
