@@ -140,7 +140,8 @@ def make_invariant(kind: str, poi_ids: Sequence[int], pois: Sequence[PointOfInte
             )
         if by_id[i].kind not in ACCEPTS[kind]:
             raise InvariantSpecError(
-                f"invariant {kind!r}: PoI {i} must be a {' or '.join(ACCEPTS[kind])} PoI, got a {by_id[i].kind} PoI"
+                f"invariant {kind!r}: PoI {i} must be {_a(' or '.join(ACCEPTS[kind]))} PoI, "
+                f"got {_a(by_id[i].kind)} PoI"
             )
     first = by_id[ids[0]]
     if kind in ("position", "radial"):
@@ -172,3 +173,9 @@ def parse_keep(spec: str) -> tuple[str, tuple[int, ...]]:
     except ValueError:
         raise InvariantSpecError(f"--keep {spec!r}: PoI ids must be integers, got {ids!r}") from None
     return kind, parsed
+
+
+def _a(phrase: str) -> str:
+    """``phrase`` with its indefinite article: "an intersection", "a curvature" (every PoI kind starts with a
+    letter whose sound matches its spelling, so the first letter decides)."""
+    return f"{'an' if phrase[:1].lower() in 'aeiou' else 'a'} {phrase}"

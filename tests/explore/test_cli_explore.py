@@ -60,7 +60,7 @@ def test_text_output_lists_pois_sliders_and_errors(capsys, tmp_path):
         (["spirograph", "--keep", "bogus:0"], "type must be one of"),
         (["spirograph", "--keep", "position"], "expected TYPE:POI"),
         (["spirograph", "--keep", "position:x"], "PoI ids must be integers"),
-        (["spirograph", "--keep", "angle:0"], "must be a intersection PoI"),
+        (["spirograph", "--keep", "angle:0"], "must be an intersection PoI"),
         (["spirograph", "--move", "a=1"], "integer slider index"),
         (["spirograph", "--move", "0=inf"], "finite"),
         (["spirograph", "--move", "3=1"], "slider index must be in 0..0"),

@@ -190,9 +190,9 @@ def test_bad_invariants_and_moves_are_refused_clearly():
     crossings = [p.id for p in explorer.pois if p.kind == INTERSECTION]
     with pytest.raises(InvariantSpecError, match="type must be one of"):
         explorer.add_invariant("colour", [0])
-    with pytest.raises(InvariantSpecError, match="must be a intersection PoI, got a curvature PoI"):
+    with pytest.raises(InvariantSpecError, match="must be an intersection PoI, got a curvature PoI"):
         explorer.add_invariant("angle", [maxima[0]])
-    with pytest.raises(InvariantSpecError, match="must be a curvature PoI"):
+    with pytest.raises(InvariantSpecError, match="must be a curvature PoI, got an intersection PoI"):
         explorer.add_invariant("curvature", [crossings[0]])
     with pytest.raises(InvariantSpecError, match=r"PoI id must be one of 0\.\."):
         explorer.add_invariant("position", [999])
