@@ -141,24 +141,37 @@ def test_dimension_is_at_most_what_the_constraints_leave():
     assert [s.name for s in explorer.sliders] == [f"axis {k + 1}" for k in range(len(explorer.sliders))]
 
 
+def assert_bounds_are_the_feasible_run(explorer: Explorer, past: float = 1e-3) -> None:
+    """Each slider's bounds, from the current design, are where it stops being feasible: the design is feasible at
+    the bound and, unless the bound is the slider's end (±2), not ``past`` beyond it."""
+    for k, s in enumerate(explorer.sliders):
+        assert -2.0 <= s.lower <= s.value <= s.upper <= 2.0
+        for v, outward in ((s.lower, -past), (s.upper, past)):
+            probe = explorer.values.copy()
+            probe[k] = v
+            assert explorer.machine.is_feasible(explorer._design_at(probe @ explorer.basis)), (k, v)
+            if abs(v) < 2.0 - past:
+                probe[k] = v + outward
+                assert not explorer.machine.is_feasible(explorer._design_at(probe @ explorer.basis)), (k, v)
+
+
 def test_bounds_are_recomputed_on_every_move_and_stay_feasible():
     explorer = Explorer("cycloid_drawing_machine", DESIGNS["cycloid_drawing_machine"])
     explorer.add_invariant("curvature", pick(explorer, "curvature"))
+    assert len(explorer.sliders) >= 2
     first = [(s.lower, s.upper) for s in explorer.sliders]
-    for s in explorer.sliders:
-        assert -2.0 <= s.lower <= 0.0 <= s.upper <= 2.0
+    assert_bounds_are_the_feasible_run(explorer)
     explorer.move(0, explorer.sliders[0].upper)
     after = [(s.lower, s.upper) for s in explorer.sliders]
-    assert after[1:] != first[1:] or after[0] == first[0]
+    # This move changes where the other sliders hit a constraint (slider 2's upper bound drops from about 0.9 to
+    # about 0): bounds kept from before the move would be off, and the check below would find it.
+    assert after[1:] != first[1:]
+    assert_bounds_are_the_feasible_run(explorer)
     assert explorer.machine.is_feasible(explorer.design)
     # Past the bound, a slider is clamped to it.
     explorer.move(0, 10.0)
     assert explorer.sliders[0].value == pytest.approx(explorer.sliders[0].upper)
-    for k, s in enumerate(explorer.sliders):
-        for v in (s.lower, s.upper):
-            probe = explorer.values.copy()
-            probe[k] = v
-            assert explorer.machine.is_feasible(explorer._design_at(probe @ explorer.basis))
+    assert_bounds_are_the_feasible_run(explorer)
 
 
 def test_release_without_invariants_is_a_plain_parameter_move():
