@@ -3,8 +3,10 @@
 from __future__ import annotations
 
 import numpy as np
+from scipy.spatial import cKDTree
 
 from design.machines import get_machine
+from design.sketch.strokes import rotation
 from design.sketch.synthetic import make_case, pattern_detail
 
 
@@ -19,14 +21,29 @@ def test_cases_are_seeded_and_damaged_as_described():
     assert machine.is_feasible(a.params) and (a.params["r_f"], a.params["r_r"]) == (7, 3)
 
 
+def covered(curve: np.ndarray, points: np.ndarray, tolerance: float) -> float:
+    """Fraction of the points of ``curve`` within ``tolerance`` of one of ``points``."""
+    return float(np.mean(cKDTree(points).query(curve)[0] < tolerance))
+
+
 def test_sector_cases_carry_their_symmetry_order_and_centre():
     machine = get_machine("spirograph")
     case = make_case(machine, {"r_f": 5, "r_r": 2}, np.random.default_rng(1), symmetry=5, sector_probability=1.0)
     assert case is not None and case.sector and case.sketch.symmetry == 5
-    # the sector spans a fifth of the pattern: its copies around the centre cover about the whole curve
-    points = np.concatenate(case.sketch.strokes)
-    angles = np.arctan2(*(points - case.sketch.center).T[::-1])
-    assert np.ptp(np.unwrap(np.sort(angles))) < 2 * np.pi
+    # The sector is a fifth of the pattern: alone it draws about a fifth of the whole curve, and its five copies
+    # about the sketch's centre draw all of it (but for the pen lifts). The sketch is the curve rotated, scaled and
+    # moved to the centre: the scale is the ratio of the largest radii (a fifth of a 5-fold pattern reaches its
+    # largest radius), the rotation is searched over a fifth of a turn (the copies are 5-fold symmetric).
+    sector = np.concatenate(case.sketch.strokes) - case.sketch.center
+    copies = np.concatenate([sector @ rotation(2 * np.pi * j / 5).T for j in range(5)])
+    curve = machine.curve(case.params, np.linspace(0.0, machine.period(case.params), 2000))
+    scale = np.hypot(*sector.T).max() / np.hypot(*curve.T).max()
+    tolerance = 0.02 * scale * float(np.linalg.norm(np.ptp(curve, axis=0)))
+    angles = np.radians(np.arange(0.0, 72.0, 0.5))
+    best = max(angles, key=lambda a: covered(curve @ (scale * rotation(a)).T, copies, tolerance))
+    placed = curve @ (scale * rotation(best)).T
+    assert covered(placed, copies, tolerance) > 0.9
+    assert 0.12 < covered(placed, sector, tolerance) < 0.3
 
 
 def test_near_circles_are_measured_and_redrawn():
