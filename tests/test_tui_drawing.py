@@ -142,3 +142,33 @@ async def test_open_design_before_the_drawing_screen_was_ever_shown(tmp_path):
         assert names == set(get_machine("cycloid_drawing_machine").parameter_names)
         assert screen.query_one("#machine", Select).value == "cycloid_drawing_machine"
         assert screen.pattern is not None
+
+
+async def test_slider_bounds_read_as_numbers_for_people(tmp_path):
+    # The spirograph's d > 0 is strict: its feasible interval starts at the smallest float above 0, which was shown
+    # as [4.94e-324…3]. A strict end is shown open at its round number; the value keeps a fixed number of places.
+    app = await open_drawing(tmp_path)
+    async with app.run_test(size=(140, 40)) as pilot:
+        await pilot.press("d")
+        await settle(app, pilot)
+        control = app.screen.query_one("#param-d", ParameterControl)
+        assert 0 < control.state.lower < 1e-300
+        shown = str(control.render())
+        assert "(0…3]" in shown and "e-" not in shown
+        control.focus()
+        await pilot.press("home")
+        await settle(app, pilot)
+        shown = str(control.render())
+        assert " 0.000 (0…3]" in shown and "e-" not in shown
+
+
+def test_bounds_are_rounded_to_the_span_and_strict_ends_shown_open():
+    from station.tui.widgets.parameter import format_bounds, format_value
+
+    assert format_bounds(5e-324, 3.0) == "(0…3]"
+    assert format_bounds(7.000000000000001, 14.58539533417132) == "(7…14.59]"  # d_tf > r_t + r_e, strict
+    assert format_bounds(0.0, 3.9999999999999996) == "[0…4)"
+    assert format_bounds(1.0960738664727085, 1.397526788541976) == "[1.096…1.398]"
+    assert format_bounds(2.0, 2.0) == "[2…2]"
+    assert format_value(2.0, 5e-324, 3.0) == "2.000"
+    assert format_value(-1e-9, 0.0, 3.0) == "0.000"

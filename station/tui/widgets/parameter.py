@@ -7,6 +7,7 @@ never reachable. A discrete stepper asks its owner for the next feasible value i
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 from rich.text import Text
@@ -16,6 +17,49 @@ from textual.message import Message
 from textual.widget import Widget
 
 BAR_WIDTH = 20
+
+
+def _decimals(lower: float, upper: float) -> int:
+    """Decimal places that show about three significant digits of the span (0 for a span of 100 or more)."""
+    span = upper - lower
+    if not math.isfinite(span) or span <= 0:
+        span = max(abs(lower), abs(upper), 1.0)
+    return max(0, 2 - math.floor(math.log10(span)))
+
+
+def _plain(value: float, decimals: int) -> str:
+    """``value`` with ``decimals`` places, trailing zeros dropped (``3``, ``0.25``), never ``-0``."""
+    text = f"{value:.{decimals}f}"
+    if "." in text:
+        text = text.rstrip("0").rstrip(".")
+    return "0" if text in ("-0", "") else text
+
+
+def format_bounds(lower: float, upper: float) -> str:
+    """The interval ``[lower, upper]`` for people: ``(0…3]`` rather than ``[4.94e-324…3]``.
+
+    The feasible interval's ends are feasible values; where a constraint is strict (``d > 0``) the end lies a few
+    ulps inside the boundary. Such an end, within a billionth of the span of a round number, is shown as that number
+    with an open bracket; every other end is rounded to about three significant digits of the span, closed.
+    """
+    decimals = _decimals(lower, upper)
+    tolerance = 1e-9 * max(upper - lower, abs(lower), abs(upper), 1e-300)
+
+    def end(value: float) -> tuple[str, bool]:
+        rounded = round(value, decimals)
+        is_open = value != rounded and abs(value - rounded) <= tolerance
+        return _plain(rounded, decimals), is_open
+
+    low, low_open = end(lower)
+    high, high_open = end(upper)
+    return f"{'(' if low_open else '['}{low}…{high}{')' if high_open else ']'}"
+
+
+def format_value(value: float, lower: float, upper: float) -> str:
+    """A slider's value with one more decimal place than its bounds (a fine step shows), fixed width."""
+    decimals = _decimals(lower, upper) + 1
+    text = f"{value:.{decimals}f}"
+    return "0" + text[2:] if text.startswith("-0") and float(text) == 0 else text
 
 
 @dataclass(frozen=True)
@@ -169,6 +213,6 @@ class ParameterControl(Widget, can_focus=True):
         text.append("●", style="bold yellow")
         text.append("─" * (BAR_WIDTH - 1 - knob), style="dim")
         text.append("] ")
-        text.append(f"{value:7.4g}", style="bold")
-        text.append(f" [{lower:.3g}…{upper:.3g}]", style="dim")
+        text.append(f"{format_value(value, lower, upper):>7}", style="bold")
+        text.append(f" {format_bounds(lower, upper)}", style="dim")
         return text
