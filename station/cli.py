@@ -42,15 +42,69 @@ def command_modules() -> list[str]:
     )
 
 
+class StationParser(argparse.ArgumentParser):
+    """An argument parser whose errors are one line: what is wrong, and which ``--help`` to read.
+
+    argparse prints the whole usage (2-8 lines) before its error; in a terminal the line that matters scrolls by.
+    Every subcommand parser is one of these (``parser_class``, inherited down the tree by argparse), and a command
+    group with subcommands (``station scenario``) given none names them instead of printing its help.
+
+    Parameters
+    ----------
+    command_required
+        Whether a subcommand must be given when this parser has subcommands. False only for ``station`` itself,
+        where no command starts the terminal UI.
+    """
+
+    def __init__(self, *args, command_required: bool = True, **kwargs) -> None:
+        super().__init__(*args, **kwargs)
+        self.command_required = command_required
+
+    def error(self, message: str):
+        """Print ``PROG: error: MESSAGE (see PROG --help)`` on one line and exit 2."""
+        message = " ".join(str(message).split())
+        self.exit(2, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
+
+    def parse_known_args(self, args=None, namespace=None):
+        namespace, extras = super().parse_known_args(args, namespace)
+        if self.command_required:
+            for action in self._subcommand_actions():
+                if getattr(namespace, action.dest, None) is None:
+                    name = action.metavar or action.dest.upper()
+                    self.error(f"expected {name}, one of: {', '.join(action.choices)}")
+        return namespace, extras
+
+    def parse_args(self, args=None, namespace=None):
+        # argparse reports unknown options from the top parser ("station: error: ..."); name the command they were
+        # given to, so the hint points at the --help that lists its options.
+        namespace, extras = self.parse_known_args(args, namespace)
+        if extras:
+            self._chosen_parser(namespace).error(f"unrecognized arguments: {' '.join(extras)}")
+        return namespace
+
+    def _subcommand_actions(self) -> list[argparse._SubParsersAction]:
+        return [a for a in self._actions
+                if isinstance(a, argparse._SubParsersAction) and a.dest is not argparse.SUPPRESS]
+
+    def _chosen_parser(self, namespace) -> argparse.ArgumentParser:
+        """The innermost (sub)command parser the parsed ``namespace`` went through."""
+        for action in self._subcommand_actions():
+            chosen = action.choices.get(getattr(namespace, action.dest, None))
+            if chosen is not None:
+                return chosen._chosen_parser(namespace) if isinstance(chosen, StationParser) else chosen
+        return self
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The full argument parser, with every discovered subcommand."""
-    parser = argparse.ArgumentParser(
+    parser = StationParser(
         prog="station",
         description="Crafting Chaos station: drawing machines and chain-reaction contraptions. "
         "Without a command, starts the terminal UI on simulated devices.",
+        command_required=False,
     )
     parser.add_argument("--version", action="version", version=f"station {__version__}")
-    subparsers = parser.add_subparsers(dest="command", metavar="COMMAND")
+    subparsers = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=StationParser)
     for name in command_modules():
         module = importlib.import_module(name)
         module.register(subparsers)
