@@ -18,7 +18,7 @@ from sklearn.exceptions import ConvergenceWarning
 from sklearn.gaussian_process import GaussianProcessRegressor
 from sklearn.gaussian_process.kernels import ConstantKernel, Matern, WhiteKernel
 
-from design.robust.problem import LayoutProblem, RobustError
+from design.robust.problem import LayoutProblem, RobustError, check_seed
 from design.robust.robustness import estimate_local_robustness
 from design.robust.sampling import uniform_valid
 from design.robust.settings import RobustnessSettings
@@ -41,9 +41,10 @@ class BaselineResult:
     n_simulations: int
 
 
-def _check_budget(problem: LayoutProblem, budget: int) -> None:
+def _check_budget(problem: LayoutProblem, budget: int, seed: int) -> None:
     if isinstance(budget, bool) or int(budget) != budget or budget < 1:
         raise RobustError(f"{problem.name}: the simulation budget must be a positive integer, got {budget!r}")
+    check_seed(seed)
 
 
 def baseline_b1(problem: LayoutProblem, oracle: Oracle, budget: int, seed: int, batch: int = 2) -> BaselineResult:
@@ -51,7 +52,7 @@ def baseline_b1(problem: LayoutProblem, oracle: Oracle, budget: int, seed: int, 
 
     If the budget runs out first, the layout with the most successful events is returned.
     """
-    _check_budget(problem, budget)
+    _check_budget(problem, budget, seed)
     rng = np.random.default_rng([seed, 1])
     best_u, best_count, used = None, -1, 0
     while used < budget:
@@ -74,7 +75,7 @@ def _evaluations(problem: LayoutProblem, budget: int) -> int:
 def baseline_b2(problem: LayoutProblem, oracle: Oracle, budget: int, seed: int,
                 settings: RobustnessSettings | None = None) -> BaselineResult:
     """B2: ⌊B/d²⌋ uniform layouts scored by ρ_l(x, 0.1) from d² simulations each; the best."""
-    _check_budget(problem, budget)
+    _check_budget(problem, budget, seed)
     settings = settings or RobustnessSettings()
     rng = np.random.default_rng([seed, 2])
     centers = uniform_valid(problem, _evaluations(problem, budget), rng)
@@ -90,7 +91,7 @@ def baseline_b2(problem: LayoutProblem, oracle: Oracle, budget: int, seed: int,
 def baseline_b3(problem: LayoutProblem, oracle: Oracle, budget: int, seed: int,
                 settings: RobustnessSettings | None = None) -> BaselineResult:
     """B3: Gaussian-process Bayesian optimization of ρ_l(x, 0.1), ⌊B/d²⌋ evaluations."""
-    _check_budget(problem, budget)
+    _check_budget(problem, budget, seed)
     settings = settings or RobustnessSettings()
     rng = np.random.default_rng([seed, 3])
     n_evaluations = _evaluations(problem, budget)

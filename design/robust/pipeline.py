@@ -17,7 +17,7 @@ import numpy as np
 from design.robust.baselines import baseline_b1, baseline_b2, baseline_b3
 from design.robust.executor import SimulationExecutor
 from design.robust.optimize import optimize_layout, placement_offsets
-from design.robust.problem import LayoutProblem, RobustError
+from design.robust.problem import LayoutProblem, RobustError, check_seed
 from design.robust.psp import EventModel, FactorizedPSP, Samples, explore
 from design.robust.robustness import (
     EvaluationSet,
@@ -419,6 +419,7 @@ def optimize_robust_layout(
     settings = settings or PSPSettings()
     if budget is not None and (isinstance(budget, bool) or int(budget) != budget or budget < 20):
         raise RobustError(f"{problem.name}: the simulation budget must be an integer >= 20, got {budget!r}")
+    seed = check_seed(seed)
     started = time.perf_counter()
     new_before = executor.n_simulated
     oracle = BudgetedOracle(executor, budget, progress, should_stop)
@@ -574,6 +575,7 @@ def compare_methods(
         raise RobustError(f"compare: runs must be a positive integer, got {runs!r}")
     if "ours" not in methods and budget is None:
         raise RobustError("compare: without 'ours', give the baselines' simulation budget")
+    seed = check_seed(seed)
     robustness = robustness or RobustnessSettings()
     unbounded = BudgetedOracle(executor, None, progress, should_stop, expected=robustness.n_evaluation)
     unbounded.phase = "evaluation set"

@@ -275,3 +275,14 @@ def check_names(problem: LayoutProblem, names: Sequence[str]) -> None:
         raise RobustError(
             f"{problem.name}: layout parameters must be {list(problem.parameter_names)}, got {list(names)}"
         )
+
+
+def check_seed(seed, what: str = "seed") -> int:
+    """``seed`` as an int, or RobustError if it is not a non-negative integer.
+
+    numpy's generators and scipy's Sobol engines refuse negative seeds with a bare ValueError deep inside a run;
+    checking first gives one clear message before any simulation.
+    """
+    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
+        raise RobustError(f"{what} must be a non-negative integer, got {seed!r}")
+    return int(seed)

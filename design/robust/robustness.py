@@ -13,7 +13,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial.distance import cdist
 
-from design.robust.problem import LayoutProblem
+from design.robust.problem import LayoutProblem, check_seed
 from design.robust.sampling import sobol_valid, valid_in_ball
 from design.robust.settings import RobustnessSettings
 
@@ -155,6 +155,7 @@ def robustness_curve(
 ) -> RobustnessCurve:
     """ρ_l(u, ·) and ρ_g(u), simulating ``n_local`` layouts in B_η(u) (Appendix C.3)."""
     settings = settings or RobustnessSettings()
+    seed = check_seed(seed)
     u = np.asarray(u, dtype=float)
     epsilon = epsilon_grid(settings)
     if not problem.is_valid(u[None, :])[0]:

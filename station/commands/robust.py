@@ -114,6 +114,12 @@ def _positive(value: int | None, option: str, minimum: int = 1) -> None:
         raise UsageError(f"{option} must be an integer >= {minimum}, got {value}")
 
 
+def _check_seed(seed: int) -> None:
+    # Checked before any work: numpy refuses a negative seed only once the first random draw is made.
+    if seed < 0:
+        raise UsageError(f"--seed must be a non-negative integer, got {seed}")
+
+
 def _executor(problem, args) -> SimulationExecutor:
     _positive(args.workers, "--workers")
     return SimulationExecutor(problem, workers=args.workers, scheduler=args.scheduler,
@@ -252,6 +258,7 @@ def settings_of_layout(path: str) -> PSPSettings:
 
 
 def run_optimize(args) -> int:
+    _check_seed(args.seed)
     out = Path(args.out)
     output_suffix(out, {".json"})
     problem = _load_problem(args.scenario)
@@ -331,6 +338,7 @@ def read_layout(path: str, problem) -> np.ndarray:
 
 
 def run_robustness(args) -> int:
+    _check_seed(args.seed)
     _positive(args.eval, "--eval")
     if args.plot:
         output_suffix(args.plot, {".png"})
@@ -373,6 +381,7 @@ def run_compare(args) -> int:
     unknown = sorted(set(methods) - set(METHODS))
     if unknown or not methods:
         raise UsageError(f"--methods: expected a comma-separated list among {','.join(METHODS)}, got {args.methods!r}")
+    _check_seed(args.seed)
     _positive(args.runs, "--runs")
     _positive(args.eval, "--eval")
     if args.plot:
