@@ -124,3 +124,10 @@ async def test_several_sheets_are_shown_in_turn_and_all_sent(tmp_path):
         machines = app.get_screen("machines")
         await wait_for(pilot, screen, lambda: len(getattr(machines, "jobs", [])) == 2)
         assert [j.title.endswith(f"sheet {i}/2") for i, j in enumerate(machines.jobs, start=1)] == [True, True]
+
+
+def test_the_sheet_picture_names_what_it_will_show():
+    from station.tui.widgets.picture import HalfBlockPicture as Picture
+
+    assert str(Picture(empty="(no sheet yet)").render_text(40, 10)) == "(no sheet yet)"
+    assert HalfBlockPicture is Picture  # the Fabricate screen's picture is the shared widget

@@ -152,3 +152,12 @@ async def test_the_settings_choice_reaches_the_pipeline(tmp_path):
         await wait_until_idle(app, pilot)
         assert screen.result is not None and screen.result.n_simulations <= 24
         assert screen.result.settings == PSPSettings()  # the thesis's, as published
+
+
+async def test_side_view_says_no_layout_yet_before_a_run(tmp_path):
+    # The picture widget came from the Fabricate screen and said "(no sheet yet)" here.
+    app = StationApp(database=tmp_path / "t.sqlite3")
+    async with app.run_test(size=(160, 50)) as pilot:
+        screen = await open_from_home(app, pilot)
+        shown = str(screen.query_one("#picture").render())
+        assert "no layout yet" in shown and "sheet" not in shown

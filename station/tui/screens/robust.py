@@ -37,7 +37,7 @@ from station.commands.robust import (
 )
 from station.paths import data_dir
 from station.tui.registry import ScreenEntry
-from station.tui.screens.fabricate import HalfBlockPicture
+from station.tui.widgets.picture import HalfBlockPicture
 
 
 def scenario_choices() -> list[tuple[str, str]]:
@@ -114,7 +114,7 @@ class RobustScreen(Screen):
                 with Horizontal(id="tables"):
                     yield DataTable(id="events", cursor_type="row", zebra_stripes=True)
                     yield DataTable(id="layout", cursor_type="row", zebra_stripes=True)
-                yield HalfBlockPicture(id="picture")
+                yield HalfBlockPicture(id="picture", empty="(no layout yet: o optimizes)")
         yield Footer()
 
     def on_mount(self) -> None:
