@@ -118,7 +118,11 @@ def main(argv: Sequence[str] | None = None) -> int:
     args = parser.parse_args(argv)
     if getattr(args, "func", None) is None:
         if args.command is None:
-            return run_tui()
+            try:
+                return run_tui()
+            except USER_ERRORS as error:  # e.g. CHAOS_STATION_HOME is a file: found before the screen opens
+                print(f"station: error: {error}", file=sys.stderr)
+                return 2
         parser.parse_args([args.command, "--help"])
         return 2
     previous = _stop_cleanly_on_sigterm()

@@ -170,3 +170,30 @@ def test_an_unknown_command_is_one_line():
     assert done.returncode == 2
     assert done.stderr.count("\n") == 1 and "invalid choice: 'no-such-command'" in done.stderr
     assert "(see station --help)" in done.stderr and done.stdout == ""
+
+
+@pytest.mark.parametrize("argv", [["jobs"], []], ids=["jobs", "tui"])
+def test_a_station_home_that_is_a_file_is_one_line_naming_the_variable(argv, tmp_path, monkeypatch, capsys):
+    home = tmp_path / "home.txt"
+    home.write_text("not a folder")
+    monkeypatch.setenv("CHAOS_STATION_HOME", str(home))
+    # [] would start the TUI: the home folder is made before the first screen, so this ends before any drawing.
+    err = _assert_one_line_error(argv, capsys, "CHAOS_STATION_HOME", str(home), "is a file", "must be a folder")
+    assert err.startswith("station: error:")
+    assert home.read_text() == "not a folder"
+
+
+def test_a_station_home_under_a_file_names_the_variable(tmp_path, monkeypatch):
+    from station import paths
+    from station.errors import ConfigError
+
+    blocker = tmp_path / "file"
+    blocker.write_text("")
+    monkeypatch.setenv("CHAOS_STATION_HOME", str(blocker / "home"))
+    with pytest.raises(ConfigError, match="CHAOS_STATION_HOME=.*has a file among its parents"):
+        paths.data_dir()
+    # The cache folder inside a good home, but a file is in its place.
+    monkeypatch.setenv("CHAOS_STATION_HOME", str(tmp_path))
+    (tmp_path / "cache").write_text("")
+    with pytest.raises(ConfigError, match=r"cache folder .*cache.* under CHAOS_STATION_HOME=.* is a file"):
+        paths.cache_dir()
