@@ -7,6 +7,7 @@ interrupted command re-simulates nothing it already knows. Ctrl-C stops cleanly 
 from __future__ import annotations
 
 import json
+import os
 import sys
 import time
 from pathlib import Path
@@ -118,6 +119,26 @@ def _check_seed(seed: int) -> None:
     # Checked before any work: numpy refuses a negative seed only once the first random draw is made.
     if seed < 0:
         raise UsageError(f"--seed must be a non-negative integer, got {seed}")
+
+
+def check_output_file(path: str | Path, suffixes: set[str], option: str) -> Path:
+    """``path`` as an output file of ``option``, refused before any work if it cannot be written at the end.
+
+    A run takes minutes to hours; a missing folder, a folder given as the file, a wrong suffix or a folder one may
+    not write in must not be found only when the result is ready.
+    """
+    path = Path(path)
+    output_suffix(path, suffixes)
+    folder = path.parent
+    if path.is_dir():
+        raise UsageError(f"{option} {path}: is a folder; expected a file name ending in {', '.join(sorted(suffixes))}")
+    if not folder.exists():
+        raise UsageError(f"{option} {path}: the folder {folder} does not exist (create it first, or choose another)")
+    if not folder.is_dir():
+        raise UsageError(f"{option} {path}: {folder} is not a folder")
+    if not os.access(folder, os.W_OK | os.X_OK) or (path.exists() and not os.access(path, os.W_OK)):
+        raise UsageError(f"{option} {path}: cannot write there (permission denied)")
+    return path
 
 
 def _executor(problem, args) -> SimulationExecutor:
@@ -259,8 +280,7 @@ def settings_of_layout(path: str) -> PSPSettings:
 
 def run_optimize(args) -> int:
     _check_seed(args.seed)
-    out = Path(args.out)
-    output_suffix(out, {".json"})
+    out = check_output_file(args.out, {".json"}, "--out")
     problem = _load_problem(args.scenario)
     budget = default_budget(problem, args.budget)
     changes = {}
@@ -341,7 +361,7 @@ def run_robustness(args) -> int:
     _check_seed(args.seed)
     _positive(args.eval, "--eval")
     if args.plot:
-        output_suffix(args.plot, {".png"})
+        check_output_file(args.plot, {".png"}, "--plot")
     problem = _load_problem(args.scenario)
     u = read_layout(args.layout, problem)
     _positive(args.local, "--local")
@@ -385,7 +405,7 @@ def run_compare(args) -> int:
     _positive(args.runs, "--runs")
     _positive(args.eval, "--eval")
     if args.plot:
-        output_suffix(args.plot, {".png"})
+        check_output_file(args.plot, {".png"}, "--plot")
     _positive(args.local, "--local")
     robustness = RobustnessSettings(n_evaluation=args.eval, n_local=args.local)
     problem = _load_problem(args.scenario)

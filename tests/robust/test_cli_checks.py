@@ -69,3 +69,45 @@ def test_the_pipeline_refuses_a_negative_seed_before_simulating():
     with pytest.raises(RobustError, match="got -4"):
         baseline_b1(problem, oracle, 10, seed=-4)
     assert calls == []
+
+
+def bad_outputs(tmp_path: Path, suffix: str) -> list[tuple[str, str]]:
+    """(path, expected words) of output paths that cannot be written at the end of a run."""
+    a_file = tmp_path / "a_file.txt"
+    a_file.write_text("x")
+    (tmp_path / f"folder{suffix}").mkdir()
+    return [
+        (str(tmp_path / "nonexistent_dir" / f"o{suffix}"), f"the folder {tmp_path / 'nonexistent_dir'} does not exist"),
+        (str(a_file / f"o{suffix}"), f"{a_file} is not a folder"),
+        (str(tmp_path / f"folder{suffix}"), "is a folder; expected a file name ending in"),
+        (str(tmp_path / "o.bmp"), "expected one of"),
+    ]
+
+
+def test_optimize_checks_its_output_before_any_simulation(tmp_path, capsys):
+    from station.commands.robust import simulation_cache_path
+
+    for path, expected in bad_outputs(tmp_path, ".json"):
+        assert main(["optimize", str(SIMPLE), "--budget", "20", "--workers", "1", "--out", path]) == 2
+        line = one_error_line(capsys)
+        assert expected in line and ("--out" in line or "output file" in line), line
+    assert not simulation_cache_path().exists()  # refused before the executor (and its cache) existed
+
+
+@pytest.mark.parametrize("command", [
+    ["robustness", str(SIMPLE), "{tmp}/layout.json", "--eval", "8", "--local", "2", "--workers", "1"],
+    ["compare", str(SIMPLE), "--methods", "b1", "--runs", "1", "--budget", "20", "--eval", "8", "--local", "2",
+     "--workers", "1"],
+])
+def test_robustness_and_compare_check_the_plot_path_before_any_simulation(command, tmp_path, capsys):
+    from station.commands.robust import simulation_cache_path
+
+    layout = tmp_path / "layout.json"
+    layout.write_text(json.dumps({"parameters": [{"name": n, "value": v} for n, v in
+                                                 [("track.x", -0.06), ("track.z", 0.06), ("track.roll", 30.0)]]}))
+    argv = [part.replace("{tmp}", str(tmp_path)) for part in command]
+    for path, expected in bad_outputs(tmp_path, ".png"):
+        assert main([*argv, "--plot", path]) == 2
+        line = one_error_line(capsys)
+        assert expected in line and ("--plot" in line or "output file" in line), line
+    assert not simulation_cache_path().exists()
