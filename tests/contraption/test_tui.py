@@ -85,3 +85,20 @@ async def test_ropes_are_drawn_in_the_side_view(tmp_path):
         ropes = [line for line, colour in zip(view.polylines, view._colors) if colour == "yellow"]
         assert len(ropes) == 1 and len(ropes[0]) == 3  # end, guide, end
         np.testing.assert_allclose(ropes[0][1], [-0.454, 0.36])  # the fixed guide, in the (x, z) side view
+
+
+async def test_switching_layout_clears_the_previous_verdict(tmp_path):
+    # The status kept "SUCCESS" of the success layout after l showed the failure layout.
+    app = StationApp(database=tmp_path / "t.sqlite3")
+    async with app.run_test(size=(160, 45)) as pilot:
+        screen = await open_contraption_screen(app, pilot)
+        screen.realtime = False
+        await pilot.press("r")
+        await _wait_idle(app, pilot, screen)
+        status = screen.query_one("#status")
+        assert "SUCCESS" in str(status.render())
+        await pilot.press("l")
+        await pilot.pause()
+        shown = str(status.render())
+        assert "SUCCESS" not in shown and "layout failure" in shown and "press r" in shown
+        assert screen.result is None

@@ -208,9 +208,11 @@ class ContraptionScreen(Screen):
         if self.scenario is None or self.running:
             return
         self.layout_index = (self.layout_index + 1) % len(self.layout_names)
+        self.result = None  # the last run's verdict belongs to the previous layout
         self._fill_events()
         self._show_summary()
         self._draw_layout()
+        self.set_status(f"layout {self.layout_names[self.layout_index]}; press r to simulate")
 
     def action_optimize(self) -> None:
         """Open the Robust layouts screen on this scenario (its file; o there starts the optimization)."""
