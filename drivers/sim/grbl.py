@@ -11,8 +11,15 @@ What it models
 - Real-time commands ``?`` ``!`` ``~`` 0x18 (soft reset) 0x85 (jog cancel) and overrides, handled on arrival.
 - ``$$``, ``$x=val``, ``$I`` (``[OPT:V,15,128]``), ``$#``, ``$G``, ``$N``, ``$C`` (check mode), ``$X``, ``$H``,
   ``$J=``, ``$RST=``; G-code errors with GRBL's numbers (error:9 locked, error:20 unsupported, error:22 no feed ...).
-- Soft limits: ALARM:2, ``[MSG:Reset to continue]``, and the triggering line's ``ok`` only after the reset;
-  reset during motion: ALARM:3 and alarm lock; laser mode ``$32=1`` with M3 (constant) and M4 (dynamic) power,
+- Soft limits as GRBL 1.1 checks them (``system_check_travel_limits``): only with ``$20=1``, which needs homing
+  (``$20=1`` with ``$22=0`` answers error:10, and ``$22=0`` also clears ``$20``); every axis in -travel..0, or with
+  the build option HOMING_FORCE_SET_ORIGIN (``force_origin=1``, ``Z`` in ``[OPT:]``) an axis whose ``$23`` bit is
+  set in 0..+travel. A target outside: ALARM:2, ``[MSG:Reset to continue]``, and the triggering line's ``ok`` only
+  after the reset. Without homing there are no machine-space limits at all: machine zero is where the head stood at
+  power-up (and G54 starts at zero there, GRBL's default).
+- Homing ``$H`` (error:5 with ``$22=0``) ends where GRBL's ``limits_go_home`` sets the position: ``-$27`` (pull-off)
+  for an axis homing towards +, ``-travel + $27`` for one whose ``$23`` bit is set, 0 with HOMING_FORCE_SET_ORIGIN.
+- Reset during motion: ALARM:3 and alarm lock; laser mode ``$32=1`` with M3 (constant) and M4 (dynamic) power,
   dark rapids and dark feed hold.
 - A record of what it executed (:class:`SimRecord`): every block's end position, laser power and timing, samples of
   position and laser power over time, soft resets, lines received.
@@ -23,8 +30,10 @@ URL query parameters (``sim://grbl?profile=laser&time_scale=0.05&seed=3``)
 simulated second), ``latency`` (seconds each way), ``wire`` (0 disables the baud-rate transfer time), ``seed``,
 ``drop`` / ``corrupt`` / ``stray`` / ``delay`` (probabilities per reply line), ``delay_max`` (seconds),
 ``disconnect_at`` (the N-th G-code line received unplugs the port), ``drop_reply_at`` (the reply to the N-th
-G-code line is lost), ``locked`` (power up in alarm), and
-``s<N>=<value>`` to override setting ``$N``.
+G-code line is lost), ``locked`` (power up in alarm), ``homing`` (``0``: ``$22=0``, which also clears soft limits
+``$20`` as GRBL does; ``1``: ``$22=1``), ``travel`` (``$130``-``$132`` as ``WxD`` or ``WxDxH`` in mm, e.g.
+``travel=400x400``), ``force_origin`` (``1``: built with HOMING_FORCE_SET_ORIGIN), and ``s<N>=<value>`` to override
+setting ``$N`` (applied last; ``s20=1`` with homing off is refused, as GRBL answers ``$20=1`` with error:10).
 """
 
 from __future__ import annotations
@@ -93,6 +102,9 @@ class SimConfig:
     disconnect_at: int = 0
     drop_reply_at: int = 0
     locked: bool = False
+    homing: bool | None = None  # None: the profile's $22
+    travel: tuple[float, ...] | None = None  # $130, $131 (and $132); None: the profile's
+    force_origin: bool = False  # built with HOMING_FORCE_SET_ORIGIN ('Z' in [OPT:])
     settings: dict[int, float] = field(default_factory=dict)
 
     @classmethod
@@ -104,8 +116,10 @@ class SimConfig:
                 setattr(config, key, float(value))
             elif key in ("seed", "disconnect_at", "drop_reply_at"):
                 setattr(config, key, int(value))
-            elif key in ("wire", "locked"):
+            elif key in ("wire", "locked", "homing", "force_origin"):
                 setattr(config, key, value.lower() in ("1", "true", "yes", "on"))
+            elif key == "travel":
+                config.travel = _travel_option(value)
             elif key in ("profile", "name"):
                 setattr(config, key, value)
             elif re.fullmatch(r"s\d+", key):
@@ -116,7 +130,44 @@ class SimConfig:
             raise ValueError(f"unknown sim profile {config.profile!r}; known: {sorted(SIM_PROFILES)}")
         if config.time_scale <= 0:
             raise ValueError(f"time_scale must be positive, got {config.time_scale}")
+        config.machine_settings()  # a contradiction in the URL is refused when the port opens
         return config
+
+    def machine_settings(self) -> dict[int, float]:
+        """The EEPROM settings of this machine: GRBL's defaults, the profile, then ``homing``, ``travel`` and the
+        ``sNN`` overrides, with GRBL's own rule that soft limits need homing.
+
+        Raises
+        ------
+        ValueError
+            ``s20=1`` on a machine without homing (GRBL answers ``$20=1`` with error:10 there).
+        """
+        settings = dict(DEFAULT_SETTINGS)
+        settings.update(SIM_PROFILES[self.profile])
+        if self.homing is not None:
+            settings[22] = float(self.homing)
+        if self.travel is not None:
+            for index, value in enumerate(self.travel):
+                settings[130 + index] = value
+        settings.update(self.settings)
+        if int(settings[20]) and not int(settings[22]):
+            if int(self.settings.get(20, 0)):
+                raise ValueError("s20=1 needs homing (s22=1 or homing=1): GRBL refuses soft limits without homing "
+                                 "(error:10)")
+            settings[20] = 0.0  # $22=0 also switches soft limits off (settings.c)
+        return settings
+
+
+def _travel_option(value: str) -> tuple[float, ...]:
+    """``400x300`` or ``400x300x20`` (mm) as ``($130, $131[, $132])``."""
+    parts = value.lower().split("x")
+    try:
+        travel = tuple(float(part) for part in parts)
+    except ValueError:
+        travel = ()
+    if len(travel) not in (2, 3) or not all(math.isfinite(v) and v >= 0 for v in travel):
+        raise ValueError(f"travel must be WxD or WxDxH in mm (e.g. travel=400x400), got {value!r}")
+    return travel
 
 
 @dataclass(frozen=True)
@@ -206,9 +257,7 @@ class SimulatedGrbl:
         self.config = config
         self.rng = random.Random(config.seed)
         self.byte_time = 10.0 / baudrate if config.wire else 0.0
-        self.settings = dict(DEFAULT_SETTINGS)
-        self.settings.update(SIM_PROFILES[config.profile])
-        self.settings.update(config.settings)
+        self.settings = config.machine_settings()
         self.record = SimRecord()
         self.connected = True
         self._cond = threading.Condition()
@@ -222,9 +271,10 @@ class SimulatedGrbl:
         self._running = True
         self._gcode_lines = 0
         # EEPROM: work coordinate systems G54..G59 (machine mm), G28/G30 positions
-        travel = self._travel()
         self.coords = {n: np.zeros(3) for n in range(54, 60)}
-        self.coords[54] = np.array([-travel[0], -travel[1], 0.0])  # work origin at the front-left corner
+        if int(self.settings[22]):
+            # homed machine space: the work origin at the front-left corner (the lowest X and Y)
+            self.coords[54] = np.array([self._machine_bounds()[0][0], self._machine_bounds()[0][1], 0.0])
         self.g28 = np.zeros(3)
         self.g30 = np.zeros(3)
         self.startup_lines = ["", ""]
@@ -367,6 +417,14 @@ class SimulatedGrbl:
 
     def _travel(self) -> np.ndarray:
         return np.array([self.settings[130], self.settings[131], self.settings[132]], dtype=float)
+
+    def _machine_bounds(self) -> tuple[np.ndarray, np.ndarray]:
+        """Machine space ``(lo, hi)`` per axis as GRBL's ``system_check_travel_limits`` sees it: -travel..0, or
+        0..+travel for an axis whose ``$23`` bit is set when built with HOMING_FORCE_SET_ORIGIN."""
+        travel = self._travel()
+        mask = int(self.settings[23])
+        positive = np.array([self.config.force_origin and bool(mask & (1 << i)) for i in range(3)])
+        return np.where(positive, 0.0, -travel), np.where(positive, travel, 0.0)
 
     def _init_runtime(self, state: str) -> None:
         self._state = state
@@ -587,8 +645,13 @@ class SimulatedGrbl:
             self._state = "Hold:0"
             self._sample(now, 0.0 if self._laser_mode() else None)
         if self._state == "Home" and now >= self._home_until:
-            travel = self._travel()
-            self.mpos = np.where(travel > 0, -self.settings[27], 0.0)
+            # where limits_go_home sets each axis: pulled off the switch, inside the machine space
+            pulloff = self.settings[27]
+            towards_minus = np.array([bool(int(self.settings[23]) & (1 << i)) for i in range(3)])
+            if self.config.force_origin:
+                self.mpos = np.zeros(3)
+            else:
+                self.mpos = np.where(towards_minus, -self._travel() + pulloff, -pulloff)
             self._gc_pos = self.mpos.copy()
             self._state = "Idle"
             self._sample(now, 0.0)
@@ -780,7 +843,7 @@ class SimulatedGrbl:
             if not idle_or_alarm:
                 return 8
             self._emit(f"[VER:{VERSION}.{BUILD_DATE}:]")
-            self._emit(f"[OPT:V,{PLANNER_BLOCKS},{RX_BUFFER_SIZE}]")
+            self._emit(f"[OPT:V{'Z' if self.config.force_origin else ''},{PLANNER_BLOCKS},{RX_BUFFER_SIZE}]")
             return 0
         if text == "$N":
             for i, line in enumerate(self.startup_lines):
@@ -821,8 +884,7 @@ class SimulatedGrbl:
             if what not in ("$", "#", "*"):
                 return 3
             if what in ("$", "*"):
-                self.settings = dict(DEFAULT_SETTINGS)
-                self.settings.update(SIM_PROFILES[self.config.profile])
+                self.settings = self.config.machine_settings()  # this machine's EEPROM as shipped
             if what in ("#", "*"):
                 for n in self.coords:
                     self.coords[n] = np.zeros(3)
@@ -851,6 +913,8 @@ class SimulatedGrbl:
             if key == 20 and value and not int(self.settings[22]):
                 return 10
             self.settings[key] = float(int(value)) if key in INTEGER_SETTINGS else value
+            if key == 22 and not int(value):
+                self.settings[20] = 0.0  # GRBL force-disables soft limits with homing
             yield "sync"  # EEPROM write
             return 0
         return 3
@@ -911,8 +975,8 @@ class SimulatedGrbl:
         return 0
 
     def _within_travel(self, target: np.ndarray) -> bool:
-        travel = self._travel()
-        return bool(np.all((target <= 1e-4) & (target >= -travel - 1e-4)))
+        lo, hi = self._machine_bounds()
+        return bool(np.all((target <= hi + 1e-4) & (target >= lo - 1e-4)))
 
     # ------------------------------------------------------------------ G-code
 

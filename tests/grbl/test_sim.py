@@ -251,3 +251,104 @@ def test_feed_hold_decelerates_then_reset_keeps_the_position(raw):
     assert port.read_until(BANNER) == BANNER
     after = port.status()
     assert after.startswith("<Idle|") and after.split("|")[1] == before.split("|")[1]
+
+
+# ------------------------------------------------------------------ homing, soft limits and machine space (GRBL 1.1)
+
+
+def test_without_homing_there_are_no_soft_limits_and_no_machine_space(raw):
+    port = raw("profile=laser&homing=0&travel=200x200&time_scale=0.001")
+    settings = port.ask("$$").decode()
+    assert "$20=0\r\n" in settings and "$22=0\r\n" in settings and "$130=200.000\r\n" in settings
+    assert port.ask("$20=1", b"error:10\r\n").endswith(b"error:10\r\n")  # soft limits need homing (settings.c)
+    assert port.ask("$#").startswith(b"[G54:0.000,0.000,0.000]\r\n")  # GRBL's default: work zero = power-up spot
+    assert port.ask("G0 X-500 Y900") == b"ok\r\n"  # no limits: machine zero means nothing without homing
+    port.wait_state("Idle")
+    assert port.machine.snapshot().alarms == []
+    assert port.machine.snapshot().executed[-1].end == (-500.0, 900.0, 0.0)
+
+
+def test_homing_off_clears_soft_limits_as_grbl_does(raw):
+    port = raw("profile=plotter&time_scale=0.001")
+    assert "$20=1\r\n" in port.ask("$$").decode()
+    assert port.ask("$22=0") == b"ok\r\n"
+    settings = port.ask("$$").decode()
+    assert "$22=0\r\n" in settings and "$20=0\r\n" in settings
+    assert port.ask("G0 X500") == b"ok\r\n"  # outside -420..0, but nothing checks it any more
+    port.wait_state("Idle")
+    assert port.machine.snapshot().alarms == []
+    assert port.ask("$22=1") == b"ok\r\n"
+    assert "$20=0\r\n" in port.ask("$$").decode()  # homing back on does not switch soft limits on
+    assert port.ask("$20=1") == b"ok\r\n"
+
+
+def test_soft_limit_checks_both_ends_of_every_axis(raw):
+    port = raw("profile=laser&time_scale=0.001")  # homed machine space: -400..0, -400..0, -20..0
+    for target in ("X-401", "X1", "Y-401", "Y1", "Z-21", "Z1"):
+        port.port.write(f"G53 G0 {target}\n".encode())
+        assert port.read_until(b"Reset to continue]\r\n").endswith(b"ALARM:2\r\n[MSG:Reset to continue]\r\n")
+        port.port.write(b"\x18")
+        port.read_until(UNLOCK)
+        assert port.ask("$X") == b"[MSG:Caution: Unlocked]\r\nok\r\n"
+    for target in ("X-399", "Y-399", "Z-19"):
+        assert port.ask(f"G53 G0 {target}") == b"ok\r\n"
+    assert port.machine.snapshot().alarms == [2] * 6
+
+
+def test_force_origin_build_puts_axes_with_a_homing_dir_bit_in_positive_space(raw):
+    # HOMING_FORCE_SET_ORIGIN: X and Y ($23 bits 0 and 1) live in 0..+travel, Z (bit clear) in -travel..0
+    port = raw("profile=laser&force_origin=1&s23=3&time_scale=0.001")
+    assert port.ask("$I").startswith(b"[VER:1.1h.20190825:]\r\n[OPT:VZ,15,128]")
+    assert port.ask("$#").startswith(b"[G54:0.000,0.000,0.000]\r\n")
+    assert port.ask("G53 G0 X399 Y399 Z-19") == b"ok\r\n"
+    for target in ("X-1", "Z1"):
+        port.port.write(f"G53 G0 {target}\n".encode())
+        assert port.read_until(b"Reset to continue]\r\n").endswith(b"ALARM:2\r\n[MSG:Reset to continue]\r\n")
+        port.port.write(b"\x18")
+        port.read_until(UNLOCK)
+        port.ask("$X")
+    assert port.ask("$H") == b"ok\r\n"
+    assert port.wait_state("Idle").startswith("<Idle|MPos:0.000,0.000,0.000")  # homing sets the origin
+
+
+def test_homing_ends_pulled_off_the_switch_per_homing_direction(raw):
+    port = raw("profile=laser&s23=1&time_scale=0.02")  # X homes towards -: X = -travel + pull-off
+    assert port.ask("$H") == b"ok\r\n"
+    assert port.wait_state("Idle").startswith("<Idle|MPos:-399.000,-1.000,-1.000")
+
+
+def test_sim_url_options_for_homing_and_travel_are_checked():
+    with pytest.raises(serial.SerialException, match=r"s20=1 needs homing .*error:10"):
+        serial.serial_for_url("sim://grbl?profile=laser&homing=0&s20=1")
+    with pytest.raises(serial.SerialException, match="travel must be WxD or WxDxH"):
+        serial.serial_for_url("sim://grbl?profile=laser&travel=400")
+    with pytest.raises(serial.SerialException, match="travel must be WxD or WxDxH"):
+        serial.serial_for_url("sim://grbl?profile=laser&travel=axb")
+    port = serial.serial_for_url("sim://grbl?profile=plotter&homing=0&travel=300x200x10")
+    try:
+        settings = port.machine.settings
+        assert (settings[20], settings[22], settings[130], settings[131], settings[132]) == (0, 0, 300, 200, 10)
+    finally:
+        port.close()
+
+
+def test_shipped_machines_follow_grbls_settings_rules():
+    """Every simulated profile and every machine profile (examples/profiles, drivers/profiles.py) describes a
+    machine GRBL would accept: soft limits only with homing, and a work area equal to the simulated travel."""
+    from pathlib import Path
+
+    from drivers.profiles import builtin_profile, builtin_profile_names, load_profile
+    from drivers.sim.grbl import SIM_PROFILES, SimConfig
+
+    for name in SIM_PROFILES:
+        settings = SimConfig(profile=name).machine_settings()
+        assert not (settings[20] and not settings[22]), name
+        assert SimConfig(profile=name, homing=False).machine_settings()[20] == 0, name
+    examples = sorted((Path(__file__).resolve().parents[2] / "examples" / "profiles").glob("*.toml"))
+    profiles = [load_profile(path) for path in examples] + [builtin_profile(n) for n in builtin_profile_names()]
+    assert len(profiles) >= 4
+    for profile in profiles:
+        query = dict(part.split("=", 1) for part in profile.port.split("?", 1)[1].split("&"))
+        settings = SimConfig.from_query(query).machine_settings()
+        assert (settings[130], settings[131]) == (profile.width, profile.height), profile.source
+        assert bool(settings[32]) == (profile.kind == "laser"), profile.source
