@@ -35,6 +35,15 @@ class SimulationCancelled(RobustError):
     """A run was stopped on request (``should_stop`` returned True); the cache keeps every finished simulation."""
 
 
+class SchedulerUnreachable(RobustError):
+    """The Dask scheduler given by address cannot be reached (or the address is malformed)."""
+
+
+#: Seconds to wait for a Dask scheduler to answer: long enough for a cluster on a slow network, short enough that a
+#: wrong address is reported at once (distributed's own default is 30 s, with a traceback per retry loop).
+SCHEDULER_CONNECT_TIMEOUT = 5.0
+
+
 def layout_key(u: np.ndarray) -> str:
     """Cache key of one normalized layout: its values rounded to 12 decimals (exact repeats hit)."""
     return ",".join(f"{v:.12f}" for v in np.asarray(u, dtype=float))
@@ -195,6 +204,8 @@ class SimulationExecutor:
         SQLite cache file; ``None`` for an in-memory cache.
     chunk_size : int
         Layouts per task sent to a worker (larger amortizes overhead for cheap simulations).
+    connect_timeout : float
+        Seconds to wait for a scheduler given by address (see :meth:`connect`).
     """
 
     def __init__(
@@ -205,6 +216,7 @@ class SimulationExecutor:
         scheduler=None,
         cache_path: str | Path | None = None,
         chunk_size: int = 1,
+        connect_timeout: float | None = None,
     ) -> None:
         if backend not in {"auto", "inline", "processes", "dask"}:
             raise RobustError(f"executor: backend must be one of auto, inline, processes, dask, got {backend!r}")
@@ -221,6 +233,7 @@ class SimulationExecutor:
         self.backend = backend
         self.scheduler = scheduler
         self.chunk_size = int(chunk_size)
+        self.connect_timeout = SCHEDULER_CONNECT_TIMEOUT if connect_timeout is None else float(connect_timeout)
         self.cache = SimulationCache(cache_path)
         self.n_simulated = 0  # new simulations actually run
         self.n_cache_hits = 0
@@ -265,12 +278,32 @@ class SimulationExecutor:
             )
         return self._pool
 
+    def connect(self) -> None:
+        """Reach the Dask scheduler now (no-op for the other backends), so a wrong address fails before any work.
+
+        Raises
+        ------
+        SchedulerUnreachable
+            No answer within ``connect_timeout`` seconds, or an address distributed cannot parse.
+        """
+        if self.backend == "dask":
+            self._ensure_client()
+
     def _ensure_client(self):
         if self._client is None:
             if isinstance(self.scheduler, str):
                 from distributed import Client
 
-                self._client = Client(self.scheduler)
+                try:
+                    self._client = Client(self.scheduler, timeout=self.connect_timeout)
+                except ValueError as error:  # e.g. "missing port number in address"
+                    raise SchedulerUnreachable(f"Dask scheduler {self.scheduler!r}: {error} "
+                                               "(expected tcp://HOST:PORT)") from None
+                except (OSError, TimeoutError):
+                    raise SchedulerUnreachable(
+                        f"no Dask scheduler answered at {self.scheduler} within {self.connect_timeout:g} s: check "
+                        "the address and port, and that `dask scheduler` runs there with workers (`dask worker "
+                        "ADDRESS`)") from None
                 self._owns_client = True
             else:
                 self._client = self.scheduler

@@ -27,6 +27,7 @@ from design.robust import (
     optimize_robust_layout,
     robustness_curve,
 )
+from design.robust.executor import SchedulerUnreachable
 from design.robust.pipeline import BudgetedOracle
 from design.robust.plot import plot_robustness
 from station.cli_util import emit_json, output_suffix
@@ -142,9 +143,20 @@ def check_output_file(path: str | Path, suffixes: set[str], option: str) -> Path
 
 
 def _executor(problem, args) -> SimulationExecutor:
+    """The executor of a command, its Dask scheduler (``--scheduler``) already reached: a wrong address is one line
+    within seconds, before any work."""
     _positive(args.workers, "--workers")
-    return SimulationExecutor(problem, workers=args.workers, scheduler=args.scheduler,
-                              cache_path=simulation_cache_path(), chunk_size=1)
+    executor = SimulationExecutor(problem, workers=args.workers, scheduler=args.scheduler,
+                                  cache_path=simulation_cache_path(), chunk_size=1)
+    try:
+        executor.connect()
+    except SchedulerUnreachable as error:
+        executor.close()
+        raise UsageError(f"--scheduler: {error}; or leave --scheduler out to simulate on this machine") from None
+    except BaseException:
+        executor.close()
+        raise
+    return executor
 
 
 def _interrupted(executor: SimulationExecutor | None) -> None:
@@ -250,13 +262,11 @@ def psp_settings(choice: str, **changes) -> PSPSettings:
 
 
 def _layout_json(path: str):
-    """The parsed content of a LAYOUT.json; text that is not JSON raises FileFormatError (OSError passes)."""
-    try:
-        return json.loads(Path(path).read_text(encoding="utf-8"))
-    except UnicodeDecodeError as error:
-        raise FileFormatError(f"{path}: cannot be read ({error})") from None
-    except json.JSONDecodeError as error:
-        raise FileFormatError(f"{path}: not JSON ({error.msg} at line {error.lineno})") from None
+    """The parsed content of a LAYOUT.json, read as every layout file is (:mod:`design.contraption.layout_io`): text
+    that is not UTF-8 or not JSON raises FileFormatError naming the file; OSError passes."""
+    from design.contraption.layout_io import read_layout_data
+
+    return read_layout_data(path)
 
 
 def settings_of_layout(path: str) -> PSPSettings:
@@ -333,28 +343,12 @@ def _print_verification(result) -> None:
         print("    none worked: kept the best simulated sample")
 
 
-def read_layout(path: str, problem) -> np.ndarray:
-    """The normalized layout of a LAYOUT.json, checked against the scenario (hash and parameter names)."""
-    data = _layout_json(path)
-    if not isinstance(data, dict) or not isinstance(data.get("parameters"), list):
-        raise FileFormatError(f"{path}: field 'parameters' must be a list of {{name, value}}")
-    if data.get("content_hash") not in (None, problem.content_hash):
-        raise FileFormatError(f"{path}: field 'content_hash' is of another scenario content than {problem.name} "
-                              f"({str(data.get('content_hash'))[:12]}... vs {problem.content_hash[:12]}...)")
-    values = {}
-    for i, entry in enumerate(data["parameters"]):
-        if not isinstance(entry, dict) or not isinstance(entry.get("name"), str) or \
-                not isinstance(entry.get("value"), (int, float)):
-            raise FileFormatError(f"{path}: parameters[{i}] must be an object with a name and a numeric value")
-        values[entry["name"]] = float(entry["value"])
-    missing = [n for n in problem.parameter_names if n not in values]
-    if missing:
-        raise FileFormatError(f"{path}: field 'parameters' lacks {missing} (expected {list(problem.parameter_names)})")
-    x = np.array([values[n] for n in problem.parameter_names])
-    u = problem.to_normalized(x)
-    if np.any(u < -1e-9) or np.any(u > 1 + 1e-9):
-        raise FileFormatError(f"{path}: a parameter is outside the scenario's ranges")
-    return np.clip(u, 0.0, 1.0)
+def read_layout(path: str, problem):
+    """The layout ``path`` names for the problem's scenario (any form of :mod:`design.contraption.layout_io`: a
+    LAYOUT.json, ``{"x": [...]}``, ``{"parameters": {...}}``, or a layout named in the scenario file)."""
+    from design.contraption.layout_io import resolve_layout
+
+    return resolve_layout(path, problem.scenario)
 
 
 def run_robustness(args) -> int:
@@ -363,7 +357,11 @@ def run_robustness(args) -> int:
     if args.plot:
         check_output_file(args.plot, {".png"}, "--plot")
     problem = _load_problem(args.scenario)
-    u = read_layout(args.layout, problem)
+    layout = read_layout(args.layout, problem)
+    from station.commands.contraption import report_layout
+
+    report_layout(layout, sys.stderr)
+    u = np.clip(problem.to_normalized(layout.x), 0.0, 1.0)
     _positive(args.local, "--local")
     settings = RobustnessSettings(n_evaluation=args.eval, n_local=args.local)
     bar = ProgressBar()

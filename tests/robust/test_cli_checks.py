@@ -111,3 +111,32 @@ def test_robustness_and_compare_check_the_plot_path_before_any_simulation(comman
         line = one_error_line(capsys)
         assert expected in line and ("--plot" in line or "output file" in line), line
     assert not simulation_cache_path().exists()
+
+
+def test_an_unreachable_scheduler_is_one_line_naming_it(tmp_path, capsys, monkeypatch):
+    import design.robust.executor as executor_module
+
+    # The real timeout is a few seconds; the test need not wait for it.
+    monkeypatch.setattr(executor_module, "SCHEDULER_CONNECT_TIMEOUT", 0.5)
+    out = tmp_path / "o.json"
+    assert main(["optimize", str(SIMPLE), "--budget", "20", "--scheduler", "tcp://127.0.0.1:1", "--out", str(out)]) == 2
+    line = one_error_line(capsys)
+    assert line.startswith("station: error: --scheduler: no Dask scheduler answered at tcp://127.0.0.1:1 within 0.5 s")
+    assert "dask scheduler" in line and "leave --scheduler out" in line
+    assert main(["compare", str(SIMPLE), "--methods", "b1", "--runs", "1", "--budget", "20",
+                 "--scheduler", "no port here"]) == 2
+    assert "expected tcp://HOST:PORT" in one_error_line(capsys)
+    assert not out.exists()
+
+
+def test_the_executor_reaches_its_scheduler_when_asked():
+    from design.robust.executor import SchedulerUnreachable
+
+    problem = synthetic_chain()
+    executor = SimulationExecutor(problem, scheduler="tcp://127.0.0.1:1", connect_timeout=0.5)
+    with pytest.raises(SchedulerUnreachable, match="tcp://127.0.0.1:1 within 0.5 s"):
+        executor.connect()
+    executor.close()
+    with SimulationExecutor(problem, backend="inline") as inline:
+        inline.connect()  # nothing to reach
+        assert inline.run(np.full((1, 3), 0.4)).shape == (1, 4)
