@@ -295,6 +295,9 @@ class Toolpath:
         Modal state *before* each line (length = number of lines + 1; the last one is after the program).
     dwell : (lines,) float array
         Seconds of ``G4`` dwell per line.
+    commanded : (lines, 3) bool array
+        Which of X, Y, Z each line names in a move (a pre-flight tells the job's own size from where the head
+        happened to stand before the job first moved an axis).
     """
 
     start: np.ndarray
@@ -305,6 +308,7 @@ class Toolpath:
     power: np.ndarray
     states: list
     dwell: np.ndarray
+    commanded: np.ndarray = field(default_factory=lambda: np.zeros((0, 3), dtype=bool))
 
     def extent(self, include_rapids: bool = True) -> tuple[np.ndarray, np.ndarray] | None:
         """``(lo, hi)`` of every visited point (3-vectors), or None for a program without motion."""
@@ -372,6 +376,7 @@ def interpret(
     starts, ends, seg_line, rapid, feeds, powers = [], [], [], [], [], []
     states = []
     dwell = np.zeros(len(lines))
+    commanded = np.zeros((len(lines), 3), dtype=bool)
     for index, raw in enumerate(lines):
         states.append(state.copy())
         block = clean_line(raw)
@@ -421,6 +426,7 @@ def interpret(
             dwell[index] = dwell_p or 0.0
             continue
         if 53.0 in g_values and wco is not None and axis and state.motion in (0, 1):
+            commanded[index] = [name in axis for name in "XYZ"]
             target = state.position.copy()
             for i, name in enumerate("XYZ"):
                 if name in axis:
@@ -441,6 +447,7 @@ def interpret(
             continue
         if not axis or state.motion == 80:
             continue
+        commanded[index] = [name in axis for name in "XYZ"]
         target = state.position.copy()
         for i, name in enumerate("XYZ"):
             if name in axis:
@@ -493,6 +500,7 @@ def interpret(
         power=np.array(powers, dtype=float),
         states=states,
         dwell=dwell,
+        commanded=commanded,
     )
 
 

@@ -270,10 +270,32 @@ class GrblConnection:
     # ------------------------------------------------------------------ properties
 
     @property
-    def machine_space(self) -> str:
-        """``"negative"`` (GRBL default: machine coordinates from -travel to 0) or ``"positive"`` (the build option
-        HOMING_FORCE_SET_ORIGIN, ``Z`` in ``[OPT:...]``)."""
-        return "positive" if "Z" in self.options else "negative"
+    def homing_enabled(self) -> bool:
+        """``$22=1``: the machine homes, so machine coordinates say where the head is on the machine. Without homing
+        machine zero is wherever the head stood at power-up (or the last ``$X`` after a reset in motion)."""
+        return int(self.settings.get(22, 0)) == 1
+
+    @property
+    def soft_limits(self) -> bool:
+        """``$20=1`` (GRBL accepts it only with homing on, and ``$22=0`` clears it)."""
+        return int(self.settings.get(20, 0)) == 1 and self.homing_enabled
+
+    @property
+    def force_origin(self) -> bool:
+        """Built with HOMING_FORCE_SET_ORIGIN (``Z`` in ``[OPT:...]``): homing sets every homed axis to 0."""
+        return "Z" in self.options
+
+    def machine_bounds(self) -> tuple[tuple[float, ...], tuple[float, ...]]:
+        """The homed machine space ``(lo, hi)`` per axis, as GRBL's soft limits (``system_check_travel_limits``)
+        see it: -travel..0 for every axis; with HOMING_FORCE_SET_ORIGIN, 0..+travel for an axis whose homing
+        direction bit (``$23``) is set and -travel..0 for the others. Meaningful only when :attr:`homing_enabled`."""
+        mask = int(self.settings.get(23, 0))
+        lo, hi = [], []
+        for axis, travel in enumerate(self.travel):
+            positive = self.force_origin and bool(mask & (1 << axis))
+            lo.append(0.0 if positive else -travel)
+            hi.append(travel if positive else 0.0)
+        return tuple(lo), tuple(hi)
 
     @property
     def travel(self) -> tuple[float, float, float]:

@@ -2,8 +2,12 @@
 
 Safety rules (they are the point of this module)
 ------------------------------------------------
-- A job whose extent (work coordinates + the current work offset) leaves the machine's travel (``$130``-``$132``)
-  is refused before any byte of it is sent.
+- Pre-flight, before any byte of the job is sent. With homing (``$22=1``) every point of the job (work coordinates
+  + the current work offset, from where the head stands) must lie in the machine space GRBL's soft limits use
+  (-travel..0 per axis, or 0..+travel for an axis whose ``$23`` bit is set when GRBL was built with
+  HOMING_FORCE_SET_ORIGIN, ``Z`` in ``[OPT:]``). Without homing, machine zero is wherever the head stood at power-up:
+  the job's own size on each axis must fit the travel (``$130``-``$132``), and so must the way from where the head
+  stands to the job; the refusal says by how much ("this job is 300.0 mm wide; your machine travels 200.0 mm in X").
 - A laser job (a laser profile, or a controller in laser mode) is refused unless ``$32=1`` is confirmed by re-reading
   the settings; every laser job ends with ``M5 S0``.
 - Abort sends the soft reset (0x18) at once, which stops motion and switches the laser off in the controller; then
@@ -30,7 +34,7 @@ from drivers.gcode import GcodeError, Toolpath, clean_line, interpret
 from drivers.grbl.connection import GrblConnection, StreamStopped
 from drivers.grbl.protocol import Error
 
-__all__ = ["Job", "JobProgress", "JobResult", "JobRunner", "frame_lines"]
+__all__ = ["Job", "JobProgress", "JobResult", "JobRunner", "commanded_extent", "frame_lines"]
 
 #: GRBL's line buffer (LINE_BUFFER_SIZE): a block has at most 79 characters after comments and spaces are removed.
 LINE_BUFFER_SIZE = 80
@@ -115,6 +119,32 @@ class JobResult:
     @property
     def ok(self) -> bool:
         return self.state == "done"
+
+
+#: What a job's size along X, Y and Z is called in a refusal.
+SPAN_WORDS = ("wide", "deep", "tall")
+
+
+def commanded_extent(toolpath: Toolpath) -> tuple[np.ndarray, np.ndarray]:
+    """Per axis, the extent of the job's own coordinates: from the first move that names the axis on.
+
+    Before a job first names an axis, that axis stays where the head happened to stand, which says nothing about
+    the job's size; a relative (``G91``) first move starts from there, so its start counts. NaN for an axis the job
+    never moves.
+    """
+    lo, hi = np.full(3, np.nan), np.full(3, np.nan)
+    if len(toolpath.line) == 0 or len(toolpath.commanded) == 0:
+        return lo, hi
+    for axis in range(3):
+        named = np.flatnonzero(toolpath.commanded[toolpath.line, axis])
+        if len(named) == 0:
+            continue
+        first = named[0]
+        values = toolpath.end[first:, axis]
+        if not toolpath.states[toolpath.line[first] + 1].absolute:
+            values = np.append(values, toolpath.start[first, axis])
+        lo[axis], hi[axis] = values.min(), values.max()
+    return lo, hi
 
 
 def frame_lines(
@@ -232,30 +262,69 @@ class JobRunner:
         durations = toolpath.durations(rapid_rate=rapid)
         self._durations = durations
         self._cumulative = np.cumsum(durations)
-        checked = {"lines": len(self._lines), "estimate_s": float(durations.sum())}
+        checked = {"lines": len(self._lines), "estimate_s": float(durations.sum()),
+                   "homing": conn.homing_enabled}
         extent = toolpath.extent()
         if extent is not None:
             lo, hi = extent
             wco = np.array(conn.work_offset())
-            travel = np.array(conn.travel)
-            if conn.machine_space == "positive":
-                allowed_lo, allowed_hi = np.zeros(3), travel
-            else:
-                allowed_lo, allowed_hi = -travel, np.zeros(3)
-            mlo, mhi = lo + wco, hi + wco
-            moving = hi - lo > 1e-9
-            moving[:2] = True  # X and Y are always checked
-            bad = [
-                f"{axis} {wlo:.2f}..{whi:.2f} (machine {mlo_:.2f}..{mhi_:.2f}, travel {alo:.2f}..{ahi:.2f})"
-                for axis, wlo, whi, mlo_, mhi_, alo, ahi, check in zip(
-                    "XYZ", lo, hi, mlo, mhi, allowed_lo, allowed_hi, moving)
-                if check and (mlo_ < alo - 1e-3 or mhi_ > ahi + 1e-3)
-            ]
-            if bad and travel[:2].min() > 0:
-                raise JobRefused(f"job {self.job.name!r} leaves the machine's travel ($130-$132 with work offset "
-                                 f"{', '.join(f'{v:.2f}' for v in wco)}): " + "; ".join(bad))
             checked.update(extent_lo=lo.tolist(), extent_hi=hi.tolist(), work_offset=wco.tolist())
+            if conn.homing_enabled:
+                self._check_machine_space(lo, hi, wco)
+            else:
+                self._check_span(toolpath, lo, hi)
         return checked
+
+    def _check_machine_space(self, lo: np.ndarray, hi: np.ndarray, wco: np.ndarray) -> None:
+        """A homed machine: every point (work + work offset) inside the machine space GRBL's soft limits use."""
+        conn = self.connection
+        travel = np.array(conn.travel, dtype=float)
+        allowed_lo, allowed_hi = (np.array(bound, dtype=float) for bound in conn.machine_bounds())
+        mlo, mhi = lo + wco, hi + wco
+        # X and Y are always checked, Z when the job moves it; an axis whose travel is 0 is not configured and is
+        # checked only when GRBL itself checks it (soft limits on: then it must stay at 0)
+        check = hi - lo > 1e-9
+        check[:2] = True
+        check &= (travel > 0) | conn.soft_limits
+        bad = [
+            f"{axis} {wlo:.2f}..{whi:.2f} (machine {mlo_:.2f}..{mhi_:.2f}, travel {alo:.2f}..{ahi:.2f})"
+            for axis, wlo, whi, mlo_, mhi_, alo, ahi, checked in zip(
+                "XYZ", lo, hi, mlo, mhi, allowed_lo, allowed_hi, check)
+            if checked and (mlo_ < alo - 1e-3 or mhi_ > ahi + 1e-3)
+        ]
+        if bad:
+            raise JobRefused(f"job {self.job.name!r} leaves the machine's travel ($130-$132 with work offset "
+                             f"{', '.join(f'{v:.2f}' for v in wco)}): " + "; ".join(bad))
+
+    def _check_span(self, toolpath: Toolpath, lo: np.ndarray, hi: np.ndarray) -> None:
+        """A machine without homing: machine zero is wherever the head stood at power-up, so machine coordinates
+        say nothing about the machine's ends. What is known: the job's own size on each axis, and the way from
+        where the head stands to the job, must each fit the travel ($130-$132)."""
+        conn = self.connection
+        travel = np.array(conn.travel, dtype=float)
+        own_lo, own_hi = commanded_extent(toolpath)
+        known = travel > 0
+        too_big = [
+            f"this job is {own_hi[i] - own_lo[i]:.1f} mm {SPAN_WORDS[i]}; your machine travels {travel[i]:.1f} mm "
+            f"in {'XYZ'[i]} (${130 + i})"
+            for i in range(3)
+            if known[i] and np.isfinite(own_lo[i]) and own_hi[i] - own_lo[i] > travel[i] + 1e-3
+        ]
+        if too_big:
+            raise JobRefused(f"job {self.job.name!r} does not fit the machine: " + "; ".join(too_big)
+                             + ". Scale the job down (station plot --size), or check $130-$132 if the machine "
+                             "travels further")
+        start = toolpath.start[0]  # where the head stands (the first segment leaves from there)
+        too_far = [
+            f"the head stands at {'XYZ'[i]} {start[i]:.1f} and the job goes to {'XYZ'[i]} {own_lo[i]:.1f}.."
+            f"{own_hi[i]:.1f}: {hi[i] - lo[i]:.1f} mm of travel, more than the {travel[i]:.1f} mm your machine has"
+            for i in range(3)
+            if known[i] and np.isfinite(own_lo[i]) and hi[i] - lo[i] > travel[i] + 1e-3
+        ]
+        if too_far:
+            raise JobRefused(f"job {self.job.name!r} cannot run from where the head stands (no homing: the job runs "
+                             "relative to work zero): " + "; ".join(too_far) + ". Jog the head to where the job "
+                             "should start, set work zero there (G10 L20 P1 X0 Y0) and send the frame first")
 
     def _build_lines(self) -> tuple[list[str], list[int]]:
         start = self.from_line - 1
