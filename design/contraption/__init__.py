@@ -9,12 +9,21 @@ Public API (used by the robust-layout helper and the station)::
     scenario.events                        # event names, file order
     problems = check_validity(scenario, x) # [] means physically valid
     clearances(scenario, x)                # signed margins per close pair / rope (>= 0: valid), for optimizers
+    layout = resolve_layout("success", scenario)   # or a file: LAYOUT.json, {"x": [...]}, {"parameters": {...}}
+    layout.x, layout.describe(), layout.defaulted  # values (real units), where they came from, what was defaulted
     result = simulate(scenario, x)         # .success .n_successful_events .events[name].state/.time .duration .steps
     with Simulator(scenario) as sim:       # one pybullet DIRECT client reused across many runs
         results = [sim.run(x) for x in layouts]
 """
 
-from design.contraption.errors import LayoutError, ScenarioFormatError, SimulationError
+from design.contraption.errors import LayoutError, ScenarioFormatError, ScenarioNotFoundError, SimulationError
+from design.contraption.layout_io import (
+    LoadedLayout,
+    layout_from_data,
+    load_layout,
+    read_layout,
+    resolve_layout,
+)
 from design.contraption.scenario import (
     EVENTS,
     PRIMITIVES,
@@ -24,8 +33,6 @@ from design.contraption.scenario import (
     Scenario,
     Settings,
     Transform,
-    layout_from_data,
-    load_layout,
     load_scenario,
     scenario_from_data,
 )
@@ -56,9 +63,11 @@ __all__ = [
     "EventOutcome",
     "EventSpec",
     "LayoutError",
+    "LoadedLayout",
     "ObjectSpec",
     "Scenario",
     "ScenarioFormatError",
+    "ScenarioNotFoundError",
     "Settings",
     "SimulationError",
     "SimulationResult",
@@ -70,6 +79,8 @@ __all__ = [
     "layout_from_data",
     "load_layout",
     "load_scenario",
+    "read_layout",
+    "resolve_layout",
     "scenario_from_data",
     "simulate",
 ]

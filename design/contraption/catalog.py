@@ -4,6 +4,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from design.contraption.errors import ScenarioNotFoundError
+
 #: The repository's example scenarios (a source checkout; installed copies look here too).
 EXAMPLES_DIR = Path(__file__).resolve().parents[2] / "examples" / "scenarios"
 
@@ -16,7 +18,13 @@ def example_names() -> list[str]:
 
 
 def resolve_scenario_path(text: str) -> Path:
-    """A path as given if it exists, else an example by name (``simple``, ``ballrun``...), else the path as given."""
+    """A path as given if it exists, else an example by name (``simple``, ``ballrun``...).
+
+    Raises
+    ------
+    ScenarioNotFoundError
+        When ``text`` is neither; its message lists the examples (a typo of a name is the usual cause).
+    """
     path = Path(text)
     if path.exists():
         return path
@@ -24,4 +32,4 @@ def resolve_scenario_path(text: str) -> Path:
         candidate = EXAMPLES_DIR / f"{text.lower()}{suffix}"
         if candidate.exists():
             return candidate
-    return path
+    raise ScenarioNotFoundError(text, example_names())

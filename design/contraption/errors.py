@@ -29,5 +29,24 @@ class LayoutError(ParameterError):
     """A layout vector or named layout does not fit the scenario's design space."""
 
 
+class ScenarioNotFoundError(DesignError):
+    """A scenario named on a command line or in a field is neither a file nor an example.
+
+    Attributes
+    ----------
+    name : str
+        What was given.
+    examples : list of str
+        The example names one could have given.
+    """
+
+    def __init__(self, name: str, examples: list[str]) -> None:
+        listed = ", ".join(examples) or "none found"
+        super().__init__(f"scenario {name!r}: no such file and no example of that name; expected a .toml or .json "
+                         f"scenario file or one of the examples: {listed}")
+        self.name = name
+        self.examples = examples
+
+
 class SimulationError(DesignError):
     """The simulation could not be set up for this scenario (e.g. a pybullet client that is gone)."""

@@ -4,19 +4,15 @@ from __future__ import annotations
 
 import argparse
 import sys
-from pathlib import Path
-
-import numpy as np
 
 from design.contraption import (
-    LayoutError,
     Scenario,
     Simulator,
-    load_layout,
     load_scenario,
 )
 from design.contraption.catalog import example_names, resolve_scenario_path
-from station.cli_util import emit_json, output_suffix
+from design.contraption.layout_io import LoadedLayout, default_layout, resolve_layout, values_layout
+from station.cli_util import emit_json
 from station.errors import UsageError
 
 
@@ -35,7 +31,9 @@ def register(subparsers) -> None:
     layout.add_argument(
         "--layout",
         metavar="FILE|NAME",
-        help='a layout file (JSON/TOML: {"track.x": -0.06, ...} or {"x": [...]}) or a layout named in the scenario',
+        help="a layout file: the LAYOUT.json of `station optimize`, {\"x\": [...]} or {\"parameters\": "
+        "{\"track.x\": -0.06, ...}} (JSON or TOML; missing parameters take the scenario's defaults), or a layout "
+        "named in the scenario (success, failure)",
     )
     layout.add_argument("--x", metavar="V1,V2,...", help="the design parameters in order, real units (m, degrees)")
     simulate.add_argument("--json", action="store_true", help="print the result as JSON on stdout")
@@ -66,38 +64,46 @@ def _load(text: str) -> Scenario:
     return load_scenario(resolve_scenario_path(text))
 
 
-def parse_layout(args, scenario: Scenario) -> np.ndarray:
-    """The layout vector from ``--layout`` / ``--x`` (the scenario's own layout when neither is given)."""
-    space = scenario.design_space
+def parse_layout(args, scenario: Scenario) -> LoadedLayout:
+    """The layout from ``--layout`` / ``--x`` (the scenario's own transforms when neither is given)."""
     if args.x is not None:
         parts = [p for p in args.x.split(",") if p.strip()]
         try:
             values = [float(p) for p in parts]
         except ValueError:
             raise UsageError(f"--x {args.x!r}: expected comma-separated numbers") from None
-        if len(values) != space.dim:
-            raise UsageError(
-                f"--x: expected {space.dim} values ({', '.join(space.names)}), got {len(values)}"
-            )
-        return space.check_bounds(np.array(values), what="--x")
+        return values_layout(scenario, values, what="--x")
     if args.layout is not None:
-        path = Path(args.layout)
-        if path.suffix.lower() not in (".json", ".toml") and args.layout in scenario.layouts:
-            return scenario.layout(args.layout)
-        if not path.exists() and path.suffix.lower() not in (".json", ".toml"):
-            raise LayoutError(
-                f"--layout {args.layout!r}: no such file and no layout of that name "
-                f"(the scenario has {sorted(scenario.layouts) or 'none'})"
-            )
-        return load_layout(path, scenario)
-    return scenario.default_layout()
+        return resolve_layout(args.layout, scenario)
+    return default_layout(scenario)
+
+
+def layout_lines(layout: LoadedLayout) -> list[str]:
+    """What a command says about the layout it used: where it came from, and what took the scenario's defaults."""
+    lines = [f"layout: {layout.describe()}"]
+    if layout.defaulted and layout.format != "defaults":
+        lines.append(f"  defaulted to the scenario's values: {', '.join(layout.defaulted)}")
+    return lines
+
+
+def report_layout(layout: LoadedLayout, stream=None) -> None:
+    """The layout's warnings on stderr and, when ``stream`` is given, its :func:`layout_lines` there."""
+    for warning in layout.warnings:
+        print(f"station: warning: {warning}", file=sys.stderr)
+    if stream is not None:
+        print("\n".join(layout_lines(layout)), file=stream)
 
 
 def run_simulate(args) -> int:
-    scenario = _load(args.scenario)
-    x = parse_layout(args, scenario)
     if args.render:
-        output_suffix(args.render, {".png"})
+        # Refused now, not after the simulation: the render is what the user waits for.
+        from station.commands.robust import check_output_file
+
+        check_output_file(args.render, {".png"}, "--render")
+    scenario = _load(args.scenario)
+    layout = parse_layout(args, scenario)
+    report_layout(layout)
+    x = layout.x
     with Simulator(scenario) as sim:
         problems = sim.check_validity(x)
         if problems:
@@ -108,6 +114,7 @@ def run_simulate(args) -> int:
                         "valid": False,
                         "success": False,
                         "layout": scenario.design_space.as_dict(x),
+                        "layout_source": layout.to_dict(),
                         "problems": [
                             {"kind": p.kind, "objects": list(p.objects), "amount": p.amount, "message": p.message}
                             for p in problems
@@ -116,6 +123,7 @@ def run_simulate(args) -> int:
                 )
             else:
                 print(f"{scenario.name}: layout is physically impossible:")
+                print("\n".join(layout_lines(layout)))
                 for problem in problems:
                     print(f"  - {problem.message}")
             return 1
@@ -129,10 +137,11 @@ def run_simulate(args) -> int:
         print(f"wrote {args.render}", file=sys.stderr)
     if args.json:
         data = result.to_dict()
-        data = {"scenario": scenario.name, "valid": True, "layout": scenario.design_space.as_dict(x), **data}
+        data = {"scenario": scenario.name, "valid": True, "layout": scenario.design_space.as_dict(x),
+                "layout_source": layout.to_dict(), **data}
         emit_json(data)
     else:
-        print(_result_text(scenario, result))
+        print(_result_text(scenario, result, layout))
     return 0 if result.success else 1
 
 
@@ -140,11 +149,12 @@ def _fmt_time(value) -> str:
     return "-" if value is None else f"{value:.3f} s"
 
 
-def _result_text(scenario: Scenario, result) -> str:
+def _result_text(scenario: Scenario, result, layout: LoadedLayout) -> str:
     lines = [
         f"{scenario.name}: {'SUCCESS' if result.success else 'FAILURE'} "
         f"({result.n_successful_events}/{len(result.events)} events, {result.duration:.3f} s simulated, "
         f"{result.steps} steps{', stopped early' if result.early_stopped else ''})",
+        *layout_lines(layout),
         "",
         f"{'event':<24} {'state':<8} {'woke':>9} {'at':>9}  label",
     ]
