@@ -138,3 +138,37 @@ async def test_plot_key_on_the_drawing_screen_plots_the_pattern_and_ends_pen_up(
         await pilot.pause()
         jobs = app.screen.query_one("#jobs", DataTable)
         assert jobs.row_count == 1 and "done" in [str(c) for c in jobs.get_row_at(0)]
+
+
+def _console_text(screen) -> str:
+    from textual.widgets import RichLog
+
+    return "\n".join(strip.text for strip in screen.query_one("#console", RichLog).lines)
+
+
+async def test_console_shows_messages_as_text_in_colour_and_wraps_long_lines(tmp_path):
+    # The console printed "[red]hello world ...[/red]" literally and cut long lines at the panel's edge.
+    app = StationApp(devices=FAST_DEVICES, database=tmp_path / "t.sqlite3")
+    async with app.run_test(size=(160, 48)) as pilot:
+        await pilot.press("m")
+        await pilot.pause()
+        screen = app.screen
+        await _until(pilot, lambda: "plotter" in screen.connections)
+        await pilot.press("colon")
+        line = "hello world [b]bold[/b] " + " ".join(f"word{k}" for k in range(40)) + " THE-END"
+        await pilot.press(*line, "enter")
+        await _until(pilot, lambda: "THE-END:" in screen.last_message)
+        await pilot.pause(0.2)
+        shown = _console_text(screen)
+        assert "[red]" not in shown and "[/red]" not in shown
+        assert "[b]bold[/b]" in shown  # the user's text is shown as typed, not read as markup
+        assert "THE-END" in shown  # the tail of the long line wrapped onto the next lines
+        from textual.widgets import RichLog
+
+        log = screen.query_one("#console", RichLog)
+        assert max(strip.cell_length for strip in log.lines) <= log.scrollable_content_region.width
+        said = [strip for strip in log.lines if "hello world" in strip.text]
+        assert said and any(segment.style and segment.style.color and segment.style.color.name == "red"
+                            for segment in said[-1])
+        message = screen.query_one("#message").render()
+        assert "[b]bold[/b]" in str(message)

@@ -17,6 +17,8 @@ import time
 from dataclasses import dataclass
 
 import numpy as np
+from rich.markup import escape
+from rich.text import Text
 from textual import on, work
 from textual.app import ComposeResult
 from textual.binding import Binding
@@ -156,7 +158,8 @@ class MachinesScreen(Screen):
                 yield Static("", id="message")
             with Vertical():
                 yield PatternCanvas(id="preview")
-                yield RichLog(id="console", max_lines=500, wrap=False, markup=False)
+                # Long lines wrap (GRBL's settings and error replies were cut at the panel's edge).
+                yield RichLog(id="console", max_lines=500, wrap=True, markup=False)
                 yield Input(placeholder=": G-code or $ command, Enter sends", id="console-input")
         yield Footer()
 
@@ -235,7 +238,7 @@ class MachinesScreen(Screen):
             conn.add_listener(lambda event, data, name=device.name: self._listener(name, event, data))
             conn.open()
         except (DriverError, OSError) as error:
-            self._from_thread(self._say, f"[red]{device.name}: {error}[/red]")
+            self._from_thread(self._say, f"{device.name}: {error}", "red")
             self._from_thread(self._connecting.discard, device.name)
             return
         self._from_thread(self._connected, device.name, conn)
@@ -277,7 +280,7 @@ class MachinesScreen(Screen):
             self._from_thread(self._console, f"{name} {'>' if direction == 'out' else '<'} {text}"
                               if direction in ("in", "out") else f"{name} ! {text}")
         elif event in ("alarm", "fault"):
-            self._from_thread(self._say, f"[red]{name}: {data}[/red]")
+            self._from_thread(self._say, f"{name}: {data}", "red")
             self._from_thread(self._render_status)
         elif event == "message" and isinstance(data, Feedback) and data.kind == "MSG":
             self._from_thread(self._say, f"{name}: {data.text}")
@@ -291,7 +294,7 @@ class MachinesScreen(Screen):
             lines.append("no plotter or laser configured")
         else:
             conn = self.connections.get(device.name)
-            lines.append(f"[b]{device.label}[/b]  {device.url}")
+            lines.append(f"[b]{escape(device.label)}[/b]  {escape(device.url)}")
             if conn is None:
                 lines.append("not connected (c connects)")
             else:
@@ -299,7 +302,8 @@ class MachinesScreen(Screen):
                 state = "position lost" if conn.position_lost else (status.label if status else "?")
                 colour = "red" if conn.position_lost or state.startswith("Alarm") else (
                     "yellow" if state.startswith(("Hold", "Door")) else "green")
-                lines.append(f"state [{colour}]{state}[/{colour}]   jog step {JOG_STEPS[self.jog_step_index]:g} mm")
+                lines.append(f"state [{colour}]{escape(state)}[/{colour}]   "
+                             f"jog step {JOG_STEPS[self.jog_step_index]:g} mm")
                 if status is not None:
                     wco = conn.wco or conn.work_offset()
                     wpos = status.work_position(wco)
@@ -313,10 +317,10 @@ class MachinesScreen(Screen):
                                      f"   RX {conn.rx_size - status.rx_free}/{conn.rx_size} bytes"
                                      f"   feed {status.feed or 0:.0f} mm/min  S {status.spindle or 0:.0f}")
                 if conn.alarm is not None:
-                    lines.append(f"[red]{conn.alarm}[/red]")
-                    lines.append(f"  recovery: {conn.alarm.recovery}")
+                    lines.append(f"[red]{escape(str(conn.alarm))}[/red]")
+                    lines.append(f"  recovery: {escape(str(conn.alarm.recovery))}")
                 if conn.fault:
-                    lines.append(f"[red]{conn.fault}[/red]")
+                    lines.append(f"[red]{escape(str(conn.fault))}[/red]")
         try:
             self.query_one("#status", Static).update("\n".join(lines))
         except Exception:  # noqa: BLE001 - not mounted yet
@@ -326,17 +330,22 @@ class MachinesScreen(Screen):
     def status_text(self) -> str:
         return str(self.query_one("#status", Static).render())
 
-    def _say(self, message: str) -> None:
+    def _say(self, message: str, style: str = "") -> None:
+        """Show ``message`` under the queue and in the console, as plain text in ``style`` (``"red"``).
+
+        Messages carry what users and devices wrote (console lines, G-code, file names, GRBL replies such as
+        ``[MSG:...]``), so they are never parsed as markup: the style is applied to the whole message instead.
+        """
         self.last_message = message
         try:
-            self.query_one("#message", Static).update(message)
+            self.query_one("#message", Static).update(Text(message, style=style))
         except Exception:  # noqa: BLE001
             pass
-        self._console(message)
+        self._console(message, style)
 
-    def _console(self, text: str) -> None:
+    def _console(self, text: str, style: str = "") -> None:
         try:
-            self.query_one("#console", RichLog).write(text)
+            self.query_one("#console", RichLog).write(Text(text, style=style))
         except Exception:  # noqa: BLE001
             pass
 
@@ -385,7 +394,8 @@ class MachinesScreen(Screen):
             return
         table.clear()
         for entry in self.jobs:
-            table.add_row(str(entry.number), entry.title[:28], entry.device, str(len(entry.job.lines)), entry.state)
+            table.add_row(str(entry.number), Text(entry.title[:28]), entry.device, str(len(entry.job.lines)),
+                          entry.state)
 
     def _show_preview(self, entry: QueuedJob, current_line: int | None = None) -> None:
         """Draw the job's toolpath; with ``current_line``, what is done in green and the rest in grey."""
@@ -529,7 +539,7 @@ class MachinesScreen(Screen):
                 entry.message = f"resume:{result.resume_line}"
         self._refresh_queue()
         colour = "green" if result.ok else "red"
-        self._say(f"[{colour}]{result.message}[/{colour}]")
+        self._say(result.message, style=colour)
         for _, text in result.errors[:5]:
             self._console(f"  {text}")
         self._show_progress(runner.progress)
@@ -553,12 +563,12 @@ class MachinesScreen(Screen):
         """Soft reset now (motion stops, laser off); a running job then sends M5 S0. Always available."""
         if self.runner is not None and self.runner.result is None:
             self.runner.abort()
-            self._say("[red]abort: soft reset sent[/red]")
+            self._say("abort: soft reset sent", style="red")
             return
         conn = self.connection()
         if conn is not None:
             self._safe(conn.soft_reset, False)
-            self._say("[red]abort: soft reset sent (no job was running)[/red]")
+            self._say("abort: soft reset sent (no job was running)", style="red")
         else:
             self._say("abort: not connected")
 
@@ -566,7 +576,7 @@ class MachinesScreen(Screen):
         try:
             callback(*args)
         except (DriverError, OSError) as error:
-            self._say(f"[red]{error}[/red]")
+            self._say(str(error), style="red")
 
     # ------------------------------------------------------------------ manual control
 
@@ -620,7 +630,7 @@ class MachinesScreen(Screen):
                 if isinstance(reply, Feedback):
                     self._from_thread(self._console, f"  [{reply.kind}:{reply.text}]")
         except (DriverError, OSError) as error:
-            self._from_thread(self._say, f"[red]{line}: {error}[/red]")
+            self._from_thread(self._say, f"{line}: {error}", "red")
         self._from_thread(self._render_status)
 
     def action_plot_design(self) -> None:
@@ -656,7 +666,7 @@ class MachinesScreen(Screen):
             profile = builtin_profile("laser" if kind == "laser" else "plotter")
             text, *_ = plot_job([points], profile, None, None)
         except (DesignError, DriverError, StationError) as error:
-            self._from_thread(self._say, f"[red]cannot plot {machine}: {error}[/red]")
+            self._from_thread(self._say, f"cannot plot {machine}: {error}", "red")
             return
         self._from_thread(self.queue_job, device, text, f"{machine} plot")
 
