@@ -41,7 +41,9 @@ class ExploreScreen(Screen):
     CSS = """
     ExploreScreen #sidebar { width: 64; border-right: solid $primary-darken-2; }
     ExploreScreen #design { height: auto; padding: 0 1; }
-    ExploreScreen #pois { height: 1fr; }
+    ExploreScreen #pois { height: 1fr; border: round $panel-lighten-2; }
+    ExploreScreen #pois:focus { border: round $accent; }
+    ExploreScreen InvariantSlider:focus { background: $accent 50%; text-style: bold; }
     ExploreScreen #invariants { height: auto; padding: 0 1; color: $success; }
     ExploreScreen #sliders { height: auto; max-height: 8; }
     ExploreScreen #status { height: auto; padding: 0 1; color: $text-muted; }
@@ -82,7 +84,9 @@ class ExploreScreen(Screen):
                 yield Static("loading…", id="design")
                 yield DataTable(id="pois", cursor_type="row", zebra_stripes=True)
                 yield Static("", id="invariants")
-                yield VerticalScroll(id="sliders")
+                sliders = VerticalScroll(id="sliders")
+                sliders.can_focus = False  # its sliders take the focus (a focused container shows nothing)
+                yield sliders
                 yield Static("", id="status")
             yield ExploreCanvas(id="canvas")
         yield Footer()

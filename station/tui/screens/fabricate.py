@@ -42,7 +42,9 @@ class FabricateScreen(Screen):
     FabricateScreen .field { height: 3; }
     FabricateScreen .field Label { width: 16; padding: 1 1 0 1; }
     FabricateScreen .field Input { width: 1fr; }
-    FabricateScreen #parts { height: 1fr; }
+    FabricateScreen #parts { height: 1fr; border: round $panel-lighten-2; }
+    FabricateScreen #parts:focus { border: round $accent; }
+    FabricateScreen .field Input:focus { border: tall $accent; }
     FabricateScreen #part { height: auto; padding: 0 1; color: $warning; }
     FabricateScreen #job { height: auto; padding: 0 1; }
     FabricateScreen #status { height: auto; padding: 0 1; color: $text-muted; }
