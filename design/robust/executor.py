@@ -252,17 +252,29 @@ class SimulationExecutor:
 
     def close(self, kill: bool = False) -> None:
         """Stop worker processes (``kill`` terminates running simulations) and close the cache."""
-        if self._pool is not None:
-            if kill:
-                for process in list(getattr(self._pool, "_processes", {}).values()):
-                    process.terminate()
-            self._pool.shutdown(wait=not kill, cancel_futures=True)
-            self._pool = None
+        self._stop_pool(kill)
         self._remote_problem = None
         if self._client is not None and self._owns_client:
             self._client.close()
         self._client = None
         self.cache.close()
+
+    def _stop_pool(self, kill: bool) -> None:
+        """Shut the worker pool down, dropping its queued simulations; ``kill`` also ends the running ones.
+
+        Queued futures are cancelled by the pool's own manager thread (``cancel_futures=True``), never from this
+        thread: a worker terminated while a future cancelled here is still among the pool's pending items makes the
+        manager thread set an exception on that cancelled future, and it dies printing ``InvalidStateError`` (Python
+        3.11's ``terminate_broken``). Shutting down first, then terminating, leaves every cancellation to it.
+        """
+        pool, self._pool = self._pool, None
+        if pool is None:
+            return
+        processes = list((getattr(pool, "_processes", None) or {}).values())
+        pool.shutdown(wait=not kill, cancel_futures=True)
+        if kill:
+            for process in processes:
+                process.terminate()
 
     def _ensure_pool(self) -> ProcessPoolExecutor:
         if self._pool is None:
@@ -408,6 +420,11 @@ class SimulationExecutor:
                         ) from None
                     yield from finish(futures[future], results)
         except BaseException:
-            for future in pending:
-                future.cancel()
+            # A stopped, interrupted or failed run ends its simulations: queued ones would keep the workers busy
+            # for nobody. The pool is rebuilt on the next run.
+            if self.backend == "processes":
+                self._stop_pool(kill=True)
+            else:
+                for future in pending:
+                    future.cancel()
             raise

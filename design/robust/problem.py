@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import hashlib
 import json
+import time
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Protocol, runtime_checkable
@@ -142,6 +143,9 @@ class SyntheticProblem:
         The causal graph, parents first.
     forbidden_center, forbidden_radius :
         The impossible region D∅: layouts closer than ``forbidden_radius`` to ``forbidden_center`` (normalized).
+    simulation_seconds : float
+        A pause in each :meth:`simulate`, standing in for a physics simulation's cost (tests of stopping a run of
+        worker processes need work still running and queued). Not part of the content hash: outcomes are the same.
     """
 
     name: str
@@ -152,6 +156,7 @@ class SyntheticProblem:
     forbidden_center: tuple[float, ...] | None = None
     forbidden_radius: float = 0.0
     content_hash: str = field(default="", compare=False)
+    simulation_seconds: float = field(default=0.0, compare=False)
 
     def __post_init__(self) -> None:
         spec = json.dumps(
@@ -206,6 +211,8 @@ class SyntheticProblem:
         """Nothing to prepare: the synthetic simulator is pure numpy."""
 
     def simulate(self, u: np.ndarray) -> np.ndarray:
+        if self.simulation_seconds > 0:
+            time.sleep(self.simulation_seconds)
         return self.simulate_batch(np.atleast_2d(u))[0]
 
     def simulate_batch(self, U: np.ndarray) -> np.ndarray:
