@@ -172,3 +172,32 @@ async def test_console_shows_messages_as_text_in_colour_and_wraps_long_lines(tmp
                             for segment in said[-1])
         message = screen.query_one("#message").render()
         assert "[b]bold[/b]" in str(message)
+
+
+async def test_keys_act_on_return_to_the_screen_and_arrows_jog(tmp_path):
+    # Focus stayed in the console field after leaving the screen and coming back, so n then g typed "ng"; and the
+    # console log, focused when the screen opened, took the up and down arrows (it scrolled instead of jogging).
+    from textual.widgets import Input
+
+    app = StationApp(devices=FAST_DEVICES, database=tmp_path / "t.sqlite3")
+    async with app.run_test(size=(160, 48)) as pilot:
+        await pilot.press("m")
+        await pilot.pause()
+        screen = app.screen
+        await _until(pilot, lambda: "plotter" in screen.connections and screen.connections["plotter"].status)
+        conn = screen.connections["plotter"]
+        await pilot.press("up")
+        await _until(pilot, lambda: any(text.startswith("$J=") and "Y10" in text for _, d, text in conn.log
+                                        if d == "out"))
+        await pilot.press("colon")
+        field = screen.query_one("#console-input", Input)
+        assert screen.focused is field
+        await pilot.press("escape")  # home
+        await pilot.pause()
+        assert app.screen.name == "home"
+        await pilot.press("m")
+        await pilot.pause()
+        assert app.screen is screen and not isinstance(screen.focused, Input)
+        await pilot.press("n")
+        await _until(pilot, lambda: len(screen.jobs) == 1, timeout=30)
+        assert field.value == ""

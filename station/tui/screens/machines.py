@@ -88,6 +88,9 @@ class MachinesScreen(Screen):
     MachinesScreen #message { height: auto; padding: 0 1; }
     """
 
+    #: Nothing is focused when the screen opens, so every key acts (the console field is focused with :).
+    AUTO_FOCUS = ""
+
     BINDINGS = [
         Binding("ctrl+x", "abort", "Abort", priority=True),
         Binding("c", "connect", "Connect"),
@@ -159,7 +162,11 @@ class MachinesScreen(Screen):
             with Vertical():
                 yield PatternCanvas(id="preview")
                 # Long lines wrap (GRBL's settings and error replies were cut at the panel's edge).
-                yield RichLog(id="console", max_lines=500, wrap=True, markup=False)
+                console = RichLog(id="console", max_lines=500, wrap=True, markup=False)
+                # Never focused: a focused log takes the arrows and PgUp/PgDn (it scrolls), so they would not jog.
+                # The mouse wheel still scrolls it.
+                console.can_focus = False
+                yield console
                 yield Input(placeholder=": G-code or $ command, Enter sends", id="console-input")
         yield Footer()
 
@@ -170,6 +177,10 @@ class MachinesScreen(Screen):
         self.set_interval(0.05, self._drain_calls)
 
     def on_screen_resume(self) -> None:
+        # Focus left in the console field when the user went elsewhere would make the keys type there on return
+        # (n then g typed "ng" instead of plotting): the screen comes back with its keys (: returns to the console).
+        if isinstance(self.focused, Input):
+            self.set_focus(None)
         # connect to the selected device the first time the screen is shown (simulated ones need no hardware)
         if not self._auto_connected:
             self._auto_connected = True
