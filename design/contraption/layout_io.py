@@ -34,7 +34,7 @@ from typing import Any
 import numpy as np
 
 from design.contraption.errors import LayoutError, ScenarioFormatError
-from design.contraption.scenario import ANGLE_KEYS, Scenario, _join, _kind
+from design.contraption.scenario import ANGLE_KEYS, Scenario, _join, _kind, _reject_constant
 
 if sys.version_info >= (3, 11):
     import tomllib
@@ -204,10 +204,6 @@ def _unique_keys(pairs: list[tuple[str, Any]]) -> dict[str, Any]:
             raise _DuplicateKey(key)
         result[key] = value
     return result
-
-
-def _reject_constant(name: str) -> float:
-    raise ValueError(f"{name} is not a number")
 
 
 def layout_from_data(data: Any, scenario: Scenario, *, file: str = "<data>") -> LoadedLayout:
