@@ -14,9 +14,15 @@ MAX_DRAW_ROUNDS = 200
 
 
 def sample_physically_valid(
-    problem: LayoutProblem, draw: Callable[[int], np.ndarray], n: int, what: str = "layouts"
+    problem: LayoutProblem, draw: Callable[[int], np.ndarray], n: int, what: str = "layouts",
+    on_checked: Callable[[int, int], None] | None = None,
 ) -> np.ndarray:
     """``n`` valid layouts from ``draw(m) -> (m, d)`` candidates; candidates outside ``[0, 1]^d`` are rejected.
+
+    The first ``n`` valid candidates in draw order are kept. They are checked in chunks, stopping as soon as
+    there are enough: a contraption's check builds its world (tens of ms), and checking all of a batch of ``2n``
+    spent half the checks in vain where almost every layout is valid. ``on_checked(checked, valid)`` is called
+    after each chunk (progress of a long draw).
 
     Raises
     ------
@@ -26,32 +32,39 @@ def sample_physically_valid(
     if n <= 0:
         return np.zeros((0, problem.dim))
     kept: list[np.ndarray] = []
-    count = 0
+    count = checked = 0
     batch = max(2 * n, 16)
+    chunk = max(16, n // 16)
     for _ in range(MAX_DRAW_ROUNDS):
         candidates = np.atleast_2d(draw(batch))
         in_box = np.all((candidates >= 0.0) & (candidates <= 1.0), axis=1)
         candidates = candidates[in_box]
-        if len(candidates):
-            candidates = candidates[problem.is_valid(candidates)]
-        kept.append(candidates)
-        count += len(candidates)
-        if count >= n:
-            return np.concatenate(kept)[:n]
+        for begin in range(0, len(candidates), chunk):
+            part = candidates[begin:begin + chunk]
+            part = part[problem.is_valid(part)]
+            kept.append(part)
+            count += len(part)
+            checked += min(chunk, len(candidates) - begin)
+            if on_checked is not None:
+                on_checked(checked, min(count, n))
+            if count >= n:
+                return np.concatenate(kept)[:n]
     raise RobustError(
         f"{problem.name}: found only {count} physically valid {what} of {n} after {MAX_DRAW_ROUNDS} draws"
     )
 
 
-def sobol_valid(problem: LayoutProblem, n: int, seed: int) -> np.ndarray:
-    """The first ``n`` valid points of a scrambled Sobol sequence (seeded)."""
+def sobol_valid(problem: LayoutProblem, n: int, seed: int,
+                on_checked: Callable[[int, int], None] | None = None) -> np.ndarray:
+    """The first ``n`` valid points of a scrambled Sobol sequence (seeded); ``on_checked`` as in
+    :func:`sample_physically_valid`."""
     engine = qmc.Sobol(d=problem.dim, scramble=True, seed=seed)
 
     def draw(m: int) -> np.ndarray:
         # Whole powers of two keep the sequence's balance properties (and scipy quiet).
         return engine.random_base2(int(np.ceil(np.log2(max(m, 2)))))
 
-    return sample_physically_valid(problem, draw, n, "Sobol points")
+    return sample_physically_valid(problem, draw, n, "Sobol points", on_checked)
 
 
 def uniform_valid(problem: LayoutProblem, n: int, rng: np.random.Generator) -> np.ndarray:
