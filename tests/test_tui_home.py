@@ -33,3 +33,11 @@ async def test_every_area_opens_and_escape_returns_home(tmp_path):
             await pilot.press("escape")
             await pilot.pause()
             assert app.screen.name == "home"
+
+
+async def test_quit_without_a_running_job_does_not_ask(tmp_path):
+    app = StationApp(database=tmp_path / "t.sqlite3")
+    async with app.run_test() as pilot:
+        await pilot.press("ctrl+q")
+        await pilot.pause()
+        assert app._exit and app.screen.name == "home"

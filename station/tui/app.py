@@ -13,6 +13,7 @@ from station.db import open_database
 from station.devices import DeviceEntry, default_devices
 from station.paths import database_path
 from station.tui.registry import ScreenEntry, discover_screens
+from station.tui.screens.confirm_quit import ABORT_AND_QUIT, ConfirmQuitScreen
 from station.tui.screens.home import HomeScreen
 
 #: Device kinds the station can drive today (plotter and laser over GRBL); camera and projector are listed for what
@@ -87,6 +88,34 @@ class StationApp(App):
         """Open a drawing-machine design on the Drawing machines screen (used by sketch retrieval and others)."""
         self.action_open_area("drawing")
         self.get_screen("drawing").load_design(machine, params)
+
+    async def action_quit(self) -> None:
+        """Quit (ctrl+q, the command palette); while a machine job runs, ask first.
+
+        The answer is either keep the job running, or abort it (soft reset, then ``M5 S0``: the laser is off), wait
+        until it has ended and is recorded in the job history, and quit, saying how the job ended.
+        """
+        machines = self._machines_screen()
+        job = machines.active_job() if machines is not None else None
+        if job is None:
+            self.exit()
+            return
+        if isinstance(self.screen, ConfirmQuitScreen):
+            return  # already asking
+
+        def answered(answer: str | None) -> None:
+            if answer == ABORT_AND_QUIT:
+                machines.abort_then(lambda message: self.exit(message=f"chaos-station: {message}"))
+
+        self.push_screen(ConfirmQuitScreen(job.title, job.device, job.state, laser=job.job.laser), answered)
+
+    def _machines_screen(self) -> Screen | None:
+        """The Machines screen if that area is installed (it owns the running jobs)."""
+        try:
+            screen = self.get_screen("machines")
+        except KeyError:
+            return None
+        return screen if hasattr(screen, "active_job") else None
 
     def on_unmount(self) -> None:
         self.database.close()

@@ -201,3 +201,48 @@ async def test_keys_act_on_return_to_the_screen_and_arrows_jog(tmp_path):
         await pilot.press("n")
         await _until(pilot, lambda: len(screen.jobs) == 1, timeout=30)
         assert field.value == ""
+
+
+async def test_quit_during_a_job_asks_and_aborts_with_the_laser_off(tmp_path):
+    # ctrl+q during a job quit at once: the port closed under the job, recorded as "interrupted 79/242".
+    from station.db import open_database
+    from station.tui.screens.confirm_quit import ConfirmQuitScreen
+
+    database = tmp_path / "t.sqlite3"
+    app = StationApp(devices=FAST_DEVICES, database=database)
+    async with app.run_test(size=(160, 48)) as pilot:
+        await pilot.press("m")
+        await pilot.pause()
+        screen = app.screen
+        await _until(pilot, lambda: "plotter" in screen.connections)
+        await pilot.press("v", "c")  # the laser
+        await _until(pilot, lambda: "laser" in screen.connections)
+        conn = screen.connections["laser"]
+        entry = screen.queue_job("laser", _square(n=8, size=40, laser=True), title="burn")
+        await pilot.press("g")
+        await _until(pilot, lambda: screen.runner is not None and screen.runner.progress.lines_acked > 5)
+        await pilot.press("escape")  # quitting from another screen asks too
+        await pilot.pause()
+        await pilot.press("ctrl+q")
+        await pilot.pause()
+        assert isinstance(app.screen, ConfirmQuitScreen) and not app._exit
+        await pilot.press("k")  # keep running
+        await pilot.pause()
+        assert app.screen.name == "home" and entry.state == "running" and not app._exit
+        await pilot.press("ctrl+q")
+        await pilot.pause()
+        assert isinstance(app.screen, ConfirmQuitScreen)
+        await pilot.press("a")  # abort the job and quit
+        await _until(pilot, lambda: app._exit, timeout=30)
+        assert entry.state == "aborted"
+        record = conn.port.machine.snapshot()
+        assert record.resets
+        after = [s for s in record.samples if s.t >= record.resets[-1]]
+        assert after and all(s.power == 0.0 for s in after)
+        assert any("abort" in str(line) for line in app._exit_renderables)
+    connection = open_database(database)
+    try:
+        (logged,) = JobLog(connection).recent()
+    finally:
+        connection.close()
+    assert (logged.title, logged.status) == ("burn", "aborted")

@@ -136,6 +136,7 @@ class MachinesScreen(Screen):
         self._log_ids: dict[int, int] = {}
         self._job_log: JobLog | None = None
         self._last_logged = 0.0
+        self._after_abort = None  # called with the job's last message once an abort for quitting has ended it
 
     @property
     def job_log(self) -> JobLog:
@@ -555,6 +556,9 @@ class MachinesScreen(Screen):
             self._console(f"  {text}")
         self._show_progress(runner.progress)
         self._render_status()
+        if self._after_abort is not None and self.runner is None:
+            callback, self._after_abort = self._after_abort, None
+            callback(result.message)
 
     def action_hold(self) -> None:
         if self.runner is not None and self.runner.result is None:
@@ -680,6 +684,36 @@ class MachinesScreen(Screen):
             self._from_thread(self._say, f"cannot plot {machine}: {error}", "red")
             return
         self._from_thread(self.queue_job, device, text, f"{machine} plot")
+
+    # ------------------------------------------------------------------ quitting
+
+    def active_job(self) -> QueuedJob | None:
+        """The job being sent now (a run, a frame or a dry run), or None."""
+        if self.runner is not None and self.runner.result is None:
+            return self.running_job
+        return None
+
+    def abort_then(self, callback, timeout: float = 20.0) -> None:
+        """Abort the running job and call ``callback(message)`` once it has ended (the app quits then).
+
+        The abort is :meth:`action_abort`'s: a soft reset stops motion and the laser at once, then the job sends
+        ``M5 S0``; the job's end is recorded in the job history (``aborted``, not ``interrupted``). If the job does
+        not end within ``timeout`` s (a port that stopped answering), ``callback`` is called anyway; the app's
+        shutdown then resets the machine again and closes the port.
+        """
+        if self.active_job() is None:
+            callback("no job was running")
+            return
+        self._after_abort = callback
+        self.action_abort()
+
+        def timed_out() -> None:
+            if self._after_abort is callback:
+                self._after_abort = None
+                callback(f"the job did not end {timeout:g} s after the abort (soft reset sent); "
+                         "check that the laser is off")
+
+        self.set_timer(timeout, timed_out)
 
 
 SCREEN = ScreenEntry(
