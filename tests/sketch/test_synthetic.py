@@ -21,6 +21,16 @@ def test_cases_are_seeded_and_damaged_as_described():
     assert machine.is_feasible(a.params) and (a.params["r_f"], a.params["r_r"]) == (7, 3)
 
 
+def test_another_seed_gives_another_case():
+    # The counterpart of the test above, which also passes if the generator ignores its random source.
+    machine = get_machine("spirograph")
+    a, b = (make_case(machine, {"r_f": 7, "r_r": 3}, np.random.default_rng(seed), symmetry=7) for seed in (5, 6))
+    assert a is not None and b is not None
+    assert a.params["d"] != b.params["d"]
+    first, second = np.concatenate(a.sketch.strokes), np.concatenate(b.sketch.strokes)
+    assert first.shape != second.shape or not np.allclose(first, second)
+
+
 def covered(curve: np.ndarray, points: np.ndarray, tolerance: float) -> float:
     """Fraction of the points of ``curve`` within ``tolerance`` of one of ``points``."""
     return float(np.mean(cKDTree(points).query(curve)[0] < tolerance))
