@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import math
+import os
 import sys
 from collections.abc import Iterable
 from pathlib import Path
@@ -131,3 +132,30 @@ def load_design(path: str | Path, machine_name: str) -> dict[str, Any]:
     else:
         params = document
     return dict(params)
+
+
+def check_output_folder(path: str | Path, option: str = "--out", contents: str = "the output files") -> Path:
+    """``path`` as the output folder of ``option``, refused before any work if it cannot be made or written.
+
+    The folder may be missing (it is created, with its parents, when the outputs are written); it must not be a
+    file, nor lie under one, and the nearest existing folder must be writable. Nothing is created here, so a
+    refusal later leaves no empty folder behind.
+
+    Raises
+    ------
+    UsageError
+        Naming the option, the path and what is wrong.
+    """
+    path = Path(path)
+    if path.exists() and not path.is_dir():
+        raise UsageError(f"{option} {str(path)!r}: is a file; expected a folder (it gets {contents}), "
+                         "e.g. a new folder name")
+    existing = path
+    while not existing.exists() and existing != existing.parent:
+        existing = existing.parent
+    if not existing.is_dir():
+        raise UsageError(f"{option} {str(path)!r}: {str(existing)!r} is a file, so the folder cannot be made; "
+                         "expected a folder path")
+    if not os.access(existing, os.W_OK | os.X_OK):
+        raise UsageError(f"{option} {str(path)!r}: cannot write in {str(existing)!r} (permission denied)")
+    return path

@@ -13,8 +13,16 @@ from design.fabrication.gears import (
     ring_gear,
     teeth_per_unit,
 )
-from design.fabrication.nesting import Placement, Sheet, kerf_compensate, nest_parts, nest_sheets
-from design.fabrication.parts import FABRICABLE_MACHINES, Hardware, Part, machine_parts
+from design.fabrication.nesting import (
+    Placement,
+    Sheet,
+    check_sizes_fit,
+    kerf_compensate,
+    largest_fitting_scale,
+    nest_parts,
+    nest_sheets,
+)
+from design.fabrication.parts import FABRICABLE_MACHINES, Hardware, Part, PartSize, machine_parts, part_sizes
 
 __all__ = [
     "FABRICABLE_MACHINES",
@@ -22,15 +30,19 @@ __all__ = [
     "GearSettings",
     "Hardware",
     "Part",
+    "PartSize",
     "Placement",
     "Sheet",
+    "check_sizes_fit",
     "elliptic_gear",
     "external_gear",
     "kerf_compensate",
+    "largest_fitting_scale",
     "machine_parts",
     "min_teeth_without_undercut",
     "nest_parts",
     "nest_sheets",
+    "part_sizes",
     "render_png",
     "ring_gear",
     "sheet_paths",

@@ -24,21 +24,26 @@ from scipy.signal import fftconvolve
 from shapely.geometry import Polygon
 
 from design.errors import ConstraintViolation, parameter_error
-from design.fabrication.parts import Part
+from design.fabrication.parts import Part, PartSize
 
-__all__ = ["kerf_compensate", "Placement", "Sheet", "nest_parts", "nest_sheets"]
+__all__ = ["kerf_compensate", "Placement", "Sheet", "nest_parts", "nest_sheets", "check_sizes_fit",
+           "largest_fitting_scale"]
 
 
 def kerf_compensate(shape: Polygon, kerf: float) -> Polygon:
     """The laser path outline for ``shape``: outline offset outward and holes inward by ``kerf/2`` (mm)."""
-    if not (math.isfinite(kerf) and 0.0 <= kerf <= 2.0):
-        raise parameter_error("fabrication", "kerf", "a width in [0, 2] mm", kerf)
+    _check_kerf(kerf)
     if kerf == 0:
         return shape
     grown = shape.buffer(kerf / 2.0, quad_segs=16, join_style="round")
     if isinstance(grown, Polygon):
         return grown
     return max(grown.geoms, key=lambda g: g.area)
+
+
+def _check_kerf(kerf: float) -> None:
+    if not (math.isfinite(kerf) and 0.0 <= kerf <= 2.0):
+        raise parameter_error("fabrication", "kerf", "a width in [0, 2] mm", kerf)
 
 
 @dataclass(frozen=True)
@@ -161,8 +166,7 @@ def nest_sheets(parts: Sequence[Part], width: float, height: float, gap: float =
         When a part does not fit even an empty sheet, or more than ``max_sheets`` would be needed.
     """
     _check_sheet(width, height, gap)
-    if resolution is None:
-        resolution = max(0.5, max(width, height) / 800.0)
+    resolution = _resolution(width, height, resolution)
     cut_shapes = [kerf_compensate(p.shape, kerf) for p in parts]
     remaining = sorted(range(len(parts)), key=lambda i: (-cut_shapes[i].area, parts[i].name))
     sheets: list[Sheet] = []
@@ -185,6 +189,11 @@ def nest_sheets(parts: Sequence[Part], width: float, height: float, gap: float =
                             tuple(_moved(cut_shapes[i], pl) for i, pl in zip(indices, ordered))))
         remaining = left
     return sheets
+
+
+def _resolution(width: float, height: float, resolution: float | None) -> float:
+    """The raster cell (mm): fine enough for gear teeth, at most 800 cells on the sheet's long side."""
+    return max(0.5, max(width, height) / 800.0) if resolution is None else resolution
 
 
 def _fill_sheet(order: list[int], cut_shapes: list[Polygon], resolution: float, gap: float, width: float,
@@ -276,3 +285,126 @@ def _fits(shape: Polygon, placed: list[Polygon], gap: float, width: float, heigh
             return False
     return True
 
+
+
+# ---------------------------------------------------------------------------------------------------------------
+# Sizes against the sheet before the parts are built (gear generation is the slow part of a fabrication).
+
+
+def _orientations(size: PartSize) -> tuple[tuple[float, float], tuple[float, float]]:
+    """The part's box upright and turned by 90°, the two ways :func:`nest_sheets` tries."""
+    return (size.width, size.height), (size.height, size.width)
+
+
+def _footprint_fits(w: float, h: float, width: float, height: float, gap: float, kerf: float,
+                    resolution: float) -> bool:
+    """Whether a ``w`` × ``h`` mm part's footprint (kerf and gap around it) fits the sheet's raster as
+    :func:`_place_one` counts it: its cells plus three of padding, against the sheet's cells."""
+    cols, rows = int(math.ceil(width / resolution)), int(math.ceil(height / resolution))
+    return (int(math.ceil((w + kerf + 2.0 * gap) / resolution - 1e-9)) + 3 <= cols
+            and int(math.ceil((h + kerf + 2.0 * gap) / resolution - 1e-9)) + 3 <= rows)
+
+
+def _too_large(size: PartSize, width: float, height: float, gap: float, kerf: float, resolution: float) -> bool:
+    """Whether :func:`nest_sheets` will surely refuse the part, whatever its exact outline: even its box less its
+    tolerance (and the gap's buffer less its polygon's shortfall) finds no room upright or turned."""
+    slack = size.tolerance + 0.01 * gap
+    return not any(_footprint_fits(w - slack, h - slack, width, height, gap, kerf, resolution)
+                   for w, h in _orientations(size))
+
+
+def _fits_alone(size: PartSize, width: float, height: float, gap: float, kerf: float, resolution: float) -> bool:
+    """Whether the part, at its full box, finds room on an empty sheet."""
+    return any(_footprint_fits(w, h, width, height, gap, kerf, resolution) for w, h in _orientations(size))
+
+
+def largest_fitting_scale(sizes_at, below: float, width: float, height: float, gap: float = 3.0,
+                          kerf: float = 0.0, resolution: float | None = None) -> float | None:
+    """The largest round scale under ``below`` at which every part fits an empty sheet on its own.
+
+    Parameters
+    ----------
+    sizes_at : callable
+        ``sizes_at(scale) -> list[PartSize]`` (e.g. :func:`~design.fabrication.parts.part_sizes` with the design
+        bound); a :class:`~design.errors.DesignError` counts as "does not fit".
+    below : float
+        A scale at which some part does not fit.
+
+    Returns
+    -------
+    float or None
+        Rounded down to two significant digits; ``None`` when no scale fits (the hardware alone, e.g. the arms'
+        width and the rims, is too large for the sheet). Sizes grow with the scale, but not strictly (the module
+        is rounded so that tooth counts are whole), so the value is checked, not only bisected.
+    """
+    from design.errors import DesignError
+
+    resolution = _resolution(width, height, resolution)
+
+    def fits(scale: float) -> bool:
+        try:
+            return all(_fits_alone(size, width, height, gap, kerf, resolution) for size in sizes_at(scale))
+        except DesignError:
+            return False
+
+    low = below
+    for _ in range(40):
+        low /= 2.0
+        if fits(low):
+            break
+    else:
+        return None
+    high = below
+    for _ in range(40):
+        middle = 0.5 * (low + high)
+        low, high = (middle, high) if fits(middle) else (low, middle)
+    unit = 10.0 ** (math.floor(math.log10(low)) - 1)
+    rounded = math.floor(low / unit) * unit
+    for _ in range(20):
+        if rounded > 0 and fits(rounded):
+            return float(f"{rounded:.12g}")
+        rounded -= unit
+    return low
+
+
+def check_sizes_fit(sizes: Sequence[PartSize], width: float, height: float, gap: float = 3.0, kerf: float = 0.0,
+                    scale: float | None = None, sizes_at=None, resolution: float | None = None) -> None:
+    """Refuse, before anything is built, a part that cannot fit the sheet in either orientation.
+
+    Parameters
+    ----------
+    sizes : sequence of PartSize
+        From :func:`~design.fabrication.parts.part_sizes`.
+    scale : float, optional
+        The scale ``sizes`` are at, for the message.
+    sizes_at : callable, optional
+        ``sizes_at(scale) -> list[PartSize]``: with ``scale``, the message gives the largest scale that fits
+        (:func:`largest_fitting_scale`), searched only when a part is refused.
+
+    Raises
+    ------
+    ConstraintViolation
+        Naming the largest such part, its size, the room on the sheet, and what to do.
+    """
+    _check_sheet(width, height, gap)
+    _check_kerf(kerf)
+    resolution = _resolution(width, height, resolution)
+    too_large = [size for size in sizes if _too_large(size, width, height, gap, kerf, resolution)]
+    if not too_large:
+        return
+    part = max(too_large, key=lambda size: size.width * size.height)
+    at = f" at {scale:g} mm per unit" if scale is not None else ""
+    largest_scale = None
+    if scale is not None and sizes_at is not None:
+        largest_scale = largest_fitting_scale(sizes_at, scale, width, height, gap, kerf, resolution)
+    if largest_scale is not None:
+        advice = f"the largest scale at which every part fits is {largest_scale:g} (--scale {largest_scale:g}), or use"
+    else:
+        advice = "no scale fits this sheet; use"
+    # The sheet it needs: its box with the kerf and the gap all round, in whole raster cells plus the padding.
+    need_w, need_h = (math.ceil((math.ceil((d + kerf + 2.0 * gap) / resolution) + 4) * resolution)
+                      for d in (part.width, part.height))
+    raise ConstraintViolation(
+        f"sheet {width:g}x{height:g} mm: no room for part {part.name!r} ({part.width:.1f}x{part.height:.1f} mm{at} "
+        f"needs a sheet of at least {need_w}x{need_h} mm with the {gap:g} mm gap); {advice} a larger sheet "
+        "(--sheet WxH)", constraint="sheet size", margin=float(min(width - need_w, height - need_h)))

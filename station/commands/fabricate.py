@@ -16,15 +16,32 @@ import sys
 import time
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, TextIO
 
-from station.cli_util import add_design_options, design_parameters, emit_json, to_jsonable
+from station.cli_util import add_design_options, check_output_folder, design_parameters, emit_json, to_jsonable
 from station.errors import UsageError
 
 DEFAULT_KERF = 0.15
 #: Where the kerf came from, in words (``kerf_source`` in parts.json).
 KERF_SOURCES = {"material": "from the material table", "default": "by default", "given": "as given"}
 DEFAULT_GAP = 3.0
+#: Shares of the progress bar: generating the gears (by teeth), nesting, then the sheets' laser jobs and files.
+GEARS_SHARE, NESTING_SHARE = 0.6, 0.2
+
+
+class ProgressStep(str):
+    """A progress message of :func:`fabricate` that also says how far the work is.
+
+    A ``str`` (what a ``progress`` callback that only shows text needs), with ``fraction`` in [0, 1]: the share of
+    the expected work done when the step starts.
+    """
+
+    fraction: float
+
+    def __new__(cls, message: str, fraction: float) -> ProgressStep:
+        step = super().__new__(cls, message)
+        step.fraction = min(max(float(fraction), 0.0), 1.0)
+        return step
 
 
 @dataclass
@@ -92,14 +109,20 @@ def fabricate(machine: str, params: dict[str, float], scale: float, *, kerf: flo
               max_sheets: int = 4) -> FabricationResult:
     """Parts → kerf → nesting → SVG, PNG, laser job. Raises the design/driver errors for bad input.
 
-    ``progress``, optional: called with short messages while working. Parts that do not fit one sheet go on
+    ``progress``, optional: called with a :class:`ProgressStep` (a message that is a ``str``, with the fraction of
+    the work done) before each step: each gear, the nesting, each sheet. Parts that do not fit one sheet go on
     further sheets (at most ``max_sheets``), each with its own job. ``kerf=None`` takes the material's kerf from the
     profile, else :data:`DEFAULT_KERF`.
+
+    A part too large for the sheet is refused before any gear is generated (which takes minutes at large scales),
+    with the largest scale that fits.
     """
     from design.fabrication import (
         FABRICABLE_MACHINES,
+        check_sizes_fit,
         machine_parts,
         nest_sheets,
+        part_sizes,
         render_png,
         sheet_paths,
         write_svg,
@@ -114,7 +137,10 @@ def fabricate(machine: str, params: dict[str, float], scale: float, *, kerf: flo
     )
     from drivers.profiles import builtin_profile
 
-    say = progress or (lambda _message: None)
+    report = progress or (lambda _step: None)
+
+    def say(message: str, fraction: float) -> None:
+        report(ProgressStep(message, fraction))
     if machine in FABRICABLE_MACHINES:
         # The summary records the complete design (defaults filled in), as the parts were made from it.
         params = dict(get_machine(machine).validate(params))
@@ -125,17 +151,32 @@ def fabricate(machine: str, params: dict[str, float], scale: float, *, kerf: flo
         kerf, kerf_source = (DEFAULT_KERF, "default") if material_kerf is None else (material_kerf, "material")
     else:
         kerf_source = "given"
-    started = time.perf_counter()
-    say(f"generating the parts of {machine} at {scale:g} mm per unit")
-    parts = machine_parts(machine, params, scale, gear_settings, hardware)
-    generated = time.perf_counter() - started
     width, height = sheet_size if sheet_size is not None else (profile.width, profile.height)
-    say(f"nesting {len(parts)} parts on {width:g}x{height:g} mm sheets (kerf {kerf:g} mm, gap {gap:g} mm)")
+    # Sizes first (milliseconds): a part too large for the sheet is refused before the gears are generated.
+    sizes = part_sizes(machine, params, scale, gear_settings, hardware)
+    check_sizes_fit(sizes, width, height, gap, kerf, scale=scale,
+                    sizes_at=lambda s: part_sizes(machine, params, s, gear_settings, hardware))
+    total_teeth = max(1, sum(size.teeth for size in sizes))
+    teeth_done = 0
+
+    def gear_started(name: str, teeth: int) -> None:
+        nonlocal teeth_done
+        say(f"generating {name} ({teeth} teeth)", GEARS_SHARE * teeth_done / total_teeth)
+        teeth_done += teeth
+
+    started = time.perf_counter()
+    say(f"generating the {len(sizes)} parts of {machine} at {scale:g} mm per unit ({total_teeth} teeth)", 0.0)
+    parts = machine_parts(machine, params, scale, gear_settings, hardware, progress=gear_started)
+    generated = time.perf_counter() - started
+    say(f"nesting {len(parts)} parts on {width:g}x{height:g} mm sheets (kerf {kerf:g} mm, gap {gap:g} mm)",
+        GEARS_SHARE)
     sheets = nest_sheets(parts, width, height, gap=gap, kerf=kerf, max_sheets=max_sheets)
     xmin, ymin, _, _ = profile.work_bounds()
     outputs: list[SheetOutput] = []
+    sheets_start = GEARS_SHARE + NESTING_SHARE
     for index, sheet in enumerate(sheets, start=1):
-        say(f"ordering the laser job of sheet {index} of {len(sheets)}")
+        say(f"ordering the laser job of sheet {index} of {len(sheets)}",
+            sheets_start + (1.0 - sheets_start) * (index - 1) / len(sheets))
         paths = sheet_paths(sheet)
         job = plan_laser_job(paths["engrave"], paths["cut"], engrave_ops, cut_ops, profile.laser.max_power,
                              profile.plot.travel_feed, offset=(xmin, ymin), start=(xmin, ymin),
@@ -187,6 +228,7 @@ def fabricate(machine: str, params: dict[str, float], scale: float, *, kerf: flo
             "estimate_seconds": {k: round(sum(e[k] for e in estimates), 1) for k in estimates[0]},
         },
     }
+    say(f"{len(parts)} parts on {len(outputs)} sheet{'' if len(outputs) == 1 else 's'}", 1.0)
     return FabricationResult(machine, dict(params), scale, outputs, summary)
 
 
@@ -287,14 +329,15 @@ def run_fabricate(args) -> int:
     profile = load_profile(args.profile)
     settings = GearSettings(module=args.module, pressure_angle=args.pressure_angle, backlash=args.backlash)
     hardware = Hardware(pen_hole=args.pen_hole, axle_hole=args.axle_hole, pin_hole=args.pin_hole)
-
-    def progress(message: str) -> None:
-        print(f"fabricate: {message}", file=sys.stderr, flush=True)
-
-    result = fabricate(args.machine, params, args.scale, kerf=args.kerf, sheet_size=sheet_size, gap=args.gap,
-                       profile=profile, material=args.material, gear_settings=settings, hardware=hardware,
-                       progress=progress, max_sheets=args.max_sheets)
-    files = write_outputs(result, Path(args.out))
+    out = check_output_folder(args.out, "--out", "parts.svg, laser.gcode, parts.json and sheet.png")
+    progress = ProgressReport(sys.stderr)
+    try:
+        result = fabricate(args.machine, params, args.scale, kerf=args.kerf, sheet_size=sheet_size, gap=args.gap,
+                           profile=profile, material=args.material, gear_settings=settings, hardware=hardware,
+                           progress=progress, max_sheets=args.max_sheets)
+    finally:
+        progress.close()
+    files = write_outputs(result, out)
     summary = result.summary
     if args.json:
         emit_json(summary)
@@ -320,3 +363,42 @@ def run_fabricate(args) -> int:
     for name, path in files.items():
         print(f"  {name}: {path}")
     return 0
+
+
+class ProgressReport:
+    """Where :func:`fabricate`'s steps go on the command line: a bar redrawn in place on a terminal, plain lines
+    otherwise (a log file or a pipe gets no ``\\r`` redraws).
+
+    Parameters
+    ----------
+    stream : text stream
+        Standard error, normally.
+    width : int
+        Characters of the bar itself.
+    """
+
+    def __init__(self, stream: TextIO, width: int = 24) -> None:
+        self.stream = stream
+        self.width = width
+        self._tty = bool(getattr(stream, "isatty", lambda: False)())
+        self._drawn = 0
+
+    def __call__(self, step: str) -> None:
+        if not self._tty:
+            self.stream.write(f"fabricate: {step}\n")
+            self.stream.flush()
+            return
+        fraction = getattr(step, "fraction", 0.0)
+        filled = int(round(fraction * self.width))
+        line = f"\r[{'#' * filled}{'.' * (self.width - filled)}] {100 * fraction:3.0f}% {step}"[:100]
+        # Pad over the end of a longer previous line.
+        self.stream.write(line.ljust(self._drawn))
+        self.stream.flush()
+        self._drawn = len(line)
+
+    def close(self) -> None:
+        """End the bar's line, so what follows (the summary, or an error) starts on its own."""
+        if self._tty and self._drawn:
+            self.stream.write("\n")
+            self.stream.flush()
+            self._drawn = 0

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import io
 import json
 
 import numpy as np
@@ -129,3 +130,83 @@ def test_kerf_without_a_material_value_is_the_default(tmp_path, capsys):
     assert code == 0
     summary = json.loads(capsys.readouterr().out)
     assert (summary["kerf_mm"], summary["kerf_source"]) == (0.15, "default")
+
+
+def _never_build(*args, **kwargs):
+    raise AssertionError("the parts were built: the refusal should have come first")
+
+
+@pytest.mark.parametrize(("machine", "scale", "largest"), [("spirograph", "500", "36"), ("hoot_nanny", "1000", "19")])
+def test_a_scale_too_large_for_the_sheet_is_refused_before_building(tmp_path, capsys, monkeypatch, machine, scale,
+                                                                     largest):
+    # These took 31 s and over 2 minutes before "no room for part": the sizes say it before any gear is generated.
+    import design.fabrication
+
+    monkeypatch.setattr(design.fabrication, "machine_parts", _never_build)
+    out = tmp_path / "parts"
+    assert main(["fabricate", machine, "--scale", scale, "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and err.startswith("station: error: sheet 400x400 mm: no room for part")
+    assert f"at {scale} mm per unit" in err and f"--scale {largest}" in err and "--sheet WxH" in err
+    assert not out.exists()
+
+
+def test_out_that_is_a_file_is_one_line_before_any_work(tmp_path, capsys, monkeypatch):
+    import station.commands.fabricate as command
+
+    monkeypatch.setattr(command, "fabricate", _never_build)
+    existing = tmp_path / "notes.txt"
+    existing.write_text("mine")
+    assert main(["fabricate", "spirograph", "--scale", "6", "--out", str(existing)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and f"--out '{existing}': is a file; expected a folder" in err
+    assert main(["fabricate", "spirograph", "--scale", "6", "--out", str(existing / "parts")]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "is a file, so the folder cannot be made" in err
+    assert existing.read_text() == "mine"
+
+
+def test_progress_steps_cover_each_gear_and_end_at_one(tmp_path):
+    from station.commands.fabricate import fabricate
+
+    steps = []
+    result = fabricate("hoot_nanny", {}, 4.0, progress=steps.append)
+    fractions = [step.fraction for step in steps]
+    assert fractions == sorted(fractions) and fractions[0] == 0.0 and fractions[-1] == 1.0
+    gears = [part for output in result.sheets for part in output.sheet.parts if "teeth" in part.info]
+    assert len(gears) == 3
+    for gear in gears:
+        assert any(step.startswith(f"generating {gear.name} ({gear.info['teeth']} teeth)") for step in steps)
+    assert all(isinstance(step, str) for step in steps)  # a callback that shows text (the TUI) gets text
+
+
+class _Terminal(io.StringIO):
+    def isatty(self) -> bool:
+        return True
+
+
+def test_progress_is_a_bar_on_a_terminal_and_plain_lines_otherwise():
+    from station.commands.fabricate import ProgressReport, ProgressStep
+
+    steps = [ProgressStep("generating the 8 parts", 0.0), ProgressStep("generating turntable gear (70 teeth)", 0.3),
+             ProgressStep("nesting", 0.6), ProgressStep("done", 1.0)]
+    log = io.StringIO()
+    report = ProgressReport(log)
+    for step in steps:
+        report(step)
+    report.close()
+    assert "\r" not in log.getvalue()
+    assert log.getvalue().splitlines() == [f"fabricate: {step}" for step in steps]
+
+    terminal = _Terminal()
+    report = ProgressReport(terminal)
+    for step in steps:
+        report(step)
+    report.close()
+    text = terminal.getvalue()
+    assert text.count("\r") == len(steps) and text.endswith("\n") and text.count("\n") == 1
+    frames = text.strip("\n").split("\r")[1:]
+    assert frames[0].startswith("[" + "." * 24 + "]   0% generating the 8 parts")
+    assert frames[-1].startswith("[" + "#" * 24 + "] 100% done")
+    for before, after in zip(frames, frames[1:]):
+        assert len(after) >= len(before.rstrip())  # a shorter line covers the end of the longer one before it
