@@ -58,3 +58,16 @@ async def test_focus_is_visible_on_the_fabricate_screen(tmp_path):
         screen = app.screen
         assert screen.name == "fabricate"
         await _assert_focus_visible(app, pilot, screen)
+
+
+async def test_tab_goes_from_the_machine_choice_straight_to_the_sliders(tmp_path):
+    # The sliders' scroll container was a focus stop of its own, showing nothing: Tab seemed to do nothing once.
+    from textual.containers import ScrollableContainer
+
+    app = StationApp(database=tmp_path / "t.sqlite3")
+    async with app.run_test(size=(140, 40)) as pilot:
+        await pilot.press("d")
+        await _settle(app, pilot)
+        chain = list(app.screen.focus_chain)
+        assert chain and not any(isinstance(widget, ScrollableContainer) for widget in chain)
+        assert [type(widget).__name__ for widget in chain[1:]] == ["ParameterControl"] * (len(chain) - 1)

@@ -102,7 +102,9 @@ class DrawingScreen(Screen):
                     allow_blank=False,
                     id="machine",
                 )
-                yield VerticalScroll(id="controls")
+                controls = VerticalScroll(id="controls")
+                controls.can_focus = False  # its sliders take the focus (a focused container shows nothing)
+                yield controls
                 yield Static("", id="status")
             yield PatternCanvas(id="canvas")
         yield Footer()
