@@ -19,13 +19,13 @@ from design.robust.pipeline import (
 )
 from design.robust.problem import LayoutProblem, RobustError, SyntheticProblem, synthetic_branching, synthetic_chain
 from design.robust.psp import CalibratedSVM, FactorizedPSP, explore
-from design.robust.robustness import RobustnessCurve, evaluation_set, robustness_curve
+from design.robust.robustness import RobustnessCurve, evaluation_layouts, evaluation_set, robustness_curve
 from design.robust.settings import PSPSettings, RobustnessSettings
 
 __all__ = [
     "METHODS", "BaselineResult", "CalibratedSVM", "Comparison", "FactorizedPSP", "LayoutProblem", "PSPSettings",
     "Progress", "RobustError", "RobustLayout", "RobustnessCurve", "RobustnessSettings", "SimulationCache",
     "SimulationCancelled", "SimulationExecutor", "SyntheticProblem", "baseline_b1", "baseline_b2", "baseline_b3",
-    "compare_methods", "evaluation_set", "explore", "optimize_layout", "optimize_robust_layout", "robustness_curve",
-    "smooth_minimum", "synthetic_branching", "synthetic_chain",
+    "compare_methods", "evaluation_layouts", "evaluation_set", "explore", "optimize_layout", "optimize_robust_layout",
+    "robustness_curve", "smooth_minimum", "synthetic_branching", "synthetic_chain",
 ]

@@ -322,6 +322,12 @@ class SimulationExecutor:
         return self._client
 
     # -- running --------------------------------------------------------------------------------------------
+    def count_new(self, U: np.ndarray) -> int:
+        """How many simulations :meth:`run` of ``U`` would run: its distinct layouts the cache does not know."""
+        U = as_layout_batch(self.problem, U)
+        keys = list(dict.fromkeys(layout_key(u) for u in U))
+        return len(keys) - len(self.cache.get_many(self.problem.content_hash, keys))
+
     def run(
         self,
         U: np.ndarray,

@@ -36,7 +36,11 @@ METHODS = ("ours", "b1", "b2", "b3")
 
 @dataclass(frozen=True)
 class Progress:
-    """What a long run reports: its phase, simulations used of the budget, CV accuracy and best PSP so far."""
+    """What a long run reports: its phase, simulations used of the budget, CV accuracy and best PSP so far.
+
+    ``unit`` names what ``simulations`` and ``budget`` count, for a phase that counts something else (e.g. the
+    valid layouts of an evaluation set being drawn).
+    """
 
     phase: str
     simulations: int
@@ -44,6 +48,7 @@ class Progress:
     cv_accuracy: float | None = None
     best_psp: float | None = None
     detail: str = ""
+    unit: str = "simulations"
 
 
 ProgressCallback = Callable[[Progress], None]

@@ -38,9 +38,24 @@ class RobustnessCurve:
     valid: bool
 
 
-def evaluation_set(problem: LayoutProblem, oracle: Oracle, n: int, seed: int = 12345) -> EvaluationSet:
-    """``n`` valid Sobol layouts, simulated (the executor's cache makes this a one-time cost per scenario)."""
-    U = sobol_valid(problem, n, seed)
+#: Seed of the Sobol evaluation set: the same set in every command and run, so its simulations are cached once.
+EVALUATION_SEED = 12345
+
+
+def evaluation_layouts(problem: LayoutProblem, n: int, seed: int = EVALUATION_SEED,
+                       on_checked: Callable[[int, int], None] | None = None) -> np.ndarray:
+    """The ``n`` valid Sobol layouts of the evaluation set, not simulated (``on_checked(checked, valid)`` reports
+    the validity checks, a long step for a contraption: each builds its world)."""
+    return sobol_valid(problem, n, seed, on_checked)
+
+
+def evaluation_set(problem: LayoutProblem, oracle: Oracle, n: int, seed: int = EVALUATION_SEED,
+                   layouts: np.ndarray | None = None) -> EvaluationSet:
+    """``n`` valid Sobol layouts, simulated (the executor's cache makes this a one-time cost per scenario).
+
+    ``layouts`` are :func:`evaluation_layouts` already drawn (e.g. to count the cached ones first).
+    """
+    U = evaluation_layouts(problem, n, seed) if layouts is None else np.asarray(layouts, dtype=float)
     events = oracle(U)
     return EvaluationSet(U, events.all(axis=1))
 
@@ -145,6 +160,18 @@ def _global_from_points(centres, points, values, settings: RobustnessSettings, o
     return np.trapezoid(ball_means(centres, points, values, radii, own_weight, own_values), epsilon, axis=1)
 
 
+def local_layouts(problem: LayoutProblem, u: np.ndarray, settings: RobustnessSettings | None = None,
+                  seed: int = 0) -> np.ndarray:
+    """The ``n_local`` valid layouts in B_η(u) that :func:`robustness_curve` simulates (none if ``u`` is invalid)."""
+    settings = settings or RobustnessSettings()
+    seed = check_seed(seed)
+    u = np.asarray(u, dtype=float)
+    thickness = settings.thickness_factor * settings.epsilon_step
+    if thickness <= 0 or settings.n_local <= 0 or not problem.is_valid(u[None, :])[0]:
+        return np.zeros((0, problem.dim))
+    return valid_in_ball(problem, u, thickness, settings.n_local, np.random.default_rng(seed), "local layouts")
+
+
 def robustness_curve(
     problem: LayoutProblem,
     oracle: Oracle,
@@ -152,21 +179,25 @@ def robustness_curve(
     u: np.ndarray,
     settings: RobustnessSettings | None = None,
     seed: int = 0,
+    local: np.ndarray | None = None,
 ) -> RobustnessCurve:
-    """ρ_l(u, ·) and ρ_g(u), simulating ``n_local`` layouts in B_η(u) (Appendix C.3)."""
+    """ρ_l(u, ·) and ρ_g(u), simulating ``n_local`` layouts in B_η(u) (Appendix C.3).
+
+    ``local`` are :func:`local_layouts` already drawn with the same settings and seed (e.g. to count the cached
+    ones first).
+    """
     settings = settings or RobustnessSettings()
     seed = check_seed(seed)
     u = np.asarray(u, dtype=float)
     epsilon = epsilon_grid(settings)
     if not problem.is_valid(u[None, :])[0]:
         return RobustnessCurve(epsilon, np.zeros_like(epsilon), 0.0, False)
-    thickness = settings.thickness_factor * settings.epsilon_step
     U, success = evaluation.U, evaluation.success
-    if thickness > 0 and settings.n_local > 0:
-        local = valid_in_ball(problem, u, thickness, settings.n_local, np.random.default_rng(seed), "local layouts")
-        if len(local):
-            U = np.concatenate([U, local])
-            success = np.concatenate([success, oracle(local).all(axis=1)])
+    if local is None:
+        local = local_layouts(problem, u, settings, seed)
+    if len(local):
+        U = np.concatenate([U, local])
+        success = np.concatenate([success, oracle(local).all(axis=1)])
     epsilon, rho = _curve_from_points(u, U, success, settings)
     return RobustnessCurve(epsilon, rho, float(np.trapezoid(rho, epsilon)), True)
 

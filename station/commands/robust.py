@@ -7,9 +7,11 @@ interrupted command re-simulates nothing it already knows. Ctrl-C stops cleanly 
 from __future__ import annotations
 
 import json
+import math
 import os
 import sys
 import time
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -23,6 +25,7 @@ from design.robust import (
     RobustnessSettings,
     SimulationExecutor,
     compare_methods,
+    evaluation_layouts,
     evaluation_set,
     optimize_robust_layout,
     robustness_curve,
@@ -30,6 +33,7 @@ from design.robust import (
 from design.robust.executor import SchedulerUnreachable
 from design.robust.pipeline import BudgetedOracle
 from design.robust.plot import plot_robustness
+from design.robust.robustness import local_layouts
 from station.cli_util import emit_json, output_suffix
 from station.errors import UsageError
 from station.paths import cache_dir
@@ -51,31 +55,109 @@ def simulation_cache_path() -> Path:
     return cache_dir() / "robust-simulations.sqlite3"
 
 
-class ProgressBar:
-    """A one-line progress bar on stderr: phase, simulations of the budget, CV accuracy, best PSP."""
+def format_duration(seconds: float) -> str:
+    """``seconds`` for people: ``45 s``, ``6 min 40 s``, ``1 h 05 min``."""
+    seconds = max(0, int(round(seconds)))
+    if seconds < 60:
+        return f"{seconds} s"
+    if seconds < 3600:
+        return f"{seconds // 60} min {seconds % 60:02d} s"
+    return f"{seconds // 3600} h {seconds % 3600 // 60:02d} min"
 
-    def __init__(self, stream=None, width: int = 28, interval: float = 0.1) -> None:
+
+class Countdown:
+    """Time left of ``total`` units of work, from the rate since the first unit done (start-up left out).
+
+    Worker processes take seconds to start and prepare their simulator; timing from the first result on measures
+    the work itself. An estimate is given once ``max(4, total // 50)`` units followed the first one.
+    """
+
+    def __init__(self, total: int, clock: Callable[[], float] = time.monotonic) -> None:
+        self.total = total
+        self.done = 0
+        self._clock = clock
+        self._first: tuple[float, int] | None = None
+
+    def advance(self, done: int) -> None:
+        if self._first is None and done > 0:
+            self._first = (self._clock(), done)
+        self.done = done
+
+    def seconds_left(self) -> float | None:
+        """None until enough units were timed."""
+        if self._first is None:
+            return None
+        started, first = self._first
+        timed = self.done - first
+        elapsed = self._clock() - started
+        if timed < max(4, self.total // 50) or elapsed <= 0:
+            return None
+        return max(0, self.total - self.done) * elapsed / timed
+
+
+class ProgressBar:
+    """Progress on stderr: phase, simulations of the budget, CV accuracy, best PSP, and the time left if known.
+
+    On a terminal, one bar redrawn in place; anywhere else (a log file, a pipe), plain lines: one per phase and one
+    each time the phase passes another tenth of its total, never a carriage return.
+    """
+
+    def __init__(self, stream=None, width: int = 28, interval: float = 0.1,
+                 clock: Callable[[], float] = time.monotonic) -> None:
         self.stream = stream or sys.stderr
         self.width = width
         self.interval = interval
+        self._clock = clock
         self._last = 0.0
         self._shown = False
         self._phase = None
+        self._tenth = 0
         self._tty = bool(getattr(self.stream, "isatty", lambda: False)())
+        self._countdown: Countdown | None = None
+        self._done: Callable[[Progress], int] = lambda progress: progress.simulations
+        self._what = ""
+        self._estimated = False
+
+    def expect(self, total: int, what: str, done: Callable[[Progress], int] | None = None) -> None:
+        """Estimate the time left of ``total`` units (``what``, e.g. "new simulations") from now on.
+
+        ``done(progress)`` counts the units done (default: the progress's simulations). The first estimate is
+        written as a line of its own; the bar and the plain lines then show the time left.
+        """
+        self._countdown = Countdown(total, self._clock)
+        self._done = done or (lambda progress: progress.simulations)
+        self._what = what
+        self._estimated = False
+
+    def _time_left(self, progress: Progress) -> str:
+        if self._countdown is None:
+            return ""
+        self._countdown.advance(self._done(progress))
+        left = self._countdown.seconds_left()
+        if left is None or self._countdown.done >= self._countdown.total:
+            return ""
+        left = math.ceil(left)  # "about 0 s left" while work remains would be wrong
+        if not self._estimated:
+            self._estimated = True
+            self.note(f"estimate: about {format_duration(left)} left for the {self._countdown.total} {self._what}")
+        return f"about {format_duration(left)} left"
 
     def __call__(self, progress: Progress) -> None:
-        now = time.monotonic()
+        left = self._time_left(progress)
+        fraction = min(progress.simulations / progress.budget, 1.0) if progress.budget else 0.0
         if not self._tty:
-            # A log file, not a terminal: one line per phase instead of a redrawn bar.
-            if progress.phase != self._phase:
-                self._phase = progress.phase
-                self.stream.write(f"{progress.phase}: {progress.simulations}/{progress.budget} simulations\n")
+            # A log file, not a terminal: a line per phase and per tenth instead of a redrawn bar.
+            tenth = int(fraction * 10)
+            if progress.phase != self._phase or tenth > self._tenth:
+                self._phase, self._tenth = progress.phase, tenth
+                self.stream.write(f"{progress.phase}: {progress.simulations}/{progress.budget} {progress.unit}"
+                                  + (f", {left}" if left else "") + "\n")
                 self.stream.flush()
             return
+        now = self._clock()
         if now - self._last < self.interval and progress.phase != "done":
             return
         self._last = now
-        fraction = min(progress.simulations / progress.budget, 1.0) if progress.budget else 0.0
         filled = int(round(fraction * self.width))
         bar = "#" * filled + "." * (self.width - filled)
         extra = ""
@@ -83,6 +165,8 @@ class ProgressBar:
             extra += f"  cv {progress.cv_accuracy:.2f}"
         if progress.best_psp is not None:
             extra += f"  best PSP {progress.best_psp:.2f}"
+        if left:
+            extra += f"  {left}"
         line = f"\r[{bar}] {progress.simulations}/{progress.budget} {progress.phase}{extra}"
         self.stream.write(line.ljust(100)[:100])
         self.stream.flush()
@@ -364,15 +448,28 @@ def run_robustness(args) -> int:
     u = np.clip(problem.to_normalized(layout.x), 0.0, 1.0)
     _positive(args.local, "--local")
     settings = RobustnessSettings(n_evaluation=args.eval, n_local=args.local)
+    n_evaluation, n_local = settings.n_evaluation, settings.n_local
+    # Minutes at the defaults on a small machine: say what will run and how to make it shorter before starting.
+    print(f"{problem.name}: {n_evaluation} evaluation layouts + {n_local} local ones = {n_evaluation + n_local} "
+          "simulations at most (cached ones are not run again); fewer, and faster, with --eval N and --local N",
+          file=sys.stderr)
     bar = ProgressBar()
     executor = None
     try:
         with _executor(problem, args) as executor:
-            oracle = BudgetedOracle(executor, None, bar, expected=settings.n_evaluation + settings.n_local)
+            bar.expect(n_evaluation, "valid evaluation layouts")
+            U = evaluation_layouts(problem, n_evaluation, on_checked=lambda checked, valid: bar(
+                Progress("evaluation layouts", valid, n_evaluation, unit="valid layouts")))
+            local = local_layouts(problem, u, settings, seed=args.seed)
+            new = executor.count_new(np.concatenate([U, local]))
+            bar.note(f"{len(U) + len(local) - new} of the {len(U) + len(local)} simulations are cached; "
+                     f"{new} to run")
+            bar.expect(new, "new simulations", done=lambda progress: executor.n_simulated)
+            oracle = BudgetedOracle(executor, None, bar, expected=n_evaluation + n_local)
             oracle.phase = "evaluation set"
-            evaluation = evaluation_set(problem, oracle, settings.n_evaluation)
+            evaluation = evaluation_set(problem, oracle, n_evaluation, layouts=U)
             oracle.phase = "local samples"
-            curve = robustness_curve(problem, oracle, evaluation, u, settings, seed=args.seed)
+            curve = robustness_curve(problem, oracle, evaluation, u, settings, seed=args.seed, local=local)
     except KeyboardInterrupt:
         bar.close()
         _interrupted(executor)
