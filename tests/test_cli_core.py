@@ -146,7 +146,9 @@ def test_sigterm_during_optimize_stops_the_workers_and_keeps_the_cache(tmp_path)
         everyone = process.children(recursive=True)
         # Pool workers: with forkserver they are the forkserver's children, with spawn the command's own children
         # (the forkserver and multiprocessing's resource tracker are helpers, not workers).
-        helpers = [p for p in everyone if p.ppid() == station.pid and "multiprocessing" in " ".join(p.cmdline())]
+        helper_marks = ("multiprocessing.forkserver import main", "multiprocessing.resource_tracker import main")
+        helpers = [p for p in everyone
+                   if p.ppid() == station.pid and any(mark in " ".join(p.cmdline()) for mark in helper_marks)]
         workers = [p for p in everyone if p not in helpers]
         assert len(workers) == 2, [p.cmdline() for p in everyone]
         station.send_signal(signal.SIGTERM)
