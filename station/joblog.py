@@ -21,6 +21,9 @@ JOB_KINDS = {"run": "run", "frame": "frame", "dry": "dry run"}
 #: Row states besides the job runner's own (done, stopped, aborted, error, refused, position_lost, ...).
 RUNNING, INTERRUPTED = "running", "interrupted"
 
+#: States of a job that started and did not finish: there is a line to resume from.
+UNFINISHED = ("stopped", "aborted", "error", "position_lost", INTERRUPTED)
+
 
 @dataclass(frozen=True)
 class JobRecord:
@@ -40,6 +43,24 @@ class JobRecord:
 
     def to_dict(self) -> dict[str, Any]:
         return dict(self.__dict__)
+
+    @property
+    def unfinished(self) -> bool:
+        """The job started and did not run to its end (stopped, aborted, error, position lost, interrupted)."""
+        return self.status in UNFINISHED
+
+    def resume_hint(self) -> str:
+        """Where to resume an unfinished job, e.g. ``resume from line 121``; ``""`` for other jobs.
+
+        Without a recorded line (a station that died before recording one, an older record), the line after the
+        last one confirmed: GRBL confirms a line when it is planned, so the machine stopped at or before it.
+        """
+        if not self.unfinished:
+            return ""
+        after = " after homing ($H)" if self.status == "position_lost" else ""
+        if self.resume_line:
+            return f"resume from line {self.resume_line}{after}"
+        return f"resume at or before line {min(self.lines_acked + 1, max(self.lines_total, 1))}{after}"
 
 
 def _alive(pid: int | None) -> bool:
@@ -106,12 +127,15 @@ class JobLog:
         return self._write("INSERT INTO jobs (kind, device, status, detail) VALUES (?, ?, ?, ?)",
                            (kind, device, RUNNING, json.dumps(detail)))
 
-    def progress(self, job_id: int, lines_acked: int) -> None:
-        """Record how far a running job has got (so an interrupted one still tells)."""
+    def progress(self, job_id: int, lines_acked: int, resume_line: int | None = None) -> None:
+        """Record how far a running job has got (so an interrupted one still tells): the lines confirmed and,
+        when known, the line the machine is executing (where to resume if the station dies now)."""
         if not job_id:
             return
         detail = self._detail(job_id)
         detail["lines_acked"] = int(lines_acked)
+        if resume_line is not None:
+            detail["resume_line"] = int(resume_line)
         self._write("UPDATE jobs SET detail = ? WHERE id = ?", (json.dumps(detail), job_id))
 
     def finish(self, job_id: int, status: str, lines_acked: int, message: str,

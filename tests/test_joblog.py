@@ -87,3 +87,51 @@ def test_station_send_is_listed_by_station_jobs(capsys, tmp_path):
     out = capsys.readouterr().out.splitlines()
     assert len(out) == 1 and "frame of" in out[0] and "done" in out[0]
     assert cli.main(["jobs", "--limit", "0"]) == 2
+    capsys.readouterr()
+    assert cli.main(["jobs"]) == 0
+    assert capsys.readouterr().out.count("sim://grbl?profile=plotter&time_scale=0.01 ") == 2  # the port, whole
+
+
+def test_station_jobs_shows_the_port_and_the_title_whole(log):
+    from station.commands import jobs
+
+    url = "sim://grbl?profile=plotter&time_scale=0.01&name=the-long-one"
+    title = "/home/maker/projects/2026/very/long/folder/name/star-of-the-show.gcode"
+    log.finish(log.start("run", url, title, 10), "done", 10, "ok")
+    log.finish(log.start("frame", "laser", "frame of a.gcode", 5), "done", 5, "ok")
+    records = log.recent()
+    width_device, width_title = max(len(r.device) for r in records), max(len(r.title) for r in records)
+    lines = [jobs.describe(r, width_device, width_title) for r in records]
+    assert url in lines[1] and title in lines[1]
+    assert lines[0].index("done") == lines[1].index("done")  # the columns still line up
+
+
+@pytest.mark.parametrize(("status", "resume", "acked", "expected"), [
+    ("stopped", 42, 50, "resume from line 42"),
+    ("aborted", 7, 9, "resume from line 7"),
+    ("error", None, 12, "resume at or before line 13"),
+    ("position_lost", 30, 33, "resume from line 30 after homing ($H)"),
+    ("aborted", None, 0, "resume at or before line 1"),
+    ("done", None, 100, ""),
+    ("refused", None, 0, ""),
+])
+def test_every_unfinished_job_says_where_to_resume(log, status, resume, acked, expected):
+    from station.commands.jobs import describe
+
+    log.finish(log.start("run", "laser", "cut.gcode", 100), status, acked, "m", resume_line=resume)
+    (record,) = log.recent()
+    assert record.resume_hint() == expected
+    assert describe(record).endswith(f"{acked}/100" + (f"  {expected}" if expected else ""))
+
+
+def test_an_interrupted_job_says_where_it_was(log, tmp_path):
+    # a station killed mid-job recorded its progress, with the line being executed, before dying
+    code = (
+        "from station.db import open_database; from station.joblog import JobLog; "
+        f"log = JobLog(open_database({str(tmp_path / 's.sqlite3')!r})); "
+        "log.progress(log.start('run', 'laser', 'cut.gcode', 100), 61, 57)"
+    )
+    subprocess.run([sys.executable, "-c", code], check=True)
+    (record,) = log.recent()
+    assert record.status == INTERRUPTED and record.lines_acked == 61
+    assert record.resume_hint() == "resume from line 57"

@@ -14,7 +14,8 @@ Safety rules (they are the point of this module)
   ``M5 S0`` is sent as soon as the controller accepts G-code again. Errors, alarms and a lost ``ok`` take the same
   path. A vanished port leaves the machine "position lost": nothing resumes on its own.
 - Progress comes from acknowledged lines corrected by the planner's fill, and the job is complete only when the
-  machine is idle after the last line (``G4 P0`` is answered when all motion is done), so it always reaches 100 %.
+  machine is idle after the last line (``G4 P0`` is answered when all motion is done): only a finished job shows
+  100 %; a job that ended early shows at most the share of its lines the machine confirmed with ``ok``.
 """
 
 from __future__ import annotations
@@ -30,11 +31,12 @@ from pathlib import Path
 import numpy as np
 
 from drivers.errors import DeviceStateError, JobRefused, ProtocolError
-from drivers.gcode import GcodeError, Toolpath, clean_line, interpret
+from drivers.gcode import GcodeError, Toolpath, clean_line, interpret, tokenize
 from drivers.grbl.connection import GrblConnection, StreamStopped
 from drivers.grbl.protocol import Error
 
-__all__ = ["Job", "JobProgress", "JobResult", "JobRunner", "commanded_extent", "frame_lines"]
+__all__ = ["Job", "JobProgress", "JobResult", "JobRunner", "commanded_extent", "frame_lines", "job_kind",
+           "kind_warning"]
 
 #: GRBL's line buffer (LINE_BUFFER_SIZE): a block has at most 79 characters after comments and spaces are removed.
 LINE_BUFFER_SIZE = 80
@@ -84,9 +86,14 @@ class Job:
         return self.toolpath.extent()
 
 
+#: States a job ends in (the runner's :class:`JobResult` states).
+FINAL_STATES = ("done", "stopped", "aborted", "refused", "position_lost", "error")
+
+
 @dataclass
 class JobProgress:
-    """A snapshot of a running job."""
+    """A snapshot of a running job. ``lines_acked`` counts the job's lines GRBL answered with ``ok`` (in a dry run,
+    every answered line: each one was checked); ``eta`` is None once the job ended."""
 
     state: str = "idle"
     lines_total: int = 0
@@ -212,6 +219,8 @@ class JobRunner:
         self._last_origin = np.zeros(0, dtype=int)
         self._last_report = 0.0
         self._acked_streamed = 0
+        self._toolpath: Toolpath | None = None  # of the streamed lines, from where the head stood (pre-flight)
+        self._frozen = False  # the stream stopped: the planner's fill no longer says which line ran
 
     # ------------------------------------------------------------------ pre-flight
 
@@ -258,6 +267,7 @@ class JobRunner:
             if wpos is not None:
                 start = wpos
         toolpath = interpret(self._lines, start=start, wco=conn.work_offset())
+        self._toolpath = toolpath
         rapid = min(conn.settings.get(110, 500.0), conn.settings.get(111, 500.0))
         durations = toolpath.durations(rapid_rate=rapid)
         self._durations = durations
@@ -415,6 +425,7 @@ class JobRunner:
     def abort(self) -> None:
         """Stop now: soft reset (0x18) first, then the job thread switches the laser off with ``M5 S0``."""
         self._aborted = True
+        self._frozen = True  # before the reset empties the planner (it would read as "every line ran")
         self._stop.set()  # first: the stream writes no line after this (checked under the port's write lock)
         try:
             self.connection.soft_reset(wait=False)
@@ -440,16 +451,23 @@ class JobRunner:
         executed = max(0, self._acked_streamed - in_planner)
         executed = min(executed, len(self._cumulative))
         done = float(self._cumulative[executed - 1]) if executed else 0.0
-        if executed and len(self._last_origin):
+        if executed and len(self._last_origin) and not self._frozen:
             p.current_line = max(int(self._last_origin[executed - 1]) + 1, self.from_line - 1)
         # never backwards (a later status report may show a fuller planner than the acknowledgements suggested)
+        # 100 % only once done: the machine may still move after the last motion line was counted as executed
         if total > 0:
-            p.fraction = max(p.fraction, min(1.0, done / total))
+            p.fraction = max(p.fraction, min(0.999, done / total))
         elif self._lines:
-            p.fraction = max(p.fraction, executed / len(self._lines))
+            p.fraction = max(p.fraction, min(0.999, executed / len(self._lines)))
         if p.state == "done":
             p.fraction = 1.0
             p.eta = 0.0
+        elif p.state in FINAL_STATES:
+            # ended early: the time estimate of the lines that ran is not the job's share (a job stopped by its
+            # last line had run all of its motion), so at most the share of its lines confirmed
+            confirmed = p.lines_acked / p.lines_total if p.lines_total else 0.0
+            p.fraction = min(p.fraction, confirmed, 0.999)
+            p.eta = None
         elif done > 0 and p.elapsed > 0.2:
             rate = done / p.elapsed  # estimated seconds of job per real second: corrects the estimate
             p.eta = (total - done) / max(rate, 1e-6)
@@ -460,12 +478,10 @@ class JobRunner:
             self._last_report = now
             self.on_progress(p)
 
-    def run(self) -> JobResult:
-        """Run the job (blocking) and return its :class:`JobResult`; never raises for device trouble."""
+    def check(self) -> JobResult | None:
+        """The pre-flight alone: None when the job may run, else how :meth:`run` would end (``refused``, or
+        ``position_lost``) without sending any of it."""
         conn = self.connection
-        self._acked_streamed = 0
-        self._start_time = 0.0
-        conn.recover_lost_ok()  # a lost reply of an earlier command: the next stream starts from an empty counter
         try:
             self._update("preflight")
             self.preflight()
@@ -473,11 +489,23 @@ class JobRunner:
             state = "position_lost" if conn.position_lost else "refused"
             message = f"job {self.job.name!r}: {error}" if isinstance(error, GcodeError) else str(error)
             return self._finish(state, message, laser_off=True)
+        return None
+
+    def run(self) -> JobResult:
+        """Run the job (blocking) and return its :class:`JobResult`; never raises for device trouble."""
+        conn = self.connection
+        self._acked_streamed = 0
+        self._start_time = 0.0
+        conn.recover_lost_ok()  # a lost reply of an earlier command: the next stream starts from an empty counter
+        refused = self.check()
+        if refused is not None:
+            return refused
         job_acked = [0]
 
         def on_ack(result) -> None:
             self._acked_streamed = result.index + 1
-            if self._origin[result.index] >= 0:
+            # a line answered with an error did not run (in a dry run it was checked: that is the point)
+            if self._origin[result.index] >= 0 and (result.status == "ok" or self.dry_run):
                 job_acked[0] += 1
                 self.progress.lines_acked = job_acked[0]
             self._update()
@@ -525,8 +553,11 @@ class JobRunner:
 
     def _stopped(self, stopped: StreamStopped) -> JobResult:
         conn = self.connection
+        self._frozen = True
         if conn.position_lost:
-            return self._finish("position_lost", str(conn.fault), laser_off=False)
+            # where to go on once the machine is homed again: the line it was (about) executing
+            return self._finish("position_lost", str(conn.fault), laser_off=False,
+                                resume=self._resume_line(None))
         reason = stopped.reason
         aborted = self._aborted or reason == "stopped"
         status_before = conn.status
@@ -556,16 +587,49 @@ class JobRunner:
             if resume is not None:
                 message += f"; resume from line {resume}"
             return self._finish("stopped", message, laser_off=laser_off, resume=resume)
+        resume = self._resume_line(conn.status)
+        where = f"; resume from line {resume}" if resume is not None else ""
         if aborted:
             alarm = conn.alarm
             message = "aborted: soft reset sent, laser off"
             if alarm is not None:
                 message += f"; {alarm}; {alarm.recovery}"
-            return self._finish("aborted", message, laser_off=laser_off)
+            return self._finish("aborted", message + where, laser_off=laser_off, resume=resume)
         message = f"job stopped: {stopped}"
         if conn.alarm is not None and reason == "alarm":
             message = f"job stopped by {conn.alarm}; {conn.alarm.recovery}"
-        return self._finish("stopped", message, laser_off=laser_off)
+        return self._finish("stopped", message + where, laser_off=laser_off, resume=resume)
+
+    def _resume_line(self, status) -> int | None:
+        """Where to resume a job that ended early (1-based): the line the machine was executing, run again whole.
+
+        The machine's position after the stop (GRBL keeps it through a feed hold, an error's reset and, not
+        guaranteed, a reset in motion) finds the segment it stood on, near the line the planner's fill last
+        pointed to; without a position, that line itself. None in a dry run (nothing ran).
+        """
+        if self.dry_run or not self._origin:
+            return None
+        guess = max(self.progress.current_line, self.from_line - 1)  # 0-based job line
+        line = guess
+        toolpath = self._toolpath
+        if status is not None and status.mpos is not None and toolpath is not None and len(toolpath.line):
+            position = np.array(status.mpos, dtype=float) - np.array(self.connection.work_offset())
+            a, b = toolpath.start, toolpath.end
+            direction = b - a
+            length2 = np.einsum("ij,ij->i", direction, direction)
+            t = np.clip(np.einsum("ij,ij->i", position - a, direction) / np.maximum(length2, 1e-12), 0.0, 1.0)
+            distance = np.linalg.norm(a + t[:, None] * direction - position, axis=1)
+            origin = np.array(self._origin)[toolpath.line]
+            near = (distance < 0.05) & (toolpath.line < max(self.progress.lines_sent, 1)) & (origin >= 0)
+            if near.any():
+                candidates = origin[near]
+                # the path may cross itself: the candidate nearest the planner's guess, the earlier one on a tie
+                line = int(candidates[np.lexsort((candidates, np.abs(candidates - guess)))[0]])
+                # a segment's end is also the next one's start: standing there, the next line is the one to run
+                ends = near & (t >= 1.0 - 1e-9) & (origin == line)
+                if ends.any() and not (near & (origin == line) & (t < 1.0 - 1e-9)).any():
+                    line = line + 1
+        return min(max(line, 0), len(self.job.lines) - 1) + 1
 
     def _laser_off(self) -> bool:
         """Send ``M5 S0`` if the controller accepts G-code; in alarm lock the reset already switched it off."""
@@ -618,3 +682,67 @@ class JobRunner:
             elapsed=self.progress.elapsed, resume_line=resume, errors=errors or [], laser_off=laser_off,
         )
         return self.result
+
+
+def job_kind(lines: Sequence[str]) -> str:
+    """What a G-code program looks like it was written for: ``"pen"``, ``"laser"`` or ``""`` (cannot tell).
+
+    A writer's mark decides first (``(chaos-station pen plot job ...)`` from ``station plot`` for a pen plotter,
+    ``; chaos-station laser job`` from the laser-job writer); then ``M4`` (dynamic laser power, which a pen servo
+    never uses) means a laser job, and a program that never switches the spindle on with a power (``M3``/``M4`` and
+    ``S`` above 0) means a pen plotter's (it would mark nothing on a laser).
+    """
+    for raw in lines:
+        if "(" in raw or ";" in raw:
+            lower = raw.lower()
+            if "pen plot" in lower:
+                return "pen"
+            if "laser job" in lower:
+                return "laser"
+    spindle_on, power, dynamic = _spindle_words(lines)
+    if dynamic:
+        return "laser"
+    if not (spindle_on and power):
+        return "pen"
+    return ""
+
+
+def _spindle_words(lines: Sequence[str]) -> tuple[bool, bool, bool]:
+    """Whether ``lines`` use ``M3``/``M4``, an ``S`` above 0, and ``M4``."""
+    spindle_on = power = dynamic = False
+    for raw in lines:
+        block = clean_line(raw)
+        if not block or block.startswith("$"):
+            continue
+        try:
+            words = tokenize(block)
+        except GcodeError:
+            continue  # the pre-flight names bad lines; this is only a hint
+        for letter, value in words:
+            if letter == "M" and value in (3.0, 4.0):
+                spindle_on = True
+                dynamic = dynamic or value == 4.0
+            elif letter == "S" and value > 0:
+                power = True
+    return spindle_on, power, dynamic
+
+
+def kind_warning(job: Job, laser_mode: bool) -> str:
+    """A warning when ``job`` looks written for another kind of machine than one in (or out of) laser mode; ``""``
+    when it looks right, cannot be told, or the job is marked a laser job (``Job.laser``: checked by the
+    pre-flight)."""
+    if job.laser:
+        return ""
+    kind = job_kind(job.lines)
+    if laser_mode and kind == "pen":
+        spindle_on, power, _ = _spindle_words(job.lines)
+        if spindle_on and power:
+            return (f"job {job.name!r} looks like a pen-plotter job, but the machine is in laser mode ($32=1): its "
+                    "pen commands (M3 S...) fire the laser at that power. Send it to the plotter, or check the job")
+        return (f"job {job.name!r} looks like a pen-plotter job (it never switches a laser on with M3/M4 and S), "
+                "but the machine is in laser mode ($32=1): it will mark nothing")
+    if not laser_mode and kind == "laser":
+        return (f"job {job.name!r} looks like a laser job (M4, or a laser job's header), but the machine is not in "
+                "laser mode ($32=0): a laser would stay on whenever the machine stops. Set $32=1 and send it with "
+                "--laser or a laser profile")
+    return ""

@@ -32,7 +32,9 @@ simulated second), ``latency`` (seconds each way), ``wire`` (0 disables the baud
 ``disconnect_at`` (the N-th G-code line received unplugs the port), ``drop_reply_at`` (the reply to the N-th
 G-code line is lost), ``locked`` (power up in alarm), ``homing`` (``0``: ``$22=0``, which also clears soft limits
 ``$20`` as GRBL does; ``1``: ``$22=1``), ``travel`` (``$130``-``$132`` as ``WxD`` or ``WxDxH`` in mm, e.g.
-``travel=400x400``), ``force_origin`` (``1``: built with HOMING_FORCE_SET_ORIGIN), and ``s<N>=<value>`` to override
+``travel=400x400``), ``force_origin`` (``1``: built with HOMING_FORCE_SET_ORIGIN), ``record`` (a file the machine
+writes its record to as JSON when its port closes: what another process, e.g. a test of ``station send``, can
+inspect), and ``s<N>=<value>`` to override
 setting ``$N`` (applied last; ``s20=1`` with homing off is refused, as GRBL answers ``$20=1`` with error:10).
 """
 
@@ -105,6 +107,7 @@ class SimConfig:
     homing: bool | None = None  # None: the profile's $22
     travel: tuple[float, ...] | None = None  # $130, $131 (and $132); None: the profile's
     force_origin: bool = False  # built with HOMING_FORCE_SET_ORIGIN ('Z' in [OPT:])
+    record: str = ""  # a JSON file the record is written to when the machine stops
     settings: dict[int, float] = field(default_factory=dict)
 
     @classmethod
@@ -120,7 +123,7 @@ class SimConfig:
                 setattr(config, key, value.lower() in ("1", "true", "yes", "on"))
             elif key == "travel":
                 config.travel = _travel_option(value)
-            elif key in ("profile", "name"):
+            elif key in ("profile", "name", "record"):
                 setattr(config, key, value)
             elif re.fullmatch(r"s\d+", key):
                 config.settings[int(key[1:])] = float(value)
@@ -208,6 +211,18 @@ class SimRecord:
     planner_fill: list[tuple[float, int, bool]] = field(default_factory=list)
     alarms: list[int] = field(default_factory=list)
     replies_delivered: int = 0
+
+    def write(self, path: str) -> None:
+        """Write the record as JSON (``samples`` as ``[t, x, y, z, power, state]`` rows, oldest first)."""
+        import json
+
+        document = {
+            "samples": [[s.t, s.x, s.y, s.z, s.power, s.state] for s in sorted(self.samples, key=lambda s: s.t)],
+            "executed": [[b.line_no, b.text, list(b.end), b.power, b.t_end] for b in self.executed],
+            "resets": self.resets, "received": self.received, "alarms": self.alarms,
+        }
+        with open(path, "w", encoding="utf-8") as stream:
+            json.dump(document, stream)
 
     def power_after(self, t: float) -> float | None:
         """Laser output of the first sample at or after ``t`` (None if there is none)."""
@@ -336,11 +351,13 @@ class SimulatedGrbl:
             self._out_ready.clear()
 
     def stop(self) -> None:
-        """Stop the machine thread (the port was closed)."""
+        """Stop the machine thread (the port was closed); with ``record=PATH``, write the record there."""
         with self._cond:
             self._running = False
             self._cond.notify_all()
         self._thread.join(timeout=2.0)
+        if self.config.record:
+            self.snapshot().write(self.config.record)
 
     def mute(self) -> None:
         """Simulate a hung controller or a dead cable that raises no error: nothing is sent any more."""

@@ -14,8 +14,9 @@ def register(subparsers) -> None:
         "jobs",
         help="the history of machine jobs: how each ended and where to resume",
         description="List the latest jobs streamed to a GRBL machine (from the Machines screen or `station send`), "
-        "newest first: kind (run, frame, dry run), device, state, lines confirmed, and the line to resume a stopped "
-        "job from (`station send JOB --from-line N`). A job whose station was killed shows as interrupted.",
+        "newest first: kind (run, frame, dry run), device, state, lines confirmed, and for every job that did not "
+        "finish (stopped, aborted, error, position lost, interrupted) the line to resume it from "
+        "(`station send JOB --from-line N`). A job whose station was killed shows as interrupted.",
         epilog="example: station jobs --limit 5",
     )
     parser.add_argument("--limit", type=int, default=20, metavar="N", help="how many jobs (default 20)")
@@ -23,13 +24,18 @@ def register(subparsers) -> None:
     parser.set_defaults(func=run_jobs)
 
 
-def describe(record: JobRecord) -> str:
-    """One line for a job: ``#12  2026-12-01 16:20  run  plotter  star.gcode  done  197/197``."""
+def describe(record: JobRecord, device_width: int = 24, title_width: int = 32) -> str:
+    """One line for a job: ``#12  2026-12-01 16:20  run  plotter  star.gcode  done  197/197``.
+
+    The device (a port URL) and the title (a file path) are never cut: their columns are at least as wide as
+    given, and a longer value widens its own line. An unfinished job ends with where to resume it.
+    """
     when = local_time(record.created_at)
-    line = (f"#{record.id:<4} {when}  {record.kind:<7} {record.device[:24]:<24} {record.title[:32]:<32} "
-            f"{record.status:<13} {record.lines_acked}/{record.lines_total}")
-    if record.resume_line and record.status not in ("done",):
-        line += f"  resume from line {record.resume_line}"
+    line = (f"#{record.id:<4} {when}  {record.kind:<7} {record.device:<{device_width}} "
+            f"{record.title:<{title_width}} {record.status:<13} {record.lines_acked}/{record.lines_total}")
+    hint = record.resume_hint()
+    if hint:
+        line += f"  {hint}"
     return line
 
 
@@ -47,6 +53,9 @@ def run_jobs(args) -> int:
     if not records:
         print(f"no jobs yet (database {database_path()})")
         return 0
+    # columns as wide as the longest port URL and title listed, so that none is cut
+    device_width = max(len(r.device) for r in records)
+    title_width = max(len(r.title) for r in records)
     for record in records:
-        print(describe(record))
+        print(describe(record, device_width, title_width))
     return 0

@@ -20,8 +20,9 @@ from typing import Any
 import numpy as np
 
 from drivers.errors import DeviceStateError, JobRefused
-from drivers.gcode import WriterOptions, fit_polylines, simplify_polylines, write_plot_gcode
-from drivers.grbl import GrblConnection, Job, JobRunner, frame_lines, list_ports
+from drivers.gcode import WriterOptions, clean_line, fit_polylines, simplify_polylines, write_plot_gcode
+from drivers.grbl import GrblConnection, Job, JobResult, JobRunner, frame_lines, list_ports
+from drivers.grbl.job import FINAL_STATES, kind_warning
 from drivers.profiles import MachineProfile, load_profile
 from station.cli_util import add_design_options, design_parameters, emit_json, output_suffix
 from station.errors import StationError, UsageError
@@ -60,29 +61,52 @@ def register(subparsers) -> None:
         description="List serial ports (each probed for a GRBL banner) and the simulated GRBL machines.",
     )
     ports.add_argument("--no-probe", action="store_true", help="do not open the ports to look for GRBL")
-    ports.add_argument("--baud", type=int, default=115200)
-    ports.add_argument("--json", action="store_true")
+    ports.add_argument("--baud", type=baud_rate, default=115200, metavar="RATE",
+                       help="baud rate to probe at (default 115200, GRBL 1.1's; a standard rate such as 9600)")
+    ports.add_argument("--json", action="store_true",
+                       help="print the ports as JSON (url, description, hwid, grbl version, simulated)")
     ports.set_defaults(func=run_ports)
 
     send = subparsers.add_parser(
         "send",
         help="stream a G-code job to a GRBL machine",
         description="Stream JOB.gcode to a GRBL 1.1 controller by character counting, after a pre-flight check "
-        "against the machine's travel ($130-$132 and the work offset). Laser jobs need laser mode ($32=1) and always "
-        "end with M5 S0. Ctrl-C aborts (soft reset, laser off).",
+        "against the machine's travel: with homing ($22=1) the machine space of GRBL's soft limits, without homing "
+        "the job's size and the way from the head to it against $130-$132. Laser jobs need laser mode ($32=1) and "
+        "always end with M5 S0; on a machine without homing, a laser job is offered its frame first when run from a "
+        "terminal. Ctrl-C aborts (soft reset, laser off).",
         epilog='example: station send spiro.gcode --port "sim://grbl?profile=plotter&time_scale=0.01"',
     )
     send.add_argument("job", metavar="JOB.gcode")
     send.add_argument("--port", help="port URL (default: the profile's port)")
     send.add_argument("--profile", default=None, help="machine profile TOML or built-in name (plotter, laser)")
-    send.add_argument("--baud", type=int, default=None)
+    send.add_argument("--baud", type=baud_rate, default=None, metavar="RATE",
+                      help="baud rate (default: the profile's, else 115200)")
     send.add_argument("--laser", action="store_true", help="treat as a laser job (also implied by a laser profile)")
     send.add_argument("--dry-run", action="store_true", help="check mode ($C): parse every line, move nothing")
     send.add_argument("--frame", action="store_true",
                       help="only trace the job's bounding box (pen up, or laser at the profile's frame power)")
     send.add_argument("--from-line", type=int, default=1, metavar="N", help="resume from line N (1-based)")
-    send.add_argument("--json", action="store_true", help="print the result as JSON")
+    send.add_argument("--json", action="store_true",
+                      help="print the result as JSON (state, message, lines confirmed, resume line, laser off); "
+                      "no progress bar")
     send.set_defaults(func=run_send)
+
+
+def baud_rate(text: str) -> int:
+    """A standard serial baud rate (argparse type of ``--baud``)."""
+    import argparse
+
+    import serial
+
+    try:
+        value = int(text)
+    except ValueError:
+        value = None
+    if value not in serial.SerialBase.BAUDRATES:
+        raise argparse.ArgumentTypeError(
+            f"expected a standard baud rate such as 115200 (GRBL 1.1) or 9600, got {text!r}")
+    return value
 
 
 # ----------------------------------------------------------------------------------------------------------- plot
@@ -146,7 +170,10 @@ def plot_job(polylines, profile: MachineProfile, size: float | None, tolerance: 
         raise UsageError(f"--power must be a fraction in (0, 1], got {power}")
     fitted = fit_polylines(polylines, box, size)
     simplified = simplify_polylines(fitted, tolerance)
-    options = WriterOptions.from_profile(profile, power=power, comment=f"chaos-station plot job for {profile.name}")
+    # the comment marks a pen plot, so that `station send` can warn before it goes to a laser (M3 S<n> lifts a pen
+    # servo, and fires a laser at that power)
+    kind = "pen plot" if profile.kind == "plotter" else "plot"
+    options = WriterOptions.from_profile(profile, power=power, comment=f"chaos-station {kind} job for {profile.name}")
     stream = io.StringIO()
     write_plot_gcode(simplified, stream, options)
     return stream.getvalue(), fitted, simplified, options
@@ -211,32 +238,81 @@ def run_ports(args) -> int:
 # ----------------------------------------------------------------------------------------------------------- send
 
 
-class ProgressBar:
-    """A one-line progress bar on stderr, at most 10 updates per second."""
+def format_duration(seconds: float) -> str:
+    """``m:ss``, or ``h:mm:ss`` from an hour on."""
+    seconds = int(round(seconds))
+    hours, rest = divmod(seconds, 3600)
+    minutes, secs = divmod(rest, 60)
+    return f"{hours}:{minutes:02d}:{secs:02d}" if hours else f"{minutes}:{secs:02d}"
 
-    def __init__(self, stream=None, width: int = 30) -> None:
+
+def progress_text(progress) -> str:
+    """``42.0% 84/200 lines  ETA 1:05  running``; a job that ended shows its state without an ETA."""
+    text = f"{progress.fraction * 100:5.1f}% {progress.lines_acked}/{progress.lines_total} lines"
+    if progress.state in FINAL_STATES:
+        return f"{text}  {progress.state}"
+    eta = "--:--" if progress.eta is None else format_duration(progress.eta)
+    return f"{text}  ETA {eta}  {progress.state}"
+
+
+class ProgressBar:
+    """Progress of a job on stderr.
+
+    On a terminal, a bar redrawn in place at most 10 times a second. Anywhere else (a file, a pipe, a CI log) a
+    plain line at every tenth of the job and every change of state, so the log reads as lines, not one long line of
+    carriage returns.
+    """
+
+    def __init__(self, stream=None, width: int = 30, tty: bool | None = None) -> None:
         self.stream = stream or sys.stderr
         self.width = width
+        if tty is None:
+            isatty = getattr(self.stream, "isatty", None)
+            tty = bool(isatty and isatty())
+        self.tty = tty
         self._last = 0.0
+        self._state = ""
+        self._tenth = -1
+        self._drawn = 0  # characters of the bar on the terminal's line
         self._lock = threading.Lock()
 
     def __call__(self, progress, force: bool = False) -> None:
-        now = time.monotonic()
         with self._lock:
-            if not force and now - self._last < 0.1:
-                return
-            self._last = now
-            filled = int(round(progress.fraction * self.width))
-            eta = "--:--" if progress.eta is None else f"{int(progress.eta) // 60:d}:{int(progress.eta) % 60:02d}"
-            self.stream.write(
-                f"\r[{'#' * filled}{'.' * (self.width - filled)}] {progress.fraction * 100:5.1f}% "
-                f"{progress.lines_acked}/{progress.lines_total} lines  ETA {eta}  {progress.state:10s}"
-            )
-            self.stream.flush()
+            if self.tty:
+                self._draw(progress, force)
+            else:
+                self._line(progress)
 
-    def close(self) -> None:
-        self.stream.write("\n")
+    def _draw(self, progress, force: bool) -> None:
+        now = time.monotonic()
+        if not force and progress.state == self._state and now - self._last < 0.1:
+            return
+        self._last = now
+        self._state = progress.state
+        filled = int(progress.fraction * self.width)  # a full bar only at 100 %
+        text = f"[{'#' * filled}{'.' * (self.width - filled)}] {progress_text(progress)}"
+        self.stream.write("\r" + text.ljust(self._drawn))
+        self._drawn = len(text)
         self.stream.flush()
+
+    def _line(self, progress) -> None:
+        if progress.state in ("idle", "preflight", "refused", "position_lost"):
+            return  # a refused job says why in one line of its own
+        tenth = int(progress.fraction * 10)
+        if progress.state == self._state and tenth <= self._tenth:
+            return
+        self._state = progress.state
+        self._tenth = max(self._tenth, tenth)
+        self.stream.write(f"send: {progress_text(progress)}\n")
+        self.stream.flush()
+
+    def close(self, clear: bool = False) -> None:
+        """End the bar's line (``clear``: erase it, e.g. before a refusal's one line)."""
+        with self._lock:
+            if self.tty and self._drawn:
+                self.stream.write("\r" + " " * self._drawn + "\r" if clear else "\n")
+                self.stream.flush()
+            self._drawn = 0
 
 
 @contextlib.contextmanager
@@ -262,6 +338,69 @@ def _job_history():
         connection.close()
 
 
+def _frame_job(job: Job, name: str, laser: bool, profile: MachineProfile | None, pen_up) -> Job:
+    """The job that traces ``job``'s bounding box: the laser at the profile's frame power, or the pen up."""
+    extent = job.extent()
+    if extent is None:
+        raise UsageError(f"job {name}: no motion to frame")
+    lo, hi = extent
+    if laser:
+        power = (profile.laser.frame_power * profile.laser.max_power) if profile and profile.laser else 10.0
+        lines = frame_lines(lo, hi, laser_power=power, feed=min(3000.0, profile.max_feed if profile else 3000.0))
+    else:
+        lines = frame_lines(lo, hi, pen_up=pen_up)
+    return Job(f"frame of {name}", lines, laser=laser, pen_up=pen_up)
+
+
+def _interactive() -> bool:
+    """Someone at a terminal can answer a question (stdin and stderr are terminals)."""
+    return bool(sys.stdin and sys.stdin.isatty() and sys.stderr.isatty())
+
+
+def _ask(question: str, default: bool) -> bool:
+    """Ask a yes/no question on stderr; Enter takes ``default``, end of input means no."""
+    sys.stderr.write(f"{question} [{'Y/n' if default else 'y/N'}] ")
+    sys.stderr.flush()
+    answer = sys.stdin.readline()
+    if not answer:
+        sys.stderr.write("\n")
+        return False
+    answer = answer.strip().lower()
+    return default if not answer else answer in ("y", "yes")
+
+
+def _stream(conn, history, job: Job, kind: str, url: str, title: str, *, from_line: int = 1, dry_run: bool = False,
+            bar: ProgressBar | None = None) -> JobResult:
+    """Run ``job`` on ``conn`` with a progress bar and a row in the job history; Ctrl-C (or SIGTERM) aborts it
+    (soft reset, laser off), records it and goes on as KeyboardInterrupt."""
+    runner = JobRunner(conn, job, from_line=from_line, dry_run=dry_run, on_progress=bar)
+    job_id = history.start(kind, url, title, len(job.lines), "station send")
+    runner.start()
+    try:
+        while runner.wait(2.0) is None and runner.running:
+            # the line being executed, so that a station killed now still says where to resume
+            resume = runner.progress.current_line + 1 if runner.progress.lines_acked and not dry_run else None
+            history.progress(job_id, runner.progress.lines_acked, resume)
+    except KeyboardInterrupt:
+        runner.abort()
+        runner.wait(10.0)
+        if bar:
+            bar.close()
+        done = runner.result
+        history.finish(job_id, "aborted", runner.progress.lines_acked, "stopped by Ctrl-C or SIGTERM",
+                       done.resume_line if done else None)
+        raise
+    result = runner.result
+    history.finish(job_id, result.state, result.lines_acked, result.message, result.resume_line)
+    if bar:
+        if result.state in ("refused", "position_lost"):
+            bar.close(clear=True)  # the error's one line says it all
+        else:
+            bar(runner.progress, force=True)
+            bar.close()
+    return result
+
+
 def run_send(args) -> int:
     profile = _profile(args.profile) if args.profile else None
     path = Path(args.job)
@@ -270,6 +409,8 @@ def run_send(args) -> int:
     laser = args.laser or (profile is not None and profile.is_laser)
     pen_up = tuple(profile.pen.up_commands()) if profile is not None and profile.pen else ("M5",)
     job = Job.from_file(path, laser=laser, pen_up=pen_up)
+    if not any(clean_line(line) for line in job.lines):
+        raise UsageError(f"job {str(path)!r}: the file has no G-code lines (it is empty or only comments)")
     if args.from_line < 1 or args.from_line > len(job.lines):
         raise UsageError(f"--from-line must be between 1 and {len(job.lines)} (lines in {path.name}), "
                          f"got {args.from_line}")
@@ -277,42 +418,42 @@ def run_send(args) -> int:
     if not url:
         raise UsageError("give --port URL (e.g. /dev/ttyUSB0 or sim://grbl?profile=plotter) or --profile")
     baud = args.baud or (profile.baud if profile else 115200)
+    original = job
     if args.frame:
-        extent = job.extent()
-        if extent is None:
-            raise UsageError(f"job {path.name}: no motion to frame")
-        lo, hi = extent
-        if laser:
-            power = (profile.laser.frame_power * profile.laser.max_power) if profile and profile.laser else 10.0
-            lines = frame_lines(lo, hi, laser_power=power, feed=min(3000.0, profile.max_feed if profile else 3000.0))
-        else:
-            lines = frame_lines(lo, hi, pen_up=pen_up)
-        job = Job(f"frame of {path.name}", lines, laser=laser, pen_up=pen_up)
+        job = _frame_job(job, path.name, laser, profile, pen_up)
     bar = None if args.json else ProgressBar()
     kind = JOB_KINDS["frame" if args.frame else "dry" if args.dry_run else "run"]
+    title = str(path) if kind == "run" else f"{kind} of {path}"
     with GrblConnection(url, baud) as conn, _job_history() as history:
-        runner = JobRunner(conn, job, from_line=1 if args.frame else args.from_line, dry_run=args.dry_run,
-                           on_progress=bar)
-        job_id = history.start(kind, url, str(path) if kind == "run" else f"{kind} of {path}", len(job.lines),
-                               "station send")
-        runner.start()
-        try:
-            while runner.wait(2.0) is None and runner.running:
-                history.progress(job_id, runner.progress.lines_acked)
-        except KeyboardInterrupt:
-            runner.abort()
-            runner.wait(10.0)
-            if bar:
-                bar.close()
-            done = runner.result
-            history.finish(job_id, "aborted", runner.progress.lines_acked, "stopped by Ctrl-C or SIGTERM",
-                           done.resume_line if done else None)
-            raise
-        result = runner.result
-        history.finish(job_id, result.state, result.lines_acked, result.message, result.resume_line)
-        if bar:
-            bar(runner.progress, force=True)
-            bar.close()
+        warning = kind_warning(original, conn.laser_mode)
+        if warning:
+            print(f"station: warning: {warning}", file=sys.stderr)
+        if (laser and kind == "run" and args.from_line == 1 and not args.json and not conn.homing_enabled
+                and conn.laser_mode):
+            # without homing the job burns wherever work zero was set: the frame shows where, at low power
+            refused = JobRunner(conn, job).check()  # a job that cannot run is refused before anything is offered
+            if refused is not None:
+                history.finish(history.start(kind, url, title, len(job.lines), "station send"), refused.state, 0,
+                               refused.message)
+                raise (JobRefused if refused.state == "refused" else DeviceStateError)(refused.message)
+            if not _interactive():
+                print(f"station: tip: this machine has no homing ($22=0): the job runs where work zero is set; "
+                      f"`station send {path} --frame` traces its bounding box at frame power first",
+                      file=sys.stderr)
+            elif _ask("No homing ($22=0): trace the job's frame first (laser at frame power)?", default=True):
+                frame = _frame_job(original, path.name, laser, profile, pen_up)
+                framed = _stream(conn, history, frame, JOB_KINDS["frame"], url, f"frame of {path}",
+                                 bar=ProgressBar())
+                if not framed.ok:
+                    print(framed.message, file=sys.stderr)
+                    if framed.state == "refused":
+                        raise JobRefused(framed.message)
+                    return 1
+                if not _ask(f"Frame done. Start the laser job {path.name}?", default=False):
+                    print(f"station: {path.name} not started", file=sys.stderr)
+                    return 0
+        result = _stream(conn, history, job, kind, url, title, from_line=1 if args.frame else args.from_line,
+                         dry_run=args.dry_run, bar=bar)
     document = {
         "job": str(path), "port": url, "state": result.state, "message": result.message,
         "lines_total": result.lines_total, "lines_acked": result.lines_acked, "elapsed_s": result.elapsed,

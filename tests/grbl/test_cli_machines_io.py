@@ -22,7 +22,7 @@ def test_plot_a_drawing_machine_then_send_it(tmp_path, capsys):
     height = summary["extent_mm"][3] - summary["extent_mm"][1]
     assert abs(max(width, height) - 120.0) < 1e-6
     text = job.read_text()
-    assert text.startswith("(chaos-station plot job for GRBL pen plotter)\nG21\nG90\nG94\nM3 S50\n")
+    assert text.startswith("(chaos-station pen plot job for GRBL pen plotter)\nG21\nG90\nG94\nM3 S50\n")
     assert main(["send", str(job), "--profile", "plotter", "--port", FAST_PLOTTER, "--json"]) == 0
     result = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
     assert result["state"] == "done" and result["lines_acked"] == result["lines_total"]
