@@ -284,3 +284,19 @@ def test_sigterm_mid_job_aborts_with_the_laser_off(tmp_path):
     assert all(power == 0.0 for t, _, _, _, power, _ in samples if t >= resets[-1])
     assert samples[-1][4] == 0.0
     assert "M5S0" in document["received"][document["received"].index("M4S700"):]  or 3 in document["alarms"]
+
+
+def test_the_example_profile_without_homing_takes_a_job_as_wide_as_its_bed(tmp_path, capsys):
+    from drivers.profiles import load_profile
+
+    path = Path(__file__).resolve().parents[2] / "examples" / "profiles" / "grbl_diode_laser_no_homing.toml"
+    profile = load_profile(path)
+    assert (profile.width, profile.height, profile.is_laser) == (300.0, 200.0, True)
+    job = tmp_path / "panel.gcode"
+    job.write_text(laser_job(300, 100, rows=2))
+    port = f"{profile.port}&{FAST}"
+    assert main(["send", str(job), "--profile", str(path), "--port", port, "--json"]) == 0
+    assert last_json(capsys.readouterr().out)["state"] == "done"
+    job.write_text(laser_job(301, 100, rows=2))
+    assert main(["send", str(job), "--profile", str(path), "--port", port]) == 2
+    assert "this job is 301.0 mm wide; your machine travels 300.0 mm in X ($130)" in capsys.readouterr().err
