@@ -102,3 +102,13 @@ async def test_switching_layout_clears_the_previous_verdict(tmp_path):
         shown = str(status.render())
         assert "SUCCESS" not in shown and "layout failure" in shown and "press r" in shown
         assert screen.result is None
+
+
+async def test_a_typed_name_in_an_error_is_shown_as_typed(tmp_path):
+    # The status was read as markup: "[b]nope[/b]" came back as "nope".
+    app = StationApp(database=tmp_path / "t.sqlite3")
+    async with app.run_test(size=(160, 45)) as pilot:
+        screen = await open_contraption_screen(app, pilot)
+        assert not screen.load("[b]nope[/b]")
+        await pilot.pause()
+        assert "[b]nope[/b]" in str(screen.query_one("#status").render())

@@ -131,3 +131,18 @@ def test_the_sheet_picture_names_what_it_will_show():
 
     assert str(Picture(empty="(no sheet yet)").render_text(40, 10)) == "(no sheet yet)"
     assert HalfBlockPicture is Picture  # the Fabricate screen's picture is the shared widget
+
+
+async def test_typed_text_in_the_status_is_shown_as_typed(tmp_path):
+    # The status was read as markup: a material typed as "[b]oak[/b]" came back as "oak" (and "[red]..." coloured).
+    app = StationApp(database=tmp_path / "t.sqlite3")
+    async with app.run_test(size=(160, 50)) as pilot:
+        await pilot.press("f")
+        await pilot.pause()
+        screen = app.screen
+        await wait_for(pilot, screen, lambda: screen.result is not None)
+        screen.query_one("#material", Input).value = "[b]oak[/b]"
+        screen.query_one("#material", Input).focus()
+        await pilot.press("enter")
+        await wait_for(pilot, screen, lambda: "oak" in screen.last_message and "generating" not in screen.last_message)
+        assert "[b]oak[/b]" in str(screen.query_one("#status", Static).render())

@@ -13,6 +13,8 @@ import time
 from pathlib import Path
 
 import numpy as np
+from rich.markup import escape
+from rich.text import Text
 from scipy.spatial import ConvexHull, QhullError
 from textual import on, work
 from textual.app import ComposeResult
@@ -128,12 +130,12 @@ class ContraptionScreen(Screen):
     def load(self, text: str) -> bool:
         """Load a scenario by example name or path; errors are shown, never raised."""
         if self.running:
-            self.set_status("[yellow]a simulation is running[/]")
+            self.set_status("a simulation is running", style="yellow")
             return False
         try:
             scenario = load_scenario(resolve_scenario_path(text))
         except (DesignError, OSError) as error:
-            self.set_status(f"[red]{error}[/]")
+            self.set_status(str(error), style="red")
             return False
         self.scenario = scenario
         order = {"success": 0, "failure": 1}
@@ -156,10 +158,11 @@ class ContraptionScreen(Screen):
         params = ", ".join(
             f"{n}={v:g}" for n, v in zip(space.names, self.current_layout())
         ) or "none"
+        # The name, description and layout names come from the scenario file: escaped, never read as markup.
         text = (
-            f"[b]{s.name}[/b] — {s.description}\n"
-            f"{len(s.objects)} objects, {len(s.events)} events (root {s.root}), {space.dim} design parameters\n"
-            f"layout [b]{self.layout_names[self.layout_index]}[/b]: {params}"
+            f"[b]{escape(s.name)}[/b] — {escape(s.description)}\n"
+            f"{len(s.objects)} objects, {len(s.events)} events (root {escape(s.root)}), {space.dim} design "
+            f"parameters\nlayout [b]{escape(self.layout_names[self.layout_index])}[/b]: {escape(params)}"
         )
         self.query_one("#summary", Static).update(text)
 
@@ -172,13 +175,13 @@ class ContraptionScreen(Screen):
             table.add_row(spec.name, spec.type, joined, self._styled(state), "", "", key=spec.name)
 
     @staticmethod
-    def _styled(state: str) -> str:
-        from rich.text import Text
-
+    def _styled(state: str) -> Text:
         return Text(state, style=STATE_STYLE.get(state, ""))
 
-    def set_status(self, text: str) -> None:
-        self.query_one("#status", Static).update(text)
+    def set_status(self, text: str | Text, style: str = "") -> None:
+        """Show ``text`` (a string is plain text in ``style``: paths, scenario names and error messages come from
+        the user's files and are never read as markup; a :class:`~rich.text.Text` keeps its own styles)."""
+        self.query_one("#status", Static).update(text if isinstance(text, Text) else Text(text, style=style))
 
     def _draw(self, snapshot, ropes=()) -> None:
         lines, colours = side_view_polylines(self.scenario, snapshot, ropes)
@@ -193,7 +196,7 @@ class ContraptionScreen(Screen):
                 snapshot = world.snapshot()
                 ropes = world_ropes(world)
         except DesignError as error:  # pragma: no cover - a validated scenario builds
-            self.set_status(f"[red]{error}[/]")
+            self.set_status(str(error), style="red")
             return
         lines, _ = side_view_polylines(self.scenario, snapshot, ropes)
         if lines:
@@ -217,7 +220,7 @@ class ContraptionScreen(Screen):
     def action_optimize(self) -> None:
         """Open the Robust layouts screen on this scenario (its file; o there starts the optimization)."""
         if self.scenario is None or not Path(self.scenario.source).is_file():
-            self.set_status("[yellow]load a scenario file first[/]")
+            self.set_status("load a scenario file first", style="yellow")
             return
         optimizer = self.app.open_area_if_installed("optimize")
         if optimizer is not None:
@@ -244,7 +247,7 @@ class ContraptionScreen(Screen):
             problems = sim.check_validity(x)
             if problems:
                 message = "; ".join(p.message for p in problems)
-                self.app.call_from_thread(self._finished, None, f"[red]impossible layout:[/] {message}")
+                self.app.call_from_thread(self._finished, None, Text.assemble(("impossible layout: ", "red"), message))
                 return
 
             def on_change(t: float, states: dict[str, str]) -> None:
@@ -257,9 +260,9 @@ class ContraptionScreen(Screen):
                 self.app.call_from_thread(self._update_states, t, states, snapshot, world_ropes(sim.world))
 
             result = sim.run(x, on_change=on_change, record=True)
-        verdict = "[bold green]SUCCESS[/]" if result.success else "[bold red]FAILURE[/]"
-        summary = (
-            f"{verdict}: {result.n_successful_events}/{len(result.events)} events, "
+        verdict = ("SUCCESS", "bold green") if result.success else ("FAILURE", "bold red")
+        summary = Text.assemble(
+            verdict, f": {result.n_successful_events}/{len(result.events)} events, "
             f"{result.duration:.2f} s simulated in {result.steps} steps"
         )
         self.app.call_from_thread(self._finished, result, summary)
@@ -271,7 +274,7 @@ class ContraptionScreen(Screen):
         self.set_status(f"t = {t:.3f} s")
         self._draw(snapshot, ropes)
 
-    def _finished(self, result, summary: str) -> None:
+    def _finished(self, result, summary: str | Text) -> None:
         self.running = False
         self.result = result
         if result is not None:

@@ -7,6 +7,7 @@ import math
 from typing import Any
 
 import numpy as np
+from rich.text import Text
 from textual import on, work
 from textual.app import ComposeResult
 from textual.binding import Binding
@@ -146,7 +147,7 @@ class DrawingScreen(Screen):
             model = get_machine(machine)
             validated = model.validate(params)
         except DesignError as error:
-            self.notify(str(error), severity="error", title="Cannot open design")
+            self.notify(str(error), severity="error", title="Cannot open design", markup=False)
             return
         self._remember()
         if not self.is_mounted:
@@ -310,7 +311,8 @@ class DrawingScreen(Screen):
         canvas.set_polylines(polylines, colors, markers=markers, bounds=bounds)
 
     def _set_status(self, text: str) -> None:
-        self.query_one("#status", Static).update(text)
+        # Plain text: error messages quote parameter values and design files, never read as markup.
+        self.query_one("#status", Static).update(Text(text))
 
     # --- actions -------------------------------------------------------------------------------------------------
     def action_toggle_animation(self) -> None:

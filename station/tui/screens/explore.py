@@ -15,6 +15,7 @@ import copy
 import threading
 
 import numpy as np
+from rich.text import Text
 from textual import on, work
 from textual.app import ComposeResult
 from textual.binding import Binding
@@ -280,12 +281,13 @@ class ExploreScreen(Screen):
         canvas.set_polylines(polylines, colors, markers=markers, bounds=(*everything.min(0), *everything.max(0)))
 
     def _set_status(self, text: str) -> None:
+        # Plain text: error messages quote parameter values, never read as markup.
         self.last_message = text
-        self.query_one("#status", Static).update(text)
+        self.query_one("#status", Static).update(Text(text))
 
     def _warn(self, text: str) -> None:
         self._set_status(text)
-        self.notify(text, severity="warning", title="Explore")
+        self.notify(text, severity="warning", title="Explore", markup=False)
 
     # --- events and actions -------------------------------------------------------------------------------------
     @on(DataTable.RowHighlighted, "#pois")

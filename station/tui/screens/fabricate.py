@@ -13,6 +13,7 @@ from __future__ import annotations
 import time
 from pathlib import Path
 
+from rich.text import Text
 from textual import on, work
 from textual.app import ComposeResult
 from textual.binding import Binding
@@ -123,7 +124,7 @@ class FabricateScreen(Screen):
         try:
             options = self._options()
         except (ValueError, StationError) as error:
-            self._set_status(f"[red]{error}[/red]")
+            self._set_status(str(error), style="red")
             return
         machine, params = self.design
         self.query_one("#design", Static).update(
@@ -169,7 +170,7 @@ class FabricateScreen(Screen):
         self.query_one("#job", Static).update("")
         self.query_one("#part", Static).update("")
         self.query_one(HalfBlockPicture).set_png(None)
-        self._set_status(f"[red]cannot fabricate this design: {message}[/red]")
+        self._set_status(f"cannot fabricate this design: {message}", style="red")
 
     def _show(self, result: FabricationResult, seconds: float) -> None:
         self.result = result
@@ -285,16 +286,18 @@ class FabricateScreen(Screen):
             try:
                 queue("laser", gcode, title=title, laser=True)
             except (DriverError, StationError, ValueError) as error:
-                self._set_status(f"[red]the laser refused the job: {error}[/red]")
+                self._set_status(f"the laser refused the job: {error}", style="red")
                 self.notify(str(error), severity="error", title="Job not queued")
                 return
         titles = ", ".join(title for title, _ in jobs)
         self._set_status(f"sent to the laser: {titles}")
         self.notify(f"{titles}: on the Machines screen, f frames a job, g starts it", title="Laser job queued")
 
-    def _set_status(self, message: str) -> None:
+    def _set_status(self, message: str, style: str = "") -> None:
+        """Show ``message`` as plain text in ``style``: it carries what the user typed (a material, a sheet size),
+        paths and error messages, which are never read as markup."""
         self.last_message = message
-        self.query_one("#status", Static).update(message)
+        self.query_one("#status", Static).update(Text(message, style=style))
 
 
 SCREEN = ScreenEntry(

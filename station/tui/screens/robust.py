@@ -15,6 +15,7 @@ import threading
 from pathlib import Path
 
 import numpy as np
+from rich.text import Text
 from textual import on, work
 from textual.app import ComposeResult
 from textual.binding import Binding
@@ -146,8 +147,10 @@ class RobustScreen(Screen):
     def _stop_pressed(self) -> None:
         self.action_stop()
 
-    def _set_status(self, text: str) -> None:
-        self.query_one("#status", Static).update(text)
+    def _set_status(self, text: str | Text, style: str = "") -> None:
+        """Show ``text`` (a string is plain text in ``style``: paths, typed values and error messages are never
+        read as markup; a :class:`~rich.text.Text` keeps its own styles)."""
+        self.query_one("#status", Static).update(text if isinstance(text, Text) else Text(text, style=style))
 
     def _read_int(self, widget_id: str, name: str, minimum: int) -> int | None:
         text = self.query_one(f"#{widget_id}", Input).value.strip()
@@ -156,7 +159,7 @@ class RobustScreen(Screen):
         except ValueError:
             value = None
         if value is None or value < minimum:
-            self._set_status(f"[red]{name} must be an integer >= {minimum}, got {text!r}[/red]")
+            self._set_status(f"{name} must be an integer >= {minimum}, got {text!r}", style="red")
             return None
         return value
 
@@ -181,7 +184,7 @@ class RobustScreen(Screen):
             return
         scenario = self.query_one("#scenario", Select).value
         if scenario is Select.BLANK:
-            self._set_status("[red]no scenario chosen[/red]")
+            self._set_status("no scenario chosen", style="red")
             return
         budget = self._read_int("budget", "budget", 20)
         seed = self._read_int("seed", "seed", 0)
@@ -230,7 +233,7 @@ class RobustScreen(Screen):
             self.app.call_from_thread(self._finished, None, None, None, "stopped; finished simulations are cached")
             return
         except (DesignError, OSError) as error:
-            self.app.call_from_thread(self._finished, None, None, None, f"[red]cannot optimize: {error}[/red]")
+            self.app.call_from_thread(self._finished, None, None, None, Text(f"cannot optimize: {error}", "red"))
             return
         self.app.call_from_thread(self._finished, problem, result, picture.getvalue(), "")
 
@@ -262,7 +265,7 @@ class RobustScreen(Screen):
         labels = getattr(problem, "event_labels", {})
         for name, p in zip(result.factor_names, result.factor_probabilities):
             note = " (quasi-det.)" if name in result.quasi_deterministic else ""
-            events.add_row(labels.get(name, name), f"{p:.3f}{note}",
+            events.add_row(Text(labels.get(name, name)), f"{p:.3f}{note}",
                            "success" if simulated.get(name) else "failure", key=name)
         events.add_row("[b]PSP (product)[/b]", f"{result.psp:.3f}",
                        "success" if result.simulated_success else "failure", key="__psp__")

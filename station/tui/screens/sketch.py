@@ -10,6 +10,7 @@ preview or press 1-5 to open that design on the Drawing machines screen. u undoe
 from __future__ import annotations
 
 import numpy as np
+from rich.text import Text
 from textual import on, work
 from textual.app import ComposeResult
 from textual.binding import Binding
@@ -114,7 +115,8 @@ class SketchScreen(Screen):
         return self.query_one("#pad", SketchPad)
 
     def set_status(self, text: str) -> None:
-        self.query_one("#status", Static).update(text)
+        # Plain text: error messages quote the user's sketch file and input, never read as markup.
+        self.query_one("#status", Static).update(Text(text))
 
     def symmetry(self) -> int | None:
         """The symmetry order typed in, or ``None`` (and a status message) when it is not valid."""
