@@ -139,3 +139,14 @@ async def test_a_click_on_the_canvas_selects_the_nearest_poi(tmp_path):
         picked = screen.explorer.pois[screen.selected[-1]]
         # The PoI nearest to the clicked cell's centre: the target, or one at least as near (sharing its cell).
         assert np.hypot(*np.subtract(picked.xy, world)) <= np.hypot(*np.subtract(target.xy, world)) + 1e-9
+
+
+async def test_poi_coordinates_at_the_centre_read_zero_not_minus_zero(tmp_path):
+    # The spirograph's default design crosses itself at the centre: the table showed -0.000 beside 0.000.
+    app = StationApp(database=tmp_path / "t.sqlite3")
+    async with app.run_test(size=(150, 45)) as pilot:
+        await pilot.press("x")
+        await settle(app, pilot)
+        table = app.screen.query_one("#pois", DataTable)
+        cells = [str(cell) for row in range(table.row_count) for cell in table.get_row_at(row)[2:4]]
+        assert "0.000" in cells and "-0.000" not in cells

@@ -36,6 +36,12 @@ INVARIANT_KEYS = {"1": "position", "2": "curvature", "3": "angle", "4": "radial"
 UNDO_DEPTH = 30
 
 
+def coordinate(value: float) -> str:
+    """A PoI coordinate with three decimals; a crossing at the centre reads ``0.000``, not ``-0.000``."""
+    text = f"{value:.3f}"
+    return "0.000" if text == "-0.000" else text
+
+
 class ExploreScreen(Screen):
     """Points of Interest, invariants and invariant-space sliders on one design."""
 
@@ -218,7 +224,7 @@ class ExploreScreen(Screen):
         table.clear()
         for p in explorer.pois:
             feature = f"κ {p.curvature:.3g}" if p.curvature is not None else f"{np.degrees(p.angle):.1f}°"
-            table.add_row(str(p.id), p.kind, f"{p.xy[0]:.3f}", f"{p.xy[1]:.3f}", feature, key=str(p.id))
+            table.add_row(str(p.id), p.kind, coordinate(p.xy[0]), coordinate(p.xy[1]), feature, key=str(p.id))
         if self.highlighted is None or self.highlighted >= len(explorer.pois):
             self.highlighted = 0 if explorer.pois else None
         design = ", ".join(f"{k}={v:.4g}" for k, v in explorer.design.items())
