@@ -39,6 +39,8 @@ __all__ = [
     "elliptic_gear",
     "ring_gear",
     "min_teeth_without_undercut",
+    "undercut_limit",
+    "rack_flank_depth",
     "ellipse_axes",
 ]
 
@@ -94,9 +96,58 @@ class GearSettings:
         return math.radians(self.pressure_angle)
 
 
-def min_teeth_without_undercut(settings: GearSettings) -> int:
-    """Smallest tooth count of an external gear cut by the basic rack without undercut: ``2·ha*/sin²α``."""
-    return int(math.ceil(2.0 * settings.addendum / math.sin(settings.alpha) ** 2 - 1e-9))
+def rack_flank_depth(settings: GearSettings, module: float | None = None) -> float:
+    """How deep (in modules) the straight flank of the rack cutter of external gears reaches below its pitch line.
+
+    The rack's tip lies a dedendum below the pitch line, and its corners are rounded with the radius ``ρ`` that
+    :func:`_rack_tooth` uses: the root fillet, or less where the tip is too narrow for it (a large fillet, a steep
+    pressure angle or a deep dedendum; the tip's width depends on the backlash in mm, hence on the module). The
+    rounding is tangent to the flank where its outward normal is ``(cos α, -sin α)``: its centre lies ``ρ`` above
+    the tip line and the tangent point ``ρ·sin α`` below the centre, so the straight flank ends
+    ``dedendum - ρ·(1 - sin α)`` below the pitch line (1.0 modules for the ISO 53 rack at 20°).
+
+    Parameters
+    ----------
+    settings : GearSettings
+    module : float, optional
+        Module actually used (mm); default ``settings.module``.
+    """
+    module = settings.module if module is None else float(module)
+    # The rack tooth is the gear's tooth space: half a pitch wide on the pitch line, widened by half the backlash
+    # (how external_gear and elliptic_gear thin the teeth).
+    space = math.pi * module / 2.0 + settings.backlash / 2.0
+    depth = settings.dedendum * module
+    rho = _rack_tip_radius(settings, module, _rack_half_tip(settings, module, space, depth))
+    return (depth - rho * (1.0 - math.sin(settings.alpha))) / module
+
+
+def undercut_limit(settings: GearSettings, module: float | None = None) -> float:
+    """Tooth count below which the rack cutter undercuts a circular external gear: ``2·h/sin²α``.
+
+    The rack's flank touches the gear on the line of action, which meets the base circle at the interference
+    point ``r·sin α`` from the pitch point, i.e. ``r·sin²α`` below the pitch line. The involute starts there; a
+    straight flank reaching deeper (``h`` = :func:`rack_flank_depth`, in modules) cuts in behind it. Hence
+    undercut when ``h·m > r·sin²α``, i.e. ``z = 2r/m < 2h/sin²α``. The tip rounding below the flank's end only
+    leaves the trochoidal fillet. An elliptic gear is compared by the equivalent tooth count of its most curved
+    place. Internal gears have no such limit (see :attr:`Gear.undercut`).
+
+    Parameters
+    ----------
+    settings : GearSettings
+    module : float, optional
+        Module actually used (mm); default ``settings.module``. It matters only when the rack's tip is too narrow
+        for the root fillet, through the backlash (mm) that widens it.
+    """
+    return 2.0 * rack_flank_depth(settings, module) / math.sin(settings.alpha) ** 2
+
+
+def min_teeth_without_undercut(settings: GearSettings, module: float | None = None) -> int:
+    """Smallest tooth count of a circular external gear that the rack cuts without undercut.
+
+    The whole number at or above :func:`undercut_limit` (18 for the default settings at 20°, 22 for a rack
+    without tip rounding).
+    """
+    return int(math.ceil(undercut_limit(settings, module) - 1e-9))
 
 
 def teeth_per_unit(scale: float, settings: GearSettings) -> int:
@@ -218,13 +269,9 @@ def _rack_tooth(settings: GearSettings, module: float, space_width: float, heigh
     rounded corners, and it reaches ``height`` above the pitch line (beyond the blank). Counter-clockwise.
     """
     alpha = settings.alpha
-    half_tip = space_width / 2.0 - depth * math.tan(alpha)
-    if half_tip <= 0:
-        raise ParameterError(f"gear settings: a dedendum of {depth / module:.2f} modules leaves no tip on the rack "
-                             f"cutter at a pressure angle of {settings.pressure_angle} degrees")
-    # The corner between the tip line and the flank has an interior angle of 90° + α.
+    half_tip = _rack_half_tip(settings, module, space_width, depth)
     half_corner = (math.pi / 2 + alpha) / 2.0
-    rho = min(settings.root_fillet * module, 0.98 * half_tip * math.tan(half_corner))
+    rho = _rack_tip_radius(settings, module, half_tip)
     points = []
     # Right side: from the top of the flank down to the tip, through the fillet.
     top_half = space_width / 2.0 + height * math.tan(alpha)
@@ -243,6 +290,23 @@ def _rack_tooth(settings: GearSettings, module: float, space_width: float, heigh
     points.append((-top_half, height))
     outline = np.array(points[::-1])  # counter-clockwise
     return outline
+
+
+def _rack_half_tip(settings: GearSettings, module: float, space_width: float, depth: float) -> float:
+    """Half the width (mm) of the rack tooth's tip line, before rounding (see :func:`_rack_tooth`)."""
+    half_tip = space_width / 2.0 - depth * math.tan(settings.alpha)
+    if half_tip <= 0:
+        raise ParameterError(f"gear settings: a dedendum of {depth / module:.2f} modules leaves no tip on the rack "
+                             f"cutter at a pressure angle of {settings.pressure_angle} degrees")
+    return half_tip
+
+
+def _rack_tip_radius(settings: GearSettings, module: float, half_tip: float) -> float:
+    """Radius (mm) of the rack tooth's corner rounding: the root fillet, or less if the tip is too narrow for it."""
+    # The corner between the tip line and the flank has an interior angle of 90° + α; a rounding of radius ρ
+    # starts ρ/tan(half that angle) from the corner, which must stay on the tip (2 % of it left straight).
+    half_corner = (math.pi / 2 + settings.alpha) / 2.0
+    return min(settings.root_fillet * module, 0.98 * half_tip * math.tan(half_corner))
 
 
 def _rack_reach(alpha: float, ha: float, hf: float, p: float, radius: float) -> float:
@@ -312,7 +376,7 @@ class Gear:
         The gear's material (an internal gear is an annulus with teeth inside, without the centre).
     settings : GearSettings
     undercut : bool
-        True when the smallest local radius of curvature is below the undercut limit of the rack.
+        True when the rack cutter undercuts the teeth: fewer equivalent teeth than :func:`undercut_limit`.
     """
 
     kind: str
@@ -337,20 +401,30 @@ class Gear:
         return self.pitch_radius * math.cos(self.settings.alpha)
 
     @property
+    def equivalent_teeth(self) -> float:
+        """Teeth of the circular gear as curved as the pitch curve's most curved place (``2·ρ_min/m``)."""
+        radius = self.pitch.min_curvature_radius if isinstance(self.pitch, EllipticPitch) else self.pitch.radius
+        return 2.0 * radius / self.module
+
+    @property
     def undercut(self) -> bool:
         if self.kind == "internal":
+            # A shaper cutter leaves a ring's teeth widening towards their roots: nothing is cut in behind the
+            # involute. What it does is trim the ring's tips, on purpose, so that the mating pinions clear them.
             return False
-        radius = self.pitch.min_curvature_radius if isinstance(self.pitch, EllipticPitch) else self.pitch.radius
-        equivalent_teeth = 2.0 * radius / self.module
-        return equivalent_teeth < min_teeth_without_undercut(self.settings) - 1e-9
+        return self.equivalent_teeth < undercut_limit(self.settings, self.module) - 1e-9
 
     def notes(self) -> list[str]:
         """Warnings a maker should read before cutting."""
         notes = []
         if self.undercut:
+            if isinstance(self.pitch, EllipticPitch):
+                why = (f"its most curved part is like a gear of {self.equivalent_teeth:.1f} teeth, fewer than "
+                       f"{undercut_limit(self.settings, self.module):.1f}")
+            else:
+                why = f"fewer than {min_teeth_without_undercut(self.settings, self.module)} teeth"
             notes.append(
-                f"{self.teeth}-tooth {self.kind} gear is undercut (fewer than "
-                f"{min_teeth_without_undercut(self.settings)} equivalent teeth): weaker tooth roots; "
+                f"{self.teeth}-tooth {self.kind} gear is undercut ({why}): weaker tooth roots; "
                 "a larger scale or a smaller module avoids it"
             )
         return notes

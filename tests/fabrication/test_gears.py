@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -21,7 +22,7 @@ from design.fabrication import (
     ring_gear,
     teeth_per_unit,
 )
-from design.fabrication.gears import ellipse_axes
+from design.fabrication.gears import ellipse_axes, undercut_limit
 
 
 def involute(angle):
@@ -123,8 +124,6 @@ def test_undercut_is_flagged_below_the_minimum_tooth_count():
         assert undercut_depth(gear, settings) < 0.002, teeth
 
 
-@pytest.mark.xfail(strict=True, reason="the undercut flag uses the addendum, not the depth the rack cutter's straight "
-                   "flank reaches (dedendum - root_fillet·(1 - sin α)); they agree only at the default settings")
 def test_undercut_is_flagged_for_a_sharp_cornered_rack():
     # A rack without tip rounding cuts with its straight flank down to the dedendum (1.25 modules): it undercuts
     # up to 2·1.25 / sin²(20°) = 21.4 teeth, and the root of an 18-tooth gear is cut in by about 6 µm per flank.
@@ -132,6 +131,55 @@ def test_undercut_is_flagged_for_a_sharp_cornered_rack():
     gear = external_gear(18, 2.0, settings)
     assert undercut_depth(gear, settings) > 0.004
     assert gear.undercut
+
+
+# Each row: settings, the undercut limit, tooth counts the rack undercuts and tooth counts it does not (module 2).
+# The counts just below the limit are left out: there the theory's undercut is thinner than the generation resolves
+# (under 1 µm). The limit is 2·h/sin²α with h = dedendum - ρ·(1 - sin α), how deep the rack's straight flank
+# reaches; ρ is the root fillet, or less where the rack's tip is too narrow for it (the last row: 0.23 modules).
+UNDERCUT_TABLE = [
+    (dict(root_fillet=0.0), 22, (16, 19), (22, 25)),  # h = 1.25: 21.4
+    (dict(), 18, (12, 15), (18, 22)),  # h = 1.25 - 0.38·0.658 = 1.0: 17.1
+    (dict(root_fillet=0.55), 16, (11, 14), (16, 19)),  # ρ = 0.49 (tip too narrow for 0.55), h = 0.93: 15.9
+    (dict(pressure_angle=25.0, root_fillet=0.0), 14, (10, 12), (14, 16)),  # h = 1.25: 14.0
+    (dict(pressure_angle=14.5), 31, (22, 26), (31, 34)),  # h = 1.25 - 0.38·0.750 = 0.965: 30.8
+    (dict(pressure_angle=14.5, root_fillet=0.0), 40, (32, 35), (40, 43)),  # h = 1.25: 39.9
+    (dict(pressure_angle=25.0, root_fillet=0.6, dedendum=1.4), 15, (10, 12), (15, 17)),  # ρ = 0.23, h = 1.27: 14.2
+]
+
+
+@pytest.mark.parametrize("overrides, limit, undercut_teeth, clear_teeth", UNDERCUT_TABLE,
+                         ids=[",".join(f"{k}={v}" for k, v in row[0].items()) or "default" for row in UNDERCUT_TABLE])
+def test_undercut_flag_agrees_with_the_cut_geometry(overrides, limit, undercut_teeth, clear_teeth):
+    settings = GearSettings(**overrides)
+    module = 2.0
+    assert min_teeth_without_undercut(settings, module) == limit
+    threshold = 0.001  # mm: 1 µm of cut-in per flank, twice the generation's resolution at this module
+    for teeth in undercut_teeth + clear_teeth:
+        gear = external_gear(teeth, module, settings)
+        depth = undercut_depth(gear, settings)
+        assert gear.undercut == (depth > threshold), (teeth, depth)
+        assert gear.undercut == (teeth in undercut_teeth), teeth
+        assert bool(gear.notes()) == gear.undercut
+
+
+def test_elliptic_undercut_flag_uses_the_limit_at_its_most_curved_tooth():
+    # Tooth 0 of an elliptic gear sits at the end of the major axis, where the pitch curve is most curved (radius
+    # b²/a): measured about that centre of curvature, it is cut like a circular gear of 2·b²/(a·m) teeth. The flag
+    # compares that (fractional) count with the limit itself, 17.1 here, not with the next whole number.
+    settings = GearSettings()
+    module = 2.0
+    # 13.0, 17.7 (below 18, but above the limit: not undercut) and 18.6 equivalent teeth.
+    for teeth, e, undercut in ((14, 0.3, True), (30, 0.7, False), (20, 0.3, False)):
+        gear = elliptic_gear(teeth, module, e, settings)
+        if (teeth, e) == (30, 0.7):
+            assert undercut_limit(settings, module) < gear.equivalent_teeth < 18
+        rho = gear.pitch.min_curvature_radius
+        local = SimpleNamespace(teeth=round(gear.equivalent_teeth), module=module, pitch_radius=rho,
+                                base_radius=rho * math.cos(settings.alpha),
+                                outline=affinity.translate(gear.outline, rho - gear.pitch.a, 0.0))
+        depth = undercut_depth(local, settings)
+        assert gear.undercut == undercut == (depth > 0.001), (teeth, e, gear.equivalent_teeth, depth)
 
 
 def test_pitch_curve_equals_model_radius_times_scale():
