@@ -41,3 +41,24 @@ async def test_quit_without_a_running_job_does_not_ask(tmp_path):
         await pilot.press("ctrl+q")
         await pilot.pause()
         assert app._exit and app.screen.name == "home"
+
+
+async def test_job_titles_and_paths_are_shown_as_written(tmp_path):
+    # Table cells and statics read strings as markup: a G-code file named "[b]box[/b].gcode" showed as "box.gcode".
+    from station.db import open_database
+    from station.joblog import JobLog
+
+    folder = tmp_path / "[red]home"
+    folder.mkdir()
+    database = open_database(folder / "t.sqlite3")
+    try:
+        log = JobLog(database)
+        log.finish(log.start("run", "plotter", "[b]box[/b].gcode", 3, "cli"), "done", 3, "done", None)
+    finally:
+        database.close()
+    app = StationApp(database=folder / "t.sqlite3")
+    async with app.run_test() as pilot:
+        await pilot.pause()
+        jobs = app.screen.query_one("#jobs", DataTable)
+        assert "[b]box[/b].gcode" in jobs.render_line(1).text  # the first row, under the header
+        assert "[red]home" in str(app.screen.query_one("#database").render())

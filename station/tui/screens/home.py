@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from rich.text import Text
 from textual.app import ComposeResult
 from textual.binding import Binding
 from textual.containers import Vertical
@@ -48,7 +49,7 @@ class HomeScreen(Screen):
             yield DataTable(id="devices", cursor_type="row", zebra_stripes=True)
             yield Static("Recent machine jobs", classes="heading")
             yield DataTable(id="jobs", cursor_type="row", zebra_stripes=True)
-            yield Static(f"Database: {self.database}", id="database")
+            yield Static(Text(f"Database: {self.database}"), id="database")
         yield Footer()
 
     def on_mount(self) -> None:
@@ -59,7 +60,7 @@ class HomeScreen(Screen):
                 device.name,
                 device.kind,
                 "simulated" if device.simulated else "real",
-                device.url,
+                Text(device.url),
                 self.app.device_state(device),
                 key=device.name,
             )
@@ -79,6 +80,6 @@ class HomeScreen(Screen):
             if record.resume_line and state != "done":
                 state += f" (resume at {record.resume_line})"
             table.add_row(str(record.id), local_time(record.created_at), record.kind, record.device[:24],
-                          record.title[-40:], state, f"{record.lines_acked}/{record.lines_total}")
+                          Text(record.title[-40:]), state, f"{record.lines_acked}/{record.lines_total}")
         if not records:
             table.add_row("", "", "", "", "no jobs yet: plot a pattern (d, then l) or cut parts (f)", "", "")
