@@ -17,6 +17,7 @@ import importlib
 import pkgutil
 import signal
 import sys
+import textwrap
 import threading
 from collections.abc import Sequence
 
@@ -42,6 +43,23 @@ def command_modules() -> list[str]:
     )
 
 
+class LineKeepingFormatter(argparse.HelpFormatter):
+    """argparse's formatter, but each line of a description or epilog is wrapped on its own.
+
+    Descriptions are one long line (wrapped to the terminal as before); an epilog's ``examples:`` are one command
+    per line, which the default formatter would run together into one paragraph.
+    """
+
+    def _fill_text(self, text: str, width: int, indent: str) -> str:
+        lines = []
+        for line in text.splitlines():
+            stripped = line.lstrip()
+            inner = indent + line[: len(line) - len(stripped)]
+            lines.append(textwrap.fill(stripped, width, initial_indent=inner, subsequent_indent=inner + "  ")
+                         if stripped else "")
+        return "\n".join(lines)
+
+
 class StationParser(argparse.ArgumentParser):
     """An argument parser whose errors are one line: what is wrong, and which ``--help`` to read.
 
@@ -57,6 +75,7 @@ class StationParser(argparse.ArgumentParser):
     """
 
     def __init__(self, *args, command_required: bool = True, **kwargs) -> None:
+        kwargs.setdefault("formatter_class", LineKeepingFormatter)
         super().__init__(*args, **kwargs)
         self.command_required = command_required
 

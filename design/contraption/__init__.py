@@ -16,40 +16,37 @@ Public API (used by the robust-layout helper and the station)::
         results = [sim.run(x) for x in layouts]
 """
 
-from design.contraption.errors import LayoutError, ScenarioFormatError, ScenarioNotFoundError, SimulationError
-from design.contraption.layout_io import (
-    LoadedLayout,
-    layout_from_data,
-    load_layout,
-    read_layout,
-    resolve_layout,
-)
-from design.contraption.scenario import (
-    EVENTS,
-    PRIMITIVES,
-    DesignSpace,
-    EventSpec,
-    ObjectSpec,
-    Scenario,
-    Settings,
-    Transform,
-    load_scenario,
-    scenario_from_data,
-)
-from design.contraption.simulation import (
-    ASLEEP,
-    AWAKE,
-    FAILURE,
-    SUCCESS,
-    Clearance,
-    EventOutcome,
-    SimulationResult,
-    Simulator,
-    ValidityProblem,
-    check_validity,
-    clearances,
-    simulate,
-)
+import importlib
+
+# Names are imported on first use (PEP 562), so ``design.contraption.catalog`` or ``.errors`` can be imported
+# without pybullet and scipy: the CLI builds its parser (and answers --help) without loading the simulator.
+_SOURCES = {
+    "errors": ("LayoutError", "ScenarioFormatError", "ScenarioNotFoundError", "SimulationError"),
+    "layout_io": ("LoadedLayout", "layout_from_data", "load_layout", "read_layout", "resolve_layout"),
+    "scenario": (
+        "EVENTS", "PRIMITIVES", "DesignSpace", "EventSpec", "ObjectSpec", "Scenario", "Settings", "Transform",
+        "load_scenario", "scenario_from_data",
+    ),
+    "simulation": (
+        "ASLEEP", "AWAKE", "FAILURE", "SUCCESS", "Clearance", "EventOutcome", "SimulationResult", "Simulator",
+        "ValidityProblem", "check_validity", "clearances", "simulate",
+    ),
+}
+_MODULE_OF = {name: module for module, names in _SOURCES.items() for name in names}
+
+
+def __getattr__(name: str):
+    module = _MODULE_OF.get(name)
+    if module is None:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    value = getattr(importlib.import_module(f"{__name__}.{module}"), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(_MODULE_OF))
+
 
 __all__ = [
     "ASLEEP",

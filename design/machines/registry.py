@@ -131,6 +131,21 @@ def machine_names() -> list[str]:
     return builtin + sorted(names - set(builtin))
 
 
+def declared_machine_names() -> list[str]:
+    """Names of the built-in and entry-point machines, without loading any of them.
+
+    For help texts and completions, which must not pay for importing every model (and scipy); a declared
+    machine whose entry point is broken is listed here but not by :func:`machine_names`.
+    """
+    names = set(BUILTIN_MACHINES) | set(_registry)
+    try:
+        names.update(point.name for point in entry_points(group=ENTRY_POINT_GROUP))
+    except Exception:  # pragma: no cover - corrupt metadata must not break the built-ins
+        pass
+    builtin = [n for n in BUILTIN_MACHINES if n in names]
+    return builtin + sorted(names - set(builtin))
+
+
 def get_machine(name: str) -> DrawingMachine:
     """The machine called ``name``.
 

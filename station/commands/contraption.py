@@ -5,13 +5,9 @@ from __future__ import annotations
 import argparse
 import sys
 
-from design.contraption import (
-    Scenario,
-    Simulator,
-    load_scenario,
-)
 from design.contraption.catalog import example_names, resolve_scenario_path
 from design.contraption.layout_io import LoadedLayout, default_layout, resolve_layout, values_layout
+from design.contraption.scenario import Scenario, load_scenario
 from station.cli_util import emit_json
 from station.errors import UsageError
 
@@ -25,8 +21,11 @@ def register(subparsers) -> None:
         f"SCENARIO is a .toml/.json file or an example name ({examples}). "
         "Exit 0 when the causal graph succeeds, 1 when it fails (or the layout is physically impossible), "
         "2 on bad input.",
+        epilog="examples:\n"
+        "  station simulate examples/scenarios/simple.toml\n"
+        "  station simulate ballrun --layout layout.json --render run.png --json",
     )
-    simulate.add_argument("scenario", metavar="SCENARIO")
+    simulate.add_argument("scenario", metavar="SCENARIO", help="a scenario file (.toml/.json) or an example name")
     layout = simulate.add_mutually_exclusive_group()
     layout.add_argument(
         "--layout",
@@ -48,8 +47,10 @@ def register(subparsers) -> None:
         help="validate a scenario file and list its design parameters",
         description="Validate a scenario file (errors name the file, the field and what was expected) and print "
         "its objects, causal graph and design parameters with their ranges.",
+        epilog="examples:\n  station scenario check examples/scenarios/ballrun.toml\n"
+        "  station scenario check examples/scenarios/simple.toml --json",
     )
-    check.add_argument("scenario", metavar="SCENARIO")
+    check.add_argument("scenario", metavar="SCENARIO", help="a scenario file (.toml/.json) or an example name")
     check.add_argument("--json", action="store_true", help="print the report as JSON")
     check.set_defaults(func=run_scenario_check)
     scenario.set_defaults(func=lambda args: _missing_action(scenario))
@@ -104,6 +105,8 @@ def run_simulate(args) -> int:
     layout = parse_layout(args, scenario)
     report_layout(layout)
     x = layout.x
+    from design.contraption.simulation import Simulator  # pybullet: loaded only when a command simulates
+
     with Simulator(scenario) as sim:
         problems = sim.check_validity(x)
         if problems:

@@ -13,8 +13,7 @@ from typing import Any
 
 import numpy as np
 
-from design.explore import ERROR_UNIT, Explorer, parse_keep
-from design.machines import get_machine, machine_names
+from design.machines import declared_machine_names, get_machine
 from station.cli_util import add_design_options, design_parameters, emit_json, output_suffix
 from station.errors import UsageError
 
@@ -32,7 +31,7 @@ def register(subparsers) -> None:
         epilog="invariant types: position:P, curvature:P (a curvature maximum), angle:P (a crossing), radial:P, "
         "distance:P,Q.  example: station explore hoot_nanny --keep curvature:0 --keep radial:0 --move 0=1.0 --json",
     )
-    parser.add_argument("machine", metavar="MACHINE", help=f"one of: {', '.join(machine_names())}")
+    parser.add_argument("machine", metavar="MACHINE", help=f"one of: {', '.join(declared_machine_names())}")
     add_design_options(parser)
     parser.add_argument(
         "--keep", action="append", default=[], metavar="TYPE:POI[,POI]", help="an invariant (repeatable)"
@@ -63,6 +62,8 @@ def parse_move(text: str) -> tuple[int, float]:
 
 
 def _errors(values: dict[str, float]) -> list[dict[str, Any]]:
+    from design.explore import ERROR_UNIT
+
     out = []
     for label, error in values.items():
         kind = label.split(":")[0]
@@ -71,6 +72,8 @@ def _errors(values: dict[str, float]) -> list[dict[str, Any]]:
 
 
 def run_explore(args) -> int:
+    from design.explore import Explorer, parse_keep  # scipy and shapely: loaded only when exploring
+
     model = get_machine(args.machine)
     if args.points is not None and not 256 <= args.points <= 200_000:
         raise UsageError(f"--points must be an integer in [256, 200000], got {args.points}")

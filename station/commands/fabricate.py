@@ -285,6 +285,9 @@ def register(subparsers) -> None:
         description="Generate the flat parts of a drawing machine (involute and elliptic gears, ring gears, arms, "
                     "base plate) at a physical scale, compensate the kerf, nest them on a sheet, and write "
                     "DIR/parts.svg, DIR/laser.gcode, DIR/parts.json and DIR/sheet.png.",
+        epilog="examples:\n"
+        "  station fabricate hoot_nanny --design examples/patterns/hoot_nanny_star.json --scale 8 --out parts\n"
+        "  station fabricate spirograph --set r_f=7 --set r_r=3 --scale 10 --sheet 300x200 --out spiro-parts",
     )
     parser.add_argument("machine", choices=FABRICABLE_MACHINES, metavar="MACHINE",
                         help=f"one of {', '.join(FABRICABLE_MACHINES)}")

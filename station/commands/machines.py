@@ -9,7 +9,7 @@ from typing import Any
 
 import numpy as np
 
-from design.machines import get_machine, machine_names, shapes_to_jsonable
+from design.machines import declared_machine_names, get_machine, machine_names, shapes_to_jsonable
 from design.machines.render import shape_polylines, write_png, write_svg
 from station.cli_util import add_design_options, design_parameters, emit_json, output_suffix, to_jsonable
 from station.errors import UsageError
@@ -26,6 +26,7 @@ def register(subparsers) -> None:
         help="list the drawing machines and their parameters",
         description="List the drawing machines with their parameters: kind (discrete gear radius or continuous), "
         "default, bounds and meaning. Lengths are in gear-radius units, angles in radians.",
+        epilog="examples:\n  station machines\n  station machines --json > machines.json",
     )
     machines.add_argument("--json", action="store_true", help="print machines, parameters and constraints as JSON")
     machines.set_defaults(func=run_machines)
@@ -38,7 +39,7 @@ def register(subparsers) -> None:
         "Appendix A is refused with the constraint in words and numbers (exit 2).",
         epilog="example: station pattern hoot_nanny --set r_t=10 --set l1=13 --points 4096 --out hn.png",
     )
-    pattern.add_argument("machine", metavar="MACHINE", help=f"one of: {', '.join(machine_names())}")
+    pattern.add_argument("machine", metavar="MACHINE", help=f"one of: {', '.join(declared_machine_names())}")
     add_design_options(pattern)
     pattern.add_argument("--points", type=int, default=2048, metavar="N", help="points in the closed curve (2048)")
     pattern.add_argument(

@@ -59,6 +59,7 @@ def register(subparsers) -> None:
         "ports",
         help="list serial ports and GRBL controllers",
         description="List serial ports (each probed for a GRBL banner) and the simulated GRBL machines.",
+        epilog="examples:\n  station ports\n  station ports --no-probe --json",
     )
     ports.add_argument("--no-probe", action="store_true", help="do not open the ports to look for GRBL")
     ports.add_argument("--baud", type=baud_rate, default=115200, metavar="RATE",
@@ -77,7 +78,8 @@ def register(subparsers) -> None:
         "terminal. Ctrl-C aborts (soft reset, laser off).",
         epilog='example: station send spiro.gcode --port "sim://grbl?profile=plotter&time_scale=0.01"',
     )
-    send.add_argument("job", metavar="JOB.gcode")
+    send.add_argument("job", metavar="JOB.gcode", help="the G-code file to stream (from `station plot` or "
+                      "`station fabricate`)")
     send.add_argument("--port", help="port URL (default: the profile's port)")
     send.add_argument("--profile", default=None, help="machine profile TOML or built-in name (plotter, laser)")
     send.add_argument("--baud", type=baud_rate, default=None, metavar="RATE",

@@ -11,10 +11,7 @@ import math
 import sys
 from pathlib import Path
 
-from design.machines import get_machine, machine_names
-from design.sketch import DatabaseSettings, SketchRetriever, load_sketch
-from design.sketch.candidates import default_settings, stderr_progress
-from design.sketch.contact_sheet import render_contact_sheet
+from design.machines import declared_machine_names, get_machine, machine_names
 from station.cli_util import emit_json
 from station.errors import UsageError
 from station.paths import cache_dir
@@ -40,7 +37,7 @@ def register(subparsers) -> None:
         action="append",
         default=[],
         metavar="NAME",
-        help=f"search only this machine (repeatable; default all: {', '.join(machine_names())})",
+        help=f"search only this machine (repeatable; default all: {', '.join(declared_machine_names())})",
     )
     parser.add_argument("--top", type=int, default=5, metavar="N", help="number of candidates (default 5)")
     parser.add_argument(
@@ -80,6 +77,11 @@ def _format_params(params: dict[str, float]) -> str:
 
 
 def run_retrieve(args) -> int:
+    # scipy and the spline/FFT machinery: loaded only when a sketch is retrieved, not for --help
+    from design.sketch import SketchRetriever, load_sketch
+    from design.sketch.candidates import default_settings, stderr_progress
+    from design.sketch.contact_sheet import render_contact_sheet
+
     known = machine_names()
     for name in args.machine:
         if name not in known:
@@ -147,4 +149,4 @@ def run_retrieve(args) -> int:
     return 0
 
 
-__all__ = ["DatabaseSettings", "register", "run_retrieve"]
+__all__ = ["register", "run_retrieve"]
