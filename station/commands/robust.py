@@ -6,10 +6,13 @@ interrupted command re-simulates nothing it already knows. Ctrl-C stops cleanly 
 
 from __future__ import annotations
 
+import functools
 import json
 import math
 import os
+import signal
 import sys
+import threading
 import time
 from collections.abc import Callable
 from pathlib import Path
@@ -23,6 +26,7 @@ from design.robust import (
     PSPSettings,
     RobustError,
     RobustnessSettings,
+    SimulationCancelled,
     SimulationExecutor,
     compare_methods,
     evaluation_layouts,
@@ -249,6 +253,71 @@ def _interrupted(executor: SimulationExecutor | None) -> None:
           f"({simulation_cache_path()})", file=sys.stderr)
 
 
+class StopRequest:
+    """Ctrl-C and SIGTERM during a robust-layout command, as a request the work polls at safe points.
+
+    Python's default raises KeyboardInterrupt wherever the main thread is, and the station's SIGTERM handler does
+    the same; inside a C extension's callback that cannot pass it on, it is printed ("Exception ignored in:
+    'scipy.stats._sobol._initialize_v' ... KeyboardInterrupt") and lost: scipy's Sobol engine carried on
+    half-initialized, drew one layout over and over, and the command ran to its end on it. Here a signal only sets a
+    flag; the executor stops between simulation arrivals (``should_stop``), the layout draws between chunks
+    (:meth:`check`), and the command then stops as before. A second signal interrupts at once.
+    """
+
+    def __init__(self) -> None:
+        self._event = threading.Event()
+        self._previous: dict[int, object] = {}
+
+    def __enter__(self) -> StopRequest:
+        if threading.current_thread() is threading.main_thread():  # handlers can be set there only
+            for signum in (signal.SIGINT, signal.SIGTERM):
+                self._previous[signum] = signal.signal(signum, self._handle)
+        return self
+
+    def __exit__(self, *exc) -> None:
+        for signum, handler in self._previous.items():
+            signal.signal(signum, handler)
+        self._previous.clear()
+
+    def _handle(self, signum, frame) -> None:
+        if self._event.is_set():
+            raise KeyboardInterrupt
+        self._event.set()
+
+    def is_set(self) -> bool:
+        """Whether a stop was asked for."""
+        return self._event.is_set()
+
+    def check(self) -> None:
+        """Raise KeyboardInterrupt here, a safe point, if a stop was asked for."""
+        if self._event.is_set():
+            raise KeyboardInterrupt
+
+
+def stoppable(run: Callable) -> Callable:
+    """A command run under a :class:`StopRequest`, given to it as ``args.stop``."""
+
+    @functools.wraps(run)
+    def wrapper(args) -> int:
+        with StopRequest() as stop:
+            args.stop = stop
+            return run(args)
+
+    return wrapper
+
+
+def _stopped(error: BaseException, bar: ProgressBar, executor: SimulationExecutor | None,
+             stop: StopRequest) -> BaseException:
+    """What to raise when a command's work ended with ``error``, KeyboardInterrupt or the executor's
+    SimulationCancelled: a stop by Ctrl-C or SIGTERM closes the bar, says what the cache keeps and becomes
+    KeyboardInterrupt for ``main`` (exit 130); anything else is raised as it is."""
+    if isinstance(error, SimulationCancelled) and not stop.is_set():
+        return error
+    bar.close()
+    _interrupted(executor)
+    return KeyboardInterrupt()
+
+
 def add_common(parser, budget: bool = True) -> None:
     parser.add_argument("scenario", help="scenario file or example name (e.g. simple, examples/scenarios/simple.toml)")
     if budget:
@@ -372,6 +441,7 @@ def settings_of_layout(path: str) -> PSPSettings:
         raise FileFormatError(str(error)) from None
 
 
+@stoppable
 def run_optimize(args) -> int:
     _check_seed(args.seed)
     out = check_output_file(args.out, {".json"}, "--out")
@@ -387,11 +457,11 @@ def run_optimize(args) -> int:
     executor = None
     try:
         with _executor(problem, args) as executor:
-            result = optimize_robust_layout(problem, executor, budget, args.seed, settings, progress=bar)
-    except KeyboardInterrupt:
-        bar.close()
-        _interrupted(executor)
-        raise
+            args.stop.check()
+            result = optimize_robust_layout(problem, executor, budget, args.seed, settings, progress=bar,
+                                            should_stop=args.stop.is_set)
+    except (KeyboardInterrupt, SimulationCancelled) as error:
+        raise _stopped(error, bar, executor, args.stop) from None
     bar.close()
     payload = result.to_json(problem)
     out.write_text(json.dumps(payload, indent=2) + "\n", encoding="utf-8")
@@ -435,6 +505,7 @@ def read_layout(path: str, problem):
     return resolve_layout(path, problem.scenario)
 
 
+@stoppable
 def run_robustness(args) -> int:
     _check_seed(args.seed)
     _positive(args.eval, "--eval")
@@ -457,23 +528,26 @@ def run_robustness(args) -> int:
     executor = None
     try:
         with _executor(problem, args) as executor:
+            args.stop.check()
             bar.expect(n_evaluation, "valid evaluation layouts")
-            U = evaluation_layouts(problem, n_evaluation, on_checked=lambda checked, valid: bar(
-                Progress("evaluation layouts", valid, n_evaluation, unit="valid layouts")))
+
+            def checked(n_checked: int, n_valid: int) -> None:
+                args.stop.check()  # the draws are seconds long for a contraption: stop between their chunks
+                bar(Progress("evaluation layouts", n_valid, n_evaluation, unit="valid layouts"))
+
+            U = evaluation_layouts(problem, n_evaluation, on_checked=checked)
             local = local_layouts(problem, u, settings, seed=args.seed)
             new = executor.count_new(np.concatenate([U, local]))
             bar.note(f"{len(U) + len(local) - new} of the {len(U) + len(local)} simulations are cached; "
                      f"{new} to run")
             bar.expect(new, "new simulations", done=lambda progress: executor.n_simulated)
-            oracle = BudgetedOracle(executor, None, bar, expected=n_evaluation + n_local)
+            oracle = BudgetedOracle(executor, None, bar, should_stop=args.stop.is_set, expected=n_evaluation + n_local)
             oracle.phase = "evaluation set"
             evaluation = evaluation_set(problem, oracle, n_evaluation, layouts=U)
             oracle.phase = "local samples"
             curve = robustness_curve(problem, oracle, evaluation, u, settings, seed=args.seed, local=local)
-    except KeyboardInterrupt:
-        bar.close()
-        _interrupted(executor)
-        raise
+    except (KeyboardInterrupt, SimulationCancelled) as error:
+        raise _stopped(error, bar, executor, args.stop) from None
     bar.close()
     if args.plot:
         plot_robustness({"layout": (curve.epsilon, curve.local, np.zeros_like(curve.local))}, args.plot,
@@ -491,6 +565,7 @@ def run_robustness(args) -> int:
     return 0
 
 
+@stoppable
 def run_compare(args) -> int:
     methods = [m.strip().lower() for m in args.methods.split(",") if m.strip()]
     unknown = sorted(set(methods) - set(METHODS))
@@ -509,15 +584,14 @@ def run_compare(args) -> int:
     executor = None
     try:
         with _executor(problem, args) as executor:
+            args.stop.check()
             comparison = compare_methods(
                 problem, executor, methods, args.runs, budget, args.seed, settings=psp_settings(args.settings),
-                robustness=robustness, progress=bar,
+                robustness=robustness, progress=bar, should_stop=args.stop.is_set,
                 on_run=lambda run: bar.note(f"{run.method} seed {run.seed}: rho_g {run.curve.global_robustness:.3f}, "
                                             f"{run.n_simulations} simulations, {run.seconds:.1f} s"))
-    except KeyboardInterrupt:
-        bar.close()
-        _interrupted(executor)
-        raise
+    except (KeyboardInterrupt, SimulationCancelled) as error:
+        raise _stopped(error, bar, executor, args.stop) from None
     bar.close()
     rows = comparison.table()
     if args.plot:
