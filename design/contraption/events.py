@@ -20,7 +20,7 @@ import math
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from design.contraption.scenario import EventSpec
+from design.contraption.model import EventSpec
 from design.contraption.world import World, world_label
 
 #: Contact points farther apart than this (m) do not count as touching (Bullet keeps near-contacts in its cache).

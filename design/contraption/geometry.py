@@ -7,7 +7,7 @@ from collections.abc import Mapping
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from design.contraption.scenario import ObjectSpec, Transform
+from design.contraption.model import ObjectSpec, Transform
 
 IDENTITY = (0.0, 0.0, 0.0, 1.0)
 

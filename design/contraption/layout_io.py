@@ -34,7 +34,11 @@ from typing import Any
 import numpy as np
 
 from design.contraption.errors import LayoutError, ScenarioFormatError
-from design.contraption.scenario import ANGLE_KEYS, Scenario, _join, _kind, _reject_constant
+from design.contraption.fields import describe as _kind
+from design.contraption.fields import join_path as _join
+from design.contraption.fields import reject_constant as _reject_constant
+from design.contraption.model import Scenario
+from design.contraption.schema import ANGLE_KEYS
 
 if sys.version_info >= (3, 11):
     import tomllib

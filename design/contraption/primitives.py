@@ -18,7 +18,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from design.contraption.geometry import Pose
-from design.contraption.scenario import ObjectSpec, domino_count
+from design.contraption.model import ObjectSpec, domino_count
 
 
 @dataclass(frozen=True)

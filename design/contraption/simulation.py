@@ -25,7 +25,7 @@ import numpy as np
 from design.contraption.bullet import direct_client, pybullet
 from design.contraption.errors import SimulationError
 from design.contraption.events import make_condition
-from design.contraption.scenario import Scenario
+from design.contraption.model import Scenario
 from design.contraption.world import World, build_world
 
 ASLEEP, AWAKE, SUCCESS, FAILURE = "asleep", "awake", "success", "failure"

@@ -22,8 +22,8 @@ from scipy.spatial.transform import Rotation
 
 from design.contraption.bullet import pybullet
 from design.contraption.geometry import Pose, world_poses
+from design.contraption.model import Scenario
 from design.contraption.primitives import BodySpec, ShapePart, body_specs
-from design.contraption.scenario import Scenario
 
 _GEOM = {"box": pybullet.GEOM_BOX, "sphere": pybullet.GEOM_SPHERE, "cylinder": pybullet.GEOM_CYLINDER,
          "capsule": pybullet.GEOM_CAPSULE, "plane": pybullet.GEOM_PLANE}

@@ -1,0 +1,207 @@
+"""The loaded scenario as frozen data: objects, events, settings, and the :class:`Scenario` that holds them.
+
+Values here are already validated (:mod:`design.contraption.validation` builds them); the classes only answer
+questions about them. The content hash is computed here too, from the parsed file content the scenario is made of.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from design.contraption.design_space import DesignSpace
+from design.contraption.errors import LayoutError
+from design.contraption.schema import PRIMITIVES, TRANSFORM_KEYS
+
+
+@dataclass(frozen=True)
+class Transform:
+    """A pose relative to the parent: position in m, angles in degrees (heading, pitch, roll)."""
+
+    x: float = 0.0
+    y: float = 0.0
+    z: float = 0.0
+    heading: float = 0.0
+    pitch: float = 0.0
+    roll: float = 0.0
+
+    def replace(self, **values: float) -> Transform:
+        data = {k: getattr(self, k) for k in TRANSFORM_KEYS}
+        data.update(values)
+        return Transform(**data)
+
+
+@dataclass(frozen=True)
+class Physics:
+    """Physical parameters of a body (SI units); ``mass == 0`` means static."""
+
+    mass: float = 0.0
+    friction: float = 0.5
+    rolling_friction: float = 0.0
+    spinning_friction: float = 0.0
+    restitution: float = 0.0
+    linear_damping: float = 0.0
+    angular_damping: float = 0.0
+
+    @property
+    def static(self) -> bool:
+        return self.mass <= 0.0
+
+
+@dataclass(frozen=True)
+class Tag:
+    """An AprilTag printed on a part: its id and the centre of the tag in the part's frame (m), edge size (m)."""
+
+    id: int
+    x: float = 0.0
+    y: float = 0.0
+    z: float = 0.0
+    size: float = 0.02
+
+
+@dataclass(frozen=True)
+class ObjectSpec:
+    """One object of the scene: a primitive with its shape, physics, parent and transform."""
+
+    name: str
+    type: str
+    transform: Transform
+    parent: str | None = None
+    ranges: Mapping[str, tuple[float, float]] = field(default_factory=dict)
+    shape: Mapping[str, Any] = field(default_factory=dict)
+    physics: Physics = field(default_factory=Physics)
+    tag: Tag | None = None
+    index: int = 0
+    sleeping: bool | None = None
+
+    @property
+    def starts_asleep(self) -> bool:
+        """Whether the bodies start asleep (not simulated until something touches them)."""
+        return self.type == "DominoRun" if self.sleeping is None else self.sleeping
+
+    @property
+    def has_body(self) -> bool:
+        return PRIMITIVES[self.type].body
+
+
+def domino_count(shape: Mapping[str, Any]) -> int:
+    """Number of dominoes of a DominoRun's shape parameters."""
+    if "poses" in shape:
+        return len(shape["poses"])
+    if "count" in shape:
+        return int(shape["count"])
+    points = np.asarray(shape["path"], dtype=float)
+    length = float(np.sum(np.linalg.norm(np.diff(points, axis=0), axis=1)))
+    return int(math.floor(length / shape["spacing"] + 1e-9)) + 1
+
+
+@dataclass(frozen=True)
+class EventSpec:
+    """One event of the causal graph."""
+
+    name: str
+    type: str
+    params: Mapping[str, Any]
+    after: tuple[str, ...]
+    join: str
+    timeout: float
+    duration: float
+    label: str
+    index: int = 0
+
+
+@dataclass(frozen=True)
+class Settings:
+    """Simulation settings of a scenario."""
+
+    time_step: float = 1.0 / 500.0
+    event_timeout: float = 2.0
+    max_duration: float = 4.0
+    gravity: float = -9.81
+    solver_iterations: int = 50
+    overlap_tolerance: float = 0.05
+    ignore_overlap: tuple[tuple[str, str], ...] = ()
+
+
+def content_hash(top: Mapping[str, Any]) -> str:
+    """The sha256 of a scenario file's parsed content without its ``layouts`` (a cache key for its results).
+
+    Layouts are points of the design space, not part of the contraption: adding one must not invalidate what was
+    computed for the scenario. The JSON is canonical (sorted keys, no spaces), so TOML and JSON files with the same
+    content hash the same.
+    """
+    hashed = {k: v for k, v in top.items() if k != "layouts"}
+    canonical = json.dumps(hashed, sort_keys=True, separators=(",", ":"), ensure_ascii=True, default=str)
+    return hashlib.sha256(canonical.encode("ascii")).hexdigest()
+
+
+@dataclass(frozen=True, eq=False)
+class Scenario:
+    """A loaded, validated scenario: scene (objects), causal graph (events) and design space."""
+
+    name: str
+    description: str
+    settings: Settings
+    objects: tuple[ObjectSpec, ...]
+    event_specs: tuple[EventSpec, ...]
+    design_space: DesignSpace
+    layouts: Mapping[str, np.ndarray]
+    content_hash: str
+    source: str = "<data>"
+
+    @property
+    def events(self) -> tuple[str, ...]:
+        """Event names in file order."""
+        return tuple(e.name for e in self.event_specs)
+
+    @property
+    def root(self) -> str:
+        return next(e.name for e in self.event_specs if not e.after)
+
+    @property
+    def edges(self) -> list[tuple[str, str]]:
+        return [(parent, e.name) for e in self.event_specs for parent in e.after]
+
+    def children(self, event: str) -> list[str]:
+        return [e.name for e in self.event_specs if event in e.after]
+
+    def leaves(self) -> list[str]:
+        parents = {p for e in self.event_specs for p in e.after}
+        return [e.name for e in self.event_specs if e.name not in parents]
+
+    def object(self, name: str) -> ObjectSpec:
+        for obj in self.objects:
+            if obj.name == name:
+                return obj
+        raise KeyError(name)
+
+    def event(self, name: str) -> EventSpec:
+        for event in self.event_specs:
+            if event.name == name:
+                return event
+        raise KeyError(name)
+
+    def default_layout(self) -> np.ndarray:
+        return self.design_space.default.copy()
+
+    def layout(self, name: str) -> np.ndarray:
+        """A named layout of the file (e.g. ``"success"``), as a vector in real units."""
+        if name not in self.layouts:
+            raise LayoutError(f"{self.source}: no layout named {name!r}; the file has {sorted(self.layouts)}")
+        return np.array(self.layouts[name], dtype=float)
+
+    def transforms(self, x=None) -> dict[str, Transform]:
+        """The transform of every object (relative to its parent) for the layout ``x`` (default layout if None)."""
+        x = self.default_layout() if x is None else self.design_space.check_bounds(x)
+        values = dict(zip(self.design_space.names, np.asarray(x, dtype=float).tolist()))
+        result = {}
+        for obj in self.objects:
+            changes = {key: values[f"{obj.name}.{key}"] for key in TRANSFORM_KEYS if f"{obj.name}.{key}" in values}
+            result[obj.name] = obj.transform.replace(**changes) if changes else obj.transform
+        return result

@@ -1,0 +1,353 @@
+"""Reading a scenario file: parsing TOML or JSON, then every table and field against the schema.
+
+:func:`load_scenario` and :func:`scenario_from_data` are the only ways in. The fields are read in file order with
+:class:`~design.contraption.fields.Checker`, so the first bad value stops the load with one line naming the file,
+the field's path and what was expected (``t.toml: objects[3].transform.heading: expected a number, got text
+('north')``); what needs the whole file (references, parents, the causal graph) is checked by
+:mod:`design.contraption.graph` once every object and event is read. This is hand-written rather than a pydantic
+model: most rules relate several fields (a range holds its transform's value, a DominoRun takes poses or a path,
+body references and the graph), and pydantic's messages need rewriting into this form (see the README).
+"""
+
+from __future__ import annotations
+
+import json
+import sys
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from design.contraption.design_space import DesignSpace, design_space_of
+from design.contraption.errors import ScenarioFormatError
+from design.contraption.fields import Checker, reject_constant
+from design.contraption.graph import check_event_graph, check_references, resolve_body_ref
+from design.contraption.model import EventSpec, ObjectSpec, Physics, Scenario, Settings, Tag, Transform, content_hash
+from design.contraption.schema import (
+    EVENT_COMMON,
+    EVENTS,
+    HEADER_KEYS,
+    NAME,
+    OBJECT_KEYS,
+    PHYSICS_KEYS,
+    PLANE_PHYSICS_KEYS,
+    PRIMITIVES,
+    SETTINGS_KEYS,
+    TAG_KEYS,
+    TOP_KEYS,
+    TRANSFORM_KEYS,
+    UNPLACED,
+    Kind,
+)
+
+if sys.version_info >= (3, 11):
+    import tomllib
+else:  # pragma: no cover
+    import tomli as tomllib
+
+
+def load_scenario(path: str | Path) -> Scenario:
+    """Load and validate a scenario file (``.toml`` or ``.json``).
+
+    Raises
+    ------
+    ScenarioFormatError
+        For any problem with the file's syntax or content; the message names the file, field and expectation.
+    FileNotFoundError
+        When the file does not exist.
+    """
+    path = Path(path)
+    file = str(path)
+    suffix = path.suffix.lower()
+    if suffix not in (".toml", ".json"):
+        raise ScenarioFormatError(file, "", f"expected a .toml or .json scenario file, got {suffix or 'no suffix'!r}")
+    raw = path.read_bytes()
+    data = parse_text(raw, file, suffix)
+    return scenario_from_data(data, file=file)
+
+
+def parse_text(raw: bytes, file: str, suffix: str) -> Any:
+    """Parse the bytes of a TOML or JSON file into plain data, raising :class:`ScenarioFormatError`."""
+    try:
+        text = raw.decode("utf-8")
+    except UnicodeDecodeError as error:
+        raise ScenarioFormatError(file, "", f"expected UTF-8 text ({error.reason} at byte {error.start})") from None
+    try:
+        if suffix == ".json":
+            return json.loads(text, parse_constant=reject_constant)
+        return tomllib.loads(text)
+    except tomllib.TOMLDecodeError as error:
+        raise ScenarioFormatError(file, "", f"expected valid TOML: {error}") from None
+    except json.JSONDecodeError as error:
+        raise ScenarioFormatError(file, "", f"expected valid JSON: {error}") from None
+    except (ValueError, RecursionError) as error:
+        raise ScenarioFormatError(file, "", f"expected valid {suffix[1:].upper()}: {error}") from None
+
+
+def scenario_from_data(data: Any, *, file: str = "<data>") -> Scenario:
+    """Validate parsed scenario data (the content of a TOML/JSON file) and build the :class:`Scenario`."""
+    check = Checker(file)
+    top = check.table(data, "")
+    check.only(top, "", TOP_KEYS)
+
+    header = check.table(top.get("scenario", {}), "scenario")
+    check.only(header, "scenario", HEADER_KEYS)
+    name = check.string(header["name"], "scenario.name") if "name" in header else Path(file).stem
+    description = check.string(header.get("description", ""), "scenario.description")
+
+    settings = _settings(check, top.get("settings", {}))
+    objects = _objects(check, top)
+    by_name = {o.name: o for o in objects}
+    for i, (a, b) in enumerate(settings.ignore_overlap):
+        for j, ref in enumerate((a, b)):
+            if ref not in by_name:
+                raise check.fail(f"settings.ignore_overlap[{i}][{j}]", f"unknown object {ref!r}")
+    check_references(check, objects, by_name)
+    events = _events(check, top, settings, by_name)
+    space = design_space_of(objects)
+    layouts = _layouts(check, top.get("layouts", {}), space)
+
+    return Scenario(
+        name=name,
+        description=description,
+        settings=settings,
+        objects=tuple(objects),
+        event_specs=tuple(events),
+        design_space=space,
+        layouts=layouts,
+        content_hash=content_hash(top),
+        source=file,
+    )
+
+
+def _settings(check: Checker, value: Any) -> Settings:
+    table = check.table(value, "settings")
+    check.only(table, "settings", SETTINGS_KEYS)
+    kwargs: dict[str, Any] = {}
+    for key in ("time_step", "event_timeout", "max_duration"):
+        if key in table:
+            kwargs[key] = check.number(table[key], f"settings.{key}", minimum=0.0, strict=True)
+    if "gravity" in table:
+        kwargs["gravity"] = check.number(table["gravity"], "settings.gravity")
+    if "solver_iterations" in table:
+        kwargs["solver_iterations"] = check.integer(table["solver_iterations"], "settings.solver_iterations")
+    if "overlap_tolerance" in table:
+        kwargs["overlap_tolerance"] = check.number(table["overlap_tolerance"], "settings.overlap_tolerance", minimum=0)
+    if "ignore_overlap" in table:
+        pairs = check.array(table["ignore_overlap"], "settings.ignore_overlap")
+        kwargs["ignore_overlap"] = tuple(
+            tuple(
+                check.string(v, f"settings.ignore_overlap[{i}][{j}]", pattern=NAME, what="an object name")
+                for j, v in enumerate(check.array(pair, f"settings.ignore_overlap[{i}]", min_len=2, max_len=2))
+            )
+            for i, pair in enumerate(pairs)
+        )
+    settings = Settings(**kwargs)
+    if settings.time_step > 0.05:
+        raise check.fail("settings.time_step", f"expected at most 0.05 s, got {settings.time_step:g}")
+    if settings.max_duration / settings.time_step > 1e6:
+        raise check.fail("settings.max_duration", "expected at most a million time steps (max_duration / time_step)")
+    return settings
+
+
+def _objects(check: Checker, top: dict) -> list[ObjectSpec]:
+    if "objects" not in top:
+        raise check.fail("objects", "missing; expected an array of object tables ([[objects]])")
+    items = check.array(top["objects"], "objects", min_len=1)
+    objects: list[ObjectSpec] = []
+    seen: set[str] = set()
+    for i, item in enumerate(items):
+        path = f"objects[{i}]"
+        table = check.table(item, path)
+        check.only(table, path, OBJECT_KEYS)
+        sleeping = check.boolean(table["sleeping"], f"{path}.sleeping") if "sleeping" in table else None
+        if "name" not in table:
+            raise check.fail(f"{path}.name", "missing; expected an object name")
+        name = check.string(table["name"], f"{path}.name", pattern=NAME, what="a name of letters, digits, _ or -")
+        if name in seen:
+            raise check.fail(f"{path}.name", f"expected a unique name, {name!r} is used twice")
+        seen.add(name)
+        if "type" not in table:
+            raise check.fail(f"{path}.type", f"missing; expected one of {', '.join(PRIMITIVES)}")
+        kind = check.string(table["type"], f"{path}.type")
+        if kind not in PRIMITIVES:
+            raise check.fail(f"{path}.type", f"expected one of {', '.join(PRIMITIVES)}, got {kind!r}")
+        parent = None
+        if "parent" in table:
+            parent = check.string(table["parent"], f"{path}.parent", pattern=NAME, what="an object name")
+        transform_table = check.table(table.get("transform", {}), f"{path}.transform")
+        check.only(transform_table, f"{path}.transform", TRANSFORM_KEYS)
+        transform = Transform(
+            **{k: check.number(v, f"{path}.transform.{k}") for k, v in transform_table.items()}
+        )
+        ranges_table = check.table(table.get("ranges", {}), f"{path}.ranges")
+        check.only(ranges_table, f"{path}.ranges", TRANSFORM_KEYS)
+        if ranges_table and kind in UNPLACED:
+            raise check.fail(f"{path}.ranges", f"a {kind} has no placement of its own; expected no ranges")
+        ranges: dict[str, tuple[float, float]] = {}
+        for key in TRANSFORM_KEYS:  # stable order, whatever the file's order
+            if key not in ranges_table:
+                continue
+            rpath = f"{path}.ranges.{key}"
+            lo, hi = check.vector(ranges_table[key], rpath, 2)
+            if not lo < hi:
+                raise check.fail(rpath, f"expected [min, max] with min < max, got [{lo:g}, {hi:g}]")
+            value = getattr(transform, key)
+            if not lo <= value <= hi:
+                raise check.fail(
+                    f"{path}.transform.{key}",
+                    f"expected a value inside its range [{lo:g}, {hi:g}] (the default layout), got {value:g}",
+                )
+            ranges[key] = (lo, hi)
+        schema = PRIMITIVES[kind].params
+        shape_table = check.table(table.get("shape", {}), f"{path}.shape")
+        check.only(shape_table, f"{path}.shape", tuple(schema))
+        shape = check.params(schema, shape_table, f"{path}.shape")
+        _check_shape(check, kind, shape, f"{path}.shape")
+        physics_table = check.table(table.get("physics", {}), f"{path}.physics")
+        if kind == "Plane":
+            allowed = PLANE_PHYSICS_KEYS
+        else:
+            allowed = PHYSICS_KEYS if PRIMITIVES[kind].body else ()
+        check.only(physics_table, f"{path}.physics", allowed)
+        physics = Physics(
+            **{k: check.number(v, f"{path}.physics.{k}", minimum=0.0) for k, v in physics_table.items()}
+        )
+        tag = None
+        if "tag" in table:
+            tag_table = check.table(table["tag"], f"{path}.tag")
+            check.only(tag_table, f"{path}.tag", TAG_KEYS)
+            if "id" not in tag_table:
+                raise check.fail(f"{path}.tag.id", "missing; expected an AprilTag id (integer >= 0)")
+            tag = Tag(
+                id=check.integer(tag_table["id"], f"{path}.tag.id", minimum=0),
+                **{
+                    k: check.number(tag_table[k], f"{path}.tag.{k}", minimum=0.0 if k == "size" else None,
+                                    strict=k == "size")
+                    for k in ("x", "y", "z", "size")
+                    if k in tag_table
+                },
+            )
+        objects.append(
+            ObjectSpec(
+                name=name,
+                type=kind,
+                transform=transform,
+                parent=parent,
+                ranges=ranges,
+                shape=shape,
+                physics=physics,
+                tag=tag,
+                index=i,
+                sleeping=sleeping,
+            )
+        )
+    return objects
+
+
+def _check_shape(check: Checker, kind: str, shape: dict, path: str) -> None:
+    if kind == "Goblet":
+        if shape["thickness"] >= min(shape["radius_top"], shape["radius_bottom"]):
+            raise check.fail(f"{path}.thickness", "expected a wall thinner than the smaller radius")
+        if shape["sides"] < 3:
+            raise check.fail(f"{path}.sides", f"expected an integer >= 3, got {shape['sides']}")
+    elif kind == "Track":
+        if 2 * shape["wall_thickness"] >= shape["width"] or shape["wall_thickness"] >= shape["height"] + 1e-12:
+            raise check.fail(f"{path}.wall_thickness", "expected walls thinner than half the width and the height")
+    elif kind == "OpenBox":
+        size = shape["size"]
+        if 2 * shape["thickness"] >= min(size[0], size[1]) or shape["thickness"] >= size[2]:
+            raise check.fail(f"{path}.thickness", "expected walls thinner than half the size")
+    elif kind == "DominoRun":
+        has_poses = "poses" in shape
+        has_path = "path" in shape
+        if has_poses == has_path:
+            raise check.fail(path, "expected exactly one of 'poses' or 'path' (with 'spacing' or 'count')")
+        if has_path and ("spacing" in shape) == ("count" in shape):
+            raise check.fail(f"{path}.spacing", "expected exactly one of 'spacing' or 'count' with a 'path'")
+        if has_poses and ("spacing" in shape or "count" in shape):
+            raise check.fail(path, "'spacing' and 'count' only go with a 'path'")
+        if has_path and shape.get("count", 2) < 2:
+            raise check.fail(f"{path}.count", "expected at least 2 dominoes along a path")
+        if has_path:
+            points = np.asarray(shape["path"], dtype=float)
+            lengths = np.linalg.norm(np.diff(points, axis=0), axis=1)
+            if np.any(lengths <= 1e-9):
+                i = int(np.argmax(lengths <= 1e-9))
+                raise check.fail(f"{path}.path[{i + 1}]", "expected a point distinct from the previous one")
+    elif kind == "Pivot":
+        if "other" in shape and shape["other"] == shape["body"]:
+            raise check.fail(f"{path}.other", "expected a body other than 'body' (or none: the world)")
+    elif kind == "Fastener":
+        if len(shape["bodies"]) == 2 and shape["bodies"][0] == shape["bodies"][1]:
+            raise check.fail(f"{path}.bodies", "expected two different bodies (or one: fastened to the world)")
+    elif kind in ("TensionRope", "RopePulley"):
+        if shape["ends"][0] == shape["ends"][1]:
+            raise check.fail(f"{path}.ends", "expected two different bodies")
+
+
+def _events(check: Checker, top: dict, settings: Settings, by_name: dict[str, ObjectSpec]) -> list[EventSpec]:
+    if "events" not in top:
+        raise check.fail("events", "missing; expected an array of event tables ([[events]])")
+    items = check.array(top["events"], "events", min_len=1)
+    events: list[EventSpec] = []
+    names: set[str] = set()
+    for i, item in enumerate(items):
+        path = f"events[{i}]"
+        table = check.table(item, path)
+        if "name" not in table:
+            raise check.fail(f"{path}.name", "missing; expected an event name")
+        name = check.string(table["name"], f"{path}.name", pattern=NAME, what="a name of letters, digits, _ or -")
+        if name in names:
+            raise check.fail(f"{path}.name", f"expected a unique name, {name!r} is used twice")
+        names.add(name)
+        if "type" not in table:
+            raise check.fail(f"{path}.type", f"missing; expected one of {', '.join(EVENTS)}")
+        kind = check.string(table["type"], f"{path}.type")
+        if kind not in EVENTS:
+            raise check.fail(f"{path}.type", f"expected one of {', '.join(EVENTS)}, got {kind!r}")
+        schema = EVENTS[kind]
+        check.only(table, path, EVENT_COMMON + tuple(schema))
+        params = check.params(schema, {k: v for k, v in table.items() if k in schema}, path)
+        for key, (kind_, _d) in schema.items():
+            if kind_ is Kind.BODY and key in params:
+                resolve_body_ref(check, f"{path}.{key}", params[key], by_name)
+        after = tuple(
+            check.string(v, f"{path}.after[{j}]", pattern=NAME, what="an event name")
+            for j, v in enumerate(check.array(table.get("after", []), f"{path}.after"))
+        )
+        if len(set(after)) != len(after):
+            raise check.fail(f"{path}.after", "expected each parent event once")
+        join = check.string(table.get("join", "all"), f"{path}.join")
+        if join not in ("all", "any"):
+            raise check.fail(f"{path}.join", f'expected "all" or "any", got {join!r}')
+        timeout = check.number(table.get("timeout", settings.event_timeout), f"{path}.timeout", minimum=0, strict=True)
+        duration = check.number(table.get("duration", 0.0), f"{path}.duration", minimum=0.0)
+        label = check.string(table.get("label", name.replace("_", " ")), f"{path}.label")
+        events.append(EventSpec(name, kind, params, after, join, timeout, duration, label, index=i))
+    check_event_graph(check, events)
+    return events
+
+
+def _layouts(check: Checker, value: Any, space: DesignSpace) -> dict[str, np.ndarray]:
+    table = check.table(value, "layouts")
+    layouts = {}
+    for name, entry in table.items():
+        path = f"layouts.{name}"
+        values = check.table(entry, path)
+        numbers = {}
+        for key, v in values.items():
+            if key not in space.names:
+                raise check.fail(
+                    f"{path}.{key}", f"unknown design parameter; expected one of {', '.join(space.names) or 'none'}"
+                )
+            numbers[key] = check.number(v, f'{path}."{key}"')
+            i = space.names.index(key)
+            if not space.lower[i] <= numbers[key] <= space.upper[i]:
+                raise check.fail(
+                    f'{path}."{key}"',
+                    f"expected a value in [{space.lower[i]:g}, {space.upper[i]:g}], got {numbers[key]:g}",
+                )
+        layouts[name] = space.vector(numbers)
+    return layouts
+
