@@ -486,7 +486,7 @@ class DrawingMachine:
                 try:
                     self.validate({name: float(a[index]) for name, a in P.items()})
                 except Exception as error:
-                    raise type(error)(f"row {index}: {error}") from None
+                    raise _prefixed(error, f"row {index}: ") from None
         return P
 
     def sample(self, params: Mapping[str, Any] | None = None, n: int = 1024, spacing: Spacing = "time") -> np.ndarray:
@@ -889,3 +889,16 @@ __all__ = [
     "rotate",
     "shapes_to_jsonable",
 ]
+
+
+def _prefixed(error: Exception, prefix: str) -> Exception:
+    """A copy of ``error`` whose message starts with ``prefix``, of the same type and with the same attributes.
+
+    Rebuilding it as ``type(error)(message)`` would lose what the constructor sets besides the message
+    (``ConstraintViolation.constraint`` and ``.margin``) and fails for errors whose constructor takes more than a
+    message, so the copy is made without calling the constructor.
+    """
+    copied = type(error).__new__(type(error))
+    copied.__dict__.update(error.__dict__)
+    copied.args = (prefix + str(error),)
+    return copied
