@@ -55,7 +55,9 @@ class LineKeepingFormatter(argparse.HelpFormatter):
         for line in text.splitlines():
             stripped = line.lstrip()
             inner = indent + line[: len(line) - len(stripped)]
-            lines.append(textwrap.fill(stripped, width, initial_indent=inner, subsequent_indent=inner + "  ")
+            # A wrapped example line is indented further, so that it reads as one command.
+            follow = inner + "  " if inner != indent else inner
+            lines.append(textwrap.fill(stripped, width, initial_indent=inner, subsequent_indent=follow)
                          if stripped else "")
         return "\n".join(lines)
 

@@ -159,3 +159,23 @@ def check_output_folder(path: str | Path, option: str = "--out", contents: str =
     if not os.access(existing, os.W_OK | os.X_OK):
         raise UsageError(f"{option} {str(path)!r}: cannot write in {str(existing)!r} (permission denied)")
     return path
+
+
+def check_output_file(path: str | Path, suffixes: set[str], option: str) -> Path:
+    """``path`` as an output file of ``option``, refused before any work if it cannot be written at the end.
+
+    A run takes minutes to hours; a missing folder, a folder given as the file, a wrong suffix or a folder one may
+    not write in must not be found only when the result is ready.
+    """
+    path = Path(path)
+    output_suffix(path, suffixes)
+    folder = path.parent
+    if path.is_dir():
+        raise UsageError(f"{option} {path}: is a folder; expected a file name ending in {', '.join(sorted(suffixes))}")
+    if not folder.exists():
+        raise UsageError(f"{option} {path}: the folder {folder} does not exist (create it first, or choose another)")
+    if not folder.is_dir():
+        raise UsageError(f"{option} {path}: {folder} is not a folder")
+    if not os.access(folder, os.W_OK | os.X_OK) or (path.exists() and not os.access(path, os.W_OK)):
+        raise UsageError(f"{option} {path}: cannot write there (permission denied)")
+    return path

@@ -16,7 +16,7 @@ Public API (used by the robust-layout helper and the station)::
         results = [sim.run(x) for x in layouts]
 """
 
-import importlib
+from design.lazy import lazy_exports
 
 # Names are imported on first use (PEP 562), so ``design.contraption.catalog`` or ``.errors`` can be imported
 # without pybullet and scipy: the CLI builds its parser (and answers --help) without loading the simulator.
@@ -32,21 +32,7 @@ _SOURCES = {
         "ValidityProblem", "check_validity", "clearances", "simulate",
     ),
 }
-_MODULE_OF = {name: module for module, names in _SOURCES.items() for name in names}
-
-
-def __getattr__(name: str):
-    module = _MODULE_OF.get(name)
-    if module is None:
-        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-    value = getattr(importlib.import_module(f"{__name__}.{module}"), name)
-    globals()[name] = value
-    return value
-
-
-def __dir__() -> list[str]:
-    return sorted(set(globals()) | set(_MODULE_OF))
-
+__getattr__, __dir__, _MODULE_OF = lazy_exports(__name__, _SOURCES)
 
 __all__ = [
     "ASLEEP",

@@ -3,26 +3,23 @@
 Thesis 3.6.3: laser-cut the precision-critical flat parts (gears, arms, plates), buy or print the connectors.
 """
 
-from design.fabrication.export import render_png, sheet_paths, write_svg
-from design.fabrication.gears import (
-    Gear,
-    GearSettings,
-    elliptic_gear,
-    external_gear,
-    min_teeth_without_undercut,
-    ring_gear,
-    teeth_per_unit,
-)
-from design.fabrication.nesting import (
-    Placement,
-    Sheet,
-    check_sizes_fit,
-    kerf_compensate,
-    largest_fitting_scale,
-    nest_parts,
-    nest_sheets,
-)
-from design.fabrication.parts import FABRICABLE_MACHINES, Hardware, Part, PartSize, machine_parts, part_sizes
+from design.lazy import lazy_exports
+
+# Imported on first use: the CLI's parser needs FABRICABLE_MACHINES, not shapely and scipy.
+_SOURCES = {
+    "catalog": ("FABRICABLE_MACHINES",),
+    "export": ("render_png", "sheet_paths", "write_svg"),
+    "gears": (
+        "Gear", "GearSettings", "elliptic_gear", "external_gear", "min_teeth_without_undercut", "ring_gear",
+        "teeth_per_unit",
+    ),
+    "nesting": (
+        "Placement", "Sheet", "check_sizes_fit", "kerf_compensate", "largest_fitting_scale", "nest_parts",
+        "nest_sheets",
+    ),
+    "parts": ("Hardware", "Part", "PartSize", "machine_parts", "part_sizes"),
+}
+__getattr__, __dir__, _MODULE_OF = lazy_exports(__name__, _SOURCES)
 
 __all__ = [
     "FABRICABLE_MACHINES",

@@ -33,6 +33,7 @@ import shapely.affinity as affinity
 from shapely.geometry import LineString, MultiPoint, Point, Polygon, box
 
 from design.errors import ConstraintViolation, parameter_error
+from design.fabrication.catalog import FABRICABLE_MACHINES
 from design.fabrication.gears import (
     Gear,
     GearSettings,
@@ -46,7 +47,6 @@ from design.fabrication.labels import place_label
 
 __all__ = ["Hardware", "Part", "PartSize", "machine_parts", "part_sizes", "FABRICABLE_MACHINES"]
 
-FABRICABLE_MACHINES = ("spirograph", "elliptic_spirograph", "cycloid_drawing_machine", "hoot_nanny")
 
 
 @dataclass(frozen=True)

@@ -6,21 +6,21 @@ Everything works in the normalized design space through the small :class:`~desig
 protocol; :mod:`design.robust.contraption` adapts the contraption simulation core to it.
 """
 
-from design.robust.baselines import BaselineResult, baseline_b1, baseline_b2, baseline_b3
-from design.robust.executor import SimulationCache, SimulationCancelled, SimulationExecutor
-from design.robust.optimize import optimize_layout, smooth_minimum
-from design.robust.pipeline import (
-    METHODS,
-    Comparison,
-    Progress,
-    RobustLayout,
-    compare_methods,
-    optimize_robust_layout,
-)
-from design.robust.problem import LayoutProblem, RobustError, SyntheticProblem, synthetic_branching, synthetic_chain
-from design.robust.psp import CalibratedSVM, FactorizedPSP, explore
-from design.robust.robustness import RobustnessCurve, evaluation_layouts, evaluation_set, robustness_curve
-from design.robust.settings import PSPSettings, RobustnessSettings
+from design.lazy import lazy_exports
+
+# Names are imported on first use (PEP 562): ``design.robust.settings`` loads without scikit-learn, scipy and
+# pybullet, so the CLI builds its parser (and answers --help) at once.
+_SOURCES = {
+    "baselines": ("BaselineResult", "baseline_b1", "baseline_b2", "baseline_b3"),
+    "executor": ("SimulationCache", "SimulationCancelled", "SimulationExecutor"),
+    "optimize": ("optimize_layout", "smooth_minimum"),
+    "pipeline": ("Comparison", "Progress", "RobustLayout", "compare_methods", "optimize_robust_layout"),
+    "problem": ("LayoutProblem", "RobustError", "SyntheticProblem", "synthetic_branching", "synthetic_chain"),
+    "psp": ("CalibratedSVM", "FactorizedPSP", "explore"),
+    "robustness": ("RobustnessCurve", "evaluation_layouts", "evaluation_set", "robustness_curve"),
+    "settings": ("METHODS", "PSPSettings", "RobustnessSettings"),
+}
+__getattr__, __dir__, _MODULE_OF = lazy_exports(__name__, _SOURCES)
 
 __all__ = [
     "METHODS", "BaselineResult", "CalibratedSVM", "Comparison", "FactorizedPSP", "LayoutProblem", "PSPSettings",

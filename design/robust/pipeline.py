@@ -29,9 +29,7 @@ from design.robust.robustness import (
     robustness_curve,
 )
 from design.robust.sampling import sobol_valid, valid_in_ball
-from design.robust.settings import PSPSettings, RobustnessSettings
-
-METHODS = ("ours", "b1", "b2", "b3")
+from design.robust.settings import METHODS, PSPSettings, RobustnessSettings
 
 
 @dataclass(frozen=True)

@@ -7,6 +7,9 @@ from dataclasses import dataclass, fields, replace
 
 from design.robust.problem import RobustError
 
+#: The layout methods of thesis Table 4.2: ours (PSP + optimization) and the baselines B1-B3.
+METHODS = ("ours", "b1", "b2", "b3")
+
 
 @dataclass(frozen=True)
 class PSPSettings:

@@ -8,7 +8,7 @@ import sys
 from design.contraption.catalog import example_names, resolve_scenario_path
 from design.contraption.layout_io import LoadedLayout, default_layout, resolve_layout, values_layout
 from design.contraption.scenario import Scenario, load_scenario
-from station.cli_util import emit_json
+from station.cli_util import check_output_file, emit_json
 from station.errors import UsageError
 
 
@@ -98,8 +98,6 @@ def report_layout(layout: LoadedLayout, stream=None) -> None:
 def run_simulate(args) -> int:
     if args.render:
         # Refused now, not after the simulation: the render is what the user waits for.
-        from station.commands.robust import check_output_file
-
         check_output_file(args.render, {".png"}, "--render")
     scenario = _load(args.scenario)
     layout = parse_layout(args, scenario)

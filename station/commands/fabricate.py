@@ -277,7 +277,7 @@ def write_outputs(result: FabricationResult, out: Path) -> dict[str, Path]:
 
 
 def register(subparsers) -> None:
-    from design.fabrication import FABRICABLE_MACHINES
+    from design.fabrication.catalog import FABRICABLE_MACHINES
 
     parser = subparsers.add_parser(
         "fabricate",

@@ -9,38 +9,29 @@ from __future__ import annotations
 import functools
 import json
 import math
-import os
 import signal
 import sys
 import threading
 import time
 from collections.abc import Callable
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from design.errors import FileFormatError
-from design.robust import (
-    METHODS,
-    Progress,
-    PSPSettings,
-    RobustError,
-    RobustnessSettings,
-    SimulationCancelled,
-    SimulationExecutor,
-    compare_methods,
-    evaluation_layouts,
-    evaluation_set,
-    optimize_robust_layout,
-    robustness_curve,
-)
-from design.robust.executor import SchedulerUnreachable
-from design.robust.pipeline import BudgetedOracle
-from design.robust.plot import plot_robustness
-from design.robust.robustness import local_layouts
-from station.cli_util import emit_json, output_suffix
+from design.robust.problem import RobustError
+from design.robust.settings import METHODS, PSPSettings, RobustnessSettings
+from station.cli_util import check_output_file, emit_json
 from station.errors import UsageError
 from station.paths import cache_dir
+
+if TYPE_CHECKING:
+    from design.robust.executor import SimulationExecutor
+    from design.robust.pipeline import Progress
+
+# The work (scikit-learn, scipy, pybullet, Dask) is imported by the commands that run it, so that building the
+# parser (every `station` call, --help included) stays light.
 
 #: Simulation budgets measured by the thesis for its own method (Table 4.1), used as the default budget.
 THESIS_BUDGETS = {"CAUSALITYSWITCH": 614, "BALLRUN": 1120, "LONGCHAIN": 1915, "TEAPOTADVENTURE": 2420}
@@ -210,29 +201,11 @@ def _check_seed(seed: int) -> None:
         raise UsageError(f"--seed must be a non-negative integer, got {seed}")
 
 
-def check_output_file(path: str | Path, suffixes: set[str], option: str) -> Path:
-    """``path`` as an output file of ``option``, refused before any work if it cannot be written at the end.
-
-    A run takes minutes to hours; a missing folder, a folder given as the file, a wrong suffix or a folder one may
-    not write in must not be found only when the result is ready.
-    """
-    path = Path(path)
-    output_suffix(path, suffixes)
-    folder = path.parent
-    if path.is_dir():
-        raise UsageError(f"{option} {path}: is a folder; expected a file name ending in {', '.join(sorted(suffixes))}")
-    if not folder.exists():
-        raise UsageError(f"{option} {path}: the folder {folder} does not exist (create it first, or choose another)")
-    if not folder.is_dir():
-        raise UsageError(f"{option} {path}: {folder} is not a folder")
-    if not os.access(folder, os.W_OK | os.X_OK) or (path.exists() and not os.access(path, os.W_OK)):
-        raise UsageError(f"{option} {path}: cannot write there (permission denied)")
-    return path
-
-
 def _executor(problem, args) -> SimulationExecutor:
     """The executor of a command, its Dask scheduler (``--scheduler``) already reached: a wrong address is one line
     within seconds, before any work."""
+    from design.robust.executor import SchedulerUnreachable, SimulationExecutor
+
     _positive(args.workers, "--workers")
     executor = SimulationExecutor(problem, workers=args.workers, scheduler=args.scheduler,
                                   cache_path=simulation_cache_path(), chunk_size=1)
@@ -311,6 +284,8 @@ def _stopped(error: BaseException, bar: ProgressBar, executor: SimulationExecuto
     """What to raise when a command's work ended with ``error``, KeyboardInterrupt or the executor's
     SimulationCancelled: a stop by Ctrl-C or SIGTERM closes the bar, says what the cache keeps and becomes
     KeyboardInterrupt for ``main`` (exit 130); anything else is raised as it is."""
+    from design.robust.executor import SimulationCancelled
+
     if isinstance(error, SimulationCancelled) and not stop.is_set():
         return error
     bar.close()
@@ -334,6 +309,9 @@ def register(subparsers) -> None:
         "optimize", help="find a robust layout of a contraption scenario (PSP + optimization, thesis 4.5-4.7)",
         description="Learn the parametric success probability of a scenario from simulations and optimize its "
         "layout; writes LAYOUT.json (content hash, parameters real and normalized, predicted probabilities).",
+        epilog="examples:\n"
+        "  station optimize examples/scenarios/simple.toml --budget 40 --seed 1 --out layout.json\n"
+        "  station optimize ballrun --settings thesis --workers 2 --out ballrun-layout.json",
     )
     add_common(optimize)
     optimize.add_argument("--out", required=True, metavar="LAYOUT.json", help="output layout file")
@@ -349,9 +327,17 @@ def register(subparsers) -> None:
 
     robustness = subparsers.add_parser(
         "robustness", help="local robustness curve ρ_l and global robustness ρ_g of a layout (thesis 4.8.3)",
+        description="Measure how robust a layout is (thesis 4.8.3): simulate --local N layouts in balls around it "
+        "and a Sobol evaluation set of --eval N layouts over the design space, then print the local robustness "
+        "curve ρ_l(ε) (success rate within a normalized distance ε) and the global robustness ρ_g. Simulations are "
+        "cached, so a second run of the same layout is quick. It says up front how many simulations it needs.",
+        epilog="examples:\n"
+        "  station robustness examples/scenarios/simple.toml layout.json --eval 128 --local 10\n"
+        "  station robustness ballrun layout.json --plot rho.png --json",
     )
-    robustness.add_argument("scenario", help="scenario file")
-    robustness.add_argument("layout", help="LAYOUT.json written by `station optimize`")
+    robustness.add_argument("scenario", help="a scenario file (.toml/.json) or an example name")
+    robustness.add_argument("layout", help="a layout file (the LAYOUT.json of `station optimize`, {\"x\": [...]} or "
+                            "{\"parameters\": {...}}) or a layout named in the scenario")
     robustness.add_argument("--eval", type=int, default=RobustnessSettings().n_evaluation, metavar="N",
                             help="size of the Sobol evaluation set (default %(default)s)")
     robustness.add_argument("--local", type=int, default=RobustnessSettings().n_local, metavar="N",
@@ -365,6 +351,12 @@ def register(subparsers) -> None:
 
     compare = subparsers.add_parser(
         "compare", help="ours vs baselines B1-B3 at the same simulation budget (thesis Table 4.2, Figure 4.18)",
+        description="Run our method and the baselines B1-B3 of thesis 4.8.3 on one scenario over --runs seeds at "
+        "the same simulation budget, and print each method's global robustness ρ_g (mean and standard error), "
+        "simulations and time; each run is reported as it ends, so a stopped comparison keeps its figures.",
+        epilog="examples:\n"
+        "  station compare simple --runs 3 --budget 60 --eval 128 --local 10\n"
+        "  station compare causalityswitch_ball --seed 10 --runs 5 --plot curves.png --json",
     )
     add_common(compare)
     compare.add_argument("--methods", default=",".join(METHODS), help="comma-separated among ours,b1,b2,b3")
@@ -443,6 +435,9 @@ def settings_of_layout(path: str) -> PSPSettings:
 
 @stoppable
 def run_optimize(args) -> int:
+    from design.robust.executor import SimulationCancelled
+    from design.robust.pipeline import optimize_robust_layout
+
     _check_seed(args.seed)
     out = check_output_file(args.out, {".json"}, "--out")
     problem = _load_problem(args.scenario)
@@ -507,6 +502,11 @@ def read_layout(path: str, problem):
 
 @stoppable
 def run_robustness(args) -> int:
+    from design.robust.executor import SimulationCancelled
+    from design.robust.pipeline import BudgetedOracle, Progress
+    from design.robust.plot import plot_robustness
+    from design.robust.robustness import evaluation_layouts, evaluation_set, local_layouts, robustness_curve
+
     _check_seed(args.seed)
     _positive(args.eval, "--eval")
     if args.plot:
@@ -567,6 +567,10 @@ def run_robustness(args) -> int:
 
 @stoppable
 def run_compare(args) -> int:
+    from design.robust.executor import SimulationCancelled
+    from design.robust.pipeline import compare_methods
+    from design.robust.plot import plot_robustness
+
     methods = [m.strip().lower() for m in args.methods.split(",") if m.strip()]
     unknown = sorted(set(methods) - set(METHODS))
     if unknown or not methods:

@@ -156,11 +156,11 @@ def test_a_signal_asks_the_command_to_stop_at_its_next_safe_point():
 
 
 def test_sigterm_mid_work_is_a_request_not_an_exception_raised_there(tmp_path, capsys, monkeypatch):
-    import station.commands.robust as robust
+    import design.robust.robustness as robustness
     from station.cli import main
 
     raised_inside = []
-    draw = robust.evaluation_layouts
+    draw = robustness.evaluation_layouts
 
     def evaluation_layouts(problem, n, on_checked=None):
         def checked(n_checked, n_valid):
@@ -175,7 +175,8 @@ def test_sigterm_mid_work_is_a_request_not_an_exception_raised_there(tmp_path, c
 
         return draw(problem, n, on_checked=checked)
 
-    monkeypatch.setattr(robust, "evaluation_layouts", evaluation_layouts)
+    # The command imports its work when it runs: patch where it imports it from.
+    monkeypatch.setattr("design.robust.robustness.evaluation_layouts", evaluation_layouts)
     layout = tmp_path / "layout.json"
     layout.write_text(json.dumps({"parameters": [{"name": n, "value": v} for n, v in
                                                  [("track.x", -0.06), ("track.z", 0.06), ("track.roll", 30.0)]]}))
