@@ -10,7 +10,6 @@ from __future__ import annotations
 
 import contextlib
 import dataclasses
-import json
 import sys
 import threading
 import time
@@ -19,6 +18,8 @@ from typing import Any
 
 import numpy as np
 
+from design.datafiles import load_json
+from design.errors import FileFormatError
 from drivers.errors import DeviceStateError, JobRefused
 from drivers.gcode import WriterOptions, clean_line, fit_polylines, simplify_polylines, write_plot_gcode
 from drivers.grbl import GrblConnection, Job, JobResult, JobRunner, frame_lines, list_ports
@@ -126,19 +127,18 @@ def pattern_polylines(args) -> tuple[list[np.ndarray], dict[str, Any]]:
         if args.set or args.design:
             raise UsageError("--set and --design apply to MACHINE, not to --pattern FILE.json")
         path = Path(args.pattern)
-        try:
-            document = json.loads(path.read_text(encoding="utf-8"))
-        except json.JSONDecodeError as error:
-            raise UsageError(f"--pattern {path}: not valid JSON ({error.msg} at line {error.lineno})") from None
+        # A bad file is a FileFormatError naming the file first, as for --design (not a usage error).
+        expected = "the JSON of `station pattern --json` with a 'points' list"
+        document = load_json(path, expected)
         if not isinstance(document, dict) or "points" not in document:
-            raise UsageError(f"--pattern {path}: expected the JSON of `station pattern --json` with a 'points' list")
+            raise FileFormatError(f"{path}: expected {expected}")
         try:
             points = np.asarray(document["points"], dtype=float)
         except (TypeError, ValueError):
-            raise UsageError(f"--pattern {path}: 'points' must be a list of [x, y] numbers") from None
+            raise FileFormatError(f"{path}: 'points' must be a list of [x, y] numbers") from None
         if points.ndim != 2 or points.shape[1] != 2 or len(points) < 2 or not np.all(np.isfinite(points)):
-            raise UsageError(f"--pattern {path}: 'points' must be at least two finite [x, y] pairs, "
-                             f"got shape {points.shape}")
+            raise FileFormatError(f"{path}: 'points' must be at least two finite [x, y] pairs, "
+                                  f"got shape {points.shape}")
         return [points], {"machine": document.get("machine", ""), "params": document.get("params", {})}
     if not args.machine:
         raise UsageError("give a drawing MACHINE (see `station machines`) or --pattern FILE.json")

@@ -1,0 +1,66 @@
+"""A bad JSON file is reported one way: FileFormatError, one line naming the file, the line and what was expected."""
+
+from __future__ import annotations
+
+import pytest
+
+from design.datafiles import load_json
+from design.errors import FileFormatError
+from station.cli import main
+
+#: Bad files and words their message must have (besides the file's name and "expected").
+BAD = {
+    "syntax.json": (b'{"points": [[0, 0],\n  [1 1]]}', "not valid JSON (Expecting ',' delimiter at line 2 column 6)"),
+    "latin.json": (b'{"name": "caf\xe9"}', "not UTF-8 text (invalid continuation byte at byte 13)"),
+    "deep.json": (b"[" * 100_000, "not valid JSON (nested too deeply to read)"),
+    "nan.json": (b'{"points": [[NaN, 0]]}', "not valid JSON (NaN is not a JSON number)"),
+    "empty.json": (b"", "not valid JSON (Expecting value at line 1 column 1)"),
+}
+
+
+@pytest.mark.parametrize("name", sorted(BAD))
+def test_load_json_raises_one_file_format_error(tmp_path, name):
+    raw, words = BAD[name]
+    path = tmp_path / name
+    path.write_bytes(raw)
+    with pytest.raises(FileFormatError) as info:
+        load_json(path, "a pattern")
+    message = str(info.value)
+    assert message == f"{path}: {words}; expected a pattern"
+    assert "\n" not in message
+
+
+def test_load_json_reads_json_and_lets_os_errors_through(tmp_path):
+    path = tmp_path / "ok.json"
+    path.write_text('{"points": [[0, 1.5]]}')
+    assert load_json(path, "x") == {"points": [[0, 1.5]]}
+    with pytest.raises(FileNotFoundError):
+        load_json(tmp_path / "missing.json", "x")
+
+
+@pytest.mark.parametrize("name", sorted(BAD))
+def test_plot_pattern_bad_file_is_one_line_exit_2(tmp_path, capsys, name):
+    # --pattern raised UsageError for bad JSON (FileFormatError for the same file given to --design), and a
+    # traceback for a file that is not UTF-8 or nested too deeply.
+    raw, words = BAD[name]
+    path = tmp_path / name
+    path.write_bytes(raw)
+    assert main(["plot", "--pattern", str(path)]) == 2
+    err = capsys.readouterr().err
+    assert err.strip().splitlines() == [f"station: error: {path}: {words}; expected the JSON of `station pattern "
+                                        "--json` with a 'points' list"]
+
+
+@pytest.mark.parametrize(
+    ("content", "words"),
+    [
+        ("[1, 2]", "expected the JSON of `station pattern --json` with a 'points' list"),
+        ('{"points": [[0, "a"]]}', "'points' must be a list of [x, y] numbers"),
+        ('{"points": [[0, 1]]}', "'points' must be at least two finite [x, y] pairs, got shape (1, 2)"),
+    ],
+)
+def test_plot_pattern_bad_content_names_the_file_first(tmp_path, capsys, content, words):
+    path = tmp_path / "p.json"
+    path.write_text(content)
+    assert main(["plot", "--pattern", str(path)]) == 2
+    assert capsys.readouterr().err.strip() == f"station: error: {path}: {words}"
