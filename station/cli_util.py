@@ -113,6 +113,8 @@ def load_design(path: str | Path, machine_name: str) -> dict[str, Any]:
         raise FileFormatError(f"{path}: not valid JSON ({error.msg} at line {error.lineno})") from None
     except UnicodeDecodeError:
         raise FileFormatError(f"{path}: not a UTF-8 text file") from None
+    except RecursionError:
+        raise FileFormatError(f"{path}: not valid JSON (nested too deeply to read)") from None
     if isinstance(document, list):
         ranked = [d for d in document if isinstance(d, dict) and d.get("machine") == machine_name]
         if not ranked:

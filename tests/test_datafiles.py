@@ -66,9 +66,7 @@ def test_plot_pattern_bad_content_names_the_file_first(tmp_path, capsys, content
     assert capsys.readouterr().err.strip() == f"station: error: {path}: {words}"
 
 
-# Readers outside this change that still let a deeply nested file escape as a RecursionError (a traceback): the fix
-# is to read with design.datafiles.load_json (or catch RecursionError); these turn into passes, then fail as XPASS.
-@pytest.mark.xfail(strict=True, raises=RecursionError, reason="station/cli_util.load_design uses json.loads directly")
+# A deeply nested file escaped these two readers as a RecursionError (a traceback).
 def test_design_file_nested_too_deeply_is_one_line(tmp_path, capsys):
     path = tmp_path / "deep.json"
     path.write_bytes(b"[" * 100_000)
@@ -76,7 +74,6 @@ def test_design_file_nested_too_deeply_is_one_line(tmp_path, capsys):
     assert "not valid JSON" in capsys.readouterr().err
 
 
-@pytest.mark.xfail(strict=True, raises=RecursionError, reason="design/sketch/strokes._load_json uses json.loads")
 def test_sketch_file_nested_too_deeply_is_a_file_format_error(tmp_path):
     from design.sketch.strokes import load_sketch
 

@@ -302,6 +302,8 @@ def _load_json(path: Path, symmetry: int | None, center: object) -> Sketch:
         raise SketchFileError(
             f"{path}: invalid JSON at line {error.lineno} column {error.colno}: {error.msg}"
         ) from None
+    except RecursionError:
+        raise SketchFileError(f"{path}: invalid JSON: arrays nested too deeply to read") from None
     file_symmetry: object = None
     file_center: object = None
     if isinstance(data, dict):
