@@ -3,7 +3,6 @@ before any gear is generated, with the largest scale that fits."""
 
 from __future__ import annotations
 
-import numpy as np
 import pytest
 
 from design.errors import ConstraintViolation, DesignError
@@ -15,27 +14,8 @@ from design.fabrication import (
     nest_parts,
     part_sizes,
 )
-from design.machines import get_machine
 
-
-def random_feasible_designs(name, count, seed):
-    """Feasible designs near the defaults (the turntable machines' feasible regions are small)."""
-    model = get_machine(name)
-    defaults = model.defaults()
-    rng = np.random.default_rng(seed)
-    designs = []
-    for _ in range(20000):
-        params = dict(defaults)
-        for p in model.parameters:
-            if p.kind == "discrete":
-                params[p.name] = int(np.clip(defaults[p.name] + rng.integers(-3, 4), p.lower, p.upper))
-            else:
-                params[p.name] = float(defaults[p.name] * rng.uniform(0.6, 1.4))
-        if model.is_feasible(params):
-            designs.append(params)
-            if len(designs) == count:
-                break
-    return designs
+from .conftest import random_feasible_designs
 
 
 def _box(part) -> tuple[float, float]:

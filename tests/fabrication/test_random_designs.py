@@ -4,32 +4,12 @@ from __future__ import annotations
 
 import itertools
 
-import numpy as np
 import pytest
 
 from design.errors import DesignError
 from design.fabrication import FABRICABLE_MACHINES, machine_parts, nest_parts
-from design.machines import get_machine
 
-
-def random_feasible_designs(name, count, seed):
-    """Designs near the defaults (the feasible regions of the turntable machines are small)."""
-    model = get_machine(name)
-    defaults = model.defaults()
-    rng = np.random.default_rng(seed)
-    designs = []
-    for _ in range(20000):
-        params = dict(defaults)
-        for p in model.parameters:
-            if p.kind == "discrete":
-                params[p.name] = int(np.clip(defaults[p.name] + rng.integers(-3, 4), p.lower, p.upper))
-            else:
-                params[p.name] = float(defaults[p.name] * rng.uniform(0.6, 1.4))
-        if model.is_feasible(params):
-            designs.append(params)
-        if len(designs) == count:
-            break
-    return designs
+from .conftest import random_feasible_designs
 
 
 @pytest.mark.slow
