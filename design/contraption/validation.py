@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import json
 import sys
+from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
@@ -150,6 +151,46 @@ def _settings(check: Checker, value: Any) -> Settings:
     return settings
 
 
+def _unique_name(check: Checker, table: dict, path: str, seen: set[str], missing: str) -> str:
+    """The required ``name`` of an object or event table, new among ``seen`` (and added to it).
+
+    Parameters
+    ----------
+    check : Checker
+        Reports a bad value as one line naming the field.
+    table : dict
+        The object or event table.
+    path : str
+        Where the table is in the file, e.g. ``objects[2]``.
+    seen : set of str
+        Names of the tables before this one (of the same section).
+    missing : str
+        What the message of a missing name says is expected, e.g. ``"an object name"``.
+
+    Returns
+    -------
+    str
+        The name.
+    """
+    if "name" not in table:
+        raise check.fail(f"{path}.name", f"missing; expected {missing}")
+    name = check.string(table["name"], f"{path}.name", pattern=NAME, what="a name of letters, digits, _ or -")
+    if name in seen:
+        raise check.fail(f"{path}.name", f"expected a unique name, {name!r} is used twice")
+    seen.add(name)
+    return name
+
+
+def _type_of(check: Checker, table: dict, path: str, types: Mapping[str, Any]) -> str:
+    """The required ``type`` of an object or event table, one of the keys of ``types`` (listed in their order)."""
+    if "type" not in table:
+        raise check.fail(f"{path}.type", f"missing; expected one of {', '.join(types)}")
+    kind = check.string(table["type"], f"{path}.type")
+    if kind not in types:
+        raise check.fail(f"{path}.type", f"expected one of {', '.join(types)}, got {kind!r}")
+    return kind
+
+
 def _objects(check: Checker, top: dict) -> list[ObjectSpec]:
     if "objects" not in top:
         raise check.fail("objects", "missing; expected an array of object tables ([[objects]])")
@@ -161,17 +202,8 @@ def _objects(check: Checker, top: dict) -> list[ObjectSpec]:
         table = check.table(item, path)
         check.only(table, path, OBJECT_KEYS)
         sleeping = check.boolean(table["sleeping"], f"{path}.sleeping") if "sleeping" in table else None
-        if "name" not in table:
-            raise check.fail(f"{path}.name", "missing; expected an object name")
-        name = check.string(table["name"], f"{path}.name", pattern=NAME, what="a name of letters, digits, _ or -")
-        if name in seen:
-            raise check.fail(f"{path}.name", f"expected a unique name, {name!r} is used twice")
-        seen.add(name)
-        if "type" not in table:
-            raise check.fail(f"{path}.type", f"missing; expected one of {', '.join(PRIMITIVES)}")
-        kind = check.string(table["type"], f"{path}.type")
-        if kind not in PRIMITIVES:
-            raise check.fail(f"{path}.type", f"expected one of {', '.join(PRIMITIVES)}, got {kind!r}")
+        name = _unique_name(check, table, path, seen, "an object name")
+        kind = _type_of(check, table, path, PRIMITIVES)
         parent = None
         if "parent" in table:
             parent = check.string(table["parent"], f"{path}.parent", pattern=NAME, what="an object name")
@@ -295,17 +327,8 @@ def _events(check: Checker, top: dict, settings: Settings, by_name: dict[str, Ob
     for i, item in enumerate(items):
         path = f"events[{i}]"
         table = check.table(item, path)
-        if "name" not in table:
-            raise check.fail(f"{path}.name", "missing; expected an event name")
-        name = check.string(table["name"], f"{path}.name", pattern=NAME, what="a name of letters, digits, _ or -")
-        if name in names:
-            raise check.fail(f"{path}.name", f"expected a unique name, {name!r} is used twice")
-        names.add(name)
-        if "type" not in table:
-            raise check.fail(f"{path}.type", f"missing; expected one of {', '.join(EVENTS)}")
-        kind = check.string(table["type"], f"{path}.type")
-        if kind not in EVENTS:
-            raise check.fail(f"{path}.type", f"expected one of {', '.join(EVENTS)}, got {kind!r}")
+        name = _unique_name(check, table, path, names, "an event name")
+        kind = _type_of(check, table, path, EVENTS)
         schema = EVENTS[kind]
         check.only(table, path, EVENT_COMMON + tuple(schema))
         params = check.params(schema, {k: v for k, v in table.items() if k in schema}, path)
