@@ -7,6 +7,8 @@ from textual.color import Color
 
 from station.tui.app import StationApp
 
+from .conftest import settle
+
 
 def _look(widget):
     styles = widget.styles
@@ -33,18 +35,11 @@ async def _assert_focus_visible(app, pilot, screen):
         assert not _shows_accent(blurred, accent), f"{widget} looks focused when it is not"
 
 
-async def _settle(app, pilot):
-    for _ in range(3):
-        await pilot.pause()
-        await app.workers.wait_for_complete()
-    await pilot.pause()
-
-
 async def test_focus_is_visible_on_the_explore_screen(tmp_path):
     app = StationApp(database=tmp_path / "t.sqlite3")
     async with app.run_test(size=(150, 45)) as pilot:
         await pilot.press("x")
-        await _settle(app, pilot)
+        await settle(app, pilot)
         screen = app.screen
         assert screen.name == "explore" and screen.explorer is not None
         await _assert_focus_visible(app, pilot, screen)
@@ -67,7 +62,7 @@ async def test_tab_goes_from_the_machine_choice_straight_to_the_sliders(tmp_path
     app = StationApp(database=tmp_path / "t.sqlite3")
     async with app.run_test(size=(140, 40)) as pilot:
         await pilot.press("d")
-        await _settle(app, pilot)
+        await settle(app, pilot)
         chain = list(app.screen.focus_chain)
         assert chain and not any(isinstance(widget, ScrollableContainer) for widget in chain)
         assert [type(widget).__name__ for widget in chain[1:]] == ["ParameterControl"] * (len(chain) - 1)

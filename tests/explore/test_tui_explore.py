@@ -10,12 +10,7 @@ from station.tui.app import StationApp
 from station.tui.widgets.explore_canvas import ExploreCanvas
 from station.tui.widgets.explore_slider import InvariantSlider
 
-
-async def settle(app, pilot):
-    for _ in range(3):
-        await pilot.pause()
-        await app.workers.wait_for_complete()
-    await pilot.pause()
+from ..conftest import settle
 
 
 async def test_explore_screen_full_session(tmp_path):
