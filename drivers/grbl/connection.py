@@ -6,7 +6,7 @@ Threads
   alarms, banners, status reports, push messages) and keeps a rolling log of the traffic;
 - a status thread writes ``?`` at most every ``poll_interval`` s (5 Hz by default) and runs the watchdogs: a lost
   ``ok`` (status shows the machine idle with empty planner and RX buffer while lines are still counted as pending)
-  and a silent or vanished port;
+  and a silent port (see below);
 - the calling thread streams lines (:meth:`GrblConnection.stream`) by character counting against GRBL's serial RX
   buffer (size from ``$I``), or send-response for what GRBL's interface rules require (``$`` commands, ``G10``,
   ``G28.1``, ``G30.1``).
@@ -14,6 +14,20 @@ Threads
 Real-time bytes (``?``, ``!``, ``~``, 0x18, 0x85, overrides) are written at once by :meth:`realtime`: G-code waits in
 this object's memory, never in the port, and at most one RX buffer of G-code (128 bytes) is ever in flight, so a
 real-time byte never waits behind queued G-code.
+
+A port that vanished (USB unplugged, a pty hung up, a socket closed) makes the OS fail a read or a write: that is
+reported at once. A port that stays open but goes silent (a hung controller, a dead cable) is found by the silence
+watchdog. GRBL answers ``?`` within one pass of its main loop (milliseconds: the serial interrupt sets a flag that
+``protocol_execute_realtime`` serves), except while it homes (``limits_go_home`` has "no time to run
+protocol_execute_realtime()": not a byte until the cycle ends, then one ``<Home|...>`` report) or writes its EEPROM
+(``$x=``, ``$N``, ``$I=``, ``$RST=``, ``G10``, ``G28.1``, ``G30.1``); the watchdog rests while such a line is in
+flight (its reply timeout still bounds it). Silence counts only from a ``?`` actually written, and only for the time
+this process was running: the watchdog's own thread wakes every ``poll_interval`` s, and a wake-up that came late
+(the host was loaded or descheduled, or a garbage collection held the interpreter: 0.3 s pauses are common in a
+busy Textual app) counts for at most one poll period, and not at all when the reader thread did not run since the
+last one (the reply may sit unread in the OS buffer). After ``silence_timeout`` s of such silence one more ``?``
+is sent as a probe; only if ``silence_grace`` more seconds of it pass, still without a byte and with nothing
+waiting in the port, does the port count as vanished.
 
 After any banner (power-up or reset) or alarm, the character counter is cleared; after an alarm, ``ok`` lines are
 ignored until the reset banner (the soft-limit line's ``ok`` arrives only after the reset). An ``ok`` is never
@@ -23,6 +37,7 @@ invented: a lost one stops the stream with a clear message.
 from __future__ import annotations
 
 import functools
+import re
 import threading
 import time
 from collections import deque
@@ -42,8 +57,10 @@ from drivers.grbl.protocol import (
     Ok,
     SettingLine,
     StatusReport,
+    VersionInfo,
     needs_sync,
     parse_line,
+    parse_version,
 )
 
 __all__ = ["GrblConnection", "LineResult", "StreamStopped", "open_port"]
@@ -88,7 +105,8 @@ class LineResult:
 class _Pending:
     result: LineResult
     nbytes: int
-    dwell: float
+    dwell: float  # G4: GRBL reports Idle with empty buffers meanwhile (the lost-ok watchdog allows for it)
+    busy: float = 0.0  # homing: GRBL answers nothing meanwhile (only the wait for the reply allows for it)
     done: threading.Event = field(default_factory=threading.Event)
 
 
@@ -107,8 +125,19 @@ class GrblConnection:
         Seconds the "idle, buffers empty, lines pending" condition must hold before a lost ``ok`` is declared.
         With the 5 Hz poll the loss is reported within ``lost_ok_timeout + poll_interval`` (2 s by default).
     silence_timeout : float
-        Seconds without any byte from the controller (despite polling) after which the port counts as vanished;
-        with the 5 Hz poll a silent port is noticed within ``silence_timeout + poll_interval`` (under 1 s).
+        Seconds a status request (``?``) may stay without any byte in reply, counted only while this process runs
+        (see the module docstring), before a last probe is sent. GRBL answers within milliseconds outside homing
+        and EEPROM writes, during which the watchdog rests.
+    silence_grace : float
+        Seconds after that probe (counted the same way) before the port counts as vanished ("position lost").
+        A silent port is declared within about ``silence_timeout + silence_grace + poll_interval`` (1.4 s by
+        default) when the host is not overloaded; a port the OS reports gone is declared at once.
+    banner_timeout : float
+        Seconds to wait for the banner after opening (then a soft reset is tried).
+    reply_timeout : float
+        Seconds a line may wait for its ``ok``/``error`` (plus its dwell) before the stream stops.
+    log_size : int
+        Lines of traffic kept in :attr:`log`.
     """
 
     def __init__(
@@ -119,6 +148,7 @@ class GrblConnection:
         poll_interval: float = 0.2,
         lost_ok_timeout: float = 1.5,
         silence_timeout: float = 0.7,
+        silence_grace: float = 0.5,
         banner_timeout: float = 3.0,
         reply_timeout: float = 10.0,
         log_size: int = 4000,
@@ -128,6 +158,7 @@ class GrblConnection:
         self.poll_interval = poll_interval
         self.lost_ok_timeout = lost_ok_timeout
         self.silence_timeout = silence_timeout
+        self.silence_grace = silence_grace
         self.banner_timeout = banner_timeout
         self.reply_timeout = reply_timeout
         self.log: deque[tuple[float, str, str]] = deque(maxlen=log_size)
@@ -135,7 +166,8 @@ class GrblConnection:
         self.rx_size = DEFAULT_RX_SIZE
         self.planner_size = DEFAULT_PLANNER_SIZE
         self.options = ""
-        self.version = ""
+        self.version = ""  # GRBL_VERSION, e.g. "1.1h" (from the banner, then from $I)
+        self.firmware = VersionInfo("")  # version, build date and build info from $I's [VER:...] line
         self.settings: dict[int, float] = {}
         self.offsets: dict[str, tuple[float, ...]] = {}
         self.parser_state = ""
@@ -153,7 +185,11 @@ class GrblConnection:
         self._ignore_oks = 0  # stale replies still to come after an alarm (at most one: GRBL runs one line at a time)
         self._expect_banner = False
         self._banner_count = 0
-        self._last_rx = 0.0
+        self._last_rx = 0.0  # monotonic time of the last byte read (reader thread)
+        self._reader_beat = 0.0  # monotonic time the reader thread last went round its loop
+        self._asked_at: float | None = None  # when the first ``?`` since the last byte read was written
+        self._silent = 0.0  # seconds of silence since then, counted only while this process ran
+        self._probe_at: float | None = None  # self._silent when the last probe before declaring loss was sent
         self._lost_since: float | None = None
         self._lost_entry: _Pending | None = None
         self._alarm_count = 0
@@ -175,7 +211,8 @@ class GrblConnection:
         """
         self.port = open_port(self.url, self.baud)
         self._stop.clear()
-        self._last_rx = time.monotonic()
+        self._last_rx = self._reader_beat = time.monotonic()
+        self._asked_at, self._silent, self._probe_at = None, 0.0, None
         reader = threading.Thread(target=self._read_loop, name="grbl-reader", daemon=True)
         self._threads = [reader]
         banners = self._banner_count
@@ -219,7 +256,8 @@ class GrblConnection:
                 if len(parts) >= 2 and parts[1].strip().isdigit():
                     self.planner_size = int(parts[1])
             elif isinstance(reply, Feedback) and reply.kind == "VER":
-                self.version = reply.text
+                self.firmware = parse_version(reply.text)
+                self.version = self.firmware.version
         self.settings = {r.key: r.value for r in self.command("$$", retries=2) if isinstance(r, SettingLine)}
         self.offsets = {}
         self.wco = None  # until a status report brings it again, the offsets below are the truth
@@ -296,6 +334,25 @@ class GrblConnection:
             lo.append(0.0 if positive else -travel)
             hi.append(travel if positive else 0.0)
         return tuple(lo), tuple(hi)
+
+    def homing_seconds(self) -> float:
+        """An upper bound of how long ``$H`` may take, from the settings: GRBL answers nothing until it ends.
+
+        ``limits_go_home`` runs, per homing cycle, a search of 1.5 x the travel (``$130``-``$132``) at the seek
+        rate ``$25``, a pull-off ``$27`` at the seek rate, a locate of 5 x the pull-off at the feed rate ``$24`` and a
+        pull-off again, each followed by the debounce delay ``$26`` (ms). Each axis is counted as a cycle of its
+        own (the cycles GRBL was built with group some), and the sum is doubled for acceleration: a bound, not an
+        estimate. 60 s before the settings are read.
+        """
+        if not self.settings:
+            return 60.0
+        seek = max(self.settings.get(25, 500.0), 1.0) / 60.0  # mm/s
+        feed = max(self.settings.get(24, 25.0), 1.0) / 60.0
+        pulloff = self.settings.get(27, 1.0)
+        debounce = self.settings.get(26, 250.0) / 1000.0
+        per_axis = [1.5 * travel / seek + 2 * pulloff / seek + 5 * pulloff / feed + 4 * debounce
+                    for travel in self.travel]
+        return 2.0 * sum(per_axis) + 5.0
 
     @property
     def travel(self) -> tuple[float, float, float]:
@@ -475,11 +532,12 @@ class GrblConnection:
                     raise ProtocolError(f"line {index + 1} is {len(data)} bytes, longer than GRBL's RX buffer "
                                         f"({self.rx_size}): {block[:40]!r}...")
                 sync = sync_all or needs_sync(block)
-                dwell = _dwell_seconds(block) + (60.0 if block.startswith("$H") else 0.0)
+                dwell = _dwell_seconds(block)
+                busy = self.homing_seconds() if block.upper().startswith("$H") else 0.0
                 with self._cond:
                     ready = self._no_pending if sync else functools.partial(self._has_room, len(data))
                     self._wait_locked(ready, stop, reply_timeout, "waiting for buffer space", since, report)
-                    entry = _Pending(result, len(data), dwell)
+                    entry = _Pending(result, len(data), dwell, busy)
                     self._pending.append(entry)
                     self.max_pending_bytes = max(self.max_pending_bytes, self._pending_bytes())
                     self._lost_since = None
@@ -496,12 +554,13 @@ class GrblConnection:
                     on_sent(index)
                 if sync:
                     with self._cond:
-                        self._wait_locked(entry.done.is_set, stop, reply_timeout + entry.dwell,
+                        self._wait_locked(entry.done.is_set, stop, reply_timeout + entry.dwell + entry.busy,
                                           f"waiting for the reply to {block!r}", since, report)
                 report()
             with self._cond:
                 self._wait_locked(lambda: not self._pending, stop,
-                                  reply_timeout + sum(p.dwell for p in self._pending), "waiting for the last replies",
+                                  reply_timeout + sum(p.dwell + p.busy for p in self._pending),
+                                  "waiting for the last replies",
                                   since, report)
             report()
             if any(r.status == "unconfirmed" for r in results):
@@ -610,6 +669,7 @@ class GrblConnection:
 
     def _read_loop(self) -> None:
         while not self._stop.is_set():
+            self._reader_beat = time.monotonic()
             try:
                 waiting = self.port.in_waiting
                 data = self.port.read(max(1, min(waiting, 4096)))
@@ -656,6 +716,7 @@ class GrblConnection:
                 self._ignore_oks = 1
             elif isinstance(message, Banner):
                 self.version = self.version or message.version
+                self.firmware = self.firmware if self.firmware.version else VersionInfo(message.version)
                 unexpected = not self._expect_banner
                 self._expect_banner = False
                 self._ignore_oks = 0
@@ -751,16 +812,63 @@ class GrblConnection:
         self._notify("fault", self.fault)
 
     def _status_loop(self) -> None:
+        tick = time.monotonic()
         while not self._stop.wait(self.poll_interval):
             if self.position_lost:
                 return
-            if time.monotonic() - self._last_rx > self.silence_timeout:
-                self._port_lost(f"no byte from the controller for {self.silence_timeout:.1f} s")
+            previous, tick = tick, time.monotonic()
+            if self._port_silent(previous, tick):
+                self._port_lost(f"no byte from the controller for {self._silent:.1f} s of status requests "
+                                f"(the last {self._silent - self._probe_at:.1f} s after a probe)")
                 return
+            asked = time.monotonic()
             try:
                 self._write(b"?")
             except (PortError, DeviceStateError):
                 return
+            if self._asked_at is None:
+                self._asked_at = asked  # before the write: a reply can only be read after it
+
+    def _port_silent(self, previous: float, now: float) -> bool:
+        """One step of the silence watchdog (status thread), for the wake-up at ``now`` after the one at
+        ``previous``: True when the port counts as vanished. See the module docstring for the rules."""
+        if self._asked_at is not None and self._last_rx >= self._asked_at:
+            self._asked_at = None  # answered (any byte counts: GRBL sends nothing while it is dead)
+        if self._asked_at is None or self._reports_paused():
+            self._asked_at, self._silent, self._probe_at = None, 0.0, None
+            return False
+        if self._reader_beat >= previous:
+            # the reader ran since the last wake-up; a late wake-up (the process was not running) counts for at
+            # most one poll period, so a stall of the host is never taken for silence of the port
+            self._silent += min(now - max(previous, self._asked_at), self.poll_interval)
+        if self._probe_at is None:
+            if self._silent >= self.silence_timeout:
+                self._probe_at = self._silent  # the ``?`` written after this call is the probe
+                self._log("info", f"no reply to status requests for {self._silent:.1f} s: probing with '?' "
+                                  f"({self.silence_grace:.1f} s grace)")
+            return False
+        if self._silent - self._probe_at < self.silence_grace:
+            return False
+        try:
+            waiting = self.port.in_waiting
+        except (serial.SerialException, OSError, TypeError, AttributeError):
+            waiting = 0  # the reader meets the same error and reports it
+        return not waiting  # bytes waiting: the reader is behind, the port is alive
+
+    def _reports_paused(self) -> bool:
+        # GRBL answers no status request while it homes or writes its EEPROM: the line in flight then is one of
+        # those (send-response: nothing else is in flight), and its reply timeout bounds the wait
+        with self._lock:
+            return any(_pauses_reports(p.result.text) for p in self._pending)
+
+
+_PAUSES_REPORTS = re.compile(r"^\$(H|RST=|I=|N\d|\d+=)|G0*10(?![\d.])|G0*28\.1|G0*30\.1", re.IGNORECASE)
+
+
+def _pauses_reports(block: str) -> bool:
+    """True for a cleaned line during which GRBL serves no real-time status request: a homing cycle (``$H``,
+    ``$HX``...) or an EEPROM write (``$x=``, ``$Nx=``, ``$I=``, ``$RST=``, ``G10``, ``G28.1``, ``G30.1``)."""
+    return bool(_PAUSES_REPORTS.search(block))
 
 
 def _dwell_seconds(block: str) -> float:

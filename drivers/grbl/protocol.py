@@ -17,10 +17,12 @@ __all__ = [
     "Ok",
     "SettingLine",
     "StatusReport",
+    "VersionInfo",
     "alarm_meaning",
     "error_meaning",
     "needs_sync",
     "parse_line",
+    "parse_version",
 ]
 
 #: GRBL 1.1 error codes (doc/csv/error_codes_en_US.csv).
@@ -299,3 +301,48 @@ SYNC_COMMANDS = ("$...", "G10", "G28.1", "G30.1")
 def needs_sync(block: str) -> bool:
     """True if a cleaned block must be sent alone and its reply awaited (GRBL's interface rules)."""
     return bool(_SYNC.search(block))
+
+
+@dataclass(frozen=True)
+class VersionInfo:
+    """What ``$I``'s first line says about the firmware.
+
+    GRBL 1.1 prints ``[VER:<version>.<build date>:<build info>]`` (``report_build_info`` in report.c:
+    ``"[VER:" GRBL_VERSION "." GRBL_VERSION_BUILD ":"``, then the build info string a user stores with ``$I=``, then
+    ``]``), e.g. ``[VER:1.1h.20190825:]`` with an empty build info.
+
+    Attributes
+    ----------
+    version : str
+        ``GRBL_VERSION``, e.g. ``"1.1h"``.
+    build : str
+        ``GRBL_VERSION_BUILD``, the build date ``YYYYMMDD`` (``""`` if the line carries none).
+    info : str
+        The build info string (``""`` when none was stored).
+    """
+
+    version: str
+    build: str = ""
+    info: str = ""
+
+    def __str__(self) -> str:
+        details = [f"build {self.build}"] if self.build else []
+        if self.info:
+            details.append(f"info {self.info!r}")
+        return f"GRBL {self.version}" + (f" ({', '.join(details)})" if details else "")
+
+
+_VERSION_BUILD = re.compile(r"^(?P<version>.+)\.(?P<build>\d{8})$")
+
+
+def parse_version(text: str) -> VersionInfo:
+    """The body of a ``[VER:...]`` line (what follows ``VER:``), split into version, build date and build info.
+
+    Only the first ``:`` ends the version part: the build info is free text and may hold ``:`` itself. A version
+    part without an 8-digit build date (a fork's own format) is kept whole as the version.
+    """
+    head, _, info = text.partition(":")
+    match = _VERSION_BUILD.match(head)
+    if match:
+        return VersionInfo(match["version"], match["build"], info)
+    return VersionInfo(head, "", info)

@@ -19,6 +19,9 @@ What it models
   power-up (and G54 starts at zero there, GRBL's default).
 - Homing ``$H`` (error:5 with ``$22=0``) ends where GRBL's ``limits_go_home`` sets the position: ``-$27`` (pull-off)
   for an axis homing towards +, ``-travel + $27`` for one whose ``$23`` bit is set, 0 with HOMING_FORCE_SET_ORIGIN.
+  As in GRBL 1.1, ``?`` gets no answer while the cycle runs (1.5 simulated seconds): one ``<Home|...>`` report
+  follows its end, however many were asked for.
+- ``$I`` prints ``[VER:1.1h.20190825:<build info>]`` (report.c's format) with the build info ``$I=`` stored.
 - Reset during motion: ALARM:3 and alarm lock; laser mode ``$32=1`` with M3 (constant) and M4 (dynamic) power,
   dark rapids and dark feed hold.
 - A record of what it executed (:class:`SimRecord`): every block's end position, laser power and timing, samples of
@@ -293,6 +296,7 @@ class SimulatedGrbl:
         self.g28 = np.zeros(3)
         self.g30 = np.zeros(3)
         self.startup_lines = ["", ""]
+        self.build_info = ""  # what $I= stored (EEPROM), printed after the build date by $I
         self.mpos = np.zeros(3)
         self._power_on_state = "Alarm" if config.locked else "Idle"
         self._init_runtime(self._power_on_state)
@@ -471,6 +475,7 @@ class SimulatedGrbl:
         self._ovr_counter = 0
         self.overrides = [100, 100, 100]
         self._home_until = 0.0
+        self._report_owed = False  # a status request that came while homing
         self._fill_changed(time.monotonic())
 
     def _laser_mode(self) -> bool:
@@ -560,6 +565,11 @@ class SimulatedGrbl:
 
     def _realtime(self, byte: int, now: float) -> None:
         if byte == REALTIME_STATUS:
+            if self._state == "Home":
+                # limits_go_home has "no time to run protocol_execute_realtime()": the request waits for the end
+                # of the cycle, and any number of them gets one report
+                self._report_owed = True
+                return
             self._emit(self._status_report(now), "status")
         elif byte == REALTIME_RESET:
             self._soft_reset(now)
@@ -670,6 +680,9 @@ class SimulatedGrbl:
             else:
                 self.mpos = np.where(towards_minus, -self._travel() + pulloff, -pulloff)
             self._gc_pos = self.mpos.copy()
+            if self._report_owed:
+                self._report_owed = False
+                self._emit(self._status_report(now), "status")  # still in Home: mc_homing_cycle serves it
             self._state = "Idle"
             self._sample(now, 0.0)
             return
@@ -859,8 +872,14 @@ class SimulatedGrbl:
         if text == "$I":
             if not idle_or_alarm:
                 return 8
-            self._emit(f"[VER:{VERSION}.{BUILD_DATE}:]")
+            self._emit(f"[VER:{VERSION}.{BUILD_DATE}:{self.build_info}]")
             self._emit(f"[OPT:V{'Z' if self.config.force_origin else ''},{PLANNER_BLOCKS},{RX_BUFFER_SIZE}]")
+            return 0
+        if text.startswith("$I="):
+            if not idle_or_alarm:
+                return 8
+            self.build_info = text[3:]  # the line as GRBL keeps it: upper case, without spaces
+            yield "sync"  # EEPROM write
             return 0
         if text == "$N":
             for i, line in enumerate(self.startup_lines):

@@ -219,6 +219,27 @@ def test_homing_and_disabled_homing(raw):
     assert plain.ask("$H", b"error:5\r\n").endswith(b"error:5\r\n")
 
 
+def test_homing_answers_no_status_request_until_the_cycle_ends(raw):
+    # GRBL 1.1's limits_go_home never runs protocol_execute_realtime(): '?' waits for the end of the cycle, and
+    # however many came, one report follows, still in the Home state (gnea/grbl#1061)
+    port = raw("profile=laser&time_scale=2")
+    port.port.write(b"$H\n")
+    deadline = time.monotonic() + 5.0
+    while port.machine.state != "Home":
+        assert time.monotonic() < deadline
+        time.sleep(0.005)
+    port.port.write(b"???")
+    reply = port.read_until(b"ok\r\n", timeout=10.0).decode()
+    assert reply.count("<") == 1 and reply.startswith("<Home|") and reply.endswith(">\r\nok\r\n")
+    assert port.status().startswith("<Idle|")
+
+
+def test_build_info_stored_with_dollar_i_follows_the_build_date(raw):
+    port = raw()
+    assert port.ask("$I=my laser 2") == b"ok\r\n"  # stored as GRBL keeps the line: upper case, no spaces
+    assert port.ask("$I").startswith(b"[VER:1.1h.20190825:MYLASER2]\r\n[OPT:V,15,128]")
+
+
 def test_unplug_makes_reads_and_writes_fail(raw):
     port = raw()
     port.machine.unplug()

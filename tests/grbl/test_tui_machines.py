@@ -246,3 +246,16 @@ async def test_quit_during_a_job_asks_and_aborts_with_the_laser_off(tmp_path):
     finally:
         connection.close()
     assert (logged.title, logged.status) == ("burn", "aborted")
+
+
+async def test_connected_message_names_the_version_without_the_build_suffix(tmp_path):
+    # '[VER:1.1h.20190825:]' was shown whole: "plotter: GRBL 1.1h.20190825: connected"
+    app = StationApp(devices=FAST_DEVICES, database=tmp_path / "t.sqlite3")
+    async with app.run_test(size=(160, 48)) as pilot:
+        await pilot.press("m")
+        await pilot.pause()
+        screen = app.screen
+        await _until(pilot, lambda: "plotter" in screen.connections)
+        await pilot.pause(0.2)
+        said = [line for line in _console_text(screen).splitlines() if "connected" in line and "GRBL" in line]
+        assert said and "GRBL 1.1h" in said[0] and "20190825:" not in said[0], said
