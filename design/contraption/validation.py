@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import json
 import sys
-from collections.abc import Mapping
+from collections.abc import Iterator, Mapping
 from pathlib import Path
 from typing import Any
 
@@ -151,6 +151,23 @@ def _settings(check: Checker, value: Any) -> Settings:
     return settings
 
 
+def _tables(check: Checker, top: dict, section: str, what: str) -> Iterator[tuple[int, str, dict]]:
+    """The tables of the required, non-empty array ``section`` (``[[objects]]``, ``[[events]]``), one at a time.
+
+    Each is checked to be a table only when it is reached, so a file's first error is the one reported.
+
+    Yields
+    ------
+    tuple of (int, str, dict)
+        The table's index, its path in the file (e.g. ``objects[2]``) and the table.
+    """
+    if section not in top:
+        raise check.fail(section, f"missing; expected an array of {what} tables ([[{section}]])")
+    for i, item in enumerate(check.array(top[section], section, min_len=1)):
+        path = f"{section}[{i}]"
+        yield i, path, check.table(item, path)
+
+
 def _unique_name(check: Checker, table: dict, path: str, seen: set[str], missing: str) -> str:
     """The required ``name`` of an object or event table, new among ``seen`` (and added to it).
 
@@ -192,14 +209,9 @@ def _type_of(check: Checker, table: dict, path: str, types: Mapping[str, Any]) -
 
 
 def _objects(check: Checker, top: dict) -> list[ObjectSpec]:
-    if "objects" not in top:
-        raise check.fail("objects", "missing; expected an array of object tables ([[objects]])")
-    items = check.array(top["objects"], "objects", min_len=1)
     objects: list[ObjectSpec] = []
     seen: set[str] = set()
-    for i, item in enumerate(items):
-        path = f"objects[{i}]"
-        table = check.table(item, path)
+    for i, path, table in _tables(check, top, "objects", "object"):
         check.only(table, path, OBJECT_KEYS)
         sleeping = check.boolean(table["sleeping"], f"{path}.sleeping") if "sleeping" in table else None
         name = _unique_name(check, table, path, seen, "an object name")
@@ -319,14 +331,9 @@ def _check_shape(check: Checker, kind: str, shape: dict, path: str) -> None:
 
 
 def _events(check: Checker, top: dict, settings: Settings, by_name: dict[str, ObjectSpec]) -> list[EventSpec]:
-    if "events" not in top:
-        raise check.fail("events", "missing; expected an array of event tables ([[events]])")
-    items = check.array(top["events"], "events", min_len=1)
     events: list[EventSpec] = []
     names: set[str] = set()
-    for i, item in enumerate(items):
-        path = f"events[{i}]"
-        table = check.table(item, path)
+    for i, path, table in _tables(check, top, "events", "event"):
         name = _unique_name(check, table, path, names, "an event name")
         kind = _type_of(check, table, path, EVENTS)
         schema = EVENTS[kind]
