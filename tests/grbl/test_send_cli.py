@@ -248,7 +248,10 @@ def test_sigterm_mid_job_aborts_with_the_laser_off(tmp_path):
     """``kill`` of a running ``station send`` (a separate process) ends with exit 130, a soft reset and the laser
     off: read from the simulated machine's record, which it writes when the command closes its port."""
     job = tmp_path / "long.gcode"
-    lines = ["G21 G90", "G0 X10 Y10", "M4 S700"] + [f"G1 X{10 + 5 * (i % 2)} Y{10 + i} F600" for i in range(60)]
+    # Long enough (about a minute of burning) that the signal surely lands mid-job, however late the first
+    # progress line is read: a job that had already ended needs no reset, and the check below would mean nothing.
+    lines = ["G21 G90", "G0 X10 Y10", "M4 S700"] + [f"G1 X{10 + 5 * (i % 2)} Y{10 + i % 100} F300"
+                                                    for i in range(400)]
     lines.append("M5 S0")
     job.write_text("\n".join(lines) + "\n")
     record = tmp_path / "record.json"

@@ -115,7 +115,9 @@ def _robustness_terminated(tmp_path: Path, name: str, marker: str, occurrence: i
 @pytest.mark.parametrize("marker, occurrence", [
     ("SIMPLE: 64 evaluation layouts", 1),  # drawing the evaluation layouts: no worker yet
     ("evaluation set:", 1),  # the first simulations done, most of them queued
-    ("evaluation set:", 3),  # a fifth done (a line per tenth of the 72)
+    # a fifth done (a line per tenth of the 72); a third subprocess run, so under -m slow with the default suite's
+    # two moments covering the draw and the pool
+    pytest.param("evaluation set:", 3, marks=pytest.mark.slow),
 ])
 def test_sigterm_during_robustness_stops_in_one_clean_message(tmp_path, marker, occurrence):
     # End to end, at three moments. The InvalidStateError race itself depends on the pool's thread timing and
