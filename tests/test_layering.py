@@ -10,6 +10,7 @@ import pytest
 ROOT = Path(__file__).resolve().parents[1]
 
 FORBIDDEN = {
+    "common": {"design", "drivers", "calibration", "projector", "station", "textual", "rich"},
     "design": {"station", "drivers", "calibration", "projector", "textual"},
     "drivers": {"design", "station", "textual"},
     "calibration": {"station", "textual"},
