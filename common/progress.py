@@ -19,8 +19,8 @@ Examples
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Callable
 
 
 @dataclass(frozen=True)
@@ -76,8 +76,8 @@ class Reporter:
         self.cancelled = cancelled
 
     @classmethod
-    def of(cls, progress: "Reporter | ProgressCallback | None" = None,
-           cancelled: CancelCheck | None = None) -> "Reporter":
+    def of(cls, progress: Reporter | ProgressCallback | None = None,
+           cancelled: CancelCheck | None = None) -> Reporter:
         """A reporter from whatever a caller passed: a reporter (kept), a callback, or None."""
         if isinstance(progress, Reporter):
             if cancelled is not None and progress.cancelled is None:

@@ -9,7 +9,8 @@ from __future__ import annotations
 
 import sys
 import threading
-from typing import Callable, TextIO
+from collections.abc import Callable
+from typing import TextIO
 
 from common.progress import Progress
 
@@ -63,7 +64,8 @@ class ProgressView:
     # -- terminal: rich ----------------------------------------------------------------------------------------
     def _start_rich(self) -> None:
         from rich.console import Console
-        from rich.progress import BarColumn, Progress as RichProgress, TextColumn, TimeElapsedColumn
+        from rich.progress import BarColumn, TextColumn, TimeElapsedColumn
+        from rich.progress import Progress as RichProgress
 
         console = Console(file=self.stream, force_terminal=True, highlight=False)
         self._rich = RichProgress(BarColumn(bar_width=30), TextColumn("{task.description}"), TimeElapsedColumn(),
@@ -122,7 +124,7 @@ class ProgressView:
                 self._rich = None
                 self._task = None
 
-    def __enter__(self) -> "ProgressView":
+    def __enter__(self) -> ProgressView:
         return self
 
     def __exit__(self, *exc) -> None:
