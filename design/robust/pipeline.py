@@ -14,6 +14,7 @@ from dataclasses import asdict, dataclass, field
 
 import numpy as np
 
+from common.progress import Progress as BaseProgress
 from design.robust.baselines import baseline_b1, baseline_b2, baseline_b3
 from design.robust.executor import SimulationExecutor
 from design.robust.optimize import optimize_layout, placement_offsets
@@ -32,21 +33,45 @@ from design.robust.sampling import sobol_valid, valid_in_ball
 from design.robust.settings import METHODS, PSPSettings, RobustnessSettings
 
 
-@dataclass(frozen=True)
-class Progress:
+@dataclass(frozen=True, init=False)
+class Progress(BaseProgress):
     """What a long run reports: its phase, simulations used of the budget, CV accuracy and best PSP so far.
 
-    ``unit`` names what ``simulations`` and ``budget`` count, for a phase that counts something else (e.g. the
-    valid layouts of an evaluation set being drawn).
+    A :class:`common.progress.Progress` (``stage``, ``done``, ``total``, ``message``) so every front end can draw
+    it; ``phase``, ``simulations`` and ``budget`` are read-only aliases of the first three, and the constructor
+    keeps its positional order ``(phase, simulations, budget, cv_accuracy, best_psp, detail, unit)`` so existing
+    callers are unchanged. ``unit`` names what ``simulations`` and ``budget`` count, for a phase that counts
+    something else (e.g. the valid layouts of an evaluation set being drawn). ``message`` defaults to ``detail``.
     """
 
-    phase: str
-    simulations: int
-    budget: int
     cv_accuracy: float | None = None
     best_psp: float | None = None
     detail: str = ""
     unit: str = "simulations"
+
+    def __init__(self, stage: str, done: float = 0, total: float | None = None, cv_accuracy: float | None = None,
+                 best_psp: float | None = None, detail: str = "", unit: str = "simulations",
+                 message: str | None = None) -> None:
+        # Frozen: fields are set through object.__setattr__, as dataclasses do in their own __init__.
+        for name, value in (("stage", stage), ("done", done), ("total", total), ("cv_accuracy", cv_accuracy),
+                            ("best_psp", best_psp), ("detail", detail), ("unit", unit),
+                            ("message", detail if message is None else message)):
+            object.__setattr__(self, name, value)
+
+    @property
+    def phase(self) -> str:
+        """Alias of ``stage``."""
+        return self.stage
+
+    @property
+    def simulations(self) -> float:
+        """Alias of ``done``."""
+        return self.done
+
+    @property
+    def budget(self) -> float | None:
+        """Alias of ``total``."""
+        return self.total
 
 
 ProgressCallback = Callable[[Progress], None]
@@ -77,8 +102,8 @@ class BudgetedOracle:
     def report(self, detail: str = "") -> None:
         if self.progress is not None:
             total = self.budget or max(self.expected or 0, self.used)
-            self.progress(Progress(self.phase, self.used, total, self.cv_accuracy,
-                                   self.best_psp, detail))
+            self.progress(Progress(stage=self.phase, done=self.used, total=total, cv_accuracy=self.cv_accuracy,
+                                   best_psp=self.best_psp, detail=detail))
 
     def __call__(self, U: np.ndarray) -> np.ndarray:
         U = np.atleast_2d(U)
