@@ -9,271 +9,31 @@ sheets: ``parts-2.svg``, ``laser-2.gcode``, ``sheet-2.png``...
 
 from __future__ import annotations
 
-import io
-import json
-import re
 import sys
-import time
-from dataclasses import dataclass
-from pathlib import Path
-from typing import Any, TextIO
+from typing import TextIO
 
-from station.cli_util import add_design_options, check_output_folder, design_parameters, emit_json, to_jsonable
+from station.cli_util import add_design_options, check_output_folder, design_parameters, emit_json
 from station.errors import UsageError
-
-DEFAULT_KERF = 0.15
-#: Where the kerf came from, in words (``kerf_source`` in parts.json).
-KERF_SOURCES = {"material": "from the material table", "default": "by default", "given": "as given"}
-DEFAULT_GAP = 3.0
-#: Shares of the progress bar: generating the gears (by teeth), nesting, then the sheets' laser jobs and files.
-GEARS_SHARE, NESTING_SHARE = 0.6, 0.2
-
-
-class ProgressStep(str):
-    """A progress message of :func:`fabricate` that also says how far the work is.
-
-    A ``str`` (what a ``progress`` callback that only shows text needs), with ``fraction`` in [0, 1]: the share of
-    the expected work done when the step starts.
-    """
-
-    fraction: float
-
-    def __new__(cls, message: str, fraction: float) -> ProgressStep:
-        step = super().__new__(cls, message)
-        step.fraction = min(max(float(fraction), 0.0), 1.0)
-        return step
-
-
-@dataclass
-class SheetOutput:
-    """One nested sheet with its files' contents: the laser job, SVG, G-code and preview."""
-
-    index: int
-    sheet: Any
-    job: Any
-    svg: str
-    gcode: str
-    png: bytes
-
-    @property
-    def suffix(self) -> str:
-        """File-name suffix: none for the first sheet, ``-2``, ``-3``... for the next ones."""
-        return "" if self.index == 1 else f"-{self.index}"
-
-
-@dataclass
-class FabricationResult:
-    """Everything one fabrication run produced (kept in memory for the TUI, written to files by the CLI).
-
-    ``sheet``, ``job``, ``svg``, ``gcode`` and ``png`` are the first sheet's; ``sheets`` has them all.
-    """
-
-    machine: str
-    params: dict[str, Any]
-    scale: float
-    sheets: list[SheetOutput]
-    summary: dict[str, Any]
-
-    @property
-    def sheet(self) -> Any:
-        return self.sheets[0].sheet
-
-    @property
-    def job(self) -> Any:
-        return self.sheets[0].job
-
-    @property
-    def svg(self) -> str:
-        return self.sheets[0].svg
-
-    @property
-    def gcode(self) -> str:
-        return self.sheets[0].gcode
-
-    @property
-    def png(self) -> bytes:
-        return self.sheets[0].png
+from station.services.errors import ServiceError
+from station.services.fabricate import (  # noqa: F401 - re-exported: the work lives in the service
+    DEFAULT_GAP,
+    DEFAULT_KERF,
+    KERF_SOURCES,
+    FabricationResult,
+    ProgressStep,
+    SheetOutput,
+    fabricate,
+    write_outputs,
+)
+from station.services.fabricate import parse_sheet as _parse_sheet
 
 
 def parse_sheet(text: str) -> tuple[float, float]:
-    """``"300x200"`` → ``(300.0, 200.0)`` mm."""
-    match = re.fullmatch(r"\s*(\d+(?:\.\d*)?)\s*[xX×]\s*(\d+(?:\.\d*)?)\s*(?:mm)?\s*", text or "")
-    if not match or float(match.group(1)) <= 0 or float(match.group(2)) <= 0:
-        raise UsageError(f"--sheet {text!r}: expected WIDTHxHEIGHT in mm, e.g. --sheet 300x200")
-    return float(match.group(1)), float(match.group(2))
-
-
-def fabricate(machine: str, params: dict[str, float], scale: float, *, kerf: float | None = None,
-              sheet_size: tuple[float, float] | None = None, gap: float = DEFAULT_GAP, profile=None,
-              material: str | None = None, gear_settings=None, hardware=None, progress=None,
-              max_sheets: int = 4) -> FabricationResult:
-    """Parts → kerf → nesting → SVG, PNG, laser job. Raises the design/driver errors for bad input.
-
-    ``progress``, optional: called with a :class:`ProgressStep` (a message that is a ``str``, with the fraction of
-    the work done) before each step: each gear, the nesting, each sheet. Parts that do not fit one sheet go on
-    further sheets (at most ``max_sheets``), each with its own job. ``kerf=None`` takes the material's kerf from the
-    profile, else :data:`DEFAULT_KERF`.
-
-    A part too large for the sheet is refused before any gear is generated (which takes minutes at large scales),
-    with the largest scale that fits.
-    """
-    from design.fabrication import (
-        FABRICABLE_MACHINES,
-        check_sizes_fit,
-        machine_parts,
-        nest_sheets,
-        part_sizes,
-        render_png,
-        sheet_paths,
-        write_svg,
-    )
-    from design.machines import get_machine
-    from drivers.laser_job import (
-        check_work_area,
-        material_settings,
-        plan_laser_job,
-        travel_moves,
-        write_laser_gcode,
-    )
-    from drivers.profiles import builtin_profile
-
-    report = progress or (lambda _step: None)
-
-    def say(message: str, fraction: float) -> None:
-        report(ProgressStep(message, fraction))
-    if machine in FABRICABLE_MACHINES:
-        # The summary records the complete design (defaults filled in), as the parts were made from it.
-        params = dict(get_machine(machine).validate(params))
-    profile = profile if profile is not None else builtin_profile("laser")
-    engrave_ops, cut_ops, material_name = material_settings(profile, material)
-    if kerf is None:
-        material_kerf = profile.material(material_name).kerf
-        kerf, kerf_source = (DEFAULT_KERF, "default") if material_kerf is None else (material_kerf, "material")
-    else:
-        kerf_source = "given"
-    width, height = sheet_size if sheet_size is not None else (profile.width, profile.height)
-    # Sizes first (milliseconds): a part too large for the sheet is refused before the gears are generated.
-    sizes = part_sizes(machine, params, scale, gear_settings, hardware)
-    check_sizes_fit(sizes, width, height, gap, kerf, scale=scale,
-                    sizes_at=lambda s: part_sizes(machine, params, s, gear_settings, hardware))
-    total_teeth = max(1, sum(size.teeth for size in sizes))
-    teeth_done = 0
-
-    def gear_started(name: str, teeth: int) -> None:
-        nonlocal teeth_done
-        say(f"generating {name} ({teeth} teeth)", GEARS_SHARE * teeth_done / total_teeth)
-        teeth_done += teeth
-
-    started = time.perf_counter()
-    say(f"generating the {len(sizes)} parts of {machine} at {scale:g} mm per unit ({total_teeth} teeth)", 0.0)
-    parts = machine_parts(machine, params, scale, gear_settings, hardware, progress=gear_started)
-    generated = time.perf_counter() - started
-    say(f"nesting {len(parts)} parts on {width:g}x{height:g} mm sheets (kerf {kerf:g} mm, gap {gap:g} mm)",
-        GEARS_SHARE)
-    sheets = nest_sheets(parts, width, height, gap=gap, kerf=kerf, max_sheets=max_sheets)
-    xmin, ymin, _, _ = profile.work_bounds()
-    outputs: list[SheetOutput] = []
-    sheets_start = GEARS_SHARE + NESTING_SHARE
-    for index, sheet in enumerate(sheets, start=1):
-        say(f"ordering the laser job of sheet {index} of {len(sheets)}",
-            sheets_start + (1.0 - sheets_start) * (index - 1) / len(sheets))
-        paths = sheet_paths(sheet)
-        job = plan_laser_job(paths["engrave"], paths["cut"], engrave_ops, cut_ops, profile.laser.max_power,
-                             profile.plot.travel_feed, offset=(xmin, ymin), start=(xmin, ymin),
-                             metadata={"machine": machine, "scale": f"{scale:g} mm per unit",
-                                       "sheet": f"{index} of {len(sheets)}", "material": material_name,
-                                       "profile": profile.name})
-        check_work_area(job, profile.work_bounds(), profile.name)
-        gcode = io.StringIO()
-        write_laser_gcode(job, gcode, profile.work_bounds(), profile.laser.laser_mode, profile.name)
-        svg = io.StringIO()
-        write_svg(sheet, svg, title=f"{machine} parts at {scale:g} mm per unit, sheet {index} of {len(sheets)}")
-        # The preview shows travel in sheet coordinates.
-        moves = [m - [xmin, ymin] for m in travel_moves(job)]
-        outputs.append(SheetOutput(index, sheet, job, svg.getvalue(), gcode.getvalue(),
-                                   render_png(sheet, travel=moves)))
-    parts_area = sum(o.sheet.parts_area for o in outputs)
-    estimates = [o.job.estimate_seconds() for o in outputs]
-    summary = {
-        "machine": machine,
-        "params": dict(params),
-        "scale_mm_per_unit": scale,
-        "kerf_mm": kerf,
-        "kerf_source": kerf_source,
-        "gap_mm": gap,
-        "sheet_mm": [width, height],
-        "sheet_count": len(outputs),
-        "sheet_usage": round(parts_area / (len(outputs) * width * height), 4),
-        "generation_seconds": round(generated, 3),
-        "parts": [_part_summary(part, cut, placement, o.index)
-                  for o in outputs
-                  for part, cut, placement in zip(o.sheet.parts, o.sheet.cut_shapes, o.sheet.placements)],
-        "sheets": [{
-            "index": o.index,
-            "files": {"svg": f"parts{o.suffix}.svg", "gcode": f"laser{o.suffix}.gcode", "png": f"sheet{o.suffix}.png"},
-            "parts": [part.name for part in o.sheet.parts],
-            "usage": round(o.sheet.usage, 4),
-            "envelope_usage": round(o.sheet.envelope_usage, 4),
-            "used_mm": [round(o.sheet.used_width, 2), round(o.sheet.used_height, 2)],
-            "job": _job_summary(o.job),
-        } for o in outputs],
-        "job": {
-            "profile": profile.name,
-            "material": material_name,
-            "engrave": {"power": engrave_ops.power, "feed_mm_min": engrave_ops.feed, "passes": engrave_ops.passes},
-            "cut": {"power": cut_ops.power, "feed_mm_min": cut_ops.feed, "passes": cut_ops.passes},
-            "paths": sum(len(o.job.paths) for o in outputs),
-            "travel_mm_unordered": round(sum(o.job.travel_unordered for o in outputs), 1),
-            "travel_mm": round(sum(o.job.travel for o in outputs), 1),
-            "estimate_seconds": {k: round(sum(e[k] for e in estimates), 1) for k in estimates[0]},
-        },
-    }
-    say(f"{len(parts)} parts on {len(outputs)} sheet{'' if len(outputs) == 1 else 's'}", 1.0)
-    return FabricationResult(machine, dict(params), scale, outputs, summary)
-
-
-def _job_summary(job) -> dict[str, Any]:
-    lo, hi = job.extent()
-    return {
-        "paths": len(job.paths),
-        "travel_mm_unordered": round(job.travel_unordered, 1),
-        "travel_mm": round(job.travel, 1),
-        "estimate_seconds": {k: round(v, 1) for k, v in job.estimate_seconds().items()},
-        "extent_mm": [[float(v) for v in lo], [float(v) for v in hi]],
-    }
-
-
-def _part_summary(part, cut_shape, placement, sheet_index: int) -> dict[str, Any]:
-    minx, miny, maxx, maxy = part.shape.bounds
-    return {
-        "name": part.name,
-        "sheet": sheet_index,
-        "size_mm": [round(maxx - minx, 2), round(maxy - miny, 2)],
-        "bbox_on_sheet_mm": [round(v, 3) for v in cut_shape.bounds],
-        "area_mm2": round(part.shape.area, 1),
-        "holes": len(part.shape.interiors),
-        "placement": {"angle_deg": placement.angle, "dx_mm": round(placement.dx, 3), "dy_mm": round(placement.dy, 3)},
-        "info": to_jsonable(dict(part.info)),
-        "notes": list(part.notes),
-    }
-
-
-def write_outputs(result: FabricationResult, out: Path) -> dict[str, Path]:
-    """Write parts.svg, laser.gcode, sheet.png (``-2``, ``-3``... for further sheets) and parts.json into ``out``."""
-    out.mkdir(parents=True, exist_ok=True)
-    files: dict[str, Path] = {}
-    for o in result.sheets:
-        key = "" if o.index == 1 else f" {o.index}"
-        files[f"svg{key}"] = out / f"parts{o.suffix}.svg"
-        files[f"gcode{key}"] = out / f"laser{o.suffix}.gcode"
-        files[f"png{key}"] = out / f"sheet{o.suffix}.png"
-        files[f"svg{key}"].write_text(o.svg, encoding="utf-8")
-        files[f"gcode{key}"].write_text(o.gcode, encoding="utf-8")
-        files[f"png{key}"].write_bytes(o.png)
-    files["json"] = out / "parts.json"
-    files["json"].write_text(json.dumps(to_jsonable(result.summary), indent=2, allow_nan=False) + "\n",
-                             encoding="utf-8")
-    return files
+    """``"300x200"`` → ``(300.0, 200.0)`` mm; the CLI's message names ``--sheet``."""
+    try:
+        return _parse_sheet(text)
+    except ServiceError:
+        raise UsageError(f"--sheet {text!r}: expected WIDTHxHEIGHT in mm, e.g. --sheet 300x200") from None
 
 
 def register(subparsers) -> None:

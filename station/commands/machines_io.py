@@ -21,13 +21,15 @@ import numpy as np
 from design.datafiles import load_json
 from design.errors import FileFormatError
 from drivers.errors import DeviceStateError, JobRefused
-from drivers.gcode import WriterOptions, clean_line, fit_polylines, simplify_polylines, write_plot_gcode
+from drivers.gcode import clean_line
 from drivers.grbl import GrblConnection, Job, JobResult, JobRunner, frame_lines, list_ports
 from drivers.grbl.job import FINAL_STATES, kind_warning
 from drivers.profiles import MachineProfile, load_profile
 from station.cli_util import add_design_options, design_parameters, emit_json, output_suffix
 from station.errors import StationError, UsageError
 from station.joblog import JOB_KINDS, JobLog
+from station.services.errors import ServiceError
+from station.services.machines import plot_job as _plot_job
 
 DEFAULT_POINTS = 4096
 
@@ -153,32 +155,13 @@ def pattern_polylines(args) -> tuple[list[np.ndarray], dict[str, Any]]:
 
 
 def plot_job(polylines, profile: MachineProfile, size: float | None, tolerance: float | None, power: float = 0.3):
-    """Fit, simplify and write: returns (gcode_text, fitted polylines, simplified polylines, options)."""
-    import io
-
-    if profile.kind == "plotter":
-        paper = profile.paper
-        box = (paper.margin, paper.margin, paper.width - paper.margin, paper.height - paper.margin)
-    else:
-        x0, y0, x1, y1 = profile.work_bounds()
-        margin = 5.0
-        box = (x0 + margin, y0 + margin, x1 - margin, y1 - margin)
-    tolerance = profile.plot.tolerance if tolerance is None else tolerance
-    if tolerance < 0:
-        raise UsageError(f"--tolerance must be >= 0 mm, got {tolerance}")
-    if size is not None and size <= 0:
-        raise UsageError(f"--size must be positive (mm), got {size}")
-    if not 0 < power <= 1:
-        raise UsageError(f"--power must be a fraction in (0, 1], got {power}")
-    fitted = fit_polylines(polylines, box, size)
-    simplified = simplify_polylines(fitted, tolerance)
-    # the comment marks a pen plot, so that `station send` can warn before it goes to a laser (M3 S<n> lifts a pen
-    # servo, and fires a laser at that power)
-    kind = "pen plot" if profile.kind == "plotter" else "plot"
-    options = WriterOptions.from_profile(profile, power=power, comment=f"chaos-station {kind} job for {profile.name}")
-    stream = io.StringIO()
-    write_plot_gcode(simplified, stream, options)
-    return stream.getvalue(), fitted, simplified, options
+    """:func:`station.services.machines.plot_job`, its refusals naming the CLI's flags (``--tolerance``...)."""
+    try:
+        return _plot_job(polylines, profile, size, tolerance, power)
+    except ServiceError as error:
+        if error.field in ("tolerance", "size", "power"):
+            raise UsageError(f"--{error}") from None
+        raise
 
 
 def run_plot(args) -> int:

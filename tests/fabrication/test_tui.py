@@ -74,7 +74,7 @@ async def test_a_bad_field_is_reported_without_a_crash(tmp_path):
         screen.query_one("#sheet-size", Input).value = "tiny"
         screen.action_generate()
         await pilot.pause()
-        assert "--sheet" in screen.last_message
+        assert "sheet 'tiny'" in screen.last_message  # the service names the field, not the CLI flag
         screen.query_one("#sheet-size", Input).value = "60x60"
         screen.action_generate()
         await wait_for(pilot, screen, lambda: "cannot fabricate" in screen.last_message)

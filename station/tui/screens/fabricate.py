@@ -24,9 +24,9 @@ from textual.widgets import DataTable, Footer, Header, Input, Label, Static
 from design.errors import DesignError
 from design.machines import get_machine
 from drivers.errors import DriverError
-from station.commands.fabricate import DEFAULT_GAP, KERF_SOURCES, FabricationResult, fabricate, parse_sheet
 from station.errors import StationError
 from station.paths import data_dir
+from station.services.fabricate import DEFAULT_GAP, KERF_SOURCES, FabricationResult, fabricate, parse_sheet
 from station.tui.registry import ScreenEntry
 from station.tui.widgets.picture import HalfBlockPicture
 
@@ -247,7 +247,7 @@ class FabricateScreen(Screen):
         picture.set_crop((0.0, top, right, 1.0))
 
     def action_write(self) -> Path | None:
-        from station.commands.fabricate import write_outputs
+        from station.services.fabricate import write_outputs
 
         if self.result is None:
             self._set_status("nothing to write yet")

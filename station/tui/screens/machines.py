@@ -672,7 +672,7 @@ class MachinesScreen(Screen):
     def _plot_worker(self, machine: str, params: dict, device: str, kind: str) -> None:
         from design.errors import DesignError
         from design.machines import get_machine
-        from station.commands.machines_io import plot_job
+        from station.services.machines import plot_job
 
         try:
             model = get_machine(machine)
