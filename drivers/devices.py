@@ -1,0 +1,259 @@
+"""One small interface per kind of device, and one registry from a device URL to its driver.
+
+Kinds
+-----
+- ``grbl``: a GRBL 1.1 controller behind a serial port URL (the plotter and the laser);
+- ``camera``: a camera (issue 19 brings its driver);
+- ``projector``: a projector (issue 18 brings its driver).
+
+The registry (:func:`resolve`) reads a URL and says which kind it names and which driver serves it. A kind whose
+driver does not exist yet is said so (:attr:`DriverInfo.available` is False and :func:`probe` answers
+``"no driver yet"``): no device is ever faked as working.
+
+Accepted URLs
+-------------
+GRBL: ``sim://grbl?profile=NAME`` (the simulated twin), ``/dev/tty*``, ``COMn``, ``socket://HOST:PORT``,
+``rfc2217://HOST:PORT``, ``loop://``. Camera: ``sim://camera``, an integer index (``0``), ``/dev/video*``,
+``rtsp://...``, ``http(s)://...`` or a video file (``.mp4``, ``.avi``, ``.mkv``, ``.mov``). Projector:
+``sim://projector``, ``display:N``.
+"""
+
+from __future__ import annotations
+
+import re
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any, Protocol, runtime_checkable
+
+from drivers.errors import DriverError, PortError
+
+__all__ = [
+    "ACCEPTED_FORMS",
+    "Camera",
+    "DriverInfo",
+    "GrblDevice",
+    "KINDS",
+    "Projector",
+    "UnknownDeviceURL",
+    "probe",
+    "resolve",
+]
+
+KINDS = ("grbl", "camera", "projector")
+
+VIDEO_SUFFIXES = (".mp4", ".avi", ".mkv", ".mov", ".webm")
+
+#: What :func:`resolve` accepts, for the error message on an URL that matches nothing.
+ACCEPTED_FORMS = (
+    "GRBL: sim://grbl?profile=NAME, /dev/tty*, COMn, socket://HOST:PORT, rfc2217://HOST:PORT, loop://; "
+    "camera: sim://camera, an index such as 0, /dev/video*, rtsp://..., http(s)://..., a video file "
+    f"({', '.join(VIDEO_SUFFIXES)}); projector: sim://projector, display:N"
+)
+
+
+class UnknownDeviceURL(DriverError):
+    """A device URL that no driver in the registry accepts."""
+
+
+@runtime_checkable
+class GrblDevice(Protocol):
+    """A GRBL machine as the station sees it before a job: open the port, ask its state, close.
+
+    :class:`drivers.grbl.connection.GrblConnection` is the full driver (streaming, real-time bytes); this is the
+    small part every GRBL device offers.
+    """
+
+    url: str
+
+    def open(self) -> None:
+        """Open the port (raises :class:`drivers.errors.PortError` when it cannot)."""
+
+    def state(self) -> str:
+        """A short state line (``"connected: Grbl 1.1h"``, ``"not connected: no such port"``)."""
+
+    def close(self) -> None:
+        """Close the port; closing twice is harmless."""
+
+
+@runtime_checkable
+class Camera(Protocol):
+    """A camera (the driver comes with issue 19): open it, grab images of :attr:`size`, close it."""
+
+    def open(self) -> None:
+        """Start the camera."""
+
+    def grab(self) -> Any:
+        """One image (an ``H x W x 3`` uint8 array)."""
+
+    @property
+    def size(self) -> tuple[int, int]:
+        """Image size ``(width, height)`` in pixels."""
+
+    def close(self) -> None:
+        """Release the camera."""
+
+
+@runtime_checkable
+class Projector(Protocol):
+    """A projector (the driver comes with issue 18): show frames of :attr:`size`, close it."""
+
+    def show(self, frame: Any) -> None:
+        """Project one frame (an ``H x W x 3`` uint8 array of :attr:`size`)."""
+
+    @property
+    def size(self) -> tuple[int, int]:
+        """Output size ``(width, height)`` in pixels."""
+
+    def close(self) -> None:
+        """Blank the output and release it."""
+
+
+@dataclass(frozen=True)
+class DriverInfo:
+    """What the registry knows about one device URL.
+
+    Parameters
+    ----------
+    url : str
+        The URL as given.
+    kind : str
+        One of :data:`KINDS`.
+    driver : str
+        The driver's name (``"grbl-serial"``) or ``""`` when there is none yet.
+    simulated : bool
+        True for the ``sim://`` twins.
+    factory : callable or None
+        ``factory(url, **options)`` makes a device of the kind's protocol; None when no driver exists yet.
+    """
+
+    url: str
+    kind: str
+    driver: str
+    simulated: bool
+    factory: Callable[..., Any] | None
+
+    @property
+    def available(self) -> bool:
+        """Whether a driver exists for this URL."""
+        return self.factory is not None
+
+
+class GrblSerialDevice:
+    """The :class:`GrblDevice` of a GRBL controller on a serial port URL (real or ``sim://grbl``).
+
+    It opens the port, writes the status query ``?`` (a real-time byte that changes nothing, so probing a machine
+    that is busy elsewhere is harmless; a soft reset would stop its job) and reads the banner, if any, and the
+    status report. The full driver is :class:`~drivers.grbl.connection
+    .GrblConnection`.
+
+    Parameters
+    ----------
+    url : str
+        Port URL.
+    baud : int
+        Baud rate (GRBL 1.1: 115200).
+    timeout : float
+        How long :meth:`state` waits for the banner, in seconds.
+    """
+
+    def __init__(self, url: str, baud: int = 115200, timeout: float = 0.5) -> None:
+        self.url = url
+        self.baud = baud
+        self.timeout = timeout
+        self._port = None
+
+    def open(self) -> None:
+        from drivers.grbl.connection import open_port
+
+        if self._port is None:
+            self._port = open_port(self.url, baud=self.baud, timeout=0.05)
+
+    def state(self) -> str:
+        try:
+            self.open()
+        except PortError as error:
+            return "not connected: " + _port_problem(str(error))
+        port = self._port
+        try:
+            port.reset_input_buffer()
+            port.write(b"?")
+            received = b""
+            deadline = time.monotonic() + self.timeout
+            while time.monotonic() < deadline:
+                received += port.read(256)
+                status = re.search(rb"<([A-Za-z]+)[|:>]", received)
+                if status:
+                    banner = re.search(rb"Grbl (\S+)", received)
+                    version = f"Grbl {banner.group(1).decode('ascii', 'replace')}, " if banner else ""
+                    return f"connected: {version}{status.group(1).decode('ascii')}"
+        except (OSError, ValueError) as error:  # the port vanished while probing
+            return f"not connected: {error}"
+        return f"not connected: no GRBL banner within {self.timeout:g} s"
+
+    def close(self) -> None:
+        if self._port is not None:
+            try:
+                self._port.close()
+            finally:
+                self._port = None
+
+
+def _port_problem(message: str) -> str:
+    """A short reason from :func:`~drivers.grbl.connection.open_port`'s message."""
+    if "No such file or directory" in message or "Errno 2" in message:
+        return "no such port"
+    if "Permission denied" in message or "Errno 13" in message:
+        return "permission denied (join the dialout group?)"
+    return message
+
+
+_GRBL = "grbl-serial"
+
+#: ``(pattern, kind, driver, simulated, factory)``, tried in order; the first that matches wins.
+_RULES: tuple[tuple[re.Pattern, str, str, bool, Callable[..., Any] | None], ...] = (
+    (re.compile(r"^sim://grbl(\?.*)?$"), "grbl", _GRBL, True, GrblSerialDevice),
+    (re.compile(r"^/dev/tty\S+$"), "grbl", _GRBL, False, GrblSerialDevice),
+    (re.compile(r"^COM\d+$", re.IGNORECASE), "grbl", _GRBL, False, GrblSerialDevice),
+    (re.compile(r"^(socket|rfc2217)://\S+$"), "grbl", _GRBL, False, GrblSerialDevice),
+    (re.compile(r"^loop://\S*$"), "grbl", _GRBL, False, GrblSerialDevice),
+    (re.compile(r"^sim://camera(\?.*)?$"), "camera", "", True, None),
+    (re.compile(r"^\d+$"), "camera", "", False, None),
+    (re.compile(r"^/dev/video\d+$"), "camera", "", False, None),
+    (re.compile(r"^(rtsp|https?)://\S+$"), "camera", "", False, None),
+    (re.compile(r"^\S.*(" + "|".join(re.escape(s) for s in VIDEO_SUFFIXES) + r")$", re.IGNORECASE),
+     "camera", "", False, None),
+    (re.compile(r"^sim://projector(\?.*)?$"), "projector", "", True, None),
+    (re.compile(r"^display:\d+$"), "projector", "", False, None),
+)
+
+
+def resolve(url: str) -> DriverInfo:
+    """The kind and driver of device ``url``.
+
+    Raises
+    ------
+    UnknownDeviceURL
+        When no rule accepts ``url``; the message names it and lists the accepted forms.
+    """
+    text = str(url).strip()
+    for pattern, kind, driver, simulated, factory in _RULES:
+        if pattern.match(text):
+            return DriverInfo(text, kind, driver, simulated, factory)
+    raise UnknownDeviceURL(f"device URL {str(url)!r} matches no driver; accepted: {ACCEPTED_FORMS}")
+
+
+def probe(url: str, timeout: float = 0.5) -> str:
+    """A short state line for the device at ``url``, opening it briefly when a driver exists.
+
+    ``"no driver yet"`` for a camera or projector (their drivers come with issues 19 and 18); for GRBL the port is
+    opened and asked its status (``"connected: Grbl 1.1h, Idle"``), or the reason it is not connected.
+    """
+    info = resolve(url)
+    if not info.available:
+        return "no driver yet"
+    device = info.factory(info.url, timeout=timeout)
+    try:
+        return device.state()
+    finally:
+        device.close()

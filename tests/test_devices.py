@@ -1,0 +1,57 @@
+"""The device registry: which URL names which kind, and what a brief probe says."""
+
+from __future__ import annotations
+
+import pytest
+
+from drivers.devices import Camera, GrblDevice, GrblSerialDevice, Projector, UnknownDeviceURL, probe, resolve
+
+
+@pytest.mark.parametrize(("url", "kind", "simulated", "available"), [
+    ("sim://grbl?profile=plotter", "grbl", True, True),
+    ("sim://grbl", "grbl", True, True),
+    ("/dev/ttyUSB0", "grbl", False, True),
+    ("/dev/ttyACM1", "grbl", False, True),
+    ("COM3", "grbl", False, True),
+    ("socket://192.168.1.5:23", "grbl", False, True),
+    ("rfc2217://host:2217", "grbl", False, True),
+    ("loop://", "grbl", False, True),
+    ("sim://camera", "camera", True, False),
+    ("0", "camera", False, False),
+    ("/dev/video2", "camera", False, False),
+    ("rtsp://cam.local/stream", "camera", False, False),
+    ("clips/run.mp4", "camera", False, False),
+    ("sim://projector", "projector", True, False),
+    ("display:1", "projector", False, False),
+])
+def test_registry_table(url, kind, simulated, available):
+    info = resolve(url)
+    assert (info.kind, info.simulated, info.available) == (kind, simulated, available)
+
+
+@pytest.mark.parametrize("url", ["", "ftp://x", "sim://toaster", "display:", "COM"])
+def test_unknown_url_names_it_and_the_accepted_forms(url):
+    with pytest.raises(UnknownDeviceURL, match="matches no driver; accepted: GRBL: sim://grbl") as caught:
+        resolve(url)
+    assert repr(url) in str(caught.value)
+
+
+def test_no_driver_yet_is_said_not_faked():
+    assert probe("sim://camera") == "no driver yet"
+    assert probe("display:1") == "no driver yet"
+
+
+def test_probe_sim_grbl_reads_banner_and_status():
+    assert probe("sim://grbl?profile=plotter") == "connected: Grbl 1.1h, Idle"
+
+
+def test_probe_missing_port():
+    assert probe("/dev/ttyUSB99") == "not connected: no such port"
+
+
+def test_grbl_serial_device_is_a_grbl_device():
+    device = GrblSerialDevice("sim://grbl?profile=laser")
+    assert isinstance(device, GrblDevice)
+    device.close()
+    device.close()
+    assert not isinstance(device, (Camera, Projector))
