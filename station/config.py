@@ -13,7 +13,8 @@ One ``[[devices]]`` table per device, in the order the station lists them::
 
 An array of tables rather than ``[devices.NAME]`` tables: the order is the file's, the name is a field like the
 others, and a message names the entry as it is counted (``devices[2].kind``). ``profile`` defaults to the profile
-named in a ``sim://grbl?profile=NAME`` URL, else to the built-in profile of the kind; a relative profile path is
+named in a ``sim://grbl?profile=NAME`` URL (which must name one of the device's kind), else to the built-in
+profile of the kind; a relative profile path is
 relative to the config file's folder. Unknown fields, duplicate names, a URL no driver accepts and a URL of another
 kind (a camera URL on a plotter) are refused with one line naming the file, the field and the expected value.
 
@@ -153,12 +154,13 @@ def load_config(path: str | Path | None = None) -> StationConfig:
     """
     if path is None:
         path, chosen = config_location()
+        where = f"{CONFIG_VARIABLE}={str(path)!r}"
     else:
         path, chosen = Path(path), True
+        where = repr(str(path))
     if not path.exists():
         if not chosen:
             return StationConfig(None, default_devices())
-        where = f"{CONFIG_VARIABLE}={str(path)!r}" if os.environ.get(CONFIG_VARIABLE) else repr(str(path))
         raise ConfigError(f"station config {where}: no such file; expected a station.toml file")
     file = str(path)
     try:
@@ -232,10 +234,9 @@ def _device(check: _ConfigChecker, value: Any, path: str, folder: Path) -> Devic
                          f"URL {url!r}")
     profile = ""
     if kind in GRBL_KINDS:
-        profile = _simulated_profile(check, url, f"{path}.url", kind) if info.simulated else ""
+        profile = _simulated_profile(check, url, f"{path}.url", kind) if info.simulated else kind
         if "profile" in table:
             profile = _profile(check, table["profile"], f"{path}.profile", kind, folder)
-        profile = profile or kind
     elif "profile" in table:
         raise check.fail(f"{path}.profile", f"expected no profile on a {kind} (profiles are for plotters and "
                          "lasers)")
@@ -244,14 +245,15 @@ def _device(check: _ConfigChecker, value: Any, path: str, folder: Path) -> Devic
 
 
 def _simulated_profile(check: _ConfigChecker, url: str, path: str, kind: str) -> str:
-    """The built-in profile a ``sim://grbl?profile=NAME`` URL simulates ("" when it names none); it must be one
-    of the device's kind."""
+    """The built-in profile a ``sim://grbl?profile=NAME`` URL simulates; the URL must name one, of the device's
+    kind."""
     from drivers.profiles import builtin_profile, builtin_profile_names
 
     names = parse_qs(urlsplit(url).query).get("profile", [])
-    if not names:
-        return ""
     of_kind = [n for n in builtin_profile_names() if builtin_profile(n).kind == kind]
+    if not names:  # the twin's own default is a plotter: a laser on it would be simulated as one
+        raise check.fail(path, f"expected a simulated {kind} ({' or '.join(f'sim://grbl?profile={n}' for n in of_kind)}"
+                         f"), got {url!r}, which names no profile")
     if names[-1] not in of_kind:
         raise check.fail(path, f"expected a simulated {kind} (profile={' or profile='.join(of_kind)}), got "
                          f"profile={names[-1]}")

@@ -55,6 +55,9 @@ BAD = [
      "devices[0].url: expected a simulated plotter (profile=plotter), got profile=laser"),
     ('[[devices]]\nname = "p"\nkind = "plotter"\nurl = "sim://grbl?profile=nope"\n',
      "devices[0].url: expected a simulated plotter (profile=plotter), got profile=nope"),
+    ('[[devices]]\nname = "l"\nkind = "laser"\nurl = "sim://grbl"\n',
+     "devices[0].url: expected a simulated laser (sim://grbl?profile=laser), got 'sim://grbl', which names no "
+     "profile"),
     (PLOTTER + PLOTTER, "devices[1].name: expected a name no other device has, got 'p' (devices[0] has it)"),
     ('[[devices]]\nname = "a"\nkind = "plotter"\nurl = "/dev/ttyUSB0"\n'
      '[[devices]]\nname = "b"\nkind = "laser"\nurl = "/dev/ttyUSB0"\n',
@@ -147,6 +150,12 @@ def test_the_variable_names_a_file_that_must_exist(tmp_path, monkeypatch):
     chosen.write_text(PLOTTER)
     assert [d.name for d in configured_devices()] == ["p"]
     assert load_config().path == chosen
+
+
+def test_a_file_given_must_exist(tmp_path):
+    with pytest.raises(ConfigError, match=r"^station config '.*none.toml': no such file; expected a station.toml "
+                       "file$"):
+        load_config(tmp_path / "none.toml")
 
 
 def test_unreadable_files_are_one_line(tmp_path):

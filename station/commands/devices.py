@@ -15,13 +15,14 @@ def register(subparsers) -> None:
         help="the station's devices (station.toml) and their state",
         description="List the station's devices in the order of its config file: name, kind (plotter, laser, "
         "camera, projector), simulated or real, URL, driver, and the state a brief probe finds (a GRBL machine's "
-        "port is opened and asked its status with '?', never reset: 'connected: Grbl 1.1h, Idle', "
+        "port is opened and asked its status with '?', no soft reset: 'connected: Grbl 1.1h, Idle', "
         "'not connected: no such port'; a camera or projector says 'no driver yet'). Probes run side by side and "
         "answer within about a second (a device's options.timeout, if longer). The devices come from "
         "CHAOS_STATION_CONFIG if set, else station.toml in the data folder (CHAOS_STATION_HOME), else the "
-        "built-in default: every device simulated (--init writes it as a commented station.toml to edit). Opening the port of an Arduino-based controller resets it: do "
-        f"not probe a machine another program is driving. --json prints {JSON_SHAPE}; config is null when the "
-        "built-in default is used, driver null when the kind has no driver yet.",
+        "built-in default: every device simulated (--init writes it as a commented station.toml to edit). "
+        "An Arduino-based controller resets when its port is opened: do not probe a machine another program is "
+        f"driving (--no-probe). --json prints {JSON_SHAPE}; config is null when the built-in default is used, "
+        "driver null when the kind has no driver yet.",
         epilog="examples:\n  station devices\n  station devices --json --no-probe\n  station devices --init",
     )
     parser.add_argument("--json", action="store_true", help=f"print the devices as JSON: {JSON_SHAPE}")
