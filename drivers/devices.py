@@ -31,6 +31,7 @@ from drivers.errors import DriverError, PortError
 __all__ = [
     "ACCEPTED_FORMS",
     "Camera",
+    "FORMS",
     "DriverInfo",
     "GrblDevice",
     "KINDS",
@@ -42,14 +43,21 @@ __all__ = [
 
 KINDS = ("grbl", "camera", "projector")
 
+#: Seconds between status queries while a GRBL probe waits for the answer.
+QUERY_INTERVAL = 0.25
+
 VIDEO_SUFFIXES = (".mp4", ".avi", ".mkv", ".mov", ".webm")
 
+#: The URLs :func:`resolve` accepts for each kind, for messages naming what was expected.
+FORMS = {
+    "grbl": "sim://grbl?profile=NAME, /dev/tty*, COMn, socket://HOST:PORT, rfc2217://HOST:PORT, loop://",
+    "camera": "sim://camera, an index such as 0, /dev/video*, rtsp://..., http(s)://..., a video file "
+    f"({', '.join(VIDEO_SUFFIXES)})",
+    "projector": "sim://projector, display:N",
+}
+
 #: What :func:`resolve` accepts, for the error message on an URL that matches nothing.
-ACCEPTED_FORMS = (
-    "GRBL: sim://grbl?profile=NAME, /dev/tty*, COMn, socket://HOST:PORT, rfc2217://HOST:PORT, loop://; "
-    "camera: sim://camera, an index such as 0, /dev/video*, rtsp://..., http(s)://..., a video file "
-    f"({', '.join(VIDEO_SUFFIXES)}); projector: sim://projector, display:N"
-)
+ACCEPTED_FORMS = f"GRBL: {FORMS['grbl']}; camera: {FORMS['camera']}; projector: {FORMS['projector']}"
 
 
 class UnknownDeviceURL(DriverError):
@@ -142,10 +150,13 @@ class DriverInfo:
 class GrblSerialDevice:
     """The :class:`GrblDevice` of a GRBL controller on a serial port URL (real or ``sim://grbl``).
 
-    It opens the port, writes the status query ``?`` (a real-time byte that changes nothing, so probing a machine
-    that is busy elsewhere is harmless; a soft reset would stop its job) and reads the banner, if any, and the
-    status report. The full driver is :class:`~drivers.grbl.connection
-    .GrblConnection`.
+    It opens the port, writes the status query ``?`` (a real-time byte that changes nothing; a soft reset would stop
+    a job) until the status report comes, and reads the banner, if any, and the state. The full driver is
+    :class:`~drivers.grbl.connection.GrblConnection`.
+
+    Probing is not free on every machine: an Arduino-based controller resets when its USB port is opened (the
+    serial adapter's DTR line), so probing one that another program is streaming to stops that job. Probe a real
+    machine when nothing else drives it.
 
     Parameters
     ----------
@@ -154,7 +165,7 @@ class GrblSerialDevice:
     baud : int
         Baud rate (GRBL 1.1: 115200).
     timeout : float
-        How long :meth:`state` waits for the banner, in seconds.
+        How long :meth:`state` waits for the status report, in seconds (a board that resets on open needs about 2).
     """
 
     def __init__(self, url: str, baud: int = 115200, timeout: float = 0.5) -> None:
@@ -177,11 +188,16 @@ class GrblSerialDevice:
         port = self._port
         try:
             port.reset_input_buffer()
-            port.write(b"?")
             received = b""
             deadline = time.monotonic() + self.timeout
-            while time.monotonic() < deadline:
-                received += port.read(256)
+            next_query = 0.0
+            while (now := time.monotonic()) < deadline:
+                # asked again until answered: a board that resets when its port opens (an Arduino) loses what is
+                # written while it boots, and prints its banner only after a second or two
+                if now >= next_query:
+                    port.write(b"?")
+                    next_query = now + QUERY_INTERVAL
+                received = (received + port.read(256))[-4096:]
                 status = re.search(rb"<([A-Za-z]+)[|:>]", received)
                 if status:
                     banner = re.search(rb"Grbl (\S+)", received)

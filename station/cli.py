@@ -141,7 +141,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         if args.command is None:
             try:
                 return run_tui()
-            except USER_ERRORS as error:  # e.g. CHAOS_STATION_HOME is a file: found before the screen opens
+            except USER_ERRORS as error:  # a bad station.toml, CHAOS_STATION_HOME a file: before the screen
                 print(f"station: error: {error}", file=sys.stderr)
                 return 2
         parser.parse_args([args.command, "--help"])
@@ -184,10 +184,11 @@ def _stop_cleanly_on_sigterm():
 
 
 def run_tui() -> int:
-    """Start the Textual app on the station's default (simulated devices, local SQLite)."""
+    """Start the Textual app on the station's devices (its config file, else all simulated) and local SQLite."""
+    from station.config import configured_devices
     from station.tui.app import StationApp
 
-    StationApp().run()
+    StationApp(devices=configured_devices()).run()
     return 0
 
 

@@ -25,6 +25,10 @@ MIGRATIONS: list[str] = [
         detail TEXT
     );
     """,
+    # 2: the meta table held nothing and nothing read it (the schema version is PRAGMA user_version).
+    """
+    DROP TABLE IF EXISTS meta;
+    """,
 ]
 
 

@@ -1,7 +1,8 @@
 """Where the station keeps its files.
 
 ``CHAOS_STATION_HOME`` overrides everything (tests and CI set it to a temporary folder); otherwise the user's
-data directory from :mod:`platformdirs`.
+data directory from :mod:`platformdirs`. The data folder holds the database (``station.sqlite3``) and the config
+file (``station.toml``, see :mod:`station.config`; ``CHAOS_STATION_CONFIG`` may name another).
 """
 
 from __future__ import annotations

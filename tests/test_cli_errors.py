@@ -124,6 +124,7 @@ def test_a_bad_value_type_is_one_line_naming_the_option(path, option, capsys):
 #: must be listed, so a new command decides here what its missing file looks like.
 MISSING_FILE = {
     ("compare",): ["compare", "missing.toml"],
+    ("devices",): None,  # its file is CHAOS_STATION_CONFIG's: tests/test_config.py
     ("explore",): ["explore", "spirograph", "--design", "missing.json"],
     ("fabricate",): ["fabricate", "spirograph", "--design", "missing.json", "--scale", "5", "--out", "OUT"],
     ("jobs",): None,

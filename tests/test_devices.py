@@ -1,10 +1,14 @@
-"""The device registry: which URL names which kind, and what a brief probe says."""
+"""The device registry: which URL names which kind, and what a brief probe says (of one device, of all)."""
 
 from __future__ import annotations
+
+import time
+from types import MappingProxyType
 
 import pytest
 
 from drivers.devices import Camera, GrblDevice, GrblSerialDevice, Projector, UnknownDeviceURL, probe, resolve
+from station.devices import DeviceEntry, default_devices, probe_device, probe_devices
 
 
 @pytest.mark.parametrize(("url", "kind", "simulated", "available"), [
@@ -55,3 +59,33 @@ def test_grbl_serial_device_is_a_grbl_device():
     device.close()
     device.close()
     assert not isinstance(device, (Camera, Projector))
+
+
+def test_probe_of_a_missing_port_answers_at_once():
+    started = time.monotonic()
+    assert probe("/dev/ttyUSB99", timeout=5.0) == "not connected: no such port"
+    assert time.monotonic() - started < 0.5
+
+
+def test_probing_every_device_is_bounded_in_time(monkeypatch):
+    # A probe stuck in a slow connect (pyserial's socket:// waits up to 5 s) does not hold up the answer.
+    import station.devices as station_devices
+
+    def stuck_or_quick(device):
+        if device.name == "stuck":
+            time.sleep(3)
+        return f"answered {device.name}"
+
+    monkeypatch.setattr(station_devices, "probe_device", stuck_or_quick)
+    monkeypatch.setattr(station_devices, "PROBE_GRACE", 0.2)
+    devices = (DeviceEntry("quick", "plotter", "/dev/ttyUSB98", False),
+               DeviceEntry("stuck", "plotter", "socket://10.255.255.1:23", False))
+    started = time.monotonic()
+    assert station_devices.probe_devices(devices) == ["answered quick", "not connected: no answer within 0.7 s"]
+    assert time.monotonic() - started < 1.5
+
+
+def test_probe_device_uses_its_timeout_option():
+    slow = DeviceEntry("loop", "plotter", "loop://", False, "plotter", MappingProxyType({"timeout": 0.3}))
+    assert probe_device(slow) == "not connected: no GRBL banner within 0.3 s"
+    assert probe_devices(default_devices()) == ["connected: Grbl 1.1h, Idle"] * 2 + ["no driver yet"] * 2

@@ -1,20 +1,31 @@
-"""The home screen: the areas of the station, the devices and their state, the database."""
+"""The home screen: the areas of the station, the devices and their state, the database.
+
+Each device's line shows the state a brief probe finds (:func:`station.devices.probe_device`, the same as
+``station devices``), probed once when the screen is made, each in its own thread worker so that the screen never
+waits for a port. Probing again on return would open a real machine's port while the Machines screen may be
+streaming to it (see :class:`drivers.devices.GrblSerialDevice`), so it is not repeated.
+"""
 
 from __future__ import annotations
 
 from rich.text import Text
+from textual import work
 from textual.app import ComposeResult
 from textual.binding import Binding
 from textual.containers import Vertical
 from textual.screen import Screen
 from textual.widgets import DataTable, Footer, Header, Static
+from textual.worker import Worker, WorkerState
 
-from station.devices import DeviceEntry
+from station.devices import DeviceEntry, probe_device
 from station.joblog import JobLog, local_time
 from station.tui.registry import ScreenEntry
 
 #: Jobs shown on the home screen (``station jobs`` lists more).
 RECENT_JOBS = 5
+
+#: The devices table's column of probed states, and what it shows until a probe answers.
+PROBE_COLUMN, PROBING = "probe", "probing..."
 
 
 class HomeScreen(Screen):
@@ -33,6 +44,7 @@ class HomeScreen(Screen):
         self.areas = areas
         self.devices = devices
         self.database = database
+        self._probes: dict[Worker, str] = {}  # probe worker -> device name
         self.bindings_for_areas = [
             Binding(entry.key, f"app.open_area('{entry.name}')", entry.title) for entry in areas
         ]
@@ -55,6 +67,7 @@ class HomeScreen(Screen):
     def on_mount(self) -> None:
         table = self.query_one("#devices", DataTable)
         table.add_columns("device", "kind", "mode", "port", "state")
+        table.add_column(PROBE_COLUMN, key=PROBE_COLUMN)
         for device in self.devices:
             table.add_row(
                 device.name,
@@ -62,13 +75,34 @@ class HomeScreen(Screen):
                 "simulated" if device.simulated else "real",
                 Text(device.url),
                 self.app.device_state(device),
+                Text(PROBING),
                 key=device.name,
             )
+            self._probes[self.probe(device)] = device.name
         self.query_one("#jobs", DataTable).add_columns("#", "started", "kind", "device", "job", "state", "lines")
         self.show_jobs()
 
     def on_screen_resume(self) -> None:
         self.show_jobs()
+
+    @work(thread=True, group="probe", exit_on_error=False)
+    def probe(self, device: DeviceEntry) -> str:
+        """The probed state of ``device``, off the UI thread (a GRBL probe waits up to its timeout)."""
+        return probe_device(device)
+
+    def on_worker_state_changed(self, event: Worker.StateChanged) -> None:
+        """Show a probe's answer as plain text (it quotes URLs and device replies, which are not markup)."""
+        worker = event.worker
+        if worker not in self._probes or event.state not in (WorkerState.SUCCESS, WorkerState.ERROR):
+            return
+        name = self._probes.pop(worker)
+        if event.state is WorkerState.SUCCESS:
+            state = worker.result
+        else:  # a device URL no driver accepts, a bug in a driver: said on the device's line, the station goes on
+            state = f"probe failed: {worker.error}"
+        table = self.query_one("#devices", DataTable)
+        if name in table.rows:
+            table.update_cell(name, PROBE_COLUMN, Text(state), update_width=True)
 
     def show_jobs(self) -> None:
         """The latest machine jobs from the station database (a job run elsewhere shows when home is shown again)."""
