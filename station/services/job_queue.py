@@ -230,10 +230,17 @@ class JobQueue:
         """The first job that can be sent on ``device`` (on any device with None), or None."""
         return next((entry for entry in self.jobs if entry.ready and device in (None, entry.device)), None)
 
-    def start(self, entry: QueuedJob, mode: JobMode | str, lines_total: int | None = None) -> int:
-        """Mark ``entry`` as sent in ``mode`` and record the send; returns the 1-based line to start from.
+    @staticmethod
+    def start_line(entry: QueuedJob, mode: JobMode | str) -> int:
+        """The 1-based line a send of ``entry`` in ``mode`` starts from: a run of a stopped job resumes at its
+        :attr:`~QueuedJob.resume_line` (when the runner suggested one), everything else starts at line 1."""
+        if JobMode(mode) is JobMode.RUN and entry.state is JobState.STOPPED and entry.resume_line:
+            return entry.resume_line
+        return 1
 
-        A run of a stopped job starts at its :attr:`~QueuedJob.resume_line`; everything else at line 1.
+    def start(self, entry: QueuedJob, mode: JobMode | str, lines_total: int | None = None) -> int:
+        """Mark ``entry`` as sent in ``mode`` and record the send; returns :meth:`start_line` (as it was before).
+
         ``lines_total`` is the number of lines sent (a frame's, not the job's; default the job's).
 
         Raises
@@ -250,9 +257,7 @@ class JobQueue:
         if running is not None:
             raise JobStateError(f"cannot {_VERBS[mode]} {entry.describe()}: {running.describe()} is being sent "
                                 "(one job at a time)", number=entry.number, state=entry.state, action=mode.value)
-        from_line = 1
-        if mode is JobMode.RUN and entry.state is JobState.STOPPED and entry.resume_line:
-            from_line = entry.resume_line
+        from_line = self.start_line(entry, mode)
         title = entry.title if mode is JobMode.RUN else f"{mode.kind} of {entry.title}"
         total = len(entry.job.lines) if lines_total is None else lines_total
         entry.log_id = self.log.start(mode.kind, entry.device, title, total, self.source)
