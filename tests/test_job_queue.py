@@ -55,44 +55,46 @@ def entry_in(state: JobState, queue: JobQueue | None = None):
     return queue, entry
 
 
-# (state, action) -> next state, or None where the queue refuses. "finish:<outcome>" ends the send with a runner
+# (state, action) -> next state, or "-" where the queue refuses. "finish:<outcome>" ends the send with a runner
 # result in that state.
-TABLE = [
-    (JobState.QUEUED, "run", JobState.RUNNING),
-    (JobState.QUEUED, "frame", JobState.FRAMING),
-    (JobState.QUEUED, "dry", JobState.CHECKING),
-    (JobState.QUEUED, "finish:done", None),
-    (JobState.FRAMED, "run", JobState.RUNNING),
-    (JobState.FRAMED, "frame", JobState.FRAMING),
-    (JobState.CHECKED, "run", JobState.RUNNING),
-    (JobState.CHECKED, "dry", JobState.CHECKING),
-    (JobState.STOPPED, "run", JobState.RUNNING),
-    (JobState.STOPPED, "frame", JobState.FRAMING),
-    (JobState.STOPPED, "finish:done", None),
-    (JobState.RUNNING, "run", None),
-    (JobState.RUNNING, "frame", None),
-    (JobState.RUNNING, "finish:done", JobState.DONE),
-    (JobState.RUNNING, "finish:stopped", JobState.STOPPED),
-    (JobState.RUNNING, "finish:aborted", JobState.ABORTED),
-    (JobState.RUNNING, "finish:refused", JobState.REFUSED),
-    (JobState.RUNNING, "finish:position_lost", JobState.POSITION_LOST),
-    (JobState.RUNNING, "finish:error", JobState.ERROR),
-    (JobState.FRAMING, "finish:done", JobState.FRAMED),
-    (JobState.FRAMING, "finish:aborted", JobState.QUEUED),
-    (JobState.FRAMING, "finish:refused", JobState.QUEUED),
-    (JobState.FRAMING, "dry", None),
-    (JobState.CHECKING, "finish:done", JobState.CHECKED),
-    (JobState.CHECKING, "finish:stopped", JobState.QUEUED),
-    (JobState.CHECKING, "run", None),
-    (JobState.DONE, "run", None),
-    (JobState.DONE, "frame", None),
-    (JobState.DONE, "finish:done", None),
-    (JobState.ABORTED, "run", None),
-    (JobState.ABORTED, "dry", None),
-    (JobState.REFUSED, "run", None),
-    (JobState.POSITION_LOST, "run", None),
-    (JobState.ERROR, "frame", None),
-]
+TRANSITIONS = """
+queued         run                    running
+queued         frame                  framing
+queued         dry                    checking
+queued         finish:done            -
+framed         run                    running
+framed         frame                  framing
+checked        run                    running
+checked        dry                    checking
+stopped        run                    running
+stopped        frame                  framing
+stopped        finish:done            -
+running        run                    -
+running        frame                  -
+running        finish:done            done
+running        finish:stopped         stopped
+running        finish:aborted         aborted
+running        finish:refused         refused
+running        finish:position_lost   position_lost
+running        finish:error           error
+framing        finish:done            framed
+framing        finish:aborted         queued
+framing        finish:refused         queued
+framing        dry                    -
+checking       finish:done            checked
+checking       finish:stopped         queued
+checking       run                    -
+done           run                    -
+done           frame                  -
+done           finish:done            -
+aborted        run                    -
+aborted        dry                    -
+refused        run                    -
+position_lost  run                    -
+error          frame                  -
+"""
+TABLE = [(JobState(state), action, None if expected == "-" else JobState(expected))
+         for state, action, expected in (row.split() for row in TRANSITIONS.strip().splitlines())]
 
 
 @pytest.mark.parametrize("state, action, expected", TABLE, ids=[f"{s.value}-{a}" for s, a, _ in TABLE])
