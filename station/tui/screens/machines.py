@@ -5,6 +5,10 @@ planner and RX buffer), a console, jog, home/unlock, and a job queue with frame,
 abort, with progress and ETA. Other screens hand jobs over with :meth:`MachinesScreen.queue_job`; ``n`` plots the
 Drawing screen's current design as a job for the selected device.
 
+The screen holds the device sessions (connections, their listeners, the workers that send); the jobs and their
+states are a :class:`station.services.job_queue.JobQueue`, and the panels are widgets of their own
+(``station.tui.widgets.machines_status``, ``machines_console``, ``machines_preview``).
+
 Keys: c connect/disconnect · v switch device · h home · u unlock · arrows jog X/Y, PgUp/PgDn jog Z, [ ] step ·
 f frame · y dry run · g start · p hold · r resume · ctrl+x abort (always works, even in the console) · a abort ·
 + / - / = feed override · n plot the current design · : console.
