@@ -53,3 +53,14 @@ def test_a_job_that_cannot_be_read_or_draws_nothing_shows_nothing(lines):
     assert len(preview.polylines) == 2
     preview.show_job(Job("odd", lines))
     assert preview.polylines == []
+
+
+def test_each_job_is_read_once():
+    preview = JobPreview()
+    first, second = Job("a", LINES), Job("b", LINES[:9])
+    runs = preview.runs_of(first)
+    preview.show_job(second, 5)
+    assert preview.runs_of(first) is runs and len(preview.runs_of(second)) == 1
+    for k in range(JobPreview.KEEP):
+        preview.runs_of(Job(f"c{k}", LINES))
+    assert preview.runs_of(first) is not runs  # the oldest drawings are let go

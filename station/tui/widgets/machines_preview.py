@@ -71,23 +71,34 @@ def split_at_line(runs: list[PreviewRun], current_line: int | None) -> tuple[lis
 
 
 class JobPreview(PatternCanvas):
-    """A :class:`PatternCanvas` that shows a job's drawing; the last job's drawing is kept (a running job's
-    preview is redrawn every half second)."""
+    """A :class:`PatternCanvas` that shows a job's drawing.
+
+    The drawings of the last few jobs shown are kept: a running job's preview is redrawn every half second, and
+    queueing another job meanwhile shows that one.
+    """
+
+    #: How many jobs' drawings are kept.
+    KEEP = 16
 
     def __init__(self, **kwargs) -> None:
         super().__init__(**kwargs)
-        self._job: Job | None = None
-        self._runs: list[PreviewRun] = []
+        self._drawings: dict[int, tuple[Job, list[PreviewRun]]] = {}  # by id(job); the job is kept, so is its id
+
+    def runs_of(self, job: Job) -> list[PreviewRun]:
+        """:func:`preview_runs` of ``job``, computed once; none for a job whose G-code cannot be read (it is
+        refused with its line when it starts)."""
+        kept = self._drawings.get(id(job))
+        if kept is not None and kept[0] is job:
+            return kept[1]
+        try:
+            runs = preview_runs(job)
+        except GcodeError:
+            runs = []
+        if len(self._drawings) >= self.KEEP:
+            self._drawings.pop(next(iter(self._drawings)))
+        self._drawings[id(job)] = (job, runs)
+        return runs
 
     def show_job(self, job: Job, current_line: int | None = None) -> None:
-        """Draw ``job``; with ``current_line`` (0-based), what is done in green and the rest in grey.
-
-        A job whose G-code cannot be read shows nothing (it is refused with its line when it starts).
-        """
-        if job is not self._job:
-            self._job = job
-            try:
-                self._runs = preview_runs(job)
-            except GcodeError:
-                self._runs = []
-        self.set_polylines(*split_at_line(self._runs, current_line))
+        """Draw ``job``; with ``current_line`` (0-based), what is done in green and the rest in grey."""
+        self.set_polylines(*split_at_line(self.runs_of(job), current_line))
