@@ -3,18 +3,31 @@
 from __future__ import annotations
 
 import asyncio
+from contextlib import asynccontextmanager
 
+import pytest
 from textual.widgets import DataTable
 
 from drivers.gcode import clean_line
 from station.devices import DeviceEntry
+from station.errors import StationError
 from station.joblog import JobLog
 from station.tui.app import StationApp
 
+
+def sim_url(profile: str, time_scale: float) -> str:
+    """The URL of a simulated machine: the one place the tests make one (a clock option goes here)."""
+    return f"sim://grbl?profile={profile}&time_scale={time_scale}"
+
+
 FAST_DEVICES = (
-    DeviceEntry("plotter", "plotter", "sim://grbl?profile=plotter&time_scale=0.01", True),
-    DeviceEntry("laser", "laser", "sim://grbl?profile=laser&time_scale=0.3", True),
+    DeviceEntry("plotter", "plotter", sim_url("plotter", 0.01), True),
+    DeviceEntry("laser", "laser", sim_url("laser", 0.3), True),
 )
+
+
+def station_app(tmp_path) -> StationApp:
+    return StationApp(devices=FAST_DEVICES, database=tmp_path / "t.sqlite3")
 
 
 async def _until(pilot, predicate, timeout=60.0):
@@ -25,6 +38,43 @@ async def _until(pilot, predicate, timeout=60.0):
     while not predicate():
         assert loop.time() < deadline, "condition not reached in time"
         await pilot.pause(0.05)
+
+
+@asynccontextmanager
+async def machines_screen(tmp_path, size=(160, 48)):
+    """The station app showing the Machines screen, its simulated plotter connected: ``(app, pilot, screen)``."""
+    app = station_app(tmp_path)
+    async with app.run_test(size=size) as pilot:
+        await pilot.press("m")
+        await pilot.pause()
+        screen = app.screen
+        assert screen.name == "machines"
+        await _until(pilot, lambda: "plotter" in screen.connections)  # simulated devices connect by themselves
+        yield app, pilot, screen
+
+
+async def _connect_laser(pilot, screen):
+    """Switch to the laser (v), connect it (c); its connection."""
+    await pilot.press("v")
+    assert screen.device.name == "laser"
+    await pilot.press("c")
+    await _until(pilot, lambda: "laser" in screen.connections)
+    return screen.connections["laser"]
+
+
+async def _start_burn(pilot, screen):
+    """Queue a laser job and start it (g); its entry, once the laser has confirmed a few lines."""
+    entry = screen.queue_job("laser", _square(n=8, size=40, laser=True), title="burn")
+    await pilot.press("g")
+    await _until(pilot, lambda: screen.runner is not None and screen.runner.progress.lines_acked > 5)
+    return entry
+
+
+def _assert_laser_off_since_the_last_reset(conn):
+    record = conn.port.machine.snapshot()
+    assert record.resets
+    after = [s for s in record.samples if s.t >= record.resets[-1]]
+    assert after and all(s.power == 0.0 for s in after)
 
 
 def _square(n=4, size=20.0, laser=False):
@@ -40,13 +90,7 @@ def _square(n=4, size=20.0, laser=False):
 
 
 async def test_machines_screen_connects_runs_a_queued_job_and_shows_progress(tmp_path):
-    app = StationApp(devices=FAST_DEVICES, database=tmp_path / "t.sqlite3")
-    async with app.run_test(size=(160, 48)) as pilot:
-        await pilot.press("m")
-        await pilot.pause()
-        screen = app.screen
-        assert screen.name == "machines"
-        await _until(pilot, lambda: "plotter" in screen.connections)  # simulated devices connect by themselves
+    async with machines_screen(tmp_path) as (app, pilot, screen):
         conn = screen.connections["plotter"]
         await _until(pilot, lambda: conn.status is not None)
         await _until(pilot, lambda: "Idle" in screen.status_text and "planner" in screen.status_text)
@@ -66,28 +110,14 @@ async def test_machines_screen_connects_runs_a_queued_job_and_shows_progress(tmp
 
 
 async def test_abort_key_works_from_the_console_and_leaves_the_laser_off(tmp_path):
-    app = StationApp(devices=FAST_DEVICES, database=tmp_path / "t.sqlite3")
-    async with app.run_test(size=(160, 48)) as pilot:
-        await pilot.press("m")
-        await pilot.pause()
-        screen = app.screen
-        await _until(pilot, lambda: "plotter" in screen.connections)
-        await pilot.press("v")  # switch to the laser
-        assert screen.device.name == "laser"
-        await pilot.press("c")
-        await _until(pilot, lambda: "laser" in screen.connections)
-        conn = screen.connections["laser"]
-        entry = screen.queue_job("laser", _square(n=8, size=40, laser=True), title="burn")
-        await pilot.press("g")
-        await _until(pilot, lambda: screen.runner is not None and screen.runner.progress.lines_acked > 5)
+    async with machines_screen(tmp_path) as (app, pilot, screen):
+        conn = await _connect_laser(pilot, screen)
+        entry = await _start_burn(pilot, screen)
         assert entry.state == "running"
         await pilot.press("colon")  # focus the console: ctrl+x must still abort
         await pilot.press("ctrl+x")
         await _until(pilot, lambda: entry.state == "aborted", timeout=15)
-        record = conn.port.machine.snapshot()
-        assert record.resets
-        after = [s for s in record.samples if s.t >= record.resets[-1]]
-        assert after and all(s.power == 0.0 for s in after)
+        _assert_laser_off_since_the_last_reset(conn)
         assert "ALARM:3" in screen.status_text  # reset during motion: guided recovery is shown
         screen.set_focus(None)  # leave the console input
         await pilot.pause()
@@ -96,21 +126,14 @@ async def test_abort_key_works_from_the_console_and_leaves_the_laser_off(tmp_pat
 
 
 async def test_queue_job_refuses_unknown_device(tmp_path):
-    app = StationApp(devices=FAST_DEVICES, database=tmp_path / "t.sqlite3")
-    async with app.run_test() as pilot:
-        await pilot.press("m")
-        await pilot.pause()
-        screen = app.screen
-        try:
+    async with machines_screen(tmp_path) as (app, pilot, screen):
+        with pytest.raises(StationError, match="no device 'mill'"):
             screen.queue_job("mill", "G0 X1")
-        except Exception as error:  # noqa: BLE001
-            assert "no device 'mill'" in str(error)
-        else:
-            raise AssertionError("expected a refusal")
+        assert screen.jobs == []
 
 
 async def test_plot_key_on_the_drawing_screen_plots_the_pattern_and_ends_pen_up(tmp_path):
-    app = StationApp(devices=FAST_DEVICES, database=tmp_path / "t.sqlite3")
+    app = station_app(tmp_path)
     async with app.run_test(size=(160, 48)) as pilot:
         await pilot.press("d")
         await pilot.pause()
@@ -148,12 +171,7 @@ def _console_text(screen) -> str:
 
 async def test_console_shows_messages_as_text_in_colour_and_wraps_long_lines(tmp_path):
     # The console printed "[red]hello world ...[/red]" literally and cut long lines at the panel's edge.
-    app = StationApp(devices=FAST_DEVICES, database=tmp_path / "t.sqlite3")
-    async with app.run_test(size=(160, 48)) as pilot:
-        await pilot.press("m")
-        await pilot.pause()
-        screen = app.screen
-        await _until(pilot, lambda: "plotter" in screen.connections)
+    async with machines_screen(tmp_path) as (app, pilot, screen):
         await pilot.press("colon")
         line = "hello world [b]bold[/b] " + " ".join(f"word{k}" for k in range(40)) + " THE-END"
         # The first words are typed; the rest is pasted into the field (300 key presses took half a minute).
@@ -186,12 +204,8 @@ async def test_keys_act_on_return_to_the_screen_and_arrows_jog(tmp_path):
     # console log, focused when the screen opened, took the up and down arrows (it scrolled instead of jogging).
     from textual.widgets import Input
 
-    app = StationApp(devices=FAST_DEVICES, database=tmp_path / "t.sqlite3")
-    async with app.run_test(size=(160, 48)) as pilot:
-        await pilot.press("m")
-        await pilot.pause()
-        screen = app.screen
-        await _until(pilot, lambda: "plotter" in screen.connections and screen.connections["plotter"].status)
+    async with machines_screen(tmp_path) as (app, pilot, screen):
+        await _until(pilot, lambda: screen.connections["plotter"].status)
         conn = screen.connections["plotter"]
         await pilot.press("up")
         await _until(pilot, lambda: any(text.startswith("$J=") and "Y10" in text for _, d, text in conn.log
@@ -215,19 +229,9 @@ async def test_quit_during_a_job_asks_and_aborts_with_the_laser_off(tmp_path):
     from station.db import open_database
     from station.tui.screens.confirm_quit import ConfirmQuitScreen
 
-    database = tmp_path / "t.sqlite3"
-    app = StationApp(devices=FAST_DEVICES, database=database)
-    async with app.run_test(size=(160, 48)) as pilot:
-        await pilot.press("m")
-        await pilot.pause()
-        screen = app.screen
-        await _until(pilot, lambda: "plotter" in screen.connections)
-        await pilot.press("v", "c")  # the laser
-        await _until(pilot, lambda: "laser" in screen.connections)
-        conn = screen.connections["laser"]
-        entry = screen.queue_job("laser", _square(n=8, size=40, laser=True), title="burn")
-        await pilot.press("g")
-        await _until(pilot, lambda: screen.runner is not None and screen.runner.progress.lines_acked > 5)
+    async with machines_screen(tmp_path) as (app, pilot, screen):
+        conn = await _connect_laser(pilot, screen)
+        entry = await _start_burn(pilot, screen)
         await pilot.press("escape")  # quitting from another screen asks too
         await pilot.pause()
         await pilot.press("ctrl+q")
@@ -242,12 +246,9 @@ async def test_quit_during_a_job_asks_and_aborts_with_the_laser_off(tmp_path):
         await pilot.press("a")  # abort the job and quit
         await _until(pilot, lambda: app._exit, timeout=30)
         assert entry.state == "aborted"
-        record = conn.port.machine.snapshot()
-        assert record.resets
-        after = [s for s in record.samples if s.t >= record.resets[-1]]
-        assert after and all(s.power == 0.0 for s in after)
+        _assert_laser_off_since_the_last_reset(conn)
         assert any("abort" in str(line) for line in app._exit_renderables)
-    connection = open_database(database)
+    connection = open_database(tmp_path / "t.sqlite3")
     try:
         (logged,) = JobLog(connection).recent()
     finally:
@@ -257,12 +258,7 @@ async def test_quit_during_a_job_asks_and_aborts_with_the_laser_off(tmp_path):
 
 async def test_connected_message_names_the_version_without_the_build_suffix(tmp_path):
     # '[VER:1.1h.20190825:]' was shown whole: "plotter: GRBL 1.1h.20190825: connected"
-    app = StationApp(devices=FAST_DEVICES, database=tmp_path / "t.sqlite3")
-    async with app.run_test(size=(160, 48)) as pilot:
-        await pilot.press("m")
-        await pilot.pause()
-        screen = app.screen
-        await _until(pilot, lambda: "plotter" in screen.connections)
+    async with machines_screen(tmp_path) as (app, pilot, screen):
         await pilot.pause(0.2)
         said = [line for line in _console_text(screen).splitlines() if "connected" in line and "GRBL" in line]
         assert said and "GRBL 1.1h" in said[0] and "20190825:" not in said[0], said

@@ -5,6 +5,10 @@ planner and RX buffer), a console, jog, home/unlock, and a job queue with frame,
 abort, with progress and ETA. Other screens hand jobs over with :meth:`MachinesScreen.queue_job`; ``n`` plots the
 Drawing screen's current design as a job for the selected device.
 
+The screen holds the device sessions (connections, their listeners, the workers that send); the jobs and their
+states are a :class:`station.services.job_queue.JobQueue`, and the panels are widgets of their own
+(``station.tui.widgets.machines_status``, ``machines_console``, ``machines_preview``).
+
 Keys: c connect/disconnect · v switch device · h home · u unlock · arrows jog X/Y, PgUp/PgDn jog Z, [ ] step ·
 f frame · y dry run · g start · p hold · r resume · ctrl+x abort (always works, even in the console) · a abort ·
 + / - / = feed override · n plot the current design · : console.
@@ -14,62 +18,40 @@ from __future__ import annotations
 
 import queue
 import time
-from dataclasses import dataclass
 
-import numpy as np
-from rich.markup import escape
 from rich.text import Text
 from textual import on, work
 from textual.app import ComposeResult
 from textual.binding import Binding
 from textual.containers import Horizontal, Vertical
+from textual.css.query import NoMatches
 from textual.screen import Screen
-from textual.widgets import DataTable, Footer, Header, Input, Label, ProgressBar, RichLog, Static
+from textual.widget import Widget
+from textual.widgets import Footer, Header, Input, Static
 
 from drivers.errors import DriverError
-from drivers.grbl import GrblConnection, Job, JobRunner, frame_lines
-from drivers.grbl.protocol import Feedback, StatusReport
+from drivers.grbl import GrblConnection, JobProgress, JobResult, JobRunner
+from drivers.grbl.protocol import Feedback
 from drivers.profiles import MachineProfile, builtin_profile
 from station.errors import StationError
-from station.joblog import JOB_KINDS, JobLog
+from station.joblog import JobLog
+from station.services.job_queue import JobMode, JobQueue, JobState, QueuedJob, frame_job
 from station.tui.registry import ScreenEntry
-from station.tui.widgets.canvas import PatternCanvas
+from station.tui.widgets.machines_console import MachineConsole
+from station.tui.widgets.machines_preview import JobPreview
+from station.tui.widgets.machines_status import JobProgressRow, JobQueueTable, MachineStatus
+
+__all__ = ["JOG_STEPS", "MachinesScreen", "QueuedJob", "SCREEN"]
 
 JOG_STEPS = (0.1, 1.0, 10.0, 50.0)
 
+#: Jog keys and the direction (x, y, z) each one moves, by the jog step.
+JOG_KEYS = {"left": (-1, 0, 0), "right": (1, 0, 0), "up": (0, 1, 0), "down": (0, -1, 0),
+            "pageup": (0, 0, 1), "pagedown": (0, 0, -1)}
 
-@dataclass
-class QueuedJob:
-    """A job waiting on (or done by) one device."""
-
-    number: int
-    title: str
-    device: str
-    job: Job
-    state: str = "queued"
-    message: str = ""
-    runs: list | None = None  # drawing runs for the preview: (points (n, 2), 0-based line of each point)
-
-
-def drawing_runs(job: Job) -> list[tuple[np.ndarray, np.ndarray]]:
-    """Connected drawing moves of a job (feed moves; for a laser only with power on), each point with its line."""
-    path = job.toolpath
-    drawing = ~path.rapid & ((path.power > 0) if job.laser else True)
-    runs: list[tuple[np.ndarray, np.ndarray]] = []
-    points: list[np.ndarray] = []
-    lines: list[int] = []
-    last_end = None
-    for k in np.flatnonzero(drawing):
-        if last_end is None or np.any(np.abs(path.start[k] - last_end) > 1e-9):
-            if len(points) >= 2:
-                runs.append((np.array(points), np.array(lines)))
-            points, lines = [path.start[k][:2]], [int(path.line[k])]
-        points.append(path.end[k][:2])
-        lines.append(int(path.line[k]))
-        last_end = path.end[k]
-    if len(points) >= 2:
-        runs.append((np.array(points), np.array(lines)))
-    return runs
+#: Feed override keys: the key, GRBL's override action and the binding's description.
+FEED_OVERRIDE_KEYS = (("plus", "+10", "Feed +10%"), ("minus", "-10", "Feed -10%"),
+                      ("equals_sign", "reset", "Feed 100%"))
 
 
 class MachinesScreen(Screen):
@@ -104,47 +86,48 @@ class MachinesScreen(Screen):
         Binding("h", "home", "Home"),
         Binding("u", "unlock", "Unlock"),
         Binding("n", "plot_design", "Plot design"),
-        Binding("left", "jog(-1, 0, 0)", "Jog", show=False),
-        Binding("right", "jog(1, 0, 0)", "Jog", show=False),
-        Binding("up", "jog(0, 1, 0)", "Jog", show=False),
-        Binding("down", "jog(0, -1, 0)", "Jog", show=False),
-        Binding("pageup", "jog(0, 0, 1)", "Jog Z", show=False),
-        Binding("pagedown", "jog(0, 0, -1)", "Jog Z", show=False),
+        Binding("colon", "console", "Console"),
+        # "jog(-1, 0, 0)" ...: the tuple's own text is the action's arguments
+        *(Binding(key, f"jog{move}", "Jog Z" if move[2] else "Jog", show=False) for key, move in JOG_KEYS.items()),
         Binding("left_square_bracket", "step(-1)", "Step-", show=False),
         Binding("right_square_bracket", "step(1)", "Step+", show=False),
-        Binding("colon", "console", "Console"),
-        Binding("plus", "override('feed', '+10')", "Feed +10%", show=False),
-        Binding("minus", "override('feed', '-10')", "Feed -10%", show=False),
-        Binding("equals_sign", "override('feed', 'reset')", "Feed 100%", show=False),
+        *(Binding(key, f"override('feed', '{action}')", description, show=False)
+          for key, action, description in FEED_OVERRIDE_KEYS),
     ]
 
     def __init__(self) -> None:
         super().__init__(name="machines")
         self.connections: dict[str, GrblConnection] = {}
-        self.jobs: list[QueuedJob] = []
         self.runner: JobRunner | None = None
-        self.running_job: QueuedJob | None = None
         self.device_index = 0
         self.jog_step_index = 2
         self.last_message = ""
-        self._job_counter = 0
         self._connecting: set[str] = set()
         self._calls: queue.SimpleQueue = queue.SimpleQueue()
         self._last_preview = 0.0
-        self._running_mode = ""
         self._auto_connected = False
-        self._log_ids: dict[int, int] = {}
-        self._job_log: JobLog | None = None
-        self._last_logged = 0.0
+        self._job_queue: JobQueue | None = None
         self._after_abort = None  # called with the job's last message once an abort for quitting has ended it
 
     @property
-    def job_log(self) -> JobLog:
-        """The station database's job history (recording nothing in an app without a database)."""
-        if self._job_log is None:
-            self._job_log = JobLog(getattr(self.app, "database", None),
-                                   on_error=lambda error: self._console(f"job history not written: {error}"))
-        return self._job_log
+    def job_queue(self) -> JobQueue:
+        """The jobs and their states; each send is recorded in the station database's job history (nothing is
+        recorded in an app without a database)."""
+        if self._job_queue is None:
+            log = JobLog(getattr(self.app, "database", None),
+                         on_error=lambda error: self._console(f"job history not written: {error}"))
+            self._job_queue = JobQueue(log, source="tui")
+        return self._job_queue
+
+    @property
+    def jobs(self) -> list[QueuedJob]:
+        """Every queued job, in order (done ones too)."""
+        return self.job_queue.jobs
+
+    @property
+    def running_job(self) -> QueuedJob | None:
+        """The job being sent (running, framing or checking), or None."""
+        return self.job_queue.active
 
     # ------------------------------------------------------------------ layout
 
@@ -152,28 +135,17 @@ class MachinesScreen(Screen):
         yield Header()
         with Horizontal():
             with Vertical(id="left"):
-                yield Static("", id="status")
-                table = DataTable(id="queue", cursor_type="row")
-                table.can_focus = False
-                yield table
-                with Vertical(id="progress-row"):
-                    yield ProgressBar(total=100, show_eta=False, id="progress")
-                    yield Label("", id="progress-label")
+                yield MachineStatus("", id="status")
+                yield JobQueueTable(id="queue")
+                yield JobProgressRow(id="progress-row")
                 yield Static("", id="message")
             with Vertical():
-                yield PatternCanvas(id="preview")
-                # Long lines wrap (GRBL's settings and error replies were cut at the panel's edge).
-                console = RichLog(id="console", max_lines=500, wrap=True, markup=False)
-                # Never focused: a focused log takes the arrows and PgUp/PgDn (it scrolls), so they would not jog.
-                # The mouse wheel still scrolls it.
-                console.can_focus = False
-                yield console
+                yield JobPreview(id="preview")
+                yield MachineConsole(id="console")
                 yield Input(placeholder=": G-code or $ command, Enter sends", id="console-input")
         yield Footer()
 
     def on_mount(self) -> None:
-        table = self.query_one("#queue", DataTable)
-        table.add_columns("#", "job", "device", "lines", "state")
         self._render_status()
         self.set_interval(0.05, self._drain_calls)
 
@@ -287,7 +259,8 @@ class MachinesScreen(Screen):
                 self._from_thread(self._render_status)
         elif event == "log":
             _, direction, text = data
-            if self.running_job is not None and (direction == "out" or (direction == "in" and text == "ok")):
+            # (the runner, not the queue: this runs on the connection's thread)
+            if self.runner is not None and (direction == "out" or (direction == "in" and text == "ok")):
                 return  # thousands of lines and oks during a job drown the console (conn.log keeps them)
             self._from_thread(self._console, f"{name} {'>' if direction == 'out' else '<'} {text}"
                               if direction in ("in", "out") else f"{name} ! {text}")
@@ -299,44 +272,17 @@ class MachinesScreen(Screen):
 
     # ------------------------------------------------------------------ status
 
-    def _render_status(self) -> None:
-        device = self.device
-        lines = []
-        if device is None:
-            lines.append("no plotter or laser configured")
-        else:
-            conn = self.connections.get(device.name)
-            lines.append(f"[b]{escape(device.label)}[/b]  {escape(device.url)}")
-            if conn is None:
-                lines.append("not connected (c connects)")
-            else:
-                status: StatusReport | None = conn.status
-                state = "position lost" if conn.position_lost else (status.label if status else "?")
-                colour = "red" if conn.position_lost or state.startswith("Alarm") else (
-                    "yellow" if state.startswith(("Hold", "Door")) else "green")
-                lines.append(f"state [{colour}]{escape(state)}[/{colour}]   "
-                             f"jog step {JOG_STEPS[self.jog_step_index]:g} mm")
-                if status is not None:
-                    wco = conn.wco or conn.work_offset()
-                    wpos = status.work_position(wco)
-                    mpos = status.machine_position(wco)
-                    if wpos:
-                        lines.append("WPos " + "  ".join(f"{a} {v:8.3f}" for a, v in zip("XYZ", wpos)))
-                    if mpos:
-                        lines.append("MPos " + "  ".join(f"{a} {v:8.3f}" for a, v in zip("XYZ", mpos)))
-                    if status.planner_free is not None:
-                        lines.append(f"planner {conn.planner_size - status.planner_free}/{conn.planner_size} blocks"
-                                     f"   RX {conn.rx_size - status.rx_free}/{conn.rx_size} bytes"
-                                     f"   feed {status.feed or 0:.0f} mm/min  S {status.spindle or 0:.0f}")
-                if conn.alarm is not None:
-                    lines.append(f"[red]{escape(str(conn.alarm))}[/red]")
-                    lines.append(f"  recovery: {escape(str(conn.alarm.recovery))}")
-                if conn.fault:
-                    lines.append(f"[red]{escape(str(conn.fault))}[/red]")
+    def _shown(self, selector: str, kind: type[Widget]):
+        """The screen's widget ``selector``, or None before the screen is composed (jobs may be queued earlier)."""
         try:
-            self.query_one("#status", Static).update("\n".join(lines))
-        except Exception:  # noqa: BLE001 - not mounted yet
-            pass
+            return self.query_one(selector, kind)
+        except NoMatches:
+            return None
+
+    def _render_status(self) -> None:
+        if (panel := self._shown("#status", MachineStatus)) is not None:
+            device = self.device
+            panel.show(device, self.connections.get(device.name) if device else None, JOG_STEPS[self.jog_step_index])
 
     @property
     def status_text(self) -> str:
@@ -349,17 +295,13 @@ class MachinesScreen(Screen):
         ``[MSG:...]``), so they are never parsed as markup: the style is applied to the whole message instead.
         """
         self.last_message = message
-        try:
-            self.query_one("#message", Static).update(Text(message, style=style))
-        except Exception:  # noqa: BLE001
-            pass
+        if (shown := self._shown("#message", Static)) is not None:
+            shown.update(Text(message, style=style))
         self._console(message, style)
 
     def _console(self, text: str, style: str = "") -> None:
-        try:
-            self.query_one("#console", RichLog).write(Text(text, style=style))
-        except Exception:  # noqa: BLE001
-            pass
+        if (console := self._shown("#console", MachineConsole)) is not None:
+            console.say(text, style)
 
     # ------------------------------------------------------------------ queue
 
@@ -378,16 +320,10 @@ class MachinesScreen(Screen):
         if target is None:
             known = ", ".join(d.name for d in self.serial_devices) or "none"
             raise StationError(f"no device {device!r} for the job; known: {known}")
-        if not gcode.strip():
-            raise StationError("the job is empty")
         profile = self.profile_for(target)
-        is_laser = target.kind == "laser" if laser is None else laser
-        pen_up = tuple(profile.pen.up_commands()) if profile.pen else ("M5",)
-        self._job_counter += 1
-        entry = QueuedJob(self._job_counter, title or name or f"job {self._job_counter}", target.name,
-                          Job(title or name or f"job-{self._job_counter}", gcode.splitlines(), laser=is_laser,
-                              pen_up=pen_up))
-        self.jobs.append(entry)
+        entry = self.job_queue.add(target.name, gcode, title or name,
+                                   laser=target.kind == "laser" if laser is None else laser,
+                                   pen_up=tuple(profile.pen.up_commands()) if profile.pen else ("M5",))
         self._refresh_queue()
         self.device_index = self.serial_devices.index(target)
         self._show_preview(entry)
@@ -400,44 +336,18 @@ class MachinesScreen(Screen):
         return entry
 
     def _refresh_queue(self) -> None:
-        try:
-            table = self.query_one("#queue", DataTable)
-        except Exception:  # noqa: BLE001
-            return
-        table.clear()
-        for entry in self.jobs:
-            table.add_row(str(entry.number), Text(entry.title[:28]), entry.device, str(len(entry.job.lines)),
-                          entry.state)
+        if (table := self._shown("#queue", JobQueueTable)) is not None:
+            table.show(self.jobs)
 
     def _show_preview(self, entry: QueuedJob, current_line: int | None = None) -> None:
         """Draw the job's toolpath; with ``current_line``, what is done in green and the rest in grey."""
-        try:
-            if entry.runs is None:
-                entry.runs = drawing_runs(entry.job)
-            polylines, colors = [], []
-            for points, lines in entry.runs:
-                if current_line is None:
-                    polylines.append(points)
-                    colors.append("white")
-                    continue
-                cut = int(np.searchsorted(lines, current_line, side="right"))
-                if cut >= 2:
-                    polylines.append(points[:cut])
-                    colors.append("green")
-                if len(points) - max(cut - 1, 0) >= 2:
-                    polylines.append(points[max(cut - 1, 0):])
-                    colors.append("grey50")
-            self.query_one("#preview", PatternCanvas).set_polylines(polylines, colors)
-        except Exception:  # noqa: BLE001 - a preview is a nicety; the job itself is checked at start
-            pass
+        if (preview := self._shown("#preview", JobPreview)) is not None:
+            preview.show_job(entry.job, current_line)
 
     def next_job(self) -> QueuedJob | None:
+        """The first job the selected device can be sent (queued, framed, checked or stopped)."""
         device = self.device
-        for entry in self.jobs:
-            if entry.state in ("queued", "stopped", "framed", "checked") and (device is None or
-                                                                             entry.device == device.name):
-                return entry
-        return None
+        return self.job_queue.next_for(device.name if device is not None else None)
 
     # ------------------------------------------------------------------ job control
 
@@ -452,15 +362,15 @@ class MachinesScreen(Screen):
         return conn
 
     def action_start(self) -> None:
-        self._run_next(mode="run")
+        self._run_next(JobMode.RUN)
 
     def action_frame(self) -> None:
-        self._run_next(mode="frame")
+        self._run_next(JobMode.FRAME)
 
     def action_dry_run(self) -> None:
-        self._run_next(mode="dry")
+        self._run_next(JobMode.DRY)
 
-    def _run_next(self, mode: str, from_line: int = 1) -> None:
+    def _run_next(self, mode: JobMode) -> None:
         conn = self._ready_connection()
         if conn is None:
             return
@@ -469,86 +379,44 @@ class MachinesScreen(Screen):
             self._say("no queued job for this device (n plots the current design)")
             return
         job = entry.job
-        if mode == "frame":
-            extent = job.extent()
-            if extent is None:
+        if mode is JobMode.FRAME:
+            job = frame_job(entry.job, entry.title, self.profile_for(self.device))
+            if job is None:
                 self._say("nothing to frame")
                 return
-            profile = self.profile_for(self.device)
-            lo, hi = extent
-            if job.laser and profile.laser:
-                lines = frame_lines(lo, hi, laser_power=profile.laser.frame_power * profile.laser.max_power,
-                                    feed=min(3000.0, profile.max_feed))
-            else:
-                lines = frame_lines(lo, hi, pen_up=job.pen_up)
-            job = Job(f"frame of {entry.title}", lines, laser=job.laser, pen_up=job.pen_up)
-        resume = from_line
-        if mode == "run" and entry.state == "stopped" and entry.message.startswith("resume:"):
-            resume = int(entry.message.split(":")[1])
-        runner = JobRunner(conn, job, from_line=resume, dry_run=mode == "dry", on_progress=self._progress_cb)
+        runner = JobRunner(conn, job, from_line=self.job_queue.start_line(entry, mode), dry_run=mode is JobMode.DRY,
+                           on_progress=self._progress_cb)
+        self.job_queue.start(entry, mode, len(job.lines))
         self.runner = runner
-        self._log_start(runner, entry, mode, len(job.lines))
-        self.running_job = entry
-        self._running_mode = mode
-        entry.state = {"run": "running", "frame": "framing", "dry": "checking"}[mode]
         self._refresh_queue()
         self._say(f"{entry.state} {entry.title!r} on {entry.device}")
-        self._job_worker(runner, entry, mode)
+        self._job_worker(runner, entry)
 
-    def _progress_cb(self, progress) -> None:
+    def _progress_cb(self, progress: JobProgress) -> None:
         self._from_thread(self._show_progress, progress)
 
-    def _show_progress(self, progress) -> None:
+    def _show_progress(self, progress: JobProgress) -> None:
         now = time.monotonic()
-        if self.runner is not None:
-            self._log_progress(self.runner, progress.lines_acked)
-        if (self.running_job is not None and self._running_mode == "run"
-                and (now - self._last_preview > 0.5 or progress.state != "running")):
-            self._last_preview = now
-            self._show_preview(self.running_job, progress.current_line)
-        try:
-            self.query_one("#progress", ProgressBar).update(progress=progress.fraction * 100)
-            eta = "--:--" if progress.eta is None else f"{int(progress.eta) // 60}:{int(progress.eta) % 60:02d}"
-            self.query_one("#progress-label", Label).update(
-                f"{progress.fraction * 100:5.1f}%  {progress.lines_acked}/{progress.lines_total} lines  ETA {eta}  "
-                f"{progress.state}")
-        except Exception:  # noqa: BLE001
-            pass
+        entry = self.running_job
+        if entry is not None:
+            self.job_queue.progress(entry, progress.lines_acked)
+            if entry.state is JobState.RUNNING and (now - self._last_preview > 0.5 or progress.state != "running"):
+                self._last_preview = now
+                self._show_preview(entry, progress.current_line)
+        if (row := self._shown("#progress-row", JobProgressRow)) is not None:
+            row.show(progress)
 
     @work(thread=True, exclusive=False, group="job")
-    def _job_worker(self, runner: JobRunner, entry: QueuedJob, mode: str) -> None:
+    def _job_worker(self, runner: JobRunner, entry: QueuedJob) -> None:
         result = runner.run_safely()
-        self._from_thread(self._job_done, runner, entry, mode, result)
+        self._from_thread(self._job_done, runner, entry, result)
 
-    def _log_start(self, runner: JobRunner, entry: QueuedJob, mode: str, lines: int) -> None:
-        title = entry.title if mode == "run" else f"{JOB_KINDS[mode]} of {entry.title}"
-        self._log_ids[id(runner)] = self.job_log.start(JOB_KINDS[mode], entry.device, title, lines, "tui")
-
-    def _log_progress(self, runner: JobRunner, lines_acked: int) -> None:
-        now = time.monotonic()
-        if now - self._last_logged >= 2.0 and id(runner) in self._log_ids:
-            self._last_logged = now
-            self.job_log.progress(self._log_ids[id(runner)], lines_acked)
-
-    def _log_finish(self, runner: JobRunner, result) -> None:
-        job_id = self._log_ids.pop(id(runner), 0)
-        self.job_log.finish(job_id, result.state, result.lines_acked, result.message, result.resume_line)
-
-    def _job_done(self, runner, entry: QueuedJob, mode: str, result) -> None:
-        self._log_finish(runner, result)
-        if mode == "run":
+    def _job_done(self, runner: JobRunner, entry: QueuedJob, result: JobResult) -> None:
+        if entry.state is JobState.RUNNING:
             self._show_preview(entry, len(entry.job.lines) if result.ok else runner.progress.current_line)
+        self.job_queue.finish(entry, result)
         if self.runner is runner:
             self.runner = None
-            self.running_job = None
-        if mode == "frame":
-            entry.state = "framed" if result.ok else "queued"
-        elif mode == "dry":
-            entry.state = "checked" if result.ok else "queued"
-        else:
-            entry.state = result.state
-            if result.state == "stopped" and result.resume_line:
-                entry.message = f"resume:{result.resume_line}"
         self._refresh_queue()
         colour = "green" if result.ok else "red"
         self._say(result.message, style=colour)

@@ -12,8 +12,12 @@ from textual.binding import Binding
 from textual.message import Message
 from textual.widget import Widget
 
+from station.tui.widgets.bounded_keys import bounded_value_bindings, one_line_control_css
+
 SPAN = 2.0
 BAR_WIDTH = 25
+#: How far left/right (coarse) and shift+left/right (fine) move a slider.
+NUDGE = {"coarse": 0.2, "fine": 0.05}
 
 
 class InvariantSlider(Widget, can_focus=True):
@@ -29,18 +33,10 @@ class InvariantSlider(Widget, can_focus=True):
         Current value and bounds (within [-2, 2]).
     """
 
-    DEFAULT_CSS = """
-    InvariantSlider { height: 1; width: 1fr; padding: 0 1; }
-    InvariantSlider:focus { background: $accent 30%; }
-    """
+    DEFAULT_CSS = one_line_control_css("InvariantSlider")
 
     BINDINGS = [
-        Binding("left", "nudge(-0.2)", "−", show=False),
-        Binding("right", "nudge(0.2)", "+", show=False),
-        Binding("shift+left", "nudge(-0.05)", "− fine", show=False),
-        Binding("shift+right", "nudge(0.05)", "+ fine", show=False),
-        Binding("home", "to_bound('lower')", "min", show=False),
-        Binding("end", "to_bound('upper')", "max", show=False),
+        *bounded_value_bindings(lambda direction, size: f"{direction * NUDGE[size]:g}"),
         Binding("enter", "release", "Release", show=True),
     ]
 

@@ -12,9 +12,10 @@ from dataclasses import dataclass
 
 from rich.text import Text
 from textual import events
-from textual.binding import Binding
 from textual.message import Message
 from textual.widget import Widget
+
+from station.tui.widgets.bounded_keys import bounded_value_bindings, one_line_control_css
 
 BAR_WIDTH = 20
 
@@ -86,19 +87,9 @@ class ParameterControl(Widget, can_focus=True):
         Shown as the tooltip.
     """
 
-    DEFAULT_CSS = """
-    ParameterControl { height: 1; width: 1fr; padding: 0 1; }
-    ParameterControl:focus { background: $accent 30%; }
-    """
+    DEFAULT_CSS = one_line_control_css("ParameterControl")
 
-    BINDINGS = [
-        Binding("left", "nudge(-1, 'coarse')", "−", show=False),
-        Binding("right", "nudge(1, 'coarse')", "+", show=False),
-        Binding("shift+left", "nudge(-1, 'fine')", "− fine", show=False),
-        Binding("shift+right", "nudge(1, 'fine')", "+ fine", show=False),
-        Binding("home", "to_bound('lower')", "min", show=False),
-        Binding("end", "to_bound('upper')", "max", show=False),
-    ]
+    BINDINGS = bounded_value_bindings(lambda direction, size: f"{direction}, {size!r}")
 
     class Changed(Message):
         """The user moved the control; ``value`` is already inside the control's bounds."""

@@ -1,0 +1,104 @@
+"""The Machines screen's job preview: what a G-code job draws, and while it runs, what is done (green) and what is
+left (grey).
+
+The drawing is :func:`drivers.gcode.drawn_polylines` of the job (feed moves with the spindle on: the laser burning,
+the servo pen of a plotter); each point is then tied to the job line that drew it, so that progress (the line the
+machine is executing) splits the drawing without reading the G-code again.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from drivers.gcode import GcodeError, Toolpath, drawn_polylines
+from drivers.grbl import Job
+from station.tui.widgets.canvas import PatternCanvas
+
+#: A drawn polyline ((n, 2) points) and, for each point, the 0-based job line that drew it.
+PreviewRun = tuple[np.ndarray, np.ndarray]
+
+
+def preview_runs(job: Job) -> list[PreviewRun]:
+    """The polylines ``job`` draws, each point with its 0-based line.
+
+    Raises
+    ------
+    drivers.gcode.GcodeError
+        If a line of the job cannot be read.
+    """
+    polylines = drawn_polylines(job.lines)
+    return list(zip(polylines, _lines_of_points(polylines, job.toolpath)))
+
+
+def _lines_of_points(polylines: list[np.ndarray], toolpath: Toolpath) -> list[np.ndarray]:
+    # drawn_polylines keeps the toolpath's feed segments in order (a polyline's step i is one segment, its point
+    # values copied exactly), so one forward scan over the feed segments finds the line of every step.
+    feed = np.flatnonzero(~toolpath.rapid)
+    segments = list(zip(map(tuple, toolpath.start[feed, :2].tolist()), map(tuple, toolpath.end[feed, :2].tolist())))
+    seg_lines = toolpath.line[feed].tolist()
+    k = 0
+    result = []
+    for points in polylines:
+        xy = list(map(tuple, points.tolist()))
+        lines = np.zeros(len(xy), dtype=int)
+        for i in range(1, len(xy)):
+            while k < len(segments) and segments[k] != (xy[i - 1], xy[i]):
+                k += 1
+            lines[i] = seg_lines[min(k, len(segments) - 1)]
+            k += 1
+        lines[0] = lines[1] if len(xy) > 1 else 0
+        result.append(lines)
+    return result
+
+
+def split_at_line(runs: list[PreviewRun], current_line: int | None) -> tuple[list[np.ndarray], list[str]]:
+    """Polylines and colours to show: all white without ``current_line``; else green up to and including that
+    0-based line, grey50 after it (the two parts share the point where the line is cut)."""
+    polylines, colors = [], []
+    for points, lines in runs:
+        if current_line is None:
+            polylines.append(points)
+            colors.append("white")
+            continue
+        cut = int(np.searchsorted(lines, current_line, side="right"))
+        if cut >= 2:
+            polylines.append(points[:cut])
+            colors.append("green")
+        if len(points) - max(cut - 1, 0) >= 2:
+            polylines.append(points[max(cut - 1, 0):])
+            colors.append("grey50")
+    return polylines, colors
+
+
+class JobPreview(PatternCanvas):
+    """A :class:`PatternCanvas` that shows a job's drawing.
+
+    The drawings of the last few jobs shown are kept: a running job's preview is redrawn every half second, and
+    queueing another job meanwhile shows that one.
+    """
+
+    #: How many jobs' drawings are kept.
+    KEEP = 16
+
+    def __init__(self, **kwargs) -> None:
+        super().__init__(**kwargs)
+        self._drawings: dict[int, tuple[Job, list[PreviewRun]]] = {}  # by id(job); the job is kept, so is its id
+
+    def runs_of(self, job: Job) -> list[PreviewRun]:
+        """:func:`preview_runs` of ``job``, computed once; none for a job whose G-code cannot be read (it is
+        refused with its line when it starts)."""
+        kept = self._drawings.get(id(job))
+        if kept is not None and kept[0] is job:
+            return kept[1]
+        try:
+            runs = preview_runs(job)
+        except GcodeError:
+            runs = []
+        if len(self._drawings) >= self.KEEP:
+            self._drawings.pop(next(iter(self._drawings)))
+        self._drawings[id(job)] = (job, runs)
+        return runs
+
+    def show_job(self, job: Job, current_line: int | None = None) -> None:
+        """Draw ``job``; with ``current_line`` (0-based), what is done in green and the rest in grey."""
+        self.set_polylines(*split_at_line(self.runs_of(job), current_line))
