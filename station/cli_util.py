@@ -12,6 +12,7 @@ from typing import Any, TextIO
 
 from design.errors import FileFormatError
 from station.errors import UsageError
+from station.services.errors import ServiceError
 
 
 def parse_assignments(items: Iterable[str] | None, option: str = "--set") -> dict[str, float]:
@@ -38,6 +39,21 @@ def parse_assignments(items: Iterable[str] | None, option: str = "--set") -> dic
             raise UsageError(f"{option}: {name!r} is given twice")
         values[name] = value
     return values
+
+
+def flag_error(error: ServiceError, flags: dict[str, str] | None = None) -> UsageError:
+    """A service's refusal as the command line says it: the field that starts the message becomes its flag.
+
+    ``ServiceError("top must be an integer in [1, 100], got 0", field="top")`` becomes ``--top must be ...``.
+    ``flags`` maps a field to its flag where the two differ (default ``--`` + the field, ``_`` as ``-``); a
+    message that does not start with its field is kept as it is.
+    """
+    field = error.field or ""
+    flag = (flags or {}).get(field, "--" + field.replace("_", "-"))
+    message = str(error)
+    if field and message.startswith(field):
+        message = flag + message[len(field):]
+    return UsageError(message)
 
 
 def to_jsonable(value: Any) -> Any:

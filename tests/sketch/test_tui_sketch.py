@@ -17,8 +17,9 @@ SMALL = {"spirograph": DatabaseSettings(max_radius=6, values_per_dimension=3, ha
 
 @pytest.fixture
 def small_retriever(monkeypatch, tmp_path):
-    def make(progress):
-        return SketchRetriever(["spirograph"], cache_dir=tmp_path, settings=SMALL, progress=progress)
+    def make(progress, cancelled=None):
+        return SketchRetriever(["spirograph"], cache_dir=tmp_path, settings=SMALL, progress=progress,
+                               cancelled=cancelled)
 
     monkeypatch.setattr(sketch_screen, "make_retriever", make)
 
