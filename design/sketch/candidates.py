@@ -21,7 +21,7 @@ import tempfile
 import time
 import zipfile
 from collections.abc import Iterable
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -33,7 +33,7 @@ from design.sketch.errors import CandidateDatabaseError, RetrievalSettingError
 from design.sketch.fourier import RadiiHypothesis
 
 #: Bump when the database layout or the way it is built changes.
-DATABASE_FORMAT = 3
+DATABASE_FORMAT = 4
 
 
 @dataclass(frozen=True)
@@ -202,24 +202,29 @@ class CandidateDatabase:
         Gear radii in Eq. 3.6 order; columns of :attr:`radii`.
     params : ndarray
         ``(M, P)`` design parameters.
-    radii : ndarray
-        ``(M, G)`` integer radii in role order.
     bank : SpectrumBank
         Curve spectra, row-aligned with :attr:`params`.
     key : str
         Version key it was built under.
     build_seconds : float
         Time it took to build (0 when loaded from the cache is not known).
+    radii : ndarray
+        ``(M, G)`` integer radii in role order: the :attr:`roles` columns of :attr:`params`, rounded (derived, so
+        the two never disagree).
     """
 
     machine: str
     parameter_names: tuple[str, ...]
     roles: tuple[str, ...]
     params: np.ndarray
-    radii: np.ndarray
     bank: SpectrumBank
     key: str
     build_seconds: float = 0.0
+    radii: np.ndarray = field(init=False, repr=False)
+
+    def __post_init__(self) -> None:
+        columns = [self.parameter_names.index(r) for r in self.roles]
+        self.radii = np.rint(self.params[:, columns]).astype(np.int64)
 
     def __len__(self) -> int:
         return len(self.params)
@@ -327,12 +332,9 @@ def _arclength_resample_batch(curves: np.ndarray, n: int) -> np.ndarray:
     return out
 
 
-def build_database(
-    machine,
-    settings: DatabaseSettings | None = None,
-    progress: Reporter | ProgressCallback | None = None,
-    cancelled: CancelCheck | None = None,
-) -> CandidateDatabase:
+def build_database(machine, settings: DatabaseSettings | None = None,
+                   progress: Reporter | ProgressCallback | None = None,
+                   cancelled: CancelCheck | None = None) -> CandidateDatabase:
     """Sample a machine's candidate designs and their curves (see the module docstring).
 
     Parameters
@@ -364,7 +366,6 @@ def build_database(
         raise CandidateDatabaseError(f"{machine.name}: no feasible design found with radii up to {settings.max_radius}")
     names = machine.parameter_names
     params = np.array([[d[n] for n in names] for d in designs], dtype=float)
-    radii = np.rint(params[:, [names.index(r) for r in roles]]).astype(np.int64)
     spectra = np.zeros((len(params), 2 * settings.harmonics + 1), dtype=np.complex64)
     chunk = max(1, 500_000 // (16 * settings.points))  # small chunks: the dense arc-length pass is memory bound
     for begin in range(0, len(params), chunk):
@@ -377,7 +378,7 @@ def build_database(
         report("curves", done, len(params), f"{machine.name}: curves {done}/{len(params)}")
     key = version_key(machine, settings)
     return CandidateDatabase(
-        machine.name, names, roles, params, radii, SpectrumBank(spectra), key, time.perf_counter() - start
+        machine.name, names, roles, params, SpectrumBank(spectra), key, time.perf_counter() - start
     )
 
 
@@ -401,7 +402,7 @@ def save_database(database: CandidateDatabase, path: Path) -> None:
     handle, temporary = tempfile.mkstemp(dir=path.parent, suffix=".npz.part")
     try:
         with os.fdopen(handle, "wb") as stream:
-            np.savez(stream, params=database.params, radii=database.radii, spectra=database.bank.spectra, meta=meta)
+            np.savez(stream, params=database.params, spectra=database.bank.spectra, meta=meta)
         os.replace(temporary, path)
     except BaseException:
         Path(temporary).unlink(missing_ok=True)
@@ -418,7 +419,6 @@ def read_database(path: Path) -> CandidateDatabase:
                 tuple(meta["parameter_names"]),
                 tuple(meta["roles"]),
                 data["params"],
-                data["radii"],
                 SpectrumBank(data["spectra"]),
                 meta["key"],
                 float(meta.get("build_seconds", 0.0)),

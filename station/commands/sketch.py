@@ -17,7 +17,15 @@ from station.cli_util import emit_json, flag_error
 from station.errors import UsageError
 from station.progress_view import ProgressView
 from station.services.errors import ServiceError
-from station.services.sketch import RetrieveOptions, retrieve, write_contact_sheet
+from station.services.sketch import (
+    GRID_RANGE,
+    REFINE_RANGE,
+    SMOOTHING_RANGE,
+    TOP_RANGE,
+    RetrieveOptions,
+    retrieve,
+    write_contact_sheet,
+)
 
 
 def register(subparsers) -> None:
@@ -35,31 +43,30 @@ def register(subparsers) -> None:
     parser.add_argument("sketch", metavar="SKETCH", help="a .json or .svg sketch file")
     parser.add_argument("--symmetry", type=int, metavar="K", help="rotational symmetry order (copies strokes K times)")
     parser.add_argument("--center", metavar="X,Y", help="centre of the symmetry copies (default: from the file)")
-    parser.add_argument(
-        "--machine",
-        action="append",
-        default=[],
-        metavar="NAME",
-        help=f"search only this machine (repeatable; default all: {', '.join(declared_machine_names())})",
-    )
-    parser.add_argument("--top", type=int, default=5, metavar="N", help="number of candidates (default 5)")
-    parser.add_argument(
-        "--refine", type=int, default=0, metavar="N", help="refine the continuous parameters of the N best (default 0)"
-    )
-    parser.add_argument(
-        "--smoothing", type=float, default=0.01, metavar="S", help="spline smoothing, fraction of the sketch size"
-    )
+    machines = ", ".join(declared_machine_names())
+    parser.add_argument("--machine", action="append", default=[], metavar="NAME",
+                        help=f"search only this machine (repeatable; default all: {machines})")
+    defaults = RetrieveOptions()
+    parser.add_argument("--top", type=int, default=defaults.top, metavar="N",
+                        help=f"number of candidates, {_range(TOP_RANGE)} (default {defaults.top})")
+    parser.add_argument("--refine", type=int, default=defaults.refine, metavar="N",
+                        help=f"refine the continuous parameters of the N best, {_range(REFINE_RANGE)} "
+                             f"(default {defaults.refine})")
+    parser.add_argument("--smoothing", type=float, default=defaults.smoothing, metavar="S",
+                        help=f"spline smoothing, fraction of the sketch size, {_range(SMOOTHING_RANGE)} "
+                             f"(default {defaults.smoothing:g})")
     parser.add_argument("--no-prune", action="store_true", help="compare every candidate (skip the Fourier pruning)")
     parser.add_argument("--mirror", action="store_true", help="also accept mirror images of the patterns")
-    parser.add_argument(
-        "--grid",
-        type=int,
-        metavar="V",
-        help="values per continuous parameter in the databases (default: Spirograph 12, elliptic 6, others 4)",
-    )
+    parser.add_argument("--grid", type=int, metavar="V",
+                        help=f"values per continuous parameter in the databases, {_range(GRID_RANGE)} "
+                             "(default: Spirograph 12, elliptic 6, others 4)")
     parser.add_argument("--json", action="store_true", help="print [{machine, params, distance}, ...] as JSON")
     parser.add_argument("--out", metavar="DIR", help="also write a contact sheet PNG of the sketch vs the candidates")
     parser.set_defaults(func=run_retrieve)
+
+
+def _range(bounds: tuple[float, float]) -> str:
+    return f"{bounds[0]:g} to {bounds[1]:g}"
 
 
 def _parse_center(text: str | None) -> tuple[float, float] | None:

@@ -87,11 +87,8 @@ class SketchScreen(Screen):
         Binding("f", "find", "Find designs"),
         Binding("u", "undo", "Undo stroke"),
         Binding("c", "clear", "Clear"),
-        Binding("1", "open(1)", "Open #1", show=False),
-        Binding("2", "open(2)", "Open #2", show=False),
-        Binding("3", "open(3)", "Open #3", show=False),
-        Binding("4", "open(4)", "Open #4", show=False),
-        Binding("5", "open(5)", "Open #5", show=False),
+        # 1..TOP open the candidate of that rank
+        *(Binding(str(rank), f"open({rank})", f"Open #{rank}", show=False) for rank in range(1, TOP + 1)),
     ]
 
     def __init__(self) -> None:
