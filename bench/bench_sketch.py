@@ -13,7 +13,7 @@ import time
 import numpy as np
 
 from design.machines import get_machine
-from design.sketch.candidates import radius_roles, stderr_progress
+from design.sketch.candidates import radius_roles
 from design.sketch.distance import SpectrumBank, low_spectrum, procrustes_distance_direct
 from design.sketch.ordering import EXACT_MAX_STROKES, order_strokes
 from design.sketch.retrieval import SketchRetriever
@@ -89,7 +89,9 @@ def bench_distance(rng: np.random.Generator) -> None:
 
 
 def main() -> None:
+    from station.commands.sketch import describe_progress
     from station.paths import cache_dir
+    from station.progress_view import ProgressView
 
     cases_per_machine = int(os.environ.get("SKETCH_BENCH_CASES", "40"))
     seed = int(os.environ.get("SKETCH_BENCH_SEED", "2026"))
@@ -97,7 +99,7 @@ def main() -> None:
     bench_ordering(rng)
     bench_distance(rng)
 
-    retriever = SketchRetriever(MACHINES, cache_dir=cache_dir(), progress=stderr_progress)
+    retriever = SketchRetriever(MACHINES, cache_dir=cache_dir(), progress=ProgressView(describe=describe_progress))
     print("candidate databases (Farey radii x feasible grid, 4 values per continuous parameter)")
     for name in MACHINES:
         start = time.perf_counter()

@@ -10,8 +10,10 @@ from collections.abc import Iterable
 from pathlib import Path
 from typing import Any, TextIO
 
+from design.datafiles import load_json
 from design.errors import FileFormatError
 from station.errors import UsageError
+from station.services.errors import ServiceError
 
 
 def parse_assignments(items: Iterable[str] | None, option: str = "--set") -> dict[str, float]:
@@ -38,6 +40,21 @@ def parse_assignments(items: Iterable[str] | None, option: str = "--set") -> dic
             raise UsageError(f"{option}: {name!r} is given twice")
         values[name] = value
     return values
+
+
+def flag_error(error: ServiceError, flags: dict[str, str] | None = None) -> UsageError:
+    """A service's refusal as the command line says it: the field that starts the message becomes its flag.
+
+    ``ServiceError("top must be an integer in [1, 100], got 0", field="top")`` becomes ``--top must be ...``.
+    ``flags`` maps a field to its flag where the two differ (default ``--`` + the field, ``_`` as ``-``); a
+    message that does not start with its field is kept as it is.
+    """
+    field = error.field or ""
+    flag = (flags or {}).get(field, "--" + field.replace("_", "-"))
+    message = str(error)
+    if field and message.startswith(field):
+        message = flag + message[len(field):]
+    return UsageError(message)
 
 
 def to_jsonable(value: Any) -> Any:
@@ -76,6 +93,11 @@ def output_suffix(path: str | Path, allowed: Iterable[str]) -> str:
     return suffix
 
 
+#: What a ``--design`` file should be, the end of the message for a file that is not JSON.
+DESIGN_FILE = ('a design: what `station pattern --json` prints, {"params": {...}}, {name: value} or the list of '
+               '`station retrieve --json`')
+
+
 def add_design_options(parser) -> None:
     """``--design FILE.json`` and ``--set NAME=VALUE`` (repeatable, wins over the file) on a drawing-machine command."""
     parser.add_argument(
@@ -103,18 +125,12 @@ def load_design(path: str | Path, machine_name: str) -> dict[str, Any]:
     Raises
     ------
     FileFormatError
-        Not JSON, not an object or list, ``params`` not an object, a ``machine`` other than ``machine_name``, or a
+        Not JSON (:func:`design.datafiles.load_json`'s one line: file, line and column, what was expected), not an
+        object or list, ``params`` not an object, a ``machine`` other than ``machine_name``, or a
         list with no design for ``machine_name``.
     """
     path = Path(path)
-    try:
-        document = json.loads(path.read_text(encoding="utf-8"))
-    except json.JSONDecodeError as error:
-        raise FileFormatError(f"{path}: not valid JSON ({error.msg} at line {error.lineno})") from None
-    except UnicodeDecodeError:
-        raise FileFormatError(f"{path}: not a UTF-8 text file") from None
-    except RecursionError:
-        raise FileFormatError(f"{path}: not valid JSON (nested too deeply to read)") from None
+    document = load_json(path, DESIGN_FILE)
     if isinstance(document, list):
         ranked = [d for d in document if isinstance(d, dict) and d.get("machine") == machine_name]
         if not ranked:

@@ -175,8 +175,3 @@ def describe(value: Any) -> str:
 def join_path(path: str, key: str) -> str:
     """The path of ``key`` inside the table at ``path`` ("" is the top level)."""
     return f"{path}.{key}" if path else key
-
-
-def reject_constant(name: str) -> float:
-    """``parse_constant`` of :func:`json.loads`: NaN and Infinity are not JSON, and not numbers of a layout."""
-    raise ValueError(f"{name} is not a number")

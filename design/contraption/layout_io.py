@@ -23,9 +23,7 @@ expected value.
 
 from __future__ import annotations
 
-import json
 import math
-import sys
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -36,14 +34,13 @@ import numpy as np
 from design.contraption.errors import LayoutError, ScenarioFormatError
 from design.contraption.fields import describe as _kind
 from design.contraption.fields import join_path as _join
-from design.contraption.fields import reject_constant as _reject_constant
 from design.contraption.model import Scenario
 from design.contraption.schema import ANGLE_KEYS
+from design.datafiles import parse_data
 
-if sys.version_info >= (3, 11):
-    import tomllib
-else:  # pragma: no cover
-    import tomli as tomllib
+#: What a layout file should be, the end of the message for one that is not JSON or TOML.
+LAYOUT_FILE = ('a layout: the LAYOUT.json of `station optimize`, {"x": [...]} or {"parameters": {...}} '
+               '(JSON or TOML)')
 
 #: The ``format`` value of the optimizer's LAYOUT.json (design/robust/pipeline.py writes it).
 OPTIMIZER_FORMAT = "chaos-station robust layout 1"
@@ -169,31 +166,17 @@ def load_layout(path: str | Path, scenario: Scenario) -> np.ndarray:
 def read_layout_data(path: str | Path) -> Any:
     """The parsed content of a layout file: TOML for ``.toml``, JSON otherwise (a LAYOUT.json of any name).
 
-    Text that is not UTF-8 or not JSON/TOML raises :class:`ScenarioFormatError` (``"FILE: not JSON (...)"``);
+    Text that is not UTF-8 or not JSON/TOML raises :class:`ScenarioFormatError` with :mod:`design.datafiles`'s one
+    message (``"FILE: not valid JSON (... at line L column C); expected a layout file..."``);
     ``OSError`` passes, so that callers can say "no such file" their own way.
     """
     path = Path(path)
     file = str(path)
-    raw = path.read_bytes()
     try:
-        text = raw.decode("utf-8")
-    except UnicodeDecodeError as error:
-        raise ScenarioFormatError(file, "", f"not UTF-8 text ({error.reason} at byte {error.start}); "
-                                            "expected a JSON or TOML layout file") from None
-    if path.suffix.lower() == ".toml":
-        try:
-            return tomllib.loads(text)
-        except tomllib.TOMLDecodeError as error:
-            raise ScenarioFormatError(file, "", f"not TOML ({error})") from None
-    try:
-        return json.loads(text, parse_constant=_reject_constant, object_pairs_hook=_unique_keys)
-    except json.JSONDecodeError as error:
-        raise ScenarioFormatError(file, "", f"not JSON ({error.msg} at line {error.lineno} column {error.colno})"
-                                  ) from None
+        return parse_data(path.read_bytes(), file, LAYOUT_FILE, object_pairs_hook=_unique_keys,
+                          error=lambda detail: ScenarioFormatError(file, "", detail))
     except _DuplicateKey as error:
         raise ScenarioFormatError(file, str(error), "given twice; expected each field once") from None
-    except (ValueError, RecursionError) as error:
-        raise ScenarioFormatError(file, "", f"not JSON ({error})") from None
 
 
 class _DuplicateKey(ValueError):

@@ -11,8 +11,6 @@ body references and the graph), and pydantic's messages need rewriting into this
 
 from __future__ import annotations
 
-import json
-import sys
 from collections.abc import Iterator, Mapping
 from pathlib import Path
 from typing import Any
@@ -21,7 +19,7 @@ import numpy as np
 
 from design.contraption.design_space import DesignSpace, design_space_of
 from design.contraption.errors import ScenarioFormatError
-from design.contraption.fields import Checker, reject_constant
+from design.contraption.fields import Checker
 from design.contraption.graph import check_event_graph, check_references, resolve_body_ref
 from design.contraption.model import EventSpec, ObjectSpec, Physics, Scenario, Settings, Tag, Transform, content_hash
 from design.contraption.schema import (
@@ -40,11 +38,10 @@ from design.contraption.schema import (
     UNPLACED,
     Kind,
 )
+from design.datafiles import parse_json, parse_toml
 
-if sys.version_info >= (3, 11):
-    import tomllib
-else:  # pragma: no cover
-    import tomli as tomllib
+#: What a scenario file should be, the end of the message for one that is not TOML or JSON.
+SCENARIO_FILE = "a scenario: [scenario], [[objects]] and [[events]] tables (TOML or JSON)"
 
 
 def load_scenario(path: str | Path) -> Scenario:
@@ -68,21 +65,12 @@ def load_scenario(path: str | Path) -> Scenario:
 
 
 def parse_text(raw: bytes, file: str, suffix: str) -> Any:
-    """Parse the bytes of a TOML or JSON file into plain data, raising :class:`ScenarioFormatError`."""
-    try:
-        text = raw.decode("utf-8")
-    except UnicodeDecodeError as error:
-        raise ScenarioFormatError(file, "", f"expected UTF-8 text ({error.reason} at byte {error.start})") from None
-    try:
-        if suffix == ".json":
-            return json.loads(text, parse_constant=reject_constant)
-        return tomllib.loads(text)
-    except tomllib.TOMLDecodeError as error:
-        raise ScenarioFormatError(file, "", f"expected valid TOML: {error}") from None
-    except json.JSONDecodeError as error:
-        raise ScenarioFormatError(file, "", f"expected valid JSON: {error}") from None
-    except (ValueError, RecursionError) as error:
-        raise ScenarioFormatError(file, "", f"expected valid {suffix[1:].upper()}: {error}") from None
+    """Parse the bytes of a TOML or JSON file into plain data, raising :class:`ScenarioFormatError` with
+    :mod:`design.datafiles`'s one message (``FILE: not valid TOML (... at line L column C); expected ...``)."""
+    fail = lambda detail: ScenarioFormatError(file, "", detail)  # noqa: E731 - the one line it takes
+    if suffix == ".json":
+        return parse_json(raw, file, SCENARIO_FILE, error=fail)
+    return parse_toml(raw, file, SCENARIO_FILE, error=fail)
 
 
 def scenario_from_data(data: Any, *, file: str = "<data>") -> Scenario:

@@ -5,11 +5,11 @@
 >>> result = SketchRetriever(cache_dir=cache).query(sketch, top=5)    # doctest: +SKIP
 >>> [(c.machine, c.params, c.distance) for c in result.candidates]    # doctest: +SKIP
 
-Modules: :mod:`~design.sketch.strokes` (input, symmetry copies), :mod:`~design.sketch.ordering` (stroke order as a
-TSP, MILP + heuristic), :mod:`~design.sketch.spline` (closed smoothing spline), :mod:`~design.sketch.fourier` (DFT,
-radii by Eq. 3.6), :mod:`~design.sketch.candidates` (Farey / feasible-grid database, cached),
-:mod:`~design.sketch.distance` (Procrustes distance, Eq. 3.13), :mod:`~design.sketch.retrieval` (the pipeline),
-:mod:`~design.sketch.synthetic` (seeded benchmark sketches).
+Modules: :mod:`~design.sketch.strokes` (input, symmetry copies), :mod:`~design.sketch.svg` (SVG sketches),
+:mod:`~design.sketch.ordering` (stroke order as a TSP, MILP + heuristic), :mod:`~design.sketch.spline` (closed
+smoothing spline), :mod:`~design.sketch.fourier` (DFT, radii by Eq. 3.6), :mod:`~design.sketch.candidates` (Farey /
+feasible-grid database, cached), :mod:`~design.sketch.distance` (Procrustes distance, Eq. 3.13),
+:mod:`~design.sketch.retrieval` (the pipeline), :mod:`~design.sketch.synthetic` (seeded benchmark sketches).
 """
 
 from design.sketch.candidates import CandidateDatabase, DatabaseSettings, default_settings, load_database

@@ -17,25 +17,23 @@ import hashlib
 import inspect
 import json
 import os
-import sys
 import tempfile
 import time
 import zipfile
-from collections.abc import Callable, Iterable
-from dataclasses import asdict, dataclass
+from collections.abc import Iterable
+from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
 import numpy as np
 
+from common.progress import CancelCheck, ProgressCallback, Reporter
 from design.errors import DesignError
 from design.sketch.distance import DEFAULT_HARMONICS, SpectrumBank, low_spectrum
 from design.sketch.errors import CandidateDatabaseError, RetrievalSettingError
 from design.sketch.fourier import RadiiHypothesis
 
 #: Bump when the database layout or the way it is built changes.
-DATABASE_FORMAT = 3
-
-Progress = Callable[[str, float], None]
+DATABASE_FORMAT = 4
 
 
 @dataclass(frozen=True)
@@ -204,24 +202,29 @@ class CandidateDatabase:
         Gear radii in Eq. 3.6 order; columns of :attr:`radii`.
     params : ndarray
         ``(M, P)`` design parameters.
-    radii : ndarray
-        ``(M, G)`` integer radii in role order.
     bank : SpectrumBank
         Curve spectra, row-aligned with :attr:`params`.
     key : str
         Version key it was built under.
     build_seconds : float
         Time it took to build (0 when loaded from the cache is not known).
+    radii : ndarray
+        ``(M, G)`` integer radii in role order: the :attr:`roles` columns of :attr:`params`, rounded (derived, so
+        the two never disagree).
     """
 
     machine: str
     parameter_names: tuple[str, ...]
     roles: tuple[str, ...]
     params: np.ndarray
-    radii: np.ndarray
     bank: SpectrumBank
     key: str
     build_seconds: float = 0.0
+    radii: np.ndarray = field(init=False, repr=False)
+
+    def __post_init__(self) -> None:
+        columns = [self.parameter_names.index(r) for r in self.roles]
+        self.radii = np.rint(self.params[:, columns]).astype(np.int64)
 
     def __len__(self) -> int:
         return len(self.params)
@@ -329,9 +332,9 @@ def _arclength_resample_batch(curves: np.ndarray, n: int) -> np.ndarray:
     return out
 
 
-def build_database(
-    machine, settings: DatabaseSettings | None = None, progress: Progress | None = None
-) -> CandidateDatabase:
+def build_database(machine, settings: DatabaseSettings | None = None,
+                   progress: Reporter | ProgressCallback | None = None,
+                   cancelled: CancelCheck | None = None) -> CandidateDatabase:
     """Sample a machine's candidate designs and their curves (see the module docstring).
 
     Parameters
@@ -340,9 +343,13 @@ def build_database(
         The model (from :func:`design.machines.get_machine`).
     settings : DatabaseSettings, optional
         Sampling settings (:func:`default_settings` of the machine by default).
-    progress : callable, optional
-        ``progress(message, fraction)`` called as the build goes.
+    progress : Reporter or callable, optional
+        Called with a :class:`common.progress.Progress` per radii combination (stage ``"grid"``) and per chunk of
+        curves (stage ``"curves"``).
+    cancelled : callable, optional
+        Asked between those units of work; True stops the build with :class:`common.progress.Cancelled`.
     """
+    report = Reporter.of(progress, cancelled)
     settings = settings or default_settings(machine.name)
     start = time.perf_counter()
     roles = radius_roles(machine)
@@ -354,13 +361,11 @@ def build_database(
         anchor = _anchor(machine, fixed, rng)
         if anchor is not None:
             designs.extend(feasible_grid(machine, anchor, settings.values_per_dimension))
-        if progress:
-            progress(f"{machine.name}: grid {i + 1}/{len(combos)} radii", 0.3 * (i + 1) / len(combos))
+        report("grid", i + 1, len(combos), f"{machine.name}: grid {i + 1}/{len(combos)} radii")
     if not designs:
         raise CandidateDatabaseError(f"{machine.name}: no feasible design found with radii up to {settings.max_radius}")
     names = machine.parameter_names
     params = np.array([[d[n] for n in names] for d in designs], dtype=float)
-    radii = np.rint(params[:, [names.index(r) for r in roles]]).astype(np.int64)
     spectra = np.zeros((len(params), 2 * settings.harmonics + 1), dtype=np.complex64)
     chunk = max(1, 500_000 // (16 * settings.points))  # small chunks: the dense arc-length pass is memory bound
     for begin in range(0, len(params), chunk):
@@ -369,14 +374,11 @@ def build_database(
         dense = machine.sample_many(rows, n=4 * settings.points + 1, spacing="time", check=False)
         curves = _arclength_resample_batch(dense, settings.points)
         spectra[begin : begin + len(rows)] = low_spectrum(curves, settings.harmonics)
-        if progress:
-            progress(
-                f"{machine.name}: curves {begin + len(rows)}/{len(params)}",
-                0.3 + 0.7 * (begin + len(rows)) / len(params),
-            )
+        done = begin + len(rows)
+        report("curves", done, len(params), f"{machine.name}: curves {done}/{len(params)}")
     key = version_key(machine, settings)
     return CandidateDatabase(
-        machine.name, names, roles, params, radii, SpectrumBank(spectra), key, time.perf_counter() - start
+        machine.name, names, roles, params, SpectrumBank(spectra), key, time.perf_counter() - start
     )
 
 
@@ -400,7 +402,7 @@ def save_database(database: CandidateDatabase, path: Path) -> None:
     handle, temporary = tempfile.mkstemp(dir=path.parent, suffix=".npz.part")
     try:
         with os.fdopen(handle, "wb") as stream:
-            np.savez(stream, params=database.params, radii=database.radii, spectra=database.bank.spectra, meta=meta)
+            np.savez(stream, params=database.params, spectra=database.bank.spectra, meta=meta)
         os.replace(temporary, path)
     except BaseException:
         Path(temporary).unlink(missing_ok=True)
@@ -417,7 +419,6 @@ def read_database(path: Path) -> CandidateDatabase:
                 tuple(meta["parameter_names"]),
                 tuple(meta["roles"]),
                 data["params"],
-                data["radii"],
                 SpectrumBank(data["spectra"]),
                 meta["key"],
                 float(meta.get("build_seconds", 0.0)),
@@ -430,7 +431,8 @@ def load_database(
     machine,
     cache_dir: str | Path | None,
     settings: DatabaseSettings | None = None,
-    progress: Progress | None = None,
+    progress: Reporter | ProgressCallback | None = None,
+    cancelled: CancelCheck | None = None,
 ) -> CandidateDatabase:
     """A machine's candidate database from the cache, built and cached first if missing or stale.
 
@@ -442,12 +444,16 @@ def load_database(
         Cache directory (the station passes ``station.paths.cache_dir()``); ``None`` builds without caching.
     settings : DatabaseSettings, optional
         Sampling settings.
-    progress : callable, optional
-        ``progress(message, fraction)``.
+    progress : Reporter or callable, optional
+        Called with a :class:`common.progress.Progress`: stage ``"build"`` when a database is to be built (no
+        total), then the stages of :func:`build_database`. A database read from the cache reports nothing.
+    cancelled : callable, optional
+        Asked while a database is built (see :func:`build_database`).
     """
+    report = Reporter.of(progress, cancelled)
     settings = settings or default_settings(machine.name)
     if cache_dir is None:
-        return build_database(machine, settings, progress)
+        return build_database(machine, settings, report)
     key = version_key(machine, settings)
     path = cache_path(cache_dir, machine.name, key)
     if path.exists():
@@ -457,37 +463,13 @@ def load_database(
                 return database
         except CandidateDatabaseError:
             pass  # a damaged cache file is rebuilt
-    if progress:
-        progress(f"{machine.name}: building candidate database (once; cached in {path.parent})", 0.0)
-    database = build_database(machine, settings, progress)
+    report("build", 0, None, f"{machine.name}: building candidate database (once; cached in {path.parent})")
+    database = build_database(machine, settings, report)
     save_database(database, path)
     for stale in path.parent.glob(f"candidates-{machine.name}-*.npz"):
         if stale != path:
             stale.unlink(missing_ok=True)
     return database
-
-
-class StderrProgress:
-    """A progress reporter on stderr for command-line use: one line per message kind, updated every 10 %."""
-
-    def __init__(self) -> None:
-        self._last: tuple[str, int] | None = None
-
-    def __call__(self, message: str, fraction: float) -> None:
-        kind = message.split(":")[0]
-        step = int(10 * min(max(fraction, 0.0), 1.0))
-        if self._last == (kind, step):
-            return
-        self._last = (kind, step)
-        print(f"{message} ({100 * fraction:3.0f}%)", file=sys.stderr, flush=True)
-
-
-def stderr_progress(message: str, fraction: float) -> None:
-    """Module-level :class:`StderrProgress` (kept for simple use)."""
-    _STDERR_PROGRESS(message, fraction)
-
-
-_STDERR_PROGRESS = StderrProgress()
 
 
 __all__ = [

@@ -17,14 +17,9 @@ from typing import Any
 import numpy as np
 from scipy.optimize import minimize
 
+from common.progress import CancelCheck, ProgressCallback, Reporter
 from design.errors import DesignError
-from design.sketch.candidates import (
-    CandidateDatabase,
-    DatabaseSettings,
-    Progress,
-    default_settings,
-    load_database,
-)
+from design.sketch.candidates import CandidateDatabase, DatabaseSettings, default_settings, load_database
 from design.sketch.distance import DEFAULT_POINTS, SpectrumBank, low_spectrum
 from design.sketch.errors import RetrievalSettingError, SketchError
 from design.sketch.fourier import RadiiHypothesis, Spectrum, estimate_symmetry, radii_hypotheses, spectrum
@@ -167,8 +162,12 @@ class SketchRetriever:
         Where databases are cached (the station passes ``station.paths.cache_dir()``); ``None``: not cached.
     settings : mapping of machine name -> DatabaseSettings, optional
         Database settings per machine (defaults from :func:`default_settings`).
-    progress : callable, optional
-        ``progress(message, fraction)`` while databases are built.
+    progress : Reporter or callable, optional
+        Called with a :class:`common.progress.Progress` while databases are built (see
+        :func:`~design.sketch.candidates.load_database`).
+    cancelled : callable, optional
+        Asked while a database is built; True stops it with :class:`common.progress.Cancelled` (nothing is cached,
+        the next query builds it again).
     """
 
     def __init__(
@@ -176,7 +175,8 @@ class SketchRetriever:
         machines: Sequence[str] | None = None,
         cache_dir: str | Path | None = None,
         settings: Mapping[str, DatabaseSettings] | None = None,
-        progress: Progress | None = None,
+        progress: Reporter | ProgressCallback | None = None,
+        cancelled: CancelCheck | None = None,
     ) -> None:
         from design.machines import get_machine, machine_names
 
@@ -197,7 +197,7 @@ class SketchRetriever:
                 f"retrieve: every database must keep the same number of harmonics, got {harmonics}"
             )
         self.harmonics = harmonics.pop()
-        self.progress = progress
+        self.progress = Reporter.of(progress, cancelled)
         self._databases: dict[str, CandidateDatabase] = {}
 
     def database(self, name: str) -> CandidateDatabase:

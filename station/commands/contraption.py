@@ -5,11 +5,13 @@ from __future__ import annotations
 import argparse
 import sys
 
-from design.contraption.catalog import example_names, resolve_scenario_path
-from design.contraption.layout_io import LoadedLayout, default_layout, resolve_layout, values_layout
-from design.contraption.scenario import Scenario, load_scenario
+from design.contraption.catalog import example_names
+from design.contraption.layout_io import LoadedLayout
+from design.contraption.scenario import Scenario
 from station.cli_util import check_output_file, emit_json
 from station.errors import UsageError
+from station.progress_view import ProgressView
+from station.services.contraption import choose_layout, open_scenario, render, scenario_summary, simulate
 
 
 def register(subparsers) -> None:
@@ -61,10 +63,6 @@ def _missing_action(parser: argparse.ArgumentParser) -> int:
     return 2
 
 
-def _load(text: str) -> Scenario:
-    return load_scenario(resolve_scenario_path(text))
-
-
 def parse_layout(args, scenario: Scenario) -> LoadedLayout:
     """The layout from ``--layout`` / ``--x`` (the scenario's own transforms when neither is given)."""
     if args.x is not None:
@@ -73,10 +71,8 @@ def parse_layout(args, scenario: Scenario) -> LoadedLayout:
             values = [float(p) for p in parts]
         except ValueError:
             raise UsageError(f"--x {args.x!r}: expected comma-separated numbers") from None
-        return values_layout(scenario, values, what="--x")
-    if args.layout is not None:
-        return resolve_layout(args.layout, scenario)
-    return default_layout(scenario)
+        return choose_layout(scenario, values=values, what="--x")
+    return choose_layout(scenario, layout=args.layout)
 
 
 def layout_lines(layout: LoadedLayout) -> list[str]:
@@ -99,51 +95,29 @@ def run_simulate(args) -> int:
     if args.render:
         # Refused now, not after the simulation: the render is what the user waits for.
         check_output_file(args.render, {".png"}, "--render")
-    scenario = _load(args.scenario)
+    scenario = open_scenario(args.scenario)
     layout = parse_layout(args, scenario)
     report_layout(layout)
-    x = layout.x
-    from design.contraption.simulation import Simulator  # pybullet: loaded only when a command simulates
-
-    with Simulator(scenario) as sim:
-        problems = sim.check_validity(x)
-        if problems:
-            if args.json:
-                emit_json(
-                    {
-                        "scenario": scenario.name,
-                        "valid": False,
-                        "success": False,
-                        "layout": scenario.design_space.as_dict(x),
-                        "layout_source": layout.to_dict(),
-                        "problems": [
-                            {"kind": p.kind, "objects": list(p.objects), "amount": p.amount, "message": p.message}
-                            for p in problems
-                        ],
-                    }
-                )
-            else:
-                print(f"{scenario.name}: layout is physically impossible:")
-                print("\n".join(layout_lines(layout)))
-                for problem in problems:
-                    print(f"  - {problem.message}")
-            return 1
-        print(f"simulating {scenario.name} ({len(scenario.objects)} objects, {len(scenario.events)} events)...",
-              file=sys.stderr)
-        result = sim.run(x, early_stop=not args.no_early_stop, record=bool(args.render))
+    with ProgressView(describe=lambda progress: progress.message) as view:
+        outcome = simulate(scenario, layout.x, early_stop=not args.no_early_stop, record=bool(args.render),
+                           progress=view)
+    if not outcome.valid:
+        if args.json:
+            emit_json(outcome.to_dict(layout))
+        else:
+            print(f"{scenario.name}: layout is physically impossible:")
+            print("\n".join(layout_lines(layout)))
+            for problem in outcome.problems:
+                print(f"  - {problem.message}")
+        return 1
     if args.render:
-        from design.contraption.render import render_result
-
-        render_result(scenario, result, args.render)
+        render(outcome, args.render)
         print(f"wrote {args.render}", file=sys.stderr)
     if args.json:
-        data = result.to_dict()
-        data = {"scenario": scenario.name, "valid": True, "layout": scenario.design_space.as_dict(x),
-                "layout_source": layout.to_dict(), **data}
-        emit_json(data)
+        emit_json(outcome.to_dict(layout))
     else:
-        print(_result_text(scenario, result, layout))
-    return 0 if result.success else 1
+        print(_result_text(scenario, outcome.result, layout))
+    return 0 if outcome.success else 1
 
 
 def _fmt_time(value) -> str:
@@ -169,27 +143,10 @@ def _result_text(scenario: Scenario, result, layout: LoadedLayout) -> str:
 
 
 def run_scenario_check(args) -> int:
-    scenario = _load(args.scenario)
+    scenario = open_scenario(args.scenario)
     space = scenario.design_space
     if args.json:
-        emit_json(
-            {
-                "scenario": scenario.name,
-                "file": scenario.source,
-                "valid": True,
-                "content_hash": scenario.content_hash,
-                "objects": [{"name": o.name, "type": o.type, "parent": o.parent} for o in scenario.objects],
-                "events": [
-                    {"name": e.name, "type": e.type, "after": list(e.after), "join": e.join, "label": e.label}
-                    for e in scenario.event_specs
-                ],
-                "design_space": [
-                    {"name": n, "lower": lo, "upper": hi, "default": d}
-                    for n, lo, hi, d in zip(space.names, space.lower, space.upper, space.default)
-                ],
-                "layouts": {k: space.as_dict(v) for k, v in scenario.layouts.items()},
-            }
-        )
+        emit_json(scenario_summary(scenario))
         return 0
     settings = scenario.settings
     lines = [

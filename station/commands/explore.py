@@ -8,14 +8,13 @@ from __future__ import annotations
 
 import math
 import sys
-from pathlib import Path
 from typing import Any
 
-import numpy as np
-
 from design.machines import declared_machine_names, get_machine
-from station.cli_util import add_design_options, design_parameters, emit_json, output_suffix
+from station.cli_util import add_design_options, design_parameters, emit_json, flag_error, output_suffix
 from station.errors import UsageError
+from station.services.errors import ServiceError
+from station.services.explore import check_points, explore, write_picture
 
 
 def register(subparsers) -> None:
@@ -61,74 +60,24 @@ def parse_move(text: str) -> tuple[int, float]:
     return k, v
 
 
-def _errors(values: dict[str, float]) -> list[dict[str, Any]]:
-    from design.explore import ERROR_UNIT
-
-    out = []
-    for label, error in values.items():
-        kind = label.split(":")[0]
-        out.append({"invariant": label, "error": None if not np.isfinite(error) else error, "unit": ERROR_UNIT[kind]})
-    return out
-
-
 def run_explore(args) -> int:
-    from design.explore import Explorer, parse_keep  # scipy and shapely: loaded only when exploring
+    from design.explore import parse_keep  # scipy and shapely: loaded only when exploring
 
     model = get_machine(args.machine)
-    if args.points is not None and not 256 <= args.points <= 200_000:
-        raise UsageError(f"--points must be an integer in [256, 200000], got {args.points}")
-    suffix = output_suffix(args.out, {".png"}) if args.out else None
-    keeps = [parse_keep(spec) for spec in args.keep]
-    moves = [parse_move(text) for text in args.move]
-    explorer = Explorer(model, design_parameters(args, model.name), n_points=args.points)
-    first_curve, first_pois = explorer.curve, explorer.pois
-    document: dict[str, Any] = {
-        "machine": model.name,
-        "params": explorer.base_design,
-        "size": explorer.size,
-        "pois": [p.as_dict() for p in first_pois],
-    }
-    invariants = [explorer.add_invariant(kind, ids) for kind, ids in keeps]
-    document["invariants"] = [
-        {"label": inv.label, "type": inv.kind, "pois": list(inv.pois), "target": list(inv.target)} for inv in invariants
-    ]
-    document["redundant"] = bool(invariants) and explorer.subspace.redundant
-    document["sliders"] = [s.as_dict() for s in explorer.sliders]
-    document["moves"] = []
-    for k, value in moves:
-        if k >= len(explorer.sliders):
-            raise UsageError(f"--move {k}={value:g}: slider index must be in 0..{len(explorer.sliders) - 1}")
-        moved = explorer.move(k, value)
-        applied = explorer.sliders[k].value
-        result = explorer.release()
-        document["moves"].append(
-            {
-                "slider": k,
-                "requested": value,
-                "value": applied,
-                "params_moved": moved.params,
-                "params": result.params,
-                "features_before": result.features_before,
-                "features_after": result.features_after,
-                "invariant_error_before": _errors(result.errors_before),
-                "invariant_error": _errors(result.errors_after),
-                "shape_change": result.shape_change,
-                "lost": result.lost,
-                "converged": result.converged,
-                "warning": result.warning,
-                "sliders": [s.as_dict() for s in explorer.sliders],
-            }
-        )
+    try:
+        check_points(args.points)
+        suffix = output_suffix(args.out, {".png"}) if args.out else None
+        keeps = [parse_keep(spec) for spec in args.keep]
+        moves = [parse_move(text) for text in args.move]
+        exploration = explore(model.name, design_parameters(args, model.name), keeps, moves, points=args.points)
+    except ServiceError as error:
+        raise flag_error(error) from None
     if suffix:
-        from design.explore.render import write_png
-
-        highlight = [i for ids in explorer.invariant_pois().values() for i in ids if i is not None]
-        with Path(args.out).open("wb") as stream:
-            write_png(stream, [first_curve, explorer.curve], [first_pois, explorer.pois], highlight=highlight)
+        write_picture(exploration, args.out)
     if args.json:
-        emit_json(document)
+        emit_json(exploration.document)
     else:
-        print_text(document, sys.stdout)
+        print_text(exploration.document, sys.stdout)
         if args.out:
             print(f"wrote {args.out}")
     return 0

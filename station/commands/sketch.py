@@ -11,10 +11,21 @@ import math
 import sys
 from pathlib import Path
 
-from design.machines import declared_machine_names, get_machine, machine_names
-from station.cli_util import emit_json
+from common.progress import Progress
+from design.machines import declared_machine_names
+from station.cli_util import emit_json, flag_error
 from station.errors import UsageError
-from station.paths import cache_dir
+from station.progress_view import ProgressView
+from station.services.errors import ServiceError
+from station.services.sketch import (
+    GRID_RANGE,
+    REFINE_RANGE,
+    SMOOTHING_RANGE,
+    TOP_RANGE,
+    RetrieveOptions,
+    retrieve,
+    write_contact_sheet,
+)
 
 
 def register(subparsers) -> None:
@@ -32,31 +43,30 @@ def register(subparsers) -> None:
     parser.add_argument("sketch", metavar="SKETCH", help="a .json or .svg sketch file")
     parser.add_argument("--symmetry", type=int, metavar="K", help="rotational symmetry order (copies strokes K times)")
     parser.add_argument("--center", metavar="X,Y", help="centre of the symmetry copies (default: from the file)")
-    parser.add_argument(
-        "--machine",
-        action="append",
-        default=[],
-        metavar="NAME",
-        help=f"search only this machine (repeatable; default all: {', '.join(declared_machine_names())})",
-    )
-    parser.add_argument("--top", type=int, default=5, metavar="N", help="number of candidates (default 5)")
-    parser.add_argument(
-        "--refine", type=int, default=0, metavar="N", help="refine the continuous parameters of the N best (default 0)"
-    )
-    parser.add_argument(
-        "--smoothing", type=float, default=0.01, metavar="S", help="spline smoothing, fraction of the sketch size"
-    )
+    machines = ", ".join(declared_machine_names())
+    parser.add_argument("--machine", action="append", default=[], metavar="NAME",
+                        help=f"search only this machine (repeatable; default all: {machines})")
+    defaults = RetrieveOptions()
+    parser.add_argument("--top", type=int, default=defaults.top, metavar="N",
+                        help=f"number of candidates, {_range(TOP_RANGE)} (default {defaults.top})")
+    parser.add_argument("--refine", type=int, default=defaults.refine, metavar="N",
+                        help=f"refine the continuous parameters of the N best, {_range(REFINE_RANGE)} "
+                             f"(default {defaults.refine})")
+    parser.add_argument("--smoothing", type=float, default=defaults.smoothing, metavar="S",
+                        help=f"spline smoothing, fraction of the sketch size, {_range(SMOOTHING_RANGE)} "
+                             f"(default {defaults.smoothing:g})")
     parser.add_argument("--no-prune", action="store_true", help="compare every candidate (skip the Fourier pruning)")
     parser.add_argument("--mirror", action="store_true", help="also accept mirror images of the patterns")
-    parser.add_argument(
-        "--grid",
-        type=int,
-        metavar="V",
-        help="values per continuous parameter in the databases (default: Spirograph 12, elliptic 6, others 4)",
-    )
+    parser.add_argument("--grid", type=int, metavar="V",
+                        help=f"values per continuous parameter in the databases, {_range(GRID_RANGE)} "
+                             "(default: Spirograph 12, elliptic 6, others 4)")
     parser.add_argument("--json", action="store_true", help="print [{machine, params, distance}, ...] as JSON")
     parser.add_argument("--out", metavar="DIR", help="also write a contact sheet PNG of the sketch vs the candidates")
     parser.set_defaults(func=run_retrieve)
+
+
+def _range(bounds: tuple[float, float]) -> str:
+    return f"{bounds[0]:g} to {bounds[1]:g}"
 
 
 def _parse_center(text: str | None) -> tuple[float, float] | None:
@@ -76,48 +86,30 @@ def _format_params(params: dict[str, float]) -> str:
     return " ".join(f"{k}={v}" if isinstance(v, int) else f"{k}={v:.4g}" for k, v in params.items())
 
 
+def describe_progress(progress: Progress) -> str:
+    """``spirograph: grid 3/12 radii ( 25%)``: the message, and how far its stage is."""
+    fraction = progress.fraction
+    return progress.message if fraction is None else f"{progress.message} ({100 * fraction:3.0f}%)"
+
+
 def run_retrieve(args) -> int:
     # scipy and the spline/FFT machinery: loaded only when a sketch is retrieved, not for --help
-    from design.sketch import SketchRetriever, load_sketch
-    from design.sketch.candidates import default_settings, stderr_progress
-    from design.sketch.contact_sheet import render_contact_sheet
+    from design.sketch import load_sketch
 
-    known = machine_names()
-    for name in args.machine:
-        if name not in known:
-            raise UsageError(f"--machine {name!r}: unknown machine; expected one of {', '.join(known)}")
-    if not 1 <= args.top <= 100:
-        raise UsageError(f"--top must be an integer in [1, 100], got {args.top}")
-    if not 0 <= args.refine <= 20:
-        raise UsageError(f"--refine must be an integer in [0, 20], got {args.refine}")
-    if not math.isfinite(args.smoothing) or not 0 <= args.smoothing <= 0.5:
-        raise UsageError(f"--smoothing must be a number in [0, 0.5], got {args.smoothing}")
-    if args.grid is not None and not 1 <= args.grid <= 8:
-        raise UsageError(f"--grid must be an integer in [1, 8], got {args.grid}")
+    options = RetrieveOptions(machines=tuple(args.machine), top=args.top, refine=args.refine,
+                              smoothing=args.smoothing, prune=not args.no_prune, mirror=args.mirror, grid=args.grid)
+    try:
+        options.check()
+    except ServiceError as error:
+        raise flag_error(error) from None
     out_dir = Path(args.out) if args.out else None
     if out_dir is not None and out_dir.exists() and not out_dir.is_dir():
         raise UsageError(f"--out {args.out!r}: expected a directory, got an existing file")
     sketch = load_sketch(args.sketch, symmetry=args.symmetry, center=_parse_center(args.center))
-    machines = list(dict.fromkeys(args.machine)) or None
-    settings = None
-    if args.grid is not None:
-        from dataclasses import replace
-
-        settings = {n: replace(default_settings(n), values_per_dimension=args.grid) for n in machines or known}
-    retriever = SketchRetriever(machines, cache_dir=cache_dir(), settings=settings, progress=stderr_progress)
-    result = retriever.query(
-        sketch, top=args.top, prune=not args.no_prune, refine=args.refine, smoothing=args.smoothing, mirror=args.mirror
-    )
+    with ProgressView(describe=describe_progress) as view:
+        result = retrieve(sketch, options, progress=view)
     if out_dir is not None:
-        sheet = out_dir / f"{Path(args.sketch).stem}-candidates.png"
-        labelled = [
-            (
-                f"#{i} {c.machine} {'/'.join(map(str, c.radii))}\ndistance {c.distance:.4f}",
-                get_machine(c.machine).sample(c.params, n=2048, spacing="arclength"),
-            )
-            for i, c in enumerate(result.candidates, start=1)
-        ]
-        render_contact_sheet(sheet, result.prepared.strokes, result.prepared.curve, labelled)
+        sheet = write_contact_sheet(result, out_dir / f"{Path(args.sketch).stem}-candidates.png")
         print(f"contact sheet: {sheet}", file=sys.stderr)
     if not result.candidates:
         lead = sketch.symmetry if sketch.symmetry > 1 else "the sketch's"

@@ -96,10 +96,11 @@ def test_a_layout_json_of_another_scenario_content_is_a_warning(tmp_path, simple
 @pytest.mark.parametrize(
     ("content", "expected"),
     [
-        ("{", "bad.json: not JSON (Expecting property name enclosed in double quotes at line 1 column 2)"),
-        (b"\xff\xfe{}", "bad.json: not UTF-8 text"),
+        ("{", "bad.json: not valid JSON (Expecting property name enclosed in double quotes at line 1 column 2); "
+              "expected a layout"),
+        (b"\xff\xfe{}", "bad.json: not UTF-8 text (invalid start byte at byte 0); expected a layout"),
         ("[1, 2]", "bad.json: expected a table (a JSON object), got an array"),
-        ('{"track.x": NaN}', "bad.json: not JSON (NaN is not a number)"),
+        ('{"track.x": NaN}', "bad.json: not valid JSON (NaN is not a JSON number); expected a layout"),
         ('{"track.x": -0.1, "track.x": -0.05}', "bad.json: track.x: given twice"),
         ({"track.yaw": 1}, "bad.json: track.yaw: unknown design parameter; expected one of track.x, track.z, "
                            "track.roll"),

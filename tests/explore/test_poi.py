@@ -6,16 +6,7 @@ import numpy as np
 import pytest
 
 from design.errors import ParameterError
-from design.explore import (
-    CURVATURE,
-    INTERSECTION,
-    PointOfInterest,
-    detect_curvature_maxima,
-    detect_pois,
-    detect_self_intersections,
-    track_poi,
-)
-from design.explore.poi import segment_crossings
+from design.explore import poi, tracking
 
 
 def hypotrochoid(big_r: int, r: int, d: float, n: int, rng=None) -> tuple[np.ndarray, np.ndarray]:
@@ -51,20 +42,20 @@ def test_circle_has_no_curvature_maximum_even_with_uneven_sampling():
     rng = np.random.default_rng(0)
     t = np.sort(rng.uniform(0, 2 * np.pi, 3000))
     circle = np.column_stack([3 * np.cos(t), 3 * np.sin(t)])
-    assert detect_curvature_maxima(circle) == []
-    assert detect_self_intersections(circle) == []
+    assert poi.detect_curvature_maxima(circle) == []
+    assert poi.detect_self_intersections(circle) == []
 
 
 def test_ellipse_has_two_maxima_at_the_major_axis_ends_with_the_right_curvature():
     rng = np.random.default_rng(1)
     t = np.sort(rng.uniform(0, 2 * np.pi, 4000))
     ellipse = np.column_stack([2 * np.cos(t), np.sin(t)])
-    found = detect_curvature_maxima(ellipse, t)
+    found = poi.detect_curvature_maxima(ellipse, t)
     assert len(found) == 2
     xs = sorted(p.xy[0] for p in found)
     assert xs == pytest.approx([-2, 2], abs=2e-3)
     for p in found:
-        assert p.kind == CURVATURE
+        assert p.kind == poi.CURVATURE
         assert p.curvature == pytest.approx(2.0, rel=0.01)  # a / b^2
         assert np.cos(p.times[0]) == pytest.approx(np.sign(p.xy[0]), abs=1e-4)
 
@@ -72,10 +63,10 @@ def test_ellipse_has_two_maxima_at_the_major_axis_ends_with_the_right_curvature(
 def test_figure_eight_crossing_position_angle_and_both_arclengths():
     t = np.linspace(0, 2 * np.pi, 2001)
     gerono = np.column_stack([np.sin(t), np.sin(t) * np.cos(t)])  # crosses itself at the origin at 90 degrees
-    found = detect_self_intersections(gerono, t)
+    found = poi.detect_self_intersections(gerono, t)
     assert len(found) == 1
     (x,) = found
-    assert x.kind == INTERSECTION
+    assert x.kind == poi.INTERSECTION
     assert x.xy == pytest.approx((0, 0), abs=1e-9)
     assert np.degrees(x.angle) == pytest.approx(90.0, abs=0.05)
     assert x.times == pytest.approx((np.pi, 2 * np.pi), abs=1e-6) or x.times == pytest.approx((0, np.pi), abs=1e-6)
@@ -85,7 +76,7 @@ def test_figure_eight_crossing_position_angle_and_both_arclengths():
 @pytest.mark.parametrize(("big_r", "r", "d"), [(5, 3, 2.0), (7, 3, 4.5), (9, 4, 1.0), (8, 3, 3.0)])
 def test_strtree_crossings_match_the_all_pairs_oracle(big_r, r, d):
     xy, _ = hypotrochoid(big_r, r, d, 700)
-    i, j, u, v = segment_crossings(xy)
+    i, j, u, v = poi.segment_crossings(xy)
     assert len(i) == brute_force_crossings(xy)
     # Every crossing pair is reported once, with i < j and non-adjacent segments.
     assert np.all(j - i > 1)
@@ -95,9 +86,9 @@ def test_strtree_crossings_match_the_all_pairs_oracle(big_r, r, d):
 def test_hypotrochoid_pois_follow_its_rotational_symmetry():
     rng = np.random.default_rng(2)
     xy, t = hypotrochoid(7, 3, 2.0, 6000, rng)
-    pois = detect_pois(xy, t)
-    maxima = [p for p in pois if p.kind == CURVATURE]
-    crossings = [p for p in pois if p.kind == INTERSECTION]
+    pois = poi.detect_pois(xy, t)
+    maxima = [p for p in pois if p.kind == poi.CURVATURE]
+    crossings = [p for p in pois if p.kind == poi.INTERSECTION]
     assert len(maxima) % 7 == 0 and maxima
     assert len(crossings) % 7 == 0 and crossings
     assert [p.id for p in pois] == list(range(len(pois)))
@@ -114,21 +105,21 @@ def test_hypotrochoid_pois_follow_its_rotational_symmetry():
 
 def test_bad_curves_are_refused_with_the_shape_named():
     with pytest.raises(ParameterError, match=r"\(n, 2\)"):
-        detect_pois(np.zeros((10, 3)))
+        poi.detect_pois(np.zeros((10, 3)))
     with pytest.raises(ParameterError, match="non-finite"):
-        detect_pois(np.array([[0, 0], [1, 0], [np.nan, 1], [0, 1], [0, 0]], dtype=float))
+        poi.detect_pois(np.array([[0, 0], [1, 0], [np.nan, 1], [0, 1], [0, 0]], dtype=float))
     with pytest.raises(ParameterError, match="times"):
-        detect_pois(np.random.default_rng(0).normal(size=(10, 2)), times=np.arange(4))
+        poi.detect_pois(np.random.default_rng(0).normal(size=(10, 2)), times=np.arange(4))
     with pytest.raises(ParameterError, match="kinds"):
-        detect_pois(np.random.default_rng(0).normal(size=(10, 2)), kinds=("cusp",))
+        poi.detect_pois(np.random.default_rng(0).normal(size=(10, 2)), kinds=("cusp",))
 
 
 def test_tracking_by_arclength_follows_each_poi_to_a_nearby_design():
     a, ta = hypotrochoid(7, 3, 2.0, 5000)
     b, tb = hypotrochoid(7, 3, 2.1, 5000)
-    pois_a, pois_b = detect_pois(a, ta), detect_pois(b, tb)
+    pois_a, pois_b = poi.detect_pois(a, ta), poi.detect_pois(b, tb)
     for ref in pois_a:
-        result = track_poi(ref, pois_b, sigma_poi=0.5)
+        result = tracking.track_poi(ref, pois_b, sigma_poi=0.5)
         assert not result.lost, result.reason
         assert result.match.kind == ref.kind
         # Same PoI: same parameter time(s), up to the small shift a 5 % change of d makes.
@@ -137,27 +128,27 @@ def test_tracking_by_arclength_follows_each_poi_to_a_nearby_design():
 
 def test_tracking_prefers_arclength_over_a_closer_overlapping_poi():
     # Two crossings at almost the same place but at different arc lengths: position alone would pick the wrong one.
-    ref = PointOfInterest(0, INTERSECTION, (0.0, 0.0), (10.0, 60.0), 100.0, angle=0.5)
-    impostor = PointOfInterest(0, INTERSECTION, (0.001, 0.0), (30.0, 80.0), 100.0, angle=0.5)
-    right = PointOfInterest(1, INTERSECTION, (0.05, 0.0), (10.5, 60.2), 100.0, angle=0.5)
-    result = track_poi(ref, [impostor, right], sigma_poi=0.2)
+    ref = poi.PointOfInterest(0, poi.INTERSECTION, (0.0, 0.0), (10.0, 60.0), 100.0, angle=0.5)
+    impostor = poi.PointOfInterest(0, poi.INTERSECTION, (0.001, 0.0), (30.0, 80.0), 100.0, angle=0.5)
+    right = poi.PointOfInterest(1, poi.INTERSECTION, (0.05, 0.0), (10.5, 60.2), 100.0, angle=0.5)
+    result = tracking.track_poi(ref, [impostor, right], sigma_poi=0.2)
     assert result.match is right
 
 
 def test_a_poi_that_disappears_is_reported_lost_not_swapped():
-    ref = PointOfInterest(0, CURVATURE, (1.0, 0.0), (10.0,), 100.0, curvature=3.0)
-    far = PointOfInterest(0, CURVATURE, (1.0, 0.1), (40.0,), 100.0, curvature=3.0)
-    result = track_poi(ref, [far], sigma_poi=0.5)
+    ref = poi.PointOfInterest(0, poi.CURVATURE, (1.0, 0.0), (10.0,), 100.0, curvature=3.0)
+    far = poi.PointOfInterest(0, poi.CURVATURE, (1.0, 0.1), (40.0,), 100.0, curvature=3.0)
+    result = tracking.track_poi(ref, [far], sigma_poi=0.5)
     assert result.lost and "arc length" in result.reason
-    moved = PointOfInterest(0, CURVATURE, (3.0, 0.0), (10.2,), 100.0, curvature=3.0)
-    result = track_poi(ref, [moved], sigma_poi=0.5)
+    moved = poi.PointOfInterest(0, poi.CURVATURE, (3.0, 0.0), (10.2,), 100.0, curvature=3.0)
+    result = tracking.track_poi(ref, [moved], sigma_poi=0.5)
     assert result.lost and "sigma_PoI" in result.reason
-    assert track_poi(ref, [], sigma_poi=0.5).lost
-    crossing = PointOfInterest(0, INTERSECTION, (1.0, 0.0), (10.0, 50.0), 100.0, angle=1.0)
-    assert track_poi(ref, [crossing], sigma_poi=0.5).lost  # another type never matches
+    assert tracking.track_poi(ref, [], sigma_poi=0.5).lost
+    crossing = poi.PointOfInterest(0, poi.INTERSECTION, (1.0, 0.0), (10.0, 50.0), 100.0, angle=1.0)
+    assert tracking.track_poi(ref, [crossing], sigma_poi=0.5).lost  # another type never matches
 
 
 def test_seam_is_handled_arclengths_wrap_around():
-    ref = PointOfInterest(0, CURVATURE, (1.0, 0.0), (99.8,), 100.0, curvature=3.0)
-    across = PointOfInterest(0, CURVATURE, (1.0, 0.01), (0.1,), 100.0, curvature=3.0)
-    assert track_poi(ref, [across], sigma_poi=0.5).match is across
+    ref = poi.PointOfInterest(0, poi.CURVATURE, (1.0, 0.0), (99.8,), 100.0, curvature=3.0)
+    across = poi.PointOfInterest(0, poi.CURVATURE, (1.0, 0.01), (0.1,), 100.0, curvature=3.0)
+    assert tracking.track_poi(ref, [across], sigma_poi=0.5).match is across

@@ -137,7 +137,7 @@ def test_cli_bad_input_is_one_clear_line(tmp_path, capsys):
     broken = tmp_path / "broken.json"
     broken.write_text("{")
     assert main(["robustness", str(SIMPLE), str(broken)]) == 2
-    assert "not JSON" in capsys.readouterr().err
+    assert "broken.json: not valid JSON (Expecting property name" in capsys.readouterr().err
     assert main(["optimize", str(tmp_path / "nope.toml"), "--out", str(tmp_path / "y.json")]) == 2
     capsys.readouterr()
     assert main(["optimize", str(SIMPLE), "--placement-error", "0.9", "--out", str(tmp_path / "z.json")]) == 2
@@ -204,7 +204,7 @@ def test_cli_optimize_repeats_a_run_from_its_layout_file(tmp_path, capsys):
         source.unlink(missing_ok=True)
 
     refused(None, "--settings: no such file")
-    refused("{", "source.json: not JSON")
+    refused("{", "source.json: not valid JSON (Expecting property name")
     refused('{"scenario": "SIMPLE"}', "source.json: field 'psp_settings' is missing")
     refused('{"psp_settings": null}', "field 'psp_settings' is null")
     refused('{"psp_settings": {"n_initial": "many"}}', "field 'psp_settings': n_initial must be an integer, got 'many'")

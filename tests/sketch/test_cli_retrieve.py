@@ -27,7 +27,13 @@ def test_retrieve_json_and_contact_sheet(tmp_path, capsys):
         ]
     )
     assert code == 0
-    out = capsys.readouterr().out
+    out, err = capsys.readouterr()
+    # the first run builds the database: its progress as plain lines on stderr (not a terminal), never \r redraws
+    lines = err.splitlines()
+    assert lines[0].startswith("spirograph: building candidate database (once; cached in ")
+    assert "spirograph: grid 1/" in err and any(line.startswith("spirograph: curves ") and line.endswith("(100%)")
+                                                for line in lines)
+    assert "\r" not in err and len(lines) < 40
     ranked = json.loads(out)
     # symmetry 3 fixes the fixed ring's radius: only r_f = 3 designs (3/1 and 3/2) are candidates
     assert [c["params"]["r_f"] for c in ranked] == [3, 3]

@@ -9,7 +9,8 @@ import pytest
 
 from design.errors import DesignError
 from design.sketch.errors import RetrievalSettingError, SketchError, SketchFileError
-from design.sketch.strokes import MAX_FILE_BYTES, load_sketch, make_sketch, parse_path_data, symmetrize
+from design.sketch.strokes import MAX_FILE_BYTES, load_sketch, make_sketch, symmetrize
+from design.sketch.svg import parse_path_data
 
 
 def square(n: int = 10) -> list[list[float]]:
@@ -65,7 +66,8 @@ def test_bad_symmetry_order():
 def test_bad_files(tmp_path):
     cases = {
         "x.txt": ("hello", "unknown sketch format"),
-        "bad.json": ("{not json", "invalid JSON at line 1"),
+        "bad.json": ("{not json", "bad.json: not valid JSON (Expecting property name enclosed in double quotes "
+                                  "at line 1 column 2); expected a list of strokes"),
         "field.json": (json.dumps({"strokez": []}), "unknown field"),
         "missing.json": (json.dumps({"symmetry": 3}), "'strokes' is missing"),
         "sym.json": (json.dumps({"strokes": [square()], "symmetry": 0}), "field 'symmetry'"),

@@ -5,8 +5,10 @@ from __future__ import annotations
 import math
 
 import pytest
+from textual.widgets import ProgressBar
 
 import station.tui.screens.sketch as sketch_screen
+from common.progress import Progress
 from design.sketch import SketchRetriever
 from design.sketch.candidates import DatabaseSettings
 from station.tui.app import StationApp
@@ -17,10 +19,18 @@ SMALL = {"spirograph": DatabaseSettings(max_radius=6, values_per_dimension=3, ha
 
 @pytest.fixture
 def small_retriever(monkeypatch, tmp_path):
-    def make(progress):
-        return SketchRetriever(["spirograph"], cache_dir=tmp_path, settings=SMALL, progress=progress)
+    """A small database built in ``tmp_path``; returns the list of the screen's progress reports."""
+    seen: list[Progress] = []
+
+    def make(progress, cancelled=None):
+        def spy(update: Progress) -> None:
+            seen.append(update)
+            progress(update)
+
+        return SketchRetriever(["spirograph"], cache_dir=tmp_path, settings=SMALL, progress=spy, cancelled=cancelled)
 
     monkeypatch.setattr(sketch_screen, "make_retriever", make)
+    return seen
 
 
 async def wait_for_candidates(app, pilot, screen):
@@ -61,6 +71,10 @@ async def test_draw_sector_find_and_open(tmp_path, small_retriever):
         assert pad.symmetry == 3
         await pilot.press("f")
         await wait_for_candidates(app, pilot, screen)
+        # the database build reported the one Progress type, shown in the screen's bar
+        assert {p.stage for p in small_retriever} == {"build", "grid", "curves"}
+        assert small_retriever[-1].fraction == 1.0
+        assert screen.query_one("#progress", ProgressBar).percentage == 1.0
         best = screen.candidates[0]
         assert best.machine == "spirograph" and best.params["r_f"] == 3
         await pilot.click("#candidate-1")
@@ -94,3 +108,9 @@ async def test_bad_sketch_and_symmetry_show_a_message(tmp_path, small_retriever)
         await pilot.pause()
         assert "empty" in str(screen.query_one("#status").render())
         assert app.focused is screen.query_one("#pad", SketchPad) and screen.pad.symmetry == 2
+        # a build's progress: its message and share as the status, its stage's counts in the bar
+        screen.show_progress(Progress("curves", 3, 12, "spirograph: curves 3/12"))
+        await pilot.pause()
+        bar = screen.query_one("#progress", ProgressBar)
+        assert (bar.progress, bar.total) == (3, 12)
+        assert str(screen.query_one("#status").render()) == "spirograph: curves 3/12 (25%)"

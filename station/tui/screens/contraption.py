@@ -23,10 +23,11 @@ from textual.containers import Horizontal, Vertical
 from textual.screen import Screen
 from textual.widgets import DataTable, Footer, Header, Input, Static
 
-from design.contraption import Scenario, Simulator, load_scenario
+from design.contraption import Scenario, Simulator
 from design.contraption.bullet import direct_client
-from design.contraption.catalog import example_names, resolve_scenario_path
+from design.contraption.catalog import example_names
 from design.errors import DesignError
+from station.services.contraption import open_scenario, simulate
 from station.tui.registry import ScreenEntry
 from station.tui.widgets.canvas import PatternCanvas
 
@@ -133,7 +134,7 @@ class ContraptionScreen(Screen):
             self.set_status("a simulation is running", style="yellow")
             return False
         try:
-            scenario = load_scenario(resolve_scenario_path(text))
+            scenario = open_scenario(text)
         except (DesignError, OSError) as error:
             self.set_status(str(error), style="red")
             return False
@@ -243,23 +244,21 @@ class ContraptionScreen(Screen):
         started = time.perf_counter()
         if self._client is None:
             self._client = direct_client()
-        with Simulator(scenario, client=self._client) as sim:
-            problems = sim.check_validity(x)
-            if problems:
-                message = "; ".join(p.message for p in problems)
-                self.app.call_from_thread(self._finished, None, Text.assemble(("impossible layout: ", "red"), message))
-                return
 
-            def on_change(t: float, states: dict[str, str]) -> None:
-                if realtime:
-                    # Pace the run so that a person can follow the events (simulated time = wall time).
-                    delay = started + t - time.perf_counter()
-                    if delay > 0:
-                        time.sleep(delay)
-                snapshot = sim.world.snapshot()
-                self.app.call_from_thread(self._update_states, t, states, snapshot, world_ropes(sim.world))
+        def on_change(t: float, states: dict[str, str], world) -> None:
+            if realtime:
+                # Pace the run so that a person can follow the events (simulated time = wall time).
+                delay = started + t - time.perf_counter()
+                if delay > 0:
+                    time.sleep(delay)
+            self.app.call_from_thread(self._update_states, t, states, world.snapshot(), world_ropes(world))
 
-            result = sim.run(x, on_change=on_change, record=True)
+        outcome = simulate(scenario, x, record=True, on_change=on_change, client=self._client)
+        if not outcome.valid:
+            message = "; ".join(p.message for p in outcome.problems)
+            self.app.call_from_thread(self._finished, None, Text.assemble(("impossible layout: ", "red"), message))
+            return
+        result = outcome.result
         verdict = ("SUCCESS", "bold green") if result.success else ("FAILURE", "bold red")
         summary = Text.assemble(
             verdict, f": {result.n_successful_events}/{len(result.events)} events, "

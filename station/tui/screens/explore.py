@@ -26,6 +26,7 @@ from textual.widgets import DataTable, Footer, Header, Static
 from design.errors import DesignError
 from design.explore import Explorer, OverConstrainedError
 from design.machines import get_machine
+from station.services.explore import start_session
 from station.tui.registry import ScreenEntry
 from station.tui.widgets.explore_canvas import ExploreCanvas, nearest_poi, poi_markers
 from station.tui.widgets.explore_slider import InvariantSlider
@@ -125,7 +126,7 @@ class ExploreScreen(Screen):
     @work(thread=True, exclusive=True, group="explore-build")
     def _build(self, machine: str, params: dict) -> None:
         try:
-            explorer = Explorer(machine, params)
+            explorer = start_session(machine, params)
         except DesignError as error:
             self.app.call_from_thread(self._set_status, f"cannot explore this design: {error}")
             return

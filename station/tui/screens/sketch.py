@@ -16,13 +16,15 @@ from textual.app import ComposeResult
 from textual.binding import Binding
 from textual.containers import Horizontal, Vertical, VerticalScroll
 from textual.screen import Screen
-from textual.widgets import Button, Footer, Header, Input, Label, Static
+from textual.widgets import Button, Footer, Header, Input, Label, ProgressBar, Static
+from textual.worker import get_current_worker
 
+from common.progress import Cancelled, Progress
 from design.errors import DesignError
-from design.machines import get_machine
 from design.sketch import SketchRetriever, make_sketch
 from design.sketch.retrieval import Candidate
-from station.paths import cache_dir
+from station.services.sketch import RetrieveOptions, candidate_curve, retrieve
+from station.services.sketch import make_retriever as retriever_service
 from station.tui.registry import ScreenEntry
 from station.tui.widgets.canvas import PatternCanvas
 from station.tui.widgets.sketch_pad import SketchPad
@@ -31,9 +33,13 @@ from station.tui.widgets.sketch_pad import SketchPad
 TOP = 5
 
 
-def make_retriever(progress) -> SketchRetriever:
-    """The retriever the screen uses (every machine, databases cached in the station's cache directory)."""
-    return SketchRetriever(cache_dir=cache_dir(), progress=progress)
+def make_retriever(progress, cancelled=None) -> SketchRetriever:
+    """The retriever the screen uses (every machine, databases cached in the station's cache directory).
+
+    ``progress`` gets a :class:`common.progress.Progress` while a database is built; ``cancelled`` is asked
+    between its steps.
+    """
+    return retriever_service(progress=progress, cancelled=cancelled)
 
 
 class CandidatePreview(Vertical):
@@ -73,6 +79,7 @@ class SketchScreen(Screen):
     SketchScreen #controls Input { width: 12; }
     SketchScreen #controls Button { min-width: 8; margin-left: 1; }
     SketchScreen #status { height: auto; padding: 0 1; color: $text-muted; }
+    SketchScreen #progress { padding: 0 1; }
     SketchScreen #candidates { height: 1fr; }
     """
 
@@ -80,7 +87,8 @@ class SketchScreen(Screen):
         Binding("f", "find", "Find designs"),
         Binding("u", "undo", "Undo stroke"),
         Binding("c", "clear", "Clear"),
-        *(Binding(str(rank), f"open({rank})", f"Open #{rank}", show=False) for rank in range(1, 6)),
+        # 1..TOP open the candidate of that rank
+        *(Binding(str(rank), f"open({rank})", f"Open #{rank}", show=False) for rank in range(1, TOP + 1)),
     ]
 
     def __init__(self) -> None:
@@ -99,6 +107,7 @@ class SketchScreen(Screen):
                     yield Button("Find", id="find", variant="primary")
                     yield Button("Clear", id="clear")
                 yield Static("Draw with the mouse, then press f.", id="status")
+                yield ProgressBar(total=100, show_eta=False, id="progress")
                 yield VerticalScroll(id="candidates")
         yield Footer()
 
@@ -173,16 +182,28 @@ class SketchScreen(Screen):
         self.set_status("searching…")
         self.search(sketch)
 
+    def show_progress(self, progress: Progress) -> None:
+        """A database build's progress: its message as the status, its stage's share in the bar."""
+        fraction = progress.fraction
+        self.set_status(progress.message if fraction is None else f"{progress.message} ({100 * fraction:.0f}%)")
+        self.query_one("#progress", ProgressBar).update(total=progress.total, progress=progress.done)
+
     @work(thread=True, exclusive=True, group="sketch-search")
     def search(self, sketch) -> None:
-        def progress(message: str, fraction: float) -> None:
-            self.app.call_from_thread(self.set_status, f"{message} ({100 * fraction:.0f}%)")
+        def progress(update: Progress) -> None:
+            self.app.call_from_thread(self.show_progress, update)
+
+        def cancelled() -> bool:
+            # Asked in the worker that builds: a newer search (exclusive) or leaving the app cancels it.
+            return get_current_worker().is_cancelled
 
         try:
             if self.retriever is None:
-                self.retriever = make_retriever(progress)
-            result = self.retriever.query(sketch, top=TOP)
-            curves = [get_machine(c.machine).sample(c.params, n=512, spacing="arclength") for c in result.candidates]
+                self.retriever = make_retriever(progress, cancelled)
+            result = retrieve(sketch, RetrieveOptions(top=TOP), retriever=self.retriever)
+            curves = [candidate_curve(c, 512) for c in result.candidates]
+        except Cancelled:
+            return
         except DesignError as error:
             self.app.call_from_thread(self.set_status, f"cannot use this sketch: {error}")
             return
@@ -190,6 +211,7 @@ class SketchScreen(Screen):
 
     def show_candidates(self, candidates: list[Candidate], curves: list[np.ndarray], seconds: float) -> None:
         self.candidates = list(candidates)
+        self.query_one("#progress", ProgressBar).update(total=100, progress=100)
         box = self.query_one("#candidates", VerticalScroll)
         box.remove_children()
         box.mount_all([CandidatePreview(i, c, curve) for i, (c, curve) in enumerate(zip(candidates, curves), 1)])

@@ -1,0 +1,157 @@
+"""Chain-reaction contraptions as a service: load a scenario, choose a layout, simulate it, check it, render it.
+
+Used by ``station simulate``, ``station scenario check`` and the Contraptions screen. Scenario and layout files
+are read by :mod:`design.contraption` (a bad one is a :class:`~design.contraption.errors.ScenarioFormatError`
+naming the file, the field and what was expected).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from common.progress import ProgressCallback, Reporter
+from design.contraption.catalog import resolve_scenario_path
+from design.contraption.layout_io import LoadedLayout, default_layout, resolve_layout, values_layout
+from design.contraption.scenario import Scenario, load_scenario
+
+if TYPE_CHECKING:  # pybullet loads only when something is simulated
+    from design.contraption.simulation import SimulationResult, ValidityProblem
+    from design.contraption.world import World
+
+#: Called after each change of the events' states: simulated time, every event's state, the world (to draw it).
+StateCallback = Callable[[float, dict[str, str], "World"], None]
+
+
+def open_scenario(text: str) -> Scenario:
+    """A scenario by file path or example name (``simple``, ``ballrun``...), validated.
+
+    Raises
+    ------
+    design.contraption.errors.ScenarioNotFoundError
+        Neither a file nor an example.
+    design.contraption.errors.ScenarioFormatError
+        The file is malformed (the message names the file, the field and what was expected).
+    """
+    return load_scenario(resolve_scenario_path(text))
+
+
+def choose_layout(scenario: Scenario, *, values: list[float] | None = None, layout: str | None = None,
+                  what: str = "values") -> LoadedLayout:
+    """The layout to simulate: ``values`` in design-space order (``what`` names where they came from in messages),
+    else ``layout`` (a layout file or a layout named in the scenario), else the scenario's own transforms."""
+    if values is not None:
+        return values_layout(scenario, values, what=what)
+    if layout is not None:
+        return resolve_layout(layout, scenario)
+    return default_layout(scenario)
+
+
+@dataclass
+class SimulationOutcome:
+    """One simulated layout: the physical problems that stopped it, or the causal graph's result.
+
+    Attributes
+    ----------
+    scenario : Scenario
+    x : ndarray
+        The layout's values (real units, design-space order).
+    problems : list of ValidityProblem
+        Why the layout is physically impossible; empty for a valid one (then ``result`` is set).
+    result : SimulationResult or None
+        The run's outcome, None when the layout was impossible.
+    """
+
+    scenario: Scenario
+    x: np.ndarray
+    problems: list[ValidityProblem] = field(default_factory=list)
+    result: SimulationResult | None = None
+
+    @property
+    def valid(self) -> bool:
+        return not self.problems
+
+    @property
+    def success(self) -> bool:
+        return self.result is not None and self.result.success
+
+    def to_dict(self, layout: LoadedLayout | None = None) -> dict[str, Any]:
+        """What ``station simulate --json`` prints; ``layout`` adds where the layout came from."""
+        data: dict[str, Any] = {"scenario": self.scenario.name, "valid": self.valid}
+        if not self.valid:
+            data["success"] = False
+        data["layout"] = self.scenario.design_space.as_dict(self.x)
+        if layout is not None:
+            data["layout_source"] = layout.to_dict()
+        if not self.valid:
+            data["problems"] = [{"kind": p.kind, "objects": list(p.objects), "amount": p.amount, "message": p.message}
+                                for p in self.problems]
+            return data
+        return {**data, **self.result.to_dict()}
+
+
+def simulate(scenario: Scenario, x: np.ndarray, *, early_stop: bool = True, record: bool = False,
+             on_change: StateCallback | None = None, progress: Reporter | ProgressCallback | None = None,
+             client=None) -> SimulationOutcome:
+    """Check a layout's physical validity, then simulate it under the causal graph.
+
+    Parameters
+    ----------
+    scenario, x
+        The scenario and the layout's values (see :func:`choose_layout`).
+    early_stop : bool
+        Stop once the causal graph's outcome is known (else run to the scenario's max duration).
+    record : bool
+        Keep the start and end states (for :func:`render` or a picture of the end).
+    on_change : callable, optional
+        ``on_change(t, states, world)`` after each change of the events' states (the TUI animates with it).
+    progress : Reporter or callable, optional
+        Told once, stage ``"simulate"`` (no total), when a valid layout starts to run.
+    client : pybullet client, optional
+        One to reuse (the TUI keeps one); a new one by default.
+    """
+    from design.contraption.simulation import Simulator  # pybullet: loaded only when a layout is simulated
+
+    report = Reporter.of(progress)
+    with Simulator(scenario, client=client) as sim:
+        problems = sim.check_validity(x)
+        if problems:
+            return SimulationOutcome(scenario, x, list(problems))
+        report("simulate", 0, None,
+               f"simulating {scenario.name} ({len(scenario.objects)} objects, {len(scenario.events)} events)...")
+        hook = None if on_change is None else (lambda t, states: on_change(t, states, sim.world))
+        result = sim.run(x, early_stop=early_stop, record=record, on_change=hook)
+    return SimulationOutcome(scenario, x, [], result)
+
+
+def render(outcome: SimulationOutcome, path: str | Path) -> Path:
+    """Top and side views at the start and the end of a recorded run (``record=True``), as a PNG."""
+    from design.contraption.render import render_result
+
+    render_result(outcome.scenario, outcome.result, str(path))
+    return Path(path)
+
+
+def scenario_summary(scenario: Scenario) -> dict[str, Any]:
+    """What ``station scenario check --json`` prints: objects, causal graph, design space, named layouts."""
+    space = scenario.design_space
+    return {
+        "scenario": scenario.name,
+        "file": scenario.source,
+        "valid": True,
+        "content_hash": scenario.content_hash,
+        "objects": [{"name": o.name, "type": o.type, "parent": o.parent} for o in scenario.objects],
+        "events": [
+            {"name": e.name, "type": e.type, "after": list(e.after), "join": e.join, "label": e.label}
+            for e in scenario.event_specs
+        ],
+        "design_space": [
+            {"name": n, "lower": lo, "upper": hi, "default": d}
+            for n, lo, hi, d in zip(space.names, space.lower, space.upper, space.default)
+        ],
+        "layouts": {k: space.as_dict(v) for k, v in scenario.layouts.items()},
+    }
