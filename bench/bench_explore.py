@@ -13,6 +13,7 @@ from pathlib import Path
 
 import numpy as np
 
+import bench
 from design.explore import CURVATURE, Explorer, OverConstrainedError, detect_pois
 from design.explore.poi import detect_curvature_maxima, detect_self_intersections
 from design.explore.render import write_png
@@ -30,13 +31,8 @@ REPEATS = 5
 
 
 def best_time(function, repeats: int = REPEATS) -> float:
-    """Best wall time of ``repeats`` calls (the least disturbed by the other jobs on the machine)."""
-    times = []
-    for _ in range(repeats):
-        start = time.perf_counter()
-        function()
-        times.append(time.perf_counter() - start)
-    return min(times)
+    """:func:`bench.best_time`, :data:`REPEATS` times by default."""
+    return bench.best_time(function, repeats)
 
 
 def brute_force_crossings(points: np.ndarray, chunk: int = 500) -> int:

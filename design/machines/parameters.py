@@ -7,7 +7,7 @@ integer gear radii; :func:`scalar_arrays`, one design's values as the numpy scal
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any, Literal
 
@@ -100,6 +100,25 @@ def angle(
     return Parameter(
         name, "continuous", default, 0.0, float(np.pi), description, unit="rad", category=category, equation=equation
     )
+
+
+def random_in_boxes(
+    parameters: Sequence[Parameter], count: int, rng: np.random.Generator, *, max_radius: int = 12,
+    max_length: float = 25.0,
+) -> dict[str, np.ndarray]:
+    """``count`` designs drawn uniformly in the parameter boxes, as float columns (for ``feasible_mask`` and the
+    batch methods); most are infeasible, so callers keep the rows the machine accepts (rejection sampling).
+
+    Gear radii are whole numbers from ``max(1, lower)`` to ``max_radius``; continuous values lie between their
+    lower bound and ``min(upper, max_length)``. The parameters draw from ``rng`` in their order.
+    """
+    rows = {}
+    for p in parameters:
+        if p.is_discrete:
+            rows[p.name] = rng.integers(max(1, int(p.lower)), max_radius + 1, count).astype(float)
+        else:
+            rows[p.name] = rng.uniform(p.lower, min(p.upper, max_length), count)
+    return rows
 
 
 def scalar_arrays(values: Mapping[str, float]) -> dict[str, np.ndarray]:
