@@ -84,13 +84,13 @@ def ordered(
 ) -> Constraint:
     """``subject < bound`` (``relation="<"``: a gear, slider or pivot that must fit inside a larger part) or
     ``subject > bound`` (``">"``) for two parameters, with the reason in words (``why``) if it is not plain."""
-    if relation not in ("<", ">"):  # pragma: no cover - a programming error in a model
+    if relation == "<":
+        words, margin = "be smaller than", lambda P: P[bound] - P[subject]
+    elif relation == ">":
+        words, margin = "exceed", lambda P: P[subject] - P[bound]
+    else:  # pragma: no cover - a programming error in a model
         raise ValueError(f"relation must be '<' or '>', got {relation!r}")
-    words = "be smaller than" if relation == "<" else "exceed"
     reason = f" ({why})" if why else ""
-
-    def margin(P: Mapping[str, np.ndarray]) -> np.ndarray:
-        return P[bound] - P[subject] if relation == "<" else P[subject] - P[bound]
 
     return Constraint(
         name,
