@@ -407,8 +407,8 @@ class DrawingMachine:
     ARCLENGTH_MIN_DENSE: ClassVar[int] = 2048
 
     def _arclength_times(self, P: Mapping[str, np.ndarray], period: np.ndarray, n: int) -> np.ndarray:
-        """Times at which the curves are equidistant in arc length (see :func:`~design.machines.sampling.\
-arclength_times`)."""
+        """Times at which the curves are equidistant in arc length (:func:`design.machines.sampling.arclength_times`,
+        with ``ARCLENGTH_OVERSAMPLING`` dense points per output point, at least ``ARCLENGTH_MIN_DENSE``)."""
         dense = max(self.ARCLENGTH_OVERSAMPLING * n, self.ARCLENGTH_MIN_DENSE)
         return arclength_times(self._positions, P, period, n, dense)
 

@@ -1,7 +1,7 @@
 """Slider bounds: the interval of feasible values of one continuous parameter, the others fixed.
 
-:func:`feasible_interval` is :meth:`DrawingMachine.feasible_interval <design.machines.base.DrawingMachine.\
-feasible_interval>`: a vectorized grid over the parameter's box finds the feasible run around the current value,
+:func:`feasible_interval` implements :meth:`design.machines.base.DrawingMachine.feasible_interval`: a vectorized
+grid over the parameter's box finds the feasible run around the current value,
 :func:`refine` shrinks both of its ends at once by bracketing, and :func:`exact_end` replaces an end by the exact
 root where the constraints closing it are affine in the parameter.
 """
