@@ -13,7 +13,7 @@ from pathlib import Path
 
 import numpy as np
 
-from bench.bench_machines import best_time as machines_best_time
+import bench
 from design.explore import CURVATURE, Explorer, OverConstrainedError, detect_pois
 from design.explore.poi import detect_curvature_maxima, detect_self_intersections
 from design.explore.render import write_png
@@ -31,8 +31,8 @@ REPEATS = 5
 
 
 def best_time(function, repeats: int = REPEATS) -> float:
-    """Best wall time of ``repeats`` calls (:func:`bench.bench_machines.best_time`; 5 by default here)."""
-    return machines_best_time(function, repeats)
+    """:func:`bench.best_time`, :data:`REPEATS` times by default."""
+    return bench.best_time(function, repeats)
 
 
 def brute_force_crossings(points: np.ndarray, chunk: int = 500) -> int:

@@ -5,26 +5,16 @@ Run with ``.venv/bin/python -m bench machines``. Prints figures only (no timing 
 
 from __future__ import annotations
 
-import time
-
 import numpy as np
 
+from bench import best_time
 from design.machines import get_machine, machine_names
+from design.machines.parameters import random_in_boxes
 
 POINTS = 4096
 BATCH_DESIGNS = 1000
 BATCH_POINTS = 256
 SEED = 0
-
-
-def best_time(function, repeats: int = 7) -> float:
-    """Best wall time of ``repeats`` calls, in seconds (the least disturbed by the other jobs on the machine)."""
-    times = []
-    for _ in range(repeats):
-        start = time.perf_counter()
-        function()
-        times.append(time.perf_counter() - start)
-    return min(times)
 
 
 def random_feasible_designs(machine, k: int, seed: int = SEED) -> dict[str, np.ndarray]:
@@ -33,12 +23,7 @@ def random_feasible_designs(machine, k: int, seed: int = SEED) -> dict[str, np.n
     chosen: dict[str, list[np.ndarray]] = {p.name: [] for p in machine.parameters}
     found = 0
     while found < k:
-        rows = {}
-        for p in machine.parameters:
-            if p.kind == "discrete":
-                rows[p.name] = rng.integers(max(1, int(p.lower)), 13, 50_000).astype(float)
-            else:
-                rows[p.name] = rng.uniform(p.lower, min(p.upper, 25.0), 50_000)
+        rows = random_in_boxes(machine.parameters, 50_000, rng)
         ok = machine.feasible_mask(rows)
         for name in chosen:
             chosen[name].append(rows[name][ok])

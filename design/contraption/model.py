@@ -11,13 +11,13 @@ import json
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, Literal
 
 import numpy as np
 
 from design.contraption.design_space import DesignSpace
 from design.contraption.errors import LayoutError
-from design.contraption.schema import PRIMITIVES, TRANSFORM_KEYS
+from design.contraption.schema import PHYSICS_DEFAULTS, PRIMITIVES, TRANSFORM_KEYS
 
 
 @dataclass(frozen=True)
@@ -41,13 +41,14 @@ class Transform:
 class Physics:
     """Physical parameters of a body (SI units); ``mass == 0`` means static."""
 
-    mass: float = 0.0
-    friction: float = 0.5
-    rolling_friction: float = 0.0
-    spinning_friction: float = 0.0
-    restitution: float = 0.0
-    linear_damping: float = 0.0
-    angular_damping: float = 0.0
+    # The defaults are the scenario format's (one table, in the schema).
+    mass: float = PHYSICS_DEFAULTS["mass"]
+    friction: float = PHYSICS_DEFAULTS["friction"]
+    rolling_friction: float = PHYSICS_DEFAULTS["rolling_friction"]
+    spinning_friction: float = PHYSICS_DEFAULTS["spinning_friction"]
+    restitution: float = PHYSICS_DEFAULTS["restitution"]
+    linear_damping: float = PHYSICS_DEFAULTS["linear_damping"]
+    angular_damping: float = PHYSICS_DEFAULTS["angular_damping"]
 
     @property
     def static(self) -> bool:
@@ -103,13 +104,29 @@ def domino_count(shape: Mapping[str, Any]) -> int:
 
 @dataclass(frozen=True)
 class EventSpec:
-    """One event of the causal graph."""
+    """One event of the causal graph.
+
+    Attributes
+    ----------
+    name, type : str
+        The event's name and its type (a key of :data:`~design.contraption.schema.EVENTS`).
+    params : mapping
+        The parameters of its type, defaults filled in.
+    after : tuple of str
+        The events it waits for; ``join`` says whether all of them must succeed (``"all"``) or one is enough.
+    timeout, duration : float
+        Seconds it has to succeed once awake, and seconds its condition must hold (a duration event).
+    label : str
+        Words for people.
+    index : int
+        Its position in the scenario file (for messages).
+    """
 
     name: str
     type: str
     params: Mapping[str, Any]
     after: tuple[str, ...]
-    join: str
+    join: Literal["all", "any"]
     timeout: float
     duration: float
     label: str

@@ -20,15 +20,7 @@ REQUIRED = ...
 
 TRANSFORM_KEYS = ("x", "y", "z", "heading", "pitch", "roll")
 ANGLE_KEYS = frozenset({"heading", "pitch", "roll"})
-PHYSICS_KEYS = (
-    "mass",
-    "friction",
-    "rolling_friction",
-    "spinning_friction",
-    "restitution",
-    "linear_damping",
-    "angular_damping",
-)
+#: The physics fields of an object and their defaults (SI units; ``mass == 0`` means static).
 PHYSICS_DEFAULTS = {
     "mass": 0.0,
     "friction": 0.5,
@@ -38,6 +30,7 @@ PHYSICS_DEFAULTS = {
     "linear_damping": 0.0,
     "angular_damping": 0.0,
 }
+PHYSICS_KEYS = tuple(PHYSICS_DEFAULTS)
 #: The physics fields a Plane takes: it is static, so it has no mass and no damping.
 PLANE_PHYSICS_KEYS = ("friction", "rolling_friction", "spinning_friction", "restitution")
 TAG_KEYS = ("id", "x", "y", "z", "size")
@@ -136,6 +129,11 @@ def _primitive(body: bool, /, **params: tuple[Kind, Any]) -> Primitive:
     return Primitive(body, MappingProxyType({key: Param(*spec) for key, spec in params.items()}))
 
 
+def _required(kind: Kind, *names: str) -> dict[str, tuple[Kind, Any]]:
+    """Fields ``names`` of one kind that must all be given, in that order."""
+    return {name: (kind, REQUIRED) for name in names}
+
+
 def _event(**params: tuple[Kind, Any]) -> MappingProxyType[str, Param]:
     return MappingProxyType({key: Param(*spec) for key, spec in params.items()})
 
@@ -153,20 +151,9 @@ PRIMITIVES: MappingProxyType[str, Primitive] = MappingProxyType({
     "Cylinder": _primitive(True, radius=(K.POS, REQUIRED), height=(K.POS, REQUIRED)),
     "Capsule": _primitive(True, radius=(K.POS, REQUIRED), length=(K.POS, REQUIRED)),
     "Goblet": _primitive(
-        True,
-        height=(K.POS, REQUIRED),
-        radius_top=(K.POS, REQUIRED),
-        radius_bottom=(K.POS, REQUIRED),
-        thickness=(K.POS, 0.002),
-        sides=(K.INT, 12),
+        True, **_required(K.POS, "height", "radius_top", "radius_bottom"), thickness=(K.POS, 0.002), sides=(K.INT, 12)
     ),
-    "Track": _primitive(
-        True,
-        length=(K.POS, REQUIRED),
-        width=(K.POS, REQUIRED),
-        height=(K.POS, REQUIRED),
-        wall_thickness=(K.POS, REQUIRED),
-    ),
+    "Track": _primitive(True, **_required(K.POS, "length", "width", "height", "wall_thickness")),
     "Pivot": _primitive(False, body=(K.BODY, REQUIRED), other=(K.BODY, None), axis=(K.AXIS, Y_AXIS)),
     "Fastener": _primitive(False, bodies=(K.BODIES, REQUIRED)),
     "Lever": _primitive(True, size=(K.VEC3POS, REQUIRED), pivot=(K.VEC3, _ZERO3), axis=(K.AXIS, Y_AXIS)),

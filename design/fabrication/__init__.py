@@ -9,20 +9,21 @@ from design.lazy import lazy_exports
 _SOURCES = {
     "catalog": ("FABRICABLE_MACHINES",),
     "export": ("render_png", "sheet_paths", "write_svg"),
-    "gears": (
-        "Gear", "GearSettings", "elliptic_gear", "external_gear", "min_teeth_without_undercut", "ring_gear",
-        "teeth_per_unit",
-    ),
+    "gears": ("Gear", "elliptic_gear", "external_gear", "ring_gear"),
+    "tooth_system": ("GearSettings", "min_teeth_without_undercut", "teeth_per_unit"),
+    "layout": ("Hardware",),
     "nesting": (
         "Placement", "Sheet", "check_sizes_fit", "kerf_compensate", "largest_fitting_scale", "nest_parts",
         "nest_sheets",
     ),
-    "parts": ("Hardware", "Part", "PartSize", "machine_parts", "part_sizes"),
+    "parts": ("GEARS_STAGE", "Part", "machine_parts"),
+    "sizes": ("PartSize", "part_sizes"),
 }
 __getattr__, __dir__, _MODULE_OF = lazy_exports(__name__, _SOURCES)
 
 __all__ = [
     "FABRICABLE_MACHINES",
+    "GEARS_STAGE",
     "Gear",
     "GearSettings",
     "Hardware",

@@ -12,7 +12,8 @@ an exact outline. We simulate the generating process itself with polygon Boolean
 The pitch curve is the model's primitive: a circle of radius ``r × scale``, or the elliptic Spirograph's ellipse
 whose perimeter is ``2π r_eq × scale``. Tooth counts follow from the radius and the module: every gear of a machine
 has ``z = k·r`` teeth for one integer ``k`` (teeth per unit of radius), so gears of integer radii always share one
-module ``m = 2·scale/k`` and mesh at the model's centre distances.
+module ``m = 2·scale/k`` and mesh at the model's centre distances. The tooth system (:class:`GearSettings`, the
+module, the teeth per unit) is in :mod:`design.fabrication.tooth_system`, re-exported here.
 """
 
 from __future__ import annotations
@@ -28,6 +29,18 @@ from scipy.special import ellipe, ellipeinc
 from shapely.geometry import LineString, MultiPolygon, Polygon
 
 from design.errors import ParameterError, parameter_error
+from design.fabrication.tooth_system import (
+    GearSettings,
+    min_teeth_without_undercut,
+    rack_flank_depth,
+    rack_half_tip,
+    rack_tip_radius,
+    teeth_per_unit,
+    undercut_limit,
+)
+
+#: The tooth system of a gear made without settings of its own.
+DEFAULT_SETTINGS = GearSettings()
 
 __all__ = [
     "GearSettings",
@@ -43,118 +56,6 @@ __all__ = [
     "rack_flank_depth",
     "ellipse_axes",
 ]
-
-
-@dataclass(frozen=True)
-class GearSettings:
-    """Tooth system of every gear of a machine (ISO 53 basic rack by default).
-
-    Parameters
-    ----------
-    module : float
-        Nominal module (mm). The module actually used is ``2·scale/k`` for the integer ``k`` closest to
-        ``2·scale/module`` (at least 1), so that every integer radius gets an integer tooth count.
-    pressure_angle : float
-        Pressure angle (degrees).
-    addendum : float
-        Addendum, in modules (tooth height above the pitch curve).
-    dedendum : float
-        Dedendum, in modules (depth below the pitch curve; ``dedendum - addendum`` is the tip clearance).
-    root_fillet : float
-        Radius of the rack cutter's tip rounding, in modules; it leaves a trochoidal fillet at the tooth root.
-    backlash : float
-        Circumferential backlash of a mesh (mm, at the pitch curve); each gear's teeth are thinned by half of it.
-    steps_per_pitch : int
-        Rack/cutter positions per circular pitch in the simulated generation (finer = smoother flanks).
-    """
-
-    module: float = 1.5
-    pressure_angle: float = 20.0
-    addendum: float = 1.0
-    dedendum: float = 1.25
-    root_fillet: float = 0.38
-    backlash: float = 0.15
-    steps_per_pitch: int = 32
-
-    def __post_init__(self) -> None:
-        checks = [
-            ("module", self.module > 0, "a positive length (mm)"),
-            ("pressure_angle", 10.0 <= self.pressure_angle <= 30.0, "an angle in [10, 30] degrees"),
-            ("addendum", 0.3 <= self.addendum <= 1.5, "a number of modules in [0.3, 1.5]"),
-            ("dedendum", self.addendum < self.dedendum <= 2.0, "more than the addendum and at most 2 modules"),
-            ("root_fillet", 0.0 <= self.root_fillet <= 0.6, "a number of modules in [0, 0.6]"),
-            ("backlash", self.backlash >= 0.0, "a non-negative length (mm)"),
-            ("steps_per_pitch", 4 <= int(self.steps_per_pitch) <= 400, "an integer in [4, 400]"),
-        ]
-        for name, ok, expected in checks:
-            if not ok:
-                raise parameter_error("gear settings", name, expected, getattr(self, name))
-
-    @property
-    def alpha(self) -> float:
-        """Pressure angle in radians."""
-        return math.radians(self.pressure_angle)
-
-
-def rack_flank_depth(settings: GearSettings, module: float | None = None) -> float:
-    """How deep (in modules) the straight flank of the rack cutter of external gears reaches below its pitch line.
-
-    The rack's tip lies a dedendum below the pitch line, and its corners are rounded with the radius ``ρ`` that
-    :func:`_rack_tooth` uses: the root fillet, or less where the tip is too narrow for it (a large fillet, a steep
-    pressure angle or a deep dedendum; the tip's width depends on the backlash in mm, hence on the module). The
-    rounding is tangent to the flank where its outward normal is ``(cos α, -sin α)``: its centre lies ``ρ`` above
-    the tip line and the tangent point ``ρ·sin α`` below the centre, so the straight flank ends
-    ``dedendum - ρ·(1 - sin α)`` below the pitch line (1.0 modules for the ISO 53 rack at 20°).
-
-    Parameters
-    ----------
-    settings : GearSettings
-    module : float, optional
-        Module actually used (mm); default ``settings.module``.
-    """
-    module = settings.module if module is None else float(module)
-    # The rack tooth is the gear's tooth space: half a pitch wide on the pitch line, widened by half the backlash
-    # (how external_gear and elliptic_gear thin the teeth).
-    space = math.pi * module / 2.0 + settings.backlash / 2.0
-    depth = settings.dedendum * module
-    rho = _rack_tip_radius(settings, module, _rack_half_tip(settings, module, space, depth))
-    return (depth - rho * (1.0 - math.sin(settings.alpha))) / module
-
-
-def undercut_limit(settings: GearSettings, module: float | None = None) -> float:
-    """Tooth count below which the rack cutter undercuts a circular external gear: ``2·h/sin²α``.
-
-    The rack's flank touches the gear on the line of action, which meets the base circle at the interference
-    point ``r·sin α`` from the pitch point, i.e. ``r·sin²α`` below the pitch line. The involute starts there; a
-    straight flank reaching deeper (``h`` = :func:`rack_flank_depth`, in modules) cuts in behind it. Hence
-    undercut when ``h·m > r·sin²α``, i.e. ``z = 2r/m < 2h/sin²α``. The tip rounding below the flank's end only
-    leaves the trochoidal fillet. An elliptic gear is compared by the equivalent tooth count of its most curved
-    place. Internal gears have no such limit (see :attr:`Gear.undercut`).
-
-    Parameters
-    ----------
-    settings : GearSettings
-    module : float, optional
-        Module actually used (mm); default ``settings.module``. It matters only when the rack's tip is too narrow
-        for the root fillet, through the backlash (mm) that widens it.
-    """
-    return 2.0 * rack_flank_depth(settings, module) / math.sin(settings.alpha) ** 2
-
-
-def min_teeth_without_undercut(settings: GearSettings, module: float | None = None) -> int:
-    """Smallest tooth count of a circular external gear that the rack cuts without undercut.
-
-    The whole number at or above :func:`undercut_limit` (18 for the default settings at 20°, 22 for a rack
-    without tip rounding).
-    """
-    return int(math.ceil(undercut_limit(settings, module) - 1e-9))
-
-
-def teeth_per_unit(scale: float, settings: GearSettings) -> int:
-    """Teeth per unit of model radius ``k``: the module used is ``2·scale/k``."""
-    if not scale > 0:
-        raise parameter_error("fabrication", "scale", "a positive number of mm per model unit", scale)
-    return max(1, int(round(2.0 * scale / settings.module)))
 
 
 # ---------------------------------------------------------------------------------------------------------------
@@ -269,9 +170,9 @@ def _rack_tooth(settings: GearSettings, module: float, space_width: float, heigh
     rounded corners, and it reaches ``height`` above the pitch line (beyond the blank). Counter-clockwise.
     """
     alpha = settings.alpha
-    half_tip = _rack_half_tip(settings, module, space_width, depth)
+    half_tip = rack_half_tip(settings, module, space_width, depth)
     half_corner = (math.pi / 2 + alpha) / 2.0
-    rho = _rack_tip_radius(settings, module, half_tip)
+    rho = rack_tip_radius(settings, module, half_tip)
     points = []
     # Right side: from the top of the flank down to the tip, through the fillet.
     top_half = space_width / 2.0 + height * math.tan(alpha)
@@ -290,23 +191,6 @@ def _rack_tooth(settings: GearSettings, module: float, space_width: float, heigh
     points.append((-top_half, height))
     outline = np.array(points[::-1])  # counter-clockwise
     return outline
-
-
-def _rack_half_tip(settings: GearSettings, module: float, space_width: float, depth: float) -> float:
-    """Half the width (mm) of the rack tooth's tip line, before rounding (see :func:`_rack_tooth`)."""
-    half_tip = space_width / 2.0 - depth * math.tan(settings.alpha)
-    if half_tip <= 0:
-        raise ParameterError(f"gear settings: a dedendum of {depth / module:.2f} modules leaves no tip on the rack "
-                             f"cutter at a pressure angle of {settings.pressure_angle} degrees")
-    return half_tip
-
-
-def _rack_tip_radius(settings: GearSettings, module: float, half_tip: float) -> float:
-    """Radius (mm) of the rack tooth's corner rounding: the root fillet, or less if the tip is too narrow for it."""
-    # The corner between the tip line and the flank has an interior angle of 90° + α; a rounding of radius ρ
-    # starts ρ/tan(half that angle) from the corner, which must stay on the tip (2 % of it left straight).
-    half_corner = (math.pi / 2 + settings.alpha) / 2.0
-    return min(settings.root_fillet * module, 0.98 * half_tip * math.tan(half_corner))
 
 
 def _rack_reach(alpha: float, ha: float, hf: float, p: float, radius: float) -> float:
@@ -436,7 +320,7 @@ def _check_teeth(kind: str, teeth: int) -> None:
                              "smaller module")
 
 
-def external_gear(teeth: int, module: float, settings: GearSettings = GearSettings()) -> Gear:
+def external_gear(teeth: int, module: float, settings: GearSettings = DEFAULT_SETTINGS) -> Gear:
     """An involute external spur gear generated by a rack cutter.
 
     Parameters
@@ -480,7 +364,7 @@ def _replicate(shape, copies: int):
     return shapely.union_all(rotated)
 
 
-def elliptic_gear(teeth: int, module: float, eccentricity: float, settings: GearSettings = GearSettings()) -> Gear:
+def elliptic_gear(teeth: int, module: float, eccentricity: float, settings: GearSettings = DEFAULT_SETTINGS) -> Gear:
     """An involute elliptic gear generated by a rack cutter rolling along the elliptic pitch curve (after Bair).
 
     The pitch curve is the ellipse of eccentricity ``e`` whose perimeter is ``teeth`` circular pitches, i.e. whose
@@ -513,7 +397,7 @@ RING_CLEARANCE = 0.015
 RING_FILLET_LIMIT = 0.5
 
 
-def ring_gear(teeth: int, module: float, rim: float, settings: GearSettings = GearSettings(),
+def ring_gear(teeth: int, module: float, rim: float, settings: GearSettings = DEFAULT_SETTINGS,
               cutter_teeth: int | None = None) -> Gear:
     """An internal (ring) gear generated by a shaper cutter, with a plain rim of width ``rim`` (mm) outside.
 

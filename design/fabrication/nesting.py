@@ -24,7 +24,8 @@ from scipy.signal import fftconvolve
 from shapely.geometry import Polygon
 
 from design.errors import ConstraintViolation, parameter_error
-from design.fabrication.parts import Part, PartSize
+from design.fabrication.parts import Part
+from design.fabrication.sizes import PartSize
 
 __all__ = ["kerf_compensate", "Placement", "Sheet", "nest_parts", "nest_sheets", "check_sizes_fit",
            "largest_fitting_scale"]

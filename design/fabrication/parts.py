@@ -18,6 +18,9 @@ A pin so near a gear's rim that its hole would cut the teeth goes on a crank dis
 Holes that do not fit their part are refused with a :class:`~design.errors.ConstraintViolation` naming the part,
 the hole and the material left. Every part carries an engraved label (a short code on small parts); base plates
 are marked next to each axle.
+
+The hardware and what the parts share with their sizes are in :mod:`design.fabrication.layout`, the sizes computed
+before building in :mod:`design.fabrication.sizes` (both re-exported here).
 """
 
 from __future__ import annotations
@@ -32,7 +35,8 @@ import numpy as np
 import shapely.affinity as affinity
 from shapely.geometry import LineString, MultiPoint, Point, Polygon, box
 
-from design.errors import ConstraintViolation, parameter_error
+from common.progress import CancelCheck, ProgressCallback, Reporter
+from design.errors import ConstraintViolation
 from design.fabrication.catalog import FABRICABLE_MACHINES
 from design.fabrication.gears import (
     Gear,
@@ -44,46 +48,18 @@ from design.fabrication.gears import (
     teeth_per_unit,
 )
 from design.fabrication.labels import place_label
+from design.fabrication.layout import (
+    Hardware,
+    checked_design,
+    crank_radius,
+    cycloid_positions,
+    hoot_nanny_positions,
+    pin_mount,
+)
+from design.fabrication.sizes import PartSize, part_sizes
 
 __all__ = ["Hardware", "Part", "PartSize", "machine_parts", "part_sizes", "FABRICABLE_MACHINES"]
 
-
-
-@dataclass(frozen=True)
-class Hardware:
-    """Physical sizes of what the flat parts hold (mm).
-
-    Parameters
-    ----------
-    pen_hole : float
-        Diameter of the pen hole (a ballpoint refill tip by default).
-    axle_hole : float
-        Diameter of gear axles (an M4 bolt by default).
-    pin_hole : float
-        Diameter of pivot and slider pins (M3).
-    arm_width : float
-        Width of arms and of the base plate's border around each axle.
-    rim : float
-        Width of a ring gear's plain rim outside its tooth roots.
-    wall : float
-        Least material left between a hole and an edge.
-    label_height : float
-        Height of engraved capitals.
-    """
-
-    pen_hole: float = 3.0
-    axle_hole: float = 4.2
-    pin_hole: float = 3.2
-    arm_width: float = 12.0
-    rim: float = 10.0
-    wall: float = 1.5
-    label_height: float = 4.0
-
-    def __post_init__(self) -> None:
-        for name in ("pen_hole", "axle_hole", "pin_hole", "arm_width", "rim", "wall", "label_height"):
-            value = getattr(self, name)
-            if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
-                raise parameter_error("hardware", name, "a positive length (mm)", value)
 
 
 @dataclass(frozen=True)
@@ -229,6 +205,10 @@ def _plate(points: list[tuple[float, float]], border: float) -> Polygon:
 # The four machines.
 
 
+#: The progress stage of :func:`machine_parts`: generating the gears, counted in teeth.
+GEARS_STAGE = "gears"
+
+
 def _no_step(part_name: str, teeth: int) -> None:
     """The default of a builder's ``step``: called before each gear is generated (the slow part)."""
 
@@ -291,7 +271,7 @@ def _axle_gear(name: str, code: str, radius: int, k: int, module: float, scale: 
     if pin is not None:
         pin_name, distance = pin
         at = distance * scale
-        mount = _pin_mount(at, _root_radius(gear), module, hw)
+        mount = pin_mount(at, _root_radius(gear), module, hw)
         if mount == "axle":
             notes.append(f"{name}: the {pin_name} at {at:.2f} mm is on the axle; no separate hole cut")
         elif mount == "hole":
@@ -306,53 +286,20 @@ def _axle_gear(name: str, code: str, radius: int, k: int, module: float, scale: 
             else:
                 fixing = []
                 fastening = "glued on top of the gear, centred on the axle (no room for fixing holes)"
-            crank_radius = _crank_radius(at, hw)
+            crank_size = crank_radius(at, hw)
             crank_name = f"{name} crank"
-            crank_shape = _with_holes(crank_name, Point(0.0, 0.0).buffer(crank_radius, quad_segs=32),
+            crank_shape = _with_holes(crank_name, Point(0.0, 0.0).buffer(crank_size, quad_segs=32),
                                       [("axle hole", (0.0, 0.0), hw.axle_hole), *fixing,
                                        (pin_name, (at, 0.0), hw.pin_hole)], hw.wall)
             extra.append(Part(crank_name, crank_shape,
-                              _label(crank_shape, f"{code} CRANK", hw, near=(-0.5 * crank_radius, 0.0)),
-                              MappingProxyType({"radius_mm": round(crank_radius, 3), "pin_at_mm": round(at, 4)}),
+                              _label(crank_shape, f"{code} CRANK", hw, near=(-0.5 * crank_size, 0.0)),
+                              MappingProxyType({"radius_mm": round(crank_size, 3), "pin_at_mm": round(at, 4)}),
                               (f"the {pin_name} at {at:.1f} mm would cut the teeth of the {name}: it is on a crank "
                                f"disc {fastening}; raise it on spacers so that it clears the neighbouring gear",)))
     part = _gear_part(name, code, gear, radius, scale, hw, holes, label_near=(-0.5 * gear.pitch_radius, 0.0))
     if notes:
         part = Part(part.name, part.shape, part.engrave, part.info, part.notes + tuple(notes))
     return [part, *extra]
-
-
-def _pin_mount(at: float, root_radius: float, module: float, hw: Hardware) -> str:
-    """Where a pin ``at`` mm from a gear's axle goes: ``"axle"`` (too near it for a hole of its own), ``"hole"``
-    (in the gear) or ``"crank"`` (so near the rim that its hole would cut the teeth: on a crank disc)."""
-    if at < (hw.axle_hole + hw.pin_hole) / 2.0 + hw.wall:
-        return "axle"
-    if at <= root_radius - hw.wall - hw.pin_hole / 2.0 - 0.5 * module:
-        return "hole"
-    return "crank"
-
-
-def _crank_radius(at: float, hw: Hardware) -> float:
-    """Radius of the crank disc that carries a pin ``at`` mm from the axle."""
-    return at + max(hw.pin_hole / 2.0 + 2.0 * hw.wall, hw.arm_width / 2.0)
-
-
-def _cycloid_positions(p: Mapping[str, float]) -> tuple[np.ndarray, np.ndarray, float]:
-    """Model positions (Appendix A.2.3): the external gear's centre G_E, the fulcrum F, and the distance F-G_E.
-
-    G_T is at the origin, F on +x, G_E at angle theta_TE.
-    """
-    r_t, r_e, d_tf, theta_te = int(p["r_t"]), int(p["r_e"]), float(p["d_tf"]), float(p["theta_te"])
-    g_e = (r_t + r_e) * np.array([math.cos(theta_te), math.sin(theta_te)])
-    fulcrum = np.array([d_tf, 0.0])
-    return g_e, fulcrum, float(np.linalg.norm(g_e - fulcrum))
-
-
-def _hoot_nanny_positions(p: Mapping[str, float]) -> tuple[np.ndarray, np.ndarray]:
-    """Model positions of gear 1 (on +x) and gear 2 (at angle theta_12), the turntable at the origin."""
-    r_t, r_g1, r_g2, theta_12 = int(p["r_t"]), int(p["r_g1"]), int(p["r_g2"]), float(p["theta_12"])
-    return (np.array([r_t + r_g1, 0.0]),
-            (r_t + r_g2) * np.array([math.cos(theta_12), math.sin(theta_12)]))
 
 
 def _cycloid(p: Mapping[str, float], scale: float, settings: GearSettings, hw: Hardware,
@@ -364,7 +311,7 @@ def _cycloid(p: Mapping[str, float], scale: float, settings: GearSettings, hw: H
     turntable = _axle_gear("turntable gear", "TURNTABLE", r_t, k, module, scale, settings, hw, step=step)
     external = _axle_gear("external gear", "GEAR E", r_e, k, module, scale, settings, hw, pin=("slider pin hole", r_s),
                           step=step)
-    g_e, fulcrum, d_fe = _cycloid_positions(p)
+    g_e, fulcrum, d_fe = cycloid_positions(p)
     # The arm pivots at F and the slider pin slides in its slot between d_FE - r_S and d_FE + r_S from F.
     slot_lo, slot_hi = (d_fe - r_s) * scale, (d_fe + r_s) * scale
     end = hw.arm_width / 2.0
@@ -413,7 +360,7 @@ def _hoot_nanny(p: Mapping[str, float], scale: float, settings: GearSettings, hw
         parts.append(Part(name, shape, _label(shape, f"ARM {index}", hw, near=(length * scale / 2, 0)),
                           MappingProxyType({"length_mm": round(length * scale + 2 * end, 3),
                                             "pivot_to_pen_mm": round(length * scale, 4)})))
-    g1, g2 = (g * scale for g in _hoot_nanny_positions(p))
+    g1, g2 = (g * scale for g in hoot_nanny_positions(p))
     axles = [("turntable axle", (0.0, 0.0), hw.axle_hole), ("gear 1 axle", tuple(g1), hw.axle_hole),
              ("gear 2 axle", tuple(g2), hw.axle_hole)]
     plate = _plate([a[1] for a in axles], hw.arm_width)
@@ -434,7 +381,8 @@ _BUILDERS = {
 
 def machine_parts(machine: str, params: Mapping[str, float], scale: float,
                   settings: GearSettings | None = None, hardware: Hardware | None = None,
-                  progress=None) -> list[Part]:
+                  progress: Reporter | ProgressCallback | None = None,
+                  cancelled: CancelCheck | None = None) -> list[Part]:
     """The flat parts of one drawing machine at ``scale`` mm per model unit.
 
     Parameters
@@ -450,10 +398,13 @@ def machine_parts(machine: str, params: Mapping[str, float], scale: float,
         Tooth system (module, pressure angle, ...).
     hardware : Hardware, optional
         Hole and arm sizes.
-    progress : callable, optional
-        Called as ``progress(part_name, teeth)`` before each gear is generated. Generation takes time in
-        proportion to the teeth (seconds for a few hundred), so the sum of ``teeth`` over :func:`part_sizes`
-        measures the whole work.
+    progress : ProgressCallback or Reporter, optional
+        Given a :class:`common.progress.Progress` of stage :data:`GEARS_STAGE` before each gear is generated
+        (``done`` and ``total`` count teeth, the message is ``"generating <part> (<teeth> teeth)"``), and once
+        more when every part is made (``done == total``). Generation takes time in proportion to the teeth
+        (seconds for a few hundred), so the teeth over :func:`part_sizes` measure the whole work.
+    cancelled : CancelCheck, optional
+        Asked after each report; True stops the work with :class:`common.progress.Cancelled` before the next gear.
 
     Raises
     ------
@@ -462,167 +413,16 @@ def machine_parts(machine: str, params: Mapping[str, float], scale: float,
     ConstraintViolation
         The design is infeasible, or a hole does not fit in its part at this scale.
     """
-    validated, settings, hardware = _checked(machine, params, scale, settings, hardware)
-    return _BUILDERS[machine](validated, float(scale), settings, hardware, step=progress or _no_step)
+    validated, settings, hardware = checked_design(machine, params, scale, settings, hardware)
+    report = Reporter.of(progress, cancelled)
+    total = sum(size.teeth for size in part_sizes(machine, validated, scale, settings, hardware))
+    done = 0
 
+    def gear_started(part_name: str, teeth: int) -> None:
+        nonlocal done
+        report(GEARS_STAGE, done, total, f"generating {part_name} ({teeth} teeth)")
+        done += teeth
 
-def _checked(machine: str, params: Mapping[str, float], scale: float, settings: GearSettings | None,
-             hardware: Hardware | None) -> tuple[Mapping[str, float], GearSettings, Hardware]:
-    """The validated design and the settings (defaults filled in), or the error that refuses them."""
-    from design.machines import get_machine
-
-    settings = settings if settings is not None else GearSettings()
-    hardware = hardware if hardware is not None else Hardware()
-    if machine not in _BUILDERS:
-        raise parameter_error("fabrication", "machine", f"one of {list(FABRICABLE_MACHINES)}", machine)
-    if not (isinstance(scale, (int, float)) and math.isfinite(scale) and scale > 0):
-        raise parameter_error("fabrication", "scale", "a positive number of mm per model unit", scale)
-    model = get_machine(machine)
-    validated = model.validate(params)
-    violations = model.violations(validated)
-    if violations:
-        first = violations[0]
-        raise ConstraintViolation(f"{machine}: the design is not feasible: {first.message}",
-                                  constraint=first.constraint, margin=first.margin)
-    return validated, settings, hardware
-
-
-# ---------------------------------------------------------------------------------------------------------------
-# Sizes before building: generating gears takes seconds to minutes at large scales, their outer sizes do not.
-
-
-@dataclass(frozen=True)
-class PartSize:
-    """The outer size of one part, known from the design and the scale before the part is built.
-
-    Attributes
-    ----------
-    name : str
-        As in :func:`machine_parts`.
-    width, height : float
-        The bounding box of the designed outline, upright as :func:`machine_parts` makes it (mm); never smaller
-        than the built part's.
-    tolerance : float
-        How much smaller the built part's box can be on each axis (mm): a gear's teeth do not reach every side of
-        its tip circle.
-    teeth : int
-        Teeth to generate (0 for arms, plates and crank discs): the part's share of the building time.
-    """
-
-    name: str
-    width: float
-    height: float
-    tolerance: float = 0.0
-    teeth: int = 0
-
-
-def part_sizes(machine: str, params: Mapping[str, float], scale: float,
-               settings: GearSettings | None = None, hardware: Hardware | None = None) -> list[PartSize]:
-    """The parts :func:`machine_parts` would make, with their outer sizes, in the same order, without building them.
-
-    Milliseconds instead of the seconds or minutes gear generation takes at large scales: a part too large for the
-    sheet is refused, and the largest scale that fits found, before any work.
-
-    Raises
-    ------
-    ParameterError, ConstraintViolation
-        As :func:`machine_parts` for the machine, the design and the scale (not for the holes, which are checked
-        only when the parts are built).
-    """
-    validated, settings, hardware = _checked(machine, params, scale, settings, hardware)
-    return _SIZERS[machine](validated, float(scale), settings, hardware)
-
-
-def _gear_size(name: str, teeth: int, radius: float, module: float) -> PartSize:
-    """An external gear of pitch radius ``radius`` (mm): its tip circle, less at most about a module on an axis
-    where no tooth points (the nearest one is half a pitch away)."""
-    return PartSize(name, 2.0 * radius, 2.0 * radius, tolerance=module + 1e-3 * radius, teeth=teeth)
-
-
-def _disc_size(name: str, radius: float) -> PartSize:
-    return PartSize(name, 2.0 * radius, 2.0 * radius, tolerance=1e-3 * radius + 0.05)
-
-
-def _ring_size(teeth: int, radius: float, module: float, settings: GearSettings, hw: Hardware) -> PartSize:
-    # The ring's outer edge is a plain circle (the dedendum and the rim outside the pitch circle), a polygon of
-    # ring_gear's vertex count, turned by half a pitch: its box falls short of the circle's by the polygon's sagitta.
-    outer = radius + settings.dedendum * module + hw.rim
-    vertices = teeth * max(12, -(-256 // teeth))
-    sagitta = outer * (1.0 - math.cos(2.0 * math.pi / vertices))
-    return PartSize("fixed ring", 2.0 * outer, 2.0 * outer, tolerance=sagitta + 0.01, teeth=teeth)
-
-
-def _axle_gear_sizes(name: str, radius: int, k: int, module: float, scale: float, settings: GearSettings,
-                     hw: Hardware, pin: float | None = None) -> list[PartSize]:
-    """As :func:`_axle_gear`: the gear, and its crank disc when the pin would cut the teeth."""
-    tip = radius * scale + settings.addendum * module
-    sizes = [_gear_size(name, k * radius, tip, module)]
-    if pin is not None:
-        root = radius * scale - settings.dedendum * module
-        if _pin_mount(pin * scale, root, module, hw) == "crank":
-            sizes.append(_disc_size(f"{name} crank", _crank_radius(pin * scale, hw)))
-    return sizes
-
-
-def _bar_size(name: str, length: float, hw: Hardware) -> PartSize:
-    """An arm of ``length`` mm between its end holes' centres, ``arm_width`` wide with round ends."""
-    return PartSize(name, length + hw.arm_width, hw.arm_width, tolerance=0.05)
-
-
-def _plate_size(points: list[np.ndarray], hw: Hardware) -> PartSize:
-    """A base plate: the axles' bounding box grown by ``arm_width`` on every side."""
-    xy = np.asarray(points, dtype=float)
-    span = xy.max(axis=0) - xy.min(axis=0) + 2.0 * hw.arm_width
-    return PartSize("base plate", float(span[0]), float(span[1]), tolerance=0.05)
-
-
-def _spirograph_sizes(p: Mapping[str, float], scale: float, settings: GearSettings, hw: Hardware) -> list[PartSize]:
-    k = teeth_per_unit(scale, settings)
-    module = 2.0 * scale / k
-    r_f, r_r = int(p["r_f"]), int(p["r_r"])
-    return [_ring_size(k * r_f, r_f * scale, module, settings, hw),
-            _gear_size("rolling gear", k * r_r, r_r * scale + settings.addendum * module, module)]
-
-
-def _elliptic_spirograph_sizes(p: Mapping[str, float], scale: float, settings: GearSettings,
-                               hw: Hardware) -> list[PartSize]:
-    k = teeth_per_unit(scale, settings)
-    module = 2.0 * scale / k
-    r_f, r_r, e = int(p["r_f"]), int(p["r_r"]), float(p["e"])
-    # The blank is the pitch ellipse grown by the addendum; the tips reach it on the axes less about a module.
-    a, b = ellipse_axes(k * r_r * module / 2.0, e)
-    ha = settings.addendum * module
-    gear = PartSize("elliptic gear", 2.0 * (a + ha), 2.0 * (b + ha), tolerance=module + 1e-3 * a, teeth=k * r_r)
-    return [_ring_size(k * r_f, r_f * scale, module, settings, hw), gear]
-
-
-def _cycloid_sizes(p: Mapping[str, float], scale: float, settings: GearSettings, hw: Hardware) -> list[PartSize]:
-    k = teeth_per_unit(scale, settings)
-    module = 2.0 * scale / k
-    r_t, r_e, r_s = int(p["r_t"]), int(p["r_e"]), float(p["r_s"])
-    g_e, fulcrum, d_fe = _cycloid_positions(p)
-    # The pen arm runs from half an arm's width behind the pivot to half a width beyond the slot's far end.
-    slot_hi = (d_fe + r_s) * scale
-    arm = PartSize("pen arm", slot_hi + 2.0 * hw.arm_width, hw.arm_width, tolerance=0.05)
-    return [*_axle_gear_sizes("turntable gear", r_t, k, module, scale, settings, hw),
-            *_axle_gear_sizes("external gear", r_e, k, module, scale, settings, hw, pin=r_s),
-            arm, _plate_size([np.zeros(2), g_e * scale, fulcrum * scale], hw)]
-
-
-def _hoot_nanny_sizes(p: Mapping[str, float], scale: float, settings: GearSettings, hw: Hardware) -> list[PartSize]:
-    k = teeth_per_unit(scale, settings)
-    module = 2.0 * scale / k
-    g1, g2 = _hoot_nanny_positions(p)
-    return [*_axle_gear_sizes("turntable gear", int(p["r_t"]), k, module, scale, settings, hw),
-            *_axle_gear_sizes("gear 1", int(p["r_g1"]), k, module, scale, settings, hw, pin=float(p["r_p1"])),
-            *_axle_gear_sizes("gear 2", int(p["r_g2"]), k, module, scale, settings, hw, pin=float(p["r_p2"])),
-            _bar_size("arm 1", float(p["l1"]) * scale, hw), _bar_size("arm 2", float(p["l2"]) * scale, hw),
-            _plate_size([np.zeros(2), g1 * scale, g2 * scale], hw)]
-
-
-_SIZERS = {
-    "spirograph": _spirograph_sizes,
-    "elliptic_spirograph": _elliptic_spirograph_sizes,
-    "cycloid_drawing_machine": _cycloid_sizes,
-    "hoot_nanny": _hoot_nanny_sizes,
-}
+    parts = _BUILDERS[machine](validated, float(scale), settings, hardware, step=gear_started)
+    report(GEARS_STAGE, done, total, f"generated the {len(parts)} parts ({total} teeth)")
+    return parts

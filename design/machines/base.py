@@ -2,14 +2,19 @@
 
 A machine is a :class:`DrawingMachine` subclass that declares
 
-* its design parameters (:class:`Parameter`: discrete gear radii, which are positive integers so that the pattern
-  is finite (A.5), and continuous lengths and angles, each with a default and a closed box of bounds);
-* its constraint system (:class:`Constraint`: one named, evaluable inequality per line of Appendix A, with the
-  category of A.1.2 it belongs to and a message in words and numbers);
+* its design parameters (:class:`~design.machines.parameters.Parameter`: discrete gear radii, which are positive
+  integers so that the pattern is finite (A.5), and continuous lengths and angles, each with a default and a closed
+  box of bounds);
+* its constraint system (:class:`~design.machines.parameters.Constraint`: one named, evaluable inequality per line of
+  Appendix A, with the category of A.1.2 it belongs to and a message in words and numbers);
 * its kinematics, as a vectorized function of the parameters and of time returning complex positions.
 
 Everything else (validation, violations, exact period, sampling uniform in time or arc length, batch sampling,
-slider bounds) is implemented here once, vectorized with numpy, so a new machine is mostly its equations.
+slider bounds) is implemented once, vectorized with numpy, so a new machine is mostly its equations. The code is
+split by topic: parameters and constraints (:mod:`design.machines.parameters`), preview shapes
+(:mod:`design.machines.shapes`), arc-length sampling (:mod:`design.machines.sampling`) and slider bounds
+(:mod:`design.machines.bounds`); this module holds the class that ties them together and re-exports their names,
+so ``from design.machines.base import X`` keeps working for all of them.
 
 Conventions: lengths are in gear-radius units (the physical scale is chosen at fabrication); angles are radians;
 time ``t`` is the rotation angle of the machine's driving part, and one pattern spans ``[0, period(params)]``.
@@ -18,188 +23,42 @@ time ``t`` is the rotation angle of the machine's driving part, and one pattern 
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Iterable, Mapping, Sequence
-from dataclasses import dataclass
+from collections.abc import Callable, Iterable, Mapping
 from typing import Any, ClassVar, Literal
 
 import numpy as np
 
 from design.errors import ConstraintViolation, parameter_error
-
-#: Arbitrary integer bound B_r of Appendix A on gear radii (radii are strictly smaller). With coprime radii below
-#: 30, a pattern needs at most 29 turns of a gear: long enough for rich patterns, short enough to plot.
-MAX_GEAR_RADIUS = 30
-
-#: The categories of constraints of Appendix A.1.2, in the order the thesis gives them.
-CATEGORIES = (
-    "finite pattern",
-    "compatible curvatures",
-    "valid layout",
-    "symmetry reduction",
-    "drawing bounds",
-    "singularity avoidance",
-    "practical dimensions",
+from design.machines import bounds
+from design.machines.constraints import (
+    CATEGORIES,
+    Constraint,
+    Violation,
+    box_constraints,
+    coprime_constraint,
+    format_number,
+    gcd_margin,
+    ordered,
+    positive,
 )
+from design.machines.parameters import (
+    MAX_GEAR_RADIUS,
+    Parameter,
+    Params,
+    angle,
+    gear_period,
+    gear_radius,
+    length,
+    rotate,
+    scalar_arrays,
+)
+from design.machines.sampling import arclength_times
+from design.machines.shapes import Circle, Ellipse, Point, Segment, Shape, shapes_to_jsonable, xy
 
-Params = dict[str, float]
+#: The former private name of :func:`design.machines.shapes.xy`, kept for imports from this module.
+_xy = xy
+
 Spacing = Literal["time", "arclength"]
-
-
-@dataclass(frozen=True)
-class Parameter:
-    """One design parameter of a machine.
-
-    Attributes
-    ----------
-    name : str
-        Public name (part of the contract, e.g. ``"r_f"``).
-    kind : {"discrete", "continuous"}
-        Discrete parameters are gear radii: positive integers.
-    default : float
-        Value in the machine's default (feasible) design.
-    lower, upper : float
-        Closed box of allowed values (the constraints may cut it further, see
-        :meth:`DrawingMachine.feasible_interval`).
-    description : str
-        What the parameter is, in words.
-    unit : str
-        ``"gear radius"`` for lengths (and radii), ``"rad"`` for angles, ``""`` for ratios.
-    category : str
-        The constraint category of A.1.2 its box bounds come from.
-    equation : str
-        The thesis equation of the box bounds (e.g. ``"A.7"``), if any.
-    """
-
-    name: str
-    kind: Literal["discrete", "continuous"]
-    default: float
-    lower: float
-    upper: float
-    description: str
-    unit: str = "gear radius"
-    category: str = "practical dimensions"
-    equation: str = ""
-
-    @property
-    def is_discrete(self) -> bool:
-        return self.kind == "discrete"
-
-    def as_dict(self) -> dict[str, Any]:
-        """Plain-JSON description (used by ``station machines --json``)."""
-        return {
-            "name": self.name,
-            "kind": self.kind,
-            "default": self.default,
-            "lower": self.lower,
-            "upper": self.upper,
-            "unit": self.unit,
-            "description": self.description,
-        }
-
-
-@dataclass(frozen=True)
-class Constraint:
-    """One inequality of a machine's constraint system.
-
-    Attributes
-    ----------
-    name : str
-        Short identifier, unique within the machine (e.g. ``"pen_inside_gear"``).
-    category : str
-        One of :data:`CATEGORIES`.
-    equation : str
-        Thesis equation number (``"A.9"``), or ``""`` for a constraint the station adds (documented in its message).
-    margin : callable
-        ``margin(P) -> ndarray``: how much the inequality holds, vectorized over parameter arrays ``P`` (a mapping
-        name -> array, all broadcastable). Satisfied when ``margin >= 0`` (``> 0`` if ``strict``).
-    message : callable
-        ``message(p) -> str`` for scalar parameters ``p``: what must hold, in words and numbers
-        (e.g. ``"l1 must exceed r_g1 + r_p1 = 6.5, got 5"``).
-    strict : bool
-        Whether equality violates the constraint.
-    depends : tuple of str
-        Parameters the margin depends on (to skip constraints when computing one parameter's slider bounds).
-    """
-
-    name: str
-    category: str
-    equation: str
-    margin: Callable[[Mapping[str, np.ndarray]], np.ndarray]
-    message: Callable[[Mapping[str, float]], str]
-    strict: bool = True
-    depends: tuple[str, ...] = ()
-
-    def satisfied(self, margin: np.ndarray) -> np.ndarray:
-        margin = np.asarray(margin)
-        return (margin > 0) if self.strict else (margin >= 0)
-
-
-@dataclass(frozen=True)
-class Violation:
-    """A violated constraint: its name, a message in words and numbers, and its margin (<= 0; how far off)."""
-
-    constraint: str
-    message: str
-    margin: float
-    category: str = ""
-    equation: str = ""
-
-
-# --- shapes of a mechanism preview -------------------------------------------------------------------------------
-
-
-@dataclass(frozen=True)
-class Circle:
-    """A gear (its primitive circle), a turntable, or a pivot's path: ``center`` (x, y) and ``radius``."""
-
-    label: str
-    center: tuple[float, float]
-    radius: float
-    kind: str = "circle"
-
-
-@dataclass(frozen=True)
-class Ellipse:
-    """An elliptic gear: ``center``, semi-axes ``a`` (along ``angle``) and ``b``."""
-
-    label: str
-    center: tuple[float, float]
-    a: float
-    b: float
-    angle: float
-    kind: str = "ellipse"
-
-    def polyline(self, n: int = 96) -> np.ndarray:
-        """Closed (n, 2) outline of the ellipse."""
-        u = np.linspace(0.0, 2.0 * np.pi, n)
-        z = (self.a * np.cos(u) + 1j * self.b * np.sin(u)) * np.exp(1j * self.angle) + complex(*self.center)
-        return np.column_stack([z.real, z.imag])
-
-
-@dataclass(frozen=True)
-class Segment:
-    """An arm, rod or radius marker from ``start`` to ``end``."""
-
-    label: str
-    start: tuple[float, float]
-    end: tuple[float, float]
-    kind: str = "segment"
-
-
-@dataclass(frozen=True)
-class Point:
-    """A joint, pivot or the pen: a ``position``."""
-
-    label: str
-    position: tuple[float, float]
-    kind: str = "point"
-
-
-Shape = Circle | Ellipse | Segment | Point
-
-
-def _xy(z: complex) -> tuple[float, float]:
-    return (float(np.real(z)), float(np.imag(z)))
 
 
 # --- the base class ----------------------------------------------------------------------------------------------
@@ -263,6 +122,11 @@ class DrawingMachine:
     def _check_frame(self, frame: str) -> None:
         if frame not in ("drawing", "fixed"):
             raise parameter_error(self.name, "frame", "'drawing' or 'fixed'", frame)
+
+    def _preview_design(self, params: Mapping[str, float], frame: str) -> Params:
+        """The checked design a :meth:`mechanism` preview draws (after checking its ``frame``)."""
+        self._check_frame(frame)
+        return self.validate(params)
 
     # -- parameters ----------------------------------------------------------------------------------------------
 
@@ -360,7 +224,7 @@ class DrawingMachine:
     def violations(self, params: Mapping[str, Any] | None = None) -> list[Violation]:
         """Every violated constraint (box bounds and integrality included); empty when the design is feasible."""
         values = self.complete(params)
-        P = {k: np.float64(v) for k, v in values.items()}
+        P = scalar_arrays(values)
         found = []
         with np.errstate(all="ignore"):
             for constraint in self._constraints:
@@ -421,7 +285,7 @@ class DrawingMachine:
     def period(self, params: Mapping[str, Any] | None = None) -> float:
         """Time length of one closed pattern (lcm rule of A.1.1 on the integer gear radii)."""
         values = self.validate(params)
-        return float(self._period({k: np.float64(v) for k, v in values.items()}))
+        return float(self._period(scalar_arrays(values)))
 
     def turns(self, params: Mapping[str, Any] | None = None) -> int:
         """Whole turns of the driving part in one period (``period / 2 pi``)."""
@@ -446,7 +310,7 @@ class DrawingMachine:
         """Pen positions at times ``t``: an array of shape ``(len(t), 2)`` (vectorized, validated design)."""
         values = self.validate(params)
         t = np.asarray(t, dtype=float)
-        z = self._positions({k: np.float64(v) for k, v in values.items()}, t)
+        z = self._positions(scalar_arrays(values), t)
         return np.stack([z.real, z.imag], axis=-1)
 
     def period_many(self, rows: Any, check: bool = True) -> np.ndarray:
@@ -543,47 +407,10 @@ class DrawingMachine:
     ARCLENGTH_MIN_DENSE: ClassVar[int] = 2048
 
     def _arclength_times(self, P: Mapping[str, np.ndarray], period: np.ndarray, n: int) -> np.ndarray:
-        """Times at which the curves are equidistant in arc length (vectorized over designs).
-
-        1. Evaluate each curve densely and accumulate its length, each chord corrected to its arc by the turning
-           angle ``theta`` at its ends (``arc = chord (1 + theta^2 / 24)`` on a circle through three points).
-        2. Invert the cumulative length by linear interpolation (one ``searchsorted`` for every design).
-        3. One Newton step inside each dense interval, measuring the length reached with the chord to the
-           interpolated point, which removes the error of assuming a constant speed within the interval.
-        Relative spacing errors are ~1e-4 at 256 points (larger across cusps, where chords cannot follow arcs).
-        """
-        k = period.shape[0]
+        """Times at which the curves are equidistant in arc length (:func:`design.machines.sampling.arclength_times`,
+        with ``ARCLENGTH_OVERSAMPLING`` dense points per output point, at least ``ARCLENGTH_MIN_DENSE``)."""
         dense = max(self.ARCLENGTH_OVERSAMPLING * n, self.ARCLENGTH_MIN_DENSE)
-        h = period / (dense - 1)  # (k, 1) dense time step
-        z = self._positions(P, h * np.arange(dense)[None, :])
-        dz = np.diff(z, axis=1)
-        chord = np.abs(dz)
-        safe = np.where(dz == 0, 1.0, dz)
-        turn = np.abs(np.angle(safe[:, 1:] / safe[:, :-1]))
-        theta = np.empty_like(chord)
-        theta[:, 1:-1] = 0.5 * (turn[:, 1:] + turn[:, :-1])
-        theta[:, 0], theta[:, -1] = turn[:, 0], turn[:, -1]
-        arc = chord * (1.0 + theta * theta / 24.0)
-        length = np.concatenate([np.zeros((k, 1)), np.cumsum(arc, axis=1)], axis=1)
-        total = np.where(length[:, -1:] > 0, length[:, -1:], 1.0)
-        target = np.linspace(0.0, 1.0, n)[None, :] * total
-        # One searchsorted for all rows: offset each row's (non-decreasing) normalized lengths by 2 x its index.
-        offset = 2.0 * np.arange(k)[:, None]
-        flat = (length / total + offset).ravel()
-        goal = (target / total + offset).ravel()
-        index = np.searchsorted(flat, goal, side="right").reshape(k, n) - 1 - dense * np.arange(k)[:, None]
-        index = np.clip(index, 0, dense - 2)
-        rows = np.arange(k)[:, None]
-        start, step, step_chord = length[rows, index], arc[rows, index], chord[rows, index]
-        moving = step > 0
-        weight = np.clip(np.where(moving, (target - start) / np.where(moving, step, 1.0), 0.0), 0.0, 1.0)
-        t = (index + weight) * h
-        # Newton step: the length reached at t is the interval's arc times the chord fraction to z(t).
-        reached = start + step * np.abs(self._positions(P, t) - z[rows, index]) / np.where(moving, step_chord, 1.0)
-        speed = np.where(moving, step / h, 1.0)
-        t = np.clip(t + np.where(moving, (target - reached) / speed, 0.0), index * h, (index + 1) * h)
-        t[:, 0], t[:, -1] = 0.0, period[:, 0]
-        return t
+        return arclength_times(self._positions, P, period, n, dense)
 
     # -- slider bounds -------------------------------------------------------------------------------------------
 
@@ -608,146 +435,7 @@ class DrawingMachine:
         ConstraintViolation
             When no value of ``name`` makes the design feasible (e.g. the gear radii are not coprime).
         """
-        parameter = self.parameter(name)
-        if parameter.is_discrete:
-            raise parameter_error(self.name, name, f"a continuous parameter ({', '.join(self.continuous_names)})", name)
-        values = self.complete(params)
-        current = float(values[name])
-        lower, upper = float(parameter.lower), float(parameter.upper)
-        others = {k: np.float64(v) for k, v in values.items() if k != name}
-        relevant = [c for c in self._constraints if not c.depends or name in c.depends]
-        fixed = [c for c in self._constraints if c.depends and name not in c.depends]
-
-        with np.errstate(all="ignore"):
-            for constraint in fixed:
-                if not bool(constraint.satisfied(constraint.margin(others | {name: np.float64(current)}))):
-                    message = constraint.message(values)
-                    raise ConstraintViolation(
-                        f"{self.name}: no value of {name} is feasible: constraint {constraint.name!r} "
-                        f"({constraint.category}) does not depend on it and is violated: {message}",
-                        constraint=constraint.name,
-                    )
-
-            def feasible(x: np.ndarray) -> np.ndarray:
-                P = dict(others)
-                P[name] = x
-                ok = np.ones(x.shape, dtype=bool)
-                for constraint in relevant:
-                    ok &= np.broadcast_to(constraint.satisfied(constraint.margin(P)), x.shape)
-                return ok
-
-            def margins(constraint: Constraint, x: np.ndarray) -> np.ndarray:
-                return np.broadcast_to(constraint.margin(dict(others) | {name: x}), x.shape).astype(float)
-
-            def exact(good: float, bad: float, inner: float) -> float:
-                return self._exact_end(relevant, margins, feasible, good, bad, inner)
-
-            xs = np.linspace(lower, upper, grid)
-            inside = lower <= current <= upper
-            if inside:
-                xs = np.sort(np.append(xs, current))
-            ok = feasible(xs)
-            if not ok.any():
-                raise ConstraintViolation(
-                    f"{self.name}: no value of {name} in [{lower:g}, {upper:g}] is feasible with the other "
-                    f"parameters fixed ({', '.join(f'{k}={v:g}' for k, v in values.items() if k != name)})",
-                    constraint="",
-                )
-            # Runs of consecutive feasible grid points.
-            edges = np.diff(np.concatenate([[0], ok.astype(np.int8), [0]]))
-            starts = np.flatnonzero(edges == 1)
-            stops = np.flatnonzero(edges == -1) - 1
-            position = int(np.searchsorted(xs, current))
-            position = min(max(position, 0), len(xs) - 1)
-            containing = np.flatnonzero((starts <= position) & (stops >= position))
-            if containing.size and ok[position]:
-                run = int(containing[0])
-            else:
-                distance = np.minimum(np.abs(xs[starts] - current), np.abs(xs[stops] - current))
-                run = int(np.argmin(distance))
-            i0, i1 = int(starts[run]), int(stops[run])
-            width = max(upper - lower, 1e-300)
-            middle = 0.5 * (xs[i0] + xs[i1])
-            ends = [xs[i0], xs[i1]]
-            brackets = {0: (xs[i0 - 1], xs[i0])} if i0 > 0 else {}
-            if i1 < len(xs) - 1:
-                brackets[1] = (xs[i1 + 1], xs[i1])
-            refined = self._refine(feasible, list(brackets.values()), tolerance * width)
-            for side, (good, bad) in zip(brackets, refined):
-                ends[side] = exact(good, bad, middle)
-        return float(ends[0]), float(ends[1])
-
-    @staticmethod
-    def _exact_end(
-        relevant: Sequence[Constraint],
-        margins: Callable[[Constraint, np.ndarray], np.ndarray],
-        feasible: Callable[[np.ndarray], np.ndarray],
-        good: float,
-        bad: float,
-        inner: float,
-    ) -> float:
-        """Replace a bracketed end by the exact root when the constraints that close it are affine in the parameter.
-
-        The constraints violated at ``bad`` are the ones that end the feasible run. If each is affine in the
-        parameter (checked on three points between the end and ``inner``, a point well inside the run), its
-        root is solved for; the most restrictive root, moved inward by a few ulps until it is feasible (strict
-        inequalities), is the end. Otherwise (curvature, drawing bounds) the bracketed end is kept.
-        """
-        closing = [c for c in relevant if not bool(c.satisfied(margins(c, np.array([bad])))[0])]
-        if not closing or inner == good:
-            return good
-        probes = np.array([good, 0.5 * (good + inner), inner])
-        roots = []
-        for constraint in closing:
-            m = margins(constraint, probes)
-            slope = (m[2] - m[0]) / (probes[2] - probes[0])
-            predicted = m[0] + slope * (probes[1] - probes[0])
-            scale = np.abs(m).max() + 1e-300
-            if slope == 0 or not np.isfinite(m).all() or abs(predicted - m[1]) > 1e-9 * scale:
-                return good
-            roots.append(good - m[0] / slope)
-        root = max(roots) if bad < good else min(roots)
-        if not abs(root - good) <= 2.0 * abs(good - bad) + 1e-300:
-            return good
-        direction = np.inf if bad < good else -np.inf
-        for _ in range(8):
-            if bool(feasible(np.array([root]))[0]):
-                return float(root)
-            root = float(np.nextafter(root, direction))
-        return good
-
-    @staticmethod
-    def _refine(
-        feasible: Callable[[np.ndarray], np.ndarray],
-        brackets: Sequence[tuple[float, float]],
-        tolerance: float,
-        probes: int = 48,
-    ) -> list[tuple[float, float]]:
-        """Shrink brackets (bad, good) (infeasible, feasible) around boundaries, all in one evaluation per round.
-
-        Returns ``(good, bad)`` per bracket, ``|good - bad| <= tolerance``. The new feasible end is the first
-        feasible probe seen from the bad side (so the run containing ``good`` stays connected).
-        """
-        bad = np.array([b for b, _ in brackets], dtype=float)
-        good = np.array([g for _, g in brackets], dtype=float)
-        fractions = np.linspace(0.0, 1.0, probes + 2)[1:-1]
-        for _ in range(64):  # each round divides the bracket by probes + 1; 64 rounds is never reached
-            active = np.abs(good - bad) > tolerance
-            if not active.any():
-                break
-            points = bad[active, None] + (good - bad)[active, None] * fractions[None, :]
-            ok = feasible(points.ravel()).reshape(points.shape)
-            first = np.argmax(ok, axis=1)
-            found = ok.any(axis=1)
-            rows = np.arange(points.shape[0])
-            new_good = np.where(found, points[rows, first], good[active])
-            previous = np.where(first > 0, points[rows, np.maximum(first - 1, 0)], bad[active])
-            new_bad = np.where(found, previous, points[:, -1])
-            stalled = (new_good == good[active]) & (new_bad == bad[active])
-            if stalled.all():  # pragma: no cover - floating point stall
-                break
-            good[active], bad[active] = new_good, new_bad
-        return [(float(g), float(b)) for g, b in zip(good, bad)]
+        return bounds.feasible_interval(self, params, name, grid=grid, tolerance=tolerance)
 
     # -- misc ----------------------------------------------------------------------------------------------------
 
@@ -768,107 +456,61 @@ class DrawingMachine:
     def _box_constraints(self) -> Iterable[Constraint]:
         """Box bounds and integrality of every parameter, as constraints (so violations() lists them too)."""
         for parameter in self.parameters:
-            yield from _box_constraints_of(parameter)
+            yield from box_constraints(parameter)
 
 
-def _box_constraints_of(parameter: Parameter) -> Iterable[Constraint]:
-    name, lower, upper, unit = parameter.name, parameter.lower, parameter.upper, parameter.unit
-    if parameter.is_discrete:
-        yield Constraint(
-            f"{name}_integer",
-            "finite pattern",
-            "A.5",
-            lambda P, n=name: -np.abs(P[n] - np.rint(P[n])),
-            lambda p, n=name: (
-                f"{n} must be a whole number (gear radii are integers so the pattern closes), got {p[n]:g}"
-            ),
-            strict=False,
-            depends=(name,),
-        )
-    yield Constraint(
-        f"{name}_min",
-        parameter.category,
-        parameter.equation,
-        lambda P, n=name, lo=lower: P[n] - lo,
-        lambda p, n=name, lo=lower, u=unit: f"{n} must be at least {lo:g}{' ' + u if u else ''}, got {p[n]:g}",
-        strict=False,
-        depends=(name,),
-    )
-    yield Constraint(
-        f"{name}_max",
-        parameter.category,
-        parameter.equation,
-        lambda P, n=name, hi=upper: hi - P[n],
-        lambda p, n=name, hi=upper, u=unit: f"{n} must be at most {hi:g}{' ' + u if u else ''}, got {p[n]:g}",
-        strict=False,
-        depends=(name,),
-    )
+class TurntableMachine(DrawingMachine):
+    """A machine whose paper lies on its driving gear, the turntable ``r_t`` (thesis A.2.3-A.2.4).
 
-
-def gcd_margin(*arrays: np.ndarray) -> np.ndarray:
-    """Margin of a coprimality constraint: 0 when the integers are coprime, 1 - gcd (< 0) otherwise."""
-    ints = [np.rint(np.asarray(a)).astype(np.int64) for a in arrays]
-    g = ints[0]
-    for other in ints[1:]:
-        g = np.gcd(g, other)
-    return (1 - g).astype(float)
-
-
-def coprime_constraint(equation: str, *names: str) -> Constraint:
-    """The symmetry-reduction constraint of ``equation``: the gear radii ``names`` share no common divisor, else the
-    same pattern exists with smaller gears."""
-
-    def message(p: Mapping[str, float]) -> str:
-        values = [int(round(p[n])) for n in names]
-        shown = ", ".join(f"{p[n]:g}" for n in names)
-        listed = " and ".join(names) if len(names) == 2 else ", ".join(names[:-1]) + f" and {names[-1]}"
-        rule = "be coprime" if len(names) == 2 else "share no common divisor"
-        return (f"{listed} must {rule}, got gcd({shown}) = {math.gcd(*values)} "
-                "(the same pattern exists with smaller gears)")
-
-    return Constraint(
-        "coprime_radii",
-        "symmetry reduction",
-        equation,
-        lambda P: gcd_margin(*(P[n] for n in names)),
-        message,
-        strict=False,
-        depends=names,
-    )
-
-
-def gear_period(driving_radius: np.ndarray, *radii: np.ndarray) -> np.ndarray:
-    """Exact period of a gear train by the lcm rule of A.1.1, vectorized over integer radii.
-
-    A gear of radius r meshing (directly or through the train) with the driving part of radius ``driving_radius``
-    turns once every ``2 pi r / driving_radius`` units of time; the pattern closes when every gear has made a
-    whole number of turns: ``T = 2 pi lcm(driving_radius, *radii) / driving_radius``.
+    The drawing is the pen's path in the turntable's rotating frame, ``gamma(t) = R_{-t} H(t)`` (A.52-A.53), where
+    ``H(t)`` is the pen in the machine's fixed frame. Subclasses implement :meth:`_fixed_frame` (their moving parts
+    in the fixed frame, the pen last) instead of :meth:`_positions`, and build their preview on
+    :meth:`_turntable_preview`.
     """
-    base = np.rint(np.asarray(driving_radius)).astype(np.int64)
-    multiple = base
-    for r in radii:
-        multiple = np.lcm(multiple, np.rint(np.asarray(r)).astype(np.int64))
-    return 2.0 * np.pi * multiple / base
 
+    symmetry_gear: ClassVar[str] = "r_t"
 
-def rotate(z: np.ndarray, angle: np.ndarray) -> np.ndarray:
-    """Rotate complex positions by ``angle`` (radians, counter-clockwise)."""
-    return z * np.exp(1j * angle)
+    def _fixed_frame(self, P: Mapping[str, np.ndarray], t: np.ndarray) -> tuple[np.ndarray, ...]:
+        """Complex positions of the machine's parts in its fixed frame at times t (vectorized), the pen last."""
+        raise NotImplementedError
 
+    def _positions(self, P: Mapping[str, np.ndarray], t: np.ndarray) -> np.ndarray:
+        return self._fixed_frame(P, t)[-1] * np.exp(-1j * t)  # into the turntable's frame (A.52)
 
-def format_number(x: float) -> str:
-    """Numbers in messages: short but exact enough to see why a constraint fails."""
-    return f"{x:.6g}"
+    @staticmethod
+    def _pen_on_turntable(
+        equation: str, farthest: Callable[[Mapping[str, np.ndarray]], np.ndarray], requirement: str, after: str = ""
+    ) -> Constraint:
+        """Drawing bounds: the pen's farthest distance from the turntable's center, ``farthest(P)``, is below r_t.
 
+        ``requirement`` and ``after`` word the bound around ``r_t = <value>`` in the message. The margin depends on
+        every parameter of a turntable machine (so ``depends`` is left empty).
+        """
+        return Constraint(
+            "pen_on_turntable",
+            "drawing bounds",
+            equation,
+            lambda P: P["r_t"] - farthest(P),
+            lambda p: (
+                f"the pen must stay on the turntable: {requirement} r_t = {p['r_t']:g}{after}, "
+                f"got {float(farthest(scalar_arrays(p))):.6g}"
+            ),
+        )
 
-def shapes_to_jsonable(shapes: Sequence[Shape]) -> list[dict[str, Any]]:
-    """Plain-JSON form of :meth:`DrawingMachine.mechanism` shapes."""
-    out = []
-    for shape in shapes:
-        item = {"kind": shape.kind, "label": shape.label}
-        item.update({k: v for k, v in shape.__dict__.items() if k not in ("kind", "label")})
-        out.append(item)
-    return out
+    def _turntable_preview(
+        self, params: Mapping[str, float], t: float, frame: str
+    ) -> tuple[Params, tuple[complex, ...], list[Shape]]:
+        """The checked design, its :meth:`_fixed_frame` parts at ``t`` expressed in ``frame``, and the turntable.
+
+        The turntable is its circle and a mark on its rim that shows its rotation (the mark is fixed on the paper
+        in the drawing frame, and turns in the fixed frame).
+        """
+        p = self._preview_design(params, frame)
+        turn = np.exp(-1j * t) if frame == "drawing" else 1.0
+        parts = tuple(complex(z * turn) for z in self._fixed_frame(scalar_arrays(p), np.float64(t)))
+        mark = p["r_t"] * (1.0 if frame == "drawing" else np.exp(1j * t))
+        turntable = [Circle("turntable", (0.0, 0.0), float(p["r_t"])), Segment("turntable mark", (0.0, 0.0), xy(mark))]
+        return p, parts, turntable
 
 
 __all__ = [
@@ -882,12 +524,21 @@ __all__ = [
     "Point",
     "Segment",
     "Shape",
+    "TurntableMachine",
     "Violation",
+    "angle",
+    "coprime_constraint",
     "format_number",
     "gcd_margin",
     "gear_period",
+    "gear_radius",
+    "length",
+    "ordered",
+    "positive",
     "rotate",
+    "scalar_arrays",
     "shapes_to_jsonable",
+    "xy",
 ]
 
 

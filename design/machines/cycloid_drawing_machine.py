@@ -23,19 +23,10 @@ from collections.abc import Iterable, Mapping
 
 import numpy as np
 
-from design.machines.base import (
-    MAX_GEAR_RADIUS,
-    Circle,
-    Constraint,
-    DrawingMachine,
-    Parameter,
-    Point,
-    Segment,
-    Shape,
-    _xy,
-    coprime_constraint,
-    gear_period,
-)
+from design.machines.base import TurntableMachine
+from design.machines.constraints import Constraint, coprime_constraint, ordered, positive
+from design.machines.parameters import MAX_GEAR_RADIUS, angle, gear_period, gear_radius, length, scalar_arrays
+from design.machines.shapes import Circle, Point, Segment, Shape, xy
 
 #: Arbitrary bound B_d of A.51 on the fulcrum's distance (gear-radius units).
 MAX_FULCRUM_DISTANCE = 2.0 * MAX_GEAR_RADIUS
@@ -57,7 +48,7 @@ def farthest_pen_distance(P: Mapping[str, np.ndarray]) -> np.ndarray:
     return np.sqrt(np.maximum(d_tf * d_tf + d_fh * d_fh + 2.0 * d_tf * d_fh * np.cos(closest), 0.0))
 
 
-class CycloidDrawingMachine(DrawingMachine):
+class CycloidDrawingMachine(TurntableMachine):
     """Cycloid Drawing Machine: 2 discrete + 4 continuous parameters (Table 3.2)."""
 
     name = "cycloid_drawing_machine"
@@ -66,31 +57,18 @@ class CycloidDrawingMachine(DrawingMachine):
         "A turntable drives an external gear whose slider swings a rod about a fixed fulcrum; the pen on the rod "
         "draws on the turning paper."
     )
-    symmetry_gear = "r_t"
     parameters = (
-        Parameter(
-            "r_t", "discrete", 7, 1, MAX_GEAR_RADIUS - 1, "radius of the turntable gear",
-            category="finite pattern", equation="A.41",
+        gear_radius("r_t", 7, "radius of the turntable gear", "A.41"),
+        gear_radius("r_e", 4, "radius of the external gear", "A.41"),
+        length(
+            "d_tf", 9.0, MAX_FULCRUM_DISTANCE, "distance from the turntable's center to the fulcrum", "A.51",
+            category="practical dimensions",
         ),
-        Parameter(
-            "r_e", "discrete", 4, 1, MAX_GEAR_RADIUS - 1, "radius of the external gear",
-            category="finite pattern", equation="A.41",
-        ),
-        Parameter(
-            "d_tf", "continuous", 9.0, 0.0, MAX_FULCRUM_DISTANCE,
-            "distance from the turntable's center to the fulcrum", equation="A.51",
-        ),
-        Parameter(
-            "theta_te", "continuous", 2.4, 0.0, float(np.pi), "polar angle of the external gear's center",
-            unit="rad", category="symmetry reduction", equation="A.46",
-        ),
-        Parameter(
-            "r_s", "continuous", 3.5, 0.0, MAX_GEAR_RADIUS - 1,
-            "distance from the external gear's center to the slider", category="valid layout", equation="A.44",
-        ),
-        Parameter(
-            "d_fh", "continuous", 10.5, 0.0, 2.0 * MAX_FULCRUM_DISTANCE,
-            "distance from the fulcrum to the pen holder, along the rod", category="valid layout", equation="A.43",
+        angle("theta_te", 2.4, "polar angle of the external gear's center", "A.46"),
+        length("r_s", 3.5, MAX_GEAR_RADIUS - 1, "distance from the external gear's center to the slider", "A.44"),
+        length(
+            "d_fh", 10.5, 2.0 * MAX_FULCRUM_DISTANCE, "distance from the fulcrum to the pen holder, along the rod",
+            "A.43",
         ),
     )  # fmt: skip
 
@@ -98,93 +76,45 @@ class CycloidDrawingMachine(DrawingMachine):
         def gear_clearance(P):
             return np.abs(fulcrum_to_gear(P)) - P["r_e"]
 
-        yield Constraint(
-            "fulcrum_outside_turntable",
-            "valid layout",
-            "A.42",
-            lambda P: P["d_tf"] - P["r_t"],
-            lambda p: f"d_tf must exceed r_t = {p['r_t']:g} (the fulcrum is off the turntable), got {p['d_tf']:g}",
-            depends=("d_tf", "r_t"),
-        )
-        yield Constraint(
-            "pen_offset_positive",
-            "valid layout",
-            "A.43",
-            lambda P: P["d_fh"],
-            lambda p: f"d_fh must be greater than 0, got {p['d_fh']:g}",
-            depends=("d_fh",),
-        )
+        yield ordered("fulcrum_outside_turntable", "d_tf", ">", "r_t", "A.42", "the fulcrum is off the turntable")
+        yield positive("pen_offset_positive", "d_fh", "A.43", "valid layout")
         yield Constraint(
             "pen_before_gear",
             "valid layout",
             "A.43",
             lambda P: gear_clearance(P) - P["d_fh"],
             lambda p: (
-                f"d_fh must be smaller than d_fe - r_e = {float(gear_clearance(_arrays(p))):.6g} (the pen holder "
+                f"d_fh must be smaller than d_fe - r_e = {float(gear_clearance(scalar_arrays(p))):.6g} (the pen holder "
                 f"sits between the fulcrum and the external gear, whose center is "
-                f"d_fe = {float(np.abs(fulcrum_to_gear(_arrays(p)))):.6g} from the fulcrum), got {p['d_fh']:g}"
+                f"d_fe = {float(np.abs(fulcrum_to_gear(scalar_arrays(p)))):.6g} from the fulcrum), got {p['d_fh']:g}"
             ),
             depends=("r_t", "r_e", "d_tf", "theta_te", "d_fh"),
         )
-        yield Constraint(
-            "slider_inside_gear",
-            "valid layout",
-            "A.44",
-            lambda P: P["r_e"] - P["r_s"],
-            lambda p: f"r_s must be smaller than r_e = {p['r_e']:g}, got {p['r_s']:g}",
-            depends=("r_e", "r_s"),
-        )
+        yield ordered("slider_inside_gear", "r_s", "<", "r_e", "A.44")
         yield coprime_constraint("A.45", "r_t", "r_e")
-        yield Constraint(
-            "pen_on_turntable",
-            "drawing bounds",
-            "A.47",
-            lambda P: P["r_t"] - farthest_pen_distance(P),
-            lambda p: (
-                f"the pen must stay on the turntable: its farthest distance from the turntable's center must be "
-                f"below r_t = {p['r_t']:g}, got {float(farthest_pen_distance(_arrays(p))):.6g}"
-            ),
-            depends=("r_t", "r_e", "d_tf", "theta_te", "r_s", "d_fh"),
+        yield self._pen_on_turntable(
+            "A.47", farthest_pen_distance, "its farthest distance from the turntable's center must be below"
         )
 
     def _period(self, P: Mapping[str, np.ndarray]) -> np.ndarray:
         return gear_period(P["r_t"], P["r_e"])
 
-    @staticmethod
-    def _fixed_frame(P: Mapping[str, np.ndarray], t: np.ndarray):
-        """Gear center, slider and pen in the machine's fixed frame at times t."""
+    def _fixed_frame(self, P: Mapping[str, np.ndarray], t: np.ndarray) -> tuple[np.ndarray, ...]:
+        """Fulcrum, gear center, slider and pen in the machine's fixed frame at times t."""
         gear = (P["r_t"] + P["r_e"]) * np.exp(1j * P["theta_te"])
         theta_es = -(P["r_t"] / P["r_e"]) * t  # law of gearing, integrated (A.54)
         slider = gear + P["r_s"] * np.exp(1j * theta_es)
         rod = slider - P["d_tf"]
         pen = P["d_tf"] + P["d_fh"] * rod / np.abs(rod)
-        return gear, slider, pen
-
-    def _positions(self, P: Mapping[str, np.ndarray], t: np.ndarray) -> np.ndarray:
-        _, _, pen = self._fixed_frame(P, t)
-        return pen * np.exp(-1j * t)  # into the turntable's frame (A.52)
+        return P["d_tf"] + 0j, gear, slider, pen
 
     def mechanism(self, params: Mapping[str, float], t: float, frame: str = "drawing") -> list[Shape]:
-        self._check_frame(frame)
-        p = self.validate(params)
-        P = {k: np.float64(v) for k, v in p.items()}
-        gear, slider, pen = self._fixed_frame(P, np.float64(t))
-        fulcrum = complex(p["d_tf"], 0.0)
-        turn = np.exp(-1j * t) if frame == "drawing" else 1.0
-        gear, slider, pen, fulcrum = (z * turn for z in (gear, slider, pen, fulcrum))
-        # A mark on the turntable shows its rotation (fixed on the paper in the drawing frame).
-        mark = p["r_t"] * (1.0 if frame == "drawing" else np.exp(1j * t))
-        return [
-            Circle("turntable", (0.0, 0.0), float(p["r_t"])),
-            Segment("turntable mark", (0.0, 0.0), _xy(mark)),
-            Circle("external gear", _xy(gear), float(p["r_e"])),
-            Segment("slider crank", _xy(gear), _xy(slider)),
-            Segment("rod", _xy(fulcrum), _xy(slider)),
-            Point("fulcrum", _xy(fulcrum)),
-            Point("slider", _xy(slider)),
-            Point("pen", _xy(pen)),
+        p, (fulcrum, gear, slider, pen), turntable = self._turntable_preview(params, t, frame)
+        return turntable + [
+            Circle("external gear", xy(gear), float(p["r_e"])),
+            Segment("slider crank", xy(gear), xy(slider)),
+            Segment("rod", xy(fulcrum), xy(slider)),
+            Point("fulcrum", xy(fulcrum)),
+            Point("slider", xy(slider)),
+            Point("pen", xy(pen)),
         ]
-
-
-def _arrays(p: Mapping[str, float]) -> dict[str, np.ndarray]:
-    return {k: np.float64(v) for k, v in p.items()}

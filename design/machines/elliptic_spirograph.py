@@ -29,20 +29,10 @@ from collections.abc import Iterable, Mapping
 import numpy as np
 from scipy.special import ellipe, ellipeinc
 
-from design.machines.base import (
-    MAX_GEAR_RADIUS,
-    Circle,
-    Constraint,
-    DrawingMachine,
-    Ellipse,
-    Parameter,
-    Point,
-    Segment,
-    Shape,
-    _xy,
-    coprime_constraint,
-    gear_period,
-)
+from design.machines.base import DrawingMachine
+from design.machines.constraints import Constraint, coprime_constraint, ordered, positive
+from design.machines.parameters import MAX_GEAR_RADIUS, Parameter, gear_period, gear_radius, length, scalar_arrays
+from design.machines.shapes import Circle, Ellipse, Point, Segment, Shape, xy
 
 
 def semi_axes(r_r, e):
@@ -67,23 +57,18 @@ class EllipticSpirograph(DrawingMachine):
     )
     symmetry_gear = "r_f"
     parameters = (
-        Parameter(
-            "r_f", "discrete", 5, 2, MAX_GEAR_RADIUS - 1, "radius of the fixed ring",
-            category="finite pattern", equation="A.19",
-        ),
-        Parameter(
-            "r_r", "discrete", 3, 1, MAX_GEAR_RADIUS - 2,
-            "equivalent radius of the rolling ellipse (radius of the circle with the same perimeter)",
-            category="valid layout", equation="A.21",
+        gear_radius("r_f", 5, "radius of the fixed ring", "A.19", lower=2),
+        gear_radius(
+            "r_r", 3, "equivalent radius of the rolling ellipse (radius of the circle with the same perimeter)", "A.21",
+            upper=MAX_GEAR_RADIUS - 2, category="valid layout",
         ),
         Parameter(
             "e", "continuous", 0.4, 0.0, 1.0, "eccentricity of the rolling ellipse",
             unit="", category="valid layout", equation="A.22",
         ),
-        Parameter(
-            "d", "continuous", 1.5, 0.0, MAX_GEAR_RADIUS - 2,
-            "distance from the ellipse's center to the pen hole, along the major axis",
-            category="valid layout", equation="A.23",
+        length(
+            "d", 1.5, MAX_GEAR_RADIUS - 2, "distance from the ellipse's center to the pen hole, along the major axis",
+            "A.23",
         ),
     )  # fmt: skip
 
@@ -103,14 +88,7 @@ class EllipticSpirograph(DrawingMachine):
                 f"(r_r = {p['r_r']:g}, e = {p['e']:g}; lower e or use a larger ring)"
             )
 
-        yield Constraint(
-            "rolling_gear_inside",
-            "valid layout",
-            "A.21",
-            lambda P: P["r_f"] - P["r_r"],
-            lambda p: f"r_r must be smaller than r_f = {p['r_f']:g}, got {p['r_r']:g}",
-            depends=("r_f", "r_r"),
-        )
+        yield ordered("rolling_gear_inside", "r_r", "<", "r_f", "A.21")
         yield Constraint(
             "eccentricity_below_one",
             "valid layout",
@@ -137,14 +115,7 @@ class EllipticSpirograph(DrawingMachine):
             depends=("r_r", "e", "d"),
         )
         yield coprime_constraint("A.24", "r_f", "r_r")
-        yield Constraint(
-            "pen_offset_positive",
-            "symmetry reduction",
-            "A.25",
-            lambda P: P["d"],
-            lambda p: f"d must be greater than 0 (d < 0 draws a rotated copy), got {p['d']:g}",
-            depends=("d",),
-        )
+        yield positive("pen_offset_positive", "d", "A.25", "symmetry reduction", " (d < 0 draws a rotated copy)")
 
     def _period(self, P: Mapping[str, np.ndarray]) -> np.ndarray:
         return gear_period(P["r_r"], P["r_f"])
@@ -171,18 +142,16 @@ class EllipticSpirograph(DrawingMachine):
         return contact + np.exp(1j * psi) * (P["d"] - on_ellipse)
 
     def mechanism(self, params: Mapping[str, float], t: float, frame: str = "drawing") -> list[Shape]:
-        self._check_frame(frame)
-        p = self.validate(params)
-        P = {k: np.float64(v) for k, v in p.items()}
-        contact, psi, on_ellipse, a, b = self._state(P, np.float64(t))
+        p = self._preview_design(params, frame)
+        contact, psi, on_ellipse, a, b = self._state(scalar_arrays(p), np.float64(t))
         rotation = np.exp(1j * psi)
         center = contact - rotation * on_ellipse
         pen = center + rotation * p["d"]
         return [
             Circle("fixed ring", (0.0, 0.0), float(p["r_f"])),
-            Ellipse("rolling ellipse", _xy(center), float(a), float(b), float(psi)),
-            Segment("pen arm", _xy(center), _xy(pen)),
-            Point("contact", _xy(contact)),
-            Point("ellipse center", _xy(center)),
-            Point("pen", _xy(pen)),
+            Ellipse("rolling ellipse", xy(center), float(a), float(b), float(psi)),
+            Segment("pen arm", xy(center), xy(pen)),
+            Point("contact", xy(contact)),
+            Point("ellipse center", xy(center)),
+            Point("pen", xy(pen)),
         ]

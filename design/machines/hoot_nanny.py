@@ -32,19 +32,10 @@ from collections.abc import Iterable, Mapping
 
 import numpy as np
 
-from design.machines.base import (
-    MAX_GEAR_RADIUS,
-    Circle,
-    Constraint,
-    DrawingMachine,
-    Parameter,
-    Point,
-    Segment,
-    Shape,
-    _xy,
-    coprime_constraint,
-    gear_period,
-)
+from design.machines.base import TurntableMachine
+from design.machines.constraints import Constraint, coprime_constraint, ordered
+from design.machines.parameters import MAX_GEAR_RADIUS, angle, gear_period, gear_radius, length, scalar_arrays
+from design.machines.shapes import Circle, Point, Segment, Shape, xy
 
 #: Upper box bound of the arm lengths (A.60 bounds them by 2 r_t + r_gi - r_pi < 3 B_r).
 MAX_ARM_LENGTH = 3.0 * MAX_GEAR_RADIUS
@@ -83,7 +74,7 @@ def farthest_pen_distance(P: Mapping[str, np.ndarray]) -> np.ndarray:
     return farthest
 
 
-class HootNanny(DrawingMachine):
+class HootNanny(TurntableMachine):
     """Hoot-Nanny: 3 discrete + 5 continuous parameters (Table 3.2)."""
 
     name = "hoot_nanny"
@@ -92,60 +83,30 @@ class HootNanny(DrawingMachine):
         "A turntable drives two gears; an arm hinged on a pivot of each gear holds the pen where the arms meet "
         "(the Magic Designer)."
     )
-    symmetry_gear = "r_t"
     parameters = (
-        Parameter(
-            "r_t", "discrete", 10, 1, MAX_GEAR_RADIUS - 1, "radius of the turntable gear",
-            category="finite pattern", equation="A.57",
-        ),
-        Parameter(
-            "r_g1", "discrete", 3, 1, MAX_GEAR_RADIUS - 1, "radius of external gear 1",
-            category="finite pattern", equation="A.57",
-        ),
-        Parameter(
-            "r_g2", "discrete", 2, 1, MAX_GEAR_RADIUS - 1, "radius of external gear 2",
-            category="finite pattern", equation="A.57",
-        ),
-        Parameter(
-            "theta_12", "continuous", 1.2, 0.0, float(np.pi), "angle G_1 G_T G_2 between the gears' centers",
-            unit="rad", category="symmetry reduction", equation="A.63",
-        ),
-        Parameter(
-            "r_p1", "continuous", 2.8, 0.0, MAX_GEAR_RADIUS - 1, "distance from gear 1's center to pivot 1",
-            category="valid layout", equation="A.58",
-        ),
-        Parameter(
-            "r_p2", "continuous", 1.8, 0.0, MAX_GEAR_RADIUS - 1, "distance from gear 2's center to pivot 2",
-            category="valid layout", equation="A.58",
-        ),
-        Parameter(
-            "l1", "continuous", 13.5, 0.0, MAX_ARM_LENGTH, "length of arm 1 (pivot 1 to pen)",
-            category="valid layout", equation="A.60",
-        ),
-        Parameter(
-            "l2", "continuous", 7.2, 0.0, MAX_ARM_LENGTH, "length of arm 2 (pivot 2 to pen)",
-            category="valid layout", equation="A.60",
-        ),
-    )  # fmt: skip
+        gear_radius("r_t", 10, "radius of the turntable gear", "A.57"),
+        gear_radius("r_g1", 3, "radius of external gear 1", "A.57"),
+        gear_radius("r_g2", 2, "radius of external gear 2", "A.57"),
+        angle("theta_12", 1.2, "angle G_1 G_T G_2 between the gears' centers", "A.63"),
+        length("r_p1", 2.8, MAX_GEAR_RADIUS - 1, "distance from gear 1's center to pivot 1", "A.58"),
+        length("r_p2", 1.8, MAX_GEAR_RADIUS - 1, "distance from gear 2's center to pivot 2", "A.58"),
+        length("l1", 13.5, MAX_ARM_LENGTH, "length of arm 1 (pivot 1 to pen)", "A.60"),
+        length("l2", 7.2, MAX_ARM_LENGTH, "length of arm 2 (pivot 2 to pen)", "A.60"),
+    )
 
     def constraints(self) -> Iterable[Constraint]:
+        def span(p: Mapping[str, float]) -> float:
+            return float(gear_distance(scalar_arrays(p)))  # |G1G2| of one design, for the messages
+
         for i in ("1", "2"):
-            r_p, r_g, l = f"r_p{i}", f"r_g{i}", f"l{i}"
-            yield Constraint(
-                f"pivot{i}_inside_gear",
-                "valid layout",
-                "A.58",
-                lambda P, r_p=r_p, r_g=r_g: P[r_g] - P[r_p],
-                lambda p, r_p=r_p, r_g=r_g: f"{r_p} must be smaller than {r_g} = {p[r_g]:g}, got {p[r_p]:g}",
-                depends=(r_p, r_g),
-            )
+            yield ordered(f"pivot{i}_inside_gear", f"r_p{i}", "<", f"r_g{i}", "A.58")
         yield Constraint(
             "gears_apart",
             "valid layout",
             "A.59",
             lambda P: gear_distance(P) - P["r_g1"] - P["r_g2"],
             lambda p: (
-                f"the gears overlap: |G1G2| = {float(gear_distance(_arrays(p))):.6g} must exceed "
+                f"the gears overlap: |G1G2| = {span(p):.6g} must exceed "
                 f"r_g1 + r_g2 = {p['r_g1'] + p['r_g2']:g} (increase theta_12 = {p['theta_12']:g})"
             ),
             depends=("r_t", "r_g1", "r_g2", "theta_12"),
@@ -171,6 +132,7 @@ class HootNanny(DrawingMachine):
                 depends=("r_t", r_p, r_g, l),
             )
         yield coprime_constraint("A.62", "r_t", "r_g1", "r_g2")
+        # The singularities and the drawing bounds depend on every parameter: ``depends`` is left empty.
         yield Constraint(
             "arms_reach",
             "singularity avoidance",
@@ -178,9 +140,8 @@ class HootNanny(DrawingMachine):
             lambda P: P["l1"] + P["l2"] - gear_distance(P) - P["r_p1"] - P["r_p2"],
             lambda p: (
                 f"the arms must not stretch straight: l1 + l2 must exceed |G1G2| + r_p1 + r_p2 = "
-                f"{float(gear_distance(_arrays(p))) + p['r_p1'] + p['r_p2']:.6g}, got {p['l1'] + p['l2']:.6g}"
+                f"{span(p) + p['r_p1'] + p['r_p2']:.6g}, got {p['l1'] + p['l2']:.6g}"
             ),
-            depends=("r_t", "r_g1", "r_g2", "theta_12", "r_p1", "r_p2", "l1", "l2"),
         )
         yield Constraint(
             "arms_not_folded",
@@ -189,27 +150,16 @@ class HootNanny(DrawingMachine):
             lambda P: gear_distance(P) - P["r_p1"] - P["r_p2"] - np.abs(P["l1"] - P["l2"]),
             lambda p: (
                 f"the arms must not fold onto each other: |l1 - l2| must be below |G1G2| - r_p1 - r_p2 = "
-                f"{float(gear_distance(_arrays(p))) - p['r_p1'] - p['r_p2']:.6g}, got {abs(p['l1'] - p['l2']):.6g}"
+                f"{span(p) - p['r_p1'] - p['r_p2']:.6g}, got {abs(p['l1'] - p['l2']):.6g}"
             ),
-            depends=("r_t", "r_g1", "r_g2", "theta_12", "r_p1", "r_p2", "l1", "l2"),
         )
-        yield Constraint(
-            "pen_on_turntable",
-            "drawing bounds",
-            "A.67",
-            lambda P: P["r_t"] - farthest_pen_distance(P),
-            lambda p: (
-                f"the pen must stay on the turntable: the farthest corner of its reach must be within r_t = "
-                f"{p['r_t']:g} of the turntable's center, got {float(farthest_pen_distance(_arrays(p))):.6g}"
-            ),
-            depends=("r_t", "r_g1", "r_g2", "theta_12", "r_p1", "r_p2", "l1", "l2"),
-        )
+        reach = "the farthest corner of its reach must be within"
+        yield self._pen_on_turntable("A.67", farthest_pen_distance, reach, " of the turntable's center")
 
     def _period(self, P: Mapping[str, np.ndarray]) -> np.ndarray:
         return gear_period(P["r_t"], P["r_g1"], P["r_g2"])
 
-    @staticmethod
-    def _fixed_frame(P: Mapping[str, np.ndarray], t: np.ndarray):
+    def _fixed_frame(self, P: Mapping[str, np.ndarray], t: np.ndarray) -> tuple[np.ndarray, ...]:
         """Gear centers, pivots and pen in the machine's fixed frame at times t."""
         g1, g2 = gear_centers(P)
         p1 = g1 + P["r_p1"] * np.exp(-1j * (P["r_t"] / P["r_g1"]) * t)
@@ -217,31 +167,16 @@ class HootNanny(DrawingMachine):
         pen = triangle_apex(p1, p2, P["l1"], P["l2"])
         return g1, g2, p1, p2, pen
 
-    def _positions(self, P: Mapping[str, np.ndarray], t: np.ndarray) -> np.ndarray:
-        *_, pen = self._fixed_frame(P, t)
-        return pen * np.exp(-1j * t)
-
     def mechanism(self, params: Mapping[str, float], t: float, frame: str = "drawing") -> list[Shape]:
-        self._check_frame(frame)
-        p = self.validate(params)
-        g1, g2, p1, p2, pen = self._fixed_frame(_arrays(p), np.float64(t))
-        turn = np.exp(-1j * t) if frame == "drawing" else 1.0
-        g1, g2, p1, p2, pen = (complex(z * turn) for z in (g1, g2, p1, p2, pen))
-        mark = p["r_t"] * (1.0 if frame == "drawing" else np.exp(1j * t))
-        return [
-            Circle("turntable", (0.0, 0.0), float(p["r_t"])),
-            Segment("turntable mark", (0.0, 0.0), _xy(mark)),
-            Circle("gear 1", _xy(g1), float(p["r_g1"])),
-            Circle("gear 2", _xy(g2), float(p["r_g2"])),
-            Segment("crank 1", _xy(g1), _xy(p1)),
-            Segment("crank 2", _xy(g2), _xy(p2)),
-            Segment("arm 1", _xy(p1), _xy(pen)),
-            Segment("arm 2", _xy(p2), _xy(pen)),
-            Point("pivot 1", _xy(p1)),
-            Point("pivot 2", _xy(p2)),
-            Point("pen", _xy(pen)),
+        p, (g1, g2, p1, p2, pen), turntable = self._turntable_preview(params, t, frame)
+        return turntable + [
+            Circle("gear 1", xy(g1), float(p["r_g1"])),
+            Circle("gear 2", xy(g2), float(p["r_g2"])),
+            Segment("crank 1", xy(g1), xy(p1)),
+            Segment("crank 2", xy(g2), xy(p2)),
+            Segment("arm 1", xy(p1), xy(pen)),
+            Segment("arm 2", xy(p2), xy(pen)),
+            Point("pivot 1", xy(p1)),
+            Point("pivot 2", xy(p2)),
+            Point("pen", xy(pen)),
         ]
-
-
-def _arrays(p: Mapping[str, float]) -> dict[str, np.ndarray]:
-    return {k: np.float64(v) for k, v in p.items()}

@@ -6,7 +6,7 @@ thesis's figures) and draw them with the given colors.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 from typing import BinaryIO, TextIO
 
 import numpy as np
@@ -55,16 +55,20 @@ def _to_pixels(polyline: np.ndarray, center: np.ndarray, scale: float, half: flo
     return np.column_stack([half + p[:, 0], half - p[:, 1]])
 
 
+def _colored_pixels(
+    polylines: Sequence[np.ndarray], size: int, margin: float, colors: Sequence[str]
+) -> Iterator[tuple[np.ndarray, str]]:
+    """Each polyline in pixels of a ``size`` x ``size`` picture (fitted with ``margin``), with its color."""
+    center, scale, half = _frame(polylines, size, margin)
+    for index, polyline in enumerate(polylines):
+        yield _to_pixels(polyline, center, scale, half), colors[index % len(colors)]
+
+
+# Both writers take the same picture options (size in px, margin as a fraction of it, colors cycled over polylines).
 def write_svg(
-    stream: TextIO,
-    polylines: Sequence[np.ndarray],
-    *,
-    size: int = 800,
-    margin: float = 0.05,
-    colors: Sequence[str] = DEFAULT_COLORS,
-    stroke_width: float = 1.2,
-    title: str = "",
-) -> None:
+    stream: TextIO, polylines: Sequence[np.ndarray], *, size: int = 800, margin: float = 0.05,
+    colors: Sequence[str] = DEFAULT_COLORS, stroke_width: float = 1.2, title: str = "",
+) -> None:  # fmt: skip
     """Write the polylines as an SVG document (size x size px, white background) to ``stream``."""
     import svgwrite
 
@@ -72,14 +76,12 @@ def write_svg(
     if title:
         drawing.set_desc(title=title)
     drawing.add(drawing.rect((0, 0), (size, size), fill="white"))
-    center, scale, half = _frame(polylines, size, margin)
-    for index, polyline in enumerate(polylines):
-        pixels = _to_pixels(polyline, center, scale, half)
+    for pixels, color in _colored_pixels(polylines, size, margin, colors):
         drawing.add(
             drawing.polyline(
                 [(round(x, 3), round(y, 3)) for x, y in pixels],
                 fill="none",
-                stroke=colors[index % len(colors)],
+                stroke=color,
                 stroke_width=stroke_width,
                 stroke_linejoin="round",
             )
@@ -89,25 +91,17 @@ def write_svg(
 
 
 def write_png(
-    stream: BinaryIO,
-    polylines: Sequence[np.ndarray],
-    *,
-    size: int = 800,
-    margin: float = 0.05,
-    colors: Sequence[str] = DEFAULT_COLORS,
-    line_width: float = 1.5,
-    supersample: int = 4,
-) -> None:
+    stream: BinaryIO, polylines: Sequence[np.ndarray], *, size: int = 800, margin: float = 0.05,
+    colors: Sequence[str] = DEFAULT_COLORS, line_width: float = 1.5, supersample: int = 4,
+) -> None:  # fmt: skip
     """Draw the polylines with Pillow at ``supersample`` times the size, then downsample (antialiasing)."""
     from PIL import Image, ImageDraw
 
     big = size * supersample
     image = Image.new("RGB", (big, big), "white")
     draw = ImageDraw.Draw(image)
-    center, scale, half = _frame(polylines, big, margin)
     width = max(1, int(round(line_width * supersample)))
-    for index, polyline in enumerate(polylines):
-        pixels = _to_pixels(polyline, center, scale, half)
-        draw.line([tuple(p) for p in pixels.tolist()], fill=colors[index % len(colors)], width=width, joint="curve")
+    for pixels, color in _colored_pixels(polylines, big, margin, colors):
+        draw.line([tuple(p) for p in pixels.tolist()], fill=color, width=width, joint="curve")
     image = image.resize((size, size), Image.Resampling.LANCZOS)
     image.save(stream, format="PNG")

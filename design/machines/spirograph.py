@@ -16,19 +16,10 @@ from collections.abc import Iterable, Mapping
 
 import numpy as np
 
-from design.machines.base import (
-    MAX_GEAR_RADIUS,
-    Circle,
-    Constraint,
-    DrawingMachine,
-    Parameter,
-    Point,
-    Segment,
-    Shape,
-    _xy,
-    coprime_constraint,
-    gear_period,
-)
+from design.machines.base import DrawingMachine
+from design.machines.constraints import Constraint, coprime_constraint, ordered, positive
+from design.machines.parameters import MAX_GEAR_RADIUS, gear_period, gear_radius, length
+from design.machines.shapes import Circle, Point, Segment, Shape, xy
 
 
 class Spirograph(DrawingMachine):
@@ -39,29 +30,13 @@ class Spirograph(DrawingMachine):
     description = "A gear rolling inside a fixed ring; the pen in a hole of the rolling gear draws a hypotrochoid."
     symmetry_gear = "r_f"
     parameters = (
-        Parameter(
-            "r_f", "discrete", 5, 2, MAX_GEAR_RADIUS - 1, "radius of the fixed ring (teeth count scale)",
-            category="finite pattern", equation="A.7",
-        ),
-        Parameter(
-            "r_r", "discrete", 3, 1, MAX_GEAR_RADIUS - 2, "radius of the rolling gear",
-            category="valid layout", equation="A.8",
-        ),
-        Parameter(
-            "d", "continuous", 2.0, 0.0, MAX_GEAR_RADIUS - 2, "distance from the rolling gear's center to the pen hole",
-            category="valid layout", equation="A.9",
-        ),
-    )  # fmt: skip
+        gear_radius("r_f", 5, "radius of the fixed ring (teeth count scale)", "A.7", lower=2),
+        gear_radius("r_r", 3, "radius of the rolling gear", "A.8", upper=MAX_GEAR_RADIUS - 2, category="valid layout"),
+        length("d", 2.0, MAX_GEAR_RADIUS - 2, "distance from the rolling gear's center to the pen hole", "A.9"),
+    )
 
     def constraints(self) -> Iterable[Constraint]:
-        yield Constraint(
-            "rolling_gear_inside",
-            "valid layout",
-            "A.8",
-            lambda P: P["r_f"] - P["r_r"],
-            lambda p: f"r_r must be smaller than r_f = {p['r_f']:g}, got {p['r_r']:g}",
-            depends=("r_f", "r_r"),
-        )
+        yield ordered("rolling_gear_inside", "r_r", "<", "r_f", "A.8")
         yield Constraint(
             "pen_inside_gear",
             "valid layout",
@@ -72,14 +47,8 @@ class Spirograph(DrawingMachine):
             depends=("r_r", "d"),
         )
         yield coprime_constraint("A.10", "r_f", "r_r")
-        yield Constraint(
-            "pen_offset_positive",
-            "symmetry reduction",
-            "A.11",
-            lambda P: P["d"],
-            lambda p: f"d must be greater than 0 (d < 0 draws a rotated copy, d = 0 a circle), got {p['d']:g}",
-            depends=("d",),
-        )
+        mirrored = " (d < 0 draws a rotated copy, d = 0 a circle)"
+        yield positive("pen_offset_positive", "d", "A.11", "symmetry reduction", mirrored)
 
     def _period(self, P: Mapping[str, np.ndarray]) -> np.ndarray:
         # Time is the angle of the rolling gear's center: one turn per r_f teeth; lcm rule over (r_f, r_r).
@@ -91,8 +60,7 @@ class Spirograph(DrawingMachine):
         return (r_f - r_r) * np.exp(1j * t) + d * np.exp(-1j * (q - 1.0) * t)
 
     def mechanism(self, params: Mapping[str, float], t: float, frame: str = "drawing") -> list[Shape]:
-        self._check_frame(frame)
-        p = self.validate(params)
+        p = self._preview_design(params, frame)
         r_f, r_r, d = p["r_f"], p["r_r"], p["d"]
         center = (r_f - r_r) * np.exp(1j * t)
         spin = -(r_f / r_r - 1.0) * t  # rotation of the rolling gear (rolling without slipping)
@@ -100,9 +68,9 @@ class Spirograph(DrawingMachine):
         contact = r_f * np.exp(1j * t)
         return [
             Circle("fixed ring", (0.0, 0.0), float(r_f)),
-            Circle("rolling gear", _xy(center), float(r_r)),
-            Segment("pen arm", _xy(center), _xy(pen)),
-            Point("contact", _xy(contact)),
-            Point("rolling gear center", _xy(center)),
-            Point("pen", _xy(pen)),
+            Circle("rolling gear", xy(center), float(r_r)),
+            Segment("pen arm", xy(center), xy(pen)),
+            Point("contact", xy(contact)),
+            Point("rolling gear center", xy(center)),
+            Point("pen", xy(pen)),
         ]

@@ -12,9 +12,10 @@ from design.lazy import lazy_exports
 # pybullet, so the CLI builds its parser (and answers --help) at once.
 _SOURCES = {
     "baselines": ("BaselineResult", "baseline_b1", "baseline_b2", "baseline_b3"),
+    "budget": ("Progress",),
     "executor": ("SimulationCache", "SimulationCancelled", "SimulationExecutor"),
     "optimize": ("optimize_layout", "smooth_minimum"),
-    "pipeline": ("Comparison", "Progress", "RobustLayout", "compare_methods", "optimize_robust_layout"),
+    "pipeline": ("Comparison", "RobustLayout", "compare_methods", "optimize_robust_layout"),
     "problem": ("LayoutProblem", "RobustError", "SyntheticProblem", "synthetic_branching", "synthetic_chain"),
     "psp": ("CalibratedSVM", "FactorizedPSP", "explore"),
     "robustness": ("RobustnessCurve", "evaluation_layouts", "evaluation_set", "robustness_curve"),

@@ -10,17 +10,16 @@ sheets: ``parts-2.svg``, ``laser-2.gcode``, ``sheet-2.png``...
 from __future__ import annotations
 
 import sys
-from typing import TextIO
 
 from station.cli_util import add_design_options, check_output_folder, design_parameters, emit_json
 from station.errors import UsageError
+from station.progress_view import ProgressView
 from station.services.errors import ServiceError
 from station.services.fabricate import (  # noqa: F401 - re-exported: the work lives in the service
     DEFAULT_GAP,
     DEFAULT_KERF,
     KERF_SOURCES,
     FabricationResult,
-    ProgressStep,
     SheetOutput,
     fabricate,
     write_outputs,
@@ -93,13 +92,11 @@ def run_fabricate(args) -> int:
     settings = GearSettings(module=args.module, pressure_angle=args.pressure_angle, backlash=args.backlash)
     hardware = Hardware(pen_hole=args.pen_hole, axle_hole=args.axle_hole, pin_hole=args.pin_hole)
     out = check_output_folder(args.out, "--out", "parts.svg, laser.gcode, parts.json and sheet.png")
-    progress = ProgressReport(sys.stderr)
-    try:
+    # The steps on stderr: bars on a terminal, a "fabricate: ..." line per stage and tenth otherwise.
+    with ProgressView(sys.stderr, prefix="fabricate: ") as progress:
         result = fabricate(args.machine, params, args.scale, kerf=args.kerf, sheet_size=sheet_size, gap=args.gap,
                            profile=profile, material=args.material, gear_settings=settings, hardware=hardware,
                            progress=progress, max_sheets=args.max_sheets)
-    finally:
-        progress.close()
     files = write_outputs(result, out)
     summary = result.summary
     if args.json:
@@ -126,42 +123,3 @@ def run_fabricate(args) -> int:
     for name, path in files.items():
         print(f"  {name}: {path}")
     return 0
-
-
-class ProgressReport:
-    """Where :func:`fabricate`'s steps go on the command line: a bar redrawn in place on a terminal, plain lines
-    otherwise (a log file or a pipe gets no ``\\r`` redraws).
-
-    Parameters
-    ----------
-    stream : text stream
-        Standard error, normally.
-    width : int
-        Characters of the bar itself.
-    """
-
-    def __init__(self, stream: TextIO, width: int = 24) -> None:
-        self.stream = stream
-        self.width = width
-        self._tty = bool(getattr(stream, "isatty", lambda: False)())
-        self._drawn = 0
-
-    def __call__(self, step: str) -> None:
-        if not self._tty:
-            self.stream.write(f"fabricate: {step}\n")
-            self.stream.flush()
-            return
-        fraction = getattr(step, "fraction", 0.0)
-        filled = int(round(fraction * self.width))
-        line = f"\r[{'#' * filled}{'.' * (self.width - filled)}] {100 * fraction:3.0f}% {step}"[:100]
-        # Pad over the end of a longer previous line.
-        self.stream.write(line.ljust(self._drawn))
-        self.stream.flush()
-        self._drawn = len(line)
-
-    def close(self) -> None:
-        """End the bar's line, so what follows (the summary, or an error) starts on its own."""
-        if self._tty and self._drawn:
-            self.stream.write("\n")
-            self.stream.flush()
-            self._drawn = 0

@@ -13,6 +13,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from common.progress import CancelCheck, ProgressCallback, Reporter
 from station.cli_util import to_jsonable
 from station.services.errors import ServiceError
 
@@ -20,23 +21,10 @@ DEFAULT_KERF = 0.15
 #: Where the kerf came from, in words (``kerf_source`` in parts.json).
 KERF_SOURCES = {"material": "from the material table", "default": "by default", "given": "as given"}
 DEFAULT_GAP = 3.0
-#: Shares of the progress bar: generating the gears (by teeth), nesting, then the sheets' laser jobs and files.
-GEARS_SHARE, NESTING_SHARE = 0.6, 0.2
-
-
-class ProgressStep(str):
-    """A progress message of :func:`fabricate` that also says how far the work is.
-
-    A ``str`` (what a ``progress`` callback that only shows text needs), with ``fraction`` in [0, 1]: the share of
-    the expected work done when the step starts.
-    """
-
-    fraction: float
-
-    def __new__(cls, message: str, fraction: float) -> ProgressStep:
-        step = super().__new__(cls, message)
-        step.fraction = min(max(float(fraction), 0.0), 1.0)
-        return step
+#: The progress stages of :func:`fabricate` besides the gears' (:data:`design.fabrication.parts.GEARS_STAGE`, in
+#: teeth): the parts' sizes checked against the sheet (one report, before the gears), the nesting (one step), then
+#: the sheets' laser jobs and files (counted in sheets).
+SIZES_STAGE, NESTING_STAGE, SHEETS_STAGE = "sizes", "nesting", "sheets"
 
 
 @dataclass
@@ -100,14 +88,18 @@ def parse_sheet(text: str) -> tuple[float, float]:
 
 def fabricate(machine: str, params: dict[str, float], scale: float, *, kerf: float | None = None,
               sheet_size: tuple[float, float] | None = None, gap: float = DEFAULT_GAP, profile=None,
-              material: str | None = None, gear_settings=None, hardware=None, progress=None,
-              max_sheets: int = 4) -> FabricationResult:
+              material: str | None = None, gear_settings=None, hardware=None,
+              progress: Reporter | ProgressCallback | None = None, max_sheets: int = 4,
+              cancelled: CancelCheck | None = None) -> FabricationResult:
     """Parts → kerf → nesting → SVG, PNG, laser job. Raises the design/driver errors for bad input.
 
-    ``progress``, optional: called with a :class:`ProgressStep` (a message that is a ``str``, with the fraction of
-    the work done) before each step: each gear, the nesting, each sheet. Parts that do not fit one sheet go on
-    further sheets (at most ``max_sheets``), each with its own job. ``kerf=None`` takes the material's kerf from the
-    profile, else :data:`DEFAULT_KERF`.
+    ``progress``, optional: given a :class:`common.progress.Progress` at each step: the parts' sizes checked (stage
+    ``"sizes"``), each gear and the end of the gears (``"gears"``, in teeth), the nesting (``"nesting"``), each
+    sheet (``"sheets"``), and a last ``"sheets"`` report with ``done == total`` when the work is done. ``cancelled``
+    is asked after each report (:class:`common.progress.Cancelled` stops the work between two steps).
+
+    Parts that do not fit one sheet go on further sheets (at most ``max_sheets``), each with its own job.
+    ``kerf=None`` takes the material's kerf from the profile, else :data:`DEFAULT_KERF`.
 
     A part too large for the sheet is refused before any gear is generated (which takes minutes at large scales),
     with the largest scale that fits.
@@ -132,10 +124,7 @@ def fabricate(machine: str, params: dict[str, float], scale: float, *, kerf: flo
     )
     from drivers.profiles import builtin_profile
 
-    report = progress or (lambda _step: None)
-
-    def say(message: str, fraction: float) -> None:
-        report(ProgressStep(message, fraction))
+    report = Reporter.of(progress, cancelled)
     if machine in FABRICABLE_MACHINES:
         # The summary records the complete design (defaults filled in), as the parts were made from it.
         params = dict(get_machine(machine).validate(params))
@@ -151,27 +140,20 @@ def fabricate(machine: str, params: dict[str, float], scale: float, *, kerf: flo
     sizes = part_sizes(machine, params, scale, gear_settings, hardware)
     check_sizes_fit(sizes, width, height, gap, kerf, scale=scale,
                     sizes_at=lambda s: part_sizes(machine, params, s, gear_settings, hardware))
-    total_teeth = max(1, sum(size.teeth for size in sizes))
-    teeth_done = 0
-
-    def gear_started(name: str, teeth: int) -> None:
-        nonlocal teeth_done
-        say(f"generating {name} ({teeth} teeth)", GEARS_SHARE * teeth_done / total_teeth)
-        teeth_done += teeth
+    total_teeth = sum(size.teeth for size in sizes)
 
     started = time.perf_counter()
-    say(f"generating the {len(sizes)} parts of {machine} at {scale:g} mm per unit ({total_teeth} teeth)", 0.0)
-    parts = machine_parts(machine, params, scale, gear_settings, hardware, progress=gear_started)
+    report(SIZES_STAGE, len(sizes), len(sizes), f"the {len(sizes)} parts of {machine} at {scale:g} mm per unit fit "
+           f"{width:g}x{height:g} mm sheets; generating their {total_teeth} teeth")
+    parts = machine_parts(machine, params, scale, gear_settings, hardware, progress=report)
     generated = time.perf_counter() - started
-    say(f"nesting {len(parts)} parts on {width:g}x{height:g} mm sheets (kerf {kerf:g} mm, gap {gap:g} mm)",
-        GEARS_SHARE)
+    report(NESTING_STAGE, 0, None,
+           f"nesting {len(parts)} parts on {width:g}x{height:g} mm sheets (kerf {kerf:g} mm, gap {gap:g} mm)")
     sheets = nest_sheets(parts, width, height, gap=gap, kerf=kerf, max_sheets=max_sheets)
     xmin, ymin, _, _ = profile.work_bounds()
     outputs: list[SheetOutput] = []
-    sheets_start = GEARS_SHARE + NESTING_SHARE
     for index, sheet in enumerate(sheets, start=1):
-        say(f"ordering the laser job of sheet {index} of {len(sheets)}",
-            sheets_start + (1.0 - sheets_start) * (index - 1) / len(sheets))
+        report(SHEETS_STAGE, index - 1, len(sheets), f"ordering the laser job of sheet {index} of {len(sheets)}")
         paths = sheet_paths(sheet)
         job = plan_laser_job(paths["engrave"], paths["cut"], engrave_ops, cut_ops, profile.laser.max_power,
                              profile.plot.travel_feed, offset=(xmin, ymin), start=(xmin, ymin),
@@ -223,7 +205,8 @@ def fabricate(machine: str, params: dict[str, float], scale: float, *, kerf: flo
             "estimate_seconds": {k: round(sum(e[k] for e in estimates), 1) for k in estimates[0]},
         },
     }
-    say(f"{len(parts)} parts on {len(outputs)} sheet{'' if len(outputs) == 1 else 's'}", 1.0)
+    report(SHEETS_STAGE, len(outputs), len(outputs),
+           f"{len(parts)} parts on {len(outputs)} sheet{'' if len(outputs) == 1 else 's'}")
     return FabricationResult(machine, dict(params), scale, outputs, summary)
 
 

@@ -15,22 +15,24 @@ def test_every_thesis_scenario_is_shipped():
             "teapotadventure"} <= set(EXAMPLES)
 
 
+def _simulate_layout(name: str, layout: str):
+    """The example ``name`` and the simulation of its layout ``layout`` (checked valid first)."""
+    scenario = load_scenario(EXAMPLES_DIR / f"{name}.toml")
+    x = scenario.layout(layout)
+    assert check_validity(scenario, x) == []
+    return scenario, simulate(scenario, x)
+
+
 @pytest.mark.parametrize("name", EXAMPLES)
 def test_example_success_layout_succeeds(name):
-    scenario = load_scenario(EXAMPLES_DIR / f"{name}.toml")
-    x = scenario.layout("success")
-    assert check_validity(scenario, x) == []
-    result = simulate(scenario, x)
+    scenario, result = _simulate_layout(name, "success")
     assert result.success, result.states()
     assert result.n_successful_events == len(scenario.events)
 
 
 @pytest.mark.parametrize("name", EXAMPLES)
 def test_example_failure_layout_fails(name):
-    scenario = load_scenario(EXAMPLES_DIR / f"{name}.toml")
-    x = scenario.layout("failure")
-    assert check_validity(scenario, x) == []
-    result = simulate(scenario, x)
+    scenario, result = _simulate_layout(name, "failure")
     assert not result.success
     assert any(o.state == "failure" for o in result.events.values()) or result.steps == round(
         scenario.settings.max_duration / scenario.settings.time_step

@@ -4,11 +4,14 @@ from __future__ import annotations
 
 import io
 import json
+import re
+import sys
 
 import numpy as np
 import pytest
 from PIL import Image
 
+from common.progress import Progress
 from drivers.gcode import interpret
 from station.cli import main
 
@@ -171,13 +174,21 @@ def test_progress_steps_cover_each_gear_and_end_at_one(tmp_path):
 
     steps = []
     result = fabricate("hoot_nanny", {}, 4.0, progress=steps.append)
-    fractions = [step.fraction for step in steps]
-    assert fractions == sorted(fractions) and fractions[0] == 0.0 and fractions[-1] == 1.0
+    assert all(isinstance(step, Progress) for step in steps)  # the one progress type, for the CLI and the TUI
+    # The stages come in order, each once, and within a stage the work done never goes back.
+    stages = [step.stage for step in steps]
+    assert list(dict.fromkeys(stages)) == ["sizes", "gears", "nesting", "sheets"]
+    assert stages == sorted(stages, key=["sizes", "gears", "nesting", "sheets"].index)
+    for stage in ("gears", "sheets"):
+        done = [step.done for step in steps if step.stage == stage]
+        assert done == sorted(done) and done[0] == 0
+    assert steps[1].fraction == 0.0 and steps[-1].fraction == 1.0 and steps[-1].done == len(result.sheets)
     gears = [part for output in result.sheets for part in output.sheet.parts if "teeth" in part.info]
     assert len(gears) == 3
     for gear in gears:
-        assert any(step.startswith(f"generating {gear.name} ({gear.info['teeth']} teeth)") for step in steps)
-    assert all(isinstance(step, str) for step in steps)  # a callback that shows text (the TUI) gets text
+        assert any(step.message.startswith(f"generating {gear.name} ({gear.info['teeth']} teeth)") for step in steps)
+    teeth = [step for step in steps if step.stage == "gears"]
+    assert teeth[-1].done == teeth[-1].total == sum(gear.info["teeth"] for gear in gears)
 
 
 class _Terminal(io.StringIO):
@@ -185,28 +196,28 @@ class _Terminal(io.StringIO):
         return True
 
 
-def test_progress_is_a_bar_on_a_terminal_and_plain_lines_otherwise():
-    from station.commands.fabricate import ProgressReport, ProgressStep
-
-    steps = [ProgressStep("generating the 8 parts", 0.0), ProgressStep("generating turntable gear (70 teeth)", 0.3),
-             ProgressStep("nesting", 0.6), ProgressStep("done", 1.0)]
+def test_progress_is_a_bar_on_a_terminal_and_plain_lines_otherwise(tmp_path, monkeypatch):
+    # The command shows the steps with the station's progress view: plain "fabricate: ..." lines in a log (no
+    # carriage returns), rich's bars on a terminal; either way stdout keeps only the summary.
     log = io.StringIO()
-    report = ProgressReport(log)
-    for step in steps:
-        report(step)
-    report.close()
-    assert "\r" not in log.getvalue()
-    assert log.getvalue().splitlines() == [f"fabricate: {step}" for step in steps]
+    monkeypatch.setattr(sys, "stderr", log)
+    assert main(["fabricate", "spirograph", "--scale", "6", "--out", str(tmp_path / "log")]) == 0
+    lines = log.getvalue().splitlines()
+    assert "\r" not in log.getvalue() and lines and all(line.startswith("fabricate: ") for line in lines)
+    assert lines[0].startswith("fabricate: sizes: 2/2  the 2 parts of spirograph at 6 mm per unit fit")
+    # One line per step: each gear with its teeth, the end of the gears, the nesting, each sheet.
+    assert re.fullmatch(r"fabricate: gears: 0/\d+  generating rolling gear \(\d+ teeth\)", lines[1])
+    assert re.fullmatch(r"fabricate: gears: \d+/\d+  generating fixed ring \(\d+ teeth\)", lines[2])
+    assert re.fullmatch(r"fabricate: gears: (\d+)/\1  generated the 2 parts \(\1 teeth\)", lines[3])
+    assert lines[4].startswith("fabricate: nesting:  nesting 2 parts on ")
+    assert lines[5] == "fabricate: sheets: 0/1  ordering the laser job of sheet 1 of 1"
+    assert lines[-1] == "fabricate: sheets: 1/1  2 parts on 1 sheet"
 
     terminal = _Terminal()
-    report = ProgressReport(terminal)
-    for step in steps:
-        report(step)
-    report.close()
+    monkeypatch.setattr(sys, "stderr", terminal)
+    assert main(["fabricate", "spirograph", "--scale", "6", "--out", str(tmp_path / "tty")]) == 0
     text = terminal.getvalue()
-    assert text.count("\r") == len(steps) and text.endswith("\n") and text.count("\n") == 1
-    frames = text.strip("\n").split("\r")[1:]
-    assert frames[0].startswith("[" + "." * 24 + "]   0% generating the 8 parts")
-    assert frames[-1].startswith("[" + "#" * 24 + "] 100% done")
-    for before, after in zip(frames, frames[1:]):
-        assert len(after) >= len(before.rstrip())  # a shorter line covers the end of the longer one before it
+    assert "\r\x1b[2K" in text  # rich's bars, redrawn in place
+    for stage in ("sizes: 2/2", "gears: 0/", "nesting:", "sheets: 1/1  2 parts on 1 sheet"):
+        assert stage in text
+    assert "fabricate: " not in text

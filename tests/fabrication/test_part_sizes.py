@@ -3,11 +3,15 @@ before any gear is generated, with the largest scale that fits."""
 
 from __future__ import annotations
 
+import re
+
 import pytest
 
+from common.progress import Cancelled
 from design.errors import ConstraintViolation, DesignError
 from design.fabrication import (
     FABRICABLE_MACHINES,
+    GEARS_STAGE,
     check_sizes_fit,
     largest_fitting_scale,
     machine_parts,
@@ -49,10 +53,27 @@ def test_sizes_bound_the_built_parts(machine):
 
 def test_machine_parts_reports_each_gear_before_generating_it():
     steps = []
-    parts = machine_parts("hoot_nanny", {}, 4.0, progress=lambda name, teeth: steps.append((name, teeth)))
+    parts = machine_parts("hoot_nanny", {}, 4.0, progress=steps.append)
     gears = {p.name: p.info["teeth"] for p in parts if "teeth" in p.info}
-    assert dict(steps) == gears and len(steps) == len(gears) == 3
-    assert sum(s.teeth for s in part_sizes("hoot_nanny", {}, 4.0)) == sum(teeth for _, teeth in steps)
+    *before_each, last = steps
+    reported = [re.fullmatch(r"generating (.+) \((\d+) teeth\)", step.message) for step in before_each]
+    assert all(reported) and len(reported) == len(gears) == 3
+    assert {m.group(1): int(m.group(2)) for m in reported} == gears
+    total = sum(s.teeth for s in part_sizes("hoot_nanny", {}, 4.0))
+    assert total == sum(gears.values())
+    # Teeth done so far before each gear, out of every tooth to generate; the last report ends the stage.
+    done = 0
+    for step, match in zip(before_each, reported):
+        assert (step.stage, step.done, step.total) == (GEARS_STAGE, done, total)
+        done += int(match.group(2))
+    assert (last.stage, last.done, last.total) == (GEARS_STAGE, total, total) and last.fraction == 1.0
+
+
+def test_machine_parts_stops_between_gears_when_cancelled():
+    steps = []
+    with pytest.raises(Cancelled):
+        machine_parts("hoot_nanny", {}, 4.0, progress=steps.append, cancelled=lambda: len(steps) >= 2)
+    assert len(steps) == 2  # the second gear was announced, then the work stopped before generating it
 
 
 @pytest.mark.parametrize(("machine", "scale"), [("spirograph", 500.0), ("hoot_nanny", 1000.0)])

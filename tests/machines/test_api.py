@@ -7,6 +7,7 @@ import pytest
 
 from design.errors import ConstraintViolation, ParameterError
 from design.machines import Circle, Point, get_machine, machine_names
+from design.machines.parameters import random_in_boxes
 
 BUILTINS = [
     n for n in ("spirograph", "elliptic_spirograph", "cycloid_drawing_machine", "hoot_nanny") if n in machine_names()
@@ -236,13 +237,7 @@ def test_validate_reports_constraint_name_and_margin():
 
 def random_feasible_designs(machine, k, seed):
     """``k`` feasible designs by rejection sampling in the boxes (gear radii 1..12, lengths up to 25)."""
-    rng = np.random.default_rng(seed)
-    rows = {}
-    for p in machine.parameters:
-        if p.kind == "discrete":
-            rows[p.name] = rng.integers(max(1, int(p.lower)), 13, 200_000).astype(float)
-        else:
-            rows[p.name] = rng.uniform(p.lower, min(p.upper, 25.0), 200_000)
+    rows = random_in_boxes(machine.parameters, 200_000, np.random.default_rng(seed))
     ok = np.flatnonzero(machine.feasible_mask(rows))[:k]
     assert ok.size == k
     discrete = set(machine.discrete_names)

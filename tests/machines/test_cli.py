@@ -142,6 +142,7 @@ def test_example_designs_are_feasible(capsys):
         ('{"params": [1]}', "field 'params' must be an object"),
         ('{"params": {"d": "x"}}', "parameter 'd' must be a finite real number"),
     ],
+    ids=["not-json", "a-list", "a-number", "another-machine", "params-not-an-object", "parameter-not-a-number"],
 )
 def test_bad_design_file_exits_2_naming_the_file(capsys, tmp_path, content, message):
     path = tmp_path / "bad.json"

@@ -158,7 +158,7 @@ class FabricateScreen(Screen):
         try:
             result = fabricate(machine, params, options["scale"], kerf=options["kerf"],
                                sheet_size=options["sheet_size"], gap=DEFAULT_GAP, material=options["material"],
-                               progress=lambda m: self.app.call_from_thread(self._set_status, f"{m}…"))
+                               progress=lambda p: self.app.call_from_thread(self._set_status, f"{p.message}…"))
         except (DesignError, DriverError, StationError) as error:
             self.app.call_from_thread(self._failed, str(error))
             return
