@@ -43,7 +43,7 @@ def register(subparsers) -> None:
         "pen plotter (pen up/down from the profile) or laser (M4 power, dark G0 travels).",
         epilog="examples: station plot spirograph --set d=2.5 --size 150 --out spiro.gcode\n"
         "          station pattern hoot_nanny --json > hn.json && station plot --pattern hn.json "
-        "--profile examples/profiles/grbl_pen_plotter.toml --out hn.gcode",
+        "--profile plotter --out hn.gcode",
     )
     plot.add_argument("machine", nargs="?", help="drawing machine name (see `station machines`)")
     add_design_options(plot)
