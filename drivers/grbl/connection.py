@@ -47,7 +47,7 @@ from dataclasses import dataclass, field
 import serial
 
 from drivers.errors import DeviceStateError, PortError, ProtocolError
-from drivers.gcode import clean_line, tokenize
+from drivers.gcode import GcodeError, clean_line, tokenize
 from drivers.grbl.protocol import (
     Alarm,
     Banner,
@@ -876,7 +876,7 @@ def _dwell_seconds(block: str) -> float:
         return 0.0
     try:
         words = tokenize(block)
-    except ValueError:
+    except GcodeError:
         return 0.0
     if ("G", 4.0) in words:
         return next((v for letter, v in words if letter == "P"), 0.0)
