@@ -6,8 +6,11 @@ from __future__ import annotations
 import dataclasses
 import time
 
+import pytest
+
+from common.progress import Progress
 from drivers.gcode import clean_line
-from drivers.grbl import Job, JobRunner
+from drivers.grbl import Job, JobProgress, JobRunner
 
 from .conftest import sim_url
 
@@ -69,3 +72,21 @@ def test_a_finished_job_has_no_resume_line_and_reaches_100_percent(make_connecti
                        on_progress=lambda p: updates.append(dataclasses.replace(p))).run()
     assert result.ok and result.resume_line is None
     assert [u.fraction for u in updates].index(1.0) == len(updates) - 1  # 100 % only in the last update (done)
+
+
+def test_job_progress_is_the_one_progress_type_with_its_own_fields_kept():
+    progress = JobProgress("running", 200, 90, 84, 0.42, 12.5, 65.0, "cutting", 83)  # the old positional order
+    assert isinstance(progress, Progress)
+    assert (progress.stage, progress.done, progress.total, progress.message) == ("running", 0.42, 1.0, "cutting")
+    assert (progress.state, progress.fraction) == ("running", 0.42)
+    assert (progress.lines_total, progress.lines_sent, progress.lines_acked) == (200, 90, 84)
+    assert (progress.elapsed, progress.eta, progress.current_line) == (12.5, 65.0, 83)
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        progress.lines_acked = 85
+    with pytest.raises(AttributeError):
+        progress.state = "done"  # a read-only alias
+    later = dataclasses.replace(progress, stage="done", done=1.0)
+    assert (later.state, later.fraction, later.lines_acked) == ("done", 1.0, 84)
+    assert dataclasses.replace(progress) == progress
+    with pytest.raises(ValueError, match="total must be 1"):
+        JobProgress(total=200)
