@@ -42,48 +42,11 @@ dataclasses), :mod:`~drivers.profiles.firmware` (the ``[grbl]`` table), :mod:`~d
 profile, and the built-in profiles: ``builtin/*.toml``, package data).
 """
 
-from drivers.profiles.firmware import SETTING_NAMES
-from drivers.profiles.loading import (
-    BUILTIN_PROFILES,
-    MAX_KERF,
-    builtin_grbl_settings,
-    builtin_profile,
-    builtin_profile_names,
-    load_profile,
-    profile_from_dict,
-    profile_from_toml,
-)
-from drivers.profiles.model import (
-    LaserOperation,
-    LaserSettings,
-    MachineProfile,
-    Material,
-    PaperSettings,
-    PenSettings,
-    PlotSettings,
-    ProfileError,
-)
-from drivers.profiles.units import parse_duration, parse_feed, parse_length
+# The package's names are its modules' ``__all__``: each name is listed once, where it is defined.
+from drivers.profiles import firmware, loading, model, units
+from drivers.profiles.firmware import *  # noqa: F403
+from drivers.profiles.loading import *  # noqa: F403
+from drivers.profiles.model import *  # noqa: F403
+from drivers.profiles.units import *  # noqa: F403
 
-__all__ = [
-    "BUILTIN_PROFILES",
-    "MAX_KERF",
-    "SETTING_NAMES",
-    "LaserOperation",
-    "LaserSettings",
-    "MachineProfile",
-    "Material",
-    "PaperSettings",
-    "PenSettings",
-    "PlotSettings",
-    "ProfileError",
-    "builtin_grbl_settings",
-    "builtin_profile",
-    "builtin_profile_names",
-    "load_profile",
-    "parse_duration",
-    "parse_feed",
-    "parse_length",
-    "profile_from_dict",
-    "profile_from_toml",
-]
+__all__ = sorted({*model.__all__, *units.__all__, *firmware.__all__, *loading.__all__})

@@ -30,14 +30,19 @@ def _split(value: Any, where: str, expected: str) -> tuple[float, str]:
     raise ProfileError(f"{where}: expected {expected}, got {value!r}")
 
 
-def parse_length(value: Any, where: str = "length") -> float:
-    """A length in millimetres from a number (mm) or a string with a unit (mm, cm, m, in, pt)."""
-    number, unit = _split(value, where, "a length such as 300 or '300mm' or '11in'")
+def _scaled(value: Any, where: str, expected: str, kind: str, units: dict[str, float]) -> float:
+    """``value`` (a number, or a string with one of ``units``) times its unit's factor; a bare number is unit 1."""
+    number, unit = _split(value, where, expected)
     if unit == "":
         return number
-    if unit not in _LENGTH_UNITS:
-        raise ProfileError(f"{where}: unknown length unit {unit!r} in {value!r}; use one of {sorted(_LENGTH_UNITS)}")
-    return number * _LENGTH_UNITS[unit]
+    if unit not in units:
+        raise ProfileError(f"{where}: unknown {kind} unit {unit!r} in {value!r}; use one of {sorted(units)}")
+    return number * units[unit]
+
+
+def parse_length(value: Any, where: str = "length") -> float:
+    """A length in millimetres from a number (mm) or a string with a unit (mm, cm, m, in, pt)."""
+    return _scaled(value, where, "a length such as 300 or '300mm' or '11in'", "length", _LENGTH_UNITS)
 
 
 def parse_feed(value: Any, where: str = "feed") -> float:
@@ -53,10 +58,4 @@ def parse_feed(value: Any, where: str = "feed") -> float:
 
 def parse_duration(value: Any, where: str = "duration") -> float:
     """A duration in seconds from a number (s) or a string such as '150ms' or '0.2s'."""
-    number, unit = _split(value, where, "a duration such as 0.2 or '200ms'")
-    if unit == "":
-        return number
-    if unit not in _TIME_UNITS:
-        raise ProfileError(f"{where}: unknown time unit {unit!r} in {value!r}; use one of {sorted(_TIME_UNITS)}")
-    return number * _TIME_UNITS[unit]
-
+    return _scaled(value, where, "a duration such as 0.2 or '200ms'", "time", _TIME_UNITS)

@@ -4,7 +4,6 @@ resume from: the one the machine was executing, found from where it stopped."""
 from __future__ import annotations
 
 import dataclasses
-import time
 
 import pytest
 
@@ -12,7 +11,7 @@ from common.progress import Progress
 from drivers.gcode import clean_line
 from drivers.grbl import Job, JobProgress, JobRunner
 
-from .conftest import sim_url
+from .conftest import sim_url, start_until_acked
 
 SQUARE = ["G21", "G90", "M4 S400", "G0 X10 Y10", "G1 X60 Y10 F3000", "G1 X60 Y60", "G1 X10 Y60", "G1 X10 Y10",
           "G0 X0 Y0"]
@@ -34,10 +33,7 @@ def test_an_aborted_job_resumes_from_the_line_it_was_executing(make_connection):
     job = Job("square", SQUARE, laser=True)
     updates = []
     runner = JobRunner(conn, job, on_progress=lambda p: updates.append(dataclasses.replace(p)))
-    runner.start()
-    deadline = time.monotonic() + 10
-    while runner.progress.lines_acked < 7 and time.monotonic() < deadline:
-        time.sleep(0.01)
+    start_until_acked(runner, 7)
     runner.abort()
     result = runner.wait(10)
     record = conn.port.machine.snapshot()
