@@ -8,7 +8,8 @@ job control with pre-flight and laser safety.
 
 from drivers.grbl.connection import GrblConnection, LineResult, StreamStopped, open_port
 from drivers.grbl.discovery import PortInfo, list_ports, probe
-from drivers.grbl.job import Job, JobProgress, JobResult, JobRunner, frame_lines
+from drivers.grbl.job import JobRunner
+from drivers.grbl.job_types import Job, JobProgress, JobResult, frame_lines
 from drivers.grbl.protocol import ALARM_CODES, ERROR_CODES, StatusReport, parse_line
 
 __all__ = [

@@ -6,7 +6,7 @@ Threads
   alarms, banners, status reports, push messages) and keeps a rolling log of the traffic;
 - a status thread writes ``?`` at most every ``poll_interval`` s (5 Hz by default) and runs the watchdogs: a lost
   ``ok`` (status shows the machine idle with empty planner and RX buffer while lines are still counted as pending)
-  and a silent port (see below);
+  and a silent port (see :mod:`drivers.grbl.watchdogs`);
 - the calling thread streams lines (:meth:`GrblConnection.stream`) by character counting against GRBL's serial RX
   buffer (size from ``$I``), or send-response for what GRBL's interface rules require (``$`` commands, ``G10``,
   ``G28.1``, ``G30.1``).
@@ -16,28 +16,25 @@ this object's memory, never in the port, and at most one RX buffer of G-code (12
 real-time byte never waits behind queued G-code.
 
 A port that vanished (USB unplugged, a pty hung up, a socket closed) makes the OS fail a read or a write: that is
-reported at once. A port that stays open but goes silent (a hung controller, a dead cable) is found by the silence
-watchdog. GRBL answers ``?`` within one pass of its main loop (milliseconds: the serial interrupt sets a flag that
-``protocol_execute_realtime`` serves), except while it homes (``limits_go_home`` has "no time to run
-protocol_execute_realtime()": not a byte until the cycle ends, then one ``<Home|...>`` report) or writes its EEPROM
-(``$x=``, ``$N``, ``$I=``, ``$RST=``, ``G10``, ``G28.1``, ``G30.1``); the watchdog rests while such a line is in
-flight (its reply timeout still bounds it). Silence counts only from a ``?`` actually written, and only for the time
-this process was running: the watchdog's own thread wakes every ``poll_interval`` s, and a wake-up that came late
-(the host was loaded or descheduled, or a garbage collection held the interpreter: 0.3 s pauses are common in a
-busy Textual app) counts for at most one poll period, and not at all when the reader thread did not run since the
-last one (the reply may sit unread in the OS buffer). After ``silence_timeout`` s of such silence one more ``?``
-is sent as a probe; only if ``silence_grace`` more seconds of it pass, still without a byte and with nothing
-waiting in the port, does the port count as vanished.
+reported at once. A port that stays open but goes silent, and a lost ``ok``, are found by the watchdogs of
+:mod:`drivers.grbl.watchdogs` (their rules are written there).
 
 After any banner (power-up or reset) or alarm, the character counter is cleared; after an alarm, ``ok`` lines are
 ignored until the reset banner (the soft-limit line's ``ok`` arrives only after the reset). An ``ok`` is never
 invented: a lost one stops the stream with a clear message.
+
+Why this module stays over 600 lines: :class:`GrblConnection` is one class on purpose. Its reader thread, its
+streamer and its real-time path share one lock, one count of the bytes in GRBL's RX buffer and one fault state, and
+the rules that keep a machine safe hold across all three (never more than one RX buffer of G-code in flight, an
+``ok`` never invented, no line written after an abort's reset); split over files, one invariant would be read in
+pieces. What has state or rules of its own lives apart: the watchdogs (:mod:`drivers.grbl.watchdogs`), what the
+settings say about the machine (:mod:`drivers.grbl.machine_settings`), the message grammar
+(:mod:`drivers.grbl.protocol`).
 """
 
 from __future__ import annotations
 
 import functools
-import re
 import threading
 import time
 from collections import deque
@@ -47,7 +44,8 @@ from dataclasses import dataclass, field
 import serial
 
 from drivers.errors import DeviceStateError, PortError, ProtocolError
-from drivers.gcode import clean_line, tokenize
+from drivers.gcode import clean_line
+from drivers.grbl.machine_settings import MachineSettings
 from drivers.grbl.protocol import (
     Alarm,
     Banner,
@@ -62,6 +60,7 @@ from drivers.grbl.protocol import (
     parse_line,
     parse_version,
 )
+from drivers.grbl.watchdogs import LostOkWatchdog, SilenceWatchdog, dwell_seconds, pauses_reports
 
 __all__ = ["GrblConnection", "LineResult", "StreamStopped", "open_port"]
 
@@ -110,7 +109,7 @@ class _Pending:
     done: threading.Event = field(default_factory=threading.Event)
 
 
-class GrblConnection:
+class GrblConnection(MachineSettings):
     """One GRBL controller behind a port URL.
 
     Parameters
@@ -187,11 +186,9 @@ class GrblConnection:
         self._banner_count = 0
         self._last_rx = 0.0  # monotonic time of the last byte read (reader thread)
         self._reader_beat = 0.0  # monotonic time the reader thread last went round its loop
-        self._asked_at: float | None = None  # when the first ``?`` since the last byte read was written
-        self._silent = 0.0  # seconds of silence since then, counted only while this process ran
-        self._probe_at: float | None = None  # self._silent when the last probe before declaring loss was sent
-        self._lost_since: float | None = None
-        self._lost_entry: _Pending | None = None
+        self._silence = SilenceWatchdog(silence_timeout, silence_grace, poll_interval,
+                                        functools.partial(self._log, "info"))
+        self._lost_ok = LostOkWatchdog(lost_ok_timeout)
         self._alarm_count = 0
         self.max_pending_bytes = 0  # the most G-code bytes ever unacknowledged (never above rx_size)
         self.replies_accepted = 0  # ok/error lines matched to a sent line (never more than the controller sent)
@@ -212,7 +209,7 @@ class GrblConnection:
         self.port = open_port(self.url, self.baud)
         self._stop.clear()
         self._last_rx = self._reader_beat = time.monotonic()
-        self._asked_at, self._silent, self._probe_at = None, 0.0, None
+        self._silence.reset()
         reader = threading.Thread(target=self._read_loop, name="grbl-reader", daemon=True)
         self._threads = [reader]
         banners = self._banner_count
@@ -306,61 +303,7 @@ class GrblConnection:
                 pass
 
     # ------------------------------------------------------------------ properties
-
-    @property
-    def homing_enabled(self) -> bool:
-        """``$22=1``: the machine homes, so machine coordinates say where the head is on the machine. Without homing
-        machine zero is wherever the head stood at power-up (or the last ``$X`` after a reset in motion)."""
-        return int(self.settings.get(22, 0)) == 1
-
-    @property
-    def soft_limits(self) -> bool:
-        """``$20=1`` (GRBL accepts it only with homing on, and ``$22=0`` clears it)."""
-        return int(self.settings.get(20, 0)) == 1 and self.homing_enabled
-
-    @property
-    def force_origin(self) -> bool:
-        """Built with HOMING_FORCE_SET_ORIGIN (``Z`` in ``[OPT:...]``): homing sets every homed axis to 0."""
-        return "Z" in self.options
-
-    def machine_bounds(self) -> tuple[tuple[float, ...], tuple[float, ...]]:
-        """The homed machine space ``(lo, hi)`` per axis, as GRBL's soft limits (``system_check_travel_limits``)
-        see it: -travel..0 for every axis; with HOMING_FORCE_SET_ORIGIN, 0..+travel for an axis whose homing
-        direction bit (``$23``) is set and -travel..0 for the others. Meaningful only when :attr:`homing_enabled`."""
-        mask = int(self.settings.get(23, 0))
-        lo, hi = [], []
-        for axis, travel in enumerate(self.travel):
-            positive = self.force_origin and bool(mask & (1 << axis))
-            lo.append(0.0 if positive else -travel)
-            hi.append(travel if positive else 0.0)
-        return tuple(lo), tuple(hi)
-
-    def homing_seconds(self) -> float:
-        """An upper bound of how long ``$H`` may take, from the settings: GRBL answers nothing until it ends.
-
-        ``limits_go_home`` runs, per homing cycle, a search of 1.5 x the travel (``$130``-``$132``) at the seek
-        rate ``$25``, a pull-off ``$27`` at the seek rate, a locate of 5 x the pull-off at the feed rate ``$24`` and a
-        pull-off again, each followed by the debounce delay ``$26`` (ms). Each axis is counted as a cycle of its
-        own (the cycles GRBL was built with group some), and the sum is doubled for acceleration: a bound, not an
-        estimate. 60 s before the settings are read.
-        """
-        if not self.settings:
-            return 60.0
-        seek = max(self.settings.get(25, 500.0), 1.0) / 60.0  # mm/s
-        feed = max(self.settings.get(24, 25.0), 1.0) / 60.0
-        pulloff = self.settings.get(27, 1.0)
-        debounce = self.settings.get(26, 250.0) / 1000.0
-        per_axis = [1.5 * travel / seek + 2 * pulloff / seek + 5 * pulloff / feed + 4 * debounce
-                    for travel in self.travel]
-        return 2.0 * sum(per_axis) + 5.0
-
-    @property
-    def travel(self) -> tuple[float, float, float]:
-        return (self.settings.get(130, 0.0), self.settings.get(131, 0.0), self.settings.get(132, 0.0))
-
-    @property
-    def laser_mode(self) -> bool:
-        return int(self.settings.get(32, 0)) == 1
+    # (what the settings say about the machine: homing_enabled, travel, laser_mode ... come from MachineSettings)
 
     @property
     def pending_count(self) -> int:
@@ -532,7 +475,7 @@ class GrblConnection:
                     raise ProtocolError(f"line {index + 1} is {len(data)} bytes, longer than GRBL's RX buffer "
                                         f"({self.rx_size}): {block[:40]!r}...")
                 sync = sync_all or needs_sync(block)
-                dwell = _dwell_seconds(block)
+                dwell = dwell_seconds(block)
                 busy = self.homing_seconds() if block.upper().startswith("$H") else 0.0
                 with self._cond:
                     ready = self._no_pending if sync else functools.partial(self._has_room, len(data))
@@ -540,7 +483,7 @@ class GrblConnection:
                     entry = _Pending(result, len(data), dwell, busy)
                     self._pending.append(entry)
                     self.max_pending_bytes = max(self.max_pending_bytes, self._pending_bytes())
-                    self._lost_since = None
+                    self._lost_ok.clear()
                 try:
                     written = self._write(data, stop)
                 except (PortError, DeviceStateError):
@@ -642,7 +585,7 @@ class GrblConnection:
                 return False
             self._clear_counter("lost ok")
             self.fault = None
-            self._lost_since = None
+            self._lost_ok.clear()
             return True
 
     def _recover_timeout(self, stopped: StreamStopped) -> bool:
@@ -658,7 +601,7 @@ class GrblConnection:
         with self._cond:
             if not self.position_lost:
                 self.fault = None
-            self._lost_since = None
+            self._lost_ok.clear()
 
     # ------------------------------------------------------------------ reading
 
@@ -763,7 +706,7 @@ class GrblConnection:
             entry.result.error = message.code
             self.messages.append(f"{entry.result.text}: {message}")
         entry.done.set()
-        self._lost_since = None
+        self._lost_ok.clear()
 
     def _clear_counter(self, why: str) -> None:
         for entry in self._pending:
@@ -774,28 +717,10 @@ class GrblConnection:
         self._pending.clear()
 
     def _check_lost_ok(self, status: StatusReport) -> None:
-        if status.planner_free is None or status.rx_free is None:
-            # no buffer data yet ($10 without bit 1, while connecting): only a lone send-response line can be judged
-            empty = len(self._pending) == 1 and needs_sync(self._pending[0].result.text)
-        else:
-            empty = status.planner_free == self.planner_size and status.rx_free == self.rx_size
-        quiet = bool(self._pending) and status.state in ("Idle", "Check") and empty  # Check: nothing ever moves
-        if not quiet:
-            self._lost_since = None
-            return
-        now = time.monotonic()
-        if self._lost_since is None:
-            self._lost_since = now
-            return
-        allowance = sum(p.dwell for p in self._pending)
-        fresh = self.fault is None or (self.fault.startswith("lost ok") and self._lost_entry is not self._pending[0])
-        if now - self._lost_since >= self.lost_ok_timeout + allowance and fresh:
-            self._lost_entry = self._pending[0]
-            first = self._pending[0].result
-            self.fault = (
-                f"lost ok: the controller is idle with empty buffers but {len(self._pending)} line(s) from line "
-                f"{first.index + 1} ({first.text!r}) were never acknowledged; stream stopped"
-            )
+        fault = self._lost_ok.check(status, self._pending, planner_size=self.planner_size, rx_size=self.rx_size,
+                                    fault=self.fault, now=time.monotonic())
+        if fault is not None:
+            self.fault = fault
             self._fault_count += 1
             self._log("fault", self.fault)
             self._notify("fault", self.fault)
@@ -817,67 +742,25 @@ class GrblConnection:
             if self.position_lost:
                 return
             previous, tick = tick, time.monotonic()
-            if self._port_silent(previous, tick):
-                self._port_lost(f"no byte from the controller for {self._silent:.1f} s of status requests "
-                                f"(the last {self._silent - self._probe_at:.1f} s after a probe)")
+            if self._silence.step(previous, tick, last_rx=self._last_rx, reader_beat=self._reader_beat,
+                                  paused=self._reports_paused, waiting=self._bytes_waiting):
+                self._port_lost(self._silence.describe())
                 return
             asked = time.monotonic()
             try:
                 self._write(b"?")
             except (PortError, DeviceStateError):
                 return
-            if self._asked_at is None:
-                self._asked_at = asked  # before the write: a reply can only be read after it
+            self._silence.asked(asked)  # taken before the write: a reply can only be read after it
 
-    def _port_silent(self, previous: float, now: float) -> bool:
-        """One step of the silence watchdog (status thread), for the wake-up at ``now`` after the one at
-        ``previous``: True when the port counts as vanished. See the module docstring for the rules."""
-        if self._asked_at is not None and self._last_rx >= self._asked_at:
-            self._asked_at = None  # answered (any byte counts: GRBL sends nothing while it is dead)
-        if self._asked_at is None or self._reports_paused():
-            self._asked_at, self._silent, self._probe_at = None, 0.0, None
-            return False
-        if self._reader_beat >= previous:
-            # the reader ran since the last wake-up; a late wake-up (the process was not running) counts for at
-            # most one poll period, so a stall of the host is never taken for silence of the port
-            self._silent += min(now - max(previous, self._asked_at), self.poll_interval)
-        if self._probe_at is None:
-            if self._silent >= self.silence_timeout:
-                self._probe_at = self._silent  # the ``?`` written after this call is the probe
-                self._log("info", f"no reply to status requests for {self._silent:.1f} s: probing with '?' "
-                                  f"({self.silence_grace:.1f} s grace)")
-            return False
-        if self._silent - self._probe_at < self.silence_grace:
-            return False
+    def _bytes_waiting(self) -> int:
         try:
-            waiting = self.port.in_waiting
+            return self.port.in_waiting
         except (serial.SerialException, OSError, TypeError, AttributeError):
-            waiting = 0  # the reader meets the same error and reports it
-        return not waiting  # bytes waiting: the reader is behind, the port is alive
+            return 0  # the reader meets the same error and reports it
 
     def _reports_paused(self) -> bool:
         # GRBL answers no status request while it homes or writes its EEPROM: the line in flight then is one of
         # those (send-response: nothing else is in flight), and its reply timeout bounds the wait
         with self._lock:
-            return any(_pauses_reports(p.result.text) for p in self._pending)
-
-
-_PAUSES_REPORTS = re.compile(r"^\$(H|RST=|I=|N\d|\d+=)|G0*10(?![\d.])|G0*28\.1|G0*30\.1", re.IGNORECASE)
-
-
-def _pauses_reports(block: str) -> bool:
-    """True for a cleaned line during which GRBL serves no real-time status request: a homing cycle (``$H``,
-    ``$HX``...) or an EEPROM write (``$x=``, ``$Nx=``, ``$I=``, ``$RST=``, ``G10``, ``G28.1``, ``G30.1``)."""
-    return bool(_PAUSES_REPORTS.search(block))
-
-
-def _dwell_seconds(block: str) -> float:
-    if "G4" not in block:
-        return 0.0
-    try:
-        words = tokenize(block)
-    except ValueError:
-        return 0.0
-    if ("G", 4.0) in words:
-        return next((v for letter, v in words if letter == "P"), 0.0)
-    return 0.0
+            return any(pauses_reports(p.result.text) for p in self._pending)

@@ -1,13 +1,14 @@
 """Jobs on a GRBL machine: pre-flight, dry run, frame, start, hold, resume, abort, resume from line N.
 
+The job runner lives here; what a job is and reports (:class:`Job`, :class:`JobProgress`, :class:`JobResult`,
+:func:`frame_lines`) is in :mod:`drivers.grbl.job_types`, and the pre-flight checks (travel, line lengths, a job
+written for the other kind of machine) in :mod:`drivers.grbl.preflight`; both are importable from here too.
+
 Safety rules (they are the point of this module)
 ------------------------------------------------
-- Pre-flight, before any byte of the job is sent. With homing (``$22=1``) every point of the job (work coordinates
-  + the current work offset, from where the head stands) must lie in the machine space GRBL's soft limits use
-  (-travel..0 per axis, or 0..+travel for an axis whose ``$23`` bit is set when GRBL was built with
-  HOMING_FORCE_SET_ORIGIN, ``Z`` in ``[OPT:]``). Without homing, machine zero is wherever the head stood at power-up:
-  the job's own size on each axis must fit the travel (``$130``-``$132``), and so must the way from where the head
-  stands to the job; the refusal says by how much ("this job is 300.0 mm wide; your machine travels 200.0 mm in X").
+- Pre-flight, before any byte of the job is sent: the job must lie in the machine's travel, as
+  :mod:`drivers.grbl.preflight` explains (with homing, the machine space of GRBL's soft limits; without, the job's
+  own size and the way from the head to it).
 - A laser job (a laser profile, or a controller in laser mode) is refused unless ``$32=1`` is confirmed by re-reading
   the settings; every laser job ends with ``M5 S0``.
 - Abort sends the soft reset (0x18) at once, which stops motion and switches the laser off in the controller; then
@@ -20,156 +21,32 @@ Safety rules (they are the point of this module)
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import threading
 import time
-from collections.abc import Callable, Sequence
-from dataclasses import dataclass, field
-from functools import cached_property
-from pathlib import Path
+from collections.abc import Callable
 
 import numpy as np
 
 from drivers.errors import DeviceStateError, JobRefused, ProtocolError
-from drivers.gcode import GcodeError, Toolpath, clean_line, interpret, tokenize
+from drivers.gcode import GcodeError, Toolpath, interpret
 from drivers.grbl.connection import GrblConnection, StreamStopped
+from drivers.grbl.job_types import FINAL_STATES, Job, JobProgress, JobResult, frame_lines
+from drivers.grbl.preflight import (
+    LINE_BUFFER_SIZE,
+    SPAN_WORDS,
+    check_line_lengths,
+    check_machine_space,
+    check_span,
+    commanded_extent,
+    job_kind,
+    kind_warning,
+)
 from drivers.grbl.protocol import Error
 
-__all__ = ["Job", "JobProgress", "JobResult", "JobRunner", "commanded_extent", "frame_lines", "job_kind",
-           "kind_warning"]
-
-#: GRBL's line buffer (LINE_BUFFER_SIZE): a block has at most 79 characters after comments and spaces are removed.
-LINE_BUFFER_SIZE = 80
-
-
-@dataclass
-class Job:
-    """A G-code program to run.
-
-    Parameters
-    ----------
-    name : str
-    lines : list of str
-        The program, one block per line (as in the file; line numbers below are 1-based into this list).
-    laser : bool
-        A laser job (refused unless laser mode ``$32=1``; always ends with ``M5 S0``).
-    pen_up : sequence of str
-        Lines that make the tool safe for travel (pen up / laser off); used when resuming from a line.
-    """
-
-    name: str
-    lines: list[str]
-    laser: bool = False
-    pen_up: Sequence[str] = ("M5",)
-
-    @classmethod
-    def from_text(cls, name: str, text: str, **kwargs) -> Job:
-        return cls(name, text.splitlines(), **kwargs)
-
-    @classmethod
-    def from_file(cls, path: str | Path, **kwargs) -> Job:
-        """A job from a G-code text file (UTF-8 or ASCII); a file that is not text is refused with its name."""
-        path = Path(path)
-        try:
-            text = path.read_text(encoding="utf-8")
-        except UnicodeDecodeError as error:
-            raise JobRefused(
-                f"job {path.name!r}: not a G-code text file (byte {error.start} is not UTF-8 text)"
-            ) from None
-        return cls.from_text(path.name, text, **kwargs)
-
-    @cached_property
-    def toolpath(self) -> Toolpath:
-        return interpret(self.lines)
-
-    def extent(self) -> tuple[np.ndarray, np.ndarray] | None:
-        return self.toolpath.extent()
-
-
-#: States a job ends in (the runner's :class:`JobResult` states).
-FINAL_STATES = ("done", "stopped", "aborted", "refused", "position_lost", "error")
-
-
-@dataclass
-class JobProgress:
-    """A snapshot of a running job. ``lines_acked`` counts the job's lines GRBL answered with ``ok`` (in a dry run,
-    every answered line: each one was checked); ``eta`` is None once the job ended."""
-
-    state: str = "idle"
-    lines_total: int = 0
-    lines_sent: int = 0
-    lines_acked: int = 0
-    fraction: float = 0.0
-    elapsed: float = 0.0
-    eta: float | None = None
-    message: str = ""
-    current_line: int = 0  # 0-based job line the machine is (about) executing: acknowledged minus planned
-
-
-@dataclass
-class JobResult:
-    """How a job ended.
-
-    ``state`` is ``done``, ``aborted``, ``stopped`` (lost ``ok``, error, alarm), ``refused`` or ``position_lost``.
-    ``resume_line`` (1-based) is where to continue with ``from_line``, when that is safe to suggest.
-    """
-
-    state: str
-    message: str
-    lines_total: int
-    lines_acked: int
-    elapsed: float
-    resume_line: int | None = None
-    errors: list[tuple[int, str]] = field(default_factory=list)
-    laser_off: bool = True
-
-    @property
-    def ok(self) -> bool:
-        return self.state == "done"
-
-
-#: What a job's size along X, Y and Z is called in a refusal.
-SPAN_WORDS = ("wide", "deep", "tall")
-
-
-def commanded_extent(toolpath: Toolpath) -> tuple[np.ndarray, np.ndarray]:
-    """Per axis, the extent of the job's own coordinates: from the first move that names the axis on.
-
-    Before a job first names an axis, that axis stays where the head happened to stand, which says nothing about
-    the job's size; a relative (``G91``) first move starts from there, so its start counts. NaN for an axis the job
-    never moves.
-    """
-    lo, hi = np.full(3, np.nan), np.full(3, np.nan)
-    if len(toolpath.line) == 0 or len(toolpath.commanded) == 0:
-        return lo, hi
-    for axis in range(3):
-        named = np.flatnonzero(toolpath.commanded[toolpath.line, axis])
-        if len(named) == 0:
-            continue
-        first = named[0]
-        values = toolpath.end[first:, axis]
-        if not toolpath.states[toolpath.line[first] + 1].absolute:
-            values = np.append(values, toolpath.start[first, axis])
-        lo[axis], hi[axis] = values.min(), values.max()
-    return lo, hi
-
-
-def frame_lines(
-    lo: Sequence[float], hi: Sequence[float], *, laser_power: float | None = None, feed: float = 3000.0,
-    pen_up: Sequence[str] = (),
-) -> list[str]:
-    """A job that traces the rectangle ``lo``-``hi`` (work mm): with the laser at ``laser_power`` (an S value,
-    low enough not to mark) or with the pen up."""
-    x0, y0, x1, y1 = lo[0], lo[1], hi[0], hi[1]
-    corners = [(x1, y0), (x1, y1), (x0, y1), (x0, y0)]
-    lines = ["G21 G90 G94", *pen_up, f"G0 X{x0:.3f} Y{y0:.3f}"]
-    if laser_power is not None:
-        lines.append(f"M3 S{laser_power:g}")
-        lines += [f"G1 X{x:.3f} Y{y:.3f} F{feed:g}" for x, y in corners]
-        lines.append("M5 S0")
-    else:
-        lines += [f"G0 X{x:.3f} Y{y:.3f}" for x, y in corners]
-    return lines
+__all__ = ["FINAL_STATES", "LINE_BUFFER_SIZE", "SPAN_WORDS", "Job", "JobProgress", "JobResult", "JobRunner",
+           "commanded_extent", "frame_lines", "job_kind", "kind_warning"]
 
 
 class JobRunner:
@@ -205,6 +82,7 @@ class JobRunner:
         self.dry_run = dry_run
         self.on_progress = on_progress
         self.progress = JobProgress(lines_total=len(job.lines))
+        self._progress_lock = threading.Lock()  # snapshots are replaced from the job thread and the caller's
         self.result: JobResult | None = None
         self._stop = threading.Event()
         self._aborted = False
@@ -253,11 +131,7 @@ class JobRunner:
                 f"job {self.job.name!r}: laser job refused: laser mode is off ($32={int(conn.settings.get(32, 0))}); "
                 "with $32=0 the laser stays on while stopped and burns. Set $32=1 first"
             )
-        for number, raw in enumerate(self.job.lines, start=1):
-            length = len(clean_line(raw))
-            if length >= LINE_BUFFER_SIZE or length + 1 > conn.rx_size - 1:
-                raise JobRefused(f"job {self.job.name!r}: line {number} has {length} characters; GRBL takes at most "
-                                 f"{LINE_BUFFER_SIZE - 1} (error:11 otherwise)")
+        check_line_lengths(self.job, conn.rx_size)
         self._lines, self._origin = self._build_lines()
         self._last_origin = np.maximum.accumulate(np.array(self._origin, dtype=int))  # O(1) progress lookups
         # start from where the machine stands: relative moves and the first travel are then checked too
@@ -280,61 +154,10 @@ class JobRunner:
             wco = np.array(conn.work_offset())
             checked.update(extent_lo=lo.tolist(), extent_hi=hi.tolist(), work_offset=wco.tolist())
             if conn.homing_enabled:
-                self._check_machine_space(lo, hi, wco)
+                check_machine_space(self.job.name, conn, lo, hi, wco)
             else:
-                self._check_span(toolpath, lo, hi)
+                check_span(self.job.name, conn, toolpath, lo, hi)
         return checked
-
-    def _check_machine_space(self, lo: np.ndarray, hi: np.ndarray, wco: np.ndarray) -> None:
-        """A homed machine: every point (work + work offset) inside the machine space GRBL's soft limits use."""
-        conn = self.connection
-        travel = np.array(conn.travel, dtype=float)
-        allowed_lo, allowed_hi = (np.array(bound, dtype=float) for bound in conn.machine_bounds())
-        mlo, mhi = lo + wco, hi + wco
-        # X and Y are always checked, Z when the job moves it; an axis whose travel is 0 is not configured and is
-        # checked only when GRBL itself checks it (soft limits on: then it must stay at 0)
-        check = hi - lo > 1e-9
-        check[:2] = True
-        check &= (travel > 0) | conn.soft_limits
-        bad = [
-            f"{axis} {wlo:.2f}..{whi:.2f} (machine {mlo_:.2f}..{mhi_:.2f}, travel {alo:.2f}..{ahi:.2f})"
-            for axis, wlo, whi, mlo_, mhi_, alo, ahi, checked in zip(
-                "XYZ", lo, hi, mlo, mhi, allowed_lo, allowed_hi, check)
-            if checked and (mlo_ < alo - 1e-3 or mhi_ > ahi + 1e-3)
-        ]
-        if bad:
-            raise JobRefused(f"job {self.job.name!r} leaves the machine's travel ($130-$132 with work offset "
-                             f"{', '.join(f'{v:.2f}' for v in wco)}): " + "; ".join(bad))
-
-    def _check_span(self, toolpath: Toolpath, lo: np.ndarray, hi: np.ndarray) -> None:
-        """A machine without homing: machine zero is wherever the head stood at power-up, so machine coordinates
-        say nothing about the machine's ends. What is known: the job's own size on each axis, and the way from
-        where the head stands to the job, must each fit the travel ($130-$132)."""
-        conn = self.connection
-        travel = np.array(conn.travel, dtype=float)
-        own_lo, own_hi = commanded_extent(toolpath)
-        known = travel > 0
-        too_big = [
-            f"this job is {own_hi[i] - own_lo[i]:.1f} mm {SPAN_WORDS[i]}; your machine travels {travel[i]:.1f} mm "
-            f"in {'XYZ'[i]} (${130 + i})"
-            for i in range(3)
-            if known[i] and np.isfinite(own_lo[i]) and own_hi[i] - own_lo[i] > travel[i] + 1e-3
-        ]
-        if too_big:
-            raise JobRefused(f"job {self.job.name!r} does not fit the machine: " + "; ".join(too_big)
-                             + ". Scale the job down (station plot --size), or check $130-$132 if the machine "
-                             "travels further")
-        start = toolpath.start[0]  # where the head stands (the first segment leaves from there)
-        too_far = [
-            f"the head stands at {'XYZ'[i]} {start[i]:.1f} and the job goes to {'XYZ'[i]} {own_lo[i]:.1f}.."
-            f"{own_hi[i]:.1f}: {hi[i] - lo[i]:.1f} mm of travel, more than the {travel[i]:.1f} mm your machine has"
-            for i in range(3)
-            if known[i] and np.isfinite(own_lo[i]) and hi[i] - lo[i] > travel[i] + 1e-3
-        ]
-        if too_far:
-            raise JobRefused(f"job {self.job.name!r} cannot run from where the head stands (no homing: the job runs "
-                             "relative to work zero): " + "; ".join(too_far) + ". Jog the head to where the job "
-                             "should start, set work zero there (G10 L20 P1 X0 Y0) and send the frame first")
 
     def _build_lines(self) -> tuple[list[str], list[int]]:
         start = self.from_line - 1
@@ -401,7 +224,7 @@ class JobRunner:
         if self.result is None:
             if self._hold_started is None:
                 self._hold_started = time.monotonic()
-            self.progress.state = "holding"
+            self._set_progress(stage="holding")
 
     def resume(self) -> None:
         """Cycle start (``~``) after a hold. GRBL ignores it while still decelerating (``Hold:1``), so then it is
@@ -420,7 +243,7 @@ class JobRunner:
             self._held += time.monotonic() - self._hold_started
             self._hold_started = None
         if self.result is None:
-            self.progress.state = "running"
+            self._set_progress(stage="running")
 
     def abort(self) -> None:
         """Stop now: soft reset (0x18) first, then the job thread switches the laser off with ``M5 S0``."""
@@ -434,45 +257,52 @@ class JobRunner:
 
     # ------------------------------------------------------------------ running
 
+    def _set_progress(self, **changes) -> JobProgress:
+        """Replace the progress snapshot with ``changes`` applied (fields by their names: ``stage``, ``done``...)."""
+        with self._progress_lock:
+            self.progress = dataclasses.replace(self.progress, **changes)
+            return self.progress
+
     def _update(self, state: str | None = None, message: str | None = None) -> None:
-        p = self.progress
-        if state:
-            p.state = state
-        if message is not None:
-            p.message = message
         now = time.monotonic()
-        held = self._held + (now - self._hold_started if self._hold_started else 0.0)
-        p.elapsed = max(0.0, now - self._start_time - held) if self._start_time else 0.0
-        total = float(self._cumulative[-1]) if len(self._cumulative) else 0.0
-        status = self.connection.status
-        in_planner = 0
-        if status is not None and status.planner_free is not None:
-            in_planner = max(0, self.connection.planner_size - status.planner_free)
-        executed = max(0, self._acked_streamed - in_planner)
-        executed = min(executed, len(self._cumulative))
-        done = float(self._cumulative[executed - 1]) if executed else 0.0
-        if executed and len(self._last_origin) and not self._frozen:
-            p.current_line = max(int(self._last_origin[executed - 1]) + 1, self.from_line - 1)
-        # never backwards (a later status report may show a fuller planner than the acknowledgements suggested)
-        # 100 % only once done: the machine may still move after the last motion line was counted as executed
-        if total > 0:
-            p.fraction = max(p.fraction, min(0.999, done / total))
-        elif self._lines:
-            p.fraction = max(p.fraction, min(0.999, executed / len(self._lines)))
-        if p.state == "done":
-            p.fraction = 1.0
-            p.eta = 0.0
-        elif p.state in FINAL_STATES:
-            # ended early: the time estimate of the lines that ran is not the job's share (a job stopped by its
-            # last line had run all of its motion), so at most the share of its lines confirmed
-            confirmed = p.lines_acked / p.lines_total if p.lines_total else 0.0
-            p.fraction = min(p.fraction, confirmed, 0.999)
-            p.eta = None
-        elif done > 0 and p.elapsed > 0.2:
-            rate = done / p.elapsed  # estimated seconds of job per real second: corrects the estimate
-            p.eta = (total - done) / max(rate, 1e-6)
-        else:
-            p.eta = total if total else None
+        with self._progress_lock:
+            p = self.progress
+            stage = state or p.stage
+            held = self._held + (now - self._hold_started if self._hold_started else 0.0)
+            elapsed = max(0.0, now - self._start_time - held) if self._start_time else 0.0
+            total = float(self._cumulative[-1]) if len(self._cumulative) else 0.0
+            status = self.connection.status
+            in_planner = 0
+            if status is not None and status.planner_free is not None:
+                in_planner = max(0, self.connection.planner_size - status.planner_free)
+            executed = max(0, self._acked_streamed - in_planner)
+            executed = min(executed, len(self._cumulative))
+            done = float(self._cumulative[executed - 1]) if executed else 0.0
+            current_line = p.current_line
+            if executed and len(self._last_origin) and not self._frozen:
+                current_line = max(int(self._last_origin[executed - 1]) + 1, self.from_line - 1)
+            # never backwards (a later status report may show a fuller planner than the acknowledgements suggested)
+            # 100 % only once done: the machine may still move after the last motion line was counted as executed
+            fraction = p.fraction
+            if total > 0:
+                fraction = max(fraction, min(0.999, done / total))
+            elif self._lines:
+                fraction = max(fraction, min(0.999, executed / len(self._lines)))
+            if stage == "done":
+                fraction, eta = 1.0, 0.0
+            elif stage in FINAL_STATES:
+                # ended early: the time estimate of the lines that ran is not the job's share (a job stopped by its
+                # last line had run all of its motion), so at most the share of its lines confirmed
+                confirmed = p.lines_acked / p.lines_total if p.lines_total else 0.0
+                fraction, eta = min(fraction, confirmed, 0.999), None
+            elif done > 0 and elapsed > 0.2:
+                rate = done / elapsed  # estimated seconds of job per real second: corrects the estimate
+                eta = (total - done) / max(rate, 1e-6)
+            else:
+                eta = total if total else None
+            p = self.progress = dataclasses.replace(
+                p, stage=stage, message=p.message if message is None else message, elapsed=elapsed, done=fraction,
+                eta=eta, current_line=current_line)
         # at most 10 updates a second, but every change of state
         if self.on_progress and (state or now - self._last_report >= 0.1):
             self._last_report = now
@@ -507,11 +337,11 @@ class JobRunner:
             # a line answered with an error did not run (in a dry run it was checked: that is the point)
             if self._origin[result.index] >= 0 and (result.status == "ok" or self.dry_run):
                 job_acked[0] += 1
-                self.progress.lines_acked = job_acked[0]
+                self._set_progress(lines_acked=job_acked[0])
             self._update()
 
         def on_sent(index: int) -> None:
-            self.progress.lines_sent = index + 1
+            self._set_progress(lines_sent=index + 1)
 
         self._start_time = time.monotonic()
         try:
@@ -682,67 +512,3 @@ class JobRunner:
             elapsed=self.progress.elapsed, resume_line=resume, errors=errors or [], laser_off=laser_off,
         )
         return self.result
-
-
-def job_kind(lines: Sequence[str]) -> str:
-    """What a G-code program looks like it was written for: ``"pen"``, ``"laser"`` or ``""`` (cannot tell).
-
-    A writer's mark decides first (``(chaos-station pen plot job ...)`` from ``station plot`` for a pen plotter,
-    ``; chaos-station laser job`` from the laser-job writer); then ``M4`` (dynamic laser power, which a pen servo
-    never uses) means a laser job, and a program that never switches the spindle on with a power (``M3``/``M4`` and
-    ``S`` above 0) means a pen plotter's (it would mark nothing on a laser).
-    """
-    for raw in lines:
-        if "(" in raw or ";" in raw:
-            lower = raw.lower()
-            if "pen plot" in lower:
-                return "pen"
-            if "laser job" in lower:
-                return "laser"
-    spindle_on, power, dynamic = _spindle_words(lines)
-    if dynamic:
-        return "laser"
-    if not (spindle_on and power):
-        return "pen"
-    return ""
-
-
-def _spindle_words(lines: Sequence[str]) -> tuple[bool, bool, bool]:
-    """Whether ``lines`` use ``M3``/``M4``, an ``S`` above 0, and ``M4``."""
-    spindle_on = power = dynamic = False
-    for raw in lines:
-        block = clean_line(raw)
-        if not block or block.startswith("$"):
-            continue
-        try:
-            words = tokenize(block)
-        except GcodeError:
-            continue  # the pre-flight names bad lines; this is only a hint
-        for letter, value in words:
-            if letter == "M" and value in (3.0, 4.0):
-                spindle_on = True
-                dynamic = dynamic or value == 4.0
-            elif letter == "S" and value > 0:
-                power = True
-    return spindle_on, power, dynamic
-
-
-def kind_warning(job: Job, laser_mode: bool) -> str:
-    """A warning when ``job`` looks written for another kind of machine than one in (or out of) laser mode; ``""``
-    when it looks right, cannot be told, or the job is marked a laser job (``Job.laser``: checked by the
-    pre-flight)."""
-    if job.laser:
-        return ""
-    kind = job_kind(job.lines)
-    if laser_mode and kind == "pen":
-        spindle_on, power, _ = _spindle_words(job.lines)
-        if spindle_on and power:
-            return (f"job {job.name!r} looks like a pen-plotter job, but the machine is in laser mode ($32=1): its "
-                    "pen commands (M3 S...) fire the laser at that power. Send it to the plotter, or check the job")
-        return (f"job {job.name!r} looks like a pen-plotter job (it never switches a laser on with M3/M4 and S), "
-                "but the machine is in laser mode ($32=1): it will mark nothing")
-    if not laser_mode and kind == "laser":
-        return (f"job {job.name!r} looks like a laser job (M4, or a laser job's header), but the machine is not in "
-                "laser mode ($32=0): a laser would stay on whenever the machine stops. Set $32=1 and send it with "
-                "--laser or a laser profile")
-    return ""

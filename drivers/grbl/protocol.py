@@ -5,6 +5,8 @@ from __future__ import annotations
 import re
 from dataclasses import dataclass
 
+from drivers.errors import ProtocolError
+
 __all__ = [
     "ALARM_CODES",
     "ERROR_CODES",
@@ -15,6 +17,7 @@ __all__ = [
     "Feedback",
     "Garbled",
     "Ok",
+    "ReplyParseError",
     "SettingLine",
     "StatusReport",
     "VersionInfo",
@@ -96,6 +99,11 @@ ALARM_RECOVERY: dict[int, str] = {
 }
 
 
+class ReplyParseError(ProtocolError, ValueError):
+    """A line from the controller that its protocol does not allow (e.g. a malformed status report); the message
+    quotes the line. A :class:`~drivers.errors.ProtocolError`, and a ``ValueError`` for callers that parse text."""
+
+
 def error_meaning(code: int) -> str:
     return ERROR_CODES.get(code, "Unknown error code.")
 
@@ -169,6 +177,26 @@ def _vector(text: str) -> tuple[float, ...]:
     return tuple(float(v) for v in text.split(","))
 
 
+def _pair(text: str, first: str, second: str, kind=float) -> dict:
+    a, b = (kind(v) for v in text.split(","))  # ValueError unless exactly two numbers
+    return {first: a, second: b}
+
+
+#: How each field of a status report becomes :class:`StatusReport` attributes (``Ln:``, ``Bf:`` ... GRBL 1.1).
+_FIELD_PARSERS = {
+    "MPos": lambda data: {"mpos": _vector(data)},
+    "WPos": lambda data: {"wpos": _vector(data)},
+    "WCO": lambda data: {"wco": _vector(data)},
+    "Bf": lambda data: _pair(data, "planner_free", "rx_free", int),
+    "Ln": lambda data: {"line_number": int(data)},
+    "FS": lambda data: _pair(data, "feed", "spindle"),
+    "F": lambda data: {"feed": float(data)},
+    "Ov": lambda data: {"overrides": tuple(int(v) for v in data.split(","))},
+    "Pn": lambda data: {"pins": data},
+    "A": lambda data: {"accessories": data},
+}
+
+
 @dataclass(frozen=True)
 class StatusReport:
     """A parsed ``<...>`` status report. Absent fields are None.
@@ -201,45 +229,36 @@ class StatusReport:
 
     @classmethod
     def parse(cls, text: str) -> StatusReport:
-        """Parse ``<Idle|MPos:0.000,0.000,0.000|Bf:15,128|FS:0,0>``. Raises ValueError if malformed."""
+        """Parse ``<Idle|MPos:0.000,0.000,0.000|Bf:15,128|FS:0,0>``.
+
+        Raises
+        ------
+        ReplyParseError
+            The text is not a status report, or a state, field or value in it is malformed.
+        """
         if not (text.startswith("<") and text.endswith(">")):
-            raise ValueError(f"not a status report: {text!r}")
+            raise ReplyParseError(f"not a status report: {text!r}")
         fields = text[1:-1].split("|")
         state, _, sub = fields[0].partition(":")
         if state not in ("Idle", "Run", "Hold", "Jog", "Alarm", "Door", "Check", "Home", "Sleep"):
-            raise ValueError(f"unknown state {fields[0]!r} in {text!r}")
-        values: dict = {"state": state, "substate": int(sub) if sub else None}
+            raise ReplyParseError(f"unknown state {fields[0]!r} in {text!r}")
+        try:
+            values: dict = {"state": state, "substate": int(sub) if sub else None}
+        except ValueError:
+            raise ReplyParseError(f"malformed state {fields[0]!r} in {text!r}") from None
         for item in fields[1:]:
             name, sep, data = item.partition(":")
             if not sep:
-                raise ValueError(f"malformed field {item!r} in {text!r}")
-            if name == "MPos":
-                values["mpos"] = _vector(data)
-            elif name == "WPos":
-                values["wpos"] = _vector(data)
-            elif name == "WCO":
-                values["wco"] = _vector(data)
-            elif name == "Bf":
-                planner, rx = (int(v) for v in data.split(","))
-                values["planner_free"], values["rx_free"] = planner, rx
-            elif name == "Ln":
-                values["line_number"] = int(data)
-            elif name == "FS":
-                feed, spindle = _vector(data)
-                values["feed"], values["spindle"] = feed, spindle
-            elif name == "F":
-                values["feed"] = float(data)
-            elif name == "Ov":
-                values["overrides"] = tuple(int(v) for v in data.split(","))
-            elif name == "Pn":
-                values["pins"] = data
-            elif name == "A":
-                values["accessories"] = data
-            else:
-                raise ValueError(f"unknown field {name!r} in {text!r}")
+                raise ReplyParseError(f"malformed field {item!r} in {text!r}")
+            if name not in _FIELD_PARSERS:
+                raise ReplyParseError(f"unknown field {name!r} in {text!r}")
+            try:
+                values.update(_FIELD_PARSERS[name](data))
+            except ValueError:  # a number that is not one, or a list of the wrong length
+                raise ReplyParseError(f"malformed field {item!r} in {text!r}") from None
         for key in ("mpos", "wpos", "wco"):
             if values.get(key) is not None and len(values[key]) < 3:
-                raise ValueError(f"short {key} in {text!r}")
+                raise ReplyParseError(f"short {key} in {text!r}")
         return cls(**values)
 
     @property
@@ -276,7 +295,7 @@ def parse_line(text: str):
     if text.startswith("<"):
         try:
             return StatusReport.parse(text)
-        except ValueError:
+        except ReplyParseError:
             return Garbled(text)
     match = _BANNER.match(text)
     if match:

@@ -11,23 +11,23 @@ from __future__ import annotations
 import contextlib
 import dataclasses
 import sys
-import threading
-import time
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from common.progress import Progress
 from design.datafiles import load_json
 from design.errors import FileFormatError
 from drivers.errors import DeviceStateError, JobRefused
 from drivers.gcode import clean_line
-from drivers.grbl import GrblConnection, Job, JobResult, JobRunner, frame_lines, list_ports
+from drivers.grbl import GrblConnection, Job, JobProgress, JobResult, JobRunner, frame_lines, list_ports
 from drivers.grbl.job import FINAL_STATES, kind_warning
 from drivers.profiles import MachineProfile, load_profile
 from station.cli_util import add_design_options, design_parameters, emit_json, output_suffix
 from station.errors import StationError, UsageError
 from station.joblog import JOB_KINDS, JobLog
+from station.progress_view import ProgressView
 from station.services.errors import ServiceError
 from station.services.machines import plot_job as _plot_job
 
@@ -43,7 +43,7 @@ def register(subparsers) -> None:
         "pen plotter (pen up/down from the profile) or laser (M4 power, dark G0 travels).",
         epilog="examples: station plot spirograph --set d=2.5 --size 150 --out spiro.gcode\n"
         "          station pattern hoot_nanny --json > hn.json && station plot --pattern hn.json "
-        "--profile examples/profiles/grbl_pen_plotter.toml --out hn.gcode",
+        "--profile plotter --out hn.gcode",
     )
     plot.add_argument("machine", nargs="?", help="drawing machine name (see `station machines`)")
     add_design_options(plot)
@@ -231,7 +231,7 @@ def format_duration(seconds: float) -> str:
     return f"{hours}:{minutes:02d}:{secs:02d}" if hours else f"{minutes}:{secs:02d}"
 
 
-def progress_text(progress) -> str:
+def progress_text(progress: JobProgress) -> str:
     """``42.0% 84/200 lines  ETA 1:05  running``; a job that ended shows its state without an ETA."""
     text = f"{progress.fraction * 100:5.1f}% {progress.lines_acked}/{progress.lines_total} lines"
     if progress.state in FINAL_STATES:
@@ -240,64 +240,31 @@ def progress_text(progress) -> str:
     return f"{text}  ETA {eta}  {progress.state}"
 
 
-class ProgressBar:
-    """Progress of a job on stderr.
+#: Job states that write no plain progress line: a refused job says why in one line of its own.
+QUIET_STATES = ("idle", "preflight", "refused", "position_lost")
 
-    On a terminal, a bar redrawn in place at most 10 times a second. Anywhere else (a file, a pipe, a CI log) a
-    plain line at every tenth of the job and every change of state, so the log reads as lines, not one long line of
-    carriage returns.
+
+class SendProgress:
+    """Progress of a job on stderr, drawn by :class:`station.progress_view.ProgressView`.
+
+    On a terminal, one rich bar for the whole job (its state in the text beside it, so a hold or the end does not
+    start a new bar). Anywhere else (a file, a pipe, a CI log) a plain line ``send: <progress_text>`` at every tenth
+    of the job and every change of state, so the log reads as lines, not one long line of carriage returns.
     """
 
-    def __init__(self, stream=None, width: int = 30, tty: bool | None = None) -> None:
-        self.stream = stream or sys.stderr
-        self.width = width
-        if tty is None:
-            isatty = getattr(self.stream, "isatty", None)
-            tty = bool(isatty and isatty())
-        self.tty = tty
-        self._last = 0.0
-        self._state = ""
-        self._tenth = -1
-        self._drawn = 0  # characters of the bar on the terminal's line
-        self._lock = threading.Lock()
+    def __init__(self, stream=None, tty: bool | None = None) -> None:
+        self.view = ProgressView(stream, describe=lambda progress: progress.message, prefix="send: ", tty=tty,
+                                 quiet_stages=QUIET_STATES)
 
-    def __call__(self, progress, force: bool = False) -> None:
-        with self._lock:
-            if self.tty:
-                self._draw(progress, force)
-            else:
-                self._line(progress)
-
-    def _draw(self, progress, force: bool) -> None:
-        now = time.monotonic()
-        if not force and progress.state == self._state and now - self._last < 0.1:
-            return
-        self._last = now
-        self._state = progress.state
-        filled = int(progress.fraction * self.width)  # a full bar only at 100 %
-        text = f"[{'#' * filled}{'.' * (self.width - filled)}] {progress_text(progress)}"
-        self.stream.write("\r" + text.ljust(self._drawn))
-        self._drawn = len(text)
-        self.stream.flush()
-
-    def _line(self, progress) -> None:
-        if progress.state in ("idle", "preflight", "refused", "position_lost"):
-            return  # a refused job says why in one line of its own
-        tenth = int(progress.fraction * 10)
-        if progress.state == self._state and tenth <= self._tenth:
-            return
-        self._state = progress.state
-        self._tenth = max(self._tenth, tenth)
-        self.stream.write(f"send: {progress_text(progress)}\n")
-        self.stream.flush()
+    def __call__(self, progress: JobProgress) -> None:
+        # the view starts a bar (or a run of tenths) per stage: one stage for the job on a terminal, its state
+        # elsewhere (a plain line marks each change of state)
+        stage = "job" if self.view.tty else progress.state
+        self.view(Progress(stage, progress.fraction, 1.0, progress_text(progress)))
 
     def close(self, clear: bool = False) -> None:
-        """End the bar's line (``clear``: erase it, e.g. before a refusal's one line)."""
-        with self._lock:
-            if self.tty and self._drawn:
-                self.stream.write("\r" + " " * self._drawn + "\r" if clear else "\n")
-                self.stream.flush()
-            self._drawn = 0
+        """End the bar (``clear``: remove it, e.g. before a refusal's one line)."""
+        self.view.close(clear=clear)
 
 
 @contextlib.contextmanager
@@ -355,7 +322,7 @@ def _ask(question: str, default: bool) -> bool:
 
 
 def _stream(conn, history, job: Job, kind: str, url: str, title: str, *, from_line: int = 1, dry_run: bool = False,
-            bar: ProgressBar | None = None) -> JobResult:
+            bar: SendProgress | None = None) -> JobResult:
     """Run ``job`` on ``conn`` with a progress bar and a row in the job history; Ctrl-C (or SIGTERM) aborts it
     (soft reset, laser off), records it and goes on as KeyboardInterrupt."""
     runner = JobRunner(conn, job, from_line=from_line, dry_run=dry_run, on_progress=bar)
@@ -381,7 +348,7 @@ def _stream(conn, history, job: Job, kind: str, url: str, title: str, *, from_li
         if result.state in ("refused", "position_lost"):
             bar.close(clear=True)  # the error's one line says it all
         else:
-            bar(runner.progress, force=True)
+            bar(runner.progress)  # the end, whatever the last report was
             bar.close()
     return result
 
@@ -406,7 +373,7 @@ def run_send(args) -> int:
     original = job
     if args.frame:
         job = _frame_job(job, path.name, laser, profile, pen_up)
-    bar = None if args.json else ProgressBar()
+    bar = None if args.json else SendProgress()
     kind = JOB_KINDS["frame" if args.frame else "dry" if args.dry_run else "run"]
     title = str(path) if kind == "run" else f"{kind} of {path}"
     with GrblConnection(url, baud) as conn, _job_history() as history:
@@ -428,7 +395,7 @@ def run_send(args) -> int:
             elif _ask("No homing ($22=0): trace the job's frame first (laser at frame power)?", default=True):
                 frame = _frame_job(original, path.name, laser, profile, pen_up)
                 framed = _stream(conn, history, frame, JOB_KINDS["frame"], url, f"frame of {path}",
-                                 bar=ProgressBar())
+                                 bar=SendProgress())
                 if not framed.ok:
                     print(framed.message, file=sys.stderr)
                     if framed.state == "refused":

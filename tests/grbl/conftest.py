@@ -4,6 +4,7 @@ CHAOS_STATION_GRBL_PORT (those runs are skipped when it is unset)."""
 from __future__ import annotations
 
 import os
+import time
 
 import pytest
 
@@ -18,6 +19,15 @@ FAST = {"poll_interval": 0.05, "lost_ok_timeout": 0.3, "silence_timeout": 0.6}
 def sim_url(profile: str = "laser", **query) -> str:
     query.setdefault("time_scale", 0.02)
     return f"sim://grbl?profile={profile}&" + "&".join(f"{k}={v}" for k, v in query.items())
+
+
+def start_until_acked(runner, lines: int, timeout: float = 10.0) -> None:
+    """Start ``runner``'s job in its thread and return once the machine confirmed ``lines`` of it with ``ok`` (or
+    after ``timeout`` s): the machine is then in the middle of the job."""
+    runner.start()
+    deadline = time.monotonic() + timeout
+    while runner.progress.lines_acked < lines and time.monotonic() < deadline:
+        time.sleep(0.01)
 
 
 @pytest.fixture

@@ -12,7 +12,7 @@ from drivers.errors import PortError, ProtocolError
 from drivers.gcode import clean_line
 from drivers.grbl import GrblConnection, Job, JobRunner, StreamStopped, frame_lines, list_ports, probe
 
-from .conftest import sim_url
+from .conftest import sim_url, start_until_acked
 
 
 def _sim_only(url: str) -> None:
@@ -141,10 +141,7 @@ def test_soft_limit_alarm_clears_counter_and_the_late_ok_is_ignored(make_connect
 def test_abort_resets_at_once_laser_off_and_alarm_recovery(make_connection):
     conn = make_connection(sim_url("laser", time_scale=0.5))
     runner = JobRunner(conn, Job("square", SQUARE, laser=True))
-    runner.start()
-    deadline = time.monotonic() + 10
-    while runner.progress.lines_acked < 5 and time.monotonic() < deadline:
-        time.sleep(0.01)
+    start_until_acked(runner, 5)
     aborted = time.monotonic()
     runner.abort()
     result = runner.wait(10)
@@ -213,10 +210,7 @@ def test_resume_from_line_rebuilds_the_modal_state(make_connection):
 def test_hold_and_resume(make_connection):
     conn = make_connection(sim_url("laser", time_scale=0.5))
     runner = JobRunner(conn, Job("square", SQUARE, laser=True))
-    runner.start()
-    deadline = time.monotonic() + 10
-    while runner.progress.lines_acked < 5 and time.monotonic() < deadline:
-        time.sleep(0.01)
+    start_until_acked(runner, 5)
     runner.hold()
     assert conn.wait_for(lambda: conn.status.label == "Hold:0", 3)
     assert conn.port.machine.snapshot().samples[-1].power == 0.0

@@ -4,12 +4,14 @@ resume from: the one the machine was executing, found from where it stopped."""
 from __future__ import annotations
 
 import dataclasses
-import time
 
+import pytest
+
+from common.progress import Progress
 from drivers.gcode import clean_line
-from drivers.grbl import Job, JobRunner
+from drivers.grbl import Job, JobProgress, JobRunner
 
-from .conftest import sim_url
+from .conftest import sim_url, start_until_acked
 
 SQUARE = ["G21", "G90", "M4 S400", "G0 X10 Y10", "G1 X60 Y10 F3000", "G1 X60 Y60", "G1 X10 Y60", "G1 X10 Y10",
           "G0 X0 Y0"]
@@ -31,10 +33,7 @@ def test_an_aborted_job_resumes_from_the_line_it_was_executing(make_connection):
     job = Job("square", SQUARE, laser=True)
     updates = []
     runner = JobRunner(conn, job, on_progress=lambda p: updates.append(dataclasses.replace(p)))
-    runner.start()
-    deadline = time.monotonic() + 10
-    while runner.progress.lines_acked < 7 and time.monotonic() < deadline:
-        time.sleep(0.01)
+    start_until_acked(runner, 7)
     runner.abort()
     result = runner.wait(10)
     record = conn.port.machine.snapshot()
@@ -69,3 +68,21 @@ def test_a_finished_job_has_no_resume_line_and_reaches_100_percent(make_connecti
                        on_progress=lambda p: updates.append(dataclasses.replace(p))).run()
     assert result.ok and result.resume_line is None
     assert [u.fraction for u in updates].index(1.0) == len(updates) - 1  # 100 % only in the last update (done)
+
+
+def test_job_progress_is_the_one_progress_type_with_its_own_fields_kept():
+    progress = JobProgress("running", 200, 90, 84, 0.42, 12.5, 65.0, "cutting", 83)  # the old positional order
+    assert isinstance(progress, Progress)
+    assert (progress.stage, progress.done, progress.total, progress.message) == ("running", 0.42, 1.0, "cutting")
+    assert (progress.state, progress.fraction) == ("running", 0.42)
+    assert (progress.lines_total, progress.lines_sent, progress.lines_acked) == (200, 90, 84)
+    assert (progress.elapsed, progress.eta, progress.current_line) == (12.5, 65.0, 83)
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        progress.lines_acked = 85
+    with pytest.raises(AttributeError):
+        progress.state = "done"  # a read-only alias
+    later = dataclasses.replace(progress, stage="done", done=1.0)
+    assert (later.state, later.fraction, later.lines_acked) == ("done", 1.0, 84)
+    assert dataclasses.replace(progress) == progress
+    with pytest.raises(ValueError, match="total must be 1"):
+        JobProgress(total=200)

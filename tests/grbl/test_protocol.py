@@ -13,6 +13,7 @@ from drivers.grbl.protocol import (
     Feedback,
     Garbled,
     Ok,
+    ReplyParseError,
     SettingLine,
     StatusReport,
     VersionInfo,
@@ -56,6 +57,31 @@ def test_status_report_fields():
     ov = parse_line("<Run|WPos:1.000,2.000,3.000|FS:100,0|Ov:100,50,120|A:SF>")
     assert ov.overrides == (100, 50, 120) and ov.accessories == "SF"
     assert ov.machine_position((1.0, 1.0, 1.0)) == (2.0, 3.0, 4.0)
+
+
+@pytest.mark.parametrize(
+    ("text", "message"),
+    [
+        ("Idle|MPos:0,0,0", "not a status report: 'Idle|MPos:0,0,0'"),
+        ("<Dance|MPos:0,0,0>", "unknown state 'Dance' in '<Dance|MPos:0,0,0>'"),
+        ("<Hold:x>", "malformed state 'Hold:x' in '<Hold:x>'"),
+        ("<Idle|MPos>", "malformed field 'MPos' in '<Idle|MPos>'"),
+        ("<Idle|MPos:0,zero,0>", "malformed field 'MPos:0,zero,0' in '<Idle|MPos:0,zero,0>'"),
+        ("<Idle|Bf:15>", "malformed field 'Bf:15' in '<Idle|Bf:15>'"),
+        ("<Idle|Zz:1>", "unknown field 'Zz' in '<Idle|Zz:1>'"),
+        ("<Idle|WCO:0,0>", "short wco in '<Idle|WCO:0,0>'"),
+    ],
+)
+def test_a_malformed_status_report_is_a_reply_parse_error_of_the_drivers_tree(text, message):
+    from drivers.errors import DriverError, ProtocolError
+
+    with pytest.raises(ReplyParseError) as caught:
+        StatusReport.parse(text)
+    assert str(caught.value) == message
+    assert isinstance(caught.value, ProtocolError) and isinstance(caught.value, DriverError)
+    assert isinstance(caught.value, OSError) and isinstance(caught.value, ValueError)  # old callers still catch it
+    if text.startswith("<"):
+        assert parse_line(text) == Garbled(text)  # the reader keeps it as a garbled line
 
 
 def test_codes_have_meanings():

@@ -164,23 +164,26 @@ def test_progress_in_a_log_is_plain_lines_and_on_a_terminal_a_bar():
         return JobProgress(state=state, lines_total=100, lines_acked=int(fraction * 100), fraction=fraction, eta=eta)
 
     log = io.StringIO()
-    bar = machines_io.ProgressBar(log)  # not a terminal
+    bar = machines_io.SendProgress(log)  # not a terminal
     for step in range(101):
         bar(at(step / 100))
-    bar(at(1.0, "done", 0.0), force=True)
+    bar(at(1.0, "done", 0.0))
     bar.close()
     lines = log.getvalue().splitlines()
     assert "\r" not in log.getvalue()
     assert lines[0] == "send:   0.0% 0/100 lines  ETA 0:05  running" and lines[-1] == "send: 100.0% 100/100 lines  done"
     assert len(lines) == 12  # one per tenth, and the end
     screen = io.StringIO()
-    bar = machines_io.ProgressBar(screen, tty=True)
-    bar(at(0.5), force=True)
-    bar(at(1.0, "done", 0.0), force=True)
+    bar = machines_io.SendProgress(screen, tty=True)  # a terminal: one rich bar for the job, redrawn in place
+    bar(at(0.5))
+    bar(at(1.0, "done", 0.0))
     bar.close()
-    assert screen.getvalue().startswith("\r[###############...............]  50.0% 50/100 lines  ETA 0:05  running")
     drawn = screen.getvalue()
-    assert drawn.endswith("\n") and drawn.rstrip().endswith("\r[" + "#" * 30 + "] 100.0% 100/100 lines  done")
+    frames = drawn.split("\r")
+    assert "━" in drawn and len(frames) > 2
+    assert "50.0% 50/100 lines  ETA 0:05  running" in drawn
+    assert "100.0% 100/100 lines  done" in frames[-1] and "ETA" not in frames[-1] and "\n" in frames[-1]
+    assert frames[-1].count("lines") == 1  # a change of state redraws the job's bar, it adds no second one
     assert machines_io.format_duration(5974) == "1:39:34" and machines_io.format_duration(59) == "0:59"
 
 

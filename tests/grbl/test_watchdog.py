@@ -194,3 +194,74 @@ def test_the_wait_for_homing_covers_the_cycle_the_settings_allow():
     conn.settings = dict(DEFAULT_SETTINGS)
     cycle = sum(1.5 * conn.settings[130 + axis] / (500 / 60) + 5 * 1.0 / (25 / 60) for axis in range(3))
     assert conn.homing_seconds() > cycle
+
+
+# ------------------------------------------------------------------ the watchdogs alone, on a clock of our own
+
+
+def _silence(timeout=0.7, grace=0.5, poll=0.2):
+    from drivers.grbl.watchdogs import SilenceWatchdog
+
+    logged: list[str] = []
+    return SilenceWatchdog(timeout, grace, poll, logged.append), logged
+
+
+def _wake_ups(watchdog, start, end, *, poll=0.2, reader_runs=True, paused=False, waiting=0):
+    """Step ``watchdog`` at every poll from ``start`` to ``end`` (no byte read since before ``start``); the time of
+    the first step that declared the port lost, or None."""
+    previous, now = start, start + poll
+    while now <= end + 1e-9:
+        if watchdog.step(previous, now, last_rx=-1.0, reader_beat=now if reader_runs else -1.0,
+                         paused=lambda: paused, waiting=lambda: waiting):
+            return now
+        previous, now = now, now + poll
+    return None
+
+
+def test_silence_probes_after_the_timeout_and_declares_the_port_lost_after_the_grace():
+    watchdog, logged = _silence()
+    watchdog.asked(0.0)
+    lost = _wake_ups(watchdog, 0.0, 3.0)
+    assert lost is not None and 1.2 - 1e-9 <= lost <= 1.4 + 1e-9  # timeout 0.7 + grace 0.5, to a poll
+    assert len(logged) == 1 and "probing with '?'" in logged[0]
+    assert "no byte from the controller for 1." in watchdog.describe() and "after a probe" in watchdog.describe()
+
+
+def test_no_port_is_lost_while_the_reader_stood_still_reports_are_paused_or_bytes_wait_unread():
+    for options in ({"reader_runs": False}, {"paused": True}, {"waiting": 12}):
+        watchdog, _ = _silence()
+        watchdog.asked(0.0)
+        assert _wake_ups(watchdog, 0.0, 10.0, **options) is None, options
+
+
+def test_a_late_wake_up_counts_for_one_poll_period_and_any_byte_answers():
+    watchdog, _ = _silence()
+    watchdog.asked(0.0)
+    assert not watchdog.step(0.0, 5.0, last_rx=-1.0, reader_beat=5.0, paused=lambda: False, waiting=lambda: 0)
+    assert watchdog.silent == pytest.approx(0.2)  # the process slept 5 s: not the port's silence
+    assert not watchdog.step(5.0, 5.2, last_rx=5.1, reader_beat=5.2, paused=lambda: False, waiting=lambda: 0)
+    assert (watchdog.asked_at, watchdog.silent) == (None, 0.0)
+
+
+class _Line:
+    def __init__(self, index, text, dwell=0.0):
+        from drivers.grbl.connection import LineResult
+
+        self.result, self.dwell = LineResult(index, text), dwell
+
+
+def test_a_lost_ok_is_declared_once_idle_and_empty_for_the_timeout_plus_dwells():
+    from drivers.grbl.protocol import StatusReport
+    from drivers.grbl.watchdogs import LostOkWatchdog
+
+    idle = StatusReport("Idle", planner_free=15, rx_free=128)
+    pending = [_Line(6, "G4P1", dwell=1.0), _Line(7, "G0X1")]
+    watchdog = LostOkWatchdog(1.5)
+    check = dict(planner_size=15, rx_size=128, fault=None)
+    assert watchdog.check(idle, pending, now=0.0, **check) is None  # the condition starts
+    assert watchdog.check(idle, pending, now=2.4, **check) is None  # 1.5 s + the 1 s dwell not yet over
+    fault = watchdog.check(idle, pending, now=2.6, **check)
+    assert fault.startswith("lost ok: the controller is idle with empty buffers but 2 line(s) from line 7 ('G4P1')")
+    assert watchdog.check(idle, pending, now=9.0, planner_size=15, rx_size=128, fault=fault) is None  # said once
+    running = StatusReport("Run", planner_free=10, rx_free=100)
+    assert watchdog.check(running, pending, now=10.0, **check) is None and watchdog.since is None
