@@ -32,7 +32,8 @@ from textual.widgets import Footer, Header, Input, Static
 from drivers.errors import DriverError
 from drivers.grbl import GrblConnection, JobProgress, JobResult, JobRunner
 from drivers.grbl.protocol import Feedback
-from drivers.profiles import MachineProfile, builtin_profile
+from drivers.profiles import MachineProfile, ProfileError
+from station.devices import DeviceEntry, machine_profile
 from station.errors import StationError
 from station.joblog import JobLog
 from station.services.job_queue import JobMode, JobQueue, JobState, QueuedJob, frame_job
@@ -184,7 +185,17 @@ class MachinesScreen(Screen):
         return devices[self.device_index % len(devices)] if devices else None
 
     def profile_for(self, device) -> MachineProfile:
-        return builtin_profile("laser" if device.kind == "laser" else "plotter")
+        """The device's machine profile (a built-in name or the file named in ``station.toml``).
+
+        Raises
+        ------
+        StationError
+            The profile file has gone, or turned bad, since the configuration was read; the message names it.
+        """
+        try:
+            return machine_profile(device)
+        except ProfileError as error:
+            raise StationError(f"{device.name}: {error}") from None
 
     def connection(self, name: str | None = None) -> GrblConnection | None:
         device = self.device if name is None else next((d for d in self.serial_devices if d.name == name), None)
@@ -380,7 +391,12 @@ class MachinesScreen(Screen):
             return
         job = entry.job
         if mode is JobMode.FRAME:
-            job = frame_job(entry.job, entry.title, self.profile_for(self.device))
+            try:
+                profile = self.profile_for(self.device)
+            except StationError as error:
+                self._say(f"cannot frame: {error}", "red")
+                return
+            job = frame_job(entry.job, entry.title, profile)
             if job is None:
                 self._say("nothing to frame")
                 return
@@ -534,10 +550,10 @@ class MachinesScreen(Screen):
         if target is None:
             self._say(f"no {device or 'plotter or laser'} configured")
             return
-        self._plot_worker(machine, params, target.name, target.kind)
+        self._plot_worker(machine, params, target)
 
     @work(thread=True, exclusive=False, group="plot")
-    def _plot_worker(self, machine: str, params: dict, device: str, kind: str) -> None:
+    def _plot_worker(self, machine: str, params: dict, device: DeviceEntry) -> None:
         from design.errors import DesignError
         from design.machines import get_machine
         from station.services.machines import plot_job
@@ -546,12 +562,11 @@ class MachinesScreen(Screen):
             model = get_machine(machine)
             values = model.validate(params)
             points = model.sample(values, n=4096, spacing="arclength")
-            profile = builtin_profile("laser" if kind == "laser" else "plotter")
-            text, *_ = plot_job([points], profile, None, None)
+            text, *_ = plot_job([points], self.profile_for(device), None, None)
         except (DesignError, DriverError, StationError) as error:
             self._from_thread(self._say, f"cannot plot {machine}: {error}", "red")
             return
-        self._from_thread(self.queue_job, device, text, f"{machine} plot")
+        self._from_thread(self.queue_job, device.name, text, f"{machine} plot")
 
     # ------------------------------------------------------------------ quitting
 
