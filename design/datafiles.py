@@ -1,114 +1,44 @@
-"""Reading JSON and TOML data files so that a bad one is reported one way: a :class:`~design.errors.FileFormatError`
-whose one line names the file, where in it (line and column) and what was expected::
+"""Reading a user's data files in ``design``: :mod:`common.datafiles` with :class:`~design.errors.FileFormatError`.
 
-    sketch.json: not valid JSON (Expecting ',' delimiter at line 2 column 6); expected a list of strokes ...
-    ballrun.toml: not valid TOML (Invalid value at line 1 column 5); expected a scenario file
-
-``json.loads`` alone lets three kinds of bad file escape as something else: bytes that are not UTF-8
-(``UnicodeDecodeError``), arrays nested deeper than the interpreter's recursion limit (``RecursionError``) and the
-non-JSON constants ``NaN`` and ``Infinity`` (read as floats). Every reader of a user's data file (designs, patterns,
-sketches, scenarios, layouts) calls :func:`load_json`, :func:`parse_json` or :func:`parse_data` instead. An area
-with its own subclass of :class:`~design.errors.FileFormatError` (a scenario's, which also carries the field) passes
-``error`` to get its own type with the same message.
+Every reader of a design, pattern, sketch, scenario or layout file calls these, so that a bad file is one line naming
+the file, where in it and what was expected (see :mod:`common.datafiles`). An area with its own subclass of
+:class:`FileFormatError` (a scenario's, which also carries the field) passes ``error`` to get its own type.
 """
 
 from __future__ import annotations
 
-import json
-import re
-import sys
-from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
+from common import datafiles as _common
+from common.datafiles import ErrorFactory
 from design.errors import FileFormatError
 
-if sys.version_info >= (3, 11):
-    import tomllib
-else:  # pragma: no cover
-    import tomli as tomllib
-
-#: Makes the error from the part of the message after ``FILE: `` (default: a :class:`FileFormatError` naming the file).
-ErrorFactory = Callable[[str], FileFormatError]
-
-
-def load_json(path: str | Path, expected: str) -> Any:
-    """The parsed content of a JSON file.
-
-    Parameters
-    ----------
-    path : str or Path
-        The file.
-    expected : str
-        What the file should be, in words (``"the JSON of `station pattern --json`"``): the end of every message.
-
-    Raises
-    ------
-    FileFormatError
-        The file is not UTF-8 text or not JSON: ``FILE: not valid JSON (Expecting ',' delimiter at line 3 column 7);
-        expected ...``.
-    OSError
-        The file cannot be read (missing, a folder, no permission): the caller's "no such file" is clearer.
-    """
-    path = Path(path)
-    return parse_json(path.read_bytes(), str(path), expected)
-
-
-def parse_json(raw: bytes, file: str, expected: str, *, error: ErrorFactory | None = None,
-               object_pairs_hook: Callable[[list[tuple[str, Any]]], Any] | None = None) -> Any:
-    """Parse the bytes of a JSON file; ``file`` and ``expected`` are for the message (see :func:`load_json`).
-
-    ``error(detail)`` makes the exception from the message after ``FILE: `` (default: a :class:`FileFormatError`
-    with the file in front). ``object_pairs_hook`` goes to :func:`json.loads`; what it raises passes through.
-    """
-    fail = error or _file_error(file)
-    text = _decode(raw, expected, fail)
-    try:
-        return json.loads(text, parse_constant=_reject_constant, object_pairs_hook=object_pairs_hook)
-    except json.JSONDecodeError as decode:
-        raise fail(f"not valid JSON ({decode.msg} at line {decode.lineno} column {decode.colno}); "
-                   f"expected {expected}") from None
-    except RecursionError:
-        raise fail(f"not valid JSON (nested too deeply to read); expected {expected}") from None
-    except _NotJSON as constant:  # NaN, Infinity
-        raise fail(f"not valid JSON ({constant}); expected {expected}") from None
-
-
-def parse_toml(raw: bytes, file: str, expected: str, *, error: ErrorFactory | None = None) -> Any:
-    """Parse the bytes of a TOML file, reporting a bad one as :func:`parse_json` does."""
-    fail = error or _file_error(file)
-    text = _decode(raw, expected, fail)
-    try:
-        return tomllib.loads(text)
-    except tomllib.TOMLDecodeError as decode:
-        # "Invalid value (at line 1, column 5)" -> "Invalid value at line 1 column 5", as JSON's messages read
-        where = re.fullmatch(r"(.*) \(at line (\d+), column (\d+)\)", str(decode))
-        detail = f"{where[1]} at line {where[2]} column {where[3]}" if where else str(decode)
-        raise fail(f"not valid TOML ({detail}); expected {expected}") from None
-
-
-def parse_data(raw: bytes, file: str, expected: str, *, error: ErrorFactory | None = None,
-               object_pairs_hook: Callable[[list[tuple[str, Any]]], Any] | None = None) -> Any:
-    """TOML for a file ending in ``.toml``, JSON otherwise (see :func:`parse_json`, :func:`parse_toml`)."""
-    if file.lower().endswith(".toml"):
-        return parse_toml(raw, file, expected, error=error)
-    return parse_json(raw, file, expected, error=error, object_pairs_hook=object_pairs_hook)
+__all__ = ["ErrorFactory", "load_json", "parse_data", "parse_json", "parse_toml"]
 
 
 def _file_error(file: str) -> ErrorFactory:
     return lambda detail: FileFormatError(f"{file}: {detail}")
 
 
-def _decode(raw: bytes, expected: str, fail: ErrorFactory) -> str:
-    try:
-        return raw.decode("utf-8")
-    except UnicodeDecodeError as decode:
-        raise fail(f"not UTF-8 text ({decode.reason} at byte {decode.start}); expected {expected}") from None
+def _in_design(reader):
+    """``reader`` from :mod:`common.datafiles`, raising :class:`FileFormatError` unless told otherwise."""
+
+    def read(raw, file, expected, *, error: ErrorFactory | None = None, **options) -> Any:
+        return reader(raw, file, expected, error=error or _file_error(file), **options)
+
+    read.__doc__ = reader.__doc__
+    read.__name__ = reader.__name__
+    return read
 
 
-class _NotJSON(ValueError):
-    """``NaN`` or ``Infinity``: Python's json reads them, JSON has no such number."""
+parse_json = _in_design(_common.parse_json)
+parse_toml = _in_design(_common.parse_toml)
+parse_data = _in_design(_common.parse_data)
 
 
-def _reject_constant(name: str) -> float:
-    raise _NotJSON(f"{name} is not a JSON number")
+def load_json(path: str | Path, expected: str) -> Any:
+    """The parsed content of a JSON file; a bad one is a :class:`FileFormatError` (see :mod:`common.datafiles`)."""
+    return _common.load_json(path, expected, error=_file_error(str(path)))
+
+

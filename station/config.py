@@ -33,22 +33,17 @@ from __future__ import annotations
 
 import os
 import re
-import sys
 from dataclasses import dataclass
 from pathlib import Path
 from types import MappingProxyType
 from typing import Any
 from urllib.parse import parse_qs, urlsplit
 
+from common.datafiles import parse_toml
 from design.contraption.fields import Checker, describe, join_path
 from station.devices import GRBL_KINDS, REGISTRY_KIND, DeviceEntry, default_devices
 from station.errors import ConfigError
 from station.paths import data_dir
-
-if sys.version_info >= (3, 11):
-    import tomllib
-else:  # pragma: no cover
-    import tomli as tomllib
 
 CONFIG_VARIABLE = "CHAOS_STATION_CONFIG"
 CONFIG_NAME = "station.toml"
@@ -180,10 +175,8 @@ def configured_devices() -> tuple[DeviceEntry, ...]:
 def devices_from_text(text: str, file: str = "<text>", folder: Path | None = None) -> tuple[DeviceEntry, ...]:
     """The devices of a config file's TOML ``text``; relative profile paths are taken from ``folder`` (default the
     working folder). Raises :class:`ConfigError` as :func:`load_config`."""
-    try:
-        data = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as error:
-        raise ConfigError(f"expected valid TOML: {error}", file) from None
+    data = parse_toml(text.encode("utf-8"), file, "a station config ([[devices]] tables)",
+                      error=lambda detail: ConfigError(detail, file))
     return devices_from_data(data, file, folder if folder is not None else Path.cwd())
 
 

@@ -1,6 +1,6 @@
 """One way to report a bad data file, on every command that reads one: exit 2 and one line on stderr,
 ``station: error: FILE: not valid JSON (WHAT at line L column C); expected ...`` (or ``not UTF-8 text``, ``not valid
-TOML``), the file named first. The one reader is :mod:`design.datafiles`."""
+TOML``), the file named first. The one reader is :mod:`common.datafiles`."""
 
 from __future__ import annotations
 
@@ -59,3 +59,28 @@ def test_a_malformed_toml_file_is_reported_the_same_way(tmp_path, capsys, comman
     (line,) = capsys.readouterr().err.splitlines()
     assert line.startswith(f"station: error: {path}: not valid TOML (")
     assert " at line 1 column " in line and "); expected " in line
+
+
+#: Commands that read a machine profile (TOML): ``drivers`` reads it through the same reader.
+PROFILE_COMMANDS = {
+    "plot --profile": ["plot", "spirograph", "--profile", "{file}", "--out", "{tmp}/x.gcode"],
+    "fabricate --profile": ["fabricate", "spirograph", "--profile", "{file}", "--scale", "8", "--out", "{tmp}/parts"],
+    "send --profile": ["send", "{tmp}/job.gcode", "--profile", "{file}"],
+}
+
+
+@pytest.mark.parametrize("command", sorted(PROFILE_COMMANDS))
+@pytest.mark.parametrize("raw, words", [
+    (b"[machine\nname = 1\n", "not valid TOML (Expected ']' at the end of a table declaration at line 1 column 9); "
+                              "expected a machine profile"),
+    (b'[machine]\nname = "caf\xe9"\n', "not UTF-8 text (invalid continuation byte at byte 21); expected "),
+])
+def test_a_malformed_profile_is_reported_the_same_way(tmp_path, capsys, command, raw, words):
+    path = tmp_path / "bad.toml"
+    path.write_bytes(raw)
+    (tmp_path / "job.gcode").write_text("G21\nG90\nG0 X1 Y1\n")
+    argv = [arg.format(file=path, tmp=tmp_path) for arg in PROFILE_COMMANDS[command]]
+    assert main(argv) == 2
+    captured = capsys.readouterr()
+    (line,) = captured.err.splitlines()
+    assert line.startswith(f"station: error: {path}: {words}"), line

@@ -33,7 +33,8 @@ BAD = [
     ("", "devices: missing; expected [[devices]] tables (an array of tables)"),
     ('colour = "red"\n' + PLOTTER, "colour: unknown field; expected one of: devices"),
     ("devices = [1]", "devices[0]: expected a table (mapping), got a number (1)"),
-    ("[[devices]\n", "expected valid TOML: Expected ']]' at the end of an array declaration (at line 1, column 10)"),
+    ("[[devices]\n", "not valid TOML (Expected ']]' at the end of an array declaration at line 1 column 10); "
+                      "expected a station config ([[devices]] tables)"),
     (PLOTTER + CAMERA + '[[devices]]\nname = "x"\nkind = "lazer"\nurl = "/dev/ttyUSB0"\n',
      "devices[2].kind: expected one of plotter, laser, camera, projector, got 'lazer'"),
     (PLOTTER + '[[devices]]\nname = "q"\nkind = 3\nurl = "x"\n',
@@ -84,7 +85,7 @@ def test_bad_config_is_one_line_naming_file_field_and_expected_value(text, messa
         devices_from_text(text, "station.toml", tmp_path)
     assert str(caught.value) == f"station.toml: {message}"
     assert caught.value.file == "station.toml"
-    assert caught.value.field == ("" if message.startswith("expected valid TOML") else message.split(": ")[0])
+    assert caught.value.field == ("" if message.startswith("not valid TOML") else message.split(": ")[0])
     assert isinstance(caught.value, StationError) and isinstance(caught.value, ValueError)
 
 

@@ -7,13 +7,13 @@ machines, ``[grbl]`` table included: :func:`builtin_grbl_settings` is the one so
 
 from __future__ import annotations
 
-import sys
 from collections.abc import Mapping
 from importlib import resources
 from pathlib import Path
 from types import MappingProxyType
 from typing import Any
 
+from common.datafiles import parse_toml
 from drivers.profiles.firmware import check_grbl_settings, parse_grbl_table
 from drivers.profiles.model import (
     LaserOperation,
@@ -26,11 +26,6 @@ from drivers.profiles.model import (
     ProfileError,
 )
 from drivers.profiles.units import parse_duration, parse_feed, parse_length
-
-if sys.version_info >= (3, 11):
-    import tomllib
-else:  # pragma: no cover
-    import tomli as tomllib
 
 __all__ = [
     "BUILTIN_PROFILES",
@@ -252,12 +247,12 @@ def _number(value: Any, where: str) -> float:
     return float(value)
 
 
-def profile_from_toml(text: str, source: str = "<toml>") -> MachineProfile:
-    """Parse TOML text into a profile."""
-    try:
-        data = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as error:
-        raise ProfileError(f"{source}: not valid TOML: {error}") from None
+def profile_from_toml(text: str | bytes, source: str = "<toml>") -> MachineProfile:
+    """Parse TOML text (or a file's bytes) into a profile; a bad file is reported as every data file is
+    (:mod:`common.datafiles`): ``FILE: not valid TOML (... at line L column C); expected a machine profile ...``."""
+    raw = text.encode("utf-8") if isinstance(text, str) else text
+    data = parse_toml(raw, source, "a machine profile (see drivers/profiles)",
+                      error=lambda detail: ProfileError(f"{source}: {detail}"))
     return profile_from_dict(data, source)
 
 
@@ -268,13 +263,13 @@ def load_profile(path: str | Path) -> MachineProfile:
         return builtin_profile(str(path))
     path = Path(path)
     try:
-        text = path.read_text(encoding="utf-8")
+        raw = path.read_bytes()
     except FileNotFoundError:
         raise ProfileError(f"profile {str(path)!r}: no such file (built-in profiles: "
                            f"{', '.join(builtin_profile_names())})") from None
-    except (IsADirectoryError, PermissionError, UnicodeDecodeError) as error:
+    except (IsADirectoryError, PermissionError) as error:
         raise ProfileError(f"profile {str(path)!r}: cannot read: {error}") from None
-    return profile_from_toml(text, str(path))
+    return profile_from_toml(raw, str(path))
 
 
 def _read_builtins() -> Mapping[str, str]:
