@@ -135,6 +135,7 @@ class SimulatedGrbl(Wire, SystemCommands, GcodeInterpreter, Planner):
         self._gcode_lines = 0
         self._host_wrote = False  # line bytes written since the host last read (virtual clock: its turn is over)
         self._host_active = time.monotonic()  # wall time of the host's last read or line write
+        self._wire_event_next = False  # the next event is a byte on the wire (see _next_event)
         # EEPROM: work coordinate systems G54..G59 (machine mm), G28/G30 positions
         self.coords = {n: np.zeros(3) for n in range(54, 60)}
         if int(self.settings[22]):
@@ -225,10 +226,9 @@ class SimulatedGrbl(Wire, SystemCommands, GcodeInterpreter, Planner):
                 self.clock.wait(self._cond, now, self._next_event(now), self._may_jump)
 
     def _next_event(self, now: float) -> float | None:
-        """When the machine next has something to do without a new host byte (None: nothing)."""
+        """When the machine next has something to do without a new host byte (None: nothing). Sets
+        ``_wire_event_next`` when that is a byte on the wire (virtual clock)."""
         times = []
-        if self._in_wire:
-            times.append(self._in_wire[0][0])
         block = self._current_block()
         if block is not None and not self._hold:
             times.append(block.t0 + block.duration)
@@ -238,17 +238,27 @@ class SimulatedGrbl(Wire, SystemCommands, GcodeInterpreter, Planner):
             times.append(self._wait[1])
         if self._state == "Home":
             times.append(self._home_until)
+        wire = []
+        if self._in_wire:
+            wire.append(self._in_wire[0][0])
         if self.clock.virtual:
-            delivery = self._next_delivery()  # the host's reads wait for it, and the time only moves here
-            if delivery is not None and delivery > now:
-                times.append(delivery)
+            delivery = self._next_delivery(now)  # the host's reads wait for it, and the time only moves here
+            if delivery is not None:
+                wire.append(delivery)
+        self._wire_event_next = bool(wire) and (not times or min(wire) <= min(times))
+        times.extend(wire)
         return min(times) if times else None
 
     def _may_jump(self) -> bool:
-        """Virtual clock: whether time may skip to the next event now. At once when no host byte could change what
-        happens first: a line is waiting (for planner space, a sync, a dwell), the planner is full, homing runs, a
-        hold decelerates; otherwise once the host has had its turn."""
-        if self._gen is not None or self._planner_full() or self._state == "Home" or self._decel is not None:
+        """Virtual clock: whether time may skip to the next event now.
+
+        At once when the event is a byte already on the wire (its time is fixed), or when no host byte could change
+        what happens first: the planner is full (a line waiting for space, or none), homing runs, a hold
+        decelerates. Otherwise once the host has had its turn: while motion runs with room in the planner, or a
+        line waits for the planner to empty or for a dwell, the host may be about to send lines, and what it has
+        sent by the time motion starts decides the planner's look-ahead.
+        """
+        if self._wire_event_next or self._planner_full() or self._state == "Home" or self._decel is not None:
             return True
         return self._host_had_its_turn()
 

@@ -174,10 +174,10 @@ class Wire:
             if self._out_wire and self._out_wire[0][0] <= now:
                 self._out_cond.notify_all()
 
-    def _next_delivery(self) -> float | None:
-        """When the next byte still on the wire out reaches the host (None: none)."""
+    def _next_delivery(self, now: float) -> float | None:
+        """When the next bytes still on their way out reach the host, after ``now`` (None: none)."""
         with self._out_cond:
-            return self._out_wire[0][0] if self._out_wire else None
+            return next((deliver for deliver, _ in self._out_wire if deliver > now), None)
 
     def _host_had_its_turn(self) -> bool:
         """Virtual clock: whether the host has acted on everything delivered to it, so that simulated time may go on.
