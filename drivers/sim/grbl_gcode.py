@@ -15,15 +15,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from drivers.gcode_words import (
-    PLANE_AXES,
-    WordSyntaxError,
-    arc_chords,
-    arc_sweep,
-    iter_words,
-    radius_arc_centre,
-    strip_comments,
-)
+from drivers import gcode_words
 from drivers.sim.grbl_settings import Halt
 
 
@@ -49,11 +41,11 @@ def grbl_words(text: str) -> list[tuple[str, float]]:
     """
     words = []
     try:
-        for letter, value in iter_words(text):
+        for letter, value in gcode_words.iter_words(text):
             if letter not in _SUPPORTED_LETTERS:
                 raise GrblError(20)
             words.append((letter, value))
-    except WordSyntaxError as error:
+    except gcode_words.WordSyntaxError as error:
         raise GrblError(1 if error.expected == "letter" else 2) from None
     return words
 
@@ -100,7 +92,7 @@ def _classify(words: list[tuple[str, float]]) -> _Classified:
 
 def clean_block(raw: str) -> str:
     """The block GRBL keeps of a line: no comments, no whitespace or control characters, upper case."""
-    return "".join(ch for ch in strip_comments(raw) if ch > " " and ch != "\x7f").upper()
+    return "".join(ch for ch in gcode_words.strip_comments(raw) if ch > " " and ch != "\x7f").upper()
 
 
 def axis_target(base: np.ndarray, axis_words: dict[int, float], unit: float, absolute: bool, wco: np.ndarray,
@@ -362,14 +354,14 @@ class GcodeInterpreter:
     def _arc(self, target: np.ndarray, clockwise: bool, values: dict, unit: float) -> np.ndarray | None:
         """Chord end points of an arc as GRBL's ``mc_arc`` divides it (``$12``), None for an invalid target
         (error:33)."""
-        a, b = PLANE_AXES[self.modal["plane"]]
+        a, b = gcode_words.PLANE_AXES[self.modal["plane"]]
         start = self._gc_pos
         if "R" in values:
             r = values["R"] * unit
             d = math.hypot(target[a] - start[a], target[b] - start[b])
             if d == 0 or 4 * r * r - d * d < -1e-9:
                 return None
-            centre = radius_arc_centre(start, target, r, clockwise, (a, b))
+            centre = gcode_words.radius_arc_centre(start, target, r, clockwise, (a, b))
         else:
             names = "IJK"
             centre = (start[a] + values.get(names[a], 0.0) * unit, start[b] + values.get(names[b], 0.0) * unit)
@@ -377,7 +369,7 @@ class GcodeInterpreter:
         r1 = math.hypot(target[a] - centre[0], target[b] - centre[1])
         if abs(r0 - r1) > 0.5 and abs(r0 - r1) > 0.001 * r0:  # GRBL error:33 (invalid target)
             return None
-        t0, sweep = arc_sweep(start, target, centre, clockwise, (a, b), full_turn_below=1e-9)
+        t0, sweep = gcode_words.arc_sweep(start, target, centre, clockwise, (a, b), full_turn_below=1e-9)
         tol = self.settings[12]
         n = max(1, int(math.floor(abs(0.5 * sweep * r0) / math.sqrt(max(tol * (2 * r0 - tol), 1e-12)))))
-        return arc_chords(start, target, centre, r0, t0, sweep, (a, b), n)
+        return gcode_words.arc_chords(start, target, centre, r0, t0, sweep, (a, b), n)

@@ -37,6 +37,16 @@ def motion_texts(lines: list[str]) -> list[str]:
     return [clean_line(x) for x in lines if clean_line(x).startswith(("G0", "G1"))]
 
 
+def wait_until(condition, timeout: float) -> bool:
+    """Poll ``condition`` every millisecond (wall clock) until it holds or ``timeout`` s have passed."""
+    deadline = time.monotonic() + timeout
+    while not condition():
+        if time.monotonic() > deadline:
+            return False
+        time.sleep(0.001)
+    return True
+
+
 def job_span(record: SimRecord) -> float:
     """From the start of the first block to the end of the last (the machine's clock)."""
     start = min(s.t for s in record.samples if s.state == "Run")
@@ -126,9 +136,7 @@ def test_hold_and_resume_on_the_virtual_clock(make_connection):
     conn = make_connection(sim_url("laser", time_scale=1, clock="virtual"))
     runner = JobRunner(conn, Job("long", long_job, laser=True))
     runner.start()
-    deadline = time.monotonic() + 10
-    while runner.progress.lines_acked < 10 and time.monotonic() < deadline:
-        time.sleep(0.001)
+    assert wait_until(lambda: runner.progress.lines_acked >= 10, 10)
     runner.hold()
     assert conn.wait_for(lambda: conn.status.label == "Hold:0", 5)
     machine = conn.port.machine
@@ -153,10 +161,7 @@ def test_hold_resume_and_reset_byte_by_byte_on_the_virtual_clock():
         port.write(b"!")  # ... held as soon as it has started
         assert port.read_until(b"ok\r\n").endswith(b"ok\r\n")
         machine = port.machine
-        deadline = time.monotonic() + 5
-        while machine.state != "Hold:0":
-            assert time.monotonic() < deadline, machine.state
-            time.sleep(0.01)
+        assert wait_until(lambda: machine.state == "Hold:0", 5), machine.state
         time.sleep(0.1)  # the host does nothing: simulated time does not run on while held
         port.write(b"?")
         report = port.read_until(b">\r\n").decode()
@@ -164,10 +169,7 @@ def test_hold_resume_and_reset_byte_by_byte_on_the_virtual_clock():
         x = float(report.split("MPos:")[1].split(",")[0])
         assert -0.5 < x < 0.0  # stopped within the deceleration distance of machine 0, where it started
         port.write(b"~")
-        deadline = time.monotonic() + 5
-        while machine.state != "Idle":
-            assert time.monotonic() < deadline, machine.state
-            time.sleep(0.01)
+        assert wait_until(lambda: machine.state == "Idle", 5), machine.state
         assert [b.text for b in machine.snapshot().executed] == ["G1X100F600"]
         # a reset in motion: ALARM:3, then the banner; the position where it stopped is kept
         port.write(b"G1 X200 F600\n")
