@@ -78,6 +78,10 @@ class VirtualClock:
     patience : float
         Wall seconds after which simulated time goes on even though the host has not read what the machine sent
         (a host that never reads).
+    pace : float, optional
+        At most this many simulated seconds per wall second while the machine is busy (None: no limit). For a test
+        that must act while a job runs (press abort mid-job): the timing stays the virtual clock's, only the jumps
+        wait for the wall clock. The limit counts from when the machine last had nothing to do.
 
     Notes
     -----
@@ -87,12 +91,17 @@ class VirtualClock:
 
     virtual = True
 
-    def __init__(self, start: float = 0.0, quiet: float = 0.02, patience: float = 0.25) -> None:
+    def __init__(self, start: float = 0.0, quiet: float = 0.02, patience: float = 0.25,
+                 pace: float | None = None) -> None:
         if not 0 < quiet <= patience:
             raise SimConfigError(f"VirtualClock needs 0 < quiet <= patience, got quiet={quiet}, patience={patience}")
+        if pace is not None and not pace > 0:
+            raise SimConfigError(f"VirtualClock pace must be positive (simulated seconds per wall second), got {pace}")
         self._now = float(start)
         self.quiet = quiet
         self.patience = patience
+        self.pace = pace
+        self._anchor = (time.monotonic(), self._now)  # (wall, simulated) when the machine was last idle
         self.jumps = 0
 
     def now(self) -> float:
@@ -101,22 +110,36 @@ class VirtualClock:
     def wait(self, condition: threading.Condition, now: float, event: float | None,
              may_jump: Callable[[], bool]) -> None:
         if event is None:
+            self._anchor = (time.monotonic(), self._now)
             condition.wait(_IDLE_WAIT)  # nothing will happen until the host writes
             return
         if event <= self._now:
             condition.wait(0.001)  # due already (work left over from a bounded parser turn): look again
             return
         if may_jump():
+            reachable = self._reachable()
+            if reachable < event:
+                # paced: run on as far as the pace allows (positions in status reports move), then look again
+                self._now = max(self._now, reachable)
+                condition.wait(min((event - self._now) / self.pace, self.quiet))
+                return
             self._now = event
             self.jumps += 1
             return
         condition.wait(self.quiet)  # the host's turn: a write wakes the machine at once
+
+    def _reachable(self) -> float:
+        """The latest time ``pace`` lets the clock reach now (infinite without a pace)."""
+        if self.pace is None:
+            return float("inf")
+        wall, simulated = self._anchor
+        return simulated + (time.monotonic() - wall) * self.pace
 
 
 #: The clocks by the name the ``clock=`` URL option takes.
 CLOCKS: dict[str, type] = {"wall": WallClock, "virtual": VirtualClock}
 
 
-def clock_named(name: str) -> Clock:
-    """A new clock of kind ``name`` (``wall`` or ``virtual``); KeyError for another name."""
-    return CLOCKS[name]()
+def clock_named(name: str, pace: float | None = None) -> Clock:
+    """A new clock of kind ``name`` (``wall`` or ``virtual``, with its ``pace``); KeyError for another name."""
+    return VirtualClock(pace=pace) if name == "virtual" else CLOCKS[name]()

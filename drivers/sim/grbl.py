@@ -8,6 +8,10 @@ What it models
 - The 15-block planner (``Bf`` first field) and motion that takes time: each block runs at its feed (``G0`` at
   ``$110``-``$112``), limited by acceleration (``$120``-``$122``) so that the machine can always stop within the
   planned blocks, as GRBL's look-ahead does; all motion and dwell times are multiplied by ``time_scale``.
+- Time from an injectable clock (:mod:`drivers.sim.clock`): the wall clock, or a virtual one on which simulated time
+  jumps ahead whenever the machine would wait for motion, a dwell or homing to finish and the host has had its turn,
+  so that a job runs as fast as the host streams it, with the same simulated timing. The host (the driver's status
+  poll, watchdogs, streaming) stays on the wall clock and works unchanged.
 - Real-time commands ``?`` ``!`` ``~`` 0x18 (soft reset) 0x85 (jog cancel) and overrides, handled on arrival.
 - ``$$``, ``$x=val``, ``$I`` (``[OPT:V,15,128]``), ``$#``, ``$G``, ``$N``, ``$C`` (check mode), ``$X``, ``$H``,
   ``$J=``, ``$RST=``; G-code errors with GRBL's numbers (error:9 locked, error:20 unsupported, error:22 no feed ...).
@@ -38,9 +42,11 @@ G-code line is lost), ``locked`` (power up in alarm), ``homing`` (``0``: ``$22=0
 ``travel=400x400``), ``force_origin`` (``1``: built with HOMING_FORCE_SET_ORIGIN), ``record`` (a file the machine
 writes its record to as JSON when its port closes: what another process, e.g. a test of ``station send``, can
 inspect), ``clock`` (``wall``, the default, or ``virtual``: simulated time skips the machine's waits; the record's
-times are then simulated seconds from 0, and ``time_scale`` still scales them), and ``s<N>=<value>`` to override
-setting ``$N`` (applied last; ``s20=1`` with homing off is refused, as GRBL answers ``$20=1`` with error:10). An
-unknown option or a bad value is a :class:`drivers.errors.SimConfigError` (also a ``ValueError``) naming it.
+times are then simulated seconds from 0, and ``time_scale`` still scales them), ``pace`` (with ``clock=virtual``:
+at most this many simulated seconds per wall second, for a test that acts while a job runs), and ``s<N>=<value>``
+to override setting ``$N`` (applied last; ``s20=1`` with homing off is refused, as GRBL answers ``$20=1`` with
+error:10). An unknown option or a bad value is a :class:`drivers.errors.SimConfigError` (also a ``ValueError``)
+naming it.
 
 From Python: ``SimulatedGrbl(SimConfig(profile="laser"), clock=VirtualClock())``.
 
@@ -117,7 +123,7 @@ class SimulatedGrbl(Wire, SystemCommands, GcodeInterpreter, Planner):
 
     def __init__(self, config: SimConfig, baudrate: int = 115200, clock: Clock | None = None) -> None:
         self.config = config
-        self.clock = clock if clock is not None else clock_named(config.clock)
+        self.clock = clock if clock is not None else clock_named(config.clock, config.pace or None)
         self.rng = random.Random(config.seed)
         self.byte_time = 10.0 / baudrate if config.wire else 0.0
         self.settings = config.machine_settings()

@@ -54,7 +54,7 @@ def _flag(value: str) -> bool:
 #: The URL's options by name: what each takes (for messages) and how its text becomes a value.
 _OPTIONS: dict[str, tuple[str, object]] = {
     **{key: ("a number", float) for key in ("time_scale", "latency", "drop", "corrupt", "stray", "delay",
-                                            "delay_max")},
+                                            "delay_max", "pace")},
     **{key: ("a whole number", int) for key in ("seed", "disconnect_at", "drop_reply_at")},
     **{key: ("0 or 1", _flag) for key in ("wire", "locked", "homing", "force_origin")},
     **{key: ("text", str) for key in ("profile", "name", "record")},
@@ -90,6 +90,7 @@ class SimConfig:
     force_origin: bool = False  # built with HOMING_FORCE_SET_ORIGIN ('Z' in [OPT:])
     record: str = ""  # a JSON file the record is written to when the machine stops
     clock: str = "wall"
+    pace: float = 0.0  # virtual clock: at most this many simulated seconds per wall second (0: no limit)
     settings: dict[int, float] = field(default_factory=dict)
 
     @classmethod
@@ -120,6 +121,9 @@ class SimConfig:
             raise SimConfigError(f"time_scale must be positive, got {config.time_scale}")
         if config.clock not in CLOCKS:
             raise SimConfigError(f"sim option clock: expected {_OPTIONS['clock'][0]}, got {config.clock!r}")
+        if config.pace < 0 or (config.pace and config.clock != "virtual"):
+            raise SimConfigError(f"sim option pace: expected a positive number with clock=virtual, got "
+                                 f"pace={config.pace:g} with clock={config.clock}")
         config.machine_settings()  # a contradiction in the URL is refused when the port opens
         return config
 

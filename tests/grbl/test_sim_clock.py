@@ -181,6 +181,27 @@ def test_hold_resume_and_reset_byte_by_byte_on_the_virtual_clock():
         port.close()
 
 
+def test_a_paced_virtual_clock_runs_at_most_pace_simulated_seconds_per_wall_second():
+    port = serial.serial_for_url("sim://grbl?profile=laser&clock=virtual&pace=20", timeout=1.0)
+    try:
+        assert port.read_until(BANNER).endswith(BANNER)
+        machine = port.machine
+        started = time.monotonic()
+        port.write(b"G1 X10 F600\n")  # machine 0 to -390: 39 s of motion, about 2 s of wall time at pace 20
+        assert port.read_until(b"ok\r\n").endswith(b"ok\r\n")
+        assert wait_until(lambda: machine.clock.now() > 5.0, 5)
+        assert machine.state == "Run"  # under way: a test can act while the job runs
+        assert wait_until(lambda: machine.state == "Idle", 10)
+        wall = time.monotonic() - started
+        assert 39.0 / 20 - 0.05 <= wall < 39.0 / 20 + 2.0
+        record = machine.snapshot()
+        (block,) = record.executed
+        assert block.text == "G1X10F600"
+        assert block.t_end - min(s.t for s in record.samples if s.state == "Run") == pytest.approx(39.0, abs=1e-9)
+    finally:
+        port.close()
+
+
 def test_a_virtual_clock_from_python():
     clock = VirtualClock()
     machine = SimulatedGrbl(SimConfig(profile="plotter", wire=False), clock=clock)
@@ -217,5 +238,7 @@ def test_clock_option_and_bad_options_name_what_they_take():
         SimConfig.from_query({"bogus": "1"})
     error = pytest.raises(ValueError, SimConfig.from_query, {"s20": "x"}).value  # callers catching ValueError
     assert isinstance(error, DriverError) and "sim option s20: expected a number" in str(error)
+    with pytest.raises(SimConfigError, match="sim option pace: expected a positive number with clock=virtual"):
+        SimConfig.from_query({"pace": "3"})
     with pytest.raises(serial.SerialException, match="sim option clock: expected wall or virtual"):
         serial.serial_for_url("sim://grbl?clock=slow")
