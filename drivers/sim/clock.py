@@ -11,11 +11,17 @@ that wait passes:
 
 "The host has had its turn" is the heart of the virtual clock. The host (a streamer, a status poll) runs on the
 wall clock in other threads; it cannot be told to wait for simulated time. So the machine jumps at once only when
-no host byte can change what happens before the event: its parser is blocked (planner full, a sync, a dwell,
-homing) or a hold is decelerating. Otherwise, while motion runs and the parser waits for a line, the jump waits
+no host byte can change what happens first: the event is a byte already on the wire (its time is fixed), the
+planner is full, homing runs or a hold decelerates. Otherwise (motion runs with room in the planner, or a line
+waits for the planner to empty or for a dwell: what the host sends meanwhile decides the look-ahead) the jump waits
 until the host has read everything delivered to it and written since, or has done nothing for ``quiet`` wall
-seconds (the end of a stream, a host that only polls status). The wait for *bytes* is always on the wall clock,
-on the machine's condition, so a host write wakes the machine at once: input never waits for simulated time.
+seconds (the end of a stream, a host that only polls status). The wait for *bytes* is always on the wall clock, on
+the machine's condition, so a host write wakes the machine at once: input never waits for simulated time.
+
+What comes of it: the blocks a job executes and their simulated times do not depend on the host's speed (unless
+it stalls for longer than ``quiet`` mid-stream); with ``wire=0``, or a host that sends line by line, the whole
+record is the same run after run. A ``pace`` makes a virtual clock run no faster than that many simulated seconds
+per wall second, for tests that must act while a job runs.
 """
 
 from __future__ import annotations
@@ -141,5 +147,13 @@ CLOCKS: dict[str, type] = {"wall": WallClock, "virtual": VirtualClock}
 
 
 def clock_named(name: str, pace: float | None = None) -> Clock:
-    """A new clock of kind ``name`` (``wall`` or ``virtual``, with its ``pace``); KeyError for another name."""
+    """A new clock of kind ``name`` (``wall`` or ``virtual``, with its ``pace``).
+
+    Raises
+    ------
+    SimConfigError
+        For another name.
+    """
+    if name not in CLOCKS:
+        raise SimConfigError(f"sim option clock: expected {' or '.join(CLOCKS)}, got {name!r}")
     return VirtualClock(pace=pace) if name == "virtual" else CLOCKS[name]()
