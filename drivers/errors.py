@@ -21,3 +21,8 @@ class DeviceStateError(DriverError):
 
 class JobRefused(DriverError):
     """A job was refused before any motion (outside the work area, unsafe laser settings, ...)."""
+
+
+class SimConfigError(DriverError, ValueError):
+    """A simulated device's options are wrong (an unknown ``sim://`` query option, a bad value); the message names
+    the option and what it takes. Also a :class:`ValueError`, which callers of the option parser caught before."""

@@ -18,7 +18,6 @@ line N (modal state) and by tests to read a job back.
 from __future__ import annotations
 
 import math
-import re
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field, replace
 from typing import TextIO
@@ -26,6 +25,15 @@ from typing import TextIO
 import numpy as np
 
 from drivers.errors import DriverError
+from drivers.gcode_words import (
+    PLANE_AXES,
+    WordSyntaxError,
+    arc_chords,
+    arc_sweep,
+    iter_words,
+    radius_arc_centre,
+    strip_comments,
+)
 
 __all__ = [
     "GcodeError",
@@ -46,16 +54,12 @@ class GcodeError(DriverError, ValueError):
     """A G-code line cannot be parsed; the message quotes the line and its number."""
 
 
-_COMMENT = re.compile(r"\([^)]*\)|;.*$")
-_WORD = re.compile(r"([A-Z])([-+]?(?:\d+\.?\d*|\.\d+))")
-
-
 def clean_line(line: str) -> str:
     """The block GRBL sees: comments ``( )`` and ``;`` removed, whitespace removed, upper case.
 
     ``$`` system commands keep their case-insensitive text but lose whitespace too, as GRBL does.
     """
-    return "".join(_COMMENT.sub("", line).split()).upper()
+    return "".join(strip_comments(line).split()).upper()
 
 
 def tokenize(block: str) -> list[tuple[str, float]]:
@@ -66,15 +70,11 @@ def tokenize(block: str) -> list[tuple[str, float]]:
     GcodeError
         If the block has text that is not a letter followed by a number.
     """
-    words: list[tuple[str, float]] = []
-    position = 0
-    while position < len(block):
-        match = _WORD.match(block, position)
-        if match is None:
-            raise GcodeError(f"cannot parse {block!r} at column {position + 1}: expected a letter and a number")
-        words.append((match.group(1), float(match.group(2))))
-        position = match.end()
-    return words
+    try:
+        return list(iter_words(block))
+    except WordSyntaxError as error:
+        raise GcodeError(f"cannot parse {block!r} at column {error.column + 1}: expected a letter and a number") \
+            from None
 
 
 def _fmt(value: float, precision: int = 3) -> str:
@@ -330,27 +330,16 @@ class Toolpath:
 
 
 def _arc_points(start, end, centre, clockwise: bool, axes=(0, 1), max_chord_error: float = 0.01):
+    """Chord end points of an arc, each chord within ``max_chord_error`` (mm) of the circle."""
     a, b = axes
     r = math.hypot(start[a] - centre[0], start[b] - centre[1])
-    t0 = math.atan2(start[b] - centre[1], start[a] - centre[0])
-    t1 = math.atan2(end[b] - centre[1], end[a] - centre[0])
-    sweep = t1 - t0
-    if clockwise and sweep >= -1e-12:
-        sweep -= 2 * math.pi
-    elif not clockwise and sweep <= 1e-12:
-        sweep += 2 * math.pi
+    t0, sweep = arc_sweep(start, end, centre, clockwise, axes, full_turn_below=1e-12)
     if r <= max_chord_error:
         n = 1
     else:
         step = 2 * math.acos(max(-1.0, 1 - max_chord_error / r))
         n = max(1, int(math.ceil(abs(sweep) / max(step, 1e-6))))
-    t = t0 + sweep * np.arange(1, n + 1) / n
-    pts = np.repeat(np.asarray(start, float)[None, :], n, axis=0)
-    pts[:, a] = centre[0] + r * np.cos(t)
-    pts[:, b] = centre[1] + r * np.sin(t)
-    pts[:, 3 - a - b] = start[3 - a - b] + (end[3 - a - b] - start[3 - a - b]) * np.arange(1, n + 1) / n
-    pts[-1] = end
-    return pts
+    return arc_chords(start, end, centre, r, t0, sweep, axes, n)
 
 
 def interpret(
@@ -455,18 +444,13 @@ def interpret(
         if state.motion in (0, 1):
             pieces = target[None, :]
         else:
-            a, b = {17: (0, 1), 18: (2, 0), 19: (1, 2)}[state.plane]
+            a, b = PLANE_AXES[state.plane]
             if radius is not None:
                 r = radius * unit
-                dx, dy = target[a] - state.position[a], target[b] - state.position[b]
-                d = math.hypot(dx, dy)
+                d = math.hypot(target[a] - state.position[a], target[b] - state.position[b])
                 if d == 0 or d > 2 * abs(r) + 1e-6:
                     raise GcodeError(f"line {index + 1}: arc radius {radius} cannot reach the end point")
-                h = math.sqrt(max(r * r - d * d / 4, 0.0))
-                sign = -1 if (state.motion == 2) ^ (r < 0) else 1
-                cx = state.position[a] + dx / 2 - sign * h * dy / d
-                cy = state.position[b] + dy / 2 + sign * h * dx / d
-                centre = (cx, cy)
+                centre = radius_arc_centre(state.position, target, r, state.motion == 2, (a, b))
             else:
                 names = "IJK"
                 centre = (

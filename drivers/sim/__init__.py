@@ -3,7 +3,7 @@
 ``sim://grbl?profile=plotter`` (or ``laser``) is a simulated GRBL 1.1 controller behind a pyserial port object:
 :func:`register` adds this package to ``serial.protocol_handler_packages`` so that
 ``serial.serial_for_url("sim://grbl?...")`` finds :mod:`drivers.sim.protocol_sim`. See
-:mod:`drivers.sim.grbl` for the query parameters (time scale, faults, settings).
+:mod:`drivers.sim.grbl` for the query parameters (time scale, ``clock=virtual``, faults, settings).
 """
 
 from __future__ import annotations

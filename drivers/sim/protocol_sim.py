@@ -12,6 +12,7 @@ import urllib.parse
 
 from serial.serialutil import PortNotOpenError, SerialBase, SerialException, to_bytes
 
+from drivers.errors import SimConfigError
 from drivers.sim.grbl import SimConfig, SimulatedGrbl
 
 _SHARED: dict[str, SimulatedGrbl] = {}
@@ -55,7 +56,7 @@ class Serial(SerialBase):
         query = {k: v[-1] for k, v in urllib.parse.parse_qs(parts.query, keep_blank_values=True).items()}
         try:
             config = SimConfig.from_query(query)
-        except ValueError as error:
+        except SimConfigError as error:
             raise SerialException(f"{self._port!r}: {error}") from None
         if config.name:
             self._shared = True
@@ -67,7 +68,7 @@ class Serial(SerialBase):
                     machine = SimulatedGrbl(config, self._baudrate)
                     _SHARED[config.name] = machine
                 else:
-                    machine._emit_banner()  # opening the port resets an Arduino (DTR): it greets again
+                    machine.greet()  # opening the port resets an Arduino (DTR): it greets again
             self.machine = machine
         else:
             self.machine = SimulatedGrbl(config, self._baudrate)
