@@ -1,7 +1,7 @@
 """The simulated GRBL's EEPROM and its ``$`` system commands: defaults, the station's machines, the URL's options.
 
-:data:`SIM_PROFILES` is the one place the simulated machines' settings are written down (a plain dict, so that it can
-be sourced from elsewhere in one line). :class:`SimConfig` reads a ``sim://grbl?...`` query (see
+:data:`SIM_PROFILES` is read from the built-in machine profiles' ``[grbl]`` tables: every machine setting is written
+down once, in ``drivers/profiles/builtin/*.toml``. :class:`SimConfig` reads a ``sim://grbl?...`` query (see
 :mod:`drivers.sim.grbl` for the options); :class:`SystemCommands` is the part of the machine that answers ``$$``,
 ``$x=val``, ``$I``, ``$#``, ``$G``, ``$N``, ``$C``, ``$X``, ``$H``, ``$J=`` (handed to the G-code interpreter) and
 ``$RST=``.
@@ -16,6 +16,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from drivers.errors import SimConfigError
+from drivers.profiles import builtin_grbl_settings, builtin_profile_names
 from drivers.sim.clock import CLOCKS
 
 VERSION = "1.1h"
@@ -34,17 +35,10 @@ DEFAULT_SETTINGS: dict[int, float] = {
 INTEGER_SETTINGS = {0, 1, 2, 3, 4, 5, 6, 10, 13, 20, 21, 22, 23, 26, 32}
 ZERO_DECIMAL_SETTINGS = {30, 31}
 
-#: The station's two simulated machines (their EEPROM as shipped by the station).
-SIM_PROFILES: dict[str, dict[int, float]] = {
-    "plotter": {
-        20: 1, 22: 1, 23: 0, 30: 1000, 32: 0, 100: 80.0, 101: 80.0, 102: 400.0, 110: 8000.0, 111: 8000.0,
-        112: 1000.0, 120: 800.0, 121: 800.0, 122: 200.0, 130: 420.0, 131: 297.0, 132: 40.0,
-    },
-    "laser": {
-        20: 1, 22: 1, 23: 0, 30: 1000, 32: 1, 100: 80.0, 101: 80.0, 102: 400.0, 110: 6000.0, 111: 6000.0,
-        112: 1000.0, 120: 1000.0, 121: 1000.0, 122: 200.0, 130: 400.0, 131: 400.0, 132: 20.0,
-    },
-}
+#: The station's simulated machines by built-in profile name: their EEPROM is the profile's ``[grbl]`` table (with
+#: ``$130``/``$131`` from its work area and ``$30``/``$32`` from its ``[laser]`` table), the one place each machine
+#: setting is written down (``drivers/profiles/builtin/*.toml``).
+SIM_PROFILES: dict[str, dict[int, float]] = {name: builtin_grbl_settings(name) for name in builtin_profile_names()}
 
 
 def _flag(value: str) -> bool:
