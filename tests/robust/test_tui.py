@@ -5,11 +5,12 @@ from __future__ import annotations
 import asyncio
 
 import pytest
-from textual.widgets import Button, DataTable, Input, ProgressBar, Select, Static
+from textual.widgets import Button, DataTable, Input, Select, Static
 
 from design.robust import PSPSettings
 from station.tui.app import StationApp
 from station.tui.screens.robust import RobustScreen, scenario_choices
+from station.tui.widgets.progress import ProgressPanel
 
 TINY = PSPSettings(n_initial=24, n_successes=10, max_exploration_steps=2, max_active_steps=1)
 
@@ -61,7 +62,9 @@ async def test_optimize_shows_progress_probabilities_and_layouts(tmp_path):
         assert events.row_count == 6  # five events and the product
         layout = screen.query_one("#layout", DataTable)
         assert [str(layout.get_row(k)[0]) for k in layout.rows] == ["track.x", "track.z", "track.roll"]
-        assert screen.query_one("#bar", ProgressBar).progress == screen.result.n_simulations
+        panel = screen.query_one("#progress-panel", ProgressPanel)
+        assert panel.bar.progress == screen.result.n_simulations and panel.stage == "done"
+        assert f"simulations {screen.result.n_simulations}/{screen.result.budget}" in panel.message
         status = str(screen.query_one("#status", Static).render())
         assert "PSP" in status and f"kept {screen.result.kept_candidate()}" in status
         assert screen.query_one("#picture").image is not None
