@@ -126,7 +126,7 @@ class RobustScreen(Screen):
                 yield Static("", id="status")
             with Vertical(id="results"):
                 yield ProgressPanel("Pick a scenario and press o (Enter in the budget or seed field).",
-                                    describe=describe_progress, id="progress-panel")
+                                    describe=describe_progress, total=DEFAULT_BUDGET, id="progress-panel")
                 with Horizontal(id="tables"):
                     yield DataTable(id="events", cursor_type="row", zebra_stripes=True)
                     yield DataTable(id="layout", cursor_type="row", zebra_stripes=True)

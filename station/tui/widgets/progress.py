@@ -53,6 +53,8 @@ class ProgressPanel(Vertical):
     describe : callable, optional
         ``describe(progress) -> str | Text``, the message line of a progress; default: its ``message``. A robust run
         adds its CV accuracy and best PSP, for example.
+    total : float or None
+        The bar's total before any progress (an empty bar; None would animate an indeterminate one while idle).
     """
 
     DEFAULT_CSS = """
@@ -62,13 +64,13 @@ class ProgressPanel(Vertical):
     ProgressPanel ProgressBar Bar { width: 1fr; }
     """
 
-    def __init__(self, idle: str = "", describe: Callable[[Progress], str | Text] | None = None, *,
-                 id: str | None = None, classes: str | None = None) -> None:
+    def __init__(self, idle: str = "", describe: Callable[[Progress], str | Text] | None = None,
+                 total: float | None = 100, *, id: str | None = None, classes: str | None = None) -> None:
         super().__init__(id=id, classes=classes)
         self._idle = idle
         self._describe = describe or (lambda progress: progress.message)
         self.stage = ""
-        self.bar = ProgressBar(total=None, show_eta=False)
+        self.bar = ProgressBar(total=total, show_eta=False)
         self._stage_line = Static("", classes="progress-stage")
         self._message_line = Static(Text(idle), classes="progress-message")
 
