@@ -239,14 +239,23 @@ def add_sampling(parser, around: str) -> None:
                         help=f"layouts simulated around {around} (ball thickness, default %(default)s)")
 
 
+def add_command(subparsers, name: str, run: Callable[..., int], help: str, description: str,
+                examples: list[str]):
+    """The parser of command ``name`` (running ``run``) with its examples as the epilog."""
+    parser = subparsers.add_parser(name, help=help, description=description,
+                                   epilog="examples:\n" + "".join(f"  station {name} {e}\n" for e in examples))
+    parser.set_defaults(func=run)
+    return parser
+
+
 def register(subparsers) -> None:
-    optimize = subparsers.add_parser(
-        "optimize", help="find a robust layout of a contraption scenario (PSP + optimization, thesis 4.5-4.7)",
+    optimize = add_command(
+        subparsers, "optimize", run_optimize,
+        help="find a robust layout of a contraption scenario (PSP + optimization, thesis 4.5-4.7)",
         description="Learn the parametric success probability of a scenario from simulations and optimize its "
         "layout; writes LAYOUT.json (content hash, parameters real and normalized, predicted probabilities).",
-        epilog="examples:\n"
-        "  station optimize examples/scenarios/simple.toml --budget 40 --seed 1 --out layout.json\n"
-        "  station optimize ballrun --settings thesis --workers 2 --out ballrun-layout.json",
+        examples=["examples/scenarios/simple.toml --budget 40 --seed 1 --out layout.json",
+                  "ballrun --settings thesis --workers 2 --out ballrun-layout.json"],
     )
     add_common(optimize)
     optimize.add_argument("--out", required=True, metavar="LAYOUT.json", help="output layout file")
@@ -258,17 +267,16 @@ def register(subparsers) -> None:
                           "thesis and recommended)")
     add_settings_choice(optimize)
     optimize.add_argument("--json", action="store_true", help="also print the layout as JSON on stdout")
-    optimize.set_defaults(func=run_optimize)
 
-    robustness = subparsers.add_parser(
-        "robustness", help="local robustness curve ρ_l and global robustness ρ_g of a layout (thesis 4.8.3)",
+    robustness = add_command(
+        subparsers, "robustness", run_robustness,
+        help="local robustness curve ρ_l and global robustness ρ_g of a layout (thesis 4.8.3)",
         description="Measure how robust a layout is (thesis 4.8.3): simulate --local N layouts in balls around it "
         "and a Sobol evaluation set of --eval N layouts over the design space, then print the local robustness "
         "curve ρ_l(ε) (success rate within a normalized distance ε) and the global robustness ρ_g. Simulations are "
         "cached, so a second run of the same layout is quick. It says up front how many simulations it needs.",
-        epilog="examples:\n"
-        "  station robustness examples/scenarios/simple.toml layout.json --eval 128 --local 10\n"
-        "  station robustness ballrun layout.json --plot rho.png --json",
+        examples=["examples/scenarios/simple.toml layout.json --eval 128 --local 10",
+                  "ballrun layout.json --plot rho.png --json"],
     )
     robustness.add_argument("scenario", help="a scenario file (.toml/.json) or an example name")
     robustness.add_argument("layout", help="a layout file (the LAYOUT.json of `station optimize`, {\"x\": [...]} or "
@@ -278,16 +286,15 @@ def register(subparsers) -> None:
     add_workers(robustness)
     robustness.add_argument("--plot", metavar="OUT.png", help="draw the ρ_l curve")
     robustness.add_argument("--json", action="store_true", help="print the result as JSON")
-    robustness.set_defaults(func=run_robustness)
 
-    compare = subparsers.add_parser(
-        "compare", help="ours vs baselines B1-B3 at the same simulation budget (thesis Table 4.2, Figure 4.18)",
+    compare = add_command(
+        subparsers, "compare", run_compare,
+        help="ours vs baselines B1-B3 at the same simulation budget (thesis Table 4.2, Figure 4.18)",
         description="Run our method and the baselines B1-B3 of thesis 4.8.3 on one scenario over --runs seeds at "
         "the same simulation budget, and print each method's global robustness ρ_g (mean and standard error), "
         "simulations and time; each run is reported as it ends, so a stopped comparison keeps its figures.",
-        epilog="examples:\n"
-        "  station compare simple --runs 3 --budget 60 --eval 128 --local 10\n"
-        "  station compare causalityswitch_ball --seed 10 --runs 5 --plot curves.png --json",
+        examples=["simple --runs 3 --budget 60 --eval 128 --local 10",
+                  "causalityswitch_ball --seed 10 --runs 5 --plot curves.png --json"],
     )
     add_common(compare)
     compare.add_argument("--methods", default=",".join(METHODS), help="comma-separated among ours,b1,b2,b3")
@@ -296,7 +303,6 @@ def register(subparsers) -> None:
     add_settings_choice(compare)
     compare.add_argument("--plot", metavar="OUT.png", help="draw the mean ρ_l curves (Figure 4.18)")
     compare.add_argument("--json", action="store_true", help="print the table as JSON")
-    compare.set_defaults(func=run_compare)
 
 
 def add_settings_choice(parser) -> None:

@@ -15,7 +15,7 @@ import signal
 import threading
 from collections.abc import Callable, Iterator, Sequence
 from contextlib import contextmanager
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -31,6 +31,7 @@ if TYPE_CHECKING:
 
     from design.robust.executor import SimulationExecutor
     from design.robust.pipeline import Comparison, MethodRun, ProgressCallback, RobustLayout
+    from design.robust.problem import LayoutProblem
     from design.robust.robustness import EvaluationSet, RobustnessCurve
 
 # The work (scikit-learn, scipy, pybullet, Dask) is imported by the functions that run it, so that importing this
@@ -285,6 +286,7 @@ class Robustness:
     evaluation: EvaluationSet
 
 
+@dataclass
 class RobustnessRun:
     """How robust a layout is (thesis 4.8.3), in two steps: :meth:`draw` the layouts, then :meth:`simulate` them.
 
@@ -305,18 +307,18 @@ class RobustnessRun:
         The progress callback and the stop check.
     """
 
-    def __init__(self, problem, u: np.ndarray, settings: RobustnessSettings, seed: int, executor: SimulationExecutor,
-                 progress: ProgressCallback | None = None, should_stop: StopCheck | None = None) -> None:
-        check_seed(seed)
-        self.problem = problem
-        self.u = u
-        self.settings = settings
-        self.seed = seed
-        self.executor = executor
-        self.progress = progress
-        self.should_stop = should_stop
-        self._evaluation_layouts = None
-        self._local_layouts = None
+    problem: LayoutProblem
+    u: np.ndarray
+    settings: RobustnessSettings
+    seed: int
+    executor: SimulationExecutor
+    progress: ProgressCallback | None = None
+    should_stop: StopCheck | None = None
+    _evaluation_layouts: np.ndarray | None = field(default=None, init=False, repr=False)
+    _local_layouts: np.ndarray | None = field(default=None, init=False, repr=False)
+
+    def __post_init__(self) -> None:
+        check_seed(self.seed)
 
     def draw(self) -> RobustnessPlan:
         """Draw the evaluation layouts (seconds for a contraption; progress "evaluation layouts" counts the valid
