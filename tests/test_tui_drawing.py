@@ -132,6 +132,9 @@ async def test_the_app_hands_the_drawing_design_to_other_screens(tmp_path):
         await pilot.pause()
         assert app.current_design() is None
         assert app.open_area_if_installed("drawing") is None  # a warning, not a crash
+        app.open_design("spirograph", {"r_f": 7, "r_r": 2, "d": 1.0})
+        await pilot.pause()
+        assert app.screen.name == "home" and app.current_design() is None
 
 
 async def test_slider_bounds_read_as_numbers_for_people(tmp_path):

@@ -89,9 +89,11 @@ class StationApp(App):
             self.pop_screen()
 
     def open_design(self, machine: str, params: dict[str, Any]) -> None:
-        """Open a drawing-machine design on the Drawing machines screen (used by sketch retrieval and others)."""
-        self.action_open_area("drawing")
-        self.get_screen("drawing").load_design(machine, params)
+        """Open a drawing-machine design on the Drawing machines screen (used by sketch retrieval and others); in an
+        app without that screen, a warning."""
+        drawing = self.open_area_if_installed("drawing")
+        if drawing is not None:
+            drawing.load_design(machine, params)
 
     def current_design(self) -> MachineDesign | None:
         """The Drawing machines screen's design (used by Explore, Fabricate, Plot); None in an app without it."""
