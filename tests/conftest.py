@@ -5,6 +5,8 @@ Also helpers shared by test files in different folders (imported as ``from .conf
 
 from __future__ import annotations
 
+from contextlib import asynccontextmanager
+
 import pytest
 
 
@@ -21,3 +23,30 @@ async def settle(app, pilot):
         await pilot.pause()
         await app.workers.wait_for_complete()
     await pilot.pause()
+
+
+def station_app(tmp_path, *, without: tuple[str, ...] = (), **options):
+    """A :class:`station.tui.app.StationApp` with its database in ``tmp_path``; ``without`` leaves those areas out
+    (e.g. ``("drawing",)``: an app without the Drawing screen)."""
+    from station.tui.app import StationApp
+    from station.tui.registry import discover_screens
+
+    if without:
+        options["areas"] = [entry for entry in discover_screens() if entry.name not in without]
+    return StationApp(database=tmp_path / "t.sqlite3", **options)
+
+
+@asynccontextmanager
+async def opened(tmp_path, key: str | None = None, size: tuple[int, int] = (160, 50), *, wait: bool = True,
+                 **options):
+    """Run a station app under test (see :func:`station_app`) and press ``key`` on its home screen; yields
+    ``(app, pilot)``. ``wait``: :func:`settle` after the key (all workers done), else one pause."""
+    app = station_app(tmp_path, **options)
+    async with app.run_test(size=size) as pilot:
+        if key is not None:
+            await pilot.press(key)
+            if wait:
+                await settle(app, pilot)
+            else:
+                await pilot.pause()
+        yield app, pilot

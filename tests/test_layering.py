@@ -44,3 +44,43 @@ def test_checker_sees_forbidden_imports(tmp_path):
     sample = tmp_path / "x.py"
     sample.write_text("def f():\n    from station.cli import main\n    import textual.app\n")
     assert imported_top_levels(sample) == {"station", "textual"}
+
+
+def imported_modules(path: Path) -> set[str]:
+    """Every module ``path`` imports, dotted in full, at any depth (``from station import commands`` counts as
+    ``station.commands``; relative imports are resolved against the file's package)."""
+    tree = ast.parse(path.read_text(encoding="utf-8"), filename=str(path))
+    package = list(path.relative_to(ROOT).with_suffix("").parts[:-1]) if path.is_relative_to(ROOT) else []
+    names: set[str] = set()
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Import):
+            names.update(alias.name for alias in node.names)
+        elif isinstance(node, ast.ImportFrom):
+            base = package[:len(package) - node.level + 1] if node.level else []
+            module = ".".join([*base, *([node.module] if node.module else [])])
+            names.add(module)
+            names.update(f"{module}.{alias.name}" for alias in node.names)
+    return names
+
+
+def imports_of(path: Path, forbidden: str) -> list[str]:
+    """The modules ``path`` imports that are ``forbidden`` or inside it."""
+    return sorted(m for m in imported_modules(path) if m == forbidden or m.startswith(forbidden + "."))
+
+
+def test_screens_never_import_the_commands():
+    # The TUI and the CLI stand side by side on station.services; a screen that imports a command gets the CLI's
+    # errors (naming --flags) and its printing.
+    offenders = [f"{path.relative_to(ROOT)} imports {imports_of(path, 'station.commands')}"
+                 for path in sorted((ROOT / "station" / "tui").rglob("*.py")) if imports_of(path, "station.commands")]
+    assert not offenders, "\n".join(offenders)
+
+
+def test_checker_sees_a_screen_importing_a_command(tmp_path):
+    sample = tmp_path / "x.py"
+    sample.write_text("from station.services import robust\n"
+                      "def f():\n    from station.commands.robust import psp_settings\n"
+                      "def g():\n    from station import commands\n    import station.commands.fabricate\n")
+    assert imports_of(sample, "station.commands") == [
+        "station.commands", "station.commands.fabricate", "station.commands.robust",
+        "station.commands.robust.psp_settings"]

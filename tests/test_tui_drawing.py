@@ -4,28 +4,15 @@ import numpy as np
 from textual.widgets import Select
 
 from design.machines import get_machine, machine_names
-from station.tui.app import StationApp
 from station.tui.screens.drawing import mechanism_to_drawing
 from station.tui.widgets.canvas import PatternCanvas
 from station.tui.widgets.parameter import ParameterControl
 
-
-async def settle(app, pilot):
-    await pilot.pause()
-    await app.workers.wait_for_complete()
-    await pilot.pause()
-
-
-async def open_drawing(tmp_path):
-    app = StationApp(database=tmp_path / "t.sqlite3")
-    return app
+from .conftest import opened, settle
 
 
 async def test_slider_move_changes_pattern_and_undo_restores_it(tmp_path):
-    app = await open_drawing(tmp_path)
-    async with app.run_test(size=(140, 40)) as pilot:
-        await pilot.press("d")
-        await settle(app, pilot)
+    async with opened(tmp_path, "d", size=(140, 40)) as (app, pilot):
         screen = app.screen
         assert screen.name == "drawing"
         before = screen.pattern.copy()
@@ -46,10 +33,7 @@ async def test_slider_move_changes_pattern_and_undo_restores_it(tmp_path):
 
 
 async def test_slider_never_leaves_feasible_interval(tmp_path):
-    app = await open_drawing(tmp_path)
-    async with app.run_test(size=(140, 40)) as pilot:
-        await pilot.press("d")
-        await settle(app, pilot)
+    async with opened(tmp_path, "d", size=(140, 40)) as (app, pilot):
         screen = app.screen
         control = screen.query_one("#param-d", ParameterControl)
         control.focus()
@@ -65,10 +49,7 @@ async def test_slider_never_leaves_feasible_interval(tmp_path):
 
 
 async def test_gear_stepper_only_reaches_feasible_designs_and_rebounds_sliders(tmp_path):
-    app = await open_drawing(tmp_path)
-    async with app.run_test(size=(140, 40)) as pilot:
-        await pilot.press("d")
-        await settle(app, pilot)
+    async with opened(tmp_path, "d", size=(140, 40)) as (app, pilot):
         screen = app.screen
         control = screen.query_one("#param-r_r", ParameterControl)
         control.focus()
@@ -86,10 +67,7 @@ async def test_gear_stepper_only_reaches_feasible_designs_and_rebounds_sliders(t
 
 
 async def test_switching_machine_rebuilds_controls_and_load_design(tmp_path):
-    app = await open_drawing(tmp_path)
-    async with app.run_test(size=(140, 40)) as pilot:
-        await pilot.press("d")
-        await settle(app, pilot)
+    async with opened(tmp_path, "d", size=(140, 40)) as (app, pilot):
         screen = app.screen
         other = next(name for name in machine_names() if name != screen.machine.name)
         screen.query_one("#machine", Select).value = other
@@ -107,10 +85,7 @@ async def test_switching_machine_rebuilds_controls_and_load_design(tmp_path):
 
 
 async def test_animation_draws_mechanism(tmp_path):
-    app = await open_drawing(tmp_path)
-    async with app.run_test(size=(140, 40)) as pilot:
-        await pilot.press("d")
-        await settle(app, pilot)
+    async with opened(tmp_path, "d", size=(140, 40)) as (app, pilot):
         screen = app.screen
         canvas = screen.query_one("#canvas", PatternCanvas)
         await pilot.press("p")
@@ -130,8 +105,7 @@ def test_mechanism_shapes_become_polylines_and_markers():
 
 
 async def test_open_design_before_the_drawing_screen_was_ever_shown(tmp_path):
-    app = StationApp(database=tmp_path / "t.sqlite3")
-    async with app.run_test(size=(140, 40)) as pilot:
+    async with opened(tmp_path, size=(140, 40)) as (app, pilot):
         await pilot.pause()
         app.open_design("cycloid_drawing_machine", get_machine("cycloid_drawing_machine").defaults())
         await settle(app, pilot)
@@ -144,13 +118,29 @@ async def test_open_design_before_the_drawing_screen_was_ever_shown(tmp_path):
         assert screen.pattern is not None
 
 
+async def test_the_app_hands_the_drawing_design_to_other_screens(tmp_path):
+    async with opened(tmp_path, size=(140, 40)) as (app, pilot):
+        await pilot.pause()
+        app.open_design("spirograph", {"r_f": 7, "r_r": 2, "d": 1.0})
+        await settle(app, pilot)
+        design = app.current_design()
+        assert design == ("spirograph", {"r_f": 7, "r_r": 2, "d": 1.0})
+        assert (design.machine, design.params) == app.screen.current_design()
+        design.params["r_r"] = 3  # a copy: the Drawing screen's design stays
+        assert app.current_design().params["r_r"] == 2
+    async with opened(tmp_path, without=("drawing",)) as (app, pilot):
+        await pilot.pause()
+        assert app.current_design() is None
+        assert app.open_area_if_installed("drawing") is None  # a warning, not a crash
+        app.open_design("spirograph", {"r_f": 7, "r_r": 2, "d": 1.0})
+        await pilot.pause()
+        assert app.screen.name == "home" and app.current_design() is None
+
+
 async def test_slider_bounds_read_as_numbers_for_people(tmp_path):
     # The spirograph's d > 0 is strict: its feasible interval starts at the smallest float above 0, which was shown
     # as [4.94e-324…3]. A strict end is shown open at its round number; the value keeps a fixed number of places.
-    app = await open_drawing(tmp_path)
-    async with app.run_test(size=(140, 40)) as pilot:
-        await pilot.press("d")
-        await settle(app, pilot)
+    async with opened(tmp_path, "d", size=(140, 40)) as (app, pilot):
         control = app.screen.query_one("#param-d", ParameterControl)
         assert 0 < control.state.lower < 1e-300
         shown = str(control.render())

@@ -5,9 +5,7 @@ from __future__ import annotations
 
 from textual.color import Color
 
-from station.tui.app import StationApp
-
-from .conftest import settle
+from .conftest import opened
 
 
 def _look(widget):
@@ -36,20 +34,14 @@ async def _assert_focus_visible(app, pilot, screen):
 
 
 async def test_focus_is_visible_on_the_explore_screen(tmp_path):
-    app = StationApp(database=tmp_path / "t.sqlite3")
-    async with app.run_test(size=(150, 45)) as pilot:
-        await pilot.press("x")
-        await settle(app, pilot)
+    async with opened(tmp_path, "x", size=(150, 45)) as (app, pilot):
         screen = app.screen
         assert screen.name == "explore" and screen.explorer is not None
         await _assert_focus_visible(app, pilot, screen)
 
 
 async def test_focus_is_visible_on_the_fabricate_screen(tmp_path):
-    app = StationApp(database=tmp_path / "t.sqlite3")
-    async with app.run_test(size=(160, 50)) as pilot:
-        await pilot.press("f")
-        await pilot.pause()
+    async with opened(tmp_path, "f", wait=False) as (app, pilot):
         screen = app.screen
         assert screen.name == "fabricate"
         await _assert_focus_visible(app, pilot, screen)
@@ -59,10 +51,7 @@ async def test_tab_goes_from_the_machine_choice_straight_to_the_sliders(tmp_path
     # The sliders' scroll container was a focus stop of its own, showing nothing: Tab seemed to do nothing once.
     from textual.containers import ScrollableContainer
 
-    app = StationApp(database=tmp_path / "t.sqlite3")
-    async with app.run_test(size=(140, 40)) as pilot:
-        await pilot.press("d")
-        await settle(app, pilot)
+    async with opened(tmp_path, "d", size=(140, 40)) as (app, pilot):
         chain = list(app.screen.focus_chain)
         assert chain and not any(isinstance(widget, ScrollableContainer) for widget in chain)
         assert [type(widget).__name__ for widget in chain[1:]] == ["ParameterControl"] * (len(chain) - 1)

@@ -1,7 +1,9 @@
 """``station optimize``, ``station robustness`` and ``station compare``: robust contraption layouts (thesis 4.5-4.8).
 
-Simulations are cached in the station's cache directory (keyed by scenario content and layout), so a repeated or
-interrupted command re-simulates nothing it already knows. Ctrl-C stops cleanly and keeps the cache.
+Argparse in, text or JSON out: the work is :mod:`station.services.robust`, whose refusals (naming a value:
+``budget``, ``settings``...) are reworded here into the flags' words (``--budget``, ``--settings``). Simulations are
+cached in the station's cache directory (keyed by scenario content and layout), so a repeated or interrupted command
+re-simulates nothing it already knows. Ctrl-C stops cleanly and keeps the cache.
 """
 
 from __future__ import annotations
@@ -9,45 +11,77 @@ from __future__ import annotations
 import functools
 import json
 import math
-import signal
 import sys
-import threading
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TextIO
 
 import numpy as np
 
-from design.errors import FileFormatError
-from design.robust.problem import RobustError
-from design.robust.settings import METHODS, PSPSettings, RobustnessSettings
+from common.progress import Progress as BaseProgress
+from design.robust.settings import METHODS, RobustnessSettings
 from station.cli_util import check_output_file, emit_json
 from station.errors import UsageError
-from station.paths import cache_dir
+from station.progress_view import ProgressView
+from station.services import robust as service
+from station.services.errors import ServiceError
+from station.services.robust import (  # noqa: F401 - re-exported: the work lives in the service
+    DEFAULT_BUDGET,
+    DEFAULT_SETTINGS,
+    SETTINGS_CHOICES,
+    THESIS_BUDGETS,
+    RunStopped,
+    StopRequest,
+    read_layout,
+    settings_of_layout,
+    simulation_cache_path,
+    thesis_budget,
+)
 
-if TYPE_CHECKING:
-    from design.robust.executor import SimulationExecutor
-    from design.robust.pipeline import Progress
-
-# The work (scikit-learn, scipy, pybullet, Dask) is imported by the commands that run it, so that building the
-# parser (every `station` call, --help included) stays light.
-
-#: Simulation budgets measured by the thesis for its own method (Table 4.1), used as the default budget.
-THESIS_BUDGETS = {"CAUSALITYSWITCH": 614, "BALLRUN": 1120, "LONGCHAIN": 1915, "TEAPOTADVENTURE": 2420}
-DEFAULT_BUDGET = 600
-#: The PSP settings one can choose: the thesis's method as published, or ours (see PSPSettings.recommended).
-SETTINGS_CHOICES = {
-    "thesis": "the thesis's method as published",
-    "recommended": "ours: quasi-deterministic test on the uniform start, C/γ by ROC AUC, three verified candidates",
-}
-#: Ours is the default: at the thesis's budgets it beat the thesis's settings on CAUSALITYSWITCH and BALLRUN (README).
-DEFAULT_SETTINGS = "recommended"
+#: The flag that gives each value the service may refuse.
+FLAGS = {"budget": "--budget", "seed": "--seed", "workers": "--workers", "runs": "--runs", "n_evaluation": "--eval",
+         "n_local": "--local", "methods": "--methods", "settings": "--settings", "scheduler": "--scheduler"}
 
 
-def simulation_cache_path() -> Path:
-    """The shared simulation cache of every robust-layout command and the TUI."""
-    return cache_dir() / "robust-simulations.sqlite3"
+def usage_error(error: ServiceError) -> UsageError | ServiceError:
+    """The service's refusal in the command line's words: the value's name becomes its flag (``budget must be an
+    integer >= 20, got 3`` → ``--budget must be ...``); an error about another value is kept as it is."""
+    flag = FLAGS.get(error.field or "")
+    message = str(error)
+    if flag is None or not message.startswith(error.field):
+        return error
+    message = flag + message.removeprefix(error.field)
+    if error.field == "scheduler":
+        message += "; or leave --scheduler out to simulate on this machine"
+    return UsageError(message)
+
+
+@contextmanager
+def flag_words() -> Iterator[None]:
+    """Reword the service refusals raised in the block (:func:`usage_error`)."""
+    try:
+        yield
+    except ServiceError as error:
+        raise usage_error(error) from None
+
+
+def psp_settings(choice: str, **changes):
+    """:func:`station.services.robust.psp_settings`, its refusals naming ``--settings``."""
+    with flag_words():
+        return service.psp_settings(choice, **changes)
+
+
+def default_budget(problem, budget: int | None) -> int:
+    """:func:`station.services.robust.default_budget`, a bad budget naming ``--budget``."""
+    with flag_words():
+        return service.default_budget(problem, budget)
+
+
+def _load_problem(path: str):
+    """A scenario file, or an example by name, as a robust-layout problem (tests replace it with a cheap one)."""
+    return service.load_problem(path)
 
 
 def format_duration(seconds: float) -> str:
@@ -90,41 +124,36 @@ class Countdown:
         return max(0, self.total - self.done) * elapsed / timed
 
 
-class ProgressBar:
-    """Progress on stderr: phase, simulations of the budget, CV accuracy, best PSP, and the time left if known.
+class ProgressBar(ProgressView):
+    """The robust commands' progress on stderr: phase, simulations of the budget, and the time left once known.
 
-    On a terminal, one bar redrawn in place; anywhere else (a log file, a pipe), plain lines: one per phase and one
-    each time the phase passes another tenth of its total, never a carriage return.
+    A :class:`station.progress_view.ProgressView`: on a terminal rich's bars, with the CV accuracy and the best PSP
+    beside them; anywhere else (a log file, a pipe) plain lines, one per phase and one each time the phase passes
+    another tenth of its total (``exploration: 10/100 simulations, about 1 min 38 s left``).
     """
 
-    def __init__(self, stream=None, width: int = 28, interval: float = 0.1,
-                 clock: Callable[[], float] = time.monotonic) -> None:
-        self.stream = stream or sys.stderr
-        self.width = width
-        self.interval = interval
+    def __init__(self, stream: TextIO | None = None, clock: Callable[[], float] = time.monotonic,
+                 tty: bool | None = None) -> None:
+        super().__init__(stream, describe=self._describe, tty=tty)
         self._clock = clock
-        self._last = 0.0
-        self._shown = False
-        self._phase = None
-        self._tenth = 0
-        self._tty = bool(getattr(self.stream, "isatty", lambda: False)())
         self._countdown: Countdown | None = None
-        self._done: Callable[[Progress], int] = lambda progress: progress.simulations
+        self._done: Callable[[BaseProgress], float] = lambda progress: progress.done
         self._what = ""
         self._estimated = False
+        self._left = ""
 
-    def expect(self, total: int, what: str, done: Callable[[Progress], int] | None = None) -> None:
+    def expect(self, total: int, what: str, done: Callable[[BaseProgress], float] | None = None) -> None:
         """Estimate the time left of ``total`` units (``what``, e.g. "new simulations") from now on.
 
         ``done(progress)`` counts the units done (default: the progress's simulations). The first estimate is
         written as a line of its own; the bar and the plain lines then show the time left.
         """
         self._countdown = Countdown(total, self._clock)
-        self._done = done or (lambda progress: progress.simulations)
+        self._done = done or (lambda progress: progress.done)
         self._what = what
         self._estimated = False
 
-    def _time_left(self, progress: Progress) -> str:
+    def _time_left(self, progress: BaseProgress) -> str:
         if self._countdown is None:
             return ""
         self._countdown.advance(self._done(progress))
@@ -137,160 +166,51 @@ class ProgressBar:
             self.note(f"estimate: about {format_duration(left)} left for the {self._countdown.total} {self._what}")
         return f"about {format_duration(left)} left"
 
-    def __call__(self, progress: Progress) -> None:
-        left = self._time_left(progress)
-        fraction = min(progress.simulations / progress.budget, 1.0) if progress.budget else 0.0
-        if not self._tty:
-            # A log file, not a terminal: a line per phase and per tenth instead of a redrawn bar.
-            tenth = int(fraction * 10)
-            if progress.phase != self._phase or tenth > self._tenth:
-                self._phase, self._tenth = progress.phase, tenth
-                self.stream.write(f"{progress.phase}: {progress.simulations}/{progress.budget} {progress.unit}"
-                                  + (f", {left}" if left else "") + "\n")
-                self.stream.flush()
-            return
-        now = self._clock()
-        if now - self._last < self.interval and progress.phase != "done":
-            return
-        self._last = now
-        filled = int(round(fraction * self.width))
-        bar = "#" * filled + "." * (self.width - filled)
-        extra = ""
-        if progress.cv_accuracy is not None:
-            extra += f"  cv {progress.cv_accuracy:.2f}"
-        if progress.best_psp is not None:
-            extra += f"  best PSP {progress.best_psp:.2f}"
-        if left:
-            extra += f"  {left}"
-        line = f"\r[{bar}] {progress.simulations}/{progress.budget} {progress.phase}{extra}"
-        self.stream.write(line.ljust(100)[:100])
-        self.stream.flush()
-        self._shown = True
+    def __call__(self, progress: BaseProgress) -> None:
+        # Before the view takes its lock: the first estimate is a note of its own.
+        self._left = self._time_left(progress)
+        super().__call__(progress)
 
-    def note(self, text: str) -> None:
-        """A line of its own above the bar (the bar is redrawn by the next progress report)."""
-        if self._shown:
-            self.stream.write("\r" + " " * 100 + "\r")
-            self._shown = False
-        self.stream.write(text + "\n")
-        self.stream.flush()
-
-    def close(self) -> None:
-        if self._shown:
-            self.stream.write("\n")
-            self.stream.flush()
-            self._shown = False
+    def _describe(self, progress: BaseProgress) -> str:
+        unit = getattr(progress, "unit", "simulations")
+        if not self.tty:
+            return f"{progress.stage}: {progress.done}/{progress.total} {unit}" + (f", {self._left}" if self._left
+                                                                                   else "")
+        text = f"{progress.done}/{progress.total} {progress.stage}"
+        if getattr(progress, "cv_accuracy", None) is not None:
+            text += f"  cv {progress.cv_accuracy:.2f}"
+        if getattr(progress, "best_psp", None) is not None:
+            text += f"  best PSP {progress.best_psp:.2f}"
+        return text + (f"  {self._left}" if self._left else "")
 
 
-def _load_problem(path: str):
-    """A scenario file, or an example by name (``simple``, ``ballrun``...), as a robust-layout problem."""
-    from design.contraption.catalog import resolve_scenario_path
-    from design.robust.contraption import load_problem
-
-    return load_problem(resolve_scenario_path(path))
-
-
-def _positive(value: int | None, option: str, minimum: int = 1) -> None:
-    if value is not None and value < minimum:
-        raise UsageError(f"{option} must be an integer >= {minimum}, got {value}")
-
-
-def _check_seed(seed: int) -> None:
-    # Checked before any work: numpy refuses a negative seed only once the first random draw is made.
-    if seed < 0:
-        raise UsageError(f"--seed must be a non-negative integer, got {seed}")
-
-
-def _executor(problem, args) -> SimulationExecutor:
-    """The executor of a command, its Dask scheduler (``--scheduler``) already reached: a wrong address is one line
-    within seconds, before any work."""
-    from design.robust.executor import SchedulerUnreachable, SimulationExecutor
-
-    _positive(args.workers, "--workers")
-    executor = SimulationExecutor(problem, workers=args.workers, scheduler=args.scheduler,
-                                  cache_path=simulation_cache_path(), chunk_size=1)
-    try:
-        executor.connect()
-    except SchedulerUnreachable as error:
-        executor.close()
-        raise UsageError(f"--scheduler: {error}; or leave --scheduler out to simulate on this machine") from None
-    except BaseException:
-        executor.close()
-        raise
-    return executor
-
-
-def _interrupted(executor: SimulationExecutor | None) -> None:
-    new = executor.n_simulated if executor is not None else 0
-    print(f"\nstation: stopping; the {new} new simulations of this run are kept in the cache "
-          f"({simulation_cache_path()})", file=sys.stderr)
-
-
-class StopRequest:
-    """Ctrl-C and SIGTERM during a robust-layout command, as a request the work polls at safe points.
-
-    Python's default raises KeyboardInterrupt wherever the main thread is, and the station's SIGTERM handler does
-    the same; inside a C extension's callback that cannot pass it on, it is printed ("Exception ignored in:
-    'scipy.stats._sobol._initialize_v' ... KeyboardInterrupt") and lost: scipy's Sobol engine carried on
-    half-initialized, drew one layout over and over, and the command ran to its end on it. Here a signal only sets a
-    flag; the executor stops between simulation arrivals (``should_stop``), the layout draws between chunks
-    (:meth:`check`), and the command then stops as before. A second signal interrupts at once.
-    """
-
-    def __init__(self) -> None:
-        self._event = threading.Event()
-        self._previous: dict[int, object] = {}
-
-    def __enter__(self) -> StopRequest:
-        if threading.current_thread() is threading.main_thread():  # handlers can be set there only
-            for signum in (signal.SIGINT, signal.SIGTERM):
-                self._previous[signum] = signal.signal(signum, self._handle)
-        return self
-
-    def __exit__(self, *exc) -> None:
-        for signum, handler in self._previous.items():
-            signal.signal(signum, handler)
-        self._previous.clear()
-
-    def _handle(self, signum, frame) -> None:
-        if self._event.is_set():
-            raise KeyboardInterrupt
-        self._event.set()
-
-    def is_set(self) -> bool:
-        """Whether a stop was asked for."""
-        return self._event.is_set()
-
-    def check(self) -> None:
-        """Raise KeyboardInterrupt here, a safe point, if a stop was asked for."""
-        if self._event.is_set():
-            raise KeyboardInterrupt
-
-
-def stoppable(run: Callable) -> Callable:
-    """A command run under a :class:`StopRequest`, given to it as ``args.stop``."""
+def command(run: Callable[..., int]) -> Callable[..., int]:
+    """A command run under a :class:`StopRequest` (given to it as ``args.stop``), its service refusals in the flags'
+    words; a stopped run closes its progress bar (``args.bar``), says what the cache keeps and becomes
+    KeyboardInterrupt for ``main`` (exit 130)."""
 
     @functools.wraps(run)
     def wrapper(args) -> int:
+        args.bar = ProgressBar()
         with StopRequest() as stop:
             args.stop = stop
-            return run(args)
+            try:
+                with flag_words():
+                    return run(args)
+            except RunStopped as stopped:
+                args.bar.close()
+                print(f"\nstation: stopping; the {stopped.new_simulations} new simulations of this run are kept in "
+                      f"the cache ({stopped.cache})", file=sys.stderr)
+                raise KeyboardInterrupt from None
+            finally:
+                args.bar.close()
 
     return wrapper
 
 
-def _stopped(error: BaseException, bar: ProgressBar, executor: SimulationExecutor | None,
-             stop: StopRequest) -> BaseException:
-    """What to raise when a command's work ended with ``error``, KeyboardInterrupt or the executor's
-    SimulationCancelled: a stop by Ctrl-C or SIGTERM closes the bar, says what the cache keeps and becomes
-    KeyboardInterrupt for ``main`` (exit 130); anything else is raised as it is."""
-    from design.robust.executor import SimulationCancelled
-
-    if isinstance(error, SimulationCancelled) and not stop.is_set():
-        return error
-    bar.close()
-    _interrupted(executor)
-    return KeyboardInterrupt()
+def _where(args) -> dict:
+    """Where the simulations run and when they stop: the keyword arguments every run of the service takes."""
+    return {"workers": args.workers, "scheduler": args.scheduler, "should_stop": args.stop.is_set}
 
 
 def add_common(parser, budget: bool = True) -> None:
@@ -299,19 +219,43 @@ def add_common(parser, budget: bool = True) -> None:
         parser.add_argument("--budget", type=int, default=None,
                             help=f"simulation budget (default: the thesis's Table 4.1 budget, else {DEFAULT_BUDGET})")
     parser.add_argument("--seed", type=int, default=0, help="seed of every random process (default 0)")
+    add_workers(parser)
+
+
+def add_workers(parser) -> None:
+    """``--workers N`` and ``--scheduler tcp://HOST:PORT``: where the simulations run."""
     parser.add_argument("--workers", type=int, default=None, help="local worker processes (default: all cores)")
     parser.add_argument("--scheduler", default=None, metavar="tcp://HOST:PORT",
                         help="run simulations on a Dask distributed cluster instead of local processes")
 
 
+def add_sampling(parser, around: str) -> None:
+    """``--eval N`` and ``--local N``: the sizes of a robustness measure (``around``: what the local ones are
+    around)."""
+    defaults = RobustnessSettings()
+    parser.add_argument("--eval", type=int, default=defaults.n_evaluation, metavar="N",
+                        help="size of the Sobol evaluation set (default %(default)s)")
+    parser.add_argument("--local", type=int, default=defaults.n_local, metavar="N",
+                        help=f"layouts simulated around {around} (ball thickness, default %(default)s)")
+
+
+def add_command(subparsers, name: str, run: Callable[..., int], help: str, description: str,
+                examples: list[str]):
+    """The parser of command ``name`` (running ``run``) with its examples as the epilog."""
+    parser = subparsers.add_parser(name, help=help, description=description,
+                                   epilog="examples:\n" + "".join(f"  station {name} {e}\n" for e in examples))
+    parser.set_defaults(func=run)
+    return parser
+
+
 def register(subparsers) -> None:
-    optimize = subparsers.add_parser(
-        "optimize", help="find a robust layout of a contraption scenario (PSP + optimization, thesis 4.5-4.7)",
+    optimize = add_command(
+        subparsers, "optimize", run_optimize,
+        help="find a robust layout of a contraption scenario (PSP + optimization, thesis 4.5-4.7)",
         description="Learn the parametric success probability of a scenario from simulations and optimize its "
         "layout; writes LAYOUT.json (content hash, parameters real and normalized, predicted probabilities).",
-        epilog="examples:\n"
-        "  station optimize examples/scenarios/simple.toml --budget 40 --seed 1 --out layout.json\n"
-        "  station optimize ballrun --settings thesis --workers 2 --out ballrun-layout.json",
+        examples=["examples/scenarios/simple.toml --budget 40 --seed 1 --out layout.json",
+                  "ballrun --settings thesis --workers 2 --out ballrun-layout.json"],
     )
     add_common(optimize)
     optimize.add_argument("--out", required=True, metavar="LAYOUT.json", help="output layout file")
@@ -323,66 +267,42 @@ def register(subparsers) -> None:
                           "thesis and recommended)")
     add_settings_choice(optimize)
     optimize.add_argument("--json", action="store_true", help="also print the layout as JSON on stdout")
-    optimize.set_defaults(func=run_optimize)
 
-    robustness = subparsers.add_parser(
-        "robustness", help="local robustness curve ρ_l and global robustness ρ_g of a layout (thesis 4.8.3)",
+    robustness = add_command(
+        subparsers, "robustness", run_robustness,
+        help="local robustness curve ρ_l and global robustness ρ_g of a layout (thesis 4.8.3)",
         description="Measure how robust a layout is (thesis 4.8.3): simulate --local N layouts in balls around it "
         "and a Sobol evaluation set of --eval N layouts over the design space, then print the local robustness "
         "curve ρ_l(ε) (success rate within a normalized distance ε) and the global robustness ρ_g. Simulations are "
         "cached, so a second run of the same layout is quick. It says up front how many simulations it needs.",
-        epilog="examples:\n"
-        "  station robustness examples/scenarios/simple.toml layout.json --eval 128 --local 10\n"
-        "  station robustness ballrun layout.json --plot rho.png --json",
+        examples=["examples/scenarios/simple.toml layout.json --eval 128 --local 10",
+                  "ballrun layout.json --plot rho.png --json"],
     )
     robustness.add_argument("scenario", help="a scenario file (.toml/.json) or an example name")
     robustness.add_argument("layout", help="a layout file (the LAYOUT.json of `station optimize`, {\"x\": [...]} or "
                             "{\"parameters\": {...}}) or a layout named in the scenario")
-    robustness.add_argument("--eval", type=int, default=RobustnessSettings().n_evaluation, metavar="N",
-                            help="size of the Sobol evaluation set (default %(default)s)")
-    robustness.add_argument("--local", type=int, default=RobustnessSettings().n_local, metavar="N",
-                            help="layouts simulated around the layout (ball thickness, default %(default)s)")
+    add_sampling(robustness, "the layout")
     robustness.add_argument("--seed", type=int, default=0, help="seed of the local samples (default 0)")
-    robustness.add_argument("--workers", type=int, default=None, help="local worker processes (default: all cores)")
-    robustness.add_argument("--scheduler", default=None, metavar="tcp://HOST:PORT", help="Dask scheduler")
+    add_workers(robustness)
     robustness.add_argument("--plot", metavar="OUT.png", help="draw the ρ_l curve")
     robustness.add_argument("--json", action="store_true", help="print the result as JSON")
-    robustness.set_defaults(func=run_robustness)
 
-    compare = subparsers.add_parser(
-        "compare", help="ours vs baselines B1-B3 at the same simulation budget (thesis Table 4.2, Figure 4.18)",
+    compare = add_command(
+        subparsers, "compare", run_compare,
+        help="ours vs baselines B1-B3 at the same simulation budget (thesis Table 4.2, Figure 4.18)",
         description="Run our method and the baselines B1-B3 of thesis 4.8.3 on one scenario over --runs seeds at "
         "the same simulation budget, and print each method's global robustness ρ_g (mean and standard error), "
         "simulations and time; each run is reported as it ends, so a stopped comparison keeps its figures.",
-        epilog="examples:\n"
-        "  station compare simple --runs 3 --budget 60 --eval 128 --local 10\n"
-        "  station compare causalityswitch_ball --seed 10 --runs 5 --plot curves.png --json",
+        examples=["simple --runs 3 --budget 60 --eval 128 --local 10",
+                  "causalityswitch_ball --seed 10 --runs 5 --plot curves.png --json"],
     )
     add_common(compare)
     compare.add_argument("--methods", default=",".join(METHODS), help="comma-separated among ours,b1,b2,b3")
     compare.add_argument("--runs", type=int, default=5, metavar="T", help="seeds per method (default 5)")
-    compare.add_argument("--eval", type=int, default=RobustnessSettings().n_evaluation, metavar="N",
-                         help="size of the Sobol evaluation set (default %(default)s)")
-    compare.add_argument("--local", type=int, default=RobustnessSettings().n_local, metavar="N",
-                         help="layouts simulated around each result (ball thickness, default %(default)s)")
+    add_sampling(compare, "each result")
     add_settings_choice(compare)
     compare.add_argument("--plot", metavar="OUT.png", help="draw the mean ρ_l curves (Figure 4.18)")
     compare.add_argument("--json", action="store_true", help="print the table as JSON")
-    compare.set_defaults(func=run_compare)
-
-
-def thesis_budget(name: str) -> int:
-    """The thesis's budget for a scenario named like one of Table 4.1 (``CAUSALITYSWITCH (ball faster)``,
-    ``causalityswitch_ball``...), else :data:`DEFAULT_BUDGET`."""
-    upper = name.upper()
-    return next((b for key, b in THESIS_BUDGETS.items() if upper.startswith(key)), DEFAULT_BUDGET)
-
-
-def default_budget(problem, budget: int | None) -> int:
-    if budget is None:
-        return thesis_budget(problem.name)
-    _positive(budget, "--budget", 20)
-    return budget
 
 
 def add_settings_choice(parser) -> None:
@@ -395,50 +315,9 @@ def add_settings_choice(parser) -> None:
                         help="short for --settings recommended")
 
 
-def psp_settings(choice: str, **changes) -> PSPSettings:
-    """The PSP settings named ``choice`` (a key of :data:`SETTINGS_CHOICES`, or a LAYOUT.json's path) with
-    ``changes``."""
-    if choice in SETTINGS_CHOICES:
-        return PSPSettings.recommended(**changes) if choice == "recommended" else PSPSettings(**changes)
-    if not choice.lower().endswith(".json"):
-        raise UsageError(f"--settings must be one of {', '.join(sorted(SETTINGS_CHOICES))} or a LAYOUT.json, "
-                         f"got {choice!r}")
-    return settings_of_layout(choice).with_changes(**changes)
-
-
-def _layout_json(path: str):
-    """The parsed content of a LAYOUT.json, read as every layout file is (:mod:`design.contraption.layout_io`): text
-    that is not UTF-8 or not JSON raises FileFormatError naming the file; OSError passes."""
-    from design.contraption.layout_io import read_layout_data
-
-    return read_layout_data(path)
-
-
-def settings_of_layout(path: str) -> PSPSettings:
-    """The PSP settings a LAYOUT.json recorded (``psp_settings``, as planned for its budget)."""
-    try:
-        data = _layout_json(path)
-    except FileNotFoundError:
-        raise UsageError(f"--settings: no such file {path}") from None
-    except OSError as error:
-        raise FileFormatError(f"{path}: cannot be read ({error})") from None
-    if not isinstance(data, dict) or "psp_settings" not in data:
-        raise FileFormatError(f"{path}: field 'psp_settings' is missing (expected a LAYOUT.json written by "
-                              "'station optimize')")
-    if data["psp_settings"] is None:
-        raise FileFormatError(f"{path}: field 'psp_settings' is null (the run recorded no settings)")
-    try:
-        return PSPSettings.from_mapping(data["psp_settings"], f"{path}: field 'psp_settings'")
-    except RobustError as error:
-        raise FileFormatError(str(error)) from None
-
-
-@stoppable
+@command
 def run_optimize(args) -> int:
-    from design.robust.executor import SimulationCancelled
-    from design.robust.pipeline import optimize_robust_layout
-
-    _check_seed(args.seed)
+    service.check_seed(args.seed)
     out = check_output_file(args.out, {".json"}, "--out")
     problem = _load_problem(args.scenario)
     budget = default_budget(problem, args.budget)
@@ -448,16 +327,8 @@ def run_optimize(args) -> int:
     if args.placement_error is not None:
         changes["placement_error"] = args.placement_error
     settings = psp_settings(args.settings, **changes)
-    bar = ProgressBar()
-    executor = None
-    try:
-        with _executor(problem, args) as executor:
-            args.stop.check()
-            result = optimize_robust_layout(problem, executor, budget, args.seed, settings, progress=bar,
-                                            should_stop=args.stop.is_set)
-    except (KeyboardInterrupt, SimulationCancelled) as error:
-        raise _stopped(error, bar, executor, args.stop) from None
-    bar.close()
+    result = service.optimize(problem, budget, args.seed, settings, progress=args.bar, **_where(args))
+    args.bar.close()
     payload = result.to_json(problem)
     out.write_text(json.dumps(payload, indent=2) + "\n", encoding="utf-8")
     if args.json:
@@ -492,63 +363,37 @@ def _print_verification(result) -> None:
         print("    none worked: kept the best simulated sample")
 
 
-def read_layout(path: str, problem):
-    """The layout ``path`` names for the problem's scenario (any form of :mod:`design.contraption.layout_io`: a
-    LAYOUT.json, ``{"x": [...]}``, ``{"parameters": {...}}``, or a layout named in the scenario file)."""
-    from design.contraption.layout_io import resolve_layout
-
-    return resolve_layout(path, problem.scenario)
-
-
-@stoppable
+@command
 def run_robustness(args) -> int:
-    from design.robust.executor import SimulationCancelled
-    from design.robust.pipeline import BudgetedOracle, Progress
     from design.robust.plot import plot_robustness
-    from design.robust.robustness import evaluation_layouts, evaluation_set, local_layouts, robustness_curve
+    from station.commands.contraption import report_layout
 
-    _check_seed(args.seed)
-    _positive(args.eval, "--eval")
+    service.check_seed(args.seed)
+    service.check_count(args.eval, "n_evaluation")
     if args.plot:
         check_output_file(args.plot, {".png"}, "--plot")
     problem = _load_problem(args.scenario)
     layout = read_layout(args.layout, problem)
-    from station.commands.contraption import report_layout
-
     report_layout(layout, sys.stderr)
     u = np.clip(problem.to_normalized(layout.x), 0.0, 1.0)
-    _positive(args.local, "--local")
+    service.check_count(args.local, "n_local")
     settings = RobustnessSettings(n_evaluation=args.eval, n_local=args.local)
     n_evaluation, n_local = settings.n_evaluation, settings.n_local
     # Minutes at the defaults on a small machine: say what will run and how to make it shorter before starting.
     print(f"{problem.name}: {n_evaluation} evaluation layouts + {n_local} local ones = {n_evaluation + n_local} "
           "simulations at most (cached ones are not run again); fewer, and faster, with --eval N and --local N",
           file=sys.stderr)
-    bar = ProgressBar()
-    executor = None
-    try:
-        with _executor(problem, args) as executor:
-            args.stop.check()
-            bar.expect(n_evaluation, "valid evaluation layouts")
-
-            def checked(n_checked: int, n_valid: int) -> None:
-                args.stop.check()  # the draws are seconds long for a contraption: stop between their chunks
-                bar(Progress("evaluation layouts", n_valid, n_evaluation, unit="valid layouts"))
-
-            U = evaluation_layouts(problem, n_evaluation, on_checked=checked)
-            local = local_layouts(problem, u, settings, seed=args.seed)
-            new = executor.count_new(np.concatenate([U, local]))
-            bar.note(f"{len(U) + len(local) - new} of the {len(U) + len(local)} simulations are cached; "
-                     f"{new} to run")
-            bar.expect(new, "new simulations", done=lambda progress: executor.n_simulated)
-            oracle = BudgetedOracle(executor, None, bar, should_stop=args.stop.is_set, expected=n_evaluation + n_local)
-            oracle.phase = "evaluation set"
-            evaluation = evaluation_set(problem, oracle, n_evaluation, layouts=U)
-            oracle.phase = "local samples"
-            curve = robustness_curve(problem, oracle, evaluation, u, settings, seed=args.seed, local=local)
-    except (KeyboardInterrupt, SimulationCancelled) as error:
-        raise _stopped(error, bar, executor, args.stop) from None
+    bar = args.bar
+    with service.simulations(problem, **_where(args)) as executor:
+        run = service.RobustnessRun(problem, u, settings, args.seed, executor, progress=bar,
+                                    should_stop=args.stop.is_set)
+        bar.expect(n_evaluation, "valid evaluation layouts")
+        plan = run.draw()
+        bar.note(f"{plan.cached} of the {plan.layouts} simulations are cached; {plan.new} to run")
+        bar.expect(plan.new, "new simulations", done=lambda progress: executor.n_simulated)
+        measured = run.simulate()
     bar.close()
+    curve, evaluation = measured.curve, measured.evaluation
     if args.plot:
         plot_robustness({"layout": (curve.epsilon, curve.local, np.zeros_like(curve.local))}, args.plot,
                         f"{problem.name}: {Path(args.layout).name}")
@@ -565,37 +410,25 @@ def run_robustness(args) -> int:
     return 0
 
 
-@stoppable
+@command
 def run_compare(args) -> int:
-    from design.robust.executor import SimulationCancelled
-    from design.robust.pipeline import compare_methods
     from design.robust.plot import plot_robustness
 
-    methods = [m.strip().lower() for m in args.methods.split(",") if m.strip()]
-    unknown = sorted(set(methods) - set(METHODS))
-    if unknown or not methods:
-        raise UsageError(f"--methods: expected a comma-separated list among {','.join(METHODS)}, got {args.methods!r}")
-    _check_seed(args.seed)
-    _positive(args.runs, "--runs")
-    _positive(args.eval, "--eval")
+    methods = service.parse_methods(args.methods)
+    service.check_seed(args.seed)
+    service.check_count(args.runs, "runs")
+    service.check_count(args.eval, "n_evaluation")
     if args.plot:
         check_output_file(args.plot, {".png"}, "--plot")
-    _positive(args.local, "--local")
+    service.check_count(args.local, "n_local")
     robustness = RobustnessSettings(n_evaluation=args.eval, n_local=args.local)
     problem = _load_problem(args.scenario)
     budget = default_budget(problem, args.budget)
-    bar = ProgressBar()
-    executor = None
-    try:
-        with _executor(problem, args) as executor:
-            args.stop.check()
-            comparison = compare_methods(
-                problem, executor, methods, args.runs, budget, args.seed, settings=psp_settings(args.settings),
-                robustness=robustness, progress=bar, should_stop=args.stop.is_set,
-                on_run=lambda run: bar.note(f"{run.method} seed {run.seed}: rho_g {run.curve.global_robustness:.3f}, "
-                                            f"{run.n_simulations} simulations, {run.seconds:.1f} s"))
-    except (KeyboardInterrupt, SimulationCancelled) as error:
-        raise _stopped(error, bar, executor, args.stop) from None
+    bar = args.bar
+    comparison = service.compare(
+        problem, methods, args.runs, budget, args.seed, psp_settings(args.settings), robustness, progress=bar,
+        on_run=lambda run: bar.note(f"{run.method} seed {run.seed}: rho_g {run.curve.global_robustness:.3f}, "
+                                    f"{run.n_simulations} simulations, {run.seconds:.1f} s"), **_where(args))
     bar.close()
     rows = comparison.table()
     if args.plot:

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
@@ -12,7 +13,7 @@ from textual.screen import Screen
 from station.db import open_database
 from station.devices import DeviceEntry, default_devices
 from station.paths import database_path
-from station.tui.registry import ScreenEntry, discover_screens
+from station.tui.registry import MachineDesign, ScreenEntry, discover_screens
 from station.tui.screens.confirm_quit import ABORT_AND_QUIT, ConfirmQuitScreen
 from station.tui.screens.home import HomeScreen
 
@@ -30,6 +31,8 @@ class StationApp(App):
         Devices to show and use; every device simulated by default.
     database : path, optional
         The SQLite trial database; the user's data directory by default.
+    areas : sequence of ScreenEntry, optional
+        The area screens to install; every discovered one by default (tests leave some out).
     """
 
     TITLE = "Crafting Chaos station"
@@ -39,12 +42,13 @@ class StationApp(App):
         Binding("escape", "home", "Home"),
     ]
 
-    def __init__(self, devices: tuple[DeviceEntry, ...] | None = None, database: str | Path | None = None) -> None:
+    def __init__(self, devices: tuple[DeviceEntry, ...] | None = None, database: str | Path | None = None,
+                 areas: Sequence[ScreenEntry] | None = None) -> None:
         super().__init__()
         self.devices = devices if devices is not None else default_devices()
         self.database_path = Path(database) if database is not None else database_path()
         self.database = open_database(self.database_path)
-        self.areas: list[ScreenEntry] = discover_screens()
+        self.areas: list[ScreenEntry] = list(areas) if areas is not None else discover_screens()
         if all(d.simulated for d in self.devices):
             self.sub_title = "all devices simulated"
         else:
@@ -85,9 +89,26 @@ class StationApp(App):
             self.pop_screen()
 
     def open_design(self, machine: str, params: dict[str, Any]) -> None:
-        """Open a drawing-machine design on the Drawing machines screen (used by sketch retrieval and others)."""
-        self.action_open_area("drawing")
-        self.get_screen("drawing").load_design(machine, params)
+        """Open a drawing-machine design on the Drawing machines screen (used by sketch retrieval and others); in an
+        app without that screen, a warning."""
+        drawing = self.open_area_if_installed("drawing")
+        if drawing is not None:
+            drawing.load_design(machine, params)
+
+    def current_design(self) -> MachineDesign | None:
+        """The Drawing machines screen's design (used by Explore, Fabricate, Plot); None in an app without it."""
+        try:
+            drawing = self.get_screen("drawing")
+        except KeyError:
+            return None
+        return drawing.current_design()
+
+    def machines_screen(self) -> Screen | None:
+        """The Machines screen (it owns the device sessions and the job queues); None in an app without it."""
+        try:
+            return self.get_screen("machines")
+        except KeyError:
+            return None
 
     async def action_quit(self) -> None:
         """Quit (ctrl+q, the command palette); while a machine job runs, ask first.
@@ -95,8 +116,8 @@ class StationApp(App):
         The answer is either keep the job running, or abort it (soft reset, then ``M5 S0``: the laser is off), wait
         until it has ended and is recorded in the job history, and quit, saying how the job ended.
         """
-        machines = self._machines_screen()
-        job = machines.active_job() if machines is not None else None
+        machines = self.machines_screen()
+        job = machines.active_job() if hasattr(machines, "active_job") else None
         if job is None:
             self.exit()
             return
@@ -108,14 +129,6 @@ class StationApp(App):
                 machines.abort_then(lambda message: self.exit(message=f"chaos-station: {message}"))
 
         self.push_screen(ConfirmQuitScreen(job.title, job.device, job.state, laser=job.job.laser), answered)
-
-    def _machines_screen(self) -> Screen | None:
-        """The Machines screen if that area is installed (it owns the running jobs)."""
-        try:
-            screen = self.get_screen("machines")
-        except KeyError:
-            return None
-        return screen if hasattr(screen, "active_job") else None
 
     def on_unmount(self) -> None:
         self.database.close()

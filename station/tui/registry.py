@@ -1,7 +1,9 @@
-"""Discovery of the TUI's area screens.
+"""Discovery of the TUI's area screens, and the values they hand each other through the app.
 
 Each module in :mod:`station.tui.screens` (except ``home``) defines ``SCREEN = ScreenEntry(...)``. The app installs
 every entry under its ``name`` and binds its ``key`` on the home screen, so adding an area never edits the app.
+Screens never import each other: one reaches another through :class:`station.tui.app.StationApp`'s accessors
+(``current_design()``, ``machines_screen()``), which answer None in an app without that area.
 """
 
 from __future__ import annotations
@@ -10,8 +12,24 @@ import importlib
 import pkgutil
 from collections.abc import Callable
 from dataclasses import dataclass
+from typing import NamedTuple
 
 from textual.screen import Screen
+
+
+class MachineDesign(NamedTuple):
+    """A drawing-machine design: the machine's name and its parameters (what the Drawing screen shows)."""
+
+    machine: str
+    params: dict[str, float]
+
+    @classmethod
+    def defaults(cls, machine: str) -> MachineDesign:
+        """``machine`` with its default parameters (a screen's start when there is no Drawing screen)."""
+        from design.machines import get_machine
+
+        model = get_machine(machine)
+        return cls(model.name, model.defaults())
 
 
 @dataclass(frozen=True)

@@ -6,18 +6,14 @@ import numpy as np
 from textual.widgets import DataTable
 
 from design.explore import CURVATURE
-from station.tui.app import StationApp
 from station.tui.widgets.explore_canvas import ExploreCanvas
 from station.tui.widgets.explore_slider import InvariantSlider
 
-from ..conftest import settle
+from ..conftest import opened, settle
 
 
 async def test_explore_screen_full_session(tmp_path):
-    app = StationApp(database=tmp_path / "t.sqlite3")
-    async with app.run_test(size=(150, 45)) as pilot:
-        await pilot.press("d")
-        await settle(app, pilot)
+    async with opened(tmp_path, "d", size=(150, 45)) as (app, pilot):
         app.get_screen("drawing").load_design(
             "cycloid_drawing_machine", {"r_t": 7, "r_e": 4, "d_tf": 9.0, "theta_te": 2.4, "r_s": 3.5, "d_fh": 10.5}
         )
@@ -99,8 +95,7 @@ async def test_explore_screen_full_session(tmp_path):
 
 
 async def test_over_constrained_is_reported_and_the_screen_stays_usable(tmp_path):
-    app = StationApp(database=tmp_path / "t.sqlite3")
-    async with app.run_test(size=(150, 45)) as pilot:
+    async with opened(tmp_path, size=(150, 45)) as (app, pilot):
         await pilot.press("x")  # from home: the Drawing screen's current design (a Spirograph: 1 parameter)
         await settle(app, pilot)
         screen = app.screen
@@ -117,10 +112,7 @@ async def test_over_constrained_is_reported_and_the_screen_stays_usable(tmp_path
 async def test_a_click_on_the_canvas_selects_the_nearest_poi(tmp_path):
     from station.tui.widgets.canvas import world_to_cell
 
-    app = StationApp(database=tmp_path / "t.sqlite3")
-    async with app.run_test(size=(150, 45)) as pilot:
-        await pilot.press("x")
-        await settle(app, pilot)
+    async with opened(tmp_path, "x", size=(150, 45)) as (app, pilot):
         screen = app.screen
         canvas = screen.query_one("#canvas", ExploreCanvas)
         target = screen.explorer.pois[3]
@@ -138,10 +130,15 @@ async def test_a_click_on_the_canvas_selects_the_nearest_poi(tmp_path):
 
 async def test_poi_coordinates_at_the_centre_read_zero_not_minus_zero(tmp_path):
     # The spirograph's default design crosses itself at the centre: the table showed -0.000 beside 0.000.
-    app = StationApp(database=tmp_path / "t.sqlite3")
-    async with app.run_test(size=(150, 45)) as pilot:
-        await pilot.press("x")
-        await settle(app, pilot)
+    async with opened(tmp_path, "x", size=(150, 45)) as (app, pilot):
         table = app.screen.query_one("#pois", DataTable)
         cells = [str(cell) for row in range(table.row_count) for cell in table.get_row_at(row)[2:4]]
         assert "0.000" in cells and "-0.000" not in cells
+
+
+async def test_without_a_drawing_screen_explore_starts_from_a_default_design(tmp_path):
+    async with opened(tmp_path, "x", size=(150, 45), without=("drawing",)) as (app, pilot):
+        screen = app.screen
+        assert screen.name == "explore" and app.current_design() is None
+        assert screen.explorer is not None and screen.explorer.machine.name == "cycloid_drawing_machine"
+        assert screen.loaded_design[0] == "cycloid_drawing_machine"

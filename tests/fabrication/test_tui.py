@@ -5,8 +5,9 @@ from __future__ import annotations
 from textual.widgets import DataTable, Input, Static
 
 from design.machines import get_machine
-from station.tui.app import StationApp
 from station.tui.screens.fabricate import FabricateScreen, HalfBlockPicture
+
+from ..conftest import opened
 
 
 async def wait_for(pilot, screen, condition, steps=2400):
@@ -18,15 +19,19 @@ async def wait_for(pilot, screen, condition, steps=2400):
     raise AssertionError(f"timed out; status: {screen.last_message}")
 
 
+async def show_design(app, pilot, machine: str, params: dict) -> None:
+    """Open the Drawing machines screen on ``machine`` with ``params``, as one does before fabricating it."""
+    await pilot.press("d")
+    for _ in range(5):
+        await pilot.pause(0.05)
+    app.open_design(machine, params)
+    for _ in range(5):
+        await pilot.pause(0.05)
+
+
 async def test_fabricate_shows_the_current_design_sheet_and_parts(tmp_path):
-    app = StationApp(database=tmp_path / "t.sqlite3")
-    async with app.run_test(size=(160, 50)) as pilot:
-        await pilot.press("d")
-        for _ in range(5):
-            await pilot.pause(0.05)
-        app.open_design("spirograph", {"r_f": 5, "r_r": 2, "d": 1.0})
-        for _ in range(5):
-            await pilot.pause(0.05)
+    async with opened(tmp_path) as (app, pilot):
+        await show_design(app, pilot, "spirograph", {"r_f": 5, "r_r": 2, "d": 1.0})
         assert app.get_screen("drawing").current_design()[1]["r_r"] == 2
         # "Fabricate" from the Drawing machines screen itself.
         app.get_screen("drawing").action_fabricate()
@@ -66,9 +71,7 @@ async def test_fabricate_shows_the_current_design_sheet_and_parts(tmp_path):
 
 
 async def test_a_bad_field_is_reported_without_a_crash(tmp_path):
-    app = StationApp(database=tmp_path / "t.sqlite3")
-    async with app.run_test(size=(160, 50)) as pilot:
-        await pilot.press("f")
+    async with opened(tmp_path, "f", wait=False) as (app, pilot):
         screen = app.screen
         await wait_for(pilot, screen, lambda: screen.result is not None)
         screen.query_one("#sheet-size", Input).value = "tiny"
@@ -82,9 +85,7 @@ async def test_a_bad_field_is_reported_without_a_crash(tmp_path):
 
 
 async def test_send_queues_the_laser_job_on_the_machines_screen(tmp_path):
-    app = StationApp(database=tmp_path / "t.sqlite3")
-    async with app.run_test(size=(160, 50)) as pilot:
-        await pilot.press("f")
+    async with opened(tmp_path, "f", wait=False) as (app, pilot):
         screen = app.screen
         await wait_for(pilot, screen, lambda: screen.result is not None)
         await pilot.press("s")
@@ -100,14 +101,8 @@ async def test_send_queues_the_laser_job_on_the_machines_screen(tmp_path):
 
 
 async def test_several_sheets_are_shown_in_turn_and_all_sent(tmp_path):
-    app = StationApp(database=tmp_path / "t.sqlite3")
-    async with app.run_test(size=(160, 50)) as pilot:
-        await pilot.press("d")
-        for _ in range(5):
-            await pilot.pause(0.05)
-        app.open_design("hoot_nanny", get_machine("hoot_nanny").defaults())
-        for _ in range(5):
-            await pilot.pause(0.05)
+    async with opened(tmp_path) as (app, pilot):
+        await show_design(app, pilot, "hoot_nanny", get_machine("hoot_nanny").defaults())
         app.get_screen("drawing").action_fabricate()
         screen = app.get_screen("fabricate")
         await wait_for(pilot, screen, lambda: screen.result is not None)
@@ -135,10 +130,7 @@ def test_the_sheet_picture_names_what_it_will_show():
 
 async def test_typed_text_in_the_status_is_shown_as_typed(tmp_path):
     # The status was read as markup: a material typed as "[b]oak[/b]" came back as "oak" (and "[red]..." coloured).
-    app = StationApp(database=tmp_path / "t.sqlite3")
-    async with app.run_test(size=(160, 50)) as pilot:
-        await pilot.press("f")
-        await pilot.pause()
+    async with opened(tmp_path, "f", wait=False) as (app, pilot):
         screen = app.screen
         await wait_for(pilot, screen, lambda: screen.result is not None)
         screen.query_one("#material", Input).value = "[b]oak[/b]"
@@ -146,3 +138,18 @@ async def test_typed_text_in_the_status_is_shown_as_typed(tmp_path):
         await pilot.press("enter")
         await wait_for(pilot, screen, lambda: "oak" in screen.last_message and "generating" not in screen.last_message)
         assert "[b]oak[/b]" in str(screen.query_one("#status", Static).render())
+
+
+async def test_without_drawing_and_machines_screens_fabricate_works_on_its_own(tmp_path):
+    # The links through the app: no Drawing screen gives the default design, no Machines screen writes the G-code.
+    async with opened(tmp_path, "f", wait=False, without=("drawing", "machines")) as (app, pilot):
+        screen = app.screen
+        assert isinstance(screen, FabricateScreen)
+        await wait_for(pilot, screen, lambda: screen.result is not None)
+        assert app.current_design() is None
+        assert screen.design == ("spirograph", get_machine("spirograph").defaults())
+        assert screen.result.machine == "spirograph"
+        await pilot.press("s")
+        await pilot.pause()
+        assert "the Machines screen cannot take jobs here; the G-code is in" in screen.last_message
+        assert app.screen is screen and app.machines_screen() is None

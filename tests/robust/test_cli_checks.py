@@ -140,3 +140,33 @@ def test_the_executor_reaches_its_scheduler_when_asked():
     with SimulationExecutor(problem, backend="inline") as inline:
         inline.connect()  # nothing to reach
         assert inline.run(np.full((1, 3), 0.4)).shape == (1, 4)
+
+
+def test_the_service_names_the_value_and_the_command_names_the_flag(tmp_path):
+    # The Robust screen calls the service: its refusals must not speak of command-line flags.
+    from station.commands.robust import usage_error
+    from station.errors import UsageError
+    from station.services import robust as service
+    from station.services.errors import ServiceError
+
+    refusals = [
+        (lambda: service.psp_settings("bogus"), "settings", "--settings must be one of recommended, thesis or a "
+                                                            "LAYOUT.json, got 'bogus'"),
+        (lambda: service.psp_settings(str(tmp_path / "gone.json")), "settings",
+         f"--settings: no such file {tmp_path / 'gone.json'}"),
+        (lambda: service.check_seed(-1), "seed", "--seed must be a non-negative integer, got -1"),
+        (lambda: service.check_count(0, "n_evaluation"), "n_evaluation", "--eval must be an integer >= 1, got 0"),
+        (lambda: service.default_budget(synthetic_chain(), 3), "budget", "--budget must be an integer >= 20, got 3"),
+        (lambda: service.parse_methods("ours,b9"), "methods",
+         "--methods: expected a comma-separated list among ours,b1,b2,b3, got 'ours,b9'"),
+    ]
+    for refuse, field, cli_message in refusals:
+        with pytest.raises(ServiceError) as caught:
+            refuse()
+        assert caught.value.field == field and "--" not in str(caught.value)
+        reworded = usage_error(caught.value)
+        assert isinstance(reworded, UsageError) and str(reworded) == cli_message
+    with pytest.raises(service.RunStopped) as stopped:
+        with service.simulations(synthetic_chain(), workers=1, should_stop=lambda: True):
+            pass  # stopped before any work: nothing new in the cache
+    assert stopped.value.new_simulations == 0 and stopped.value.cache == service.simulation_cache_path()

@@ -85,7 +85,11 @@ def test_the_bar_says_the_time_left_once_known_and_on_each_line_after():
         clock.now += 0.5
         bar(Progress("evaluation set", n, 200))
     bar.close()
-    assert "\r[" in terminal.getvalue() and "about 1 min 26 s left" in terminal.getvalue()
+    # On a terminal, rich's bar (redrawn in place) with the counts and the time left beside it.
+    drawn = terminal.getvalue()
+    assert "\r" in drawn and "━" in drawn
+    assert "29/200 evaluation set" in drawn and "about 1 min 26 s left" in drawn
+    assert "estimate: about" in drawn
 
 
 def test_robustness_says_up_front_what_it_will_run_and_how_to_shorten_it(tmp_path, capsys):

@@ -5,11 +5,13 @@ from __future__ import annotations
 import asyncio
 
 import pytest
-from textual.widgets import Button, DataTable, Input, ProgressBar, Select, Static
+from textual.widgets import Button, DataTable, Input, Select, Static
 
 from design.robust import PSPSettings
-from station.tui.app import StationApp
 from station.tui.screens.robust import RobustScreen, scenario_choices
+from station.tui.widgets.progress import ProgressPanel
+
+from ..conftest import opened
 
 TINY = PSPSettings(n_initial=24, n_successes=10, max_exploration_steps=2, max_active_steps=1)
 
@@ -24,13 +26,6 @@ async def wait_until_idle(app, pilot, seconds=120):
     raise AssertionError("the optimization did not finish")
 
 
-async def open_from_home(app, pilot) -> RobustScreen:
-    """Press o on the home screen and return the optimize screen it opens."""
-    await pilot.press("o")
-    await pilot.pause()
-    return open_screen(app)
-
-
 def open_screen(app) -> RobustScreen:
     screen = app.screen
     assert isinstance(screen, RobustScreen)
@@ -40,10 +35,7 @@ def open_screen(app) -> RobustScreen:
 
 
 async def test_optimize_shows_progress_probabilities_and_layouts(tmp_path):
-    app = StationApp(database=tmp_path / "t.sqlite3")
-    async with app.run_test(size=(160, 50)) as pilot:
-        await pilot.press("o")
-        await pilot.pause()
+    async with opened(tmp_path, "o", wait=False) as (app, pilot):
         assert app.screen.name == "optimize"
         screen = open_screen(app)
         simple = dict(scenario_choices())["simple"]
@@ -61,7 +53,9 @@ async def test_optimize_shows_progress_probabilities_and_layouts(tmp_path):
         assert events.row_count == 6  # five events and the product
         layout = screen.query_one("#layout", DataTable)
         assert [str(layout.get_row(k)[0]) for k in layout.rows] == ["track.x", "track.z", "track.roll"]
-        assert screen.query_one("#bar", ProgressBar).progress == screen.result.n_simulations
+        panel = screen.query_one("#progress-panel", ProgressPanel)
+        assert panel.bar.progress == screen.result.n_simulations and panel.stage == "done"
+        assert f"simulations {screen.result.n_simulations}/{screen.result.budget}" in panel.message
         status = str(screen.query_one("#status", Static).render())
         assert "PSP" in status and f"kept {screen.result.kept_candidate()}" in status
         assert screen.query_one("#picture").image is not None
@@ -71,9 +65,8 @@ async def test_optimize_shows_progress_probabilities_and_layouts(tmp_path):
 
 
 async def test_stop_ends_a_run_cleanly_and_bad_budget_is_refused(tmp_path):
-    app = StationApp(database=tmp_path / "t.sqlite3")
-    async with app.run_test(size=(160, 50)) as pilot:
-        screen = await open_from_home(app, pilot)
+    async with opened(tmp_path, "o", wait=False) as (app, pilot):
+        screen = open_screen(app)
         screen.query_one("#budget", Input).value = "3"
         screen.action_optimize()
         await pilot.pause()
@@ -90,9 +83,8 @@ async def test_stop_ends_a_run_cleanly_and_bad_budget_is_refused(tmp_path):
 
 async def test_enter_in_the_budget_field_starts_a_run_that_s_stops(tmp_path):
     """Letter keys type into a focused field (o does nothing there); Enter starts, and s then stops the run."""
-    app = StationApp(database=tmp_path / "t.sqlite3")
-    async with app.run_test(size=(160, 50)) as pilot:
-        screen = await open_from_home(app, pilot)
+    async with opened(tmp_path, "o", wait=False) as (app, pilot):
+        screen = open_screen(app)
         screen.query_one("#budget", Input).focus()
         await pilot.press("end", *["backspace"] * 6, "2", "0", "0", "o")
         await pilot.pause()
@@ -111,10 +103,7 @@ async def test_contraption_screen_opens_the_optimizer_on_its_scenario(tmp_path):
 
     from design.contraption.catalog import resolve_scenario_path
 
-    app = StationApp(database=tmp_path / "t.sqlite3")
-    async with app.run_test(size=(160, 50)) as pilot:
-        await pilot.press("c")
-        await pilot.pause()
+    async with opened(tmp_path, "c", wait=False) as (app, pilot):
         contraption = app.screen
         assert contraption.load("ballrun")
         await pilot.press("o")
@@ -137,10 +126,7 @@ async def test_contraption_screen_opens_the_optimizer_on_its_scenario(tmp_path):
 
 
 async def test_the_settings_choice_reaches_the_pipeline(tmp_path):
-    app = StationApp(database=tmp_path / "t.sqlite3")
-    async with app.run_test(size=(160, 50)) as pilot:
-        await pilot.press("o")
-        await pilot.pause()
+    async with opened(tmp_path, "o", wait=False) as (app, pilot):
         screen = app.screen
         screen.simulation_workers = 1  # psp_settings stays None: the Select decides
         screen.query_one("#scenario", Select).value = dict(scenario_choices())["simple"]
@@ -156,8 +142,7 @@ async def test_the_settings_choice_reaches_the_pipeline(tmp_path):
 
 async def test_side_view_says_no_layout_yet_before_a_run(tmp_path):
     # The picture widget came from the Fabricate screen and said "(no sheet yet)" here.
-    app = StationApp(database=tmp_path / "t.sqlite3")
-    async with app.run_test(size=(160, 50)) as pilot:
-        screen = await open_from_home(app, pilot)
+    async with opened(tmp_path, "o", wait=False) as (app, pilot):
+        screen = open_screen(app)
         shown = str(screen.query_one("#picture").render())
         assert "no layout yet" in shown and "sheet" not in shown

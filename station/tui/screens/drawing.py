@@ -17,7 +17,7 @@ from textual.widgets import Footer, Header, Select, Static
 
 from design.errors import DesignError
 from design.machines import get_machine, machine_names
-from station.tui.registry import ScreenEntry
+from station.tui.registry import MachineDesign, ScreenEntry
 from station.tui.widgets.canvas import Marker, PatternCanvas
 from station.tui.widgets.parameter import ParameterControl, ParameterState
 
@@ -137,9 +137,9 @@ class DrawingScreen(Screen):
         return {c.parameter_name: c for c in self.query(ParameterControl)}
 
     # --- the design ----------------------------------------------------------------------------------------------
-    def current_design(self) -> tuple[str, dict[str, float]]:
+    def current_design(self) -> MachineDesign:
         """The machine's name and a copy of its parameters (used by Explore, Fabricate, Plot)."""
-        return self.machine.name, dict(self.params)
+        return MachineDesign(self.machine.name, dict(self.params))
 
     def load_design(self, machine: str, params: dict[str, float]) -> None:
         """Show ``machine`` with ``params`` (validated; a bad design is reported and nothing changes)."""

@@ -25,9 +25,8 @@ from textual.widgets import DataTable, Footer, Header, Static
 
 from design.errors import DesignError
 from design.explore import Explorer, OverConstrainedError
-from design.machines import get_machine
 from station.services.explore import start_session
-from station.tui.registry import ScreenEntry
+from station.tui.registry import MachineDesign, ScreenEntry
 from station.tui.widgets.explore_canvas import ExploreCanvas, nearest_poi, poi_markers
 from station.tui.widgets.explore_slider import InvariantSlider
 
@@ -108,13 +107,9 @@ class ExploreScreen(Screen):
         if design != self.loaded_design or self.explorer is None:
             self.load(*design)
 
-    def _drawing_design(self) -> tuple[str, dict]:
-        try:
-            machine, params = self.app.get_screen("drawing").current_design()
-            return machine, dict(params)
-        except Exception:  # no Drawing screen installed, or not ready: start from a default design
-            model = get_machine(DEFAULT_MACHINE)
-            return model.name, model.defaults()
+    def _drawing_design(self) -> MachineDesign:
+        """The Drawing screen's design; in an app without that screen, the default design of DEFAULT_MACHINE."""
+        return self.app.current_design() or MachineDesign.defaults(DEFAULT_MACHINE)
 
     # --- explorer work (threads) --------------------------------------------------------------------------------
     def load(self, machine: str, params: dict) -> None:

@@ -27,7 +27,7 @@ from drivers.errors import DriverError
 from station.errors import StationError
 from station.paths import data_dir
 from station.services.fabricate import DEFAULT_GAP, KERF_SOURCES, FabricationResult, fabricate, parse_sheet
-from station.tui.registry import ScreenEntry
+from station.tui.registry import MachineDesign, ScreenEntry
 from station.tui.widgets.picture import HalfBlockPicture
 
 DEFAULT_MACHINE = "spirograph"
@@ -63,7 +63,7 @@ class FabricateScreen(Screen):
 
     def __init__(self) -> None:
         super().__init__(name="fabricate")
-        self.design: tuple[str, dict] | None = None
+        self.design: MachineDesign | None = None
         self.result: FabricationResult | None = None
         self.last_message = ""
         self.part_text = ""
@@ -105,13 +105,9 @@ class FabricateScreen(Screen):
             self.design = design
             self.action_generate()
 
-    def _drawing_design(self) -> tuple[str, dict]:
-        try:
-            machine, params = self.app.get_screen("drawing").current_design()
-            return machine, dict(params)
-        except Exception:  # no Drawing screen installed or not ready: a default design
-            model = get_machine(DEFAULT_MACHINE)
-            return model.name, model.defaults()
+    def _drawing_design(self) -> MachineDesign:
+        """The Drawing screen's design; in an app without that screen, the default design of DEFAULT_MACHINE."""
+        return self.app.current_design() or MachineDesign.defaults(DEFAULT_MACHINE)
 
     # --- actions ---------------------------------------------------------------------------------------------------
     def action_reload(self) -> None:
@@ -264,11 +260,7 @@ class FabricateScreen(Screen):
         if self.result is None:
             self._set_status("nothing to send yet")
             return
-        try:
-            machines = self.app.get_screen("machines")
-        except Exception:
-            machines = None
-        queue = getattr(machines, "queue_job", None) if machines is not None else None
+        queue = getattr(self.app.machines_screen(), "queue_job", None)
         if queue is None:
             path = self.action_write()
             self._set_status(f"the Machines screen cannot take jobs here; the G-code is in {path}")

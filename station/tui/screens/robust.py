@@ -21,24 +21,20 @@ from textual.app import ComposeResult
 from textual.binding import Binding
 from textual.containers import Horizontal, Vertical
 from textual.css.query import NoMatches
+from textual.message import Message
 from textual.screen import Screen
-from textual.widgets import Button, DataTable, Footer, Header, Input, Label, ProgressBar, Select, Static
+from textual.widgets import Button, DataTable, Footer, Header, Input, Label, Select, Static
 
 from design.contraption.catalog import EXAMPLES_DIR, example_names
 from design.errors import DesignError
-from design.robust import Progress, PSPSettings, RobustLayout, SimulationCancelled, SimulationExecutor
-from design.robust import optimize_robust_layout as run_pipeline
-from station.commands.robust import (
-    DEFAULT_BUDGET,
-    DEFAULT_SETTINGS,
-    SETTINGS_CHOICES,
-    psp_settings,
-    simulation_cache_path,
-    thesis_budget,
-)
+from design.robust import Progress, PSPSettings, RobustLayout
 from station.paths import data_dir
+from station.services import robust as service
+from station.services.errors import ServiceError
+from station.services.robust import DEFAULT_BUDGET, DEFAULT_SETTINGS, SETTINGS_CHOICES, RunStopped, thesis_budget
 from station.tui.registry import ScreenEntry
 from station.tui.widgets.picture import HalfBlockPicture
+from station.tui.widgets.progress import ProgressPanel, ProgressReported, post_progress
 
 
 def scenario_choices() -> list[tuple[str, str]]:
@@ -53,6 +49,27 @@ def scenario_choices() -> list[tuple[str, str]]:
     return choices
 
 
+def describe_progress(progress: Progress) -> str:
+    """A robust run's progress line: simulations of the budget, the CV accuracy and best PSP once known."""
+    parts = [f"simulations {progress.simulations}/{progress.budget}"]
+    if progress.cv_accuracy is not None:
+        parts.append(f"CV accuracy {progress.cv_accuracy:.2f}")
+    if progress.best_psp is not None:
+        parts.append(f"best PSP {progress.best_psp:.3f}")
+    if progress.detail:
+        parts.append(progress.detail)
+    return "   ".join(parts)
+
+
+class OptimizationEnded(Message):
+    """An optimization ended: with its problem, result and side-view picture, or stopped or refused (``message``)."""
+
+    def __init__(self, problem=None, result: RobustLayout | None = None, png: bytes | None = None,
+                 message: str | Text = "") -> None:
+        super().__init__()
+        self.problem, self.result, self.png, self.message = problem, result, png, message
+
+
 class RobustScreen(Screen):
     """Optimize a contraption layout with live progress, then show probabilities and layouts."""
 
@@ -61,7 +78,6 @@ class RobustScreen(Screen):
     RobustScreen #controls Input { width: 100%; }
     RobustScreen #controls Button { width: 100%; margin-top: 1; }
     RobustScreen #progress-panel { height: auto; border: round $accent; padding: 0 1; }
-    RobustScreen #bar { width: 100%; }
     RobustScreen #results { width: 1fr; }
     RobustScreen #tables { height: auto; max-height: 50%; }
     RobustScreen #events, RobustScreen #layout { width: 1fr; height: auto; max-height: 20; }
@@ -109,9 +125,8 @@ class RobustScreen(Screen):
                 yield Button("Stop (s)", id="stop", disabled=True)
                 yield Static("", id="status")
             with Vertical(id="results"):
-                with Vertical(id="progress-panel"):
-                    yield ProgressBar(id="bar", total=DEFAULT_BUDGET, show_eta=False)
-                    yield Static("Pick a scenario and press o (Enter in the budget or seed field).", id="progress")
+                yield ProgressPanel("Pick a scenario and press o (Enter in the budget or seed field).",
+                                    describe=describe_progress, total=DEFAULT_BUDGET, id="progress-panel")
                 with Horizontal(id="tables"):
                     yield DataTable(id="events", cursor_type="row", zebra_stripes=True)
                     yield DataTable(id="layout", cursor_type="row", zebra_stripes=True)
@@ -194,10 +209,9 @@ class RobustScreen(Screen):
         self._optimizing = True
         self.query_one("#optimize", Button).disabled = True
         self.query_one("#stop", Button).disabled = False
-        bar = self.query_one("#bar", ProgressBar)
-        bar.update(total=budget, progress=0)
+        self.query_one(ProgressPanel).start(budget)
         self._set_status(f"optimizing {Path(str(scenario)).stem} ...")
-        settings = self.psp_settings or psp_settings(str(self.query_one("#settings", Select).value))
+        settings = self.psp_settings or service.psp_settings(str(self.query_one("#settings", Select).value))
         self.run_optimization(str(scenario), budget, seed, settings)
 
     def action_stop(self) -> None:
@@ -218,38 +232,32 @@ class RobustScreen(Screen):
     # -- the work (a thread) -----------------------------------------------------------------------------------
     @work(thread=True, exclusive=True, group="robust")
     def run_optimization(self, scenario_path: str, budget: int, seed: int, settings: PSPSettings) -> None:
-        from design.robust.contraption import load_problem, render_layouts
+        """Optimize in this thread; progress and the end reach the screen as messages, in the order they happened."""
+        from design.robust.contraption import render_layouts
 
         try:
-            problem = load_problem(scenario_path)
-            cache = simulation_cache_path()
-            with SimulationExecutor(problem, workers=self.simulation_workers, cache_path=cache) as executor:
-                result = run_pipeline(problem, executor, budget, seed, settings,
-                                      progress=self._progress_from_thread, should_stop=self._stop.is_set)
+            problem = service.load_problem(scenario_path)
+            result = service.optimize(problem, budget, seed, settings, workers=self.simulation_workers,
+                                      progress=post_progress(self), should_stop=self._stop.is_set)
             picture = io.BytesIO()
             render_layouts(problem, [("initial", problem.initial_layout()), ("optimized", result.u)]).save(
                 picture, format="PNG")
-        except SimulationCancelled:
-            self.app.call_from_thread(self._finished, None, None, None, "stopped; finished simulations are cached")
+        except RunStopped:
+            self.post_message(OptimizationEnded(message="stopped; finished simulations are cached"))
             return
-        except (DesignError, OSError) as error:
-            self.app.call_from_thread(self._finished, None, None, None, Text(f"cannot optimize: {error}", "red"))
+        except (DesignError, ServiceError, OSError) as error:
+            self.post_message(OptimizationEnded(message=Text(f"cannot optimize: {error}", "red")))
             return
-        self.app.call_from_thread(self._finished, problem, result, picture.getvalue(), "")
+        self.post_message(OptimizationEnded(problem, result, picture.getvalue()))
 
-    def _progress_from_thread(self, progress: Progress) -> None:
-        self.app.call_from_thread(self._show_progress, progress)
+    def on_progress_reported(self, message: ProgressReported) -> None:
+        self._show_progress(message.progress)
 
     def _show_progress(self, progress: Progress) -> None:
-        self.query_one("#bar", ProgressBar).update(total=progress.budget, progress=progress.simulations)
-        parts = [f"[b]{progress.phase}[/b]", f"simulations {progress.simulations}/{progress.budget}"]
-        if progress.cv_accuracy is not None:
-            parts.append(f"CV accuracy {progress.cv_accuracy:.2f}")
-        if progress.best_psp is not None:
-            parts.append(f"best PSP {progress.best_psp:.3f}")
-        if progress.detail:
-            parts.append(progress.detail)
-        self.query_one("#progress", Static).update("   ".join(parts))
+        self.query_one(ProgressPanel).show(progress)
+
+    def on_optimization_ended(self, message: OptimizationEnded) -> None:
+        self._finished(message.problem, message.result, message.png, message.message)
 
     def _finished(self, problem, result: RobustLayout | None, png: bytes | None, message: str) -> None:
         self._optimizing = False
@@ -282,9 +290,9 @@ class RobustScreen(Screen):
                          f"{result.n_simulations} simulations ({result.n_new_simulations} new), "
                          f"{result.seconds:.1f} s; kept {result.kept_candidate()}. w writes it.")
         moved = float(np.linalg.norm(result.u - problem.initial_layout()))
-        self.query_one("#progress", Static).update(
-            f"[b]done[/b]   simulations {result.n_simulations}/{result.budget}   CV accuracy "
-            f"{result.cv_accuracy:.2f}   PSP {result.psp:.3f}   moved {moved:.2f} (normalized) from the initial layout")
+        self.query_one(ProgressPanel).say(
+            f"simulations {result.n_simulations}/{result.budget}   CV accuracy {result.cv_accuracy:.2f}   "
+            f"PSP {result.psp:.3f}   moved {moved:.2f} (normalized) from the initial layout")
 
 
 SCREEN = ScreenEntry(

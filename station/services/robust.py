@@ -1,0 +1,375 @@
+"""Robust contraption layouts as a service (thesis 4.5-4.8): optimize a layout, measure its robustness, compare
+methods.
+
+Used by ``station optimize``, ``station robustness``, ``station compare`` and the Robust layouts screen. Every run
+simulates through one executor on the station's shared simulation cache (:func:`simulations`), reports progress
+through one callback (a :class:`design.robust.Progress`, hence a :class:`common.progress.Progress`) and stops when
+``should_stop()`` turns true: a stopped run raises :class:`RunStopped`, which says how many new simulations the cache
+kept. Refused input is a :class:`~station.services.errors.ServiceError` naming the value (``budget``, ``seed``,
+``settings``...); design errors (a bad scenario or layout) pass as they are.
+"""
+
+from __future__ import annotations
+
+import signal
+import threading
+from collections.abc import Callable, Iterator, Sequence
+from contextlib import contextmanager
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+from common.progress import Cancelled
+from design.errors import FileFormatError
+from design.robust.problem import RobustError
+from design.robust.settings import METHODS, PSPSettings, RobustnessSettings
+from station.paths import cache_dir
+from station.services.errors import ServiceError
+
+if TYPE_CHECKING:
+    import numpy as np
+
+    from design.robust.executor import SimulationExecutor
+    from design.robust.pipeline import Comparison, MethodRun, ProgressCallback, RobustLayout
+    from design.robust.problem import LayoutProblem
+    from design.robust.robustness import EvaluationSet, RobustnessCurve
+
+# The work (scikit-learn, scipy, pybullet, Dask) is imported by the functions that run it, so that importing this
+# module (every `station` call builds the CLI's parser from it) stays light.
+
+#: Simulation budgets measured by the thesis for its own method (Table 4.1), used as the default budget.
+THESIS_BUDGETS = {"CAUSALITYSWITCH": 614, "BALLRUN": 1120, "LONGCHAIN": 1915, "TEAPOTADVENTURE": 2420}
+DEFAULT_BUDGET = 600
+#: The smallest budget a run may have (the PSP's first exploration needs it).
+MINIMUM_BUDGET = 20
+#: The PSP settings one can choose: the thesis's method as published, or ours (see PSPSettings.recommended).
+SETTINGS_CHOICES = {
+    "thesis": "the thesis's method as published",
+    "recommended": "ours: quasi-deterministic test on the uniform start, C/γ by ROC AUC, three verified candidates",
+}
+#: Ours is the default: at the thesis's budgets it beat the thesis's settings on CAUSALITYSWITCH and BALLRUN (README).
+DEFAULT_SETTINGS = "recommended"
+
+StopCheck = Callable[[], bool]
+
+
+class RunStopped(Cancelled):
+    """A run stopped on request (a stop asked for, Ctrl-C); the simulations it finished are kept in the cache.
+
+    Parameters
+    ----------
+    new_simulations : int
+        Simulations this run made (all of them are in the cache).
+    cache : Path
+        The cache file that keeps them.
+    """
+
+    def __init__(self, new_simulations: int, cache: Path) -> None:
+        super().__init__(f"stopped; the {new_simulations} new simulations of this run are kept in the cache ({cache})")
+        self.new_simulations = new_simulations
+        self.cache = cache
+
+
+def simulation_cache_path() -> Path:
+    """The shared simulation cache of every robust-layout command and the TUI."""
+    return cache_dir() / "robust-simulations.sqlite3"
+
+
+# -- inputs -------------------------------------------------------------------------------------------------------
+def check_count(value: int | None, name: str, minimum: int = 1) -> None:
+    """Refuse an integer ``value`` (named ``name``) below ``minimum``; None (the default) passes."""
+    if value is not None and value < minimum:
+        raise ServiceError(f"{name} must be an integer >= {minimum}, got {value}", field=name, value=value)
+
+
+def check_seed(seed: int) -> None:
+    """Refuse a negative seed before any work (numpy refuses it only once the first random draw is made)."""
+    if seed < 0:
+        raise ServiceError(f"seed must be a non-negative integer, got {seed}", field="seed", value=seed)
+
+
+def thesis_budget(name: str) -> int:
+    """The thesis's budget for a scenario named like one of Table 4.1 (``CAUSALITYSWITCH (ball faster)``,
+    ``causalityswitch_ball``...), else :data:`DEFAULT_BUDGET`."""
+    upper = name.upper()
+    return next((b for key, b in THESIS_BUDGETS.items() if upper.startswith(key)), DEFAULT_BUDGET)
+
+
+def default_budget(problem, budget: int | None) -> int:
+    """``budget``, checked; None: the thesis's budget for the problem's scenario."""
+    if budget is None:
+        return thesis_budget(problem.name)
+    check_count(budget, "budget", MINIMUM_BUDGET)
+    return budget
+
+
+def parse_methods(text: str) -> list[str]:
+    """``"ours,b1"`` → ``["ours", "b1"]``: the methods to compare, among :data:`design.robust.settings.METHODS`."""
+    methods = [m.strip().lower() for m in text.split(",") if m.strip()]
+    if not methods or set(methods) - set(METHODS):
+        raise ServiceError(f"methods: expected a comma-separated list among {','.join(METHODS)}, got {text!r}",
+                           field="methods", value=text)
+    return methods
+
+
+def psp_settings(choice: str, **changes) -> PSPSettings:
+    """The PSP settings named ``choice`` (a key of :data:`SETTINGS_CHOICES`, or a LAYOUT.json's path) with
+    ``changes``."""
+    if choice in SETTINGS_CHOICES:
+        return PSPSettings.recommended(**changes) if choice == "recommended" else PSPSettings(**changes)
+    if not choice.lower().endswith(".json"):
+        raise ServiceError(f"settings must be one of {', '.join(sorted(SETTINGS_CHOICES))} or a LAYOUT.json, "
+                           f"got {choice!r}", field="settings", value=choice)
+    return settings_of_layout(choice).with_changes(**changes)
+
+
+def settings_of_layout(path: str) -> PSPSettings:
+    """The PSP settings a LAYOUT.json recorded (``psp_settings``, as planned for its budget).
+
+    A missing file is a :class:`ServiceError` (``field="settings"``); a file that is not a LAYOUT.json with settings
+    is a :class:`design.errors.FileFormatError` naming the file and the field.
+    """
+    from design.contraption.layout_io import read_layout_data
+
+    try:
+        data = read_layout_data(path)
+    except FileNotFoundError:
+        raise ServiceError(f"settings: no such file {path}", field="settings", value=path) from None
+    except OSError as error:
+        raise FileFormatError(f"{path}: cannot be read ({error})") from None
+    if not isinstance(data, dict) or "psp_settings" not in data:
+        raise FileFormatError(f"{path}: field 'psp_settings' is missing (expected a LAYOUT.json written by "
+                              "'station optimize')")
+    if data["psp_settings"] is None:
+        raise FileFormatError(f"{path}: field 'psp_settings' is null (the run recorded no settings)")
+    try:
+        return PSPSettings.from_mapping(data["psp_settings"], f"{path}: field 'psp_settings'")
+    except RobustError as error:
+        raise FileFormatError(str(error)) from None
+
+
+def load_problem(path: str):
+    """A scenario file, or an example by name (``simple``, ``ballrun``...), as a robust-layout problem."""
+    from design.contraption.catalog import resolve_scenario_path
+    from design.robust.contraption import load_problem as load
+
+    return load(resolve_scenario_path(path))
+
+
+def read_layout(path: str, problem):
+    """The layout ``path`` names for the problem's scenario (any form of :mod:`design.contraption.layout_io`: a
+    LAYOUT.json, ``{"x": [...]}``, ``{"parameters": {...}}``, or a layout named in the scenario file)."""
+    from design.contraption.layout_io import resolve_layout
+
+    return resolve_layout(path, problem.scenario)
+
+
+# -- stopping -----------------------------------------------------------------------------------------------------
+class StopRequest:
+    """Ctrl-C and SIGTERM during a run, as a request the work polls at safe points (``should_stop=stop.is_set``).
+
+    Python's default raises KeyboardInterrupt wherever the main thread is, and the station's SIGTERM handler does
+    the same; inside a C extension's callback that cannot pass it on, it is printed ("Exception ignored in:
+    'scipy.stats._sobol._initialize_v' ... KeyboardInterrupt") and lost: scipy's Sobol engine carried on
+    half-initialized, drew one layout over and over, and the command ran to its end on it. Here a signal only sets a
+    flag; the executor stops between simulation arrivals, the layout draws between chunks, and the run then raises
+    :class:`RunStopped`. A second signal interrupts at once. Off the main thread (a TUI worker) no handler is set:
+    :meth:`set` asks for the stop.
+    """
+
+    def __init__(self) -> None:
+        self._event = threading.Event()
+        self._previous: dict[int, object] = {}
+
+    def __enter__(self) -> StopRequest:
+        if threading.current_thread() is threading.main_thread():  # handlers can be set there only
+            for signum in (signal.SIGINT, signal.SIGTERM):
+                self._previous[signum] = signal.signal(signum, self._handle)
+        return self
+
+    def __exit__(self, *exc) -> None:
+        for signum, handler in self._previous.items():
+            signal.signal(signum, handler)
+        self._previous.clear()
+
+    def _handle(self, signum, frame) -> None:
+        if self._event.is_set():
+            raise KeyboardInterrupt
+        self._event.set()
+
+    def set(self) -> None:
+        """Ask for a stop (a Stop button)."""
+        self._event.set()
+
+    def is_set(self) -> bool:
+        """Whether a stop was asked for."""
+        return self._event.is_set()
+
+    def check(self) -> None:
+        """Raise KeyboardInterrupt here, a safe point, if a stop was asked for."""
+        if self._event.is_set():
+            raise KeyboardInterrupt
+
+
+def _check_stop(should_stop: StopCheck | None) -> None:
+    if should_stop is not None and should_stop():
+        raise Cancelled("stopped on request")
+
+
+@contextmanager
+def simulations(problem, *, workers: int | None = None, scheduler: str | None = None,
+                should_stop: StopCheck | None = None) -> Iterator[SimulationExecutor]:
+    """An executor on the shared simulation cache, its Dask scheduler (if any) already reached.
+
+    A wrong scheduler address is a :class:`ServiceError` (``field="scheduler"``) within seconds, before any work. A
+    stop inside the block (``should_stop()`` true at a safe point, KeyboardInterrupt, the executor's
+    SimulationCancelled once a stop was asked for) raises :class:`RunStopped` with the new simulations kept; the
+    workers are stopped first.
+    """
+    from design.robust.executor import SchedulerUnreachable, SimulationCancelled, SimulationExecutor
+
+    check_count(workers, "workers")
+    executor: SimulationExecutor | None = None
+    try:
+        executor = SimulationExecutor(problem, workers=workers, scheduler=scheduler,
+                                      cache_path=simulation_cache_path(), chunk_size=1)
+        try:
+            executor.connect()
+        except SchedulerUnreachable as error:
+            executor.close()
+            raise ServiceError(f"scheduler: {error}", field="scheduler", value=scheduler) from None
+        with executor:
+            _check_stop(should_stop)
+            yield executor
+    except (KeyboardInterrupt, SimulationCancelled, Cancelled) as error:
+        if isinstance(error, SimulationCancelled) and not (should_stop is not None and should_stop()):
+            raise
+        new = executor.n_simulated if executor is not None else 0
+        raise RunStopped(new, simulation_cache_path()) from None
+
+
+# -- the runs -----------------------------------------------------------------------------------------------------
+def optimize(problem, budget: int, seed: int, settings: PSPSettings, *, workers: int | None = None,
+             scheduler: str | None = None, progress: ProgressCallback | None = None,
+             should_stop: StopCheck | None = None) -> RobustLayout:
+    """Learn the PSP of ``problem`` from at most ``budget`` simulations and optimize its layout (thesis 4.5-4.7).
+
+    Raises :class:`RunStopped` when stopped, a :class:`ServiceError` for a bad budget, seed or scheduler.
+    """
+    from design.robust.pipeline import optimize_robust_layout
+
+    check_seed(seed)
+    check_count(budget, "budget", MINIMUM_BUDGET)
+    with simulations(problem, workers=workers, scheduler=scheduler, should_stop=should_stop) as executor:
+        return optimize_robust_layout(problem, executor, budget, seed, settings, progress=progress,
+                                      should_stop=should_stop)
+
+
+@dataclass(frozen=True)
+class RobustnessPlan:
+    """What a robustness measure will simulate, once its layouts are drawn: ``cached`` of ``layouts`` are known."""
+
+    layouts: int
+    cached: int
+
+    @property
+    def new(self) -> int:
+        """Simulations still to run."""
+        return self.layouts - self.cached
+
+
+@dataclass(frozen=True)
+class Robustness:
+    """A robustness measure: the ρ_l curve and ρ_g of a layout, and the evaluation set it was measured on."""
+
+    curve: RobustnessCurve
+    evaluation: EvaluationSet
+
+
+@dataclass
+class RobustnessRun:
+    """How robust a layout is (thesis 4.8.3), in two steps: :meth:`draw` the layouts, then :meth:`simulate` them.
+
+    The steps are apart so that a front end can say what will run (:class:`RobustnessPlan`) before it runs.
+
+    Parameters
+    ----------
+    problem : LayoutProblem
+    u : ndarray
+        The layout, normalized.
+    settings : RobustnessSettings
+        Sizes of the evaluation set and of the local samples.
+    seed : int
+        Seed of the local samples.
+    executor : SimulationExecutor
+        From :func:`simulations`.
+    progress, should_stop : callables, optional
+        The progress callback and the stop check.
+    """
+
+    problem: LayoutProblem
+    u: np.ndarray
+    settings: RobustnessSettings
+    seed: int
+    executor: SimulationExecutor
+    progress: ProgressCallback | None = None
+    should_stop: StopCheck | None = None
+    _evaluation_layouts: np.ndarray | None = field(default=None, init=False, repr=False)
+    _local_layouts: np.ndarray | None = field(default=None, init=False, repr=False)
+
+    def __post_init__(self) -> None:
+        check_seed(self.seed)
+
+    def draw(self) -> RobustnessPlan:
+        """Draw the evaluation layouts (seconds for a contraption; progress "evaluation layouts" counts the valid
+        ones) and the local ones, and count those the cache already knows."""
+        import numpy as np
+
+        from design.robust.pipeline import Progress
+        from design.robust.robustness import evaluation_layouts, local_layouts
+
+        n_evaluation = self.settings.n_evaluation
+
+        def checked(n_checked: int, n_valid: int) -> None:
+            _check_stop(self.should_stop)  # the draws are seconds long for a contraption: stop between their chunks
+            if self.progress is not None:
+                self.progress(Progress("evaluation layouts", n_valid, n_evaluation, unit="valid layouts"))
+
+        self._evaluation_layouts = evaluation_layouts(self.problem, n_evaluation, on_checked=checked)
+        self._local_layouts = local_layouts(self.problem, self.u, self.settings, seed=self.seed)
+        layouts = len(self._evaluation_layouts) + len(self._local_layouts)
+        new = self.executor.count_new(np.concatenate([self._evaluation_layouts, self._local_layouts]))
+        return RobustnessPlan(layouts, layouts - new)
+
+    def simulate(self) -> Robustness:
+        """Simulate the evaluation set, then the local samples (phases "evaluation set", "local samples")."""
+        from design.robust.pipeline import BudgetedOracle
+        from design.robust.robustness import evaluation_set, robustness_curve
+
+        if self._evaluation_layouts is None:
+            self.draw()
+        settings = self.settings
+        oracle = BudgetedOracle(self.executor, None, self.progress, should_stop=self.should_stop,
+                                expected=settings.n_evaluation + settings.n_local)
+        oracle.phase = "evaluation set"
+        evaluation = evaluation_set(self.problem, oracle, settings.n_evaluation, layouts=self._evaluation_layouts)
+        oracle.phase = "local samples"
+        curve = robustness_curve(self.problem, oracle, evaluation, self.u, settings, seed=self.seed,
+                                 local=self._local_layouts)
+        return Robustness(curve, evaluation)
+
+
+def compare(problem, methods: Sequence[str], runs: int, budget: int, seed: int, settings: PSPSettings,
+            robustness: RobustnessSettings, *, workers: int | None = None, scheduler: str | None = None,
+            progress: ProgressCallback | None = None, should_stop: StopCheck | None = None,
+            on_run: Callable[[MethodRun], None] | None = None) -> Comparison:
+    """Ours and the baselines B1-B3 over ``runs`` seeds at the same budget (thesis Table 4.2); ``on_run`` is called
+    with each run as it ends, so a stopped comparison has reported what it finished."""
+    from design.robust.pipeline import compare_methods
+
+    check_seed(seed)
+    check_count(runs, "runs")
+    check_count(budget, "budget", MINIMUM_BUDGET)
+    with simulations(problem, workers=workers, scheduler=scheduler, should_stop=should_stop) as executor:
+        return compare_methods(problem, executor, list(methods), runs, budget, seed, settings=settings,
+                               robustness=robustness, progress=progress, should_stop=should_stop, on_run=on_run)
