@@ -15,14 +15,16 @@ from station.joblog import JobLog
 from station.tui.app import StationApp
 
 
-def sim_url(profile: str, time_scale: float) -> str:
-    """The URL of a simulated machine: the one place the tests make one (a clock option goes here)."""
-    return f"sim://grbl?profile={profile}&time_scale={time_scale}"
+def sim_url(profile: str, pace: float | None = None) -> str:
+    """The URL of a simulated machine on the virtual clock: a job runs as fast as the screen streams it, with the
+    simulated timing of the wall clock. ``pace`` (simulated seconds per wall second at most) leaves a test time to
+    act while a job runs (abort, quit)."""
+    return f"sim://grbl?profile={profile}&clock=virtual" + (f"&pace={pace:g}" if pace else "")
 
 
 FAST_DEVICES = (
-    DeviceEntry("plotter", "plotter", sim_url("plotter", 0.01), True),
-    DeviceEntry("laser", "laser", sim_url("laser", 0.3), True),
+    DeviceEntry("plotter", "plotter", sim_url("plotter"), True),
+    DeviceEntry("laser", "laser", sim_url("laser", pace=3), True),
 )
 
 
@@ -31,8 +33,8 @@ def station_app(tmp_path) -> StationApp:
 
 
 async def _until(pilot, predicate, timeout=60.0):
-    # A liveness guard, not a timing check: it returns as soon as the predicate holds. 15 s was too tight on a
-    # 2-core machine running simulations beside the suite (the simulated GRBL polls in real time).
+    # A liveness guard, not a timing check: it returns as soon as the predicate holds (the machines run on the
+    # virtual clock; the guard allows for a 2-core machine running simulations beside the suite).
     loop = asyncio.get_running_loop()
     deadline = loop.time() + timeout
     while not predicate():

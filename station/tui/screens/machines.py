@@ -37,7 +37,7 @@ from station.devices import DeviceEntry, machine_profile
 from station.errors import StationError
 from station.joblog import JobLog
 from station.services.job_queue import JobMode, JobQueue, JobState, QueuedJob, frame_job
-from station.tui.registry import ScreenEntry
+from station.tui.registry import MachineDesign, ScreenEntry
 from station.tui.widgets.machines_console import MachineConsole
 from station.tui.widgets.machines_preview import JobPreview
 from station.tui.widgets.machines_status import JobProgressRow, JobQueueTable, MachineStatus
@@ -534,10 +534,7 @@ class MachinesScreen(Screen):
 
     def action_plot_design(self) -> None:
         """Queue the Drawing screen's current design as a plot job for the selected device."""
-        try:
-            machine, params = self.app.get_screen("drawing").current_design()
-        except Exception:  # noqa: BLE001 - no drawing screen in this app
-            machine, params = "spirograph", {}
+        machine, params = self.app.current_design() or MachineDesign.defaults("spirograph")
         self.plot_design(machine, params)
 
     def plot_design(self, machine: str, params: dict, device: str | None = None) -> None:
