@@ -6,6 +6,7 @@ from textual.widgets import DataTable, Input, Static
 
 from design.machines import get_machine
 from station.tui.screens.fabricate import FabricateScreen, HalfBlockPicture
+from station.tui.widgets.progress import ProgressPanel
 
 from ..conftest import opened
 
@@ -40,6 +41,10 @@ async def test_fabricate_shows_the_current_design_sheet_and_parts(tmp_path):
         assert isinstance(screen, FabricateScreen)
         await wait_for(pilot, screen, lambda: screen.result is not None)
         assert screen.result.params["r_r"] == 2
+        # The progress panel followed the work to its end, and the end's summary was not overwritten by a step.
+        panel = screen.query_one(ProgressPanel)
+        assert panel.stage == "sheets" and panel.bar.total and panel.bar.progress == panel.bar.total
+        assert screen.last_message.startswith("2 parts in "), screen.last_message
         table = screen.query_one("#parts", DataTable)
         assert table.row_count == 2
         names = {table.get_row_at(i)[0] for i in range(table.row_count)}

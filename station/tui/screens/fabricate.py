@@ -18,9 +18,12 @@ from textual import on, work
 from textual.app import ComposeResult
 from textual.binding import Binding
 from textual.containers import Horizontal, Vertical
+from textual.message import Message
 from textual.screen import Screen
 from textual.widgets import DataTable, Footer, Header, Input, Label, Static
+from textual.worker import get_current_worker
 
+from common.progress import Cancelled
 from design.errors import DesignError
 from design.machines import get_machine
 from drivers.errors import DriverError
@@ -29,6 +32,7 @@ from station.paths import data_dir
 from station.services.fabricate import DEFAULT_GAP, KERF_SOURCES, FabricationResult, fabricate, parse_sheet
 from station.tui.registry import MachineDesign, ScreenEntry
 from station.tui.widgets.picture import HalfBlockPicture
+from station.tui.widgets.progress import ProgressPanel, ProgressReported, post_progress
 
 DEFAULT_MACHINE = "spirograph"
 DEFAULT_SCALE = 8.0
@@ -89,6 +93,7 @@ class FabricateScreen(Screen):
                 yield DataTable(id="parts", cursor_type="row", zebra_stripes=True)
                 yield Static("", id="part")
                 yield Static("", id="job")
+                yield ProgressPanel(id="fabricate-progress")
                 yield Static("", id="status")
             yield HalfBlockPicture(id="sheet", empty="(no sheet yet)")
         yield Footer()
@@ -151,14 +156,36 @@ class FabricateScreen(Screen):
     @work(thread=True, exclusive=True, group="fabricate")
     def _generate(self, machine: str, params: dict, options: dict) -> None:
         started = time.perf_counter()
+        worker = get_current_worker()
         try:
             result = fabricate(machine, params, options["scale"], kerf=options["kerf"],
                                sheet_size=options["sheet_size"], gap=DEFAULT_GAP, material=options["material"],
-                               progress=lambda p: self.app.call_from_thread(self._set_status, f"{p.message}…"))
+                               progress=post_progress(self), cancelled=lambda: worker.is_cancelled)
+        except Cancelled:
+            return  # a newer generation replaced this one (the worker group is exclusive)
         except (DesignError, DriverError, StationError) as error:
-            self.app.call_from_thread(self._failed, str(error))
+            self.post_message(self.Generated(None, str(error)))
             return
-        self.app.call_from_thread(self._show, result, time.perf_counter() - started)
+        # posted, not called, so that it lands after every progress message of this run
+        self.post_message(self.Generated(result, "", time.perf_counter() - started))
+
+    class Generated(Message):
+        """A generation has ended: its result, or the error that stopped it."""
+
+        def __init__(self, result: FabricationResult | None, error: str, seconds: float = 0.0) -> None:
+            super().__init__()
+            self.result, self.error, self.seconds = result, error, seconds
+
+    def on_progress_reported(self, message: ProgressReported) -> None:
+        """A step of the generation: the bar and, as before, the step in the status line."""
+        self.query_one(ProgressPanel).show(message.progress)
+        self._set_status(f"{message.progress.message}…")
+
+    def on_fabricate_screen_generated(self, message: Generated) -> None:
+        if message.result is None:
+            self._failed(message.error)
+        else:
+            self._show(message.result, message.seconds)
 
     def _failed(self, message: str) -> None:
         self.result = None
