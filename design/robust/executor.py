@@ -306,16 +306,19 @@ class SimulationExecutor:
             if isinstance(self.scheduler, str):
                 from distributed import Client
 
+                problem = None
                 try:
                     self._client = Client(self.scheduler, timeout=self.connect_timeout)
                 except ValueError as error:  # e.g. "missing port number in address"
-                    raise SchedulerUnreachable(f"Dask scheduler {self.scheduler!r}: {error} "
-                                               "(expected tcp://HOST:PORT)") from None
+                    problem = f"Dask scheduler {self.scheduler!r}: {error} (expected tcp://HOST:PORT)"
                 except (OSError, TimeoutError):
-                    raise SchedulerUnreachable(
-                        f"no Dask scheduler answered at {self.scheduler} within {self.connect_timeout:g} s: check "
-                        "the address and port, and that `dask scheduler` runs there with workers (`dask worker "
-                        "ADDRESS`)") from None
+                    problem = (f"no Dask scheduler answered at {self.scheduler} within {self.connect_timeout:g} s: "
+                               "check the address and port, and that `dask scheduler` runs there with workers "
+                               "(`dask worker ADDRESS`)")
+                if problem is not None:
+                    # outside the except block: its traceback no longer holds the half-built client
+                    _finalize_failed_clients()
+                    raise SchedulerUnreachable(problem)
                 self._owns_client = True
             else:
                 self._client = self.scheduler
@@ -434,3 +437,15 @@ class SimulationExecutor:
                 for future in pending:
                     future.cancel()
             raise
+
+
+def _finalize_failed_clients() -> None:
+    """Finalize, now, the half-built ``distributed.Client`` a failed connection leaves behind.
+
+    Its ``__del__`` closes its loop runner under a lock that every ``LoopRunner`` shares. Left to the garbage
+    collector, it can run inside another thread's start-up while a new client holds that lock and waits for the
+    thread: a deadlock (seen in the suite: the process hung in ``Thread.start``). Collected here, no lock is held.
+    """
+    import gc
+
+    gc.collect()

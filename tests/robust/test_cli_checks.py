@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import gc
 import json
 from pathlib import Path
 
@@ -136,6 +137,11 @@ def test_the_executor_reaches_its_scheduler_when_asked():
     executor = SimulationExecutor(problem, scheduler="tcp://127.0.0.1:1", connect_timeout=0.5)
     with pytest.raises(SchedulerUnreachable, match="tcp://127.0.0.1:1 within 0.5 s"):
         executor.connect()
+    # The failed client is finalized at once: left to a later garbage collection, its __del__ can deadlock a new
+    # client's start-up (distributed's loop runners share one lock).
+    from distributed import Client
+
+    assert not [o for o in gc.get_objects() if isinstance(o, Client)]
     executor.close()
     with SimulationExecutor(problem, backend="inline") as inline:
         inline.connect()  # nothing to reach

@@ -53,6 +53,7 @@ class FabricateScreen(Screen):
     FabricateScreen #part { height: auto; padding: 0 1; color: $warning; }
     FabricateScreen #job { height: auto; padding: 0 1; }
     FabricateScreen #status { height: auto; padding: 0 1; color: $text-muted; }
+    FabricateScreen #fabricate-progress { padding: 0 1; }
     FabricateScreen #sheet { border: round $primary-darken-1; }
     """
 
