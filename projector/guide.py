@@ -1,0 +1,303 @@
+"""The assembly guide as data: what every output (PDF, SVG, projected frames, manifest) draws.
+
+A guide is drawn on one plane of a contraption scenario, the **guide plane**, in millimetres, as the maker sees it
+when facing the plane from the side where the parts stand: ``u`` runs to the maker's right, ``v`` away from the
+maker (``top``: the table) or up (``side``: the backboard); headings are counter-clockwise as the maker sees them.
+Every later step of the assembly (camera check, projector mapping, trials) speaks these coordinates.
+
+This module holds the types only; :mod:`projector.build` makes a :class:`Guide` from a scenario and a layout, and
+:mod:`projector.pdf`, :mod:`projector.svg` and :mod:`projector.frames` draw one. The JSON manifest
+(:meth:`Guide.manifest`) is a public contract read by other programs: keep its names.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from enum import Enum
+
+import numpy as np
+from shapely.geometry.base import BaseGeometry
+
+__all__ = [
+    "CARE_LEVELS",
+    "FIRST_REFERENCE_TAG",
+    "REFERENCE_TAG_IDS",
+    "TAG_FAMILY",
+    "Guide",
+    "GuidePage",
+    "GuidePlane",
+    "PartDrawing",
+    "PartKind",
+    "ParameterTolerance",
+    "ReferenceTag",
+]
+
+#: The AprilTag family of every tag the station prints (upstream tag36h11, ids 0..586).
+TAG_FAMILY = "tag36h11"
+#: The reference tags take the top of the family, so they never clash with part tags (numbered from 0).
+REFERENCE_TAG_IDS = (583, 584, 585, 586)
+FIRST_REFERENCE_TAG = REFERENCE_TAG_IDS[0]
+#: How carefully a part must be placed, from its tolerances.
+CARE_LEVELS = ("tight", "normal", "loose")
+
+
+@dataclass(frozen=True)
+class GuidePlane:
+    """A plane of the scene and its (u, v) millimetre frame.
+
+    Parameters
+    ----------
+    view : str
+        ``"top"`` (the table) or ``"side"`` (a backboard).
+    origin : ndarray, shape (3,)
+        The world point (metres) at ``(u, v) = (0, 0)``.
+    u_axis, v_axis : ndarray, shape (3,)
+        Unit world vectors of ``u`` (the maker's right) and ``v`` (away, or up).
+    normal : ndarray, shape (3,)
+        Unit world vector out of the plane towards the side where the parts stand (and the maker); ``u × v``.
+    """
+
+    view: str
+    origin: np.ndarray
+    u_axis: np.ndarray
+    v_axis: np.ndarray
+    normal: np.ndarray
+
+    def to_plane(self, points_m: np.ndarray) -> np.ndarray:
+        """World points (metres, shape (n, 3)) projected on the plane, in (u, v) millimetres (shape (n, 2))."""
+        points = np.atleast_2d(np.asarray(points_m, dtype=float)) - self.origin
+        return 1000.0 * np.column_stack([points @ self.u_axis, points @ self.v_axis])
+
+    def to_world(self, uv_mm: np.ndarray, height_mm: float = 0.0) -> np.ndarray:
+        """Plane points (u, v) mm, at ``height_mm`` above the plane along its normal, as world points in metres."""
+        uv = np.atleast_2d(np.asarray(uv_mm, dtype=float)) / 1000.0
+        return (self.origin + np.outer(uv[:, 0], self.u_axis) + np.outer(uv[:, 1], self.v_axis)
+                + (height_mm / 1000.0) * self.normal)
+
+
+class PartKind(str, Enum):
+    """How a part is drawn: one the maker places, or one that is fixed (a support, a static part, a plane)."""
+
+    PLACED = "placed"
+    STATIC = "static"
+
+    def __str__(self) -> str:
+        return self.value
+
+
+@dataclass(frozen=True)
+class ParameterTolerance:
+    """How far one free layout parameter may be off on its own while the predicted success stays high.
+
+    Parameters
+    ----------
+    parameter : str
+        The layout parameter (``"top_track.x"``).
+    delta : float or None
+        The largest error ±delta tolerated, in the parameter's guide unit (``unit``); None when unknown (no model).
+    unit : str
+        ``"mm"`` or ``"deg"``.
+    predicted : float or None
+        The predicted success at ±delta (the worse side), as a fraction of the layout's predicted success.
+    measured : float or None
+        With ``--verify N``: the success rate measured by simulation at ±delta (None when not verified).
+    source : str
+        ``"model"`` (the layout's fitted success model), ``"simulation"`` or ``"none"``.
+    """
+
+    parameter: str
+    delta: float | None
+    unit: str
+    predicted: float | None = None
+    measured: float | None = None
+    source: str = "model"
+
+
+@dataclass(frozen=True)
+class PartDrawing:
+    """One part of the contraption on the guide plane.
+
+    Parameters
+    ----------
+    name : str
+        The scenario object's name.
+    kind : PartKind
+        Placed by the maker, or static (drawn differently).
+    step : int
+        Its assembly number (1-based; the order of :attr:`Guide.parts`).
+    outline : shapely geometry
+        Its true outline on the plane in millimetres: the union of its collision parts' projections (concave where
+        the part is), a Polygon or a MultiPolygon (a run of dominoes).
+    center_mm : tuple of float
+        The part's origin on the plane.
+    heading_deg : float
+        Its rotation in the plane, counter-clockwise as the maker sees it.
+    tag_id : int or None
+        The AprilTag stuck on the part (None for a part without one: a ball, a static part).
+    tag_center_mm : tuple of float or None
+        Where the tag's centre goes, on the plane.
+    tag_size_mm : float
+        The tag's black square edge.
+    tag_height_mm : float
+        How far the tag's face stands off the plane (the camera check maps it through a plane at that height).
+    parameters : tuple of str
+        The free layout parameters that move this part.
+    tolerances : tuple of ParameterTolerance
+        Their tolerances (empty when none are known).
+    care : str or None
+        ``"tight"``, ``"normal"`` or ``"loose"`` from its tolerances; None when unknown.
+    """
+
+    name: str
+    kind: PartKind
+    step: int
+    outline: BaseGeometry
+    center_mm: tuple[float, float]
+    heading_deg: float
+    tag_id: int | None = None
+    tag_center_mm: tuple[float, float] | None = None
+    tag_size_mm: float = 20.0
+    tag_height_mm: float = 0.0
+    parameters: tuple[str, ...] = ()
+    tolerances: tuple[ParameterTolerance, ...] = ()
+    care: str | None = None
+
+
+@dataclass(frozen=True)
+class ReferenceTag:
+    """One of the four tags that locate the guide plane (printed on the sheets, seen by the camera)."""
+
+    id: int
+    center_mm: tuple[float, float]
+    size_mm: float = 40.0
+
+
+@dataclass(frozen=True)
+class GuidePage:
+    """One printed sheet of a tiled guide.
+
+    Parameters
+    ----------
+    index : int
+        0-based, in reading order.
+    label : str
+        Its place in the page map: column letter and row number (``"B2"``).
+    paper : str
+        ``"a4"``, ``"letter"`` or ``"a3"``.
+    size_mm : tuple of float
+        The sheet's width and height (its orientation as printed).
+    origin_mm : tuple of float
+        The guide-plane point under the sheet's lower-left corner.
+    """
+
+    index: int
+    label: str
+    paper: str
+    size_mm: tuple[float, float]
+    origin_mm: tuple[float, float]
+
+
+@dataclass(frozen=True)
+class Guide:
+    """Everything an assembly guide shows, on its guide plane.
+
+    Parameters
+    ----------
+    scenario : str
+        The scenario's name.
+    content_hash : str
+        The scenario's content hash (the layout belongs to it).
+    plane : GuidePlane
+        The plane the guide is drawn on.
+    parts : tuple of PartDrawing
+        In assembly order (``parts[i].step == i + 1``).
+    reference_tags : tuple of ReferenceTag
+        The four tags near the corners of the layout's extent.
+    extent_mm : tuple of float
+        ``(u_min, v_min, u_max, v_max)`` of everything drawn (parts and reference tags), in millimetres.
+    tolerance_source : str
+        Where the tolerances come from: ``"model"``, ``"simulation"`` or ``"none"`` (the sheet says which).
+    pages : tuple of GuidePage
+        The printed sheets, once tiled (empty before).
+    """
+
+    scenario: str
+    content_hash: str
+    plane: GuidePlane
+    parts: tuple[PartDrawing, ...]
+    reference_tags: tuple[ReferenceTag, ...]
+    extent_mm: tuple[float, float, float, float]
+    tolerance_source: str = "none"
+    pages: tuple[GuidePage, ...] = field(default=())
+
+    @property
+    def view(self) -> str:
+        return self.plane.view
+
+    def part(self, name: str) -> PartDrawing:
+        """The part called ``name`` (KeyError naming it and the known parts)."""
+        for part in self.parts:
+            if part.name == name:
+                return part
+        raise KeyError(f"no part {name!r} in the guide; parts: {', '.join(p.name for p in self.parts)}")
+
+    def manifest(self) -> dict:
+        """The guide's JSON manifest (``station guide --json``), a public contract::
+
+            {"scenario", "content_hash", "view", "units": "mm", "tolerance_source",
+             "pages": [{"index", "label", "paper", "size_mm": [w, h], "origin_mm": [u, v]}],
+             "reference_tags": [{"id", "center_mm": [u, v], "size_mm"}],
+             "parts": [{"name", "kind", "step", "tag_id", "tag_center_mm", "tag_size_mm", "tag_height_mm",
+                        "center_mm": [u, v], "heading_deg", "outline_mm": [[[u, v], ...], ...], "care",
+                        "tolerances": [{"parameter", "delta", "unit", "predicted", "measured", "source"}]}]}
+
+        ``outline_mm`` is a list of polygons, each its exterior ring (holes are not needed to place a part).
+        """
+        return {
+            "scenario": self.scenario,
+            "content_hash": self.content_hash,
+            "view": self.view,
+            "units": "mm",
+            "tolerance_source": self.tolerance_source,
+            "pages": [
+                {"index": p.index, "label": p.label, "paper": p.paper, "size_mm": [*map(_r, p.size_mm)],
+                 "origin_mm": [*map(_r, p.origin_mm)]}
+                for p in self.pages
+            ],
+            "reference_tags": [
+                {"id": t.id, "center_mm": [*map(_r, t.center_mm)], "size_mm": _r(t.size_mm)}
+                for t in self.reference_tags
+            ],
+            "parts": [_part_manifest(p) for p in self.parts],
+        }
+
+
+def _r(value: float) -> float:
+    return round(float(value), 3)
+
+
+def _rings(outline: BaseGeometry) -> list[list[list[float]]]:
+    polygons = getattr(outline, "geoms", [outline])
+    return [[[_r(u), _r(v)] for u, v in polygon.exterior.coords] for polygon in polygons if not polygon.is_empty]
+
+
+def _part_manifest(part: PartDrawing) -> dict:
+    return {
+        "name": part.name,
+        "kind": str(part.kind),
+        "step": part.step,
+        "tag_id": part.tag_id,
+        "tag_center_mm": None if part.tag_center_mm is None else [*map(_r, part.tag_center_mm)],
+        "tag_size_mm": _r(part.tag_size_mm),
+        "tag_height_mm": _r(part.tag_height_mm),
+        "center_mm": [*map(_r, part.center_mm)],
+        "heading_deg": _r(part.heading_deg),
+        "outline_mm": _rings(part.outline),
+        "care": part.care,
+        "tolerances": [
+            {"parameter": t.parameter, "delta": None if t.delta is None else _r(t.delta), "unit": t.unit,
+             "predicted": None if t.predicted is None else _r(t.predicted),
+             "measured": None if t.measured is None else _r(t.measured), "source": t.source}
+            for t in part.tolerances
+        ],
+    }
