@@ -19,7 +19,8 @@ layout. :func:`steps_text` writes the steps out.
 that a free layout parameter moves, except a ball, gets the next free id from 0 in step order (ids the scenario
 uses and the reference ids 583-586 are skipped), the largest size of 25/20/15/10 mm whose square, with a margin of
 an eighth of its edge (tag36h11's white border) and at least 2 mm, fits inside its outline, at the part's centre
-where it fits, else at the inside point farthest from the outline's edge; a part too small for 10 mm gets none.
+where it fits, else at the inside point farthest from the outline's edge, and where no other part stands in front
+of it (between it and the maker, at its centre and corners); a part too small for 10 mm, or hidden, gets none.
 The tag's centre lies on the part's face towards the maker; ``tag_height_mm`` is that face's distance off the plane.
 
 **Reference tags** 583 (lower left), 584 (lower right), 585 (upper right), 586 (upper left), counter-clockwise
@@ -289,25 +290,43 @@ def _with_tags(scenario, frames, bodies, plane, drawings, tag_size_mm) -> list[P
         fit = None
         if wants:
             centre = plane.to_plane(group[0].pose.position)[0] if len(group) == 1 else part.center_mm
-            fit = _fit(part, centre, sizes)
+            others = [bodies[other.name] for other in drawings if other.name != part.name]
+            fit = _fit(part, group, others, plane, centre, sizes)
         if fit is None:
             result.append(part)
             continue
         while next_id in used:
             next_id += 1
         (u, v), size = fit
-        height = height_at(group, plane, (u, v))
-        if height is None:  # the ray slipped past a sampled curve: the part's top is the face
-            height = max(1000.0 * float(np.max((b.world_points() - plane.origin) @ plane.normal)) for b in group)
-        result.append(replace(part, tag_id=next_id, tag_center_mm=(u, v), tag_size_mm=size, tag_height_mm=height))
+        result.append(replace(part, tag_id=next_id, tag_center_mm=(u, v), tag_size_mm=size,
+                              tag_height_mm=_face_height(group, plane, (u, v))))
         used.add(next_id)
     return result
 
 
-def _fit(part: PartDrawing, centre, sizes):
+def _face_height(group, plane, uv) -> float:
+    height = height_at(group, plane, uv)
+    if height is None:  # the ray slipped past a sampled curve: the part's top is the face
+        height = max(1000.0 * float(np.max((b.world_points() - plane.origin) @ plane.normal)) for b in group)
+    return height
+
+
+def _fit(part: PartDrawing, group, others, plane, centre, sizes):
+    """Where the largest tag fits on the part and no other part hides it from the maker (centre and corners)."""
+
+    def visible(square) -> bool:
+        u, v = square.centroid.x, square.centroid.y
+        face = _face_height(group, plane, (u, v))
+        for point in [(u, v), *list(square.exterior.coords)[:4]]:
+            for other in others:
+                above = height_at(other, plane, point)
+                if above is not None and above > face + 0.5:
+                    return False
+        return True
+
     for size in sizes:
         margin = max(TAG_MARGIN_MM, size / 8.0)
-        fit = fit_tag(part.outline, [centre], [size], part.heading_deg, margin)
+        fit = fit_tag(part.outline, [centre], [size], part.heading_deg, margin, visible)
         if fit is not None:
             return fit
     return None

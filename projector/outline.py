@@ -12,7 +12,7 @@ floor and walls cast one rectangle.)
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -99,7 +99,7 @@ def height_at(bodies: Sequence[PlacedBody], plane: GuidePlane, uv_mm: Sequence[f
             hit = _ray_top(frame, part, origin, direction, plane, uv_mm)
             if hit is not None and (best is None or hit > best):
                 best = hit
-    return None if best is None else 1000.0 * best
+    return None if best is None else 1000.0 * float(best)
 
 
 def _ray_top(frame: Pose, part: ShapePart, origin, direction, plane: GuidePlane, uv_mm) -> float | None:
@@ -131,12 +131,14 @@ def _ray_top(frame: Pose, part: ShapePart, origin, direction, plane: GuidePlane,
 
 
 def fit_tag(outline: BaseGeometry, candidates: Sequence[Sequence[float]], sizes: Sequence[float],
-            heading_deg: float, margin_mm: float) -> tuple[tuple[float, float], float] | None:
+            heading_deg: float, margin_mm: float,
+            accept: Callable[[BaseGeometry], bool] | None = None) -> tuple[tuple[float, float], float] | None:
     """The largest tag (edge in ``sizes``) that fits inside ``outline`` with ``margin_mm`` all round, and its centre.
 
     Centres are tried in the order given (the part's own centre first), then each polygon's pole of inaccessibility
     (the inside point farthest from the edge). A tag fits when its square plus the margin lies inside the outline
-    both upright and turned with the part (``heading_deg``), so a drawing may show it either way.
+    both upright and turned with the part (``heading_deg``), so a drawing may show it either way, and ``accept``
+    (given the tag's upright square) takes it: the caller's test that the camera can see it there.
 
     Returns
     -------
@@ -154,6 +156,6 @@ def fit_tag(outline: BaseGeometry, candidates: Sequence[Sequence[float]], sizes:
         for u, v in points:
             square = box(u - half, v - half, u + half, v + half)
             turned = affinity.rotate(square, heading_deg, origin=(u, v))
-            if outline.contains(square) and outline.contains(turned):
+            if outline.contains(square) and outline.contains(turned) and (accept is None or accept(square)):
                 return (u, v), float(size)
     return None
