@@ -56,7 +56,7 @@ from projector.guide import (
     ReferenceTag,
 )
 from projector.order import PartFacts, assembly_order, part_kind
-from projector.outline import PlacedBody, fit_tag, height_at, part_outline
+from projector.outline import PlacedBody, Surface, fit_tag, part_outline
 from projector.plane import VIEWS, guide_plane, heading_in_plane, plane_normals, range_axes
 
 __all__ = ["AUTO_TAG_SIZES_MM", "build_guide", "care_of", "choose_view", "steps_text"]
@@ -274,6 +274,7 @@ def _with_tags(scenario, frames, bodies, plane, drawings, tag_size_mm) -> list[P
     used = {tag.id for tag in given.values()} | set(REFERENCE_TAG_IDS)
     next_id = 0
     sizes = AUTO_TAG_SIZES_MM if tag_size_mm is None else (float(tag_size_mm),)
+    surfaces = {name: Surface(group, plane) for name, group in bodies.items()}
     result = []
     for part in drawings:
         obj = scenario.object(part.name)
@@ -290,8 +291,8 @@ def _with_tags(scenario, frames, bodies, plane, drawings, tag_size_mm) -> list[P
         fit = None
         if wants:
             centre = plane.to_plane(group[0].pose.position)[0] if len(group) == 1 else part.center_mm
-            others = [bodies[other.name] for other in drawings if other.name != part.name]
-            fit = _fit(part, group, others, plane, centre, sizes)
+            others = [(other.outline, surfaces[other.name]) for other in drawings if other.name != part.name]
+            fit = _fit(part, surfaces[part.name], others, centre, sizes)
         if fit is None:
             result.append(part)
             continue
@@ -299,27 +300,31 @@ def _with_tags(scenario, frames, bodies, plane, drawings, tag_size_mm) -> list[P
             next_id += 1
         (u, v), size = fit
         result.append(replace(part, tag_id=next_id, tag_center_mm=(u, v), tag_size_mm=size,
-                              tag_height_mm=_face_height(group, plane, (u, v))))
+                              tag_height_mm=_face_height(surfaces[part.name], group, (u, v))))
         used.add(next_id)
     return result
 
 
-def _face_height(group, plane, uv) -> float:
-    height = height_at(group, plane, uv)
+def _face_height(surface: Surface, group, uv) -> float:
+    height = surface.height(uv)
     if height is None:  # the ray slipped past a sampled curve: the part's top is the face
+        plane = surface.plane
         height = max(1000.0 * float(np.max((b.world_points() - plane.origin) @ plane.normal)) for b in group)
     return height
 
 
-def _fit(part: PartDrawing, group, others, plane, centre, sizes):
+def _fit(part: PartDrawing, surface: Surface, others, centre, sizes):
     """Where the largest tag fits on the part and no other part hides it from the maker (centre and corners)."""
 
     def visible(square) -> bool:
         u, v = square.centroid.x, square.centroid.y
-        face = _face_height(group, plane, (u, v))
+        face = surface.height((u, v))
+        if face is None:
+            return False  # the square's centre misses the part's surface (between two walls, say)
+        near = [other for outline, other in others if outline.intersects(square)]  # only these can hide it
         for point in [(u, v), *list(square.exterior.coords)[:4]]:
-            for other in others:
-                above = height_at(other, plane, point)
+            for other in near:
+                above = other.height(point)
                 if above is not None and above > face + 0.5:
                     return False
         return True

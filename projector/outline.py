@@ -26,7 +26,7 @@ from design.contraption.geometry import Pose
 from design.contraption.primitives import BodySpec, ShapePart
 from projector.guide import GuidePlane
 
-__all__ = ["PlacedBody", "fit_tag", "height_at", "part_outline", "project_shape"]
+__all__ = ["PlacedBody", "Surface", "fit_tag", "height_at", "part_outline", "project_shape"]
 
 #: Points on each circle of a sampled cylinder (the outline is within 0.2 % of the radius).
 _CIRCLE_POINTS = 48
@@ -83,34 +83,51 @@ def part_outline(bodies: Sequence[PlacedBody], plane: GuidePlane) -> BaseGeometr
     return outline if outline.is_valid else shapely.make_valid(outline)
 
 
-def height_at(bodies: Sequence[PlacedBody], plane: GuidePlane, uv_mm: Sequence[float]) -> float | None:
-    """How far above the plane (mm, along its normal) the part's surface facing the maker is at ``uv_mm``.
+class Surface:
+    """A part's surface facing the maker, for rays coming down along the plane's normal (poses computed once).
 
-    A ray comes down from the maker's side along the normal; the answer is where it first meets a box or a sphere
-    (exact), or the top of a cylinder or capsule whose projection it crosses (the highest point of that part, a
-    bound). None when the ray misses the part.
+    :meth:`height` answers how far above the plane (mm, along its normal) the ray at ``uv_mm`` first meets the part:
+    exactly for a box or a sphere, and for a cylinder or capsule whose projection the ray crosses, that part's
+    highest point (a bound). None when the ray misses the part.
     """
-    origin = plane.to_world(np.asarray(uv_mm, dtype=float))[0]
-    direction = plane.normal
-    best = None
-    for body in bodies:
-        for part in body.solid_parts:
-            frame = body.pose * part.pose
-            hit = _ray_top(frame, part, origin, direction, plane, uv_mm)
+
+    def __init__(self, bodies: Sequence[PlacedBody], plane: GuidePlane) -> None:
+        self.plane = plane
+        self._parts = []
+        for body in bodies:
+            for part in body.solid_parts:
+                frame = body.pose * part.pose
+                matrix = frame.rotation.as_matrix()
+                entry = (part.kind, part.dims, matrix.T, frame.position, None, 0.0)
+                if part.kind not in ("box", "sphere"):
+                    top = frame.apply(ShapePart(part.kind, part.dims, Pose()).surface_points(_CIRCLE_POINTS))
+                    entry = entry[:4] + (project_shape(frame, ShapePart(part.kind, part.dims, Pose()), plane),
+                                         float(np.max((top - plane.origin) @ plane.normal)))
+                self._parts.append(entry)
+
+    def height(self, uv_mm: Sequence[float]) -> float | None:
+        origin = self.plane.to_world(np.asarray(uv_mm, dtype=float))[0]
+        best = None
+        for kind, dims, inverse, position, shadow, top in self._parts:
+            o = inverse @ (origin - position)
+            d = inverse @ self.plane.normal
+            hit = _ray_top(kind, dims, o, d) if shadow is None else (top if shadow.contains(Point(uv_mm)) else None)
             if hit is not None and (best is None or hit > best):
                 best = hit
-    return None if best is None else 1000.0 * float(best)
+        return None if best is None else 1000.0 * float(best)
 
 
-def _ray_top(frame: Pose, part: ShapePart, origin, direction, plane: GuidePlane, uv_mm) -> float | None:
-    """The largest s with ``origin + s * direction`` in the part (metres along the normal), None when missed."""
-    inverse = frame.inverse()
-    o = inverse.apply(origin)
-    d = inverse.rotation.apply(direction)
-    if part.kind == "box":
+def height_at(bodies: Sequence[PlacedBody], plane: GuidePlane, uv_mm: Sequence[float]) -> float | None:
+    """How far above the plane (mm) the part's surface facing the maker is at ``uv_mm`` (see :class:`Surface`)."""
+    return Surface(bodies, plane).height(uv_mm)
+
+
+def _ray_top(kind: str, dims, o: np.ndarray, d: np.ndarray) -> float | None:
+    """The largest s with ``o + s * d`` (in the part's frame) in a box or sphere, None when the ray misses it."""
+    if kind == "box":
         low, high = -math.inf, math.inf
         for axis in range(3):
-            half = part.dims[axis]
+            half = dims[axis]
             if abs(d[axis]) < 1e-12:
                 if abs(o[axis]) > half:
                     return None
@@ -118,16 +135,11 @@ def _ray_top(frame: Pose, part: ShapePart, origin, direction, plane: GuidePlane,
             a, b = (-half - o[axis]) / d[axis], (half - o[axis]) / d[axis]
             low, high = max(low, min(a, b)), min(high, max(a, b))
         return high if low <= high else None
-    if part.kind == "sphere":
-        radius = part.dims[0]
-        b = float(o @ d)
-        c = float(o @ o) - radius * radius
-        disc = b * b - c
-        return None if disc < 0 else -b + math.sqrt(disc)
-    if not project_shape(frame, ShapePart(part.kind, part.dims, Pose()), plane).contains(Point(uv_mm)):
-        return None
-    top = frame.apply(ShapePart(part.kind, part.dims, Pose()).surface_points(_CIRCLE_POINTS))
-    return float(np.max((top - plane.origin) @ plane.normal))
+    radius = dims[0]
+    b = float(o @ d)
+    c = float(o @ o) - radius * radius
+    disc = b * b - c
+    return None if disc < 0 else -b + math.sqrt(disc)
 
 
 def fit_tag(outline: BaseGeometry, candidates: Sequence[Sequence[float]], sizes: Sequence[float],
@@ -136,9 +148,11 @@ def fit_tag(outline: BaseGeometry, candidates: Sequence[Sequence[float]], sizes:
     """The largest tag (edge in ``sizes``) that fits inside ``outline`` with ``margin_mm`` all round, and its centre.
 
     Centres are tried in the order given (the part's own centre first), then each polygon's pole of inaccessibility
-    (the inside point farthest from the edge). A tag fits when its square plus the margin lies inside the outline
-    both upright and turned with the part (``heading_deg``), so a drawing may show it either way, and ``accept``
-    (given the tag's upright square) takes it: the caller's test that the camera can see it there.
+    (the inside point farthest from the edge), then points of a grid over the outline, nearest the first centre
+    first (where another part hides the middle of a long track, its end may still take a tag). A tag fits when its
+    square plus the margin lies inside the outline both upright and turned with the part (``heading_deg``), so a
+    drawing may show it either way, and ``accept`` (given the tag's upright square) takes it: the caller's test
+    that the camera can see it there.
 
     Returns
     -------
@@ -151,6 +165,7 @@ def fit_tag(outline: BaseGeometry, candidates: Sequence[Sequence[float]], sizes:
         if polygon.area > 0:
             label = polylabel(polygon, tolerance=0.1)
             points.append((label.x, label.y))
+    points.extend(_grid(outline, points[0] if points else None))
     for size in sorted(sizes, reverse=True):
         half = size / 2.0 + margin_mm
         for u, v in points:
@@ -159,3 +174,15 @@ def fit_tag(outline: BaseGeometry, candidates: Sequence[Sequence[float]], sizes:
             if outline.contains(square) and outline.contains(turned) and (accept is None or accept(square)):
                 return (u, v), float(size)
     return None
+
+
+def _grid(outline: BaseGeometry, near, count: int = 200) -> list[tuple[float, float]]:
+    """About ``count`` points of a square grid over the outline's box that lie inside it, nearest ``near`` first."""
+    u0, v0, u1, v1 = outline.bounds
+    step = max(math.sqrt((u1 - u0) * (v1 - v0) / count), 1.0)
+    us, vs = np.arange(u0 + step / 2, u1, step), np.arange(v0 + step / 2, v1, step)
+    grid = [(float(u), float(v)) for u in us for v in vs]
+    inside = [p for p, ok in zip(grid, shapely.contains_xy(outline, *np.array(grid).T)) if ok] if grid else []
+    if near is not None:
+        inside.sort(key=lambda p: (p[0] - near[0]) ** 2 + (p[1] - near[1]) ** 2)
+    return inside

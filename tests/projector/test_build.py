@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import functools
 import json
 import math
 from pathlib import Path
@@ -21,8 +22,15 @@ EXAMPLES = Path(__file__).resolve().parents[2] / "examples" / "scenarios"
 ALL = sorted(p.name for p in EXAMPLES.glob("*.toml"))
 
 
+@functools.cache
 def _scenario(name: str):
     return load_scenario(EXAMPLES / name)
+
+
+@functools.cache
+def _guide(name: str, view: str | None = None):
+    """The guide of an example at its default layout (built once: several tests read it)."""
+    return build_guide(_scenario(name), view=view)
 
 
 def _data(name: str) -> dict:
@@ -91,7 +99,7 @@ def test_every_example_builds_in_both_views_with_every_part_numbered(name):
     expected = {o.name for o in scenario.objects if o.type not in ("Plane", "Empty", "Pivot", "Fastener",
                                                                        "TensionRope", "RopePulley")}
     for view in ("top", "side"):
-        guide = build_guide(scenario, view=view)
+        guide = _guide(name, view)
         assert {p.name for p in guide.parts} == expected
         assert [p.step for p in guide.parts] == list(range(1, len(expected) + 1))
         for part in guide.parts:
@@ -103,7 +111,7 @@ def test_every_example_builds_in_both_views_with_every_part_numbered(name):
 
 
 def test_the_views_chosen_for_the_examples():
-    chosen = {name: build_guide(_scenario(name)).view for name in ALL}
+    chosen = {name: _guide(name).view for name in ALL}
     assert chosen == {"ballrun.toml": "side", "branching.toml": "top", "causalityswitch_ball.toml": "top",
                       "causalityswitch_dominoes.toml": "top", "longchain.toml": "side", "simple.toml": "top",
                       "teapotadventure.toml": "side"}
@@ -123,12 +131,12 @@ def test_static_parts_first_and_the_ball_last(ballrun, switch):
 
 
 def test_what_rests_on_the_trigger_comes_after_it():
-    guide = build_guide(_scenario("longchain.toml"))
+    guide = _guide("longchain.toml")
     names = [p.name for p in guide.parts]
     # The box lever starts the chain under the weight of its box: the lever, its box, then the weight in it.
     assert names[-3:] == ["box_lever", "weight_box", "box_weight"]
     # A cage that covers a ball goes on after the ball (TEAPOTADVENTURE), and the trigger ball at the very end.
-    names = [p.name for p in build_guide(_scenario("teapotadventure.toml")).parts]
+    names = [p.name for p in _guide("teapotadventure.toml").parts]
     assert names.index("ball2") < names.index("cage") and names[-1] == "ball1"
 
 
@@ -161,9 +169,8 @@ def test_domino_runs_are_drawn_domino_by_domino(switch):
 
 @pytest.mark.parametrize("name", ALL)
 def test_reference_tags_sit_outside_every_outline(name):
-    scenario = _scenario(name)
     for view in ("top", "side"):
-        guide = build_guide(scenario, view=view)
+        guide = _guide(name, view)
         assert [t.id for t in guide.reference_tags] == list(REFERENCE_TAG_IDS)
         parts = shapely.union_all([p.outline for p in guide.parts])
         u0, v0, u1, v1 = guide.extent_mm
@@ -182,7 +189,7 @@ def test_reference_tags_sit_outside_every_outline(name):
 @pytest.mark.parametrize("name", ALL)
 def test_part_tags_fit_inside_their_parts_and_never_clash(name):
     scenario = _scenario(name)
-    guide = build_guide(scenario)
+    guide = _guide(name)
     ids = [p.tag_id for p in guide.parts if p.tag_id is not None]
     assert len(ids) == len(set(ids)) and not set(ids) & set(REFERENCE_TAG_IDS)
     assert ids == sorted(ids)  # numbered in step order
@@ -199,13 +206,20 @@ def test_part_tags_fit_inside_their_parts_and_never_clash(name):
 
 
 def test_tag_height_is_the_face_towards_the_maker():
-    guide = build_guide(_scenario("branching.toml"))
+    guide = _guide("branching.toml")
     track = guide.part("track")  # a static track at z = 30 mm, 6 mm high, 2 mm floor: the tag sits on its floor
     assert track.tag_id is not None
     assert track.tag_height_mm == pytest.approx(30 - 3 + 2, abs=0.05)
-    guide = build_guide(_scenario("teapotadventure.toml"))
+    guide = _guide("teapotadventure.toml")
     pulley = guide.part("pulley")  # a wheel 8 mm thick at y = 0, its axis the board's normal: its face at y = 4 mm
     assert pulley.tag_height_mm == pytest.approx(4.0 - 1000 * guide.plane.origin[1], abs=0.05)
+
+
+def test_a_part_hidden_behind_another_gets_no_tag():
+    guide = _guide("longchain.toml")
+    # The weight stands inside the weight box, behind its front wall: the camera could not see a tag on it.
+    weight, box_ = guide.part("box_weight"), guide.part("weight_box")
+    assert box_.outline.contains(weight.outline) and box_.tag_id is not None and weight.tag_id is None
 
 
 def test_a_scenario_tag_is_kept_and_auto_ids_skip_it():
