@@ -261,7 +261,8 @@ def _parameters(scenario: Scenario, name: str):
 
 
 def _source(tolerances: Mapping[str, ParameterTolerance]) -> str:
-    sources = sorted({t.source for t in tolerances.values() if t.source != "none" and t.delta is not None})
+    # "model", "simulation", or both joined ("model+simulation") when the caller mixed them; "none" without any.
+    sources = sorted({t.source for t in tolerances.values() if t.source != "none"})
     return "+".join(sources) if sources else "none"
 
 
