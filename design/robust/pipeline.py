@@ -84,7 +84,7 @@ class RobustLayout:
 
     def to_json(self, problem: LayoutProblem) -> dict:
         """The LAYOUT.json content: hash, parameters in real units and normalized, predictions, budget used, and
-        the fitted model under ``"model"`` (format ``"chaos-station psp model 1"``, see :mod:`design.robust.model_io`)."""
+        the fitted model under ``"model"`` (``"chaos-station psp model 1"``, see :mod:`design.robust.model_io`)."""
         real = problem.to_real(self.u)
         return {
             "format": "chaos-station robust layout 1",
