@@ -132,8 +132,8 @@ class PortablePSP:
 
     @property
     def parameters_used(self) -> tuple[int, ...]:
-        """Indices of the parameters some learned factor reads (the PSP is flat along the others)."""
-        return tuple(sorted({i for f in self.factors if f.kind != "quasi_deterministic" for i in f.subspace}))
+        """Indices of the parameters some SVM factor reads (the PSP is flat along the others)."""
+        return tuple(sorted({i for f in self.factors if f.kind == "svm" for i in f.subspace}))
 
     def factor_probabilities(self, U: np.ndarray) -> np.ndarray:
         """``(n, n_factors)``: each factor's probability of each normalized layout."""

@@ -72,6 +72,9 @@ class ToleranceEntry:
     limited_by : str
         What set delta: ``"success"`` (the ratio fell below the threshold), ``"collision"`` (beyond it the parts
         overlap: a physically invalid layout), ``"bound"`` (the range ends) or ``""`` (unknown).
+    in_model : bool or None
+        Whether the model's success depends on the parameter at all (some classifier reads it); a parameter it
+        ignores gets a delta from the range and collisions only. None without a model.
     minus, plus : float or None
         Each side's own limit (``unit``), before taking the smaller; None for a side at the bound.
     simulations : int
@@ -88,6 +91,7 @@ class ToleranceEntry:
     measured: float | None = None
     bound_limited: bool = False
     limited_by: str = ""
+    in_model: bool | None = None
     minus: float | None = None
     plus: float | None = None
     simulations: int = 0
@@ -232,6 +236,7 @@ def model_tolerances(model, problem, u: np.ndarray, *, ratio: float = RATIO,
 
     reference = float(score(u[None, :])[0])
     names = problem.parameter_names
+    used = getattr(model, "parameters_used", tuple(range(len(names))))
     if reference <= 0:
         return ToleranceMap(tuple(_entry(n, delta=None) for n in names), "model", reference, ratio)
     d = len(u)
@@ -255,7 +260,7 @@ def model_tolerances(model, problem, u: np.ndarray, *, ratio: float = RATIO,
             limited_by = "collision" if is_valid is not None and not is_valid(beyond)[0] else "success"
         entries.append(_entry(
             name, delta=delta * factor, predicted_ratio=float(worse.min() / reference),
-            predicted=float(worse.mean()), bound_limited=not crossed[k], limited_by=limited_by,
+            predicted=float(worse.mean()), bound_limited=not crossed[k], limited_by=limited_by, in_model=i in used,
             minus=None if at_bound[i] else float(limits[i] * factor),
             plus=None if at_bound[i + d] else float(limits[i + d] * factor)))
     return ToleranceMap(tuple(entries), "model", reference, ratio)
@@ -281,9 +286,11 @@ def _normalized(entry: ToleranceEntry, span: float) -> float:
 def verify_tolerances(tolerances: ToleranceMap, problem, u: np.ndarray, oracle: Oracle, n: int, *, seed: int = 0,
                       model=None, on_parameter: Callable[[int, str], None] | None = None) -> ToleranceMap:
     """Simulate ``n`` layouts at ±delta for each parameter with a delta (:func:`verify_layouts`) and record the
-    success rate measured (and, with a ``model``, its mean prediction over the same layouts)."""
+    success rate measured (and, with a ``model``, its mean prediction over the same layouts); the layout itself is
+    simulated too (``layout_success``, the reference the measured rates are to keep 90 % of)."""
     u = np.clip(np.asarray(u, dtype=float).ravel(), 0.0, 1.0)
     rng = np.random.default_rng(seed)
+    layout_success = bool(np.asarray(oracle(u[None, :])).all()) if n >= 1 else tolerances.layout_success
     span = np.asarray(problem.upper, dtype=float) - np.asarray(problem.lower, dtype=float)
     entries = []
     for i, entry in enumerate(tolerances.entries):
@@ -296,7 +303,7 @@ def verify_tolerances(tolerances: ToleranceMap, problem, u: np.ndarray, oracle: 
         measured = float(np.asarray(oracle(layouts)).all(axis=1).mean())
         predicted = entry.predicted if model is None else float(np.mean(model.predict(layouts)))
         entries.append(replace(entry, measured=measured, predicted=predicted, simulations=len(layouts)))
-    return replace(tolerances, entries=tuple(entries))
+    return replace(tolerances, entries=tuple(entries), layout_success=layout_success)
 
 
 def simulated_tolerances(problem, u: np.ndarray, oracle: Oracle, n: int, *, steps: int = 4, ratio: float = RATIO,

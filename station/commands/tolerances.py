@@ -19,7 +19,7 @@ JSON_SHAPE = (
     '"source": "model"|"simulation"|"none", "layout_psp": P or null, "ratio": 0.9, "layout_success": bool or null, '
     '"entries": [{"parameter", "part", "kind": "position"|"angle", "delta" (in unit, or null), "unit": "mm"|"deg", '
     '"predicted_ratio", "predicted", "measured", "bound_limited", "limited_by": "success"|"collision"|"bound", '
-    '"minus", "plus", "simulations"}], "care": {part: "tight"|"normal"|"loose"|null}}.'
+    '"in_model", "minus", "plus", "simulations"}], "care": {part: "tight"|"normal"|"loose"|null}}.'
 )
 
 
@@ -56,7 +56,8 @@ def _number(value, text: str = "{:.2f}") -> str:
 
 def describe_limit(entry) -> str:
     """What set an entry's delta, in words."""
-    return {"bound": "range end", "collision": "parts collide", "success": "success"}.get(entry.limited_by, "")
+    words = {"bound": "range end", "collision": "parts collide", "success": "success"}.get(entry.limited_by, "")
+    return words + (" (the model ignores it)" if entry.in_model is False else "")
 
 
 @command
@@ -82,6 +83,8 @@ def run_tolerances(args) -> int:
     if tolerance_map.layout_psp is not None:
         print(f"  predicted success of the layout {tolerance_map.layout_psp:.3f}; each delta keeps >= "
               f"{tolerance_map.ratio:.0%} of it")
+    if tolerance_map.layout_success is not None:
+        print(f"  the layout itself {'succeeds' if tolerance_map.layout_success else 'FAILS'} in simulation")
     if tolerance_map.source == "none":
         return 0
     print(f"  {'parameter':24s} {'±delta':>12s} {'ratio':>6s} {'predicted':>9s} {'measured':>9s}  limited by")

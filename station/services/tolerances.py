@@ -140,7 +140,7 @@ def tolerance_map(scenario, layout: str, *, verify: int = 0, seed: int = 0, work
     if progress is not None:
         progress(Progress("tolerance map", d, d, unit="parameters"))
     if tolerances is None or verify > 0:
-        expected = d * verify if tolerances is not None else 1 + d * (SIMULATION_STEPS + 1) * verify
+        expected = 1 + d * verify if tolerances is not None else 1 + d * (SIMULATION_STEPS + 1) * verify
         with robust.simulations(problem, workers=workers, scheduler=scheduler, should_stop=should_stop) as executor:
             oracle = BudgetedOracle(executor, None, progress, should_stop, expected=expected)
             oracle.phase = "verification"

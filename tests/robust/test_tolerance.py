@@ -109,7 +109,7 @@ def test_verification_measures_the_success_rate_at_plus_minus_delta():
         return oracle_within(0.02)(U)  # x fails past 0.02 (4 mm); the model's delta for x is about 3.2 mm
 
     verified = verify_tolerances(tolerances, PROBLEM, u, oracle, 10, seed=0, model=model)
-    assert calls == [10, 10]
+    assert calls == [1, 10, 10] and verified.layout_success
     x, roll = verified.entries
     assert x.measured == 1.0 and roll.measured == 1.0 and x.simulations == 10
     assert x.predicted == pytest.approx(0.8 * RATIO, abs=0.02)  # the model's mean over the same layouts
@@ -172,3 +172,15 @@ def test_bad_input_is_one_line(tmp_path, capsys):
     assert main(["tolerances", "simple", str(path)]) == 2
     err = capsys.readouterr().err
     assert "model.factors[1].gamma: expected a finite number" in err and err.count("\n") == 1
+
+
+def test_a_parameter_the_model_ignores_is_said():
+    class OnlyX(Bump):
+        parameters_used = (0,)
+
+        def predict(self, U):
+            U = np.atleast_2d(U)
+            return 0.8 * np.exp(-(((U[:, 0] - 0.5) / 0.05) ** 2))
+
+    x, roll = model_tolerances(OnlyX([0.5, 0.5], [0.05, 1.0]), PROBLEM, np.array([0.5, 0.5])).entries
+    assert x.in_model and roll.in_model is False and roll.limited_by == "bound"
