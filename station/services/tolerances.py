@@ -87,6 +87,17 @@ def read_model(path: str, problem) -> PortablePSP | None:
     return layout_model(read_layout_data(path), problem, file=path)
 
 
+def _problem(scenario):
+    """A scenario file or example name, a loaded :class:`design.contraption.Scenario` or a problem, as a problem."""
+    if isinstance(scenario, (str, Path)):
+        return robust.load_problem(str(scenario))
+    if hasattr(scenario, "design_space") and not hasattr(scenario, "parameter_names"):
+        from design.robust.contraption import ContraptionProblem
+
+        return ContraptionProblem(scenario.source, scenario)
+    return scenario
+
+
 def tolerance_map(scenario, layout: str, *, verify: int = 0, seed: int = 0, workers: int | None = None,
                   scheduler: str | None = None, progress: ProgressCallback | None = None,
                   should_stop: robust.StopCheck | None = None) -> Tolerances:
@@ -94,8 +105,9 @@ def tolerance_map(scenario, layout: str, *, verify: int = 0, seed: int = 0, work
 
     Parameters
     ----------
-    scenario : str or ContraptionProblem
-        A scenario file or example name, or the problem already loaded.
+    scenario : str, Scenario or ContraptionProblem
+        A scenario file or example name, the scenario already loaded (:func:`design.contraption.load_scenario`), or
+        its robust-layout problem.
     layout : str
         A layout file (a LAYOUT.json with its model, ``{"parameters": {...}}``...) or a layout named in the scenario.
     verify : int
@@ -124,7 +136,7 @@ def tolerance_map(scenario, layout: str, *, verify: int = 0, seed: int = 0, work
         raise ServiceError(f"verify must be an integer >= 0 (layouts simulated per parameter), got {verify!r}",
                            field="verify", value=verify)
     robust.check_seed(seed)
-    problem = robust.load_problem(scenario) if isinstance(scenario, (str, Path)) else scenario
+    problem = _problem(scenario)
     loaded = robust.read_layout(str(layout), problem)
     u = np.clip(problem.to_normalized(loaded.x), 0.0, 1.0)
     model = read_model(str(layout), problem)

@@ -184,3 +184,18 @@ def test_a_parameter_the_model_ignores_is_said():
 
     x, roll = model_tolerances(OnlyX([0.5, 0.5], [0.05, 1.0]), PROBLEM, np.array([0.5, 0.5])).entries
     assert x.in_model and roll.in_model is False and roll.limited_by == "bound"
+
+
+def test_the_service_takes_a_loaded_scenario_and_gives_the_guide_its_tolerances():
+    from design.contraption import load_scenario
+    from projector.guide import ParameterTolerance
+    from station.services.tolerances import tolerance_map
+
+    scenario = load_scenario(Path(__file__).resolve().parents[2] / "examples" / "scenarios" / "simple.toml")
+    seen = []
+    result = tolerance_map(scenario, str(FIXTURE), progress=seen.append)
+    assert result.map.source == "model" and seen[0].stage == "tolerance map" and seen[-1].done == 3
+    guide = result.parameter_tolerances()
+    assert list(guide) == ["track"] and all(isinstance(t, ParameterTolerance) for t in guide["track"])
+    assert [t.unit for t in guide["track"]] == ["mm", "mm", "deg"] and guide["track"][0].source == "model"
+    assert result.care() == {"track": care_level(result.map.entries)}
