@@ -66,6 +66,8 @@ class ToleranceEntry:
         ``measured`` is compared with.
     measured : float or None
         The simulated success rate of the verification layouts at ±delta (None unless verified).
+    measured_minus, measured_plus : float or None
+        The same at -delta and at +delta alone (which side fails).
     bound_limited : bool
         The design space's bound, not the success, set delta (delta is then a lower bound of the tolerance: the
         model knows nothing beyond the range).
@@ -89,6 +91,8 @@ class ToleranceEntry:
     predicted_ratio: float | None = None
     predicted: float | None = None
     measured: float | None = None
+    measured_minus: float | None = None
+    measured_plus: float | None = None
     bound_limited: bool = False
     limited_by: str = ""
     in_model: bool | None = None
@@ -300,9 +304,12 @@ def verify_tolerances(tolerances: ToleranceMap, problem, u: np.ndarray, oracle: 
             entries.append(entry)
             continue
         layouts = verify_layouts(u, i, _normalized(entry, span[i]), n, rng)
-        measured = float(np.asarray(oracle(layouts)).all(axis=1).mean())
+        success = np.asarray(oracle(layouts)).all(axis=1)
+        half = n // 2  # verify_layouts puts the first half at -delta
         predicted = entry.predicted if model is None else float(np.mean(model.predict(layouts)))
-        entries.append(replace(entry, measured=measured, predicted=predicted, simulations=len(layouts)))
+        entries.append(replace(entry, measured=float(success.mean()), predicted=predicted, simulations=len(layouts),
+                               measured_minus=float(success[:half].mean()) if half else None,
+                               measured_plus=float(success[half:].mean())))
     return replace(tolerances, entries=tuple(entries), layout_success=layout_success)
 
 

@@ -18,8 +18,9 @@ JSON_SHAPE = (
     '--json prints {"scenario", "layout": {source, format, name, defaulted, warnings}, "verify": N, '
     '"source": "model"|"simulation"|"none", "layout_psp": P or null, "ratio": 0.9, "layout_success": bool or null, '
     '"entries": [{"parameter", "part", "kind": "position"|"angle", "delta" (in unit, or null), "unit": "mm"|"deg", '
-    '"predicted_ratio", "predicted", "measured", "bound_limited", "limited_by": "success"|"collision"|"bound", '
-    '"in_model", "minus", "plus", "simulations"}], "care": {part: "tight"|"normal"|"loose"|null}}.'
+    '"predicted_ratio", "predicted", "measured", "measured_minus", "measured_plus", "bound_limited", '
+    '"limited_by": "success"|"collision"|"bound", "in_model", "minus", "plus", "simulations"}], '
+    '"care": {part: "tight"|"normal"|"loose"|null}}.'
 )
 
 
@@ -87,11 +88,14 @@ def run_tolerances(args) -> int:
         print(f"  the layout itself {'succeeds' if tolerance_map.layout_success else 'FAILS'} in simulation")
     if tolerance_map.source == "none":
         return 0
-    print(f"  {'parameter':24s} {'±delta':>12s} {'ratio':>6s} {'predicted':>9s} {'measured':>9s}  limited by")
+    print(f"  {'parameter':24s} {'±delta':>12s} {'ratio':>6s} {'predicted':>9s} {'measured':>9s} {'(-/+)':>11s}"
+          "  limited by")
     for entry in tolerance_map.entries:
         delta = "unknown" if entry.delta is None else f"{entry.delta:.2f} {entry.unit}"
+        sides = "" if entry.measured_plus is None else \
+            f"{_number(entry.measured_minus)}/{_number(entry.measured_plus)}"
         print(f"  {entry.parameter:24s} {delta:>12s} {_number(entry.predicted_ratio):>6s} "
-              f"{_number(entry.predicted):>9s} {_number(entry.measured):>9s}  {describe_limit(entry)}")
+              f"{_number(entry.predicted):>9s} {_number(entry.measured):>9s} {sides:>11s}  {describe_limit(entry)}")
     tight, loose = CARE_RULE["mm"]
     print(f"  care per part (tight: a delta < {tight:g} mm / {tight:g} deg; loose: all > {loose:g} mm / {loose:g} "
           "deg; a range end is a lower bound):")

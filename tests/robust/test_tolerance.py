@@ -116,6 +116,10 @@ def test_verification_measures_the_success_rate_at_plus_minus_delta():
     # A stricter world: x fails beyond 1 mm, so the layouts at ±3.2 mm all fail.
     strict = verify_tolerances(tolerances, PROBLEM, u, oracle_within(0.005), 10, seed=0)
     assert strict.entries[0].measured == 0.0
+    # One side only fails: x fails above 0.5 + 0.001.
+    one_sided = verify_tolerances(tolerances, PROBLEM, u, lambda U: (np.atleast_2d(U)[:, 0] <= 0.501)[:, None], 10)
+    x = one_sided.entries[0]
+    assert (x.measured_minus, x.measured_plus, x.measured) == (1.0, 0.0, 0.5)
 
 
 def test_without_a_model_delta_is_searched_by_simulation():
