@@ -5,7 +5,7 @@ URL options (``sim://projector?size=1280x800&folder=frames&name=bench``)
 ------------------------------------------------------------------------
 ``size`` (``WxH`` pixels, default 1280x800), ``folder`` (write each frame shown there as ``frame_0001.png``, ...;
 made when the projector opens), ``name`` (share one projector, its frames and its placement, between the opens of
-that name, as ``sim://grbl?name=`` does), ``keep`` (how many of the latest frames to keep in memory, default 100;
+that name, as ``sim://grbl?name=`` does), ``keep`` (how many of the latest frames to keep in memory, default 32;
 the count of frames shown goes on), ``area`` (``u0,v0,u1,v1``: where the image lands on the guide plane, in mm: its
 lower-left corner on (u0, v0) and its upper-right on (u1, v1), a projector square to the plane; see
 :meth:`SimulatedProjector.place` for any other placement). An unknown option or a bad value is one
@@ -43,7 +43,7 @@ from drivers.projector.frame import as_rgb, fit_to_screen
 __all__ = ["DEFAULT_SIZE", "SimulatedProjector", "forget_projectors", "projector_named", "sim_projector"]
 
 DEFAULT_SIZE = (1280, 800)
-DEFAULT_KEEP = 100
+DEFAULT_KEEP = 32
 _OPTIONS = ("area", "folder", "keep", "name", "size")
 
 _SHARED: dict[str, SimulatedProjector] = {}

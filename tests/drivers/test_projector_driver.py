@@ -191,3 +191,48 @@ def test_the_real_driver_shows_frames_on_an_offscreen_display(monkeypatch):
     projector.close()
     with pytest.raises(DriverError, match="is not open"):
         projector.blank()
+
+
+@pytest.fixture
+def xvfb(monkeypatch):
+    """A virtual X server (Xvfb, 800 x 600) for the test, as $DISPLAY; skipped where there is none."""
+    import shutil
+    import subprocess
+
+    from PIL import features
+
+    if shutil.which("Xvfb") is None or not features.check("xcb"):
+        pytest.skip("Xvfb (apt install xvfb) and Pillow with XCB are needed to look at a real X screen")
+    server = subprocess.Popen(["Xvfb", "-displayfd", "1", "-screen", "0", "800x600x24", "-nolisten", "tcp"],
+                              stdout=subprocess.PIPE, stderr=subprocess.DEVNULL)
+    try:
+        number = server.stdout.readline().decode().strip()
+        if not number.isdigit():
+            pytest.skip("Xvfb did not start")
+        monkeypatch.setenv("DISPLAY", f":{number}")
+        monkeypatch.delenv("SDL_VIDEODRIVER", raising=False)
+        monkeypatch.delenv("WAYLAND_DISPLAY", raising=False)
+        yield f":{number}"
+    finally:
+        server.terminate()
+        server.wait(5)
+
+
+@needs_pygame
+def test_the_real_driver_covers_an_x_screen_without_a_border(xvfb):
+    # read back from the X server, not from SDL: the window covers the whole screen from its corner, frame and all
+    import time
+
+    from PIL import ImageGrab
+
+    assert probe("display:0") == "open: 800x600 (display 0 of 1, x11)"
+    with DisplayProjector("display:0") as projector:
+        assert (projector.size, projector.driver) == ((800, 600), "x11")
+        frame = noise(800, 600, seed=9)
+        projector.show(frame)
+        for _ in range(20):  # the X server composes the window a moment after the flip
+            screen = np.asarray(ImageGrab.grab(xdisplay=xvfb).convert("RGB"))
+            if (screen == frame).all():
+                break
+            time.sleep(0.05)
+        assert (screen == frame).all()
