@@ -251,7 +251,8 @@ class _Canvas:
         self._fill(image, part.outline, CURRENT_FILL, 0.55)
         self._edges(image, _rings(part.outline), CURRENT_EDGE, self.thick + 1)
         center = np.asarray(part.center_mm, dtype=float)
-        reach = max(10.0, float(np.max(np.linalg.norm(np.vstack(_rings(part.outline)) - center, axis=1))))
+        outline = np.vstack([center, *_rings(part.outline)])  # an empty outline still has its centre
+        reach = max(10.0, float(np.max(np.linalg.norm(outline - center, axis=1))))
         heading = np.radians(part.heading_deg)
         delta = in_plane_rotation(part, self.guide.plane.normal)
         if delta is not None:  # arcs the part's two ends may swing over, at its reach, with end ticks
@@ -275,7 +276,7 @@ class _Canvas:
             self._edges(image, [square], WHITE, self.thick)
             corner = self._px(square).max(axis=0)
             self._text(image, f"tag {part.tag_id}", corner, WHITE, 0.7)
-        outline_px = self._px(np.vstack(_rings(part.outline)))
+        outline_px = self._px(outline)
         label = np.array([outline_px[:, 0].mean(), outline_px[:, 1].min() - 0.9 * self.line])
         self._text(image, f"{part.step}. {part.name}", label, WHITE, 1.0, centre=True)
 

@@ -185,3 +185,12 @@ def test_a_step_out_of_the_guide_is_one_line(step):
 def test_the_calibrate_frame_alone_is_the_one_render_frames_makes():
     guide = sample_guide()
     assert (render_calibrate(guide, SIZE) == render_frames(guide, SIZE).calibrate).all()
+
+
+def test_a_part_without_an_outline_still_gets_its_step():
+    from shapely.geometry import GeometryCollection
+
+    guide = one_part_guide(box(0, 0, 10, 10))
+    empty = PartDrawing("ghost", PartKind.PLACED, 1, GeometryCollection(), (50.0, 50.0), 0.0)
+    frame = render_step(Guide("G", "0", SIDE, (empty,), guide.reference_tags, guide.extent_mm), 1, SIZE)
+    assert frame[100:].max() > 0  # its arrow and label are drawn
