@@ -211,7 +211,11 @@ def place_labels(guide: Guide, width: Callable[..., float] = _default_width) -> 
     obstacles += [tag_box(p.tag_center_mm, p.tag_size_mm, p.heading_deg) for p in guide.parts
                   if p.tag_center_mm is not None]
     drawn = shapely.union_all(obstacles) if obstacles else Polygon()
+    # Heading arrows and centre crosses: a label must not hide them (a label inside its part included).
+    marks = shapely.union_all([LineString(arrow(p.center_mm, p.heading_deg, heading_length(p))[0]).buffer(1.5)
+                               for p in guide.parts] + [Point(p.center_mm).buffer(2.0) for p in guide.parts])
     placed: list[Polygon] = []
+    inside_extent = box(*guide.extent_mm).buffer(5.0, join_style="mitre")  # labels stay on the sheets
     labels: dict[str, Label] = {}
     radius = CIRCLE_MM / 2
     for part in guide.parts:
@@ -225,9 +229,11 @@ def place_labels(guide: Guide, width: Callable[..., float] = _default_width) -> 
         for (x0, y0), inside in candidates:
             rect = box(x0, y0, x0 + box_w, y0 + box_h)
             if inside:
-                cost = 0.0 if part.outline.contains(rect) and not rect.intersects(taken) else math.inf
+                fits = part.outline.contains(rect) and not rect.intersects(taken) and not rect.intersects(marks)
+                cost = 0.0 if fits else math.inf
             else:
                 cost = (rect.intersection(drawn).area + 20.0 * rect.intersection(taken).area
+                        + 10.0 * rect.intersection(marks).area + 20.0 * rect.difference(inside_extent).area
                         + 0.05 * rect.distance(part.outline) * box_h)
             if cost < best_cost:
                 best, best_cost = ((x0, y0), inside), cost
