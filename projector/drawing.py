@@ -83,10 +83,15 @@ def placement_deltas(part: PartDrawing, plane: GuidePlane) -> tuple[float | None
     return du, dv, dtheta
 
 
-def tolerance_text(part: PartDrawing) -> str:
-    """A short line for the label: the care level and the tightest deltas (``"tight ±2.1 mm ±1.5°"``)."""
-    mm = [abs(t.delta) for t in part.tolerances if t.delta is not None and t.unit == "mm"]
-    deg = [abs(t.delta) for t in part.tolerances if t.delta is not None and t.unit == "deg"]
+def tolerance_text(part: PartDrawing, plane: GuidePlane) -> str:
+    """A short line for the label: the care level and the tightest deltas on the plane (``"tight ±2.1 mm ±1.5°"``);
+    the deltas out of the plane when none is on it."""
+    du, dv, dtheta = placement_deltas(part, plane)
+    mm = [d for d in (du, dv) if d is not None]
+    deg = [] if dtheta is None else [dtheta]
+    if not mm and not deg:
+        mm = [abs(t.delta) for t in part.tolerances if t.delta is not None and t.unit == "mm"]
+        deg = [abs(t.delta) for t in part.tolerances if t.delta is not None and t.unit == "deg"]
     words = [part.care] if part.care else []
     if mm:
         words.append(f"±{min(mm):.1f} mm")
@@ -199,12 +204,14 @@ def _default_width(text: str, size: float, bold: bool = False) -> float:
     return stringWidth(text, "Helvetica-Bold" if bold else "Helvetica", size)
 
 
-def place_labels(guide: Guide, width: Callable[..., float] = _default_width) -> dict[str, Label]:
+def place_labels(guide: Guide, width: Callable[..., float] = _default_width, *,
+                 avoid: BaseGeometry | None = None) -> dict[str, Label]:
     """One :class:`Label` per part, placed in step order where it covers the least of the drawing.
 
     A label goes inside its part when it fits there, else beside it (candidates round the outline, scored by how
     much of the other parts, tags and labels already placed they cover, then by distance), with a leader line.
-    ``width(text, size_mm, bold)`` measures text (Helvetica metrics by default).
+    ``width(text, size_mm, bold)`` measures text (Helvetica metrics by default). ``avoid``: where a label should
+    rather not go (the PDF passes the sheets' edges, so a label is not cut in two).
     """
     obstacles = [p.outline for p in guide.parts]
     obstacles += [tag_box(t.center_mm, t.size_mm) for t in guide.reference_tags]
@@ -219,7 +226,7 @@ def place_labels(guide: Guide, width: Callable[..., float] = _default_width) -> 
     labels: dict[str, Label] = {}
     radius = CIRCLE_MM / 2
     for part in guide.parts:
-        detail = tolerance_text(part)
+        detail = tolerance_text(part, guide.plane)
         text_w = max(width(part.name, NAME_MM, True), width(detail, DETAIL_MM) if detail else 0.0)
         box_w, box_h = CIRCLE_MM + 1.2 + text_w + 1.0, CIRCLE_MM + 1.0
         anchor = part.outline.representative_point() if not part.outline.is_empty else Point(part.center_mm)
@@ -234,6 +241,7 @@ def place_labels(guide: Guide, width: Callable[..., float] = _default_width) -> 
             else:
                 cost = (rect.intersection(drawn).area + 20.0 * rect.intersection(taken).area
                         + 10.0 * rect.intersection(marks).area + 20.0 * rect.difference(inside_extent).area
+                        + (0.0 if avoid is None else 10.0 * rect.intersection(avoid).area)
                         + 0.05 * rect.distance(part.outline) * box_h)
             if cost < best_cost:
                 best, best_cost = ((x0, y0), inside), cost

@@ -14,6 +14,7 @@ from os import PathLike
 from typing import BinaryIO
 
 import numpy as np
+import shapely
 
 from projector.drawing import (
     CARE_COLORS,
@@ -28,6 +29,7 @@ from projector.drawing import (
     place_labels,
     placement_deltas,
     polygons,
+    tag_box,
     tolerance_zone,
 )
 from projector.guide import Guide, GuidePage, PartDrawing, PartKind
@@ -82,13 +84,25 @@ def write_pdf(guide: Guide, stream_or_path: BinaryIO | str | PathLike, *, paper:
     canvas.setTitle(title)
     canvas.setAuthor("chaos-station")
     canvas.setSubject("assembly guide, print at 100 % (actual size)")
-    labels = place_labels(guide)
+    labels = place_labels(guide, avoid=_sheet_edges(guide, overlap_mm))
     for page in guide.pages:
         draw_sheet(canvas, guide, page, labels, title, overlap_mm)
         canvas.showPage()
     draw_lists(canvas, guide, [str(s) for s in steps], title)
     canvas.save()
     return guide
+
+
+def _sheet_edges(guide: Guide, overlap_mm: float):
+    """The edges of every sheet's drawing area on the guide plane, 3 mm wide (where a label would be cut)."""
+    from shapely.geometry import box
+
+    edges = []
+    for page in guide.pages:
+        x0, y0, x1, y1 = page_format(page, overlap_mm).drawing_box
+        u, v = page.origin_mm
+        edges.append(box(u + x0, v + y0, u + x1, v + y1).exterior.buffer(1.5))
+    return shapely.union_all(edges) if edges else None
 
 
 def draw_sheet(canvas, guide: Guide, page: GuidePage, labels: dict[str, Label], title: str,
@@ -109,6 +123,7 @@ def draw_sheet(canvas, guide: Guide, page: GuidePage, labels: dict[str, Label], 
     area = (page.origin_mm[0] + x0, page.origin_mm[1] + y0, page.origin_mm[0] + x1, page.origin_mm[1] + y1)
     _grid(canvas, area)
     _drawing(canvas, guide, labels)
+    _reminders(canvas, guide, labels, area, fmt.overlap_mm)
     _join_marks(canvas, guide, fmt)
     canvas.restoreState()
     _crop_marks(canvas, guide, page, fmt)
@@ -163,7 +178,8 @@ def _grid(canvas, area) -> None:
 
 
 def _drawing(canvas, guide: Guide, labels: dict[str, Label]) -> None:
-    """Everything on the guide plane, back to front: tolerance zones, parts, arrows, tags, labels."""
+    """Everything on the guide plane, back to front: tolerance zones, parts, where their tags go, heading arrows,
+    reference tags, labels."""
     for part in guide.parts:
         du, dv, _ = placement_deltas(part, guide.plane)
         zone = tolerance_zone(part.outline, du, dv)
@@ -179,9 +195,14 @@ def _drawing(canvas, guide: Guide, labels: dict[str, Label]) -> None:
     for part in guide.parts:
         _part(canvas, part)
     for part in guide.parts:
-        _heading(canvas, guide, part)
         if part.tag_id is not None and part.tag_center_mm is not None:
             _part_tag(canvas, part)
+            if part.kind != PartKind.STATIC:  # the tag sits on the part: keep the part's outline visible over it
+                canvas.setStrokeColorRGB(*INK)
+                canvas.setLineWidth(0.5)
+                _fill_geometry(canvas, part.outline, stroke=1, fill=0)
+    for part in guide.parts:
+        _heading(canvas, guide, part)
     for tag in guide.reference_tags:
         draw_tag(canvas, tag.id, tag.center_mm, tag.size_mm, 0.0)
         canvas.setFillGray(0.3)
@@ -190,6 +211,51 @@ def _drawing(canvas, guide: Guide, labels: dict[str, Label]) -> None:
                                  f"reference tag {tag.id}")
     for part in guide.parts:
         _label(canvas, labels[part.name], part)
+
+
+def _reminders(canvas, guide: Guide, labels: dict[str, Label], area, overlap_mm: float) -> None:
+    """A part's number again on a sheet that shows some of the part but not its label (a long part, a run).
+
+    Kept out of the overlaps, so two sheets still show the same drawing where they are laid over each other.
+    """
+    from shapely.geometry import LineString, Point, box
+
+    sheet = box(*area)
+    marks = shapely.union_all(
+        [LineString(arrow(p.center_mm, p.heading_deg, heading_length(p))[0]).buffer(3.5) for p in guide.parts]
+        + [tag_box(p.tag_center_mm, p.tag_size_mm, p.heading_deg).buffer(3.0) for p in guide.parts
+           if p.tag_center_mm is not None])
+    inner = box(area[0] + overlap_mm + 3, area[1] + overlap_mm + 3, area[2] - overlap_mm - 3,
+                area[3] - overlap_mm - 3)
+    for part in guide.parts:
+        label = labels[part.name]
+        if inner.is_empty or sheet.contains(Point(label.circle).buffer(label.radius)):
+            continue
+        visible = part.outline.intersection(inner)
+        if visible.is_empty or visible.area < 1.0:
+            continue
+        free = visible.difference(marks)  # off the arrows and tags, when the part leaves room
+        point = (free if free.area >= 1.0 else visible).representative_point()
+        _number(canvas, (point.x, point.y), 2.8, part.step, part.kind != PartKind.STATIC)
+
+
+def _number(canvas, centre, radius: float, number: int, placed: bool) -> None:
+    """A part's assembly number in a circle: white on black for a placed part, grey on white for a fixed one."""
+    cu, cv = centre
+    if placed:
+        canvas.setFillColorRGB(*INK)
+        canvas.circle(cu, cv, radius, stroke=0, fill=1)
+        canvas.setFillColorRGB(1.0, 1.0, 1.0)
+    else:
+        canvas.setStrokeGray(0.35)
+        canvas.setLineWidth(0.4)
+        canvas.setFillColorRGB(1.0, 1.0, 1.0)
+        canvas.circle(cu, cv, radius, stroke=1, fill=1)
+        canvas.setFillGray(0.3)
+    text = str(number)
+    size = radius * (1.2 if len(text) < 3 else 0.9)
+    canvas.setFont(BOLD, size)
+    canvas.drawCentredString(cu, cv - size * 0.36, text)
 
 
 def _part(canvas, part: PartDrawing) -> None:
@@ -308,25 +374,13 @@ def _label(canvas, label: Label, part: PartDrawing) -> None:
         canvas.setStrokeColorRGB(*INK)
         canvas.setLineWidth(0.25)
         _polyline(canvas, label.leader)
+        canvas.setFillColorRGB(*INK)
         canvas.circle(*label.leader[1], 0.6, stroke=0, fill=1)
     x0, y0, x1, y1 = label.box.bounds
     canvas.setFillColorRGB(1.0, 1.0, 1.0, alpha=0.85)
     canvas.roundRect(x0, y0, x1 - x0, y1 - y0, 1.2, stroke=0, fill=1)
     canvas.setFillAlpha(1.0)
-    cu, cv = label.circle
-    if placed:
-        canvas.setFillColorRGB(*INK)
-        canvas.circle(cu, cv, label.radius, stroke=0, fill=1)
-        canvas.setFillColorRGB(1.0, 1.0, 1.0)
-    else:
-        canvas.setStrokeGray(0.35)
-        canvas.setLineWidth(0.4)
-        canvas.setFillColorRGB(1.0, 1.0, 1.0)
-        canvas.circle(cu, cv, label.radius, stroke=1, fill=1)
-        canvas.setFillGray(0.3)
-    number = str(label.number)
-    canvas.setFont(BOLD, 4.2 if len(number) < 3 else 3.2)
-    canvas.drawCentredString(cu, cv - 1.5, number)
+    _number(canvas, label.circle, label.radius, label.number, placed)
     tu, tv = label.text
     canvas.setFillColorRGB(*INK) if placed else canvas.setFillGray(0.3)
     canvas.setFont(BOLD, NAME_MM)

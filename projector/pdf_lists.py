@@ -75,11 +75,18 @@ def _story(guide: Guide, steps: list[str], title: str) -> list:
     story = [
         p(escape(title), h1),
         p(f"Assembly guide for <b>{escape(guide.scenario)}</b>, {escape(guide.view)} view, at 1:1 in millimetres "
-          f"({axes}, as you face the {'table' if guide.view == 'top' else 'board'}). {len(guide.pages)} sheet(s) "
+          f"({axes}, as you face the {'table' if guide.view == 'top' else 'board'}). {len(guide.pages)} "
+          f"sheet{'s' if len(guide.pages) != 1 else ''} "
           f"of {paper} ({columns} x {rows}): print at actual size, check each scale bar measures 100 mm, trim the "
           f"marked margins and lay each sheet over its neighbour matching the grid and the join marks. Place the "
           f"parts in the order of their numbers; coloured zones show how far each may be off (red tight, orange "
           f"normal, green loose)."),
+        p("<b>On the sheets:</b> a black outline is a part you place, a grey hatched one is fixed (a support, the "
+          "floor); the number in a circle is its step; + is its centre, the point the steps give; the blue arrow "
+          "its heading; the dashed coloured zone is where its outline may lie and the coloured arc how far its "
+          "heading may turn; a grey square with a dark corner is where its tag goes (the dark corner is the tag's "
+          "lower-left corner, the tag's id above it); the black squares are the reference tags the camera finds "
+          "the board by (leave them uncovered); the purple targets are the join marks of two sheets."),
         Spacer(1, 3 * mm),
         p("Parts", h2),
     ]

@@ -193,3 +193,32 @@ def test_any_part_name_prints(name):
 def test_a_bad_paper_is_one_line():
     with pytest.raises(ProjectorError, match="paper: expected one of a4, letter, a3, got 'a5'"):
         write_pdf(tiny_guide(), io.BytesIO(), paper="a5")
+
+
+def vertical_strips(guide, pages, a: int, b: int, shift_mm: float = 0.0):
+    """The raster strips of sheets ``a`` (above) and ``b`` (below it) over their shared band, away from its edges
+    and from the grid's labels at each sheet's left edge."""
+    above, below = guide.pages[a], guide.pages[b]
+    box = page_format(above).drawing_box
+    v0 = above.origin_mm[1] + box[1] + 3.0  # the band: from the bottom of the upper sheet's area ...
+    v1 = below.origin_mm[1] + box[3] - 3.0  # ... to the top of the lower one's
+    u0, u1 = above.origin_mm[0] + box[0] + 12.0, above.origin_mm[0] + box[2] - 3.0
+    assert v1 - v0 > 5
+    strips = []
+    for page, raster, dv in ((above, pages[a], 0.0), (below, pages[b], shift_mm)):
+        c0 = int(round((u0 - page.origin_mm[0]) * PX_PER_MM))
+        r0 = int(round((page.size_mm[1] - (v1 + dv - page.origin_mm[1])) * PX_PER_MM))
+        rows, columns = int(round((v1 - v0) * PX_PER_MM)), int(round((u1 - u0) * PX_PER_MM))
+        strips.append(raster[r0:r0 + rows, c0:c0 + columns].astype(float))
+    return strips
+
+
+def test_sheets_above_each_other_join_too(rendered):
+    guide, pages, _ = rendered
+    for a, b in ((0, 3), (1, 4), (2, 5)):
+        top, bottom = vertical_strips(guide, pages, a, b)
+        assert top.std() > 5
+        different = np.mean(np.abs(top - bottom) > 96)
+        assert different < 0.005, (guide.pages[a].label, guide.pages[b].label, different)
+        top, shifted = vertical_strips(guide, pages, a, b, shift_mm=1.5)
+        assert np.mean(np.abs(top - shifted) > 96) > 5 * max(different, 0.002)
