@@ -20,8 +20,8 @@ from shapely.geometry.base import BaseGeometry
 from projector.guide import Guide, GuidePlane, ParameterTolerance, PartDrawing
 
 __all__ = ["CARE_COLORS", "Label", "arc_points", "arrow", "care_color", "hatch_segments", "heading_length",
-           "placement_deltas", "place_labels", "polygons", "tag_box", "tolerance_axes", "tolerance_text",
-           "tolerance_zone"]
+           "placement_deltas", "place_labels", "polygons", "tag_black_rects", "tag_box", "tolerance_axes",
+           "tolerance_text", "tolerance_zone"]
 
 #: Colours of the care levels (RGB 0..1): tight red, normal orange, loose green.
 CARE_COLORS = {"tight": (0.85, 0.11, 0.11), "normal": (0.96, 0.55, 0.0), "loose": (0.13, 0.6, 0.2)}
@@ -175,6 +175,23 @@ def tag_box(center: tuple[float, float], size_mm: float, heading_deg: float = 0.
     half = size_mm * (10 / 8 if border else 1.0) / 2
     square = box(-half, -half, half, half)
     return affinity.translate(affinity.rotate(square, heading_deg, origin=(0, 0)), *center)
+
+
+def tag_black_rects(tag_id: int, center: tuple[float, float], size_mm: float) -> list[tuple[float, ...]]:
+    """The black cells of an unturned tag at ``center`` (its black square ``size_mm`` across), as rectangles
+    ``(u0, v0, u1, v1)`` in guide mm, one per run of black cells in a row: neighbouring cells drawn as one shape
+    leave no hairline seam between them."""
+    from projector.tags import TAG_CELLS, tag_cells
+
+    cells = tag_cells(tag_id)
+    cell = size_mm / 8
+    left, top = center[0] - cell * TAG_CELLS / 2, center[1] + cell * TAG_CELLS / 2
+    rects = []
+    for row in range(TAG_CELLS):
+        black = np.flatnonzero(np.diff(np.concatenate([[0], ~cells[row], [0]]).astype(int)))
+        for start, end in zip(black[::2], black[1::2]):
+            rects.append((left + start * cell, top - (row + 1) * cell, left + end * cell, top - row * cell))
+    return rects
 
 
 @dataclass(frozen=True)

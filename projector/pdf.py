@@ -29,11 +29,12 @@ from projector.drawing import (
     place_labels,
     placement_deltas,
     polygons,
+    tag_black_rects,
     tag_box,
     tolerance_zone,
 )
 from projector.guide import Guide, GuidePage, PartDrawing, PartKind
-from projector.tags import TAG_CELLS, tag_cells
+from projector.tags import tag_cells
 from projector.tiling import OVERLAP_MM, SheetFormat, grid_shape, page_format, tile
 
 __all__ = ["write_pdf", "SCALE_BAR_MM"]
@@ -204,7 +205,7 @@ def _drawing(canvas, guide: Guide, labels: dict[str, Label]) -> None:
     for part in guide.parts:
         _heading(canvas, guide, part)
     for tag in guide.reference_tags:
-        draw_tag(canvas, tag.id, tag.center_mm, tag.size_mm, 0.0)
+        draw_tag(canvas, tag.id, tag.center_mm, tag.size_mm)
         canvas.setFillGray(0.3)
         canvas.setFont(FONT, 2.5)
         canvas.drawCentredString(tag.center_mm[0], tag.center_mm[1] - tag.size_mm * 0.625 - 3.0,
@@ -307,31 +308,14 @@ def _heading(canvas, guide: Guide, part: PartDrawing) -> None:
             _polyline(canvas, [centre + (end - centre) * 0.85, end + (end - centre) * 0.08])
 
 
-def draw_tag(canvas, tag_id: int, center, size_mm: float, heading_deg: float) -> None:
+def draw_tag(canvas, tag_id: int, center, size_mm: float) -> None:
     """A decodable tag from :func:`~projector.tags.tag_cells`: black square ``size_mm`` on a white border."""
-    cells = tag_cells(tag_id)
-    cell = size_mm / 8
-    half = cell * TAG_CELLS / 2
-    canvas.saveState()
-    canvas.translate(*center)
-    canvas.rotate(heading_deg)
+    half = size_mm * 10 / 8 / 2
     canvas.setFillColorRGB(1.0, 1.0, 1.0)
-    canvas.rect(-half, -half, 2 * half, 2 * half, stroke=0, fill=1)
+    canvas.rect(center[0] - half, center[1] - half, 2 * half, 2 * half, stroke=0, fill=1)
     canvas.setFillColorRGB(*INK)
-    for row in range(TAG_CELLS):
-        # One rectangle per run of black cells, so no hairline seams show between neighbouring cells.
-        col = 0
-        while col < TAG_CELLS:
-            if cells[row, col]:
-                col += 1
-                continue
-            end = col
-            while end < TAG_CELLS and not cells[row, end]:
-                end += 1
-            top = half - row * cell
-            canvas.rect(-half + col * cell, top - cell, (end - col) * cell, cell, stroke=0, fill=1)
-            col = end
-    canvas.restoreState()
+    for u0, v0, u1, v1 in tag_black_rects(tag_id, center, size_mm):
+        canvas.rect(u0, v0, u1 - u0, v1 - v0, stroke=0, fill=1)
 
 
 def _part_tag(canvas, part: PartDrawing) -> None:

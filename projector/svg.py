@@ -23,23 +23,9 @@ from typing import TextIO
 
 import numpy as np
 
-from projector.drawing import (
-    CIRCLE_MM,
-    DETAIL_MM,
-    NAME_MM,
-    arc_points,
-    arrow,
-    care_color,
-    hatch_segments,
-    heading_length,
-    place_labels,
-    placement_deltas,
-    polygons,
-    tolerance_zone,
-)
+from projector import drawing as shapes
 from projector.errors import ProjectorError
 from projector.guide import Guide, PartKind
-from projector.tags import TAG_CELLS, tag_cells
 
 __all__ = ["LAYERS", "write_svg"]
 
@@ -129,7 +115,7 @@ def write_svg(guide: Guide, stream: TextIO, *, layers: Iterable[str] = LAYERS, m
 
 
 def _rings(geometry) -> list[np.ndarray]:
-    return [np.asarray(ring.coords) for polygon in polygons(geometry)
+    return [np.asarray(ring.coords) for polygon in shapes.polygons(geometry)
             for ring in (polygon.exterior, *polygon.interiors)]
 
 
@@ -139,28 +125,29 @@ def _outlines(drawing, layer, guide: Guide, frame: _Frame) -> None:
         group = drawing.g(id=f"outline-{part.step}", stroke="#808080" if static else "#000000")
         group.add(drawing.path(d=frame.path(_rings(part.outline), closed=True)))
         if static:
-            hatching = hatch_segments(part.outline)
+            hatching = shapes.hatch_segments(part.outline)
             if hatching:
                 group.add(drawing.path(d=frame.path(hatching, closed=False)))
         u, v = part.center_mm
         group.add(drawing.path(d=frame.path([[(u - 1.5, v), (u + 1.5, v)], [(u, v - 1.5), (u, v + 1.5)]], False)))
         if not static:
-            shaft, head = arrow(part.center_mm, part.heading_deg, heading_length(part))
+            shaft, head = shapes.arrow(part.center_mm, part.heading_deg, shapes.heading_length(part))
             group.add(drawing.path(d=frame.path([shaft, [head[1], head[0], head[2]]], closed=False)))
         layer.add(group)
 
 
 def _tolerances(drawing, layer, guide: Guide, frame: _Frame) -> None:
     for part in guide.parts:
-        du, dv, dtheta = placement_deltas(part, guide.plane)
-        zone = tolerance_zone(part.outline, du, dv)
+        du, dv, dtheta = shapes.placement_deltas(part, guide.plane)
+        zone = shapes.tolerance_zone(part.outline, du, dv)
         if zone is None and dtheta is None:
             continue
-        group = drawing.g(id=f"tolerance-{part.step}", stroke=_hex(care_color(part.care)))
+        group = drawing.g(id=f"tolerance-{part.step}", stroke=_hex(shapes.care_color(part.care)))
         if zone is not None:
             group.add(drawing.path(d=frame.path(_rings(zone), closed=True)))
         if dtheta is not None:
-            arc = arc_points(part.center_mm, heading_length(part), part.heading_deg, max(dtheta, 0.5))
+            length = shapes.heading_length(part)
+            arc = shapes.arc_points(part.center_mm, length, part.heading_deg, max(dtheta, 0.5))
             group.add(drawing.path(d=frame.path([arc], closed=False)))
         layer.add(group)
 
@@ -196,23 +183,8 @@ def _tags(drawing, layer, guide: Guide, frame: _Frame) -> None:
 
 def _reference_tags(drawing, layer, guide: Guide, frame: _Frame) -> None:
     for tag in guide.reference_tags:
-        cells = tag_cells(tag.id)
-        cell = tag.size_mm / 8
-        half = cell * TAG_CELLS / 2
-        runs = []
-        for row in range(TAG_CELLS):
-            col = 0
-            while col < TAG_CELLS:
-                if cells[row, col]:
-                    col += 1
-                    continue
-                end = col
-                while end < TAG_CELLS and not cells[row, end]:
-                    end += 1
-                u0, u1 = tag.center_mm[0] - half + col * cell, tag.center_mm[0] - half + end * cell
-                v1 = tag.center_mm[1] + half - row * cell
-                runs.append([(u0, v1 - cell), (u1, v1 - cell), (u1, v1), (u0, v1)])
-                col = end
+        runs = [[(u0, v0), (u1, v0), (u1, v1), (u0, v1)]
+                for u0, v0, u1, v1 in shapes.tag_black_rects(tag.id, tag.center_mm, tag.size_mm)]
         layer.add(drawing.path(id=f"reference-tag-{tag.id}", d=frame.path(runs, closed=True), fill="#000000",
                                stroke="none"))
 
@@ -220,20 +192,21 @@ def _reference_tags(drawing, layer, guide: Guide, frame: _Frame) -> None:
 def _labels(drawing, layer, guide: Guide, frame: _Frame) -> None:
     from design.fabrication.labels import text_polylines
 
-    labels = place_labels(guide)
+    labels = shapes.place_labels(guide)
     for part in guide.parts:
         label = labels[part.name]
         group = drawing.g(id=f"label-{part.step}")
-        strokes = [arc_points(label.circle, label.radius, 0.0, 180.0, 49)]
+        strokes = [shapes.arc_points(label.circle, label.radius, 0.0, 180.0, 49)]
         if label.leader is not None:
             direction = np.subtract(label.leader[1], label.leader[0])
             start = np.asarray(label.leader[0]) + direction / np.linalg.norm(direction) * label.radius
             strokes.append(np.array([start, label.leader[1]]))
-        number = text_polylines(str(label.number), CIRCLE_MM * 0.45)
+        number = text_polylines(str(label.number), shapes.CIRCLE_MM * 0.45)
         strokes += [s + label.circle for s in number]
-        lines = [(label.name, NAME_MM, 0.5 + NAME_MM / 2)] if label.detail else [(label.name, NAME_MM, 0.0)]
-        if label.detail:
-            lines.append((label.detail, DETAIL_MM, -0.2 - DETAIL_MM / 2))
+        lines = [(label.name, shapes.NAME_MM, 0.0)]
+        if label.detail:  # the name above the middle, the tolerance below it
+            lines = [(label.name, shapes.NAME_MM, 0.5 + shapes.NAME_MM / 2),
+                     (label.detail, shapes.DETAIL_MM, -0.2 - shapes.DETAIL_MM / 2)]
         for text, height, dy in lines:
             # The single-stroke font is ASCII: spell out the two signs a tolerance uses.
             written = text_polylines(text.replace("\u00b1", "+-").replace("\u00b0", " deg"), height)
