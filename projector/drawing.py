@@ -247,6 +247,7 @@ def place_labels(guide: Guide, width: Callable[..., float] = _default_width, *,
         text_w = max(width(part.name, NAME_MM, True), width(detail, DETAIL_MM) if detail else 0.0)
         box_w, box_h = CIRCLE_MM + 1.2 + text_w + 1.0, CIRCLE_MM + 1.0
         anchor = part.outline.representative_point() if not part.outline.is_empty else Point(part.center_mm)
+        target = part.outline if not part.outline.is_empty else anchor  # what the label points at
         candidates = _candidates(part.outline, anchor, box_w, box_h)
         best, best_cost = None, math.inf
         taken = shapely.union_all(placed) if placed else Polygon()
@@ -259,7 +260,7 @@ def place_labels(guide: Guide, width: Callable[..., float] = _default_width, *,
                 cost = (rect.intersection(drawn).area + 20.0 * rect.intersection(taken).area
                         + 10.0 * rect.intersection(marks).area + 20.0 * rect.difference(inside_extent).area
                         + (0.0 if avoid is None else 10.0 * rect.intersection(avoid).area)
-                        + 0.05 * rect.distance(part.outline) * box_h)
+                        + 0.05 * rect.distance(target) * box_h)
             if cost < best_cost:
                 best, best_cost = ((x0, y0), inside), cost
         (x0, y0), inside = best
@@ -268,9 +269,9 @@ def place_labels(guide: Guide, width: Callable[..., float] = _default_width, *,
         circle = (x0 + 0.5 + radius, y0 + box_h / 2)
         leader = None
         if not inside:
-            target = ops.nearest_points(part.outline, Point(circle))[0]
-            if target.distance(Point(circle)) > radius + 0.5:
-                leader = ((circle[0], circle[1]), (target.x, target.y))
+            end = ops.nearest_points(target, Point(circle))[0]
+            if end.distance(Point(circle)) > radius + 0.5:
+                leader = ((circle[0], circle[1]), (end.x, end.y))
         labels[part.name] = Label(part.name, part.step, detail, circle, radius,
                                   (x0 + CIRCLE_MM + 1.7, y0 + box_h / 2), rect, leader)
     return labels
