@@ -28,20 +28,46 @@ STEPS = ["1. Lay floor_plank along the bottom edge", "2. Fix support_post", "3. 
          "7. Put the ball on the track last"]
 
 
+def raster(document, index: int) -> np.ndarray:
+    """Page ``index`` rendered grey at DPI, as an array of its own: a bitmap's numpy or PIL view shares the bitmap's
+    memory, which pdfium frees with the bitmap."""
+    page = document[index]
+    bitmap = page.render(scale=DPI / 72, grayscale=True)
+    array = bitmap.to_numpy().copy()
+    bitmap.close()
+    page.close()
+    return array
+
+
+def text(document, index: int) -> str:
+    page = document[index]
+    textpage = page.get_textpage()
+    result = textpage.get_text_range()
+    textpage.close()
+    page.close()
+    return result
+
+
 @pytest.fixture(scope="module")
 def rendered():
-    """The sample guide's PDF, its guide with pages, and every page as a grey raster at DPI."""
+    """The sample guide's PDF: its guide with pages, every page as a grey raster at DPI, its text, and the tags a
+    detector finds on each page (``{id: (centre, corners)}`` in pixels)."""
     stream = io.BytesIO()
     guide = write_pdf(sample_guide(), stream, paper="a4", steps=STEPS)
     document = pdfium.PdfDocument(stream.getvalue())
-    pages = [np.asarray(document[i].render(scale=DPI / 72, grayscale=True).to_pil().convert("L"))
-             for i in range(len(document))]
-    texts = [document[i].get_textpage().get_text_range() for i in range(len(document))]
-    return guide, pages, texts
+    pages = [raster(document, i) for i in range(len(document))]
+    texts = [text(document, i) for i in range(len(document))]
+    document.close()
+    # The detector lives only here: one still alive when the interpreter exits can crash it in its __del__.
+    detector = Detector(families="tag36h11", quad_decimate=1.0)
+    tags = [{d.tag_id: (np.array(d.center), np.array(d.corners)) for d in detector.detect(np.ascontiguousarray(r))}
+            for r in pages]
+    del detector
+    return guide, pages, texts, tags
 
 
 def test_one_pdf_page_per_sheet_then_the_lists(rendered):
-    guide, pages, _ = rendered
+    guide, pages, _, _ = rendered
     assert len(guide.pages) == 6 and len(pages) == len(guide.pages) + 1
     for page, raster in zip(guide.pages, pages):
         assert raster.shape == (round(page.size_mm[1] * PX_PER_MM), round(page.size_mm[0] * PX_PER_MM))
@@ -63,17 +89,9 @@ def scale_bar_mm(raster: np.ndarray) -> float:
 
 
 def test_every_page_has_a_scale_bar_of_100_mm(rendered):
-    _, pages, _ = rendered
+    _, pages, _, _ = rendered
     for raster in pages:
         assert scale_bar_mm(raster) == pytest.approx(100.0, rel=0.005)
-
-
-DETECTOR = Detector(families="tag36h11", quad_decimate=1.0)  # one for the module: a detector freed while another
-# is made has crashed the process
-
-
-def detect(raster: np.ndarray):
-    return DETECTOR.detect(np.ascontiguousarray(raster))
 
 
 def to_guide_mm(page, xy_px) -> np.ndarray:
@@ -85,14 +103,14 @@ def to_guide_mm(page, xy_px) -> np.ndarray:
 
 
 def test_reference_tags_decode_at_their_manifest_positions(rendered):
-    guide, pages, _ = rendered
+    guide, _, _, tags = rendered
     manifest = {t["id"]: t for t in guide.manifest()["reference_tags"]}
     assert sorted(manifest) == list(REFERENCE_TAG_IDS)
     seen = {tag_id: 0 for tag_id in manifest}
-    for page, raster in zip(guide.pages, pages):
+    for page in guide.pages:
         x0, y0, x1, y1 = page_format(page).drawing_box
         area = (page.origin_mm[0] + x0, page.origin_mm[1] + y0, page.origin_mm[0] + x1, page.origin_mm[1] + y1)
-        found = {d.tag_id: d for d in detect(raster)}
+        found = tags[page.index]
         # The parts' tags are marked where they go, but never decodable: the camera must find them on the parts.
         assert set(found) <= set(manifest), f"sheet {page.label} shows a decodable part tag: {sorted(found)}"
         for tag_id, tag in manifest.items():
@@ -101,9 +119,9 @@ def test_reference_tags_decode_at_their_manifest_positions(rendered):
             if not whole:
                 continue
             assert tag_id in found, f"reference tag {tag_id} is whole on sheet {page.label} but does not decode"
-            centre = to_guide_mm(page, found[tag_id].center)
+            centre = to_guide_mm(page, found[tag_id][0])
             assert np.abs(centre - [u, v]).max() <= 0.5
-            corners = to_guide_mm(page, found[tag_id].corners)
+            corners = to_guide_mm(page, found[tag_id][1])
             expected = np.array([[-1, -1], [1, -1], [1, 1], [-1, 1]]) * tag["size_mm"] / 2 + [u, v]
             assert np.abs(corners - expected).max() <= 0.5  # its size, and first corner lower-left: not mirrored
             seen[tag_id] += 1
@@ -134,7 +152,7 @@ def overlap_strips(guide, pages, a: int, b: int, shift_mm: float = 0.0):
 
 
 def test_overlapping_sheets_show_the_same_drawing(rendered):
-    guide, pages, _ = rendered
+    guide, pages, _, _ = rendered
     labels = [p.label for p in guide.pages]
     pairs = [(i, i + 1) for i in range(len(labels) - 1) if labels[i][1:] == labels[i + 1][1:]]  # same row
     assert len(pairs) == 4
@@ -149,7 +167,7 @@ def test_overlapping_sheets_show_the_same_drawing(rendered):
 
 
 def test_the_last_page_lists_every_part_step_and_tolerance(rendered):
-    guide, _, texts = rendered
+    guide, _, texts, _ = rendered
     lists = " ".join(texts[len(guide.pages):]).replace("\r", "").replace("\n", " ")
     for part in guide.parts:
         assert part.name in lists
@@ -161,7 +179,7 @@ def test_the_last_page_lists_every_part_step_and_tolerance(rendered):
 
 
 def test_every_sheet_says_which_it_is(rendered):
-    guide, _, texts = rendered
+    guide, _, texts, _ = rendered
     for page, text in zip(guide.pages, texts):
         assert f"sheet {page.label} of 3 x 2" in text
         assert "check: this bar must measure 100 mm" in text
@@ -175,7 +193,8 @@ def test_the_lists_say_where_the_tolerances_come_from(tmp_path, tolerance, expec
     assert [p.paper for p in guide.pages] == ["letter"]
     document = pdfium.PdfDocument(path)
     assert len(document) == 2
-    assert expected in document[1].get_textpage().get_text_range().replace("\r\n", " ")
+    assert expected in text(document, 1).replace("\r\n", " ")
+    document.close()
 
 
 @pytest.mark.parametrize("name", ["a <b> & </i> c", "茶壶 ✂ naïve", "x" * 120, "<para>"])
@@ -185,9 +204,11 @@ def test_any_part_name_prints(name):
     guide = type(guide)(**{**guide.__dict__, "parts": (type(part)(**{**part.__dict__, "name": name}),)})
     stream = io.BytesIO()
     write_pdf(guide, stream, steps=[f"1. Place {name}"])
-    text = pdfium.PdfDocument(stream.getvalue())[1].get_textpage().get_text_range()
+    document = pdfium.PdfDocument(stream.getvalue())
+    written = text(document, 1)
+    document.close()
     if name.isascii():
-        assert name[:60] in text.replace("\r\n", "")
+        assert name[:60] in written.replace("\r\n", "")
 
 
 def test_a_bad_paper_is_one_line():
@@ -214,7 +235,7 @@ def vertical_strips(guide, pages, a: int, b: int, shift_mm: float = 0.0):
 
 
 def test_sheets_above_each_other_join_too(rendered):
-    guide, pages, _ = rendered
+    guide, pages, _, _ = rendered
     for a, b in ((0, 3), (1, 4), (2, 5)):
         top, bottom = vertical_strips(guide, pages, a, b)
         assert top.std() > 5
