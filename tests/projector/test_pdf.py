@@ -12,9 +12,9 @@ import io
 import numpy as np
 import pypdfium2 as pdfium
 import pytest
-from pupil_apriltags import Detector
 from scipy import ndimage
 
+from projector.detection import detect_tags
 from projector.errors import ProjectorError
 from projector.guide import REFERENCE_TAG_IDS
 from projector.pdf import write_pdf
@@ -58,11 +58,7 @@ def rendered():
     pages = [raster(document, i) for i in range(len(document))]
     texts = [text(document, i) for i in range(len(document))]
     document.close()
-    # The detector lives only here: one still alive when the interpreter exits can crash it in its __del__.
-    detector = Detector(families="tag36h11", quad_decimate=1.0)
-    tags = [{d.tag_id: (np.array(d.center), np.array(d.corners)) for d in detector.detect(np.ascontiguousarray(r))}
-            for r in pages]
-    del detector
+    tags = [{t.tag_id: (t.center, t.corners) for t in detect_tags(r)} for r in pages]  # pupil-apriltags
     return guide, pages, texts, tags
 
 

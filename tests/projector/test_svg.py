@@ -8,9 +8,9 @@ import xml.etree.ElementTree as ET
 
 import numpy as np
 import pytest
-from pupil_apriltags import Detector
 from shapely.geometry import MultiPoint, Polygon
 
+from projector.detection import detect_tags
 from projector.drawing import CARE_COLORS
 from projector.errors import ProjectorError
 from projector.guide import REFERENCE_TAG_IDS
@@ -144,7 +144,7 @@ def test_reference_tags_decode_at_their_places_when_rasterized(sample):
         for rect in numbers(path.get("d")):
             (x0, y0), (x1, y1) = np.round(rect.min(axis=0) * scale).astype(int), np.round(rect.max(axis=0) * scale)
             image[y0:int(y1), x0:int(x1)] = 0
-    found = {d.tag_id: d for d in Detector(families="tag36h11").detect(image)}
+    found = {t.tag_id: t for t in detect_tags(image)}  # pupil-apriltags
     assert sorted(found) == list(REFERENCE_TAG_IDS)
     for tag in guide.reference_tags:
         centre = to_guide(np.array([found[tag.id].center]) / scale, guide)[0]
