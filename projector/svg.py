@@ -22,6 +22,7 @@ from collections.abc import Iterable
 from typing import TextIO
 
 import numpy as np
+from shapely.geometry import LineString
 
 from projector import drawing as shapes
 from projector.errors import ProjectorError
@@ -198,9 +199,10 @@ def _labels(drawing, layer, guide: Guide, frame: _Frame) -> None:
         group = drawing.g(id=f"label-{part.step}")
         strokes = [shapes.arc_points(label.circle, label.radius, 0.0, 180.0, 49)]
         if label.leader is not None:
-            direction = np.subtract(label.leader[1], label.leader[0])
-            start = np.asarray(label.leader[0]) + direction / np.linalg.norm(direction) * label.radius
-            strokes.append(np.array([start, label.leader[1]]))
+            # From the label's edge, not across its text (the PDF hides it under the label's white box).
+            leader = LineString(label.leader).difference(label.box)
+            strokes += [np.asarray(line.coords) for line in getattr(leader, "geoms", [leader])
+                        if not line.is_empty and line.length > 0.3]
         number = text_polylines(str(label.number), shapes.CIRCLE_MM * 0.45)
         strokes += [s + label.circle for s in number]
         lines = [(label.name, shapes.NAME_MM, 0.0)]
