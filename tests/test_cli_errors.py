@@ -138,6 +138,7 @@ MISSING_FILE = {
     ("scenario", "check"): ["scenario", "check", "missing.toml"],
     ("send",): ["send", "missing.gcode", "--port", "sim://grbl"],
     ("simulate",): ["simulate", "missing.toml"],
+    ("tolerances",): ["tolerances", "simple", "missing.json"],
 }
 
 

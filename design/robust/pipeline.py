@@ -25,6 +25,7 @@ from design.robust.budget import (  # noqa: F401 - Progress, BudgetExhausted, ..
     plan_budget,
 )
 from design.robust.executor import SimulationExecutor
+from design.robust.model_io import model_to_json
 from design.robust.optimize import optimize_layout, placement_offsets
 from design.robust.problem import LayoutProblem, RobustError, check_seed
 from design.robust.psp import EventModel, FactorizedPSP, Samples, explore
@@ -82,7 +83,8 @@ class RobustLayout:
                 f"{kept['local_success_rate']:.2f}, score {kept['score']:.3f})")
 
     def to_json(self, problem: LayoutProblem) -> dict:
-        """The LAYOUT.json content: hash, parameters in real units and normalized, predictions, budget used."""
+        """The LAYOUT.json content: hash, parameters in real units and normalized, predictions, budget used, and
+        the fitted model under ``"model"`` (``"chaos-station psp model 1"``, see :mod:`design.robust.model_io`)."""
         real = problem.to_real(self.u)
         return {
             "format": "chaos-station robust layout 1",
@@ -110,6 +112,9 @@ class RobustLayout:
             "seconds": round(self.seconds, 3),
             "psp_settings": None if self.settings is None else {
                 k: list(v) if isinstance(v, tuple) else v for k, v in asdict(self.settings).items()},
+            # The fitted PSP as numbers (design/robust/model_io.py), for scoring layouts near this one without
+            # simulating (station tolerances); absent when the run kept no model.
+            **({} if self.model is None else {"model": model_to_json(self.model, problem)}),
         }
 
 

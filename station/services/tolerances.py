@@ -1,0 +1,169 @@
+"""The tolerance map of a layout as a service: ``station tolerances`` and the assembly guide (issue 18).
+
+:func:`tolerance_map` reads a scenario and a layout (through the one layout reader, as ``station robustness``
+does), takes the fitted success model the LAYOUT.json carries (``"model"``, :mod:`design.robust.model_io`) and
+computes each free parameter's tolerance (:mod:`design.robust.tolerance`); ``verify=N`` simulates N layouts at
+±delta per parameter on the shared simulation cache. A layout without a model gets its tolerances by simulation
+when ``verify > 0``, else none; the result's ``map.source`` says which. Progress goes to one callback (a
+:class:`design.robust.Progress`, hence a :class:`common.progress.Progress`); refused input is a
+:class:`~station.services.errors.ServiceError` naming the value (``verify``, ``seed``...).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+from station.services import robust
+from station.services.errors import ServiceError
+
+if TYPE_CHECKING:
+    import numpy as np
+
+    from design.contraption.layout_io import LoadedLayout
+    from design.robust.model_io import PortablePSP
+    from design.robust.pipeline import ProgressCallback
+    from design.robust.tolerance import ToleranceMap
+    from projector.guide import ParameterTolerance
+
+#: Bisection steps per parameter of the search by simulation (no model): delta to 1/16 of the parameter's room.
+SIMULATION_STEPS = 4
+
+
+@dataclass(frozen=True)
+class Tolerances:
+    """A layout's tolerance map and what it was computed from.
+
+    Attributes
+    ----------
+    problem : ContraptionProblem
+        The scenario as a robust-layout problem.
+    layout : LoadedLayout
+        The layout read (where from, defaulted parameters, warnings).
+    u : ndarray
+        The layout, normalized.
+    map : ToleranceMap
+        The tolerances (``map.source``: ``"model"``, ``"simulation"`` or ``"none"``).
+    model : PortablePSP or None
+        The fitted model the layout file carried.
+    verify : int
+        Layouts simulated per parameter (0: none).
+    """
+
+    problem: object
+    layout: LoadedLayout
+    u: np.ndarray
+    map: ToleranceMap
+    model: PortablePSP | None
+    verify: int
+
+    def parameter_tolerances(self) -> dict[str, tuple[ParameterTolerance, ...]]:
+        """Per part, its parameters' tolerances as the guide's :class:`projector.guide.ParameterTolerance`."""
+        from projector.guide import ParameterTolerance
+
+        return {part: tuple(ParameterTolerance(e.parameter, e.delta, e.unit, e.predicted_ratio, e.measured,
+                                               self.map.source) for e in entries)
+                for part, entries in self.map.by_part().items()}
+
+    def care(self) -> dict[str, str | None]:
+        """Per part, ``"tight"``, ``"normal"``, ``"loose"`` or None (:func:`design.robust.tolerance.care_level`)."""
+        return self.map.care()
+
+    def to_dict(self) -> dict:
+        """What ``station tolerances --json`` prints (the shape its help documents)."""
+        return {"scenario": self.problem.name, "layout": self.layout.to_dict(), "verify": self.verify,
+                **self.map.to_dict()}
+
+
+def read_model(path: str, problem) -> PortablePSP | None:
+    """The fitted model a layout file carries, or None (a hand-written layout, an older LAYOUT.json, a layout named
+    in the scenario); a malformed model raises :class:`design.robust.model_io.ModelFormatError` naming the field."""
+    from design.contraption.layout_io import read_layout_data
+    from design.robust.model_io import layout_model
+
+    if not Path(path).is_file():
+        return None
+    return layout_model(read_layout_data(path), problem, file=path)
+
+
+def _problem(scenario):
+    """A scenario file or example name, a loaded :class:`design.contraption.Scenario` or a problem, as a problem."""
+    if isinstance(scenario, (str, Path)):
+        return robust.load_problem(str(scenario))
+    if hasattr(scenario, "design_space") and not hasattr(scenario, "parameter_names"):
+        from design.robust.contraption import ContraptionProblem
+
+        return ContraptionProblem(scenario.source, scenario)
+    return scenario
+
+
+def tolerance_map(scenario, layout: str, *, verify: int = 0, seed: int = 0, workers: int | None = None,
+                  scheduler: str | None = None, progress: ProgressCallback | None = None,
+                  should_stop: robust.StopCheck | None = None) -> Tolerances:
+    """The tolerance map of ``layout`` for ``scenario``.
+
+    Parameters
+    ----------
+    scenario : str, Scenario or ContraptionProblem
+        A scenario file or example name, the scenario already loaded (:func:`design.contraption.load_scenario`), or
+        its robust-layout problem.
+    layout : str
+        A layout file (a LAYOUT.json with its model, ``{"parameters": {...}}``...) or a layout named in the scenario.
+    verify : int
+        Layouts to simulate per parameter (half at -delta, half at +delta); 0 simulates nothing. Without a model,
+        the number of layouts per step of the search by simulation.
+    seed : int
+        Seed of the verification layouts.
+    workers, scheduler, should_stop :
+        Where the simulations run and when they stop (:func:`station.services.robust.simulations`).
+    progress : callable, optional
+        Stage ``"tolerance map"`` (parameters searched), then ``"verification"`` (simulations).
+
+    Raises
+    ------
+    ServiceError
+        ``verify`` or ``seed`` negative (``field`` names it).
+    RunStopped
+        Stopped by ``should_stop`` or Ctrl-C; simulations done are kept in the cache.
+    """
+    import numpy as np
+
+    from design.robust.pipeline import BudgetedOracle, Progress
+    from design.robust.tolerance import model_tolerances, no_tolerances, simulated_tolerances, verify_tolerances
+
+    if isinstance(verify, bool) or not isinstance(verify, int) or verify < 0:
+        raise ServiceError(f"verify must be an integer >= 0 (layouts simulated per parameter), got {verify!r}",
+                           field="verify", value=verify)
+    robust.check_seed(seed)
+    problem = _problem(scenario)
+    loaded = robust.read_layout(str(layout), problem)
+    u = np.clip(problem.to_normalized(loaded.x), 0.0, 1.0)
+    model = read_model(str(layout), problem)
+    d = problem.dim
+    if progress is not None:
+        progress(Progress("tolerance map", 0, d, unit="parameters"))
+    if model is not None:
+        tolerances = model_tolerances(model, problem, u, is_valid=problem.is_valid)
+    elif verify == 0:
+        tolerances = no_tolerances(problem)
+    else:
+        tolerances = None
+    if progress is not None:
+        progress(Progress("tolerance map", d, d, unit="parameters"))
+    if tolerances is None or verify > 0:
+        expected = 1 + d * verify if tolerances is not None else 1 + d * (SIMULATION_STEPS + 1) * verify
+        with robust.simulations(problem, workers=workers, scheduler=scheduler, should_stop=should_stop) as executor:
+            oracle = BudgetedOracle(executor, None, progress, should_stop, expected=expected)
+            oracle.phase = "verification"
+
+            def parameter(_index: int, name: str) -> None:
+                oracle.report(name)
+
+            if tolerances is None:
+                tolerances = simulated_tolerances(problem, u, oracle, verify, steps=SIMULATION_STEPS, seed=seed,
+                                                  on_parameter=parameter)
+            else:
+                tolerances = verify_tolerances(tolerances, problem, u, oracle, verify, seed=seed, model=model,
+                                               on_parameter=parameter)
+    return Tolerances(problem, loaded, u, tolerances, model, verify)
