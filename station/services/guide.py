@@ -32,8 +32,8 @@ class GuideJob:
         The assembly steps in words (``"3. Place `bottom_track`: centre (50.0, 60.0) mm, ..."``).
     layout : design.contraption.layout_io.LoadedLayout
         The layout the guide draws, and where it came from.
-    tolerances : object or None
-        The tolerance map (:class:`design.robust.tolerance.ToleranceMap`), None when none could be had.
+    tolerances : station.services.tolerances.Tolerances or None
+        The tolerance map, None when none was asked for (or for the scenario's own layout).
     scenario : design.contraption.Scenario
         The scenario.
     """
@@ -96,7 +96,7 @@ def make_guide(scenario: str, layout: str | None, *, view: str | None = None, ve
     tolerance_map = None
     by_parameter: dict[str, ParameterTolerance] | None = None
     if tolerances and layout is not None:
-        tolerance_map = _tolerance_map(scenario, layout, verify=verify, seed=seed, progress=report)
+        tolerance_map = _tolerance_map(loaded_scenario, layout, verify=verify, seed=seed, progress=report)
         by_parameter = _guide_tolerances(tolerance_map)
     guide = build_guide(loaded_scenario, loaded_layout.x, view=view, tolerances=by_parameter)
     return GuideJob(guide, tuple(steps_text(guide)), loaded_layout, tolerance_map, loaded_scenario)
@@ -155,17 +155,12 @@ def _title(job: GuideJob) -> str:
     return f"{job.guide.scenario}: {job.layout.describe()}"
 
 
-def _tolerance_map(scenario: str, layout: str, *, verify: int, seed: int, progress: Reporter):
+def _tolerance_map(scenario, layout: str, *, verify: int, seed: int, progress: Reporter):
     from station.services.tolerances import tolerance_map
 
     return tolerance_map(scenario, layout, verify=verify, seed=seed, progress=progress)
 
 
-def _guide_tolerances(tolerance_map) -> dict[str, ParameterTolerance]:
-    """The design side's tolerance entries in the guide's units (mm and degrees), by parameter."""
-    return {
-        entry.parameter: ParameterTolerance(
-            parameter=entry.parameter, delta=entry.delta, unit=entry.unit, predicted=entry.predicted_ratio,
-            measured=entry.measured, source=tolerance_map.source)
-        for entry in tolerance_map.entries
-    }
+def _guide_tolerances(tolerances) -> dict[str, ParameterTolerance]:
+    """The tolerances in the guide's units (mm and degrees), by layout parameter."""
+    return {t.parameter: t for per_part in tolerances.parameter_tolerances().values() for t in per_part}
