@@ -4,10 +4,11 @@ Kinds
 -----
 - ``grbl``: a GRBL 1.1 controller behind a serial port URL (the plotter and the laser);
 - ``camera``: a camera (issue 19 brings its driver);
-- ``projector``: a projector (issue 18 brings its driver).
+- ``projector``: a projector: a full-screen window on a display (:mod:`drivers.projector`) or its simulated twin
+  (:mod:`drivers.sim.projector`).
 
 The registry (:func:`resolve`) reads a URL and says which kind it names and which driver serves it. A kind whose
-driver does not exist yet is said so (:attr:`DriverInfo.available` is False and :func:`probe` answers
+driver does not exist yet (the camera) is said so (:attr:`DriverInfo.available` is False and :func:`probe` answers
 ``"no driver yet"``): no device is ever faked as working.
 
 Accepted URLs
@@ -104,17 +105,29 @@ class Camera(Protocol):
 
 @runtime_checkable
 class Projector(Protocol):
-    """A projector (the driver comes with issue 18): show frames of :attr:`size`, close it."""
+    """A projector: open it, show frames (fitted to :attr:`size`), blank it, close it.
 
-    def show(self, frame: Any) -> None:
-        """Project one frame (an ``H x W x 3`` uint8 array of :attr:`size`)."""
+    :class:`drivers.projector.display.DisplayProjector` (``display:N``) and
+    :class:`drivers.sim.projector.SimulatedProjector` (``sim://projector``) follow it. A projector that cannot be
+    opened raises a :class:`drivers.errors.DriverError` with one line saying why.
+    """
+
+    def open(self) -> None:
+        """Open the output (a full-screen window on a display); opening twice is harmless."""
+
+    def show(self, frame: Any) -> str | None:
+        """Project one frame: a uint8 array ``H x W`` (grey) or ``H x W x 3`` (RGB), or a PIL image. A frame whose
+        size is not :attr:`size` is scaled and letterboxed; the answer says so (None: shown pixel for pixel)."""
+
+    def blank(self) -> None:
+        """Show black, staying open."""
 
     @property
     def size(self) -> tuple[int, int]:
         """Output size ``(width, height)`` in pixels."""
 
     def close(self) -> None:
-        """Blank the output and release it."""
+        """Blank the output and release it; closing twice is harmless."""
 
 
 @dataclass(frozen=True)
@@ -225,6 +238,22 @@ def _port_problem(message: str) -> str:
 
 
 _GRBL = "grbl-serial"
+_DISPLAY, _SIM_PROJECTOR = "sdl-display", "sim-projector"
+
+
+def _display_projector(url: str, **options: Any) -> Any:
+    """A :class:`drivers.projector.display.DisplayProjector` (imported when asked for: it starts processes)."""
+    from drivers.projector.display import DisplayProjector
+
+    return DisplayProjector(url, **options)
+
+
+def _sim_projector(url: str, **options: Any) -> Any:
+    """A :class:`drivers.sim.projector.SimulatedProjector` (the shared one for a ``name=`` URL)."""
+    from drivers.sim.projector import sim_projector
+
+    return sim_projector(url, **options)
+
 
 #: ``(pattern, kind, driver, simulated, factory)``, tried in order; the first that matches wins.
 _RULES: tuple[tuple[re.Pattern, str, str, bool, Callable[..., Any] | None], ...] = (
@@ -239,8 +268,8 @@ _RULES: tuple[tuple[re.Pattern, str, str, bool, Callable[..., Any] | None], ...]
     (re.compile(r"^(rtsp|https?)://\S+$"), "camera", "", False, None),
     (re.compile(r"^\S.*(" + "|".join(re.escape(s) for s in VIDEO_SUFFIXES) + r")$", re.IGNORECASE),
      "camera", "", False, None),
-    (re.compile(r"^sim://projector(\?.*)?$"), "projector", "", True, None),
-    (re.compile(r"^display:\d+$"), "projector", "", False, None),
+    (re.compile(r"^sim://projector(\?.*)?$"), "projector", _SIM_PROJECTOR, True, _sim_projector),
+    (re.compile(r"^display:\d+$"), "projector", _DISPLAY, False, _display_projector),
 )
 
 
@@ -262,13 +291,19 @@ def resolve(url: str) -> DriverInfo:
 def probe(url: str, timeout: float = 0.5) -> str:
     """A short state line for the device at ``url``, opening it briefly when a driver exists.
 
-    ``"no driver yet"`` for a camera or projector (their drivers come with issues 19 and 18); for GRBL the port is
-    opened and asked its status (``"connected: Grbl 1.1h, Idle"``), or the reason it is not connected.
+    ``"no driver yet"`` for a camera (its driver comes with issue 19). For GRBL the port is opened and asked its
+    status (``"connected: Grbl 1.1h, Idle"``), or the reason it is not connected. For a projector:
+    ``"open: 1280x800"`` (a display adds its number, the display count and SDL's driver; it is asked in a
+    short-lived process that makes no window, waiting at least
+    :data:`drivers.projector.display.DISPLAY_PROBE_TIMEOUT`) or ``"not available: <why>"``.
     """
     info = resolve(url)
     if not info.available:
         return "no driver yet"
-    device = info.factory(info.url, timeout=timeout)
+    try:
+        device = info.factory(info.url, timeout=timeout)
+    except DriverError as error:  # a sim:// URL with a bad option
+        return ("not available: " if info.kind == "projector" else "not connected: ") + str(error)
     try:
         return device.state()
     finally:

@@ -98,13 +98,25 @@ def driver_name(device: DeviceEntry) -> str | None:
     return resolve(device.url).driver or None
 
 
+def probe_wait(device: DeviceEntry) -> float:
+    """Seconds a probe of ``device`` may wait: its ``timeout`` option, else :data:`PROBE_TIMEOUT`; a real projector
+    at least :data:`drivers.projector.display.DISPLAY_PROBE_TIMEOUT` (its probe starts a short-lived process)."""
+    wait = float(device.options.get("timeout", PROBE_TIMEOUT))
+    if device.kind == "projector" and not device.simulated:
+        from drivers.projector.display import DISPLAY_PROBE_TIMEOUT
+
+        wait = max(wait, DISPLAY_PROBE_TIMEOUT)
+    return wait
+
+
 def probe_device(device: DeviceEntry) -> str:
     """A short state line for ``device`` from :func:`drivers.devices.probe` (``"connected: Grbl 1.1h, Idle"``,
-    ``"not connected: no such port"``, ``"no driver yet"``); it opens a GRBL port for at most its timeout (and the
-    time the port takes to open)."""
+    ``"not connected: no such port"``, ``"open: 1280x800"``, ``"not available: no display 2: ..."``, ``"no driver
+    yet"``); it opens a GRBL port for at most its timeout (and the time the port takes to open); a display is asked
+    its size without making a window."""
     from drivers.devices import probe
 
-    return probe(device.url, timeout=float(device.options.get("timeout", PROBE_TIMEOUT)))
+    return probe(device.url, timeout=probe_wait(device))
 
 
 def probe_devices(devices: Sequence[DeviceEntry]) -> list[str]:
@@ -122,7 +134,7 @@ def probe_devices(devices: Sequence[DeviceEntry]) -> list[str]:
                for i, d in enumerate(devices)]
     for thread in threads:
         thread.start()
-    limit = max((float(d.options.get("timeout", PROBE_TIMEOUT)) for d in devices), default=0.0) + PROBE_GRACE
+    limit = max((probe_wait(d) for d in devices), default=0.0) + PROBE_GRACE
     deadline = time.monotonic() + limit
     for thread in threads:
         thread.join(max(0.0, deadline - time.monotonic()))

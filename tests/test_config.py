@@ -202,8 +202,8 @@ def test_devices_command_json_contract(station_home, monkeypatch, capsys):
          "driver": "grbl-serial", "state": "connected: Grbl 1.1h, Idle"},
         {"name": "camera", "kind": "camera", "url": "sim://camera", "simulated": True, "driver": None,
          "state": "no driver yet"},
-        {"name": "projector", "kind": "projector", "url": "sim://projector", "simulated": True, "driver": None,
-         "state": "no driver yet"},
+        {"name": "projector", "kind": "projector", "url": "sim://projector", "simulated": True,
+         "driver": "sim-projector", "state": "open: 1280x800"},
     ]
 
 

@@ -25,8 +25,9 @@ from station.devices import DeviceEntry, default_devices, probe_device, probe_de
     ("/dev/video2", "camera", False, False),
     ("rtsp://cam.local/stream", "camera", False, False),
     ("clips/run.mp4", "camera", False, False),
-    ("sim://projector", "projector", True, False),
-    ("display:1", "projector", False, False),
+    ("sim://projector", "projector", True, True),
+    ("sim://projector?size=640x480&name=bench", "projector", True, True),
+    ("display:1", "projector", False, True),
 ])
 def test_registry_table(url, kind, simulated, available):
     info = resolve(url)
@@ -42,7 +43,27 @@ def test_unknown_url_names_it_and_the_accepted_forms(url):
 
 def test_no_driver_yet_is_said_not_faked():
     assert probe("sim://camera") == "no driver yet"
-    assert probe("display:1") == "no driver yet"
+    assert resolve("/dev/video0").driver == ""
+
+
+def test_projectors_have_drivers_and_say_their_state(monkeypatch):
+    assert (resolve("display:1").driver, resolve("sim://projector").driver) == ("sdl-display", "sim-projector")
+    assert probe("sim://projector") == "open: 1280x800"
+    assert probe("sim://projector?size=800x600") == "open: 800x600"
+    assert probe("sim://projector?size=big") == ("not available: sim projector option size: expected WxH in pixels "
+                                                 "from 1 to 16384 (e.g. size=1280x800), got 'big'")
+    monkeypatch.setenv("SDL_VIDEODRIVER", "offscreen")
+    state = probe("display:9")  # one line whether or not pygame-ce is installed
+    assert state.startswith("not available: ") and "\n" not in state
+
+
+def test_a_real_projector_probe_gets_time_to_start_its_process():
+    from drivers.projector.display import DISPLAY_PROBE_TIMEOUT
+    from station.devices import probe_wait
+
+    assert probe_wait(DeviceEntry("p", "projector", "display:1", False)) == DISPLAY_PROBE_TIMEOUT
+    assert probe_wait(DeviceEntry("p", "projector", "sim://projector", True)) == 0.5
+    assert probe_wait(DeviceEntry("m", "plotter", "loop://", False, "plotter", MappingProxyType({"timeout": 2}))) == 2
 
 
 def test_probe_sim_grbl_reads_banner_and_status():
@@ -59,6 +80,7 @@ def test_grbl_serial_device_is_a_grbl_device():
     device.close()
     device.close()
     assert not isinstance(device, (Camera, Projector))
+    assert isinstance(resolve("sim://projector").factory("sim://projector"), Projector)
 
 
 def test_probe_of_a_missing_port_answers_at_once():
@@ -88,4 +110,5 @@ def test_probing_every_device_is_bounded_in_time(monkeypatch):
 def test_probe_device_uses_its_timeout_option():
     slow = DeviceEntry("loop", "plotter", "loop://", False, "plotter", MappingProxyType({"timeout": 0.3}))
     assert probe_device(slow) == "not connected: no GRBL banner within 0.3 s"
-    assert probe_devices(default_devices()) == ["connected: Grbl 1.1h, Idle"] * 2 + ["no driver yet"] * 2
+    assert probe_devices(default_devices()) == ["connected: Grbl 1.1h, Idle"] * 2 + ["no driver yet",
+                                                                                     "open: 1280x800"]

@@ -17,9 +17,9 @@ from station.tui.registry import MachineDesign, ScreenEntry, discover_screens
 from station.tui.screens.confirm_quit import ABORT_AND_QUIT, ConfirmQuitScreen
 from station.tui.screens.home import HomeScreen
 
-#: Device kinds the station can drive today (plotter and laser over GRBL); camera and projector are listed for what
-#: comes (the as-built check and assembly guides) but have no driver yet.
-DRIVEN_KINDS = frozenset({"plotter", "laser"})
+#: Device kinds the station can drive today (plotter and laser over GRBL, the projector); the camera is listed for
+#: what comes (the as-built check) but has no driver yet.
+DRIVEN_KINDS = frozenset({"plotter", "laser", "projector"})
 
 
 class StationApp(App):
