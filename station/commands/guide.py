@@ -90,18 +90,17 @@ def run_guide(args) -> int:
 
 
 def _project(job, step: int | None) -> None:
-    from station.config import configured_devices
     from station.services import guide as service
-    from station.services.projectors import open_projector
+    from station.services.projectors import configured_projector, open_projector
 
-    device = next((d for d in configured_devices() if d.kind == "projector"), None)
+    device = configured_projector()
     if device is None:
         raise UsageError("--project: no projector configured (add one to station.toml; see `station devices`)")
     with open_projector(device) as projector:
-        frames = service.show_step(job, projector, step)
+        true_scale = service.show_step(job, projector, step)
         shown = "the calibrate frame" if step is None else f"step {step} of {len(job.guide.parts)}"
-        scale = "at true scale" if frames.true_scale else ("fitted to the screen, NOT at true scale: calibrate the "
-                                                           "projector first")
+        scale = ("at true scale" if true_scale
+                 else "fitted to the screen, NOT at true scale: calibrate the projector first")
         print(f"projected {shown} on {device.name} ({device.url}), {scale}")
 
 

@@ -96,7 +96,7 @@ def make_guide(scenario: str, layout: str | None, *, view: str | None = None, ve
     tolerance_map = None
     by_parameter: dict[str, ParameterTolerance] | None = None
     if tolerances and layout is not None:
-        tolerance_map = _tolerance_map(loaded_scenario, layout, verify=verify, seed=seed, progress=report)
+        tolerance_map = _tolerance_map(loaded_scenario, layout, verify=verify, seed=seed, progress=report.emit)
         by_parameter = _guide_tolerances(tolerance_map)
     guide = build_guide(loaded_scenario, loaded_layout.x, view=view, tolerances=by_parameter)
     return GuideJob(guide, tuple(steps_text(guide)), loaded_layout, tolerance_map, loaded_scenario)
@@ -111,15 +111,16 @@ def export_guide(job: GuideJob, *, pdf: str | Path | None = None, svg: str | Pat
     ServiceError
         A paper size the station does not know (``paper``).
     """
-    from projector.pdf import write_pdf
-    from projector.svg import write_svg
-
     if paper not in PAPERS:
         raise ServiceError(f"paper must be one of {', '.join(PAPERS)}, got {paper!r}", field="paper", value=paper)
     guide = job.guide
     if pdf is not None:
+        from projector.pdf import write_pdf
+
         guide = write_pdf(guide, Path(pdf), paper=paper, steps=job.steps, title=_title(job))
     if svg is not None:
+        from projector.svg import write_svg
+
         with open(svg, "w", encoding="utf-8") as stream:
             write_svg(guide, stream)
     return replace(job, guide=guide)
@@ -133,29 +134,36 @@ def projected_frames(job: GuideJob, size: tuple[int, int], homography=None):
     return render_frames(job.guide, size=size, homography=homography)
 
 
-def show_step(job: GuideJob, projector, step: int | None = None, homography=None):
-    """Show step ``step`` (1-based; None: the calibrate frame) of the guide on an open ``projector`` device.
+def show_step(job: GuideJob, projector, step: int | None = None, homography=None) -> bool:
+    """Show step ``step`` (1-based; None: the calibrate frame) of the guide on an open ``projector`` device, drawn
+    at the projector's own size (a frame of another size would be letterboxed, and no longer true to scale).
 
-    Returns the frames (so a caller stepping through keeps them) and says whether the scale is true.
+    Returns whether the frame is at true scale (False until the projector is calibrated).
 
     Raises
     ------
     ServiceError
         A step outside 1..number of parts (``step``).
     """
+    from projector.frames import render_calibrate, render_step
+
     count = len(job.guide.parts)
     if step is not None and not 1 <= step <= count:
         raise ServiceError(f"step must be from 1 to {count}, got {step}", field="step", value=step)
-    frames = projected_frames(job, tuple(projector.size), homography)
-    projector.show(frames.calibrate if step is None else frames.steps[step - 1])
-    return frames
+    size = tuple(projector.size)
+    if step is None:
+        frame = render_calibrate(job.guide, size, homography)
+    else:
+        frame = render_step(job.guide, step, size, homography)
+    projector.show(frame)
+    return homography is not None
 
 
 def _title(job: GuideJob) -> str:
     return f"{job.guide.scenario}: {job.layout.describe()}"
 
 
-def _tolerance_map(scenario, layout: str, *, verify: int, seed: int, progress: Reporter):
+def _tolerance_map(scenario, layout: str, *, verify: int, seed: int, progress: ProgressCallback):
     from station.services.tolerances import tolerance_map
 
     return tolerance_map(scenario, layout, verify=verify, seed=seed, progress=progress)
