@@ -93,7 +93,7 @@ class AssembleScreen(Screen):
                 choices = scenario_choices()
                 yield Select(choices, id="scenario", allow_blank=not choices,
                              value=choices[0][1] if choices else Select.BLANK)
-                yield Label("Layout (file, or a layout named in the scenario)")
+                yield Label("Layout (a file, or a name)")
                 yield Input("", placeholder="the scenario's own layout", id="layout")
                 yield Label("View")
                 yield Select([("chosen from the scenario", "auto"), ("top (the table)", "top"),
