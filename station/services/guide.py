@@ -160,7 +160,15 @@ def show_step(job: GuideJob, projector, step: int | None = None, homography=None
 
 
 def _title(job: GuideJob) -> str:
-    return f"{job.guide.scenario}: {job.layout.describe()}"
+    """The sheets' title: the scenario and the layout, short (a file's name, not its whole path)."""
+    layout = job.layout
+    if layout.format == "defaults":
+        which = "the scenario's own layout"
+    elif layout.format == "named":
+        which = f"layout {layout.name!r}"
+    else:
+        which = Path(layout.source).name or layout.describe()
+    return f"{job.guide.scenario}: {which}"
 
 
 def _tolerance_map(scenario, layout: str, *, verify: int, seed: int, progress: ProgressCallback):
