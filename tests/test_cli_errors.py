@@ -139,6 +139,7 @@ MISSING_FILE = {
     ("send",): ["send", "missing.gcode", "--port", "sim://grbl"],
     ("simulate",): ["simulate", "missing.toml"],
     ("tolerances",): ["tolerances", "simple", "missing.json"],
+    ("guide",): ["guide", "simple", "missing.json", "--pdf", "OUT.pdf"],
 }
 
 

@@ -62,6 +62,14 @@ async def test_optimize_shows_progress_probabilities_and_layouts(tmp_path):
         await pilot.press("w")
         await pilot.pause()
         assert "wrote" in str(screen.query_one("#status", Static).render())
+        # a opens the result on the Assemble screen: its guide, from the layout just written (with its model)
+        await pilot.press("a")
+        for _ in range(3):
+            await pilot.pause()
+            await app.workers.wait_for_complete()
+        assemble = app.screen
+        assert assemble.name == "assemble" and assemble.job is not None
+        assert assemble.job.guide.scenario == "SIMPLE" and assemble.job.layout.format == "LAYOUT.json"
 
 
 async def test_stop_ends_a_run_cleanly_and_bad_budget_is_refused(tmp_path):

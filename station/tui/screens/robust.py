@@ -90,6 +90,7 @@ class RobustScreen(Screen):
         Binding("o", "optimize", "Optimize", priority=True),
         Binding("s", "stop", "Stop", priority=True),
         Binding("w", "write", "Write layout", priority=True),
+        Binding("a", "assemble", "Assemble it", priority=True),
     ]
 
     def __init__(self) -> None:
@@ -219,15 +220,26 @@ class RobustScreen(Screen):
             self._stop.set()
             self._set_status("stopping (finished simulations stay cached) ...")
 
-    def action_write(self) -> None:
+    def action_write(self) -> Path | None:
+        """Write the layout (with its success model) to the station's data folder; its path."""
         if self.result is None or self.problem is None:
             self._set_status("nothing to write yet")
-            return
+            return None
         folder = data_dir() / "layouts"
         folder.mkdir(parents=True, exist_ok=True)
         path = folder / f"{self.result.scenario.lower()}-seed{self.result.seed}.json"
         path.write_text(json.dumps(self.result.to_json(self.problem), indent=2) + "\n", encoding="utf-8")
         self._set_status(f"wrote {path}")
+        return path
+
+    def action_assemble(self) -> None:
+        """Write the layout and open it on the Assemble screen (its guide, steps and tolerances)."""
+        path = self.action_write()
+        if path is None:
+            return
+        assemble = self.app.open_area_if_installed("assemble")
+        if assemble is not None:
+            assemble.open_layout(str(self.problem.scenario.source), str(path))
 
     # -- the work (a thread) -----------------------------------------------------------------------------------
     @work(thread=True, exclusive=True, group="robust")

@@ -1,0 +1,124 @@
+"""``station guide``: a contraption layout as an assembly guide (1:1 PDF sheets, SVG, projected steps; thesis 4.8.1).
+
+Argparse in, text or JSON out: the work is :mod:`station.services.guide`, whose refusals (naming a value: ``view``,
+``verify``, ``paper``, ``step``) are reworded here into the flags' words.
+"""
+
+from __future__ import annotations
+
+import sys
+
+from station.cli_util import check_output_file, emit_json, flag_error
+from station.errors import UsageError
+from station.services.errors import ServiceError
+
+#: The ``--json`` contract (the guide's manifest), quoted in the help text; keep its names.
+JSON_SHAPE = ('{"scenario", "content_hash", "view", "units": "mm", "tolerance_source", "pages": [{"index", "label", '
+              '"paper", "size_mm", "origin_mm"}], "reference_tags": [{"id", "center_mm", "size_mm"}], "parts": '
+              '[{"name", "kind", "step", "tag_id", "center_mm", "heading_deg", "outline_mm", "care", "tolerances"}], '
+              '"layout", "steps"}')
+
+
+def register(subparsers) -> None:
+    parser = subparsers.add_parser(
+        "guide",
+        help="an assembly guide of a layout: 1:1 PDF sheets, SVG, projected steps",
+        description="Turn a contraption layout (the optimizer's LAYOUT.json, {\"parameters\": {...}}, or a layout "
+        "named in the scenario) into what a maker assembles against: every part's true outline on the guide plane "
+        "(the table seen from above, or the backboard seen from the front), its assembly number, tag and heading, "
+        "the assembly steps in order, four reference AprilTags (ids 583-586) for the camera check, and for every "
+        "part how carefully it must be placed (its tolerance, from the layout's success model; --verify N checks "
+        "each by N simulations). --pdf writes the sheets at exactly 1:1, tiled over the paper with overlap, join "
+        "marks and a 100 mm scale bar to check the print; --svg one drawing in mm with a layer per kind, for a "
+        "laser or plotter to mark a board. --project shows the steps on the configured projector. "
+        f"--json prints the guide's manifest: {JSON_SHAPE}.",
+        epilog="examples:\n"
+        "  station guide ballrun layout.json --pdf ballrun.pdf\n"
+        "  station guide simple layout.json --pdf simple.pdf --svg simple.svg --paper letter --view top\n"
+        "  station guide ballrun layout.json --pdf ballrun.pdf --verify 40 --json\n"
+        "  station guide ballrun layout.json --project --step 3",
+    )
+    parser.add_argument("scenario", help="scenario file, or an example's name (simple, ballrun, ...)")
+    parser.add_argument("layout", help="layout file (LAYOUT.json, {\"parameters\": {...}}) or a layout named in the "
+                        "scenario")
+    parser.add_argument("--pdf", metavar="OUT.pdf", help="write the 1:1 sheet set (and a last page of parts, steps "
+                        "and tolerances) to this PDF")
+    parser.add_argument("--svg", metavar="OUT.svg", help="write the drawing as an SVG in mm, one layer per kind")
+    parser.add_argument("--paper", default="a4", help="paper of the PDF sheets: a4 (default), letter or a3")
+    parser.add_argument("--view", help="the guide plane: top (the table) or side (the backboard); default: chosen "
+                        "from the scenario")
+    parser.add_argument("--verify", type=int, default=0, metavar="N", help="check each tolerance by simulating N "
+                        "layouts at its +-delta (default 0: none)")
+    parser.add_argument("--seed", type=int, default=0, help="seed of the verification's layouts (default 0)")
+    parser.add_argument("--no-tolerances", action="store_true", help="draw the guide without tolerances (faster)")
+    parser.add_argument("--project", action="store_true", help="show the guide on the configured projector "
+                        "(station devices): the calibrate frame, or --step N")
+    parser.add_argument("--step", type=int, metavar="N", help="with --project: show step N (1-based)")
+    parser.add_argument("--json", action="store_true", help=f"print the guide's manifest as JSON: {JSON_SHAPE}")
+    parser.set_defaults(func=run_guide)
+
+
+FLAGS = {"view": "--view", "verify": "--verify", "seed": "--seed", "paper": "--paper", "step": "--step"}
+
+
+def run_guide(args) -> int:
+    from station.progress_view import ProgressView
+    from station.services import guide as service
+
+    if not (args.pdf or args.svg or args.project or args.json):
+        raise UsageError("nothing to write: give --pdf OUT.pdf, --svg OUT.svg, --project or --json")
+    if args.step is not None and not args.project:
+        raise UsageError("--step goes with --project")
+    pdf = check_output_file(args.pdf, {".pdf"}, "--pdf") if args.pdf else None
+    svg = check_output_file(args.svg, {".svg"}, "--svg") if args.svg else None
+    if args.paper not in service.PAPERS:  # before any simulation
+        raise UsageError(f"--paper must be one of {', '.join(service.PAPERS)}, got {args.paper!r}")
+    try:
+        with ProgressView(sys.stderr, prefix="guide: ") as view:
+            job = service.make_guide(args.scenario, args.layout, view=args.view, verify=args.verify, seed=args.seed,
+                                     tolerances=not args.no_tolerances, progress=view)
+        job = service.export_guide(job, pdf=pdf, svg=svg, paper=args.paper)
+        if args.project:
+            _project(job, args.step)
+    except ServiceError as error:
+        raise flag_error(error, FLAGS) from None
+    if args.json:
+        emit_json(job.manifest())
+        return 0
+    _print_summary(job, pdf, svg)
+    return 0
+
+
+def _project(job, step: int | None) -> None:
+    from station.services import guide as service
+    from station.services.projectors import configured_projector, open_projector
+
+    device = configured_projector()
+    if device is None:
+        raise UsageError("--project: no projector configured (add one to station.toml; see `station devices`)")
+    with open_projector(device) as projector:
+        true_scale = service.show_step(job, projector, step)
+        shown = "the calibrate frame" if step is None else f"step {step} of {len(job.guide.parts)}"
+        scale = ("at true scale" if true_scale
+                 else "fitted to the screen, NOT at true scale: calibrate the projector first")
+        print(f"projected {shown} on {device.name} ({device.url}), {scale}")
+
+
+def _print_summary(job, pdf, svg) -> None:
+    guide = job.guide
+    print(f"{guide.scenario}: {job.layout.describe()}, {guide.view} view, {len(guide.parts)} parts")
+    if job.layout.defaulted and job.layout.format != "defaults":
+        print(f"  defaulted: {', '.join(job.layout.defaulted)}")
+    for line in job.steps:
+        print(f"  {line}")
+    source = {"model": "from the layout's success model", "simulation": "by simulation",
+              "none": "none (the layout carries no success model; --verify N estimates them by simulation)"}
+    print(f"tolerances: {source.get(guide.tolerance_source, guide.tolerance_source)}")
+    if pdf is not None:
+        pages = guide.pages
+        columns = max((ord(p.label[0]) - ord("A") + 1 for p in pages), default=0)
+        rows = max((int(p.label[1:]) for p in pages), default=0)
+        print(f"wrote {pdf}: {len(pages)} sheets ({columns} x {rows}) of {pages[0].paper if pages else '?'} and a "
+              "page of parts, steps and tolerances; check that the scale bar measures 100 mm")
+    if svg is not None:
+        print(f"wrote {svg}")

@@ -1,0 +1,182 @@
+"""Assembly guides as a service: a scenario's layout as a 1:1 sheet set, an SVG, projected steps, a manifest.
+
+Used by ``station guide`` and the Assemble screen. The work is :mod:`projector` (the drawing) and
+:mod:`station.services.tolerances` (how carefully each part must be placed); this module reads the inputs, puts the
+tolerances on the guide, writes the outputs and shows the steps on a projector.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+from pathlib import Path
+
+from common.progress import ProgressCallback, Reporter
+from projector.guide import Guide, ParameterTolerance
+from station.services.errors import ServiceError
+
+__all__ = ["PAPERS", "VIEWS", "GuideJob", "export_guide", "make_guide", "projected_frames", "show_step"]
+
+PAPERS = ("a4", "letter", "a3")
+VIEWS = ("top", "side")
+
+
+@dataclass(frozen=True)
+class GuideJob:
+    """A guide ready to export or project.
+
+    Attributes
+    ----------
+    guide : projector.guide.Guide
+        The drawing, in assembly order, with the tolerances on its parts (and its pages once exported).
+    steps : tuple of str
+        The assembly steps in words (``"3. Place `bottom_track`: centre (50.0, 60.0) mm, ..."``).
+    layout : design.contraption.layout_io.LoadedLayout
+        The layout the guide draws, and where it came from.
+    tolerances : station.services.tolerances.Tolerances or None
+        The tolerance map, None when none was asked for (or for the scenario's own layout).
+    scenario : design.contraption.Scenario
+        The scenario.
+    """
+
+    guide: Guide
+    steps: tuple[str, ...]
+    layout: object
+    tolerances: object | None
+    scenario: object
+
+    def manifest(self) -> dict:
+        """The guide's manifest (the ``--json`` contract of ``station guide``) plus the layout it draws and steps."""
+        data = self.guide.manifest()
+        data["layout"] = self.layout.to_dict()
+        data["steps"] = list(self.steps)
+        return data
+
+
+def make_guide(scenario: str, layout: str | None, *, view: str | None = None, verify: int = 0, seed: int = 0,
+               tolerances: bool = True, progress: Reporter | ProgressCallback | None = None) -> GuideJob:
+    """Build the guide of ``layout`` (a LAYOUT.json, any form :mod:`design.contraption.layout_io` reads, a layout
+    named in the scenario, or None for the scenario's own layout) for ``scenario`` (a file or an example's name).
+
+    Parameters
+    ----------
+    view : {"top", "side"} or None
+        The guide plane; None chooses it from the scenario.
+    verify : int
+        Layouts simulated per parameter to check each tolerance (0: none).
+    seed : int
+        Seed of the verification's random layouts.
+    tolerances : bool
+        False skips the tolerance map altogether (a guide with none).
+    progress : callable or Reporter, optional
+        Given :class:`common.progress.Progress` while tolerances are computed or verified.
+
+    Raises
+    ------
+    ServiceError
+        A bad ``view``, ``verify`` or ``seed`` (the message names the value).
+    design.errors.DesignError, OSError
+        The scenario or the layout cannot be read (the message names the file, the field and the expected value).
+    projector.errors.ProjectorError
+        The scenario cannot be drawn in that view.
+    """
+    from design.contraption.catalog import resolve_scenario_path
+    from design.contraption.layout_io import default_layout, resolve_layout
+    from design.contraption.scenario import load_scenario
+    from projector.build import build_guide, steps_text
+
+    if view is not None and view not in VIEWS:
+        raise ServiceError(f"view must be one of {', '.join(VIEWS)}, got {view!r}", field="view", value=view)
+    if isinstance(verify, bool) or not isinstance(verify, int) or verify < 0:
+        raise ServiceError(f"verify must be an integer >= 0, got {verify!r}", field="verify", value=verify)
+    if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
+        raise ServiceError(f"seed must be a non-negative integer, got {seed!r}", field="seed", value=seed)
+    report = Reporter.of(progress)
+    loaded_scenario = load_scenario(resolve_scenario_path(scenario))
+    loaded_layout = default_layout(loaded_scenario) if layout is None else resolve_layout(layout, loaded_scenario)
+    tolerance_map = None
+    by_parameter: dict[str, ParameterTolerance] | None = None
+    if tolerances and layout is not None:
+        tolerance_map = _tolerance_map(loaded_scenario, layout, verify=verify, seed=seed, progress=report.emit)
+        by_parameter = _guide_tolerances(tolerance_map)
+    guide = build_guide(loaded_scenario, loaded_layout.x, view=view, tolerances=by_parameter)
+    return GuideJob(guide, tuple(steps_text(guide)), loaded_layout, tolerance_map, loaded_scenario)
+
+
+def export_guide(job: GuideJob, *, pdf: str | Path | None = None, svg: str | Path | None = None,
+                 paper: str = "a4") -> GuideJob:
+    """Write the PDF sheet set and/or the SVG; returns the job with the guide's pages (after a PDF).
+
+    Raises
+    ------
+    ServiceError
+        A paper size the station does not know (``paper``).
+    """
+    if paper not in PAPERS:
+        raise ServiceError(f"paper must be one of {', '.join(PAPERS)}, got {paper!r}", field="paper", value=paper)
+    guide = job.guide
+    if pdf is not None:
+        from projector.pdf import write_pdf
+
+        guide = write_pdf(guide, Path(pdf), paper=paper, steps=job.steps, title=_title(job))
+    if svg is not None:
+        from projector.svg import write_svg
+
+        with open(svg, "w", encoding="utf-8") as stream:
+            write_svg(guide, stream)
+    return replace(job, guide=guide)
+
+
+def projected_frames(job: GuideJob, size: tuple[int, int], homography=None):
+    """The guide's frames for a screen of ``size`` pixels (:func:`projector.frames.render_frames`): a calibrate
+    frame and one per step; without a projector calibration the guide is fitted to the screen, not at true scale."""
+    from projector.frames import render_frames
+
+    return render_frames(job.guide, size=size, homography=homography)
+
+
+def show_step(job: GuideJob, projector, step: int | None = None, homography=None) -> bool:
+    """Show step ``step`` (1-based; None: the calibrate frame) of the guide on an open ``projector`` device, drawn
+    at the projector's own size (a frame of another size would be letterboxed, and no longer true to scale).
+
+    Returns whether the frame is at true scale (False until the projector is calibrated).
+
+    Raises
+    ------
+    ServiceError
+        A step outside 1..number of parts (``step``).
+    """
+    from projector.frames import render_calibrate, render_step
+
+    count = len(job.guide.parts)
+    if step is not None and not 1 <= step <= count:
+        raise ServiceError(f"step must be from 1 to {count}, got {step}", field="step", value=step)
+    size = tuple(projector.size)
+    if step is None:
+        frame = render_calibrate(job.guide, size, homography)
+    else:
+        frame = render_step(job.guide, step, size, homography)
+    projector.show(frame)
+    return homography is not None
+
+
+def _title(job: GuideJob) -> str:
+    """The sheets' title: the scenario and the layout, short (a file's name, not its whole path)."""
+    layout = job.layout
+    if layout.format == "defaults":
+        which = "the scenario's own layout"
+    elif layout.format == "named":
+        which = f"layout {layout.name!r}"
+    else:
+        which = Path(layout.source).name or layout.describe()
+    return f"{job.guide.scenario}: {which}"
+
+
+def _tolerance_map(scenario, layout: str, *, verify: int, seed: int, progress: ProgressCallback):
+    from station.services.tolerances import tolerance_map
+
+    return tolerance_map(scenario, layout, verify=verify, seed=seed, progress=progress)
+
+
+def _guide_tolerances(tolerances) -> dict[str, ParameterTolerance]:
+    """The tolerances in the guide's units (mm and degrees), by layout parameter."""
+    return {t.parameter: t for per_part in tolerances.parameter_tolerances().values() for t in per_part}

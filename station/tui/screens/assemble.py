@@ -1,0 +1,299 @@
+"""Assemble screen: a contraption layout as a step-by-step assembly guide (thesis 4.8.1, 5.2.3).
+
+Pick a scenario and a layout (a LAYOUT.json path, a layout named in the scenario, or nothing for the scenario's own
+layout) and press Enter (or the button): the guide is built in a worker, drawn here with the current step
+highlighted, and shown on the station's projector (simulated by default), which follows the steps. n / p step
+through the parts, t shows the tolerance map (how carefully each part must be placed), e writes the 1:1 PDF sheets
+and the SVG to the station's data folder. The Robust layouts screen opens its result here with a.
+"""
+
+from __future__ import annotations
+
+import io
+from pathlib import Path
+
+from PIL import Image
+from rich.text import Text
+from textual import on, work
+from textual.app import ComposeResult
+from textual.binding import Binding
+from textual.containers import Horizontal, Vertical
+from textual.css.query import NoMatches
+from textual.message import Message
+from textual.screen import Screen
+from textual.widgets import Button, DataTable, Footer, Header, Input, Label, Select, Static
+
+from design.contraption.catalog import EXAMPLES_DIR, example_names
+from design.errors import DesignError
+from drivers.errors import DriverError
+from projector.errors import ProjectorError
+from station.errors import StationError
+from station.paths import data_dir
+from station.services import guide as service
+from station.services.projectors import configured_projector, open_projector
+from station.tui.registry import ScreenEntry
+from station.tui.widgets.picture import HalfBlockPicture
+
+#: The frames drawn here (and sent to a projector of another size, which letterboxes them).
+FRAME_SIZE = (960, 600)
+CARE_STYLE = {"tight": "red", "normal": "dark_orange", "loose": "green"}
+
+
+def scenario_choices() -> list[tuple[str, str]]:
+    """The example scenarios as (label, path)."""
+    return [(name, str(EXAMPLES_DIR / f"{name}.toml")) for name in example_names()]
+
+
+class GuideLoaded(Message):
+    """A guide was built (``job`` and its ``frames``), or could not be (``error``)."""
+
+    def __init__(self, job=None, frames=None, error: str = "", projector: str = "") -> None:
+        super().__init__()
+        self.job, self.frames, self.error, self.projector = job, frames, error, projector
+
+
+class AssembleScreen(Screen):
+    """Step through a layout's assembly guide; the projector follows."""
+
+    CSS = """
+    AssembleScreen #controls { width: 38; padding: 0 1; }
+    AssembleScreen #controls Input, AssembleScreen #controls Select, AssembleScreen #controls Button { width: 100%; }
+    AssembleScreen #controls Button { margin-top: 1; }
+    AssembleScreen #status { height: auto; margin-top: 1; }
+    AssembleScreen #main { width: 1fr; }
+    AssembleScreen #frame { height: 1fr; min-height: 10; }
+    AssembleScreen #caption { height: auto; padding: 0 1; }
+    AssembleScreen #steps, AssembleScreen #tolerances { height: auto; max-height: 14; }
+    AssembleScreen .heading { text-style: bold; margin-top: 1; }
+    """
+
+    BINDINGS = [
+        Binding("n", "next_step", "Next part"),
+        Binding("p", "previous_step", "Previous part"),
+        Binding("t", "tolerances", "Tolerance map"),
+        Binding("e", "export", "Export PDF + SVG"),
+        Binding("c", "calibrate_frame", "Calibrate frame"),
+    ]
+
+    def __init__(self) -> None:
+        super().__init__(name="assemble")
+        self.job = None
+        self.frames = None
+        #: The step shown (1-based); 0 is the calibrate frame.
+        self.step = 0
+        self.projector = None
+        self._projector_context = None
+        self._pending: tuple[str, str] | None = None
+
+    def compose(self) -> ComposeResult:
+        yield Header()
+        with Horizontal():
+            with Vertical(id="controls"):
+                yield Label("Scenario", classes="heading")
+                choices = scenario_choices()
+                yield Select(choices, id="scenario", allow_blank=not choices,
+                             value=choices[0][1] if choices else Select.BLANK)
+                yield Label("Layout (a file, or a name)")
+                yield Input("", placeholder="the scenario's own layout", id="layout")
+                yield Label("View")
+                yield Select([("chosen from the scenario", "auto"), ("top (the table)", "top"),
+                              ("side (the backboard)", "side")], id="view", allow_blank=False, value="auto")
+                yield Button("Build the guide (Enter)", id="build", variant="primary")
+                yield Static("", id="status")
+            with Vertical(id="main"):
+                yield HalfBlockPicture(id="frame", empty="(no guide yet: pick a scenario and a layout, press Enter)")
+                yield Static("", id="caption")
+                yield DataTable(id="steps", cursor_type="row", zebra_stripes=True)
+                yield DataTable(id="tolerances", cursor_type="row", zebra_stripes=True)
+        yield Footer()
+
+    def on_mount(self) -> None:
+        self.query_one("#steps", DataTable).add_columns("step", "part", "kind", "tag", "centre mm", "care")
+        table = self.query_one("#tolerances", DataTable)
+        table.add_columns("part", "parameter", "± delta", "predicted", "measured")
+        table.display = False
+        if self._pending is not None:
+            scenario, layout = self._pending
+            self._pending = None
+            self.open_layout(scenario, layout)
+
+    def on_unmount(self) -> None:
+        self._close_projector()
+
+    # -- controls -------------------------------------------------------------------------------------------------
+    def _set_status(self, text: str | Text, style: str = "") -> None:
+        self.query_one("#status", Static).update(text if isinstance(text, Text) else Text(text, style=style))
+
+    @on(Button.Pressed, "#build")
+    @on(Input.Submitted, "#layout")
+    def _build_pressed(self) -> None:
+        self.action_build()
+
+    def open_layout(self, scenario: str, layout: str) -> None:
+        """Build the guide of ``layout`` for the scenario file ``scenario`` (used by the Robust layouts screen)."""
+        try:
+            select = self.query_one("#scenario", Select)
+        except NoMatches:  # not composed yet: built on mount
+            self._pending = (scenario, layout)
+            return
+        path = str(Path(scenario).resolve())
+        choices = scenario_choices()
+        known = next((value for _, value in choices if str(Path(value).resolve()) == path), None)
+        if known is None:
+            select.set_options([*choices, (Path(path).stem, path)])
+            known = path
+        select.value = known
+        self.query_one("#layout", Input).value = layout
+        self.action_build()
+
+    def action_build(self) -> None:
+        scenario = self.query_one("#scenario", Select).value
+        if scenario is Select.BLANK:
+            self._set_status("pick a scenario first", "red")
+            return
+        layout = self.query_one("#layout", Input).value.strip()
+        view = self.query_one("#view", Select).value
+        self._set_status("building the guide (outlines, order, tolerances)…")
+        self.query_one("#steps", DataTable).focus()
+        self._build(str(scenario), layout or None, None if view == "auto" else str(view))
+
+    @work(thread=True, exclusive=True, group="assemble")
+    def _build(self, scenario: str, layout: str | None, view: str | None) -> None:
+        try:
+            job = service.make_guide(scenario, layout, view=view)
+            frames = service.projected_frames(job, FRAME_SIZE)
+        except (DesignError, ProjectorError, StationError, OSError) as error:
+            self.post_message(GuideLoaded(error=f"cannot build the guide: {error}"))
+            return
+        self.post_message(GuideLoaded(job, frames, projector=self._ensure_projector()))
+
+    def _ensure_projector(self) -> str:
+        """Open the configured projector once (in the worker: a display takes a moment); what to say about it."""
+        if self.projector is not None:
+            return ""
+        device = configured_projector()
+        if device is None:
+            return "no projector configured"
+        try:
+            context = open_projector(device)
+            self.projector = context.__enter__()
+            self._projector_context = context
+        except (DriverError, StationError) as error:
+            return f"projector {device.name}: {error}"
+        return f"projector {device.name} ({device.url}) follows the steps"
+
+    def _close_projector(self) -> None:
+        context, self._projector_context, self.projector = self._projector_context, None, None
+        if context is not None:
+            try:
+                context.__exit__(None, None, None)
+            except DriverError:
+                pass  # closing a projector that has gone: nothing left to blank
+
+    def on_guide_loaded(self, message: GuideLoaded) -> None:
+        if message.job is None:
+            self._set_status(message.error, "red")
+            return
+        self.job, self.frames = message.job, message.frames
+        guide = self.job.guide
+        steps = self.query_one("#steps", DataTable)
+        steps.clear()
+        for part in guide.parts:
+            care = Text(part.care or "-", style=CARE_STYLE.get(part.care or "", ""))
+            steps.add_row(str(part.step), Text(part.name), str(part.kind),
+                          "-" if part.tag_id is None else str(part.tag_id),
+                          f"({part.center_mm[0]:.1f}, {part.center_mm[1]:.1f})", care, key=part.name)
+        self._fill_tolerances()
+        scale = "" if self.frames.true_scale else "; projector not calibrated: the guide is fitted, not at true scale"
+        source = {"none": "no tolerances (the layout carries no success model)"}.get(
+            guide.tolerance_source, f"tolerances from {guide.tolerance_source}")
+        self._set_status(f"{guide.scenario}: {self.job.layout.describe()}, {guide.view} view, {len(guide.parts)} "
+                         f"parts, {source}. {message.projector}{scale}. n/p: steps, t: tolerances, e: export")
+        self.show_step(1 if guide.parts else 0)
+
+    def _fill_tolerances(self) -> None:
+        table = self.query_one("#tolerances", DataTable)
+        table.clear()
+        for part in self.job.guide.parts:
+            for tolerance in part.tolerances:
+                delta = "-" if tolerance.delta is None else f"{tolerance.delta:.1f} {tolerance.unit}"
+                table.add_row(Text(part.name), Text(tolerance.parameter), delta,
+                              "-" if tolerance.predicted is None else f"{tolerance.predicted:.2f}",
+                              "-" if tolerance.measured is None else f"{tolerance.measured:.2f}")
+
+    # -- steps ----------------------------------------------------------------------------------------------------
+    def show_step(self, step: int) -> None:
+        """Show step ``step`` (1-based; 0: the calibrate frame) here and on the projector."""
+        if self.frames is None:
+            return
+        count = len(self.frames.frames)
+        self.step = max(0, min(step, count))
+        frame = self.frames.calibrate if self.step == 0 else self.frames.frames[self.step - 1]
+        png = io.BytesIO()
+        Image.fromarray(frame).save(png, format="PNG")
+        self.query_one("#frame", HalfBlockPicture).set_png(png.getvalue())
+        caption = ("calibrate frame: the four reference tags and a grid" if self.step == 0
+                   else self.job.steps[self.step - 1])
+        self.query_one("#caption", Static).update(Text(caption))
+        if self.step:
+            self.query_one("#steps", DataTable).move_cursor(row=self.step - 1)
+        if self.projector is not None:
+            self._project(frame)
+
+    @work(thread=True, exclusive=True, group="projector")
+    def _project(self, frame) -> None:
+        try:
+            self.projector.show(frame)
+        except DriverError as error:
+            self.app.call_from_thread(self._set_status, f"projector: {error}", "red")
+
+    def action_next_step(self) -> None:
+        self.show_step(self.step + 1)
+
+    def action_previous_step(self) -> None:
+        self.show_step(max(self.step - 1, 1) if self.step > 0 else 0)
+
+    def action_calibrate_frame(self) -> None:
+        self.show_step(0)
+
+    def action_tolerances(self) -> None:
+        table = self.query_one("#tolerances", DataTable)
+        table.display = not table.display
+        if table.display and self.job is not None and not table.row_count:
+            self._set_status("no tolerances: the layout carries no success model (station tolerances --verify N "
+                             "estimates them by simulation)")
+
+    @on(DataTable.RowSelected, "#steps")
+    def _row_selected(self, event: DataTable.RowSelected) -> None:
+        self.show_step(event.cursor_row + 1)
+
+    def action_export(self) -> None:
+        if self.job is None:
+            self._set_status("no guide yet: build one first", "red")
+            return
+        folder = data_dir() / "guides"
+        folder.mkdir(parents=True, exist_ok=True)
+        stem = folder / f"{self.job.guide.scenario.lower()}-{self.job.guide.view}"
+        self._set_status("writing the PDF and the SVG…")
+        self._export(stem.with_suffix(".pdf"), stem.with_suffix(".svg"))
+
+    @work(thread=True, exclusive=True, group="export")
+    def _export(self, pdf: Path, svg: Path) -> None:
+        try:
+            job = service.export_guide(self.job, pdf=pdf, svg=svg)
+        except (ProjectorError, StationError, OSError) as error:
+            self.app.call_from_thread(self._set_status, f"cannot export: {error}", "red")
+            return
+        pages = len(job.guide.pages)
+        self.app.call_from_thread(self._set_status, f"wrote {pdf} ({pages} sheets and the steps; print at 100 %, "
+                                  f"check the 100 mm bar) and {svg}")
+
+
+SCREEN = ScreenEntry(
+    name="assemble",
+    key="a",
+    title="Assemble",
+    description="a layout as an assembly guide: 1:1 PDF sheets, SVG, projected steps, tolerance map",
+    factory=AssembleScreen,
+    order=60,
+)

@@ -1,0 +1,66 @@
+"""The Assemble screen: a layout's guide, stepped through with n / p, the projector following, the tolerance map."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from textual.widgets import DataTable, Input, Static
+
+from station.tui.screens.assemble import AssembleScreen
+
+from .conftest import opened, settle
+
+LAYOUT = Path(__file__).parent / "robust" / "data" / "simple-layout-with-model.json"
+SIMPLE = Path(__file__).resolve().parents[1] / "examples" / "scenarios" / "simple.toml"
+
+
+async def test_a_layout_is_stepped_through_and_the_projector_follows(tmp_path):
+    async with opened(tmp_path, "a") as (app, pilot):
+        screen = app.screen
+        assert isinstance(screen, AssembleScreen)
+        screen.open_layout(str(SIMPLE), str(LAYOUT))
+        await settle(app, pilot)
+        assert screen.job is not None, str(screen.query_one("#status", Static).render())
+        steps = screen.query_one("#steps", DataTable)
+        names = [str(steps.get_row_at(i)[1]) for i in range(steps.row_count)]
+        assert names == [part.name for part in screen.job.guide.parts] and names[-1] == "ball"
+        assert screen.step == 1
+        projector = screen.projector
+        assert projector is not None and projector.frames, "the projector shows the first step"
+        shown = len(projector.frames)
+        await pilot.press("n")
+        await settle(app, pilot)
+        assert screen.step == 2 and len(projector.frames) == shown + 1
+        assert "dominoes" in str(screen.query_one("#caption", Static).render())
+        await pilot.press("n", "n", "n")  # past the last step: stays there
+        await settle(app, pilot)
+        assert screen.step == len(names)
+        await pilot.press("p")
+        await settle(app, pilot)
+        assert screen.step == len(names) - 1
+        await pilot.press("c")
+        await settle(app, pilot)
+        assert screen.step == 0 and "calibrate" in str(screen.query_one("#caption", Static).render())
+        # the tolerance map: the layout carries its model, so the track's parameters have a delta
+        tolerances = screen.query_one("#tolerances", DataTable)
+        assert not tolerances.display
+        await pilot.press("t")
+        assert tolerances.display and tolerances.row_count >= 1
+        assert {str(tolerances.get_row_at(i)[1]) for i in range(tolerances.row_count)} >= {"track.x"}
+        status = str(screen.query_one("#status", Static).render())
+        assert "tolerances from model" in status and "not at true scale" in status
+
+
+async def test_a_bad_layout_is_one_line_and_nothing_breaks(tmp_path):
+    async with opened(tmp_path, "a") as (app, pilot):
+        screen = app.screen
+        screen.open_layout(str(SIMPLE), str(tmp_path / "missing.json"))
+        await settle(app, pilot)
+        status = str(screen.query_one("#status", Static).render())
+        assert status.startswith("cannot build the guide:") and "missing.json" in status
+        assert screen.job is None
+        # the scenario's own layout, with the field left empty
+        screen.query_one("#layout", Input).value = ""
+        screen.action_build()
+        await settle(app, pilot)
+        assert screen.job is not None and screen.job.guide.tolerance_source == "none"
