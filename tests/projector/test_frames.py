@@ -7,9 +7,9 @@ from __future__ import annotations
 import cv2
 import numpy as np
 import pytest
-from pupil_apriltags import Detector
 from shapely.geometry import Polygon, box
 
+from projector.detection import TagDetector
 from projector.errors import ProjectorError
 from projector.frames import (
     CURRENT_FILL,
@@ -105,7 +105,7 @@ def test_step_k_lights_part_k_only():
 
 def test_the_calibrate_frames_tags_decode_where_the_homography_puts_them():
     guide = sample_guide()
-    detector = Detector(families="tag36h11")
+    detector = TagDetector()
     for homography in (keystone(guide), None):
         frames = render_frames(guide, SIZE, homography)
         grey = cv2.cvtColor(frames.calibrate, cv2.COLOR_RGB2GRAY)
