@@ -67,8 +67,6 @@ AUTO_TAG_SIZES_MM = (25.0, 20.0, 15.0, 10.0)
 TAG_MARGIN_MM = 2.0
 #: Clear space between the parts' extent and the reference tags' white borders (mm).
 REFERENCE_GAP_MM = 10.0
-#: Care thresholds: a delta under TIGHT is tight; every delta over LOOSE is loose (mm or degrees).
-TIGHT, LOOSE = 2.0, 6.0
 #: The top view's frame, for the footprints the assembly order reads (gravity is along world -z in every view).
 _FLOOR = GuidePlane("top", np.zeros(3), np.array([1.0, 0.0, 0.0]), np.array([0.0, 1.0, 0.0]),
                     np.array([0.0, 0.0, 1.0]))
@@ -158,12 +156,11 @@ def choose_view(scenario: Scenario, frames, bodies: Mapping[str, list[PlacedBody
 
 def care_of(tolerances) -> str | None:
     """``tight``, ``normal`` or ``loose`` from a part's tolerances (module notes), None when no delta is known."""
-    deltas = [t.delta for t in tolerances if t.delta is not None]
-    if not deltas:
-        return None
-    if min(deltas) < TIGHT:
-        return "tight"
-    return "loose" if min(deltas) > LOOSE else "normal"
+    from design.robust.tolerance import care_level
+
+    # the station's one rule (the tolerance table says the same): a delta bound only by the range's end never
+    # makes a part tight
+    return care_level(tolerances)
 
 
 def steps_text(guide: Guide) -> list[str]:
@@ -211,7 +208,7 @@ def _point(uv) -> str:
 def _tolerance_clause(tolerances) -> str:
     parts = []
     for unit in ("mm", "deg"):
-        deltas = [t.delta for t in tolerances if t.unit == unit and t.delta is not None]
+        deltas = [t.placement_delta for t in tolerances if t.unit == unit and t.placement_delta is not None]
         if deltas:
             parts.append(f"+-{min(deltas):.1f} {unit}")
     return "tolerance " + " / ".join(parts) if parts else ""

@@ -70,9 +70,9 @@ def placement_deltas(part: PartDrawing, plane: GuidePlane) -> tuple[float | None
         return new if old is None else min(old, new)
 
     for tolerance in part.tolerances:
-        if tolerance.delta is None or not math.isfinite(tolerance.delta):
-            continue
-        delta = abs(float(tolerance.delta))
+        if tolerance.placement_delta is None or not math.isfinite(tolerance.placement_delta):
+            continue  # unknown, or bound only by the range's end: no zone to keep to
+        delta = abs(float(tolerance.placement_delta))
         axes = tolerance_axes(tolerance, plane)
         if "u" in axes:
             du = tighter(du, delta)

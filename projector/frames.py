@@ -136,7 +136,7 @@ def step_caption(part: PartDrawing, steps: int) -> str:
 def detail_caption(part: PartDrawing) -> str:
     """The second line: where the part goes and its tolerances."""
     text = f"centre ({part.center_mm[0]:.1f}, {part.center_mm[1]:.1f}) mm, heading {part.heading_deg:.1f} deg"
-    known = [t for t in part.tolerances if t.delta is not None]
+    known = [t for t in part.tolerances if t.placement_delta is not None]
     if known:
         text += ", tolerance " + ", ".join(f"{t.parameter.rsplit('.', 1)[-1]} +-{t.delta:.1f} {t.unit}" for t in known)
     elif part.kind == PartKind.PLACED:
@@ -169,7 +169,7 @@ def tolerance_box(part: PartDrawing, u_axis, v_axis) -> BaseGeometry | None:
     du = dv = 0.0
     for tolerance in part.tolerances:
         axis = POSITION_AXES.get(tolerance.parameter.rsplit(".", 1)[-1])
-        if axis is None or tolerance.delta is None or tolerance.unit != "mm":
+        if axis is None or tolerance.placement_delta is None or tolerance.unit != "mm":
             continue
         du = max(du, abs(float(np.dot(axis, u_axis))) * tolerance.delta)
         dv = max(dv, abs(float(np.dot(axis, v_axis))) * tolerance.delta)
@@ -188,8 +188,8 @@ def in_plane_rotation(part: PartDrawing, normal) -> float | None:
     """The delta (degrees) of the part's rotation parameter about the plane's normal, None when it has none."""
     for tolerance in part.tolerances:
         axis = ROTATION_AXES.get(tolerance.parameter.rsplit(".", 1)[-1])
-        if axis is not None and tolerance.delta is not None and abs(float(np.dot(axis, normal))) > 0.9:
-            return float(tolerance.delta)
+        if axis is not None and tolerance.placement_delta is not None and abs(float(np.dot(axis, normal))) > 0.9:
+            return float(tolerance.placement_delta)
     return None
 
 

@@ -103,6 +103,9 @@ class ParameterTolerance:
         With ``--verify N``: the success rate measured by simulation at ±delta (None when not verified).
     source : str
         ``"model"`` (the layout's fitted success model), ``"simulation"`` or ``"none"``.
+    bound_limited : bool
+        The design space's range ends before the success falls: ``delta`` is then only a lower bound of the
+        tolerance (the layout sits at or near the range's end), not a limit the maker must keep to.
     """
 
     parameter: str
@@ -111,6 +114,12 @@ class ParameterTolerance:
     predicted: float | None = None
     measured: float | None = None
     source: str = "model"
+    bound_limited: bool = False
+
+    @property
+    def placement_delta(self) -> float | None:
+        """The ±delta the maker must keep to: None when unknown, or only bound by the range's end."""
+        return None if self.bound_limited else self.delta
 
 
 @dataclass(frozen=True)
@@ -249,7 +258,8 @@ class Guide:
              "reference_tags": [{"id", "center_mm": [u, v], "size_mm"}],
              "parts": [{"name", "kind", "step", "tag_id", "tag_center_mm", "tag_size_mm", "tag_height_mm",
                         "center_mm": [u, v], "heading_deg", "outline_mm": [[[u, v], ...], ...], "care",
-                        "tolerances": [{"parameter", "delta", "unit", "predicted", "measured", "source"}]}]}
+                        "tolerances": [{"parameter", "delta", "unit", "predicted", "measured", "source",
+                                        "bound_limited"}]}]}
 
         ``outline_mm`` is a list of polygons, each its exterior ring (holes are not needed to place a part).
         """
@@ -297,7 +307,8 @@ def _part_manifest(part: PartDrawing) -> dict:
         "tolerances": [
             {"parameter": t.parameter, "delta": None if t.delta is None else _r(t.delta), "unit": t.unit,
              "predicted": None if t.predicted is None else _r(t.predicted),
-             "measured": None if t.measured is None else _r(t.measured), "source": t.source}
+             "measured": None if t.measured is None else _r(t.measured), "source": t.source,
+             "bound_limited": t.bound_limited}
             for t in part.tolerances
         ],
     }

@@ -63,7 +63,7 @@ class Tolerances:
         from projector.guide import ParameterTolerance
 
         return {part: tuple(ParameterTolerance(e.parameter, e.delta, e.unit, e.predicted_ratio, e.measured,
-                                               self.map.source) for e in entries)
+                                               self.map.source, e.bound_limited) for e in entries)
                 for part, entries in self.map.by_part().items()}
 
     def care(self) -> dict[str, str | None]:

@@ -268,6 +268,20 @@ def test_tolerances_go_to_the_parts_they_move_and_set_the_care(ballrun):
     assert build_guide(scenario).tolerance_source == "none"
 
 
+def test_a_delta_bound_only_by_the_range_end_is_no_tolerance_to_keep(ballrun):
+    # the layout sits at its range's end: 0.02 mm is where the design space stops, not where success falls
+    scenario, _ = ballrun
+    tolerances = {
+        "top_track.z": ParameterTolerance("top_track.z", 0.02, "mm", 1.0, bound_limited=True),
+        "top_track.roll": ParameterTolerance("top_track.roll", 9.2, "deg", 1.0),
+    }
+    guide = build_guide(scenario, scenario.layout("success"), tolerances=tolerances)
+    top = guide.part("top_track")
+    assert top.care == "normal"  # not tight (a lower bound is not loose either): design.robust.tolerance.care_level
+    assert steps_text(guide)[0].endswith("tolerance +-9.2 deg")
+    assert [t["bound_limited"] for t in guide.manifest()["parts"][0]["tolerances"]] == [True, False]
+
+
 def test_an_empty_frame_s_parameters_belong_to_the_parts_it_carries(switch):
     scenario, _ = switch
     tolerance = {"switch.x": ParameterTolerance("switch.x", 3.0, "mm", 0.9)}
