@@ -116,8 +116,11 @@ def _story(guide: Guide, steps: list[str], title: str) -> list:
 
 
 def _where(tolerance, plane) -> str:
-    """Which mark on the sheet shows this tolerance: the zone along u or v, the arc, or none (listed only)."""
-    axes = tolerance_axes(tolerance, plane) if tolerance.delta is not None else ()
+    """Which mark on the sheet shows this tolerance: the zone along u or v, the arc, or none (listed only; a delta
+    bound only by the range's end is a lower bound, not drawn)."""
+    if tolerance.bound_limited:
+        return "range end (\u2265)"
+    axes = tolerance_axes(tolerance, plane) if tolerance.placement_delta is not None else ()
     if not axes:
         return "listed only"
     return "arc" if axes == ("arc",) else "zone along " + "/".join(axes)
