@@ -119,7 +119,7 @@ def _where(tolerance, plane) -> str:
     """Which mark on the sheet shows this tolerance: the zone along u or v, the arc, or none (listed only; a delta
     bound only by the range's end is a lower bound, not drawn)."""
     if tolerance.bound_limited:
-        return "range end (\u2265)"
+        return "range end (>=)"
     axes = tolerance_axes(tolerance, plane) if tolerance.placement_delta is not None else ()
     if not axes:
         return "listed only"
