@@ -49,6 +49,13 @@ async def test_a_layout_is_stepped_through_and_the_projector_follows(tmp_path):
         assert {str(tolerances.get_row_at(i)[1]) for i in range(tolerances.row_count)} >= {"track.x"}
         status = str(screen.query_one("#status", Static).render())
         assert "tolerances from model" in status and "not at true scale" in status
+        # e writes the PDF and the SVG to the data folder
+        await pilot.press("e")
+        await settle(app, pilot)
+        status = str(screen.query_one("#status", Static).render())
+        assert status.startswith("wrote "), status
+        pdf = Path(status.split()[1])
+        assert pdf.suffix == ".pdf" and pdf.read_bytes().startswith(b"%PDF") and pdf.with_suffix(".svg").exists()
 
 
 async def test_a_bad_layout_is_one_line_and_nothing_breaks(tmp_path):

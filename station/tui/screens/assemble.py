@@ -217,6 +217,8 @@ class AssembleScreen(Screen):
         for part in self.job.guide.parts:
             for tolerance in part.tolerances:
                 delta = "-" if tolerance.delta is None else f"{tolerance.delta:.1f} {tolerance.unit}"
+                if tolerance.bound_limited:  # only a lower bound: the layout sits at its range's end
+                    delta = f">= {delta} (range end)"
                 table.add_row(Text(part.name), Text(tolerance.parameter), delta,
                               "-" if tolerance.predicted is None else f"{tolerance.predicted:.2f}",
                               "-" if tolerance.measured is None else f"{tolerance.measured:.2f}")
