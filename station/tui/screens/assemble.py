@@ -23,7 +23,6 @@ from textual.message import Message
 from textual.screen import Screen
 from textual.widgets import Button, DataTable, Footer, Header, Input, Label, Select, Static
 
-from design.contraption.catalog import EXAMPLES_DIR, example_names
 from design.errors import DesignError
 from drivers.errors import DriverError
 from projector.errors import ProjectorError
@@ -33,15 +32,11 @@ from station.services import guide as service
 from station.services.projectors import configured_projector, open_projector
 from station.tui.registry import ScreenEntry
 from station.tui.widgets.picture import HalfBlockPicture
+from station.tui.widgets.scenario_select import scenario_choices, select_scenario
 
 #: The frames drawn here (and sent to a projector of another size, which letterboxes them).
 FRAME_SIZE = (960, 600)
 CARE_STYLE = {"tight": "red", "normal": "dark_orange", "loose": "green"}
-
-
-def scenario_choices() -> list[tuple[str, str]]:
-    """The example scenarios as (label, path)."""
-    return [(name, str(EXAMPLES_DIR / f"{name}.toml")) for name in example_names()]
 
 
 class GuideLoaded(Message):
@@ -136,13 +131,7 @@ class AssembleScreen(Screen):
         except NoMatches:  # not composed yet: built on mount
             self._pending = (scenario, layout)
             return
-        path = str(Path(scenario).resolve())
-        choices = scenario_choices()
-        known = next((value for _, value in choices if str(Path(value).resolve()) == path), None)
-        if known is None:
-            select.set_options([*choices, (Path(path).stem, path)])
-            known = path
-        select.value = known
+        select_scenario(select, scenario)
         self.query_one("#layout", Input).value = layout
         self.action_build()
 

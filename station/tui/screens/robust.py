@@ -25,7 +25,6 @@ from textual.message import Message
 from textual.screen import Screen
 from textual.widgets import Button, DataTable, Footer, Header, Input, Label, Select, Static
 
-from design.contraption.catalog import EXAMPLES_DIR, example_names
 from design.errors import DesignError
 from design.robust import Progress, PSPSettings, RobustLayout
 from station.paths import data_dir
@@ -35,18 +34,7 @@ from station.services.robust import DEFAULT_BUDGET, DEFAULT_SETTINGS, SETTINGS_C
 from station.tui.registry import ScreenEntry
 from station.tui.widgets.picture import HalfBlockPicture
 from station.tui.widgets.progress import ProgressPanel, ProgressReported, post_progress
-
-
-def scenario_choices() -> list[tuple[str, str]]:
-    """(label, path) of the example scenarios."""
-    choices = []
-    for name in example_names():
-        for suffix in (".toml", ".json"):
-            path = EXAMPLES_DIR / f"{name}{suffix}"
-            if path.exists():
-                choices.append((name, str(path)))
-                break
-    return choices
+from station.tui.widgets.scenario_select import scenario_choices, select_scenario
 
 
 def describe_progress(progress: Progress) -> str:
@@ -186,13 +174,7 @@ class RobustScreen(Screen):
         except NoMatches:  # not composed yet: chosen on mount
             self._pending_scenario = path
             return
-        path = str(Path(path).resolve())
-        choices = scenario_choices()
-        known = next((value for _, value in choices if str(Path(value).resolve()) == path), None)
-        if known is None:
-            select.set_options([*choices, (Path(path).stem, path)])
-            known = path
-        select.value = known
+        select_scenario(select, path)
 
     def action_optimize(self) -> None:
         if self._optimizing:

@@ -1,0 +1,33 @@
+"""The example scenarios as a Select's options, and choosing a scenario file in one (Robust layouts, Assemble)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from textual.widgets import Select
+
+from design.contraption.catalog import EXAMPLES_DIR, example_names
+
+
+def scenario_choices() -> list[tuple[str, str]]:
+    """(label, path) of the example scenarios."""
+    choices = []
+    for name in example_names():
+        for suffix in (".toml", ".json"):
+            path = EXAMPLES_DIR / f"{name}{suffix}"
+            if path.exists():
+                choices.append((name, str(path)))
+                break
+    return choices
+
+
+def select_scenario(select: Select, path: str) -> str:
+    """Choose the scenario file ``path`` in ``select`` (added to the examples when it is not one); the value set."""
+    path = str(Path(path).resolve())
+    choices = scenario_choices()
+    known = next((value for _, value in choices if str(Path(value).resolve()) == path), None)
+    if known is None:
+        select.set_options([*choices, (Path(path).stem, path)])
+        known = path
+    select.value = known
+    return known
