@@ -92,12 +92,19 @@ def make_guide(scenario: str, layout: str | None, *, view: str | None = None, ve
         raise ServiceError(f"seed must be a non-negative integer, got {seed!r}", field="seed", value=seed)
     report = Reporter.of(progress)
     loaded_scenario = load_scenario(resolve_scenario_path(scenario))
-    loaded_layout = default_layout(loaded_scenario) if layout is None else resolve_layout(layout, loaded_scenario)
     tolerance_map = None
     by_parameter: dict[str, ParameterTolerance] | None = None
-    if tolerances and layout is not None:
-        tolerance_map = _tolerance_map(loaded_scenario, layout, verify=verify, seed=seed, progress=report.emit)
+    if layout is None:
+        loaded_layout = default_layout(loaded_scenario)
+    elif tolerances:
+        from station.services.tolerances import tolerance_map as tolerances_of
+
+        # the tolerance map reads the layout (and the model its file carries) once, for both
+        tolerance_map = tolerances_of(loaded_scenario, layout, verify=verify, seed=seed, progress=report.emit)
+        loaded_layout = tolerance_map.layout
         by_parameter = _guide_tolerances(tolerance_map)
+    else:
+        loaded_layout = resolve_layout(layout, loaded_scenario)
     guide = build_guide(loaded_scenario, loaded_layout.x, view=view, tolerances=by_parameter)
     return GuideJob(guide, tuple(steps_text(guide)), loaded_layout, tolerance_map, loaded_scenario)
 
@@ -169,12 +176,6 @@ def _title(job: GuideJob) -> str:
     else:
         which = Path(layout.source).name or layout.describe()
     return f"{job.guide.scenario}: {which}"
-
-
-def _tolerance_map(scenario, layout: str, *, verify: int, seed: int, progress: ProgressCallback):
-    from station.services.tolerances import tolerance_map
-
-    return tolerance_map(scenario, layout, verify=verify, seed=seed, progress=progress)
 
 
 def _guide_tolerances(tolerances) -> dict[str, ParameterTolerance]:

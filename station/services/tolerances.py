@@ -76,15 +76,16 @@ class Tolerances:
                 **self.map.to_dict()}
 
 
-def read_model(path: str, problem) -> PortablePSP | None:
-    """The fitted model a layout file carries, or None (a hand-written layout, an older LAYOUT.json, a layout named
-    in the scenario); a malformed model raises :class:`design.robust.model_io.ModelFormatError` naming the field."""
-    from design.contraption.layout_io import read_layout_data
+def _layout_and_model(layout: str, problem):
+    """The layout ``layout`` names and the fitted model its file carries (None for a layout without one), from one
+    reading of the file."""
+    from design.contraption.layout_io import layout_from_data, read_layout_data
     from design.robust.model_io import layout_model
 
-    if not Path(path).is_file():
-        return None
-    return layout_model(read_layout_data(path), problem, file=path)
+    if not Path(layout).is_file():  # a layout named in the scenario, or a missing file: the reader says which
+        return robust.read_layout(layout, problem), None
+    data = read_layout_data(layout)
+    return layout_from_data(data, problem.scenario, file=layout), layout_model(data, problem, file=layout)
 
 
 def _problem(scenario):
@@ -137,9 +138,8 @@ def tolerance_map(scenario, layout: str, *, verify: int = 0, seed: int = 0, work
                            field="verify", value=verify)
     robust.check_seed(seed)
     problem = _problem(scenario)
-    loaded = robust.read_layout(str(layout), problem)
+    loaded, model = _layout_and_model(str(layout), problem)
     u = np.clip(problem.to_normalized(loaded.x), 0.0, 1.0)
-    model = read_model(str(layout), problem)
     d = problem.dim
     if progress is not None:
         progress(Progress("tolerance map", 0, d, unit="parameters"))
