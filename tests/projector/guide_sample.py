@@ -3,23 +3,14 @@ static rail and post first, then three tracks, a goblet (concave), a domino run 
 
 from __future__ import annotations
 
-import numpy as np
 from shapely import affinity
 from shapely.geometry import MultiPolygon, Point, Polygon, box
 
-from projector.guide import (
-    REFERENCE_TAG_IDS,
-    Guide,
-    GuidePlane,
-    ParameterTolerance,
-    PartDrawing,
-    PartKind,
-    ReferenceTag,
-)
+from projector.guide import REFERENCE_TAG_IDS, Guide, ParameterTolerance, PartDrawing, PartKind, ReferenceTag
+from projector.samples import side_plane
 
 #: The backboard of BALLRUN: facing +y, so u = -x and v = z.
-SIDE = GuidePlane("side", np.zeros(3), np.array([-1.0, 0.0, 0.0]), np.array([0.0, 0.0, 1.0]),
-                  np.array([0.0, 1.0, 0.0]))
+SIDE = side_plane()
 
 
 def tolerances(name: str, **deltas: float) -> tuple[ParameterTolerance, ...]:
