@@ -58,9 +58,6 @@ def register(subparsers) -> None:
     parser.set_defaults(func=run_guide)
 
 
-FLAGS = {"view": "--view", "verify": "--verify", "seed": "--seed", "paper": "--paper", "step": "--step"}
-
-
 def run_guide(args) -> int:
     from station.progress_view import ProgressView
     from station.services import guide as service
@@ -71,9 +68,8 @@ def run_guide(args) -> int:
         raise UsageError("--step goes with --project")
     pdf = check_output_file(args.pdf, {".pdf"}, "--pdf") if args.pdf else None
     svg = check_output_file(args.svg, {".svg"}, "--svg") if args.svg else None
-    if args.paper not in service.PAPERS:  # before any simulation
-        raise UsageError(f"--paper must be one of {', '.join(service.PAPERS)}, got {args.paper!r}")
     try:
+        service.check_paper(args.paper)  # before any simulation
         with ProgressView(sys.stderr, prefix="guide: ") as view:
             job = service.make_guide(args.scenario, args.layout, view=args.view, verify=args.verify, seed=args.seed,
                                      tolerances=not args.no_tolerances, progress=view)
@@ -81,7 +77,7 @@ def run_guide(args) -> int:
         if args.project:
             _project(job, args.step)
     except ServiceError as error:
-        raise flag_error(error, FLAGS) from None
+        raise flag_error(error) from None
     if args.json:
         emit_json(job.manifest())
         return 0

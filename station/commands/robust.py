@@ -31,11 +31,9 @@ from station.services.robust import (  # noqa: F401 - re-exported: the work live
     DEFAULT_BUDGET,
     DEFAULT_SETTINGS,
     SETTINGS_CHOICES,
-    THESIS_BUDGETS,
     RunStopped,
     StopRequest,
     read_layout,
-    settings_of_layout,
     simulation_cache_path,
     thesis_budget,
 )

@@ -14,7 +14,8 @@ from common.progress import ProgressCallback, Reporter
 from projector.guide import Guide, ParameterTolerance
 from station.services.errors import ServiceError
 
-__all__ = ["PAPERS", "VIEWS", "GuideJob", "export_guide", "make_guide", "projected_frames", "show_step"]
+__all__ = ["PAPERS", "VIEWS", "GuideJob", "check_paper", "export_guide", "make_guide", "projected_frames",
+           "show_step"]
 
 PAPERS = ("a4", "letter", "a3")
 VIEWS = ("top", "side")
@@ -79,24 +80,19 @@ def make_guide(scenario: str, layout: str | None, *, view: str | None = None, ve
     projector.errors.ProjectorError
         The scenario cannot be drawn in that view.
     """
-    from design.contraption.catalog import resolve_scenario_path
-    from design.contraption.layout_io import default_layout, resolve_layout
-    from design.contraption.scenario import load_scenario
     from projector.build import build_guide, steps_text
+    from station.services.contraption import choose_layout, open_scenario
+    from station.services.robust import check_count, check_seed
 
     if view is not None and view not in VIEWS:
         raise ServiceError(f"view must be one of {', '.join(VIEWS)}, got {view!r}", field="view", value=view)
-    if isinstance(verify, bool) or not isinstance(verify, int) or verify < 0:
-        raise ServiceError(f"verify must be an integer >= 0, got {verify!r}", field="verify", value=verify)
-    if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
-        raise ServiceError(f"seed must be a non-negative integer, got {seed!r}", field="seed", value=seed)
+    check_count(verify, "verify", 0)
+    check_seed(seed)
     report = Reporter.of(progress)
-    loaded_scenario = load_scenario(resolve_scenario_path(scenario))
+    loaded_scenario = open_scenario(scenario)
     tolerance_map = None
     by_parameter: dict[str, ParameterTolerance] | None = None
-    if layout is None:
-        loaded_layout = default_layout(loaded_scenario)
-    elif tolerances:
+    if tolerances and layout is not None:
         from station.services.tolerances import tolerance_map as tolerances_of
 
         # the tolerance map reads the layout (and the model its file carries) once, for both
@@ -104,7 +100,7 @@ def make_guide(scenario: str, layout: str | None, *, view: str | None = None, ve
         loaded_layout = tolerance_map.layout
         by_parameter = _guide_tolerances(tolerance_map)
     else:
-        loaded_layout = resolve_layout(layout, loaded_scenario)
+        loaded_layout = choose_layout(loaded_scenario, layout=layout)
     guide = build_guide(loaded_scenario, loaded_layout.x, view=view, tolerances=by_parameter)
     return GuideJob(guide, tuple(steps_text(guide)), loaded_layout, tolerance_map, loaded_scenario)
 
@@ -118,8 +114,7 @@ def export_guide(job: GuideJob, *, pdf: str | Path | None = None, svg: str | Pat
     ServiceError
         A paper size the station does not know (``paper``).
     """
-    if paper not in PAPERS:
-        raise ServiceError(f"paper must be one of {', '.join(PAPERS)}, got {paper!r}", field="paper", value=paper)
+    check_paper(paper)
     guide = job.guide
     if pdf is not None:
         from projector.pdf import write_pdf
@@ -131,6 +126,12 @@ def export_guide(job: GuideJob, *, pdf: str | Path | None = None, svg: str | Pat
         with open(svg, "w", encoding="utf-8") as stream:
             write_svg(guide, stream)
     return replace(job, guide=guide)
+
+
+def check_paper(paper: str) -> None:
+    """Refuse a paper size the station does not know (``paper``), before any work."""
+    if paper not in PAPERS:
+        raise ServiceError(f"paper must be one of {', '.join(PAPERS)}, got {paper!r}", field="paper", value=paper)
 
 
 def projected_frames(job: GuideJob, size: tuple[int, int], homography=None):

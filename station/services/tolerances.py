@@ -89,14 +89,13 @@ def _layout_and_model(layout: str, problem):
 
 
 def _problem(scenario):
-    """A scenario file or example name, a loaded :class:`design.contraption.Scenario` or a problem, as a problem."""
-    if isinstance(scenario, (str, Path)):
-        return robust.load_problem(str(scenario))
-    if hasattr(scenario, "design_space") and not hasattr(scenario, "parameter_names"):
-        from design.robust.contraption import ContraptionProblem
+    """A scenario file or example name, or a loaded :class:`design.contraption.Scenario`, as a problem."""
+    from design.contraption import Scenario
+    from design.robust.contraption import ContraptionProblem
 
+    if isinstance(scenario, Scenario):
         return ContraptionProblem(scenario.source, scenario)
-    return scenario
+    return robust.load_problem(str(scenario))
 
 
 def tolerance_map(scenario, layout: str, *, verify: int = 0, seed: int = 0, workers: int | None = None,
@@ -106,9 +105,8 @@ def tolerance_map(scenario, layout: str, *, verify: int = 0, seed: int = 0, work
 
     Parameters
     ----------
-    scenario : str, Scenario or ContraptionProblem
-        A scenario file or example name, the scenario already loaded (:func:`design.contraption.load_scenario`), or
-        its robust-layout problem.
+    scenario : str or Scenario
+        A scenario file or example name, or the scenario already loaded (:func:`design.contraption.load_scenario`).
     layout : str
         A layout file (a LAYOUT.json with its model, ``{"parameters": {...}}``...) or a layout named in the scenario.
     verify : int
