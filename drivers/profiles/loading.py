@@ -7,6 +7,7 @@ machines, ``[grbl]`` table included: :func:`builtin_grbl_settings` is the one so
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Mapping
 from importlib import resources
 from pathlib import Path
@@ -288,8 +289,9 @@ def builtin_profile_names() -> list[str]:
     return sorted(BUILTIN_PROFILES)
 
 
+@functools.cache
 def builtin_profile(name: str) -> MachineProfile:
-    """A built-in profile by name (``"plotter"`` or ``"laser"``)."""
+    """A built-in profile by name (``"plotter"`` or ``"laser"``); parsed once (a profile is frozen)."""
     try:
         text = BUILTIN_PROFILES[name]
     except KeyError:

@@ -108,7 +108,6 @@ class VirtualClock:
         self.patience = patience
         self.pace = pace
         self._anchor = (time.monotonic(), self._now)  # (wall, simulated) when the machine was last idle
-        self.jumps = 0
 
     def now(self) -> float:
         return self._now
@@ -130,7 +129,6 @@ class VirtualClock:
                 condition.wait(min((event - self._now) / self.pace, self.quiet))
                 return
             self._now = event
-            self.jumps += 1
             return
         condition.wait(self.quiet)  # the host's turn: a write wakes the machine at once
 

@@ -17,6 +17,7 @@ import numpy as np
 
 from drivers.errors import SimConfigError
 from drivers.profiles import builtin_grbl_settings, builtin_profile_names
+from drivers.profiles.firmware import INTEGERS
 from drivers.sim.clock import CLOCKS
 
 VERSION = "1.1h"
@@ -32,7 +33,8 @@ DEFAULT_SETTINGS: dict[int, float] = {
     24: 25.0, 25: 500.0, 26: 250, 27: 1.0, 30: 1000, 31: 0, 32: 0, 100: 250.0, 101: 250.0, 102: 250.0,
     110: 500.0, 111: 500.0, 112: 500.0, 120: 10.0, 121: 10.0, 122: 10.0, 130: 200.0, 131: 200.0, 132: 200.0,
 }
-INTEGER_SETTINGS = {0, 1, 2, 3, 4, 5, 6, 10, 13, 20, 21, 22, 23, 26, 32}
+#: Settings GRBL stores as whole numbers: the profiles' rule, so that the twin prints them as its profiles check them.
+INTEGER_SETTINGS = INTEGERS
 ZERO_DECIMAL_SETTINGS = {30, 31}
 
 #: The station's simulated machines by built-in profile name: their EEPROM is the profile's ``[grbl]`` table (with
