@@ -25,17 +25,15 @@ from projector.frames import (
 from projector.guide import (
     REFERENCE_TAG_IDS,
     Guide,
-    GuidePlane,
     ParameterTolerance,
     PartDrawing,
     PartKind,
     ReferenceTag,
 )
-
-from .guide_sample import SIDE, sample_guide
+from projector.samples import sample_guide, side_plane, top_plane
 
 SIZE = (1280, 800)
-TOP = GuidePlane("top", np.zeros(3), np.array([1.0, 0, 0]), np.array([0, 1.0, 0]), np.array([0, 0, 1.0]))
+SIDE, TOP = side_plane(), top_plane()
 
 
 def keystone(guide: Guide, corners=((150, 760), (1180, 700), (1100, 90), (240, 60))) -> np.ndarray:
