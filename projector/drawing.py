@@ -112,10 +112,11 @@ def tolerance_zone(outline: BaseGeometry, du: float | None, dv: float | None) ->
     corners = np.array([[-du, -dv], [du, -dv], [du, dv], [-du, dv]])
     hulls = []
     for polygon in polygons(outline):
-        ring = np.asarray(polygon.exterior.coords)
-        ends = np.stack([ring[:-1], ring[1:]], axis=1)  # (edges, 2, 2)
-        points = (ends[:, :, None, :] + corners[None, None, :, :]).reshape(len(ends), 8, 2)
-        hulls.extend(shapely.convex_hull(shapely.multipoints(points)))
+        for ring in (polygon.exterior, *polygon.interiors):  # a hole's edges sweep too: the hole shrinks
+            ring = np.asarray(ring.coords)[:, :2]
+            ends = np.stack([ring[:-1], ring[1:]], axis=1)  # (edges, 2, 2)
+            points = (ends[:, :, None, :] + corners[None, None, :, :]).reshape(len(ends), 8, 2)
+            hulls.extend(shapely.convex_hull(shapely.multipoints(points)))
     if not hulls:
         return None
     return shapely.union_all([outline, *hulls]).simplify(0.05)

@@ -22,11 +22,11 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-import shapely
 from shapely.geometry.base import BaseGeometry
 
+from projector.drawing import arc_points, placement_deltas, tolerance_zone
 from projector.errors import ProjectorError
-from projector.guide import Guide, PartDrawing, PartKind, ReferenceTag
+from projector.guide import Guide, GuidePlane, PartDrawing, PartKind, ReferenceTag
 from projector.tags import TAG_CELLS, tag_image
 
 __all__ = ["Frames", "fit_homography", "render_calibrate", "render_frames", "render_step", "step_caption"]
@@ -46,9 +46,6 @@ CARE_COLOURS = {"tight": (255, 60, 60), "normal": (255, 205, 0), "loose": (70, 2
 #: Sub-pixel precision of OpenCV's drawing (coordinates times 2**SHIFT).
 SHIFT = 4
 NOT_TRUE = "SCALE IS NOT TRUE: projector not calibrated, the guide is fitted to the screen"
-#: World axis of each rotation parameter (Panda3D HPR: heading about z, pitch about x, roll about y).
-ROTATION_AXES = {"heading": (0.0, 0.0, 1.0), "pitch": (1.0, 0.0, 0.0), "roll": (0.0, 1.0, 0.0)}
-POSITION_AXES = {"x": (1.0, 0.0, 0.0), "y": (0.0, 1.0, 0.0), "z": (0.0, 0.0, 1.0)}
 
 
 @dataclass(frozen=True)
@@ -163,34 +160,13 @@ def _rings(geometry: BaseGeometry) -> list[np.ndarray]:
 
 
 def tolerance_box(part: PartDrawing, u_axis, v_axis) -> BaseGeometry | None:
-    """The region the part's outline may cover within its position tolerances: its outline swept over
-    ``[-du, du] x [-dv, dv]`` (a Minkowski sum), where ``du``, ``dv`` are the largest deltas of its ``.x/.y/.z``
-    parameters along the plane's axes; None when it has no position tolerance."""
-    du = dv = 0.0
-    for tolerance in part.tolerances:
-        axis = POSITION_AXES.get(tolerance.parameter.rsplit(".", 1)[-1])
-        if axis is None or tolerance.placement_delta is None or tolerance.unit != "mm":
-            continue
-        du = max(du, abs(float(np.dot(axis, u_axis))) * tolerance.delta)
-        dv = max(dv, abs(float(np.dot(axis, v_axis))) * tolerance.delta)
-    if du <= 0 and dv <= 0:
-        return None
-    corners = np.array([[-du, -dv], [du, -dv], [du, dv], [-du, dv]])
-    sweeps = []
-    for ring in _rings(part.outline):
-        segments = np.stack([ring[:-1], ring[1:]], axis=1)  # (n, 2, 2): each edge swept over the box
-        points = (segments[:, :, None, :] + corners[None, None]).reshape(len(segments), 8, 2)
-        sweeps.append(shapely.convex_hull(shapely.multipoints(points)))
-    return shapely.union_all([part.outline, *np.concatenate(sweeps)]) if sweeps else None
-
-
-def in_plane_rotation(part: PartDrawing, normal) -> float | None:
-    """The delta (degrees) of the part's rotation parameter about the plane's normal, None when it has none."""
-    for tolerance in part.tolerances:
-        axis = ROTATION_AXES.get(tolerance.parameter.rsplit(".", 1)[-1])
-        if axis is not None and tolerance.placement_delta is not None and abs(float(np.dot(axis, normal))) > 0.9:
-            return float(tolerance.placement_delta)
-    return None
+    """The region the part's outline may cover within its position tolerances along the plane's axes (the sheets'
+    :func:`projector.drawing.tolerance_zone`, so the projector and the paper show the same zone); None when it has
+    no position tolerance on the plane."""
+    plane = GuidePlane("", np.zeros(3), np.asarray(u_axis, float), np.asarray(v_axis, float),
+                       np.cross(u_axis, v_axis))
+    du, dv, _ = placement_deltas(part, plane)
+    return tolerance_zone(part.outline, du, dv)
 
 
 class _Canvas:
@@ -254,13 +230,12 @@ class _Canvas:
         outline = np.vstack([center, *_rings(part.outline)])  # an empty outline still has its centre
         reach = max(10.0, float(np.max(np.linalg.norm(outline - center, axis=1))))
         heading = np.radians(part.heading_deg)
-        delta = in_plane_rotation(part, self.guide.plane.normal)
+        _, _, delta = placement_deltas(part, self.guide.plane)
         if delta is not None:  # arcs the part's two ends may swing over, at its reach, with end ticks
-            for side in (0.0, np.pi):
-                angles = heading + side + np.radians(np.linspace(-delta, delta, 49))
-                arc = center + 1.15 * reach * np.column_stack([np.cos(angles), np.sin(angles)])
+            for side in (0.0, 180.0):
+                arc = arc_points(center, 1.15 * reach, part.heading_deg + side, delta, 49)
                 self._edges(image, [arc], colour, self.thick, closed=False)
-                for end in (angles[0], angles[-1]):
+                for end in np.radians(part.heading_deg + side + np.array([-delta, delta])):
                     direction = np.array([np.cos(end), np.sin(end)])
                     self._edges(image, [center + np.outer([1.05, 1.25], direction) * reach], colour, self.thick,
                                 closed=False)
