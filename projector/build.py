@@ -45,6 +45,7 @@ from design.contraption.geometry import world_poses
 from design.contraption.model import Scenario
 from design.contraption.primitives import body_specs
 from design.contraption.schema import TRANSFORM_KEYS
+from design.robust.tolerance import care_level  # the station's one rule (the tolerance table says the same)
 from projector.errors import ProjectorError
 from projector.guide import (
     REFERENCE_TAG_IDS,
@@ -59,7 +60,7 @@ from projector.order import PartFacts, assembly_order, part_kind
 from projector.outline import PlacedBody, Surface, fit_tag, part_outline
 from projector.plane import VIEWS, guide_plane, heading_in_plane, plane_normals, range_axes
 
-__all__ = ["AUTO_TAG_SIZES_MM", "build_guide", "care_of", "choose_view", "steps_text"]
+__all__ = ["AUTO_TAG_SIZES_MM", "build_guide", "choose_view", "steps_text"]
 
 #: The tag sizes tried, largest first (the black square's edge, mm).
 AUTO_TAG_SIZES_MM = (25.0, 20.0, 15.0, 10.0)
@@ -128,7 +129,7 @@ def build_guide(scenario: Scenario, x=None, *, view: str | None = None,
             name=name, kind=facts[name].kind, step=step, outline=part_outline(bodies[name], plane),
             center_mm=_pair(plane.to_plane(frames[name].position)[0]),
             heading_deg=heading_in_plane(frames[name].rotation, plane), parameters=own, tolerances=known,
-            care=care_of(known)))
+            care=care_level(known)))
     drawings = _with_tags(scenario, frames, bodies, plane, drawings, tag_size_mm)
     references = _reference_tags(drawings, reference_tag_size_mm)
     return Guide(scenario=scenario.name, content_hash=scenario.content_hash, plane=plane, parts=tuple(drawings),
@@ -152,15 +153,6 @@ def choose_view(scenario: Scenario, frames, bodies: Mapping[str, list[PlacedBody
         total = sum(o.area for o in outlines)
         overlap[view] = 1.0 - shapely.union_all(outlines).area / total if total else 0.0
     return "side" if overlap["side"] < overlap["top"] else "top"
-
-
-def care_of(tolerances) -> str | None:
-    """``tight``, ``normal`` or ``loose`` from a part's tolerances (module notes), None when no delta is known."""
-    from design.robust.tolerance import care_level
-
-    # the station's one rule (the tolerance table says the same): a delta bound only by the range's end never
-    # makes a part tight
-    return care_level(tolerances)
 
 
 def steps_text(guide: Guide) -> list[str]:

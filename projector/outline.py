@@ -26,7 +26,7 @@ from design.contraption.geometry import Pose
 from design.contraption.primitives import BodySpec, ShapePart
 from projector.guide import GuidePlane
 
-__all__ = ["PlacedBody", "Surface", "fit_tag", "height_at", "part_outline", "project_shape"]
+__all__ = ["PlacedBody", "Surface", "fit_tag", "part_outline", "project_shape"]
 
 #: Points on each circle of a sampled cylinder (the outline is within 0.2 % of the radius).
 _CIRCLE_POINTS = 48
@@ -61,17 +61,10 @@ def project_shape(pose: Pose, part: ShapePart, plane: GuidePlane) -> Polygon:
         if np.allclose(ends[0], ends[1], atol=1e-9):
             return Point(ends[0]).buffer(1000.0 * radius, quad_segs=16)
         return LineString(ends).buffer(1000.0 * radius, quad_segs=16)
-    if part.kind == "box":
-        hx, hy, hz = part.dims
-        local = np.array([[sx * hx, sy * hy, sz * hz] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)])
-    elif part.kind == "cylinder":
-        radius, height = part.dims
-        t = np.linspace(0.0, 2.0 * np.pi, _CIRCLE_POINTS, endpoint=False)
-        ring = np.c_[np.cos(t) * radius, np.sin(t) * radius]
-        local = np.concatenate([np.c_[ring, np.full(len(t), -height / 2)], np.c_[ring, np.full(len(t), height / 2)]])
-    else:
+    if part.kind not in ("box", "cylinder"):
         raise ValueError(f"cannot project a {part.kind!r} part")  # planes are not parts
-    hull = MultiPoint(plane.to_plane(frame.apply(local))).convex_hull
+    # a box's corners, a cylinder's two end rings: their hull is the part's projection
+    hull = MultiPoint(plane.to_plane(pose.apply(part.surface_points(_CIRCLE_POINTS)))).convex_hull
     # A part seen exactly edge-on (a zero-thickness slice) still has to be drawn: a hair-thin polygon.
     return hull if isinstance(hull, Polygon) else hull.buffer(0.05)
 
@@ -100,8 +93,8 @@ class Surface:
                 matrix = frame.rotation.as_matrix()
                 entry = (part.kind, part.dims, matrix.T, frame.position, None, 0.0)
                 if part.kind not in ("box", "sphere"):
-                    top = frame.apply(ShapePart(part.kind, part.dims, Pose()).surface_points(_CIRCLE_POINTS))
-                    entry = entry[:4] + (project_shape(frame, ShapePart(part.kind, part.dims, Pose()), plane),
+                    top = body.pose.apply(part.surface_points(_CIRCLE_POINTS))
+                    entry = entry[:4] + (project_shape(body.pose, part, plane),
                                          float(np.max((top - plane.origin) @ plane.normal)))
                 self._parts.append(entry)
 
@@ -115,11 +108,6 @@ class Surface:
             if hit is not None and (best is None or hit > best):
                 best = hit
         return None if best is None else 1000.0 * float(best)
-
-
-def height_at(bodies: Sequence[PlacedBody], plane: GuidePlane, uv_mm: Sequence[float]) -> float | None:
-    """How far above the plane (mm) the part's surface facing the maker is at ``uv_mm`` (see :class:`Surface`)."""
-    return Surface(bodies, plane).height(uv_mm)
 
 
 def _ray_top(kind: str, dims, o: np.ndarray, d: np.ndarray) -> float | None:
