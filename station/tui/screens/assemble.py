@@ -9,7 +9,6 @@ and the SVG to the station's data folder. The Robust layouts screen opens its re
 
 from __future__ import annotations
 
-import io
 from pathlib import Path
 
 from PIL import Image
@@ -220,21 +219,21 @@ class AssembleScreen(Screen):
         count = len(self.frames.frames)
         self.step = max(0, min(step, count))
         frame = self.frames.calibrate if self.step == 0 else self.frames.frames[self.step - 1]
-        png = io.BytesIO()
-        Image.fromarray(frame).save(png, format="PNG")
-        self.query_one("#frame", HalfBlockPicture).set_png(png.getvalue())
+        self.query_one("#frame", HalfBlockPicture).set_image(Image.fromarray(frame))
         caption = ("calibrate frame: the four reference tags and a grid" if self.step == 0
                    else self.job.steps[self.step - 1])
         self.query_one("#caption", Static).update(Text(caption))
         if self.step:
             self.query_one("#steps", DataTable).move_cursor(row=self.step - 1)
         if self.projector is not None:
-            self._project(frame)
+            self._project(self.step)
 
     @work(thread=True, exclusive=True, group="projector")
-    def _project(self, frame) -> None:
+    def _project(self, step: int) -> None:
+        """Show ``step`` (0: the calibrate frame) on the projector, drawn at the projector's own size (the terminal's
+        frames are smaller; one scaled up would be letterboxed, and no longer true to scale once calibrated)."""
         try:
-            self.projector.show(frame)
+            service.show_step(self.job, self.projector, step or None)
         except DriverError as error:
             self.app.call_from_thread(self._set_status, f"projector: {error}", "red")
 

@@ -33,7 +33,11 @@ class HalfBlockPicture(Widget):
         self.crop: tuple[float, float, float, float] | None = None
 
     def set_png(self, png: bytes | None) -> None:
-        self.full = Image.open(io.BytesIO(png)).convert("RGB") if png else None
+        self.set_image(Image.open(io.BytesIO(png)) if png else None)
+
+    def set_image(self, image: Image.Image | None) -> None:
+        """Show ``image`` (a picture already in memory: no PNG to encode and decode again), or nothing."""
+        self.full = image.convert("RGB") if image is not None else None
         self.set_crop(self.crop)
 
     def set_crop(self, crop: tuple[float, float, float, float] | None) -> None:
