@@ -32,7 +32,14 @@ def pg_server(tmp_path_factory):
     """One real PostgreSQL server for the module (pgserver: PostgreSQL in a wheel, a dev dependency; ~0.6 s to
     initialize and start). Stopped and deleted at the module's end."""
     pgserver = pytest.importorskip("pgserver", reason="pgserver (dev dependency) runs the PostgreSQL tests")
+    import psycopg
+
     server = pgserver.get_server(tmp_path_factory.mktemp("pg") / "data", cleanup_mode="delete")
+    # a throw-away server: no fsync (CREATE DATABASE and the shutdown checkpoint took seconds of disk flushes)
+    with psycopg.connect(server.get_uri(), autocommit=True) as admin:
+        for setting in ("fsync = off", "synchronous_commit = off", "full_page_writes = off"):
+            admin.execute(f"ALTER SYSTEM SET {setting}")
+        admin.execute("SELECT pg_reload_conf()")
     yield server
     server.cleanup()
 
