@@ -83,7 +83,7 @@ def complete_outcomes(scenario: Scenario, given: Mapping[str, str], *, field: st
     ServiceError
         ``field`` is set to the offending ``outcome.EVENT`` (or ``outcome``): an unknown event or outcome word, a
         "yes" or "no" for an event that cannot have been reached, "not-reached" for one that was, the root
-        "not-reached", or an event missing that nothing implies.
+        "not-reached", or an event missing that nothing implies (the first in the graph's order).
     """
     events = scenario.graph_order
     for name, word in given.items():
@@ -93,6 +93,18 @@ def complete_outcomes(scenario: Scenario, given: Mapping[str, str], *, field: st
         if word not in OUTCOMES:
             raise ServiceError(f"{field}.{name}: expected yes, no or not-reached, got {word!r}",
                                field=f"{field}.{name}")
+    result, problems = resolve_outcomes(scenario, given, field=field)
+    if problems:
+        raise problems[0]
+    return {name: word for name, word in result.items() if word is not None}
+
+
+def resolve_outcomes(scenario: Scenario, given: Mapping[str, str], *,
+                     field: str = "outcome") -> tuple[dict[str, str | None], list[ServiceError]]:
+    """:func:`complete_outcomes` without raising, for a form being filled in (the Trials screen): every event's
+    outcome in the graph's order (None: still to be said) and the problems, in the graph's order. ``given`` holds
+    known events and outcome words only."""
+    events = scenario.graph_order
     outcomes = dict(given)
     implied_by: dict[str, str] = {}  # an implied "yes" -> the given event that implied it (for messages)
     # A "yes" or "no" says the event was reached: the parents it needed happened (join "all"; an only parent).
@@ -109,34 +121,38 @@ def complete_outcomes(scenario: Scenario, given: Mapping[str, str], *, field: st
                     outcomes[parent] = YES
                     implied_by[parent] = implied_by.get(name, name)
                     changed = True
-    result: dict[str, str] = {}
+    result: dict[str, str | None] = {}
+    problems: list[ServiceError] = []
+
+    def problem(where: str, message: str) -> None:
+        problems.append(ServiceError(f"{where}: {message}", field=where))
+
     for name in events:  # parents come first: each event's reachability is known when it is checked
         reached = _reached(scenario, name, result)
         word = outcomes.get(name)
         where = f"{field}.{name}"
+        result[name] = word
         if word is None:
             if reached is False:
                 result[name] = NOT_REACHED
-                continue
-            why = "the root is always reached" if reached and not scenario.event(name).after else (
-                "its parents happened" if reached else "one of its parents is not given either")
-            raise ServiceError(f"{where}: missing; {why}, so say whether it happened (yes or no)", field=where)
-        if word == NOT_REACHED and reached:
+            elif reached:
+                why = "its parents happened" if scenario.event(name).after else "the root is always reached"
+                problem(where, f"missing; {why}, so say whether it happened (yes or no)")
+        elif word == NOT_REACHED and reached:
             if not scenario.event(name).after:
-                raise ServiceError(f"{where}: the root event is always reached; expected yes or no, got "
-                                   "'not-reached'", field=where)
-            raise ServiceError(f"{where}: expected yes or no, got 'not-reached', but it was reached: "
-                               f"{_parents_words(scenario, name, result)}", field=where)
-        if word in (YES, NO) and reached is False:
+                problem(where, "the root event is always reached; expected yes or no, got 'not-reached'")
+            else:
+                problem(where, "expected yes or no, got 'not-reached', but it was reached: "
+                        f"{_parents_words(scenario, name, result)}")
+        elif word in (YES, NO) and reached is False:
             if name in implied_by:  # the maker gave a later event: name that one
                 origin = implied_by[name]
-                where = f"{field}.{origin}"
-                raise ServiceError(f"{where}: {given[origin]!r} means {name} happened before it, but "
-                                   f"{_parents_words(scenario, name, result)}", field=where)
-            raise ServiceError(f"{where}: expected 'not-reached', got {word!r}: an event can happen only after its "
-                               f"parents; {_parents_words(scenario, name, result)}", field=where)
-        result[name] = word
-    return result
+                problem(f"{field}.{origin}", f"{given[origin]!r} means {name} happened before it, but "
+                        f"{_parents_words(scenario, name, result)}")
+            else:
+                problem(where, f"expected 'not-reached', got {word!r}: an event can happen only after its "
+                        f"parents; {_parents_words(scenario, name, result)}")
+    return result, problems
 
 
 def goal_reached(scenario: Scenario, outcomes: Mapping[str, str]) -> bool:

@@ -84,7 +84,10 @@ def register(subparsers) -> None:
     listing.add_argument("--json", action="store_true", help="print a JSON list of trials (the export's form)")
     listing.set_defaults(func=run_list)
 
-    show = actions.add_parser("show", help="one trial in full", epilog="example: station trial show 12")
+    show = actions.add_parser("show", help="one trial in full",
+                              description="Show one trial: when, who, success, every event's outcome in the causal "
+                              "graph's order with its time, the layout as designed and as built, notes, photos.",
+                              epilog="example: station trial show 12")
     show.add_argument("id", metavar="ID", type=int, help="the trial's id (`station trial list`)")
     show.add_argument("--json", action="store_true", help="print the trial as JSON (the export's form)")
     show.set_defaults(func=run_show)

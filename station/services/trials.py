@@ -11,7 +11,7 @@ from __future__ import annotations
 import math
 import os
 import tempfile
-from collections.abc import Iterable, Mapping, Sequence
+from collections.abc import Collection, Iterable, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -224,9 +224,11 @@ def build_trial(scenario: Scenario, layout: Mapping[str, float], outcomes: Mappi
 
 
 # -- export and import -------------------------------------------------------------------------------------------
-def export_trials(store: TrialStore, path: str | Path, *, scenario: str | None = None) -> int:
-    """Write the log (or one scenario's trials) to ``path`` (``.json``: the contract's export; ``.csv``: one row
-    per trial) and return how many. The file appears whole or not at all (written aside, then renamed)."""
+def export_trials(store: TrialStore, path: str | Path, *, scenario: str | None = None,
+                  ids: Collection[int] | None = None) -> int:
+    """Write the log (or one scenario's trials, or those with the ``ids`` given) to ``path`` (``.json``: the
+    contract's export; ``.csv``: one row per trial) and return how many. The file appears whole or not at all
+    (written aside, then renamed)."""
     import json
 
     path = Path(path)
@@ -235,6 +237,9 @@ def export_trials(store: TrialStore, path: str | Path, *, scenario: str | None =
         raise ServiceError(f"out: {str(path)!r}: expected a .json or .csv file, got {suffix or 'no suffix'!r}",
                            field="out")
     trials = store.trials(scenario=scenario)
+    if ids is not None:
+        wanted = set(ids)
+        trials = [t for t in trials if t["id"] in wanted]
     folder = path.parent if str(path.parent) else Path(".")
     if not folder.is_dir():
         raise ServiceError(f"out: {str(path)!r}: the folder {str(folder)!r} does not exist", field="out")
