@@ -2,9 +2,6 @@
 
 from __future__ import annotations
 
-import argparse
-import sys
-
 from design.contraption.layout_io import resolve_layout
 from station.cli_util import emit_json
 from station.errors import UsageError
@@ -110,12 +107,6 @@ def register(subparsers) -> None:
     importing.add_argument("file", metavar="FILE.json", help="a `station trial export` JSON file")
     importing.add_argument("--json", action="store_true", help='print {"added": [ids], "duplicates": [uids]}')
     importing.set_defaults(func=run_import)
-    trial.set_defaults(func=lambda args: _missing_action(trial))
-
-
-def _missing_action(parser: argparse.ArgumentParser) -> int:
-    parser.print_help(sys.stderr)
-    return 2
 
 
 def run_log(args) -> int:

@@ -32,7 +32,7 @@ from station.paths import data_dir
 from station.services import trials as service
 from station.trialformat import NO, NOT_REACHED, OUTCOMES, YES, goal_reached, resolve_outcomes
 from station.tui.registry import ScreenEntry
-from station.tui.widgets.scenario_select import scenario_choices, select_scenario
+from station.tui.widgets.scenario_select import scenario_select, select_scenario
 
 #: How each outcome looks in the events table.
 OUTCOME_STYLE = {YES: "bold green", NO: "bold red", NOT_REACHED: "yellow"}
@@ -83,10 +83,8 @@ class TrialsScreen(Screen):
         yield Header()
         with Horizontal():
             with Vertical(id="controls"):
-                yield Label("Scenario", classes="heading")
-                choices = scenario_choices()
-                yield Select([(label, path) for label, path in choices], id="scenario", allow_blank=not choices,
-                             value=choices[0][1] if choices else Select.BLANK)
+                yield Label("Scenario run", classes="heading")
+                yield scenario_select()
                 yield Label("Layout built (file, or a named one)")
                 yield Input(placeholder="success, or LAYOUT.json", id="layout")
                 yield Label("As built (CHECK.json, optional)")
