@@ -341,7 +341,12 @@ class Database:
             if "locked" in str(error) or "busy" in str(error):
                 raise StationError(f"database {self.where!r}: still busy after {BUSY_SECONDS:g} s (another "
                                    "station process holds it); try again") from None
-            raise
+            raise StationError(f"database {self.where!r}: {error}") from None
+        except Exception as error:  # the driver's own errors (disk full, read-only file, a lost server): one line
+            if not isinstance(error, sqlite3.Error) and not type(error).__module__.startswith("psycopg"):
+                raise
+            detail = " ".join(str(error).split())
+            raise StationError(f"database {self.where!r}: {detail or type(error).__name__}") from None
 
 
 class Transaction:

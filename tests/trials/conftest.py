@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import json
+import shutil
+import tempfile
 import uuid
 from pathlib import Path
 
@@ -28,13 +30,18 @@ def log_json(capsys, *argv: str) -> int:
 
 
 @pytest.fixture(scope="module")
-def pg_server(tmp_path_factory):
-    """One real PostgreSQL server for the module (pgserver: PostgreSQL in a wheel, a dev dependency; ~0.6 s to
-    initialize and start). Stopped and deleted at the module's end."""
+def pg_server():
+    """One real PostgreSQL server for the module (pgserver: PostgreSQL in a wheel, a dev dependency; 0.6-4 s to
+    initialize and start, by the machine's load). Stopped and deleted at the module's end.
+
+    Its folder is a new one in the system's temporary folder, not pytest's: run as root, pgserver runs the server
+    as a user of its own and opens every parent folder to it, which pytest's own private folder does not keep.
+    """
     pgserver = pytest.importorskip("pgserver", reason="pgserver (dev dependency) runs the PostgreSQL tests")
     import psycopg
 
-    server = pgserver.get_server(tmp_path_factory.mktemp("pg") / "data", cleanup_mode="delete")
+    folder = Path(tempfile.mkdtemp(prefix="chaos-station-pg-"))
+    server = pgserver.get_server(folder / "data", cleanup_mode="delete")
     # a throw-away server: no fsync (CREATE DATABASE and the shutdown checkpoint took seconds of disk flushes)
     with psycopg.connect(server.get_uri(), autocommit=True) as admin:
         for setting in ("fsync = off", "synchronous_commit = off", "full_page_writes = off"):
@@ -42,6 +49,7 @@ def pg_server(tmp_path_factory):
         admin.execute("SELECT pg_reload_conf()")
     yield server
     server.cleanup()
+    shutil.rmtree(folder, ignore_errors=True)
 
 
 @pytest.fixture
