@@ -7,6 +7,7 @@ import json
 from textual.widgets import DataTable, Input
 
 from station.db import DATABASE_VARIABLE
+from station.services.trials import build_trial, layout_values, load_trial_scenario
 from station.triallog import TrialStore
 
 from ..conftest import opened, settle
@@ -19,8 +20,6 @@ async def test_tick_events_in_graph_order_log_filter_and_export(tmp_path, monkey
     url = str(tmp_path / "trials.sqlite3")
     monkeypatch.setenv(DATABASE_VARIABLE, url)
     with TrialStore(url) as store:  # a trial logged earlier (by the CLI, another station)
-        from station.services.trials import build_trial, layout_values, load_trial_scenario
-
         ballrun = load_trial_scenario("ballrun")
         store.add(build_trial(ballrun, layout_values(ballrun, ballrun.layout("success")), {"ball_stops": "yes"},
                               who="bo"))
@@ -75,3 +74,19 @@ async def test_tick_events_in_graph_order_log_filter_and_export(tmp_path, monkey
         assert "1 trial(s) exported" in str(screen.query_one("#status").render())
         exported = json.loads(out.read_text())
         assert [t["id"] for t in exported["trials"]] == [2]
+
+
+async def test_c_takes_the_scenario_and_layout_of_the_contraptions_screen(tmp_path, monkeypatch):
+    monkeypatch.setenv(DATABASE_VARIABLE, str(tmp_path / "trials.sqlite3"))
+    others = tuple(a for a in OTHER_AREAS if a != "contraption")
+    async with opened(tmp_path, "c", without=others) as (app, pilot):
+        await pilot.press("l")  # the Contraptions screen's next layout: SIMPLE's "failure"
+        await pilot.press("escape", "t")
+        await settle(app, pilot)
+        screen = app.screen
+        assert screen.name == "trials"
+        screen.choose_scenario(str(load_trial_scenario("ballrun").source))
+        screen.query_one("#events", DataTable).focus()
+        await pilot.press("c")
+        assert screen.scenario.name == "SIMPLE"
+        assert screen.query_one("#layout", Input).value == "failure"

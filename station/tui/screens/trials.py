@@ -67,6 +67,7 @@ class TrialsScreen(Screen):
         Binding("backspace", "outcome('')", "Clear", show=False),
         Binding("l", "log", "Log trial"),
         Binding("e", "export", "Export"),
+        Binding("c", "from_contraption", "From Contraptions"),
     ]
 
     def __init__(self) -> None:
@@ -86,7 +87,7 @@ class TrialsScreen(Screen):
                 yield Label("Scenario run", classes="heading")
                 yield scenario_select()
                 yield Label("Layout built (file, or a named one)")
-                yield Input(placeholder="success, or LAYOUT.json", id="layout")
+                yield Input(placeholder="success, LAYOUT.json; empty: the file's own", id="layout")
                 yield Label("As built (CHECK.json, optional)")
                 yield Input(placeholder="CHECK.json", id="as-built")
                 yield Label("Who / notes")
@@ -125,7 +126,7 @@ class TrialsScreen(Screen):
 
     def choose_scenario(self, path: str, layout: str | None = None) -> bool:
         """Show scenario ``path``'s events to tick (``layout``: the layout field's text; default its "success"
-        layout if it has one). Used by other screens after a simulated or physical run."""
+        layout if it has one; "" the scenario's defaults). Used by c (the Contraptions screen's scenario)."""
         try:
             scenario = service.load_trial_scenario(path)
         except (DesignError, StationError, OSError) as error:
@@ -144,6 +145,14 @@ class TrialsScreen(Screen):
         self._fill_events()
         self.set_status(f"{scenario.name}: say what happened to each event, in order")
         return True
+
+    def action_from_contraption(self) -> None:
+        """Take the scenario and layout shown on the Contraptions screen (the one just simulated and built)."""
+        current = self.app.current_contraption() if hasattr(self.app, "current_contraption") else None
+        if current is None:
+            self.set_status("no scenario on the Contraptions screen", "yellow")
+            return
+        self.choose_scenario(current[0], current[1])
 
     def _fill_events(self) -> None:
         table = self.query_one("#events", DataTable)
@@ -215,8 +224,8 @@ class TrialsScreen(Screen):
     @work(thread=True, exclusive=True, group="trials-db")
     def _log_worker(self, scenario: Scenario, given: dict[str, str], fields: dict[str, str]) -> None:
         try:
-            layout_text = fields["layout"] or "defaults"
-            x = scenario.default_layout() if layout_text == "defaults" else resolve_layout(layout_text, scenario).x
+            # an empty field: the scenario file's own transforms
+            x = resolve_layout(fields["layout"], scenario).x if fields["layout"] else scenario.default_layout()
             layout = service.layout_values(scenario, x)
             as_built, check = (service.read_as_built(fields["as-built"], scenario, layout) if fields["as-built"]
                                else (None, None))
