@@ -43,8 +43,10 @@ def _unjson(text: str | None) -> Any:
     return None if text is None else json.loads(text)
 
 
+# A scenario's text is read once per query, not once per trial (a log of thousands of runs of one scenario would
+# otherwise carry thousands of copies of it): the trials' rows name it, :meth:`TrialStore._scenarios` reads it.
 _SELECT = """
-    SELECT t.id, t.uid, s.name, s.content_hash, s.content, t.layout, t.as_built, t.check_report, t.physics_name,
+    SELECT t.id, t.uid, t.scenario_id, t.layout, t.as_built, t.check_report, t.physics_name,
            t.physics_content, t.success, t.who, t.created_at, t.notes, t.photos
     FROM trials t JOIN scenarios s ON s.id = t.scenario_id
 """
@@ -171,16 +173,18 @@ class TrialStore:
         with self.database.transaction(write=False) as tx:
             rows = tx.all(sql, params)[::-1]
             events = self._events(tx, [row[0] for row in rows])
-        return [self._record(row, events.get(row[0], [])) for row in rows]
+            scenarios = self._scenarios(tx, {row[2] for row in rows})
+        return [self._record(row, events.get(row[0], []), scenarios) for row in rows]
 
     def get(self, trial_id: int) -> dict[str, Any]:
         """One trial (raises :class:`ServiceError` with ``field="id"`` when there is none with that id)."""
         with self.database.transaction(write=False) as tx:
             row = tx.one(_SELECT + " WHERE t.id = ?", (int(trial_id),))
-            events = self._events(tx, [int(trial_id)]) if row else {}
-        if row is None:
-            raise ServiceError(f"id: no trial {trial_id} in the log ({self.where})", field="id", value=trial_id)
-        return self._record(row, events.get(row[0], []))
+            if row is None:
+                raise ServiceError(f"id: no trial {trial_id} in the log ({self.where})", field="id", value=trial_id)
+            events = self._events(tx, [int(trial_id)])
+            scenarios = self._scenarios(tx, {row[2]})
+        return self._record(row, events.get(row[0], []), scenarios)
 
     def count(self) -> int:
         with self.database.transaction(write=False) as tx:
@@ -199,9 +203,19 @@ class TrialStore:
         return result
 
     @staticmethod
-    def _record(row: tuple, events: list[tuple]) -> dict[str, Any]:
-        (trial_id, uid, name, content_hash, content, layout, as_built, check, physics_name, physics_content,
-         success, who, created_at, notes, photos) = row
+    def _scenarios(tx: Transaction, ids: set[int]) -> dict[int, tuple[str, str, str]]:
+        """Scenario id -> (name, content hash, text), for the ``ids`` given."""
+        if not ids:
+            return {}
+        rows = tx.all("SELECT id, name, content_hash, content FROM scenarios WHERE id BETWEEN ? AND ?",
+                      (min(ids), max(ids)))
+        return {row[0]: tuple(row[1:]) for row in rows if row[0] in ids}
+
+    @staticmethod
+    def _record(row: tuple, events: list[tuple], scenarios: Mapping[int, tuple[str, str, str]]) -> dict[str, Any]:
+        (trial_id, uid, scenario_id, layout, as_built, check, physics_name, physics_content, success, who,
+         created_at, notes, photos) = row
+        name, content_hash, content = scenarios[scenario_id]
         return {
             "id": int(trial_id), "uid": uid,
             "scenario": {"name": name, "content_hash": content_hash, "content": content},
