@@ -46,8 +46,9 @@ def writer(url: str, style: str, seconds: float, seed: int) -> None:
                 trial_id = once.add(record)
         else:
             trial_id = store.add(record)
-            store.trials(limit=20)
         os.write(1, f"{trial_id}\n".encode())  # one write: a line reaches the pipe whole or not at all
+        if store is not None:
+            store.trials(limit=20)  # the screen lists the log after logging
     if store is not None:
         store.close()
 
