@@ -6,7 +6,6 @@ import sqlite3
 
 from station.db import MIGRATIONS, open_database, schema_version
 
-
 #: The trial log's tables (migration 3; sqlite_sequence is SQLite's own, for AUTOINCREMENT ids).
 TRIAL_TABLES = {"scenarios", "trials", "trial_events", "sqlite_sequence"}
 
