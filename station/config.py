@@ -48,7 +48,7 @@ from station.paths import data_dir
 CONFIG_VARIABLE = "CHAOS_STATION_CONFIG"
 CONFIG_NAME = "station.toml"
 
-TOP_KEYS = ("devices",)
+TOP_KEYS = ("devices", "database")
 DEVICE_KEYS = ("name", "kind", "url", "profile", "options")
 KINDS = tuple(REGISTRY_KIND)
 NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.-]{0,31}$")
@@ -105,10 +105,13 @@ class StationConfig:
         The file it was read from; None for the built-in default (no file).
     devices : tuple of DeviceEntry
         The devices, in the file's order.
+    database : str or None
+        ``[database] url``: the station database's URL (see :mod:`station.db`); None: the local SQLite file.
     """
 
     path: Path | None
     devices: tuple[DeviceEntry, ...]
+    database: str | None = None
 
 
 class _ConfigChecker(Checker):
@@ -164,7 +167,8 @@ def load_config(path: str | Path | None = None) -> StationConfig:
         raise ConfigError(f"expected UTF-8 text ({error.reason} at byte {error.start})", file) from None
     except OSError as error:  # a folder, no permission
         raise ConfigError(f"cannot read: {error.strerror or error}", file) from None
-    return StationConfig(path, devices_from_text(text, file, path.parent))
+    devices = devices_from_text(text, file, path.parent)
+    return StationConfig(path, devices, database_from_text(text, file, path.parent))
 
 
 def configured_devices() -> tuple[DeviceEntry, ...]:
@@ -178,6 +182,33 @@ def devices_from_text(text: str, file: str = "<text>", folder: Path | None = Non
     data = parse_toml(text.encode("utf-8"), file, "a station config ([[devices]] tables)",
                       error=lambda detail: ConfigError(detail, file))
     return devices_from_data(data, file, folder if folder is not None else Path.cwd())
+
+
+def database_from_text(text: str, file: str = "<text>", folder: Path | None = None) -> str | None:
+    """The ``[database]`` table's ``url`` (a relative SQLite path is taken from ``folder``), None without one.
+
+    ``url`` is a PostgreSQL URL (``postgresql://USER:PASSWORD@HOST/DB``), ``sqlite:///PATH`` or a file path.
+    """
+    from station.db import parse_url
+    from station.errors import StationError
+
+    data = parse_toml(text.encode("utf-8"), file, "a station config ([[devices]] tables)",
+                      error=lambda detail: ConfigError(detail, file))
+    check = _ConfigChecker(file)
+    top = check.table(data, "")
+    if "database" not in top:
+        return None
+    table = check.table(top["database"], "database")
+    check.only(table, "database", ("url",))
+    expected = "a database URL (postgresql://USER:PASSWORD@HOST/DB, sqlite:///PATH or a file path)"
+    url = check.string(check.required(table, "database", "url", expected), "database.url", what=expected).strip()
+    try:
+        dialect, target = parse_url(url)
+    except StationError as error:
+        raise check.fail("database.url", str(error)) from None
+    if dialect == "sqlite" and not Path(target).is_absolute():
+        return str((folder if folder is not None else Path.cwd()) / target)
+    return url
 
 
 def devices_from_data(data: Any, file: str, folder: Path) -> tuple[DeviceEntry, ...]:

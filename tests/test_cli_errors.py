@@ -140,6 +140,11 @@ MISSING_FILE = {
     ("simulate",): ["simulate", "missing.toml"],
     ("tolerances",): ["tolerances", "simple", "missing.json"],
     ("guide",): ["guide", "simple", "missing.json", "--pdf", "OUT.pdf"],
+    ("trial", "log"): ["trial", "log", "missing.toml", "success", "--outcome", "last_stops=yes"],
+    ("trial", "list"): None,
+    ("trial", "show"): None,
+    ("trial", "export"): None,  # writes a file; its --out refusals are tests/trials/test_trial_cli.py's
+    ("trial", "import"): ["trial", "import", "missing.json"],
 }
 
 

@@ -31,7 +31,7 @@ BAD = [
     ('[devices.plotter]\nkind = "plotter"',
      "devices: expected [[devices]] tables (an array of tables), got a table ([devices] or [devices.NAME])"),
     ("", "devices: missing; expected [[devices]] tables (an array of tables)"),
-    ('colour = "red"\n' + PLOTTER, "colour: unknown field; expected one of: devices"),
+    ('colour = "red"\n' + PLOTTER, "colour: unknown field; expected one of: devices, database"),
     ("devices = [1]", "devices[0]: expected a table (mapping), got a number (1)"),
     ("[[devices]\n", "not valid TOML (Expected ']]' at the end of an array declaration at line 1 column 10); "
                       "expected a station config ([[devices]] tables)"),

@@ -185,6 +185,20 @@ class Scenario:
     def edges(self) -> list[tuple[str, str]]:
         return [(parent, e.name) for e in self.event_specs for parent in e.after]
 
+    @property
+    def graph_order(self) -> tuple[str, ...]:
+        """Event names in the causal graph's order: every event after all its parents, otherwise in file order
+        (the file's own order when it already is one; a file may list a child before its parent)."""
+        order: list[str] = []
+        remaining = list(self.event_specs)
+        while remaining:
+            ready = next((e for e in remaining if all(p in order for p in e.after)), None)
+            if ready is None:  # pragma: no cover - a loaded scenario's graph is checked acyclic
+                raise ValueError(f"{self.source}: the causal graph has a cycle among {[e.name for e in remaining]}")
+            order.append(ready.name)
+            remaining.remove(ready)
+        return tuple(order)
+
     def children(self, event: str) -> list[str]:
         return [e.name for e in self.event_specs if event in e.after]
 

@@ -103,6 +103,19 @@ class StationApp(App):
             return None
         return drawing.current_design()
 
+    def current_contraption(self) -> tuple[str, str] | None:
+        """The Contraptions screen's scenario file and layout (a name in the file, or "" for its defaults), for the
+        Trials screen; None in an app without that screen or before a scenario is loaded."""
+        try:
+            contraption = self.get_screen("contraption")
+        except KeyError:
+            return None
+        scenario = getattr(contraption, "scenario", None)
+        if scenario is None:
+            return None
+        name = contraption.layout_names[contraption.layout_index]
+        return scenario.source, "" if name == "file default" else name
+
     def machines_screen(self) -> Screen | None:
         """The Machines screen (it owns the device sessions and the job queues); None in an app without it."""
         try:

@@ -31,3 +31,9 @@ def select_scenario(select: Select, path: str) -> str:
         known = path
     select.value = known
     return known
+
+
+def scenario_select(widget_id: str = "scenario") -> Select:
+    """A Select of the example scenarios, the first chosen (blank only when there is none)."""
+    choices = scenario_choices()
+    return Select(choices, id=widget_id, allow_blank=not choices, value=choices[0][1] if choices else Select.BLANK)

@@ -1,0 +1,310 @@
+"""Trials screen: log a physical run of a contraption, list and filter past runs, export them.
+
+After a run, pick the scenario and the layout that was built, then walk the events in the causal graph's order
+(the table) and say what happened: y happened, n did not, u not reached, space cycles, backspace clears. Outcomes
+that follow from the others are shown dim in brackets (events after one that did not happen are not reached; the
+events a "yes" needed happened) and need no key. l logs the trial (one short transaction in the station database);
+the list below shows past trials, filtered by the text in the filter field (a scenario name, "success" or
+"failure", a name); e exports the listed scenario's trials (or all) to the file in the export field (.json or .csv).
+Files and the database are read and written in workers, never on the UI thread.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+from rich.text import Text
+from textual import on, work
+from textual.app import ComposeResult
+from textual.binding import Binding
+from textual.containers import Horizontal, Vertical
+from textual.screen import Screen
+from textual.widgets import Button, DataTable, Footer, Header, Input, Label, Select, Static
+
+from design.contraption.layout_io import resolve_layout
+from design.contraption.model import Scenario
+from design.errors import DesignError
+from station.db import database_url
+from station.errors import StationError
+from station.joblog import local_time
+from station.paths import data_dir
+from station.services import trials as service
+from station.trialformat import NO, NOT_REACHED, OUTCOMES, YES, goal_reached, resolve_outcomes
+from station.tui.registry import ScreenEntry
+from station.tui.widgets.scenario_select import scenario_select, select_scenario
+
+#: How each outcome looks in the events table.
+OUTCOME_STYLE = {YES: "bold green", NO: "bold red", NOT_REACHED: "yellow"}
+
+
+def matches(trial: dict[str, Any], text: str) -> bool:
+    """Whether a trial fits the filter ``text``: words all found in its scenario name, success/failure, who or
+    notes (case-insensitive)."""
+    haystack = " ".join([trial["scenario"]["name"], "success" if trial["success"] else "failure",
+                         trial["who"] or "", trial["notes"] or ""]).lower()
+    return all(word in haystack for word in text.lower().split())
+
+
+class TrialsScreen(Screen):
+    """Log what happened in a physical run, event by event; list, filter and export the log."""
+
+    CSS = """
+    TrialsScreen #controls { width: 44; padding: 0 1; }
+    TrialsScreen #controls Input { width: 100%; }
+    TrialsScreen #controls Button { width: 100%; margin-top: 1; }
+    TrialsScreen #right { width: 1fr; }
+    TrialsScreen #events { height: auto; max-height: 50%; }
+    TrialsScreen #trials { height: 1fr; }
+    TrialsScreen .heading { text-style: bold; margin-top: 1; }
+    """
+
+    BINDINGS = [
+        Binding("y", "outcome('yes')", "Happened"),
+        Binding("n", "outcome('no')", "Did not"),
+        Binding("u", "outcome('not-reached')", "Not reached"),
+        Binding("space", "cycle", "Cycle", show=False),
+        Binding("backspace", "outcome('')", "Clear", show=False),
+        Binding("l", "log", "Log trial"),
+        Binding("e", "export", "Export"),
+        Binding("c", "from_contraption", "From Contraptions"),
+    ]
+
+    def __init__(self) -> None:
+        super().__init__(name="trials")
+        self.scenario: Scenario | None = None
+        #: What the maker said, event -> outcome word (implied outcomes are not in it).
+        self.given: dict[str, str] = {}
+        #: The trials listed (after the filter), oldest first.
+        self.trials: list[dict[str, Any]] = []
+        self._all: list[dict[str, Any]] = []
+        self.last_logged: int | None = None
+
+    def compose(self) -> ComposeResult:
+        yield Header()
+        with Horizontal():
+            with Vertical(id="controls"):
+                yield Label("Scenario run", classes="heading")
+                yield scenario_select()
+                yield Label("Layout built (file, or a named one)")
+                yield Input(placeholder="success, LAYOUT.json; empty: the file's own", id="layout")
+                yield Label("As built (CHECK.json, optional)")
+                yield Input(placeholder="CHECK.json", id="as-built")
+                yield Label("Who / notes")
+                yield Input(placeholder="your name", id="who")
+                yield Input(placeholder="what was different this time", id="notes")
+                yield Button("Log trial (l)", id="log", variant="primary")
+                yield Label("Filter / export", classes="heading")
+                yield Input(placeholder="filter: scenario name, success, failure, who", id="filter")
+                yield Input(str(data_dir() / "trials.json"), id="export-path")
+                yield Button("Export (e)", id="export")
+                yield Static("", id="status")
+            with Vertical(id="right"):
+                yield Static("", id="summary")
+                yield DataTable(id="events", cursor_type="row", zebra_stripes=True)
+                yield Label("Past trials", classes="heading")
+                yield DataTable(id="trials", cursor_type="row", zebra_stripes=True)
+        yield Footer()
+
+    def on_mount(self) -> None:
+        events = self.query_one("#events", DataTable)
+        for column in ("event", "after", "outcome"):
+            events.add_column(column, key=column)
+        self.query_one("#trials", DataTable).add_columns("id", "when", "scenario", "result", "events", "layout",
+                                                          "who")
+        select = self.query_one("#scenario", Select)
+        if select.value is not Select.BLANK:
+            self.choose_scenario(str(select.value))
+        self.refresh_trials()
+        events.focus()
+
+    # -- the scenario and its events ---------------------------------------------------------------------------
+    @on(Select.Changed, "#scenario")
+    def _scenario_changed(self, event: Select.Changed) -> None:
+        if event.value is not Select.BLANK and (self.scenario is None or self.scenario.source != str(event.value)):
+            self.choose_scenario(str(event.value))
+
+    def choose_scenario(self, path: str, layout: str | None = None) -> bool:
+        """Show scenario ``path``'s events to tick (``layout``: the layout field's text; default its "success"
+        layout if it has one; "" the scenario's defaults). Used by c (the Contraptions screen's scenario)."""
+        try:
+            scenario = service.load_trial_scenario(path)
+        except (DesignError, StationError, OSError) as error:
+            self.set_status(str(error), "red")
+            return False
+        self.scenario = scenario
+        self.given = {}
+        select = self.query_one("#scenario", Select)
+        if str(select.value) != path:
+            select_scenario(select, path)
+        default = "success" if "success" in scenario.layouts else ""
+        self.query_one("#layout", Input).value = layout if layout is not None else default
+        self.query_one("#summary", Static).update(Text.assemble(
+            (scenario.name, "bold"), f" — {len(scenario.events)} events; goal: {', '.join(scenario.leaves())}. "
+            "y happened, n did not, u not reached; l logs."))
+        self._fill_events()
+        self.set_status(f"{scenario.name}: say what happened to each event, in order")
+        return True
+
+    def action_from_contraption(self) -> None:
+        """Take the scenario and layout shown on the Contraptions screen (the one just simulated and built)."""
+        current = self.app.current_contraption() if hasattr(self.app, "current_contraption") else None
+        if current is None:
+            self.set_status("no scenario on the Contraptions screen", "yellow")
+            return
+        self.choose_scenario(current[0], current[1])
+
+    def _fill_events(self) -> None:
+        table = self.query_one("#events", DataTable)
+        row = table.cursor_row
+        table.clear()
+        outcomes, problems = resolve_outcomes(self.scenario, self.given)
+        for name in self.scenario.graph_order:
+            spec = self.scenario.event(name)
+            after = (" & " if spec.join == "all" else " | ").join(spec.after) or "(start)"
+            table.add_row(name, after, self._outcome_text(name, outcomes[name]), key=name)
+        table.move_cursor(row=min(row, table.row_count - 1))
+        if problems:
+            self.set_status(str(problems[0]).replace("outcome.", "", 1), "yellow")
+        elif all(outcomes.values()):
+            verdict = "success" if goal_reached(self.scenario, outcomes) else "failure"
+            self.set_status(f"every event said: a {verdict}; l logs it", "green")
+
+    def _outcome_text(self, name: str, word: str | None) -> Text:
+        if word is None:
+            return Text("?", style="dim")
+        if name in self.given:
+            return Text(word, style=OUTCOME_STYLE[word])
+        return Text(f"({word})", style="dim")
+
+    def current_event(self) -> str | None:
+        table = self.query_one("#events", DataTable)
+        if self.scenario is None or table.row_count == 0:
+            return None
+        return self.scenario.graph_order[table.cursor_row]
+
+    def action_outcome(self, word: str) -> None:
+        """Say (or clear, ``""``) what happened to the highlighted event, then move to the next."""
+        name = self.current_event()
+        if name is None:
+            return
+        if word:
+            self.given[name] = word
+        else:
+            self.given.pop(name, None)
+        self._fill_events()
+        if word:
+            self.query_one("#events", DataTable).action_cursor_down()
+
+    def action_cycle(self) -> None:
+        name = self.current_event()
+        if name is None:
+            return
+        cycle = (*OUTCOMES, "")
+        current = self.given.get(name, "")
+        self.given[name] = cycle[(cycle.index(current) + 1) % len(cycle)]
+        if not self.given[name]:
+            del self.given[name]
+        self._fill_events()
+
+    def set_status(self, text: str, style: str = "") -> None:
+        self.query_one("#status", Static).update(Text(text, style=style))
+
+    # -- logging -------------------------------------------------------------------------------------------------
+    @on(Button.Pressed, "#log")
+    def action_log(self) -> None:
+        if self.scenario is None:
+            self.set_status("pick a scenario first", "yellow")
+            return
+        fields = {key: self.query_one(f"#{key}", Input).value.strip() for key in ("layout", "as-built", "who",
+                                                                                 "notes")}
+        self.set_status("logging…")
+        self._log_worker(self.scenario, dict(self.given), fields)
+
+    @work(thread=True, exclusive=True, group="trials-db")
+    def _log_worker(self, scenario: Scenario, given: dict[str, str], fields: dict[str, str]) -> None:
+        try:
+            # an empty field: the scenario file's own transforms
+            x = resolve_layout(fields["layout"], scenario).x if fields["layout"] else scenario.default_layout()
+            layout = service.layout_values(scenario, x)
+            as_built, check = (service.read_as_built(fields["as-built"], scenario, layout) if fields["as-built"]
+                               else (None, None))
+            record = service.build_trial(scenario, layout, given, as_built=as_built, check=check,
+                                         who=fields["who"], notes=fields["notes"])
+            with service.open_store(database_url()) as store:
+                trial_id = store.add(record)
+                trials = store.trials()
+        except (DesignError, StationError, OSError) as error:
+            self.app.call_from_thread(self.set_status, str(error).replace("outcome.", "", 1), "red")
+            return
+        self.app.call_from_thread(self._logged, trial_id, record, trials)
+
+    def _logged(self, trial_id: int, record: dict, trials: list[dict]) -> None:
+        self.last_logged = trial_id
+        self.given = {}
+        self.query_one("#notes", Input).value = ""
+        self._fill_events()
+        verdict = "success" if record["success"] else "failure"
+        self.set_status(f"logged trial #{trial_id} ({record['scenario']['name']}, {verdict})", "green")
+        self._show_trials(trials)
+
+    # -- the list, filter and export -----------------------------------------------------------------------------
+    def refresh_trials(self) -> None:
+        self._list_worker()
+
+    @work(thread=True, exclusive=True, group="trials-list")
+    def _list_worker(self) -> None:
+        try:
+            with service.open_store(database_url()) as store:
+                trials = store.trials()
+        except StationError as error:
+            self.app.call_from_thread(self.set_status, str(error), "red")
+            return
+        self.app.call_from_thread(self._show_trials, trials)
+
+    def _show_trials(self, trials: list[dict[str, Any]]) -> None:
+        self._all = trials
+        text = self.query_one("#filter", Input).value
+        self.trials = [t for t in trials if matches(t, text)]
+        table = self.query_one("#trials", DataTable)
+        table.clear()
+        for trial in reversed(self.trials):  # newest on top
+            built = "as built" if trial["as_built"] else "designed"
+            result = Text("success", "green") if trial["success"] else Text("failure", "red")
+            table.add_row(str(trial["id"]), local_time(trial["created_at"]), trial["scenario"]["name"],
+                          result, service.happened_count(trial), built, trial["who"] or "", key=str(trial["id"]))
+
+    @on(Input.Changed, "#filter")
+    def _filter_changed(self) -> None:
+        self._show_trials(self._all)
+
+    def on_screen_resume(self) -> None:
+        self.refresh_trials()  # another station or the CLI may have logged meanwhile
+
+    @on(Button.Pressed, "#export")
+    def action_export(self) -> None:
+        path = self.query_one("#export-path", Input).value.strip()
+        if not path:
+            self.set_status("give a file to export to (.json or .csv)", "yellow")
+            return
+        self._export_worker(Path(path).expanduser(), [t["id"] for t in self.trials])
+
+    @work(thread=True, exclusive=True, group="trials-db")
+    def _export_worker(self, path: Path, ids: list[int]) -> None:
+        try:
+            with service.open_store(database_url()) as store:
+                count = service.export_trials(store, path, ids=ids)
+        except (StationError, OSError) as error:
+            self.app.call_from_thread(self.set_status, str(error), "red")
+            return
+        self.app.call_from_thread(self.set_status, f"{count} trial(s) exported to {path}", "green")
+
+
+SCREEN = ScreenEntry(
+    name="trials",
+    key="t",
+    title="Trials",
+    description="log a physical run of a contraption event by event; list, filter and export the trial log",
+    factory=TrialsScreen,
+    order=58,
+)

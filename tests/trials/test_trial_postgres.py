@@ -1,0 +1,110 @@
+"""The trial log on a real PostgreSQL server (pgserver, started by the tests; never a mock): the same schema and
+migrations as SQLite, the same API and commands, several stations at once."""
+
+from __future__ import annotations
+
+import json
+import sqlite3
+import threading
+
+import pytest
+
+from station.db import DATABASE_VARIABLE, POSTGRES_MIGRATIONS, Database
+from station.services.trials import build_trial, layout_values, load_trial_scenario
+from station.triallog import TrialStore
+
+from .conftest import log_json, run_cli
+
+pytest.importorskip("psycopg", reason="psycopg (dev dependency) talks to PostgreSQL")
+
+
+def _trial(name="simple", **outcomes):
+    scenario = load_trial_scenario(name)
+    return build_trial(scenario, layout_values(scenario, scenario.layout("success")), outcomes)
+
+
+def _sqlite_columns(path) -> dict[str, list[tuple[str, bool]]]:
+    connection = sqlite3.connect(path)
+    tables = [r[0] for r in connection.execute("SELECT name FROM sqlite_master WHERE type = 'table' AND name NOT "
+                                               "LIKE 'sqlite_%' ORDER BY name")]
+    result = {t: [(r[1], bool(r[3] or r[5])) for r in connection.execute(f"PRAGMA table_info({t})")]
+              for t in tables}
+    connection.close()
+    return result
+
+
+def _postgres_columns(database: Database) -> dict[str, list[tuple[str, bool]]]:
+    with database.transaction(write=False) as tx:
+        rows = tx.all("SELECT table_name, column_name, is_nullable FROM information_schema.columns "
+                      "WHERE table_schema = 'public' AND table_name <> 'station_schema' "
+                      "ORDER BY table_name, ordinal_position")
+    result: dict[str, list[tuple[str, bool]]] = {}
+    for table, column, nullable in rows:
+        result.setdefault(table, []).append((column, nullable == "NO"))
+    return result
+
+
+def test_the_same_schema_and_migrations_as_sqlite(pg_url, tmp_path):
+    with Database(pg_url) as database:
+        with database.transaction(write=False) as tx:
+            assert tx.one("SELECT version FROM station_schema") == (len(POSTGRES_MIGRATIONS),)
+        postgres = _postgres_columns(database)
+    with Database(str(tmp_path / "t.sqlite3")):
+        pass
+    # the same tables, the same columns in the same order, the same NOT NULLs (SQLite's primary keys count)
+    assert postgres == _sqlite_columns(tmp_path / "t.sqlite3")
+    assert set(postgres) == {"jobs", "scenarios", "trials", "trial_events"}
+    # opening again applies nothing and keeps the data
+    with TrialStore(pg_url) as store:
+        trial_id = store.add(_trial(last_stops="yes"))
+    with TrialStore(pg_url) as store:
+        assert store.get(trial_id)["success"] is True
+
+
+def test_commands_round_trip_between_sqlite_and_postgresql(pg_url, tmp_path, capsys, monkeypatch):
+    # a station on its local file logs two trials and exports them ...
+    log_json(capsys, "simple", "success", "--outcome", "last_stops=yes", "--time", "last_stops=2.5", "--who", "ann")
+    log_json(capsys, "ballrun", "failure", "--outcome", "ball_hits_plank=no")
+    local = tmp_path / "local.json"
+    run_cli(capsys, "trial", "export", "--out", str(local))
+    # ... the makerspace's shared PostgreSQL database imports them, a station logs there directly
+    monkeypatch.setenv(DATABASE_VARIABLE, pg_url)
+    code, out, err = run_cli(capsys, "trial", "import", str(local), "--json")
+    assert code == 0, err
+    assert json.loads(out) == {"added": [1, 2], "duplicates": []}
+    third = log_json(capsys, "simple", "failure", "--outcome", "ball_hits_domino=no", "--notes", "on postgres")
+    assert third == 3
+    shared = tmp_path / "shared.json"
+    run_cli(capsys, "trial", "export", "--out", str(shared))
+    exported = json.loads(shared.read_text())
+    assert exported["trials"][:2] == json.loads(local.read_text())["trials"]
+    assert exported["trials"][2]["notes"] == "on postgres"
+    assert exported["trials"][2]["outcomes"]["first_topples"] == "not-reached"
+    code, out, _ = run_cli(capsys, "trial", "list", "--scenario", "simple", "--json")
+    assert [t["id"] for t in json.loads(out)] == [1, 3]
+    code, out, _ = run_cli(capsys, "trial", "import", str(local))
+    assert "0 trial(s) added" in out and "2 refused: already in the log" in out
+
+
+def test_two_stations_importing_the_same_file_at_once_add_each_trial_once(pg_url):
+    records = [_trial(last_stops="yes") for _ in range(20)]
+    results, errors = [], []
+
+    def station():
+        try:
+            with TrialStore(pg_url) as store:
+                results.append(store.import_trials(records))
+        except Exception as error:  # noqa: BLE001 - reported below
+            errors.append(error)
+
+    threads = [threading.Thread(target=station) for _ in range(2)]
+    for thread in threads:
+        thread.start()
+    for thread in threads:
+        thread.join(30)
+    assert not errors
+    assert sorted(len(added) for added, _ in results) == [0, 20]
+    assert sorted(len(duplicates) for _, duplicates in results) == [0, 20]
+    with TrialStore(pg_url) as store:
+        assert store.count() == 20
+        assert sorted(t["uid"] for t in store.trials()) == sorted(r["uid"] for r in records)

@@ -1,0 +1,92 @@
+"""The Trials screen (Pilot): tick the events of a run in the graph's order, log it, filter the list, export."""
+
+from __future__ import annotations
+
+import json
+
+from textual.widgets import DataTable, Input
+
+from station.db import DATABASE_VARIABLE
+from station.services.trials import build_trial, layout_values, load_trial_scenario
+from station.triallog import TrialStore
+
+from ..conftest import opened, settle
+
+#: Areas the test does not need (their screens take seconds to build under load).
+OTHER_AREAS = ("drawing", "explore", "sketch", "fabricate", "machines", "assemble", "optimize", "contraption")
+
+
+async def test_tick_events_in_graph_order_log_filter_and_export(tmp_path, monkeypatch):
+    url = str(tmp_path / "trials.sqlite3")
+    monkeypatch.setenv(DATABASE_VARIABLE, url)
+    with TrialStore(url) as store:  # a trial logged earlier (by the CLI, another station)
+        ballrun = load_trial_scenario("ballrun")
+        store.add(build_trial(ballrun, layout_values(ballrun, ballrun.layout("success")), {"ball_stops": "yes"},
+                              who="bo"))
+    async with opened(tmp_path, "t", without=OTHER_AREAS) as (app, pilot):
+        screen = app.screen
+        assert screen.name == "trials"
+        trials = screen.query_one("#trials", DataTable)
+        assert trials.row_count == 1
+        screen.choose_scenario(str(load_trial_scenario("simple").source))
+        await pilot.pause()
+        events = screen.query_one("#events", DataTable)
+        assert [str(events.get_cell(e, "event")) for e in screen.scenario.graph_order] == [
+            "ball_rolls", "ball_hits_domino", "first_topples", "last_topples", "last_stops"]
+        assert str(events.get_cell("ball_rolls", "outcome")) == "?"
+        events.focus()
+        await pilot.press("y")  # ball_rolls happened; the cursor moves on to ball_hits_domino
+        await pilot.press("y")
+        await pilot.press("n")  # first_topples did not: the two after it are not reached, shown dim
+        assert screen.given == {"ball_rolls": "yes", "ball_hits_domino": "yes", "first_topples": "no"}
+        assert str(events.get_cell("last_topples", "outcome")) == "(not-reached)"
+        assert "a failure; l logs it" in str(screen.query_one("#status").render())
+        screen.query_one("#who", Input).value = "ann"
+        await pilot.press("l")
+        await settle(app, pilot)
+        assert screen.last_logged == 2
+        assert "logged trial #2 (SIMPLE, failure)" in str(screen.query_one("#status").render())
+        assert trials.row_count == 2
+        with TrialStore(url) as store:
+            logged = store.get(2)
+        assert logged["outcomes"] == {"ball_rolls": "yes", "ball_hits_domino": "yes", "first_topples": "no",
+                                      "last_topples": "not-reached", "last_stops": "not-reached"}
+        assert logged["who"] == "ann" and logged["layout"] == {"track.x": -0.06, "track.z": 0.06, "track.roll": 30.0}
+
+        # an impossible tick is said on the status line, and logging it is refused, nothing written
+        events.move_cursor(row=0)
+        await pilot.press("n", "y")  # ball_rolls no, then ball_hits_domino yes: impossible
+        assert "ball_hits_domino: expected 'not-reached', got 'yes'" in str(screen.query_one("#status").render())
+        await pilot.press("l")
+        await settle(app, pilot)
+        assert "ball_hits_domino: expected 'not-reached'" in str(screen.query_one("#status").render())
+        assert trials.row_count == 2
+
+        # filter, then export what is listed
+        screen.query_one("#filter", Input).value = "simple"
+        await pilot.pause()
+        assert [t["id"] for t in screen.trials] == [2]
+        out = tmp_path / "simple.json"
+        screen.query_one("#export-path", Input).value = str(out)
+        events.focus()
+        await pilot.press("e")
+        await settle(app, pilot)
+        assert "1 trial(s) exported" in str(screen.query_one("#status").render())
+        exported = json.loads(out.read_text())
+        assert [t["id"] for t in exported["trials"]] == [2]
+
+
+async def test_c_takes_the_scenario_and_layout_of_the_contraptions_screen(tmp_path, monkeypatch):
+    monkeypatch.setenv(DATABASE_VARIABLE, str(tmp_path / "trials.sqlite3"))
+    others = tuple(a for a in OTHER_AREAS if a != "contraption")
+    async with opened(tmp_path, "c", without=others) as (app, pilot):
+        await pilot.press("l")  # the Contraptions screen's next layout: SIMPLE's "failure"
+        await pilot.press("escape", "t")
+        await settle(app, pilot)
+        screen = app.screen
+        assert screen.name == "trials"
+        screen.choose_scenario(str(load_trial_scenario("ballrun").source))
+        screen.query_one("#events", DataTable).focus()
+        await pilot.press("c")
+        assert screen.scenario.name == "SIMPLE"
+        assert screen.query_one("#layout", Input).value == "failure"
