@@ -33,7 +33,8 @@ from calibration.errors import CalibrationError
 from calibration.intrinsics import CameraIntrinsics, to_gray
 
 __all__ = ["PlaneFix", "TagPose", "Measurement", "measure", "plane_from_points", "rays_to_height",
-           "fit_square", "square_corners", "detected_corners", "undistort", "MIN_REFERENCE_TAGS", "APRILTAG_OFFSET_PX"]
+           "fit_square", "sort_ids", "square_corners", "detected_corners", "undistort", "MIN_REFERENCE_TAGS",
+           "APRILTAG_OFFSET_PX"]
 
 #: pupil-apriltags' pixel centres sit at +0.5 (its pixel edges at integers); OpenCV's at integers.
 APRILTAG_OFFSET_PX = 0.5
@@ -224,6 +225,19 @@ def _apply(homography: np.ndarray, pixels: np.ndarray) -> np.ndarray:
     return points[:, :2] / points[:, 2:3]
 
 
+def sort_ids(found, reference_ids, part_ids):
+    """Sort detections by id: (the tags seen once, by id; unknown ids; duplicate ids; reference ids not seen).
+
+    A duplicate is never measured (which one is the part's?); a reference id seen twice is neither missing nor used.
+    """
+    counts = Counter(tag.tag_id for tag in found)
+    duplicates = tuple(sorted(i for i, n in counts.items() if n > 1))
+    unique = {tag.tag_id: tag for tag in found if counts[tag.tag_id] == 1}
+    unknown = tuple(sorted(i for i in counts if i not in reference_ids and i not in part_ids))
+    missing = tuple(sorted(i for i in reference_ids if i not in counts))
+    return unique, unknown, duplicates, missing
+
+
 def measure(image: np.ndarray, intrinsics: CameraIntrinsics,
             reference_tags: Sequence[tuple[int, tuple[float, float], float]],
             part_tags: Mapping[int, tuple[float, float]], previous: PlaneFix | None = None, *,
@@ -262,11 +276,7 @@ def measure(image: np.ndarray, intrinsics: CameraIntrinsics,
 
         gray = to_gray(image)
         found = detector.detect(gray) if detector is not None else detect_tags(gray)
-    counts = Counter(tag.tag_id for tag in found)
-    duplicates = tuple(sorted(i for i, n in counts.items() if n > 1))
-    unique = {tag.tag_id: tag for tag in found if counts[tag.tag_id] == 1}
-    unknown = tuple(sorted(i for i in counts if i not in references and i not in parts))
-    missing = tuple(sorted(i for i in references if i not in counts))
+    unique, unknown, duplicates, missing = sort_ids(found, references, parts)
 
     pixels = {i: undistort(detected_corners(tag), intrinsics) for i, tag in unique.items()
               if i in references or i in parts}
