@@ -246,10 +246,11 @@ class PlaneCheck:
     source: str
     camera: str
     reference_ids: tuple[int, ...]
+    guide: str | None = None
 
     def to_dict(self) -> dict:
         m = self.measurement
-        return {"source": self.source, "camera": self.camera,
+        return {"source": self.source, "camera": self.camera, "guide": self.guide,
                 "intrinsics": {"name": self.intrinsics.name, "rms_px": self.intrinsics.rms_px,
                                "notes": list(self.intrinsics.notes)},
                 "plane": None if m.plane is None else m.plane.to_dict(),
@@ -304,7 +305,7 @@ def plane_check(*, image: str | Path | np.ndarray | None = None, camera: str | N
     if remember and result.plane is not None:
         _save_plane(name, result.plane)
     ids = tuple(i for i, _c, _s in references) if references is not None else REFERENCE_TAG_IDS
-    return PlaneCheck(result, camera_model, source, name, tuple(ids))
+    return PlaneCheck(result, camera_model, source, name, tuple(ids), None if guide is None else str(guide))
 
 
 def _references_seen(frame: np.ndarray, camera_model):
