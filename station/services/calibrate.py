@@ -25,9 +25,9 @@ import numpy as np
 from common.progress import CancelCheck, ProgressCallback, Reporter
 from station.services.errors import ServiceError
 
-__all__ = ["IMAGE_SUFFIXES", "CameraCalibration", "PlaneCheck", "calibrate_camera", "camera_file",
-           "capture_views", "check_name", "grab_frame", "intrinsics_for", "plane_check", "read_views",
-           "reference_tags_from_guide", "write_board"]
+__all__ = ["IMAGE_SUFFIXES", "CameraCalibration", "PlaneCheck", "calibrate_camera", "camera_file", "camera_summary",
+           "capture_views", "check_name", "grab_frame", "intrinsics_for", "plane_check", "plane_summary",
+           "read_views", "reference_tags_from_guide", "write_board"]
 
 IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff")
 DEFAULT_CAMERA = "camera"
@@ -340,3 +340,48 @@ def _load_plane(name: str):
                         tuple(int(i) for i in data["reference_ids"]))
     except (OSError, ValueError, KeyError, TypeError):
         return None
+
+
+def camera_summary(result) -> list[str]:
+    """A calibration result in lines: the camera, each view, the coverage and the warnings."""
+    cam = result.intrinsics
+    k = cam.camera_matrix
+    lines = [f"camera {cam.name or ''}: {cam.image_size[0]}x{cam.image_size[1]}, fx {k[0, 0]:.1f} fy {k[1, 1]:.1f} px, "
+             f"centre ({k[0, 2]:.1f}, {k[1, 2]:.1f}), RMS {cam.rms_px:.3f} px over {len(result.used)} views",
+             "  distortion k1 k2 p1 p2 k3: " + " ".join(f"{v:+.4f}" for v in cam.dist_coeffs[:5]),
+             f"  coverage {result.coverage:.0%} of the image"
+             + (f"; corners without views: {', '.join(result.uncovered_corners)} (k3 fixed at 0)"
+                if result.uncovered_corners else "; all four corners covered")]
+    for view in result.views:
+        state = f"RMS {view.rms_px:.3f} px" if view.skipped is None else f"skipped: {view.skipped}"
+        lines.append(f"  {view.name:28s} {view.corners:3d} corners  {state}")
+    lines += [f"  warning: {w}" for w in result.warnings]
+    return lines
+
+
+def plane_summary(check) -> list[str]:
+    """A plane check in lines."""
+    m = check.measurement
+    lines = [f"frame from {check.source}; intrinsics: "
+             + (f"{check.intrinsics.name} (RMS {check.intrinsics.rms_px:.3f} px)" if check.intrinsics.rms_px
+                is not None else "; ".join(check.intrinsics.notes) or "given")]
+    if m.plane is None:
+        seen = [i for i in check.reference_ids if i not in m.missing_reference_ids and i not in m.duplicate_ids]
+        if check.guide is None:
+            lines.append(f"reference tags seen: {seen or 'none'}; no plane solved: give --guide GUIDE.json (the "
+                         "manifest of `station guide --json`) for their positions")
+        else:
+            lines.append(f"no plane: {len(seen)} reference tag(s) seen once, at least 2 needed")
+    else:
+        plane = m.plane
+        moved = ("" if plane.moved_mm is None else f"; moved {plane.moved_mm:.2f} mm since the last check"
+                 + (" (the camera or the sheet moved)" if plane.moved_mm > 1.0 else ""))
+        lines.append(f"plane from reference tags {list(plane.reference_ids)}: residual {plane.residual_mm:.3f} mm, "
+                     f"camera {plane.camera_centre_mm[2]:.0f} mm above it{moved}")
+    if m.missing_reference_ids:
+        lines.append(f"missing reference tags: {list(m.missing_reference_ids)}")
+    if m.duplicate_ids:
+        lines.append(f"tags seen twice (not used): {list(m.duplicate_ids)}")
+    if m.unknown_ids:
+        lines.append(f"other tags seen: {list(m.unknown_ids)}")
+    return lines
