@@ -10,11 +10,12 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
-__all__ = ["Scores", "acceptance_camera", "acceptance_options", "part_scene", "reference_layout", "score"]
+__all__ = ["Scores", "acceptance_camera", "acceptance_options", "board_views", "camera_pose", "part_scene",
+           "reference_layout", "score"]
 
 #: The acceptance camera: 1080p, f 1400 px, 1 m above the plane, a mild barrel lens.
 ACCEPTANCE_DISTORTION = (-0.08, 0.03, 0.0004, -0.0003, 0.0)
@@ -121,3 +122,86 @@ def score(measurement, truths, part_tags) -> Scores:
         positions.append(math.dist(tag.center_mm, truth.center_mm))
         headings.append((tag.heading_deg - truth.heading_deg + 180.0) % 360.0 - 180.0)
     return Scores(len(visible), min(found, len(visible)), tuple(false_ids), np.array(positions), np.array(headings))
+
+
+def camera_pose(centre_mm, target_mm=(0.0, 0.0), roll_deg: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
+    """(rvec, tvec) of a camera at ``centre_mm`` (u, v, h) looking at ``target_mm`` on the plane h = 0, turned by
+    ``roll_deg`` about its optical axis."""
+    import cv2
+
+    centre = np.asarray(centre_mm, dtype=float)
+    forward = np.array([target_mm[0], target_mm[1], 0.0]) - centre
+    forward /= np.linalg.norm(forward)
+    hint = np.array([0.0, 1.0, 0.0]) if abs(forward[1]) < 0.95 else np.array([1.0, 0.0, 0.0])
+    right = np.cross(forward, hint)
+    right /= np.linalg.norm(right)
+    rotation = np.vstack([right, np.cross(forward, right), forward])
+    rotation = cv2.Rodrigues(np.array([0.0, 0.0, math.radians(roll_deg)]))[0] @ rotation
+    return cv2.Rodrigues(rotation)[0].ravel(), -rotation @ centre
+
+
+def board_views(count: int, camera_matrix, dist_coeffs, image_size=(1920, 1080), *, seed: int = 0, options=None,
+                board=None, px_per_mm: float = 6.0):
+    """``count`` views of the ChArUco board (lying on the plane, centred at the origin) from random camera poses
+    (up to 50 degrees of tilt, the board wholly in view; every fourth view smaller, pushed into an image corner),
+    rendered by the camera twin: [(name, RGB image)], what :func:`calibration.intrinsics.calibrate_camera` takes.
+    """
+    from calibration.charuco import BoardSpec, board_image
+    from drivers.sim.camera_render import render
+    from drivers.sim.camera_scene import ImageItem, PlaneScene, RenderOptions
+
+    board = board or BoardSpec()
+    margin = 8.0
+    picture = board_image(board, px_per_mm, margin)
+    half_w, half_h = board.size_mm[0] / 2 + margin, board.size_mm[1] / 2 + margin
+    item = ImageItem(picture, np.array([[-half_w, half_h], [half_w, half_h], [half_w, -half_h], [-half_w, -half_h]]))
+    scene = PlaneScene(images=(item,))
+    options = options or RenderOptions(blur_px=0.7, noise=2.0, seed=seed)
+    rng = np.random.default_rng(seed)
+    matrix = np.asarray(camera_matrix, dtype=float)
+    focal = float(matrix[0, 0])
+    width, height = image_size
+    outline = np.column_stack([item.corners_mm, np.zeros(4)])
+    image_corners = np.array([[0.0, 0.0], [width - 1.0, 0.0], [width - 1.0, height - 1.0], [0.0, height - 1.0]])
+    views = []
+    while len(views) < count:
+        # every fourth view is aimed so the board reaches into an image corner (in turn), smaller and less tilted
+        wanted = image_corners[(len(views) // 4) % 4] if len(views) % 4 == 3 else None
+        tilt = math.radians(rng.uniform(0.0, 50.0 if wanted is None else 25.0))
+        azimuth = rng.uniform(0.0, 2 * math.pi)
+        fill = rng.uniform(1.3, 2.2) if wanted is None else rng.uniform(2.6, 3.2)  # the board fills 30-75% across
+        distance = focal * board.size_mm[0] / width * fill
+        centre = distance * np.array([math.sin(tilt) * math.cos(azimuth), math.sin(tilt) * math.sin(azimuth),
+                                      math.cos(tilt)])
+        # a corner view's board runs roughly along the image's edges (a board turned 45 degrees keeps its corners
+        # away from the image's)
+        roll = rng.uniform(-180.0, 180.0) if wanted is None else 90.0 * rng.integers(4) + rng.uniform(-8.0, 8.0)
+        # a corner view is aimed (Newton steps on the aim point) so that the board corner nearest the wanted image
+        # corner lands 2% of the width inside it
+        target = rng.uniform(-1.0, 1.0, 2) * 0.1 * distance * width / focal
+        best = _camera(matrix, dist_coeffs, image_size, centre, target, roll)
+        if wanted is not None:
+            goal = wanted + 0.02 * width * np.sign(np.array([width, height]) / 2 - wanted)
+            which = int(np.argmin(np.linalg.norm(best.project(outline) - goal, axis=1)))
+            for _ in range(8):
+                here = best.project(outline)[which]
+                step = 1e-3 * distance
+                jacobian = np.column_stack([
+                    (_camera(matrix, dist_coeffs, image_size, centre, target + d, roll).project(outline)[which]
+                     - here) / step for d in (np.array([step, 0.0]), np.array([0.0, step]))])
+                target = target + np.linalg.lstsq(jacobian, goal - here, rcond=None)[0]
+                best = _camera(matrix, dist_coeffs, image_size, centre, target, roll)
+        corners = best.project(outline)
+        if not (np.all(best.depth(outline) > 0) and np.all(corners >= 0) and np.all(corners[:, 0] < width - 1)
+                and np.all(corners[:, 1] < height - 1)):
+            continue
+        image, _ = render(scene, best, replace(options, seed=options.seed + len(views)))
+        views.append((f"view-{len(views) + 1:02d}", image))
+    return views
+
+
+def _camera(matrix, dist_coeffs, image_size, centre, target, roll):
+    from drivers.sim.camera_scene import CameraModel
+
+    rvec, tvec = camera_pose(centre, target, roll)
+    return CameraModel(matrix, np.asarray(dist_coeffs, dtype=float), tuple(image_size), rvec, tvec)
