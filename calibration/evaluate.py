@@ -14,8 +14,8 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-__all__ = ["Scores", "acceptance_camera", "acceptance_options", "board_views", "camera_pose", "part_scene",
-           "reference_layout", "score"]
+__all__ = ["Scores", "acceptance_camera", "acceptance_options", "board_cameras", "board_scene", "board_views",
+           "camera_pose", "part_scene", "reference_layout", "score"]
 
 #: The acceptance camera: 1080p, f 1400 px, 1 m above the plane, a mild barrel lens.
 ACCEPTANCE_DISTORTION = (-0.08, 0.03, 0.0004, -0.0003, 0.0)
@@ -140,28 +140,46 @@ def camera_pose(centre_mm, target_mm=(0.0, 0.0), roll_deg: float = 0.0) -> tuple
     return cv2.Rodrigues(rotation)[0].ravel(), -rotation @ centre
 
 
-def board_views(count: int, camera_matrix, dist_coeffs, image_size=(1920, 1080), *, seed: int = 0, options=None,
-                board=None, px_per_mm: float = 6.0):
-    """``count`` views of the ChArUco board (lying on the plane, centred at the origin) from random camera poses
-    (up to 50 degrees of tilt, the board wholly in view; every fourth view smaller, pushed into an image corner),
-    rendered by the camera twin: [(name, RGB image)], what :func:`calibration.intrinsics.calibrate_camera` takes.
-    """
+def board_scene(board=None, px_per_mm: float = 6.0):
+    """A :class:`drivers.sim.camera_scene.PlaneScene` of the ChArUco board (with an 8 mm white margin) lying on the
+    plane, centred at the origin, its top towards +v."""
     from calibration.charuco import BoardSpec, board_image
-    from drivers.sim.camera_render import render
-    from drivers.sim.camera_scene import ImageItem, PlaneScene, RenderOptions
+    from drivers.sim.camera_scene import ImageItem, PlaneScene
 
     board = board or BoardSpec()
     margin = 8.0
     picture = board_image(board, px_per_mm, margin)
     half_w, half_h = board.size_mm[0] / 2 + margin, board.size_mm[1] / 2 + margin
     item = ImageItem(picture, np.array([[-half_w, half_h], [half_w, half_h], [half_w, -half_h], [-half_w, -half_h]]))
-    scene = PlaneScene(images=(item,))
+    return PlaneScene(images=(item,))
+
+
+def board_views(count: int, camera_matrix, dist_coeffs, image_size=(1920, 1080), *, seed: int = 0, options=None,
+                board=None, px_per_mm: float = 6.0):
+    """``count`` views of :func:`board_scene` from :func:`board_cameras`, rendered by the camera twin with a
+    little blur and noise: [(name, RGB image)], what :func:`calibration.intrinsics.calibrate_camera` takes."""
+    from drivers.sim.camera_render import render
+    from drivers.sim.camera_scene import RenderOptions
+
+    scene = board_scene(board, px_per_mm)
     options = options or RenderOptions(blur_px=0.7, noise=2.0, seed=seed)
+    cameras = board_cameras(count, camera_matrix, dist_coeffs, image_size, seed=seed, board=board)
+    return [(f"view-{k + 1:02d}", render(scene, camera, replace(options, seed=options.seed + k))[0])
+            for k, camera in enumerate(cameras)]
+
+
+def board_cameras(count: int, camera_matrix, dist_coeffs, image_size=(1920, 1080), *, seed: int = 0, board=None):
+    """``count`` camera models (:class:`drivers.sim.camera_scene.CameraModel`) looking at :func:`board_scene` from
+    random poses: up to 50 degrees of tilt, the board wholly in view; every fourth view smaller, pushed into an image
+    corner (in turn), so that the corners can be covered."""
+    from calibration.charuco import BoardSpec
+
+    board = board or BoardSpec()
+    outline = np.column_stack([board_scene(board, 1.0).images[0].corners_mm, np.zeros(4)])
     rng = np.random.default_rng(seed)
     matrix = np.asarray(camera_matrix, dtype=float)
     focal = float(matrix[0, 0])
     width, height = image_size
-    outline = np.column_stack([item.corners_mm, np.zeros(4)])
     image_corners = np.array([[0.0, 0.0], [width - 1.0, 0.0], [width - 1.0, height - 1.0], [0.0, height - 1.0]])
     views = []
     while len(views) < count:
@@ -195,8 +213,7 @@ def board_views(count: int, camera_matrix, dist_coeffs, image_size=(1920, 1080),
         if not (np.all(best.depth(outline) > 0) and np.all(corners >= 0) and np.all(corners[:, 0] < width - 1)
                 and np.all(corners[:, 1] < height - 1)):
             continue
-        image, _ = render(scene, best, replace(options, seed=options.seed + len(views)))
-        views.append((f"view-{len(views) + 1:02d}", image))
+        views.append(best)
     return views
 
 

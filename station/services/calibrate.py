@@ -162,10 +162,11 @@ class CameraCalibration:
 
 def calibrate_camera(*, images: str | Path | None = None, capture: int | None = None, camera: str | None = None,
                      name: str | None = None, out: str | Path | None = None, interval_s: float = 1.0,
-                     progress: ProgressCallback | None = None,
-                     cancelled: CancelCheck | None = None) -> CameraCalibration:
+                     progress: ProgressCallback | None = None, cancelled: CancelCheck | None = None,
+                     before: Callable[[object, int], None] | None = None) -> CameraCalibration:
     """Calibrate a camera from a folder of board images or ``capture`` frames grabbed from ``camera`` (a URL;
     default the station's camera), and save it to ``out`` (default ``calibration/cameras/<name>.json``).
+    ``before(camera, index)`` runs before each grab (a simulated camera's board may be moved there).
 
     Raises
     ------
@@ -186,7 +187,7 @@ def calibrate_camera(*, images: str | Path | None = None, capture: int | None = 
     else:
         default_name, url = configured_camera_url() if camera is None else (DEFAULT_CAMERA, camera)
         name = check_name(name or default_name)
-        views = capture_views(url, capture, interval_s=interval_s, progress=report)
+        views = capture_views(url, capture, interval_s=interval_s, progress=report, before=before)
     try:
         result = solve(views, name=name, progress=report)
     except CalibrationError as error:
