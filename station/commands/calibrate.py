@@ -45,7 +45,9 @@ def register(subparsers) -> None:
 
     board = sub.add_parser("board", help="the ChArUco calibration board as a 1:1 PDF",
                            description="Write the ChArUco board (7x5 squares of 30 mm, 22 mm DICT_5X5_100 markers, "
-                           "landscape) as a 1:1 vector PDF. Print at 100% and check that a square measures 30 mm.")
+                           "landscape) as a 1:1 vector PDF. Print at 100% and check that a square measures 30 mm.",
+                           epilog="examples:\n  station calibrate board --pdf board.pdf\n"
+                           "  station calibrate board --pdf board.pdf --paper letter")
     board.add_argument("--pdf", required=True, metavar="OUT.pdf", help="the PDF to write")
     board.add_argument("--paper", default="a4", help="a4 (default), letter or a3")
     board.set_defaults(func=run_board)
@@ -54,7 +56,9 @@ def register(subparsers) -> None:
                             description="Solve the camera's intrinsics (camera matrix, distortion) from 10-20 views "
                             "of the printed board at different angles and places, some with the board in the image's "
                             "corners (else k3 is fixed and the result says which corners lacked views). Prints the "
-                            f"RMS and each view's error. --json prints {CAMERA_JSON}.")
+                            f"RMS and each view's error. --json prints {CAMERA_JSON}.",
+                            epilog="examples:\n  station calibrate camera --images shots/ --name desk\n"
+                            "  station calibrate camera --capture 15 --camera 0 --out desk.json --json")
     source = camera.add_mutually_exclusive_group(required=True)
     source.add_argument("--images", metavar="DIR", help="a folder of board images (png, jpg, ...)")
     source.add_argument("--capture", type=int, metavar="N", help="grab N frames from the camera")
@@ -72,7 +76,9 @@ def register(subparsers) -> None:
                            "(ids 583-586; their positions from --guide, the manifest `station guide --json` "
                            "prints; without it only which are seen is checked), report the residual at the tags "
                            "and how far the plane moved since the camera's last check (a bumped camera). "
-                           f"--json prints {PLANE_JSON}.")
+                           f"--json prints {PLANE_JSON}.",
+                           epilog="examples:\n  station calibrate plane --image frame.png --guide guide.json\n"
+                           "  station calibrate plane --camera sim://camera --guide guide.json --json")
     where = plane.add_mutually_exclusive_group()
     where.add_argument("--camera", metavar="URL", help="grab the frame from this camera (default: the station's)")
     where.add_argument("--image", metavar="FRAME", help="a frame saved as an image file")
