@@ -59,7 +59,7 @@ def register(subparsers) -> None:
                             f"RMS and each view's error. --json prints {CAMERA_JSON}.",
                             epilog="examples:\n  station calibrate camera --images shots/ --name desk\n"
                             "  station calibrate camera --capture 15 --camera 0 --out desk.json --json")
-    source = camera.add_mutually_exclusive_group(required=True)
+    source = camera.add_mutually_exclusive_group()
     source.add_argument("--images", metavar="DIR", help="a folder of board images (png, jpg, ...)")
     source.add_argument("--capture", type=int, metavar="N", help="grab N frames from the camera")
     camera.add_argument("--camera", metavar="URL", help="with --capture: the camera (default: the station's)")
@@ -109,6 +109,8 @@ def run_camera(args) -> int:
     from station.progress_view import ProgressView
     from station.services import calibrate as service
 
+    if args.images is None and args.capture is None:
+        raise UsageError("give --images DIR (a folder of board images) or --capture N (frames to grab)")
     if args.camera is not None and args.capture is None:
         raise UsageError("--camera goes with --capture N")
     out = check_output_file(args.out, {".json"}, "--out") if args.out else None

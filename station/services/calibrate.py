@@ -72,13 +72,15 @@ def write_board(path: str | Path, paper: str = "a4"):
     return spec
 
 
-def _read_image(path: Path) -> np.ndarray:
+def _read_image(path: Path, field: str = "images") -> np.ndarray:
     import cv2
 
+    if not path.is_file():
+        raise ServiceError(f"{field}: no such file: {path}", field=field, value=str(path))
     image = cv2.imread(str(path), cv2.IMREAD_GRAYSCALE)
     if image is None:
-        raise ServiceError(f"images: {path} is not an image OpenCV can read (expected {', '.join(IMAGE_SUFFIXES)})",
-                           field="images", value=str(path))
+        raise ServiceError(f"{field}: {path} is not an image OpenCV can read (expected {', '.join(IMAGE_SUFFIXES)})",
+                           field=field, value=str(path))
     return image
 
 
@@ -291,7 +293,7 @@ def plane_check(*, image: str | Path | np.ndarray | None = None, camera: str | N
     elif isinstance(image, np.ndarray):
         frame, source, name = image, "<frame>", check_name(name or DEFAULT_CAMERA)
     else:
-        frame, source, name = _read_image(Path(image)), str(image), check_name(name or DEFAULT_CAMERA)
+        frame, source, name = _read_image(Path(image), "image"), str(image), check_name(name or DEFAULT_CAMERA)
     size = (frame.shape[1], frame.shape[0])
     camera_model = intrinsics_for(size, intrinsics=intrinsics, name=name)
     references = reference_tags_from_guide(guide) if guide is not None else None
