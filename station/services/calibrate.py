@@ -345,17 +345,18 @@ def _load_plane(name: str):
         return None
 
 
-def camera_summary(result) -> list[str]:
-    """A calibration result in lines: the camera, each view, the coverage and the warnings."""
+def camera_summary(result, views: bool = True) -> list[str]:
+    """A calibration result in lines: the camera, each view (unless ``views`` is False), the coverage and the
+    warnings."""
     cam = result.intrinsics
     k = cam.camera_matrix
-    lines = [f"camera {cam.name or ''}: {cam.image_size[0]}x{cam.image_size[1]}, fx {k[0, 0]:.1f} fy {k[1, 1]:.1f} px, "
+    lines = [f"{cam.name or 'camera'}: {cam.image_size[0]}x{cam.image_size[1]}, fx {k[0, 0]:.1f} fy {k[1, 1]:.1f} px, "
              f"centre ({k[0, 2]:.1f}, {k[1, 2]:.1f}), RMS {cam.rms_px:.3f} px over {len(result.used)} views",
              "  distortion k1 k2 p1 p2 k3: " + " ".join(f"{v:+.4f}" for v in cam.dist_coeffs[:5]),
              f"  coverage {result.coverage:.0%} of the image"
              + (f"; corners without views: {', '.join(result.uncovered_corners)} (k3 fixed at 0)"
                 if result.uncovered_corners else "; all four corners covered")]
-    for view in result.views:
+    for view in result.views if views else ():
         state = f"RMS {view.rms_px:.3f} px" if view.skipped is None else f"skipped: {view.skipped}"
         lines.append(f"  {view.name:28s} {view.corners:3d} corners  {state}")
     lines += [f"  warning: {w}" for w in result.warnings]

@@ -120,7 +120,7 @@ class CameraPanel(Vertical):
         for view in result.views:
             table.add_row(view.name, str(view.corners),
                           f"{view.rms_px:.3f}" if view.skipped is None else view.skipped)
-        self.say("\n".join(service.camera_summary(result) + [f"saved {done.path}"]))
+        self.say("\n".join(service.camera_summary(result, views=False) + [f"saved {done.path}"]))
         self.query_one("#camera-progress", ProgressPanel).say(f"done: RMS {result.intrinsics.rms_px:.3f} px")
 
 
