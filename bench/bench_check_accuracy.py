@@ -100,7 +100,7 @@ def measure_time(data) -> None:
     for _ in range(3):
         measure(image, intrinsics, reference_layout(), parts)
     default = (time.perf_counter() - start) / 3
-    covered = dict(parts, **{999: (30.0, 0.0)})  # a part tag not in view: the full-size second pass runs
+    covered = {**parts, 999: (30.0, 0.0)}  # a part tag not in view: the full-size second pass runs
     start = time.perf_counter()
     measure(image, intrinsics, reference_layout(), covered)
     second = time.perf_counter() - start

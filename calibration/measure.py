@@ -23,6 +23,7 @@ not measured, an unknown id is reported, a missing reference tag is named.
 from __future__ import annotations
 
 import math
+import threading
 from collections import Counter
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
@@ -231,12 +232,24 @@ def _apply(homography: np.ndarray, pixels: np.ndarray) -> np.ndarray:
 def _detect(gray: np.ndarray, wanted: set[int]) -> list:
     """The tags in a frame: quads searched on a half-size image first (4x faster on 1080p, corners still refined on
     the full image), again at full size only when a wanted tag is not found (a small or far tag, ~20 px or less)."""
-    from projector.detection import TagDetector
-
-    found = TagDetector(FAST_DECIMATE, DETECT_THREADS).detect(gray)
+    found = _detector(FAST_DECIMATE).detect(gray)
     if wanted <= {tag.tag_id for tag in found}:
         return found
-    return TagDetector(1.0, DETECT_THREADS).detect(gray)
+    return _detector(1.0).detect(gray)
+
+
+_DETECTORS = threading.local()
+
+
+def _detector(decimate: float):
+    """This thread's detector for ``decimate`` (making one builds the family's decode table: ~0.1 s; a detector is
+    not safe to share between threads)."""
+    from projector.detection import TagDetector
+
+    detectors = _DETECTORS.__dict__.setdefault("by_decimate", {})
+    if decimate not in detectors:
+        detectors[decimate] = TagDetector(decimate, DETECT_THREADS)
+    return detectors[decimate]
 
 
 def sort_ids(found, reference_ids, part_ids):
