@@ -145,6 +145,9 @@ MISSING_FILE = {
     ("trial", "show"): None,
     ("trial", "export"): None,  # writes a file; its --out refusals are tests/trials/test_trial_cli.py's
     ("trial", "import"): ["trial", "import", "missing.json"],
+    ("calibrate", "board"): None,
+    ("calibrate", "camera"): ["calibrate", "camera", "--images", "missing.d", "--out", "OUT.json"],
+    ("calibrate", "plane"): ["calibrate", "plane", "--image", "missing.png"],
 }
 
 
