@@ -6,7 +6,8 @@ Every output pixel is cut into ``supersample x supersample`` samples. A sample's
 backwards: its pixel position is undistorted (``cv2.undistortPointsIter``, iterated to 1e-9 px, cached per camera
 and interpolated between pixel centres) into a ray direction, which is intersected with the plane of each item at the
 item's height. The item's picture (a tag's cells, an image, an occluder's outline) is sampled there (``cv2.remap``),
-the items drawn from the lowest up (at one height: pictures, then tags, then occluders; else in the scene's order).
+the items drawn from the lowest up (at one height: pictures, then occluders, then tags, which are printed on
+them; else in the scene's order).
 The samples are averaged into the pixel (``cv2.resize`` INTER_AREA), then exposure, vignetting, blur, noise and JPEG
 are applied in that order.
 
@@ -75,7 +76,7 @@ class _Layer:
     tex_from_plane: np.ndarray  # 3x3: plane (u, v, 1) mm -> texture pixel (x, y, 1)
     outline_mm: np.ndarray     # (n, 2) polygon covering what it hides
     bbox: tuple[int, int, int, int] | None  # x0, y0, x1, y1 pixels (None: not in view)
-    kind: int = 0              # 0 picture, 1 tag, 2 occluder
+    kind: int = 0              # 0 picture, 1 occluder, 2 tag
     index: int = 0             # its place in the scene's tuple of its kind
 
 
@@ -208,12 +209,13 @@ def _apply(matrix: np.ndarray, a: np.ndarray, b: np.ndarray) -> tuple[np.ndarray
 
 def _layers(scene: PlaneScene, camera: CameraModel, samples: int) -> list[_Layer]:
     """The scene's items as textured layers, in drawing order."""
+    # at one height: pictures, then occluders (a part's top face), then tags (printed on those faces)
     items = [(float(item.height_mm), 0, n, item) for n, item in enumerate(scene.images)]
-    items += [(float(item.height_mm), 1, n, item) for n, item in enumerate(scene.tags)]
-    items += [(float(item.height_mm), 2, n, item) for n, item in enumerate(scene.occluders)]
+    items += [(float(item.height_mm), 1, n, item) for n, item in enumerate(scene.occluders)]
+    items += [(float(item.height_mm), 2, n, item) for n, item in enumerate(scene.tags)]
     layers = []
     for _, kind, index, item in sorted(items, key=lambda entry: entry[:3]):
-        maker = (_image_layer, _tag_layer, _occluder_layer)[kind]
+        maker = (_image_layer, _occluder_layer, _tag_layer)[kind]
         layers.append(replace(maker(item, camera, samples), kind=kind, index=index))
     return layers
 
@@ -425,7 +427,7 @@ def _truth(scene: PlaneScene, camera: CameraModel, layers: list[_Layer]) -> tupl
     unhidden: a grid of points on it is checked against every item drawn after it, along the ray to the camera."""
     width, height = camera.image_size
     centre = camera.centre_mm
-    tag_layers = {layer.index: n for n, layer in enumerate(layers) if layer.kind == 1}
+    tag_layers = {layer.index: n for n, layer in enumerate(layers) if layer.kind == 2}
     truths = []
     for index, tag in enumerate(scene.tags):
         mine = tag_layers[index]
