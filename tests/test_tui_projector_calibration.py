@@ -8,8 +8,7 @@ import pytest
 from textual.app import App, ComposeResult
 from textual.widgets import Input
 
-from drivers.sim.camera import forget_cameras
-from drivers.sim.projector import forget_projectors, sim_projector
+from drivers.sim.projector import sim_projector
 from station.services.projector_calibration import projector_map_file
 from station.tui.widgets.progress import ProgressPanel
 from station.tui.widgets.projector_calibration import ProjectorCalibrationPanel
@@ -24,16 +23,12 @@ class Host(App):
 
 
 @pytest.fixture(autouse=True)
-def _sim_pair():
-    forget_cameras()
-    forget_projectors()
+def _sim_pair(fresh_twins):
     projector = sim_projector(PROJECTOR)
     corners = np.float32([[-0.5, -0.5], [319.5, -0.5], [319.5, 199.5], [-0.5, 199.5]])
     projector.place(cv2.getPerspectiveTransform(corners, np.float32([[-140, 90], [150, 95], [140, -85], [-130,
                                                                                                      -80]])))
-    yield projector
-    forget_cameras()
-    forget_projectors()
+    return projector
 
 
 async def settle(app, pilot):

@@ -20,9 +20,9 @@ from calibration.projector_map import (
     save_projector_map,
 )
 from common.progress import Cancelled
-from drivers.sim.camera import forget_cameras, sim_camera
+from drivers.sim.camera import sim_camera
 from drivers.sim.camera_scene import Occluder, PlaneScene
-from drivers.sim.projector import forget_projectors, sim_projector
+from drivers.sim.projector import sim_projector
 from station.services.errors import ServiceError
 from station.services.projector_calibration import calibrate_projector, projector_map_file, projector_summary
 
@@ -31,13 +31,7 @@ PROJECTOR = (1280, 800)
 LANDS_ON = np.float32([[-290, 200], [330, 215], [300, -190], [-270, -170]])
 
 
-@pytest.fixture(autouse=True)
-def _no_shared_twins():
-    forget_cameras()
-    forget_projectors()
-    yield
-    forget_cameras()
-    forget_projectors()
+pytestmark = pytest.mark.usefixtures("fresh_twins")
 
 
 def oblique(size=PROJECTOR):
