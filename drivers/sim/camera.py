@@ -211,14 +211,8 @@ def sim_camera(url: str = "sim://camera", timeout: float = 2.0, **_: Any) -> Sim
     return _SHARED.share(SimulatedCamera(url, timeout), url)
 
 
-def camera_named(name: str) -> SimulatedCamera | None:
-    """The shared twin opened with ``name=...``, if any."""
-    return _SHARED.named(name)
-
-
-def forget_cameras() -> None:
-    """Forget every shared twin (tests)."""
-    _SHARED.forget()
+#: ``camera_named(name)``: the shared twin opened with ``name=...``, if any; ``forget_cameras()``: forget them all.
+camera_named, forget_cameras = _SHARED.named, _SHARED.forget
 
 
 def parse_camera_options(url: str) -> dict:
