@@ -219,6 +219,7 @@ def test_dead_urls_are_one_line_within_the_timeout():
     started = time.monotonic()
     state = probe(f"http://127.0.0.1:{port}/stream.mjpg")
     assert state == "not available: cannot open the stream (unreachable, refused, or not a video stream)"
+    assert probe("/dev/video99") == "not available: no such device (is the camera plugged in? `ls /dev/video*`)"
     # a server that accepts and never answers: the first frame's deadline
     silent = socket.socket()
     silent.bind(("127.0.0.1", 0))
