@@ -458,7 +458,8 @@ def _truth(scene: PlaneScene, camera: CameraModel, layers: list[_Layer]) -> tupl
         points3 = np.column_stack([points, np.full(len(points), h)])
         border_px = camera.project(np.column_stack([border, np.full(4, h)]))
         visible = bool(np.all(camera.depth(points3) > 0)
-                       and np.all((border_px >= -0.5) & (border_px <= [width - 0.5, height - 0.5])))
+                       and np.all((border_px >= -0.5) & (border_px <= [width - 0.5, height - 0.5]))
+                       and _unfolded(camera, np.column_stack([border, np.full(4, h)]), border_px))
         if visible:
             for other in layers[mine + 1:]:
                 scale = (other.height - centre[2]) / (h - centre[2]) if h != centre[2] else math.inf
@@ -471,6 +472,20 @@ def _truth(scene: PlaneScene, camera: CameraModel, layers: list[_Layer]) -> tupl
         truths.append(TagTruth(int(tag.tag_id), (float(tag.center_mm[0]), float(tag.center_mm[1])),
                                float(tag.heading_deg), h, float(tag.size_mm), corners, centre_px, visible))
     return tuple(truths)
+
+
+def _unfolded(camera: CameraModel, points: np.ndarray, pixels: np.ndarray) -> bool:
+    """Whether the lens model maps these points (n, 3) to ``pixels`` one to one. A strong barrel distortion's
+    polynomial turns back beyond some radius: a point far outside the view then "projects" inside the image
+    (cv2.projectPoints says so), where the camera does not see it; undistorting its pixel gives another ray."""
+    if not np.any(camera.dist_coeffs):
+        return True
+    local = points @ camera.rotation.T + camera.tvec
+    ideal = local[:, :2] / local[:, 2:3]
+    criteria = (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 40, 1e-9)
+    back = cv2.undistortPointsIter(pixels.reshape(-1, 1, 2).astype(np.float64), camera.camera_matrix,
+                                   camera.dist_coeffs, np.eye(3), np.eye(3), criteria).reshape(-1, 2)
+    return bool(np.abs(back - ideal).max() < 1e-4)
 
 
 def _inside(points: np.ndarray, polygon: np.ndarray) -> np.ndarray:
