@@ -1,24 +1,17 @@
 """``station calibrate``: the ChArUco board PDF, a camera's intrinsics, the plane check (issue 19).
 
-Argparse in, text or JSON out: the work is :mod:`station.services.calibrate`. Other areas add their own
-``station calibrate WHAT`` (the projector mapping, the simulator's fit) without editing this file: a module appends
-a hook to :data:`EXTRA_SUBCOMMANDS` (called with the ``calibrate`` subparsers object when the parser is built), or,
-registered after this one, takes the subparsers object from :data:`SUBPARSERS` (the last one built).
+Argparse in, text or JSON out: the work is :mod:`station.services.calibrate`. ``station calibrate projector``
+lives in :mod:`station.commands._calibrate_projector` (its parser is added here; the underscore keeps the module
+from being discovered as a command of its own).
 """
 
 from __future__ import annotations
 
 import sys
-from collections.abc import Callable
 
 from station.cli_util import check_output_file, emit_json, flag_error
 from station.errors import UsageError
 from station.services.errors import ServiceError
-
-#: Hooks ``hook(subparsers)`` adding more ``station calibrate`` subcommands (the projector's, the simulator's).
-EXTRA_SUBCOMMANDS: list[Callable[[object], None]] = []
-#: The ``calibrate`` subparsers objects built so far (the last is the current parser's).
-SUBPARSERS: list[object] = []
 
 CAMERA_JSON = ('{"camera": {camera file: "camera_matrix", "dist_coeffs", "image_size", "rms_px", "name", "notes"}, '
                '"rms_px", "views": [{"name", "corners", "rms_px", "skipped"}], "coverage", "uncovered_corners", '
@@ -41,7 +34,6 @@ def register(subparsers) -> None:
         "  station calibrate camera --capture 15 --camera 0 --out desk.json\n"
         "  station calibrate plane --image frame.png --guide guide.json")
     sub = parser.add_subparsers(dest="calibrate_command", metavar="WHAT")
-    SUBPARSERS.append(sub)
 
     board = sub.add_parser("board", help="the ChArUco calibration board as a 1:1 PDF",
                            description="Write the ChArUco board (7x5 squares of 30 mm, 22 mm DICT_5X5_100 markers, "
@@ -89,8 +81,9 @@ def register(subparsers) -> None:
     plane.add_argument("--json", action="store_true", help="print the result as JSON")
     plane.set_defaults(func=run_plane)
 
-    for hook in EXTRA_SUBCOMMANDS:
-        hook(sub)
+    from station.commands._calibrate_projector import add_projector_parser
+
+    add_projector_parser(sub)
 
 
 def run_board(args) -> int:

@@ -153,13 +153,6 @@ def test_plane_from_the_guessed_intrinsics_is_said(tmp_path, capsys):
     assert "cam.json is for 640x480 images, the frame is 100x100" in capsys.readouterr().err
 
 
-def test_more_subcommands_join_through_the_hooks(monkeypatch):
-    from station.commands import calibrate as command
-
-    def add_projector(subparsers):
-        subparsers.add_parser("projector", help="the projector mapping").set_defaults(func=lambda args: 0)
-
-    monkeypatch.setattr(command, "EXTRA_SUBCOMMANDS", [add_projector])
-    args = build_parser().parse_args(["calibrate", "projector"])
-    assert args.func(args) == 0
-    assert "projector" in command.SUBPARSERS[-1].choices
+def test_calibrate_projector_is_a_subcommand():
+    args = build_parser().parse_args(["calibrate", "projector", "--camera", "sim://camera"])
+    assert args.camera == "sim://camera" and callable(args.func)

@@ -6,12 +6,11 @@ from __future__ import annotations
 import json
 
 import cv2
-from textual.widgets import DataTable, Input, Static
+from textual.widgets import DataTable, Input, Label, Static
 
 from calibration.evaluate import acceptance_camera, acceptance_options, part_scene, reference_layout
 from calibration.intrinsics import CameraIntrinsics, save_intrinsics
 from drivers.sim.camera_render import render
-from station.tui.screens import calibrate as screen_module
 from station.tui.screens.calibrate import CalibrateScreen, CameraPanel
 
 from ..conftest import opened, settle
@@ -63,7 +62,7 @@ async def test_plane_panel_checks_a_frame(tmp_path, station_home):
         assert "residual 0.0" in result and "camera 1000 mm above it" in result, result
 
 
-async def test_more_panels_join(tmp_path, monkeypatch):
-    monkeypatch.setattr(screen_module, "EXTRA_PANELS", [lambda: Static("projector mapping", id="projector-panel")])
+async def test_the_projector_panel_stands_beside_them(tmp_path):
     async with opened(tmp_path, "k") as (app, pilot):
-        assert "projector mapping" in text_of(app.screen, "#projector-panel")
+        panel = app.screen.query_one("#projector-panel")
+        assert "Gray code stripes" in str(panel.query_one(Label).render())

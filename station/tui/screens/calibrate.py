@@ -5,13 +5,11 @@ between them) and press Calibrate (or f / g); the views are searched and solved 
 RMS, each view's error and which image corners lacked views, and is saved under the station's data folder
 (``calibration/cameras/<camera>.json``). Stop cancels between views. Plane: a guide manifest (``station guide
 --json``) and optionally a frame file (else a frame from the camera); p checks the plane: the residual at the
-reference tags and how far it moved since the last check. More panels (the projector's, the simulator's) join
-through :data:`EXTRA_PANELS`, widget factories composed after these two.
+reference tags and how far it moved since the last check. The projector's panel
+(:class:`station.tui.widgets.projector_calibration.ProjectorCalibrationPanel`) stands beside them.
 """
 
 from __future__ import annotations
-
-from collections.abc import Callable
 
 from rich.text import Text
 from textual import on, work
@@ -19,7 +17,6 @@ from textual.app import ComposeResult
 from textual.binding import Binding
 from textual.containers import Horizontal, Vertical
 from textual.screen import Screen
-from textual.widget import Widget
 from textual.widgets import Button, DataTable, Footer, Header, Input, Label, Static
 from textual.worker import get_current_worker
 
@@ -30,9 +27,8 @@ from station.errors import StationError
 from station.services import calibrate as service
 from station.tui.registry import ScreenEntry
 from station.tui.widgets.progress import ProgressPanel, ProgressReported, post_progress
+from station.tui.widgets.projector_calibration import ProjectorCalibrationPanel
 
-#: Factories of more panels (``() -> Widget``), composed after the camera and plane panels, left to right.
-EXTRA_PANELS: list[Callable[[], Widget]] = []
 #: What a worker may fail with, said in the panel in one line.
 _USER_ERRORS = (StationError, CalibrationError, DriverError)
 
@@ -162,7 +158,7 @@ class PlanePanel(Vertical):
 
 
 class CalibrateScreen(Screen):
-    """Camera intrinsics and the plane check side by side; more panels join through :data:`EXTRA_PANELS`."""
+    """Camera intrinsics, the plane check and the projector mapping side by side."""
 
     CSS = """
     CalibrateScreen #panels { height: 1fr; }
@@ -183,8 +179,7 @@ class CalibrateScreen(Screen):
         with Horizontal(id="panels"):
             yield CameraPanel(id="camera-panel")
             yield PlanePanel(id="plane-panel")
-            for factory in EXTRA_PANELS:
-                yield factory()
+            yield ProjectorCalibrationPanel(id="projector-panel")
         yield Footer()
 
     def action_camera_folder(self) -> None:
