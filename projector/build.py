@@ -15,7 +15,8 @@ layout. :func:`steps_text` writes the steps out.
 4. the view in which the parts' outlines overlap least (a sheet on which parts lie over each other is hard to
    build against).
 
-**Tags**: a part the scenario gives a ``tag`` keeps it (id, place, size). Every other part that the maker places or
+**Tags**: a part the scenario gives a ``tag`` keeps it (id, place, size, and heading: its printed "up" is the part's
+local +y in the top view, +z in the side view, turned by the tag's ``angle``). Every other part that the maker places or
 that a free layout parameter moves, except a ball, gets the next free id from 0 in step order (ids the scenario
 uses and the reference ids 583-586 are skipped), the largest size of 25/20/15/10 mm whose square, with a margin of
 an eighth of its edge (tag36h11's white border) and at least 2 mm, fits inside its outline, at the part's centre
@@ -274,7 +275,8 @@ def _with_tags(scenario, frames, bodies, plane, drawings, tag_size_mm) -> list[P
             centre = plane.to_plane(world)[0]
             height = 1000.0 * float((world - plane.origin) @ plane.normal)
             result.append(replace(part, tag_id=tag.id, tag_center_mm=_pair(centre), tag_size_mm=1000.0 * tag.size,
-                                  tag_height_mm=height))
+                                  tag_height_mm=height, tag_heading_deg=_tag_heading(frames[part.name], plane, part,
+                                                                                     tag.angle)))
             continue
         wants = obj.type != "Ball" and (part.kind is PartKind.PLACED or part.parameters)
         group = bodies[part.name]
@@ -290,9 +292,20 @@ def _with_tags(scenario, frames, bodies, plane, drawings, tag_size_mm) -> list[P
             next_id += 1
         (u, v), size = fit
         result.append(replace(part, tag_id=next_id, tag_center_mm=(u, v), tag_size_mm=size,
-                              tag_height_mm=_face_height(surfaces[part.name], group, (u, v))))
+                              tag_height_mm=_face_height(surfaces[part.name], group, (u, v)),
+                              tag_heading_deg=part.heading_deg))  # printed turned with the part (the sheets' square)
         used.add(next_id)
     return result
+
+
+def _tag_heading(frame, plane: GuidePlane, part: PartDrawing, angle: float) -> float:
+    """A scenario tag's heading on the plane: its printed "up" is the part's local +y (top view) or +z (side view)
+    seen on the plane, turned by ``angle``; the part's heading when that axis points at the camera."""
+    up = frame.rotation.apply([0.0, 1.0, 0.0] if plane.view == "top" else [0.0, 0.0, 1.0])
+    along_u, along_v = float(up @ plane.u_axis), float(up @ plane.v_axis)
+    base = math.degrees(math.atan2(-along_u, along_v)) if math.hypot(along_u, along_v) > 1e-6 else part.heading_deg
+    heading = (base + float(angle) + 180.0) % 360.0 - 180.0
+    return 180.0 if heading == -180.0 else heading
 
 
 def _face_height(surface: Surface, group, uv) -> float:

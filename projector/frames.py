@@ -246,7 +246,8 @@ class _Canvas:
         if part.tag_id is not None and part.tag_center_mm is not None:
             half = part.tag_size_mm / 2
             square = np.array([[-half, -half], [half, -half], [half, half], [-half, half]])
-            c, s = np.cos(heading), np.sin(heading)
+            turn = np.radians(part.tag_heading_deg)
+            c, s = np.cos(turn), np.sin(turn)
             square = square @ np.array([[c, s], [-s, c]]) + np.asarray(part.tag_center_mm, dtype=float)
             self._edges(image, [square], WHITE, self.thick)
             corner = self._px(square).max(axis=0)

@@ -149,6 +149,9 @@ class PartDrawing:
         The tag's black square edge.
     tag_height_mm : float
         How far the tag's face stands off the plane (the camera check maps it through a plane at that height).
+    tag_heading_deg : float
+        The direction of the tag's printed "up" on the plane, counter-clockwise as the maker sees it, 0 = +v: the
+        part's heading for a tag the guide places, the scenario tag's own (its ``angle``) otherwise.
     parameters : tuple of str
         The free layout parameters that move this part.
     tolerances : tuple of ParameterTolerance
@@ -167,6 +170,7 @@ class PartDrawing:
     tag_center_mm: tuple[float, float] | None = None
     tag_size_mm: float = 20.0
     tag_height_mm: float = 0.0
+    tag_heading_deg: float = 0.0
     parameters: tuple[str, ...] = ()
     tolerances: tuple[ParameterTolerance, ...] = ()
     care: str | None = None
@@ -257,8 +261,8 @@ class Guide:
              "pages": [{"index", "label", "paper", "size_mm": [w, h], "origin_mm": [u, v]}],
              "reference_tags": [{"id", "center_mm": [u, v], "size_mm"}],
              "parts": [{"name", "kind", "step", "tag_id", "tag_center_mm", "tag_size_mm", "tag_height_mm",
-                        "center_mm": [u, v], "heading_deg", "outline_mm": [[[u, v], ...], ...], "care",
-                        "tolerances": [{"parameter", "delta", "unit", "predicted", "measured", "source",
+                        "tag_heading_deg", "center_mm": [u, v], "heading_deg", "outline_mm": [[[u, v], ...], ...],
+                        "care", "tolerances": [{"parameter", "delta", "unit", "predicted", "measured", "source",
                                         "bound_limited"}]}]}
 
         ``outline_mm`` is a list of polygons, each its exterior ring (holes are not needed to place a part).
@@ -300,6 +304,7 @@ def _part_manifest(part: PartDrawing) -> dict:
         "tag_center_mm": None if part.tag_center_mm is None else [*map(_r, part.tag_center_mm)],
         "tag_size_mm": _r(part.tag_size_mm),
         "tag_height_mm": _r(part.tag_height_mm),
+        "tag_heading_deg": _r(part.tag_heading_deg),
         "center_mm": [*map(_r, part.center_mm)],
         "heading_deg": _r(part.heading_deg),
         "outline_mm": _rings(part.outline),

@@ -224,7 +224,7 @@ def _reminders(canvas, guide: Guide, labels: dict[str, Label], area, overlap_mm:
     sheet = box(*area)
     marks = shapely.union_all(
         [LineString(arrow(p.center_mm, p.heading_deg, heading_length(p))[0]).buffer(3.5) for p in guide.parts]
-        + [tag_box(p.tag_center_mm, p.tag_size_mm, p.heading_deg).buffer(3.0) for p in guide.parts
+        + [tag_box(p.tag_center_mm, p.tag_size_mm, p.tag_heading_deg).buffer(3.0) for p in guide.parts
            if p.tag_center_mm is not None])
     inner = box(area[0] + overlap_mm + 3, area[1] + overlap_mm + 3, area[2] - overlap_mm - 3,
                 area[3] - overlap_mm - 3)
@@ -329,7 +329,7 @@ def _part_tag(canvas, part: PartDrawing) -> None:
     half = size / 2
     canvas.saveState()
     canvas.translate(*part.tag_center_mm)
-    canvas.rotate(part.heading_deg)
+    canvas.rotate(part.tag_heading_deg)
     canvas.setFillColorRGB(1.0, 1.0, 1.0)
     canvas.rect(-half, -half, size, size, stroke=0, fill=1)
     canvas.setFillGray(0.72)

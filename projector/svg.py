@@ -167,7 +167,7 @@ def _tags(drawing, layer, guide: Guide, frame: _Frame) -> None:
         if part.tag_id is None or part.tag_center_mm is None:
             continue
         group = drawing.g(id=f"tag-{part.tag_id}")
-        square = _square(part.tag_center_mm, part.tag_size_mm, part.heading_deg)
+        square = _square(part.tag_center_mm, part.tag_size_mm, part.tag_heading_deg)
         group.add(drawing.path(d=frame.path([square], closed=True)))
         corner = np.array([square[0], square[0] + 0.3 * (square[1] - square[0]),
                            square[0] + 0.3 * (square[3] - square[0])])

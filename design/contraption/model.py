@@ -57,13 +57,16 @@ class Physics:
 
 @dataclass(frozen=True)
 class Tag:
-    """An AprilTag printed on a part: its id and the centre of the tag in the part's frame (m), edge size (m)."""
+    """An AprilTag printed on a part: its id, the centre of the tag in the part's frame (m), its black square's edge
+    (m), and ``angle`` (degrees): the tag's printed "up" runs along the part's local +y (top view) or +z (side view),
+    turned by ``angle`` counter-clockwise as the camera (the maker) sees the face."""
 
     id: int
     x: float = 0.0
     y: float = 0.0
     z: float = 0.0
     size: float = 0.02
+    angle: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -147,13 +150,18 @@ class Settings:
 
 
 def content_hash(top: Mapping[str, Any]) -> str:
-    """The sha256 of a scenario file's parsed content without its ``layouts`` (a cache key for its results).
+    """The sha256 of a scenario file's parsed content without its ``layouts`` and tags (a cache key for its results).
 
     Layouts are points of the design space, not part of the contraption: adding one must not invalidate what was
     computed for the scenario. The JSON is canonical (sorted keys, no spaces), so TOML and JSON files with the same
     content hash the same.
     """
     hashed = {k: v for k, v in top.items() if k != "layouts"}
+    # A part's AprilTag is how the camera finds it, not part of the contraption: tagging a part must not invalidate
+    # its cached simulations nor the layouts optimized for it (a LAYOUT.json carries the hash).
+    if isinstance(hashed.get("objects"), list):
+        hashed["objects"] = [{k: v for k, v in o.items() if k != "tag"} if isinstance(o, dict) else o
+                             for o in hashed["objects"]]
     canonical = json.dumps(hashed, sort_keys=True, separators=(",", ":"), ensure_ascii=True, default=str)
     return hashlib.sha256(canonical.encode("ascii")).hexdigest()
 

@@ -256,7 +256,7 @@ def _objects(check: Checker, top: dict) -> list[ObjectSpec]:
                 **{
                     k: check.number(tag_table[k], f"{path}.tag.{k}", minimum=0.0 if k == "size" else None,
                                     strict=k == "size")
-                    for k in ("x", "y", "z", "size")
+                    for k in ("x", "y", "z", "size", "angle")
                     if k in tag_table
                 },
             )

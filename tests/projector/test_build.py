@@ -238,7 +238,10 @@ def test_a_scenario_tag_is_kept_and_auto_ids_skip_it():
 
 
 def test_one_tag_size_for_all():
-    guide = build_guide(_scenario("longchain.toml"), tag_size_mm=10)
+    data = _data("longchain.toml")
+    for obj in data["objects"]:
+        obj.pop("tag", None)  # the example's own tags keep their sizes: the option sizes the guide's own
+    guide = build_guide(scenario_from_data(data), tag_size_mm=10)
     assert {p.tag_size_mm for p in guide.parts if p.tag_id is not None} == {10.0}
     guide = build_guide(_scenario("longchain.toml"), reference_tag_size_mm=60)
     assert {t.size_mm for t in guide.reference_tags} == {60.0}
