@@ -1,0 +1,182 @@
+"""``station calibrate``: the ChArUco board PDF, a camera's intrinsics, the plane check (issue 19).
+
+Argparse in, text or JSON out: the work is :mod:`station.services.calibrate`. Other areas add their own
+``station calibrate WHAT`` (the projector mapping, the simulator's fit) without editing this file: a module appends
+a hook to :data:`EXTRA_SUBCOMMANDS` (called with the ``calibrate`` subparsers object when the parser is built), or,
+registered after this one, takes the subparsers object from :data:`SUBPARSERS` (the last one built).
+"""
+
+from __future__ import annotations
+
+import sys
+from collections.abc import Callable
+
+from station.cli_util import check_output_file, emit_json, flag_error
+from station.errors import UsageError
+from station.services.errors import ServiceError
+
+#: Hooks ``hook(subparsers)`` adding more ``station calibrate`` subcommands (the projector's, the simulator's).
+EXTRA_SUBCOMMANDS: list[Callable[[object], None]] = []
+#: The ``calibrate`` subparsers objects built so far (the last is the current parser's).
+SUBPARSERS: list[object] = []
+
+CAMERA_JSON = ('{"camera": {camera file: "camera_matrix", "dist_coeffs", "image_size", "rms_px", "name", "notes"}, '
+               '"rms_px", "views": [{"name", "corners", "rms_px", "skipped"}], "coverage", "uncovered_corners", '
+               '"k3_fixed", "warnings", "saved"}')
+PLANE_JSON = ('{"source", "camera", "guide", "intrinsics": {"name", "rms_px", "notes"}, "plane": {"residual_mm", '
+              '"reference_ids", "moved_mm", "rvec", "tvec", "camera_height_mm"} | null, "reference_ids", '
+              '"missing_reference_ids", "unknown_ids", "duplicate_ids"}')
+
+
+def register(subparsers) -> None:
+    parser = subparsers.add_parser(
+        "calibrate", help="calibrate the camera (ChArUco board), check the plane from the reference tags",
+        description="Calibration for the camera-checked assembly: `board` writes the ChArUco board as a 1:1 PDF to "
+        "print; `camera` solves the camera's intrinsics from views of it (a folder of images, or N frames grabbed "
+        "from the camera while you move the board) and saves them per camera under the station's data folder "
+        "(calibration/cameras/NAME.json, OpenCV's names); `plane` finds the guide plane in one frame through the "
+        "guide's four reference tags and reports the residual and how far the plane moved since the last check.",
+        epilog="examples:\n  station calibrate board --pdf board.pdf\n"
+        "  station calibrate camera --images shots/ --name desk\n"
+        "  station calibrate camera --capture 15 --camera 0 --out desk.json\n"
+        "  station calibrate plane --image frame.png --guide guide.json")
+    sub = parser.add_subparsers(dest="calibrate_command", metavar="WHAT")
+    SUBPARSERS.append(sub)
+
+    board = sub.add_parser("board", help="the ChArUco calibration board as a 1:1 PDF",
+                           description="Write the ChArUco board (7x5 squares of 30 mm, 22 mm DICT_5X5_100 markers, "
+                           "landscape) as a 1:1 vector PDF. Print at 100% and check that a square measures 30 mm.")
+    board.add_argument("--pdf", required=True, metavar="OUT.pdf", help="the PDF to write")
+    board.add_argument("--paper", default="a4", help="a4 (default), letter or a3")
+    board.set_defaults(func=run_board)
+
+    camera = sub.add_parser("camera", help="a camera's intrinsics from views of the board",
+                            description="Solve the camera's intrinsics (camera matrix, distortion) from 10-20 views "
+                            "of the printed board at different angles and places, some with the board in the image's "
+                            "corners (else k3 is fixed and the result says which corners lacked views). Prints the "
+                            f"RMS and each view's error. --json prints {CAMERA_JSON}.")
+    source = camera.add_mutually_exclusive_group(required=True)
+    source.add_argument("--images", metavar="DIR", help="a folder of board images (png, jpg, ...)")
+    source.add_argument("--capture", type=int, metavar="N", help="grab N frames from the camera")
+    camera.add_argument("--camera", metavar="URL", help="with --capture: the camera (default: the station's)")
+    camera.add_argument("--interval", type=float, default=2.0, metavar="S",
+                        help="with --capture: seconds between frames, to move the board (default 2)")
+    camera.add_argument("--name", help="the camera's name (default: its device name, or 'camera')")
+    camera.add_argument("--out", metavar="CAMERA.json", help="write here instead of the station's "
+                        "calibration/cameras/NAME.json")
+    camera.add_argument("--json", action="store_true", help="print the result as JSON")
+    camera.set_defaults(func=run_camera)
+
+    plane = sub.add_parser("plane", help="find the guide plane in one frame from the reference tags",
+                           description="Find the guide plane in one frame through the guide's reference tags "
+                           "(ids 583-586; their positions from --guide, the manifest `station guide --json` "
+                           "prints; without it only which are seen is checked), report the residual at the tags "
+                           "and how far the plane moved since the camera's last check (a bumped camera). "
+                           f"--json prints {PLANE_JSON}.")
+    where = plane.add_mutually_exclusive_group()
+    where.add_argument("--camera", metavar="URL", help="grab the frame from this camera (default: the station's)")
+    where.add_argument("--image", metavar="FRAME", help="a frame saved as an image file")
+    plane.add_argument("--guide", metavar="GUIDE.json", help="the guide's manifest (reference tag positions)")
+    plane.add_argument("--intrinsics", metavar="CAMERA.json", help="the camera file (default: the saved one of "
+                       "the camera, else a guess)")
+    plane.add_argument("--name", help="the camera's name (its saved intrinsics and last plane; default 'camera')")
+    plane.add_argument("--json", action="store_true", help="print the result as JSON")
+    plane.set_defaults(func=run_plane)
+
+    for hook in EXTRA_SUBCOMMANDS:
+        hook(sub)
+
+
+def run_board(args) -> int:
+    from station.services import calibrate as service
+
+    path = check_output_file(args.pdf, {".pdf"}, "--pdf")
+    try:
+        spec = service.write_board(path, args.paper)
+    except ServiceError as error:
+        raise flag_error(error) from None
+    print(f"wrote {path}: {spec.describe()}; print at 100% and check that a square measures {spec.square_mm:g} mm")
+    return 0
+
+
+def run_camera(args) -> int:
+    from station.progress_view import ProgressView
+    from station.services import calibrate as service
+
+    if args.camera is not None and args.capture is None:
+        raise UsageError("--camera goes with --capture N")
+    out = check_output_file(args.out, {".json"}, "--out") if args.out else None
+    try:
+        with ProgressView(sys.stderr, prefix="calibrate: ") as view:
+            done = service.calibrate_camera(images=args.images, capture=args.capture, camera=args.camera,
+                                            name=args.name, out=out, interval_s=args.interval, progress=view)
+    except ServiceError as error:
+        raise flag_error(error) from None
+    if args.json:
+        emit_json(done.to_dict())
+        return 0
+    for line in camera_report(done.result):
+        print(line)
+    print(f"saved {done.path}")
+    return 0
+
+
+def camera_report(result) -> list[str]:
+    """A calibration result in lines: the camera, each view, the coverage and the warnings."""
+    cam = result.intrinsics
+    k = cam.camera_matrix
+    lines = [f"camera {cam.name or ''}: {cam.image_size[0]}x{cam.image_size[1]}, fx {k[0, 0]:.1f} fy {k[1, 1]:.1f} px, "
+             f"centre ({k[0, 2]:.1f}, {k[1, 2]:.1f}), RMS {cam.rms_px:.3f} px over {len(result.used)} views",
+             "  distortion k1 k2 p1 p2 k3: " + " ".join(f"{v:+.4f}" for v in cam.dist_coeffs[:5]),
+             f"  coverage {result.coverage:.0%} of the image"
+             + (f"; corners without views: {', '.join(result.uncovered_corners)} (k3 fixed at 0)"
+                if result.uncovered_corners else "; all four corners covered")]
+    for view in result.views:
+        state = f"RMS {view.rms_px:.3f} px" if view.skipped is None else f"skipped: {view.skipped}"
+        lines.append(f"  {view.name:28s} {view.corners:3d} corners  {state}")
+    lines += [f"  warning: {w}" for w in result.warnings]
+    return lines
+
+
+def plane_report(check) -> list[str]:
+    """A plane check in lines."""
+    m = check.measurement
+    lines = [f"frame from {check.source}; intrinsics: "
+             + (f"{check.intrinsics.name} (RMS {check.intrinsics.rms_px:.3f} px)" if check.intrinsics.rms_px
+                is not None else "; ".join(check.intrinsics.notes) or "given")]
+    if m.plane is None:
+        seen = [i for i in check.reference_ids if i not in m.missing_reference_ids and i not in m.duplicate_ids]
+        if check.guide is None:
+            lines.append(f"reference tags seen: {seen or 'none'}; no plane solved: give --guide GUIDE.json (the "
+                         "manifest of `station guide --json`) for their positions")
+        else:
+            lines.append(f"no plane: {len(seen)} reference tag(s) seen once, at least 2 needed")
+    else:
+        plane = m.plane
+        moved = ("" if plane.moved_mm is None else f"; moved {plane.moved_mm:.2f} mm since the last check"
+                 + (" (the camera or the sheet moved)" if plane.moved_mm > 1.0 else ""))
+        lines.append(f"plane from reference tags {list(plane.reference_ids)}: residual {plane.residual_mm:.3f} mm, "
+                     f"camera {plane.camera_centre_mm[2]:.0f} mm above it{moved}")
+    if m.missing_reference_ids:
+        lines.append(f"missing reference tags: {list(m.missing_reference_ids)}")
+    if m.duplicate_ids:
+        lines.append(f"tags seen twice (not used): {list(m.duplicate_ids)}")
+    if m.unknown_ids:
+        lines.append(f"other tags seen: {list(m.unknown_ids)}")
+    return lines
+
+
+def run_plane(args) -> int:
+    from station.services import calibrate as service
+
+    try:
+        check = service.plane_check(image=args.image, camera=args.camera, guide=args.guide,
+                                    intrinsics=args.intrinsics, name=args.name)
+    except ServiceError as error:
+        raise flag_error(error) from None
+    if args.json:
+        emit_json(check.to_dict())
+    else:
+        for line in plane_report(check):
+            print(line)
+    return 0 if check.measurement.plane is not None or args.guide is None else 1

@@ -1,0 +1,342 @@
+"""Calibration as a service: the ChArUco board PDF, a camera's intrinsics, the plane check from one frame.
+
+Used by ``station calibrate`` and the Calibrate screen. The work is :mod:`calibration` (pure: images in, numbers
+out); this module reads images from a folder or grabs them from a camera, and keeps the results in the station's
+data folder (:func:`station.paths.data_dir`):
+
+- ``calibration/cameras/<name>.json``: a camera's intrinsics (OpenCV's names, :mod:`calibration.intrinsics`);
+- ``calibration/planes/<name>.json``: the camera's last plane fix, so that the next check says whether the camera
+  (or the sheet) moved since.
+
+A camera's name is its device name in the station's config (``station devices``), ``camera`` by default.
+"""
+
+from __future__ import annotations
+
+import json
+import re
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from common.progress import CancelCheck, ProgressCallback, Reporter
+from station.services.errors import ServiceError
+
+__all__ = ["IMAGE_SUFFIXES", "CameraCalibration", "PlaneCheck", "calibrate_camera", "camera_file",
+           "capture_views", "check_name", "grab_frame", "intrinsics_for", "plane_check", "read_views",
+           "reference_tags_from_guide", "write_board"]
+
+IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff")
+DEFAULT_CAMERA = "camera"
+_NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.-]{0,63}$")
+
+
+def check_name(name: str) -> str:
+    """A camera name usable as a file name (letters, digits, ``_ . -``), or a :class:`ServiceError`."""
+    if not isinstance(name, str) or not _NAME.match(name):
+        raise ServiceError(f"name must be 1-64 letters, digits, '_', '.' or '-' (a file name), got {name!r}",
+                           field="name", value=name)
+    return name
+
+
+def _folder(kind: str) -> Path:
+    from station.paths import data_dir
+
+    folder = data_dir() / "calibration" / kind
+    folder.mkdir(parents=True, exist_ok=True)
+    return folder
+
+
+def camera_file(name: str = DEFAULT_CAMERA) -> Path:
+    """Where the intrinsics of camera ``name`` are kept."""
+    return _folder("cameras") / f"{check_name(name)}.json"
+
+
+def _plane_file(name: str) -> Path:
+    return _folder("planes") / f"{check_name(name)}.json"
+
+
+def write_board(path: str | Path, paper: str = "a4"):
+    """Write the default ChArUco board (:class:`calibration.charuco.BoardSpec`) as a 1:1 PDF; the spec written."""
+    from calibration.charuco import BoardSpec, write_board_pdf
+    from calibration.errors import CalibrationError
+
+    spec = BoardSpec()
+    try:
+        write_board_pdf(path, spec, paper)
+    except CalibrationError as error:
+        raise ServiceError(str(error), field="paper" if "paper" in str(error) else "pdf") from None
+    return spec
+
+
+def _read_image(path: Path) -> np.ndarray:
+    import cv2
+
+    image = cv2.imread(str(path), cv2.IMREAD_GRAYSCALE)
+    if image is None:
+        raise ServiceError(f"images: {path} is not an image OpenCV can read (expected {', '.join(IMAGE_SUFFIXES)})",
+                           field="images", value=str(path))
+    return image
+
+
+def read_views(folder: str | Path) -> list[tuple[str, np.ndarray]]:
+    """The images in ``folder`` (by name), grey, as (file name, image) pairs."""
+    folder = Path(folder)
+    if not folder.is_dir():
+        raise ServiceError(f"images: {folder} is not a folder (expected a folder of board images)",
+                           field="images", value=str(folder))
+    files = sorted(p for p in folder.iterdir() if p.suffix.lower() in IMAGE_SUFFIXES and p.is_file())
+    if not files:
+        raise ServiceError(f"images: no images in {folder} (expected files ending in {', '.join(IMAGE_SUFFIXES)})",
+                           field="images", value=str(folder))
+    return [(p.name, _read_image(p)) for p in files]
+
+
+def _open_camera(url: str):
+    from drivers.devices import resolve
+
+    info = resolve(url)
+    if info.kind != "camera" or not info.available:
+        raise ServiceError(f"camera: {url!r} is not a camera the station can drive ({info.kind}"
+                           f"{'' if info.available else ', no driver'})", field="camera", value=url)
+    camera = info.factory(info.url)
+    camera.open()
+    return camera
+
+
+def configured_camera_url() -> tuple[str, str]:
+    """(name, url) of the station's first camera (``station devices``; ``sim://camera`` by default)."""
+    from station.config import configured_devices
+
+    device = next((d for d in configured_devices() if d.kind == "camera"), None)
+    if device is None:
+        raise ServiceError("camera: no camera configured (add one to station.toml, or give a camera URL)",
+                           field="camera")
+    return device.name, device.url
+
+
+def capture_views(url: str, count: int, *, interval_s: float = 1.0, progress: ProgressCallback | None = None,
+                  cancelled: CancelCheck | None = None, sleep: Callable[[float], None] = time.sleep,
+                  before: Callable[[object, int], None] | None = None) -> list[tuple[str, np.ndarray]]:
+    """Grab ``count`` frames from the camera at ``url``, ``interval_s`` apart (time to move the board).
+
+    ``before(camera, index)`` runs before each grab (a simulated camera's scene may be moved there).
+    """
+    if isinstance(count, bool) or not isinstance(count, int) or count < 1:
+        raise ServiceError(f"capture must be a whole number of views >= 1, got {count!r}", field="capture",
+                           value=count)
+    report = Reporter.of(progress, cancelled)
+    camera = _open_camera(url)
+    views = []
+    try:
+        for index in range(count):
+            report("capture", index, count, f"view {index + 1} of {count}: move the board, hold still")
+            if index and interval_s > 0:
+                waited = 0.0
+                while waited < interval_s:  # short naps, so that a cancel is honoured at once
+                    sleep(min(0.1, interval_s - waited))
+                    waited += 0.1
+                    report.check()
+            if before is not None:
+                before(camera, index)
+            views.append((f"capture-{index + 1:02d}", np.asarray(camera.grab())))
+        report("capture", count, count, f"{count} views captured")
+    finally:
+        camera.close()
+    return views
+
+
+@dataclass(frozen=True)
+class CameraCalibration:
+    """A camera calibrated: the result (:class:`calibration.intrinsics.CalibrationResult`) and where it was saved."""
+
+    result: object
+    path: Path | None
+
+    def to_dict(self) -> dict:
+        return {**self.result.to_dict(), "saved": None if self.path is None else str(self.path)}
+
+
+def calibrate_camera(*, images: str | Path | None = None, capture: int | None = None, camera: str | None = None,
+                     name: str | None = None, out: str | Path | None = None, interval_s: float = 1.0,
+                     progress: ProgressCallback | None = None,
+                     cancelled: CancelCheck | None = None) -> CameraCalibration:
+    """Calibrate a camera from a folder of board images or ``capture`` frames grabbed from ``camera`` (a URL;
+    default the station's camera), and save it to ``out`` (default ``calibration/cameras/<name>.json``).
+
+    Raises
+    ------
+    ServiceError
+        Neither or both of ``images`` and ``capture``; a bad folder, name or count; too few usable views.
+    """
+    from calibration.errors import CalibrationError
+    from calibration.intrinsics import calibrate_camera as solve
+    from calibration.intrinsics import save_intrinsics
+
+    if (images is None) == (capture is None):
+        raise ServiceError("images or capture: give exactly one (a folder of board images, or N views to grab)",
+                           field="images")
+    report = Reporter.of(progress, cancelled)
+    if images is not None:
+        views = read_views(images)
+        name = check_name(name or DEFAULT_CAMERA)
+    else:
+        default_name, url = configured_camera_url() if camera is None else (DEFAULT_CAMERA, camera)
+        name = check_name(name or default_name)
+        views = capture_views(url, capture, interval_s=interval_s, progress=report)
+    try:
+        result = solve(views, name=name, progress=report)
+    except CalibrationError as error:
+        raise ServiceError(str(error), field="images" if images is not None else "capture") from None
+    path = Path(out) if out is not None else camera_file(name)
+    save_intrinsics(result.intrinsics, path)
+    return CameraCalibration(result, path)
+
+
+def intrinsics_for(image_size: tuple[int, int], *, intrinsics: str | Path | None = None,
+                   name: str = DEFAULT_CAMERA):
+    """The camera's intrinsics: ``intrinsics`` (a file), else the saved ``calibration/cameras/<name>.json``, else a
+    guess (:meth:`CameraIntrinsics.guess`, whose ``notes`` say so). A file for another image size is refused."""
+    from calibration.intrinsics import CameraIntrinsics, load_intrinsics
+
+    path = Path(intrinsics) if intrinsics is not None else camera_file(name)
+    if intrinsics is None and not path.exists():
+        return CameraIntrinsics.guess(image_size)
+    loaded = load_intrinsics(path)
+    if tuple(loaded.image_size) != tuple(image_size):
+        raise ServiceError(f"intrinsics: {path} is for {loaded.image_size[0]}x{loaded.image_size[1]} images, the "
+                           f"frame is {image_size[0]}x{image_size[1]}; calibrate the camera at this resolution",
+                           field="intrinsics", value=str(path))
+    return loaded
+
+
+def reference_tags_from_guide(path: str | Path) -> list[tuple[int, tuple[float, float], float]]:
+    """The reference tags of a guide manifest (what ``station guide --json`` prints) as (id, (u, v), size)."""
+    from common.datafiles import load_json
+
+    path = Path(path)
+    expected = 'a guide manifest (`station guide --json`) with "reference_tags": [{"id", "center_mm", "size_mm"}]'
+    try:
+        data = load_json(path, expected, error=lambda detail: ServiceError(f"{path}: {detail}", field="guide"))
+    except OSError as error:
+        raise ServiceError(f"guide: cannot read {path} ({error.strerror or error})", field="guide") from None
+    tags = data.get("reference_tags") if isinstance(data, dict) else None
+    if not isinstance(tags, list) or not tags:
+        raise ServiceError(f"{path}: field 'reference_tags' missing or empty; expected {expected}", field="guide")
+    out = []
+    for index, tag in enumerate(tags):
+        try:
+            tag_id, (u, v), size = int(tag["id"]), tag["center_mm"], float(tag["size_mm"])
+            out.append((tag_id, (float(u), float(v)), size))
+        except (KeyError, TypeError, ValueError):
+            raise ServiceError(f"{path}: field 'reference_tags[{index}]': expected {{\"id\": int, \"center_mm\": "
+                               f"[u, v], \"size_mm\": number}}, got {tag!r:.80}", field="guide") from None
+    return out
+
+
+@dataclass(frozen=True)
+class PlaneCheck:
+    """One frame's plane check: the measurement, the intrinsics used, where the frame came from."""
+
+    measurement: object
+    intrinsics: object
+    source: str
+    camera: str
+    reference_ids: tuple[int, ...]
+    guide: str | None = None
+
+    def to_dict(self) -> dict:
+        m = self.measurement
+        return {"source": self.source, "camera": self.camera, "guide": self.guide,
+                "intrinsics": {"name": self.intrinsics.name, "rms_px": self.intrinsics.rms_px,
+                               "notes": list(self.intrinsics.notes)},
+                "plane": None if m.plane is None else m.plane.to_dict(),
+                "reference_ids": list(self.reference_ids),
+                "missing_reference_ids": list(m.missing_reference_ids), "unknown_ids": list(m.unknown_ids),
+                "duplicate_ids": list(m.duplicate_ids)}
+
+
+def grab_frame(url: str) -> np.ndarray:
+    """One frame from the camera at ``url``."""
+    camera = _open_camera(url)
+    try:
+        return np.asarray(camera.grab())
+    finally:
+        camera.close()
+
+
+def plane_check(*, image: str | Path | np.ndarray | None = None, camera: str | None = None,
+                guide: str | Path | None = None, intrinsics: str | Path | None = None, name: str | None = None,
+                remember: bool = True) -> PlaneCheck:
+    """Find the plane in one frame (a file or array ``image``, or grabbed from ``camera``; default the station's
+    camera) through the reference tags of ``guide`` (a manifest). Without a guide the tags' positions are unknown:
+    only which reference tags (ids 583-586) the camera sees is checked, and no plane is solved.
+
+    The fix is remembered per camera; the next check reports how far the plane moved (``moved_mm``).
+    """
+    from calibration.errors import CalibrationError
+    from calibration.measure import measure
+    from projector.guide import REFERENCE_TAG_IDS
+
+    if image is not None and camera is not None:
+        raise ServiceError("image or camera: give one, not both", field="image")
+    if image is None:
+        default_name, url = configured_camera_url() if camera is None else (DEFAULT_CAMERA, camera)
+        name = check_name(name or default_name)
+        frame, source = grab_frame(url), url
+    elif isinstance(image, np.ndarray):
+        frame, source, name = image, "<frame>", check_name(name or DEFAULT_CAMERA)
+    else:
+        frame, source, name = _read_image(Path(image)), str(image), check_name(name or DEFAULT_CAMERA)
+    size = (frame.shape[1], frame.shape[0])
+    camera_model = intrinsics_for(size, intrinsics=intrinsics, name=name)
+    references = reference_tags_from_guide(guide) if guide is not None else None
+    previous = _load_plane(name) if references is not None else None
+    try:
+        if references is None:
+            result = _references_seen(frame, camera_model)
+        else:
+            result = measure(frame, camera_model, references, {}, previous)
+    except CalibrationError as error:
+        raise ServiceError(str(error), field="image") from None
+    if remember and result.plane is not None:
+        _save_plane(name, result.plane)
+    ids = tuple(i for i, _c, _s in references) if references is not None else REFERENCE_TAG_IDS
+    return PlaneCheck(result, camera_model, source, name, tuple(ids), None if guide is None else str(guide))
+
+
+def _references_seen(frame: np.ndarray, camera_model):
+    """A measurement without a plane: which of the reference ids 583-586 are seen (once, twice, not at all)."""
+    from calibration.intrinsics import to_gray
+    from calibration.measure import Measurement, sort_ids
+    from projector.detection import detect_tags
+    from projector.guide import REFERENCE_TAG_IDS
+
+    camera_model.check_image(frame)
+    _unique, unknown, duplicates, missing = sort_ids(detect_tags(to_gray(frame)), REFERENCE_TAG_IDS, ())
+    return Measurement(None, (), unknown, duplicates, missing)
+
+
+def _save_plane(name: str, plane) -> None:
+    data = {**plane.to_dict(), "homography": np.asarray(plane.homography, dtype=float).tolist()}
+    path = _plane_file(name)
+    partial = path.with_name(path.name + ".partial")
+    partial.write_text(json.dumps(data) + "\n")
+    partial.replace(path)
+
+
+def _load_plane(name: str):
+    """The last plane fix of camera ``name``, or None (none yet, or a file that no longer reads: start afresh)."""
+    from calibration.measure import PlaneFix
+
+    path = _plane_file(name)
+    try:
+        data = json.loads(path.read_text())
+        return PlaneFix(np.array(data["rvec"], dtype=float), np.array(data["tvec"], dtype=float),
+                        np.array(data["homography"], dtype=float).reshape(3, 3), float(data["residual_mm"]),
+                        tuple(int(i) for i in data["reference_ids"]))
+    except (OSError, ValueError, KeyError, TypeError):
+        return None
