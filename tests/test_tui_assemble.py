@@ -38,7 +38,7 @@ async def test_a_layout_is_stepped_through_and_the_projector_follows(tmp_path):
         await pilot.press("p")
         await settle(app, pilot)
         assert screen.step == len(names) - 1
-        await pilot.press("c")
+        await pilot.press("0")
         await settle(app, pilot)
         assert screen.step == 0 and "calibrate" in str(screen.query_one("#caption", Static).render())
         # the tolerance map: the layout carries its model, so the track's parameters have a delta

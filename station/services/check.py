@@ -23,8 +23,9 @@ import numpy as np
 from common.progress import ProgressCallback, Reporter
 from station.services.errors import ServiceError
 
-__all__ = ["CheckJob", "apply_manifest", "camera_overlay", "check_frame", "check_measurement", "grab_frame",
-           "load_image", "overlay_frame", "parse_offset", "prepare_check", "sim_scene", "summary_lines"]
+__all__ = ["CheckJob", "apply_manifest", "camera_frame", "camera_overlay", "check_frame", "check_measurement",
+           "grab_frame", "load_image", "overlay_frame", "parse_offset", "prepare_check", "remember_plane",
+           "report_lines", "sim_scene", "summary_lines"]
 
 #: Stages of a check, for progress.
 STAGES = ("measure", "as-built", "simulation")
@@ -211,18 +212,14 @@ def grab_frame(url: str, guide, *, offsets=None, occluded: Sequence[int] = ()):
     drivers.errors.DriverError
         The camera cannot be opened or gives no frame (one line).
     """
-    from drivers.devices import resolve
+    from station.services.calibrate import _open_camera
 
-    info = resolve(url)
-    if info.kind != "camera" or not info.available:
-        raise ServiceError(f"camera: {url!r} is not a camera the station can open", field="camera", value=url)
-    camera = info.factory(info.url)
-    simulated = hasattr(camera, "set_scene")
-    if (offsets or occluded) and not simulated:
-        raise ServiceError("sim_offset: simulation offsets go with a simulated camera (sim://camera) only",
-                           field="sim_offset", value=url)
-    camera.open()
+    camera = _open_camera(url)
     try:
+        simulated = hasattr(camera, "set_scene")
+        if (offsets or occluded) and not simulated:
+            raise ServiceError("sim_offset: simulation offsets go with a simulated camera (sim://camera) only",
+                               field="sim_offset", value=url)
         if simulated:
             camera.set_scene(sim_scene(guide, offsets, occluded=occluded))
         image = np.asarray(camera.grab())
@@ -232,12 +229,51 @@ def grab_frame(url: str, guide, *, offsets=None, occluded: Sequence[int] = ()):
     return image, intrinsics
 
 
+def camera_frame(guide, *, image: str | Path | None = None, camera: str | None = None,
+                 intrinsics: str | Path | None = None, offsets=None, occluded: Sequence[int] = ()):
+    """The frame to check and how to read it: ``(image, intrinsics, camera name, its last plane fix)``.
+
+    From the file ``image``, else grabbed from ``camera`` (a URL; default the station's camera, ``station
+    devices``). The intrinsics: the file ``intrinsics``, else the camera's saved calibration, else a simulated
+    camera's own, else guessed (their ``notes`` say so). Offsets and covered tags go to a simulated camera only.
+    """
+    from station.services import calibrate
+
+    name, twin = calibrate.DEFAULT_CAMERA, None
+    if image is not None:
+        if offsets or occluded:
+            raise ServiceError("sim_offset: simulation offsets change a simulated camera's scene, not an image file",
+                               field="sim_offset", value=str(image))
+        frame = load_image(image)
+    else:
+        if camera is None:
+            name, camera = calibrate.configured_camera_url()
+        frame, twin = grab_frame(camera, guide, offsets=offsets, occluded=occluded)
+    size = (int(frame.shape[1]), int(frame.shape[0]))
+    if intrinsics is not None or twin is None or calibrate.camera_file(name).exists():
+        lens = calibrate.intrinsics_for(size, intrinsics=intrinsics, name=name)
+    else:
+        lens = twin  # the simulated camera knows its own lens
+    return frame, lens, name, calibrate._load_plane(name)
+
+
+def remember_plane(name: str, check: CheckJob) -> None:
+    """Keep the check's plane fix as camera ``name``'s last (the next check says how far the camera moved)."""
+    from station.services import calibrate
+
+    if check.measurement.plane is not None:
+        try:
+            calibrate._save_plane(name, check.measurement.plane)
+        except OSError:
+            pass  # the check stands without it; only the next "moved" report is lost
+
+
 def _twin_intrinsics(camera, url: str):
     from calibration.intrinsics import CameraIntrinsics
 
     model = camera.camera_model
     return CameraIntrinsics(np.asarray(model.camera_matrix, float), np.asarray(model.dist_coeffs, float),
-                            tuple(int(v) for v in model.image_size), name=f"{url} (the twin's own)")
+                            tuple(int(v) for v in model.image_size), name=f"{url} (the simulated camera's own)")
 
 
 # -- the check --------------------------------------------------------------------------------------------------------
@@ -278,10 +314,9 @@ def check_frame(job, image: np.ndarray, intrinsics=None, *, simulate: int = 0, s
     check_seed(seed)
     report = Reporter.of(progress)
     image = np.asarray(image)
-    notes = []
     if intrinsics is None:
         intrinsics = CameraIntrinsics.guess((image.shape[1], image.shape[0]))
-        notes.append("camera not calibrated (no --intrinsics): its focal length is guessed, distances are rough")
+    notes = list(getattr(intrinsics, "notes", ()))  # a guessed camera says so: its distances are rough
     guide = job.guide
     report.emit(_progress("measure", 0, 1))
     measurement = measure(image, intrinsics, reference_tags(guide), part_tags(guide), previous, detector=detector)
@@ -446,3 +481,42 @@ def camera_overlay(check: CheckJob) -> np.ndarray:
 
     return draw_check(image, check.guide_job.guide, check.report.parts, project,
                       caption=summary_lines(check.report)[:2])
+
+
+def report_lines(report) -> list[str]:
+    """The check as text: one row per tagged part (costliest first), the instructions, what was not measured and
+    the prediction as placed."""
+    lines = []
+    if report.plane is not None:
+        moved = "" if report.plane.moved_mm is None else f", moved {report.plane.moved_mm:.1f} mm since the last check"
+        lines.append(f"plane from reference tags {', '.join(map(str, report.plane.reference_ids))} (residual "
+                     f"{report.plane.residual_mm:.2f} mm{moved})")
+    header = ("part", "tag", "du mm", "dv mm", "dist mm", "turn deg", "tolerance", "ok", "cost")
+    rows = [header]
+    for part in report.parts:
+        tolerance = "/".join("-" if t is None else f"{t:.1f}" for t in part.tolerance)
+        if part.error is None:
+            values = ["not seen" if part.tag_id not in report.duplicate_tags else "twice", "", "", ""]
+        else:
+            values = [f"{part.error[0]:+.1f}", f"{part.error[1]:+.1f}", f"{part.error[2]:.1f}", f"{part.error[3]:+.1f}"]
+        ok = {True: "yes", False: "NO", None: "?"}[part.within_tolerance]
+        rows.append((part.name, str(part.tag_id), *values, tolerance, ok, "-" if part.cost is None
+                     else f"{part.cost:.2f}"))
+    widths = [max(len(row[i]) for row in rows) for i in range(len(header))]
+    for row in rows:
+        lines.append("  ".join(cell.ljust(width) for cell, width in zip(row, widths)).rstrip())
+    steps = [p.instruction for p in report.parts if p.instruction]
+    lines.extend(f"  {i}. {text}" for i, text in enumerate(steps, start=1))
+    if report.by_eye:
+        lines.append(f"check by eye against the sheet (no tag): {', '.join(report.by_eye)}")
+    for words, ids in (("missing tags", report.missing_tags), ("unknown tags (ignored)", report.unknown_tags),
+                       ("duplicate tags (not measured)", report.duplicate_tags),
+                       ("reference tags not seen", report.missing_reference_tags)):
+        if ids:
+            lines.append(f"{words}: {', '.join(map(str, ids))}")
+    if report.not_measured:
+        lines.append(f"not measured (kept at the layout's value): {', '.join(report.not_measured)}")
+    lines.extend(summary_lines(report)[:-1])
+    if report.prediction_note:
+        lines.append(f"note: {report.prediction_note}")
+    return lines
