@@ -1,0 +1,427 @@
+"""Render what a simulated camera sees of the guide plane, exactly, and the ground truth of every tag.
+
+Geometry
+--------
+Every output pixel is cut into ``supersample x supersample`` samples. A sample's ray goes through the lens model
+backwards: its pixel position is undistorted (``cv2.undistortPointsIter``, iterated to 1e-9 px, cached per camera
+and interpolated between pixel centres) into a ray direction, which is intersected with the plane of each item at the
+item's height. The item's picture (a tag's cells, an image, an occluder's outline) is sampled there (``cv2.remap``),
+the items drawn from the lowest up (at one height: pictures, then tags, then occluders; else in the scene's order).
+The samples are averaged into the pixel (``cv2.resize`` INTER_AREA), then exposure, vignetting, blur, noise and JPEG
+are applied in that order.
+
+Textures are sampled bilinearly at about one texel per sample, so an edge between two cells is a symmetric ramp
+centred exactly on the edge: the averaged pixel keeps the edge's position to a small fraction of a pixel (a point
+sample would quantize it to a third of a pixel).
+
+Tags come from OpenCV's ``cv2.aruco.DICT_APRILTAG_36h11`` bitmaps turned 180 degrees, which is the upstream
+tag36h11 as printed (written here again on purpose: the renderer shares no code with the station's tag drawing or its
+detector), with their white border (one cell wide).
+
+Light
+-----
+The projector's light (:meth:`drivers.sim.projector.SimulatedProjector.light`) lands on whatever surface a sample
+sees: the surface's (u, v) is taken through ``plane_from_pixel`` (the projector's mapping at h = 0; its parallax on a
+raised surface is not modelled) and the surface's colour is multiplied by ``1 + LIGHT_GAIN * light / 255``.
+"""
+
+from __future__ import annotations
+
+import math
+import threading
+from collections import OrderedDict
+from dataclasses import dataclass, replace
+
+import cv2
+import numpy as np
+
+from drivers.errors import SimConfigError
+from drivers.sim.camera_scene import (
+    CameraModel,
+    ImageItem,
+    Occluder,
+    PlaneScene,
+    RenderOptions,
+    TagItem,
+    TagTruth,
+    tag_corners_mm,
+)
+
+__all__ = ["DEFAULT_OPTIONS", "LIGHT_GAIN", "TAG_BLACK", "TAG_WHITE", "render", "tag_cells_upstream"]
+
+#: How bright the projector's full white makes a surface, relative to the room's light on it.
+LIGHT_GAIN = 0.6
+#: Printed black and paper white of a tag (RGB).
+TAG_BLACK = (28.0, 28.0, 30.0)
+TAG_WHITE = (238.0, 238.0, 232.0)
+#: Output rows rendered at a time (bounds the memory of the supersampled buffer).
+BAND_ROWS = 64
+#: Largest texture side (cv2.remap takes sources below 32767 pixels).
+MAX_TEXTURE = 4096
+
+#: The options :func:`render` uses when given none.
+DEFAULT_OPTIONS = RenderOptions()
+
+_GRIDS: OrderedDict[bytes, np.ndarray] = OrderedDict()
+_GRIDS_LOCK = threading.Lock()
+
+
+@dataclass(frozen=True)
+class _Layer:
+    height: float
+    texture: np.ndarray        # float32 (h, w, 4), premultiplied RGB + alpha, a transparent texel all round
+    tex_from_plane: np.ndarray  # 3x3: plane (u, v, 1) mm -> texture pixel (x, y, 1)
+    outline_mm: np.ndarray     # (n, 2) polygon covering what it hides
+    bbox: tuple[int, int, int, int] | None  # x0, y0, x1, y1 pixels (None: not in view)
+    kind: int = 0              # 0 picture, 1 tag, 2 occluder
+    index: int = 0             # its place in the scene's tuple of its kind
+
+
+def tag_cells_upstream(tag_id: int) -> np.ndarray:
+    """The 10 x 10 cells (True = white) of tag36h11 ``tag_id`` with its border, row 0 the top as printed (upstream
+    orientation: OpenCV's bitmap turned 180 degrees)."""
+    if isinstance(tag_id, bool) or not isinstance(tag_id, (int, np.integer)) or not 0 <= int(tag_id) < 587:
+        raise SimConfigError(f"tag id: expected an integer from 0 to 586 (tag36h11), got {tag_id!r}")
+    dictionary = cv2.aruco.getPredefinedDictionary(cv2.aruco.DICT_APRILTAG_36h11)
+    cells = np.ones((10, 10), dtype=bool)
+    cells[1:-1, 1:-1] = np.rot90(dictionary.generateImageMarker(int(tag_id), 8) > 0, 2)
+    return cells
+
+
+def render(scene: PlaneScene, camera: CameraModel,
+           options: RenderOptions = DEFAULT_OPTIONS) -> tuple[np.ndarray, tuple[TagTruth, ...]]:
+    """The camera's RGB uint8 image ``(h, w, 3)`` of ``scene`` and the truth of every tag (in the scene's order).
+
+    Raises
+    ------
+    SimConfigError
+        A bad option or scene item, naming it.
+    """
+    _check_options(options)
+    samples = int(options.supersample)
+    width, height = camera.image_size
+    layers = _layers(scene, camera, samples)
+    grid = _normalized_grid(camera)
+    rotation, centre = camera.rotation.astype(np.float32), camera.centre_mm
+    light = _light_source(scene.light)
+    background = np.asarray(scene.background, dtype=np.float32).reshape(3)
+    image = np.empty((height, width, 3), dtype=np.float32)
+    for y0 in range(0, height, BAND_ROWS):
+        y1 = min(height, y0 + BAND_ROWS)
+        band = np.empty(((y1 - y0) * samples, width * samples, 3), dtype=np.float32)
+        band[:] = background
+        seen = np.zeros(band.shape[:2], dtype=np.float32)  # the height of the surface each sample sees
+        for layer in layers:
+            if layer.bbox is None or layer.bbox[3] <= y0 or layer.bbox[1] >= y1:
+                continue
+            x0, x1 = layer.bbox[0], layer.bbox[2]
+            r0, r1 = max(layer.bbox[1], y0), min(layer.bbox[3], y1)
+            a, b, down = _rays(grid, rotation, x0, x1, r0, r1, samples)
+            k = layer.height - centre[2]
+            to_plane = np.array([[k, 0.0, centre[0]], [0.0, k, centre[1]], [0.0, 0.0, 1.0]])
+            tx, ty = _apply(layer.tex_from_plane @ to_plane, a, b)
+            hit = down if k < 0 else ~down  # the item's plane is in front of the camera
+            tx[~hit] = -10.0
+            texel = cv2.remap(layer.texture, tx, ty, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT,
+                              borderValue=(0, 0, 0, 0))
+            alpha = texel[..., 3:4]
+            rows = slice((r0 - y0) * samples, (r1 - y0) * samples)
+            cols = slice(x0 * samples, x1 * samples)
+            band[rows, cols] = band[rows, cols] * (1.0 - alpha) + texel[..., :3]
+            seen[rows, cols] = np.where(alpha[..., 0] > 0.5, np.float32(layer.height), seen[rows, cols])
+        if light is not None:
+            _add_light(band, seen, light, grid, rotation, centre, y0, y1, samples)
+        image[y0:y1] = cv2.resize(band, (width, y1 - y0), interpolation=cv2.INTER_AREA)
+    return _finish(image, options), _truth(scene, camera, layers)
+
+
+# -- the lens -----------------------------------------------------------------------------------------------------
+
+
+def _normalized_grid(camera: CameraModel) -> np.ndarray:
+    """Normalized image coordinates (x/z, y/z) of every pixel centre, with one pixel more all round, float32
+    ``(h + 2, w + 2, 2)``; cached per intrinsics (undistorting two million points takes most of a second)."""
+    key = b"".join(np.ascontiguousarray(v, dtype=float).tobytes() for v in
+                   (camera.camera_matrix, camera.dist_coeffs, np.array(camera.image_size, dtype=float)))
+    with _GRIDS_LOCK:
+        if key in _GRIDS:
+            _GRIDS.move_to_end(key)
+            return _GRIDS[key]
+    width, height = camera.image_size
+    xs, ys = np.meshgrid(np.arange(-1, width + 1, dtype=float), np.arange(-1, height + 1, dtype=float))
+    pixels = np.stack([xs, ys], axis=-1).reshape(-1, 1, 2)
+    if np.any(camera.dist_coeffs):
+        criteria = (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 40, 1e-9)
+        normal = cv2.undistortPointsIter(pixels, camera.camera_matrix, camera.dist_coeffs, np.eye(3), np.eye(3),
+                                         criteria)
+    else:
+        matrix = camera.camera_matrix
+        y = (pixels[..., 1] - matrix[1, 2]) / matrix[1, 1]
+        normal = np.stack([(pixels[..., 0] - matrix[0, 2] - matrix[0, 1] * y) / matrix[0, 0], y], axis=-1)
+    grid = normal.reshape(height + 2, width + 2, 2).astype(np.float32)
+    grid.flags.writeable = False
+    with _GRIDS_LOCK:
+        _GRIDS[key] = grid
+        while len(_GRIDS) > 4:
+            _GRIDS.popitem(last=False)
+    return grid
+
+
+def _rays(grid: np.ndarray, rotation: np.ndarray, x0: int, x1: int, y0: int, y1: int,
+          samples: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """For the samples of pixels [x0, x1) x [y0, y1): the ray direction's du/dh and dv/dh, and whether it goes
+    down (towards -h). Sample i of pixel x sits at x - 0.5 + (i + 0.5) / samples, which is where cv2.resize's
+    INTER_LINEAR puts it when the grid (with its margin of one pixel) is scaled up by ``samples``."""
+    patch = grid[y0:y1 + 2, x0:x1 + 2]
+    if samples > 1:
+        patch = cv2.resize(patch, None, fx=samples, fy=samples, interpolation=cv2.INTER_LINEAR)
+        patch = patch[samples:-samples, samples:-samples]
+    else:
+        patch = patch[1:-1, 1:-1]
+    xn, yn = patch[..., 0], patch[..., 1]
+    # plane direction D = R^T (xn, yn, 1)
+    du = rotation[0, 0] * xn + rotation[1, 0] * yn + rotation[2, 0]
+    dv = rotation[0, 1] * xn + rotation[1, 1] * yn + rotation[2, 1]
+    dh = rotation[0, 2] * xn + rotation[1, 2] * yn + rotation[2, 2]
+    down = dh < 0
+    dh = np.where(np.abs(dh) < 1e-9, np.float32(1e-9), dh)
+    return du / dh, dv / dh, down
+
+
+def _apply(matrix: np.ndarray, a: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``matrix`` (3x3) applied to the points (a, b, 1), as float32 maps for cv2.remap."""
+    m = matrix.astype(np.float64)
+    w = m[2, 0] * a + m[2, 1] * b + m[2, 2]
+    x = (m[0, 0] * a + m[0, 1] * b + m[0, 2]) / w
+    y = (m[1, 0] * a + m[1, 1] * b + m[1, 2]) / w
+    return x.astype(np.float32), y.astype(np.float32)
+
+
+# -- what lies on the plane -------------------------------------------------------------------------------------
+
+
+def _layers(scene: PlaneScene, camera: CameraModel, samples: int) -> list[_Layer]:
+    """The scene's items as textured layers, in drawing order."""
+    items = [(float(item.height_mm), 0, n, item) for n, item in enumerate(scene.images)]
+    items += [(float(item.height_mm), 1, n, item) for n, item in enumerate(scene.tags)]
+    items += [(float(item.height_mm), 2, n, item) for n, item in enumerate(scene.occluders)]
+    layers = []
+    for _, kind, index, item in sorted(items, key=lambda entry: entry[:3]):
+        maker = (_image_layer, _tag_layer, _occluder_layer)[kind]
+        layers.append(replace(maker(item, camera, samples), kind=kind, index=index))
+    return layers
+
+
+def _tag_layer(tag: TagItem, camera: CameraModel, samples: int) -> _Layer:
+    if tag.family != "tag36h11":
+        raise SimConfigError(f"tag {tag.tag_id}: family: expected 'tag36h11', got {tag.family!r}")
+    if not (math.isfinite(tag.size_mm) and tag.size_mm > 0 and math.isfinite(tag.heading_deg)
+            and math.isfinite(tag.height_mm)):
+        raise SimConfigError(f"tag {tag.tag_id}: expected a size > 0 and finite heading and height, got size "
+                             f"{tag.size_mm!r}, heading {tag.heading_deg!r}, height {tag.height_mm!r}")
+    cells = tag_cells_upstream(tag.tag_id)
+    outline = tag_corners_mm(tag, 10.0 / 8.0)
+    quad = camera.project(np.column_stack([tag_corners_mm(tag), np.full(4, tag.height_mm)]))
+    cell_samples = math.sqrt(abs(_area(quad))) / 8.0 * samples
+    per_cell = int(min(64, max(2, math.ceil(cell_samples))))
+    grey = np.kron(cells, np.ones((per_cell, per_cell), dtype=bool))
+    rgb = np.where(grey[..., None], np.float32(TAG_WHITE), np.float32(TAG_BLACK)).astype(np.float32)
+    theta = math.radians(tag.heading_deg)
+    right = np.array([math.cos(theta), math.sin(theta)])
+    up = np.array([-math.sin(theta), math.cos(theta)])
+    centre = np.asarray(tag.center_mm, dtype=float)
+    scale = per_cell / (tag.size_mm / 8.0)  # texels per mm
+    # texel x = (5 cells + along "right") * per_cell - 0.5, + 1 for the transparent margin; y runs down the print
+    tex = np.array([[scale * right[0], scale * right[1], 5 * per_cell + 0.5 - scale * right.dot(centre)],
+                    [-scale * up[0], -scale * up[1], 5 * per_cell + 0.5 + scale * up.dot(centre)],
+                    [0.0, 0.0, 1.0]])
+    return _Layer(float(tag.height_mm), _premultiplied(rgb), tex, outline, _bbox(outline, tag.height_mm, camera))
+
+
+def _image_layer(item: ImageItem, camera: CameraModel, samples: int) -> _Layer:
+    picture = np.asarray(item.image)
+    corners = np.asarray(item.corners_mm, dtype=float)
+    if picture.dtype != np.uint8 or picture.ndim not in (2, 3) or (picture.ndim == 3 and picture.shape[2] != 3) \
+            or min(picture.shape[:2]) < 1:
+        raise SimConfigError(f"image item: image: expected uint8 HxW or HxWx3, got {picture.dtype} {picture.shape}")
+    if corners.shape != (4, 2) or not np.isfinite(corners).all() or abs(_area(corners)) < 1e-9:
+        raise SimConfigError(f"image item: corners_mm: expected 4 distinct (u, v) corners, got {corners.tolist()}")
+    rgb = np.repeat(picture[..., None], 3, axis=2) if picture.ndim == 2 else picture
+    quad = camera.project(np.column_stack([corners, np.full(4, item.height_mm)]))
+    texels = (rgb.shape[0] + rgb.shape[1]) * 2.0
+    seen = _perimeter(quad) * samples
+    factor = max(texels / max(seen, 1.0), (max(rgb.shape[:2]) + 2) / MAX_TEXTURE)
+    if factor > 1.5:  # minified: average it first, else the samples would alias
+        size = (max(2, round(rgb.shape[1] / factor)), max(2, round(rgb.shape[0] / factor)))
+        rgb = cv2.resize(rgb, size, interpolation=cv2.INTER_AREA)
+    h, w = rgb.shape[:2]
+    target = np.array([[0.5, 0.5], [w + 0.5, 0.5], [w + 0.5, h + 0.5], [0.5, h + 0.5]], dtype=np.float32)
+    tex = cv2.getPerspectiveTransform(corners.astype(np.float32), target).astype(float)
+    return _Layer(float(item.height_mm), _premultiplied(rgb.astype(np.float32)), tex, corners,
+                  _bbox(corners, item.height_mm, camera))
+
+
+def _occluder_layer(item: Occluder, camera: CameraModel, samples: int) -> _Layer:
+    polygon = np.asarray(item.polygon_mm, dtype=float)
+    if polygon.ndim != 2 or polygon.shape[1] != 2 or len(polygon) < 3 or not np.isfinite(polygon).all():
+        raise SimConfigError(f"occluder: polygon_mm: expected (n, 2) plane points with n >= 3, got {polygon.shape}")
+    image = camera.project(np.column_stack([polygon, np.full(len(polygon), item.height_mm)]))
+    plane_area, image_area = abs(_area(polygon)), abs(_area(image))
+    per_mm = samples * math.sqrt(image_area / plane_area) if plane_area > 1e-9 and image_area > 1e-9 else 1.0
+    low, high = polygon.min(axis=0), polygon.max(axis=0)
+    per_mm = min(per_mm, (MAX_TEXTURE - 8) / max(float(np.max(high - low)), 1e-9))
+    size = np.ceil((high - low) * per_mm).astype(int) + 6
+    tex = np.array([[per_mm, 0.0, 3.0 - per_mm * low[0]], [0.0, -per_mm, 3.0 + per_mm * high[1]], [0.0, 0.0, 1.0]])
+    points = np.column_stack([polygon, np.ones(len(polygon))]) @ tex.T
+    mask = np.zeros((size[1], size[0]), dtype=np.uint8)
+    cv2.fillPoly(mask, [np.round(points[:, :2] * 16).astype(np.int32)], 255, cv2.LINE_AA, shift=4)
+    alpha = mask.astype(np.float32)[..., None] / 255.0
+    texture = np.concatenate([alpha * np.asarray(item.color, dtype=np.float32), alpha], axis=2)
+    return _Layer(float(item.height_mm), np.ascontiguousarray(texture), tex, polygon,
+                  _bbox(polygon, item.height_mm, camera))
+
+
+def _premultiplied(rgb: np.ndarray) -> np.ndarray:
+    """RGBA float32 with alpha 1 and a transparent texel all round (so an item's outer edge is smooth too)."""
+    h, w = rgb.shape[:2]
+    texture = np.zeros((h + 2, w + 2, 4), dtype=np.float32)
+    texture[1:-1, 1:-1, :3] = rgb
+    texture[1:-1, 1:-1, 3] = 1.0
+    return texture
+
+
+def _bbox(outline: np.ndarray, height: float, camera: CameraModel) -> tuple[int, int, int, int] | None:
+    """The pixels an item may cover: its outline (edges sampled densely, for the lens' curve) projected, padded."""
+    closed = np.vstack([outline, outline[:1]])
+    t = np.linspace(0.0, 1.0, 17)[:-1, None]
+    points = np.vstack([p + t * (q - p) for p, q in zip(closed[:-1], closed[1:], strict=True)])
+    points = np.column_stack([points, np.full(len(points), height)])
+    width, size_h = camera.image_size
+    if np.any(camera.depth(points) <= 1e-6):  # partly behind the camera: its picture may be anywhere
+        return 0, 0, width, size_h
+    pixels = camera.project(points)
+    x0, y0 = np.floor(pixels.min(axis=0)).astype(int) - 2
+    x1, y1 = np.ceil(pixels.max(axis=0)).astype(int) + 3
+    x0, y0, x1, y1 = max(0, x0), max(0, y0), min(width, x1), min(size_h, y1)
+    return (int(x0), int(y0), int(x1), int(y1)) if x1 > x0 and y1 > y0 else None
+
+
+def _area(polygon: np.ndarray) -> float:
+    x, y = polygon[:, 0], polygon[:, 1]
+    return 0.5 * float(np.dot(x, np.roll(y, -1)) - np.dot(y, np.roll(x, -1)))
+
+
+def _perimeter(polygon: np.ndarray) -> float:
+    return float(np.linalg.norm(np.diff(np.vstack([polygon, polygon[:1]]), axis=0), axis=1).sum())
+
+
+# -- light, finish, truth -----------------------------------------------------------------------------------------
+
+
+def _light_source(light: dict | None) -> tuple[np.ndarray, np.ndarray] | None:
+    """(light image float32, pixel_from_plane) or None when nothing lands (no light, blank, no placement)."""
+    if light is None or light.get("blank") or light.get("plane_from_pixel") is None:
+        return None
+    image = np.asarray(light.get("image"))
+    matrix = np.asarray(light["plane_from_pixel"], dtype=float)
+    if image.ndim != 3 or image.shape[2] != 3 or matrix.shape != (3, 3):
+        raise SimConfigError(f"scene light: expected an (h, w, 3) image and a 3x3 plane_from_pixel, got "
+                             f"{image.shape} and {matrix.shape}")
+    if not image.any():
+        return None
+    return image.astype(np.float32) * np.float32(LIGHT_GAIN / 255.0), np.linalg.inv(matrix)
+
+
+def _add_light(band: np.ndarray, seen: np.ndarray, light: tuple[np.ndarray, np.ndarray], grid: np.ndarray,
+               rotation: np.ndarray, centre: np.ndarray, y0: int, y1: int, samples: int) -> None:
+    image, pixel_from_plane = light
+    a, b, down = _rays(grid, rotation, 0, band.shape[1] // samples, y0, y1, samples)
+    k = seen - np.float32(centre[2])
+    u = np.float32(centre[0]) + k * a
+    v = np.float32(centre[1]) + k * b
+    px, py = _apply(pixel_from_plane, u, v)
+    px[~down] = -10.0
+    lit = cv2.remap(image, px, py, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT, borderValue=(0, 0, 0))
+    band *= 1.0 + lit
+
+
+def _finish(image: np.ndarray, options: RenderOptions) -> np.ndarray:
+    """Exposure, vignetting, blur, noise, then JPEG, on the float image."""
+    height, width = image.shape[:2]
+    image *= np.float32(options.exposure)
+    if options.vignetting:
+        ys, xs = np.ogrid[:height, :width]
+        cx, cy = (width - 1) / 2.0, (height - 1) / 2.0
+        r2 = ((xs - cx) ** 2 + (ys - cy) ** 2) / (cx * cx + cy * cy)
+        image *= (1.0 - options.vignetting * r2).astype(np.float32)[..., None]
+    if options.blur_px > 0:
+        image = cv2.GaussianBlur(image, (0, 0), options.blur_px)
+    if options.noise > 0:
+        rng = np.random.default_rng(options.seed)
+        image += rng.standard_normal(image.shape, dtype=np.float32) * np.float32(options.noise)
+    result = np.clip(np.rint(image), 0, 255).astype(np.uint8)
+    if options.jpeg_quality is not None:
+        ok, data = cv2.imencode(".jpg", cv2.cvtColor(result, cv2.COLOR_RGB2BGR),
+                                [cv2.IMWRITE_JPEG_QUALITY, int(options.jpeg_quality)])
+        result = cv2.cvtColor(cv2.imdecode(data, cv2.IMREAD_COLOR), cv2.COLOR_BGR2RGB)
+    return result
+
+
+def _check_options(options: RenderOptions) -> None:
+    checks = (("supersample", isinstance(options.supersample, (int, np.integer)) and 1 <= options.supersample <= 8,
+               "a whole number from 1 to 8"),
+              ("blur_px", math.isfinite(options.blur_px) and options.blur_px >= 0, "a number >= 0"),
+              ("noise", math.isfinite(options.noise) and options.noise >= 0, "a number >= 0"),
+              ("vignetting", 0.0 <= options.vignetting <= 1.0, "a number from 0 to 1"),
+              ("exposure", math.isfinite(options.exposure) and options.exposure > 0, "a number > 0"),
+              ("jpeg_quality", options.jpeg_quality is None or (isinstance(options.jpeg_quality, (int, np.integer))
+                                                                and 1 <= options.jpeg_quality <= 100),
+               "None or a whole number from 1 to 100"))
+    for name, ok, expected in checks:
+        if not ok:
+            raise SimConfigError(f"render option {name}: expected {expected}, got {getattr(options, name)!r}")
+
+
+def _truth(scene: PlaneScene, camera: CameraModel, layers: list[_Layer]) -> tuple[TagTruth, ...]:
+    """Each tag's corners and centre in the image, and whether all of it (with its border) is in view and
+    unhidden: a grid of points on it is checked against every item drawn after it, along the ray to the camera."""
+    width, height = camera.image_size
+    centre = camera.centre_mm
+    tag_layers = {layer.index: n for n, layer in enumerate(layers) if layer.kind == 1}
+    truths = []
+    for index, tag in enumerate(scene.tags):
+        mine = tag_layers[index]
+        h = float(tag.height_mm)
+        corners = camera.project(np.column_stack([tag_corners_mm(tag), np.full(4, h)]))
+        centre_px = camera.project(np.array([[*tag.center_mm, h]]))[0]
+        border = tag_corners_mm(tag, 10.0 / 8.0)
+        s, t = np.meshgrid(np.linspace(0, 1, 11), np.linspace(0, 1, 11))
+        s, t = s.ravel()[:, None], t.ravel()[:, None]
+        points = (border[0] + s * (border[1] - border[0]) + t * (border[3] - border[0]))
+        points3 = np.column_stack([points, np.full(len(points), h)])
+        border_px = camera.project(np.column_stack([border, np.full(4, h)]))
+        visible = bool(np.all(camera.depth(points3) > 0)
+                       and np.all((border_px >= -0.5) & (border_px <= [width - 0.5, height - 0.5])))
+        if visible:
+            for other in layers[mine + 1:]:
+                scale = (other.height - centre[2]) / (h - centre[2]) if h != centre[2] else math.inf
+                if not math.isfinite(scale) or scale <= 0:
+                    continue
+                hit = centre[:2] + scale * (points - centre[:2])
+                if np.any(_inside(hit, other.outline_mm)):
+                    visible = False
+                    break
+        truths.append(TagTruth(int(tag.tag_id), (float(tag.center_mm[0]), float(tag.center_mm[1])),
+                               float(tag.heading_deg), h, float(tag.size_mm), corners, centre_px, visible))
+    return tuple(truths)
+
+
+def _inside(points: np.ndarray, polygon: np.ndarray) -> np.ndarray:
+    """Whether each point (n, 2) lies inside ``polygon`` (m, 2) (even-odd rule, vectorized)."""
+    x, y = points[:, 0:1], points[:, 1:2]
+    x0, y0 = polygon[:, 0][None, :], polygon[:, 1][None, :]
+    x1, y1 = np.roll(polygon[:, 0], -1)[None, :], np.roll(polygon[:, 1], -1)[None, :]
+    crosses = (y0 > y) != (y1 > y)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        at = x0 + (y - y0) * (x1 - x0) / (y1 - y0)
+    return (np.count_nonzero(crosses & (x < at), axis=1) % 2) == 1
