@@ -26,7 +26,10 @@ from projector.guide import Guide
 
 __all__ = ["draw_check", "misplaced", "render_check"]
 
-MOVE, IN_PLACE, MISSING, TARGET = (255, 150, 30), (70, 235, 70), (150, 150, 150), (255, 255, 255)
+#: Colours (RGB) on a projector (light on black) and over a camera frame (dark on a light table or sheet).
+PROJECTOR_COLOURS = {"move": (255, 150, 30), "in_place": (70, 235, 70), "missing": (150, 150, 150),
+                     "target": (255, 255, 255)}
+CAMERA_COLOURS = {"move": (235, 80, 0), "in_place": (0, 150, 40), "missing": (110, 110, 110), "target": (20, 80, 230)}
 #: Off by at least this much, a part without a tolerance is drawn as misplaced.
 UNTOLERATED_MM, UNTOLERATED_DEG = 1.0, 1.0
 #: The smallest target ring (mm).
@@ -58,8 +61,10 @@ def render_check(guide: Guide, checks: Sequence, size: tuple[int, int] = DEFAULT
 def draw_check(image: np.ndarray, guide: Guide, checks: Sequence,
                project: Callable[[np.ndarray, float], np.ndarray], caption: Sequence[str] = ()) -> np.ndarray:
     """The check drawn over a camera frame (a copy, RGB): ``project(points_mm (n, 2), height_mm)`` gives their
-    pixels (OpenCV's convention, pixel centres at integers)."""
-    canvas = _CheckCanvas(guide, (int(image.shape[1]), int(image.shape[0])), None, project=project)
+    pixels (OpenCV's convention, pixel centres at integers). Outlines are drawn on the plane (h = 0: where each part
+    stands on the sheet), as the projector draws them."""
+    canvas = _CheckCanvas(guide, (int(image.shape[1]), int(image.shape[0])), None, project=project,
+                          colours=CAMERA_COLOURS)
     out = np.array(image, dtype=np.uint8, copy=True)
     if out.ndim == 2:
         out = np.repeat(out[:, :, None], 3, axis=2)
@@ -73,25 +78,25 @@ def draw_check(image: np.ndarray, guide: Guide, checks: Sequence,
 class _CheckCanvas(_Canvas):
     """A frame canvas whose points go through the homography, or through a camera projection at a height."""
 
-    def __init__(self, guide: Guide, size, homography, project=None) -> None:
+    def __init__(self, guide: Guide, size, homography, project=None, colours=None) -> None:
         super().__init__(guide, size, homography)
         self.project = project
-        self.height_mm = 0.0
+        self.colours = colours or PROJECTOR_COLOURS
 
     def _px(self, points_mm) -> np.ndarray:
         if self.project is None:
             return super()._px(points_mm)
-        return np.asarray(self.project(np.atleast_2d(np.asarray(points_mm, dtype=float)), self.height_mm),
+        return np.asarray(self.project(np.atleast_2d(np.asarray(points_mm, dtype=float)), 0.0),
                           dtype=float).reshape(-1, 2)
 
     def draw(self, image: np.ndarray, checks: Sequence) -> None:
         parts = {p.name: p for p in self.guide.parts}
         cv2 = _cv2()
+        MOVE, IN_PLACE, MISSING, TARGET = (self.colours[k] for k in ("move", "in_place", "missing", "target"))
         for check in checks:
             part = parts.get(check.name)
             if part is None:
                 continue
-            self.height_mm = part.tag_height_mm if self.project is not None else 0.0
             centre = np.asarray(part.center_mm, dtype=float)
             if not check.found:
                 self._dashed(image, _rings(part.outline), MISSING)

@@ -153,17 +153,21 @@ def parse_offset(text: str) -> tuple[str, tuple[float, float, float]]:
     return name, (numbers[0], numbers[1], numbers[2] if len(numbers) == 3 else 0.0)
 
 
-def sim_scene(guide, offsets: Mapping[str, Sequence[float]] | None = None, *, occluded: Sequence[int] = ()):
+def sim_scene(guide, offsets: Mapping[str, Sequence[float]] | None = None, *, occluded: Sequence[int] = (),
+              sheet: bool = True):
     """What a simulated camera sees: the guide's reference tags on the plane and every part tag at its part's
     designed pose and face height, a part moved by ``offsets[name] = (du, dv, deg)`` (rigidly: its tag turns about
-    the part's origin), the tags ``occluded`` covered by a hand. Simulation only: a real camera sees the real parts.
+    the part's origin), the tags ``occluded`` covered by a hand. With ``sheet``, a picture on the plane under them:
+    the guide's outlines (thin) and every part's outline where it stands (filled, its footprint seen from the
+    camera's side, drawn flat on the plane: context for the eye, never over a tag). Simulation only: a real camera
+    sees the real parts.
 
     Raises
     ------
     ServiceError
         An offset of a part the guide has no tag on (``sim_offset``).
     """
-    from drivers.sim.camera_scene import Occluder, PlaneScene, TagItem
+    from drivers.sim.camera_scene import ImageItem, Occluder, PlaneScene, TagItem
 
     offsets = dict(offsets or {})
     tagged = {p.name: p for p in guide.parts if p.tag_id is not None and p.tag_center_mm is not None}
@@ -184,7 +188,40 @@ def sim_scene(guide, offsets: Mapping[str, Sequence[float]] | None = None, *, oc
             half = 0.8 * part.tag_size_mm
             square = np.array([[-half, -half], [half, -half], [half, half], [-half, half]]) + centre
             occluders.append(Occluder(square, part.tag_height_mm + 5.0))
-    return PlaneScene(tags=tuple(tags), occluders=tuple(occluders))
+    images = (ImageItem(*_sheet_picture(guide, offsets)),) if sheet else ()
+    return PlaneScene(tags=tuple(tags), images=images, occluders=tuple(occluders))
+
+
+def _moved_outline(part, offset):
+    from shapely import affinity
+
+    du, dv, turn = offset
+    return affinity.translate(affinity.rotate(part.outline, turn, origin=tuple(part.center_mm)), du, dv)
+
+
+def _sheet_picture(guide, offsets, px_per_mm: float = 2.0) -> tuple[np.ndarray, np.ndarray]:
+    """The picture under the parts (see :func:`sim_scene`) and its corners on the plane (top-left first)."""
+    import cv2
+
+    u0, v0, u1, v1 = guide.extent_mm
+    width, height = int(np.ceil((u1 - u0) * px_per_mm)), int(np.ceil((v1 - v0) * px_per_mm))
+    picture = np.full((height, width, 3), 245, dtype=np.uint8)
+
+    def pixels(ring) -> np.ndarray:  # row 0 is the picture's top (largest v); fixed point, 4 fractional bits
+        ring = np.asarray(ring)[:, :2]
+        return np.round(16 * np.column_stack([(ring[:, 0] - u0) * px_per_mm,
+                                              (v1 - ring[:, 1]) * px_per_mm])).astype(np.int32)
+
+    for part in guide.parts:
+        body = _moved_outline(part, offsets.get(part.name, (0.0, 0.0, 0.0)))
+        for polygon in getattr(body, "geoms", [body]):
+            if not polygon.is_empty:
+                cv2.fillPoly(picture, [pixels(polygon.exterior.coords)], (196, 164, 120), cv2.LINE_AA, 4)
+        for polygon in getattr(part.outline, "geoms", [part.outline]):
+            if not polygon.is_empty:
+                cv2.polylines(picture, [pixels(polygon.exterior.coords)], True, (110, 110, 110), 1, cv2.LINE_AA, 4)
+    corners = np.array([[u0, v1], [u1, v1], [u1, v0], [u0, v0]], dtype=float)
+    return picture, corners
 
 
 def load_image(path: str | Path) -> np.ndarray:
@@ -222,6 +259,8 @@ def grab_frame(url: str, guide, *, offsets=None, occluded: Sequence[int] = ()):
                                field="sim_offset", value=url)
         if simulated:
             camera.set_scene(sim_scene(guide, offsets, occluded=occluded))
+            if "target=" not in url:
+                _aim(camera, guide)
         image = np.asarray(camera.grab())
         intrinsics = _twin_intrinsics(camera, url) if simulated else None
     finally:
@@ -266,6 +305,23 @@ def remember_plane(name: str, check: CheckJob) -> None:
             calibrate._save_plane(name, check.measurement.plane)
         except OSError:
             pass  # the check stands without it; only the next "moved" report is lost
+
+
+def _aim(camera, guide) -> None:
+    """Move a simulated camera told no ``target`` in the plane so that its optical axis meets the guide's middle
+    (as a maker sets the camera up over the sheets): the camera translated by d, ``t' = t - R d``."""
+    import cv2
+
+    model = camera.camera_model
+    u0, v0, u1, v1 = guide.extent_mm
+    rotation = cv2.Rodrigues(np.asarray(model.rvec, dtype=float))[0]
+    axis = rotation.T @ np.array([0.0, 0.0, 1.0])  # the optical axis in plane coordinates
+    centre = np.asarray(model.centre_mm, dtype=float)
+    if abs(axis[2]) < 1e-9:
+        return
+    hit = centre - centre[2] / axis[2] * axis  # where the optical axis meets the plane now
+    shift = np.array([(u0 + u1) / 2 - hit[0], (v0 + v1) / 2 - hit[1], 0.0])
+    camera.place(replace(model, tvec=np.asarray(model.tvec, dtype=float) - rotation @ shift))
 
 
 def _twin_intrinsics(camera, url: str):
@@ -437,7 +493,9 @@ def _simulate(problem, built, residual, n: int, seed: int, report: Reporter, sho
 # -- what the check shows ---------------------------------------------------------------------------------------------
 def summary_lines(report) -> list[str]:
     """The check's headline in words: the prediction as placed (or why there is none) and what to do."""
-    to_move = sum(1 for p in report.parts if p.found and p.within_tolerance is False)
+    from projector.overlay import misplaced
+
+    to_move = sum(1 for p in report.parts if misplaced(p))
     found = sum(1 for p in report.parts if p.found)
     lines = []
     if report.predicted_success_as_built is not None:
@@ -445,7 +503,7 @@ def summary_lines(report) -> list[str]:
                      f"(as designed: {report.predicted_success_as_designed:.2f})")
     if report.simulated_success_as_built is not None:
         lines.append(f"simulated success as placed: {report.simulated_success_as_built:.2f}")
-    lines.append(f"{found} of {len(report.parts)} tagged parts measured, {to_move} out of tolerance"
+    lines.append(f"{found} of {len(report.parts)} tagged parts measured, {to_move} to move"
                  + (f", {len(report.by_eye)} to check by eye" if report.by_eye else ""))
     return lines
 
