@@ -69,9 +69,13 @@ def prepare_check(scenario: str, layout: str, *, guide: str | Path | None = None
         A manifest that is not one of this scenario (``guide``), or of another layout.
     """
     from station.services import guide as guides
+    from station.services.contraption import open_scenario
 
     manifest = _read_manifest(guide) if guide is not None else None
     view = manifest.get("view") if manifest is not None else None
+    if manifest is not None:  # refused before any work: the scenario is cheap to read, the tolerances are not
+        loaded = open_scenario(scenario)
+        _same_scenario(manifest, loaded.name, loaded.content_hash, str(guide))
     job = guides.make_guide(scenario, layout, view=view if view in guides.VIEWS else None, progress=progress)
     if manifest is not None:
         job = replace(job, guide=apply_manifest(job.guide, manifest, str(guide)))
@@ -82,13 +86,13 @@ def _read_manifest(path) -> dict:
     try:
         data = json.loads(Path(path).read_text(encoding="utf-8"))
     except FileNotFoundError:
-        raise ServiceError(f"{path}: no such file (expected the manifest `station guide --json` prints)",
+        raise ServiceError(f"guide {path}: no such file (expected the manifest `station guide --json` prints)",
                            field="guide", value=str(path)) from None
     except (OSError, UnicodeDecodeError, json.JSONDecodeError) as error:
-        raise ServiceError(f"{path}: not a guide manifest ({error}); expected the JSON `station guide --json` prints",
+        raise ServiceError(f"guide {path}: not a guide manifest ({error}); expected what `station guide --json` prints",
                            field="guide", value=str(path)) from None
     if not isinstance(data, dict) or not isinstance(data.get("parts"), list):
-        raise ServiceError(f"{path}: not a guide manifest (no parts list); expected the JSON `station guide --json` "
+        raise ServiceError(f"guide {path}: not a guide manifest (no parts list); expected what `station guide --json` "
                            "prints", field="guide", value=str(path))
     return data
 
@@ -105,11 +109,9 @@ def apply_manifest(guide, manifest: Mapping, source: str = "<manifest>"):
     from projector.guide import ParameterTolerance, ReferenceTag
 
     def refuse(what: str) -> ServiceError:
-        return ServiceError(f"{source}: {what}", field="guide", value=source)
+        return ServiceError(f"guide {source}: {what}", field="guide", value=source)
 
-    for key, ours in (("scenario", guide.scenario), ("content_hash", guide.content_hash), ("view", guide.view)):
-        if manifest.get(key) != ours:
-            raise refuse(f"{key} is {manifest.get(key)!r}, expected {ours!r} (a guide of another scenario or view)")
+    _same_scenario(manifest, guide.scenario, guide.content_hash, source)
     try:
         by_name = {p["name"]: p for p in manifest["parts"]}
         parts = []
@@ -137,6 +139,13 @@ def apply_manifest(guide, manifest: Mapping, source: str = "<manifest>"):
         raise refuse(f"malformed manifest ({type(error).__name__}: {error}); expected what `station guide --json` "
                      "prints") from None
     return replace(guide, parts=tuple(parts), reference_tags=references)
+
+
+def _same_scenario(manifest: Mapping, name: str, content_hash: str, source: str) -> None:
+    for key, ours in (("scenario", name), ("content_hash", content_hash)):
+        if manifest.get(key) != ours:
+            raise ServiceError(f"guide {source}: {key} is {manifest.get(key)!r}, expected {ours!r} (the guide of "
+                               "another scenario)", field="guide", value=source)
 
 
 # -- the frame --------------------------------------------------------------------------------------------------------
@@ -232,9 +241,9 @@ def load_image(path: str | Path) -> np.ndarray:
         with Image.open(path) as picture:
             return np.asarray(picture.convert("RGB"))
     except FileNotFoundError:
-        raise ServiceError(f"{path}: no such image file", field="image", value=str(path)) from None
+        raise ServiceError(f"image {path}: no such file", field="image", value=str(path)) from None
     except (OSError, UnidentifiedImageError) as error:
-        raise ServiceError(f"{path}: not an image the station can read ({error})", field="image",
+        raise ServiceError(f"image {path}: not an image the station can read ({error})", field="image",
                            value=str(path)) from None
 
 

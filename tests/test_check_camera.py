@@ -1,0 +1,140 @@
+"""The as-built check on synthetic camera frames (issue 19's acceptance): a part moved by a known offset is named
+with that offset and the right instruction, a covered tag is reported missing, the CLI prints CHECK.json.
+
+The frames come from the camera twin's renderer (drivers.sim.camera_render: its own tag bitmaps and ray casting,
+not the detector's conventions) at 1080p, f = 1400 px, 1 m above the plane, with blur, noise and JPEG. The moved
+part's tag is placed where the guide draws it at the moved layout (the scene graph), not by the check's own offset
+arithmetic.
+"""
+
+from __future__ import annotations
+
+import functools
+import json
+import re
+
+import numpy as np
+import pytest
+from PIL import Image
+
+from calibration.intrinsics import CameraIntrinsics
+from drivers.sim.camera_render import render
+from drivers.sim.camera_scene import CameraModel, Occluder, PlaneScene, RenderOptions, TagItem
+from projector.build import build_guide
+from station.cli import main
+from station.services import check as service
+
+RENDER = RenderOptions(blur_px=0.8, noise=2.0, jpeg_quality=90, seed=3)
+MOVE = {"goblet.x": 0.004, "goblet.z": -0.0025, "goblet.roll": 3.0}  # BALLRUN's u is -x: 4 mm to the left
+
+
+@functools.cache
+def _ballrun():
+    return service.prepare_check("ballrun", "success")
+
+
+def _camera(guide) -> CameraModel:
+    u0, v0, u1, v1 = guide.extent_mm
+    return CameraModel.looking_down(target_mm=((u0 + u1) / 2, (v0 + v1) / 2), height_mm=1000.0)
+
+
+def _frame(job, changes=None, covered=()):
+    """The camera's frame of the parts at the layout moved by ``changes``; its intrinsics (a calibrated camera)."""
+    scenario, guide = job.scenario, job.guide
+    x = np.array(job.layout.x, dtype=float)
+    names = list(scenario.design_space.names)
+    for name, delta in (changes or {}).items():
+        x[names.index(name)] += delta
+    there = build_guide(scenario, x, view=guide.view)
+    tags = [TagItem(t.id, t.center_mm, t.size_mm) for t in guide.reference_tags]
+    occluders = []
+    for part in there.parts:
+        if part.tag_id is not None:
+            tags.append(TagItem(part.tag_id, part.tag_center_mm, part.tag_size_mm, part.tag_heading_deg,
+                                part.tag_height_mm))
+            if part.tag_id in covered:  # a hand flat over the tag, a little above it
+                square = np.array([[-1, -1], [1, -1], [1, 1], [-1, 1]]) * part.tag_size_mm + part.tag_center_mm
+                occluders.append(Occluder(square, part.tag_height_mm + 10.0))
+    camera = _camera(guide)
+    image, _ = render(PlaneScene(tags=tuple(tags), occluders=tuple(occluders)), camera, RENDER)
+    return image, CameraIntrinsics(camera.camera_matrix, camera.dist_coeffs, camera.image_size), x
+
+
+def test_a_moved_part_is_named_with_its_offset_and_the_right_instruction():
+    job = _ballrun()
+    image, intrinsics, moved = _frame(job, MOVE)
+    check = service.check_frame(job, image, intrinsics)
+    report = check.report
+    first = report.parts[0]
+    assert first.name == "goblet" and first.found
+    du, dv, distance, dheading = first.error
+    assert du == pytest.approx(-4.0, abs=0.3) and dv == pytest.approx(-2.5, abs=0.3)
+    assert dheading == pytest.approx(3.0, abs=0.5)
+    assert re.fullmatch(r"move `goblet` (3\.[789]|4\.[0-3]) mm right and 2\.[2-8] mm up, "
+                        r"turn it (2\.[5-9]|3\.[0-5]) deg clockwise", first.instruction), first.instruction
+    others = [p for p in report.parts[1:] if p.found]
+    assert others and all(p.error[2] < 0.3 for p in others)  # the parts left alone read as in place
+    names = list(job.scenario.design_space.names)
+    for name, tolerance in (("goblet.x", 0.0003), ("goblet.z", 0.0003), ("goblet.roll", 0.5)):
+        assert report.as_built[name] == pytest.approx(moved[names.index(name)], abs=tolerance)
+    assert "top_track.x" in report.not_measured and "goblet.x" not in report.not_measured
+    assert report.missing_tags == () and report.unknown_tags == () and report.plane.residual_mm < 0.5
+    assert report.predicted_success_as_built is None and "no fitted success model" in report.prediction_note
+    drawn = service.camera_overlay(check)
+    assert drawn.shape == image.shape and np.any(drawn != image)
+
+
+def test_a_covered_tag_is_reported_missing_and_its_part_not_measured():
+    job = _ballrun()
+    goblet = job.guide.part("goblet").tag_id
+    image, intrinsics, _ = _frame(job, MOVE, covered=(goblet,))
+    report = service.check_frame(job, image, intrinsics).report
+    assert report.missing_tags == (goblet,)
+    entry = next(p for p in report.to_json()["parts"] if p["name"] == "goblet")
+    assert entry["found"] is False and entry["measured"] is None and entry["error"] is None
+    assert "not seen" in entry["instruction"]
+    assert {"goblet.x", "goblet.z", "goblet.roll"} <= set(report.not_measured)
+    assert report.as_built["goblet.x"] == pytest.approx(report.layout["goblet.x"])  # never guessed
+
+
+def test_a_layout_with_a_model_is_scored_as_placed(tmp_path):
+    from pathlib import Path
+
+    layout = Path(__file__).parent / "robust" / "data" / "simple-layout-with-model.json"
+    job = service.prepare_check("simple", str(layout))
+    image, intrinsics, _ = _frame(job, {"track.x": 0.02})
+    report = service.check_frame(job, image, intrinsics).report
+    assert report.parts[0].name == "track" and report.parts[0].error[0] == pytest.approx(20.0, abs=0.5)
+    assert 0.0 <= report.predicted_success_as_built <= 1.0
+    assert report.predicted_success_as_designed == pytest.approx(job.tolerances.model.predict(
+        job.tolerances.problem.to_normalized(job.layout.x)[None, :])[0])
+    assert report.parts[0].cost is not None and report.prediction_note is None
+
+
+def test_the_cli_prints_and_writes_check_json(tmp_path, capsys):
+    job = _ballrun()
+    image, intrinsics, _ = _frame(job, MOVE)
+    frame, lens = tmp_path / "frame.png", tmp_path / "camera.json"
+    Image.fromarray(image).save(frame)
+    lens.write_text(json.dumps(intrinsics.to_json()))
+    out, overlay = tmp_path / "check.json", tmp_path / "overlay.png"
+    code = main(["check", "ballrun", "success", "--image", str(frame), "--intrinsics", str(lens), "--out", str(out),
+                 "--overlay", str(overlay), "--json"])
+    assert code == 0
+    printed = json.loads(capsys.readouterr().out)
+    assert printed == json.loads(out.read_text())
+    assert printed["format"] == "chaos-station check" and printed["scenario"] == "BALLRUN"
+    part = printed["parts"][0]
+    assert set(part) >= {"name", "tag_id", "found", "measured", "error", "within_tolerance", "instruction"}
+    assert part["name"] == "goblet" and set(part["error"]) == {"du_mm", "dv_mm", "distance_mm", "heading_deg"}
+    assert set(printed) >= {"missing_tags", "unknown_tags", "as_built", "predicted_success_as_built",
+                            "predicted_success_as_designed", "by_eye", "not_measured", "prediction_note"}
+    assert Image.open(overlay).size == (1920, 1080)
+
+    other = tmp_path / "guide.json"
+    from station.services.guide import make_guide
+
+    other.write_text(json.dumps(make_guide("simple", None, tolerances=False).manifest()))
+    code = main(["check", "ballrun", "success", "--image", str(frame), "--guide", str(other)])
+    error = capsys.readouterr().err.strip().splitlines()
+    assert code == 2 and len(error) == 1 and error[0].startswith("station: error: --guide ") and "SIMPLE" in error[0]
