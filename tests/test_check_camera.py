@@ -131,9 +131,17 @@ def test_the_cli_prints_and_writes_check_json(tmp_path, capsys):
                             "predicted_success_as_designed", "by_eye", "not_measured", "prediction_note"}
     assert Image.open(overlay).size == (1920, 1080)
 
-    other = tmp_path / "guide.json"
     from station.services.guide import make_guide
 
+    manifest = tmp_path / "ballrun-guide.json"  # what `station guide ballrun success --json` prints
+    manifest.write_text(json.dumps(make_guide("ballrun", "success", tolerances=False).manifest()))
+    code = main(["check", "ballrun", "success", "--image", str(frame), "--intrinsics", str(lens), "--guide",
+                 str(manifest), "--json"])
+    again = json.loads(capsys.readouterr().out)
+    assert code == 0 and [p["name"] for p in again["parts"]] == [p["name"] for p in printed["parts"]]
+    assert again["parts"][0]["error"] == pytest.approx(printed["parts"][0]["error"], abs=0.01)  # manifest: 3 decimals
+    assert again["as_built"] == pytest.approx(printed["as_built"], abs=0.01)
+    other = tmp_path / "guide.json"
     other.write_text(json.dumps(make_guide("simple", None, tolerances=False).manifest()))
     code = main(["check", "ballrun", "success", "--image", str(frame), "--guide", str(other)])
     error = capsys.readouterr().err.strip().splitlines()

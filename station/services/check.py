@@ -73,13 +73,33 @@ def prepare_check(scenario: str, layout: str, *, guide: str | Path | None = None
 
     manifest = _read_manifest(guide) if guide is not None else None
     view = manifest.get("view") if manifest is not None else None
-    if manifest is not None:  # refused before any work: the scenario is cheap to read, the tolerances are not
-        loaded = open_scenario(scenario)
-        _same_scenario(manifest, loaded.name, loaded.content_hash, str(guide))
-    job = guides.make_guide(scenario, layout, view=view if view in guides.VIEWS else None, progress=progress)
-    if manifest is not None:
-        job = replace(job, guide=apply_manifest(job.guide, manifest, str(guide)))
-    return job
+    if manifest is None:
+        return guides.make_guide(scenario, layout, progress=progress)
+    # refused before any work: the scenario is cheap to read, the tolerances are not (and the manifest has them)
+    loaded = open_scenario(scenario)
+    _same_scenario(manifest, loaded.name, loaded.content_hash, str(guide))
+    job = guides.make_guide(loaded.source, layout, view=view if view in guides.VIEWS else None, tolerances=False)
+    return replace(job, guide=apply_manifest(job.guide, manifest, str(guide)),
+                   tolerances=_model_of(loaded, layout))
+
+
+@dataclass(frozen=True)
+class ScoringModel:
+    """The layout's fitted success model and its problem, for a guide whose tolerances came with its manifest (what
+    :func:`check_frame` reads of a guide job's ``tolerances``)."""
+
+    problem: object
+    model: object | None
+
+
+def _model_of(scenario, layout: str) -> ScoringModel | None:
+    from station.services.tolerances import _layout_and_model, _problem
+
+    try:
+        problem = _problem(scenario)
+    except ValueError:  # no design space: nothing to score
+        return None
+    return ScoringModel(problem, _layout_and_model(str(layout), problem)[1])
 
 
 def _read_manifest(path) -> dict:
