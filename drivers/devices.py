@@ -3,12 +3,13 @@
 Kinds
 -----
 - ``grbl``: a GRBL 1.1 controller behind a serial port URL (the plotter and the laser);
-- ``camera``: a camera (issue 19 brings its driver);
+- ``camera``: a camera: a real one on OpenCV's ``VideoCapture`` (:mod:`drivers.camera.opencv`) or its simulated twin
+  (:mod:`drivers.sim.camera`);
 - ``projector``: a projector: a full-screen window on a display (:mod:`drivers.projector`) or its simulated twin
   (:mod:`drivers.sim.projector`).
 
 The registry (:func:`resolve`) reads a URL and says which kind it names and which driver serves it. A kind whose
-driver does not exist yet (the camera) is said so (:attr:`DriverInfo.available` is False and :func:`probe` answers
+driver does not exist would be said so (:attr:`DriverInfo.available` False, :func:`probe` answering
 ``"no driver yet"``): no device is ever faked as working.
 
 Accepted URLs
@@ -87,20 +88,28 @@ class GrblDevice(Protocol):
 
 @runtime_checkable
 class Camera(Protocol):
-    """A camera (the driver comes with issue 19): open it, grab images of :attr:`size`, close it."""
+    """A camera: open it, grab images of :attr:`size`, close it.
+
+    :class:`drivers.camera.opencv.OpenCVCamera` (an index, ``/dev/video*``, a stream URL, a video file) and
+    :class:`drivers.sim.camera.SimulatedCamera` (``sim://camera``) follow it. A camera that cannot be opened, or that
+    gives no frame within its timeout (2 s), raises a :class:`drivers.errors.DriverError` with one line saying why.
+    """
 
     def open(self) -> None:
-        """Start the camera."""
+        """Start the camera (returns once it has given a frame)."""
 
     def grab(self) -> Any:
-        """One image (an ``H x W x 3`` uint8 array)."""
+        """One image: an ``H x W x 3`` uint8 RGB array, the newest the camera has."""
 
     @property
     def size(self) -> tuple[int, int]:
         """Image size ``(width, height)`` in pixels."""
 
     def close(self) -> None:
-        """Release the camera."""
+        """Release the camera; closing twice is harmless."""
+
+    def state(self) -> str:
+        """The probe line, opening it: ``"open: 1920x1080"`` or ``"not available: <why>"``."""
 
 
 @runtime_checkable
@@ -239,6 +248,7 @@ def _port_problem(message: str) -> str:
 
 _GRBL = "grbl-serial"
 _DISPLAY, _SIM_PROJECTOR = "sdl-display", "sim-projector"
+_OPENCV, _SIM_CAMERA = "opencv", "sim-camera"
 
 
 def _display_projector(url: str, **options: Any) -> Any:
@@ -255,6 +265,20 @@ def _sim_projector(url: str, **options: Any) -> Any:
     return sim_projector(url, **options)
 
 
+def _opencv_camera(url: str, **options: Any) -> Any:
+    """A :class:`drivers.camera.opencv.OpenCVCamera` (cv2 is imported when a camera is asked for)."""
+    from drivers.camera.opencv import opencv_camera
+
+    return opencv_camera(url, **options)
+
+
+def _sim_camera(url: str, **options: Any) -> Any:
+    """A :class:`drivers.sim.camera.SimulatedCamera` (the shared one for a ``name=`` URL)."""
+    from drivers.sim.camera import sim_camera
+
+    return sim_camera(url, **options)
+
+
 #: ``(pattern, kind, driver, simulated, factory)``, tried in order; the first that matches wins.
 _RULES: tuple[tuple[re.Pattern, str, str, bool, Callable[..., Any] | None], ...] = (
     (re.compile(r"^sim://grbl(\?.*)?$"), "grbl", _GRBL, True, GrblSerialDevice),
@@ -262,12 +286,12 @@ _RULES: tuple[tuple[re.Pattern, str, str, bool, Callable[..., Any] | None], ...]
     (re.compile(r"^COM\d+$", re.IGNORECASE), "grbl", _GRBL, False, GrblSerialDevice),
     (re.compile(r"^(socket|rfc2217)://\S+$"), "grbl", _GRBL, False, GrblSerialDevice),
     (re.compile(r"^loop://\S*$"), "grbl", _GRBL, False, GrblSerialDevice),
-    (re.compile(r"^sim://camera(\?.*)?$"), "camera", "", True, None),
-    (re.compile(r"^\d+$"), "camera", "", False, None),
-    (re.compile(r"^/dev/video\d+$"), "camera", "", False, None),
-    (re.compile(r"^(rtsp|https?)://\S+$"), "camera", "", False, None),
+    (re.compile(r"^sim://camera(\?.*)?$"), "camera", _SIM_CAMERA, True, _sim_camera),
+    (re.compile(r"^\d+$"), "camera", _OPENCV, False, _opencv_camera),
+    (re.compile(r"^/dev/video\d+$"), "camera", _OPENCV, False, _opencv_camera),
+    (re.compile(r"^(rtsp|https?)://\S+$"), "camera", _OPENCV, False, _opencv_camera),
     (re.compile(r"^\S.*(" + "|".join(re.escape(s) for s in VIDEO_SUFFIXES) + r")$", re.IGNORECASE),
-     "camera", "", False, None),
+     "camera", _OPENCV, False, _opencv_camera),
     (re.compile(r"^sim://projector(\?.*)?$"), "projector", _SIM_PROJECTOR, True, _sim_projector),
     (re.compile(r"^display:\d+$"), "projector", _DISPLAY, False, _display_projector),
 )
@@ -291,8 +315,10 @@ def resolve(url: str) -> DriverInfo:
 def probe(url: str, timeout: float = 0.5) -> str:
     """A short state line for the device at ``url``, opening it briefly when a driver exists.
 
-    ``"no driver yet"`` for a camera (its driver comes with issue 19). For GRBL the port is opened and asked its
-    status (``"connected: Grbl 1.1h, Idle"``), or the reason it is not connected. For a projector:
+    For GRBL the port is opened and asked its status (``"connected: Grbl 1.1h, Idle"``), or the reason it is not
+    connected. For a camera: ``"open: 1920x1080"`` once it has given a frame (a real camera gets at least
+    :data:`drivers.camera.opencv.FRAME_TIMEOUT` for it; settings it refused are listed) or ``"not available: <why>"``.
+    For a projector:
     ``"open: 1280x800"`` (a display adds its number, the display count and SDL's driver; it is asked in a
     short-lived process that makes no window, waiting at least
     :data:`drivers.projector.display.DISPLAY_PROBE_TIMEOUT`) or ``"not available: <why>"``.
@@ -303,7 +329,7 @@ def probe(url: str, timeout: float = 0.5) -> str:
     try:
         device = info.factory(info.url, timeout=timeout)
     except DriverError as error:  # a sim:// URL with a bad option
-        return ("not available: " if info.kind == "projector" else "not connected: ") + str(error)
+        return ("not connected: " if info.kind == "grbl" else "not available: ") + str(error)
     try:
         return device.state()
     finally:

@@ -100,20 +100,25 @@ def driver_name(device: DeviceEntry) -> str | None:
 
 def probe_wait(device: DeviceEntry) -> float:
     """Seconds a probe of ``device`` may wait: its ``timeout`` option, else :data:`PROBE_TIMEOUT`; a real projector
-    at least :data:`drivers.projector.display.DISPLAY_PROBE_TIMEOUT` (its probe starts a short-lived process)."""
+    at least :data:`drivers.projector.display.DISPLAY_PROBE_TIMEOUT` (its probe starts a short-lived process), a
+    real camera at least :data:`drivers.camera.opencv.FRAME_TIMEOUT` (it must give a frame)."""
     wait = float(device.options.get("timeout", PROBE_TIMEOUT))
     if device.kind == "projector" and not device.simulated:
         from drivers.projector.display import DISPLAY_PROBE_TIMEOUT
 
         wait = max(wait, DISPLAY_PROBE_TIMEOUT)
+    if device.kind == "camera" and not device.simulated:
+        from drivers.camera.opencv import FRAME_TIMEOUT
+
+        wait = max(wait, FRAME_TIMEOUT)
     return wait
 
 
 def probe_device(device: DeviceEntry) -> str:
     """A short state line for ``device`` from :func:`drivers.devices.probe` (``"connected: Grbl 1.1h, Idle"``,
-    ``"not connected: no such port"``, ``"open: 1280x800"``, ``"not available: no display 2: ..."``, ``"no driver
-    yet"``); it opens a GRBL port for at most its timeout (and the time the port takes to open); a display is asked
-    its size without making a window."""
+    ``"not connected: no such port"``, ``"open: 1280x800"``, ``"not available: no display 2: ..."``); it opens a
+    GRBL port for at most its timeout (and the time the port takes to open); a display is asked its size without
+    making a window; a camera must give a frame."""
     from drivers.devices import probe
 
     return probe(device.url, timeout=probe_wait(device))

@@ -200,8 +200,8 @@ def test_devices_command_json_contract(station_home, monkeypatch, capsys):
          "driver": "grbl-serial", "state": "connected: Grbl 1.1h, Idle"},
         {"name": "laser", "kind": "laser", "url": "sim://grbl?profile=laser", "simulated": True,
          "driver": "grbl-serial", "state": "connected: Grbl 1.1h, Idle"},
-        {"name": "camera", "kind": "camera", "url": "sim://camera", "simulated": True, "driver": None,
-         "state": "no driver yet"},
+        {"name": "camera", "kind": "camera", "url": "sim://camera", "simulated": True, "driver": "sim-camera",
+         "state": "open: 1920x1080"},
         {"name": "projector", "kind": "projector", "url": "sim://projector", "simulated": True,
          "driver": "sim-projector", "state": "open: 1280x800"},
     ]
@@ -217,10 +217,10 @@ def test_devices_command_lists_a_configured_real_device(station_home, monkeypatc
     assert lines[1].split() == ["NAME", "KIND", "MODE", "URL", "DRIVER", "STATE"]
     assert lines[2].split() == ["shop", "laser", "real", "/dev/ttyUSB99", "grbl-serial", "not", "connected:", "no",
                                 "such", "port"]
-    assert lines[3].split() == ["c", "camera", "simulated", "sim://camera", "none", "yet", "no", "driver", "yet"]
+    assert lines[3].split() == ["c", "camera", "simulated", "sim://camera", "sim-camera", "open:", "1920x1080"]
     assert main(["devices", "--no-probe", "--json"]) == 0
     states = [d["state"] for d in json.loads(capsys.readouterr().out)["devices"]]
-    assert states == ["not probed", "no driver yet"]
+    assert states == ["not probed", "not probed"]
 
 
 def test_devices_init_refuses_to_overwrite(station_home, monkeypatch, capsys):

@@ -20,11 +20,13 @@ from station.devices import DeviceEntry, default_devices, probe_device, probe_de
     ("socket://192.168.1.5:23", "grbl", False, True),
     ("rfc2217://host:2217", "grbl", False, True),
     ("loop://", "grbl", False, True),
-    ("sim://camera", "camera", True, False),
-    ("0", "camera", False, False),
-    ("/dev/video2", "camera", False, False),
-    ("rtsp://cam.local/stream", "camera", False, False),
-    ("clips/run.mp4", "camera", False, False),
+    ("sim://camera", "camera", True, True),
+    ("sim://camera?size=640x480&name=bench", "camera", True, True),
+    ("0", "camera", False, True),
+    ("/dev/video2", "camera", False, True),
+    ("rtsp://cam.local/stream", "camera", False, True),
+    ("http://127.0.0.1:8080/stream.mjpg", "camera", False, True),
+    ("clips/run.mp4", "camera", False, True),
     ("sim://projector", "projector", True, True),
     ("sim://projector?size=640x480&name=bench", "projector", True, True),
     ("display:1", "projector", False, True),
@@ -41,9 +43,13 @@ def test_unknown_url_names_it_and_the_accepted_forms(url):
     assert repr(url) in str(caught.value)
 
 
-def test_no_driver_yet_is_said_not_faked():
-    assert probe("sim://camera") == "no driver yet"
-    assert resolve("/dev/video0").driver == ""
+def test_cameras_have_drivers_and_say_their_state(tmp_path):
+    assert (resolve("/dev/video0").driver, resolve("sim://camera").driver) == ("opencv", "sim-camera")
+    assert probe("sim://camera") == "open: 1920x1080"
+    assert probe("sim://camera?size=640x480") == "open: 640x480"
+    assert probe("sim://camera?tilt=95") == ("not available: sim camera option tilt: expected an angle in degrees "
+                                             "from -80 to 80, got '95'")
+    assert probe(str(tmp_path / "none.avi")) == "not available: no such video file"
 
 
 def test_projectors_have_drivers_and_say_their_state(monkeypatch):
@@ -110,5 +116,5 @@ def test_probing_every_device_is_bounded_in_time(monkeypatch):
 def test_probe_device_uses_its_timeout_option():
     slow = DeviceEntry("loop", "plotter", "loop://", False, "plotter", MappingProxyType({"timeout": 0.3}))
     assert probe_device(slow) == "not connected: no GRBL banner within 0.3 s"
-    assert probe_devices(default_devices()) == ["connected: Grbl 1.1h, Idle"] * 2 + ["no driver yet",
+    assert probe_devices(default_devices()) == ["connected: Grbl 1.1h, Idle"] * 2 + ["open: 1920x1080",
                                                                                      "open: 1280x800"]

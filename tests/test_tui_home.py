@@ -17,8 +17,8 @@ async def test_home_shows_simulated_devices_and_database(tmp_path):
         modes = {table.get_row(key)[2] for key in table.rows}
         assert modes == {"simulated"}
         states = {table.get_row(key)[0]: table.get_row(key)[4] for key in table.rows}
-        # only what the station can drive is "ready"; the camera is honest about having no driver yet
-        assert states == {"plotter": "ready (simulated)", "laser": "ready (simulated)", "camera": "no driver yet",
+        # every kind the station drives is "ready" when simulated
+        assert states == {"plotter": "ready (simulated)", "laser": "ready (simulated)", "camera": "ready (simulated)",
                           "projector": "ready (simulated)"}
         assert str(tmp_path / "t.sqlite3") in str(app.screen.query_one("#database").render())
 

@@ -16,6 +16,7 @@ DEVICES = (
     DeviceEntry("plotter", "plotter", "sim://grbl?profile=plotter", True, "plotter"),
     DeviceEntry("bench", "laser", "/dev/ttyUSB99", False, "laser"),
     DeviceEntry("cam", "camera", "sim://camera", True),
+    DeviceEntry("clip", "camera", "/nonexistent/clip.avi", False),
     DeviceEntry("net", "plotter", "socket://[b]host[/b]:23", False, "plotter"),
     DeviceEntry("odd", "plotter", "ftp://x", False, "plotter"),
     # loop:// echoes and never answers: its probe takes its whole timeout
@@ -38,7 +39,8 @@ async def test_home_shows_each_devices_probed_state_without_waiting_for_it(tmp_p
         states = probed(table)
         assert states["plotter"] == "connected: Grbl 1.1h, Idle"
         assert states["bench"] == "not connected: no such port"
-        assert states["cam"] == "no driver yet"
+        assert states["cam"] == "open: 1920x1080"
+        assert states["clip"] == "not available: no such video file"
         assert states["slow"] == "not connected: no GRBL banner within 1.5 s"
         assert states["odd"].startswith("probe failed: device URL 'ftp://x' matches no driver")
         # a state quoting a URL is shown as written, not read as markup

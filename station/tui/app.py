@@ -17,9 +17,8 @@ from station.tui.registry import MachineDesign, ScreenEntry, discover_screens
 from station.tui.screens.confirm_quit import ABORT_AND_QUIT, ConfirmQuitScreen
 from station.tui.screens.home import HomeScreen
 
-#: Device kinds the station can drive today (plotter and laser over GRBL, the projector); the camera is listed for
-#: what comes (the as-built check) but has no driver yet.
-DRIVEN_KINDS = frozenset({"plotter", "laser", "projector"})
+#: Device kinds the station can drive today (plotter and laser over GRBL, the camera, the projector).
+DRIVEN_KINDS = frozenset({"plotter", "laser", "camera", "projector"})
 
 
 class StationApp(App):
