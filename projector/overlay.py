@@ -100,8 +100,9 @@ class _CheckCanvas(_Canvas):
             centre = np.asarray(part.center_mm, dtype=float)
             if not check.found:
                 self._dashed(image, _rings(part.outline), MISSING)
-                self._text(image, f"{part.name}: tag {part.tag_id} not seen", self._px(centre)[0], MISSING, 0.7,
-                           centre=True)
+                below = self._px(np.vstack(_rings(part.outline) or [centre[None, :]]))
+                where = np.array([below[:, 0].mean(), below[:, 1].max() + 0.9 * self.line])
+                self._text(image, f"{part.name}: tag {part.tag_id} not seen", where, MISSING, 0.7, centre=True)
                 continue
             du, dv, distance, dheading = check.error
             if not misplaced(check):
@@ -121,7 +122,8 @@ class _CheckCanvas(_Canvas):
                 cv2.arrowedLine(image, _point(start), _point(end), MOVE, self.thick + 1, cv2.LINE_AA, 4,
                                 tipLength=min(0.4, 12.0 / max(float(np.linalg.norm(end - start)), 1.0)))
             words = f"{part.name}: {distance:.1f} mm" + (f", {abs(dheading):.1f} deg" if abs(dheading) >= 0.1 else "")
-            label = self._px(np.asarray(check.measured_center_mm))[0] + np.array([0, -1.2 * self.line])
+            above = self._px(np.vstack(_rings(placed) or [centre[None, :]]))
+            label = np.array([above[:, 0].mean(), above[:, 1].min() - 0.9 * self.line])
             self._text(image, _ascii(words), label, MOVE, 0.8, centre=True)
 
     def _dashed(self, image: np.ndarray, rings, colour, dash_px: float = 8.0) -> None:
