@@ -322,7 +322,16 @@ def camera_frame(guide, *, image: str | Path | None = None, camera: str | None =
         lens = calibrate.intrinsics_for(size, intrinsics=intrinsics, name=name)
     else:
         lens = twin  # the simulated camera knows its own lens
-    return frame, lens, name, calibrate._load_plane(name)
+    return frame, lens, name, calibrate._load_plane(_plane_name(name, guide))
+
+
+def _plane_name(name: str, guide) -> str:
+    """Where a check keeps camera ``name``'s last plane: per printed sheet (its reference tags), so that "moved since
+    the last check" compares checks of the same sheet, never a new sheet with the old one."""
+    import hashlib
+
+    sheet = json.dumps([[t.id, *map(float, t.center_mm), float(t.size_mm)] for t in guide.reference_tags])
+    return f"{name}-check-{hashlib.sha256(sheet.encode()).hexdigest()[:12]}"
 
 
 def remember_plane(name: str, check: CheckJob) -> None:
@@ -331,7 +340,7 @@ def remember_plane(name: str, check: CheckJob) -> None:
 
     if check.measurement.plane is not None:
         try:
-            calibrate._save_plane(name, check.measurement.plane)
+            calibrate._save_plane(_plane_name(name, check.guide_job.guide), check.measurement.plane)
         except OSError:
             pass  # the check stands without it; only the next "moved" report is lost
 
