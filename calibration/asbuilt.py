@@ -23,7 +23,6 @@ from dataclasses import dataclass
 import numpy as np
 
 from design.contraption.geometry import world_poses
-from design.contraption.schema import TRANSFORM_KEYS
 from projector.guide import GuidePlane
 from projector.plane import heading_in_plane
 
@@ -76,19 +75,9 @@ class AsBuilt:
         return {name: float(value) for name, value in zip(names, self.x)}
 
 
-def _transforms(scenario, x: np.ndarray) -> dict:
-    """Every object's transform at ``x``, without the range check (the fit steps a hair outside while it works)."""
-    values = dict(zip(scenario.design_space.names, np.asarray(x, dtype=float).tolist()))
-    result = {}
-    for obj in scenario.objects:
-        changes = {key: values[f"{obj.name}.{key}"] for key in TRANSFORM_KEYS if f"{obj.name}.{key}" in values}
-        result[obj.name] = obj.transform.replace(**changes) if changes else obj.transform
-    return result
-
-
 def part_plane_pose(scenario, x, plane: GuidePlane, names: Sequence[str]) -> dict[str, PlanePose]:
     """The plane poses of parts ``names`` at layout ``x`` (as :func:`projector.build.build_guide` draws them)."""
-    frames = world_poses(scenario.objects, _transforms(scenario, x))
+    frames = world_poses(scenario.objects, scenario.transforms(x, checked=False))
     result = {}
     for name in names:
         u, v = plane.to_plane(frames[name].position)[0]
@@ -104,12 +93,12 @@ def measurable_parameters(scenario, x, plane: GuidePlane, part: str, parameters:
     """Which of ``parameters`` (the part's) the camera measures on ``plane`` (module notes)."""
     names = list(scenario.design_space.names)
     x = np.asarray(x, dtype=float)
-    base = world_poses(scenario.objects, _transforms(scenario, x))[part]
+    base = world_poses(scenario.objects, scenario.transforms(x, checked=False))[part]
     result = []
     for parameter in parameters:
         moved = x.copy()
         moved[names.index(parameter)] += _step(parameter)
-        pose = world_poses(scenario.objects, _transforms(scenario, moved))[part]
+        pose = world_poses(scenario.objects, scenario.transforms(moved, checked=False))[part]
         if parameter.rsplit(".", 1)[-1] in ("x", "y", "z"):
             shift = pose.position - base.position
             size = float(np.linalg.norm(shift))

@@ -221,9 +221,13 @@ class Scenario:
             raise LayoutError(f"{self.source}: no layout named {name!r}; the file has {sorted(self.layouts)}")
         return np.array(self.layouts[name], dtype=float)
 
-    def transforms(self, x=None) -> dict[str, Transform]:
-        """The transform of every object (relative to its parent) for the layout ``x`` (default layout if None)."""
-        x = self.default_layout() if x is None else self.design_space.check_bounds(x)
+    def transforms(self, x=None, *, checked: bool = True) -> dict[str, Transform]:
+        """The transform of every object (relative to its parent) for the layout ``x`` (default layout if None);
+        ``checked=False`` skips the range check (a fit that steps a hair outside while it works)."""
+        if x is None:
+            x = self.default_layout()
+        elif checked:
+            x = self.design_space.check_bounds(x)
         values = dict(zip(self.design_space.names, np.asarray(x, dtype=float).tolist()))
         result = {}
         for obj in self.objects:
