@@ -171,8 +171,12 @@ def check_parts(guide: Guide, measurement) -> tuple[list[PartCheck], list[str]]:
         deltas = placement_deltas(part, guide.plane)
         tag = seen.get(part.tag_id) if part.tag_id not in duplicates else None
         if tag is None:
-            why = ("seen more than once: not measured (cover or remove the extra copy)" if part.tag_id in duplicates
-                   else "not seen: is the part placed, its tag uncovered and facing the camera?")
+            if measurement.plane is None:
+                why = "not measured: the camera sees too few reference tags to find the plane"
+            elif part.tag_id in duplicates:
+                why = "seen more than once: not measured (cover or remove the extra copy)"
+            else:
+                why = "not seen: is the part placed, its tag uncovered and facing the camera?"
             checks.append(PartCheck(part.name, part.tag_id, False, None, None, None, deltas, None,
                                     f"`{part.name}`: tag {part.tag_id} {why}"))
             continue

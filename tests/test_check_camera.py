@@ -38,7 +38,7 @@ def _camera(guide) -> CameraModel:
     return CameraModel.looking_down(target_mm=((u0 + u1) / 2, (v0 + v1) / 2), height_mm=1000.0)
 
 
-def _frame(job, changes=None, covered=()):
+def _frame(job, changes=None, covered=(), extra=()):
     """The camera's frame of the parts at the layout moved by ``changes``; its intrinsics (a calibrated camera)."""
     scenario, guide = job.scenario, job.guide
     x = np.array(job.layout.x, dtype=float)
@@ -56,7 +56,7 @@ def _frame(job, changes=None, covered=()):
                 square = np.array([[-1, -1], [1, -1], [1, 1], [-1, 1]]) * part.tag_size_mm + part.tag_center_mm
                 occluders.append(Occluder(square, part.tag_height_mm + 10.0))
     camera = _camera(guide)
-    image, _ = render(PlaneScene(tags=tuple(tags), occluders=tuple(occluders)), camera, RENDER)
+    image, _ = render(PlaneScene(tags=(*tags, *extra), occluders=tuple(occluders)), camera, RENDER)
     return image, CameraIntrinsics(camera.camera_matrix, camera.dist_coeffs, camera.image_size), x
 
 
@@ -87,8 +87,14 @@ def test_a_moved_part_is_named_with_its_offset_and_the_right_instruction():
 def test_a_covered_tag_is_reported_missing_and_its_part_not_measured():
     job = _ballrun()
     goblet = job.guide.part("goblet").tag_id
-    image, intrinsics, _ = _frame(job, MOVE, covered=(goblet,))
+    plank = job.guide.part("low_plank")
+    u0, v0, _, _ = job.guide.extent_mm
+    stray = (TagItem(77, (u0 + 80.0, v0 + 60.0), 30.0),  # a tag of something else, and a second copy of a part's
+             TagItem(plank.tag_id, (u0 + 160.0, v0 + 60.0), 30.0))
+    image, intrinsics, _ = _frame(job, MOVE, covered=(goblet,), extra=stray)
     report = service.check_frame(job, image, intrinsics).report
+    assert report.unknown_tags == (77,) and report.duplicate_tags == (plank.tag_id,)
+    assert "more than once" in next(p for p in report.parts if p.name == "low_plank").instruction
     assert report.missing_tags == (goblet,)
     entry = next(p for p in report.to_json()["parts"] if p["name"] == "goblet")
     assert entry["found"] is False and entry["measured"] is None and entry["error"] is None

@@ -455,7 +455,8 @@ def check_measurement(job, measurement, image: np.ndarray, intrinsics, *, simula
         if problem is None:
             problem = _problem(scenario)
         simulated = _simulate(problem, built, residual, simulate, seed, report, should_stop)
-    missing = tuple(c.tag_id for c in checks if not c.found and c.tag_id not in measurement.duplicate_ids)
+    missing = () if measurement.plane is None else tuple(  # without a plane nothing is measured: none is missing
+        c.tag_id for c in checks if not c.found and c.tag_id not in measurement.duplicate_ids)
     result = CheckReport(
         scenario=guide.scenario, content_hash=guide.content_hash, layout=dict(zip(names, x.tolist())),
         view=guide.view, plane=measurement.plane, parts=tuple(sorted(checks, key=_order)), missing_tags=missing,

@@ -31,7 +31,7 @@ class Seen:  # calibration.measure.Measurement's fields the check reads
     duplicate_ids: tuple = ()
     unknown_ids: tuple = ()
     missing_reference_ids: tuple = ()
-    plane: object = None
+    plane: object = "a plane"
 
 
 @functools.cache
@@ -114,6 +114,8 @@ def test_missing_and_duplicate_tags_are_never_guessed():
     assert not by_name["goblet"].found and "not seen" in by_name["goblet"].instruction
     assert not by_name["low_plank"].found and "more than once" in by_name["low_plank"].instruction
     assert by_name["goblet"].error is None and by_name["goblet"].measured_center_mm is None
+    blind, _ = check_parts(guide, Seen((), plane=None))  # no plane: nothing measured, nothing said missing
+    assert all(not c.found and "too few reference tags" in c.instruction for c in blind)
 
 
 def test_tolerances_decide_within_per_axis():
