@@ -72,7 +72,7 @@ def test_a_moved_and_turned_part_is_measured_and_its_parameters_recovered():
     low = next(c for c in checks if c.name == "low_plank")
     assert low.error[2] == pytest.approx(0.0, abs=1e-9) and low.instruction == "`low_plank` is in place"
 
-    poses = {c.name: PlanePose(c.measured_center_mm, c.measured_heading_deg) for c in checks}
+    poses = {c.name: PlanePose(c.measured_center_mm, c.measured_heading_deg) for c in checks if c.found}
     built = as_built_layout(scenario, x, guide.plane, poses, {p.name: p.parameters for p in guide.parts})
     names = list(scenario.design_space.names)
     for name in ("goblet.x", "goblet.z", "goblet.roll"):
@@ -125,8 +125,8 @@ def test_tolerances_decide_within_per_axis():
     guide = build_guide(scenario, x, tolerances=tolerances)
     near = build_guide(scenario, _moved(scenario, x, {"goblet.x": 0.0015, "goblet.roll": 2.0}), view="side")
     far = build_guide(scenario, _moved(scenario, x, {"goblet.x": 0.0025}), view="side")
-    inside = check_parts(guide, Seen(_tags_of(near, ["goblet"])))[0][0]
-    outside = check_parts(guide, Seen(_tags_of(far, ["goblet"])))[0][0]
+    inside = next(c for c in check_parts(guide, Seen(_tags_of(near, ["goblet"])))[0] if c.name == "goblet")
+    outside = next(c for c in check_parts(guide, Seen(_tags_of(far, ["goblet"])))[0] if c.name == "goblet")
     assert inside.tolerance == (2.0, None, 3.0)
     assert inside.within_tolerance is True and inside.instruction.startswith("`goblet` is within its tolerance")
     assert outside.within_tolerance is False and outside.instruction == "move `goblet` 2.5 mm right"
