@@ -34,8 +34,9 @@ __all__ = ["CHECK_FORMAT", "CheckReport", "PartCheck", "check_parts", "instructi
 
 CHECK_FORMAT = "chaos-station check"
 CHECK_VERSION = 1
-#: Below these, an error is not worth an instruction (the measurement's own resolution).
-NEGLIGIBLE_MM, NEGLIGIBLE_DEG = 0.1, 0.1
+#: Below these, an error is not worth an instruction: about what the camera resolves (a 15 mm tag from 1 m reads to
+#: 0.1-0.3 mm and 0.1-0.3 deg), and finer than any tolerance the guides draw.
+NEGLIGIBLE_MM, NEGLIGIBLE_DEG = 0.5, 0.5
 
 
 @dataclass(frozen=True)
@@ -216,8 +217,8 @@ def instruction(name: str, error: Sequence[float], view: str, within: bool | Non
 
     ``error`` is ``(du, dv, distance, dheading)``, measured minus designed: the part moves by minus that. Along u
     the words are right/left; along v away from you / towards you (top view) or up/down (side view); a heading error
-    is undone clockwise when positive (the sheets' headings are counter-clockwise). Errors under 0.1 mm / 0.1 deg
-    (the measurement's resolution) are left out; a part within its tolerance says so first.
+    is undone clockwise when positive (the sheets' headings are counter-clockwise). Errors under 0.5 mm / 0.5 deg
+    (about the measurement's resolution) are left out; a part within its tolerance says so first.
     """
     du, dv, _, dheading = error
     moves = []

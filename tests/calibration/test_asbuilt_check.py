@@ -138,6 +138,7 @@ def test_tolerances_decide_within_per_axis():
     ("top", (-0.5, 2.0, 0, 0.0), "move `bottom_track` 0.5 mm right and 2.0 mm towards you"),
     ("side", (0.0, 1.0, 0, -2.0), "move `bottom_track` 1.0 mm down, turn it 2.0 deg counter-clockwise"),
     ("side", (0.04, 0.0, 0, -0.7), "turn `bottom_track` 0.7 deg counter-clockwise"),
+    ("side", (0.3, -0.4, 0, 0.2), "`bottom_track` is in place"),  # under what the camera resolves
 ])
 def test_instructions_speak_the_sheets_words(view, error, words):
     assert instruction("bottom_track", error, view) == words
