@@ -60,15 +60,15 @@ class AsBuilt:
     clipped : tuple of str
         Measured parameters that fell outside their range and were set to its end.
     residual : dict of str to tuple
-        Per part, what the fitted parameters could not reproduce: ``(du mm, dv mm, dheading deg)`` (a part moved
-        along an axis no parameter of it moves).
+        Per part, what the fitted parameters could not reproduce: ``(du mm, dv mm, dheading deg)`` per measured pose
+        (a part moved along an axis no parameter of it moves).
     """
 
     x: np.ndarray
     measured: tuple[str, ...]
     not_measured: tuple[str, ...]
     clipped: tuple[str, ...]
-    residual: Mapping[str, tuple[float, float, float]]
+    residual: Mapping[str, tuple[float, ...]]
 
     def parameters(self, names: Sequence[str]) -> dict[str, float]:
         """``{name: value}`` in design-space order (``names`` is the design space's)."""
@@ -117,19 +117,28 @@ def _wrap(angle: float) -> float:
 
 
 class _Fit:
-    """One part's pose error as a function of its measured parameters' values."""
+    """One part's pose error as a function of its measured parameters' values: for each measured pose (the part's
+    own, or one of its bodies': a run's first and last dominoes), (du mm, dv mm, dheading deg) stacked."""
 
-    def __init__(self, scenario, x, plane, part, columns, target) -> None:
-        self.scenario, self.x, self.plane, self.part = scenario, x, plane, part
-        self.columns, self.target = columns, target
+    def __init__(self, scenario, x, plane, part, columns, targets) -> None:
+        from design.contraption.primitives import body_specs
+
+        self.scenario, self.x, self.plane, self.part, self.columns = scenario, x, plane, part, columns
+        specs = body_specs(scenario.object(part))
+        self.targets = [(None if body is None else specs[body].pose, np.array([*pose.center_mm, pose.heading_deg]))
+                        for body, pose in targets]
 
     def error(self, values: np.ndarray) -> np.ndarray:
-        """(du mm, dv mm, dheading deg): the part's pose at these values minus the measured pose."""
+        """The part's (or its bodies') poses at these values minus the measured ones."""
         trial = self.x.copy()
         trial[self.columns] = values
-        now = part_plane_pose(self.scenario, trial, self.plane, [self.part])[self.part]
-        return np.array([now.center_mm[0] - self.target[0], now.center_mm[1] - self.target[1],
-                         _wrap(now.heading_deg - self.target[2])])
+        frame = world_poses(self.scenario.objects, self.scenario.transforms(trial, checked=False))[self.part]
+        errors = []
+        for offset, target in self.targets:
+            pose = frame if offset is None else frame * offset
+            u, v = self.plane.to_plane(pose.position)[0]
+            errors += [u - target[0], v - target[1], _wrap(heading_in_plane(pose.rotation, self.plane) - target[2])]
+        return np.array(errors)
 
 
 def as_built_layout(scenario, x, plane: GuidePlane, measured: Mapping[str, PlanePose],
@@ -143,8 +152,9 @@ def as_built_layout(scenario, x, plane: GuidePlane, measured: Mapping[str, Plane
         The designed layout (real units, design-space order).
     plane : GuidePlane
         The guide's plane.
-    measured : mapping of str to PlanePose
-        The measured pose of each part the camera found (its origin and heading on the plane).
+    measured : mapping of str to PlanePose or to a sequence of (int or None, PlanePose)
+        The measured pose of each part the camera found (its origin and heading on the plane), or of some of its
+        bodies (``(index, pose)``: a run's first and last dominoes; None for the part's own origin).
     part_parameters : mapping of str to sequence of str
         Every part's free layout parameters (:attr:`projector.guide.PartDrawing.parameters`).
     """
@@ -152,13 +162,13 @@ def as_built_layout(scenario, x, plane: GuidePlane, measured: Mapping[str, Plane
     lower, upper = np.asarray(scenario.design_space.lower), np.asarray(scenario.design_space.upper)
     x = np.asarray(x, dtype=float).copy()
     fitted: list[str] = []
-    residual: dict[str, tuple[float, float, float]] = {}
-    for part, pose in measured.items():
+    residual: dict[str, tuple[float, ...]] = {}
+    for part, poses in measured.items():
+        targets = [(None, poses)] if isinstance(poses, PlanePose) else list(poses)
         own = list(part_parameters.get(part, ()))
         free = measurable_parameters(scenario, x, plane, part, own) if own else []
         columns = [names.index(p) for p in free]
-        target = np.array([*pose.center_mm, pose.heading_deg])
-        fit = _Fit(scenario, x, plane, part, columns, target)
+        fit = _Fit(scenario, x, plane, part, columns, targets)
 
         values = x[columns].copy()
         if columns:

@@ -22,7 +22,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -59,6 +59,10 @@ class PartCheck:
     instruction : str
     cost : float or None
         How much the layout's predicted success falls with this part's error alone (None without a model).
+    part : str
+        The part the checked tag is on ("" : ``name`` itself); a run's domino is checked as ``"run[0]"``.
+    body : int or None
+        The body of ``part`` the tag is on (a domino's index), None for the part's own tag.
     """
 
     name: str
@@ -71,6 +75,13 @@ class PartCheck:
     within_tolerance: bool | None
     instruction: str
     cost: float | None = None
+    part: str = ""
+    body: int | None = None
+
+    @property
+    def owner(self) -> str:
+        """The part this check belongs to."""
+        return self.part or self.name
 
     def to_json(self) -> dict:
         measured = None if self.measured_center_mm is None else {
@@ -144,8 +155,7 @@ def reference_tags(guide: Guide) -> list[tuple[int, tuple[float, float], float]]
 
 def part_tags(guide: Guide) -> dict[int, tuple[float, float]]:
     """The part tags as :func:`calibration.measure.measure` takes them: ``id -> (size mm, height mm)``."""
-    return {p.tag_id: (float(p.tag_size_mm), float(p.tag_height_mm)) for p in guide.parts
-            if p.tag_id is not None and p.tag_center_mm is not None}
+    return {t.tag_id: (float(t.tag_size_mm), float(t.tag_height_mm)) for p in guide.parts for t in p.tag_views()}
 
 
 def _wrap(angle: float) -> float:
@@ -156,39 +166,51 @@ def _wrap(angle: float) -> float:
 def check_parts(guide: Guide, measurement) -> tuple[list[PartCheck], list[str]]:
     """Every tagged part of ``guide`` against ``measurement``; and the parts to check by eye (no tag).
 
+    A part whose tags are on its bodies (a run's first and last dominoes) is checked body by body: each as
+    ``"name[i]"``, its error that body's.
+
     Parameters
     ----------
     guide : Guide
     measurement : calibration.measure.Measurement
         Its ``tags`` (one :class:`~calibration.measure.TagPose` per part tag seen once) and ``duplicate_ids``.
     """
-    seen = {int(t.tag_id): t for t in measurement.tags}
-    duplicates = {int(i) for i in measurement.duplicate_ids}
     checks, by_eye = [], []
     for part in guide.parts:
-        if part.tag_id is None or part.tag_center_mm is None:
+        views = [(None, part)] if part.tag_id is not None and part.tag_center_mm is not None else []
+        views += [(b.body, replace(part, name=f"{part.name}[{b.body}]", center_mm=b.center_mm,
+                                   heading_deg=b.heading_deg, tag_id=b.tag_id, tag_center_mm=b.tag_center_mm,
+                                   tag_heading_deg=b.tag_heading_deg)) for b in part.body_tags]
+        if not views:
             by_eye.append(part.name)
-            continue
-        deltas = placement_deltas(part, guide.plane)
-        tag = seen.get(part.tag_id) if part.tag_id not in duplicates else None
-        if tag is None:
-            if measurement.plane is None:
-                why = "not measured: the camera sees too few reference tags to find the plane"
-            elif part.tag_id in duplicates:
-                why = "seen more than once: not measured (cover or remove the extra copy)"
-            else:
-                why = "not seen: is the part placed, its tag uncovered and facing the camera?"
-            checks.append(PartCheck(part.name, part.tag_id, False, None, None, None, deltas, None,
-                                    f"`{part.name}`: tag {part.tag_id} {why}"))
-            continue
-        center, heading = measured_pose(part, tag.center_mm, tag.heading_deg)
-        du, dv = center[0] - part.center_mm[0], center[1] - part.center_mm[1]
-        dheading = _wrap(heading - part.heading_deg)
-        error = (du, dv, math.hypot(du, dv), dheading)
-        within = _within(error, deltas)
-        checks.append(PartCheck(part.name, part.tag_id, True, center, heading, error, deltas, within,
-                                instruction(part.name, error, guide.view, within, deltas)))
+        for body, view in views:
+            checks.append(replace(_check_one(view, measurement, guide), part=part.name if body is not None else "",
+                                  body=body))
     return checks, by_eye
+
+
+def _check_one(part: PartDrawing, measurement, guide: Guide) -> PartCheck:
+    """One tag's part (or body) against the measurement."""
+    seen = {int(t.tag_id): t for t in measurement.tags}
+    duplicates = {int(i) for i in measurement.duplicate_ids}
+    deltas = placement_deltas(part, guide.plane)
+    tag = seen.get(part.tag_id) if part.tag_id not in duplicates else None
+    if tag is None:
+        if measurement.plane is None:
+            why = "not measured: the camera sees too few reference tags to find the plane"
+        elif part.tag_id in duplicates:
+            why = "seen more than once: not measured (cover or remove the extra copy)"
+        else:
+            why = "not seen: is the part placed, its tag uncovered and facing the camera?"
+        return PartCheck(part.name, part.tag_id, False, None, None, None, deltas, None,
+                         f"`{part.name}`: tag {part.tag_id} {why}")
+    center, heading = measured_pose(part, tag.center_mm, tag.heading_deg)
+    du, dv = center[0] - part.center_mm[0], center[1] - part.center_mm[1]
+    dheading = _wrap(heading - part.heading_deg)
+    error = (du, dv, math.hypot(du, dv), dheading)
+    within = _within(error, deltas)
+    return PartCheck(part.name, part.tag_id, True, center, heading, error, deltas, within,
+                     instruction(part.name, error, guide.view, within, deltas))
 
 
 def measured_pose(part: PartDrawing, tag_center_mm, tag_heading_deg: float) -> tuple[tuple[float, float], float]:

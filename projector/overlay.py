@@ -6,9 +6,10 @@ Two surfaces, one drawing: :func:`render_check` draws a projector frame (the geo
 calibration, and said), :func:`draw_check` draws the same over a camera frame through a function that maps plane
 points ``(u, v)`` at a height to the camera's pixels (the camera's pose from the reference tags).
 
-The checked parts come as objects with ``name``, ``found``, ``measured_center_mm``, ``measured_heading_deg``,
-``error`` (``du, dv, distance, dheading``, measured minus designed), ``within_tolerance`` and ``tolerance``
-(``du, dv, dheading``): :class:`calibration.check.PartCheck` (projector does not import calibration). A part is
+The checked parts come as objects with ``name``, ``tag_id``, ``found``, ``measured_center_mm``,
+``measured_heading_deg``, ``error`` (``du, dv, distance, dheading``, measured minus designed), ``within_tolerance``,
+``tolerance`` (``du, dv, dheading``) and optionally ``owner`` and ``body`` (a run's domino checked in the run's
+stead): :class:`calibration.check.PartCheck` (projector does not import calibration). A part is
 *misplaced* when it is out of its tolerance, or has none and is off by 1 mm or 1 degree or more: it is drawn where it
 stands (orange), where it must go (white), with an arrow between and a ring round the target as wide as its tolerance
 (at least 3 mm). A part in place is drawn green; a part whose tag was not seen, dashed grey, marked "not seen".
@@ -75,6 +76,18 @@ def draw_check(image: np.ndarray, guide: Guide, checks: Sequence,
     return out
 
 
+def _target(part, body: int | None) -> tuple:
+    """Where a check's part (or its body ``body``: a run's domino) must be: its outline and origin on the plane."""
+    if body is None:
+        return part.outline, np.asarray(part.center_mm, dtype=float)
+    from shapely.geometry import Point
+
+    tag = next(b for b in part.body_tags if b.body == body)
+    here = Point(tag.center_mm)
+    pieces = list(getattr(part.outline, "geoms", [part.outline]))  # the run's pieces: the body's is nearest its origin
+    return min(pieces, key=here.distance), np.asarray(tag.center_mm, dtype=float)
+
+
 class _CheckCanvas(_Canvas):
     """A frame canvas whose points go through the homography, or through a camera projection at a height."""
 
@@ -94,23 +107,23 @@ class _CheckCanvas(_Canvas):
         cv2 = _cv2()
         MOVE, IN_PLACE, MISSING, TARGET = (self.colours[k] for k in ("move", "in_place", "missing", "target"))
         for check in checks:
-            part = parts.get(check.name)
+            part = parts.get(getattr(check, "owner", check.name))
             if part is None:
                 continue
-            centre = np.asarray(part.center_mm, dtype=float)
+            outline, centre = _target(part, getattr(check, "body", None))
             if not check.found:
-                self._dashed(image, _rings(part.outline), MISSING)
-                below = self._px(np.vstack(_rings(part.outline) or [centre[None, :]]))
+                self._dashed(image, _rings(outline), MISSING)
+                below = self._px(np.vstack(_rings(outline) or [centre[None, :]]))
                 where = np.array([below[:, 0].mean(), below[:, 1].max() + 0.9 * self.line])
-                self._text(image, f"{part.name}: tag {part.tag_id} not seen", where, MISSING, 0.7, centre=True)
+                self._text(image, f"{check.name}: tag {check.tag_id} not seen", where, MISSING, 0.7, centre=True)
                 continue
             du, dv, distance, dheading = check.error
             if not misplaced(check):
-                self._edges(image, _rings(part.outline), IN_PLACE, self.thick + 1)
-                self._text(image, f"{part.name} ok", self._px(centre)[0], IN_PLACE, 0.7, centre=True)
+                self._edges(image, _rings(outline), IN_PLACE, self.thick + 1)
+                self._text(image, f"{check.name} ok", self._px(centre)[0], IN_PLACE, 0.7, centre=True)
                 continue
-            placed = affinity.translate(affinity.rotate(part.outline, dheading, origin=tuple(centre)), du, dv)
-            self._edges(image, _rings(part.outline), TARGET, self.thick)
+            placed = affinity.translate(affinity.rotate(outline, dheading, origin=tuple(centre)), du, dv)
+            self._edges(image, _rings(outline), TARGET, self.thick)
             self._edges(image, _rings(placed), MOVE, self.thick + 1)
             tolerance = [t for t in check.tolerance[:2] if t is not None]
             ring = max(RING_MM, min(tolerance) if tolerance else RING_MM)
@@ -121,7 +134,7 @@ class _CheckCanvas(_Canvas):
             if np.linalg.norm(end - start) >= 4:
                 cv2.arrowedLine(image, _point(start), _point(end), MOVE, self.thick + 1, cv2.LINE_AA, 4,
                                 tipLength=min(0.4, 12.0 / max(float(np.linalg.norm(end - start)), 1.0)))
-            words = f"{part.name}: {distance:.1f} mm" + (f", {abs(dheading):.1f} deg" if abs(dheading) >= 0.1 else "")
+            words = f"{check.name}: {distance:.1f} mm" + (f", {abs(dheading):.1f} deg" if abs(dheading) >= 0.1 else "")
             above = self._px(np.vstack(_rings(placed) or [centre[None, :]]))
             label = np.array([above[:, 0].mean(), above[:, 1].min() - 0.9 * self.line])
             self._text(image, _ascii(words), label, MOVE, 0.8, centre=True)

@@ -48,13 +48,12 @@ def _frame(job, changes=None, covered=(), extra=()):
     there = build_guide(scenario, x, view=guide.view)
     tags = [TagItem(t.id, t.center_mm, t.size_mm) for t in guide.reference_tags]
     occluders = []
-    for part in there.parts:
-        if part.tag_id is not None:
-            tags.append(TagItem(part.tag_id, part.tag_center_mm, part.tag_size_mm, part.tag_heading_deg,
-                                part.tag_height_mm))
-            if part.tag_id in covered:  # a hand flat over the tag, a little above it
-                square = np.array([[-1, -1], [1, -1], [1, 1], [-1, 1]]) * part.tag_size_mm + part.tag_center_mm
-                occluders.append(Occluder(square, part.tag_height_mm + 10.0))
+    for part in (view for each in there.parts for view in each.tag_views()):  # own tags and those on bodies
+        tags.append(TagItem(part.tag_id, part.tag_center_mm, part.tag_size_mm, part.tag_heading_deg,
+                            part.tag_height_mm))
+        if part.tag_id in covered:  # a hand flat over the tag, a little above it
+            square = np.array([[-1, -1], [1, -1], [1, 1], [-1, 1]]) * part.tag_size_mm + part.tag_center_mm
+            occluders.append(Occluder(square, part.tag_height_mm + 10.0))
     camera = _camera(guide)
     image, _ = render(PlaneScene(tags=(*tags, *extra), occluders=tuple(occluders)), camera, RENDER)
     return image, CameraIntrinsics(camera.camera_matrix, camera.dist_coeffs, camera.image_size), x
@@ -166,3 +165,38 @@ def test_the_as_built_layout_is_simulated_with_the_measurement_error(tmp_path):
     report = service.check_frame(job, image, intrinsics, simulate=4, seed=1).report
     assert report.simulated_success_as_built in (0.0, 0.25, 0.5, 0.75, 1.0)
     assert report.residual_error["position_mm"] > 0 and report.to_json()["simulated_success_as_built"] is not None
+
+
+def test_a_domino_run_is_checked_by_its_first_and_last_dominoes(tmp_path):
+    from pathlib import Path
+
+    import tomllib
+
+    data = tomllib.loads((Path(__file__).parents[1] / "examples" / "scenarios" / "simple.toml").read_text())
+    run = next(o for o in data["objects"] if o["name"] == "dominoes")
+    run["shape"] = {"size": [0.03, 0.04, 0.04], "path": [[0.0, 0.0], [0.12, 0.0]], "count": 3}  # room for a tag
+    run["ranges"] = {"x": [0.0, 0.05], "heading": [-20.0, 20.0]}
+    run["tag"] = [{"id": 5, "body": 0, "z": 0.02, "size": 0.025}, {"id": 6, "body": -1, "z": 0.02, "size": 0.025}]
+    data.pop("layouts", None)
+    scenario = tmp_path / "big-dominoes.json"
+    scenario.write_text(json.dumps(data))
+    layout = tmp_path / "layout.json"
+    layout.write_text(json.dumps({"parameters": {}}))
+    job = service.prepare_check(str(scenario), str(layout))
+    dominoes = job.guide.part("dominoes")
+    assert [b.body for b in dominoes.body_tags] == [0, 2] and dominoes.tag_id is None
+    image, intrinsics, moved = _frame(job, {"dominoes.x": 0.006, "dominoes.heading": 4.0})
+    report = service.check_frame(job, image, intrinsics).report
+    checked = {p.name: p for p in report.parts}
+    first, last = checked["dominoes[0]"], checked["dominoes[2]"]
+    assert first.found and last.found and "dominoes" not in report.by_eye
+    # the run turns 4 deg about its origin (the first domino's place): the last domino swings 120 mm x 4 deg sideways
+    assert first.error[0] == pytest.approx(6.0, abs=0.3) and first.error[1] == pytest.approx(0.0, abs=0.3)
+    assert last.error[1] == pytest.approx(120.0 * np.sin(np.radians(4.0)), abs=0.4)
+    assert first.error[3] == pytest.approx(4.0, abs=0.5) and last.error[3] == pytest.approx(4.0, abs=0.5)
+    names = list(job.scenario.design_space.names)
+    assert report.as_built["dominoes.x"] == pytest.approx(moved[names.index("dominoes.x")], abs=0.0003)
+    assert report.as_built["dominoes.heading"] == pytest.approx(moved[names.index("dominoes.heading")], abs=0.3)
+    drawn = service.camera_overlay(service.check_frame(job, image, intrinsics))
+    assert drawn.shape == image.shape
+

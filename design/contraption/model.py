@@ -67,6 +67,8 @@ class Tag:
     z: float = 0.0
     size: float = 0.02
     angle: float = 0.0
+    #: For a DominoRun: the domino the tag is on (0 the first, -1 the last); its place is in that domino's frame.
+    body: int | None = None
 
 
 @dataclass(frozen=True)
@@ -82,6 +84,8 @@ class ObjectSpec:
     physics: Physics = field(default_factory=Physics)
     tag: Tag | None = None
     index: int = 0
+    #: A DominoRun's tags on single dominoes (``tag = [{body = 0, ...}, {body = -1, ...}]``): its first and last.
+    body_tags: tuple[Tag, ...] = ()
     sleeping: bool | None = None
 
     @property

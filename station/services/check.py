@@ -13,7 +13,6 @@ explicit simulation offsets (``--sim-offset``, documented as such).
 from __future__ import annotations
 
 import json
-import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, replace
 from pathlib import Path
@@ -21,6 +20,7 @@ from pathlib import Path
 import numpy as np
 
 from common.progress import ProgressCallback, Reporter
+from station.services.check_scene import parse_offset, sim_scene
 from station.services.errors import ServiceError
 
 __all__ = ["CheckJob", "apply_manifest", "camera_frame", "camera_overlay", "check_frame", "check_measurement",
@@ -126,7 +126,7 @@ def apply_manifest(guide, manifest: Mapping, source: str = "<manifest>"):
         The manifest is of another scenario, content hash or view, lacks a part, or puts a part elsewhere (another
         layout): one line naming the file and the field.
     """
-    from projector.guide import ParameterTolerance, ReferenceTag
+    from projector.guide import BodyTag, ParameterTolerance, ReferenceTag
 
     def refuse(what: str) -> ServiceError:
         return ServiceError(f"guide {source}: {what}", field="guide", value=source)
@@ -152,7 +152,11 @@ def apply_manifest(guide, manifest: Mapping, source: str = "<manifest>"):
                 tag_size_mm=float(entry.get("tag_size_mm", part.tag_size_mm)),
                 tag_height_mm=float(entry.get("tag_height_mm", part.tag_height_mm)),
                 tag_heading_deg=float(entry.get("tag_heading_deg", part.heading_deg)),
-                tolerances=tolerances, care=entry.get("care")))
+                tolerances=tolerances, care=entry.get("care"),
+                body_tags=tuple(BodyTag(int(b["body"]), int(b["tag_id"]), tuple(map(float, b["tag_center_mm"])),
+                                        float(b["tag_size_mm"]), float(b["tag_height_mm"]),
+                                        float(b["tag_heading_deg"]), tuple(map(float, b["center_mm"])),
+                                        float(b["heading_deg"])) for b in entry.get("body_tags", []))))
         references = tuple(ReferenceTag(int(t["id"]), tuple(map(float, t["center_mm"])), float(t["size_mm"]))
                            for t in manifest["reference_tags"])
     except (KeyError, TypeError, ValueError) as error:
@@ -169,90 +173,6 @@ def _same_scenario(manifest: Mapping, name: str, content_hash: str, source: str)
 
 
 # -- the frame --------------------------------------------------------------------------------------------------------
-def parse_offset(text: str) -> tuple[str, tuple[float, float, float]]:
-    """``PART=DU,DV[,DEG]`` (mm, mm, degrees) as ``(part, (du, dv, deg))``; a ServiceError naming ``sim_offset``."""
-    name, _, values = str(text).partition("=")
-    try:
-        numbers = [float(v) for v in values.split(",")]
-    except ValueError:
-        numbers = []
-    if not name or len(numbers) not in (2, 3) or not all(math.isfinite(n) for n in numbers):
-        raise ServiceError(f"sim_offset must be PART=DU,DV[,DEG] (mm, mm, degrees), got {text!r}",
-                           field="sim_offset", value=text)
-    return name, (numbers[0], numbers[1], numbers[2] if len(numbers) == 3 else 0.0)
-
-
-def sim_scene(guide, offsets: Mapping[str, Sequence[float]] | None = None, *, occluded: Sequence[int] = (),
-              sheet: bool = True):
-    """What a simulated camera sees: the guide's reference tags on the plane and every part tag at its part's
-    designed pose and face height, a part moved by ``offsets[name] = (du, dv, deg)`` (rigidly: its tag turns about
-    the part's origin), the tags ``occluded`` covered by a hand. With ``sheet``, a picture on the plane under them:
-    the guide's outlines (thin) and every part's outline where it stands (filled, its footprint seen from the
-    camera's side, drawn flat on the plane: context for the eye, never over a tag). Simulation only: a real camera
-    sees the real parts.
-
-    Raises
-    ------
-    ServiceError
-        An offset of a part the guide has no tag on (``sim_offset``).
-    """
-    from drivers.sim.camera_scene import ImageItem, Occluder, PlaneScene, TagItem
-
-    offsets = dict(offsets or {})
-    tagged = {p.name: p for p in guide.parts if p.tag_id is not None and p.tag_center_mm is not None}
-    unknown = sorted(set(offsets) - set(tagged))
-    if unknown:
-        raise ServiceError(f"sim_offset: no tagged part {unknown[0]!r}; tagged parts: {', '.join(tagged) or 'none'}",
-                           field="sim_offset", value=unknown[0])
-    tags = [TagItem(t.id, tuple(t.center_mm), t.size_mm) for t in guide.reference_tags]
-    occluders = []
-    for name, part in tagged.items():
-        du, dv, turn = offsets.get(name, (0.0, 0.0, 0.0))
-        c, s = math.cos(math.radians(turn)), math.sin(math.radians(turn))
-        offset = np.subtract(part.tag_center_mm, part.center_mm)
-        centre = np.asarray(part.center_mm) + [du, dv] + [c * offset[0] - s * offset[1], s * offset[0] + c * offset[1]]
-        tags.append(TagItem(part.tag_id, (float(centre[0]), float(centre[1])), part.tag_size_mm,
-                            part.tag_heading_deg + turn, part.tag_height_mm))
-        if part.tag_id in occluded:  # a hand over the tag, just above it
-            half = 0.8 * part.tag_size_mm
-            square = np.array([[-half, -half], [half, -half], [half, half], [-half, half]]) + centre
-            occluders.append(Occluder(square, part.tag_height_mm + 5.0))
-    images = (ImageItem(*_sheet_picture(guide, offsets)),) if sheet else ()
-    return PlaneScene(tags=tuple(tags), images=images, occluders=tuple(occluders))
-
-
-def _moved_outline(part, offset):
-    from shapely import affinity
-
-    du, dv, turn = offset
-    return affinity.translate(affinity.rotate(part.outline, turn, origin=tuple(part.center_mm)), du, dv)
-
-
-def _sheet_picture(guide, offsets, px_per_mm: float = 2.0) -> tuple[np.ndarray, np.ndarray]:
-    """The picture under the parts (see :func:`sim_scene`) and its corners on the plane (top-left first)."""
-    import cv2
-
-    u0, v0, u1, v1 = guide.extent_mm
-    width, height = int(np.ceil((u1 - u0) * px_per_mm)), int(np.ceil((v1 - v0) * px_per_mm))
-    picture = np.full((height, width, 3), 245, dtype=np.uint8)
-
-    def pixels(ring) -> np.ndarray:  # row 0 is the picture's top (largest v); fixed point, 4 fractional bits
-        ring = np.asarray(ring)[:, :2]
-        return np.round(16 * np.column_stack([(ring[:, 0] - u0) * px_per_mm,
-                                              (v1 - ring[:, 1]) * px_per_mm])).astype(np.int32)
-
-    for part in guide.parts:
-        body = _moved_outline(part, offsets.get(part.name, (0.0, 0.0, 0.0)))
-        for polygon in getattr(body, "geoms", [body]):
-            if not polygon.is_empty:
-                cv2.fillPoly(picture, [pixels(polygon.exterior.coords)], (196, 164, 120), cv2.LINE_AA, 4)
-        for polygon in getattr(part.outline, "geoms", [part.outline]):
-            if not polygon.is_empty:
-                cv2.polylines(picture, [pixels(polygon.exterior.coords)], True, (110, 110, 110), 1, cv2.LINE_AA, 4)
-    corners = np.array([[u0, v1], [u1, v1], [u1, v0], [u0, v0]], dtype=float)
-    return picture, corners
-
-
 def load_image(path: str | Path) -> np.ndarray:
     """A camera frame from a file (PNG, JPEG...) as RGB uint8; a ServiceError naming ``image`` otherwise."""
     from PIL import Image, UnidentifiedImageError
@@ -433,7 +353,10 @@ def check_measurement(job, measurement, image: np.ndarray, intrinsics, *, simula
     scenario = job.scenario
     names = list(scenario.design_space.names)
     x = np.asarray(job.layout.x, dtype=float)
-    poses = {c.name: PlanePose(c.measured_center_mm, c.measured_heading_deg) for c in checks if c.found}
+    poses: dict[str, list] = {}  # per part, its measured poses: its own (body None), or its bodies'
+    for c in checks:
+        if c.found:
+            poses.setdefault(c.owner, []).append((c.body, PlanePose(c.measured_center_mm, c.measured_heading_deg)))
     built = as_built_layout(scenario, x, guide.plane, poses, {p.name: p.parameters for p in guide.parts})
     model = getattr(job.tolerances, "model", None)
     problem = getattr(job.tolerances, "problem", None)
@@ -443,7 +366,7 @@ def check_measurement(job, measurement, image: np.ndarray, intrinsics, *, simula
                      "optimize` has one)" if names else "no prediction: the scenario has no design parameters")
     else:
         predicted_designed, predicted_built, costs = _scores(model, problem, x, built, guide)
-        checks = [replace(c, cost=costs.get(c.name)) for c in checks]
+        checks = [replace(c, cost=costs.get(c.owner)) for c in checks]
     if measurement.plane is None:
         notes.insert(0, "no plane: too few reference tags seen (missing "
                      f"{', '.join(map(str, measurement.missing_reference_ids))}); nothing was measured")

@@ -23,6 +23,7 @@ class Checked:  # calibration.check.PartCheck's fields the overlay reads
     error: tuple | None
     within_tolerance: bool | None
     tolerance: tuple = (None, None, None)
+    tag_id: int | None = None
 
 
 def _near(image, point_px, colour, radius=3) -> bool:
