@@ -38,8 +38,8 @@ MIN_CORNERS = 8
 MIN_VIEWS = 3
 #: An image corner counts as covered when this many board corners were seen within this fraction of the image's
 #: width and height from it.
-CORNER_REGION = 0.15
-CORNER_POINTS = 3
+CORNER_REGION = 0.2
+CORNER_POINTS = 2
 CORNER_NAMES = ("top-left", "top-right", "bottom-right", "bottom-left")
 
 

@@ -23,6 +23,7 @@ not measured, an unknown id is reported, a missing reference tag is named.
 from __future__ import annotations
 
 import math
+import threading
 from collections import Counter
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
@@ -40,6 +41,9 @@ __all__ = ["PlaneFix", "TagPose", "Measurement", "measure", "plane_from_points",
 APRILTAG_OFFSET_PX = 0.5
 #: Reference tags needed for a plane (8 corners over the sheet; a single tag's plane tilts freely).
 MIN_REFERENCE_TAGS = 2
+#: The detector's first pass searches quads on an image this many times smaller; its threads.
+FAST_DECIMATE = 2.0
+DETECT_THREADS = 2
 #: RANSAC threshold of the homography, in plane millimetres.
 RANSAC_MM = 3.0
 #: Unit corners of a tag's black square, [lower-left, lower-right, upper-right, upper-left], (u, v) as printed.
@@ -225,6 +229,29 @@ def _apply(homography: np.ndarray, pixels: np.ndarray) -> np.ndarray:
     return points[:, :2] / points[:, 2:3]
 
 
+def _detect(gray: np.ndarray, wanted: set[int]) -> list:
+    """The tags in a frame: quads searched on a half-size image first (4x faster on 1080p, corners still refined on
+    the full image), again at full size only when a wanted tag is not found (a small or far tag, ~20 px or less)."""
+    found = _detector(FAST_DECIMATE).detect(gray)
+    if wanted <= {tag.tag_id for tag in found}:
+        return found
+    return _detector(1.0).detect(gray)
+
+
+_DETECTORS = threading.local()
+
+
+def _detector(decimate: float):
+    """This thread's detector for ``decimate`` (making one builds the family's decode table: ~0.1 s; a detector is
+    not safe to share between threads)."""
+    from projector.detection import TagDetector
+
+    detectors = _DETECTORS.__dict__.setdefault("by_decimate", {})
+    if decimate not in detectors:
+        detectors[decimate] = TagDetector(decimate, DETECT_THREADS)
+    return detectors[decimate]
+
+
 def sort_ids(found, reference_ids, part_ids):
     """Sort detections by id: (the tags seen once, by id; unknown ids; duplicate ids; reference ids not seen).
 
@@ -256,7 +283,8 @@ def measure(image: np.ndarray, intrinsics: CameraIntrinsics,
     previous : PlaneFix, optional
         The last fix, to say how far the plane moved since.
     detector : projector.detection.TagDetector, optional
-        A detector to reuse (faster over many frames; its ``quad_decimate`` sets speed); default one per call.
+        A detector to use (its ``quad_decimate`` sets speed); default: quads searched at half size, then at full
+        size only if a wanted tag was not found.
     found : list of projector.detection.FoundTag, optional
         Detections already made on this frame (then ``image`` is only checked for its size).
 
@@ -272,10 +300,8 @@ def measure(image: np.ndarray, intrinsics: CameraIntrinsics,
         raise CalibrationError(f"tag ids {both} are given both as reference and as part tags")
     intrinsics.check_image(image)
     if found is None:
-        from projector.detection import detect_tags
-
         gray = to_gray(image)
-        found = detector.detect(gray) if detector is not None else detect_tags(gray)
+        found = detector.detect(gray) if detector is not None else _detect(gray, set(references) | set(parts))
     unique, unknown, duplicates, missing = sort_ids(found, references, parts)
 
     pixels = {i: undistort(detected_corners(tag), intrinsics) for i, tag in unique.items()

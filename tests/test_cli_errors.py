@@ -141,6 +141,9 @@ MISSING_FILE = {
     ("simulate",): ["simulate", "missing.toml"],
     ("tolerances",): ["tolerances", "simple", "missing.json"],
     ("guide",): ["guide", "simple", "missing.json", "--pdf", "OUT.pdf"],
+    ("calibrate", "board"): None,
+    ("calibrate", "camera"): ["calibrate", "camera", "--images", "missing.d", "--out", "OUT.json"],
+    ("calibrate", "plane"): ["calibrate", "plane", "--image", "missing.png"],
 }
 
 

@@ -45,7 +45,9 @@ def register(subparsers) -> None:
 
     board = sub.add_parser("board", help="the ChArUco calibration board as a 1:1 PDF",
                            description="Write the ChArUco board (7x5 squares of 30 mm, 22 mm DICT_5X5_100 markers, "
-                           "landscape) as a 1:1 vector PDF. Print at 100% and check that a square measures 30 mm.")
+                           "landscape) as a 1:1 vector PDF. Print at 100% and check that a square measures 30 mm.",
+                           epilog="examples:\n  station calibrate board --pdf board.pdf\n"
+                           "  station calibrate board --pdf board.pdf --paper letter")
     board.add_argument("--pdf", required=True, metavar="OUT.pdf", help="the PDF to write")
     board.add_argument("--paper", default="a4", help="a4 (default), letter or a3")
     board.set_defaults(func=run_board)
@@ -54,8 +56,10 @@ def register(subparsers) -> None:
                             description="Solve the camera's intrinsics (camera matrix, distortion) from 10-20 views "
                             "of the printed board at different angles and places, some with the board in the image's "
                             "corners (else k3 is fixed and the result says which corners lacked views). Prints the "
-                            f"RMS and each view's error. --json prints {CAMERA_JSON}.")
-    source = camera.add_mutually_exclusive_group(required=True)
+                            f"RMS and each view's error. --json prints {CAMERA_JSON}.",
+                            epilog="examples:\n  station calibrate camera --images shots/ --name desk\n"
+                            "  station calibrate camera --capture 15 --camera 0 --out desk.json --json")
+    source = camera.add_mutually_exclusive_group()
     source.add_argument("--images", metavar="DIR", help="a folder of board images (png, jpg, ...)")
     source.add_argument("--capture", type=int, metavar="N", help="grab N frames from the camera")
     camera.add_argument("--camera", metavar="URL", help="with --capture: the camera (default: the station's)")
@@ -72,7 +76,9 @@ def register(subparsers) -> None:
                            "(ids 583-586; their positions from --guide, the manifest `station guide --json` "
                            "prints; without it only which are seen is checked), report the residual at the tags "
                            "and how far the plane moved since the camera's last check (a bumped camera). "
-                           f"--json prints {PLANE_JSON}.")
+                           f"--json prints {PLANE_JSON}.",
+                           epilog="examples:\n  station calibrate plane --image frame.png --guide guide.json\n"
+                           "  station calibrate plane --camera sim://camera --guide guide.json --json")
     where = plane.add_mutually_exclusive_group()
     where.add_argument("--camera", metavar="URL", help="grab the frame from this camera (default: the station's)")
     where.add_argument("--image", metavar="FRAME", help="a frame saved as an image file")
@@ -103,6 +109,8 @@ def run_camera(args) -> int:
     from station.progress_view import ProgressView
     from station.services import calibrate as service
 
+    if args.images is None and args.capture is None:
+        raise UsageError("give --images DIR (a folder of board images) or --capture N (frames to grab)")
     if args.camera is not None and args.capture is None:
         raise UsageError("--camera goes with --capture N")
     out = check_output_file(args.out, {".json"}, "--out") if args.out else None
@@ -115,55 +123,10 @@ def run_camera(args) -> int:
     if args.json:
         emit_json(done.to_dict())
         return 0
-    for line in camera_report(done.result):
+    for line in service.camera_summary(done.result):
         print(line)
     print(f"saved {done.path}")
     return 0
-
-
-def camera_report(result) -> list[str]:
-    """A calibration result in lines: the camera, each view, the coverage and the warnings."""
-    cam = result.intrinsics
-    k = cam.camera_matrix
-    lines = [f"camera {cam.name or ''}: {cam.image_size[0]}x{cam.image_size[1]}, fx {k[0, 0]:.1f} fy {k[1, 1]:.1f} px, "
-             f"centre ({k[0, 2]:.1f}, {k[1, 2]:.1f}), RMS {cam.rms_px:.3f} px over {len(result.used)} views",
-             "  distortion k1 k2 p1 p2 k3: " + " ".join(f"{v:+.4f}" for v in cam.dist_coeffs[:5]),
-             f"  coverage {result.coverage:.0%} of the image"
-             + (f"; corners without views: {', '.join(result.uncovered_corners)} (k3 fixed at 0)"
-                if result.uncovered_corners else "; all four corners covered")]
-    for view in result.views:
-        state = f"RMS {view.rms_px:.3f} px" if view.skipped is None else f"skipped: {view.skipped}"
-        lines.append(f"  {view.name:28s} {view.corners:3d} corners  {state}")
-    lines += [f"  warning: {w}" for w in result.warnings]
-    return lines
-
-
-def plane_report(check) -> list[str]:
-    """A plane check in lines."""
-    m = check.measurement
-    lines = [f"frame from {check.source}; intrinsics: "
-             + (f"{check.intrinsics.name} (RMS {check.intrinsics.rms_px:.3f} px)" if check.intrinsics.rms_px
-                is not None else "; ".join(check.intrinsics.notes) or "given")]
-    if m.plane is None:
-        seen = [i for i in check.reference_ids if i not in m.missing_reference_ids and i not in m.duplicate_ids]
-        if check.guide is None:
-            lines.append(f"reference tags seen: {seen or 'none'}; no plane solved: give --guide GUIDE.json (the "
-                         "manifest of `station guide --json`) for their positions")
-        else:
-            lines.append(f"no plane: {len(seen)} reference tag(s) seen once, at least 2 needed")
-    else:
-        plane = m.plane
-        moved = ("" if plane.moved_mm is None else f"; moved {plane.moved_mm:.2f} mm since the last check"
-                 + (" (the camera or the sheet moved)" if plane.moved_mm > 1.0 else ""))
-        lines.append(f"plane from reference tags {list(plane.reference_ids)}: residual {plane.residual_mm:.3f} mm, "
-                     f"camera {plane.camera_centre_mm[2]:.0f} mm above it{moved}")
-    if m.missing_reference_ids:
-        lines.append(f"missing reference tags: {list(m.missing_reference_ids)}")
-    if m.duplicate_ids:
-        lines.append(f"tags seen twice (not used): {list(m.duplicate_ids)}")
-    if m.unknown_ids:
-        lines.append(f"other tags seen: {list(m.unknown_ids)}")
-    return lines
 
 
 def run_plane(args) -> int:
@@ -177,6 +140,6 @@ def run_plane(args) -> int:
     if args.json:
         emit_json(check.to_dict())
     else:
-        for line in plane_report(check):
+        for line in service.plane_summary(check):
             print(line)
     return 0 if check.measurement.plane is not None or args.guide is None else 1

@@ -25,9 +25,9 @@ import numpy as np
 from common.progress import CancelCheck, ProgressCallback, Reporter
 from station.services.errors import ServiceError
 
-__all__ = ["IMAGE_SUFFIXES", "CameraCalibration", "PlaneCheck", "calibrate_camera", "camera_file",
-           "capture_views", "check_name", "grab_frame", "intrinsics_for", "plane_check", "read_views",
-           "reference_tags_from_guide", "write_board"]
+__all__ = ["IMAGE_SUFFIXES", "CameraCalibration", "PlaneCheck", "calibrate_camera", "camera_file", "camera_summary",
+           "capture_views", "check_name", "grab_frame", "intrinsics_for", "plane_check", "plane_summary",
+           "read_views", "reference_tags_from_guide", "write_board"]
 
 IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff")
 DEFAULT_CAMERA = "camera"
@@ -72,13 +72,15 @@ def write_board(path: str | Path, paper: str = "a4"):
     return spec
 
 
-def _read_image(path: Path) -> np.ndarray:
+def _read_image(path: Path, field: str = "images") -> np.ndarray:
     import cv2
 
+    if not path.is_file():
+        raise ServiceError(f"{field}: no such file: {path}", field=field, value=str(path))
     image = cv2.imread(str(path), cv2.IMREAD_GRAYSCALE)
     if image is None:
-        raise ServiceError(f"images: {path} is not an image OpenCV can read (expected {', '.join(IMAGE_SUFFIXES)})",
-                           field="images", value=str(path))
+        raise ServiceError(f"{field}: {path} is not an image OpenCV can read (expected {', '.join(IMAGE_SUFFIXES)})",
+                           field=field, value=str(path))
     return image
 
 
@@ -162,10 +164,11 @@ class CameraCalibration:
 
 def calibrate_camera(*, images: str | Path | None = None, capture: int | None = None, camera: str | None = None,
                      name: str | None = None, out: str | Path | None = None, interval_s: float = 1.0,
-                     progress: ProgressCallback | None = None,
-                     cancelled: CancelCheck | None = None) -> CameraCalibration:
+                     progress: ProgressCallback | None = None, cancelled: CancelCheck | None = None,
+                     before: Callable[[object, int], None] | None = None) -> CameraCalibration:
     """Calibrate a camera from a folder of board images or ``capture`` frames grabbed from ``camera`` (a URL;
     default the station's camera), and save it to ``out`` (default ``calibration/cameras/<name>.json``).
+    ``before(camera, index)`` runs before each grab (a simulated camera's board may be moved there).
 
     Raises
     ------
@@ -186,7 +189,7 @@ def calibrate_camera(*, images: str | Path | None = None, capture: int | None = 
     else:
         default_name, url = configured_camera_url() if camera is None else (DEFAULT_CAMERA, camera)
         name = check_name(name or default_name)
-        views = capture_views(url, capture, interval_s=interval_s, progress=report)
+        views = capture_views(url, capture, interval_s=interval_s, progress=report, before=before)
     try:
         result = solve(views, name=name, progress=report)
     except CalibrationError as error:
@@ -290,7 +293,7 @@ def plane_check(*, image: str | Path | np.ndarray | None = None, camera: str | N
     elif isinstance(image, np.ndarray):
         frame, source, name = image, "<frame>", check_name(name or DEFAULT_CAMERA)
     else:
-        frame, source, name = _read_image(Path(image)), str(image), check_name(name or DEFAULT_CAMERA)
+        frame, source, name = _read_image(Path(image), "image"), str(image), check_name(name or DEFAULT_CAMERA)
     size = (frame.shape[1], frame.shape[0])
     camera_model = intrinsics_for(size, intrinsics=intrinsics, name=name)
     references = reference_tags_from_guide(guide) if guide is not None else None
@@ -340,3 +343,49 @@ def _load_plane(name: str):
                         tuple(int(i) for i in data["reference_ids"]))
     except (OSError, ValueError, KeyError, TypeError):
         return None
+
+
+def camera_summary(result, views: bool = True) -> list[str]:
+    """A calibration result in lines: the camera, each view (unless ``views`` is False), the coverage and the
+    warnings."""
+    cam = result.intrinsics
+    k = cam.camera_matrix
+    lines = [f"{cam.name or 'camera'}: {cam.image_size[0]}x{cam.image_size[1]}, fx {k[0, 0]:.1f} fy {k[1, 1]:.1f} px, "
+             f"centre ({k[0, 2]:.1f}, {k[1, 2]:.1f}), RMS {cam.rms_px:.3f} px over {len(result.used)} views",
+             "  distortion k1 k2 p1 p2 k3: " + " ".join(f"{v:+.4f}" for v in cam.dist_coeffs[:5]),
+             f"  coverage {result.coverage:.0%} of the image"
+             + (f"; corners without views: {', '.join(result.uncovered_corners)} (k3 fixed at 0)"
+                if result.uncovered_corners else "; all four corners covered")]
+    for view in result.views if views else ():
+        state = f"RMS {view.rms_px:.3f} px" if view.skipped is None else f"skipped: {view.skipped}"
+        lines.append(f"  {view.name:28s} {view.corners:3d} corners  {state}")
+    lines += [f"  warning: {w}" for w in result.warnings]
+    return lines
+
+
+def plane_summary(check) -> list[str]:
+    """A plane check in lines."""
+    m = check.measurement
+    lines = [f"frame from {check.source}; intrinsics: "
+             + (f"{check.intrinsics.name} (RMS {check.intrinsics.rms_px:.3f} px)" if check.intrinsics.rms_px
+                is not None else "; ".join(check.intrinsics.notes) or "given")]
+    if m.plane is None:
+        seen = [i for i in check.reference_ids if i not in m.missing_reference_ids and i not in m.duplicate_ids]
+        if check.guide is None:
+            lines.append(f"reference tags seen: {seen or 'none'}; no plane solved: give --guide GUIDE.json (the "
+                         "manifest of `station guide --json`) for their positions")
+        else:
+            lines.append(f"no plane: {len(seen)} reference tag(s) seen once, at least 2 needed")
+    else:
+        plane = m.plane
+        moved = ("" if plane.moved_mm is None else f"; moved {plane.moved_mm:.2f} mm since the last check"
+                 + (" (the camera or the sheet moved)" if plane.moved_mm > 1.0 else ""))
+        lines.append(f"plane from reference tags {list(plane.reference_ids)}: residual {plane.residual_mm:.3f} mm, "
+                     f"camera {plane.camera_centre_mm[2]:.0f} mm above it{moved}")
+    if m.missing_reference_ids:
+        lines.append(f"missing reference tags: {list(m.missing_reference_ids)}")
+    if m.duplicate_ids:
+        lines.append(f"tags seen twice (not used): {list(m.duplicate_ids)}")
+    if m.unknown_ids:
+        lines.append(f"other tags seen: {list(m.unknown_ids)}")
+    return lines

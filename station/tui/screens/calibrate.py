@@ -1,0 +1,216 @@
+"""Calibrate screen: the camera's intrinsics and the plane check, one panel each, with progress (issue 19).
+
+Camera: type a folder of board images (or a number of frames to grab from the station's camera, moving the board
+between them) and press Calibrate (or f / g); the views are searched and solved in a worker, the result shows the
+RMS, each view's error and which image corners lacked views, and is saved under the station's data folder
+(``calibration/cameras/<camera>.json``). Stop cancels between views. Plane: a guide manifest (``station guide
+--json``) and optionally a frame file (else a frame from the camera); p checks the plane: the residual at the
+reference tags and how far it moved since the last check. More panels (the projector's, the simulator's) join
+through :data:`EXTRA_PANELS`, widget factories composed after these two.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+from rich.text import Text
+from textual import on, work
+from textual.app import ComposeResult
+from textual.binding import Binding
+from textual.containers import Horizontal, Vertical
+from textual.screen import Screen
+from textual.widget import Widget
+from textual.widgets import Button, DataTable, Footer, Header, Input, Label, Static
+from textual.worker import get_current_worker
+
+from calibration.errors import CalibrationError
+from common.progress import Cancelled
+from drivers.errors import DriverError
+from station.errors import StationError
+from station.services import calibrate as service
+from station.tui.registry import ScreenEntry
+from station.tui.widgets.progress import ProgressPanel, ProgressReported, post_progress
+
+#: Factories of more panels (``() -> Widget``), composed after the camera and plane panels, left to right.
+EXTRA_PANELS: list[Callable[[], Widget]] = []
+#: What a worker may fail with, said in the panel in one line.
+_USER_ERRORS = (StationError, CalibrationError, DriverError)
+
+
+class CameraPanel(Vertical):
+    """Intrinsics from a folder of board images or frames grabbed from the camera: progress, views, result."""
+
+    DEFAULT_CSS = """
+    CameraPanel { width: 1fr; border: round $primary-darken-2; padding: 0 1; }
+    CameraPanel Input { width: 100%; }
+    CameraPanel #camera-buttons { height: auto; }
+    CameraPanel Button { margin-right: 1; min-width: 10; }
+    CameraPanel #camera-views { height: auto; max-height: 16; }
+    CameraPanel #camera-result { height: auto; }
+    """
+
+    def compose(self) -> ComposeResult:
+        yield Label("[b]Camera intrinsics[/b] (ChArUco board: `station calibrate board --pdf`)")
+        yield Input(placeholder="folder of board images", id="camera-folder")
+        yield Input(placeholder="or frames to grab from the camera (e.g. 15)", id="camera-count", type="integer")
+        with Horizontal(id="camera-buttons"):
+            yield Button("Calibrate", id="camera-run", variant="primary")
+            yield Button("Stop", id="camera-stop", disabled=True)
+        yield ProgressPanel("give a folder (f) or a number of frames (g)", id="camera-progress")
+        yield Static("", id="camera-result")
+        yield DataTable(id="camera-views", cursor_type="row", zebra_stripes=True)
+
+    def on_mount(self) -> None:
+        self.query_one("#camera-views", DataTable).add_columns("view", "corners", "RMS px / skipped")
+
+    def say(self, text: str) -> None:
+        self.query_one("#camera-result", Static).update(Text(text))
+
+    @on(Button.Pressed, "#camera-run")
+    def _run_pressed(self) -> None:
+        folder = self.query_one("#camera-folder", Input).value.strip()
+        self.start(folder=folder) if folder else self.start(count_text=self.query_one("#camera-count", Input).value)
+
+    @on(Button.Pressed, "#camera-stop")
+    def stop(self) -> None:
+        self.workers.cancel_group(self, "calibrate-camera")
+        self.say("stopping…")
+
+    def start(self, folder: str | None = None, count_text: str | None = None) -> None:
+        """Calibrate from ``folder``, or grab ``count_text`` frames (a whole number) from the station's camera."""
+        count = None
+        if not folder:
+            text = (count_text or "").strip()
+            if not text.isdigit() or int(text) < 1:
+                self.say(f"give a folder of board images, or a whole number of frames to grab (got {text!r})")
+                return
+            count = int(text)
+        self.query_one("#camera-views", DataTable).clear()
+        self.query_one("#camera-progress", ProgressPanel).start(None, "starting…")
+        self.query_one("#camera-stop", Button).disabled = False
+        self.say("")
+        self.calibrate(folder or None, count)
+
+    @work(thread=True, exclusive=True, group="calibrate-camera")
+    def calibrate(self, folder: str | None, count: int | None) -> None:
+        worker = get_current_worker()
+        try:
+            done = service.calibrate_camera(images=folder, capture=count, progress=post_progress(self),
+                                            cancelled=lambda: worker.is_cancelled)
+        except Cancelled:
+            self.app.call_from_thread(self.finished, None, "stopped; nothing saved")
+            return
+        except _USER_ERRORS as error:
+            self.app.call_from_thread(self.finished, None, str(error))
+            return
+        self.app.call_from_thread(self.finished, done, "")
+
+    def on_progress_reported(self, message: ProgressReported) -> None:
+        message.stop()
+        self.query_one("#camera-progress", ProgressPanel).show(message.progress)
+
+    def finished(self, done, error: str) -> None:
+        self.query_one("#camera-stop", Button).disabled = True
+        if done is None:
+            self.query_one("#camera-progress", ProgressPanel).say(error)
+            self.say(error)
+            return
+        result = done.result
+        table = self.query_one("#camera-views", DataTable)
+        for view in result.views:
+            table.add_row(view.name, str(view.corners),
+                          f"{view.rms_px:.3f}" if view.skipped is None else view.skipped)
+        self.say("\n".join(service.camera_summary(result, views=False) + [f"saved {done.path}"]))
+        self.query_one("#camera-progress", ProgressPanel).say(f"done: RMS {result.intrinsics.rms_px:.3f} px")
+
+
+class PlanePanel(Vertical):
+    """The plane from the reference tags in one frame: residual, moved since the last check."""
+
+    DEFAULT_CSS = """
+    PlanePanel { width: 1fr; border: round $primary-darken-2; padding: 0 1; }
+    PlanePanel Input { width: 100%; }
+    PlanePanel Button { margin-top: 1; }
+    PlanePanel #plane-result { height: auto; margin-top: 1; }
+    """
+
+    def compose(self) -> ComposeResult:
+        yield Label("[b]Plane[/b] (the guide's four reference tags)")
+        yield Input(placeholder="guide manifest GUIDE.json (station guide --json)", id="plane-guide")
+        yield Input(placeholder="frame image file (empty: grab from the camera)", id="plane-image")
+        yield Button("Check plane", id="plane-run", variant="primary")
+        yield Static(Text("press p to check the plane"), id="plane-result")
+
+    def say(self, text: str) -> None:
+        self.query_one("#plane-result", Static).update(Text(text))
+
+    @on(Button.Pressed, "#plane-run")
+    def start(self) -> None:
+        guide = self.query_one("#plane-guide", Input).value.strip() or None
+        image = self.query_one("#plane-image", Input).value.strip() or None
+        self.say("checking…")
+        self.check(guide, image)
+
+    @work(thread=True, exclusive=True, group="calibrate-plane")
+    def check(self, guide: str | None, image: str | None) -> None:
+        try:
+            checked = service.plane_check(image=image, guide=guide)
+        except _USER_ERRORS as error:
+            self.app.call_from_thread(self.say, str(error))
+            return
+        self.app.call_from_thread(self.say, "\n".join(service.plane_summary(checked)))
+
+
+class CalibrateScreen(Screen):
+    """Camera intrinsics and the plane check side by side; more panels join through :data:`EXTRA_PANELS`."""
+
+    CSS = """
+    CalibrateScreen #panels { height: 1fr; }
+    """
+
+    BINDINGS = [
+        Binding("f", "camera_folder", "Calibrate from folder"),
+        Binding("g", "camera_grab", "Grab frames"),
+        Binding("s", "camera_stop", "Stop"),
+        Binding("p", "plane", "Check plane"),
+    ]
+
+    def __init__(self) -> None:
+        super().__init__(name="calibrate")
+
+    def compose(self) -> ComposeResult:
+        yield Header()
+        with Horizontal(id="panels"):
+            yield CameraPanel(id="camera-panel")
+            yield PlanePanel(id="plane-panel")
+            for factory in EXTRA_PANELS:
+                yield factory()
+        yield Footer()
+
+    def action_camera_folder(self) -> None:
+        panel = self.query_one(CameraPanel)
+        folder = panel.query_one("#camera-folder", Input).value.strip()
+        if folder:
+            panel.start(folder=folder)
+        else:
+            panel.say("type the folder of board images first")
+
+    def action_camera_grab(self) -> None:
+        panel = self.query_one(CameraPanel)
+        panel.start(count_text=panel.query_one("#camera-count", Input).value)
+
+    def action_camera_stop(self) -> None:
+        self.query_one(CameraPanel).stop()
+
+    def action_plane(self) -> None:
+        self.query_one(PlanePanel).start()
+
+
+SCREEN = ScreenEntry(
+    name="calibrate",
+    key="k",
+    title="Calibrate",
+    description="camera intrinsics from a ChArUco board, the plane from the reference tags",
+    factory=CalibrateScreen,
+    order=58,
+)
