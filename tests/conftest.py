@@ -17,6 +17,19 @@ def station_home(tmp_path_factory, monkeypatch):
     return home
 
 
+@pytest.fixture
+def fresh_twins():
+    """No simulated camera or projector shared by name (``sim://...?name=``) before the test, nor left after it."""
+    from drivers.sim.camera import forget_cameras
+    from drivers.sim.projector import forget_projectors
+
+    forget_cameras()
+    forget_projectors()
+    yield
+    forget_cameras()
+    forget_projectors()
+
+
 async def settle(app, pilot):
     """Let a Textual app under test settle: three rounds of a pause and a wait for all its workers, then a pause."""
     for _ in range(3):

@@ -81,6 +81,8 @@ class OpenCVCamera:
         if self._kind == "file":
             self._open_file()
             return
+        if self._kind == "device" and not Path(self.url).exists():
+            raise DriverError(f"camera {self.url}: no such device (is the camera plugged in? `ls /dev/video*`)")
         self._thread = threading.Thread(target=self._run, name=f"camera {self.url}", daemon=True)
         self._thread.start()
         with self._ready:

@@ -33,6 +33,7 @@ import numpy as np
 from drivers.errors import DriverError, SimConfigError
 from drivers.sim.camera_render import render
 from drivers.sim.camera_scene import CameraModel, PlaneScene, RenderOptions, TagTruth
+from drivers.sim.shared import SharedTwins
 
 __all__ = ["FAULTS", "SimulatedCamera", "camera_named", "forget_cameras", "parse_camera_options", "sim_camera"]
 
@@ -48,8 +49,7 @@ _NUMBERS = {  # option: (lowest, highest, what it takes)
 _WHOLE = {"jpeg": (1, 100), "supersample": (1, 8), "seed": (0, 2**32 - 1)}
 _OPTIONS = ("size", "target", "name", "projector", *_NUMBERS, *_WHOLE)
 
-_SHARED: dict[str, SimulatedCamera] = {}
-_SHARED_LOCK = threading.Lock()
+_SHARED: SharedTwins[SimulatedCamera] = SharedTwins("camera")
 
 
 class SimulatedCamera:
@@ -208,27 +208,11 @@ class SimulatedCamera:
 def sim_camera(url: str = "sim://camera", timeout: float = 2.0, **_: Any) -> SimulatedCamera:
     """The registry's factory: a new twin, or the shared one when the URL has ``name=`` (a later open asking for
     another image size than the shared one's is refused)."""
-    camera = SimulatedCamera(url, timeout)
-    if not camera.name:
-        return camera
-    with _SHARED_LOCK:
-        shared = _SHARED.setdefault(camera.name, camera)
-    if shared is not camera and shared.size != camera.size:
-        raise SimConfigError(f"camera {url}: the shared camera {camera.name!r} is {shared.size[0]}x{shared.size[1]}, "
-                             f"not {camera.size[0]}x{camera.size[1]}")
-    return shared
+    return _SHARED.share(SimulatedCamera(url, timeout), url)
 
 
-def camera_named(name: str) -> SimulatedCamera | None:
-    """The shared twin opened with ``name=...``, if any."""
-    with _SHARED_LOCK:
-        return _SHARED.get(name)
-
-
-def forget_cameras() -> None:
-    """Forget every shared twin (tests)."""
-    with _SHARED_LOCK:
-        _SHARED.clear()
+#: ``camera_named(name)``: the shared twin opened with ``name=...``, if any; ``forget_cameras()``: forget them all.
+camera_named, forget_cameras = _SHARED.named, _SHARED.forget
 
 
 def parse_camera_options(url: str) -> dict:

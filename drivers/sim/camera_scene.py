@@ -168,7 +168,7 @@ class ImageItem:
 @dataclass(frozen=True)
 class Occluder:
     """Something opaque (a hand, a part's body): a flat polygon ``(n, 2)`` in plane mm at ``height_mm``, hiding what
-    lies under it as seen from the camera."""
+    lies under it as seen from the camera. A tag at the same height lies on it (a part's top face with its tag)."""
 
     polygon_mm: np.ndarray
     height_mm: float = 0.0

@@ -39,6 +39,7 @@ import numpy as np
 
 from drivers.errors import DriverError, SimConfigError
 from drivers.projector.frame import as_rgb, fit_to_screen
+from drivers.sim.shared import SharedTwins
 
 __all__ = ["DEFAULT_SIZE", "SimulatedProjector", "forget_projectors", "projector_named", "sim_projector"]
 
@@ -46,8 +47,7 @@ DEFAULT_SIZE = (1280, 800)
 DEFAULT_KEEP = 32
 _OPTIONS = ("area", "folder", "keep", "name", "size")
 
-_SHARED: dict[str, SimulatedProjector] = {}
-_SHARED_LOCK = threading.Lock()
+_SHARED: SharedTwins[SimulatedProjector] = SharedTwins("projector")
 
 
 class SimulatedProjector:
@@ -204,28 +204,18 @@ class SimulatedProjector:
 
 def sim_projector(url: str = "sim://projector", timeout: float = 0.0) -> SimulatedProjector:
     """The registry's factory: a new twin, or the shared one when the URL has ``name=`` (a later open with another
-    size or placement than the shared one's is refused)."""
-    projector = SimulatedProjector(url, timeout)
-    if not projector.name:
-        return projector
-    with _SHARED_LOCK:
-        shared = _SHARED.setdefault(projector.name, projector)
-    if shared is not projector and shared.size != projector.size:
-        raise SimConfigError(f"projector {url}: the shared projector {projector.name!r} is {shared.size[0]}x"
-                             f"{shared.size[1]}, not {projector.size[0]}x{projector.size[1]}")
-    return shared
+    size than the shared one's is refused)."""
+    return _SHARED.share(SimulatedProjector(url, timeout), url)
 
 
 def projector_named(name: str) -> SimulatedProjector | None:
     """The shared twin opened with ``name=...``, if any (the simulated camera finds it this way)."""
-    with _SHARED_LOCK:
-        return _SHARED.get(name)
+    return _SHARED.named(name)
 
 
 def forget_projectors() -> None:
     """Forget every shared twin (tests)."""
-    with _SHARED_LOCK:
-        _SHARED.clear()
+    _SHARED.forget()
 
 
 def parse_options(url: str) -> dict:

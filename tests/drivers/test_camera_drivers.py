@@ -16,19 +16,12 @@ import pytest
 from drivers.camera.opencv import OpenCVCamera
 from drivers.devices import Camera, probe, resolve
 from drivers.errors import DriverError, SimConfigError
-from drivers.sim.camera import SimulatedCamera, camera_named, forget_cameras, sim_camera
+from drivers.sim.camera import SimulatedCamera, camera_named, sim_camera
 from drivers.sim.camera_scene import PlaneScene, TagItem
-from drivers.sim.projector import forget_projectors, sim_projector
+from drivers.sim.projector import sim_projector
 from projector.detection import detect_tags
 
-
-@pytest.fixture(autouse=True)
-def _no_shared_twins():
-    forget_cameras()
-    forget_projectors()
-    yield
-    forget_cameras()
-    forget_projectors()
+pytestmark = pytest.mark.usefixtures("fresh_twins")
 
 
 # -- the simulated camera ----------------------------------------------------------------------------------------
@@ -226,6 +219,7 @@ def test_dead_urls_are_one_line_within_the_timeout():
     started = time.monotonic()
     state = probe(f"http://127.0.0.1:{port}/stream.mjpg")
     assert state == "not available: cannot open the stream (unreachable, refused, or not a video stream)"
+    assert probe("/dev/video99") == "not available: no such device (is the camera plugged in? `ls /dev/video*`)"
     # a server that accepts and never answers: the first frame's deadline
     silent = socket.socket()
     silent.bind(("127.0.0.1", 0))

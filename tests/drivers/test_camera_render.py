@@ -176,3 +176,21 @@ def test_degradations_are_seeded_and_bounded():
 def test_bad_options_are_one_line_naming_them(options, name):
     with pytest.raises(SimConfigError, match=name):
         render(PlaneScene(), CAMERA, options)
+
+
+def test_a_tag_on_a_parts_top_face_is_seen_on_it():
+    face = Occluder(np.array([[-40.0, -30.0], [40.0, -30.0], [40.0, 30.0], [-40.0, 30.0]]), height_mm=35.0)
+    tag = TagItem(21, (0.0, 0.0), 30.0, heading_deg=60.0, height_mm=35.0)
+    image, (truth,) = render(PlaneScene(tags=(tag,), occluders=(face,)), CAMERA)
+    assert truth.visible and [f.tag_id for f in detect_tags(grey(image))] == [21]
+    u, v = CAMERA.project(np.array([[36.0, 0.0, 35.0]]))[0].round().astype(int)
+    assert np.allclose(image[v, u], (90, 70, 60), atol=2)  # the face around the tag
+
+
+def test_a_tag_far_outside_a_barrel_lens_view_is_not_visible_where_project_points_folds_it_in():
+    camera = CameraModel.looking_down(height_mm=1000.0, dist_coeffs=(-0.25, 0, 0, 0, 0))
+    far = TagItem(2, (1500.0, 0.0), 30.0)  # the polynomial turns back: projectPoints puts it at x ~ 1878
+    near = TagItem(3, (500.0, 0.0), 30.0)
+    image, (t_far, t_near) = render(PlaneScene(tags=(far, near)), camera)
+    assert 0 < t_far.center_px[0] < 1920 and not t_far.visible and t_near.visible
+    assert [f.tag_id for f in detect_tags(grey(image))] == [3]
