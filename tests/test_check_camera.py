@@ -200,3 +200,17 @@ def test_a_domino_run_is_checked_by_its_first_and_last_dominoes(tmp_path):
     drawn = service.camera_overlay(service.check_frame(job, image, intrinsics))
     assert drawn.shape == image.shape
 
+
+
+def test_the_projected_check_uses_the_projectors_saved_map():
+    from calibration.projector_map import ProjectorMap, save_projector_map
+    from station.services.projector_calibration import projector_map_file
+
+    assert service.projector_homography("projector", (1280, 800)) is None  # no map: fitted to the screen
+    plane_from_pixel = np.array([[0.5, 0.0, -300.0], [0.0, -0.5, 200.0], [0.0, 0.0, 1.0]])
+    path = projector_map_file("projector")
+    path.parent.mkdir(parents=True, exist_ok=True)
+    save_projector_map(ProjectorMap(plane_from_pixel, (1280, 800), {"p50": 0.2, "p95": 0.4, "max": 0.6}, {}), path)
+    homography = service.projector_homography("projector", (1280, 800))
+    assert np.allclose(homography @ plane_from_pixel, np.eye(3))  # guide mm -> projector pixels
+    assert service.projector_homography("projector", (1920, 1080)) is None  # a map of another screen size

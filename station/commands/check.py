@@ -112,9 +112,11 @@ def _project(check) -> str:
     if device is None:
         raise UsageError("--project: no projector configured (add one to station.toml; see `station devices`)")
     with open_projector(device) as projector:
-        projector.show(service.overlay_frame(check, tuple(projector.size)))
-    return (f"projected the check on {device.name} ({device.url}), fitted to the screen (NOT at true scale until "
-            "the projector is calibrated)")
+        homography = service.projector_homography(device.name, tuple(projector.size))
+        projector.show(service.overlay_frame(check, tuple(projector.size), homography))
+    scale = ("at true scale (its saved map)" if homography is not None else
+             "fitted to the screen (NOT at true scale until `station calibrate projector`)")
+    return f"projected the check on {device.name} ({device.url}), {scale}"
 
 
 def _print(check, out: Path | None, overlay: Path | None, projected: str | None) -> None:
