@@ -24,7 +24,7 @@ from projector.build import build_guide
 from station.cli import main
 from station.services import check as service
 
-RENDER = RenderOptions(blur_px=0.8, noise=2.0, jpeg_quality=90, seed=3)
+RENDER = RenderOptions(blur_px=0.8, noise=2.0, jpeg_quality=90, supersample=2, seed=3)
 MOVE = {"goblet.x": 0.004, "goblet.z": -0.0025, "goblet.roll": 3.0}  # BALLRUN's u is -x: 4 mm to the left
 
 
