@@ -20,8 +20,9 @@ JSON_SHAPE = ('{"format": "chaos-station check", "version", "scenario", "content
               '{"residual_mm", "reference_ids", "moved_mm"}, "parts": [{"name", "tag_id", "found", "measured": '
               '{"center_mm", "heading_deg"}, "error": {"du_mm", "dv_mm", "distance_mm", "heading_deg"}, '
               '"within_tolerance", "instruction", "cost"}], "missing_tags", "unknown_tags", "duplicate_tags", '
-              '"by_eye", "as_built", "not_measured", "residual_error", "predicted_success_as_built", '
-              '"predicted_success_as_designed", "prediction_note", "simulated_success_as_built"}')
+              '"by_eye", "missing_reference_tags", "as_built", "not_measured", "residual_error", '
+              '"predicted_success_as_built", "predicted_success_as_designed", "prediction_note", '
+              '"simulated_success_as_built"}')
 FLAGS = {"guide": "--guide", "image": "--image", "camera": "--camera", "sim_offset": "--sim-offset",
          "simulate": "--simulate", "seed": "--seed", "intrinsics": "--intrinsics"}
 
