@@ -21,17 +21,7 @@ from design.contraption.design_space import DesignSpace, design_space_of
 from design.contraption.errors import ScenarioFormatError
 from design.contraption.fields import Checker
 from design.contraption.graph import check_event_graph, check_references, resolve_body_ref
-from design.contraption.model import (
-    EventSpec,
-    ObjectSpec,
-    Physics,
-    Scenario,
-    Settings,
-    Tag,
-    Transform,
-    content_hash,
-    domino_count,
-)
+from design.contraption.model import EventSpec, ObjectSpec, Physics, Scenario, Settings, Tag, Transform, content_hash
 from design.contraption.schema import (
     EVENT_COMMON,
     EVENTS,
@@ -390,6 +380,8 @@ def _tag(check, value, kind: str, shape, path: str, *, body: bool) -> Tag:
         raise check.fail(f"{path}.id", "missing; expected an AprilTag id (integer >= 0)")
     index = None
     if "body" in tag_table or body:
+        from design.contraption.model import domino_count  # only a run's tags name a body
+
         count = domino_count(shape) if kind == "DominoRun" else 0
         if kind != "DominoRun":
             raise check.fail(f"{path}.body", "only a DominoRun's tag names a body (the domino it is on)")
