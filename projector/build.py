@@ -15,9 +15,12 @@ layout. :func:`steps_text` writes the steps out.
 4. the view in which the parts' outlines overlap least (a sheet on which parts lie over each other is hard to
    build against).
 
-**Tags**: a part the scenario gives a ``tag`` keeps it (id, place, size). Every other part that the maker places or
-that a free layout parameter moves, except a ball, gets the next free id from 0 in step order (ids the scenario
-uses and the reference ids 583-586 are skipped), the largest size of 25/20/15/10 mm whose square, with a margin of
+**Tags**: a part the scenario gives a ``tag`` keeps it (id, place, size, and heading: its printed "up" is the part's
+local +y in the top view, +z in the side view, turned by the tag's ``angle``); a domino run whose scenario tags sit on
+its dominoes (the first and the last) carries them as :attr:`~projector.guide.PartDrawing.body_tags` and no tag of its
+own. Every other part that the maker places or that a free layout parameter moves, except a ball, gets the next
+free id from 0 in step order, printed turned with the part (ids the scenario uses and the reference ids 583-586 are
+skipped), the largest size of 25/20/15/10 mm whose square, with a margin of
 an eighth of its edge (tag36h11's white border) and at least 2 mm, fits inside its outline, at the part's centre
 where it fits, else at the inside point farthest from the outline's edge, and where no other part stands in front
 of it (between it and the maker, at its centre and corners); a part too small for 10 mm, or hidden, gets none.
@@ -49,6 +52,7 @@ from design.robust.tolerance import care_level  # the station's one rule (the to
 from projector.errors import ProjectorError
 from projector.guide import (
     REFERENCE_TAG_IDS,
+    BodyTag,
     Guide,
     GuidePlane,
     ParameterTolerance,
@@ -261,20 +265,27 @@ def _with_tags(scenario, frames, bodies, plane, drawings, tag_size_mm) -> list[P
     if clash:
         raise ProjectorError(f"{scenario.source}: objects {clash[0]!r}: tag.id {given[clash[0]].id} is a reference "
                              f"tag's; expected an id other than {', '.join(map(str, REFERENCE_TAG_IDS))}")
-    used = {tag.id for tag in given.values()} | set(REFERENCE_TAG_IDS)
+    on_bodies = {obj.name: obj.body_tags for obj in scenario.objects if obj.body_tags and obj.name in bodies}
+    used = {tag.id for tag in given.values()} | {t.id for tags in on_bodies.values() for t in tags} \
+        | set(REFERENCE_TAG_IDS)
     next_id = 0
     sizes = AUTO_TAG_SIZES_MM if tag_size_mm is None else (float(tag_size_mm),)
     surfaces = {name: Surface(group, plane) for name, group in bodies.items()}
     result = []
     for part in drawings:
         obj = scenario.object(part.name)
+        if part.name in on_bodies:  # a run's first and last dominoes carry its tags
+            result.append(replace(part, body_tags=tuple(_body_tag(bodies[part.name][tag.body], tag, plane)
+                                                        for tag in on_bodies[part.name])))
+            continue
         if part.name in given:
             tag = given[part.name]
             world = frames[part.name].apply([tag.x, tag.y, tag.z])
             centre = plane.to_plane(world)[0]
             height = 1000.0 * float((world - plane.origin) @ plane.normal)
             result.append(replace(part, tag_id=tag.id, tag_center_mm=_pair(centre), tag_size_mm=1000.0 * tag.size,
-                                  tag_height_mm=height))
+                                  tag_height_mm=height, tag_heading_deg=_tag_heading(frames[part.name], plane,
+                                                                                     part.heading_deg, tag.angle)))
             continue
         wants = obj.type != "Ball" and (part.kind is PartKind.PLACED or part.parameters)
         group = bodies[part.name]
@@ -290,9 +301,31 @@ def _with_tags(scenario, frames, bodies, plane, drawings, tag_size_mm) -> list[P
             next_id += 1
         (u, v), size = fit
         result.append(replace(part, tag_id=next_id, tag_center_mm=(u, v), tag_size_mm=size,
-                              tag_height_mm=_face_height(surfaces[part.name], group, (u, v))))
+                              tag_height_mm=_face_height(surfaces[part.name], group, (u, v)),
+                              tag_heading_deg=part.heading_deg))  # printed turned with the part (the sheets' square)
         used.add(next_id)
     return result
+
+
+def _body_tag(body: PlacedBody, tag, plane: GuidePlane) -> BodyTag:
+    """A scenario tag on one body of a part (its place in the body's frame)."""
+    world = body.pose.apply([tag.x, tag.y, tag.z])
+    heading = heading_in_plane(body.pose.rotation, plane)
+    return BodyTag(body=int(tag.body), tag_id=tag.id, tag_center_mm=_pair(plane.to_plane(world)[0]),
+                   tag_size_mm=1000.0 * tag.size,
+                   tag_height_mm=1000.0 * float((np.ravel(world) - plane.origin) @ plane.normal),
+                   tag_heading_deg=_tag_heading(body.pose, plane, heading, tag.angle),
+                   center_mm=_pair(plane.to_plane(body.pose.position)[0]), heading_deg=heading)
+
+
+def _tag_heading(frame, plane: GuidePlane, heading: float, angle: float) -> float:
+    """A scenario tag's heading on the plane: its printed "up" is the part's local +y (top view) or +z (side view)
+    seen on the plane, turned by ``angle``; the part's ``heading`` when that axis points at the camera."""
+    up = frame.rotation.apply([0.0, 1.0, 0.0] if plane.view == "top" else [0.0, 0.0, 1.0])
+    along_u, along_v = float(up @ plane.u_axis), float(up @ plane.v_axis)
+    base = math.degrees(math.atan2(-along_u, along_v)) if math.hypot(along_u, along_v) > 1e-6 else heading
+    heading = (base + float(angle) + 180.0) % 360.0 - 180.0
+    return 180.0 if heading == -180.0 else heading
 
 
 def _face_height(surface: Surface, group, uv) -> float:

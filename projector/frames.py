@@ -243,14 +243,15 @@ class _Canvas:
         start, end = self._px(np.vstack([center, tip]))
         cv2 = _cv2()
         cv2.arrowedLine(image, _point(start), _point(end), ARROW, self.thick, cv2.LINE_AA, SHIFT, tipLength=0.2)
-        if part.tag_id is not None and part.tag_center_mm is not None:
-            half = part.tag_size_mm / 2
+        for tagged in part.tag_views():
+            half = tagged.tag_size_mm / 2
             square = np.array([[-half, -half], [half, -half], [half, half], [-half, half]])
-            c, s = np.cos(heading), np.sin(heading)
-            square = square @ np.array([[c, s], [-s, c]]) + np.asarray(part.tag_center_mm, dtype=float)
+            turn = np.radians(tagged.tag_heading_deg)
+            c, s = np.cos(turn), np.sin(turn)
+            square = square @ np.array([[c, s], [-s, c]]) + np.asarray(tagged.tag_center_mm, dtype=float)
             self._edges(image, [square], WHITE, self.thick)
             corner = self._px(square).max(axis=0)
-            self._text(image, f"tag {part.tag_id}", corner, WHITE, 0.7)
+            self._text(image, f"tag {tagged.tag_id}", corner, WHITE, 0.7)
         outline_px = self._px(outline)
         label = np.array([outline_px[:, 0].mean(), outline_px[:, 1].min() - 0.9 * self.line])
         self._text(image, f"{part.step}. {part.name}", label, WHITE, 1.0, centre=True)

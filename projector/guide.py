@@ -12,7 +12,7 @@ This module holds the types only; :mod:`projector.build` makes a :class:`Guide` 
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from enum import Enum
 
 import numpy as np
@@ -20,6 +20,7 @@ from shapely.geometry.base import BaseGeometry
 
 __all__ = [
     "CARE_LEVELS",
+    "BodyTag",
     "FIRST_REFERENCE_TAG",
     "REFERENCE_TAG_IDS",
     "TAG_FAMILY",
@@ -123,6 +124,35 @@ class ParameterTolerance:
 
 
 @dataclass(frozen=True)
+class BodyTag:
+    """A tag on one body of a part made of many (a domino of a run: the first and the last are tagged).
+
+    Parameters
+    ----------
+    body : int
+        The body's index in the part (0 the first domino).
+    tag_id : int
+    tag_center_mm : tuple of float
+        Where the tag's centre goes, on the plane.
+    tag_size_mm, tag_height_mm, tag_heading_deg : float
+        As :class:`PartDrawing`'s.
+    center_mm : tuple of float
+        The body's origin on the plane.
+    heading_deg : float
+        The body's heading on the plane.
+    """
+
+    body: int
+    tag_id: int
+    tag_center_mm: tuple[float, float]
+    tag_size_mm: float
+    tag_height_mm: float
+    tag_heading_deg: float
+    center_mm: tuple[float, float]
+    heading_deg: float
+
+
+@dataclass(frozen=True)
 class PartDrawing:
     """One part of the contraption on the guide plane.
 
@@ -149,12 +179,17 @@ class PartDrawing:
         The tag's black square edge.
     tag_height_mm : float
         How far the tag's face stands off the plane (the camera check maps it through a plane at that height).
+    tag_heading_deg : float
+        The direction of the tag's printed "up" on the plane, counter-clockwise as the maker sees it, 0 = +v: the
+        part's heading for a tag the guide places, the scenario tag's own (its ``angle``) otherwise.
     parameters : tuple of str
         The free layout parameters that move this part.
     tolerances : tuple of ParameterTolerance
         Their tolerances (empty when none are known).
     care : str or None
         ``"tight"``, ``"normal"`` or ``"loose"`` from its tolerances; None when unknown.
+    body_tags : tuple of BodyTag
+        Tags on single bodies of the part (a domino run's first and last), checked in its stead.
     """
 
     name: str
@@ -167,9 +202,19 @@ class PartDrawing:
     tag_center_mm: tuple[float, float] | None = None
     tag_size_mm: float = 20.0
     tag_height_mm: float = 0.0
+    tag_heading_deg: float = 0.0
     parameters: tuple[str, ...] = ()
     tolerances: tuple[ParameterTolerance, ...] = ()
     care: str | None = None
+    body_tags: tuple[BodyTag, ...] = ()
+
+    def tag_views(self) -> tuple[PartDrawing, ...]:
+        """Every tag the part carries, each as the part with that tag (its own, then those on its bodies): what the
+        sheets, the SVG and the frames draw a tag square for."""
+        own = (self,) if self.tag_id is not None and self.tag_center_mm is not None else ()
+        return own + tuple(replace(self, tag_id=b.tag_id, tag_center_mm=b.tag_center_mm, tag_size_mm=b.tag_size_mm,
+                                   tag_height_mm=b.tag_height_mm, tag_heading_deg=b.tag_heading_deg, body_tags=())
+                           for b in self.body_tags)
 
 
 @dataclass(frozen=True)
@@ -257,9 +302,11 @@ class Guide:
              "pages": [{"index", "label", "paper", "size_mm": [w, h], "origin_mm": [u, v]}],
              "reference_tags": [{"id", "center_mm": [u, v], "size_mm"}],
              "parts": [{"name", "kind", "step", "tag_id", "tag_center_mm", "tag_size_mm", "tag_height_mm",
-                        "center_mm": [u, v], "heading_deg", "outline_mm": [[[u, v], ...], ...], "care",
-                        "tolerances": [{"parameter", "delta", "unit", "predicted", "measured", "source",
-                                        "bound_limited"}]}]}
+                        "tag_heading_deg", "center_mm": [u, v], "heading_deg", "outline_mm": [[[u, v], ...], ...],
+                        "care", "tolerances": [{"parameter", "delta", "unit", "predicted", "measured", "source",
+                                        "bound_limited"}],
+                        "body_tags": [{"body", "tag_id", "tag_center_mm", "tag_size_mm", "tag_height_mm",
+                                       "tag_heading_deg", "center_mm", "heading_deg"}]}]}
 
         ``outline_mm`` is a list of polygons, each its exterior ring (holes are not needed to place a part).
         """
@@ -300,6 +347,7 @@ def _part_manifest(part: PartDrawing) -> dict:
         "tag_center_mm": None if part.tag_center_mm is None else [*map(_r, part.tag_center_mm)],
         "tag_size_mm": _r(part.tag_size_mm),
         "tag_height_mm": _r(part.tag_height_mm),
+        "tag_heading_deg": _r(part.tag_heading_deg),
         "center_mm": [*map(_r, part.center_mm)],
         "heading_deg": _r(part.heading_deg),
         "outline_mm": _rings(part.outline),
@@ -310,5 +358,12 @@ def _part_manifest(part: PartDrawing) -> dict:
              "measured": None if t.measured is None else _r(t.measured), "source": t.source,
              "bound_limited": t.bound_limited}
             for t in part.tolerances
+        ],
+        "body_tags": [
+            {"body": b.body, "tag_id": b.tag_id, "tag_center_mm": [*map(_r, b.tag_center_mm)],
+             "tag_size_mm": _r(b.tag_size_mm), "tag_height_mm": _r(b.tag_height_mm),
+             "tag_heading_deg": _r(b.tag_heading_deg), "center_mm": [*map(_r, b.center_mm)],
+             "heading_deg": _r(b.heading_deg)}
+            for b in part.body_tags
         ],
     }

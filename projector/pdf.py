@@ -196,8 +196,9 @@ def _drawing(canvas, guide: Guide, labels: dict[str, Label]) -> None:
     for part in guide.parts:
         _part(canvas, part)
     for part in guide.parts:
-        if part.tag_id is not None and part.tag_center_mm is not None:
-            _part_tag(canvas, part)
+        for tagged in part.tag_views():
+            _part_tag(canvas, tagged)
+        if part.tag_views():
             if part.kind != PartKind.STATIC:  # the tag sits on the part: keep the part's outline visible over it
                 canvas.setStrokeColorRGB(*INK)
                 canvas.setLineWidth(0.5)
@@ -224,8 +225,8 @@ def _reminders(canvas, guide: Guide, labels: dict[str, Label], area, overlap_mm:
     sheet = box(*area)
     marks = shapely.union_all(
         [LineString(arrow(p.center_mm, p.heading_deg, heading_length(p))[0]).buffer(3.5) for p in guide.parts]
-        + [tag_box(p.tag_center_mm, p.tag_size_mm, p.heading_deg).buffer(3.0) for p in guide.parts
-           if p.tag_center_mm is not None])
+        + [tag_box(t.tag_center_mm, t.tag_size_mm, t.tag_heading_deg).buffer(3.0) for p in guide.parts
+           for t in p.tag_views()])
     inner = box(area[0] + overlap_mm + 3, area[1] + overlap_mm + 3, area[2] - overlap_mm - 3,
                 area[3] - overlap_mm - 3)
     for part in guide.parts:
@@ -329,7 +330,7 @@ def _part_tag(canvas, part: PartDrawing) -> None:
     half = size / 2
     canvas.saveState()
     canvas.translate(*part.tag_center_mm)
-    canvas.rotate(part.heading_deg)
+    canvas.rotate(part.tag_heading_deg)
     canvas.setFillColorRGB(1.0, 1.0, 1.0)
     canvas.rect(-half, -half, size, size, stroke=0, fill=1)
     canvas.setFillGray(0.72)

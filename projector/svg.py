@@ -163,11 +163,9 @@ def _square(center, size: float, heading_deg: float) -> np.ndarray:
 def _tags(drawing, layer, guide: Guide, frame: _Frame) -> None:
     from design.fabrication.labels import text_polylines
 
-    for part in guide.parts:
-        if part.tag_id is None or part.tag_center_mm is None:
-            continue
+    for part in (view for each in guide.parts for view in each.tag_views()):
         group = drawing.g(id=f"tag-{part.tag_id}")
-        square = _square(part.tag_center_mm, part.tag_size_mm, part.heading_deg)
+        square = _square(part.tag_center_mm, part.tag_size_mm, part.tag_heading_deg)
         group.add(drawing.path(d=frame.path([square], closed=True)))
         corner = np.array([square[0], square[0] + 0.3 * (square[1] - square[0]),
                            square[0] + 0.3 * (square[3] - square[0])])

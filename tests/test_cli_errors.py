@@ -123,6 +123,7 @@ def test_a_bad_value_type_is_one_line_naming_the_option(path, option, capsys):
 #: How each command is given an input file that does not exist (None: it reads no file). Every discovered command
 #: must be listed, so a new command decides here what its missing file looks like.
 MISSING_FILE = {
+    ("check",): ["check", "simple", "missing.json", "--image", "frame.png", "--out", "OUT.json"],
     ("compare",): ["compare", "missing.toml"],
     ("devices",): None,  # its file is CHAOS_STATION_CONFIG's: tests/test_config.py
     ("explore",): ["explore", "spirograph", "--design", "missing.json"],

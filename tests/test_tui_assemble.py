@@ -38,7 +38,7 @@ async def test_a_layout_is_stepped_through_and_the_projector_follows(tmp_path):
         await pilot.press("p")
         await settle(app, pilot)
         assert screen.step == len(names) - 1
-        await pilot.press("c")
+        await pilot.press("0")
         await settle(app, pilot)
         assert screen.step == 0 and "calibrate" in str(screen.query_one("#caption", Static).render())
         # the tolerance map: the layout carries its model, so the track's parameters have a delta
@@ -71,3 +71,31 @@ async def test_a_bad_layout_is_one_line_and_nothing_breaks(tmp_path):
         screen.action_build()
         await settle(app, pilot)
         assert screen.job is not None and screen.job.guide.tolerance_source == "none"
+
+
+async def test_c_checks_the_placed_parts_with_the_camera_and_the_projector_follows(tmp_path):
+    from station.tui.widgets.picture import HalfBlockPicture
+
+    async with opened(tmp_path, "a") as (app, pilot):
+        screen = app.screen
+        screen.open_layout(str(SIMPLE.with_name("ballrun.toml")), "success")
+        await settle(app, pilot)
+        assert screen.job is not None, str(screen.query_one("#status", Static).render())
+        shown = len(screen.projector.frames)
+        await pilot.press("c")  # the station's camera: sim://camera, shown the guide's tags where they belong
+        await settle(app, pilot)
+        assert screen.check is not None, str(screen.query_one("#status", Static).render())
+        table = screen.query_one("#check", DataTable)
+        assert table.display and table.row_count == len(screen.job.guide.parts)  # tagged parts, then by eye
+        rows = {str(table.get_row_at(i)[0]): table.get_row_at(i) for i in range(table.row_count)}
+        goblet = rows["goblet"]
+        assert float(goblet[4]) < 0.3 and "in place" in str(goblet[8])  # placed as designed: nothing to do
+        assert "by eye" in str(rows["top_track"][6])
+        caption = str(screen.query_one("#caption", Static).render())
+        assert "tagged parts measured" in caption and "no prediction" in caption
+        picture = screen.query_one("#frame", HalfBlockPicture)
+        assert picture.full is not None and picture.full.size == (1920, 1080)  # the camera's frame, drawn on
+        assert len(screen.projector.frames) == shown + 1  # the projector shows the check
+        await pilot.press("c")  # again, after moving the parts: the plane is found again
+        await settle(app, pilot)
+        assert screen.check.report.plane is not None and screen.check.report.plane.moved_mm < 0.5

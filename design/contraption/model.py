@@ -57,13 +57,18 @@ class Physics:
 
 @dataclass(frozen=True)
 class Tag:
-    """An AprilTag printed on a part: its id and the centre of the tag in the part's frame (m), edge size (m)."""
+    """An AprilTag printed on a part: its id, the centre of the tag in the part's frame (m), its black square's edge
+    (m), and ``angle`` (degrees): the tag's printed "up" runs along the part's local +y (top view) or +z (side view),
+    turned by ``angle`` counter-clockwise as the camera (the maker) sees the face."""
 
     id: int
     x: float = 0.0
     y: float = 0.0
     z: float = 0.0
     size: float = 0.02
+    angle: float = 0.0
+    #: For a DominoRun: the domino the tag is on (0 the first, -1 the last); its place is in that domino's frame.
+    body: int | None = None
 
 
 @dataclass(frozen=True)
@@ -79,6 +84,8 @@ class ObjectSpec:
     physics: Physics = field(default_factory=Physics)
     tag: Tag | None = None
     index: int = 0
+    #: A DominoRun's tags on single dominoes (``tag = [{body = 0, ...}, {body = -1, ...}]``): its first and last.
+    body_tags: tuple[Tag, ...] = ()
     sleeping: bool | None = None
 
     @property
@@ -147,13 +154,18 @@ class Settings:
 
 
 def content_hash(top: Mapping[str, Any]) -> str:
-    """The sha256 of a scenario file's parsed content without its ``layouts`` (a cache key for its results).
+    """The sha256 of a scenario file's parsed content without its ``layouts`` and tags (a cache key for its results).
 
     Layouts are points of the design space, not part of the contraption: adding one must not invalidate what was
     computed for the scenario. The JSON is canonical (sorted keys, no spaces), so TOML and JSON files with the same
     content hash the same.
     """
     hashed = {k: v for k, v in top.items() if k != "layouts"}
+    # A part's AprilTag is how the camera finds it, not part of the contraption: tagging a part must not invalidate
+    # its cached simulations nor the layouts optimized for it (a LAYOUT.json carries the hash).
+    if isinstance(hashed.get("objects"), list):
+        hashed["objects"] = [{k: v for k, v in o.items() if k != "tag"} if isinstance(o, dict) else o
+                             for o in hashed["objects"]]
     canonical = json.dumps(hashed, sort_keys=True, separators=(",", ":"), ensure_ascii=True, default=str)
     return hashlib.sha256(canonical.encode("ascii")).hexdigest()
 
@@ -227,9 +239,13 @@ class Scenario:
             raise LayoutError(f"{self.source}: no layout named {name!r}; the file has {sorted(self.layouts)}")
         return np.array(self.layouts[name], dtype=float)
 
-    def transforms(self, x=None) -> dict[str, Transform]:
-        """The transform of every object (relative to its parent) for the layout ``x`` (default layout if None)."""
-        x = self.default_layout() if x is None else self.design_space.check_bounds(x)
+    def transforms(self, x=None, *, checked: bool = True) -> dict[str, Transform]:
+        """The transform of every object (relative to its parent) for the layout ``x`` (default layout if None);
+        ``checked=False`` skips the range check (a fit that steps a hair outside while it works)."""
+        if x is None:
+            x = self.default_layout()
+        elif checked:
+            x = self.design_space.check_bounds(x)
         values = dict(zip(self.design_space.names, np.asarray(x, dtype=float).tolist()))
         result = {}
         for obj in self.objects:

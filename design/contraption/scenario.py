@@ -15,7 +15,12 @@ A scenario is a data file (TOML or JSON, never executed). Its top-level tables:
     ``[objects.ranges]`` (``component = [min, max]``: makes the component a design parameter),
     ``[objects.shape]`` (the primitive's shape parameters), ``[objects.physics]`` (``mass`` — 0 or absent is
     static —, ``friction``, ``rolling_friction``, ``spinning_friction``, ``restitution``, ``linear_damping``,
-    ``angular_damping``), ``[objects.tag]`` (optional AprilTag: ``id``, ``x``, ``y``, ``z``, ``size`` on the part),
+    ``angular_damping``), ``[objects.tag]`` (optional AprilTag: ``id``, ``x``, ``y``, ``z``, ``size``: its centre
+    in the part's frame, on the face towards the camera for the guide's view, and its black square's edge, m;
+    ``angle`` in degrees turns its printed "up" away from the part's local +y (top view) or +z (side view),
+    counter-clockwise as the camera sees it; a DominoRun takes an array of one or two such tables instead, each with
+    ``body``, the domino it sits on (0 the first, -1 the last), its place in that domino's frame: the run is then
+    checked by its first and last dominoes; tags are not part of the content hash),
     ``sleeping`` (true: the bodies start asleep and are not simulated until something touches them — for parts
     resting stably, a large speed-up; default true for DominoRun, false otherwise).
 ``[[events]]``

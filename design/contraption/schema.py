@@ -33,7 +33,7 @@ PHYSICS_DEFAULTS = {
 PHYSICS_KEYS = tuple(PHYSICS_DEFAULTS)
 #: The physics fields a Plane takes: it is static, so it has no mass and no damping.
 PLANE_PHYSICS_KEYS = ("friction", "rolling_friction", "spinning_friction", "restitution")
-TAG_KEYS = ("id", "x", "y", "z", "size")
+TAG_KEYS = ("id", "x", "y", "z", "size", "angle", "body")
 #: The fields of the top-level table, of ``[scenario]``, ``[settings]`` and of each ``[[objects]]`` table.
 TOP_KEYS = ("scenario", "settings", "objects", "events", "layouts")
 HEADER_KEYS = ("name", "description")

@@ -245,21 +245,7 @@ def _objects(check: Checker, top: dict) -> list[ObjectSpec]:
         physics = Physics(
             **{k: check.number(v, f"{path}.physics.{k}", minimum=0.0) for k, v in physics_table.items()}
         )
-        tag = None
-        if "tag" in table:
-            tag_table = check.table(table["tag"], f"{path}.tag")
-            check.only(tag_table, f"{path}.tag", TAG_KEYS)
-            if "id" not in tag_table:
-                raise check.fail(f"{path}.tag.id", "missing; expected an AprilTag id (integer >= 0)")
-            tag = Tag(
-                id=check.integer(tag_table["id"], f"{path}.tag.id", minimum=0),
-                **{
-                    k: check.number(tag_table[k], f"{path}.tag.{k}", minimum=0.0 if k == "size" else None,
-                                    strict=k == "size")
-                    for k in ("x", "y", "z", "size")
-                    if k in tag_table
-                },
-            )
+        tag, body_tags = _tags(check, table, kind, shape, path)
         objects.append(
             ObjectSpec(
                 name=name,
@@ -272,6 +258,7 @@ def _objects(check: Checker, top: dict) -> list[ObjectSpec]:
                 tag=tag,
                 index=i,
                 sleeping=sleeping,
+                body_tags=body_tags,
             )
         )
     return objects
@@ -369,3 +356,43 @@ def _layouts(check: Checker, value: Any, space: DesignSpace) -> dict[str, np.nda
         layouts[name] = space.vector(numbers)
     return layouts
 
+
+def _tags(check, table: dict, kind: str, shape, path: str) -> tuple[Tag | None, tuple[Tag, ...]]:
+    """An object's ``tag``: one table (on the part), or for a DominoRun tables with ``body`` (on its dominoes, e.g.
+    the first and the last: ``tag = [{id = 4, body = 0, ...}, {id = 5, body = -1, ...}]``)."""
+    if "tag" not in table:
+        return None, ()
+    value = table["tag"]
+    if isinstance(value, list):
+        if kind != "DominoRun" or not 1 <= len(value) <= 2:
+            raise check.fail(f"{path}.tag", "expected a table (one tag on the part); only a DominoRun takes an array "
+                             "of one or two tables, each with body (the domino it is on)")
+        tags = tuple(_tag(check, item, kind, shape, f"{path}.tag[{k}]", body=True) for k, item in enumerate(value))
+        return None, tags
+    tag = _tag(check, value, kind, shape, f"{path}.tag", body=False)
+    return (None, (tag,)) if tag.body is not None else (tag, ())
+
+
+def _tag(check, value, kind: str, shape, path: str, *, body: bool) -> Tag:
+    tag_table = check.table(value, path)
+    check.only(tag_table, path, TAG_KEYS)
+    if "id" not in tag_table:
+        raise check.fail(f"{path}.id", "missing; expected an AprilTag id (integer >= 0)")
+    index = None
+    if "body" in tag_table or body:
+        from design.contraption.model import domino_count  # only a run's tags name a body
+
+        count = domino_count(shape) if kind == "DominoRun" else 0
+        if kind != "DominoRun":
+            raise check.fail(f"{path}.body", "only a DominoRun's tag names a body (the domino it is on)")
+        raw = tag_table.get("body")
+        if isinstance(raw, bool) or not isinstance(raw, int) or not -count <= raw < count:
+            raise check.fail(f"{path}.body", f"expected a domino's index from {-count} to {count - 1} (0 the first, "
+                             f"-1 the last), got {raw!r}")
+        index = raw % count
+    return Tag(
+        id=check.integer(tag_table["id"], f"{path}.id", minimum=0),
+        **{k: check.number(tag_table[k], f"{path}.{k}", minimum=0.0 if k == "size" else None, strict=k == "size")
+           for k in ("x", "y", "z", "size", "angle") if k in tag_table},
+        body=index,
+    )

@@ -241,6 +241,31 @@ def test_apriltag_on_a_part():
 
     assert "objects[1].tag.id: missing" in str(error_of(missing))
 
+    def turned(d):
+        d["objects"][1]["tag"] = {"id": 7, "angle": 90}
+
+    assert load(turned).object("box").tag.angle == 90.0
+
+    def on_a_body(d):  # only a DominoRun's tags name a body
+        d["objects"][1]["tag"] = [{"id": 7, "body": 0}]
+
+    assert "objects[1].tag: expected a table" in str(error_of(on_a_body))
+
+
+def test_a_domino_runs_tags_sit_on_its_first_and_last_dominoes():
+    import tomllib
+
+    from design.contraption.catalog import resolve_scenario_path
+
+    data = tomllib.loads(resolve_scenario_path("simple").read_text())
+    run = next(o for o in data["objects"] if o["name"] == "dominoes")
+    run["tag"] = [{"id": 5, "body": 0, "z": 0.02}, {"id": 6, "body": -1, "z": 0.02}]
+    spec = scenario_from_data(data).object("dominoes")
+    assert spec.tag is None and [(t.id, t.body) for t in spec.body_tags] == [(5, 0), (6, 2)]
+    run["tag"] = [{"id": 5, "body": 3}]
+    with pytest.raises(ScenarioFormatError, match=r"tag\[0\]\.body: expected a domino's index from -3 to 2"):
+        scenario_from_data(data)
+
 
 def test_sleeping_flag_defaults_and_type():
     scenario = load(lambda d: d["objects"][2].__setitem__("sleeping", True))

@@ -237,8 +237,35 @@ def test_a_scenario_tag_is_kept_and_auto_ids_skip_it():
         build_guide(scenario_from_data(data))
 
 
+def test_a_domino_runs_tags_on_its_first_and_last_dominoes_are_drawn_and_listed(tmp_path):
+    import io
+
+    from projector.svg import write_svg
+
+    data = _data("simple.toml")
+    run = next(o for o in data["objects"] if o["name"] == "dominoes")
+    run["shape"] = {"size": [0.03, 0.04, 0.04], "path": [[0.0, 0.0], [0.12, 0.0]], "count": 3}
+    run["tag"] = [{"id": 5, "body": 0, "z": 0.02, "size": 0.02, "angle": 90}, {"id": 6, "body": -1, "z": 0.02}]
+    guide = build_guide(scenario_from_data(data), view="top")
+    dominoes = guide.part("dominoes")
+    assert dominoes.tag_id is None and [(b.body, b.tag_id) for b in dominoes.body_tags] == [(0, 5), (2, 6)]
+    first, last = dominoes.body_tags
+    assert first.tag_center_mm == pytest.approx((20.0, 0.0)) and last.center_mm == pytest.approx((140.0, 0.0))
+    assert first.tag_heading_deg == pytest.approx(90.0) and first.tag_height_mm == pytest.approx(40.0)
+    assert [t.tag_id for t in dominoes.tag_views()] == [5, 6]
+    entry = next(p for p in guide.manifest()["parts"] if p["name"] == "dominoes")
+    assert [b["tag_id"] for b in entry["body_tags"]] == [5, 6] and entry["tag_id"] is None
+    svg = io.StringIO()
+    write_svg(guide, svg)
+    assert 'id="tag-5"' in svg.getvalue() and 'id="tag-6"' in svg.getvalue()
+    assert guide.part("track").tag_id not in (5, 6)  # the guide's own ids skip them
+
+
 def test_one_tag_size_for_all():
-    guide = build_guide(_scenario("longchain.toml"), tag_size_mm=10)
+    data = _data("longchain.toml")
+    for obj in data["objects"]:
+        obj.pop("tag", None)  # the example's own tags keep their sizes: the option sizes the guide's own
+    guide = build_guide(scenario_from_data(data), tag_size_mm=10)
     assert {p.tag_size_mm for p in guide.parts if p.tag_id is not None} == {10.0}
     guide = build_guide(_scenario("longchain.toml"), reference_tag_size_mm=60)
     assert {t.size_mm for t in guide.reference_tags} == {60.0}

@@ -4,7 +4,11 @@ Pick a scenario and a layout (a LAYOUT.json path, a layout named in the scenario
 layout) and press Enter (or the button): the guide is built in a worker, drawn here with the current step
 highlighted, and shown on the station's projector (simulated by default), which follows the steps. n / p step
 through the parts, t shows the tolerance map (how carefully each part must be placed), e writes the 1:1 PDF sheets
-and the SVG to the station's data folder. The Robust layouts screen opens its result here with a.
+and the SVG to the station's data folder, 0 shows the calibrate frame. c checks the placed parts with the station's
+camera (``sim://camera`` by default, shown the guide's tags at their designed poses): the camera frame with the
+check drawn on it, a table of every tagged part (how far it is off, within its tolerance or not, what to do), the
+predicted success as placed, and the projector shows an arrow per misplaced part to where it must go; press c again
+after moving them. The Robust layouts screen opens its result here with a.
 """
 
 from __future__ import annotations
@@ -27,10 +31,12 @@ from drivers.errors import DriverError
 from projector.errors import ProjectorError
 from station.errors import StationError
 from station.paths import data_dir
+from station.services import check as checks
 from station.services import guide as service
 from station.services.projectors import configured_projector, open_projector
 from station.tui.registry import ScreenEntry
 from station.tui.widgets.picture import HalfBlockPicture
+from station.tui.widgets.progress import ProgressPanel, ProgressReported, post_progress
 from station.tui.widgets.scenario_select import scenario_choices, select_scenario
 
 #: The frames drawn here (and sent to a projector of another size, which letterboxes them).
@@ -46,6 +52,14 @@ class GuideLoaded(Message):
         self.job, self.frames, self.error, self.projector = job, frames, error, projector
 
 
+class CheckDone(Message):
+    """A check ended: its result (``check``, and the camera frame with the check drawn, ``picture``) or ``error``."""
+
+    def __init__(self, check=None, picture=None, error: str = "") -> None:
+        super().__init__()
+        self.check, self.picture, self.error = check, picture, error
+
+
 class AssembleScreen(Screen):
     """Step through a layout's assembly guide; the projector follows."""
 
@@ -57,7 +71,7 @@ class AssembleScreen(Screen):
     AssembleScreen #main { width: 1fr; }
     AssembleScreen #frame { height: 1fr; min-height: 10; }
     AssembleScreen #caption { height: auto; padding: 0 1; }
-    AssembleScreen #steps, AssembleScreen #tolerances { height: auto; max-height: 14; }
+    AssembleScreen #steps, AssembleScreen #tolerances, AssembleScreen #check { height: auto; max-height: 14; }
     AssembleScreen .heading { text-style: bold; margin-top: 1; }
     """
 
@@ -66,7 +80,8 @@ class AssembleScreen(Screen):
         Binding("p", "previous_step", "Previous part"),
         Binding("t", "tolerances", "Tolerance map"),
         Binding("e", "export", "Export PDF + SVG"),
-        Binding("c", "calibrate_frame", "Calibrate frame"),
+        Binding("c", "check", "Check with the camera"),
+        Binding("0", "calibrate_frame", "Calibrate frame"),
     ]
 
     def __init__(self) -> None:
@@ -78,6 +93,9 @@ class AssembleScreen(Screen):
         self.projector = None
         self._projector_context = None
         self._pending: tuple[str, str] | None = None
+        #: The last check (a station.services.check.CheckJob), and the guide job it was made against.
+        self.check = None
+        self._check_job = None
 
     def compose(self) -> ComposeResult:
         yield Header()
@@ -94,11 +112,13 @@ class AssembleScreen(Screen):
                               ("side (the backboard)", "side")], id="view", allow_blank=False, value="auto")
                 yield Button("Build the guide (Enter)", id="build", variant="primary")
                 yield Static("", id="status")
+                yield ProgressPanel(idle="c: check the placed parts with the camera", total=None, id="check-progress")
             with Vertical(id="main"):
                 yield HalfBlockPicture(id="frame", empty="(no guide yet: pick a scenario and a layout, press Enter)")
                 yield Static("", id="caption")
                 yield DataTable(id="steps", cursor_type="row", zebra_stripes=True)
                 yield DataTable(id="tolerances", cursor_type="row", zebra_stripes=True)
+                yield DataTable(id="check", cursor_type="row", zebra_stripes=True)
         yield Footer()
 
     def on_mount(self) -> None:
@@ -106,6 +126,9 @@ class AssembleScreen(Screen):
         table = self.query_one("#tolerances", DataTable)
         table.add_columns("part", "parameter", "± delta", "predicted", "measured")
         table.display = False
+        check = self.query_one("#check", DataTable)
+        check.add_columns("part", "tag", "du mm", "dv mm", "dist mm", "turn deg", "ok", "cost", "what to do")
+        check.display = False
         if self._pending is not None:
             scenario, layout = self._pending
             self._pending = None
@@ -252,6 +275,71 @@ class AssembleScreen(Screen):
         if table.display and self.job is not None and not table.row_count:
             self._set_status("no tolerances: the layout carries no success model (station tolerances --verify N "
                              "estimates them by simulation)")
+
+    # -- the camera check -----------------------------------------------------------------------------------------
+    def action_check(self) -> None:
+        if self.job is None:
+            self._set_status("no guide yet: build one, place the parts, then press c", "red")
+            return
+        self.query_one("#check-progress", ProgressPanel).start(None, "grabbing a frame from the camera…")
+        previous = None if self.check is None else self.check.measurement.plane
+        self._check(self.job, previous)
+
+    @work(thread=True, exclusive=True, group="check")
+    def _check(self, job, previous) -> None:
+        """Grab a frame from the station's camera, check it, draw it; the projector then shows the check."""
+        try:
+            image, intrinsics, name, saved = checks.camera_frame(job.guide)
+            check = checks.check_frame(job, image, intrinsics, previous=previous or saved,
+                                       progress=post_progress(self))
+            checks.remember_plane(name, check)
+            picture = checks.camera_overlay(check)
+        except (DesignError, ProjectorError, StationError, DriverError, ValueError, OSError) as error:
+            self.post_message(CheckDone(error=f"cannot check: {error}"))
+            return
+        self.post_message(CheckDone(check, picture))
+        if self.projector is not None and self.job is job:
+            try:
+                size = tuple(self.projector.size)
+                device = configured_projector()
+                homography = checks.projector_homography(device.name, size) if device is not None else None
+                self.projector.show(checks.overlay_frame(check, size, homography))
+            except DriverError as error:
+                self.app.call_from_thread(self._set_status, f"projector: {error}", "red")
+
+    def on_progress_reported(self, message: ProgressReported) -> None:
+        self.query_one("#check-progress", ProgressPanel).show(message.progress)
+
+    def on_check_done(self, message: CheckDone) -> None:
+        panel = self.query_one("#check-progress", ProgressPanel)
+        if message.check is None:
+            panel.say(message.error)
+            self._set_status(message.error, "red")
+            return
+        self.check = message.check
+        report = message.check.report
+        table = self.query_one("#check", DataTable)
+        table.clear()
+        for part in report.parts:
+            error = part.error
+            numbers = (["-"] * 4 if error is None else
+                       [f"{error[0]:+.1f}", f"{error[1]:+.1f}", f"{error[2]:.1f}", f"{error[3]:+.1f}"])
+            ok = {True: Text("yes", style="green"), False: Text("NO", style="bold red"), None: Text("?")}[
+                part.within_tolerance]
+            table.add_row(Text(part.name), str(part.tag_id), *numbers, ok,
+                          "-" if part.cost is None else f"{part.cost:.2f}", Text(part.instruction), key=part.name)
+        for name in report.by_eye:
+            table.add_row(Text(name), "-", "", "", "", "", Text("by eye", style="dim"), "-",
+                          Text("check by eye against the sheet"), key=f"eye:{name}")
+        table.display = True
+        self.query_one("#frame", HalfBlockPicture).set_image(Image.fromarray(message.picture))
+        lines = checks.summary_lines(report)
+        if report.prediction_note:
+            lines.append(report.prediction_note)
+        self.query_one("#caption", Static).update(Text("\n".join(lines)))
+        panel.say(lines[0])
+        self._set_status("checked: " + "; ".join(lines[:2]) + ". Move the parts as the table says and press c to "
+                         "check again; n/p go back to the steps")
 
     @on(DataTable.RowSelected, "#steps")
     def _row_selected(self, event: DataTable.RowSelected) -> None:

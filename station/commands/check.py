@@ -1,0 +1,136 @@
+"""``station check``: the placed parts seen by the camera against the layout's guide (issue 19).
+
+Argparse in, text or JSON out: the work is :mod:`station.services.check` (and the camera's calibration,
+:mod:`station.services.calibrate`), whose refusals (naming ``guide``, ``image``, ``camera``, ``sim_offset``,
+``simulate``...) are reworded here into the flags' words.
+"""
+
+from __future__ import annotations
+
+import json
+import sys
+from pathlib import Path
+
+from station.cli_util import check_output_file, emit_json, flag_error
+from station.errors import UsageError
+from station.services.errors import ServiceError
+
+#: The ``--json`` / CHECK.json contract, quoted in the help text; keep its names.
+JSON_SHAPE = ('{"format": "chaos-station check", "version", "scenario", "content_hash", "layout", "view", "plane": '
+              '{"residual_mm", "reference_ids", "moved_mm"}, "parts": [{"name", "tag_id", "found", "measured": '
+              '{"center_mm", "heading_deg"}, "error": {"du_mm", "dv_mm", "distance_mm", "heading_deg"}, '
+              '"within_tolerance", "instruction", "cost"}], "missing_tags", "unknown_tags", "duplicate_tags", '
+              '"by_eye", "missing_reference_tags", "as_built", "not_measured", "residual_error", '
+              '"predicted_success_as_built", "predicted_success_as_designed", "prediction_note", '
+              '"simulated_success_as_built"}')
+FLAGS = {"guide": "--guide", "image": "--image", "camera": "--camera", "sim_offset": "--sim-offset",
+         "simulate": "--simulate", "seed": "--seed", "intrinsics": "--intrinsics"}
+
+
+def register(subparsers) -> None:
+    parser = subparsers.add_parser(
+        "check",
+        help="check the placed parts with the camera: how far each is off, what to do, success as placed",
+        description="Look at the assembled contraption with the camera (or a frame from a file) and say, part by "
+        "part, how far each tagged part is from where the layout wants it (du, dv, distance in mm; the turn in "
+        "degrees; measured minus designed), whether that is within its tolerance, and what to do in the guide "
+        "sheets' words; the parts are ordered by how much their error costs in predicted success. The measured "
+        "poses become the as-built layout (what the camera cannot see keeps the layout's value, and is listed), "
+        "scored by the layout's success model: predicted success as placed, and as designed. --simulate N also "
+        "simulates the as-built layout N times with the measurement's residual error. The guide is made again "
+        "from the scenario and the layout (default options), or read from --guide (the manifest `station guide "
+        "--json` printed, whose tags were stuck on the parts). With the simulated camera (sim://camera, the "
+        "default station's) the camera is shown the guide's tags at their designed poses; --sim-offset and "
+        f"--sim-cover change that simulated scene only (demos and tests). --json prints {JSON_SHAPE}.",
+        epilog="examples:\n"
+        "  station check ballrun layout.json --image frame.png --intrinsics desk.json\n"
+        "  station check ballrun layout.json --camera 0 --guide guide.json --out check.json --project\n"
+        "  station check simple layout.json --camera sim://camera --sim-offset track=3,-1 --simulate 20",
+    )
+    parser.add_argument("scenario", help="scenario file, or an example's name (simple, ballrun, ...)")
+    parser.add_argument("layout", help="the layout checked against (LAYOUT.json, {\"parameters\": {...}}, or a "
+                        "layout named in the scenario)")
+    source = parser.add_mutually_exclusive_group()
+    source.add_argument("--image", metavar="FRAME.png", help="check this camera frame (a file)")
+    source.add_argument("--camera", metavar="URL", help="grab the frame from this camera (default: the station's "
+                        "camera, `station devices`)")
+    parser.add_argument("--intrinsics", metavar="CAMERA.json", help="the camera's calibration (`station calibrate "
+                        "camera`); default the saved one of the station's camera, else guessed (and said)")
+    parser.add_argument("--guide", metavar="GUIDE.json", help="the guide's manifest (`station guide --json`); "
+                        "default: made again from the scenario and the layout")
+    parser.add_argument("--simulate", type=int, default=0, metavar="N", help="also simulate the as-built layout N "
+                        "times with the residual measurement error (default 0)")
+    parser.add_argument("--seed", type=int, default=0, help="seed of those simulations (default 0)")
+    parser.add_argument("--out", metavar="CHECK.json", help="write the check (what --json prints) to this file")
+    parser.add_argument("--overlay", metavar="OUT.png", help="write the camera frame with the check drawn on it")
+    parser.add_argument("--project", action="store_true", help="show the check on the configured projector: an "
+                        "arrow per misplaced part to where it must go, a ring at the target")
+    parser.add_argument("--sim-offset", action="append", metavar="PART=DU,DV[,DEG]", help="SIMULATION ONLY: with "
+                        "a simulated camera, show PART moved by DU, DV mm and turned DEG degrees (repeatable)")
+    parser.add_argument("--sim-cover", action="append", type=int, metavar="TAG", help="SIMULATION ONLY: with a "
+                        "simulated camera, cover tag TAG with a hand (repeatable)")
+    parser.add_argument("--json", action="store_true", help=f"print the whole check as JSON: {JSON_SHAPE}")
+    parser.set_defaults(func=run_check)
+
+
+def run_check(args) -> int:
+    from station.progress_view import ProgressView
+    from station.services import check as service
+
+    out = check_output_file(args.out, {".json"}, "--out") if args.out else None
+    overlay = check_output_file(args.overlay, {".png"}, "--overlay") if args.overlay else None
+    try:
+        offsets = dict(service.parse_offset(text) for text in args.sim_offset or [])
+        with ProgressView(sys.stderr, prefix="check: ") as view:
+            job = service.prepare_check(args.scenario, args.layout, guide=args.guide, progress=view)
+            image, intrinsics, name, previous = service.camera_frame(
+                job.guide, image=args.image, camera=args.camera, intrinsics=args.intrinsics, offsets=offsets,
+                occluded=tuple(args.sim_cover or ()))
+            check = service.check_frame(job, image, intrinsics, simulate=args.simulate, seed=args.seed,
+                                        previous=previous, progress=view)
+        service.remember_plane(name, check)
+        if out is not None:
+            out.write_text(json.dumps(check.to_json(), indent=1) + "\n", encoding="utf-8")
+        if overlay is not None:
+            from PIL import Image
+
+            Image.fromarray(service.camera_overlay(check)).save(overlay)
+        projected = _project(check) if args.project else None
+    except ServiceError as error:
+        raise flag_error(error, FLAGS) from None
+    if args.json:
+        emit_json(check.to_json())
+        return 0
+    _print(check, out, overlay, projected)
+    return 0
+
+
+def _project(check) -> str:
+    from station.services import check as service
+    from station.services.projectors import configured_projector, open_projector
+
+    device = configured_projector()
+    if device is None:
+        raise UsageError("--project: no projector configured (add one to station.toml; see `station devices`)")
+    with open_projector(device) as projector:
+        homography = service.projector_homography(device.name, tuple(projector.size))
+        projector.show(service.overlay_frame(check, tuple(projector.size), homography))
+    scale = ("at true scale (its saved map)" if homography is not None else
+             "fitted to the screen (NOT at true scale until `station calibrate projector`)")
+    return f"projected the check on {device.name} ({device.url}), {scale}"
+
+
+def _print(check, out: Path | None, overlay: Path | None, projected: str | None) -> None:
+    from station.services import check as service
+
+    report = check.report
+    guide_job = check.guide_job
+    print(f"{report.scenario}: {guide_job.layout.describe()}, {report.view} view, camera "
+          f"{check.intrinsics.name or 'guessed'}")
+    for line in service.report_lines(report):
+        print(line)
+    for path, what in ((out, "the check (CHECK.json)"), (overlay, "the camera frame with the check")):
+        if path is not None:
+            print(f"wrote {what} to {path}")
+    if projected:
+        print(projected)

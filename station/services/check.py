@@ -1,0 +1,562 @@
+"""The as-built check as a service: a camera frame of the placed parts against the layout's guide (issue 19).
+
+Used by ``station check`` and the Assemble screen (key c). :func:`prepare_check` makes (or reads) the guide once;
+:func:`check_frame` measures one frame (:func:`calibration.measure.measure`), checks every part
+(:mod:`calibration.check`), fits the as-built layout (:mod:`calibration.asbuilt`) and scores it with the layout's
+success model (the ``"model"`` a LAYOUT.json of ``station optimize`` carries), and on request by simulating it
+(``simulate=N``: the as-built layout N times with the measurement's residual error as placement noise, on the shared
+simulation cache). :func:`grab_frame` takes the frame from a camera; a simulated camera (``sim://camera``) is handed a
+scene of the guide's reference tags and part tags at their designed poses first (:func:`sim_scene`), moved only by
+explicit simulation offsets (``--sim-offset``, documented as such).
+"""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, replace
+from pathlib import Path
+
+import numpy as np
+
+from common.progress import ProgressCallback, Reporter
+from station.services.check_scene import parse_offset, sim_scene
+from station.services.errors import ServiceError
+
+__all__ = ["CheckJob", "apply_manifest", "camera_frame", "camera_overlay", "check_frame", "check_measurement",
+           "grab_frame", "load_image", "overlay_frame", "parse_offset", "prepare_check", "projector_homography",
+           "remember_plane", "report_lines", "sim_scene", "summary_lines"]
+
+#: Stages of a check, for progress.
+STAGES = ("measure", "as-built", "simulation")
+
+
+@dataclass(frozen=True)
+class CheckJob:
+    """One check's result and what it was made from.
+
+    Attributes
+    ----------
+    report : calibration.check.CheckReport
+        The result (``report.to_json()`` is CHECK.json).
+    guide_job : station.services.guide.GuideJob
+        The guide checked against (and its layout, scenario and tolerances).
+    image : ndarray
+        The camera frame (RGB uint8).
+    measurement : calibration.measure.Measurement
+    intrinsics : calibration.intrinsics.CameraIntrinsics
+    """
+
+    report: object
+    guide_job: object
+    image: np.ndarray
+    measurement: object
+    intrinsics: object
+
+    def to_json(self) -> dict:
+        return self.report.to_json()
+
+
+# -- the guide --------------------------------------------------------------------------------------------------------
+def prepare_check(scenario: str, layout: str, *, guide: str | Path | None = None,
+                  progress: Reporter | ProgressCallback | None = None):
+    """The guide to check against: made again from the scenario and the layout with the default options, or the
+    manifest ``guide`` (``station guide --json``) applied to it (the tags, reference tags and tolerances printed).
+
+    Raises
+    ------
+    ServiceError
+        A manifest that is not one of this scenario (``guide``), or of another layout.
+    """
+    from station.services import guide as guides
+    from station.services.contraption import open_scenario
+
+    manifest = _read_manifest(guide) if guide is not None else None
+    view = manifest.get("view") if manifest is not None else None
+    if manifest is None:
+        return guides.make_guide(scenario, layout, progress=progress)
+    # refused before any work: the scenario is cheap to read, the tolerances are not (and the manifest has them)
+    loaded = open_scenario(scenario)
+    _same_scenario(manifest, loaded.name, loaded.content_hash, str(guide))
+    job = guides.make_guide(loaded.source, layout, view=view if view in guides.VIEWS else None, tolerances=False)
+    return replace(job, guide=apply_manifest(job.guide, manifest, str(guide)),
+                   tolerances=_model_of(loaded, layout))
+
+
+@dataclass(frozen=True)
+class ScoringModel:
+    """The layout's fitted success model and its problem, for a guide whose tolerances came with its manifest (what
+    :func:`check_frame` reads of a guide job's ``tolerances``)."""
+
+    problem: object
+    model: object | None
+
+
+def _model_of(scenario, layout: str) -> ScoringModel | None:
+    from station.services.tolerances import _layout_and_model, _problem
+
+    try:
+        problem = _problem(scenario)
+    except ValueError:  # no design space: nothing to score
+        return None
+    return ScoringModel(problem, _layout_and_model(str(layout), problem)[1])
+
+
+def _read_manifest(path) -> dict:
+    try:
+        data = json.loads(Path(path).read_text(encoding="utf-8"))
+    except FileNotFoundError:
+        raise ServiceError(f"guide {path}: no such file (expected the manifest `station guide --json` prints)",
+                           field="guide", value=str(path)) from None
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as error:
+        raise ServiceError(f"guide {path}: not a guide manifest ({error}); expected what `station guide --json` prints",
+                           field="guide", value=str(path)) from None
+    if not isinstance(data, dict) or not isinstance(data.get("parts"), list):
+        raise ServiceError(f"guide {path}: not a guide manifest (no parts list); expected what `station guide --json` "
+                           "prints", field="guide", value=str(path))
+    return data
+
+
+def apply_manifest(guide, manifest: Mapping, source: str = "<manifest>"):
+    """``guide`` with the manifest's reference tags, part tags and tolerances (what was printed and stuck on).
+
+    Raises
+    ------
+    ServiceError
+        The manifest is of another scenario, content hash or view, lacks a part, or puts a part elsewhere (another
+        layout): one line naming the file and the field.
+    """
+    from projector.guide import BodyTag, ParameterTolerance, ReferenceTag
+
+    def refuse(what: str) -> ServiceError:
+        return ServiceError(f"guide {source}: {what}", field="guide", value=source)
+
+    _same_scenario(manifest, guide.scenario, guide.content_hash, source)
+    try:
+        by_name = {p["name"]: p for p in manifest["parts"]}
+        parts = []
+        for part in guide.parts:
+            entry = by_name.get(part.name)
+            if entry is None:
+                raise refuse(f"parts: no part {part.name!r}; expected the guide of this scenario")
+            if np.hypot(*np.subtract(entry["center_mm"], part.center_mm)) > 0.05:
+                raise refuse(f"parts[{part.name!r}].center_mm is {entry['center_mm']}, the layout puts it at "
+                             f"[{part.center_mm[0]:.3f}, {part.center_mm[1]:.3f}]: a guide of another layout")
+            tolerances = tuple(ParameterTolerance(t["parameter"], t["delta"], t["unit"], t.get("predicted"),
+                                                  t.get("measured"), t.get("source", "model"),
+                                                  bool(t.get("bound_limited", False)))
+                               for t in entry.get("tolerances", []))
+            centre = entry.get("tag_center_mm")
+            parts.append(replace(
+                part, tag_id=entry.get("tag_id"), tag_center_mm=None if centre is None else tuple(map(float, centre)),
+                tag_size_mm=float(entry.get("tag_size_mm", part.tag_size_mm)),
+                tag_height_mm=float(entry.get("tag_height_mm", part.tag_height_mm)),
+                tag_heading_deg=float(entry.get("tag_heading_deg", part.heading_deg)),
+                tolerances=tolerances, care=entry.get("care"),
+                body_tags=tuple(BodyTag(int(b["body"]), int(b["tag_id"]), tuple(map(float, b["tag_center_mm"])),
+                                        float(b["tag_size_mm"]), float(b["tag_height_mm"]),
+                                        float(b["tag_heading_deg"]), tuple(map(float, b["center_mm"])),
+                                        float(b["heading_deg"])) for b in entry.get("body_tags", []))))
+        references = tuple(ReferenceTag(int(t["id"]), tuple(map(float, t["center_mm"])), float(t["size_mm"]))
+                           for t in manifest["reference_tags"])
+    except (KeyError, TypeError, ValueError) as error:
+        raise refuse(f"malformed manifest ({type(error).__name__}: {error}); expected what `station guide --json` "
+                     "prints") from None
+    return replace(guide, parts=tuple(parts), reference_tags=references)
+
+
+def _same_scenario(manifest: Mapping, name: str, content_hash: str, source: str) -> None:
+    for key, ours in (("scenario", name), ("content_hash", content_hash)):
+        if manifest.get(key) != ours:
+            raise ServiceError(f"guide {source}: {key} is {manifest.get(key)!r}, expected {ours!r} (the guide of "
+                               "another scenario)", field="guide", value=source)
+
+
+# -- the frame --------------------------------------------------------------------------------------------------------
+def load_image(path: str | Path) -> np.ndarray:
+    """A camera frame from a file (PNG, JPEG...) as RGB uint8; a ServiceError naming ``image`` otherwise."""
+    from PIL import Image, UnidentifiedImageError
+
+    try:
+        with Image.open(path) as picture:
+            return np.asarray(picture.convert("RGB"))
+    except FileNotFoundError:
+        raise ServiceError(f"image {path}: no such file", field="image", value=str(path)) from None
+    except (OSError, UnidentifiedImageError) as error:
+        raise ServiceError(f"image {path}: not an image the station can read ({error})", field="image",
+                           value=str(path)) from None
+
+
+def grab_frame(url: str, guide, *, offsets=None, occluded: Sequence[int] = ()):
+    """One frame from the camera at ``url``, and the intrinsics it knows of itself (a simulated camera's own; None
+    for a real camera, which needs its calibration). A simulated camera is handed :func:`sim_scene` first.
+
+    Raises
+    ------
+    ServiceError
+        ``url`` is not a camera (``camera``); simulation offsets for a real camera (``sim_offset``).
+    drivers.errors.DriverError
+        The camera cannot be opened or gives no frame (one line).
+    """
+    from station.services.calibrate import _open_camera
+
+    camera = _open_camera(url)
+    try:
+        simulated = hasattr(camera, "set_scene")
+        if (offsets or occluded) and not simulated:
+            raise ServiceError("sim_offset: simulation offsets go with a simulated camera (sim://camera) only",
+                               field="sim_offset", value=url)
+        if simulated:
+            camera.set_scene(sim_scene(guide, offsets, occluded=occluded))
+            if "target=" not in url:
+                _aim(camera, guide)
+        image = np.asarray(camera.grab())
+        intrinsics = _twin_intrinsics(camera, url) if simulated else None
+    finally:
+        camera.close()
+    return image, intrinsics
+
+
+def camera_frame(guide, *, image: str | Path | None = None, camera: str | None = None,
+                 intrinsics: str | Path | None = None, offsets=None, occluded: Sequence[int] = ()):
+    """The frame to check and how to read it: ``(image, intrinsics, camera name, its last plane fix)``.
+
+    From the file ``image``, else grabbed from ``camera`` (a URL; default the station's camera, ``station
+    devices``). The intrinsics: the file ``intrinsics``, else the camera's saved calibration, else a simulated
+    camera's own, else guessed (their ``notes`` say so). Offsets and covered tags go to a simulated camera only.
+    """
+    from station.services import calibrate
+
+    name, twin = calibrate.DEFAULT_CAMERA, None
+    if image is not None:
+        if offsets or occluded:
+            raise ServiceError("sim_offset: simulation offsets change a simulated camera's scene, not an image file",
+                               field="sim_offset", value=str(image))
+        frame = load_image(image)
+    else:
+        if camera is None:
+            name, camera = calibrate.configured_camera_url()
+        frame, twin = grab_frame(camera, guide, offsets=offsets, occluded=occluded)
+    size = (int(frame.shape[1]), int(frame.shape[0]))
+    if intrinsics is not None or twin is None or calibrate.camera_file(name).exists():
+        lens = calibrate.intrinsics_for(size, intrinsics=intrinsics, name=name)
+    else:
+        lens = twin  # the simulated camera knows its own lens
+    return frame, lens, name, calibrate._load_plane(_plane_name(name, guide))
+
+
+def _plane_name(name: str, guide) -> str:
+    """Where a check keeps camera ``name``'s last plane: per printed sheet (its reference tags), so that "moved since
+    the last check" compares checks of the same sheet, never a new sheet with the old one."""
+    import hashlib
+
+    sheet = json.dumps([[t.id, *map(float, t.center_mm), float(t.size_mm)] for t in guide.reference_tags])
+    return f"{name}-check-{hashlib.sha256(sheet.encode()).hexdigest()[:12]}"
+
+
+def remember_plane(name: str, check: CheckJob) -> None:
+    """Keep the check's plane fix as camera ``name``'s last (the next check says how far the camera moved)."""
+    from station.services import calibrate
+
+    if check.measurement.plane is not None:
+        try:
+            calibrate._save_plane(_plane_name(name, check.guide_job.guide), check.measurement.plane)
+        except OSError:
+            pass  # the check stands without it; only the next "moved" report is lost
+
+
+def _aim(camera, guide) -> None:
+    """Move a simulated camera told no ``target`` in the plane so that its optical axis meets the guide's middle
+    (as a maker sets the camera up over the sheets): the camera translated by d, ``t' = t - R d``."""
+    import cv2
+
+    model = camera.camera_model
+    u0, v0, u1, v1 = guide.extent_mm
+    rotation = cv2.Rodrigues(np.asarray(model.rvec, dtype=float))[0]
+    axis = rotation.T @ np.array([0.0, 0.0, 1.0])  # the optical axis in plane coordinates
+    centre = np.asarray(model.centre_mm, dtype=float)
+    if abs(axis[2]) < 1e-9:
+        return
+    hit = centre - centre[2] / axis[2] * axis  # where the optical axis meets the plane now
+    shift = np.array([(u0 + u1) / 2 - hit[0], (v0 + v1) / 2 - hit[1], 0.0])
+    camera.place(replace(model, tvec=np.asarray(model.tvec, dtype=float) - rotation @ shift))
+
+
+def _twin_intrinsics(camera, url: str):
+    from calibration.intrinsics import CameraIntrinsics
+
+    model = camera.camera_model
+    return CameraIntrinsics(np.asarray(model.camera_matrix, float), np.asarray(model.dist_coeffs, float),
+                            tuple(int(v) for v in model.image_size), name=f"{url} (the simulated camera's own)")
+
+
+# -- the check --------------------------------------------------------------------------------------------------------
+def check_frame(job, image: np.ndarray, intrinsics=None, *, simulate: int = 0, seed: int = 0, previous=None,
+                detector=None, progress: Reporter | ProgressCallback | None = None,
+                should_stop=None) -> CheckJob:
+    """Check the parts in one camera frame against the guide ``job`` (:func:`prepare_check`).
+
+    Parameters
+    ----------
+    job : GuideJob
+    image : ndarray
+        RGB or grey uint8.
+    intrinsics : CameraIntrinsics, optional
+        The camera's; None guesses them from the image size (said in the prediction note: distances are then rough).
+    simulate : int
+        Simulate the as-built layout this many times with the residual measurement error (0: none).
+    seed : int
+        Seed of those simulations' noise.
+    previous : PlaneFix, optional
+        The last check's plane (a bumped camera is then said).
+    detector : projector.detection.TagDetector, optional
+        One to reuse between checks.
+
+    Raises
+    ------
+    ServiceError
+        ``simulate`` or ``seed`` negative.
+    calibration.errors.CalibrationError
+        An image of another size than the intrinsics'.
+    """
+    from calibration.check import part_tags, reference_tags
+    from calibration.intrinsics import CameraIntrinsics
+    from calibration.measure import measure
+    from station.services.robust import check_count, check_seed
+
+    check_count(simulate, "simulate", 0)
+    check_seed(seed)
+    report = Reporter.of(progress)
+    image = np.asarray(image)
+    if intrinsics is None:
+        intrinsics = CameraIntrinsics.guess((image.shape[1], image.shape[0]))
+    notes = list(getattr(intrinsics, "notes", ()))  # a guessed camera says so: its distances are rough
+    guide = job.guide
+    report.emit(_progress("measure", 0, 1))
+    measurement = measure(image, intrinsics, reference_tags(guide), part_tags(guide), previous, detector=detector)
+    report.emit(_progress("measure", 1, 1))
+    return check_measurement(job, measurement, image, intrinsics, simulate=simulate, seed=seed, notes=notes,
+                             progress=report, should_stop=should_stop)
+
+
+def check_measurement(job, measurement, image: np.ndarray, intrinsics, *, simulate: int = 0, seed: int = 0,
+                      notes: Sequence[str] = (), progress: Reporter | ProgressCallback | None = None,
+                      should_stop=None) -> CheckJob:
+    """The check of a :class:`~calibration.measure.Measurement` already made (see :func:`check_frame`)."""
+    from calibration.asbuilt import PlanePose, as_built_layout
+    from calibration.check import CheckReport, check_parts, residual_error
+
+    report = Reporter.of(progress)
+    notes = list(notes)
+    guide = job.guide
+    checks, by_eye = check_parts(guide, measurement)
+    scenario = job.scenario
+    names = list(scenario.design_space.names)
+    x = np.asarray(job.layout.x, dtype=float)
+    poses: dict[str, list] = {}  # per part, its measured poses: its own (body None), or its bodies'
+    for c in checks:
+        if c.found:
+            poses.setdefault(c.owner, []).append((c.body, PlanePose(c.measured_center_mm, c.measured_heading_deg)))
+    built = as_built_layout(scenario, x, guide.plane, poses, {p.name: p.parameters for p in guide.parts})
+    model = getattr(job.tolerances, "model", None)
+    problem = getattr(job.tolerances, "problem", None)
+    predicted_built = predicted_designed = None
+    if model is None:
+        notes.insert(0, "no prediction: the layout carries no fitted success model (the LAYOUT.json of `station "
+                     "optimize` has one)" if names else "no prediction: the scenario has no design parameters")
+    else:
+        predicted_designed, predicted_built, costs = _scores(model, problem, x, built, guide)
+        checks = [replace(c, cost=costs.get(c.owner)) for c in checks]
+    if measurement.plane is None:
+        notes.insert(0, "no plane: too few reference tags seen (missing "
+                     f"{', '.join(map(str, measurement.missing_reference_ids))}); nothing was measured")
+    if built.clipped:
+        notes.append(f"placed outside the design range, scored at its end: {', '.join(built.clipped)}")
+    residual = residual_error(measurement, [p.tag_size_mm for p in guide.parts if p.tag_id is not None])
+    simulated = None
+    if simulate:
+        if problem is None:
+            problem = _problem(scenario)
+        simulated = _simulate(problem, built, residual, simulate, seed, report, should_stop)
+    missing = () if measurement.plane is None else tuple(  # without a plane nothing is measured: none is missing
+        c.tag_id for c in checks if not c.found and c.tag_id not in measurement.duplicate_ids)
+    result = CheckReport(
+        scenario=guide.scenario, content_hash=guide.content_hash, layout=dict(zip(names, x.tolist())),
+        view=guide.view, plane=measurement.plane, parts=tuple(sorted(checks, key=_order)), missing_tags=missing,
+        unknown_tags=tuple(measurement.unknown_ids), duplicate_tags=tuple(measurement.duplicate_ids),
+        by_eye=tuple(by_eye), as_built=built.parameters(names), not_measured=built.not_measured,
+        residual_error=residual, predicted_success_as_built=predicted_built,
+        predicted_success_as_designed=predicted_designed, prediction_note="; ".join(notes) or None,
+        simulated_success_as_built=simulated, missing_reference_tags=tuple(measurement.missing_reference_ids))
+    return CheckJob(result, job, image, measurement, intrinsics)
+
+
+def _progress(stage: str, done: int, total: int):
+    from common.progress import Progress
+
+    return Progress(stage, done, total)
+
+
+def _order(check) -> tuple:
+    """Costliest first; then parts out of tolerance, the farthest first; parts not found last."""
+    distance = check.error[2] if check.error is not None else -1.0
+    return (not check.found, -(check.cost if check.cost is not None else -1.0), check.within_tolerance is not False,
+            -distance)
+
+
+def _problem(scenario):
+    from design.robust.contraption import ContraptionProblem
+
+    return ContraptionProblem(scenario.source, scenario)
+
+
+def _scores(model, problem, x, built, guide) -> tuple[float, float, dict[str, float]]:
+    """The model's success as designed, as built, and per part how much it falls with that part's error alone."""
+    normalized = problem.to_normalized
+    designed = float(model.predict(normalized(x)[None, :])[0])
+    as_built = float(model.predict(normalized(built.x)[None, :])[0])
+    names = list(problem.parameter_names)
+    costs = {}
+    for part in guide.parts:
+        own = [names.index(p) for p in part.parameters if p in built.measured]
+        if not own:
+            continue
+        alone = np.asarray(x, dtype=float).copy()
+        alone[own] = built.x[own]
+        costs[part.name] = designed - float(model.predict(normalized(alone)[None, :])[0])
+    return designed, as_built, costs
+
+
+def _simulate(problem, built, residual, n: int, seed: int, report: Reporter, should_stop) -> float:
+    """The success rate of ``n`` layouts around the as-built one: each measured parameter moved by the residual
+    measurement error (mm for positions, degrees for rotations), Gaussian; an invalid layout (parts overlapping)
+    counts as a failure."""
+    from design.robust.budget import BudgetedOracle
+    from station.services.robust import simulations
+
+    rng = np.random.default_rng(seed)
+    names = list(problem.parameter_names)
+    sigma = np.zeros(len(names))
+    for name in built.measured:
+        angle = name.rsplit(".", 1)[-1] in ("heading", "pitch", "roll")
+        sigma[names.index(name)] = residual["heading_deg"] if angle else residual["position_mm"] / 1000.0
+    layouts = np.clip(built.x + rng.standard_normal((n, len(names))) * sigma, problem.lower, problem.upper)
+    U = problem.to_normalized(layouts)
+    valid = problem.is_valid(U)
+    success = np.zeros(n, dtype=bool)
+    if valid.any():
+        with simulations(problem, should_stop=should_stop) as executor:
+            oracle = BudgetedOracle(executor, None, report.emit, should_stop, expected=int(valid.sum()))
+            oracle.phase = "simulation"
+            success[valid] = np.asarray(oracle(U[valid])).all(axis=1)
+    return float(success.mean())
+
+
+# -- what the check shows ---------------------------------------------------------------------------------------------
+def summary_lines(report) -> list[str]:
+    """The check's headline in words: the prediction as placed (or why there is none) and what to do."""
+    from projector.overlay import misplaced
+
+    to_move = sum(1 for p in report.parts if misplaced(p))
+    found = sum(1 for p in report.parts if p.found)
+    lines = []
+    if report.predicted_success_as_built is not None:
+        lines.append(f"predicted success as placed: {report.predicted_success_as_built:.2f} "
+                     f"(as designed: {report.predicted_success_as_designed:.2f})")
+    if report.simulated_success_as_built is not None:
+        lines.append(f"simulated success as placed: {report.simulated_success_as_built:.2f}")
+    lines.append(f"{found} of {len(report.parts)} tagged parts measured, {to_move} to move"
+                 + (f", {len(report.by_eye)} to check by eye" if report.by_eye else ""))
+    return lines
+
+
+def overlay_frame(check: CheckJob, size: tuple[int, int], homography=None) -> np.ndarray:
+    """The projector frame after the check (:func:`projector.overlay.render_check`): an arrow per misplaced part
+    from where it is to where it must go, a ring at the target, the prediction as placed in the caption."""
+    from projector.overlay import render_check
+
+    return render_check(check.guide_job.guide, check.report.parts, tuple(size), homography,
+                        caption=summary_lines(check.report)[:2])
+
+
+def projector_homography(name: str, size) -> np.ndarray | None:
+    """The guide-plane -> projector-pixel homography of projector ``name`` from its saved map (``station calibrate
+    projector``: ``calibration/projectors/NAME.json``), for frames at true scale; None without a map, or with one of
+    another screen size (the frames are then fitted to the screen, and say so)."""
+    from calibration.errors import CalibrationError
+    from calibration.projector_map import load_projector_map
+    from station.services.projector_calibration import projector_map_file
+
+    path = projector_map_file(name)
+    if not path.exists():
+        return None
+    try:
+        mapping = load_projector_map(path)
+    except (CalibrationError, OSError):
+        return None  # a map that no longer reads: fitted to the screen, as without one
+    if tuple(mapping.projector_size) != tuple(size):
+        return None
+    return np.linalg.inv(np.asarray(mapping.plane_from_pixel, dtype=float))
+
+
+def camera_overlay(check: CheckJob) -> np.ndarray:
+    """The camera frame with the check drawn over it through the camera's pose from the reference tags (the frame
+    as it is when no plane was found)."""
+    from projector.overlay import draw_check
+
+    plane = check.measurement.plane
+    image = np.asarray(check.image)
+    if plane is None:
+        return image if image.ndim == 3 else np.repeat(image[:, :, None], 3, axis=2)
+    import cv2
+
+    matrix = np.asarray(check.intrinsics.camera_matrix, dtype=float)
+    dist = np.asarray(check.intrinsics.dist_coeffs, dtype=float)
+
+    def project(points_mm: np.ndarray, height_mm: float) -> np.ndarray:
+        points = np.column_stack([points_mm, np.full(len(points_mm), float(height_mm))])
+        pixels, _ = cv2.projectPoints(points, np.asarray(plane.rvec, float), np.asarray(plane.tvec, float), matrix,
+                                      dist)
+        return pixels.reshape(-1, 2)
+
+    return draw_check(image, check.guide_job.guide, check.report.parts, project,
+                      caption=summary_lines(check.report)[:2])
+
+
+def report_lines(report) -> list[str]:
+    """The check as text: one row per tagged part (costliest first), the instructions, what was not measured and
+    the prediction as placed."""
+    lines = []
+    if report.plane is not None:
+        moved = "" if report.plane.moved_mm is None else f", moved {report.plane.moved_mm:.1f} mm since the last check"
+        lines.append(f"plane from reference tags {', '.join(map(str, report.plane.reference_ids))} (residual "
+                     f"{report.plane.residual_mm:.2f} mm{moved})")
+    header = ("part", "tag", "du mm", "dv mm", "dist mm", "turn deg", "tolerance", "ok", "cost")
+    rows = [header]
+    for part in report.parts:
+        tolerance = "/".join("-" if t is None else f"{t:.1f}" for t in part.tolerance)
+        if part.error is None:
+            values = ["not seen" if part.tag_id not in report.duplicate_tags else "twice", "", "", ""]
+        else:
+            values = [f"{part.error[0]:+.1f}", f"{part.error[1]:+.1f}", f"{part.error[2]:.1f}", f"{part.error[3]:+.1f}"]
+        ok = {True: "yes", False: "NO", None: "?"}[part.within_tolerance]
+        rows.append((part.name, str(part.tag_id), *values, tolerance, ok, "-" if part.cost is None
+                     else f"{part.cost:.2f}"))
+    widths = [max(len(row[i]) for row in rows) for i in range(len(header))]
+    for row in rows:
+        lines.append("  ".join(cell.ljust(width) for cell, width in zip(row, widths)).rstrip())
+    steps = [p.instruction for p in report.parts if p.instruction]
+    lines.extend(f"  {i}. {text}" for i, text in enumerate(steps, start=1))
+    if report.by_eye:
+        lines.append(f"check by eye against the sheet (no tag): {', '.join(report.by_eye)}")
+    for words, ids in (("missing tags", report.missing_tags), ("unknown tags (ignored)", report.unknown_tags),
+                       ("duplicate tags (not measured)", report.duplicate_tags),
+                       ("reference tags not seen", report.missing_reference_tags)):
+        if ids:
+            lines.append(f"{words}: {', '.join(map(str, ids))}")
+    if report.not_measured:
+        lines.append(f"not measured (kept at the layout's value): {', '.join(report.not_measured)}")
+    lines.extend(summary_lines(report)[:-1])
+    if report.prediction_note:
+        lines.append(f"note: {report.prediction_note}")
+    return lines
