@@ -149,6 +149,8 @@ MISSING_FILE = {
     ("calibrate", "board"): None,
     ("calibrate", "camera"): ["calibrate", "camera", "--images", "missing.d", "--out", "OUT.json"],
     ("calibrate", "plane"): ["calibrate", "plane", "--image", "missing.png"],
+    ("calibrate", "projector"): ["calibrate", "projector", "--camera", "sim://camera", "--projector",
+                                  "sim://projector", "--plane", "missing.json"],
 }
 
 
