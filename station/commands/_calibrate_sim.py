@@ -8,9 +8,13 @@ from __future__ import annotations
 
 import sys
 
-from station.cli_util import check_output_file, emit_json
+from station.cli_util import check_output_file, emit_json, flag_error
 from station.commands.robust import _where, add_workers, command
 from station.errors import UsageError
+from station.services.errors import ServiceError
+
+#: The flags of the service's fields where they are not ``--`` + the field.
+FLAGS = {"trials_json": "--trials-json"}
 
 
 def add_sim_parser(calibrate_subparsers, trials_source=None) -> None:
@@ -57,6 +61,13 @@ def add_sim_parser(calibrate_subparsers, trials_source=None) -> None:
 
 @command
 def run_calibrate_sim(args) -> int:
+    try:
+        return _calibrate_sim(args)
+    except ServiceError as error:
+        raise flag_error(error, FLAGS) from None
+
+
+def _calibrate_sim(args) -> int:
     from calibration.sim_fit import FitSettings
     from station.services import sim_calibration as service
     from station.services.contraption import open_scenario

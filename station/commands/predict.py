@@ -5,8 +5,9 @@ from __future__ import annotations
 import math
 import sys
 
-from station.cli_util import emit_json
+from station.cli_util import emit_json, flag_error
 from station.commands.robust import _where, add_command, add_workers, command
+from station.services.errors import ServiceError
 
 
 def register(subparsers) -> None:
@@ -41,8 +42,11 @@ def run_predict(args) -> int:
     from station.commands.contraption import report_layout
     from station.services.predict import predict
 
-    prediction = predict(args.scenario, args.layout, physics=args.physics, as_built=args.as_built,
-                         samples=args.samples, seed=args.seed, progress=args.bar, **_where(args))
+    try:
+        prediction = predict(args.scenario, args.layout, physics=args.physics, as_built=args.as_built,
+                             samples=args.samples, seed=args.seed, progress=args.bar, **_where(args))
+    except ServiceError as error:
+        raise flag_error(error, {"as_built": "--as-built"}) from None
     args.bar.close()
     report_layout(prediction.layout, sys.stderr)
     if args.json:
