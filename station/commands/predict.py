@@ -6,7 +6,7 @@ import math
 import sys
 
 from station.cli_util import emit_json, flag_error
-from station.commands.robust import _where, add_command, add_workers, command
+from station.commands.robust import _where, add_command, add_scenario_and_layout, add_workers, command
 from station.services.errors import ServiceError
 
 
@@ -22,9 +22,7 @@ def register(subparsers) -> None:
         examples=["ballrun layout.json --physics wood.toml",
                   "simple success --as-built CHECK.json --samples 400 --json"],
     )
-    parser.add_argument("scenario", help="a scenario file (.toml/.json) or an example name")
-    parser.add_argument("layout", help="a layout file (LAYOUT.json, {\"parameters\": {...}}) or a layout named in "
-                        "the scenario (success, failure)")
+    add_scenario_and_layout(parser)
     parser.add_argument("--as-built", metavar="CHECK.json", default=None,
                         help="the check of this layout (`station check --out`): simulate what it measured")
     parser.add_argument("--samples", type=int, default=200, metavar="N", help="simulations (default %(default)s)")

@@ -227,6 +227,13 @@ def add_common(parser, budget: bool = True) -> None:
     add_workers(parser)
 
 
+def add_scenario_and_layout(parser) -> None:
+    """The positional ``scenario`` and ``layout`` of a command about one layout of a scenario."""
+    parser.add_argument("scenario", help="a scenario file (.toml/.json) or an example name")
+    parser.add_argument("layout", help="a layout file (the LAYOUT.json of `station optimize`, {\"x\": [...]} or "
+                        "{\"parameters\": {...}}) or a layout named in the scenario")
+
+
 def add_workers(parser) -> None:
     """``--workers N`` and ``--scheduler tcp://HOST:PORT``: where the simulations run; and ``--physics``, the
     material values they run with."""
@@ -285,9 +292,7 @@ def register(subparsers) -> None:
         examples=["examples/scenarios/simple.toml layout.json --eval 128 --local 10",
                   "ballrun layout.json --plot rho.png --json"],
     )
-    robustness.add_argument("scenario", help="a scenario file (.toml/.json) or an example name")
-    robustness.add_argument("layout", help="a layout file (the LAYOUT.json of `station optimize`, {\"x\": [...]} or "
-                            "{\"parameters\": {...}}) or a layout named in the scenario")
+    add_scenario_and_layout(robustness)
     add_sampling(robustness, "the layout")
     robustness.add_argument("--seed", type=int, default=0, help="seed of the local samples (default 0)")
     add_workers(robustness)

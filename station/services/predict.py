@@ -17,6 +17,7 @@ from calibration.sim_predict import PhysicalPrediction, predict_success
 from calibration.sim_runs import DEFAULT_ANGLE_SIGMA_DEG, DEFAULT_POSITION_SIGMA_M
 from common.progress import ProgressCallback
 from design.contraption.layout_io import LoadedLayout
+from design.contraption.physics_profile import PhysicsProfile
 from design.contraption.scenario import Scenario
 from station.services.errors import ServiceError
 
@@ -111,7 +112,6 @@ def predict(scenario: str | Scenario, layout: str | None, *, physics: str | Path
     from station.services.contraption import choose_layout, open_scenario
     from station.services.physics import read_profile
     from station.services.robust import check_count, check_seed
-    from station.services.sim_calibration import station_runner
 
     check_count(samples, "samples")
     check_seed(seed)
@@ -134,8 +134,22 @@ def predict(scenario: str | Scenario, layout: str | None, *, physics: str | Path
         from design.contraption.physics_profile import apply_profile
 
         apply_profile(loaded, profile, str(physics))  # refuses a profile for another contraption, names the file
-    with station_runner(workers=workers, scheduler=scheduler, progress=progress, should_stop=should_stop) as run:
-        result = predict_success(loaded, x, values=profile.values if profile else None,
-                                 intervals=profile.intervals if profile else None, position_sigma_m=position,
-                                 angle_sigma_deg=angle, samples=samples, seed=seed, run=run)
+    result = predict_layout(loaded, x, profile=profile, position_sigma_m=position, angle_sigma_deg=angle,
+                            samples=samples, seed=seed, workers=workers, scheduler=scheduler, progress=progress,
+                            should_stop=should_stop)
     return Prediction(loaded, chosen, x, as_built is not None, profile.name if profile else None, result)
+
+
+def predict_layout(scenario: Scenario, x: np.ndarray, *, profile: PhysicsProfile | None = None,
+                   position_sigma_m: float = DEFAULT_POSITION_SIGMA_M,
+                   angle_sigma_deg: float = DEFAULT_ANGLE_SIGMA_DEG, samples: int = 200, seed: int = 0,
+                   workers: int | None = None, scheduler: str | None = None,
+                   progress: ProgressCallback | None = None, should_stop=None) -> PhysicalPrediction:
+    """The prediction for data already in hand (after a check or a logged trial: the scenario, the layout vector,
+    the profile, the placement error), on the station's executors and cache."""
+    from station.services.sim_calibration import station_runner
+
+    with station_runner(workers=workers, scheduler=scheduler, progress=progress, should_stop=should_stop) as run:
+        return predict_success(scenario, x, values=profile.values if profile else None,
+                               intervals=profile.intervals if profile else None, position_sigma_m=position_sigma_m,
+                               angle_sigma_deg=angle_sigma_deg, samples=samples, seed=seed, run=run)

@@ -97,20 +97,14 @@ def station_runner(*, workers: int | None = None, scheduler: str | None = None,
                    progress: ProgressCallback | None = None, should_stop=None) -> Iterator[Runner]:
     """A :class:`~calibration.sim_fit.Runner` on the optimizer's executors and shared cache; a stop (``should_stop``,
     Ctrl-C, a cancelled progress) becomes :class:`~station.services.robust.RunStopped` with the work kept."""
-    from design.robust.executor import SchedulerUnreachable, SimulationCancelled, SimulationExecutor
-    from station.services.robust import RunStopped, check_count, simulation_cache_path
+    from design.robust.executor import SimulationCancelled
+    from station.services.robust import RunStopped, check_count, connected_executor, simulation_cache_path
 
     check_count(workers, "workers")
 
     def make(problem):
-        executor = SimulationExecutor(problem, workers=workers, scheduler=scheduler,
-                                      cache_path=simulation_cache_path(), chunk_size=4)
-        try:
-            executor.connect()
-        except SchedulerUnreachable as error:
-            executor.close()
-            raise ServiceError(f"scheduler: {error}", field="scheduler", value=scheduler) from None
-        return executor
+        # Runs of a small scenario take milliseconds: several per task keep the workers' overhead down.
+        return connected_executor(problem, workers=workers, scheduler=scheduler, chunk_size=4)
 
     runner = Runner(make, progress, should_stop)
     try:
