@@ -61,9 +61,9 @@ def test_apply_sets_the_scenarios_materials_and_refuses_another_contraptions():
 
 
 def test_simulate_with_physics(tmp_path, capsys):
-    """At a 29 degree tilt the block slides off the plank with the file's friction 0.5, not with 0.6."""
+    """At a 31 degree tilt the block slides off the plank with the file's friction 0.5, not with 0.6."""
     layout = tmp_path / "tilt.json"
-    layout.write_text(json.dumps({"parameters": {"plank.roll": 29.0}}))
+    layout.write_text(json.dumps({"parameters": {"plank.roll": 31.0}}))
     assert main(["simulate", str(SLIDE), "--layout", str(layout), "--json"]) == 0
     assert json.loads(capsys.readouterr().out)["success"] is True
     profile = tmp_path / "sticky.toml"

@@ -111,7 +111,7 @@ def test_predicted_success_with_interval_and_attempts(slide):
     steep = predict_success(slide, np.array([38.0]), samples=12, seed=0)
     assert steep.probability == 1.0 and steep.attempts == 1.0 and steep.interval[0] > 0.7
     # Near the threshold, a profile's friction interval spreads the outcomes.
-    near = predict_success(slide, np.array([29.5]), values={"wood.friction": 0.5},
+    near = predict_success(slide, np.array([30.5]), values={"wood.friction": 0.5},
                            intervals={"wood.friction": (0.45, 0.55)}, samples=24, seed=1)
     assert 0.0 < near.probability < 1.0
     assert near.interval[0] < near.probability < near.interval[1]
