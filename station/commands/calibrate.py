@@ -1,8 +1,9 @@
 """``station calibrate``: the ChArUco board PDF, a camera's intrinsics, the plane check (issue 19).
 
 Argparse in, text or JSON out: the work is :mod:`station.services.calibrate`. ``station calibrate projector``
-lives in :mod:`station.commands._calibrate_projector` (its parser is added here; the underscore keeps the module
-from being discovered as a command of its own).
+and ``station calibrate sim`` live in :mod:`station.commands._calibrate_projector` and
+:mod:`station.commands._calibrate_sim` (their parsers are added here; the underscore keeps a module from being
+discovered as a command of its own).
 """
 
 from __future__ import annotations
@@ -82,8 +83,11 @@ def register(subparsers) -> None:
     plane.set_defaults(func=run_plane)
 
     from station.commands._calibrate_projector import add_projector_parser
+    from station.commands._calibrate_sim import add_sim_parser
+    from station.services.trials import logged_trials
 
     add_projector_parser(sub)
+    add_sim_parser(sub, trials_source=logged_trials)
 
 
 def run_board(args) -> int:

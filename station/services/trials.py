@@ -49,6 +49,13 @@ def open_store(url: str | None = None) -> TrialStore:
     return TrialStore(url)
 
 
+def logged_trials(url: str | None = None) -> list[dict]:
+    """Every trial in the station's trial log (the export format, oldest first): what ``station calibrate sim`` and
+    the Calibrate screen's simulator panel fit to."""
+    with open_store(url) as store:
+        return store.trials()
+
+
 def load_trial_scenario(text: str) -> Scenario:
     """A scenario by example name or path, read once: its text is what a trial stores, and the scenario is parsed
     from that same text (a file edited meanwhile cannot give a trial another scenario's hash)."""

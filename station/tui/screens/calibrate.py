@@ -6,7 +6,9 @@ RMS, each view's error and which image corners lacked views, and is saved under 
 (``calibration/cameras/<camera>.json``). Stop cancels between views. Plane: a guide manifest (``station guide
 --json``) and optionally a frame file (else a frame from the camera); p checks the plane: the residual at the
 reference tags and how far it moved since the last check. The projector's panel
-(:class:`station.tui.widgets.projector_calibration.ProjectorCalibrationPanel`) stands beside them.
+(:class:`station.tui.widgets.projector_calibration.ProjectorCalibrationPanel`) and the simulator's
+(:class:`station.tui.widgets.sim_calibration.SimCalibrationPanel`, fitting the material values to the trial log)
+stand beside them.
 """
 
 from __future__ import annotations
@@ -25,9 +27,11 @@ from common.progress import Cancelled
 from drivers.errors import DriverError
 from station.errors import StationError
 from station.services import calibrate as service
+from station.services.trials import logged_trials
 from station.tui.registry import ScreenEntry
 from station.tui.widgets.progress import ProgressPanel, ProgressReported, post_progress
 from station.tui.widgets.projector_calibration import ProjectorCalibrationPanel
+from station.tui.widgets.sim_calibration import SimCalibrationPanel
 
 #: What a worker may fail with, said in the panel in one line.
 _USER_ERRORS = (StationError, CalibrationError, DriverError)
@@ -158,7 +162,7 @@ class PlanePanel(Vertical):
 
 
 class CalibrateScreen(Screen):
-    """Camera intrinsics, the plane check and the projector mapping side by side."""
+    """Camera intrinsics, the plane check, the projector mapping and the simulator's fit side by side."""
 
     CSS = """
     CalibrateScreen #panels { height: 1fr; }
@@ -180,6 +184,7 @@ class CalibrateScreen(Screen):
             yield CameraPanel(id="camera-panel")
             yield PlanePanel(id="plane-panel")
             yield ProjectorCalibrationPanel(id="projector-panel")
+            yield SimCalibrationPanel(trials_source=logged_trials, id="sim-panel")
         yield Footer()
 
     def action_camera_folder(self) -> None:
