@@ -190,4 +190,5 @@ def wilson_interval(successes: float, n: int, z: float = 1.959964) -> tuple[floa
     denominator = 1.0 + z * z / n
     centre = (p + z * z / (2 * n)) / denominator
     half = z * np.sqrt(p * (1 - p) / n + z * z / (4 * n * n)) / denominator
-    return float(max(0.0, centre - half)), float(min(1.0, centre + half))
+    # rounding puts the bound a hair inside p when every (or no) trial succeeded: the interval must hold p
+    return float(max(0.0, min(p, centre - half))), float(min(1.0, max(p, centre + half)))

@@ -126,7 +126,7 @@ def test_the_cli_prints_and_writes_check_json(tmp_path, capsys):
     lens.write_text(json.dumps(intrinsics.to_json()))
     out, overlay = tmp_path / "check.json", tmp_path / "overlay.png"
     code = main(["check", "ballrun", "success", "--image", str(frame), "--intrinsics", str(lens), "--out", str(out),
-                 "--overlay", str(overlay), "--json"])
+                 "--overlay", str(overlay), "--predict", "4", "--json"])
     assert code == 0
     printed = json.loads(capsys.readouterr().out)
     assert printed == json.loads(out.read_text())
@@ -137,12 +137,15 @@ def test_the_cli_prints_and_writes_check_json(tmp_path, capsys):
     assert set(printed) >= {"missing_tags", "unknown_tags", "as_built", "predicted_success_as_built",
                             "predicted_success_as_designed", "by_eye", "not_measured", "prediction_note"}
     assert Image.open(overlay).size == (1920, 1080)
+    physical = printed["physical_success"]  # the as-built layout's physical success and the attempts to expect
+    assert physical["samples"] == 4 and physical["interval"][0] <= physical["probability"] <= physical["interval"][1]
 
     from station.services.guide import make_guide
 
     manifest = tmp_path / "ballrun-guide.json"  # what `station guide ballrun success --json` prints
     manifest.write_text(json.dumps(make_guide("ballrun", "success", tolerances=False).manifest()))
-    code = main(["check", "ballrun", "success", "--image", str(frame), "--intrinsics", str(lens), "--guide",
+    code = main(["check", "ballrun", "success", "--image", str(frame), "--intrinsics", str(lens), "--predict", "0",
+                 "--guide",
                  str(manifest), "--json"])
     again = json.loads(capsys.readouterr().out)
     assert code == 0 and [p["name"] for p in again["parts"]] == [p["name"] for p in printed["parts"]]
@@ -150,7 +153,7 @@ def test_the_cli_prints_and_writes_check_json(tmp_path, capsys):
     assert again["as_built"] == pytest.approx(printed["as_built"], abs=0.01)
     other = tmp_path / "guide.json"
     other.write_text(json.dumps(make_guide("simple", None, tolerances=False).manifest()))
-    code = main(["check", "ballrun", "success", "--image", str(frame), "--guide", str(other)])
+    code = main(["check", "ballrun", "success", "--image", str(frame), "--guide", str(other), "--predict", "0"])
     error = capsys.readouterr().err.strip().splitlines()
     assert code == 2 and len(error) == 1 and error[0].startswith("station: error: --guide ") and "SIMPLE" in error[0]
 

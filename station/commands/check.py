@@ -11,7 +11,7 @@ import json
 import sys
 from pathlib import Path
 
-from station.cli_util import check_output_file, emit_json, flag_error
+from station.cli_util import add_physics_option, check_output_file, emit_json, flag_error
 from station.errors import UsageError
 from station.services.errors import ServiceError
 
@@ -22,9 +22,11 @@ JSON_SHAPE = ('{"format": "chaos-station check", "version", "scenario", "content
               '"within_tolerance", "instruction", "cost"}], "missing_tags", "unknown_tags", "duplicate_tags", '
               '"by_eye", "missing_reference_tags", "as_built", "not_measured", "residual_error", '
               '"predicted_success_as_built", "predicted_success_as_designed", "prediction_note", '
-              '"simulated_success_as_built"}')
+              '"simulated_success_as_built", "physical_success": {"probability", "interval", "expected_attempts", '
+              '"attempts_interval", "samples", "successes", "events", "placement_error", "physics"}}')
 FLAGS = {"guide": "--guide", "image": "--image", "camera": "--camera", "sim_offset": "--sim-offset",
-         "simulate": "--simulate", "seed": "--seed", "intrinsics": "--intrinsics"}
+         "simulate": "--simulate", "seed": "--seed", "intrinsics": "--intrinsics", "physics": "--physics",
+         "predict": "--predict"}
 
 
 def register(subparsers) -> None:
@@ -37,7 +39,9 @@ def register(subparsers) -> None:
         "sheets' words; the parts are ordered by how much their error costs in predicted success. The measured "
         "poses become the as-built layout (what the camera cannot see keeps the layout's value, and is listed), "
         "scored by the layout's success model: predicted success as placed, and as designed. --simulate N also "
-        "simulates the as-built layout N times with the measurement's residual error. The guide is made again "
+        "simulates the as-built layout N times with the measurement's residual error; --predict N (default 48, 0 for "
+        "none) gives its physical success with an interval and the attempts to expect (as `station predict` does), "
+        "under --physics PROFILE.toml when given. The guide is made again "
         "from the scenario and the layout (default options), or read from --guide (the manifest `station guide "
         "--json` printed, whose tags were stuck on the parts). With the simulated camera (sim://camera, the "
         "default station's) the camera is shown the guide's tags at their designed poses; --sim-offset and "
@@ -60,6 +64,9 @@ def register(subparsers) -> None:
                         "default: made again from the scenario and the layout")
     parser.add_argument("--simulate", type=int, default=0, metavar="N", help="also simulate the as-built layout N "
                         "times with the residual measurement error (default 0)")
+    parser.add_argument("--predict", type=int, default=48, metavar="N", help="predict the as-built layout's "
+                        "physical success and expected attempts from N simulations (default 48; 0: none)")
+    add_physics_option(parser)
     parser.add_argument("--seed", type=int, default=0, help="seed of those simulations (default 0)")
     parser.add_argument("--out", metavar="CHECK.json", help="write the check (what --json prints) to this file")
     parser.add_argument("--overlay", metavar="OUT.png", help="write the camera frame with the check drawn on it")
@@ -76,6 +83,7 @@ def register(subparsers) -> None:
 def run_check(args) -> int:
     from station.progress_view import ProgressView
     from station.services import check as service
+    from station.services.physics import read_profile
 
     out = check_output_file(args.out, {".json"}, "--out") if args.out else None
     overlay = check_output_file(args.overlay, {".png"}, "--overlay") if args.overlay else None
@@ -86,8 +94,9 @@ def run_check(args) -> int:
             image, intrinsics, name, previous = service.camera_frame(
                 job.guide, image=args.image, camera=args.camera, intrinsics=args.intrinsics, offsets=offsets,
                 occluded=tuple(args.sim_cover or ()))
+            physics = read_profile(args.physics) if args.physics else None
             check = service.check_frame(job, image, intrinsics, simulate=args.simulate, seed=args.seed,
-                                        previous=previous, progress=view)
+                                        previous=previous, physics=physics, predict=args.predict, progress=view)
         service.remember_plane(name, check)
         if out is not None:
             out.write_text(json.dumps(check.to_json(), indent=1) + "\n", encoding="utf-8")
@@ -132,5 +141,9 @@ def _print(check, out: Path | None, overlay: Path | None, projected: str | None)
     for path, what in ((out, "the check (CHECK.json)"), (overlay, "the camera frame with the check")):
         if path is not None:
             print(f"wrote {what} to {path}")
+    if check.physical is not None:
+        from station.services.predict import outlook_line
+
+        print(outlook_line(check.physical))
     if projected:
         print(projected)

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import sys
+
 from design.contraption.layout_io import resolve_layout
 from station.cli_util import emit_json
 from station.errors import UsageError
@@ -24,7 +26,7 @@ from station.services.trials import (
 
 #: A service field's command-line flag (``outcome.EVENT`` becomes ``--outcome EVENT``).
 _FLAGS = {"outcome": "--outcome", "time": "--time", "as_built": "--as-built", "physics": "--physics",
-          "photo": "--photo", "out": "--out", "id": "ID", "file": "FILE"}
+          "photo": "--photo", "out": "--out", "id": "ID", "file": "FILE", "predict": "--predict"}
 
 
 def _usage(error: ServiceError) -> UsageError:
@@ -70,7 +72,11 @@ def register(subparsers) -> None:
     log.add_argument("--who", metavar="NAME", help="who ran it")
     log.add_argument("--notes", metavar="TEXT", help="anything worth remembering")
     log.add_argument("--photo", action="append", default=[], metavar="PATH", help="a photo of the run (repeatable)")
-    log.add_argument("--json", action="store_true", help='print {"id": ...}')
+    log.add_argument("--predict", type=int, default=48, metavar="N",
+                     help="after logging, predict the physical success and expected attempts of the layout (as "
+                     "built when --as-built is given, under --physics) from N simulations (default 48; 0: none)")
+    log.add_argument("--json", action="store_true",
+                     help='print {"id": ...} (with --predict, also "physical_success": what `station predict` says)')
     log.set_defaults(func=run_log)
 
     listing = actions.add_parser("list", help="list logged trials, oldest first",
@@ -123,11 +129,35 @@ def run_log(args) -> int:
             trial_id = store.add(record)
     except ServiceError as error:
         raise _usage(error) from None
+    # the trial is logged before anything is predicted: a prediction that fails or is stopped loses no run
+    if args.predict < 0:
+        raise UsageError(f"--predict: expected a number of simulations >= 0, got {args.predict}")
+    outlook = _outlook(scenario, record, args.predict)
     if args.json:
-        emit_json({"id": trial_id})
+        emit_json({"id": trial_id} if outlook is None else {"id": trial_id, "physical_success": outlook.to_json()})
     else:
         print(trial_id)
+        if outlook is not None:
+            from station.services.predict import outlook_line
+
+            print(f"trial {trial_id}: {outlook_line(outlook)}", file=sys.stderr)
     return 0
+
+
+def _outlook(scenario, record, samples: int):
+    """The physical success of the trial's layout, as built (``--predict N`` simulations; None for 0)."""
+    if not samples:
+        return None
+    from design.errors import DesignError
+    from station.progress_view import ProgressView
+    from station.services.predict import predict_trial
+
+    try:
+        with ProgressView(sys.stderr, prefix="predict: ") as view:
+            return predict_trial(scenario, record, samples=samples, progress=view)
+    except (ServiceError, DesignError) as error:  # the trial is logged: say why there is no prediction, and go on
+        print(f"no prediction: {error}", file=sys.stderr)
+        return None
 
 
 def run_list(args) -> int:

@@ -97,7 +97,7 @@ def read_views(folder: str | Path) -> list[tuple[str, np.ndarray]]:
     return [(p.name, _read_image(p)) for p in files]
 
 
-def _open_camera(url: str):
+def open_camera(url: str):
     from drivers.devices import resolve
 
     info = resolve(url)
@@ -131,7 +131,7 @@ def capture_views(url: str, count: int, *, interval_s: float = 1.0, progress: Pr
         raise ServiceError(f"capture must be a whole number of views >= 1, got {count!r}", field="capture",
                            value=count)
     report = Reporter.of(progress, cancelled)
-    camera = _open_camera(url)
+    camera = open_camera(url)
     views = []
     try:
         for index in range(count):
@@ -264,7 +264,7 @@ class PlaneCheck:
 
 def grab_frame(url: str) -> np.ndarray:
     """One frame from the camera at ``url``."""
-    camera = _open_camera(url)
+    camera = open_camera(url)
     try:
         return np.asarray(camera.grab())
     finally:
@@ -297,7 +297,7 @@ def plane_check(*, image: str | Path | np.ndarray | None = None, camera: str | N
     size = (frame.shape[1], frame.shape[0])
     camera_model = intrinsics_for(size, intrinsics=intrinsics, name=name)
     references = reference_tags_from_guide(guide) if guide is not None else None
-    previous = _load_plane(name) if references is not None else None
+    previous = load_plane(name) if references is not None else None
     try:
         if references is None:
             result = _references_seen(frame, camera_model)
@@ -306,7 +306,7 @@ def plane_check(*, image: str | Path | np.ndarray | None = None, camera: str | N
     except CalibrationError as error:
         raise ServiceError(str(error), field="image") from None
     if remember and result.plane is not None:
-        _save_plane(name, result.plane)
+        save_plane(name, result.plane)
     ids = tuple(i for i, _c, _s in references) if references is not None else REFERENCE_TAG_IDS
     return PlaneCheck(result, camera_model, source, name, tuple(ids), None if guide is None else str(guide))
 
@@ -323,7 +323,7 @@ def _references_seen(frame: np.ndarray, camera_model):
     return Measurement(None, (), unknown, duplicates, missing)
 
 
-def _save_plane(name: str, plane) -> None:
+def save_plane(name: str, plane) -> None:
     data = {**plane.to_dict(), "homography": np.asarray(plane.homography, dtype=float).tolist()}
     path = _plane_file(name)
     partial = path.with_name(path.name + ".partial")
@@ -331,7 +331,7 @@ def _save_plane(name: str, plane) -> None:
     partial.replace(path)
 
 
-def _load_plane(name: str):
+def load_plane(name: str):
     """The last plane fix of camera ``name``, or None (none yet, or a file that no longer reads: start afresh)."""
     from calibration.measure import PlaneFix
 

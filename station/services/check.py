@@ -52,9 +52,15 @@ class CheckJob:
     image: np.ndarray
     measurement: object
     intrinsics: object
+    #: The physical success of the as-built layout (calibration.sim_predict.PhysicalPrediction), when asked for.
+    physical: object = None
 
     def to_json(self) -> dict:
-        return self.report.to_json()
+        """CHECK.json; with a physical prediction, its ``physical_success`` too (``station predict``'s fields)."""
+        data = self.report.to_json()
+        if self.physical is not None:
+            data["physical_success"] = self.physical.to_json()
+        return data
 
 
 # -- the guide --------------------------------------------------------------------------------------------------------
@@ -93,13 +99,13 @@ class ScoringModel:
 
 
 def _model_of(scenario, layout: str) -> ScoringModel | None:
-    from station.services.tolerances import _layout_and_model, _problem
+    from station.services.tolerances import contraption_problem, layout_and_model
 
     try:
-        problem = _problem(scenario)
+        problem = contraption_problem(scenario)
     except ValueError:  # no design space: nothing to score
         return None
-    return ScoringModel(problem, _layout_and_model(str(layout), problem)[1])
+    return ScoringModel(problem, layout_and_model(str(layout), problem)[1])
 
 
 def _read_manifest(path) -> dict:
@@ -198,9 +204,9 @@ def grab_frame(url: str, guide, *, offsets=None, occluded: Sequence[int] = ()):
     drivers.errors.DriverError
         The camera cannot be opened or gives no frame (one line).
     """
-    from station.services.calibrate import _open_camera
+    from station.services.calibrate import open_camera
 
-    camera = _open_camera(url)
+    camera = open_camera(url)
     try:
         simulated = hasattr(camera, "set_scene")
         if (offsets or occluded) and not simulated:
@@ -242,7 +248,7 @@ def camera_frame(guide, *, image: str | Path | None = None, camera: str | None =
         lens = calibrate.intrinsics_for(size, intrinsics=intrinsics, name=name)
     else:
         lens = twin  # the simulated camera knows its own lens
-    return frame, lens, name, calibrate._load_plane(_plane_name(name, guide))
+    return frame, lens, name, calibrate.load_plane(_plane_name(name, guide))
 
 
 def _plane_name(name: str, guide) -> str:
@@ -260,7 +266,7 @@ def remember_plane(name: str, check: CheckJob) -> None:
 
     if check.measurement.plane is not None:
         try:
-            calibrate._save_plane(_plane_name(name, check.guide_job.guide), check.measurement.plane)
+            calibrate.save_plane(_plane_name(name, check.guide_job.guide), check.measurement.plane)
         except OSError:
             pass  # the check stands without it; only the next "moved" report is lost
 
@@ -292,7 +298,7 @@ def _twin_intrinsics(camera, url: str):
 
 # -- the check --------------------------------------------------------------------------------------------------------
 def check_frame(job, image: np.ndarray, intrinsics=None, *, simulate: int = 0, seed: int = 0, previous=None,
-                detector=None, progress: Reporter | ProgressCallback | None = None,
+                detector=None, physics=None, predict: int = 0, progress: Reporter | ProgressCallback | None = None,
                 should_stop=None) -> CheckJob:
     """Check the parts in one camera frame against the guide ``job`` (:func:`prepare_check`).
 
@@ -311,6 +317,11 @@ def check_frame(job, image: np.ndarray, intrinsics=None, *, simulate: int = 0, s
         The last check's plane (a bumped camera is then said).
     detector : projector.detection.TagDetector, optional
         One to reuse between checks.
+    physics : PhysicsProfile, optional
+        Simulate (``simulate``, ``predict``) with its material values instead of the scenario's.
+    predict : int
+        Predict the as-built layout's physical success and expected attempts from this many simulations under the
+        physics and the residual measurement error as placement noise (0: none).
 
     Raises
     ------
@@ -336,15 +347,16 @@ def check_frame(job, image: np.ndarray, intrinsics=None, *, simulate: int = 0, s
     measurement = measure(image, intrinsics, reference_tags(guide), part_tags(guide), previous, detector=detector)
     report.emit(_progress("measure", 1, 1))
     return check_measurement(job, measurement, image, intrinsics, simulate=simulate, seed=seed, notes=notes,
-                             progress=report, should_stop=should_stop)
+                             physics=physics, predict=predict, progress=report, should_stop=should_stop)
 
 
 def check_measurement(job, measurement, image: np.ndarray, intrinsics, *, simulate: int = 0, seed: int = 0,
-                      notes: Sequence[str] = (), progress: Reporter | ProgressCallback | None = None,
-                      should_stop=None) -> CheckJob:
+                      notes: Sequence[str] = (), physics=None, predict: int = 0,
+                      progress: Reporter | ProgressCallback | None = None, should_stop=None) -> CheckJob:
     """The check of a :class:`~calibration.measure.Measurement` already made (see :func:`check_frame`)."""
     from calibration.asbuilt import PlanePose, as_built_layout
     from calibration.check import CheckReport, check_parts, residual_error
+    from station.services.robust import check_count
 
     report = Reporter.of(progress)
     notes = list(notes)
@@ -373,11 +385,26 @@ def check_measurement(job, measurement, image: np.ndarray, intrinsics, *, simula
     if built.clipped:
         notes.append(f"placed outside the design range, scored at its end: {', '.join(built.clipped)}")
     residual = residual_error(measurement, [p.tag_size_mm for p in guide.parts if p.tag_id is not None])
-    simulated = None
+    simulated = physical = None
+    if physics is not None:
+        from design.contraption.physics_profile import apply_profile
+
+        scenario = apply_profile(scenario, physics)
+        problem = None  # the layout's model scores; simulations run under the profile's values
     if simulate:
         if problem is None:
-            problem = _problem(scenario)
+            from station.services.tolerances import contraption_problem
+
+            problem = contraption_problem(scenario)
         simulated = _simulate(problem, built, residual, simulate, seed, report, should_stop)
+    if predict:
+        from station.services.predict import predict_layout
+
+        check_count(predict, "predict")
+        physical = predict_layout(scenario, built.x, profile=physics,
+                                  position_sigma_m=max(residual["position_mm"], 0.1) / 1000.0,
+                                  angle_sigma_deg=max(residual["heading_deg"], 0.1), samples=predict, seed=seed,
+                                  progress=report, should_stop=should_stop)
     missing = () if measurement.plane is None else tuple(  # without a plane nothing is measured: none is missing
         c.tag_id for c in checks if not c.found and c.tag_id not in measurement.duplicate_ids)
     result = CheckReport(
@@ -388,7 +415,7 @@ def check_measurement(job, measurement, image: np.ndarray, intrinsics, *, simula
         residual_error=residual, predicted_success_as_built=predicted_built,
         predicted_success_as_designed=predicted_designed, prediction_note="; ".join(notes) or None,
         simulated_success_as_built=simulated, missing_reference_tags=tuple(measurement.missing_reference_ids))
-    return CheckJob(result, job, image, measurement, intrinsics)
+    return CheckJob(result, job, image, measurement, intrinsics, physical)
 
 
 def _progress(stage: str, done: int, total: int):
@@ -402,12 +429,6 @@ def _order(check) -> tuple:
     distance = check.error[2] if check.error is not None else -1.0
     return (not check.found, -(check.cost if check.cost is not None else -1.0), check.within_tolerance is not False,
             -distance)
-
-
-def _problem(scenario):
-    from design.robust.contraption import ContraptionProblem
-
-    return ContraptionProblem(scenario.source, scenario)
 
 
 def _scores(model, problem, x, built, guide) -> tuple[float, float, dict[str, float]]:

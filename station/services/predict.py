@@ -7,6 +7,8 @@ so the calibration's uncertainty is in the probability). See :mod:`calibration.s
 
 from __future__ import annotations
 
+import math
+from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -153,3 +155,38 @@ def predict_layout(scenario: Scenario, x: np.ndarray, *, profile: PhysicsProfile
         return predict_success(scenario, x, values=profile.values if profile else None,
                                intervals=profile.intervals if profile else None, position_sigma_m=position_sigma_m,
                                angle_sigma_deg=angle_sigma_deg, samples=samples, seed=seed, run=run)
+
+
+def outlook_line(result: PhysicalPrediction) -> str:
+    """One line a maker reads after a check or a logged trial: the physical success with its interval and the
+    attempts to expect (``physical success 0.82 [0.70, 0.90]; expect 1.2 attempts [1.1, 1.4]``)."""
+    low, high = result.interval
+    attempts_low, attempts_high = result.attempts_interval
+    number = lambda v: "never" if math.isinf(v) else f"{v:.1f}"  # noqa: E731
+    return (f"physical success {result.probability:.2f} [{low:.2f}, {high:.2f}] over {result.samples} simulations; "
+            f"expect {number(result.attempts)} attempts [{number(attempts_low)}, {number(attempts_high)}]")
+
+
+def predict_trial(scenario: Scenario, trial: Mapping[str, Any], *, samples: int = 48, seed: int = 0,
+                  progress: ProgressCallback | None = None, should_stop=None) -> PhysicalPrediction:
+    """The physical success of a logged trial's layout (as built when the trial has one), under the trial's physics
+    profile and its check's residual error (the defaults without a check): what the maker may expect next time."""
+    from design.contraption.physics_profile import apply_profile, profile_from_text
+    from station.services.robust import check_count
+
+    check_count(samples, "predict")
+    space = scenario.design_space
+    values = trial.get("as_built") or trial["layout"]
+    x = np.array([float(values.get(name, trial["layout"][name])) for name in space.names], dtype=float)
+    profile = None
+    if trial.get("physics"):
+        profile = profile_from_text(trial["physics"]["content"], trial["physics"].get("name") or "<profile>")
+        scenario = apply_profile(scenario, profile)
+    position, angle = DEFAULT_POSITION_SIGMA_M, DEFAULT_ANGLE_SIGMA_DEG
+    residual = (trial.get("check") or {}).get("residual_error") or {}
+    if isinstance(residual.get("position_mm"), (int, float)) and residual["position_mm"] > 0:
+        position = float(residual["position_mm"]) / 1000.0
+    if isinstance(residual.get("heading_deg"), (int, float)) and residual["heading_deg"] > 0:
+        angle = float(residual["heading_deg"])
+    return predict_layout(scenario, x, profile=profile, position_sigma_m=position, angle_sigma_deg=angle,
+                          samples=samples, seed=seed, progress=progress, should_stop=should_stop)

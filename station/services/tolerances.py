@@ -76,7 +76,7 @@ class Tolerances:
                 **self.map.to_dict()}
 
 
-def _layout_and_model(layout: str, problem):
+def layout_and_model(layout: str, problem):
     """The layout ``layout`` names and the fitted model its file carries (None for a layout without one), from one
     reading of the file."""
     from design.contraption.layout_io import layout_from_data, read_layout_data
@@ -88,7 +88,7 @@ def _layout_and_model(layout: str, problem):
     return layout_from_data(data, problem.scenario, file=layout), layout_model(data, problem, file=layout)
 
 
-def _problem(scenario):
+def contraption_problem(scenario):
     """A scenario file or example name, or a loaded :class:`design.contraption.Scenario`, as a problem."""
     from design.contraption import Scenario
     from design.robust.contraption import ContraptionProblem
@@ -139,8 +139,8 @@ def tolerance_map(scenario, layout: str, *, verify: int = 0, seed: int = 0, work
     robust.check_seed(seed)
     from station.services.physics import problem_with_physics
 
-    problem = problem_with_physics(_problem(scenario), physics)
-    loaded, model = _layout_and_model(str(layout), problem)
+    problem = problem_with_physics(contraption_problem(scenario), physics)
+    loaded, model = layout_and_model(str(layout), problem)
     u = np.clip(problem.to_normalized(loaded.x), 0.0, 1.0)
     d = problem.dim
     if progress is not None:

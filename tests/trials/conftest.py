@@ -23,8 +23,8 @@ def run_cli(capsys, *argv: str) -> tuple[int, str, str]:
 
 
 def log_json(capsys, *argv: str) -> int:
-    """``station trial log ARGV --json`` that must succeed; the new trial's id."""
-    code, out, err = run_cli(capsys, "trial", "log", *argv, "--json")
+    """``station trial log ARGV --json --predict 0`` that must succeed; the new trial's id."""
+    code, out, err = run_cli(capsys, "trial", "log", *argv, "--json", "--predict", "0")
     assert code == 0, err
     return json.loads(out)["id"]
 

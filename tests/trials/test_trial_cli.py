@@ -60,7 +60,7 @@ def test_log_list_show_with_check_physics_times_and_photos(tmp_path, capsys):
                      "--time", "last_stops=2.25", "--as-built", str(check), "--physics", str(profile),
                      "--who", "ann", "--notes", "third try, new felt", "--photo", str(photo))
     code, out, _ = run_cli(capsys, "trial", "log", str(EXAMPLES / "simple.toml"), "failure",
-                           "--outcome", "ball_hits_domino=no")
+                           "--outcome", "ball_hits_domino=no", "--predict", "0")
     assert code == 0 and int(out) == first + 1
 
     code, out, _ = run_cli(capsys, "trial", "show", str(first), "--json")
@@ -145,6 +145,20 @@ def _refused(capsys, *argv: str) -> str:
     lines = err.strip().splitlines()
     assert len(lines) == 1, err
     return lines[0]
+
+
+def test_a_logged_trial_says_its_physical_success_and_the_attempts_to_expect(capsys):
+    code, out, err = run_cli(capsys, "trial", "log", "simple", "success", "--outcome", "last_stops=yes",
+                             "--predict", "4", "--json")
+    assert code == 0, err
+    data = json.loads(out)
+    physical = data["physical_success"]
+    assert physical["samples"] == 4 and 0.0 <= physical["probability"] <= 1.0
+    assert physical["interval"][0] <= physical["probability"] <= physical["interval"][1]
+    code, out, err = run_cli(capsys, "trial", "log", "simple", "success", "--outcome", "last_stops=yes",
+                             "--predict", "4")
+    assert code == 0 and int(out) == data["id"] + 1
+    assert f"trial {data['id'] + 1}: physical success" in err and "attempts" in err
 
 
 def test_bad_input_is_refused_in_one_line_naming_the_field(tmp_path, capsys):
