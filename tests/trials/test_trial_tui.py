@@ -42,9 +42,14 @@ async def test_tick_events_in_graph_order_log_filter_and_export(tmp_path, monkey
         assert str(events.get_cell("last_topples", "outcome")) == "(not-reached)"
         assert "a failure; l logs it" in str(screen.query_one("#status").render())
         screen.query_one("#who", Input).value = "ann"
+        screen.prediction_samples = 4  # the physical success shown after the log, from 4 simulations
         await pilot.press("l")
         await settle(app, pilot)
         assert screen.last_logged == 2
+        await app.workers.wait_for_complete()
+        await pilot.pause()
+        outlook = str(screen.query_one("#outlook").render())
+        assert "after trial #2: physical success" in outlook and "attempts" in outlook, outlook
         assert "logged trial #2 (SIMPLE, failure)" in str(screen.query_one("#status").render())
         assert trials.row_count == 2
         with TrialStore(url) as store:

@@ -21,6 +21,7 @@ from textual.binding import Binding
 from textual.containers import Horizontal, Vertical
 from textual.screen import Screen
 from textual.widgets import Button, DataTable, Footer, Header, Input, Label, Select, Static
+from textual.worker import get_current_worker
 
 from design.contraption.layout_io import resolve_layout
 from design.contraption.model import Scenario
@@ -70,6 +71,9 @@ class TrialsScreen(Screen):
         Binding("c", "from_contraption", "From Contraptions"),
     ]
 
+    #: Simulations behind the physical success shown after each logged trial (0: none).
+    prediction_samples = 48
+
     def __init__(self) -> None:
         super().__init__(name="trials")
         self.scenario: Scenario | None = None
@@ -99,6 +103,7 @@ class TrialsScreen(Screen):
                 yield Input(str(data_dir() / "trials.json"), id="export-path")
                 yield Button("Export (e)", id="export")
                 yield Static("", id="status")
+                yield Static("", id="outlook")
             with Vertical(id="right"):
                 yield Static("", id="summary")
                 yield DataTable(id="events", cursor_type="row", zebra_stripes=True)
@@ -247,6 +252,27 @@ class TrialsScreen(Screen):
         verdict = "success" if record["success"] else "failure"
         self.set_status(f"logged trial #{trial_id} ({record['scenario']['name']}, {verdict})", "green")
         self._show_trials(trials)
+        if self.prediction_samples:
+            self.query_one("#outlook", Static).update(Text("predicting the physical success…", style="dim"))
+            self._outlook_worker(trial_id, self.scenario, record)
+
+    @work(thread=True, exclusive=True, group="trials-predict")
+    def _outlook_worker(self, trial_id: int, scenario: Scenario, record: dict) -> None:
+        """The physical success of the trial's layout (as built) and the attempts to expect, after every log."""
+        from common.progress import Cancelled
+        from station.services.predict import outlook_line, predict_trial
+
+        worker = get_current_worker()
+        try:
+            result = predict_trial(scenario, record, samples=self.prediction_samples,
+                                   should_stop=lambda: worker.is_cancelled)
+            text = Text(f"after trial #{trial_id}: {outlook_line(result)}")
+        except Cancelled:
+            return
+        except (DesignError, StationError, OSError) as error:
+            text = Text(f"no prediction: {error}", style="yellow")
+        if not worker.is_cancelled:
+            self.app.call_from_thread(self.query_one("#outlook", Static).update, text)
 
     # -- the list, filter and export -----------------------------------------------------------------------------
     def refresh_trials(self) -> None:
