@@ -54,7 +54,7 @@ class RetrieveOptions:
 
     machines: tuple[str, ...] = ()
     top: int = 5
-    refine: int = 0
+    refine: int = 3
     smoothing: float = 0.01
     prune: bool = True
     mirror: bool = False
