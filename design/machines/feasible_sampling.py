@@ -20,7 +20,7 @@ from common.progress import Reporter
 
 
 def uniform_feasible(machine, radii: np.ndarray, roles: tuple[str, ...], per_combination: int,
-                     rng: np.random.Generator, pilot: int = 4096, sweeps: int = 3, tries: int = 24,
+                     rng: np.random.Generator, pilot: int = 2048, sweeps: int = 3, tries: int = 12,
                      report: Reporter | None = None) -> tuple[np.ndarray, np.ndarray]:
     """``per_combination`` designs per radii combination, uniform over its feasible continuous parameters.
 

@@ -189,9 +189,16 @@ def model_fingerprint(machine) -> str:
 
 
 def version_key(machine, settings: DatabaseSettings) -> str:
-    """The cache key: database format, settings and model fingerprint."""
+    """The cache key: database format, settings, model fingerprint (and the uniform sampler's source)."""
+    sampler = ""
+    if settings.sampling == "uniform":  # the sampler's code decides the designs as much as the settings do
+        from design.machines import feasible_sampling
+
+        sampler = hashlib.sha256(inspect.getsource(feasible_sampling).encode()).hexdigest()
     payload = json.dumps(
-        {"format": DATABASE_FORMAT, "settings": asdict(settings), "model": model_fingerprint(machine)}, sort_keys=True
+        {"format": DATABASE_FORMAT, "settings": asdict(settings), "model": model_fingerprint(machine),
+         "sampler": sampler},
+        sort_keys=True,
     )
     return hashlib.sha256(payload.encode()).hexdigest()[:20]
 

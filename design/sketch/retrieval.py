@@ -19,7 +19,13 @@ from scipy.optimize import minimize
 
 from common.progress import CancelCheck, ProgressCallback, Reporter
 from design.errors import DesignError
-from design.sketch.candidates import CandidateDatabase, DatabaseSettings, default_settings, load_database
+from design.sketch.candidates import (
+    CandidateDatabase,
+    DatabaseSettings,
+    curve_spectra,
+    default_settings,
+    load_database,
+)
 from design.sketch.distance import DEFAULT_POINTS, SpectrumBank, low_spectrum
 from design.sketch.errors import RetrievalSettingError, SketchError
 from design.sketch.fourier import RadiiHypothesis, Spectrum, estimate_symmetry, radii_hypotheses, spectrum
@@ -320,7 +326,6 @@ class SketchRetriever:
         # wrong symmetry estimate); a machine is not searched wider just because it cannot draw the sketch.
         levels = max(len(stages) for _, stages, _ in plans.values())
         results: dict[str, tuple[list[Candidate], int, str, float]] = {}
-        reading = np.full(len(variants), np.inf)  # each reading's best distance, to show the best one
         for level in range(levels):
             for name, (_hypotheses, stages, names) in plans.items():
                 if level >= len(stages) or (name in results and level > 0 and _same(stages, level)):
@@ -328,9 +333,7 @@ class SketchRetriever:
                 rows = stages[level]
                 begin = time.perf_counter()
                 database = self.database(name)
-                each = np.stack([database.bank.match(t, rows=rows, mirror=mirror).distance for t in targets])
-                distances = each.min(axis=0)
-                reading = np.minimum(reading, each.min(axis=1, initial=np.inf))
+                distances = database.bank.screen(targets, rows=rows, mirror=mirror)
                 indices = np.arange(len(database)) if rows is None else rows
                 spent = time.perf_counter() - begin + (results[name][3] if name in results else 0.0)
                 results[name] = (
@@ -360,7 +363,15 @@ class SketchRetriever:
             pool = sorted(refined + pool[refine:], key=lambda c: c.distance)
             timings["refine"] = time.perf_counter() - begin
         timings["total"] = time.perf_counter() - clock
-        return RetrievalResult(pool[:top], variants[int(np.argmin(reading))], reports, timings)
+        if len(variants) > 1 and pool:
+            # show the reading the best candidate matches
+            best = pool[0]
+            database = self.database(best.machine)
+            spectra = curve_spectra(self.machines[best.machine], np.array([[best.params[n] for n in
+                                    database.parameter_names]]), 512, self.harmonics)
+            bank = SpectrumBank(spectra)
+            prepared = min(variants, key=lambda v: float(bank.match(v.coefficients, mirror=mirror).distance[0]))
+        return RetrievalResult(pool[:top], prepared, reports, timings)
 
 
 def _same(stages: list[np.ndarray | None], level: int) -> bool:

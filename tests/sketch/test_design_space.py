@@ -34,9 +34,12 @@ def retriever(tmp_path_factory):
 
 
 def _case(name: str, lead: int, seed: int, sector: bool):
-    """A maker-like sketch of a design drawn uniformly from the feasible space with the leading radius ``lead`` (the
-    other radii uniform among those feasible with it, up to the small database's largest; within the machine's sampling box, which holds every
-    feasible design: see test_sampling_box_holds_every_feasible_design)."""
+    """A maker-like sketch of a design drawn uniformly from the feasible space with the leading radius ``lead``.
+
+    The other radii are uniform among those feasible with it, up to the small database's largest; the design is
+    drawn within the machine's sampling box, which holds every feasible design (see
+    test_sampling_box_holds_every_feasible_design).
+    """
     machine = get_machine(name)
     rng = np.random.default_rng(seed)
     roles = radius_roles(machine)
@@ -108,18 +111,23 @@ def test_database_symmetry_is_the_patterns_not_the_leading_radius(retriever):
 
 
 def test_sector_of_a_ring_is_read_by_chaining_its_copies():
-    # Cycloid Drawing Machine 9 / 5 sectors: the chained reading follows the pattern (on a ring-like pattern the
-    # copies overlap and the closed tour through them goes round in the wrong order)
+    # Cycloid Drawing Machine 9 / 5 sectors: one of the readings follows the pattern; on a ring-like pattern the
+    # copies overlap and the closed tour through them goes round in the wrong order, the chained copies do not
     machine = get_machine("cycloid_drawing_machine")
     rng = np.random.default_rng(2)
     params, _ = uniform_feasible(machine, np.array([[9, 5]]), radius_roles(machine), 3, rng)
+    tour, chained = [], []
     for row in params:
         design = {n: (int(round(v)) if n in ("r_t", "r_e") else float(v)) for n, v in zip(machine.parameter_names, row)}
         case = make_space_case(machine, design, rng, sector_probability=1.0)
         assert case.sector
         readings = prepare_variants(case.sketch)
-        assert readings[-1].order.method == "sector"
-        assert shape_distance(case.curve, resample_closed(readings[-1].curve, len(case.curve))) < 0.02
+        assert [r.order.method for r in readings][-1] == "sector"
+        distances = [shape_distance(case.curve, resample_closed(r.curve, len(case.curve))) for r in readings]
+        assert min(distances) < 0.02, distances
+        tour.append(distances[0])
+        chained.append(distances[-1])
+    assert any(t > 0.5 and c < 0.02 for t, c in zip(tour, chained)), (tour, chained)
 
 
 def test_refinement_never_worsens_and_stays_feasible(retriever):
