@@ -32,7 +32,8 @@ import numpy as np
 
 from design.sketch.distance import procrustes_distance_direct
 from design.sketch.spline import resample_closed, resample_open
-from design.sketch.strokes import Sketch, make_sketch
+from design.sketch.strokes import make_sketch
+from design.sketch.synthetic import SyntheticCase, drawn_piece
 
 #: Largest gear radius drawn (the issue: every radius up to at least 10 that the constraints allow).
 PRACTICAL_RADIUS = 10
@@ -46,17 +47,12 @@ HIT_POINTS = 2048
 
 
 @dataclass(frozen=True)
-class SpaceCase:
-    """A sketch and the design it was drawn from."""
+class SpaceCase(SyntheticCase):
+    """A sketch and the design it was drawn from, with the pattern's symmetry order and its source curve
+    (:data:`HIT_POINTS` points uniform in arc length)."""
 
-    machine: str
-    params: dict[str, float]
-    radii: tuple[int, ...]
-    symmetry: int
-    sketch: Sketch
-    sector: bool
-    strokes: int
-    curve: np.ndarray  # the source pattern, HIT_POINTS points uniform in arc length
+    symmetry: int = 1
+    curve: np.ndarray | None = None
 
 
 def feasible_designs(machine, count: int, rng: np.random.Generator, max_radius: int = PRACTICAL_RADIUS,
@@ -142,13 +138,7 @@ def make_space_case(machine, params: dict[str, float], rng: np.random.Generator,
 
     k = machine.symmetry_order(params)
     sector = k > 1 and rng.random() < sector_probability
-    period = machine.period(params)
-    if sector:
-        start = rng.random() * period
-        t = start + np.linspace(0.0, period / k, 3000)
-    else:
-        t = np.linspace(0.0, period, 12000)
-    drawn = machine.curve(params, t)
+    drawn = drawn_piece(machine, params, k if sector else 1, rng, 3000 if sector else 12000)
     # a maker draws what they draw at the size of the canvas: the hand's noise scales with the drawn piece
     strokes = _strokes(drawn, not sector, float(np.linalg.norm(np.ptp(drawn, axis=0))), rng)
     if not strokes:
@@ -164,7 +154,8 @@ def make_space_case(machine, params: dict[str, float], rng: np.random.Generator,
     except SketchError:
         return None
     radii = tuple(int(params[r]) for r in radius_roles(machine))
-    return SpaceCase(machine.name, dict(params), radii, k, sketch, sector, len(strokes), pattern(machine, params))
+    return SpaceCase(machine.name, dict(params), radii, sketch, sector, len(strokes), symmetry=k,
+                     curve=pattern(machine, params))
 
 
 def space_set(machine_names, per_machine: int, seed: int) -> list[SpaceCase]:
