@@ -260,6 +260,7 @@ class SketchRetriever:
         refine: int = DEFAULT_REFINE,
         smoothing: float = 0.01,
         mirror: bool = False,
+        machines: Sequence[str] | None = None,
     ) -> RetrievalResult:
         """Ranked candidates for a sketch.
 
@@ -281,7 +282,15 @@ class SketchRetriever:
             Relative smoothing factor of the spline (see :func:`fit_closed_spline`).
         mirror : bool
             Also match mirror images of the candidates.
+        machines : sequence of str, optional
+            Search only these of the retriever's machines (all by default).
         """
+        searched = list(dict.fromkeys(machines)) if machines else self.machine_names
+        for name in searched:
+            if name not in self.machines:
+                raise RetrievalSettingError(
+                    f"retrieve: machine {name!r} is not one this retriever searches ({', '.join(self.machine_names)})"
+                )
         if isinstance(top, bool) or not isinstance(top, (int, np.integer)) or not 1 <= top <= MAX_TOP:
             raise RetrievalSettingError(f"retrieve: top must be an integer in [1, {MAX_TOP}], got {top!r}")
         if isinstance(refine, bool) or not isinstance(refine, (int, np.integer)) or not 0 <= refine <= MAX_TOP:
@@ -300,7 +309,7 @@ class SketchRetriever:
         clear = len(prepared.spectrum.peaks) >= 2 and prepared.spectrum.magnitude(int(prepared.spectrum.peaks[1])) > 0.1
         lead = known_symmetry or (estimated if estimated > 1 and clear else None)
         plans: dict[str, tuple[list[RadiiHypothesis], list[np.ndarray | None], list[str]]] = {}
-        for name in self.machine_names:
+        for name in searched:
             database = self.database(name)
             hypotheses: list[RadiiHypothesis] = []
             stages: list[np.ndarray | None] = [None]
@@ -357,7 +366,7 @@ class SketchRetriever:
         if refine:
             begin = time.perf_counter()
             refined = []
-            for name in self.machine_names:
+            for name in searched:
                 mine = [c for c in pool[:refine] if c.machine == name]
                 refined.extend(refine_many(self.machines[name], mine, targets, mirror=mirror))
             pool = sorted(refined + pool[refine:], key=lambda c: c.distance)

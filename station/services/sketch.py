@@ -143,7 +143,7 @@ def retrieve(sketch: Sketch, options: RetrieveOptions | None = None, *, retrieve
     if retriever is None:
         retriever = make_retriever(options, progress=progress, cancelled=cancelled)
     return retriever.query(sketch, top=options.top, prune=options.prune, refine=options.refine,
-                           smoothing=options.smoothing, mirror=options.mirror)
+                           smoothing=options.smoothing, mirror=options.mirror, machines=options.machine_list())
 
 
 def candidate_curve(candidate: Candidate, points: int = 2048) -> np.ndarray:

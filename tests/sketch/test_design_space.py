@@ -14,6 +14,7 @@ from design.machines import get_machine
 from design.machines.feasible_sampling import uniform_feasible
 from design.sketch import SketchRetriever
 from design.sketch.candidates import DatabaseSettings, cache_path, load_database, radius_roles, version_key
+from design.sketch.errors import RetrievalSettingError
 from design.sketch.refine import refine_many
 from design.sketch.retrieval import Candidate, prepare_variants
 from design.sketch.spline import resample_closed
@@ -167,3 +168,12 @@ def test_a_database_of_another_format_is_rebuilt_not_read(tmp_path, monkeypatch)
     again = load_database(machine, tmp_path, settings)
     assert built and again.key == first.key
     assert candidates_module.read_database(path).key == first.key
+
+
+def test_a_query_can_search_some_of_the_retrievers_machines(retriever):
+    case = _case("cycloid_drawing_machine", 9, 3, False)
+    result = retriever.query(case.sketch, top=5, refine=0, machines=["hoot_nanny"])
+    assert result.candidates and {c.machine for c in result.candidates} == {"hoot_nanny"}
+    assert [r.machine for r in result.reports] == ["hoot_nanny"]
+    with pytest.raises(RetrievalSettingError, match="spirograph"):
+        retriever.query(case.sketch, machines=["spirograph"])
