@@ -38,7 +38,7 @@ def register(subparsers) -> None:
         "parameters on a feasible grid or sampled uniformly over the feasible set) by a symmetric Procrustes "
         "distance, minimized over direction and start point; the best candidates' continuous parameters are then "
         "refined (--refine). A sector sketch is also read as its copies chained in drawing order. "
-        "The first run builds the candidate databases (about 30 s on 2 cores) and caches them.",
+        "The first run builds the candidate databases (about 20 s of CPU) and caches them.",
         epilog='sketch JSON: [[[x, y], ...], ...] or {"strokes": [...], "symmetry": K, "center": [x, y]}.  '
         "example: station retrieve examples/sketches/trefoil-sector.json --top 5 --out /tmp/retrieval",
     )
