@@ -7,6 +7,7 @@ first run also builds them (about two minutes on 2 cores) and later runs only lo
 
 from __future__ import annotations
 
+import math
 import os
 import time
 
@@ -32,8 +33,11 @@ def benchmark_set(retriever: SketchRetriever, cases_per_machine: int, seed: int)
         roles = radius_roles(machine)
         made = 0
         while made < cases_per_machine:
-            combo = combos[rng.integers(len(combos))]
-            case = make_case(machine, dict(zip(roles, (int(r) for r in combo))), rng, symmetry=int(combo[0]))
+            combo = [int(r) for r in combos[rng.integers(len(combos))]]
+            # the pattern's symmetry order: the leading radius over its gcd with the others' lcm (a Hoot-Nanny
+            # 6 / 4 / 3 has none)
+            symmetry = combo[0] // math.gcd(combo[0], math.lcm(*combo[1:]))
+            case = make_case(machine, dict(zip(roles, combo)), rng, symmetry=symmetry)
             if case is not None:
                 cases.append(case)
                 made += 1

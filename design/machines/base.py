@@ -437,6 +437,18 @@ class DrawingMachine:
         """
         return bounds.feasible_interval(self, params, name, grid=grid, tolerance=tolerance)
 
+    def sampling_box(self, radii: Mapping[str, np.ndarray]) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+        """A box of the continuous parameters that holds every feasible design with the given gear radii.
+
+        ``radii`` maps each radius name to an array (one value per design); returns name -> ``(lower, upper)``
+        arrays of the same length. The parameters' own boxes by default; a machine whose constraints bound a
+        parameter by its radii tightens it, so that rejection sampling (uniform over the feasible set, see
+        :mod:`design.machines.feasible_sampling`) finds its designs.
+        """
+        k = len(next(iter(radii.values()))) if radii else 1
+        return {n: (np.full(k, self.parameter(n).lower), np.full(k, self.parameter(n).upper))
+                for n in self.continuous_names}
+
     # -- misc ----------------------------------------------------------------------------------------------------
 
     def describe(self) -> dict[str, Any]:

@@ -96,6 +96,14 @@ class CycloidDrawingMachine(TurntableMachine):
             "A.47", farthest_pen_distance, "its farthest distance from the turntable's center must be below"
         )
 
+    def sampling_box(self, radii: Mapping[str, np.ndarray]) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+        """The slider inside its gear (A.44) and the fulcrum off the turntable (A.42)."""
+        box = super().sampling_box(radii)
+        r_e = np.asarray(radii["r_e"], dtype=float)
+        box["r_s"] = (np.zeros_like(r_e), np.minimum(r_e, box["r_s"][1]))
+        box["d_tf"] = (np.asarray(radii["r_t"], dtype=float), box["d_tf"][1])
+        return box
+
     def _period(self, P: Mapping[str, np.ndarray]) -> np.ndarray:
         return gear_period(P["r_t"], P["r_e"])
 

@@ -156,6 +156,15 @@ class HootNanny(TurntableMachine):
         reach = "the farthest corner of its reach must be within"
         yield self._pen_on_turntable("A.67", farthest_pen_distance, reach, " of the turntable's center")
 
+    def sampling_box(self, radii: Mapping[str, np.ndarray]) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+        """Pivots inside their gears (A.58) and arms between ``r_gi`` and ``2 r_t + r_gi`` (A.60)."""
+        box = super().sampling_box(radii)
+        for i in ("1", "2"):
+            r_g = np.asarray(radii[f"r_g{i}"], dtype=float)
+            box[f"r_p{i}"] = (np.zeros_like(r_g), np.minimum(r_g, box[f"r_p{i}"][1]))
+            box[f"l{i}"] = (r_g, np.minimum(2.0 * np.asarray(radii["r_t"], dtype=float) + r_g, box[f"l{i}"][1]))
+        return box
+
     def _period(self, P: Mapping[str, np.ndarray]) -> np.ndarray:
         return gear_period(P["r_t"], P["r_g1"], P["r_g2"])
 

@@ -8,8 +8,10 @@
 Modules: :mod:`~design.sketch.strokes` (input, symmetry copies), :mod:`~design.sketch.svg` (SVG sketches),
 :mod:`~design.sketch.ordering` (stroke order as a TSP, MILP + heuristic), :mod:`~design.sketch.spline` (closed
 smoothing spline), :mod:`~design.sketch.fourier` (DFT, radii by Eq. 3.6), :mod:`~design.sketch.candidates` (Farey /
-feasible-grid database, cached), :mod:`~design.sketch.distance` (Procrustes distance, Eq. 3.13),
-:mod:`~design.sketch.retrieval` (the pipeline), :mod:`~design.sketch.synthetic` (seeded benchmark sketches).
+feasible-grid or uniformly sampled database, cached), :mod:`~design.sketch.distance` (Procrustes distance, Eq. 3.13),
+:mod:`~design.sketch.sector` (a sector sketch's copies chained in drawing order), :mod:`~design.sketch.refine`
+(batched refinement of the best candidates' continuous parameters), :mod:`~design.sketch.retrieval` (the
+pipeline), :mod:`~design.sketch.synthetic` (seeded benchmark sketches).
 """
 
 from design.sketch.candidates import CandidateDatabase, DatabaseSettings, default_settings, load_database

@@ -15,7 +15,9 @@ from __future__ import annotations
 
 import hashlib
 import inspect
+import itertools
 import json
+import math
 import os
 import tempfile
 import time
@@ -32,8 +34,9 @@ from design.sketch.distance import DEFAULT_HARMONICS, SpectrumBank, low_spectrum
 from design.sketch.errors import CandidateDatabaseError, RetrievalSettingError
 from design.sketch.fourier import RadiiHypothesis
 
-#: Bump when the database layout or the way it is built changes.
-DATABASE_FORMAT = 4
+#: Bump when the database layout or the way it is built changes (part of the cache key: a database of another
+#: format is rebuilt, never read).
+DATABASE_FORMAT = 5
 
 
 @dataclass(frozen=True)
@@ -54,7 +57,15 @@ class DatabaseSettings:
     harmonics : int
         Harmonics kept per curve.
     seed : int
-        Seed of the random search for a feasible anchor design per radii combination.
+        Seed of the random search for a feasible anchor design per radii combination (``"grid"``) or of the
+        uniform sampler (``"uniform"``).
+    sampling : {"grid", "uniform"}
+        How the continuous parameters are sampled per radii combination: the feasible grid around an anchor design
+        (``values_per_dimension`` per parameter), or ``samples`` designs uniform over the whole feasible set
+        (:func:`design.machines.feasible_sampling.uniform_feasible`), which covers machines whose feasible set a
+        grid around one anchor misses most of, at a fraction of the designs.
+    samples : int
+        Designs per radii combination with ``sampling="uniform"``.
     """
 
     max_radius: int = 8
@@ -63,6 +74,8 @@ class DatabaseSettings:
     points: int = 512
     harmonics: int = DEFAULT_HARMONICS
     seed: int = 0
+    sampling: str = "grid"
+    samples: int = 64
 
     def __post_init__(self) -> None:
         checks = [
@@ -70,6 +83,7 @@ class DatabaseSettings:
             ("values_per_dimension", self.values_per_dimension, 1, 12),
             ("points", self.points, 64, 8192),
             ("harmonics", self.harmonics, 4, 1024),
+            ("samples", self.samples, 1, 4096),
         ]
         for name, value, lo, hi in checks:
             if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or not lo <= value <= hi:
@@ -80,6 +94,10 @@ class DatabaseSettings:
             raise RetrievalSettingError(
                 f"candidate database: max_other_radius must be in [1, max_radius = {self.max_radius}], "
                 f"got {self.max_other_radius!r}"
+            )
+        if self.sampling not in ("grid", "uniform"):
+            raise RetrievalSettingError(
+                f"candidate database: sampling must be 'grid' or 'uniform', got {self.sampling!r}"
             )
         if 2 * self.harmonics + 1 > self.points:
             raise RetrievalSettingError(
@@ -94,9 +112,8 @@ class DatabaseSettings:
 DEFAULT_SETTINGS: dict[str, DatabaseSettings] = {
     "spirograph": DatabaseSettings(max_radius=12, values_per_dimension=12),
     "elliptic_spirograph": DatabaseSettings(max_radius=10, values_per_dimension=6),
-    "cycloid_drawing_machine": DatabaseSettings(max_radius=7),
-    # the model needs a turntable of radius >= 5 to hold the pen inside it (A.64); small external gears
-    "hoot_nanny": DatabaseSettings(max_radius=8, max_other_radius=5),
+    "cycloid_drawing_machine": DatabaseSettings(max_radius=12, sampling="uniform", samples=96),
+    "hoot_nanny": DatabaseSettings(max_radius=10, sampling="uniform", samples=48),
 }
 
 
@@ -133,30 +150,21 @@ def radius_roles(machine) -> tuple[str, ...]:
 def radius_combinations(machine, max_radius: int, max_other_radius: int | None = None) -> list[tuple[int, ...]]:
     """Coprime radii combinations in role order (see :func:`radius_roles`) within the parameters' bounds.
 
-    Two gears: every Farey fraction ``a/b`` of ``F_n`` in both orientations. More gears: every other gear is coprime
-    with the leading one (A.62), each pair again a Farey fraction.
+    Two gears: every Farey fraction ``a/b`` of ``F_n`` in both orientations. More gears: every combination whose
+    radii share no common divisor as a whole (A.62), pairs of them may.
     """
     roles = radius_roles(machine)
-    pairs = set()
-    for a, b in farey(max_radius):
-        pairs.add((a, b))
-        pairs.add((b, a))
-    bounds = [(machine.parameter(n).lower, machine.parameter(n).upper) for n in roles]
-    combos: list[tuple[int, ...]] = []
-    if len(roles) == 1:
-        combos = [(r,) for r in range(1, max_radius + 1)]
-    elif len(roles) == 2:
-        combos = sorted(pairs)
-    else:
-        by_lead: dict[int, list[int]] = {}
-        for lead, other in sorted(pairs):
-            by_lead.setdefault(lead, []).append(other)
-        import itertools
-
-        for lead, others in sorted(by_lead.items()):
-            for rest in itertools.product(others, repeat=len(roles) - 1):
-                combos.append((lead,) + rest)
+    parameters = [machine.parameter(n) for n in roles]
+    bounds = [(max(1, int(p.lower)), min(int(p.upper), max_radius)) for p in parameters]
     other = max_radius if max_other_radius is None else max_other_radius
+    if len(roles) == 1:
+        return [(r,) for r in range(bounds[0][0], bounds[0][1] + 1)]
+    if len(roles) == 2:
+        combos = sorted({(a, b) for a, b in farey(max_radius)} | {(b, a) for a, b in farey(max_radius)})
+    else:
+        # A.62: the radii share no common divisor as a whole; pairs of them may (e.g. a Hoot-Nanny 10 / 8 / 1)
+        ranges = [range(1, max_radius + 1)] + [range(1, other + 1)] * (len(roles) - 1)
+        combos = [c for c in itertools.product(*ranges) if math.gcd(*c) == 1]
     return [
         c for c in combos if all(lo <= r <= hi for r, (lo, hi) in zip(c, bounds)) and all(r <= other for r in c[1:])
     ]
@@ -181,9 +189,16 @@ def model_fingerprint(machine) -> str:
 
 
 def version_key(machine, settings: DatabaseSettings) -> str:
-    """The cache key: database format, settings and model fingerprint."""
+    """The cache key: database format, settings, model fingerprint (and the uniform sampler's source)."""
+    sampler = ""
+    if settings.sampling == "uniform":  # the sampler's code decides the designs as much as the settings do
+        from design.machines import feasible_sampling
+
+        sampler = hashlib.sha256(inspect.getsource(feasible_sampling).encode()).hexdigest()
     payload = json.dumps(
-        {"format": DATABASE_FORMAT, "settings": asdict(settings), "model": model_fingerprint(machine)}, sort_keys=True
+        {"format": DATABASE_FORMAT, "settings": asdict(settings), "model": model_fingerprint(machine),
+         "sampler": sampler},
+        sort_keys=True,
     )
     return hashlib.sha256(payload.encode()).hexdigest()[:20]
 
@@ -211,6 +226,8 @@ class CandidateDatabase:
     radii : ndarray
         ``(M, G)`` integer radii in role order: the :attr:`roles` columns of :attr:`params`, rounded (derived, so
         the two never disagree).
+    symmetry : ndarray
+        ``(M,)`` rotational symmetry order of each row's pattern (derived from :attr:`radii`).
     """
 
     machine: str
@@ -221,10 +238,17 @@ class CandidateDatabase:
     key: str
     build_seconds: float = 0.0
     radii: np.ndarray = field(init=False, repr=False)
+    symmetry: np.ndarray = field(init=False, repr=False)
 
     def __post_init__(self) -> None:
         columns = [self.parameter_names.index(r) for r in self.roles]
         self.radii = np.rint(self.params[:, columns]).astype(np.int64)
+        # the pattern's rotational symmetry order (DrawingMachine.symmetry_order): the leading radius over its gcd
+        # with the lcm of the others; a Hoot-Nanny 6 / 4 / 3 has symmetry 1, not 6
+        others = np.ones(len(self.radii), dtype=np.int64)
+        for column in range(1, self.radii.shape[1]):
+            others = np.lcm(others, self.radii[:, column])
+        self.symmetry = self.radii[:, 0] // np.gcd(self.radii[:, 0], others)
 
     def __len__(self) -> int:
         return len(self.params)
@@ -247,6 +271,10 @@ class CandidateDatabase:
                     match &= self.radii[:, column] == value
             mask |= match
         return np.flatnonzero(mask)
+
+    def rows_with_symmetry(self, order: int) -> np.ndarray:
+        """Rows whose pattern has rotational symmetry of order ``order``."""
+        return np.flatnonzero(self.symmetry == order)
 
     def combinations(self) -> np.ndarray:
         """The distinct radii combinations, ``(C, G)``."""
@@ -332,6 +360,15 @@ def _arclength_resample_batch(curves: np.ndarray, n: int) -> np.ndarray:
     return out
 
 
+def curve_spectra(machine, rows: np.ndarray, points: int, harmonics: int) -> np.ndarray:
+    """Low spectra (:func:`low_spectrum`) of designs' curves ``(k, P)``, sampled as the database samples them.
+
+    Dense time sampling, then uniform arc length: 3-4x cheaper than the model's exact arc-length sampling.
+    """
+    dense = machine.sample_many(rows, n=4 * points + 1, spacing="time", check=False)
+    return low_spectrum(_arclength_resample_batch(dense, points), harmonics)
+
+
 def build_database(machine, settings: DatabaseSettings | None = None,
                    progress: Reporter | ProgressCallback | None = None,
                    cancelled: CancelCheck | None = None) -> CandidateDatabase:
@@ -355,25 +392,27 @@ def build_database(machine, settings: DatabaseSettings | None = None,
     roles = radius_roles(machine)
     rng = np.random.default_rng(settings.seed)
     combos = radius_combinations(machine, settings.max_radius, settings.max_other_radius)
-    designs: list[dict[str, float]] = []
-    for i, combo in enumerate(combos):
-        fixed = dict(zip(roles, combo))
-        anchor = _anchor(machine, fixed, rng)
-        if anchor is not None:
-            designs.extend(feasible_grid(machine, anchor, settings.values_per_dimension))
-        report("grid", i + 1, len(combos), f"{machine.name}: grid {i + 1}/{len(combos)} radii")
-    if not designs:
-        raise CandidateDatabaseError(f"{machine.name}: no feasible design found with radii up to {settings.max_radius}")
     names = machine.parameter_names
-    params = np.array([[d[n] for n in names] for d in designs], dtype=float)
+    if settings.sampling == "uniform":
+        from design.machines.feasible_sampling import uniform_feasible
+
+        params, _ = uniform_feasible(machine, np.array(combos), roles, settings.samples, rng, report=report)
+    else:
+        designs: list[dict[str, float]] = []
+        for i, combo in enumerate(combos):
+            fixed = dict(zip(roles, combo))
+            anchor = _anchor(machine, fixed, rng)
+            if anchor is not None:
+                designs.extend(feasible_grid(machine, anchor, settings.values_per_dimension))
+            report("grid", i + 1, len(combos), f"{machine.name}: grid {i + 1}/{len(combos)} radii")
+        params = np.array([[d[n] for n in names] for d in designs], dtype=float).reshape(len(designs), len(names))
+    if not len(params):
+        raise CandidateDatabaseError(f"{machine.name}: no feasible design found with radii up to {settings.max_radius}")
     spectra = np.zeros((len(params), 2 * settings.harmonics + 1), dtype=np.complex64)
     chunk = max(1, 500_000 // (16 * settings.points))  # small chunks: the dense arc-length pass is memory bound
     for begin in range(0, len(params), chunk):
         rows = params[begin : begin + chunk]
-        # dense time sampling, then uniform arc length: 3-4x cheaper than the model's exact arc-length sampling
-        dense = machine.sample_many(rows, n=4 * settings.points + 1, spacing="time", check=False)
-        curves = _arclength_resample_batch(dense, settings.points)
-        spectra[begin : begin + len(rows)] = low_spectrum(curves, settings.harmonics)
+        spectra[begin : begin + len(rows)] = curve_spectra(machine, rows, settings.points, settings.harmonics)
         done = begin + len(rows)
         report("curves", done, len(params), f"{machine.name}: curves {done}/{len(params)}")
     key = version_key(machine, settings)
@@ -477,6 +516,7 @@ __all__ = [
     "CandidateDatabase",
     "DatabaseSettings",
     "build_database",
+    "curve_spectra",
     "default_settings",
     "farey",
     "feasible_grid",

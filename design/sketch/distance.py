@@ -121,6 +121,37 @@ class SpectrumBank:
     def __len__(self) -> int:
         return len(self.spectra)
 
+    def coarse(self, harmonics: int) -> SpectrumBank:
+        """The same candidates low-passed to ``harmonics`` (cached): a cheaper first pass over many rows."""
+        cached = getattr(self, "_coarse", None)
+        if cached is None or cached.harmonics != harmonics:
+            k = self.harmonics
+            cached = SpectrumBank(self.spectra[:, k - harmonics : k + harmonics + 1])
+            self._coarse = cached
+        return cached
+
+    def screen(self, queries: np.ndarray, rows: np.ndarray | None = None, mirror: bool = False,
+               harmonics: int = 32, keep: int = 1500) -> np.ndarray:
+        """Smallest distance from any of ``queries`` (``(V, 2K+1)``) to candidates ``rows``, coarse to fine.
+
+        Over more than ``keep`` rows, all are first compared at ``harmonics`` harmonics (a 4x shorter FFT), and
+        only the ``keep`` closest are compared at full resolution; the others score 1 + their coarse distance,
+        behind every row compared in full. Returns ``(len(rows),)`` distances.
+        """
+        queries = np.atleast_2d(queries)
+        count = len(self) if rows is None else len(rows)
+        if count <= keep or harmonics >= self.harmonics:
+            return np.min([self.match(q, rows=rows, mirror=mirror).distance for q in queries], axis=0)
+        k = self.harmonics
+        small = self.coarse(harmonics)
+        rough = np.min([small.match(q[k - harmonics : k + harmonics + 1], rows=rows, mirror=mirror).distance
+                        for q in queries], axis=0)
+        best = np.argpartition(rough, keep)[:keep]
+        distance = 1.0 + rough
+        chosen = best if rows is None else np.asarray(rows)[best]
+        distance[best] = np.min([self.match(q, rows=chosen, mirror=mirror).distance for q in queries], axis=0)
+        return distance
+
     def match(self, query: np.ndarray, rows: np.ndarray | None = None, mirror: bool = False) -> Match:
         """Distances from the query to candidates ``rows`` (all by default).
 

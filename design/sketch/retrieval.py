@@ -19,11 +19,18 @@ from scipy.optimize import minimize
 
 from common.progress import CancelCheck, ProgressCallback, Reporter
 from design.errors import DesignError
-from design.sketch.candidates import CandidateDatabase, DatabaseSettings, default_settings, load_database
+from design.sketch.candidates import (
+    CandidateDatabase,
+    DatabaseSettings,
+    curve_spectra,
+    default_settings,
+    load_database,
+)
 from design.sketch.distance import DEFAULT_POINTS, SpectrumBank, low_spectrum
 from design.sketch.errors import RetrievalSettingError, SketchError
 from design.sketch.fourier import RadiiHypothesis, Spectrum, estimate_symmetry, radii_hypotheses, spectrum
 from design.sketch.ordering import StrokeOrder, order_strokes
+from design.sketch.refine import refine_many
 from design.sketch.spline import ClosedSpline, fit_closed_spline
 from design.sketch.strokes import Sketch, check_symmetry
 
@@ -32,6 +39,9 @@ MAX_TOP = 100
 #: When the best pruned candidate over every machine is farther than this, the search widens (leading radius only,
 #: then every candidate unless the symmetry order was given). Good matches of the benchmark sketches are below 0.02.
 PRUNE_FALLBACK_DISTANCE = 0.05
+#: Candidates whose continuous parameters are refined by default (:func:`design.sketch.refine.refine_many`): the
+#: database samples a few designs per gear radii, the sketched design lies between them.
+DEFAULT_REFINE = 3
 
 
 @dataclass(frozen=True)
@@ -84,7 +94,35 @@ def prepare_sketch(
     harmonics = DEFAULT_HARMONICS if harmonics is None else harmonics
     strokes = sketch.symmetrized()
     order = order_strokes(strokes, method=ordering)
-    path = order.path(strokes)
+    return _prepared(sketch, strokes, order, order.path(strokes), smoothing, points, harmonics)
+
+
+def prepare_variants(
+    sketch: Sketch, smoothing: float = 0.01, points: int = DEFAULT_POINTS, harmonics: int | None = None
+) -> list[PreparedSketch]:
+    """The ways a sketch may be read: :func:`prepare_sketch`, and for a sector sketch (symmetry ``k > 1``) also its
+    copies chained in drawing order (:func:`design.sketch.sector.
+    sector_path`). Retrieval keeps, for each candidate, the reading it matches best."""
+    from design.sketch.distance import DEFAULT_HARMONICS
+    from design.sketch.sector import sector_path
+
+    harmonics = DEFAULT_HARMONICS if harmonics is None else harmonics
+    variants = [prepare_sketch(sketch, smoothing, points, harmonics)]
+    if sketch.symmetry > 1:
+        # also when symmetrize() dropped copies as retracing others: on a ring the copies of a sector overlap
+        chained = sector_path(sketch)
+        if chained is not None:
+            path, strokes, order = chained
+            try:
+                variants.append(_prepared(sketch, strokes, order, path, smoothing, points, harmonics))
+            except SketchError:
+                pass  # the tour's reading stands alone
+    return variants
+
+
+def _prepared(sketch: Sketch, strokes: list[np.ndarray], order: StrokeOrder, path: np.ndarray, smoothing: float,
+              points: int, harmonics: int) -> PreparedSketch:
+    """Fit, resample and analyse one closed path of a sketch."""
     spline = fit_closed_spline(path, smoothing)
     curve = spline.resample(points, "arclength")
     extent = np.ptp(curve, axis=0)
@@ -219,9 +257,10 @@ class SketchRetriever:
         top: int = 5,
         symmetry: int | None = None,
         prune: bool = True,
-        refine: int = 0,
+        refine: int = DEFAULT_REFINE,
         smoothing: float = 0.01,
         mirror: bool = False,
+        machines: Sequence[str] | None = None,
     ) -> RetrievalResult:
         """Ranked candidates for a sketch.
 
@@ -237,12 +276,21 @@ class SketchRetriever:
             Compare only candidates whose radii agree with the spectrum (Eq. 3.6); falls back to every candidate of
             a machine when none agree.
         refine : int
-            Refine the continuous parameters of this many top candidates by bounded local optimization.
+            Refine the continuous parameters of this many top candidates by a local search of the same distance
+            (:func:`design.sketch.refine.refine_many`), 0 for none.
         smoothing : float
             Relative smoothing factor of the spline (see :func:`fit_closed_spline`).
         mirror : bool
             Also match mirror images of the candidates.
+        machines : sequence of str, optional
+            Search only these of the retriever's machines (all by default).
         """
+        searched = list(dict.fromkeys(machines)) if machines else self.machine_names
+        for name in searched:
+            if name not in self.machines:
+                raise RetrievalSettingError(
+                    f"retrieve: machine {name!r} is not one this retriever searches ({', '.join(self.machine_names)})"
+                )
         if isinstance(top, bool) or not isinstance(top, (int, np.integer)) or not 1 <= top <= MAX_TOP:
             raise RetrievalSettingError(f"retrieve: top must be an integer in [1, {MAX_TOP}], got {top!r}")
         if isinstance(refine, bool) or not isinstance(refine, (int, np.integer)) or not 0 <= refine <= MAX_TOP:
@@ -251,7 +299,9 @@ class SketchRetriever:
         clock = time.perf_counter()
         if symmetry is not None:
             sketch = sketch.with_symmetry(check_symmetry(symmetry))
-        prepared = prepare_sketch(sketch, smoothing=smoothing, harmonics=self.harmonics)
+        variants = prepare_variants(sketch, smoothing=smoothing, harmonics=self.harmonics)
+        prepared = variants[0]
+        targets = np.stack([v.coefficients for v in variants])
         timings["prepare"] = time.perf_counter() - clock
         known_symmetry = sketch.symmetry if sketch.symmetry > 1 else None
         estimated = estimate_symmetry(prepared.spectrum)
@@ -259,7 +309,7 @@ class SketchRetriever:
         clear = len(prepared.spectrum.peaks) >= 2 and prepared.spectrum.magnitude(int(prepared.spectrum.peaks[1])) > 0.1
         lead = known_symmetry or (estimated if estimated > 1 and clear else None)
         plans: dict[str, tuple[list[RadiiHypothesis], list[np.ndarray | None], list[str]]] = {}
-        for name in self.machine_names:
+        for name in searched:
             database = self.database(name)
             hypotheses: list[RadiiHypothesis] = []
             stages: list[np.ndarray | None] = [None]
@@ -268,15 +318,15 @@ class SketchRetriever:
                 n_gears = database.radii.shape[1]
                 stages, names = [], []
                 if n_gears in (2, 3):
-                    hypotheses = radii_hypotheses(prepared.spectrum, n_gears, known_symmetry)
+                    hypotheses = [h for v in variants for h in radii_hypotheses(v.spectrum, n_gears, known_symmetry)]
                     if known_symmetry is None and estimated > 1:
                         hypotheses.append(RadiiHypothesis((estimated,) + (None,) * (n_gears - 1), 0.0))
                     stages.append(database.rows_matching(hypotheses))
                     names.append("spectrum radii")
                 if lead is not None:
-                    # The leading radius is the symmetry order: a machine without it cannot draw the sketch.
-                    stages.append(database.rows_matching([RadiiHypothesis((lead,), 0.0)]))
-                    names.append("leading radius")
+                    # A design whose pattern has another symmetry order cannot draw the sketch.
+                    stages.append(database.rows_with_symmetry(lead))
+                    names.append("symmetry")
                 if known_symmetry is None:
                     names.append("all")
                     stages.append(None)  # an estimated symmetry may be wrong: everything, as a last resort
@@ -292,7 +342,7 @@ class SketchRetriever:
                 rows = stages[level]
                 begin = time.perf_counter()
                 database = self.database(name)
-                distances = database.bank.match(prepared.coefficients, rows=rows, mirror=mirror).distance
+                distances = database.bank.screen(targets, rows=rows, mirror=mirror)
                 indices = np.arange(len(database)) if rows is None else rows
                 spent = time.perf_counter() - begin + (results[name][3] if name in results else 0.0)
                 results[name] = (
@@ -315,13 +365,21 @@ class SketchRetriever:
         pool.sort(key=lambda c: c.distance)
         if refine:
             begin = time.perf_counter()
-            refined = [
-                refine_candidate(self.machines[c.machine], c, prepared.coefficients, mirror=mirror)
-                for c in pool[:refine]
-            ]
+            refined = []
+            for name in searched:
+                mine = [c for c in pool[:refine] if c.machine == name]
+                refined.extend(refine_many(self.machines[name], mine, targets, mirror=mirror))
             pool = sorted(refined + pool[refine:], key=lambda c: c.distance)
             timings["refine"] = time.perf_counter() - begin
         timings["total"] = time.perf_counter() - clock
+        if len(variants) > 1 and pool:
+            # show the reading the best candidate matches
+            best = pool[0]
+            database = self.database(best.machine)
+            spectra = curve_spectra(self.machines[best.machine], np.array([[best.params[n] for n in
+                                    database.parameter_names]]), 512, self.harmonics)
+            bank = SpectrumBank(spectra)
+            prepared = min(variants, key=lambda v: float(bank.match(v.coefficients, mirror=mirror).distance[0]))
         return RetrievalResult(pool[:top], prepared, reports, timings)
 
 

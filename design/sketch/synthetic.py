@@ -66,6 +66,15 @@ def pattern_detail(curve: np.ndarray) -> float:
     return float(1.0 - power.max() / total) if total > 0 else 0.0
 
 
+def drawn_piece(machine, design: dict[str, float], sector: int, rng: np.random.Generator, points: int) -> np.ndarray:
+    """``points`` points of the design's pattern over one period, or (``sector`` = ``k > 1``) over one ``k``-th of
+    it from a random start time: the piece a maker draws with ``--symmetry k``."""
+    period = machine.period(design)
+    if sector > 1:
+        return machine.curve(design, rng.random() * period + np.linspace(0.0, period / sector, points))
+    return machine.curve(design, np.linspace(0.0, period, points))
+
+
 def make_case(
     machine,
     radii: dict[str, int],
@@ -113,13 +122,7 @@ def make_case(
     if design is None:
         return None
     sector = symmetry > 1 and rng.random() < sector_probability
-    period = machine.period(design)
-    if sector:
-        start = rng.random() * period
-        t = start + np.linspace(0.0, period / symmetry, 1500)
-    else:
-        t = np.linspace(0.0, period, 6000)
-    curve = machine.curve(design, t)
+    curve = drawn_piece(machine, design, symmetry if sector else 1, rng, 1500 if sector else 6000)
     size = float(np.linalg.norm(np.ptp(curve, axis=0)))
     n_strokes = int(rng.integers(1, 5))
     # stroke boundaries along the arc length, each followed by a pen lift of 2-6 % of the pattern's size

@@ -34,9 +34,11 @@ def register(subparsers) -> None:
         help="find drawing-machine designs that match a rough sketch (JSON or SVG strokes)",
         description="Sketch-based pattern retrieval (thesis 3.4). The strokes are copied K times around the sketch "
         "centre (--symmetry), joined by the shortest closed tour, smoothed by a closed cubic spline and compared "
-        "with each machine's candidate designs (coprime gear radii from the Farey sequence, continuous parameters "
-        "on a feasible grid) by a symmetric Procrustes distance, minimized over direction and start point. "
-        "The first run builds the candidate databases (about 15 s) and caches them.",
+        "with each machine's candidate designs (every coprime gear radii combination up to 10-12, continuous "
+        "parameters on a feasible grid or sampled uniformly over the feasible set) by a symmetric Procrustes "
+        "distance, minimized over direction and start point; the best candidates' continuous parameters are then "
+        "refined (--refine). A sector sketch is also read as its copies chained in drawing order. "
+        "The first run builds the candidate databases (about 20 s of CPU) and caches them.",
         epilog='sketch JSON: [[[x, y], ...], ...] or {"strokes": [...], "symmetry": K, "center": [x, y]}.  '
         "example: station retrieve examples/sketches/trefoil-sector.json --top 5 --out /tmp/retrieval",
     )
@@ -50,16 +52,18 @@ def register(subparsers) -> None:
     parser.add_argument("--top", type=int, default=defaults.top, metavar="N",
                         help=f"number of candidates, {_range(TOP_RANGE)} (default {defaults.top})")
     parser.add_argument("--refine", type=int, default=defaults.refine, metavar="N",
-                        help=f"refine the continuous parameters of the N best, {_range(REFINE_RANGE)} "
-                             f"(default {defaults.refine})")
+                        help=f"refine the continuous parameters of the N best by a local search of the same "
+                             f"distance, {_range(REFINE_RANGE)} (default {defaults.refine}; 0: the databases' "
+                             "designs as they are)")
     parser.add_argument("--smoothing", type=float, default=defaults.smoothing, metavar="S",
                         help=f"spline smoothing, fraction of the sketch size, {_range(SMOOTHING_RANGE)} "
                              f"(default {defaults.smoothing:g})")
     parser.add_argument("--no-prune", action="store_true", help="compare every candidate (skip the Fourier pruning)")
     parser.add_argument("--mirror", action="store_true", help="also accept mirror images of the patterns")
     parser.add_argument("--grid", type=int, metavar="V",
-                        help=f"values per continuous parameter in the databases, {_range(GRID_RANGE)} "
-                             "(default: Spirograph 12, elliptic 6, others 4)")
+                        help=f"values per continuous parameter of the grid databases, {_range(GRID_RANGE)} "
+                             "(default: Spirograph 12, elliptic 6; the Cycloid Drawing Machine and Hoot-Nanny "
+                             "databases sample their feasible sets uniformly and keep theirs)")
     parser.add_argument("--json", action="store_true", help="print [{machine, params, distance}, ...] as JSON")
     parser.add_argument("--out", metavar="DIR", help="also write a contact sheet PNG of the sketch vs the candidates")
     parser.set_defaults(func=run_retrieve)

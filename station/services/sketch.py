@@ -2,7 +2,7 @@
 
 Used by ``station retrieve`` and the Sketch retrieval screen. The candidate databases are built once per machine
 and cached in the station's cache directory; building reports :class:`common.progress.Progress` (stages
-``"build"``, ``"grid"``, ``"curves"``) and honours a cancel check.
+``"build"``, ``"grid"`` or ``"sampling"``, ``"curves"``) and honours a cancel check.
 
 >>> options = RetrieveOptions(machines=("spirograph",), top=3)
 >>> options.check()
@@ -49,12 +49,13 @@ class RetrieveOptions:
     mirror : bool
         Also accept mirror images of the patterns.
     grid : int, optional
-        Values per continuous parameter in the databases (default: each machine's own).
+        Values per continuous parameter of the grid databases (the Spirographs'; default: each machine's own). The
+        databases that sample their feasible sets uniformly (Cycloid Drawing Machine, Hoot-Nanny) keep theirs.
     """
 
     machines: tuple[str, ...] = ()
     top: int = 5
-    refine: int = 0
+    refine: int = 3
     smoothing: float = 0.01
     prune: bool = True
     mirror: bool = False
@@ -105,7 +106,9 @@ def make_retriever(options: RetrieveOptions | None = None, *, progress: Reporter
     machines = options.machine_list()
     settings = None
     if options.grid is not None:
-        settings = {n: replace(default_settings(n), values_per_dimension=options.grid)
+        # only grid databases: a Hoot-Nanny grid over every radii up to 10 would hold 4^5 designs per radii
+        settings = {n: (replace(default_settings(n), values_per_dimension=options.grid)
+                        if default_settings(n).sampling == "grid" else default_settings(n))
                     for n in machines or machine_names()}
     return SketchRetriever(machines, cache_dir=cache_dir() if cache is None else cache, settings=settings,
                            progress=progress, cancelled=cancelled)
@@ -140,7 +143,7 @@ def retrieve(sketch: Sketch, options: RetrieveOptions | None = None, *, retrieve
     if retriever is None:
         retriever = make_retriever(options, progress=progress, cancelled=cancelled)
     return retriever.query(sketch, top=options.top, prune=options.prune, refine=options.refine,
-                           smoothing=options.smoothing, mirror=options.mirror)
+                           smoothing=options.smoothing, mirror=options.mirror, machines=options.machine_list())
 
 
 def candidate_curve(candidate: Candidate, points: int = 2048) -> np.ndarray:
