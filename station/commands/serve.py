@@ -1,0 +1,52 @@
+"""``station serve``: the station's UI in a browser (a tablet by the laser, a phone by the plotter)."""
+
+from __future__ import annotations
+
+from station.errors import StationError, UsageError
+from station.paths import data_dir
+
+
+def register(subparsers) -> None:
+    parser = subparsers.add_parser(
+        "serve",
+        help="the station's UI in a browser (local only unless given --host; then a token guards it)",
+        description="Serve the station's terminal UI to web browsers: every browser session runs the same UI as "
+        "`station` in a terminal, on the same data folder and devices, with the same keys and questions (a laser "
+        "job is started with g, aborted with ctrl+x). Local only by default (127.0.0.1). On any other address "
+        "(--host 0.0.0.0 for every network of this computer) a token is required: it is made once, kept in the "
+        "data folder (readable by you only) and carried by the printed URL; a request without it gets 403. A "
+        "session whose browser goes away is quit as a closed terminal is: its running job is aborted.",
+        epilog="examples:\n  station serve\n  station serve --host 0.0.0.0 --port 8000\n"
+        "  station serve --host 0.0.0.0 --new-token",
+    )
+    parser.add_argument("--host", default="127.0.0.1",
+                        help="address to listen on (default 127.0.0.1: this computer only; 0.0.0.0 or :: for every "
+                        "network, with a token)")
+    parser.add_argument("--port", type=int, default=8000, help="port (default 8000)")
+    parser.add_argument("--new-token", action="store_true",
+                        help="replace the stored token (links and bookmarks with the old one stop working)")
+    parser.set_defaults(func=run_serve)
+
+
+def run_serve(args) -> int:
+    from station.serve import load_or_create_token, make_server, needs_token, token_path
+
+    if not 1 <= args.port <= 65535:
+        raise UsageError(f"--port must be an integer in [1, 65535], got {args.port}")
+    host = args.host.strip().strip("[]")
+    if not host:
+        raise UsageError("--host must be an address or a name, e.g. 127.0.0.1 or 0.0.0.0")
+    token = None
+    if needs_token(host):
+        token, why = load_or_create_token(data_dir(), renew=args.new_token)
+        where = token_path(data_dir())
+        print(f"station serve: {host} is reachable from other computers: every request needs the token "
+              f"({'made a new one: ' + why if why else 'kept'} in {where}, readable by you only)")
+    elif args.new_token:
+        raise UsageError(f"--new-token is for a served address other than 127.0.0.1 and ::1, got --host {host}")
+    server = make_server(host, args.port, token)
+    try:
+        server.serve()
+    except OSError as error:  # the port is taken, the address is not this computer's
+        raise StationError(f"cannot listen on {host} port {args.port}: {error.strerror or error}") from None
+    return 0
