@@ -174,6 +174,10 @@ class StationServer(Server):
             self.sessions.discard(service)
 
     async def on_startup(self, app: web.Application) -> None:
+        """Nothing: the URLs are said once the server listens (:meth:`listening`)."""
+
+    def listening(self, _aiohttp_says: str = "") -> None:
+        """Say where to open the station; aiohttp calls it (as its ``print``) once the address is bound."""
         for url in urls(self.host, self.port, self.token):
             self.say(f"station serve: open {url}")
         if self.token:
@@ -193,5 +197,5 @@ class StationServer(Server):
             logger = logging.getLogger(name)
             logger.setLevel(logging.DEBUG if debug else logging.INFO)
             logger.addHandler(handler)
-        web.run_app(self._make_app(), host=self.host, port=self.port, access_log=None, print=None,
+        web.run_app(self._make_app(), host=self.host, port=self.port, access_log=None, print=self.listening,
                     handle_signals=True, shutdown_timeout=SESSION_STOP_WAIT + 5)

@@ -1,0 +1,135 @@
+"""``station serve`` as a browser meets it: the server in a subprocess, the page, its websocket session, the token,
+and a real headless Chromium (when installed)."""
+
+from __future__ import annotations
+
+import json
+import os
+import stat
+import subprocess
+import sys
+
+import aiohttp
+import numpy as np
+import pytest
+from PIL import Image
+
+from station.serve import TOKEN_COOKIE, TOKEN_FILE
+
+from .serve_client import ROOT, BrowserSession, ServedStation, chromium, chromium_screenshot
+
+HOME_TEXT = ("Areas", "Recent machine jobs", "Database: ")
+
+
+def jobs(home) -> list[dict]:
+    """``station jobs --json`` on the data folder ``home`` (a separate process: what the served session recorded)."""
+    done = subprocess.run([sys.executable, "-m", "station", "jobs", "--json"], cwd=ROOT, capture_output=True,
+                          text=True, env=dict(os.environ, CHAOS_STATION_HOME=str(home), PYTHONPATH=str(ROOT)),
+                          check=True)
+    return json.loads(done.stdout)["jobs"]
+
+
+@pytest.fixture
+def served(tmp_path):
+    with ServedStation(tmp_path / "home") as station:
+        yield station
+
+
+async def start_laser_job(session: BrowserSession) -> None:
+    """From the home screen: the Machines screen, the laser, the current design queued as a laser job, started."""
+    await session.key("m")
+    await session.until("Abort", "plotter: GRBL")  # the simulated plotter, connected on arrival
+    await session.key("\x18")  # ctrl+x, as xterm.js sends it: the abort works while idle too
+    await session.until("abort: soft reset sent")
+    await session.key("v")
+    await session.until("laser")
+    await session.key("n")
+    await session.until("queued")
+    await session.until("laser: GRBL")  # connected to the simulated laser (g says "not connected" before)
+    await session.key("g")
+    await session.until("running")
+
+
+async def test_a_browser_session_shows_home_and_asks_before_quitting_a_laser_job(served):
+    async with aiohttp.ClientSession() as client:
+        session = BrowserSession(client, served.url)
+        page = await session.open()
+        assert "Crafting Chaos station" in page
+        text = await session.until(*HOME_TEXT)
+        # the session's app opened the server's data folder
+        assert f"Database: {served.home / 'station.sqlite3'}" in text.replace("\n", "")
+        await start_laser_job(session)
+        await session.key("\x11")  # ctrl+q: the terminal's question, in the browser
+        await session.until("Quitting now aborts it", "the laser is switched off", "Abort and quit (a)")
+        await session.key("a")
+        assert await session.closed(), "the app did not quit after 'abort and quit'"
+    laser = [job for job in jobs(served.home) if job["device"] == "laser"]
+    assert [job["status"] for job in laser] == ["aborted"], laser
+    assert "laser off" in laser[0]["message"]
+    assert served.stop() in (0, 130)
+    assert any("session" in line and "ended" in line for line in served.lines), served.lines
+
+
+async def test_a_browser_gone_mid_job_aborts_it_and_the_job_is_recorded(served):
+    # a tablet's tab closed (or its Wi-Fi lost) while the laser runs: no one to ask, so the job is aborted as
+    # 'abort and quit' does and recorded as aborted, not cut off ('interrupted')
+    async with aiohttp.ClientSession() as client:
+        session = BrowserSession(client, served.url)
+        await session.open()
+        await session.until(*HOME_TEXT)
+        await start_laser_job(session)
+        await session.websocket.close()
+    served.wait_for_line("station serve: session", timeout=5)
+    ended = next(line for line in served.lines if "started" in line).replace("started", "ended")
+    served.wait_for_line(ended, timeout=40)
+    laser = [job for job in jobs(served.home) if job["device"] == "laser"]
+    assert [job["status"] for job in laser] in (["aborted"], ["refused"]), laser  # refused: hit in its pre-flight
+    assert "reset" in laser[0]["message"]
+
+
+async def test_on_another_address_every_request_needs_the_token(tmp_path):
+    home = tmp_path / "home"
+    with ServedStation(home, "127.0.0.2") as station:
+        token_file = home / TOKEN_FILE
+        token = token_file.read_text().strip()
+        assert stat.S_IMODE(token_file.stat().st_mode) == 0o600
+        assert station.url == f"http://127.0.0.2:{station.port}/?token={token}"
+        base = f"http://127.0.0.2:{station.port}"
+        # unsafe: aiohttp keeps no cookie from an IP address unless told to (browsers do)
+        async with aiohttp.ClientSession(cookie_jar=aiohttp.CookieJar(unsafe=True)) as client:
+            for path in ("/", "/static/js/textual.js", "/ws", "/?token=" + "x" * len(token), "/download/x"):
+                async with client.get(base + path) as response:
+                    assert response.status == 403, path
+                    body = await response.text()
+                    assert "textual" not in body.lower() and "Crafting" not in body, body
+            async with client.get(f"{base}/?token={token}") as response:
+                assert response.status == 200
+                assert "Crafting Chaos station" in await response.text()
+                assert response.cookies[TOKEN_COOKIE]["httponly"]
+            # the page's own requests carry the cookie: its websocket session shows the home screen
+            session = BrowserSession(client, station.url)
+            await session.open()
+            await session.until(*HOME_TEXT)
+            await session.websocket.close()
+    printed = "\n".join(station.lines)
+    assert printed.count(token) == 1, printed  # printed once, never in the log of refused requests
+    assert printed.count("refused GET") >= 4
+
+
+@pytest.mark.skipif(chromium() is None, reason="no chromium on this machine (apt-get install chromium)")
+async def test_headless_chromium_shows_the_home_screen(served, tmp_path):
+    png, text = await chromium_screenshot(served.url, "Recent machine jobs", tmp_path / "profile")
+    assert all(needle in text for needle in HOME_TEXT), text
+    path = tmp_path / "home.png"
+    path.write_bytes(png)
+    if os.environ.get("STATION_SERVE_SCREENSHOT"):  # how docs/station-serve-home.png is made
+        Image.open(path).save(os.environ["STATION_SERVE_SCREENSHOT"], optimize=True)
+    picture = np.asarray(Image.open(path).convert("RGB")).astype(int)
+    # the terminal filled the window (not textual-serve's start dialog on its dotted background): the top rows left
+    # of the title are the Textual header, one colour; the start dialog's background there is #0c181f
+    header = picture[3:14, 40:380].reshape(-1, 3)
+    assert np.ptp(header, axis=0).max() <= 8, "the header rows are not one colour"
+    assert np.abs(header.mean(axis=0) - (0x0C, 0x18, 0x1F)).max() > 6, "the page still shows its start dialog"
+    # and it has text on it: the home screen's lines are lighter than their background
+    body = picture[80:400, 20:600]
+    assert (body.max(axis=2) > 150).mean() > 0.01
