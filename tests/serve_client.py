@@ -23,6 +23,7 @@ import time
 from pathlib import Path
 
 import aiohttp
+import pyte
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -94,11 +95,16 @@ class ServedStation:
 
 
 class BrowserSession:
-    """A page and its websocket session, as textual.js opens them (with the page's cookies and ``Origin``)."""
+    """A page and its websocket session, as textual.js opens them (with the page's cookies and ``Origin``).
+
+    The session's output is played on a terminal emulator (pyte) the size xterm.js said, so that :meth:`screen`
+    is what the browser shows now (Textual redraws changed regions: the raw stream repeats old text).
+    """
 
     def __init__(self, client: aiohttp.ClientSession, url: str, size: tuple[int, int] = (120, 40)) -> None:
         self.client, self.url, self.size = client, url, size
-        self.output = b""
+        self.terminal = pyte.Screen(*size)
+        self.stream = pyte.ByteStream(self.terminal)
         self.websocket: aiohttp.ClientWebSocketResponse | None = None
 
     async def open(self) -> str:
@@ -117,27 +123,36 @@ class BrowserSession:
         await self.websocket.send_json(["resize", {"width": width, "height": height}])
         return page
 
+    def screen(self) -> str:
+        """What the browser's terminal shows now, one line per row."""
+        return "\n".join(line.rstrip() for line in self.terminal.display)
+
     async def key(self, keys: str) -> None:
         await self.websocket.send_json(["stdin", keys])
 
-    async def until(self, *needles: str, timeout: float = 30.0) -> str:
-        """Read the session's output until every one of ``needles`` has been written since the last call; the text
-        read. The output is forgotten then, so the next call waits for new text."""
+    async def until(self, *needles: str, more_than: dict[str, int] | None = None, timeout: float = 30.0) -> str:
+        """Read the session until the screen shows every one of ``needles`` (more times than ``more_than`` says,
+        when given); the screen then."""
+        more_than = more_than or {}
         deadline = time.monotonic() + timeout
         while True:
-            text = terminal_text(self.output)
-            if all(needle in text for needle in needles):
-                self.output = b""
-                return text
-            left = deadline - time.monotonic()
+            shown = self.screen()
+            if all(shown.count(needle) > more_than.get(needle, 0) for needle in needles):
+                return shown
             try:
-                message = await self.websocket.receive(timeout=max(left, 0.01))
+                message = await self.websocket.receive(timeout=max(deadline - time.monotonic(), 0.01))
             except asyncio.TimeoutError:
-                raise AssertionError(f"no {needles} within {timeout} s; the session wrote:\n{text[-3000:]}") from None
+                raise AssertionError(f"no {needles} on the screen within {timeout} s:\n{shown}") from None
             if message.type == aiohttp.WSMsgType.BINARY:
-                self.output += message.data
+                self.stream.feed(message.data)
             elif message.type in (aiohttp.WSMsgType.CLOSE, aiohttp.WSMsgType.CLOSED, aiohttp.WSMsgType.CLOSING):
-                raise AssertionError(f"the session closed before {needles}; it wrote:\n{text[-3000:]}")
+                raise AssertionError(f"the session closed before showing {needles}:\n{shown}")
+
+    async def press(self, keys: str, *needles: str, timeout: float = 30.0) -> str:
+        """Send ``keys`` and wait until the screen shows each of ``needles`` once more than it did before."""
+        before = self.screen()
+        await self.key(keys)
+        return await self.until(*needles, more_than={n: before.count(n) for n in needles}, timeout=timeout)
 
     async def closed(self, timeout: float = 40.0) -> bool:
         """Wait until the server closes the session (the app exited)."""
@@ -145,7 +160,7 @@ class BrowserSession:
         while time.monotonic() < deadline:
             message = await self.websocket.receive(timeout=max(deadline - time.monotonic(), 0.01))
             if message.type == aiohttp.WSMsgType.BINARY:
-                self.output += message.data
+                self.stream.feed(message.data)
             elif message.type in (aiohttp.WSMsgType.CLOSE, aiohttp.WSMsgType.CLOSED, aiohttp.WSMsgType.CLOSING):
                 return True
         return False

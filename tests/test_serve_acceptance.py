@@ -29,25 +29,40 @@ def jobs(home) -> list[dict]:
     return json.loads(done.stdout)["jobs"]
 
 
-@pytest.fixture
-def served(tmp_path):
-    with ServedStation(tmp_path / "home") as station:
-        yield station
+@pytest.fixture(scope="module")
+def served(tmp_path_factory):
+    """One local server for the module's browser sessions (each session is an app process of its own); stopping
+    it (SIGTERM) ends it cleanly."""
+    station = ServedStation(tmp_path_factory.mktemp("served") / "home")
+    yield station
+    assert station.stop() in (0, 130), station.lines
 
 
-async def start_laser_job(session: BrowserSession) -> None:
-    """From the home screen: the Machines screen, the laser, the current design queued as a laser job, started."""
-    await session.key("m")
-    await session.until("Abort", "plotter: GRBL")  # the simulated plotter, connected on arrival
-    await session.key("\x18")  # ctrl+x, as xterm.js sends it: the abort works while idle too
-    await session.until("abort: soft reset sent")
-    await session.key("v")
-    await session.until("laser")
-    await session.key("n")
-    await session.until("queued")
+def newest_laser_job(home) -> dict:
+    return next(job for job in jobs(home) if job["device"] == "laser")
+
+
+IDLE_ABORT = "abort: soft reset sent (no job was running)"
+
+
+async def start_laser_job(session: BrowserSession, *, abort_keys: bool = False) -> None:
+    """From the home screen: the Machines screen, the laser, the current design queued as a laser job, started.
+
+    ``abort_keys``: first, on the idle plotter, abort with ctrl+x and with a tap on the footer's "^x Abort".
+    """
+    await session.press("m", "Abort", "plotter: GRBL")  # the simulated plotter, connected on arrival
+    if abort_keys:
+        # each abort says so under the queue and adds a console line: 2 lines, then one more (the same message)
+        await session.key("\x18")  # ctrl+x, as xterm.js sends it
+        await session.until(IDLE_ABORT, more_than={IDLE_ABORT: 1})
+        # a tablet has no ctrl key: a tap on the footer's first key (^x Abort, bottom-left), xterm.js's SGR click
+        height = session.size[1]
+        await session.key(f"\x1b[<0;2;{height}M\x1b[<0;2;{height}m")
+        await session.until(IDLE_ABORT, more_than={IDLE_ABORT: 2})
+    await session.press("v", "laser (laser")
+    await session.press("n", "queued")
     await session.until("laser: GRBL")  # connected to the simulated laser (g says "not connected" before)
-    await session.key("g")
-    await session.until("running")
+    await session.press("g", "running")
 
 
 async def test_a_browser_session_shows_home_and_asks_before_quitting_a_laser_job(served):
@@ -58,16 +73,13 @@ async def test_a_browser_session_shows_home_and_asks_before_quitting_a_laser_job
         text = await session.until(*HOME_TEXT)
         # the session's app opened the server's data folder
         assert f"Database: {served.home / 'station.sqlite3'}" in text.replace("\n", "")
-        await start_laser_job(session)
-        await session.key("\x11")  # ctrl+q: the terminal's question, in the browser
-        await session.until("Quitting now aborts it", "the laser is switched off", "Abort and quit (a)")
+        await start_laser_job(session, abort_keys=True)
+        # ctrl+q: the terminal's question, in the browser
+        await session.press("\x11", "Quitting now aborts it", "the laser is switched off", "Abort and quit (a)")
         await session.key("a")
         assert await session.closed(), "the app did not quit after 'abort and quit'"
-    laser = [job for job in jobs(served.home) if job["device"] == "laser"]
-    assert [job["status"] for job in laser] == ["aborted"], laser
-    assert "laser off" in laser[0]["message"]
-    assert served.stop() in (0, 130)
-    assert any("session" in line and "ended" in line for line in served.lines), served.lines
+    job = newest_laser_job(served.home)
+    assert job["status"] == "aborted" and "laser off" in job["message"], job
 
 
 async def test_a_browser_gone_mid_job_aborts_it_and_the_job_is_recorded(served):
@@ -79,12 +91,12 @@ async def test_a_browser_gone_mid_job_aborts_it_and_the_job_is_recorded(served):
         await session.until(*HOME_TEXT)
         await start_laser_job(session)
         await session.websocket.close()
-    served.wait_for_line("station serve: session", timeout=5)
-    ended = next(line for line in served.lines if "started" in line).replace("started", "ended")
-    served.wait_for_line(ended, timeout=40)
-    laser = [job for job in jobs(served.home) if job["device"] == "laser"]
-    assert [job["status"] for job in laser] in (["aborted"], ["refused"]), laser  # refused: hit in its pre-flight
-    assert "reset" in laser[0]["message"]
+    started = [line for line in served.lines if line.endswith("started")][-1]
+    served.wait_for_line(started.replace("started", "ended"), timeout=40)
+    job = newest_laser_job(served.home)
+    # the job was started in this session, and ended by the abort (refused: hit in its pre-flight check)
+    assert job["status"] in ("aborted", "refused") and "reset" in job["message"], job
+    assert jobs(served.home).index(job) == 0
 
 
 async def test_on_another_address_every_request_needs_the_token(tmp_path):
