@@ -156,24 +156,18 @@ def origin_matches(origin: str | None, host_header: str) -> bool:
     return origin in (f"http://{host_header}", f"https://{host_header}")
 
 
-def urls(host: str, port: int, token: str | None) -> list[str]:
-    """The URLs to print: the bound address, or for a wildcard (0.0.0.0, ::) this machine's name and address."""
-    names = [host]
+def url(host: str, port: int, token: str | None) -> str:
+    """The URL to print (once): the bound address, or for a wildcard (0.0.0.0, ::) this machine's address on its
+    default route (a tablet may not resolve the machine's name), else its name."""
+    name = host
     if host in ("0.0.0.0", "::", ""):
-        names = [socket.gethostname()]
-        address = _outward_address()
-        if address:
-            names.append(address)
-    query = f"/?{TOKEN_PARAMETER}={token}" if token else "/"
-    out = []
-    for name in names:
-        try:
-            literal = ipaddress.ip_address(name)
-        except ValueError:
-            literal = None
-        shown = f"[{name}]" if literal is not None and literal.version == 6 else name
-        out.append(f"http://{shown}:{port}{query}")
-    return out
+        name = _outward_address() or socket.gethostname()
+    try:
+        literal = ipaddress.ip_address(name)
+    except ValueError:
+        literal = None
+    shown = f"[{name}]" if literal is not None and literal.version == 6 else name
+    return f"http://{shown}:{port}/" + (f"?{TOKEN_PARAMETER}={token}" if token else "")
 
 
 def _outward_address() -> str:

@@ -25,7 +25,7 @@ from station.serve import (
     log,
     origin_matches,
     token_matches,
-    urls,
+    url,
 )
 
 #: Headers on every answer: never cached (the page's URL carries the token), never framed by another site (a page
@@ -178,8 +178,7 @@ class StationServer(Server):
 
     def listening(self, _aiohttp_says: str = "") -> None:
         """Say where to open the station; aiohttp calls it (as its ``print``) once the address is bound."""
-        for url in urls(self.host, self.port, self.token):
-            self.say(f"station serve: open {url}")
+        self.say(f"station serve: open {url(self.host, self.port, self.token)}")
         if self.token:
             self.say("station serve: the token is in that URL; whoever has it can run the machines")
         self.say("station serve: Ctrl+C stops the server (and every session: running jobs are aborted)")

@@ -24,7 +24,7 @@ from station.serve import (
     needs_token,
     origin_matches,
     token_matches,
-    urls,
+    url,
 )
 from station.serve_http import StationServer
 
@@ -90,13 +90,12 @@ def test_websocket_origin_must_be_the_page():
     assert not origin_matches("http://127.0.0.1:8001", "127.0.0.1:8000")
 
 
-def test_printed_urls():
-    assert urls("127.0.0.1", 8000, None) == ["http://127.0.0.1:8000/"]
-    assert urls("::1", 8000, None) == ["http://[::1]:8000/"]
-    assert urls("127.0.0.2", 8080, TOKEN) == [f"http://127.0.0.2:8080/?token={TOKEN}"]
-    everywhere = urls("0.0.0.0", 8000, TOKEN)
-    assert everywhere and all(url.endswith(f":8000/?token={TOKEN}") for url in everywhere)
-    assert not any("0.0.0.0" in url for url in everywhere)  # no address a tablet can open
+def test_printed_url():
+    assert url("127.0.0.1", 8000, None) == "http://127.0.0.1:8000/"
+    assert url("::1", 8000, None) == "http://[::1]:8000/"
+    assert url("127.0.0.2", 8080, TOKEN) == f"http://127.0.0.2:8080/?token={TOKEN}"
+    everywhere = url("0.0.0.0", 8000, TOKEN)
+    assert everywhere.endswith(f":8000/?token={TOKEN}") and "0.0.0.0" not in everywhere  # no address to open
 
 
 def test_the_served_command_is_this_python_running_station(monkeypatch):

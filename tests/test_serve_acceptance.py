@@ -145,3 +145,23 @@ async def test_headless_chromium_shows_the_home_screen(served, tmp_path):
     # and it has text on it: the home screen's lines are lighter than their background
     body = picture[80:400, 20:600]
     assert (body.max(axis=2) > 150).mean() > 0.01
+
+
+@pytest.mark.slow  # the same abort as a browser gone (the server tells each session's app to quit), one more app
+async def test_stopping_the_server_aborts_a_running_job_and_leaves_no_process(tmp_path):
+    station = ServedStation(tmp_path / "home")
+    try:
+        async with aiohttp.ClientSession() as client:
+            session = BrowserSession(client, station.url)
+            await session.open()
+            await session.until(*HOME_TEXT)
+            await start_laser_job(session)
+            children = subprocess.run(["pgrep", "-P", str(station.process.pid)], capture_output=True,
+                                      text=True).stdout.split()
+            assert children, "no session process"
+            assert station.stop() == 0  # SIGTERM, as kill or a service manager sends it
+    finally:
+        station.stop()
+    assert not [pid for pid in children if os.path.exists(f"/proc/{pid}")], "a session outlived its server"
+    job = newest_laser_job(station.home)
+    assert job["status"] in ("aborted", "refused") and "reset" in job["message"], job

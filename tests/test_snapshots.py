@@ -10,9 +10,8 @@ Make or update the snapshots after a deliberate change (then look at the SVGs, a
 
 What a screen shows that changes between runs is pinned: the clocks the screens read (``time`` in the
 ``station.tui`` modules: the Fabricate screen says how long it took), Python's global random generator (the
-simulated devices seed their own), the database
-path shown on home (a relative path in a fixed folder), the devices (the built-in simulated set, whose probes
-answer the same every time) and the terminal's size.
+simulated devices seed their own), the database path shown on home (a relative path in a fixed folder), the devices
+(the built-in simulated set, whose probes answer the same every time) and the terminal's size.
 """
 
 from __future__ import annotations

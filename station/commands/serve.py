@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import socket
+
 from station.errors import StationError, UsageError
 from station.paths import data_dir
 
@@ -15,7 +17,8 @@ def register(subparsers) -> None:
         "job is started with g, aborted with ctrl+x). Local only by default (127.0.0.1). On any other address "
         "(--host 0.0.0.0 for every network of this computer) a token is required: it is made once, kept in the "
         "data folder (readable by you only) and carried by the printed URL; a request without it gets 403. A "
-        "session whose browser goes away is quit as a closed terminal is: its running job is aborted.",
+        "session whose browser goes away (tab closed, Wi-Fi lost) cannot be asked: its running job is aborted (laser "
+        "off) and recorded, as ctrl+q's 'abort and quit' does.",
         epilog="examples:\n  station serve\n  station serve --host 0.0.0.0 --port 8000\n"
         "  station serve --host 0.0.0.0 --new-token",
     )
@@ -36,11 +39,16 @@ def run_serve(args) -> int:
     host = args.host.strip().strip("[]")
     if not host:
         raise UsageError("--host must be an address or a name, e.g. 127.0.0.1 or 0.0.0.0")
+    try:  # a name or address that is not this computer's is said before a token is made for it
+        socket.getaddrinfo(host, args.port, type=socket.SOCK_STREAM, flags=socket.AI_PASSIVE)
+    except socket.gaierror as error:
+        raise StationError(f"cannot listen on {host}: {error.strerror}; --host must be an address of this "
+                           "computer (127.0.0.1, 0.0.0.0, ::, or one of its names)") from None
     token = None
     if needs_token(host):
         token, why = load_or_create_token(data_dir(), renew=args.new_token)
         where = token_path(data_dir())
-        print(f"station serve: {host} is reachable from other computers: every request needs the token "
+        print(f"station serve: {host} is not 127.0.0.1 or ::1: every request needs the token "
               f"({'made a new one: ' + why if why else 'kept'} in {where}, readable by you only)")
     elif args.new_token:
         raise UsageError(f"--new-token is for a served address other than 127.0.0.1 and ::1, got --host {host}")
