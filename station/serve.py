@@ -15,6 +15,10 @@ environment). This module adds what a UI that can fire a laser needs before it i
   (HttpOnly, SameSite=Strict: another site's page does not send it). Compared in constant time.
 - The token is printed once when the server starts and never written to the log (no access log: its lines would
   carry the URL); the log names each session's start and end and each refused request instead.
+- One browser session at a time: each session is a station process of its own that opens the machines' ports, and
+  serial ports are not locked. A second browser is told where the station is open.
+- A session whose browser goes away cannot be asked: its running job is aborted and recorded, as the terminal's
+  ctrl+q "abort and quit" does; stopping the server does the same for its session.
 """
 
 from __future__ import annotations
@@ -142,7 +146,7 @@ def app_command() -> str:
     return f"PYTHONPATH={shlex.quote(path)} exec {shlex.quote(sys.executable)} -m station"
 
 
-def _bare_host(host_header: str) -> str:
+def bare_host(host_header: str) -> str:
     """The host name of a ``Host`` header value (``[::1]:8000`` -> ``::1``, ``localhost:8000`` -> ``localhost``)."""
     if host_header.startswith("["):
         return host_header[1:].split("]", 1)[0]

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import asyncio
 import logging
+import time
 from collections.abc import Callable
 from typing import Any
 
@@ -21,7 +22,7 @@ from station.serve import (
     SESSION_STOP_WAIT,
     TOKEN_COOKIE,
     TOKEN_PARAMETER,
-    _bare_host,
+    bare_host,
     log,
     origin_matches,
     token_matches,
@@ -64,7 +65,8 @@ class StationServer(Server):
         super().__init__(command, host=host, port=port, title="Crafting Chaos station")
         self.token = token
         self.say = say
-        self.sessions: set[AppService] = set()
+        #: The live sessions: their websocket, the browser's address and since when.
+        self.sessions: dict[AppService, tuple[web.WebSocketResponse, str | None, str]] = {}
 
     # ------------------------------------------------------------------ the guard
 
@@ -72,7 +74,7 @@ class StationServer(Server):
         """Why ``request`` is refused ("" when it is served)."""
         host = request.host
         if self.token is None:
-            if _bare_host(host).lower() not in LOCAL_NAMES:
+            if bare_host(host).lower() not in LOCAL_NAMES:
                 return f"Host {host!r} is not this computer"
         else:
             given = request.query.get(TOKEN_PARAMETER) or request.cookies.get(TOKEN_COOKIE)
@@ -135,8 +137,13 @@ class StationServer(Server):
         """One browser session: the station app in its own process for as long as the websocket is open.
 
         textual-serve's own, with the session kept in :attr:`sessions` (the server stops them when it stops) and its
-        start and end logged. When the browser goes away (tab closed, Wi-Fi lost), the app is told to quit as the
-        terminal's app is when its terminal closes: a running job is aborted (soft reset, laser off).
+        start and end logged. When the browser goes away (tab closed, Wi-Fi lost), the app is told to quit with no
+        one to ask: a running job is aborted (soft reset, laser off) and recorded
+        (:meth:`station.tui.app.StationApp.on_exit_app`).
+
+        One session at a time: each session is a station of its own, and two would each open the machines' ports
+        (a serial port is not locked: two processes could interleave G-code on one laser). A second browser is told
+        where the station is open and its session closed; a reload waits for the session it replaces to end.
         """
         websocket = web.WebSocketResponse(heartbeat=15)
         width = to_int(request.query.get("width", "80"), 80)
@@ -144,9 +151,16 @@ class StationServer(Server):
         service: AppService | None = None
         try:
             await websocket.prepare(request)
+            busy = await self._wait_for_ended_sessions()
+            if busy:
+                log.warning("refused a second session from %s: %s", request.remote, busy)
+                await websocket.send_bytes(f"\r\n  {busy}.\r\n  Close it there, then press Restart here.\r\n"
+                                           .encode())
+                await websocket.close()
+                return websocket
             service = AppService(self.command, write_bytes=websocket.send_bytes, write_str=websocket.send_str,
                                  close=websocket.close, download_manager=self.download_manager, debug=self.debug)
-            self.sessions.add(service)
+            self.sessions[service] = (websocket, request.remote, time.strftime("%H:%M"))
             log.info("session %s from %s started", service.app_service_id[:8], request.remote)
             await service.start(width, height)
             await self._process_messages(websocket, service)
@@ -160,6 +174,19 @@ class StationServer(Server):
                 log.info("session %s from %s ended", service.app_service_id[:8], request.remote)
         return websocket
 
+    async def _wait_for_ended_sessions(self) -> str:
+        """Wait until the sessions whose browsers have gone have ended (their apps may be aborting a job); "" then,
+        or what still holds the station: a session whose browser is still there, or one that did not end in time."""
+        deadline = asyncio.get_running_loop().time() + SESSION_STOP_WAIT + 1
+        while self.sessions:
+            for websocket, remote, since in self.sessions.values():
+                if not websocket.closed:
+                    return f"The station is open in another browser (from {remote}, since {since})"
+            if asyncio.get_running_loop().time() > deadline:
+                return "The station's last session has not ended yet"
+            await asyncio.sleep(0.1)
+        return ""
+
     async def _stop_session(self, service: AppService) -> None:
         """Ask the session's app to quit; kill its process if it has not within :data:`SESSION_STOP_WAIT`."""
         try:
@@ -171,7 +198,7 @@ class StationServer(Server):
                             SESSION_STOP_WAIT)
                 process.kill()
         finally:
-            self.sessions.discard(service)
+            self.sessions.pop(service, None)
 
     async def on_startup(self, app: web.Application) -> None:
         """Nothing: the URLs are said once the server listens (:meth:`listening`)."""

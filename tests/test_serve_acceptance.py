@@ -122,6 +122,11 @@ async def test_on_another_address_every_request_needs_the_token(tmp_path):
             session = BrowserSession(client, station.url)
             await session.open()
             await session.until(*HOME_TEXT)
+            # one session at a time (each would open the machines' ports): a second browser is told, and closed
+            second = BrowserSession(client, station.url)
+            await second.open()
+            await second.until("The station is open in another browser (from 127.0.0.1, since")
+            assert await second.closed(timeout=10)
             await session.websocket.close()
     printed = "\n".join(station.lines)
     assert printed.count(token) == 1, printed  # printed once, never in the log of refused requests
