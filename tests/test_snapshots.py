@@ -27,6 +27,7 @@ from pathlib import Path
 
 import pytest
 from rich.console import Console
+from textual.widgets import DataTable, RichLog
 
 from station.tui.registry import discover_screens
 
@@ -36,6 +37,18 @@ SNAPSHOTS = Path(__file__).resolve().parent / "snapshots"
 SIZE = (120, 36)
 UPDATE = os.environ.get("STATION_UPDATE_SNAPSHOTS") == "1"
 REGENERATE = "STATION_UPDATE_SNAPSHOTS=1 python -m pytest tests/test_snapshots.py"
+
+#: Seconds a screen may take to settle after its workers are done (on a loaded machine).
+SETTLE_SECONDS = 15.0
+
+#: What a screen has done when its snapshot may be taken, beyond its workers being done (by the screen's name).
+READY = {
+    # the probes' answers are in (a probe is a worker; its answer widens the table's column on a later refresh)
+    "home": lambda text: text.count("connected: Grbl 1.1h, Idle") == 2 and "open: 1280x800" in text,
+    # connected to the simulated plotter on arrival: the connection's last word is said under the queue and in the
+    # console, which scrolls to it on a later refresh
+    "machines": lambda text: text.count("plotter: GRBL 1.1h connected") == 2,
+}
 
 #: The moment every frozen clock shows (2026-01-02 03:04:05 UTC).
 FROZEN_EPOCH = 1767323045.0
@@ -81,6 +94,24 @@ def freeze_clocks(monkeypatch) -> list[str]:
     return names
 
 
+def prompt(app) -> None:
+    """Have Textual do what it leaves for a widget's next idle or the screen's next refresh, so that the picture does
+    not depend on when a worker's answer came.
+
+    A RichLog scrolls to a new line after a refresh. A DataTable widens a column for a new cell on its idle, but keeps
+    the rows it drew in between (its render caches are keyed by a count that widening does not change): when a probe
+    answers while the home screen is drawn, its column stays cut at "connected:" until something else redraws the
+    table (a key, a resize). The snapshot shows the table as drawn afresh.
+    """
+    for widget in app.screen.walk_children(with_self=True):
+        widget.check_idle()
+        if isinstance(widget, DataTable):
+            widget._clear_caches()  # Textual's own: no public way to redraw the rows
+        elif isinstance(widget, RichLog) and widget.auto_scroll:
+            widget.scroll_end(animate=False, immediate=True)  # what its next refresh would do
+    app.screen.refresh()
+
+
 def render(app) -> tuple[str, str]:
     """The app's screen as an SVG picture and as text (as :meth:`textual.app.App.export_screenshot` draws it)."""
     width, height = app.size
@@ -105,7 +136,19 @@ async def shot(name: str, tmp_path: Path, monkeypatch) -> tuple[str, str]:
             await pilot.press(next(entry.key for entry in app.areas if entry.name == name))
         await settle(app, pilot)
         assert app.screen.name == name, f"pressing its key on home showed {app.screen.name!r}, not {name!r}"
-        return render(app)
+        ready = READY.get(name, lambda text: True)
+        # a worker's answer is drawn on a later refresh (a table widens its column; the Machines screen hands a
+        # connection's lines over on a timer): the screen is ready, then the same picture three times in a row
+        pictures = [render(app)]
+        deadline = time.monotonic() + SETTLE_SECONDS
+        while time.monotonic() < deadline:
+            prompt(app)
+            await pilot.pause(0.05)
+            pictures.append(render(app))
+            if ready(pictures[-1][1]) and len(pictures) >= 3 and pictures[-1] == pictures[-2] == pictures[-3]:
+                return pictures[-1]
+        raise AssertionError(f"the {name!r} screen was not ready and still within {SETTLE_SECONDS} s (a clock or "
+                             f"an animation the snapshot must pin?); it showed:\n{pictures[-1][1]}")
 
 
 @pytest.mark.parametrize("name", screen_names())
