@@ -188,15 +188,22 @@ class StationServer(Server):
         return ""
 
     async def _stop_session(self, service: AppService) -> None:
-        """Ask the session's app to quit; kill its process if it has not within :data:`SESSION_STOP_WAIT`."""
+        """Ask the session's app to quit; kill its process if it has not within :data:`SESSION_STOP_WAIT`.
+
+        The session ends when its process has (textual-serve stops reading at its output's end): a session the
+        server no longer lists has no process left to drive a machine.
+        """
+        process = service._process
         try:
             await asyncio.wait_for(asyncio.shield(service.stop()), SESSION_STOP_WAIT)
+            if process is not None:
+                await asyncio.wait_for(process.wait(), SESSION_STOP_WAIT)
         except (asyncio.TimeoutError, OSError):
-            process = service._process
             if process is not None and process.returncode is None:
                 log.warning("session %s did not quit within %g s: killed", service.app_service_id[:8],
                             SESSION_STOP_WAIT)
                 process.kill()
+                await process.wait()
         finally:
             self.sessions.pop(service, None)
 
