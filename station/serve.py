@@ -160,7 +160,35 @@ def origin_matches(origin: str | None, host_header: str) -> bool:
     return origin in (f"http://{host_header}", f"https://{host_header}")
 
 
-def url(host: str, port: int, token: str | None) -> str:
+def tls_context(cert: str, key: str):
+    """An :class:`ssl.SSLContext` serving the certificate ``cert`` with its private key ``key`` (PEM files).
+
+    On another address the token crosses the network with every request: over plain HTTP, anyone who can read the
+    Wi-Fi's traffic (an open network, or a shared WPA2 password) can read it. With a certificate it does not.
+
+    Raises
+    ------
+    StationError
+        A file that is missing, unreadable, or not a certificate and its key (one line naming the file).
+    """
+    import ssl
+
+    from station.errors import StationError
+
+    context = ssl.SSLContext(ssl.PROTOCOL_TLS_SERVER)
+    context.minimum_version = ssl.TLSVersion.TLSv1_2
+    try:
+        context.load_cert_chain(cert, key)
+    except FileNotFoundError as error:
+        raise StationError(f"--cert/--key: no such file: {error.filename or cert}") from None
+    except (ssl.SSLError, OSError) as error:
+        reason = getattr(error, "reason", None) or error.strerror or ""
+        raise StationError(f"--cert {cert!r} / --key {key!r}: cannot be used{f' ({reason})' if reason else ''}; "
+                           "expected a PEM certificate and its matching PEM private key") from None
+    return context
+
+
+def url(host: str, port: int, token: str | None, scheme: str = "http") -> str:
     """The URL to print (once): the bound address, or for a wildcard (0.0.0.0, ::) this machine's address on its
     default route (a tablet may not resolve the machine's name), else its name."""
     name = host
@@ -171,7 +199,7 @@ def url(host: str, port: int, token: str | None) -> str:
     except ValueError:
         literal = None
     shown = f"[{name}]" if literal is not None and literal.version == 6 else name
-    return f"http://{shown}:{port}/" + (f"?{TOKEN_PARAMETER}={token}" if token else "")
+    return f"{scheme}://{shown}:{port}/" + (f"?{TOKEN_PARAMETER}={token}" if token else "")
 
 
 def _outward_address() -> str:
@@ -185,11 +213,11 @@ def _outward_address() -> str:
 
 
 def make_server(host: str, port: int, token: str | None, *, command: str | None = None,
-                say: Callable[[str], Any] = print):
+                say: Callable[[str], Any] = print, ssl_context=None):
     """A :class:`textual_serve.server.Server` for the station with the guard described in this module.
 
     Imported lazily: ``textual_serve`` and ``aiohttp`` are only needed by ``station serve``.
     """
     from station.serve_http import StationServer
 
-    return StationServer(command or app_command(), host, port, token, say=say)
+    return StationServer(command or app_command(), host, port, token, say=say, ssl_context=ssl_context)

@@ -58,13 +58,17 @@ class StationServer(Server):
         The token every request must carry; None for a local-only station (loopback names only).
     say : callable
         Prints the start-up lines (the URL with the token is said there once).
+    ssl_context : ssl.SSLContext, optional
+        Serve HTTPS (and the websocket over TLS) with it (:func:`station.serve.tls_context`).
     """
 
     def __init__(self, command: str, host: str, port: int, token: str | None, *,
-                 say: Callable[[str], Any] = print) -> None:
+                 say: Callable[[str], Any] = print, ssl_context=None) -> None:
         super().__init__(command, host=host, port=port, title="Crafting Chaos station")
         self.token = token
         self.say = say
+        self.ssl_context = ssl_context
+        self.scheme = "https" if ssl_context is not None else "http"
         #: The live sessions: their websocket, the browser's address and since when.
         self.sessions: dict[AppService, tuple[web.WebSocketResponse, str | None, str]] = {}
 
@@ -104,7 +108,8 @@ class StationServer(Server):
                     # the page's script, styles and websocket carry the token as a cookie (the websocket URL gets
                     # the size appended by textual.js, so it cannot carry a query of its own); SameSite=Strict:
                     # another site's page cannot make the browser send it
-                    response.set_cookie(TOKEN_COOKIE, self.token, httponly=True, samesite="Strict", path="/")
+                    response.set_cookie(TOKEN_COOKIE, self.token, httponly=True, samesite="Strict", path="/",
+                                        secure=self.ssl_context is not None)
             return response
 
         return guard
@@ -120,7 +125,7 @@ class StationServer(Server):
         """The page, its URLs made from the request's own address (textual-serve makes them from the bound one,
         which for 0.0.0.0 is no address a tablet can reach)."""
         router = request.app.router
-        scheme = "https" if request.scheme == "https" else "http"
+        scheme = "https" if request.secure else "http"
         base = f"{scheme}://{request.host}"
         static = base + str(router["static"].url_for(filename="/")).rstrip("/") + "/"
         websocket = ("wss" if scheme == "https" else "ws") + f"://{request.host}" + str(
@@ -212,7 +217,7 @@ class StationServer(Server):
 
     def listening(self, _aiohttp_says: str = "") -> None:
         """Say where to open the station; aiohttp calls it (as its ``print``) once the address is bound."""
-        self.say(f"station serve: open {url(self.host, self.port, self.token)}")
+        self.say(f"station serve: open {url(self.host, self.port, self.token, self.scheme)}")
         if self.token:
             self.say("station serve: the token is in that URL; whoever has it can run the machines")
         self.say("station serve: Ctrl+C stops the server (and every session: running jobs are aborted)")
@@ -231,4 +236,4 @@ class StationServer(Server):
             logger.setLevel(logging.DEBUG if debug else logging.INFO)
             logger.addHandler(handler)
         web.run_app(self._make_app(), host=self.host, port=self.port, access_log=None, print=self.listening,
-                    handle_signals=True, shutdown_timeout=SESSION_STOP_WAIT + 5)
+                    handle_signals=True, shutdown_timeout=SESSION_STOP_WAIT + 5, ssl_context=self.ssl_context)

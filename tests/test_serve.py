@@ -259,3 +259,15 @@ async def test_every_binding_reaches_the_served_app_as_in_the_terminal(tmp_path)
         for key in sorted(bound):
             assert key not in BROWSER_KEYS, f"{name}: {key} is kept by browsers: bind another key"
             assert parsed_keys(xterm_bytes(key)) == [key], f"{name}: {key!r} does not arrive from a browser"
+
+
+def test_a_certificate_that_cannot_be_used_is_one_line(tmp_path):
+    from station.errors import StationError
+    from station.serve import tls_context
+
+    with pytest.raises(StationError, match=r"^--cert/--key: no such file: .*missing\.pem$"):
+        tls_context(str(tmp_path / "missing.pem"), str(tmp_path / "missing.key"))
+    not_pem = tmp_path / "notes.txt"
+    not_pem.write_text("not a certificate\n")
+    with pytest.raises(StationError, match="expected a PEM certificate and its matching PEM private key"):
+        tls_context(str(not_pem), str(not_pem))

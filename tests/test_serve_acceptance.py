@@ -5,6 +5,8 @@ from __future__ import annotations
 
 import json
 import os
+import shutil
+import ssl
 import stat
 import subprocess
 import sys
@@ -170,3 +172,26 @@ async def test_stopping_the_server_aborts_a_running_job_and_leaves_no_process(tm
     assert not [pid for pid in children if os.path.exists(f"/proc/{pid}")], "a session outlived its server"
     job = newest_laser_job(station.home)
     assert job["status"] in ("aborted", "refused") and "reset" in job["message"], job
+
+
+@pytest.mark.skipif(shutil.which("openssl") is None, reason="no openssl to make a test certificate")
+async def test_with_a_certificate_the_token_travels_encrypted(tmp_path):
+    cert, key = tmp_path / "station.pem", tmp_path / "station.key"
+    subprocess.run(["openssl", "req", "-x509", "-newkey", "rsa:2048", "-nodes", "-keyout", str(key), "-out",
+                    str(cert), "-days", "2", "-subj", "/CN=127.0.0.2", "-addext", "subjectAltName=IP:127.0.0.2"],
+                   check=True, capture_output=True)
+    home = tmp_path / "home"
+    with ServedStation(home, "127.0.0.2", extra=("--cert", str(cert), "--key", str(key))) as station:
+        token = (home / TOKEN_FILE).read_text().strip()
+        assert station.url == f"https://127.0.0.2:{station.port}/?token={token}"
+        trusted = ssl.create_default_context(cafile=str(cert))
+        async with aiohttp.ClientSession(cookie_jar=aiohttp.CookieJar(unsafe=True)) as client:
+            async with client.get(f"https://127.0.0.2:{station.port}/", ssl=trusted) as response:
+                assert response.status == 403
+            async with client.get(station.url, ssl=trusted) as response:
+                assert response.status == 200
+                assert f'data-session-websocket-url="wss://127.0.0.2:{station.port}/ws"' in await response.text()
+                assert response.cookies[TOKEN_COOKIE]["secure"]
+            with pytest.raises(aiohttp.ClientError):  # no plain HTTP on that port
+                async with client.get(f"http://127.0.0.2:{station.port}/?token={token}") as response:
+                    await response.read()
