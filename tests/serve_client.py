@@ -130,14 +130,16 @@ class BrowserSession:
     async def key(self, keys: str) -> None:
         await self.websocket.send_json(["stdin", keys])
 
-    async def until(self, *needles: str, more_than: dict[str, int] | None = None, timeout: float = 30.0) -> str:
+    async def until(self, *needles: str, more_than: dict[str, int] | None = None, gone: tuple[str, ...] = (),
+                    timeout: float = 30.0) -> str:
         """Read the session until the screen shows every one of ``needles`` (more times than ``more_than`` says,
-        when given); the screen then."""
+        when given) and none of ``gone``; the screen then."""
         more_than = more_than or {}
         deadline = time.monotonic() + timeout
         while True:
             shown = self.screen()
-            if all(shown.count(needle) > more_than.get(needle, 0) for needle in needles):
+            if all(shown.count(needle) > more_than.get(needle, 0) for needle in needles) and not any(
+                    text in shown for text in gone):
                 return shown
             try:
                 message = await self.websocket.receive(timeout=max(deadline - time.monotonic(), 0.01))
