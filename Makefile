@@ -4,7 +4,7 @@ VENV ?= .venv
 PY := $(VENV)/bin/python
 STAMP := $(VENV)/.installed-stamp
 
-.PHONY: run test lint install bench clean
+.PHONY: run test lint install bench snapshots clean
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -24,6 +24,10 @@ lint: install
 ## Install, lint and run the default test suite (no slow tests; see `make bench`).
 test: lint
 	$(PY) -m pytest -q
+
+## Remake the screens' snapshots (tests/snapshots) after a deliberate change to a screen; then review the SVGs.
+snapshots: install
+	STATION_UPDATE_SNAPSHOTS=1 $(PY) -m pytest -q tests/test_snapshots.py
 
 ## Benchmarks print figures; they never fail on timings.
 bench: install

@@ -6,6 +6,7 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
+from textual import messages
 from textual.app import App
 from textual.binding import Binding
 from textual.screen import Screen
@@ -48,6 +49,7 @@ class StationApp(App):
         self.database_path = Path(database) if database is not None else database_path()
         self.database = open_database(self.database_path)
         self.areas: list[ScreenEntry] = list(areas) if areas is not None else discover_screens()
+        self._aborting_to_exit = False
         if all(d.simulated for d in self.devices):
             self.sub_title = "all devices simulated"
         else:
@@ -122,14 +124,18 @@ class StationApp(App):
         except KeyError:
             return None
 
+    def _active_job(self):
+        """The Machines screen and the job it is sending now (None when idle, or in an app without it)."""
+        machines = self.machines_screen()
+        return machines, machines.active_job() if hasattr(machines, "active_job") else None
+
     async def action_quit(self) -> None:
         """Quit (ctrl+q, the command palette); while a machine job runs, ask first.
 
         The answer is either keep the job running, or abort it (soft reset, then ``M5 S0``: the laser is off), wait
         until it has ended and is recorded in the job history, and quit, saying how the job ended.
         """
-        machines = self.machines_screen()
-        job = machines.active_job() if hasattr(machines, "active_job") else None
+        machines, job = self._active_job()
         if job is None:
             self.exit()
             return
@@ -138,9 +144,30 @@ class StationApp(App):
 
         def answered(answer: str | None) -> None:
             if answer == ABORT_AND_QUIT:
-                machines.abort_then(lambda message: self.exit(message=f"chaos-station: {message}"))
+                machines.abort_then(self._exit_saying)
 
         self.push_screen(ConfirmQuitScreen(job.title, job.device, job.state, laser=job.job.laser), answered)
+
+    def on_exit_app(self, event: messages.ExitApp) -> None:
+        """In a browser (``station serve``), a session whose browser went away (tab closed, Wi-Fi lost) is told to
+        quit with no one left to ask: a running job is aborted as ctrl+q's "abort and quit" does (soft reset, laser
+        off, ``M5 S0``), and the app exits once the job has ended and is recorded (``aborted``, with its resume line).
+
+        A terminal's app is not changed: it is asked with ctrl+q (:meth:`action_quit`), and closing the connection
+        under a job on exit (:meth:`MachinesScreen.shutdown`) aborts it too, without waiting for the record.
+        """
+        if not self.is_web or self._aborting_to_exit:
+            return
+        machines, job = self._active_job()
+        if job is None:
+            return
+        event.prevent_default()
+        self._aborting_to_exit = True
+        machines.abort_then(self._exit_saying)
+
+    def _exit_saying(self, message: str) -> None:
+        """Exit once an aborted job has ended, saying how it ended."""
+        self.exit(message=f"chaos-station: {message}")
 
     def on_unmount(self) -> None:
         self.database.close()
