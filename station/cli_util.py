@@ -197,3 +197,10 @@ def check_output_file(path: str | Path, suffixes: set[str], option: str) -> Path
     if not os.access(folder, os.W_OK | os.X_OK) or (path.exists() and not os.access(path, os.W_OK)):
         raise UsageError(f"{option} {path}: cannot write there (permission denied)")
     return path
+
+
+def add_physics_option(parser) -> None:
+    """``--physics PROFILE.toml``: simulate with a physics profile's material values instead of the scenario's."""
+    parser.add_argument("--physics", metavar="PROFILE.toml", default=None,
+                        help="simulate with the material values of a physics profile (`station calibrate sim "
+                        "--out`) instead of the scenario's own")

@@ -136,6 +136,7 @@ MISSING_FILE = {
     ("ports",): None,
     ("retrieve",): ["retrieve", "missing.json"],
     ("robustness",): ["robustness", "simple", "missing.json"],
+    ("predict",): ["predict", "simple", "missing.json"],
     ("scenario", "check"): ["scenario", "check", "missing.toml"],
     ("send",): ["send", "missing.gcode", "--port", "sim://grbl"],
     ("simulate",): ["simulate", "missing.toml"],

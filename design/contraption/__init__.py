@@ -7,6 +7,8 @@ Public API (used by the robust-layout helper and the station)::
     space = scenario.design_space          # .names .lower .upper .dim .to_normalized() .from_normalized()
     scenario.content_hash                  # sha256 of the canonical content (cache key)
     scenario.events                        # event names, file order
+    scenario.uncertain_parameters()        # {"wood.friction": (0.6, (0.3, 0.9))}: what simulator calibration fits
+    scenario.with_physics({"wood.friction": 0.42})   # other material values (validated; another content hash)
     problems = check_validity(scenario, x) # [] means physically valid
     clearances(scenario, x)                # signed margins per close pair / rope (>= 0: valid), for optimizers
     layout = resolve_layout("success", scenario)   # or a file: LAYOUT.json, {"x": [...]}, {"parameters": {...}}

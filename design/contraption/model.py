@@ -17,6 +17,7 @@ import numpy as np
 
 from design.contraption.design_space import DesignSpace
 from design.contraption.errors import LayoutError
+from design.contraption.materials import MaterialValue, effective_content
 from design.contraption.schema import PHYSICS_DEFAULTS, PRIMITIVES, TRANSFORM_KEYS
 
 
@@ -87,6 +88,7 @@ class ObjectSpec:
     #: A DominoRun's tags on single dominoes (``tag = [{body = 0, ...}, {body = -1, ...}]``): its first and last.
     body_tags: tuple[Tag, ...] = ()
     sleeping: bool | None = None
+    material: str | None = None
 
     @property
     def starts_asleep(self) -> bool:
@@ -154,13 +156,15 @@ class Settings:
 
 
 def content_hash(top: Mapping[str, Any]) -> str:
-    """The sha256 of a scenario file's parsed content without its ``layouts`` and tags (a cache key for its results).
+    """The sha256 of a scenario file's parsed content as simulated, without its ``layouts`` and tags (a cache key).
 
     Layouts are points of the design space, not part of the contraption: adding one must not invalidate what was
-    computed for the scenario. The JSON is canonical (sorted keys, no spaces), so TOML and JSON files with the same
-    content hash the same.
+    computed for the scenario. Materials are resolved into each object's physics and their ranges left out
+    (:func:`~design.contraption.materials.effective_content`): a range says what calibration may fit, not what is
+    simulated. The JSON is canonical (sorted keys, no spaces), so TOML and JSON files with the same content hash
+    the same.
     """
-    hashed = {k: v for k, v in top.items() if k != "layouts"}
+    hashed = {k: v for k, v in effective_content(top).items() if k != "layouts"}
     # A part's AprilTag is how the camera finds it, not part of the contraption: tagging a part must not invalidate
     # its cached simulations nor the layouts optimized for it (a LAYOUT.json carries the hash).
     if isinstance(hashed.get("objects"), list):
@@ -183,6 +187,48 @@ class Scenario:
     layouts: Mapping[str, np.ndarray]
     content_hash: str
     source: str = "<data>"
+    #: Material name -> {parameter -> MaterialValue}, file order (see :mod:`design.contraption.materials`).
+    materials: Mapping[str, Mapping[str, MaterialValue]] = field(default_factory=dict)
+    #: The parsed file content it was built from (what :meth:`with_physics` rewrites); None if not kept.
+    data: Mapping[str, Any] | None = field(default=None, repr=False)
+    #: The material values :meth:`with_physics` set, ``{"wood.friction": 0.42}`` (empty: the file's own).
+    physics_overrides: Mapping[str, float] = field(default_factory=dict)
+
+    def physics_parameters(self) -> dict[str, float]:
+        """Every material value as simulated, ``{"wood.friction": 0.6, ...}`` in file order."""
+        return {f"{m}.{k}": v.value for m, values in self.materials.items() for k, v in values.items()}
+
+    def uncertain_parameters(self) -> dict[str, tuple[float, tuple[float, float]]]:
+        """The uncertain material values, ``{"wood.friction": (value, (min, max))}`` in file order: what
+        simulator calibration fits."""
+        return {f"{m}.{k}": (v.value, v.range) for m, values in self.materials.items()
+                for k, v in values.items() if v.range is not None}
+
+    def with_physics(self, values: Mapping[str, float]) -> Scenario:
+        """The same scenario with other material values (``{"wood.friction": 0.42}``), validated again.
+
+        Uncertain values keep their range and must lie in it. The result's :attr:`content_hash` is that of the new
+        values (its simulations are other simulations); an empty ``values`` returns this scenario. The values set
+        are kept in :attr:`physics_overrides` (added to any set before), so a worker process that loads the file
+        again can apply them again.
+
+        Raises
+        ------
+        ScenarioFormatError
+            Naming ``physics."NAME"``: an unknown material or parameter, or a value outside its range.
+        """
+        if not values:
+            return self
+        from design.contraption.materials import data_with_physics
+        from design.contraption.validation import scenario_from_data
+
+        if self.data is None:
+            raise LayoutError(f"{self.source}: this scenario was built without its content; load it from its file")
+        data = data_with_physics(self.data, values, self.source)
+        scenario = scenario_from_data(data, file=self.source)
+        overrides = {**self.physics_overrides, **{k: float(v) for k, v in values.items()}}
+        object.__setattr__(scenario, "physics_overrides", overrides)
+        return scenario
 
     @property
     def events(self) -> tuple[str, ...]:

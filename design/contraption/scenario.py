@@ -9,11 +9,16 @@ A scenario is a data file (TOML or JSON, never executed). Its top-level tables:
     ``gravity`` (m/s², default -9.81, along z), ``solver_iterations`` (default 50),
     ``overlap_tolerance`` (fraction of the smaller body's smallest dimension tolerated as interpenetration,
     default 0.05), ``ignore_overlap`` (list of ``[a, b]`` object pairs allowed to interpenetrate).
+``[materials.NAME]`` (optional)
+    What a kind of part is made of: ``friction``, ``rolling_friction``, ``spinning_friction``, ``restitution``,
+    ``linear_damping``, ``angular_damping``, each a number or an uncertain value ``{ value = 0.6, range = [0.3,
+    0.9] }`` (the range is what simulator calibration may fit; see :mod:`design.contraption.materials`).
 ``[[objects]]``
     ``name``, ``type`` (a primitive, see :data:`PRIMITIVES`), ``parent`` (optional: the transform is then in the
     parent's frame), ``[objects.transform]`` (``x``, ``y``, ``z`` in m; ``heading``, ``pitch``, ``roll`` in degrees),
     ``[objects.ranges]`` (``component = [min, max]``: makes the component a design parameter),
-    ``[objects.shape]`` (the primitive's shape parameters), ``[objects.physics]`` (``mass`` — 0 or absent is
+    ``[objects.shape]`` (the primitive's shape parameters), ``material`` (a material's name: its values are the
+    object's physics), ``[objects.physics]`` (its keys override the material's) (``mass`` — 0 or absent is
     static —, ``friction``, ``rolling_friction``, ``spinning_friction``, ``restitution``, ``linear_damping``,
     ``angular_damping``), ``[objects.tag]`` (optional AprilTag: ``id``, ``x``, ``y``, ``z``, ``size``: its centre
     in the part's frame, on the face towards the camera for the guide's view, and its black square's edge, m;

@@ -33,9 +33,11 @@ PHYSICS_DEFAULTS = {
 PHYSICS_KEYS = tuple(PHYSICS_DEFAULTS)
 #: The physics fields a Plane takes: it is static, so it has no mass and no damping.
 PLANE_PHYSICS_KEYS = ("friction", "rolling_friction", "spinning_friction", "restitution")
+#: The fields of a ``[materials.NAME]`` table: what a material says about its surfaces and motion (not its mass).
+MATERIAL_KEYS = tuple(k for k in PHYSICS_KEYS if k != "mass")
 TAG_KEYS = ("id", "x", "y", "z", "size", "angle", "body")
 #: The fields of the top-level table, of ``[scenario]``, ``[settings]`` and of each ``[[objects]]`` table.
-TOP_KEYS = ("scenario", "settings", "objects", "events", "layouts")
+TOP_KEYS = ("scenario", "settings", "materials", "objects", "events", "layouts")
 HEADER_KEYS = ("name", "description")
 SETTINGS_KEYS = (
     "time_step",
@@ -46,7 +48,7 @@ SETTINGS_KEYS = (
     "overlap_tolerance",
     "ignore_overlap",
 )
-OBJECT_KEYS = ("name", "type", "parent", "transform", "ranges", "shape", "physics", "tag", "sleeping")
+OBJECT_KEYS = ("name", "type", "parent", "transform", "ranges", "shape", "material", "physics", "tag", "sleeping")
 #: Fields every event takes besides those of its type.
 EVENT_COMMON = ("name", "type", "after", "join", "timeout", "duration", "label")
 

@@ -158,6 +158,10 @@ class Supervisor:
         self._awake = still_awake + woken
         return changed
 
+    def awake_events(self) -> list[str]:
+        """The events still awake (waiting for their condition or their timeout)."""
+        return list(self._awake)
+
     def _index(self, name: str) -> int:
         for i, spec in enumerate(self.specs):
             if spec.name == name:
@@ -253,7 +257,7 @@ class Simulator:
         self,
         x=None,
         *,
-        early_stop: bool = True,
+        early_stop: bool | str = True,
         record: bool = False,
         on_change: Callable[[float, dict[str, str]], None] | None = None,
         max_duration: float | None = None,
@@ -262,8 +266,10 @@ class Simulator:
 
         Parameters
         ----------
-        early_stop : bool
-            Stop at termination (4.3). False runs to ``max_duration`` (for comparison).
+        early_stop : bool or "settled"
+            Stop at termination (4.3). False runs to ``max_duration`` (for comparison). ``"settled"`` stops once no
+            event is awake (none can change any more), so every event reached has its own outcome, as a maker sees
+            them in a physical run (the termination rule stops at the first decided leaf).
         record : bool
             Keep start and end snapshots of the bodies (for rendering).
         on_change : callable, optional
@@ -283,6 +289,7 @@ class Simulator:
         if on_change is not None:
             on_change(0.0, dict(supervisor.state))
         ropes = bool(world.ropes)
+        settled = early_stop == "settled"
         verdict = None
         steps = 0
         for step in range(1, n_steps + 1):
@@ -295,9 +302,12 @@ class Simulator:
                 if on_change is not None:
                     on_change(t, dict(supervisor.state))
                 verdict = supervisor.verdict()
-                if verdict is not None and early_stop:
+                if settled:
+                    if not supervisor.awake_events():
+                        break
+                elif verdict is not None and early_stop:
                     break
-        if verdict is None or not early_stop:
+        if verdict is None or not early_stop or settled:
             verdict = supervisor.verdict()
         end = world.snapshot() if record else None
         ropes_end = [np.array(world.rope_path(rope)[0]) for rope in world.ropes] if record else []
@@ -414,7 +424,8 @@ def _thread_simulator(scenario: Scenario) -> Simulator:
     return sim
 
 
-def simulate(scenario: Scenario, x_real=None, *, early_stop: bool = True, client=None, **kwargs) -> SimulationResult:
+def simulate(scenario: Scenario, x_real=None, *, early_stop: bool | str = True, client=None,
+             **kwargs) -> SimulationResult:
     """Simulate one layout of ``scenario`` (real units; the file's layout if None) under its causal graph.
 
     With ``client=None`` a per-thread DIRECT client is reused across calls (reset between runs), so calling this in

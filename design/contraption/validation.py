@@ -21,6 +21,7 @@ from design.contraption.design_space import DesignSpace, design_space_of
 from design.contraption.errors import ScenarioFormatError
 from design.contraption.fields import Checker
 from design.contraption.graph import check_event_graph, check_references, resolve_body_ref
+from design.contraption.materials import MaterialValue, parse_materials
 from design.contraption.model import EventSpec, ObjectSpec, Physics, Scenario, Settings, Tag, Transform, content_hash
 from design.contraption.schema import (
     EVENT_COMMON,
@@ -85,7 +86,8 @@ def scenario_from_data(data: Any, *, file: str = "<data>") -> Scenario:
     description = check.string(header.get("description", ""), "scenario.description")
 
     settings = _settings(check, top.get("settings", {}))
-    objects = _objects(check, top)
+    materials = parse_materials(check, top.get("materials", {}))
+    objects = _objects(check, top, materials)
     by_name = {o.name: o for o in objects}
     for i, (a, b) in enumerate(settings.ignore_overlap):
         for j, ref in enumerate((a, b)):
@@ -106,6 +108,8 @@ def scenario_from_data(data: Any, *, file: str = "<data>") -> Scenario:
         layouts=layouts,
         content_hash=content_hash(top),
         source=file,
+        materials=materials,
+        data=top,
     )
 
 
@@ -196,7 +200,7 @@ def _type_of(check: Checker, table: dict, path: str, types: Mapping[str, Any]) -
     return kind
 
 
-def _objects(check: Checker, top: dict) -> list[ObjectSpec]:
+def _objects(check: Checker, top: dict, materials: dict[str, dict[str, MaterialValue]]) -> list[ObjectSpec]:
     objects: list[ObjectSpec] = []
     seen: set[str] = set()
     for i, path, table in _tables(check, top, "objects", "object"):
@@ -242,9 +246,22 @@ def _objects(check: Checker, top: dict) -> list[ObjectSpec]:
         else:
             allowed = PHYSICS_KEYS if PRIMITIVES[kind].body else ()
         check.only(physics_table, f"{path}.physics", allowed)
-        physics = Physics(
-            **{k: check.number(v, f"{path}.physics.{k}", minimum=0.0) for k, v in physics_table.items()}
-        )
+        material = None
+        values: dict[str, float] = {}
+        if "material" in table:
+            material = check.string(table["material"], f"{path}.material", pattern=NAME, what="a material name")
+            if not PRIMITIVES[kind].body:
+                raise check.fail(f"{path}.material", f"a {kind} makes no body; expected no material")
+            if material not in materials:
+                known = ", ".join(materials) or "none (add a [materials.NAME] table)"
+                raise check.fail(f"{path}.material", f"unknown material {material!r}; expected one of: {known}")
+            values = {k: v.value for k, v in materials[material].items()}
+        for k, v in physics_table.items():
+            if isinstance(v, dict):
+                raise check.fail(f"{path}.physics.{k}", "expected a number >= 0 (uncertain values with a range go "
+                                 "in a [materials.NAME] table)")
+            values[k] = check.number(v, f"{path}.physics.{k}", minimum=0.0)
+        physics = Physics(**values)
         tag, body_tags = _tags(check, table, kind, shape, path)
         objects.append(
             ObjectSpec(
@@ -259,6 +276,7 @@ def _objects(check: Checker, top: dict) -> list[ObjectSpec]:
                 index=i,
                 sleeping=sleeping,
                 body_tags=body_tags,
+                material=material,
             )
         )
     return objects

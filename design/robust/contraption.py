@@ -72,12 +72,15 @@ class ContraptionProblem:
     path : path
         A scenario file (``examples/scenarios/*.toml``).
     scenario : Scenario, optional
-        The already loaded scenario (saves loading it twice in the main process).
+        The already loaded scenario (saves loading it twice in the main process). Its material values set by
+        :meth:`~design.contraption.model.Scenario.with_physics` (a physics profile) are kept: workers load the file
+        again and apply them again, and the content hash (the cache key) is that of those values.
     """
 
     def __init__(self, path: str | Path, scenario: Scenario | None = None) -> None:
         self.path = str(path)
         self._scenario = scenario
+        self.physics = dict(scenario.physics_overrides) if scenario is not None else {}
         space = self.scenario.design_space
         if space.dim == 0:
             raise RobustError(f"{self.path}: scenario {self.scenario.name!r} has no design space (no ranges)")
@@ -100,7 +103,7 @@ class ContraptionProblem:
     @property
     def scenario(self) -> Scenario:
         if self._scenario is None:
-            self._scenario = load_scenario(self.path)
+            self._scenario = load_scenario(self.path).with_physics(self.physics)
         return self._scenario
 
     @property
@@ -184,6 +187,7 @@ def render_layouts(problem: ContraptionProblem, layouts: list[tuple[str, np.ndar
     return combined
 
 
-def load_problem(path: str | Path) -> ContraptionProblem:
-    """A scenario file as a robust-layout problem (errors of the file are the core's, naming file and field)."""
-    return ContraptionProblem(path, load_scenario(path))
+def load_problem(path: str | Path, physics: dict[str, float] | None = None) -> ContraptionProblem:
+    """A scenario file as a robust-layout problem (errors of the file are the core's, naming file and field), with
+    the material values ``physics`` (``{"wood.friction": 0.42}``) instead of the file's when given."""
+    return ContraptionProblem(path, load_scenario(path).with_physics(physics or {}))

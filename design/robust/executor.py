@@ -10,11 +10,17 @@
 - stores each result as soon as it arrives (an interruption loses at most the simulations still running);
 - calls ``on_result(n_new)`` after each arrival (progress), and ``should_stop()`` between arrivals (a TUI's cancel
   button): a stop raises :class:`SimulationCancelled`, Ctrl-C raises ``KeyboardInterrupt``; both keep the cache.
+
+A problem may return numbers instead of booleans (simulator calibration wants event times): it says so with an
+``outcome_dtype = float`` attribute and ``n_outputs`` (the length of what ``simulate`` returns); the cache stores
+such a row as a JSON array (NaN as null).
 """
 
 from __future__ import annotations
 
 import contextlib
+import json
+import math
 import os
 import signal
 import sqlite3
@@ -82,12 +88,16 @@ class SimulationCache:
                     [scenario, *chunk],
                 ).fetchall()
                 for layout, events in rows:
-                    found[layout] = np.array([c == "1" for c in events], dtype=bool)
+                    found[layout] = _decode(events)
         return found
 
     def put(self, scenario: str, key: str, events: np.ndarray) -> None:
         """Store one outcome (committed at once, so an interruption keeps it)."""
-        text = "".join("1" if e else "0" for e in np.asarray(events, dtype=bool))
+        events = np.asarray(events)
+        if events.dtype == bool:
+            text = "".join("1" if e else "0" for e in events)
+        else:
+            text = json.dumps([None if not math.isfinite(v) else v for v in events.astype(float).tolist()])
         with self._lock:
             self._connection.execute(
                 "INSERT OR REPLACE INTO simulations (scenario, layout, events) VALUES (?, ?, ?)", (scenario, key, text)
@@ -106,6 +116,23 @@ class SimulationCache:
     def close(self) -> None:
         with self._lock:
             self._connection.close()
+
+
+def _decode(text: str) -> np.ndarray:
+    """A cached row: ``"0110"`` (one boolean per event) or a JSON array of numbers (null: NaN)."""
+    if text.startswith("["):
+        return np.array([np.nan if v is None else v for v in json.loads(text)], dtype=float)
+    return np.array([c == "1" for c in text], dtype=bool)
+
+
+def outcome_dtype(problem) -> type:
+    """What ``problem.simulate`` returns per layout: booleans (the optimizer's problems) or numbers."""
+    return getattr(problem, "outcome_dtype", bool)
+
+
+def _outcomes(problem, U: np.ndarray) -> np.ndarray:
+    dtype = outcome_dtype(problem)
+    return np.stack([np.asarray(problem.simulate(u), dtype=dtype) for u in U])
 
 
 @contextlib.contextmanager
@@ -174,8 +201,7 @@ def _process_gone(pid: int) -> bool:
 
 
 def _simulate_in_worker(content_hash: str, U: np.ndarray) -> np.ndarray:
-    problem = _WORKER_PROBLEMS[content_hash]
-    return np.stack([np.asarray(problem.simulate(u), dtype=bool) for u in U])
+    return _outcomes(_WORKER_PROBLEMS[content_hash], U)
 
 
 def _simulate_on_dask_worker(problem: LayoutProblem, U: np.ndarray) -> np.ndarray:
@@ -184,7 +210,7 @@ def _simulate_on_dask_worker(problem: LayoutProblem, U: np.ndarray) -> np.ndarra
     if prepared is None:
         problem.prepare_worker()
         _WORKER_PROBLEMS[problem.content_hash] = prepared = problem
-    return np.stack([np.asarray(prepared.simulate(u), dtype=bool) for u in U])
+    return _outcomes(prepared, U)
 
 
 class SimulationExecutor:
@@ -337,10 +363,11 @@ class SimulationExecutor:
         on_result: Callable[[int], None] | None = None,
         should_stop: Callable[[], bool] | None = None,
     ) -> np.ndarray:
-        """Per-event success ``(n, n_events)`` of each normalized layout of ``U`` (all must be valid)."""
+        """Per-event success ``(n, n_events)`` of each normalized layout of ``U`` (all must be valid); for a problem
+        of numbers (``outcome_dtype = float``), its ``(n, n_outputs)`` numbers."""
         U = as_layout_batch(self.problem, U)
-        n_events = len(self.problem.event_names)
-        out = np.zeros((len(U), n_events), dtype=bool)
+        n_outputs = getattr(self.problem, "n_outputs", len(self.problem.event_names))
+        out = np.zeros((len(U), n_outputs), dtype=outcome_dtype(self.problem))
         if len(U) == 0:
             return out
         keys = [layout_key(u) for u in U]
@@ -379,8 +406,7 @@ class SimulationExecutor:
             for chunk in chunks:
                 if should_stop is not None and should_stop():
                     raise SimulationCancelled("simulations stopped on request; finished ones are cached")
-                batch = U[[rows[0] for _, rows in chunk]]
-                results = np.stack([np.asarray(self.problem.simulate(u), dtype=bool) for u in batch])
+                results = _outcomes(self.problem, U[[rows[0] for _, rows in chunk]])
                 yield from finish(chunk, results)
             return
 

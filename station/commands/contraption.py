@@ -8,7 +8,7 @@ import sys
 from design.contraption.catalog import example_names
 from design.contraption.layout_io import LoadedLayout
 from design.contraption.scenario import Scenario
-from station.cli_util import check_output_file, emit_json
+from station.cli_util import add_physics_option, check_output_file, emit_json
 from station.errors import UsageError
 from station.progress_view import ProgressView
 from station.services.contraption import choose_layout, open_scenario, render, scenario_summary, simulate
@@ -40,6 +40,7 @@ def register(subparsers) -> None:
     simulate.add_argument("--json", action="store_true", help="print the result as JSON on stdout")
     simulate.add_argument("--render", metavar="OUT.png", help="write top and side views at start and end")
     simulate.add_argument("--no-early-stop", action="store_true", help="run to max_duration instead of stopping")
+    add_physics_option(simulate)
     simulate.set_defaults(func=run_simulate)
 
     scenario = subparsers.add_parser("scenario", help="scenario files: check")
@@ -95,9 +96,10 @@ def run_simulate(args) -> int:
     if args.render:
         # Refused now, not after the simulation: the render is what the user waits for.
         check_output_file(args.render, {".png"}, "--render")
-    scenario = open_scenario(args.scenario)
+    scenario = open_scenario(args.scenario, physics=args.physics)
     layout = parse_layout(args, scenario)
     report_layout(layout)
+    report_physics(scenario)
     with ProgressView(describe=lambda progress: progress.message) as view:
         outcome = simulate(scenario, layout.x, early_stop=not args.no_early_stop, record=bool(args.render),
                            progress=view)
@@ -118,6 +120,15 @@ def run_simulate(args) -> int:
     else:
         print(_result_text(scenario, outcome.result, layout))
     return 0 if outcome.success else 1
+
+
+def report_physics(scenario: Scenario, stream=None) -> None:
+    """Say on stderr which material values a physics profile set (nothing for the scenario's own)."""
+    from station.services.physics import physics_note
+
+    note = physics_note(scenario)
+    if note:
+        print(note, file=stream or sys.stderr)
 
 
 def _fmt_time(value) -> str:

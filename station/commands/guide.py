@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import sys
 
-from station.cli_util import check_output_file, emit_json, flag_error
+from station.cli_util import add_physics_option, check_output_file, emit_json, flag_error
 from station.errors import UsageError
 from station.services.errors import ServiceError
 
@@ -51,6 +51,7 @@ def register(subparsers) -> None:
                         "layouts at its +-delta (default 0: none)")
     parser.add_argument("--seed", type=int, default=0, help="seed of the verification's layouts (default 0)")
     parser.add_argument("--no-tolerances", action="store_true", help="draw the guide without tolerances (faster)")
+    add_physics_option(parser)
     parser.add_argument("--project", action="store_true", help="show the guide on the configured projector "
                         "(station devices): the calibrate frame, or --step N")
     parser.add_argument("--step", type=int, metavar="N", help="with --project: show step N (1-based)")
@@ -72,7 +73,7 @@ def run_guide(args) -> int:
         service.check_paper(args.paper)  # before any simulation
         with ProgressView(sys.stderr, prefix="guide: ") as view:
             job = service.make_guide(args.scenario, args.layout, view=args.view, verify=args.verify, seed=args.seed,
-                                     tolerances=not args.no_tolerances, progress=view)
+                                     tolerances=not args.no_tolerances, progress=view, physics=args.physics)
         job = service.export_guide(job, pdf=pdf, svg=svg, paper=args.paper)
         if args.project:
             _project(job, args.step)

@@ -22,7 +22,7 @@ import numpy as np
 
 from common.progress import Progress as BaseProgress
 from design.robust.settings import METHODS, RobustnessSettings
-from station.cli_util import check_output_file, emit_json
+from station.cli_util import add_physics_option, check_output_file, emit_json
 from station.errors import UsageError
 from station.progress_view import ProgressView
 from station.services import robust as service
@@ -80,6 +80,13 @@ def default_budget(problem, budget: int | None) -> int:
 def _load_problem(path: str):
     """A scenario file, or an example by name, as a robust-layout problem (tests replace it with a cheap one)."""
     return service.load_problem(path)
+
+
+def _problem(args):
+    """The problem of ``args.scenario`` under ``args.physics`` (a physics profile) when given."""
+    from station.services.physics import problem_with_physics
+
+    return problem_with_physics(_load_problem(args.scenario), getattr(args, "physics", None))
 
 
 def format_duration(seconds: float) -> str:
@@ -220,8 +227,17 @@ def add_common(parser, budget: bool = True) -> None:
     add_workers(parser)
 
 
+def add_scenario_and_layout(parser) -> None:
+    """The positional ``scenario`` and ``layout`` of a command about one layout of a scenario."""
+    parser.add_argument("scenario", help="a scenario file (.toml/.json) or an example name")
+    parser.add_argument("layout", help="a layout file (the LAYOUT.json of `station optimize`, {\"x\": [...]} or "
+                        "{\"parameters\": {...}}) or a layout named in the scenario")
+
+
 def add_workers(parser) -> None:
-    """``--workers N`` and ``--scheduler tcp://HOST:PORT``: where the simulations run."""
+    """``--workers N`` and ``--scheduler tcp://HOST:PORT``: where the simulations run; and ``--physics``, the
+    material values they run with."""
+    add_physics_option(parser)
     parser.add_argument("--workers", type=int, default=None, help="local worker processes (default: all cores)")
     parser.add_argument("--scheduler", default=None, metavar="tcp://HOST:PORT",
                         help="run simulations on a Dask distributed cluster instead of local processes")
@@ -276,9 +292,7 @@ def register(subparsers) -> None:
         examples=["examples/scenarios/simple.toml layout.json --eval 128 --local 10",
                   "ballrun layout.json --plot rho.png --json"],
     )
-    robustness.add_argument("scenario", help="a scenario file (.toml/.json) or an example name")
-    robustness.add_argument("layout", help="a layout file (the LAYOUT.json of `station optimize`, {\"x\": [...]} or "
-                            "{\"parameters\": {...}}) or a layout named in the scenario")
+    add_scenario_and_layout(robustness)
     add_sampling(robustness, "the layout")
     robustness.add_argument("--seed", type=int, default=0, help="seed of the local samples (default 0)")
     add_workers(robustness)
@@ -317,7 +331,7 @@ def add_settings_choice(parser) -> None:
 def run_optimize(args) -> int:
     service.check_seed(args.seed)
     out = check_output_file(args.out, {".json"}, "--out")
-    problem = _load_problem(args.scenario)
+    problem = _problem(args)
     budget = default_budget(problem, args.budget)
     changes = {}
     if args.global_psp:
@@ -370,7 +384,7 @@ def run_robustness(args) -> int:
     service.check_count(args.eval, "n_evaluation")
     if args.plot:
         check_output_file(args.plot, {".png"}, "--plot")
-    problem = _load_problem(args.scenario)
+    problem = _problem(args)
     layout = read_layout(args.layout, problem)
     report_layout(layout, sys.stderr)
     u = np.clip(problem.to_normalized(layout.x), 0.0, 1.0)
@@ -420,7 +434,7 @@ def run_compare(args) -> int:
         check_output_file(args.plot, {".png"}, "--plot")
     service.check_count(args.local, "n_local")
     robustness = RobustnessSettings(n_evaluation=args.eval, n_local=args.local)
-    problem = _load_problem(args.scenario)
+    problem = _problem(args)
     budget = default_budget(problem, args.budget)
     bar = args.bar
     comparison = service.compare(

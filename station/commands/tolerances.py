@@ -70,7 +70,7 @@ def run_tolerances(args) -> int:
     bar = args.bar
     result = service.tolerance_map(args.scenario, args.layout, verify=args.verify, seed=args.seed,
                                    workers=args.workers, scheduler=args.scheduler, progress=bar,
-                                   should_stop=args.stop.is_set)
+                                   should_stop=args.stop.is_set, physics=args.physics)
     bar.close()
     report_layout(result.layout, sys.stderr)
     if args.json:

@@ -27,8 +27,9 @@ if TYPE_CHECKING:  # pybullet loads only when something is simulated
 StateCallback = Callable[[float, dict[str, str], "World"], None]
 
 
-def open_scenario(text: str) -> Scenario:
-    """A scenario by file path or example name (``simple``, ``ballrun``...), validated.
+def open_scenario(text: str, physics: str | Path | None = None) -> Scenario:
+    """A scenario by file path or example name (``simple``, ``ballrun``...), validated; under the physics profile
+    at ``physics`` when given (:mod:`station.services.physics`).
 
     Raises
     ------
@@ -37,7 +38,12 @@ def open_scenario(text: str) -> Scenario:
     design.contraption.errors.ScenarioFormatError
         The file is malformed (the message names the file, the field and what was expected).
     """
-    return load_scenario(resolve_scenario_path(text))
+    scenario = load_scenario(resolve_scenario_path(text))
+    if physics is None:
+        return scenario
+    from station.services.physics import scenario_with_physics
+
+    return scenario_with_physics(scenario, physics)
 
 
 def choose_layout(scenario: Scenario, *, values: list[float] | None = None, layout: str | None = None,
@@ -87,6 +93,8 @@ class SimulationOutcome:
         data["layout"] = self.scenario.design_space.as_dict(self.x)
         if layout is not None:
             data["layout_source"] = layout.to_dict()
+        if self.scenario.physics_overrides:
+            data["physics"] = dict(self.scenario.physics_overrides)
         if not self.valid:
             data["problems"] = [{"kind": p.kind, "objects": list(p.objects), "amount": p.amount, "message": p.message}
                                 for p in self.problems]

@@ -54,7 +54,8 @@ class GuideJob:
 
 
 def make_guide(scenario: str, layout: str | None, *, view: str | None = None, verify: int = 0, seed: int = 0,
-               tolerances: bool = True, progress: Reporter | ProgressCallback | None = None) -> GuideJob:
+               tolerances: bool = True, progress: Reporter | ProgressCallback | None = None,
+               physics: str | None = None) -> GuideJob:
     """Build the guide of ``layout`` (a LAYOUT.json, any form :mod:`design.contraption.layout_io` reads, a layout
     named in the scenario, or None for the scenario's own layout) for ``scenario`` (a file or an example's name).
 
@@ -70,6 +71,9 @@ def make_guide(scenario: str, layout: str | None, *, view: str | None = None, ve
         False skips the tolerance map altogether (a guide with none).
     progress : callable or Reporter, optional
         Given :class:`common.progress.Progress` while tolerances are computed or verified.
+    physics : str, optional
+        A physics profile: the tolerances' simulations use its material values (the drawing, and the guide's
+        content hash, are the scenario's: materials change no part's place).
 
     Raises
     ------
@@ -93,10 +97,12 @@ def make_guide(scenario: str, layout: str | None, *, view: str | None = None, ve
     tolerance_map = None
     by_parameter: dict[str, ParameterTolerance] | None = None
     if tolerances and layout is not None:
+        from station.services.physics import scenario_with_physics
         from station.services.tolerances import tolerance_map as tolerances_of
 
         # the tolerance map reads the layout (and the model its file carries) once, for both
-        tolerance_map = tolerances_of(loaded_scenario, layout, verify=verify, seed=seed, progress=report.emit)
+        tolerance_map = tolerances_of(scenario_with_physics(loaded_scenario, physics), layout, verify=verify,
+                                      seed=seed, progress=report.emit)
         loaded_layout = tolerance_map.layout
         by_parameter = _guide_tolerances(tolerance_map)
     else:

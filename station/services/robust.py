@@ -216,6 +216,22 @@ def _check_stop(should_stop: StopCheck | None) -> None:
         raise Cancelled("stopped on request")
 
 
+def connected_executor(problem, *, workers: int | None = None, scheduler: str | None = None,
+                       chunk_size: int = 1) -> SimulationExecutor:
+    """An executor of ``problem`` on the shared simulation cache, its Dask scheduler (if any) already reached (a
+    wrong address is a :class:`ServiceError` naming ``scheduler``)."""
+    from design.robust.executor import SchedulerUnreachable, SimulationExecutor
+
+    executor = SimulationExecutor(problem, workers=workers, scheduler=scheduler, cache_path=simulation_cache_path(),
+                                  chunk_size=chunk_size)
+    try:
+        executor.connect()
+    except SchedulerUnreachable as error:
+        executor.close()
+        raise ServiceError(f"scheduler: {error}", field="scheduler", value=scheduler) from None
+    return executor
+
+
 @contextmanager
 def simulations(problem, *, workers: int | None = None, scheduler: str | None = None,
                 should_stop: StopCheck | None = None) -> Iterator[SimulationExecutor]:
@@ -226,18 +242,12 @@ def simulations(problem, *, workers: int | None = None, scheduler: str | None = 
     SimulationCancelled once a stop was asked for) raises :class:`RunStopped` with the new simulations kept; the
     workers are stopped first.
     """
-    from design.robust.executor import SchedulerUnreachable, SimulationCancelled, SimulationExecutor
+    from design.robust.executor import SimulationCancelled
 
     check_count(workers, "workers")
     executor: SimulationExecutor | None = None
     try:
-        executor = SimulationExecutor(problem, workers=workers, scheduler=scheduler,
-                                      cache_path=simulation_cache_path(), chunk_size=1)
-        try:
-            executor.connect()
-        except SchedulerUnreachable as error:
-            executor.close()
-            raise ServiceError(f"scheduler: {error}", field="scheduler", value=scheduler) from None
+        executor = connected_executor(problem, workers=workers, scheduler=scheduler)
         with executor:
             _check_stop(should_stop)
             yield executor

@@ -100,7 +100,7 @@ def _problem(scenario):
 
 def tolerance_map(scenario, layout: str, *, verify: int = 0, seed: int = 0, workers: int | None = None,
                   scheduler: str | None = None, progress: ProgressCallback | None = None,
-                  should_stop: robust.StopCheck | None = None) -> Tolerances:
+                  should_stop: robust.StopCheck | None = None, physics: str | None = None) -> Tolerances:
     """The tolerance map of ``layout`` for ``scenario``.
 
     Parameters
@@ -118,6 +118,8 @@ def tolerance_map(scenario, layout: str, *, verify: int = 0, seed: int = 0, work
         Where the simulations run and when they stop (:func:`station.services.robust.simulations`).
     progress : callable, optional
         Stage ``"tolerance map"`` (parameters searched), then ``"verification"`` (simulations).
+    physics : str, optional
+        A physics profile: the simulations use its material values (:mod:`station.services.physics`).
 
     Raises
     ------
@@ -135,7 +137,9 @@ def tolerance_map(scenario, layout: str, *, verify: int = 0, seed: int = 0, work
         raise ServiceError(f"verify must be an integer >= 0 (layouts simulated per parameter), got {verify!r}",
                            field="verify", value=verify)
     robust.check_seed(seed)
-    problem = _problem(scenario)
+    from station.services.physics import problem_with_physics
+
+    problem = problem_with_physics(_problem(scenario), physics)
     loaded, model = _layout_and_model(str(layout), problem)
     u = np.clip(problem.to_normalized(loaded.x), 0.0, 1.0)
     d = problem.dim

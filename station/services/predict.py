@@ -1,0 +1,155 @@
+"""Physical success and expected attempts of a layout, as a service (``station predict``; after a check or a trial).
+
+The layout is the designed one, or the one a check measured (CHECK.json's ``as_built``, with its ``residual_error``
+as the placement error); the physics is the scenario's own or a physics profile's (whose intervals are drawn from,
+so the calibration's uncertainty is in the probability). See :mod:`calibration.sim_predict`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from calibration.sim_predict import PhysicalPrediction, predict_success
+from calibration.sim_runs import DEFAULT_ANGLE_SIGMA_DEG, DEFAULT_POSITION_SIGMA_M
+from common.progress import ProgressCallback
+from design.contraption.layout_io import LoadedLayout
+from design.contraption.physics_profile import PhysicsProfile
+from design.contraption.scenario import Scenario
+from station.services.errors import ServiceError
+
+CHECK_FORMAT = "chaos-station check"
+
+
+@dataclass
+class Prediction:
+    """A prediction with what it was made of."""
+
+    scenario: Scenario
+    layout: LoadedLayout
+    x: np.ndarray
+    as_built: bool
+    profile: str | None
+    result: PhysicalPrediction
+
+    def to_json(self) -> dict[str, Any]:
+        return {"scenario": self.scenario.name, "layout": self.scenario.design_space.as_dict(self.x),
+                "as_built": self.as_built, "physics_profile": self.profile, **self.result.to_json()}
+
+
+def as_built_from_check(check: Any, scenario: Scenario, designed: np.ndarray, file: str
+                        ) -> tuple[np.ndarray, float, float]:
+    """The as-built layout and the placement error (m, degrees) of a CHECK.json's content.
+
+    Raises
+    ------
+    ServiceError
+        Not a check, a check of another scenario, or of another layout (``field="as_built"``).
+    """
+    def fail(message: str) -> ServiceError:
+        return ServiceError(f"as_built {file}: {message}", field="as_built", value=file)
+
+    if not isinstance(check, dict) or check.get("format") != CHECK_FORMAT:
+        raise fail(f'expected a CHECK.json ("format": "{CHECK_FORMAT}"), written by `station check --out`')
+    if check.get("version") != 1:
+        raise fail(f"version: expected 1, got {check.get('version')!r}")
+    if check.get("scenario") != scenario.name:
+        raise fail(f"is a check of scenario {check.get('scenario')!r}, not of {scenario.name!r}")
+    space = scenario.design_space
+    checked = check.get("layout") or {}
+    for name, value in checked.items() if isinstance(checked, dict) else ():
+        if name in space.names and isinstance(value, (int, float)):
+            i = space.names.index(name)
+            if abs(float(value) - designed[i]) > 1e-6 * max(1.0, abs(designed[i])):
+                raise fail(f"is a check of another layout ({name} = {value:g} there, {designed[i]:g} here)")
+    built = designed.astype(float).copy()
+    as_built = check.get("as_built") or {}
+    if not isinstance(as_built, dict):
+        raise fail("as_built: expected {parameter: value}")
+    for name, value in as_built.items():
+        if name not in space.names:
+            raise fail(f"as_built.{name}: not a design parameter of {scenario.name!r}")
+        if isinstance(value, bool) or not isinstance(value, (int, float)):
+            raise fail(f"as_built.{name}: expected a number, got {value!r}")
+        built[space.names.index(name)] = float(value)
+    position, angle = DEFAULT_POSITION_SIGMA_M, DEFAULT_ANGLE_SIGMA_DEG
+    residual = check.get("residual_error") or {}
+    if isinstance(residual.get("position_mm"), (int, float)) and residual["position_mm"] > 0:
+        position = float(residual["position_mm"]) / 1000.0
+    if isinstance(residual.get("heading_deg"), (int, float)) and residual["heading_deg"] > 0:
+        angle = float(residual["heading_deg"])
+    return built, position, angle
+
+
+def predict(scenario: str | Scenario, layout: str | None, *, physics: str | Path | None = None,
+            as_built: str | Path | None = None, samples: int = 200, seed: int = 0, workers: int | None = None,
+            scheduler: str | None = None, progress: ProgressCallback | None = None, should_stop=None) -> Prediction:
+    """The physical success probability and expected attempts of ``layout`` (as built when ``as_built`` is given).
+
+    Parameters
+    ----------
+    scenario : str or Scenario
+        A scenario file or example name, or the loaded scenario.
+    layout : str or None
+        A layout file or a layout named in the scenario (None: the scenario's own).
+    physics : path, optional
+        A physics profile (its values and intervals replace the scenario's).
+    as_built : path, optional
+        A CHECK.json of this layout: its ``as_built`` layout and ``residual_error``.
+    samples, seed : int
+        Simulations, and their seed.
+
+    Raises
+    ------
+    ServiceError
+        A bad count or seed, a missing file, a check of another scenario or layout.
+    RunStopped
+        Stopped; the simulations done are in the cache.
+    """
+    from station.services.contraption import choose_layout, open_scenario
+    from station.services.physics import read_profile
+    from station.services.robust import check_count, check_seed
+
+    check_count(samples, "samples")
+    check_seed(seed)
+    loaded = open_scenario(scenario) if isinstance(scenario, str) else scenario
+    chosen = choose_layout(loaded, layout=layout)
+    x = np.asarray(chosen.x, dtype=float)
+    position, angle = DEFAULT_POSITION_SIGMA_M, DEFAULT_ANGLE_SIGMA_DEG
+    if as_built is not None:
+        from common.datafiles import load_json
+
+        path = Path(as_built)
+        if not path.is_file():
+            raise ServiceError(f"as_built {path}: no such file (expected the CHECK.json of `station check --out`)",
+                               field="as_built", value=str(path))
+        data = load_json(path, "a CHECK.json of `station check`",
+                         error=lambda detail: ServiceError(f"as_built {detail}", field="as_built"))
+        x, position, angle = as_built_from_check(data, loaded, x, str(path))
+    profile = read_profile(physics) if physics is not None else None
+    if profile is not None:
+        from design.contraption.physics_profile import apply_profile
+
+        apply_profile(loaded, profile, str(physics))  # refuses a profile for another contraption, names the file
+    result = predict_layout(loaded, x, profile=profile, position_sigma_m=position, angle_sigma_deg=angle,
+                            samples=samples, seed=seed, workers=workers, scheduler=scheduler, progress=progress,
+                            should_stop=should_stop)
+    return Prediction(loaded, chosen, x, as_built is not None, profile.name if profile else None, result)
+
+
+def predict_layout(scenario: Scenario, x: np.ndarray, *, profile: PhysicsProfile | None = None,
+                   position_sigma_m: float = DEFAULT_POSITION_SIGMA_M,
+                   angle_sigma_deg: float = DEFAULT_ANGLE_SIGMA_DEG, samples: int = 200, seed: int = 0,
+                   workers: int | None = None, scheduler: str | None = None,
+                   progress: ProgressCallback | None = None, should_stop=None) -> PhysicalPrediction:
+    """The prediction for data already in hand (after a check or a logged trial: the scenario, the layout vector,
+    the profile, the placement error), on the station's executors and cache."""
+    from station.services.sim_calibration import station_runner
+
+    with station_runner(workers=workers, scheduler=scheduler, progress=progress, should_stop=should_stop) as run:
+        return predict_success(scenario, x, values=profile.values if profile else None,
+                               intervals=profile.intervals if profile else None, position_sigma_m=position_sigma_m,
+                               angle_sigma_deg=angle_sigma_deg, samples=samples, seed=seed, run=run)

@@ -1,0 +1,165 @@
+"""Simulator calibration as a service: fit scenarios' uncertain material values to logged trials, save a profile.
+
+Used by ``station calibrate sim`` and the Calibrate > Simulator panel. The trials come as dicts of the trial log's
+JSON export (issue 20's contract): from a file (``--trials-json``) or, wired by the station, from the trial store.
+The fit itself is :func:`calibration.sim_fit.fit_simulator`; its simulations run where the optimizer's do (local
+processes or a Dask scheduler) on the shared simulation cache, so a repeated or interrupted calibration re-simulates
+nothing it already ran.
+"""
+
+from __future__ import annotations
+
+import contextlib
+from collections.abc import Iterator, Mapping, Sequence
+from dataclasses import dataclass
+from datetime import datetime, timezone
+from pathlib import Path
+from typing import Any
+
+from calibration.sim_fit import FitSettings, Runner, SimFit, fit_simulator
+from calibration.sim_trials import export_trials, fit_trials
+from common.progress import Cancelled, ProgressCallback
+from design.contraption.physics_profile import PhysicsProfile, save_profile
+from design.contraption.scenario import Scenario
+from station.services.errors import ServiceError
+
+
+@dataclass
+class SimCalibration:
+    """A finished calibration: the fit, the scenarios it was for, and the profile it makes."""
+
+    fit: SimFit
+    scenarios: list[Scenario]
+    parameters: list[str]
+
+    def profile(self, name: str | None = None) -> PhysicsProfile:
+        """The fitted values as a physics profile (``[fit]`` holds the Brier scores and counts)."""
+        names = ", ".join(s.name for s in self.scenarios)
+        created = datetime.now(timezone.utc).strftime("%Y-%m-%dT%H:%M:%SZ")
+        fit = {k: v for k, v in self.fit.fit_summary().items() if v is not None}
+        return PhysicsProfile(name=name or f"calibrated {names}", values=self.fit.values(),
+                              intervals=self.fit.intervals(), created=created,
+                              source=f"calibrate sim: {self.fit.trials + self.fit.held_out} trials of {names}",
+                              fit=fit)
+
+    def to_json(self) -> dict[str, Any]:
+        """Exactly the contract's ``station calibrate sim --json``."""
+        return self.fit.to_json()
+
+
+def read_trials_json(path: str | Path) -> list[dict]:
+    """The trials of a trial export file (``station trial export --out FILE.json``)."""
+    from common.datafiles import load_json
+
+    path = Path(path)
+    if not path.is_file():
+        raise ServiceError(f"trials_json {path}: no such file (expected a trial export, `station trial export "
+                           "--out FILE.json`)", field="trials_json", value=str(path))
+    from calibration.errors import CalibrationError
+
+    data = load_json(path, "a trial export (\"format\": \"chaos-station trials\")",
+                     error=lambda detail: CalibrationError(f"{path}: {detail}"))
+    return export_trials(data, str(path))
+
+
+def choose_parameters(scenarios: Sequence[Scenario], params: Sequence[str] | None
+                      ) -> dict[str, tuple[float, tuple[float, float]]]:
+    """What to fit: ``params`` (default: every uncertain value of the scenarios), each with the scenarios' value and
+    range (the intersection where two scenarios give different ranges)."""
+    known: dict[str, tuple[float, tuple[float, float]]] = {}
+    for scenario in scenarios:
+        for name, (value, (lo, hi)) in scenario.uncertain_parameters().items():
+            if name in known:
+                _, (lo0, hi0) = known[name]
+                lo, hi = max(lo, lo0), min(hi, hi0)
+                if not lo < hi:
+                    raise ServiceError(f"params: {name} has ranges that do not overlap in the scenarios",
+                                       field="params", value=name)
+                value = min(max(known[name][0], lo), hi)
+            known[name] = (value, (lo, hi))
+    if not params:
+        if not known:
+            raise ServiceError("params: the scenarios have no uncertain material value to fit (give one a range: "
+                               "friction = { value = 0.5, range = [0.3, 0.8] })", field="params")
+        return known
+    chosen = {}
+    for name in params:
+        if name not in known:
+            have = ", ".join(known) or "none"
+            raise ServiceError(f"params: {name!r} is not an uncertain material value of the scenarios; they have: "
+                               f"{have}", field="params", value=name)
+        chosen[name] = known[name]
+    return chosen
+
+
+@contextlib.contextmanager
+def station_runner(*, workers: int | None = None, scheduler: str | None = None,
+                   progress: ProgressCallback | None = None, should_stop=None) -> Iterator[Runner]:
+    """A :class:`~calibration.sim_fit.Runner` on the optimizer's executors and shared cache; a stop (``should_stop``,
+    Ctrl-C, a cancelled progress) becomes :class:`~station.services.robust.RunStopped` with the work kept."""
+    from design.robust.executor import SimulationCancelled
+    from station.services.robust import RunStopped, check_count, connected_executor, simulation_cache_path
+
+    check_count(workers, "workers")
+
+    def make(problem):
+        # Runs of a small scenario take milliseconds: several per task keep the workers' overhead down.
+        return connected_executor(problem, workers=workers, scheduler=scheduler, chunk_size=4)
+
+    runner = Runner(make, progress, should_stop)
+    try:
+        with runner:
+            yield runner
+    except RunStopped:
+        raise
+    except (KeyboardInterrupt, SimulationCancelled, Cancelled):
+        raise RunStopped(runner.done, simulation_cache_path()) from None
+
+
+def calibrate_sim(scenarios: Sequence[Scenario], trials: Sequence[Mapping[str, Any]], *,
+                  params: Sequence[str] | None = None, n_trials: int | None = None,
+                  settings: FitSettings | None = None, workers: int | None = None, scheduler: str | None = None,
+                  progress: ProgressCallback | None = None, should_stop=None,
+                  source: str = "<trials>") -> SimCalibration:
+    """Fit the scenarios' uncertain material values (or ``params``) to their trials among ``trials``.
+
+    Parameters
+    ----------
+    scenarios : sequence of Scenario
+        The scenarios (their trials are those with the same name).
+    trials : sequence of dict
+        Trials in the export format.
+    params : sequence of str, optional
+        ``"MATERIAL.PARAM"`` names to fit (default: all uncertain values).
+    n_trials : int, optional
+        Use only the last ``n_trials`` trials of these scenarios (the most recent runs).
+    settings : FitSettings, optional
+        The fit's sizes and seed.
+
+    Raises
+    ------
+    ServiceError
+        No trials of these scenarios, a parameter that is not uncertain in them, a bad count.
+    calibration.errors.CalibrationError
+        A malformed trial (names the trial and the field).
+    RunStopped
+        Stopped; the simulations done are in the cache.
+    """
+    if n_trials is not None and n_trials < 1:
+        raise ServiceError(f"trials must be an integer >= 1, got {n_trials}", field="trials", value=n_trials)
+    names = {s.name: s for s in scenarios}
+    chosen = choose_parameters(scenarios, params)
+    usable = fit_trials(trials, names, source)
+    if not usable:
+        raise ServiceError(f"trials: none of the {len(trials)} trials is of {', '.join(names)}; log runs with "
+                           "`station trial log`", field="trials")
+    if n_trials is not None:
+        usable = usable[-n_trials:]
+    with station_runner(workers=workers, scheduler=scheduler, progress=progress, should_stop=should_stop) as run:
+        fit = fit_simulator(usable, chosen, run, settings)
+    return SimCalibration(fit, list(scenarios), list(chosen))
+
+
+def save(result: SimCalibration, path: str | Path, name: str | None = None) -> Path:
+    """Write the calibration's physics profile."""
+    return save_profile(result.profile(name), path)
