@@ -1,4 +1,4 @@
-"""One physical attempt, step by step, as a service: guide -> place -> check (-> fix -> check)* -> run -> outcomes -> log.
+"""One physical attempt step by step, as a service: guide, place, check (fix, check again)*, run, outcomes, log.
 
 Used by ``station assemble`` (prompts in a terminal) and the Assemble screen (keys), so both walk the same states
 and say the same things. An :class:`Assembly` holds the attempt: the guide (shown step by step on a projector, or
@@ -333,8 +333,9 @@ class Assembly:
             world.close()
 
 
-def open_assembly(scenario: str, layout: str | None, *, camera: str | None = None, world: str | None = None,
-                  projector=None, physics: str | Path | None = None, attempt: int | None = None,
+def open_assembly(scenario: str, layout: str | None, *, view: str | None = None, camera: str | None = None,
+                  world: str | None = None, projector=None, physics: str | Path | None = None,
+                  attempt: int | None = None,
                   samples: int = DEFAULT_SAMPLES, seed: int = 0, workers: int | None = None, store=None,
                   progress: ProgressCallback | None = None) -> Assembly:
     """Start an attempt: the guide of ``layout`` for ``scenario`` (with its tolerances), the world opened.
@@ -345,6 +346,8 @@ def open_assembly(scenario: str, layout: str | None, *, camera: str | None = Non
         A scenario file or an example's name.
     layout : str or None
         A LAYOUT.json, a layout named in the scenario, or None (the scenario's own).
+    view : {"top", "side"} or None
+        The guide plane (None: chosen from the scenario).
     camera : str, optional
         The camera's URL (default: the station's camera, ``station devices``).
     world : str, optional
@@ -376,7 +379,8 @@ def open_assembly(scenario: str, layout: str | None, *, camera: str | None = Non
     check_count(attempt, "attempt")
     profile = read_profile(physics) if physics is not None else None
     trial_scenario = load_trial_scenario(scenario)
-    job = guides.make_guide(scenario, layout, progress=progress, physics=None if physics is None else str(physics))
+    job = guides.make_guide(scenario, layout, view=view, progress=progress,
+                            physics=None if physics is None else str(physics))
     if profile is not None:
         from design.contraption.physics_profile import apply_profile
 
@@ -397,3 +401,56 @@ def open_assembly(scenario: str, layout: str | None, *, camera: str | None = Non
     return Assembly(job, trial_scenario, camera=camera, world=opened_world, projector=projector,
                     physics=None if physics is None else str(physics), attempt=attempt, samples=samples, seed=seed,
                     workers=workers, _profile=profile)
+
+
+# -- after attempts: calibrate, re-optimize ----------------------------------------------------------------------------
+def calibrate_from_log(scenario, store=None, *, settings=None, workers: int | None = None,
+                       progress: ProgressCallback | None = None, should_stop=None, out: str | Path | None = None):
+    """Fit ``scenario``'s uncertain material values to its trials in the log (``store``, default the station's) and
+    write the physics profile (``out``, default the data folder's ``physics/NAME-calibrated.toml``).
+
+    Returns ``(path, SimCalibration)``.
+
+    Raises
+    ------
+    ServiceError
+        No trials of the scenario, nothing uncertain to fit (named).
+    RunStopped
+        Stopped; the simulations done are in the cache.
+    """
+    from station.paths import data_dir
+    from station.services.sim_calibration import calibrate_sim, save
+    from station.services.trials import open_store
+
+    if store is None:
+        with open_store() as opened:
+            trials = opened.trials(scenario=scenario.name)
+    else:
+        trials = store.trials(scenario=scenario.name)
+    result = calibrate_sim([scenario], trials, settings=settings, workers=workers, progress=progress,
+                           should_stop=should_stop, source="the trial log")
+    path = Path(out) if out is not None else data_dir() / "physics" / f"{scenario.name.lower()}-calibrated.toml"
+    path.parent.mkdir(parents=True, exist_ok=True)
+    return save(result, path, name=f"{scenario.name} calibrated on {result.fit.trials + result.fit.held_out} "
+                "trials"), result
+
+
+def reoptimize(scenario_path: str, physics: str | Path | None, *, budget: int = 40, seed: int = 0,
+               workers: int | None = None, progress: ProgressCallback | None = None, should_stop=None,
+               out: str | Path | None = None, settings=None):
+    """Optimize the layout again under the physics profile ``physics`` (the calibrated one) and write its
+    LAYOUT.json (``out``, default the data folder's ``layouts/NAME-physics.json``). Returns ``(path, layout)``."""
+    import json
+
+    from station.paths import data_dir
+    from station.services import robust
+    from station.services.physics import problem_with_physics
+
+    problem = problem_with_physics(robust.load_problem(scenario_path), physics)
+    settings = settings or robust.psp_settings(robust.DEFAULT_SETTINGS)
+    result = robust.optimize(problem, budget, seed, settings, workers=workers, progress=progress,
+                             should_stop=should_stop)
+    path = Path(out) if out is not None else data_dir() / "layouts" / f"{result.scenario.lower()}-physics.json"
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text(json.dumps(result.to_json(problem), indent=2) + "\n", encoding="utf-8")
+    return path, result
