@@ -119,6 +119,8 @@ def ask(prompt: str, out, choices: dict[str, str] | None = None) -> str:
         line = sys.stdin.readline()
         if not line:
             raise Quit("the input ended")
+        if not sys.stdin.isatty():  # piped answers: said after their prompt, so that the transcript reads
+            out.write(line if line.endswith("\n") else line + "\n")
         answer = line.strip().lower()
         if answer == "q":
             raise Quit("left")
@@ -208,8 +210,8 @@ def _check_loop(assembly, args, out) -> None:
         out.writelines(f"  {line}\n" for line in report_lines(result.report))
         _forecast(assembly, out)
         if assembly.within_tolerance:
-            answer = ask("Every part is within its tolerance. Enter: run, c: check again > ", out,
-                         {"": "run", "r": "run", "c": "check"})
+            answer = ask("No part to move. Enter: run, c: check again > ", out,
+                         {"": "run", "r": "run", "a": "run", "c": "check"})
         elif checks >= args.max_checks:
             answer = ask(f"{checks} checks made. a: accept the parts as placed and run (q: quit) > ", out,
                          {"a": "run"})
@@ -234,8 +236,11 @@ def _answers(assembly, out) -> None:
     event = None
     while True:
         outcomes, problems = resolve_outcomes(scenario, given)
-        if problems and event is not None:  # an answer the graph cannot have (a "yes" after a "no"): asked again
-            out.write(f"  {str(problems[0]).replace('outcome.', '', 1)}\n")
+        # an answer the graph cannot have (a "yes" after a "no"): said, and the event asked again (an event still
+        # to be said is a "problem" too, but not one of the answers)
+        wrong = [p for p in problems if p.field.partition(".")[2] in given]
+        if wrong and event is not None:
+            out.write(f"  {str(wrong[0]).replace('outcome.', '', 1)}\n")
             given.pop(event)
             event = None
             continue

@@ -30,7 +30,7 @@ import numpy as np
 from common.progress import ProgressCallback
 from station.services.errors import ServiceError
 
-__all__ = ["STAGES", "Assembly", "Forecast", "moves_of", "open_assembly", "open_world"]
+__all__ = ["STAGES", "Assembly", "Forecast", "calibrate_from_log", "open_assembly", "reoptimize"]
 
 #: The stages of an attempt, in order.
 STAGES = ("guide", "check", "run", "log", "done")
@@ -61,45 +61,6 @@ class Forecast:
 
     def to_json(self) -> dict:
         return {"when": self.when, **self.prediction.to_json()}
-
-
-def open_world(url: str | None):
-    """The world device at ``url`` opened (None: no world, the maker's own table).
-
-    Raises
-    ------
-    ServiceError
-        ``url`` is not a world the station can drive (``world``): only the simulated one (``sim://world``) exists.
-    """
-    if url is None:
-        return None
-    from drivers.devices import resolve
-    from drivers.errors import DriverError
-
-    try:
-        info = resolve(url)
-    except DriverError as error:
-        raise ServiceError(f"world: {error}", field="world", value=url) from None
-    if info.kind != "world" or not info.available:
-        raise ServiceError(f"world: {url!r} is not a world the station can drive (expected sim://world?seed=S; "
-                           "for a real table leave --world out and answer the prompts)", field="world", value=url)
-    world = info.factory(info.url)
-    world.open()
-    return world
-
-
-def moves_of(report) -> list[dict]:
-    """What a check's instructions say to do, per part (``[{"name", "du_mm", "dv_mm", "dheading_deg"}]``): designed
-    minus measured, for every part out of tolerance (a run's dominoes moved together by their mean error)."""
-    from projector.overlay import misplaced
-
-    errors: dict[str, list] = {}
-    for part in report.parts:
-        if misplaced(part):
-            errors.setdefault(part.part or part.name, []).append(part.error)
-    return [{"name": name, "du_mm": -float(np.mean([e[0] for e in found])),
-             "dv_mm": -float(np.mean([e[1] for e in found])),
-             "dheading_deg": -float(np.mean([e[3] for e in found]))} for name, found in errors.items()]
 
 
 @dataclass
@@ -207,9 +168,9 @@ class Assembly:
         """The maker has placed the parts (a simulated world places them now, each with the maker's error)."""
         self._expect("guide")
         if self.world is not None:
-            parts = [{"name": p.name, "center_mm": [float(c) for c in p.center_mm],
-                      "heading_deg": float(p.heading_deg)} for p in self.parts]
-            self.world.place(parts, attempt=self.attempt, highlighted=self.projector is not None)
+            from station.services.world import place_parts
+
+            place_parts(self.world, self.job.guide, attempt=self.attempt, highlighted=self.projector is not None)
         self.stage = "check"
 
     # -- check ------------------------------------------------------------------------------------------------------
@@ -223,7 +184,7 @@ class Assembly:
         if self.world is not None:
             from station.services.world import world_scene
 
-            scene = world_scene(self.job.guide, self.world)
+            scene = world_scene(self.job.guide, self.world.placed())
         image, intrinsics, name, saved = checks.camera_frame(self.job.guide, camera=self.camera, scene=scene)
         previous = self.check.measurement.plane if self.check is not None else saved
         result = checks.check_frame(self.job, image, intrinsics, previous=previous, progress=progress)
@@ -234,11 +195,13 @@ class Assembly:
 
     def fix(self) -> list[dict]:
         """The maker moved the parts as the last check said (a simulated world applies the moves now, with the
-        maker's smaller error); check again next. Returns the moves."""
+        maker's smaller error; :func:`station.services.world.check_moves`); check again next. Returns the moves."""
         self._expect("check")
         if self.check is None:
             raise ServiceError("stage: no check yet; check the parts first", field="stage", value=self.stage)
-        moves = moves_of(self.check.report)
+        from station.services.world import check_moves
+
+        moves = check_moves(self.check.to_json(), self.job.guide)
         self.fixes += 1
         if self.world is not None and moves:
             self.world.apply(moves, round=self.fixes)
@@ -250,16 +213,17 @@ class Assembly:
         self.stage = "run"
 
     # -- run --------------------------------------------------------------------------------------------------------
-    def run(self, progress: ProgressCallback | None = None) -> dict | None:
+    def run(self):
         """With a simulated world: run the attempt there (the as-placed layout under the world's hidden physics)
-        and take its outcomes; None without one (the maker runs it and :meth:`answer` says what happened)."""
+        and take its outcomes (a :class:`station.services.world.AttemptRun`); None without one (the maker runs it
+        and :meth:`answer` says what happened)."""
         self._expect("run")
         if self.world is None:
             return None
         from station.services.world import run_attempt
 
-        result = run_attempt(self.job, self.world)
-        self.answer(result["outcomes"], result.get("times"))
+        result = run_attempt(self.job.scenario, self.job.layout.x, self.job.guide, self.world)
+        self.answer(result.outcomes, result.times)
         return result
 
     def answer(self, outcomes: Mapping[str, str], times: Mapping[str, float] | None = None) -> dict[str, str]:
@@ -393,11 +357,12 @@ def open_assembly(scenario: str, layout: str | None, *, view: str | None = None,
                 attempt = 1 + len(opened.trials(scenario=trial_scenario.name))
         else:
             attempt = 1 + len(store.trials(scenario=trial_scenario.name))
-    opened_world = open_world(world)
-    if opened_world is not None:
-        from station.services.world import prepare_world
+    opened_world = None
+    if world is not None:
+        from station.services.world import open_world, prepare_world
 
-        prepare_world(job.scenario, opened_world)
+        opened_world = open_world(world)
+        prepare_world(opened_world, job.scenario)
     return Assembly(job, trial_scenario, camera=camera, world=opened_world, projector=projector,
                     physics=None if physics is None else str(physics), attempt=attempt, samples=samples, seed=seed,
                     workers=workers, _profile=profile)
