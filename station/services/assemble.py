@@ -249,10 +249,10 @@ class Assembly:
         from station.services.trials import build_trial, layout_values, read_physics
 
         self._expect("log")
-        report = self.check.report if self.check is not None else None
+        check = self.check.to_json() if self.check is not None else None  # CHECK.json: what the log stores
         return build_trial(self.scenario, layout_values(self.scenario, self.job.layout.x), self.outcomes,
-                           times=self.times, as_built=None if report is None else dict(report.as_built),
-                           check=None if report is None else report.to_json(),
+                           times=self.times, as_built=None if check is None else dict(check["as_built"]),
+                           check=check,
                            physics=read_physics(self.physics) if self.physics else None, who=who,
                            notes=notes or f"station assemble, attempt {self.attempt}, {self.fixes} fix(es)")
 
