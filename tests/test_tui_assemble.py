@@ -4,8 +4,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import numpy as np
 import pytest
-
 from textual.widgets import DataTable, Input, Static
 
 from station.tui.screens.assemble import AssembleScreen
@@ -111,3 +111,74 @@ async def test_c_checks_the_placed_parts_with_the_camera_and_the_projector_follo
         await pilot.press("c")  # again, after moving the parts: the plane is found again
         await settle(app, pilot)
         assert screen.check.report.plane is not None and screen.check.report.plane.moved_mm < 0.5
+
+
+async def test_the_whole_attempt_on_a_simulated_world_with_the_forecast_in_view(tmp_path):
+    """Build, c (the simulated maker places, the camera checks), f (moved as said, checked again), r (the world
+    runs), l (logged): the forecast box says the stage and the physical success after every step."""
+    from station.services.trials import open_store
+    from station.tui.widgets.assemble_flow import ForecastStatus, OutcomeTable
+
+    async with opened(tmp_path, "a") as (app, pilot):
+        screen = app.screen
+        screen.query_one("#world", Input).value = "sim://world?seed=4&place_mm=3"
+        screen.open_layout(str(SIMPLE.with_name("ballrun.toml")), "success")
+        await settle(app, pilot)
+        assembly = screen.assembly
+        assert assembly is not None and assembly.world is not None, str(screen.query_one("#status", Static).render())
+        box = screen.query_one("#forecast", ForecastStatus)
+        assert "attempt 1 · guide" in str(box.render()) and "physical success" in str(box.render())
+        assert screen.forecast is not None and screen.forecast.when == "designed"
+        await pilot.press("c")
+        await settle(app, pilot)
+        assert assembly.stage == "check" and screen.check is assembly.check and screen.forecast.when == "as placed"
+        placed = assembly.world.placed()
+        table = screen.query_one("#check", DataTable)
+        rows = {str(table.get_row_at(i)[0]): table.get_row_at(i) for i in range(table.row_count)}
+        for name in ("goblet", "low_plank", "stop"):  # the table says how far the world's parts really are
+            part = next(p for p in assembly.parts if p.name == name)
+            truth = np.subtract(placed[name]["center_mm"], part.center_mm)
+            assert abs(float(rows[name][2]) - truth[0]) < 0.6 and abs(float(rows[name][3]) - truth[1]) < 0.6
+        await pilot.press("f")
+        await settle(app, pilot)
+        assert len(assembly.checks) == 2 and assembly.fixes == 1
+        await pilot.press("r")  # after a check: accepted as placed, the world runs it
+        await settle(app, pilot)
+        outcomes = screen.query_one("#outcomes", OutcomeTable)
+        assert assembly.stage == "log" and outcomes.display and outcomes.read_only
+        assert [str(outcomes.get_row_at(i)[2]) for i in range(outcomes.row_count)] == list(
+            assembly.outcomes.values())
+        await pilot.press("l")
+        await settle(app, pilot)
+        assert assembly.stage == "done" and assembly.trial_id is not None
+        with open_store() as store:  # the station database the screen logs to (the test home's)
+            (trial,) = store.trials()
+        assert trial["check"] is not None and trial["outcomes"] == assembly.outcomes
+        assert "this run" in screen.forecast.when and "attempt 1 · done" in str(box.render())
+        await pilot.press("g")  # another attempt: the log has one trial, so this is attempt 2
+        await settle(app, pilot)
+        assert screen.assembly is not assembly and screen.assembly.attempt == 2
+
+
+async def test_a_real_table_is_ticked_and_logged_and_keys_out_of_turn_are_said(tmp_path):
+    from station.tui.widgets.assemble_flow import OutcomeTable
+
+    async with opened(tmp_path, "a") as (app, pilot):
+        screen = app.screen
+        screen.open_layout(str(SIMPLE), "success")
+        await settle(app, pilot)
+        await pilot.press("l")  # nothing run yet
+        assert "the attempt is at 'guide'" in str(screen.query_one("#status", Static).render())
+        await pilot.press("c")
+        await settle(app, pilot)
+        await pilot.press("a", "r")
+        await settle(app, pilot)
+        table = screen.query_one("#outcomes", OutcomeTable)
+        assert table.display and table.has_focus and not table.read_only
+        await pilot.press("y", "y", "n")  # ball rolls, hits the domino, the first does not topple: the rest implied
+        await pilot.pause()
+        assert "a failure; l logs it" in str(screen.query_one("#status", Static).render())
+        await pilot.press("l")
+        await settle(app, pilot)
+        assert screen.assembly.stage == "done"
+        assert screen.assembly.outcomes["first_topples"] == "no" and screen.assembly.success is False

@@ -12,7 +12,7 @@ from __future__ import annotations
 import threading
 from pathlib import Path
 
-from textual import on, work
+from textual import work
 from textual.worker import get_current_worker
 
 from design.errors import DesignError
@@ -166,8 +166,8 @@ class AttemptFlow:
         self._set_status(f"the world ran it: {verdict}; l logs the trial", "green" if self.assembly.success else "")
         self._show_forecast()
 
-    @on(OutcomeTable.Changed)
-    def _outcomes_changed(self, event: OutcomeTable.Changed) -> None:
+    def on_outcome_table_changed(self, event: OutcomeTable.Changed) -> None:
+        # by name, not @on: the decorator's handlers are collected on message pumps, and this is a mixin
         if self.assembly is None or self.assembly.stage != "run":
             return
         if event.problem:
