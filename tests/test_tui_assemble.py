@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 
 import numpy as np
@@ -182,3 +183,43 @@ async def test_a_real_table_is_ticked_and_logged_and_keys_out_of_turn_are_said(t
         await settle(app, pilot)
         assert screen.assembly.stage == "done"
         assert screen.assembly.outcomes["first_topples"] == "no" and screen.assembly.success is False
+
+
+@pytest.mark.slow  # ~20 s: three guides with tolerance maps, a fit and an optimization (run with -m slow)
+async def test_k_calibrates_the_physics_on_the_log_and_o_reoptimizes_with_it(tmp_path):
+    """Trials of SIMPLE in the log (as a real table's maker logs them): k fits the materials and puts the profile
+    in the Physics field, o optimizes the layout under it and puts the LAYOUT.json in the Layout field; g then
+    builds the next attempt from both."""
+    from calibration.sim_fit import FitSettings
+    from design.contraption.physics_profile import load_profile
+    from design.robust.psp import PSPSettings
+    from station.services.trials import build_trial, layout_values, load_trial_scenario, open_store
+
+    simple = load_trial_scenario("simple")
+    layout = layout_values(simple, simple.layout("success"))
+    with open_store() as store:
+        for i in range(6):  # the first dominoes fall half of the time: something to fit
+            given = {"last_stops": "yes"} if i % 2 else {"ball_rolls": "yes", "ball_hits_domino": "yes",
+                                                         "first_topples": "no"}
+            store.add(build_trial(simple, layout, given))
+    async with opened(tmp_path, "a") as (app, pilot):
+        screen = app.screen
+        screen.fit_settings = FitSettings(draws=2, sobol=4, rounds=1, per_round=2, held_out=0.0)
+        screen.optimize_budget, screen.optimize_settings = 20, PSPSettings(n_initial=12, max_exploration_steps=2)
+        screen.open_layout(str(SIMPLE), "success")
+        await settle(app, pilot)
+        await pilot.press("k")
+        await settle(app, pilot)
+        physics = screen.query_one("#physics", Input).value
+        assert physics.endswith("simple-calibrated.toml"), str(screen.query_one("#status", Static).render())
+        profile = load_profile(physics)
+        assert set(profile.values) <= set(simple.uncertain_parameters()) and profile.values
+        await pilot.press("o")
+        await settle(app, pilot)
+        layout_file = screen.query_one("#layout", Input).value
+        assert layout_file.endswith("simple-physics.json"), str(screen.query_one("#status", Static).render())
+        assert json.loads(Path(layout_file).read_text())["scenario"] == "SIMPLE"
+        await pilot.press("g")
+        await settle(app, pilot)
+        assert screen.assembly.physics == physics and screen.assembly.job.layout.source == layout_file
+        assert screen.assembly.attempt == 7
