@@ -118,7 +118,8 @@ async def test_the_whole_attempt_on_a_simulated_world_with_the_forecast_in_view(
     """Build, c (the simulated maker places, the camera checks), f (moved as said, checked again), r (the world
     runs), l (logged): the forecast box says the stage and the physical success after every step."""
     from station.services.trials import open_store
-    from station.tui.widgets.assemble_flow import ForecastStatus, OutcomeTable
+    from station.tui.widgets.assemble_flow import ForecastStatus
+    from station.tui.widgets.outcomes import OutcomeTable
 
     async with opened(tmp_path, "a") as (app, pilot):
         screen = app.screen
@@ -162,7 +163,7 @@ async def test_the_whole_attempt_on_a_simulated_world_with_the_forecast_in_view(
 
 
 async def test_a_real_table_is_ticked_and_logged_and_keys_out_of_turn_are_said(tmp_path):
-    from station.tui.widgets.assemble_flow import OutcomeTable
+    from station.tui.widgets.outcomes import OutcomeTable
 
     async with opened(tmp_path, "a") as (app, pilot):
         screen = app.screen

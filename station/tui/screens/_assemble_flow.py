@@ -20,7 +20,8 @@ from drivers.errors import DriverError
 from projector.errors import ProjectorError
 from station.errors import StationError
 from station.services import assemble as flow
-from station.tui.widgets.assemble_flow import NEXT, ForecastStatus, OutcomeTable
+from station.tui.widgets.assemble_flow import NEXT, ForecastStatus
+from station.tui.widgets.outcomes import OutcomeTable
 from station.tui.widgets.progress import ProgressPanel, post_progress
 
 #: What a worker may fail with, said in one line.
@@ -166,8 +167,8 @@ class AttemptFlow:
         self._set_status(f"the world ran it: {verdict}; l logs the trial", "green" if self.assembly.success else "")
         self._show_forecast()
 
-    def on_outcome_table_changed(self, event: OutcomeTable.Changed) -> None:
-        # by name, not @on: the decorator's handlers are collected on message pumps, and this is a mixin
+    def outcomes_changed(self, event: OutcomeTable.Changed) -> None:
+        """The outcome table's callback: the first problem, or the verdict once every event is said."""
         if self.assembly is None or self.assembly.stage != "run":
             return
         if event.problem:

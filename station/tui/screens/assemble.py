@@ -47,7 +47,8 @@ from station.services import guide as service
 from station.services.projectors import configured_projector, open_projector
 from station.tui.registry import ScreenEntry
 from station.tui.screens._assemble_flow import AttemptFlow
-from station.tui.widgets.assemble_flow import ForecastStatus, OutcomeTable
+from station.tui.widgets.assemble_flow import ForecastStatus
+from station.tui.widgets.outcomes import OutcomeTable
 from station.tui.widgets.picture import HalfBlockPicture
 from station.tui.widgets.progress import ProgressPanel, ProgressReported
 from station.tui.widgets.scenario_select import scenario_choices, select_scenario
@@ -148,7 +149,7 @@ class AssembleScreen(AttemptFlow, Screen):
                 yield DataTable(id="steps", cursor_type="row", zebra_stripes=True)
                 yield DataTable(id="tolerances", cursor_type="row", zebra_stripes=True)
                 yield DataTable(id="check", cursor_type="row", zebra_stripes=True)
-                yield OutcomeTable(id="outcomes")
+                yield OutcomeTable(id="outcomes", on_change=self.outcomes_changed)
         yield Footer()
 
     def on_mount(self) -> None:
