@@ -53,7 +53,8 @@ def test_the_same_schema_and_migrations_as_sqlite(pg_url, tmp_path):
         pass
     # the same tables, the same columns in the same order, the same NOT NULLs (SQLite's primary keys count)
     assert postgres == _sqlite_columns(tmp_path / "t.sqlite3")
-    assert set(postgres) == {"jobs", "scenarios", "trials", "trial_events"}
+    assert set(postgres) == {"jobs", "scenarios", "trials", "trial_events", "loop_runs", "loop_loops", "loop_attempts",
+                             "optimized_layouts"}
     # opening again applies nothing and keeps the data
     with TrialStore(pg_url) as store:
         trial_id = store.add(_trial(last_stops="yes"))
