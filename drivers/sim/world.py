@@ -38,7 +38,7 @@ from typing import Any
 import numpy as np
 
 from drivers.errors import SimConfigError
-from drivers.sim.shared import SharedTwins
+from drivers.sim.shared import SharedTwins, bounded_number
 
 __all__ = ["SimulatedWorld", "forget_worlds", "parse_world_options", "sim_world", "world_named"]
 
@@ -302,11 +302,4 @@ def _option(key: str, text: str) -> Any:
             raise SimConfigError(f"sim world option {key}: expected lo,hi factors with {low:g} <= lo <= hi <= "
                                  f"{high:g} (e.g. {key}={','.join(f'{x:g}' for x in _DEFAULTS[key])}), got {text!r}")
         return pair
-    low, high, what = _NUMBERS[key]
-    try:
-        value = float(text)
-    except ValueError:
-        value = math.nan
-    if not low <= value <= high:
-        raise SimConfigError(f"sim world option {key}: expected {what}, got {text!r}")
-    return value
+    return bounded_number("world", key, text, *_NUMBERS[key])

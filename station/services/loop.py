@@ -72,7 +72,7 @@ class LoopSettings:
     baseline: int | None = None
     predict_samples: int = 32
     fit_draws: int = 4
-    fit_sobol: int = 12
+    fit_sobol: int = 8
     fit_rounds: int = 2
     camera: str = "sim://camera?supersample=1"
     settings: str = "recommended"
@@ -155,7 +155,8 @@ class LoopResult:
     baseline_attempts: int
     baseline_successes: int
     outcomes: list[tuple[int, int, bool, float | None]]  #: (loop, attempt, success, predicted) of every attempt
-    hidden: dict[str, float]
+    hidden: dict[str, float]  #: the world's hidden material values (for benches: the station never reads them)
+    baseline: list[bool] = field(default_factory=list)  #: the baseline's successes, in order
 
     @property
     def baseline_rate(self) -> float | None:
@@ -305,6 +306,18 @@ class _Loop:
                             who=f"simulated maker ({self.world.url})", notes=note)
         return self.store.add_attempt(self.run_id, k, a, trial, predicted=predicted, check_rounds=rounds)
 
+    def prior(self):
+        """What the station knows of the physics before any trial: the scenario's uncertain values and their ranges
+        (loop 1 predicts with them, so its probabilities carry that uncertainty, as a calibrated profile's do)."""
+        from design.contraption.physics_profile import PhysicsProfile
+
+        uncertain = self.scenario.uncertain_parameters()
+        if not uncertain:
+            return None
+        return PhysicsProfile(name=f"{self.scenario.name}: its own values and ranges",
+                              values={k: v for k, (v, _) in uncertain.items()},
+                              intervals={k: bounds for k, (_, bounds) in uncertain.items()})
+
     def predict(self, job, report, profile, k: int, a: int) -> float:
         from station.services.predict import as_built_from_check, predict_layout
 
@@ -323,7 +336,7 @@ class _Loop:
         stage = f"loop {k}" if k else "baseline"
         if len(done) < count:
             layout_path, profile_path = self.files(row)
-            profile = read_profile(profile_path) if profile_path else None
+            profile = read_profile(profile_path) if profile_path else self.prior()
             job = make_guide(self.scenario.source, str(layout_path), physics=profile_path)
             for a in range(1, count + 1):
                 if a in done:
@@ -394,6 +407,6 @@ def run_loop(scenario: str, world: str, settings: LoopSettings | None = None, *,
         baseline = run.run_attempts(first, 0, settings.baseline_attempts, checked=False) \
             if settings.baseline_attempts else []
         result = LoopResult(run.run_id, loaded.name, summaries, len(baseline), sum(a.success for a in baseline),
-                            outcomes, run.hidden)
+                            outcomes, run.hidden, [a.success for a in baseline])
     the_world.close()
     return result

@@ -107,11 +107,17 @@ def grab_placed(camera_url: str, guide, placed: Mapping[str, Mapping], seed: int
         camera.close()
 
 
+#: The zone a part is kept to when its check knows no tolerance for it (none fitted, or bound only by its range's
+#: end): about twice the check's own resolution, so the maker is not sent back for every half millimetre.
+UNKNOWN_TOLERANCE_MM, UNKNOWN_TOLERANCE_DEG = 1.0, 1.0
+
+
 def check_moves(check: Mapping[str, Any], guide, *, all_parts: bool = False) -> list[dict]:
     """What a CHECK.json's instructions ask the maker to do: ``[{"name", "du_mm", "dv_mm", "dheading_deg"}]`` per
-    part out of its tolerance (or with no tolerance known, and an instruction that moves it), designed minus
-    measured. A part checked by its bodies (a run's first and last dominoes) is moved by its first measured body:
-    the part's origin found from it as :func:`calibration.check.measured_pose` does.
+    part out of its tolerance (or, with no tolerance known, off by more than :data:`UNKNOWN_TOLERANCE_MM` /
+    :data:`UNKNOWN_TOLERANCE_DEG`), designed minus measured (``all_parts``: every part the instruction moves). A
+    part checked by its bodies (a run's first and last dominoes) is moved by its first measured body: the part's
+    origin found from it as :func:`calibration.check.measured_pose` does.
     """
     from calibration.check import NEGLIGIBLE_DEG, NEGLIGIBLE_MM
 
@@ -137,6 +143,9 @@ def check_moves(check: Mapping[str, Any], guide, *, all_parts: bool = False) -> 
                                 math.sin(turn) * offset[0] + math.cos(turn) * offset[1]])
             du, dv = np.add([du, dv], rotated - offset)
         if abs(du) < NEGLIGIBLE_MM and abs(dv) < NEGLIGIBLE_MM and abs(dheading) < NEGLIGIBLE_DEG:
+            continue
+        if entry.get("within_tolerance") is None and not all_parts and abs(du) <= UNKNOWN_TOLERANCE_MM \
+                and abs(dv) <= UNKNOWN_TOLERANCE_MM and abs(dheading) <= UNKNOWN_TOLERANCE_DEG:
             continue
         moves[owner] = {"name": owner, "du_mm": -float(du), "dv_mm": -float(dv), "dheading_deg": -float(dheading)}
     return list(moves.values())
