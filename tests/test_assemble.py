@@ -143,3 +143,36 @@ def test_the_service_walks_the_stages_in_order_and_a_fix_brings_the_parts_closer
         assert record["as_built"] == assembly.check.to_json()["as_built"] and record["who"] == "ann"
     finally:
         assembly.close()
+
+
+PROFILE = """\
+[profile]
+format = "chaos-station physics"
+version = 1
+name = "wood-fit-1"
+created = "2026-12-03T10:00:00Z"
+source = "calibrate sim: 12 trials of SIMPLE"
+[values]
+"wood.friction" = 0.42
+"""
+
+
+def test_the_projector_follows_the_steps_and_the_trial_keeps_the_physics_profile(capsys, monkeypatch, tmp_path):
+    from drivers.sim.projector import forget_projectors, projector_named
+
+    forget_projectors()
+    profile = tmp_path / "wood.toml"
+    profile.write_text(PROFILE, encoding="utf-8")
+    answers = "\np\n\n\n\n" + "\n" + "a\n" + "\n" + "\n"  # steps 1, back to 1, 2, 3, placing; accept; run; log
+    code, out, err = run(capsys, monkeypatch, answers, "simple", "success", "--project", "--projector",
+                         "sim://projector?name=wall", "--world", "sim://world?seed=2", "--physics", str(profile),
+                         *FAST)
+    assert code == 0, err + out
+    projector = projector_named("wall")
+    steps = [line for line in out.splitlines() if line.startswith("step ")]
+    assert [s.split(":")[0] for s in steps] == ["step 1/3", "step 2/3", "step 1/3", "step 2/3", "step 3/3"]
+    assert len(projector.frames) >= len(steps)  # one frame per step shown (then blanked when closed)
+    assert "the projector highlighting each" in out and "wrote the guide sheets" not in out
+    (trial,) = trials()
+    assert trial["physics"]["name"] == "wood-fit-1" and '"wood.friction" = 0.42' in trial["physics"]["content"]
+    forget_projectors()
