@@ -110,7 +110,8 @@ def test_ctrl_c_leaves_cleanly_with_nothing_logged(capsys, monkeypatch):
 ])
 def test_bad_options_are_one_line(capsys, monkeypatch, argv, expected):
     code, out, err = run(capsys, monkeypatch, "", "simple", "success", *argv)
-    assert code == 2 and expected in err and len(err.strip().splitlines()) == 1, err
+    errors = [line for line in err.splitlines() if not line.startswith("guide: ")]  # progress lines aside
+    assert code == 2 and expected in err and len(errors) == 1 and errors[0].startswith("station: error: "), err
     assert trials() == []
 
 

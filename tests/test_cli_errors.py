@@ -138,6 +138,7 @@ MISSING_FILE = {
     ("robustness",): ["robustness", "simple", "missing.json"],
     ("predict",): ["predict", "simple", "missing.json"],
     ("loop",): ["loop", "missing.toml", "--world", "sim://world"],
+    ("assemble",): ["assemble", "missing.toml", "success"],
     ("scenario", "check"): ["scenario", "check", "missing.toml"],
     ("send",): ["send", "missing.gcode", "--port", "sim://grbl"],
     ("simulate",): ["simulate", "missing.toml"],

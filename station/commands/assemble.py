@@ -68,6 +68,7 @@ def register(subparsers) -> None:
 
 
 def run_assemble(args) -> int:
+    from station.progress_view import ProgressView
     from station.services import assemble as service
 
     if args.max_checks < 1:
@@ -79,10 +80,11 @@ def run_assemble(args) -> int:
         projector = None
         if args.project:
             projector_context, projector = _open_projector(args.projector)
-        out.write("reading the scenario, the layout and the tolerances...\n")
-        assembly = service.open_assembly(args.scenario, args.layout, camera=args.camera, world=args.world,
-                                         projector=projector, physics=args.physics, attempt=args.attempt,
-                                         samples=args.samples, seed=args.seed, workers=args.workers)
+        with ProgressView(sys.stderr, prefix="guide: ") as view:  # the tolerance map may take a while
+            assembly = service.open_assembly(args.scenario, args.layout, camera=args.camera, world=args.world,
+                                             projector=projector, physics=args.physics, attempt=args.attempt,
+                                             samples=args.samples, seed=args.seed, workers=args.workers,
+                                             progress=view)
         _walk(assembly, args, out)
     except ServiceError as error:
         raise flag_error(error, FLAGS) from None

@@ -343,26 +343,32 @@ def open_assembly(scenario: str, layout: str | None, *, view: str | None = None,
     check_count(attempt, "attempt")
     profile = read_profile(physics) if physics is not None else None
     trial_scenario = load_trial_scenario(scenario)
-    job = guides.make_guide(scenario, layout, view=view, progress=progress,
-                            physics=None if physics is None else str(physics))
-    if profile is not None:
-        from design.contraption.physics_profile import apply_profile
-
-        apply_profile(job.scenario, profile, str(physics))  # refuses a profile of another contraption, naming it
-    if trial_scenario.content_hash != job.scenario.content_hash:
-        raise ServiceError(f"scenario: {scenario} changed while it was read; start again", field="scenario")
-    if attempt is None:
-        if store is None:
-            with open_store() as opened:
-                attempt = 1 + len(opened.trials(scenario=trial_scenario.name))
-        else:
-            attempt = 1 + len(store.trials(scenario=trial_scenario.name))
     opened_world = None
-    if world is not None:
+    if world is not None:  # a bad URL refused before the guide's work
         from station.services.world import open_world, prepare_world
 
         opened_world = open_world(world)
-        prepare_world(opened_world, job.scenario)
+    try:
+        job = guides.make_guide(scenario, layout, view=view, progress=progress,
+                                physics=None if physics is None else str(physics))
+        if opened_world is not None:
+            prepare_world(opened_world, job.scenario)
+        if profile is not None:
+            from design.contraption.physics_profile import apply_profile
+
+            apply_profile(job.scenario, profile, str(physics))  # refuses a profile of another contraption, naming it
+        if trial_scenario.content_hash != job.scenario.content_hash:
+            raise ServiceError(f"scenario: {scenario} changed while it was read; start again", field="scenario")
+        if attempt is None:
+            if store is None:
+                with open_store() as opened:
+                    attempt = 1 + len(opened.trials(scenario=trial_scenario.name))
+            else:
+                attempt = 1 + len(store.trials(scenario=trial_scenario.name))
+    except BaseException:
+        if opened_world is not None:
+            opened_world.close()
+        raise
     return Assembly(job, trial_scenario, camera=camera, world=opened_world, projector=projector,
                     physics=None if physics is None else str(physics), attempt=attempt, samples=samples, seed=seed,
                     workers=workers, _profile=profile)
