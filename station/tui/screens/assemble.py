@@ -79,7 +79,7 @@ class AssembleScreen(AttemptFlow, Screen):
     """Step through a layout's assembly guide; the projector follows."""
 
     CSS = """
-    AssembleScreen #controls { width: 38; padding: 0 1; }
+    AssembleScreen #controls { width: 38; padding: 0 1; overflow-y: auto; }
     AssembleScreen #controls Input, AssembleScreen #controls Select, AssembleScreen #controls Button { width: 100%; }
     AssembleScreen #controls Button { margin-top: 1; }
     AssembleScreen #status { height: auto; margin-top: 1; }
