@@ -8,9 +8,10 @@ part with the projector highlighting it (:meth:`drivers.sim.world.SimulatedWorld
 the parts as placed and :func:`station.services.check.check_frame` checks them, the maker applies the instructions
 and the camera checks again until every part is within its tolerance (at most ``rounds`` corrections), the world
 runs (:func:`station.services.world.run_attempt`), the station predicts the physical success of what the check
-measured (:func:`station.services.predict.predict_layout`, under the loop's profile) and logs the trial (with the
-CHECK.json and the profile) and the attempt in one transaction. The **baseline** is the thesis's workflow in the
-same world: the loop-1 layout placed from the printed sheet (no highlight), no check, no calibration.
+measured (:func:`station.services.predict.predict_layout` with the check's residual error, under the loop's profile
+and its intervals; in loop 1, before any trial, under the scenario's values and uncertain ranges) and logs the trial
+(with the CHECK.json and the profile) and the attempt in one transaction. The **baseline** is the thesis's workflow
+in the same world: the loop-1 layout placed from the printed sheet (no highlight), no check, no calibration.
 
 Everything is in the station database (:mod:`station.loopstore`): a run is keyed by its arguments, every random
 draw is seeded by the world seed, the loop, the attempt and the round, and a loop's layout and profile are stored
@@ -36,7 +37,10 @@ __all__ = ["AttemptProgress", "LoopResult", "LoopSettings", "LoopSummary", "run_
 
 #: The world's attempt numbers: loop k's attempt a is ``k * ATTEMPT_BLOCK + a`` (the baseline is loop 0).
 ATTEMPT_BLOCK = 1000
-_OPTIMIZE, _CALIBRATE, _PREDICT, _CAMERA = 11, 12, 13, 14  # what a derived seed is for
+_CALIBRATE, _PREDICT, _CAMERA = 12, 13, 14  # what a derived seed is for
+#: The optimizer's seed (``station optimize``'s default): loop 1's layout is the same in every world, and cached once
+#: (its physics are the scenario's); a later loop's differs by its calibrated profile only.
+OPTIMIZE_SEED = 0
 
 
 @dataclass(frozen=True)
@@ -236,13 +240,13 @@ class _Loop:
         self.stop_point()
         if k == 1:
             values = {name: value for name, (value, _) in self.scenario.uncertain_parameters().items()}
-            row = LoopRow(1, self.optimized(None, _seed(self.world.seed, _OPTIMIZE, 1)), None, None, values)
+            row = LoopRow(1, self.optimized(None, OPTIMIZE_SEED), None, None, values)
         else:
             profile = self.calibrate(k)
             text = profile.to_toml()
             path = self.folder / f"profile-{k}.toml"
             path.write_text(text, encoding="utf-8")
-            layout = self.optimized(path, _seed(self.world.seed, _OPTIMIZE, k))
+            layout = self.optimized(path, OPTIMIZE_SEED)
             row = LoopRow(k, layout, profile.name, text, dict(profile.values))
         self.store.add_loop(self.run_id, row)
         return self.store.loop(self.run_id, k)
