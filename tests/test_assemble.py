@@ -17,6 +17,8 @@ from station.services import assemble as service
 from station.services.errors import ServiceError
 from station.services.trials import load_trial_scenario, open_store
 
+from .trials.test_trial_cli import PROFILE  # a physics profile for SIMPLE (wood.friction)
+
 FAST = ["--workers", "1", "--samples", "6"]
 
 
@@ -146,16 +148,6 @@ def test_the_service_walks_the_stages_in_order_and_a_fix_brings_the_parts_closer
         assembly.close()
 
 
-PROFILE = """\
-[profile]
-format = "chaos-station physics"
-version = 1
-name = "wood-fit-1"
-created = "2026-12-03T10:00:00Z"
-source = "calibrate sim: 12 trials of SIMPLE"
-[values]
-"wood.friction" = 0.42
-"""
 
 
 def test_the_projector_follows_the_steps_and_the_trial_keeps_the_physics_profile(capsys, monkeypatch, tmp_path):
