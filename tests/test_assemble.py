@@ -166,6 +166,7 @@ def test_the_projector_follows_the_steps_and_the_trial_keeps_the_physics_profile
     assert [s.split(":")[0] for s in steps] == ["step 1/3", "step 2/3", "step 1/3", "step 2/3", "step 3/3"]
     assert len(projector.frames) >= len(steps)  # one frame per step shown (then blanked when closed)
     assert "the projector highlighting each" in out and "wrote the guide sheets" not in out
+    assert "the projector shows an arrow per part to move" in out  # the check, projected
     (trial,) = trials()
     assert trial["physics"]["name"] == "wood-fit-1" and '"wood.friction" = 0.42' in trial["physics"]["content"]
     forget_projectors()

@@ -210,6 +210,8 @@ def _check_loop(assembly, args, out) -> None:
         out.write(f"check {checks}: grabbing a frame from the camera...\n")
         result = assembly.check_parts()
         out.writelines(f"  {line}\n" for line in report_lines(result.report))
+        if assembly.project_check():
+            out.write("  the projector shows an arrow per part to move, to where it must go\n")
         _forecast(assembly, out)
         if assembly.within_tolerance:
             answer = ask("No part to move. Enter: run, c: check again > ", out,

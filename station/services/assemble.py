@@ -193,6 +193,16 @@ class Assembly:
         self.checks.append(result)
         return result
 
+    def project_check(self) -> bool:
+        """Show the last check on the projector (an arrow per misplaced part to where it must go, a ring at the
+        target); False without a projector or a check."""
+        from station.services.check import overlay_frame
+
+        if self.projector is None or self.check is None:
+            return False
+        self.projector.show(overlay_frame(self.check, tuple(self.projector.size), self._homography()))
+        return True
+
     def fix(self) -> list[dict]:
         """The maker moved the parts as the last check said (a simulated world applies the moves now, with the
         maker's smaller error; :func:`station.services.world.check_moves`); check again next. Returns the moves."""

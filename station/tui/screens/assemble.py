@@ -348,10 +348,7 @@ class AssembleScreen(AttemptFlow, Screen):
         self.post_message(CheckDone(check, picture))
         if self.projector is not None and self.job is job:
             try:
-                size = tuple(self.projector.size)
-                device = configured_projector()
-                homography = checks.projector_homography(device.name, size) if device is not None else None
-                self.projector.show(checks.overlay_frame(check, size, homography))
+                self.assembly.project_check()
             except DriverError as error:
                 self.app.call_from_thread(self._set_status, f"projector: {error}", "red")
 
