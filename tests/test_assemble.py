@@ -92,6 +92,17 @@ def test_leaving_before_the_end_logs_nothing(capsys, monkeypatch, answers, word)
     assert trials() == []
 
 
+def test_ctrl_c_while_forecasting_leaves_cleanly_with_nothing_logged(capsys, monkeypatch):
+    from station.services.robust import RunStopped
+
+    def interrupted(self, *args, **kwargs):
+        raise RunStopped(3, "cache")  # what the simulation runner makes of a Ctrl-C
+
+    monkeypatch.setattr(service.Assembly, "forecast", interrupted)
+    code, out, _ = run(capsys, monkeypatch, "s\n\n", "simple", "success", *FAST)
+    assert code == 130 and "stopped: nothing logged" in out and trials() == []
+
+
 def test_ctrl_c_leaves_cleanly_with_nothing_logged(capsys, monkeypatch):
     class Interrupting(io.StringIO):
         def readline(self, *args):

@@ -10,6 +10,7 @@ from __future__ import annotations
 import os
 import sys
 
+from common.progress import Cancelled
 from station.cli_util import flag_error
 from station.errors import UsageError
 from station.services.errors import ServiceError
@@ -88,10 +89,11 @@ def run_assemble(args) -> int:
         _walk(assembly, args, out)
     except ServiceError as error:
         raise flag_error(error, FLAGS) from None
-    except (Quit, KeyboardInterrupt) as stop:
-        word = "stopped" if isinstance(stop, KeyboardInterrupt) else str(stop) or "left"
-        out.write(f"\n{word}: nothing logged\n")
-        return 130 if isinstance(stop, KeyboardInterrupt) else 1
+    except (Quit, KeyboardInterrupt, Cancelled) as stop:
+        # Ctrl-C (or kill) while a forecast simulates comes back as the runner's RunStopped (a Cancelled)
+        interrupted = not isinstance(stop, Quit)
+        out.write(f"\n{'stopped' if interrupted else str(stop) or 'left'}: nothing logged\n")
+        return 130 if interrupted else 1
     finally:
         if assembly is not None:
             assembly.close()
