@@ -136,10 +136,15 @@ def ask(prompt: str, out, choices: dict[str, str] | None = None) -> str:
         out.write(f"  {answer!r} is not an answer here; expected one of: {words}\n")
 
 
-def _clear(out) -> None:
-    """Clear the terminal between stages (only a terminal: a pipe or a log keeps every line)."""
+def _clear(out, assembly) -> None:
+    """Clear the terminal between stages (only a terminal: a pipe or a log keeps every line) and say again what is
+    built and the last forecast, so that they stay in view."""
     if out.isatty() and os.environ.get("TERM", "dumb") != "dumb":
         out.write("\x1b[2J\x1b[H")
+        out.write(f"{assembly.job.guide.scenario}, attempt {assembly.attempt}: {assembly.stage}\n")
+        if assembly.forecasts:
+            out.write(f"  {assembly.forecasts[-1].line()}\n")
+        out.write("\n")
 
 
 def _forecast(assembly, out) -> None:
@@ -165,7 +170,7 @@ def _walk(assembly, args, out) -> None:
     keys = {"": "next", "n": "next", "p": "previous", "s": "skip"}
     while step <= len(assembly.steps):
         assembly.show_step(step)
-        _clear(out)
+        _clear(out, assembly)
         out.write(f"step {step}/{len(assembly.steps)}: {assembly.steps[step - 1]}\n")
         answer = ask("  Enter: next step, p: previous, s: skip to placing, q: quit > ", out, keys)
         if answer == "skip":
@@ -180,7 +185,7 @@ def _walk(assembly, args, out) -> None:
     # -- check
     _check_loop(assembly, args, out)
     # -- run
-    _clear(out)
+    _clear(out, assembly)
     if assembly.world is not None:
         ask("Run it: Enter runs the contraption in the simulated world (q: quit) > ", out, {"": ""})
         assembly.run()
@@ -208,7 +213,7 @@ def _check_loop(assembly, args, out) -> None:
     checks = 0
     while True:
         checks += 1
-        _clear(out)
+        _clear(out, assembly)
         out.write(f"check {checks}: grabbing a frame from the camera...\n")
         result = assembly.check_parts()
         out.writelines(f"  {line}\n" for line in report_lines(result.report))
