@@ -6,7 +6,9 @@ Kinds
 - ``camera``: a camera: a real one on OpenCV's ``VideoCapture`` (:mod:`drivers.camera.opencv`) or its simulated twin
   (:mod:`drivers.sim.camera`);
 - ``projector``: a projector: a full-screen window on a display (:mod:`drivers.projector`) or its simulated twin
-  (:mod:`drivers.sim.projector`).
+  (:mod:`drivers.sim.projector`);
+- ``world``: the physical world the contraption is built in; only simulated (:mod:`drivers.sim.world`: hidden
+  physics and a maker placing parts with human error), for the station's unattended loop.
 
 The registry (:func:`resolve`) reads a URL and says which kind it names and which driver serves it. A kind whose
 driver does not exist would be said so (:attr:`DriverInfo.available` False, :func:`probe` answering
@@ -17,7 +19,7 @@ Accepted URLs
 GRBL: ``sim://grbl?profile=NAME`` (the simulated twin), ``/dev/tty*``, ``COMn``, ``socket://HOST:PORT``,
 ``rfc2217://HOST:PORT``, ``loop://``. Camera: ``sim://camera``, an integer index (``0``), ``/dev/video*``,
 ``rtsp://...``, ``http(s)://...`` or a video file (``.mp4``, ``.avi``, ``.mkv``, ``.mov``). Projector:
-``sim://projector``, ``display:N``.
+``sim://projector``, ``display:N``. World: ``sim://world``.
 """
 
 from __future__ import annotations
@@ -43,7 +45,7 @@ __all__ = [
     "resolve",
 ]
 
-KINDS = ("grbl", "camera", "projector")
+KINDS = ("grbl", "camera", "projector", "world")
 
 #: Seconds between status queries while a GRBL probe waits for the answer.
 QUERY_INTERVAL = 0.25
@@ -56,10 +58,12 @@ FORMS = {
     "camera": "sim://camera, an index such as 0, /dev/video*, rtsp://..., http(s)://..., a video file "
     f"({', '.join(VIDEO_SUFFIXES)})",
     "projector": "sim://projector, display:N",
+    "world": "sim://world",
 }
 
 #: What :func:`resolve` accepts, for the error message on an URL that matches nothing.
-ACCEPTED_FORMS = f"GRBL: {FORMS['grbl']}; camera: {FORMS['camera']}; projector: {FORMS['projector']}"
+ACCEPTED_FORMS = (f"GRBL: {FORMS['grbl']}; camera: {FORMS['camera']}; projector: {FORMS['projector']}; "
+                  f"world: {FORMS['world']}")
 
 
 class UnknownDeviceURL(DriverError):
@@ -249,6 +253,7 @@ def _port_problem(message: str) -> str:
 _GRBL = "grbl-serial"
 _DISPLAY, _SIM_PROJECTOR = "sdl-display", "sim-projector"
 _OPENCV, _SIM_CAMERA = "opencv", "sim-camera"
+_SIM_WORLD = "sim-world"
 
 
 def _display_projector(url: str, **options: Any) -> Any:
@@ -279,6 +284,13 @@ def _sim_camera(url: str, **options: Any) -> Any:
     return sim_camera(url, **options)
 
 
+def _sim_world(url: str, **options: Any) -> Any:
+    """A :class:`drivers.sim.world.SimulatedWorld` (the shared one for a ``name=`` URL)."""
+    from drivers.sim.world import sim_world
+
+    return sim_world(url, **options)
+
+
 #: ``(pattern, kind, driver, simulated, factory)``, tried in order; the first that matches wins.
 _RULES: tuple[tuple[re.Pattern, str, str, bool, Callable[..., Any] | None], ...] = (
     (re.compile(r"^sim://grbl(\?.*)?$"), "grbl", _GRBL, True, GrblSerialDevice),
@@ -294,6 +306,7 @@ _RULES: tuple[tuple[re.Pattern, str, str, bool, Callable[..., Any] | None], ...]
      "camera", _OPENCV, False, _opencv_camera),
     (re.compile(r"^sim://projector(\?.*)?$"), "projector", _SIM_PROJECTOR, True, _sim_projector),
     (re.compile(r"^display:\d+$"), "projector", _DISPLAY, False, _display_projector),
+    (re.compile(r"^sim://world(\?.*)?$"), "world", _SIM_WORLD, True, _sim_world),
 )
 
 

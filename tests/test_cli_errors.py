@@ -137,6 +137,8 @@ MISSING_FILE = {
     ("retrieve",): ["retrieve", "missing.json"],
     ("robustness",): ["robustness", "simple", "missing.json"],
     ("predict",): ["predict", "simple", "missing.json"],
+    ("loop",): ["loop", "missing.toml", "--world", "sim://world"],
+    ("assemble",): ["assemble", "missing.toml", "success"],
     ("scenario", "check"): ["scenario", "check", "missing.toml"],
     ("send",): ["send", "missing.gcode", "--port", "sim://grbl"],
     ("simulate",): ["simulate", "missing.toml"],

@@ -8,6 +8,8 @@ from station.db import MIGRATIONS, open_database, schema_version
 
 #: The trial log's tables (migration 3; sqlite_sequence is SQLite's own, for AUTOINCREMENT ids).
 TRIAL_TABLES = {"scenarios", "trials", "trial_events", "sqlite_sequence"}
+#: The station loop's tables (migration 4, issue 21).
+LOOP_TABLES = {"loop_runs", "loop_loops", "loop_attempts", "optimized_layouts"}
 
 
 def _tables(connection: sqlite3.Connection) -> set[str]:
@@ -24,8 +26,8 @@ def test_a_version_1_database_loses_the_unused_meta_table_and_keeps_its_jobs(tmp
     old.close()
     upgraded = open_database(path)
     try:
-        assert schema_version(upgraded) == len(MIGRATIONS) == 3
-        assert _tables(upgraded) == {"jobs", *TRIAL_TABLES}
+        assert schema_version(upgraded) == len(MIGRATIONS) == 4
+        assert _tables(upgraded) == {"jobs", *TRIAL_TABLES, *LOOP_TABLES}
         assert upgraded.execute("SELECT kind, device, status FROM jobs").fetchall() == [("run", "plotter", "done")]
     finally:
         upgraded.close()
@@ -34,6 +36,6 @@ def test_a_version_1_database_loses_the_unused_meta_table_and_keeps_its_jobs(tmp
 def test_a_new_database_has_no_meta_table(tmp_path):
     connection = open_database(tmp_path / "new.sqlite3")
     try:
-        assert _tables(connection) == {"jobs", *TRIAL_TABLES}
+        assert _tables(connection) == {"jobs", *TRIAL_TABLES, *LOOP_TABLES}
     finally:
         connection.close()

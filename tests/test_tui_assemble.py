@@ -2,8 +2,11 @@
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 
+import numpy as np
+import pytest
 from textual.widgets import DataTable, Input, Static
 
 from station.tui.screens.assemble import AssembleScreen
@@ -12,6 +15,16 @@ from .conftest import opened, settle
 
 LAYOUT = Path(__file__).parent / "robust" / "data" / "simple-layout-with-model.json"
 SIMPLE = Path(__file__).resolve().parents[1] / "examples" / "scenarios" / "simple.toml"
+
+
+@pytest.fixture(autouse=True)
+def small_forecasts(monkeypatch):
+    """The forecast the screen keeps in view: a few simulations in the worker thread (a pool's start-up and 60
+    simulations per forecast are the real screen's, not what these tests are about)."""
+    from station.tui.screens._assemble_flow import AttemptFlow
+
+    monkeypatch.setattr(AttemptFlow, "forecast_samples", 6)
+    monkeypatch.setattr(AttemptFlow, "simulation_workers", 1)
 
 
 async def test_a_layout_is_stepped_through_and_the_projector_follows(tmp_path):
@@ -99,3 +112,115 @@ async def test_c_checks_the_placed_parts_with_the_camera_and_the_projector_follo
         await pilot.press("c")  # again, after moving the parts: the plane is found again
         await settle(app, pilot)
         assert screen.check.report.plane is not None and screen.check.report.plane.moved_mm < 0.5
+
+
+async def test_the_whole_attempt_on_a_simulated_world_with_the_forecast_in_view(tmp_path):
+    """Build, c (the simulated maker places, the camera checks), f (moved as said, checked again), r (the world
+    runs), l (logged): the forecast box says the stage and the physical success after every step."""
+    from station.services.trials import open_store
+    from station.tui.widgets.assemble_flow import ForecastStatus
+    from station.tui.widgets.outcomes import OutcomeTable
+
+    async with opened(tmp_path, "a") as (app, pilot):
+        screen = app.screen
+        screen.query_one("#world", Input).value = "sim://world?seed=4&place_mm=3"
+        screen.open_layout(str(SIMPLE.with_name("ballrun.toml")), "success")
+        await settle(app, pilot)
+        assembly = screen.assembly
+        assert assembly is not None and assembly.world is not None, str(screen.query_one("#status", Static).render())
+        box = screen.query_one("#forecast", ForecastStatus)
+        assert "attempt 1 · guide" in str(box.render()) and "physical success" in str(box.render())
+        assert screen.forecast is not None and screen.forecast.when == "designed"
+        await pilot.press("c")
+        await settle(app, pilot)
+        assert assembly.stage == "check" and screen.check is assembly.check and screen.forecast.when == "as placed"
+        placed = assembly.world.placed()
+        table = screen.query_one("#check", DataTable)
+        rows = {str(table.get_row_at(i)[0]): table.get_row_at(i) for i in range(table.row_count)}
+        for name in ("goblet", "low_plank", "stop"):  # the table says how far the world's parts really are
+            part = next(p for p in assembly.parts if p.name == name)
+            truth = np.subtract(placed[name]["center_mm"], part.center_mm)
+            assert abs(float(rows[name][2]) - truth[0]) < 0.6 and abs(float(rows[name][3]) - truth[1]) < 0.6
+        await pilot.press("f")
+        await settle(app, pilot)
+        assert len(assembly.checks) == 2 and assembly.fixes == 1
+        await pilot.press("r")  # after a check: accepted as placed, the world runs it
+        await settle(app, pilot)
+        outcomes = screen.query_one("#outcomes", OutcomeTable)
+        assert assembly.stage == "log" and outcomes.display and outcomes.read_only
+        assert [str(outcomes.get_row_at(i)[2]) for i in range(outcomes.row_count)] == list(
+            assembly.outcomes.values())
+        await pilot.press("l")
+        await settle(app, pilot)
+        assert assembly.stage == "done" and assembly.trial_id is not None
+        with open_store() as store:  # the station database the screen logs to (the test home's)
+            (trial,) = store.trials()
+        assert trial["check"] is not None and trial["outcomes"] == assembly.outcomes
+        assert "this run" in screen.forecast.when and "attempt 1 · done" in str(box.render())
+        await pilot.press("g")  # another attempt: the log has one trial, so this is attempt 2
+        await settle(app, pilot)
+        assert screen.assembly is not assembly and screen.assembly.attempt == 2
+
+
+async def test_a_real_table_is_ticked_and_logged_and_keys_out_of_turn_are_said(tmp_path):
+    from station.tui.widgets.outcomes import OutcomeTable
+
+    async with opened(tmp_path, "a") as (app, pilot):
+        screen = app.screen
+        screen.open_layout(str(SIMPLE), "success")
+        await settle(app, pilot)
+        await pilot.press("l")  # nothing run yet
+        assert "the attempt is at 'guide'" in str(screen.query_one("#status", Static).render())
+        await pilot.press("c")
+        await settle(app, pilot)
+        await pilot.press("a", "r")
+        await settle(app, pilot)
+        table = screen.query_one("#outcomes", OutcomeTable)
+        assert table.display and table.has_focus and not table.read_only
+        await pilot.press("y", "y", "n")  # ball rolls, hits the domino, the first does not topple: the rest implied
+        await pilot.pause()
+        assert "a failure; l logs it" in str(screen.query_one("#status", Static).render())
+        await pilot.press("l")
+        await settle(app, pilot)
+        assert screen.assembly.stage == "done"
+        assert screen.assembly.outcomes["first_topples"] == "no" and screen.assembly.success is False
+
+
+@pytest.mark.slow  # ~20 s: three guides with tolerance maps, a fit and an optimization (run with -m slow)
+async def test_k_calibrates_the_physics_on_the_log_and_o_reoptimizes_with_it(tmp_path):
+    """Trials of SIMPLE in the log (as a real table's maker logs them): k fits the materials and puts the profile
+    in the Physics field, o optimizes the layout under it and puts the LAYOUT.json in the Layout field; g then
+    builds the next attempt from both."""
+    from calibration.sim_fit import FitSettings
+    from design.contraption.physics_profile import load_profile
+    from design.robust.psp import PSPSettings
+    from station.services.trials import build_trial, layout_values, load_trial_scenario, open_store
+
+    simple = load_trial_scenario("simple")
+    layout = layout_values(simple, simple.layout("success"))
+    with open_store() as store:
+        for i in range(6):  # the first dominoes fall half of the time: something to fit
+            given = {"last_stops": "yes"} if i % 2 else {"ball_rolls": "yes", "ball_hits_domino": "yes",
+                                                         "first_topples": "no"}
+            store.add(build_trial(simple, layout, given))
+    async with opened(tmp_path, "a") as (app, pilot):
+        screen = app.screen
+        screen.fit_settings = FitSettings(draws=2, sobol=4, rounds=1, per_round=2, held_out=0.0)
+        screen.optimize_budget, screen.optimize_settings = 20, PSPSettings(n_initial=12, max_exploration_steps=2)
+        screen.open_layout(str(SIMPLE), "success")
+        await settle(app, pilot)
+        await pilot.press("k")
+        await settle(app, pilot)
+        physics = screen.query_one("#physics", Input).value
+        assert physics.endswith("simple-calibrated.toml"), str(screen.query_one("#status", Static).render())
+        profile = load_profile(physics)
+        assert set(profile.values) <= set(simple.uncertain_parameters()) and profile.values
+        await pilot.press("o")
+        await settle(app, pilot)
+        layout_file = screen.query_one("#layout", Input).value
+        assert layout_file.endswith("simple-physics.json"), str(screen.query_one("#status", Static).render())
+        assert json.loads(Path(layout_file).read_text())["scenario"] == "SIMPLE"
+        await pilot.press("g")
+        await settle(app, pilot)
+        assert screen.assembly.physics == physics and screen.assembly.job.layout.source == layout_file
+        assert screen.assembly.attempt == 7

@@ -33,7 +33,7 @@ import numpy as np
 from drivers.errors import DriverError, SimConfigError
 from drivers.sim.camera_render import render
 from drivers.sim.camera_scene import CameraModel, PlaneScene, RenderOptions, TagTruth
-from drivers.sim.shared import SharedTwins
+from drivers.sim.shared import SharedTwins, bounded_number
 
 __all__ = ["FAULTS", "SimulatedCamera", "camera_named", "forget_cameras", "parse_camera_options", "sim_camera"]
 
@@ -265,11 +265,4 @@ def _option(key: str, text: str) -> Any:
             raise SimConfigError(f"sim camera option {key}: expected a whole number from {low} to {high}, got "
                                  f"{text!r}")
         return int(text)
-    low, high, what = _NUMBERS[key]
-    try:
-        value = float(text)
-    except ValueError:
-        value = math.nan
-    if not low <= value <= high:
-        raise SimConfigError(f"sim camera option {key}: expected {what}, got {text!r}")
-    return value
+    return bounded_number("camera", key, text, *_NUMBERS[key])

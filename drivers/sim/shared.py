@@ -3,12 +3,13 @@ station, a guide and a test opening the same name get the same twin, with its fr
 
 from __future__ import annotations
 
+import math
 import threading
 from typing import Generic, TypeVar
 
 from drivers.errors import SimConfigError
 
-__all__ = ["SharedTwins"]
+__all__ = ["SharedTwins", "bounded_number"]
 
 Twin = TypeVar("Twin")
 
@@ -44,3 +45,15 @@ class SharedTwins(Generic[Twin]):
         """Forget every shared twin (tests)."""
         with self._lock:
             self._twins.clear()
+
+
+def bounded_number(kind: str, key: str, text: str, low: float, high: float, what: str) -> float:
+    """URL option ``key`` of a ``sim://KIND`` twin as a number from ``low`` to ``high`` (``what`` says so in the
+    SimConfigError otherwise)."""
+    try:
+        value = float(text)
+    except ValueError:
+        value = math.nan
+    if not low <= value <= high:
+        raise SimConfigError(f"sim {kind} option {key}: expected {what}, got {text!r}")
+    return value

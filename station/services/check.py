@@ -193,9 +193,10 @@ def load_image(path: str | Path) -> np.ndarray:
                            value=str(path)) from None
 
 
-def grab_frame(url: str, guide, *, offsets=None, occluded: Sequence[int] = ()):
+def grab_frame(url: str, guide, *, offsets=None, occluded: Sequence[int] = (), scene=None):
     """One frame from the camera at ``url``, and the intrinsics it knows of itself (a simulated camera's own; None
-    for a real camera, which needs its calibration). A simulated camera is handed :func:`sim_scene` first.
+    for a real camera, which needs its calibration). A simulated camera is handed ``scene`` first (a simulated
+    world's parts where they stand), else :func:`sim_scene` (the guide's tags at their designed poses).
 
     Raises
     ------
@@ -209,11 +210,14 @@ def grab_frame(url: str, guide, *, offsets=None, occluded: Sequence[int] = ()):
     camera = open_camera(url)
     try:
         simulated = hasattr(camera, "set_scene")
+        if scene is not None and not simulated:
+            raise ServiceError(f"camera: a simulated world's parts are seen by a simulated camera (sim://camera), "
+                               f"not by {url!r}", field="camera", value=url)
         if (offsets or occluded) and not simulated:
             raise ServiceError("sim_offset: simulation offsets go with a simulated camera (sim://camera) only",
                                field="sim_offset", value=url)
         if simulated:
-            camera.set_scene(sim_scene(guide, offsets, occluded=occluded))
+            camera.set_scene(scene if scene is not None else sim_scene(guide, offsets, occluded=occluded))
             if "target=" not in url:
                 _aim(camera, guide)
         image = np.asarray(camera.grab())
@@ -224,12 +228,13 @@ def grab_frame(url: str, guide, *, offsets=None, occluded: Sequence[int] = ()):
 
 
 def camera_frame(guide, *, image: str | Path | None = None, camera: str | None = None,
-                 intrinsics: str | Path | None = None, offsets=None, occluded: Sequence[int] = ()):
+                 intrinsics: str | Path | None = None, offsets=None, occluded: Sequence[int] = (), scene=None):
     """The frame to check and how to read it: ``(image, intrinsics, camera name, its last plane fix)``.
 
     From the file ``image``, else grabbed from ``camera`` (a URL; default the station's camera, ``station
     devices``). The intrinsics: the file ``intrinsics``, else the camera's saved calibration, else a simulated
-    camera's own, else guessed (their ``notes`` say so). Offsets and covered tags go to a simulated camera only.
+    camera's own, else guessed (their ``notes`` say so). Offsets, covered tags and a ``scene`` (a simulated world's,
+    :mod:`station.services.world`) go to a simulated camera only.
     """
     from station.services import calibrate
 
@@ -242,7 +247,7 @@ def camera_frame(guide, *, image: str | Path | None = None, camera: str | None =
     else:
         if camera is None:
             name, camera = calibrate.configured_camera_url()
-        frame, twin = grab_frame(camera, guide, offsets=offsets, occluded=occluded)
+        frame, twin = grab_frame(camera, guide, offsets=offsets, occluded=occluded, scene=scene)
     size = (int(frame.shape[1]), int(frame.shape[0]))
     if intrinsics is not None or twin is None or calibrate.camera_file(name).exists():
         lens = calibrate.intrinsics_for(size, intrinsics=intrinsics, name=name)

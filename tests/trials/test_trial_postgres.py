@@ -53,7 +53,8 @@ def test_the_same_schema_and_migrations_as_sqlite(pg_url, tmp_path):
         pass
     # the same tables, the same columns in the same order, the same NOT NULLs (SQLite's primary keys count)
     assert postgres == _sqlite_columns(tmp_path / "t.sqlite3")
-    assert set(postgres) == {"jobs", "scenarios", "trials", "trial_events"}
+    assert set(postgres) == {"jobs", "scenarios", "trials", "trial_events", "loop_runs", "loop_loops", "loop_attempts",
+                             "optimized_layouts"}
     # opening again applies nothing and keeps the data
     with TrialStore(pg_url) as store:
         trial_id = store.add(_trial(last_stops="yes"))
@@ -108,3 +109,29 @@ def test_two_stations_importing_the_same_file_at_once_add_each_trial_once(pg_url
     with TrialStore(pg_url) as store:
         assert store.count() == 20
         assert sorted(t["uid"] for t in store.trials()) == sorted(r["uid"] for r in records)
+
+
+@pytest.mark.parametrize("where", ["sqlite", "postgresql"])
+def test_the_loop_store_on_both_databases(where, request, tmp_path):
+    # station loop's tables (migration 4): a run found again by its key, a loop kept once, an attempt logged with its
+    # trial in one transaction and never twice, the optimized-layout cache
+    from station.loopstore import LoopRow, LoopStore, run_key
+
+    url = request.getfixturevalue("pg_url") if where == "postgresql" else str(tmp_path / "t.sqlite3")
+    key = run_key({"scenario": "SIMPLE", "world": "sim://world?seed=1"})
+    with LoopStore(url) as store:
+        run = store.run(key, scenario="SIMPLE", content_hash="h", world="sim://world?seed=1", settings={"a": 1})
+        assert store.run(key, scenario="SIMPLE", content_hash="h", world="w", settings={}) == run
+        assert store.loop(run, 1) is None
+        row = LoopRow(1, {"x": [1.0]}, None, None, {"wood.friction": 0.5})
+        store.add_loop(run, row)
+        store.add_loop(run, LoopRow(1, {"x": [2.0]}, "other", "text", {}))
+        assert store.loop(run, 1) == row
+        first = store.add_attempt(run, 1, 1, _trial(last_stops="yes"), predicted=0.75, check_rounds=2)
+        again = store.add_attempt(run, 1, 1, _trial(ball_hits_domino="no"), predicted=0.1, check_rounds=0)
+        assert first == again and (first.success, first.predicted, first.check_rounds) == (True, 0.75, 2)
+        assert store.trials.count() == 1 and store.trial(first.trial_id)["success"] is True
+        assert [a.attempt for a in store.attempts(run)] == [1] and store.attempts(run, 2) == []
+        assert store.cached_layout("k") is None
+        store.cache_layout("k", {"x": [3.0]})
+        assert store.cached_layout("k") == {"x": [3.0]}

@@ -63,7 +63,7 @@ def test_a_version_2_database_gains_the_trial_log_and_keeps_its_jobs(tmp_path):
         assert store.get(trial_id)["success"] is True
     connection = open_database(path)
     assert connection.execute("SELECT kind, device FROM jobs").fetchall() == [("run", "laser")]
-    assert connection.execute("PRAGMA user_version").fetchone() == (3,)
+    assert connection.execute("PRAGMA user_version").fetchone() == (len(MIGRATIONS),)
     assert connection.execute("PRAGMA journal_mode").fetchone() == ("wal",)
     assert connection.execute("PRAGMA foreign_keys").fetchone() == (1,)
     with pytest.raises(sqlite3.IntegrityError, match="FOREIGN KEY"):
@@ -81,7 +81,7 @@ def test_a_migration_is_one_transaction(tmp_path, monkeypatch):
     with pytest.raises(StationError, match="already exists"):
         db.open_database(path)
     connection = sqlite3.connect(path)
-    assert connection.execute("PRAGMA user_version").fetchone() == (3,)
+    assert connection.execute("PRAGMA user_version").fetchone() == (len(MIGRATIONS),)
     assert connection.execute("SELECT name FROM sqlite_master WHERE name = 'extra'").fetchall() == []
     connection.close()
     assert statements("CREATE TRIGGER t AFTER INSERT ON a BEGIN SELECT 1; SELECT 2; END; DROP TABLE b;") == [
@@ -97,7 +97,7 @@ def test_processes_opening_a_new_database_at_once_migrate_it_once(tmp_path):
     results = [p.communicate(timeout=60) for p in processes]
     assert [r[0].strip() for r in results] == ["ok"] * 4, [r[1] for r in results]
     connection = sqlite3.connect(path)
-    assert connection.execute("PRAGMA user_version").fetchone() == (3,)
+    assert connection.execute("PRAGMA user_version").fetchone() == (len(MIGRATIONS),)
     connection.close()
 
 

@@ -9,6 +9,16 @@ camera (``sim://camera`` by default, shown the guide's tags at their designed po
 check drawn on it, a table of every tagged part (how far it is off, within its tolerance or not, what to do), the
 predicted success as placed, and the projector shows an arrow per misplaced part to where it must go; press c again
 after moving them. The Robust layouts screen opens its result here with a.
+
+The whole attempt (:mod:`station.services.assemble`, as ``station assemble``): c after placing the parts checks them
+(with a simulated world, ``sim://world?seed=S`` in the World field, the simulated maker places them first and the
+camera sees them where they are), f says they were moved as the check said and checks again, a accepts them as
+placed, r runs the contraption (the world runs it and reports; on a real table tick what happened: y / n / u per
+event), l logs the trial with the check and the physics profile, g starts another attempt. k calibrates the
+physics on the scenario's logged trials (the Calibrate > Simulator fit) and puts the profile in the Physics field; o
+re-optimizes the layout with it and puts the new LAYOUT.json in the Layout field. The box at the top left always
+shows the attempt's stage, its predicted physical success and expected attempts (made again after the guide, every
+check and every logged trial).
 """
 
 from __future__ import annotations
@@ -31,12 +41,16 @@ from drivers.errors import DriverError
 from projector.errors import ProjectorError
 from station.errors import StationError
 from station.paths import data_dir
+from station.services import assemble as flow
 from station.services import check as checks
 from station.services import guide as service
 from station.services.projectors import configured_projector, open_projector
 from station.tui.registry import ScreenEntry
+from station.tui.screens._assemble_flow import AttemptFlow
+from station.tui.widgets.assemble_flow import ForecastStatus
+from station.tui.widgets.outcomes import OutcomeTable
 from station.tui.widgets.picture import HalfBlockPicture
-from station.tui.widgets.progress import ProgressPanel, ProgressReported, post_progress
+from station.tui.widgets.progress import ProgressPanel, ProgressReported
 from station.tui.widgets.scenario_select import scenario_choices, select_scenario
 
 #: The frames drawn here (and sent to a projector of another size, which letterboxes them).
@@ -45,11 +59,12 @@ CARE_STYLE = {"tight": "red", "normal": "dark_orange", "loose": "green"}
 
 
 class GuideLoaded(Message):
-    """A guide was built (``job`` and its ``frames``), or could not be (``error``)."""
+    """A guide was built (``job`` and its ``frames``, the attempt ``assembly``), or could not be (``error``)."""
 
-    def __init__(self, job=None, frames=None, error: str = "", projector: str = "") -> None:
+    def __init__(self, job=None, frames=None, error: str = "", projector: str = "", assembly=None) -> None:
         super().__init__()
         self.job, self.frames, self.error, self.projector = job, frames, error, projector
+        self.assembly = assembly
 
 
 class CheckDone(Message):
@@ -60,18 +75,19 @@ class CheckDone(Message):
         self.check, self.picture, self.error = check, picture, error
 
 
-class AssembleScreen(Screen):
+class AssembleScreen(AttemptFlow, Screen):
     """Step through a layout's assembly guide; the projector follows."""
 
     CSS = """
-    AssembleScreen #controls { width: 38; padding: 0 1; }
+    AssembleScreen #controls { width: 38; padding: 0 1; overflow-y: auto; }
     AssembleScreen #controls Input, AssembleScreen #controls Select, AssembleScreen #controls Button { width: 100%; }
     AssembleScreen #controls Button { margin-top: 1; }
     AssembleScreen #status { height: auto; margin-top: 1; }
     AssembleScreen #main { width: 1fr; }
     AssembleScreen #frame { height: 1fr; min-height: 10; }
     AssembleScreen #caption { height: auto; padding: 0 1; }
-    AssembleScreen #steps, AssembleScreen #tolerances, AssembleScreen #check { height: auto; max-height: 14; }
+    AssembleScreen #steps, AssembleScreen #tolerances, AssembleScreen #check, AssembleScreen #outcomes {
+        height: auto; max-height: 14; }
     AssembleScreen .heading { text-style: bold; margin-top: 1; }
     """
 
@@ -82,6 +98,14 @@ class AssembleScreen(Screen):
         Binding("e", "export", "Export PDF + SVG"),
         Binding("c", "check", "Check with the camera"),
         Binding("0", "calibrate_frame", "Calibrate frame"),
+        Binding("f", "fix", "Moved: check again"),
+        Binding("a", "accept", "Accept as placed"),
+        Binding("r", "run", "Run"),
+        Binding("l", "log", "Log trial"),
+        Binding("g", "again", "Another attempt"),
+        Binding("k", "calibrate", "Calibrate physics"),
+        Binding("o", "reoptimize", "Re-optimize"),
+        Binding("s", "stop", "Stop", show=False),
     ]
 
     def __init__(self) -> None:
@@ -96,11 +120,13 @@ class AssembleScreen(Screen):
         #: The last check (a station.services.check.CheckJob), and the guide job it was made against.
         self.check = None
         self._check_job = None
+        self._init_flow()
 
     def compose(self) -> ComposeResult:
         yield Header()
         with Horizontal():
             with Vertical(id="controls"):
+                yield ForecastStatus(id="forecast")
                 yield Label("Scenario", classes="heading")
                 choices = scenario_choices()
                 yield Select(choices, id="scenario", allow_blank=not choices,
@@ -110,6 +136,10 @@ class AssembleScreen(Screen):
                 yield Label("View")
                 yield Select([("chosen from the scenario", "auto"), ("top (the table)", "top"),
                               ("side (the backboard)", "side")], id="view", allow_blank=False, value="auto")
+                yield Label("World (empty: a real table)")
+                yield Input("", placeholder="sim://world?seed=1", id="world")
+                yield Label("Physics profile (optional)")
+                yield Input("", placeholder="PROFILE.toml", id="physics")
                 yield Button("Build the guide (Enter)", id="build", variant="primary")
                 yield Static("", id="status")
                 yield ProgressPanel(idle="c: check the placed parts with the camera", total=None, id="check-progress")
@@ -119,6 +149,7 @@ class AssembleScreen(Screen):
                 yield DataTable(id="steps", cursor_type="row", zebra_stripes=True)
                 yield DataTable(id="tolerances", cursor_type="row", zebra_stripes=True)
                 yield DataTable(id="check", cursor_type="row", zebra_stripes=True)
+                yield OutcomeTable(id="outcomes", on_change=self.outcomes_changed)
         yield Footer()
 
     def on_mount(self) -> None:
@@ -129,6 +160,8 @@ class AssembleScreen(Screen):
         check = self.query_one("#check", DataTable)
         check.add_columns("part", "tag", "du mm", "dv mm", "dist mm", "turn deg", "ok", "cost", "what to do")
         check.display = False
+        self.query_one("#outcomes", OutcomeTable).display = False
+        self._show_forecast()
         if self._pending is not None:
             scenario, layout = self._pending
             self._pending = None
@@ -143,6 +176,8 @@ class AssembleScreen(Screen):
 
     @on(Button.Pressed, "#build")
     @on(Input.Submitted, "#layout")
+    @on(Input.Submitted, "#world")
+    @on(Input.Submitted, "#physics")
     def _build_pressed(self) -> None:
         self.action_build()
 
@@ -166,17 +201,29 @@ class AssembleScreen(Screen):
         view = self.query_one("#view", Select).value
         self._set_status("building the guide (outlines, order, tolerances)…")
         self.query_one("#steps", DataTable).focus()
-        self._build(str(scenario), layout or None, None if view == "auto" else str(view))
+        world = self.query_one("#world", Input).value.strip() or None
+        physics = self.query_one("#physics", Input).value.strip() or None
+        if self.assembly is not None:
+            self.assembly.close()
+        self._build(str(scenario), layout or None, None if view == "auto" else str(view), world, physics)
 
     @work(thread=True, exclusive=True, group="assemble")
-    def _build(self, scenario: str, layout: str | None, view: str | None) -> None:
+    def _build(self, scenario: str, layout: str | None, view: str | None, world: str | None = None,
+               physics: str | None = None) -> None:
+        from station.db import database_url
+        from station.services.trials import open_store
+
+        said = self._ensure_projector()
         try:
-            job = service.make_guide(scenario, layout, view=view)
-            frames = service.projected_frames(job, FRAME_SIZE)
-        except (DesignError, ProjectorError, StationError, OSError) as error:
+            with open_store(database_url()) as store:
+                assembly = flow.open_assembly(scenario, layout, view=view, world=world, physics=physics,
+                                              projector=self.projector, store=store, samples=self.forecast_samples,
+                                              workers=self.simulation_workers)
+            frames = service.projected_frames(assembly.job, FRAME_SIZE)
+        except (DesignError, ProjectorError, StationError, DriverError, OSError) as error:
             self.post_message(GuideLoaded(error=f"cannot build the guide: {error}"))
             return
-        self.post_message(GuideLoaded(job, frames, projector=self._ensure_projector()))
+        self.post_message(GuideLoaded(assembly.job, frames, projector=said, assembly=assembly))
 
     def _ensure_projector(self) -> str:
         """Open the configured projector once (in the worker: a display takes a moment); what to say about it."""
@@ -206,6 +253,8 @@ class AssembleScreen(Screen):
             self._set_status(message.error, "red")
             return
         self.job, self.frames = message.job, message.frames
+        self.physics = self.query_one("#physics", Input).value.strip() or None
+        self._attempt_started(message.assembly)
         guide = self.job.guide
         steps = self.query_one("#steps", DataTable)
         steps.clear()
@@ -281,18 +330,17 @@ class AssembleScreen(Screen):
         if self.job is None:
             self._set_status("no guide yet: build one, place the parts, then press c", "red")
             return
+        if not self._need("guide", "check"):
+            return
         self.query_one("#check-progress", ProgressPanel).start(None, "grabbing a frame from the camera…")
-        previous = None if self.check is None else self.check.measurement.plane
-        self._check(self.job, previous)
+        self._check(self.job)
 
     @work(thread=True, exclusive=True, group="check")
-    def _check(self, job, previous) -> None:
-        """Grab a frame from the station's camera, check it, draw it; the projector then shows the check."""
+    def _check(self, job, fix: bool = False) -> None:
+        """Grab a frame from the station's camera (the parts placed, or moved as the last check said with ``fix``),
+        check it, draw it; the projector then shows the check."""
         try:
-            image, intrinsics, name, saved = checks.camera_frame(job.guide)
-            check = checks.check_frame(job, image, intrinsics, previous=previous or saved,
-                                       progress=post_progress(self))
-            checks.remember_plane(name, check)
+            check = self._check_attempt(fix)
             picture = checks.camera_overlay(check)
         except (DesignError, ProjectorError, StationError, DriverError, ValueError, OSError) as error:
             self.post_message(CheckDone(error=f"cannot check: {error}"))
@@ -300,10 +348,7 @@ class AssembleScreen(Screen):
         self.post_message(CheckDone(check, picture))
         if self.projector is not None and self.job is job:
             try:
-                size = tuple(self.projector.size)
-                device = configured_projector()
-                homography = checks.projector_homography(device.name, size) if device is not None else None
-                self.projector.show(checks.overlay_frame(check, size, homography))
+                self.assembly.project_check()
             except DriverError as error:
                 self.app.call_from_thread(self._set_status, f"projector: {error}", "red")
 
@@ -338,8 +383,9 @@ class AssembleScreen(Screen):
             lines.append(report.prediction_note)
         self.query_one("#caption", Static).update(Text("\n".join(lines)))
         panel.say(lines[0])
-        self._set_status("checked: " + "; ".join(lines[:2]) + ". Move the parts as the table says and press c to "
-                         "check again; n/p go back to the steps")
+        self._set_status("checked: " + "; ".join(lines[:2]) + ". Move the parts as the table says and press f to "
+                         "check again (a: accept as placed); n/p go back to the steps")
+        self._refresh_forecast()
 
     @on(DataTable.RowSelected, "#steps")
     def _row_selected(self, event: DataTable.RowSelected) -> None:

@@ -31,12 +31,9 @@ from station.errors import StationError
 from station.joblog import local_time
 from station.paths import data_dir
 from station.services import trials as service
-from station.trialformat import NO, NOT_REACHED, OUTCOMES, YES, goal_reached, resolve_outcomes
 from station.tui.registry import ScreenEntry
+from station.tui.widgets.outcomes import OutcomeTable
 from station.tui.widgets.scenario_select import scenario_select, select_scenario
-
-#: How each outcome looks in the events table.
-OUTCOME_STYLE = {YES: "bold green", NO: "bold red", NOT_REACHED: "yellow"}
 
 
 def matches(trial: dict[str, Any], text: str) -> bool:
@@ -60,12 +57,8 @@ class TrialsScreen(Screen):
     TrialsScreen .heading { text-style: bold; margin-top: 1; }
     """
 
+    #: y / n / u / space / backspace are the events table's own keys (:class:`OutcomeTable`).
     BINDINGS = [
-        Binding("y", "outcome('yes')", "Happened"),
-        Binding("n", "outcome('no')", "Did not"),
-        Binding("u", "outcome('not-reached')", "Not reached"),
-        Binding("space", "cycle", "Cycle", show=False),
-        Binding("backspace", "outcome('')", "Clear", show=False),
         Binding("l", "log", "Log trial"),
         Binding("e", "export", "Export"),
         Binding("c", "from_contraption", "From Contraptions"),
@@ -77,8 +70,6 @@ class TrialsScreen(Screen):
     def __init__(self) -> None:
         super().__init__(name="trials")
         self.scenario: Scenario | None = None
-        #: What the maker said, event -> outcome word (implied outcomes are not in it).
-        self.given: dict[str, str] = {}
         #: The trials listed (after the filter), oldest first.
         self.trials: list[dict[str, Any]] = []
         self._all: list[dict[str, Any]] = []
@@ -106,15 +97,13 @@ class TrialsScreen(Screen):
                 yield Static("", id="outlook")
             with Vertical(id="right"):
                 yield Static("", id="summary")
-                yield DataTable(id="events", cursor_type="row", zebra_stripes=True)
+                yield OutcomeTable(id="events", times=False, on_change=self.outcomes_changed)
                 yield Label("Past trials", classes="heading")
                 yield DataTable(id="trials", cursor_type="row", zebra_stripes=True)
         yield Footer()
 
     def on_mount(self) -> None:
-        events = self.query_one("#events", DataTable)
-        for column in ("event", "after", "outcome"):
-            events.add_column(column, key=column)
+        events = self.query_one("#events", OutcomeTable)
         self.query_one("#trials", DataTable).add_columns("id", "when", "scenario", "result", "events", "layout",
                                                           "who")
         select = self.query_one("#scenario", Select)
@@ -138,7 +127,6 @@ class TrialsScreen(Screen):
             self.set_status(str(error), "red")
             return False
         self.scenario = scenario
-        self.given = {}
         select = self.query_one("#scenario", Select)
         if str(select.value) != path:
             select_scenario(select, path)
@@ -147,7 +135,7 @@ class TrialsScreen(Screen):
         self.query_one("#summary", Static).update(Text.assemble(
             (scenario.name, "bold"), f" — {len(scenario.events)} events; goal: {', '.join(scenario.leaves())}. "
             "y happened, n did not, u not reached; l logs."))
-        self._fill_events()
+        self.query_one("#events", OutcomeTable).load(scenario)
         self.set_status(f"{scenario.name}: say what happened to each event, in order")
         return True
 
@@ -159,58 +147,19 @@ class TrialsScreen(Screen):
             return
         self.choose_scenario(current[0], current[1])
 
-    def _fill_events(self) -> None:
-        table = self.query_one("#events", DataTable)
-        row = table.cursor_row
-        table.clear()
-        outcomes, problems = resolve_outcomes(self.scenario, self.given)
-        for name in self.scenario.graph_order:
-            spec = self.scenario.event(name)
-            after = (" & " if spec.join == "all" else " | ").join(spec.after) or "(start)"
-            table.add_row(name, after, self._outcome_text(name, outcomes[name]), key=name)
-        table.move_cursor(row=min(row, table.row_count - 1))
-        if problems:
-            self.set_status(str(problems[0]).replace("outcome.", "", 1), "yellow")
-        elif all(outcomes.values()):
-            verdict = "success" if goal_reached(self.scenario, outcomes) else "failure"
-            self.set_status(f"every event said: a {verdict}; l logs it", "green")
+    @property
+    def given(self) -> dict[str, str]:
+        """What the maker said, event -> outcome word (implied outcomes are not in it)."""
+        return self.query_one("#events", OutcomeTable).given
 
-    def _outcome_text(self, name: str, word: str | None) -> Text:
-        if word is None:
-            return Text("?", style="dim")
-        if name in self.given:
-            return Text(word, style=OUTCOME_STYLE[word])
-        return Text(f"({word})", style="dim")
+    def outcomes_changed(self, event: OutcomeTable.Changed) -> None:
+        if event.problem:
+            self.set_status(event.problem, "yellow")
+        elif event.complete:
+            self.set_status(f"every event said: a {'success' if event.success else 'failure'}; l logs it", "green")
 
     def current_event(self) -> str | None:
-        table = self.query_one("#events", DataTable)
-        if self.scenario is None or table.row_count == 0:
-            return None
-        return self.scenario.graph_order[table.cursor_row]
-
-    def action_outcome(self, word: str) -> None:
-        """Say (or clear, ``""``) what happened to the highlighted event, then move to the next."""
-        name = self.current_event()
-        if name is None:
-            return
-        if word:
-            self.given[name] = word
-        else:
-            self.given.pop(name, None)
-        self._fill_events()
-        if word:
-            self.query_one("#events", DataTable).action_cursor_down()
-
-    def action_cycle(self) -> None:
-        name = self.current_event()
-        if name is None:
-            return
-        cycle = (*OUTCOMES, "")
-        current = self.given.get(name, "")
-        self.given[name] = cycle[(cycle.index(current) + 1) % len(cycle)]
-        if not self.given[name]:
-            del self.given[name]
-        self._fill_events()
+        return self.query_one("#events", OutcomeTable).current_event()
 
     def set_status(self, text: str, style: str = "") -> None:
         self.query_one("#status", Static).update(Text(text, style=style))
@@ -246,9 +195,8 @@ class TrialsScreen(Screen):
 
     def _logged(self, trial_id: int, record: dict, trials: list[dict]) -> None:
         self.last_logged = trial_id
-        self.given = {}
         self.query_one("#notes", Input).value = ""
-        self._fill_events()
+        self.query_one("#events", OutcomeTable).load(self.scenario)
         verdict = "success" if record["success"] else "failure"
         self.set_status(f"logged trial #{trial_id} ({record['scenario']['name']}, {verdict})", "green")
         self._show_trials(trials)

@@ -1,0 +1,437 @@
+"""One physical attempt step by step, as a service: guide, place, check (fix, check again)*, run, outcomes, log.
+
+Used by ``station assemble`` (prompts in a terminal) and the Assemble screen (keys), so both walk the same states
+and say the same things. An :class:`Assembly` holds the attempt: the guide (shown step by step on a projector, or
+written as a 1:1 PDF sheet set), the camera checks of the parts as placed, the outcome of the run (said by the maker
+event by event, or reported by a simulated world, ``sim://world``), and the trial it logs. At every stage it can
+forecast the physical success and the expected attempts (:func:`station.services.predict.predict_layout`): as
+designed before the check, as placed after it (the check's as-built layout and residual error).
+
+With a simulated world the simulated maker places the parts (with its placement error; better when the projector
+highlights each part), applies the check's instructions (with its smaller error), the simulated camera sees the parts
+where they are, and the world runs the as-placed layout under its hidden physics. Without one, the maker does all of
+that and says what happened.
+
+The states and what moves between them (anything else is refused with a :class:`ServiceError` naming ``stage``)::
+
+    guide --placed()--> check --check()--> check --fix()--> check ... --accept()--> run --run()/answer()--> log
+    log --log()--> done
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from common.progress import ProgressCallback
+from station.services.errors import ServiceError
+
+__all__ = ["STAGES", "Assembly", "Forecast", "calibrate_from_log", "open_assembly", "reoptimize"]
+
+#: The stages of an attempt, in order.
+STAGES = ("guide", "check", "run", "log", "done")
+#: Simulations per forecast: enough for a first figure in a second or two (``samples`` changes it).
+DEFAULT_SAMPLES = 60
+
+
+@dataclass(frozen=True)
+class Forecast:
+    """The physical success and expected attempts at one point of the attempt.
+
+    Attributes
+    ----------
+    when : str
+        ``"designed"`` (before the check), ``"as placed"`` (after a check) or ``"after the run"``.
+    prediction : calibration.sim_predict.PhysicalPrediction
+    """
+
+    when: str
+    prediction: Any
+
+    def line(self) -> str:
+        """``predicted physical success 0.83 (0.71-0.91), expected attempts 1.2 (as placed, 60 simulations)``."""
+        p = self.prediction
+        attempts = "never" if np.isinf(p.attempts) else f"{p.attempts:.1f}"
+        return (f"predicted physical success {p.probability:.2f} ({p.interval[0]:.2f}-{p.interval[1]:.2f}), "
+                f"expected attempts {attempts} ({self.when}, {p.samples} simulations)")
+
+    def to_json(self) -> dict:
+        return {"when": self.when, **self.prediction.to_json()}
+
+
+@dataclass
+class Assembly:
+    """One attempt (see the module notes); made by :func:`open_assembly`.
+
+    Attributes
+    ----------
+    job : station.services.guide.GuideJob
+        The guide of the layout.
+    scenario : design.contraption.Scenario
+        The scenario as the trial stores it (read once, from the text logged).
+    stage : str
+        One of :data:`STAGES`.
+    checks : list of station.services.check.CheckJob
+        The checks made, the last one is the parts as they stand.
+    forecasts : list of Forecast
+    outcomes, times : dict
+        What happened (every event, after :meth:`answer` or :meth:`run`), and when.
+    trial_id : int or None
+        The trial logged.
+    """
+
+    job: Any
+    scenario: Any
+    camera: str | None = None
+    world: Any = None
+    projector: Any = None
+    physics: str | None = None
+    attempt: int = 1
+    samples: int = DEFAULT_SAMPLES
+    seed: int = 0
+    workers: int | None = None
+    stage: str = "guide"
+    step: int = 0
+    checks: list = field(default_factory=list)
+    forecasts: list = field(default_factory=list)
+    outcomes: dict = field(default_factory=dict)
+    times: dict = field(default_factory=dict)
+    fixes: int = 0
+    trial_id: int | None = None
+    _profile: Any = None
+    _camera_name: str | None = None
+
+    # -- stages -------------------------------------------------------------------------------------------------
+    def _expect(self, *stages: str) -> None:
+        if self.stage not in stages:
+            raise ServiceError(f"stage: this attempt is at {self.stage!r}; that is done at {' or '.join(stages)}",
+                               field="stage", value=self.stage)
+
+    @property
+    def parts(self) -> tuple:
+        return self.job.guide.parts
+
+    @property
+    def steps(self) -> tuple[str, ...]:
+        return self.job.steps
+
+    @property
+    def check(self):
+        """The last check (None before the first)."""
+        return self.checks[-1] if self.checks else None
+
+    @property
+    def within_tolerance(self) -> bool:
+        """Whether the last check found every tagged part and none out of its tolerance."""
+        from projector.overlay import misplaced
+
+        report = self.check.report if self.check is not None else None
+        return (report is not None and report.plane is not None and not report.missing_tags
+                and not any(misplaced(p) for p in report.parts))
+
+    @property
+    def success(self) -> bool | None:
+        if not self.outcomes:
+            return None
+        from station.trialformat import goal_reached
+
+        return goal_reached(self.scenario, self.outcomes)
+
+    # -- guide ------------------------------------------------------------------------------------------------------
+    def show_step(self, step: int | None) -> None:
+        """Show step ``step`` (1-based; None: the calibrate frame) on the projector, if there is one."""
+        from station.services.guide import show_step
+
+        self.step = step or 0
+        if self.projector is not None:
+            show_step(self.job, self.projector, step, self._homography())
+
+    def _homography(self):
+        from station.services.check import projector_homography
+        from station.services.projectors import configured_projector
+
+        device = configured_projector()
+        return None if device is None else projector_homography(device.name, tuple(self.projector.size))
+
+    def write_sheet(self, pdf: str | Path, paper: str = "a4") -> Path:
+        """Write the 1:1 PDF sheet set with the steps (print at 100 %)."""
+        from station.services.guide import export_guide
+
+        self.job = export_guide(self.job, pdf=pdf, paper=paper)
+        return Path(pdf)
+
+    def placed(self) -> None:
+        """The maker has placed the parts (a simulated world places them now, each with the maker's error)."""
+        self._expect("guide")
+        if self.world is not None:
+            from station.services.world import place_parts
+
+            place_parts(self.world, self.job.guide, attempt=self.attempt, highlighted=self.projector is not None)
+        self.stage = "check"
+
+    # -- check ------------------------------------------------------------------------------------------------------
+    def check_parts(self, progress: ProgressCallback | None = None):
+        """Grab a frame from the camera and check the parts as they stand (a simulated camera sees the world's
+        parts where the simulated maker put them, or the guide's tags at their designed poses without a world)."""
+        from station.services import check as checks
+
+        self._expect("check")
+        scene = None
+        if self.world is not None:
+            from station.services.world import world_scene
+
+            scene = world_scene(self.job.guide, self.world.placed())
+        image, intrinsics, name, saved = checks.camera_frame(self.job.guide, camera=self.camera, scene=scene)
+        previous = self.check.measurement.plane if self.check is not None else saved
+        result = checks.check_frame(self.job, image, intrinsics, previous=previous, progress=progress)
+        checks.remember_plane(name, result)
+        self._camera_name = name
+        self.checks.append(result)
+        return result
+
+    def project_check(self) -> bool:
+        """Show the last check on the projector (an arrow per misplaced part to where it must go, a ring at the
+        target); False without a projector or a check."""
+        from station.services.check import overlay_frame
+
+        if self.projector is None or self.check is None:
+            return False
+        self.projector.show(overlay_frame(self.check, tuple(self.projector.size), self._homography()))
+        return True
+
+    def fix(self) -> list[dict]:
+        """The maker moved the parts as the last check said (a simulated world applies the moves now, with the
+        maker's smaller error; :func:`station.services.world.check_moves`); check again next. Returns the moves."""
+        self._expect("check")
+        if self.check is None:
+            raise ServiceError("stage: no check yet; check the parts first", field="stage", value=self.stage)
+        from station.services.world import check_moves
+
+        moves = check_moves(self.check.to_json(), self.job.guide)
+        self.fixes += 1
+        if self.world is not None and moves:
+            self.world.apply(moves, round=self.fixes)
+        return moves
+
+    def accept(self) -> None:
+        """Go on to the run with the parts as they stand (checked or not: the maker's call)."""
+        self._expect("check")
+        self.stage = "run"
+
+    # -- run --------------------------------------------------------------------------------------------------------
+    def run(self):
+        """With a simulated world: run the attempt there (the as-placed layout under the world's hidden physics)
+        and take its outcomes (a :class:`station.services.world.AttemptRun`); None without one (the maker runs it
+        and :meth:`answer` says what happened)."""
+        self._expect("run")
+        if self.world is None:
+            return None
+        from station.services.world import run_attempt
+
+        result = run_attempt(self.job.scenario, self.job.layout.x, self.job.guide, self.world)
+        self.answer(result.outcomes, result.times)
+        return result
+
+    def answer(self, outcomes: Mapping[str, str], times: Mapping[str, float] | None = None) -> dict[str, str]:
+        """What happened to each event (the implied ones may be left out); every event's outcome after that.
+
+        Raises
+        ------
+        ServiceError
+            ``outcome.EVENT`` / ``time.EVENT``: see :func:`station.trialformat.complete_outcomes`.
+        """
+        from station.trialformat import check_times, complete_outcomes
+
+        self._expect("run")
+        full = complete_outcomes(self.scenario, outcomes)
+        self.times = check_times(self.scenario, dict(times or {}), full)
+        self.outcomes = full
+        self.stage = "log"
+        return full
+
+    # -- log --------------------------------------------------------------------------------------------------------
+    def trial(self, *, who: str | None = None, notes: str | None = None) -> dict:
+        """The trial record (the trial log's form) of this attempt."""
+        from station.services.trials import build_trial, layout_values, read_physics
+
+        self._expect("log")
+        check = self.check.to_json() if self.check is not None else None  # CHECK.json: what the log stores
+        return build_trial(self.scenario, layout_values(self.scenario, self.job.layout.x), self.outcomes,
+                           times=self.times, as_built=None if check is None else dict(check["as_built"]),
+                           check=check,
+                           physics=read_physics(self.physics) if self.physics else None, who=who,
+                           notes=notes or f"station assemble, attempt {self.attempt}, {self.fixes} fix(es)")
+
+    def log(self, store=None, *, who: str | None = None, notes: str | None = None) -> int:
+        """Log the attempt in the trial log (``store``, default the station's); returns the trial's id."""
+        from station.services.trials import open_store
+
+        record = self.trial(who=who, notes=notes)
+        if store is None:
+            with open_store() as opened:
+                self.trial_id = opened.add(record)
+        else:
+            self.trial_id = store.add(record)
+        self.stage = "done"
+        return self.trial_id
+
+    # -- forecasts --------------------------------------------------------------------------------------------------
+    def forecast(self, progress: ProgressCallback | None = None, should_stop=None) -> Forecast:
+        """The physical success and expected attempts now: as designed before a check (the default placement
+        error), as placed after one (its as-built layout, its residual error), under the physics profile if any."""
+        from station.services.predict import as_built_from_check, predict_layout
+
+        scenario = self.job.scenario
+        x = np.asarray(self.job.layout.x, dtype=float)
+        sigma = {}
+        when = "designed"
+        if self.check is not None and self.check.report.plane is not None:
+            x, position, angle = as_built_from_check(self.check.to_json(), scenario, x, "the last check")
+            sigma = {"position_sigma_m": position, "angle_sigma_deg": angle}
+            when = "as placed"
+        if self.stage in ("log", "done"):
+            when = f"{when}; this run: {'success' if self.success else 'failure'}"
+        result = predict_layout(scenario, x, profile=self._profile, samples=self.samples, seed=self.seed,
+                                workers=self.workers, progress=progress, should_stop=should_stop, **sigma)
+        self.forecasts.append(Forecast(when, result))
+        return self.forecasts[-1]
+
+    def close(self) -> None:
+        """Close the world (a projector is its opener's to close)."""
+        world, self.world = self.world, None
+        if world is not None:
+            world.close()
+
+
+def open_assembly(scenario: str, layout: str | None, *, view: str | None = None, camera: str | None = None,
+                  world: str | None = None, projector=None, physics: str | Path | None = None,
+                  attempt: int | None = None,
+                  samples: int = DEFAULT_SAMPLES, seed: int = 0, workers: int | None = None, store=None,
+                  progress: ProgressCallback | None = None) -> Assembly:
+    """Start an attempt: the guide of ``layout`` for ``scenario`` (with its tolerances), the world opened.
+
+    Parameters
+    ----------
+    scenario : str
+        A scenario file or an example's name.
+    layout : str or None
+        A LAYOUT.json, a layout named in the scenario, or None (the scenario's own).
+    view : {"top", "side"} or None
+        The guide plane (None: chosen from the scenario).
+    camera : str, optional
+        The camera's URL (default: the station's camera, ``station devices``).
+    world : str, optional
+        A simulated world (``sim://world?seed=S``); None: a real table, the maker does and says.
+    projector : device, optional
+        An open projector: the steps are shown on it (and a simulated maker places better).
+    physics : path, optional
+        A physics profile: the tolerances and forecasts use it, the trial stores it.
+    attempt : int, optional
+        This attempt's number (the simulated maker's errors are seeded by it); default one more than the trials
+        of the scenario in ``store`` (the station's log).
+    samples, seed, workers :
+        The forecasts' simulations, their seed and worker processes.
+
+    Raises
+    ------
+    ServiceError
+        A bad count, seed, world or physics file (named).
+    design.errors.DesignError, projector.errors.ProjectorError, OSError
+        The scenario or the layout cannot be read or drawn.
+    """
+    from station.services import guide as guides
+    from station.services.physics import read_profile
+    from station.services.robust import check_count, check_seed
+    from station.services.trials import load_trial_scenario, open_store
+
+    check_count(samples, "samples")
+    check_seed(seed)
+    check_count(attempt, "attempt")
+    profile = read_profile(physics) if physics is not None else None
+    trial_scenario = load_trial_scenario(scenario)
+    opened_world = None
+    if world is not None:  # a bad URL refused before the guide's work
+        from station.services.world import open_world, prepare_world
+
+        opened_world = open_world(world)
+    try:
+        job = guides.make_guide(scenario, layout, view=view, progress=progress,
+                                physics=None if physics is None else str(physics))
+        if opened_world is not None:
+            prepare_world(opened_world, job.scenario)
+        if profile is not None:
+            from design.contraption.physics_profile import apply_profile
+
+            apply_profile(job.scenario, profile, str(physics))  # refuses a profile of another contraption, naming it
+        if trial_scenario.content_hash != job.scenario.content_hash:
+            raise ServiceError(f"scenario: {scenario} changed while it was read; start again", field="scenario")
+        if attempt is None:
+            if store is None:
+                with open_store() as opened:
+                    attempt = 1 + len(opened.trials(scenario=trial_scenario.name))
+            else:
+                attempt = 1 + len(store.trials(scenario=trial_scenario.name))
+    except BaseException:
+        if opened_world is not None:
+            opened_world.close()
+        raise
+    return Assembly(job, trial_scenario, camera=camera, world=opened_world, projector=projector,
+                    physics=None if physics is None else str(physics), attempt=attempt, samples=samples, seed=seed,
+                    workers=workers, _profile=profile)
+
+
+# -- after attempts: calibrate, re-optimize ----------------------------------------------------------------------------
+def calibrate_from_log(scenario, store=None, *, settings=None, workers: int | None = None,
+                       progress: ProgressCallback | None = None, should_stop=None, out: str | Path | None = None):
+    """Fit ``scenario``'s uncertain material values to its trials in the log (``store``, default the station's) and
+    write the physics profile (``out``, default the data folder's ``physics/NAME-calibrated.toml``).
+
+    Returns ``(path, SimCalibration)``.
+
+    Raises
+    ------
+    ServiceError
+        No trials of the scenario, nothing uncertain to fit (named).
+    RunStopped
+        Stopped; the simulations done are in the cache.
+    """
+    from station.paths import data_dir
+    from station.services.sim_calibration import calibrate_sim, save
+    from station.services.trials import open_store
+
+    if store is None:
+        with open_store() as opened:
+            trials = opened.trials(scenario=scenario.name)
+    else:
+        trials = store.trials(scenario=scenario.name)
+    result = calibrate_sim([scenario], trials, settings=settings, workers=workers, progress=progress,
+                           should_stop=should_stop, source="the trial log")
+    path = Path(out) if out is not None else data_dir() / "physics" / f"{scenario.name.lower()}-calibrated.toml"
+    path.parent.mkdir(parents=True, exist_ok=True)
+    return save(result, path, name=f"{scenario.name} calibrated on {result.fit.trials + result.fit.held_out} "
+                "trials"), result
+
+
+def reoptimize(scenario_path: str, physics: str | Path | None, *, budget: int = 40, seed: int = 0,
+               workers: int | None = None, progress: ProgressCallback | None = None, should_stop=None,
+               out: str | Path | None = None, settings=None):
+    """Optimize the layout again under the physics profile ``physics`` (the calibrated one) and write its
+    LAYOUT.json (``out``, default the data folder's ``layouts/NAME-physics.json``). Returns ``(path, layout)``."""
+    import json
+
+    from station.paths import data_dir
+    from station.services import robust
+    from station.services.physics import problem_with_physics
+
+    problem = problem_with_physics(robust.load_problem(scenario_path), physics)
+    settings = settings or robust.psp_settings(robust.DEFAULT_SETTINGS)
+    result = robust.optimize(problem, budget, seed, settings, workers=workers, progress=progress,
+                             should_stop=should_stop)
+    path = Path(out) if out is not None else data_dir() / "layouts" / f"{result.scenario.lower()}-physics.json"
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text(json.dumps(result.to_json(problem), indent=2) + "\n", encoding="utf-8")
+    return path, result

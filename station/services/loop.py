@@ -1,0 +1,416 @@
+"""The whole station loop on the simulated world, unattended (issue 21; thesis 5.2.3): optimize, guide, place,
+check, run, log, calibrate, re-optimize.
+
+Used by ``station loop`` (and the bench). Per loop: the layout (loop 1: ``station optimize``'s service under the
+scenario's physics, a modest budget, cached; loop k > 1: optimized again under the physics profile calibrated from
+every trial of the loops before), its guide, and ``attempts`` attempts. An attempt: the simulated maker places every
+part with the projector highlighting it (:meth:`drivers.sim.world.SimulatedWorld.place`), the simulated camera sees
+the parts as placed and :func:`station.services.check.check_frame` checks them, the maker applies the instructions
+and the camera checks again until every part is within its tolerance (at most ``rounds`` corrections), the world
+runs (:func:`station.services.world.run_attempt`), the station predicts the physical success of what the check
+measured (:func:`station.services.predict.predict_layout` with the check's residual error, under the loop's profile
+and its intervals; in loop 1, before any trial, under the scenario's values and uncertain ranges) and logs the trial
+(with the CHECK.json and the profile) and the attempt in one transaction. The **baseline** is the thesis's workflow
+in the same world: the loop-1 layout placed from the printed sheet (no highlight), no check, no calibration.
+
+Everything is in the station database (:mod:`station.loopstore`): a run is keyed by its arguments, every random
+draw is seeded by the world seed, the loop, the attempt and the round, and a loop's layout and profile are stored
+when made, so a second run with the same arguments resumes where the first stopped and ends with the same figures.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import tempfile
+from collections.abc import Callable
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from common.progress import Progress, ProgressCallback, Reporter
+from station.services.errors import ServiceError
+
+__all__ = ["AttemptProgress", "LoopResult", "LoopSettings", "LoopSummary", "run_loop"]
+
+#: The world's attempt numbers: loop k's attempt a is ``k * ATTEMPT_BLOCK + a`` (the baseline is loop 0).
+ATTEMPT_BLOCK = 1000
+_CALIBRATE, _PREDICT, _CAMERA = 12, 13, 14  # what a derived seed is for
+#: The optimizer's seed (``station optimize``'s default): loop 1's layout is the same in every world, and cached once
+#: (its physics are the scenario's); a later loop's differs by its calibrated profile only.
+OPTIMIZE_SEED = 0
+
+
+@dataclass(frozen=True)
+class LoopSettings:
+    """The loop's sizes (all part of the run's identity, except ``loops``, ``workers`` and ``scheduler``).
+
+    Attributes
+    ----------
+    attempts : int
+        Attempts per loop.
+    loops : int
+        Loops (each after the first calibrates and re-optimizes); a later run with more loops carries on.
+    budget : int
+        Simulations of each optimization (``station optimize --budget``).
+    rounds : int
+        Corrections after the first check at most (the camera checks again after each).
+    baseline : int or None
+        Attempts of the baseline (default ``attempts``; 0: none).
+    predict_samples : int
+        Simulations per attempt's predicted success.
+    fit_draws, fit_sobol, fit_rounds : int
+        The simulator calibration's sizes (:class:`calibration.sim_fit.FitSettings` draws, sobol, rounds).
+    camera : str
+        The simulated camera (``sim://camera?...``).
+    settings : str
+        The optimizer's PSP settings (``recommended`` or ``thesis``).
+    """
+
+    attempts: int = 5
+    loops: int = 2
+    budget: int = 60
+    rounds: int = 3
+    baseline: int | None = None
+    predict_samples: int = 32
+    fit_draws: int = 4
+    fit_sobol: int = 8
+    fit_rounds: int = 2
+    camera: str = "sim://camera?supersample=1"
+    settings: str = "recommended"
+    workers: int | None = field(default=None, compare=False)
+    scheduler: str | None = field(default=None, compare=False)
+
+    def check(self) -> None:
+        """Refuse a bad size (a ServiceError naming it)."""
+        from station.services.robust import MINIMUM_BUDGET, SETTINGS_CHOICES
+
+        for name, low in (("attempts", 1), ("loops", 1), ("budget", MINIMUM_BUDGET), ("rounds", 0),
+                          ("predict_samples", 1), ("fit_draws", 1), ("fit_sobol", 2), ("fit_rounds", 0)):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, int) or value < low:
+                raise ServiceError(f"{name} must be an integer >= {low}, got {value!r}", field=name, value=value)
+        if self.baseline is not None and (not isinstance(self.baseline, int) or self.baseline < 0):
+            raise ServiceError(f"baseline must be an integer >= 0, got {self.baseline!r}", field="baseline",
+                               value=self.baseline)
+        if self.settings not in SETTINGS_CHOICES:
+            raise ServiceError(f"settings must be one of {', '.join(SETTINGS_CHOICES)}, got {self.settings!r}",
+                               field="settings", value=self.settings)
+        if not str(self.camera).startswith("sim://camera"):
+            raise ServiceError(f"camera: the loop's world is simulated, so its camera must be too (sim://camera?...), "
+                               f"got {self.camera!r}", field="camera", value=self.camera)
+
+    @property
+    def baseline_attempts(self) -> int:
+        return self.attempts if self.baseline is None else self.baseline
+
+    def identity(self) -> dict[str, Any]:
+        """What makes two runs the same run (``loops`` left out: more loops carry a run on)."""
+        data = asdict(self)
+        for name in ("loops", "workers", "scheduler", "baseline"):
+            data.pop(name)
+        data["baseline"] = self.baseline_attempts
+        return data
+
+
+@dataclass(frozen=True)
+class LoopSummary:
+    """One loop's figures."""
+
+    loop: int
+    attempts: int
+    successes: int
+    predicted: list[float]
+    physics: dict[str, float]
+    physics_name: str | None = None
+    check_rounds: float = 0.0
+
+    @property
+    def success_rate(self) -> float:
+        return self.successes / self.attempts if self.attempts else math.nan
+
+    @property
+    def predicted_success(self) -> float | None:
+        known = [p for p in self.predicted if p is not None]
+        return float(np.mean(known)) if known else None
+
+    @property
+    def interval(self) -> tuple[float, float]:
+        """Wilson's 95 % interval of the success rate."""
+        from calibration.sim_runs import wilson_interval
+
+        return wilson_interval(self.successes, self.attempts)
+
+    def to_json(self) -> dict[str, Any]:
+        return {"loop": self.loop, "attempts": self.attempts, "successes": self.successes,
+                "success_rate": self.success_rate, "predicted_success": self.predicted_success,
+                "physics": dict(self.physics)}
+
+
+@dataclass(frozen=True)
+class LoopResult:
+    """A run's figures: its loops and the baseline, and its id in the database."""
+
+    run_id: int
+    scenario: str
+    loops: list[LoopSummary]
+    baseline_attempts: int
+    baseline_successes: int
+    outcomes: list[tuple[int, int, bool, float | None]]  #: (loop, attempt, success, predicted) of every attempt
+    hidden: dict[str, float]  #: the world's hidden material values (for benches: the station never reads them)
+    baseline: list[bool] = field(default_factory=list)  #: the baseline's successes, in order
+
+    @property
+    def baseline_rate(self) -> float | None:
+        return self.baseline_successes / self.baseline_attempts if self.baseline_attempts else None
+
+    def to_json(self) -> dict[str, Any]:
+        """Exactly the contract's ``station loop --json``."""
+        return {"loops": [s.to_json() for s in self.loops],
+                "baseline": {"attempts": self.baseline_attempts, "success_rate": self.baseline_rate}}
+
+
+@dataclass(frozen=True)
+class AttemptProgress(Progress):
+    """Progress of a loop's attempts (its unit said by the CLI's bar)."""
+
+    unit: str = "attempts"
+
+
+def _seed(world_seed: int, *words: int) -> int:
+    """A seed for one purpose of one run (the world seed, what it is for, the loop, the attempt, the round)."""
+    return int(np.random.SeedSequence([int(world_seed), *map(int, words)]).generate_state(1)[0] % 2**31)
+
+
+class _Loop:
+    """One run of the loop (see :func:`run_loop`)."""
+
+    def __init__(self, store, scenario, world, url: str, settings: LoopSettings, report: Reporter,
+                 should_stop: Callable[[], bool] | None, folder: Path) -> None:
+        from station.loopstore import run_key
+
+        self.store, self.scenario, self.world, self.settings = store, scenario, world, settings
+        self.report, self.should_stop, self.folder = report, should_stop, folder
+        self.hidden = world.hidden_physics()
+        identity = {"scenario": scenario.content_hash, "scenario_name": scenario.name, "world": url,
+                    **settings.identity()}
+        self.run_id = store.run(run_key(identity), scenario=scenario.name, content_hash=scenario.content_hash,
+                                world=url, settings=identity)
+        self.where = {"workers": settings.workers, "scheduler": settings.scheduler, "should_stop": should_stop}
+
+    # -- stopping and progress ------------------------------------------------------------------------------------
+    def stop_point(self) -> None:
+        from station.services.robust import RunStopped, simulation_cache_path
+
+        if self.should_stop is not None and self.should_stop():
+            raise RunStopped(0, simulation_cache_path())
+
+    def emit(self, stage: str, done: int, total: int, message: str = "") -> None:
+        self.report.emit(AttemptProgress(stage, done, total, message))
+
+    # -- layouts ------------------------------------------------------------------------------------------------
+    def optimized(self, profile_path: Path | None, seed: int) -> dict:
+        """The LAYOUT.json of ``station optimize`` for the scenario (under the profile), cached in the database by
+        what it was optimized from."""
+        from station.loopstore import run_key
+        from station.services import robust
+        from station.services.physics import problem_with_physics
+
+        problem = problem_with_physics(robust.load_problem(self.scenario.source), profile_path)
+        key = run_key({"content_hash": problem.scenario.content_hash, "budget": self.settings.budget, "seed": seed,
+                       "settings": self.settings.settings})
+        cached = self.store.cached_layout(key)
+        if cached is not None:
+            return cached
+        result = robust.optimize(problem, self.settings.budget, seed, robust.psp_settings(self.settings.settings),
+                                 progress=self.report.emit, **self.where)
+        payload = result.to_json(problem)
+        self.store.cache_layout(key, payload)
+        return payload
+
+    def loop_row(self, k: int):
+        """Loop ``k``'s layout and physics: stored, or made now (and stored)."""
+        from station.loopstore import LoopRow
+
+        row = self.store.loop(self.run_id, k)
+        if row is not None:
+            return row
+        self.stop_point()
+        if k == 1:
+            values = {name: value for name, (value, _) in self.scenario.uncertain_parameters().items()}
+            row = LoopRow(1, self.optimized(None, OPTIMIZE_SEED), None, None, values)
+        else:
+            profile = self.calibrate(k)
+            text = profile.to_toml()
+            path = self.folder / f"profile-{k}.toml"
+            path.write_text(text, encoding="utf-8")
+            layout = self.optimized(path, OPTIMIZE_SEED)
+            row = LoopRow(k, layout, profile.name, text, dict(profile.values))
+        self.store.add_loop(self.run_id, row)
+        return self.store.loop(self.run_id, k)
+
+    def calibrate(self, k: int):
+        """The physics profile fitted to every trial of loops 1 .. k-1."""
+        from calibration.sim_fit import FitSettings
+        from station.services.sim_calibration import calibrate_sim
+
+        trials = [self.store.trial(a.trial_id) for a in self.store.attempts(self.run_id) if 0 < a.loop < k]
+        s = self.settings
+        fit = FitSettings(draws=s.fit_draws, sobol=s.fit_sobol, rounds=s.fit_rounds, held_out=0.0,
+                          seed=_seed(self.world.seed, _CALIBRATE, k))
+        result = calibrate_sim([self.scenario], trials, settings=fit, progress=self.report.emit, source="loop",
+                               **self.where)
+        profile = result.profile(f"loop {k} of run {self.run_id}: calibrated {self.scenario.name}")
+        # the creation time is the only thing of a profile that changes between two runs of the same data
+        from dataclasses import replace
+
+        return replace(profile, created="", source=f"station loop run {self.run_id}: {len(trials)} trials of loops "
+                       f"1-{k - 1}")
+
+    # -- attempts -----------------------------------------------------------------------------------------------
+    def files(self, row) -> tuple[Path, Path | None]:
+        layout = self.folder / f"layout-{row.loop}.json"
+        layout.write_text(json.dumps(row.layout), encoding="utf-8")
+        profile = None
+        if row.physics_content:
+            profile = self.folder / f"profile-{row.loop}.toml"
+            profile.write_text(row.physics_content, encoding="utf-8")
+        return layout, profile
+
+    def attempt(self, job, row, profile, k: int, a: int, *, checked: bool):
+        """One attempt: place, check and correct (when ``checked``), run, predict, log."""
+        from station.services import world as worlds
+        from station.services.check import check_frame
+        from station.services.trials import build_trial, layout_values
+
+        guide, scenario = job.guide, self.scenario
+        number = k * ATTEMPT_BLOCK + a
+        worlds.place_parts(self.world, guide, attempt=number, highlighted=checked)
+        report, rounds = None, 0
+        if checked:
+            for r in range(self.settings.rounds + 1):
+                image, lens = worlds.grab_placed(self.settings.camera, guide, self.world.placed(),
+                                                 _seed(self.world.seed, _CAMERA, k, a, r))
+                report = check_frame(job, image, lens).to_json()
+                moves = worlds.check_moves(report, guide)
+                if not moves or r == self.settings.rounds:
+                    break
+                self.world.apply(moves, round=r + 1)
+                rounds += 1
+        run = worlds.run_attempt(scenario, job.layout.x, guide, self.world, self.hidden)
+        predicted = self.predict(job, report, profile, k, a) if checked else None
+        physics = None if row.physics_content is None else {"name": row.physics_name, "content": row.physics_content}
+        note = f"station loop run {self.run_id}: " + (f"loop {k} attempt {a}" if k else f"baseline attempt {a}")
+        if predicted is not None:
+            note += f"; predicted physical success {predicted:.3f}"
+        trial = build_trial(scenario, layout_values(scenario, job.layout.x), run.outcomes, times=run.times,
+                            as_built=report["as_built"] if report else None, check=report, physics=physics,
+                            who=f"simulated maker ({self.world.url})", notes=note)
+        return self.store.add_attempt(self.run_id, k, a, trial, predicted=predicted, check_rounds=rounds)
+
+    def prior(self):
+        """What the station knows of the physics before any trial: the scenario's uncertain values and their ranges
+        (loop 1 predicts with them, so its probabilities carry that uncertainty, as a calibrated profile's do)."""
+        from design.contraption.physics_profile import PhysicsProfile
+
+        uncertain = self.scenario.uncertain_parameters()
+        if not uncertain:
+            return None
+        return PhysicsProfile(name=f"{self.scenario.name}: its own values and ranges",
+                              values={k: v for k, (v, _) in uncertain.items()},
+                              intervals={k: bounds for k, (_, bounds) in uncertain.items()})
+
+    def predict(self, job, report, profile, k: int, a: int) -> float:
+        from station.services.predict import as_built_from_check, predict_layout
+
+        x, position, angle = as_built_from_check(report, self.scenario, np.asarray(job.layout.x, float), "<check>")
+        result = predict_layout(self.scenario, x, profile=profile, position_sigma_m=position, angle_sigma_deg=angle,
+                                samples=self.settings.predict_samples, seed=_seed(self.world.seed, _PREDICT, k, a),
+                                progress=self.report.emit, **self.where)
+        return float(result.probability)
+
+    def run_attempts(self, row, k: int, count: int, *, checked: bool) -> list:
+        """Loop ``k``'s attempts (``k`` 0: the baseline, on loop 1's layout), the stored ones kept."""
+        from station.services.guide import make_guide
+        from station.services.physics import read_profile
+
+        done = {a.attempt: a for a in self.store.attempts(self.run_id, k)}
+        stage = f"loop {k}" if k else "baseline"
+        if len(done) < count:
+            layout_path, profile_path = self.files(row)
+            profile = read_profile(profile_path) if profile_path else self.prior()
+            job = make_guide(self.scenario.source, str(layout_path), physics=profile_path)
+            for a in range(1, count + 1):
+                if a in done:
+                    continue
+                self.stop_point()
+                self.emit(stage, len(done), count, f"attempt {a} of {count}")
+                done[a] = self.attempt(job, row, profile, k, a, checked=checked)
+        self.emit(stage, count, count, "done")
+        return [done[a] for a in range(1, count + 1)]
+
+
+def run_loop(scenario: str, world: str, settings: LoopSettings | None = None, *, database: str | None = None,
+             progress: ProgressCallback | None = None, should_stop: Callable[[], bool] | None = None,
+             on_loop: Callable[[LoopSummary], None] | None = None) -> LoopResult:
+    """Run (or resume) the station loop of ``scenario`` in the simulated ``world``.
+
+    Parameters
+    ----------
+    scenario : str
+        A scenario file or example name.
+    world : str
+        ``sim://world?seed=S&...`` (:mod:`drivers.sim.world`).
+    settings : LoopSettings, optional
+    database : str, optional
+        The station database (default :func:`station.db.database_url`).
+    progress, should_stop : callables, optional
+        Progress (:class:`common.progress.Progress`) and the stop check (a stop raises
+        :class:`~station.services.robust.RunStopped`; what was logged stays, and the next run resumes).
+    on_loop : callable, optional
+        Called with each loop's summary as it ends (a CLI prints it).
+
+    Raises
+    ------
+    ServiceError
+        A bad setting or world URL (naming it).
+    drivers.errors.SimConfigError
+        A bad world or camera option (one line).
+    """
+    from station.loopstore import LoopStore
+    from station.services import world as worlds
+    from station.services.trials import load_trial_scenario
+
+    settings = settings or LoopSettings()
+    settings.check()
+    report = Reporter.of(progress)
+    loaded = load_trial_scenario(scenario)
+    if not loaded.design_space.names:
+        raise ServiceError(f"scenario: {loaded.name} has no design parameters: there is nothing to optimize or "
+                           "check", field="scenario", value=scenario)
+    the_world = worlds.open_world(world)
+    worlds.prepare_world(the_world, loaded)
+    summaries: list[LoopSummary] = []
+    outcomes: list[tuple[int, int, bool, float | None]] = []
+    with LoopStore(database) as store, tempfile.TemporaryDirectory(prefix="station-loop-") as folder:
+        run = _Loop(store, loaded, the_world, world, settings, report, should_stop, Path(folder))
+        first = None
+        for k in range(1, settings.loops + 1):
+            row = run.loop_row(k)
+            first = first or row
+            attempts = run.run_attempts(row, k, settings.attempts, checked=True)
+            rounds = float(np.mean([a.check_rounds for a in attempts]))
+            summary = LoopSummary(k, len(attempts), sum(a.success for a in attempts), [a.predicted for a in attempts],
+                                  dict(row.physics_values), row.physics_name, rounds)
+            summaries.append(summary)
+            outcomes += [(k, a.attempt, a.success, a.predicted) for a in attempts]
+            if on_loop is not None:
+                on_loop(summary)
+        baseline = run.run_attempts(first, 0, settings.baseline_attempts, checked=False) \
+            if settings.baseline_attempts else []
+        result = LoopResult(run.run_id, loaded.name, summaries, len(baseline), sum(a.success for a in baseline),
+                            outcomes, run.hidden, [a.success for a in baseline])
+    the_world.close()
+    return result

@@ -1,0 +1,237 @@
+"""The simulated physical world as the station uses it (issue 21): what the camera sees of the parts as placed, and
+an attempt's run under the hidden physics.
+
+The world twin (:mod:`drivers.sim.world`) only knows plain poses. This module turns a guide into the parts the
+simulated maker places (:func:`guide_parts`), the maker's placed poses into the scene the camera twin renders
+(:func:`world_scene`: each part's tags carried rigidly with the part, through
+:func:`station.services.check_scene.sim_scene`, so the check measures them as it would on a real table), a check
+into the moves its instructions ask for (:func:`check_moves`), and runs an attempt (:func:`run_attempt`): the placed
+poses become design parameters (:func:`calibration.asbuilt.as_built_layout`, the *as-placed* layout), and the
+scenario simulates it under the world's hidden material values. Parameters the camera cannot see (a height in the
+top view) are placed with the world's correcting error (``fix_mm`` / ``fix_deg``, drawn from the run's seed): the
+maker sets them with a ruler, and no check corrects them.
+
+The hidden physics is read here and nowhere else in the station (the bench reports it next to what calibration
+found).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from station.services.errors import ServiceError
+
+__all__ = ["AttemptRun", "as_placed_layout", "check_moves", "grab_placed", "guide_parts", "open_world", "place_parts",
+           "prepare_world", "run_attempt", "world_scene"]
+
+
+def open_world(url: str):
+    """The world at ``url`` (``sim://world?...``): a ServiceError naming ``world`` for any other device; a bad
+    option is the driver's one-line SimConfigError."""
+    from drivers.devices import UnknownDeviceURL, resolve
+
+    try:
+        info = resolve(url)
+    except UnknownDeviceURL as error:
+        raise ServiceError(f"world: {error}", field="world", value=url) from None
+    if info.kind != "world":
+        raise ServiceError(f"world: {url!r} is a {info.kind}, not a world; expected sim://world?seed=S",
+                           field="world", value=url)
+    world = info.factory(info.url)
+    world.open()
+    return world
+
+
+def prepare_world(world, scenario) -> dict[str, float]:
+    """Draw the world's hidden material values around ``scenario``'s (every material value; an uncertain one kept in
+    its range, which the simulator requires) and return them."""
+    ranges = {name: bounds for name, (_, bounds) in scenario.uncertain_parameters().items()}
+    world.draw_physics(scenario.physics_parameters(), bounds=ranges)
+    return world.hidden_physics()
+
+
+def guide_parts(guide) -> list[dict]:
+    """Every part of ``guide`` as the world places it: ``{"name", "center_mm", "heading_deg"}``."""
+    return [{"name": p.name, "center_mm": [float(p.center_mm[0]), float(p.center_mm[1])],
+             "heading_deg": float(p.heading_deg)} for p in guide.parts]
+
+
+def _offsets(guide, placed: Mapping[str, Mapping]) -> dict[str, tuple[float, float, float]]:
+    """Per part, where it is minus where the guide draws it: ``(du mm, dv mm, dheading deg)``."""
+    result = {}
+    for part in guide.parts:
+        pose = placed.get(part.name)
+        if pose is not None:
+            result[part.name] = (float(pose["center_mm"][0]) - part.center_mm[0],
+                                 float(pose["center_mm"][1]) - part.center_mm[1],
+                                 float(pose["heading_deg"]) - part.heading_deg)
+    return result
+
+
+def world_scene(guide, placed: Mapping[str, Mapping]):
+    """The :class:`~drivers.sim.camera_scene.PlaneScene` of the parts as placed: reference tags, every tag carried
+    with its part's pose, the sheet under them (with the parts' footprints where they are)."""
+    from station.services.check_scene import sim_scene
+
+    tagged = {p.name for p in guide.parts if p.tag_views()}
+    offsets = {k: v for k, v in _offsets(guide, placed).items() if k in tagged}
+    return sim_scene(guide, offsets)
+
+
+def grab_placed(camera_url: str, guide, placed: Mapping[str, Mapping], seed: int):
+    """One frame of the parts as placed from the simulated camera at ``camera_url`` (its noise seeded by ``seed``
+    unless the URL sets one), and the twin's own intrinsics."""
+    from dataclasses import replace
+
+    from station.services.calibrate import _open_camera
+    from station.services.check import _aim, _twin_intrinsics
+
+    camera = _open_camera(camera_url)
+    try:
+        if not hasattr(camera, "set_scene"):
+            raise ServiceError(f"camera: {camera_url!r} is a real camera; the loop's world is simulated, so its camera "
+                               "must be too (sim://camera?...)", field="camera", value=camera_url)
+        camera.set_scene(world_scene(guide, placed))
+        if "target=" not in camera_url:
+            _aim(camera, guide)
+        if "seed=" not in camera_url:
+            camera.options = replace(camera.options, seed=int(seed) % 2**32)
+        image = np.asarray(camera.grab())
+        return image, _twin_intrinsics(camera, camera_url)
+    finally:
+        camera.close()
+
+
+#: The zone a part is kept to when its check knows no tolerance for it (none fitted, or bound only by its range's
+#: end): about twice the check's own resolution, so the maker is not sent back for every half millimetre.
+UNKNOWN_TOLERANCE_MM, UNKNOWN_TOLERANCE_DEG = 1.0, 1.0
+
+
+def check_moves(check: Mapping[str, Any], guide, *, all_parts: bool = False) -> list[dict]:
+    """What a CHECK.json's instructions ask the maker to do: ``[{"name", "du_mm", "dv_mm", "dheading_deg"}]`` per
+    part out of its tolerance (or, with no tolerance known, off by more than :data:`UNKNOWN_TOLERANCE_MM` /
+    :data:`UNKNOWN_TOLERANCE_DEG`), designed minus measured (``all_parts``: every part the instruction moves). A
+    part checked by its bodies (a run's first and last dominoes) is moved by its first measured body: the part's
+    origin found from it as :func:`calibration.check.measured_pose` does.
+    """
+    from calibration.check import NEGLIGIBLE_DEG, NEGLIGIBLE_MM
+
+    by_name = {p.name: p for p in guide.parts}
+    bodies = {(p.name, b.body): b for p in guide.parts for b in p.body_tags}
+    moves: dict[str, dict] = {}
+    for entry in check.get("parts", []):
+        error, name = entry.get("error"), str(entry.get("name", ""))
+        if error is None or entry.get("within_tolerance") is True and not all_parts:
+            continue
+        owner, _, body = name.partition("[")
+        part = by_name.get(owner)
+        if part is None or owner in moves:
+            continue
+        du, dv, dheading = float(error["du_mm"]), float(error["dv_mm"]), float(error["heading_deg"])
+        if body:  # the body's error: turn the part's origin about the body by the heading error
+            drawn = bodies.get((owner, int(body.rstrip("]"))))
+            if drawn is None:
+                continue
+            turn = math.radians(dheading)
+            offset = np.subtract(part.center_mm, drawn.center_mm)
+            rotated = np.array([math.cos(turn) * offset[0] - math.sin(turn) * offset[1],
+                                math.sin(turn) * offset[0] + math.cos(turn) * offset[1]])
+            du, dv = np.add([du, dv], rotated - offset)
+        if abs(du) < NEGLIGIBLE_MM and abs(dv) < NEGLIGIBLE_MM and abs(dheading) < NEGLIGIBLE_DEG:
+            continue
+        if entry.get("within_tolerance") is None and not all_parts and abs(du) <= UNKNOWN_TOLERANCE_MM \
+                and abs(dv) <= UNKNOWN_TOLERANCE_MM and abs(dheading) <= UNKNOWN_TOLERANCE_DEG:
+            continue
+        moves[owner] = {"name": owner, "du_mm": -float(du), "dv_mm": -float(dv), "dheading_deg": -float(dheading)}
+    return list(moves.values())
+
+
+@dataclass(frozen=True)
+class AttemptRun:
+    """One attempt's run in the world.
+
+    Attributes
+    ----------
+    outcomes : dict
+        ``{event: "yes" | "no" | "not-reached"}``, the way a maker ticks them.
+    times : dict
+        ``{event: seconds}`` of the events that happened (to the millisecond).
+    success : bool
+    as_placed : dict
+        The layout as the parts were really placed (design parameters), what was simulated.
+    """
+
+    outcomes: dict[str, str]
+    times: dict[str, float]
+    success: bool
+    as_placed: dict[str, float]
+
+    def to_json(self) -> dict:
+        return {"outcomes": dict(self.outcomes), "times": dict(self.times), "success": self.success}
+
+
+def as_placed_layout(scenario, x, guide, world) -> np.ndarray:
+    """The layout as the world's parts are really placed: in-plane parameters from :meth:`world.placed`, the others
+    (which no camera sees) the designed value plus the world's correcting error, seeded by the run."""
+    from calibration.asbuilt import PlanePose, as_built_layout
+    from calibration.sim_runs import widened
+    from design.contraption.schema import ANGLE_KEYS
+
+    placed = world.placed()
+    poses = {name: PlanePose(tuple(pose["center_mm"]), pose["heading_deg"]) for name, pose in placed.items()
+             if any(p.name == name and p.parameters for p in guide.parts)}
+    wide = widened(scenario)
+    built = as_built_layout(wide, x, guide.plane, poses, {p.name: p.parameters for p in guide.parts})
+    names = list(scenario.design_space.names)
+    rng = np.random.default_rng(world.run_seed())
+    unseen = np.array([n in built.not_measured for n in names])
+    sigma = np.array([world.options["fix_deg"] if n.rsplit(".", 1)[-1] in ANGLE_KEYS
+                      else world.options["fix_mm"] / 1000.0 for n in names])
+    values = np.asarray(built.x, dtype=float) + np.where(unseen, rng.standard_normal(len(names)) * sigma, 0.0)
+    return np.clip(values, wide.design_space.lower, wide.design_space.upper)
+
+
+def run_attempt(scenario, x, guide, world, hidden: Mapping[str, float] | None = None) -> AttemptRun:
+    """Run the attempt the world's parts are placed for, under its hidden physics.
+
+    Parameters
+    ----------
+    scenario : Scenario
+        As the maker has it (its own material values are not used).
+    x : array_like
+        The designed layout (real units), the one the guide draws.
+    guide : projector.guide.Guide
+    world : drivers.sim.world.SimulatedWorld
+        Placed (:meth:`~drivers.sim.world.SimulatedWorld.place`) and possibly corrected.
+    hidden : mapping, optional
+        The hidden material values (default the world's, :func:`prepare_world` first).
+    """
+    from calibration.sim_runs import widened
+    from design.contraption.simulation import ASLEEP, SUCCESS, simulate
+
+    hidden = dict(world.hidden_physics() if hidden is None else hidden)
+    if not hidden:
+        raise ServiceError("world: no hidden physics drawn yet (prepare_world first)", field="world")
+    truth = widened(scenario.with_physics(hidden))
+    layout = as_placed_layout(scenario, np.asarray(x, dtype=float), guide, world)
+    result = simulate(truth, layout, early_stop="settled")
+    outcomes, times = {}, {}
+    for event in scenario.events:
+        outcome = result.events[event]
+        if outcome.state == SUCCESS:
+            outcomes[event] = "yes"
+            times[event] = round(float(outcome.time), 3)
+        else:
+            outcomes[event] = "not-reached" if outcome.state == ASLEEP else "no"
+    names = scenario.design_space.names
+    return AttemptRun(outcomes, times, bool(result.success), dict(zip(names, map(float, layout))))
+
+
+def place_parts(world, guide, *, attempt: int, highlighted: bool) -> None:
+    """The maker places every part of ``guide`` for ``attempt`` (highlighted: the projector shows each)."""
+    world.place(guide_parts(guide), attempt=attempt, highlighted=highlighted)
