@@ -33,3 +33,15 @@ def resolve_scenario_path(text: str) -> Path:
         if candidate.exists():
             return candidate
     raise ScenarioNotFoundError(text, example_names())
+
+
+def shown_path(path: str | Path) -> str:
+    """How a screen names a scenario file: an example as ``example simple.toml`` (the same wherever the station is
+    installed), any other file as given."""
+    path = Path(path)
+    try:
+        if path.resolve().parent == EXAMPLES_DIR:
+            return f"example {path.name}"
+    except OSError:
+        pass
+    return str(path)

@@ -142,7 +142,7 @@ class AssembleScreen(AttemptFlow, Screen):
                 yield Input("", placeholder="PROFILE.toml", id="physics")
                 yield Button("Build the guide (Enter)", id="build", variant="primary")
                 yield Static("", id="status")
-                yield ProgressPanel(idle="c: check the placed parts with the camera", total=None, id="check-progress")
+                yield ProgressPanel(idle="c: check the placed parts with the camera", id="check-progress")
             with Vertical(id="main"):
                 yield HalfBlockPicture(id="frame", empty="(no guide yet: pick a scenario and a layout, press Enter)")
                 yield Static("", id="caption")

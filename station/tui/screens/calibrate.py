@@ -165,7 +165,7 @@ class CalibrateScreen(Screen):
     """Camera intrinsics, the plane check, the projector mapping and the simulator's fit side by side."""
 
     CSS = """
-    CalibrateScreen #panels { height: 1fr; }
+    CalibrateScreen .panels { height: 1fr; }
     """
 
     BINDINGS = [
@@ -180,9 +180,11 @@ class CalibrateScreen(Screen):
 
     def compose(self) -> ComposeResult:
         yield Header()
-        with Horizontal(id="panels"):
+        # two rows: the camera's own geometry above, what builds on it (the projector, the simulator) below
+        with Horizontal(classes="panels"):
             yield CameraPanel(id="camera-panel")
             yield PlanePanel(id="plane-panel")
+        with Horizontal(classes="panels"):
             yield ProjectorCalibrationPanel(id="projector-panel")
             yield SimCalibrationPanel(trials_source=logged_trials, id="sim-panel")
         yield Footer()

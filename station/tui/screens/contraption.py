@@ -25,7 +25,7 @@ from textual.widgets import DataTable, Footer, Header, Input, Static
 
 from design.contraption import Scenario, Simulator
 from design.contraption.bullet import direct_client
-from design.contraption.catalog import example_names
+from design.contraption.catalog import example_names, shown_path
 from design.errors import DesignError
 from station.services.contraption import open_scenario, simulate
 from station.tui.registry import ScreenEntry
@@ -146,7 +146,7 @@ class ContraptionScreen(Screen):
         self._fill_events()
         self._show_summary()
         self._draw_layout()
-        self.set_status(f"loaded {scenario.source}; press r to simulate")
+        self.set_status(f"loaded {shown_path(scenario.source)}; press r to simulate")
         return True
 
     def current_layout(self) -> np.ndarray:

@@ -91,7 +91,8 @@ class TrialsScreen(Screen):
                 yield Button("Log trial (l)", id="log", variant="primary")
                 yield Label("Filter / export", classes="heading")
                 yield Input(placeholder="filter: scenario name, success, failure, who", id="filter")
-                yield Input(str(data_dir() / "trials.json"), id="export-path")
+                yield Input(placeholder="export to .json or .csv (empty: trials.json in the data folder)",
+                            id="export-path")
                 yield Button("Export (e)", id="export")
                 yield Static("", id="status")
                 yield Static("", id="outlook")
@@ -258,10 +259,8 @@ class TrialsScreen(Screen):
     @on(Button.Pressed, "#export")
     def action_export(self) -> None:
         path = self.query_one("#export-path", Input).value.strip()
-        if not path:
-            self.set_status("give a file to export to (.json or .csv)", "yellow")
-            return
-        self._export_worker(Path(path).expanduser(), [t["id"] for t in self.trials])
+        target = Path(path).expanduser() if path else data_dir() / "trials.json"
+        self._export_worker(target, [t["id"] for t in self.trials])
 
     @work(thread=True, exclusive=True, group="trials-db")
     def _export_worker(self, path: Path, ids: list[int]) -> None:

@@ -95,7 +95,7 @@ class SimCalibrationPanel(Vertical):
             yield Button("Calibrate (c)", id="sim-start", variant="primary")
             yield Button("Stop (s)", id="sim-stop", disabled=True)
             yield Button("Write profile (w)", id="sim-write", disabled=True)
-        yield ProgressPanel("Name the scenarios and press c (or Enter in a field).", total=None, id="sim-progress")
+        yield ProgressPanel("Name the scenarios and press c (or Enter in a field).", id="sim-progress")
         yield DataTable(id="sim-values", cursor_type="row", zebra_stripes=True)
         yield DataTable(id="sim-events", cursor_type="row", zebra_stripes=True)
         yield Static("", id="sim-status")
