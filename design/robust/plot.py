@@ -139,7 +139,9 @@ def plot_reliability(panels: dict, path: str | Path, title: str = "", columns: i
             for px, py, count in zip(x, y, score.counts[filled]):
                 r = 2.0 + 2.0 * np.sqrt(count / max(score.n, 1) * 10)
                 draw.ellipse([px - r, py - r, px + r, py + r], fill=(*colour, 160))
-            draw.text((x0 + left + 4, y0 + top + 4 + 13 * k), f"{variant} Brier {score.brier:.3f}",
+            # Bottom right: a calibrated or underconfident curve stays above the diagonal's right end.
+            label = f"{variant} Brier {score.brier:.3f}"
+            draw.text((x0 + left + w - draw.textlength(label, font=font) - 4, y0 + top + h - 30 + 13 * k), label,
                       fill=colour, font=font)
     legend_y = margin_top + rows * ph + 6
     draw.text((10, legend_y), "y: observed success rate of the held-out layouts in each bin of predicted PSP "

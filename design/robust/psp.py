@@ -466,6 +466,13 @@ class FactorizedPSP:
         seed = int(rng.integers(2**31))
         classifier = _classifier(settings, seed)
         classifier.fit(X[:, subspace], y, calibrate=False)
+        if settings.subspace_check and len(subspace) < problem.dim and classifier.constant_ is None:
+            # Mutual information judges each parameter alone; an event that needs a parameter only together with
+            # another is then learnt as an average over it, unsure exactly where that parameter is right (the
+            # optimum). Keep the subspace only if cross-validation says it predicts no worse than every parameter.
+            full = _classifier(settings, seed).fit(X, y, calibrate=False)
+            if full.cv_score_ > classifier.cv_score_:
+                subspace, classifier = tuple(range(problem.dim)), full
         model = EventModel(name, subspace, False, rate, classifier, len(y))
         if on_model is not None:
             on_model(model)

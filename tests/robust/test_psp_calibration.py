@@ -86,3 +86,42 @@ def test_tilted_plank_psp_is_calibrated_on_held_out_simulations(plank):
     near = np.array([g != "uniform" for g in groups])
     assert events[near].all(axis=1).mean() > 0.95  # the layout's neighbourhood succeeds...
     assert layout.model.predict_proba(U[near]).mean() > 0.9  # ...and the model says so
+
+
+class Agree:
+    """Three parameters; the event happens when the first two are on the same side of 0.5 and the third is above
+    0.3: each of the first two alone says nothing about it (mutual information 0), only together."""
+
+    name = "AGREE"
+    parameter_names = ("a", "b", "c")
+    lower, upper = np.zeros(3), np.ones(3)
+    dim = 3
+    event_names = ("matches",)
+    event_parents = {"matches": ()}
+
+    @staticmethod
+    def simulate_batch(U):
+        return (((U[:, 0] > 0.5) == (U[:, 1] > 0.5)) & (U[:, 2] > 0.3))[:, None]
+
+    @staticmethod
+    def is_valid(U):
+        return np.ones(len(np.atleast_2d(U)), dtype=bool)
+
+
+def test_subspace_check_keeps_the_parameters_an_event_needs_together():
+    from design.robust.psp import FactorizedPSP, Samples
+    from design.robust.sampling import sobol_valid
+
+    problem = Agree()
+    U = sobol_valid(problem, 256, seed=4)
+    samples = Samples(U, problem.simulate_batch(U), n_initial=len(U))
+    held_out = np.random.default_rng(5).random((400, 3))
+    truth = problem.simulate_batch(held_out)
+    briers, subspaces = {}, {}
+    for check in (False, True):
+        settings = PSPSettings.recommended(subspace_check=check, mutual_information_threshold=0.2)
+        psp = FactorizedPSP(settings, random_state=0).fit(problem, samples)
+        briers[check] = psp_reliability(psp, held_out, truth)[-1].brier
+        subspaces[check] = psp.models_[0].subspace
+    assert subspaces == {False: (2,), True: (0, 1, 2)}  # mutual information kept the third parameter only
+    assert briers[True] < 0.5 * briers[False]
