@@ -38,27 +38,18 @@ ROOT = Path(__file__).resolve().parents[1]
 TILTED_PLANK = ROOT / "tests" / "robust" / "data" / "tilted_plank.toml"
 #: The held-out Sobol sample's seed: not 0.. (the runs' seeds), not the robustness evaluation set's 12345.
 HELD_OUT_SEED = 20_2020
-#: (file, budget, held-out uniform layouts, held-out layouts near the returned layout)
-QUICK = [
-    (TILTED_PLANK, 100, 128, 64),
-    (EXAMPLES_DIR / "simple.toml", 300, 256, 128),
-    (EXAMPLES_DIR / "ballrun.toml", 600, 512, 128),
-    (EXAMPLES_DIR / "branching.toml", 200, 128, 64),
-    (EXAMPLES_DIR / "causalityswitch_ball.toml", 150, 96, 48),
-    (EXAMPLES_DIR / "causalityswitch_dominoes.toml", 150, 96, 48),
-    (EXAMPLES_DIR / "longchain.toml", 150, 96, 48),
-    (EXAMPLES_DIR / "teapotadventure.toml", 150, 96, 48),
-]
-FULL = [
-    (TILTED_PLANK, 600, 512, 256),
-    (EXAMPLES_DIR / "simple.toml", 600, 1024, 256),
-    (EXAMPLES_DIR / "ballrun.toml", 1120, 2048, 256),
-    (EXAMPLES_DIR / "branching.toml", 600, 512, 256),
-    (EXAMPLES_DIR / "causalityswitch_ball.toml", 614, 512, 256),
-    (EXAMPLES_DIR / "causalityswitch_dominoes.toml", 614, 512, 256),
-    (EXAMPLES_DIR / "longchain.toml", 1915, 512, 256),
-    (EXAMPLES_DIR / "teapotadventure.toml", 2420, 512, 256),
-]
+#: Per scenario: (budget, held-out uniform layouts, held-out layouts near the returned layout) of the QUICK run
+#: (default) and of the full one.
+PLAN = {
+    TILTED_PLANK: ((100, 128, 64), (600, 512, 256)),
+    EXAMPLES_DIR / "simple.toml": ((300, 256, 128), (600, 1024, 256)),
+    EXAMPLES_DIR / "ballrun.toml": ((600, 512, 128), (1120, 2048, 256)),
+    EXAMPLES_DIR / "branching.toml": ((200, 128, 64), (600, 512, 256)),
+    EXAMPLES_DIR / "causalityswitch_ball.toml": ((150, 96, 48), (614, 512, 256)),
+    EXAMPLES_DIR / "causalityswitch_dominoes.toml": ((150, 96, 48), (614, 512, 256)),
+    EXAMPLES_DIR / "longchain.toml": ((150, 96, 48), (1915, 512, 256)),
+    EXAMPLES_DIR / "teapotadventure.toml": ((150, 96, 48), (2420, 512, 256)),
+}
 #: CHAOS_BENCH_WORKERS: local simulation processes (default: one per core).
 WORKERS = int(os.environ["CHAOS_BENCH_WORKERS"]) if os.environ.get("CHAOS_BENCH_WORKERS") else None
 #: The settings compared: the station's recommended settings before issue 20 and now.
@@ -87,9 +78,9 @@ def evaluate(problem, executor, budget: int, n_uniform: int, n_near: int, settin
 
 
 def main() -> None:
-    plan = FULL if os.environ.get("CHAOS_BENCH_PSP", "").lower() == "full" else QUICK
+    full = os.environ.get("CHAOS_BENCH_PSP", "").lower() == "full"
     only = [s.strip() for s in os.environ.get("CHAOS_BENCH_PSP_ONLY", "").split(",") if s.strip()]
-    plan = [row for row in plan if not only or row[0].stem in only]
+    plan = [(path, *sizes[full]) for path, sizes in PLAN.items() if not only or path.stem in only]
     cache = os.environ.get("CHAOS_BENCH_PSP_CACHE")
     curves: dict[str, dict[str, object]] = {}
     with tempfile.TemporaryDirectory() as scratch:

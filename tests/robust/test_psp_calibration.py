@@ -11,9 +11,11 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from PIL import Image
 
 from design.robust import CalibratedSVM, PSPSettings, SimulationExecutor, optimize_robust_layout
 from design.robust.contraption import load_problem
+from design.robust.plot import plot_reliability
 from design.robust.reliability import held_out_layouts, psp_reliability, reliability
 
 TILTED_PLANK = Path(__file__).parent / "data" / "tilted_plank.toml"
@@ -70,7 +72,11 @@ def test_tilted_plank_success_region_is_the_steep_end(plank):
     assert success.tolist() == [False, False, True, True]
 
 
-def test_tilted_plank_psp_is_calibrated_on_held_out_simulations(plank):
+#: The recommended settings as they were before issue 20 (the bench's "before").
+BEFORE = PSPSettings.recommended(cv_scoring="roc_auc", calibrate_product=False, subspace_check=False)
+
+
+def test_tilted_plank_psp_is_calibrated_on_held_out_simulations(plank, tmp_path):
     problem, executor = plank
     layout = optimize_robust_layout(problem, executor, budget=100, seed=0, settings=PSPSettings.recommended())
     U, groups = held_out_layouts(problem, 96, seed=2020, centre=layout.u, n_near=32)
@@ -79,13 +85,23 @@ def test_tilted_plank_psp_is_calibrated_on_held_out_simulations(plank):
     scores = psp_reliability(layout.model, U, events)
     whole = scores[-1]
     assert whole.name == "success" and whole.n == len(U)
-    # Before the fix: PSP 0.512 at the chosen layout, Brier 0.243 against the base rate's 0.209.
+    assert [s.name for s in scores[:-1]] == list(problem.event_names)
     assert layout.simulated_success and layout.psp > 0.9
     assert whole.brier < 0.05 < whole.reference_brier
     assert whole.ece < 0.1
     near = np.array([g != "uniform" for g in groups])
     assert events[near].all(axis=1).mean() > 0.95  # the layout's neighbourhood succeeds...
     assert layout.model.predict_proba(U[near]).mean() > 0.9  # ...and the model says so
+
+    # The same run under the settings of before: the issue's symptom, a coin toss where the block always slides.
+    before = optimize_robust_layout(problem, executor, budget=100, seed=0, settings=BEFORE)
+    assert before.simulated_success and before.psp < 0.6
+    old = psp_reliability(before.model, U, events)[-1]
+    assert old.brier > old.reference_brier > whole.brier
+    picture = plot_reliability({problem.name: {"before": old, "after": whole}}, tmp_path / "r.png", columns=2)
+    with Image.open(picture) as image:
+        assert image.size == (500, 36 + 250 + 26)
+        assert len(image.getcolors(1 << 16)) > 10  # curves and text were drawn, not a blank canvas
 
 
 class Agree:
