@@ -82,6 +82,8 @@ def plot_robustness(
     return path
 
 
+#: Bins of fewer layouts are drawn hollow and left off the reliability curve's line.
+MIN_BIN_COUNT = 5
 #: Colours of the compared settings in reliability plots.
 VARIANT_COLOURS = {"before": (150, 150, 150), "after": (214, 39, 40)}
 
@@ -135,17 +137,22 @@ def plot_reliability(panels: dict, path: str | Path, title: str = "", columns: i
             if not filled.any():
                 continue
             x, y = to_pixels(score.predicted[filled], score.observed[filled])
-            draw.line(list(zip(x, y)), fill=(*colour, 200), width=2)
-            for px, py, count in zip(x, y, score.counts[filled]):
+            # The line joins the bins with enough layouts to say something; the others are hollow dots.
+            solid = score.counts[filled] >= MIN_BIN_COUNT
+            if solid.sum() > 1:
+                draw.line(list(zip(x[solid], y[solid])), fill=(*colour, 200), width=2)
+            for px, py, count, full in zip(x, y, score.counts[filled], solid):
                 r = 2.0 + 2.0 * np.sqrt(count / max(score.n, 1) * 10)
-                draw.ellipse([px - r, py - r, px + r, py + r], fill=(*colour, 160))
+                draw.ellipse([px - r, py - r, px + r, py + r], fill=(*colour, 160) if full else None,
+                             outline=colour)
             # Bottom right: a calibrated or underconfident curve stays above the diagonal's right end.
             label = f"{variant} Brier {score.brier:.3f}"
             draw.text((x0 + left + w - draw.textlength(label, font=font) - 4, y0 + top + h - 30 + 13 * k), label,
                       fill=colour, font=font)
     legend_y = margin_top + rows * ph + 6
     draw.text((10, legend_y), "y: observed success rate of the held-out layouts in each bin of predicted PSP "
-              "(dot area ~ layouts); diagonal = calibrated", fill="black", font=font)
+              f"(dot area ~ layouts; hollow: fewer than {MIN_BIN_COUNT}); diagonal = calibrated", fill="black",
+              font=font)
     path = Path(path)
     image.save(path)
     return path
