@@ -17,6 +17,7 @@ from design.robust import CalibratedSVM, PSPSettings, SimulationExecutor, optimi
 from design.robust.contraption import load_problem
 from design.robust.plot import plot_reliability
 from design.robust.reliability import held_out_layouts, psp_reliability, reliability
+from design.robust.settings import RECOMMENDED_BEFORE_CALIBRATION
 
 TILTED_PLANK = Path(__file__).parent / "data" / "tilted_plank.toml"
 
@@ -73,7 +74,7 @@ def test_tilted_plank_success_region_is_the_steep_end(plank):
 
 
 #: The recommended settings as they were before issue 20 (the bench's "before").
-BEFORE = PSPSettings.recommended(cv_scoring="roc_auc", calibrate_product=False, subspace_check=False)
+BEFORE = PSPSettings.recommended(**RECOMMENDED_BEFORE_CALIBRATION)
 
 
 def test_tilted_plank_psp_is_calibrated_on_held_out_simulations(plank, tmp_path):
