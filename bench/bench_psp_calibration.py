@@ -85,7 +85,7 @@ def main() -> None:
     curves: dict[str, dict[str, object]] = {}
     with tempfile.TemporaryDirectory() as scratch:
         cache_path = Path(cache) if cache else Path(scratch) / "sims.sqlite3"
-        print("scenario         settings  PSP(u*)  sim(u*)  Brier all  ref    ECE    Brier near  ref    "
+        print(f"{'scenario file':24} settings  PSP(u*)  sim(u*)  Brier all  ref    ECE    Brier near  ref    "
               "per-event Brier (held-out rows)")
         for path, budget, n_uniform, n_near in plan:
             problem = load_problem(path)
@@ -96,10 +96,11 @@ def main() -> None:
                     whole, near = r["scores"][-1], r["near"]
                     events = "  ".join(f"{s.name}={s.brier:.3f}({s.n})" for s in r["scores"][:-1]
                                        if np.isfinite(s.brier))
-                    print(f"{problem.name[:16]:16} {variant:8}  {r['psp']:.3f}    {r['simulated_near']:.3f}    "
+                    # The file's stem: both CAUSALITYSWITCH variants are named CAUSALITYSWITCH (...).
+                    print(f"{path.stem[:24]:24} {variant:8}  {r['psp']:.3f}    {r['simulated_near']:.3f}    "
                           f"{whole.brier:.3f}     {whole.reference_brier:.3f}  {whole.ece:.3f}  {near.brier:.3f}"
                           f"       {near.reference_brier:.3f}  {events}", flush=True)
-                    curves.setdefault(problem.name, {})[variant] = whole
+                    curves.setdefault(path.stem, {})[variant] = whole
             print(f"   {problem.name}: budget {budget}, held-out {n_uniform} uniform + {n_near} near the "
                   f"result, {time.perf_counter() - started:.0f} s", flush=True)
     out = ROOT / "docs" / "psp_reliability.png"
