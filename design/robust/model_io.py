@@ -22,6 +22,13 @@ no joblib). Format ``"chaos-station psp model 1"``::
       ]
     }
 
+Format ``"chaos-station psp model 2"`` is the same with one more way to combine the factors (written only when a
+model uses it; a model that multiplies its factors is still written as version 1, which every reader reads)::
+
+      "combine": "calibrated_product",                      # PSP(u) = 1 / (1 + exp(a logit(product) + b))
+      "calibration": {"a": -1.3, "b": -0.4},                # Platt's sigmoid of the product's logit
+                                                            # (logit clipped to [-30, 30])
+
 This is exactly :meth:`design.robust.psp.FactorizedPSP.predict_proba`: quasi-deterministic events have no classifier
 and contribute 1; a classifier with too few members of a class predicts its constant; an SVM's decision value is
 that of scikit-learn's ``SVC.decision_function`` (positive = success) on standardized inputs, mapped by Platt's
@@ -39,12 +46,17 @@ import numpy as np
 
 from design.contraption.errors import ScenarioFormatError
 from design.contraption.fields import describe
+from design.robust.probability import IDENTITY_PLATT, combine_factors, platt_probability
 
-__all__ = ["MODEL_FORMAT", "ModelFormatError", "PortableFactor", "PortablePSP", "layout_model", "model_from_json",
-           "model_to_json"]
+__all__ = ["MODEL_FORMAT", "MODEL_FORMAT_2", "ModelFormatError", "PortableFactor", "PortablePSP", "layout_model",
+           "model_from_json", "model_to_json"]
 
-#: The ``format`` of the model key; a reader refuses another (a later version changes the name).
+#: The ``format`` of the model key when the factors are multiplied (every reader reads it).
 MODEL_FORMAT = "chaos-station psp model 1"
+#: The ``format`` of a model whose product is calibrated (``"combine": "calibrated_product"``).
+MODEL_FORMAT_2 = "chaos-station psp model 2"
+#: The formats read, and the ways each combines its factors.
+COMBINE_BY_FORMAT = {MODEL_FORMAT: ("product",), MODEL_FORMAT_2: ("product", "calibrated_product")}
 #: The kinds of factor, in words.
 FACTOR_KINDS = ("quasi_deterministic", "constant", "svm")
 
@@ -101,8 +113,7 @@ class PortableFactor:
             return np.ones(len(U))
         if self.kind == "constant":
             return np.full(len(U), self.probability)
-        exponent = np.clip(self.platt_a * self.decision_function(U) + self.platt_b, -500, 500)
-        return 1.0 / (1.0 + np.exp(exponent))
+        return platt_probability(self.decision_function(U), (self.platt_a, self.platt_b))
 
 
 @dataclass(frozen=True)
@@ -115,12 +126,16 @@ class PortablePSP:
     lower, upper : ndarray
         The design space's bounds in real units (the normalization of :meth:`predict`'s inputs).
     factors : tuple of PortableFactor
+    combine_platt : tuple of float
+        (a, b) of the sigmoid of the product's logit (:data:`~design.robust.probability.IDENTITY_PLATT`: the
+        product itself).
     """
 
     parameter_names: tuple[str, ...]
     lower: np.ndarray
     upper: np.ndarray
     factors: tuple[PortableFactor, ...]
+    combine_platt: tuple[float, float] = IDENTITY_PLATT
 
     @property
     def dim(self) -> int:
@@ -143,8 +158,8 @@ class PortablePSP:
         return np.column_stack([f.probability_of(U) for f in self.factors]) if self.factors else np.ones((len(U), 0))
 
     def predict(self, U: np.ndarray) -> np.ndarray:
-        """The PSP of each normalized layout ``U`` (n, d) or (d,): the product of the factors, shape (n,)."""
-        return np.prod(self.factor_probabilities(U), axis=1)
+        """The PSP of each normalized layout ``U`` (n, d) or (d,): the (calibrated) product of the factors, (n,)."""
+        return combine_factors(self.factor_probabilities(U), self.combine_platt)
 
 
 # --------------------------------------------------------------------------------------------------------------
@@ -184,13 +199,16 @@ def model_to_json(model, problem=None) -> dict[str, Any]:
                 platt={"a": float(classifier.platt_[0]), "b": float(classifier.platt_[1])},
             )
         factors.append(entry)
+    platt = tuple(float(v) for v in getattr(model, "combine_platt_", IDENTITY_PLATT))
+    calibrated = platt != IDENTITY_PLATT
     return {
-        "format": MODEL_FORMAT,
+        "format": MODEL_FORMAT_2 if calibrated else MODEL_FORMAT,
         "parameters": list(problem.parameter_names),
         "lower": _floats(problem.lower),
         "upper": _floats(problem.upper),
         "space": "normalized",
-        "combine": "product",
+        "combine": "calibrated_product" if calibrated else "product",
+        **({"calibration": {"a": platt[0], "b": platt[1]}} if calibrated else {}),
         "factors": factors,
     }
 
@@ -290,12 +308,19 @@ class _ModelReader:
     def read(self, data: Any, problem) -> PortablePSP:
         root = self.root
         data = self.table(data, root, ("format", "parameters", "lower", "upper", "factors"))
-        if data["format"] != MODEL_FORMAT:
-            raise self.fail(f"{root}.format", f"expected {MODEL_FORMAT!r}, got {describe(data['format'])}")
+        if data["format"] not in COMBINE_BY_FORMAT:
+            raise self.fail(f"{root}.format", f"expected {MODEL_FORMAT!r} or {MODEL_FORMAT_2!r}, got "
+                            f"{describe(data['format'])}")
         if "space" in data:
             self.text(data["space"], f"{root}.space", ("normalized",))
-        if "combine" in data:
-            self.text(data["combine"], f"{root}.combine", ("product",))
+        combine = self.text(data["combine"], f"{root}.combine", COMBINE_BY_FORMAT[data["format"]]) \
+            if "combine" in data else "product"
+        platt = IDENTITY_PLATT
+        if combine == "calibrated_product":
+            self.table(data, root, ("calibration",))
+            table = self.table(data["calibration"], f"{root}.calibration", ("a", "b"))
+            platt = (self.number(table["a"], f"{root}.calibration.a", high=0.0),
+                     self.number(table["b"], f"{root}.calibration.b"))
         names = data["parameters"]
         if not isinstance(names, list) or not all(isinstance(n, str) for n in names):
             raise self.fail(f"{root}.parameters", f"expected an array of parameter names, got {describe(names)}")
@@ -320,7 +345,7 @@ class _ModelReader:
         if not isinstance(factors, list):
             raise self.fail(f"{root}.factors", f"expected an array of factors, got {describe(factors)}")
         return PortablePSP(tuple(names), lower, upper,
-                           tuple(self.factor(f, f"{root}.factors[{i}]", dim) for i, f in enumerate(factors)))
+                           tuple(self.factor(f, f"{root}.factors[{i}]", dim) for i, f in enumerate(factors)), platt)
 
 
 def model_from_json(data: Any, problem=None, *, file: str = "<data>", field: str = "model") -> PortablePSP:

@@ -84,7 +84,8 @@ class RobustLayout:
 
     def to_json(self, problem: LayoutProblem) -> dict:
         """The LAYOUT.json content: hash, parameters in real units and normalized, predictions, budget used, and
-        the fitted model under ``"model"`` (``"chaos-station psp model 1"``, see :mod:`design.robust.model_io`)."""
+        the fitted model under ``"model"`` (``"chaos-station psp model 1"`` or ``2``, see
+        :mod:`design.robust.model_io`)."""
         real = problem.to_real(self.u)
         return {
             "format": "chaos-station robust layout 1",
@@ -378,7 +379,7 @@ def optimize_robust_layout(
         for row in verification:
             row["kept"] = False
     factors = psp.factor_probabilities(u)[0]
-    oracle.best_psp = float(np.prod(factors))
+    oracle.best_psp = float(psp.predict_proba(u)[0])
     oracle.phase = "done"
     oracle.report()
     names = problem.parameter_names
@@ -389,7 +390,7 @@ def optimize_robust_layout(
         event_names=tuple(problem.event_names),
         u=u,
         u_best_sample=u_best,
-        psp=float(np.prod(factors)),
+        psp=oracle.best_psp,
         psp_best_sample=psp_best,
         factor_names=tuple(m.event for m in psp.models_),
         factor_probabilities=factors,

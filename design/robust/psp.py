@@ -22,6 +22,7 @@ from sklearn.pipeline import make_pipeline
 from sklearn.preprocessing import StandardScaler
 from sklearn.svm import SVC
 
+from design.robust.probability import IDENTITY_PLATT, combine_factors, logit, platt_probability
 from design.robust.problem import LayoutProblem, RobustError, topological_events
 from design.robust.sampling import gaussian_mixture_draw, sample_physically_valid, sobol_valid
 from design.robust.settings import PSPSettings
@@ -55,6 +56,13 @@ def fit_platt(scores: np.ndarray, labels: np.ndarray) -> tuple[float, float]:
     return float(result.x[0]), float(result.x[1])
 
 
+def platt_log_loss(scores: np.ndarray, labels: np.ndarray, platt: tuple[float, float]) -> float:
+    """Mean negative log likelihood of Boolean ``labels`` under Platt's sigmoid of ``scores``."""
+    z = platt[0] * np.asarray(scores, dtype=float) + platt[1]
+    # p = sigmoid(-z): -log p = log(1 + e^z), -log(1 - p) = log(1 + e^-z)
+    return float(np.mean(np.where(labels, np.logaddexp(0.0, z), np.logaddexp(0.0, -z))))
+
+
 # --------------------------------------------------------------------------------------------------------------
 # One calibrated classifier
 # --------------------------------------------------------------------------------------------------------------
@@ -69,10 +77,12 @@ class CalibratedSVM:
         Stratified folds (3).
     random_state : int
         Seed of the fold shuffling.
-    scoring : {"accuracy", "roc_auc", "neg_log_loss"}
+    scoring : {"accuracy", "roc_auc", "neg_log_loss", "calibrated_log_loss"}
         What the search maximizes. The thesis's accuracy cannot tell a useful classifier from a constant one when
         one class dominates (an event failing on 15 % of layouts is 85 % "accurate" by always saying success);
-        ROC AUC scores the ranking that Platt scaling turns into probabilities.
+        ROC AUC scores the ranking that Platt scaling turns into probabilities, but fold by fold.
+        ``"calibrated_log_loss"`` minimizes the log loss of the Platt-calibrated out-of-fold probabilities, pooled
+        over the folds as Platt scaling pools them (see :meth:`_fit_calibrated_search`).
 
     Attributes
     ----------
@@ -91,6 +101,9 @@ class CalibratedSVM:
         (a, b) of ``p = 1 / (1 + exp(a f + b))``.
     support_indices_ : ndarray
         Rows of the training data that are support vectors.
+    held_out_probability_ : ndarray
+        After calibration: each training row's calibrated probability from the fold that did not see it (the
+        leave-one-out rate for a constant), what :class:`FactorizedPSP` calibrates the product of its factors on.
     """
 
     def __init__(self, c_grid=(0.1, 1.0, 10.0, 100.0, 1000.0), gamma_grid=(0.01, 0.1, 1.0, 10.0), cv_folds=3,
@@ -122,6 +135,8 @@ class CalibratedSVM:
             self.support_indices_ = np.zeros(0, dtype=int)
             return self
         self.constant_ = None
+        if self.scoring == "calibrated_log_loss":
+            return self._fit_calibrated_search(X, y, calibrate)
         search = GridSearchCV(
             make_pipeline(StandardScaler(), SVC(kernel="rbf")),
             {"svc__C": list(self.c_grid), "svc__gamma": list(self.gamma_grid)},
@@ -139,12 +154,48 @@ class CalibratedSVM:
             self.calibrate(X, y)
         return self
 
+    def _fit_calibrated_search(self, X: np.ndarray, y: np.ndarray, calibrate: bool) -> CalibratedSVM:
+        """Choose C, γ by the log loss of Platt-calibrated out-of-fold probabilities, the numbers the PSP reports.
+
+        Per-fold scores (accuracy, ROC AUC) judge each fold's decision values apart, but Platt scaling maps the
+        pooled out-of-fold values of all folds with one sigmoid. A weak setting (small C and γ: every point a
+        support vector, a nearly flat decision function whose offset is the fold's intercept) ranks each fold
+        perfectly (AUC 1) while the folds' values do not compare: pooled, they carry almost nothing and Platt
+        answers the base rate everywhere (issue 20: P = 0.5 at a tilted plank's steep end, where the block always
+        slides). The pooled log loss sees exactly that; ties keep the grid's first (most regularized) setting.
+        """
+        folds = self._folds()
+        best = None
+        for c in self.c_grid:
+            for gamma in self.gamma_grid:
+                model = make_pipeline(StandardScaler(), SVC(kernel="rbf", C=c, gamma=gamma))
+                scores = cross_val_predict(model, X, y, cv=folds, method="decision_function")
+                platt = fit_platt(scores, y)
+                loss = platt_log_loss(scores, y, platt)
+                if best is None or loss < best[0] - 1e-12:
+                    best = (loss, c, gamma, scores, platt)
+        loss, c, gamma, scores, platt = best
+        self.model_ = make_pipeline(StandardScaler(), SVC(kernel="rbf", C=c, gamma=gamma)).fit(X, y)
+        self.best_params_ = {"C": c, "gamma": gamma}
+        self.cv_score_ = -float(loss)
+        self.cv_accuracy_ = float(np.mean((scores > 0) == y))
+        self.support_indices_ = np.asarray(self.model_[-1].support_, dtype=int)
+        if calibrate:
+            self.platt_ = platt
+            self.held_out_probability_ = platt_probability(scores, platt)
+        return self
+
     def calibrate(self, X: np.ndarray, y: np.ndarray) -> CalibratedSVM:
         """Platt scaling on out-of-fold decision values of the already chosen C, γ (no new grid search)."""
+        y = np.asarray(y, dtype=bool)
         if self.constant_ is None:
             scores = cross_val_predict(self.model_, X, y, cv=self._folds(), method="decision_function")
             # The SVC's classes are (False, True): a positive score means success.
-            self.platt_ = fit_platt(scores, np.asarray(y, dtype=bool))
+            self.platt_ = fit_platt(scores, y)
+            self.held_out_probability_ = platt_probability(scores, self.platt_)
+        else:
+            # Leave one out: the constant the other rows give each row.
+            self.held_out_probability_ = (y.sum() - y + 1.0) / (len(y) - 1.0 + 2.0)
         return self
 
     def decision_function(self, X: np.ndarray) -> np.ndarray:
@@ -159,8 +210,7 @@ class CalibratedSVM:
         X = np.atleast_2d(np.asarray(X, dtype=float))
         if self.constant_ is not None:
             return np.full(len(X), self.constant_)
-        a, b = self.platt_
-        return 1.0 / (1.0 + np.exp(np.clip(a * self.decision_function(X) + b, -500, 500)))
+        return platt_probability(self.decision_function(X), self.platt_)
 
     def predict_proba(self, X: np.ndarray) -> np.ndarray:
         """``(n, 2)``: probabilities of failure and success (scikit-learn convention)."""
@@ -324,16 +374,62 @@ class FactorizedPSP:
                        for name in topological_events(problem)]
         else:
             targets = [("global success", [], None)]
+        self._targets = targets
         self.models_ = []
         for name, parents, column in targets:
             model = self._fit_event(problem, settings, rng, name, parents, column, oracle, remaining, on_model)
             self.models_.append(model)
         accuracies = [m.classifier.cv_accuracy_ for m in self.models_ if m.classifier is not None]
         self.cv_accuracy_ = float(min(accuracies)) if accuracies else 1.0
+        self.combine_platt_ = IDENTITY_PLATT
+        if settings.factorize and settings.calibrate_product and self.learned_factors:
+            self.combine_platt_ = self._calibrate_product()
         return self
 
-    def _labels(self, parents, column):
-        events = self.samples_.events
+    def held_out_factor_probabilities(self) -> np.ndarray:
+        """``(n_samples, n_models)``: each factor's probability of each simulated sample, from a model that did not
+        train on it: the out-of-fold probability on the factor's own training rows, the fitted factor elsewhere
+        (rows where its parents failed, and rows added after it was fitted)."""
+        U, events = self.samples_.U, self.samples_.events
+        columns = []
+        for k, model in enumerate(self.models_):
+            probability = np.ones(len(U))
+            if model.classifier is not None:
+                probability = model.classifier.success_probability(U[:, model.subspace])
+                held_out = getattr(model.classifier, "held_out_probability_", None)
+                condition, _ = self.factor_rows(events, k)
+                # Samples only grow by appending: the factor trained on the first n_samples rows where it applies.
+                trained = np.flatnonzero(condition)[: model.n_samples]
+                if held_out is not None and len(held_out) == len(trained):
+                    probability[trained] = held_out
+            columns.append(probability)
+        return np.column_stack(columns)
+
+    def _calibrate_product(self) -> tuple[float, float]:
+        """Platt scaling of the product's logit against global success, on the samples' held-out factors.
+
+        Each factor is calibrated alone, on the rows where its parents happened; their product is not: factors
+        that are each a little unsure (Platt's smoothed targets, a constant from few rows, an event whose subspace
+        leaves out a parameter that matters) multiply into a PSP far below the success rate of the layouts it is
+        given for (BALLRUN: 0.08 at an optimum whose neighbourhood always succeeded). One more sigmoid, fitted on
+        probabilities no factor trained on, maps the product to the success it goes with. It is increasing, so it
+        changes no ranking; a fit that would reverse the order is refused (the product is kept).
+        """
+        product = np.prod(self.held_out_factor_probabilities(), axis=1)
+        platt = fit_platt(logit(product), self.samples_.success)
+        return platt if platt[0] < 0 else IDENTITY_PLATT
+
+    def factor_rows(self, events: np.ndarray, k: int) -> tuple[np.ndarray, np.ndarray]:
+        """Where factor ``k`` applies among simulated ``events`` ``(n, n_events)`` and its label there.
+
+        Returns the Boolean rows whose parents happened (all rows for a root event or the global model) and the
+        factor's outcome on every row (the event, or global success).
+        """
+        _name, parents, column = self._targets[k]
+        return self._labels(parents, column, np.asarray(events, dtype=bool))
+
+    def _labels(self, parents, column, events=None):
+        events = self.samples_.events if events is None else events
         if not parents:
             condition = np.ones(len(events), dtype=bool)
         elif column is not None and self._joins.get(self.event_names_[column], "all") == "any":
@@ -370,6 +466,13 @@ class FactorizedPSP:
         seed = int(rng.integers(2**31))
         classifier = _classifier(settings, seed)
         classifier.fit(X[:, subspace], y, calibrate=False)
+        if settings.subspace_check and len(subspace) < problem.dim and classifier.constant_ is None:
+            # Mutual information judges each parameter alone; an event that needs a parameter only together with
+            # another is then learnt as an average over it, unsure exactly where that parameter is right (the
+            # optimum). Keep the subspace only if cross-validation says it predicts no worse than every parameter.
+            full = _classifier(settings, seed).fit(X, y, calibrate=False)
+            if full.cv_score_ > classifier.cv_score_:
+                subspace, classifier = tuple(range(problem.dim)), full
         model = EventModel(name, subspace, False, rate, classifier, len(y))
         if on_model is not None:
             on_model(model)
@@ -442,8 +545,9 @@ class FactorizedPSP:
         return np.column_stack(columns)
 
     def predict_proba(self, U: np.ndarray) -> np.ndarray:
-        """The PSP of each layout: the product of the factors (Equation 4.8)."""
-        return np.prod(self.factor_probabilities(U), axis=1)
+        """The PSP of each layout: the product of the factors (Equation 4.8), calibrated when the settings say so
+        (``calibrate_product``, see :meth:`_calibrate_product`)."""
+        return combine_factors(self.factor_probabilities(U), getattr(self, "combine_platt_", IDENTITY_PLATT))
 
     @property
     def learned_factors(self) -> list[int]:

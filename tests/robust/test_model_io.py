@@ -11,7 +11,14 @@ import pytest
 
 from design.contraption.layout_io import read_layout
 from design.robust import PSPSettings, SimulationExecutor, optimize_robust_layout
-from design.robust.model_io import MODEL_FORMAT, ModelFormatError, layout_model, model_from_json, model_to_json
+from design.robust.model_io import (
+    MODEL_FORMAT,
+    MODEL_FORMAT_2,
+    ModelFormatError,
+    layout_model,
+    model_from_json,
+    model_to_json,
+)
 from design.robust.problem import synthetic_chain
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -37,7 +44,10 @@ def simple_fit():
 def test_the_portable_model_predicts_as_the_fitted_one_on_simple(simple_fit):
     problem, result = simple_fit
     payload = round_trip(result.to_json(problem))
-    assert payload["model"]["format"] == MODEL_FORMAT
+    # The recommended settings calibrate the product of the factors (issue 20): version 2, its sigmoid saved.
+    assert payload["model"]["format"] == MODEL_FORMAT_2
+    assert payload["model"]["combine"] == "calibrated_product"
+    assert payload["model"]["calibration"]["a"] < 0
     kinds = [f["kind"] for f in payload["model"]["factors"]]
     assert "svm" in kinds and "quasi_deterministic" in kinds
     portable = model_from_json(payload["model"], problem)
@@ -130,3 +140,26 @@ def test_a_malformed_model_is_one_line_naming_the_field(path, value, field):
         model_from_json(model, problem, file="layout.json")
     message = str(raised.value)
     assert message.startswith(f"layout.json: {field}") and "\n" not in message
+
+
+def test_version_2_calibration_is_checked_and_version_1_still_multiplies(simple_fit):
+    problem, result = simple_fit
+    model = round_trip(result.to_json(problem))["model"]
+    U = np.random.default_rng(2).random((50, problem.dim))
+    factors = model_from_json(model, problem).factor_probabilities(U)
+    # The same factors written as version 1 predict their plain product (what a version 1 file always meant).
+    plain = {k: v for k, v in model.items() if k != "calibration"} | {"format": MODEL_FORMAT, "combine": "product"}
+    np.testing.assert_allclose(model_from_json(plain, problem).predict(U), np.prod(factors, axis=1), atol=1e-12)
+    for change, field, words in [
+        ({"format": MODEL_FORMAT}, "model.combine", "expected 'product'"),
+        ({"calibration": {"a": 1.0, "b": 0.0}}, "model.calibration.a", "expected a number in [-inf, 0]"),
+        ({"calibration": {"a": -1.0}}, "model.calibration.b", "missing"),
+        ({"format": "chaos-station psp model 3"}, "model.format", "expected 'chaos-station psp model 1' or"),
+    ]:
+        bad = copy.deepcopy(model) | change
+        with pytest.raises(ModelFormatError) as error:
+            model_from_json(bad, problem, file="layout.json")
+        assert f"layout.json: {field}: {words}" in str(error.value)
+    missing = {k: v for k, v in model.items() if k != "calibration"}
+    with pytest.raises(ModelFormatError, match="model.calibration: missing"):
+        model_from_json(missing, problem)

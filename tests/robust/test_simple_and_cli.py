@@ -158,7 +158,7 @@ def test_cli_optimize_with_the_recommended_settings_stays_within_the_budget(tmp_
     # The layout file says how it was made; a budget of 30 left one simulation for each of the six verified
     # candidates (three optima, three layouts of the start): a quarter of the budget at most.
     settings = layout["psp_settings"]
-    assert settings["cv_scoring"] == "roc_auc" and settings["verification_candidates"] == 3
+    assert settings["cv_scoring"] == "calibrated_log_loss" and settings["verification_candidates"] == 3
     assert settings["verification_start_candidates"] == 3 and settings["verification_samples"] == 1
     # Which candidates were checked, where each came from, and the one kept (unless none worked).
     checked = layout["verification"]
@@ -168,7 +168,7 @@ def test_cli_optimize_with_the_recommended_settings_stays_within_the_budget(tmp_
     assert f"checked {len(checked)} candidate(s), 1 simulation(s) each, radius 0.01:" in printed
     assert ("<- kept" in printed) != layout["fallback_to_best_sample"]
     restored = PSPSettings(**{k: tuple(v) if isinstance(v, list) else v for k, v in settings.items()})
-    assert restored.cv_scoring == "roc_auc"
+    assert restored.cv_scoring == "calibrated_log_loss" and restored.calibrate_product
     out_thesis = tmp_path / "thesis.json"
     main(["optimize", str(SIMPLE), "--budget", "30", "--workers", "1", "--settings", "thesis",
           "--out", str(out_thesis)])
