@@ -166,6 +166,7 @@ class CalibrateScreen(Screen):
 
     CSS = """
     CalibrateScreen .panels { height: 1fr; }
+    CalibrateScreen SimCalibrationPanel { width: 1fr; height: 1fr; border: round $primary-darken-2; padding: 0 1; }
     """
 
     BINDINGS = [

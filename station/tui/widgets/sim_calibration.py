@@ -80,6 +80,7 @@ class SimCalibrationPanel(Vertical):
         self._stop = threading.Event()
 
     def compose(self) -> ComposeResult:
+        yield Label("[b]Simulator[/b] (material values fitted to the trial log)")
         with Horizontal(id="sim-fields"):
             with Vertical():
                 yield Label("Scenarios", classes="heading")
