@@ -66,8 +66,10 @@ from projector.plane import VIEWS, guide_plane, heading_in_plane, plane_normals,
 
 __all__ = ["AUTO_TAG_SIZES_MM", "build_guide", "choose_view", "steps_text"]
 
-#: The tag sizes tried, largest first (the black square's edge, mm).
-AUTO_TAG_SIZES_MM = (25.0, 20.0, 15.0, 10.0)
+#: The tag sizes tried, largest first (the black square's edge, mm). None under 15 mm: a camera 1 m above the
+#: plane at f = 1400 px sees a 10 mm tag 14 px across, too few for the detector to decode it reliably
+#: (bench/bench_check_accuracy.py); a part with no room for 15 mm is checked by eye.
+AUTO_TAG_SIZES_MM = (25.0, 20.0, 15.0)
 #: Clear space between a tag's square and its part's outline, at least (mm); more for a large tag (its border).
 TAG_MARGIN_MM = 2.0
 #: Clear space between the parts' extent and the reference tags' white borders (mm).
