@@ -207,13 +207,26 @@ def test_a_domino_run_is_checked_by_its_first_and_last_dominoes(tmp_path):
 
 def test_the_projected_check_uses_the_projectors_saved_map():
     from calibration.projector_map import ProjectorMap, save_projector_map
+    from station.services import projectors
     from station.services.projector_calibration import projector_map_file
 
-    assert service.projector_homography("projector", (1280, 800)) is None  # no map: fitted to the screen
+    assert projectors.projector_homography("projector", (1280, 800)) is None  # no map: fitted to the screen
     plane_from_pixel = np.array([[0.5, 0.0, -300.0], [0.0, -0.5, 200.0], [0.0, 0.0, 1.0]])
     path = projector_map_file("projector")
     path.parent.mkdir(parents=True, exist_ok=True)
     save_projector_map(ProjectorMap(plane_from_pixel, (1280, 800), {"p50": 0.2, "p95": 0.4, "max": 0.6}, {}), path)
-    homography = service.projector_homography("projector", (1280, 800))
+    homography = projectors.projector_homography("projector", (1280, 800))
     assert np.allclose(homography @ plane_from_pixel, np.eye(3))  # guide mm -> projector pixels
-    assert service.projector_homography("projector", (1920, 1080)) is None  # a map of another screen size
+    assert projectors.projector_homography("projector", (1920, 1080)) is None  # a map of another screen size
+    # the guide's steps go through the same map: the configured projector (simulated, named "projector") at its
+    # own size shows them at true scale
+    from drivers.sim.projector import SimulatedProjector
+    from station.services.guide import make_guide, show_step
+    from station.services.projectors import configured_projector
+
+    assert configured_projector().name == "projector"
+    job = make_guide("simple", "success", tolerances=False)
+    with SimulatedProjector("sim://projector?size=1280x800") as shown:
+        assert show_step(job, shown, 1) is True
+    with SimulatedProjector("sim://projector?size=1024x768") as shown:
+        assert show_step(job, shown, 1) is False  # its map is of another size: fitted to the screen

@@ -148,14 +148,7 @@ class Assembly:
 
         self.step = step or 0
         if self.projector is not None:
-            show_step(self.job, self.projector, step, self._homography())
-
-    def _homography(self):
-        from station.services.check import projector_homography
-        from station.services.projectors import configured_projector
-
-        device = configured_projector()
-        return None if device is None else projector_homography(device.name, tuple(self.projector.size))
+            show_step(self.job, self.projector, step)
 
     def write_sheet(self, pdf: str | Path, paper: str = "a4") -> Path:
         """Write the 1:1 PDF sheet set with the steps (print at 100 %)."""
@@ -197,10 +190,12 @@ class Assembly:
         """Show the last check on the projector (an arrow per misplaced part to where it must go, a ring at the
         target); False without a projector or a check."""
         from station.services.check import overlay_frame
+        from station.services.projectors import saved_homography
 
         if self.projector is None or self.check is None:
             return False
-        self.projector.show(overlay_frame(self.check, tuple(self.projector.size), self._homography()))
+        size = tuple(self.projector.size)
+        self.projector.show(overlay_frame(self.check, size, saved_homography(size)))
         return True
 
     def fix(self) -> list[dict]:

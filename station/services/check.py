@@ -24,7 +24,7 @@ from station.services.check_scene import parse_offset, sim_scene
 from station.services.errors import ServiceError
 
 __all__ = ["CheckJob", "apply_manifest", "camera_frame", "camera_overlay", "check_frame", "check_measurement",
-           "grab_frame", "load_image", "overlay_frame", "parse_offset", "prepare_check", "projector_homography",
+           "grab_frame", "load_image", "overlay_frame", "parse_offset", "prepare_check",
            "remember_plane", "report_lines", "sim_scene", "summary_lines"]
 
 #: Stages of a check, for progress.
@@ -503,26 +503,6 @@ def overlay_frame(check: CheckJob, size: tuple[int, int], homography=None) -> np
 
     return render_check(check.guide_job.guide, check.report.parts, tuple(size), homography,
                         caption=summary_lines(check.report)[:2])
-
-
-def projector_homography(name: str, size) -> np.ndarray | None:
-    """The guide-plane -> projector-pixel homography of projector ``name`` from its saved map (``station calibrate
-    projector``: ``calibration/projectors/NAME.json``), for frames at true scale; None without a map, or with one of
-    another screen size (the frames are then fitted to the screen, and say so)."""
-    from calibration.errors import CalibrationError
-    from calibration.projector_map import load_projector_map
-    from station.services.projector_calibration import projector_map_file
-
-    path = projector_map_file(name)
-    if not path.exists():
-        return None
-    try:
-        mapping = load_projector_map(path)
-    except (CalibrationError, OSError):
-        return None  # a map that no longer reads: fitted to the screen, as without one
-    if tuple(mapping.projector_size) != tuple(size):
-        return None
-    return np.linalg.inv(np.asarray(mapping.plane_from_pixel, dtype=float))
 
 
 def camera_overlay(check: CheckJob) -> np.ndarray:

@@ -152,7 +152,9 @@ def show_step(job: GuideJob, projector, step: int | None = None, homography=None
     """Show step ``step`` (1-based; None: the calibrate frame) of the guide on an open ``projector`` device, drawn
     at the projector's own size (a frame of another size would be letterboxed, and no longer true to scale).
 
-    Returns whether the frame is at true scale (False until the projector is calibrated).
+    ``homography`` (guide mm -> projector pixels) defaults to the configured projector's saved map (`station
+    calibrate projector`) when it has one of this size. Returns whether the frame is at true scale (False until the
+    projector is calibrated).
 
     Raises
     ------
@@ -165,6 +167,10 @@ def show_step(job: GuideJob, projector, step: int | None = None, homography=None
     if step is not None and not 1 <= step <= count:
         raise ServiceError(f"step must be from 1 to {count}, got {step}", field="step", value=step)
     size = tuple(projector.size)
+    if homography is None:
+        from station.services.projectors import saved_homography
+
+        homography = saved_homography(size)
     if step is None:
         frame = render_calibrate(job.guide, size, homography)
     else:

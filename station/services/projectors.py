@@ -40,3 +40,32 @@ def open_projector(device: DeviceEntry) -> Iterator:
         yield projector
     finally:
         projector.close()
+
+
+def projector_homography(name: str, size):
+    """The guide-plane -> projector-pixel homography of projector ``name`` from its saved map (``station calibrate
+    projector``: ``calibration/projectors/NAME.json``), for frames at true scale; None without a map, or with one of
+    another screen size (the frames are then fitted to the screen, and say so)."""
+    import numpy as np
+
+    from calibration.errors import CalibrationError
+    from calibration.projector_map import load_projector_map
+    from station.services.projector_calibration import projector_map_file
+
+    path = projector_map_file(name)
+    if not path.exists():
+        return None
+    try:
+        mapping = load_projector_map(path)
+    except (CalibrationError, OSError):
+        return None  # a map that no longer reads: fitted to the screen, as without one
+    if tuple(mapping.projector_size) != tuple(size):
+        return None
+    return np.linalg.inv(np.asarray(mapping.plane_from_pixel, dtype=float))
+
+
+def saved_homography(size) -> object | None:
+    """:func:`projector_homography` of the station's configured projector at ``size`` (None without one or a map)."""
+    device = configured_projector()
+    return None if device is None else projector_homography(device.name, size)
+
