@@ -47,7 +47,7 @@ BAD = [
      f"devices[0].url: expected a plotter URL ({GRBL_FORMS}), got a number (5)"),
     ('[[devices]]\nname = "p"\nkind = "plotter"\nurl = "ftp://x"\n',
      f"devices[0].url: device URL 'ftp://x' matches no driver; accepted: GRBL: {GRBL_FORMS}; camera: {CAMERA_FORMS}; "
-     "projector: sim://projector, display:N"),
+     "projector: sim://projector, display:N; world: sim://world"),
     ('[[devices]]\nname = "p"\nkind = "plotter"\nurl = "sim://camera"\n',
      f"devices[0].url: expected a plotter URL ({GRBL_FORMS}), got a camera URL 'sim://camera'"),
     ('[[devices]]\nname = "c"\nkind = "camera"\nurl = "/dev/ttyUSB0"\n',

@@ -88,10 +88,10 @@ def grab_placed(camera_url: str, guide, placed: Mapping[str, Mapping], seed: int
     unless the URL sets one), and the twin's own intrinsics."""
     from dataclasses import replace
 
-    from station.services.calibrate import _open_camera
+    from station.services.calibrate import open_camera
     from station.services.check import _aim, _twin_intrinsics
 
-    camera = _open_camera(camera_url)
+    camera = open_camera(camera_url)
     try:
         if not hasattr(camera, "set_scene"):
             raise ServiceError(f"camera: {camera_url!r} is a real camera; the loop's world is simulated, so its camera "
