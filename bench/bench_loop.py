@@ -63,7 +63,7 @@ def scenario_figures(results: list) -> dict:
                 continue
             lo, hi = loop.interval
             total += 1
-            within += lo <= loop.predicted_success <= hi
+            within += lo - 1e-9 <= loop.predicted_success <= hi + 1e-9  # Wilson's ends carry rounding
     baseline = [r.baseline_successes / r.baseline_attempts for r in results if r.baseline_attempts]
     baseline_n = sum(r.baseline_attempts for r in results)
     baseline_k = sum(r.baseline_successes for r in results)
