@@ -5,11 +5,12 @@ Trials are made by the simulator itself under hidden material values with 1 mm /
 settings (:class:`calibration.sim_fit.FitSettings`). Targets: friction within ±5 % from 10 runs with event times
 and from 30 runs with outcomes only; restitution within ±15 %; the held-out Brier score of the success probability
 improves. Scenarios: SLIDE (a block on a tilted plank, friction) and BOUNCE (a ball dropped on a plate, restitution),
-tests/calibration/data. About 2-4 minutes on one core.
+tests/calibration/data. About 2-4 minutes on one core. Draws docs/sim_calibration.png: each fit's candidates.
 """
 
 from __future__ import annotations
 
+import functools
 import time
 from pathlib import Path
 
@@ -27,7 +28,54 @@ CASES = [
 ]
 
 
-def run_case(label, file, hidden, span, runs, times, tolerance, seed: int = 0) -> bool:
+def _map(v: float, lo: float, hi: float, a: float, b: float) -> float:
+    """``v`` in [lo, hi] to [a, b] (a picture's pixels)."""
+    return a + (v - lo) / (hi - lo if hi > lo else 1.0) * (b - a)
+
+
+FIGURE = Path(__file__).resolve().parents[1] / "docs" / "sim_calibration.png"
+
+
+def draw_fit(fits: list[tuple[str, object, float]], path: Path = FIGURE) -> Path:
+    """One panel per fit of one value: the candidates' log-likelihood against the value, the hidden value (dashed),
+    the fitted one and its 95 % interval (band). Drawn with Pillow, like the robustness plots."""
+    from PIL import Image, ImageDraw, ImageFont
+
+    width, height = 480, 300
+    image = Image.new("RGB", (width * 2, height * ((len(fits) + 1) // 2)), "white")
+    draw = ImageDraw.Draw(image, "RGBA")
+    font = ImageFont.load_default()
+    for k, (label, fit, truth) in enumerate(fits):
+        x0, y0 = (k % 2) * width, (k // 2) * height
+        left, right, top, bottom = x0 + 60, x0 + width - 20, y0 + 40, y0 + height - 45
+        (p,) = fit.parameters
+        values, ll = fit.evaluated[:, 0], fit.evaluated_log_likelihood
+        lo_v, hi_v = p.range
+        lo_l, hi_l = float(np.min(ll)), float(np.max(ll))
+        hi_l += 0.05 * (hi_l - lo_l + 1e-9)
+        sx = functools.partial(_map, lo=lo_v, hi=hi_v, a=left, b=right)
+        sy = functools.partial(_map, lo=lo_l, hi=hi_l, a=bottom, b=top)
+        draw.rectangle([sx(p.interval[0]), top, sx(p.interval[1]), bottom], fill=(214, 39, 40, 50))
+        draw.rectangle([left, top, right, bottom], outline=(0, 0, 0))
+        for v, l in zip(values, ll):
+            draw.ellipse([sx(v) - 3, sy(l) - 3, sx(v) + 3, sy(l) + 3], fill=(31, 119, 180))
+        for y in np.arange(top, bottom, 8):
+            draw.line([sx(truth), y, sx(truth), y + 4], fill=(0, 0, 0), width=2)
+        draw.line([sx(p.value), top, sx(p.value), bottom], fill=(214, 39, 40), width=2)
+        draw.text((left, y0 + 8), f"{label}", fill=(0, 0, 0), font=font)
+        draw.text((left, y0 + 22), f"hidden {truth:g} (dashed), fitted {p.value:.3f} [{p.interval[0]:.3f}, "
+                  f"{p.interval[1]:.3f}] (red)", fill=(90, 90, 90), font=font)
+        for v in np.linspace(lo_v, hi_v, 6):
+            draw.text((sx(v) - 10, bottom + 6), f"{v:.2f}", fill=(0, 0, 0), font=font)
+        draw.text(((left + right) / 2 - 40, bottom + 24), p.name, fill=(0, 0, 0), font=font)
+        for v in np.linspace(lo_l, hi_l, 4):
+            draw.text((x0 + 8, sy(v) - 6), f"{v:.0f}", fill=(0, 0, 0), font=font)
+        draw.text((x0 + 8, bottom + 24), "log-lik.", fill=(90, 90, 90), font=font)
+    image.save(path, optimize=True)
+    return path
+
+
+def run_case(label, file, hidden, span, runs, times, tolerance, seed: int = 0, fits: list | None = None) -> bool:
     from calibration.sim_fit import FitSettings, fit_simulator
     from calibration.sim_synthetic import export, synthetic_trials
     from calibration.sim_trials import export_trials, fit_trials
@@ -59,12 +107,16 @@ def run_case(label, file, hidden, span, runs, times, tolerance, seed: int = 0) -
         print(f"    held-out Brier {fit.brier_before:.4f} -> {fit.brier_after:.4f} "
               f"({'improves' if better else 'does not improve'})")
     print(f"    log-likelihood {fit.log_likelihood_before:.1f} -> {fit.log_likelihood_after:.1f}")
+    if fits is not None:
+        fits.append((label, fit, next(iter(hidden.values()))))
     return ok
 
 
 def main() -> None:
-    results = [run_case(*case) for case in CASES]
+    fits: list = []
+    results = [run_case(*case, fits=fits) for case in CASES]
     print(f"  recovery: {sum(results)} of {len(results)} cases met their targets")
+    print(f"  wrote {draw_fit(fits)}")
 
 
 if __name__ == "__main__":

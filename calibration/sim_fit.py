@@ -177,6 +177,9 @@ class SimFit:
     simulations: int
     candidates: int
     scenarios: list[str] = field(default_factory=list)
+    #: The candidate material values simulated ``(n, d)``, in :attr:`parameters`' order, and their log-likelihoods.
+    evaluated: np.ndarray = field(default_factory=lambda: np.empty((0, 0)))
+    evaluated_log_likelihood: np.ndarray = field(default_factory=lambda: np.empty(0))
 
     def values(self) -> dict[str, float]:
         return {p.name: p.value for p in self.parameters}
@@ -368,7 +371,7 @@ def _fit(trials, names, lower, upper, before, ranges, run: Runner, settings: Fit
         brier_before = float(np.mean((p_before - truth) ** 2))
         brier_after = float(np.mean((p_after - truth) ** 2))
     return SimFit(parameters, len(fitted), len(held), brier_before, brier_after, float(ll_before), float(ll_after),
-                  agreement, run.done, len(U), sorted({t.scenario.name for t in trials}))
+                  agreement, run.done, len(U), sorted({t.scenario.name for t in trials}), to_real(U), y)
 
 
 def to_real_axis(lower: np.ndarray, upper: np.ndarray, k: int, u: float) -> float:
