@@ -63,7 +63,7 @@ def scenario_figures(results: list) -> dict:
                 continue
             lo, hi = loop.interval
             total += 1
-            within += lo <= loop.predicted_success <= hi
+            within += lo - 1e-9 <= loop.predicted_success <= hi + 1e-9  # Wilson's ends carry rounding
     baseline = [r.baseline_successes / r.baseline_attempts for r in results if r.baseline_attempts]
     baseline_n = sum(r.baseline_attempts for r in results)
     baseline_k = sum(r.baseline_successes for r in results)
@@ -139,6 +139,7 @@ def main(argv: list[str] | None = None) -> int:
                         help=f"comma-separated example names (all: {','.join(ALL)})")
     parser.add_argument("--seeds", default="1-5", help="world seeds, e.g. 1-5 or 1,3,7")
     parser.add_argument("--quick", action="store_true", help="small budgets (the default under `python -m bench`)")
+    parser.add_argument("--budget", type=int, default=None, help="the optimizer's budget instead of the sizes'")
     parser.add_argument("--workers", type=int, default=2)
     parser.add_argument("--database", default=None, help="the bench database (default: the station cache folder)")
     parser.add_argument("--json", default=None, help="write the figures there")
@@ -148,7 +149,9 @@ def main(argv: list[str] | None = None) -> int:
     from station.paths import cache_dir
 
     names = ALL if args.scenarios == "all" else tuple(s.strip() for s in args.scenarios.split(",") if s.strip())
-    sizes = QUICK if args.quick else FULL
+    sizes = dict(QUICK if args.quick else FULL)
+    if args.budget is not None:
+        sizes["budget"] = args.budget
     database = args.database or str(cache_dir() / f"bench_loop{'_quick' if args.quick else ''}.sqlite3")
     print(f"bench_loop: {', '.join(names)} over world seeds {args.seeds}; sizes {sizes}; database {database}",
           flush=True)

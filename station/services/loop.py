@@ -246,10 +246,26 @@ class _Loop:
             text = profile.to_toml()
             path = self.folder / f"profile-{k}.toml"
             path.write_text(text, encoding="utf-8")
-            layout = self.optimized(path, OPTIMIZE_SEED)
+            layout = self.keep_better(self.optimized(path, OPTIMIZE_SEED), self.store.loop(self.run_id, k - 1).layout,
+                                      profile, k)
             row = LoopRow(k, layout, profile.name, text, dict(profile.values))
         self.store.add_loop(self.run_id, row)
         return self.store.loop(self.run_id, k)
+
+    def keep_better(self, new: dict, old: dict, profile, k: int) -> dict:
+        """The new layout, unless the last loop's is predicted to succeed more often under the calibrated profile
+        (a small optimization budget can do worse than the layout already placed; the station then keeps that one).
+        Both are predicted as designed with the default placement error, on the same seed."""
+        from design.contraption.layout_io import layout_from_data
+        from station.services.predict import predict_layout
+
+        scores = []
+        for data in (new, old):
+            x = np.asarray(layout_from_data(data, self.scenario, file="<loop layout>").x, dtype=float)
+            scores.append(predict_layout(self.scenario, x, profile=profile, samples=self.settings.predict_samples,
+                                         seed=_seed(self.world.seed, _PREDICT, k, 0), progress=self.report.emit,
+                                         **self.where).probability)
+        return new if scores[0] >= scores[1] else old
 
     def calibrate(self, k: int):
         """The physics profile fitted to every trial of loops 1 .. k-1."""
