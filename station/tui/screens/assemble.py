@@ -417,7 +417,7 @@ SCREEN = ScreenEntry(
     name="assemble",
     key="a",
     title="Assemble",
-    description="a layout as an assembly guide: 1:1 PDF sheets, SVG, projected steps, tolerance map",
+    description="one attempt: the guide (sheets or projector), the camera check, the run, the log",
     factory=AssembleScreen,
     order=60,
 )

@@ -213,7 +213,7 @@ SCREEN = ScreenEntry(
     name="calibrate",
     key="k",
     title="Calibrate",
-    description="camera intrinsics from a ChArUco board, the plane from the reference tags",
+    description="the camera (ChArUco), the plane, the projector (Gray code), the simulator (from the trials)",
     factory=CalibrateScreen,
     order=58,
 )
