@@ -11,7 +11,8 @@ grey levels), ``vignetting`` (0..1), ``jpeg`` (quality 1..100), ``exposure`` (ga
 (samples per pixel along each axis, default 3), ``seed`` (of the noise: frame ``n`` uses ``seed + n``), ``name``
 (share one camera, its scene and its faults, between the opens of that name, as ``sim://projector?name=`` does) and
 ``projector`` (the name of a shared simulated projector, ``sim://projector?name=NAME``: each frame shows the light it
-throws now). An unknown option or a bad value is one :class:`drivers.errors.SimConfigError` line naming it.
+throws now; none while no projector of that name is open: it is off). An unknown option or a bad value is one
+:class:`drivers.errors.SimConfigError` line naming it.
 
 Faults (:meth:`SimulatedCamera.inject`)
 -----------------------------------------
@@ -191,13 +192,13 @@ class SimulatedCamera:
     def faults(self) -> frozenset[str]:
         return frozenset(self._faults)
 
-    def _projector_light(self) -> dict:
+    def _projector_light(self) -> dict | None:
+        """The named projector's light; None while no projector of that name is open (it is off: it throws none)."""
         from drivers.sim.projector import projector_named
 
         projector = projector_named(self.projector_name)
         if projector is None:
-            raise DriverError(f"camera {self.url}: no simulated projector named {self.projector_name!r} (open "
-                              f"sim://projector?name={self.projector_name} first)")
+            return None
         light = projector.light()
         if light["plane_from_pixel"] is None:
             raise DriverError(f"camera {self.url}: the simulated projector {self.projector_name!r} has no placement "

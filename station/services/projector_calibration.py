@@ -164,7 +164,12 @@ def calibrate_projector(*, camera: str | None = None, projector: str | None = No
     try:
         result = map_projector(plan, images, matrix, camera_matrix, dist)
     except CalibrationError as error:
-        raise ServiceError(f"camera: {error}", field="camera") from None
+        hint = ""
+        if camera_url.startswith("sim://camera") and "projector=" not in camera_url:
+            # the station's default twins are not linked: a simulated camera sees a projector only when named
+            hint = ("; a simulated camera sees a simulated projector only when linked, e.g. --camera "
+                    "'sim://camera?projector=wall' --projector 'sim://projector?name=wall&area=-300,-190,300,190'")
+        raise ServiceError(f"camera: {error}{hint}", field="camera") from None
     report("projector map", 1, 1, f"landing error p95 {result.landing_error_mm['p95']:.2f} mm")
     if save:
         save_projector_map(result, target)
