@@ -20,16 +20,14 @@ from textual.binding import Binding
 from textual.containers import Horizontal, Vertical
 from textual.screen import Screen
 from textual.widgets import Button, DataTable, Footer, Header, Input, Label, Static
-from textual.worker import get_current_worker
 
 from calibration.errors import CalibrationError
-from common.progress import Cancelled
 from drivers.errors import DriverError
 from station.errors import StationError
 from station.services import calibrate as service
 from station.services.trials import logged_trials
 from station.tui.registry import ScreenEntry
-from station.tui.widgets.progress import ProgressPanel, ProgressReported, post_progress
+from station.tui.widgets.progress import ProgressPanel, ProgressReported, post_progress, run_in_worker
 from station.tui.widgets.projector_calibration import ProjectorCalibrationPanel
 from station.tui.widgets.sim_calibration import SimCalibrationPanel
 
@@ -93,17 +91,9 @@ class CameraPanel(Vertical):
 
     @work(thread=True, exclusive=True, group="calibrate-camera")
     def calibrate(self, folder: str | None, count: int | None) -> None:
-        worker = get_current_worker()
-        try:
-            done = service.calibrate_camera(images=folder, capture=count, progress=post_progress(self),
-                                            cancelled=lambda: worker.is_cancelled)
-        except Cancelled:
-            self.app.call_from_thread(self.finished, None, "stopped; nothing saved")
-            return
-        except _USER_ERRORS as error:
-            self.app.call_from_thread(self.finished, None, str(error))
-            return
-        self.app.call_from_thread(self.finished, done, "")
+        run_in_worker(self, lambda cancelled: service.calibrate_camera(
+            images=folder, capture=count, progress=post_progress(self), cancelled=cancelled),
+            "stopped; nothing saved", _USER_ERRORS)
 
     def on_progress_reported(self, message: ProgressReported) -> None:
         message.stop()

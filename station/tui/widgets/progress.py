@@ -43,6 +43,27 @@ def post_progress(target: MessagePump) -> ProgressCallback:
     return report
 
 
+def run_in_worker(widget, work: Callable[[Callable[[], bool]], object], stopped: str,
+                  errors: tuple[type[BaseException], ...]) -> None:
+    """Run ``work(cancelled)`` in the current thread worker, then hand its outcome to ``widget.finished`` on the UI
+    thread: ``finished(result, "")``, or ``finished(None, why)`` when it was stopped (``stopped``) or refused (one of
+    ``errors``, said in one line). Call it from a ``@work(thread=True)`` method."""
+    from textual.worker import get_current_worker
+
+    from common.progress import Cancelled
+
+    worker = get_current_worker()
+    try:
+        result = work(lambda: worker.is_cancelled)
+    except Cancelled:
+        widget.app.call_from_thread(widget.finished, None, stopped)
+        return
+    except errors as error:
+        widget.app.call_from_thread(widget.finished, None, str(error))
+        return
+    widget.app.call_from_thread(widget.finished, result, "")
+
+
 class ProgressPanel(Vertical):
     """The stage in bold, a bar (indeterminate while the total is unknown) and a message line.
 

@@ -16,13 +16,11 @@ from textual.app import ComposeResult
 from textual.binding import Binding
 from textual.containers import Horizontal, Vertical
 from textual.widgets import Button, Input, Label, Static
-from textual.worker import get_current_worker
 
 from calibration.errors import CalibrationError
-from common.progress import Cancelled
 from drivers.errors import DriverError
 from station.errors import StationError
-from station.tui.widgets.progress import ProgressPanel, ProgressReported, post_progress
+from station.tui.widgets.progress import ProgressPanel, ProgressReported, post_progress, run_in_worker
 
 __all__ = ["ProjectorCalibrationPanel"]
 
@@ -90,17 +88,9 @@ class ProjectorCalibrationPanel(Vertical):
     def calibrate(self, camera: str | None, projector: str | None, plane: str | None) -> None:
         from station.services import projector_calibration as service
 
-        worker = get_current_worker()
-        try:
-            done = service.calibrate_projector(camera=camera, projector=projector, plane=plane,
-                                               progress=post_progress(self), cancelled=lambda: worker.is_cancelled)
-        except Cancelled:
-            self.app.call_from_thread(self.finished, None, "stopped; the projector is blank, nothing saved")
-            return
-        except _USER_ERRORS as error:
-            self.app.call_from_thread(self.finished, None, str(error))
-            return
-        self.app.call_from_thread(self.finished, done, "")
+        run_in_worker(self, lambda cancelled: service.calibrate_projector(
+            camera=camera, projector=projector, plane=plane, progress=post_progress(self), cancelled=cancelled),
+            "stopped; the projector is blank, nothing saved", _USER_ERRORS)
 
     def on_progress_reported(self, message: ProgressReported) -> None:
         message.stop()
