@@ -193,10 +193,11 @@ def load_image(path: str | Path) -> np.ndarray:
                            value=str(path)) from None
 
 
-def grab_frame(url: str, guide, *, offsets=None, occluded: Sequence[int] = (), scene=None):
+def grab_frame(url: str, guide, *, offsets=None, occluded: Sequence[int] = (), scene=None, seed: int | None = None):
     """One frame from the camera at ``url``, and the intrinsics it knows of itself (a simulated camera's own; None
     for a real camera, which needs its calibration). A simulated camera is handed ``scene`` first (a simulated
-    world's parts where they stand), else :func:`sim_scene` (the guide's tags at their designed poses).
+    world's parts where they stand), else :func:`sim_scene` (the guide's tags at their designed poses); ``seed``
+    seeds its noise unless the URL sets one.
 
     Raises
     ------
@@ -220,6 +221,8 @@ def grab_frame(url: str, guide, *, offsets=None, occluded: Sequence[int] = (), s
             camera.set_scene(scene if scene is not None else sim_scene(guide, offsets, occluded=occluded))
             if "target=" not in url:
                 _aim(camera, guide)
+            if seed is not None and "seed=" not in url:
+                camera.options = replace(camera.options, seed=int(seed) % 2**32)
         image = np.asarray(camera.grab())
         intrinsics = _twin_intrinsics(camera, url) if simulated else None
     finally:

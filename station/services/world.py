@@ -86,25 +86,9 @@ def world_scene(guide, placed: Mapping[str, Mapping]):
 def grab_placed(camera_url: str, guide, placed: Mapping[str, Mapping], seed: int):
     """One frame of the parts as placed from the simulated camera at ``camera_url`` (its noise seeded by ``seed``
     unless the URL sets one), and the twin's own intrinsics."""
-    from dataclasses import replace
+    from station.services.check import grab_frame
 
-    from station.services.calibrate import open_camera
-    from station.services.check import _aim, _twin_intrinsics
-
-    camera = open_camera(camera_url)
-    try:
-        if not hasattr(camera, "set_scene"):
-            raise ServiceError(f"camera: {camera_url!r} is a real camera; the loop's world is simulated, so its camera "
-                               "must be too (sim://camera?...)", field="camera", value=camera_url)
-        camera.set_scene(world_scene(guide, placed))
-        if "target=" not in camera_url:
-            _aim(camera, guide)
-        if "seed=" not in camera_url:
-            camera.options = replace(camera.options, seed=int(seed) % 2**32)
-        image = np.asarray(camera.grab())
-        return image, _twin_intrinsics(camera, camera_url)
-    finally:
-        camera.close()
+    return grab_frame(camera_url, guide, scene=world_scene(guide, placed), seed=seed)
 
 
 #: The zone a part is kept to when its check knows no tolerance for it (none fitted, or bound only by its range's
