@@ -32,8 +32,11 @@ from pathlib import Path
 import numpy as np
 
 ALL = ("simple", "ballrun", "causalityswitch_ball", "longchain", "teapotadventure", "branching")
-QUICK = dict(attempts=4, loops=2, budget=40, rounds=2, predict_samples=12, fit_draws=3, fit_sobol=8, fit_rounds=1)
-FULL = dict(attempts=6, loops=3, budget=120, rounds=3, predict_samples=32, fit_draws=4, fit_sobol=16, fit_rounds=2)
+QUICK = dict(attempts=4, loops=2, budget=120, reoptimize_budget=120, candidates=4, rounds=2, predict_samples=12,
+             fit_draws=3, fit_sobol=8, fit_rounds=1)
+#: Loop 1's budget None: ``station optimize``'s default, the thesis's budget per scenario (made once, cached).
+FULL = dict(attempts=5, loops=2, budget=None, reoptimize_budget=200, candidates=6, rounds=3, predict_samples=16,
+            fit_draws=4, fit_sobol=16, fit_rounds=2)
 
 
 def _seeds(text: str) -> list[int]:

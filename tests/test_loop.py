@@ -18,7 +18,8 @@ import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
 LAYOUT = {"x": [-0.15, 0.06, 68.0]}  # a SIMPLE layout (track.x, track.z, track.roll) that succeeds as designed
-TINY = ["--attempts", "2", "--loops", "2", "--budget", "20", "--rounds", "1", "--baseline", "1",
+TINY = ["--attempts", "2", "--loops", "2", "--budget", "20", "--reoptimize-budget", "20", "--candidates", "2",
+        "--rounds", "1", "--baseline", "1",
         "--predict-samples", "3", "--fit-draws", "1", "--fit-sobol", "3", "--fit-rounds", "0", "--workers", "1"]
 
 
@@ -140,3 +141,56 @@ def test_bad_loop_arguments_are_one_line(tmp_path, station_home):
         assert result.returncode == 2, (extra, result.stderr)
         lines = result.stderr.strip().splitlines()
         assert len(lines) == 1 and words in lines[0], (extra, result.stderr)
+
+
+def _payload(kept_u, rows):
+    params = [{"name": "a", "value": 0.0, "normalized": kept_u[0], "lower": 0.0, "upper": 10.0},
+              {"name": "b", "value": 0.0, "normalized": kept_u[1], "lower": -1.0, "upper": 1.0}]
+    return {"format": "chaos-station robust layout 1", "parameters": params, "predicted_psp": 0.9,
+            "verification": rows}
+
+
+def test_candidates_are_the_kept_layout_then_working_runners_up_best_first():
+    from station.services.loop import candidate_layouts, distinct_layouts
+
+    rows = [{"u": [0.1, 0.2], "local_success_rate": 0.4, "kept": False},
+            {"u": [0.5, 0.5], "local_success_rate": 1.0, "kept": True},
+            {"u": [0.3, 0.9], "local_success_rate": 0.0, "kept": False},  # never worked: not a candidate
+            {"u": [0.7, 0.25], "local_success_rate": 0.8, "kept": False}]
+    payload = _payload([0.5, 0.5], rows)
+    layouts = candidate_layouts(payload, 4)
+    assert layouts[0] is payload
+    assert [c["candidate"] for c in layouts[1:]] == [3, 0]
+    assert layouts[1]["parameters"][0]["value"] == pytest.approx(7.0)
+    assert layouts[1]["parameters"][1]["value"] == pytest.approx(-0.5)
+    assert layouts[1]["parameters"][1]["normalized"] == pytest.approx(0.25)
+    assert len(candidate_layouts(payload, 2)) == 2 and len(candidate_layouts(payload, 1)) == 1
+    assert distinct_layouts([payload, layouts[1], dict(payload)]) == [payload, layouts[1]]
+
+
+def test_a_loop_places_the_layout_predicted_to_succeed_most_often(tmp_path, station_home, monkeypatch):
+    """choose() scores every option by its physical prediction and keeps the best, recording the scores."""
+    from station.services import loop as loops
+    from station.services import predict as predicting
+
+    scores = iter([0.4, 0.9, 0.9])
+
+    class Result:
+        def __init__(self):
+            self.probability = next(scores)
+
+    monkeypatch.setattr(predicting, "predict_layout", lambda *a, **k: Result())
+    rows = [{"u": [0.1, 0.2], "local_success_rate": 0.4, "kept": False},
+            {"u": [0.7, 0.25], "local_success_rate": 0.8, "kept": False}]
+    payload = _payload([0.5, 0.5], rows)
+    options = loops.candidate_layouts(payload, 3)
+    run = loops._Loop.__new__(loops._Loop)
+    run.settings, run.where, run.should_stop = loops.LoopSettings(predict_samples=5), {}, None
+    run.report = loops.Reporter.of(None)
+    run.scenario = type("S", (), {"design_space": None})()
+    monkeypatch.setattr("design.contraption.layout_io.layout_from_data",
+                        lambda data, scenario, file: type("L", (), {"x": [0.0, 0.0]})())
+    chosen = run.choose(options, None, 2, world_seed=1)
+    assert chosen["candidate"] == 1  # 0.9 beats 0.4; of the two 0.9s the first is kept
+    assert chosen["loop_choice"] == {"loop": 2, "chosen": 1, "predicted_physical_success": [0.4, 0.9, 0.9],
+                                     "samples": 5}

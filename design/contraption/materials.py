@@ -157,3 +157,25 @@ def data_with_physics(top: Mapping[str, Any], values: Mapping[str, float], file:
         else:
             entry[param] = float(value)
     return data
+
+
+#: How far a material value given as a plain number may be off when the station treats it as unknown after all
+#: (``station loop``, ``station calibrate sim --all-materials``): frictions by a factor of 0.5 to 1.5, restitution by
+#: +- 0.3 (within 0 and 0.99), damping by a factor of 0.25 to 4. Wider than what a material table is usually off by:
+#: the fit and the prediction then search and draw across all of it.
+DEFAULT_FACTOR_RANGES = {"friction": (0.5, 1.5), "rolling_friction": (0.5, 1.5), "spinning_friction": (0.5, 1.5),
+                         "linear_damping": (0.25, 4.0), "angular_damping": (0.25, 4.0)}
+DEFAULT_RESTITUTION_SHIFT = 0.3
+
+
+def default_range(name: str, value: float) -> tuple[float, float]:
+    """The range of ``MATERIAL.PARAM`` = ``value`` when its scenario gives it without one (see
+    :data:`DEFAULT_FACTOR_RANGES`); a zero friction or damping gets ``(0, 0.05)``."""
+    _, param = split_name(name)
+    value = float(value)
+    if param == "restitution":
+        return max(0.0, value - DEFAULT_RESTITUTION_SHIFT), min(0.99, value + DEFAULT_RESTITUTION_SHIFT)
+    low, high = DEFAULT_FACTOR_RANGES.get(param, (0.5, 1.5))
+    if value <= 0.0:
+        return 0.0, 0.05
+    return low * value, high * value

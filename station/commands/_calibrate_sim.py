@@ -46,6 +46,9 @@ def add_sim_parser(calibrate_subparsers, trials_source=None) -> None:
     parser.add_argument("scenarios", nargs="+", metavar="SCENARIO", help="scenario files or example names")
     parser.add_argument("--params", metavar="MATERIAL.PARAM,...", default=None,
                         help="the values to fit (default: every uncertain value of the scenarios)")
+    parser.add_argument("--all-materials", action="store_true",
+                        help="fit every material value, the plain numbers too (within a factor of 0.5 to 1.5 for "
+                        "frictions, +-0.3 for restitution, 0.25 to 4 for damping)")
     parser.add_argument("--trials", type=int, default=None, metavar="N", help="use the last N trials only")
     parser.add_argument("--trials-json", metavar="EXPORT.json", default=None,
                         help="read the trials from a trial export (`station trial export --out`) instead of the "
@@ -90,7 +93,7 @@ def _calibrate_sim(args) -> int:
         raise UsageError("--trials-json EXPORT.json is required (this station has no trial log wired in)")
     result = service.calibrate_sim(scenarios, trials, params=params, n_trials=args.trials,
                                    settings=FitSettings(draws=args.draws, seed=args.seed), progress=args.bar,
-                                   source=source, **_where(args))
+                                   source=source, every_material=args.all_materials, **_where(args))
     args.bar.close()
     if args.out:
         service.save(result, args.out)

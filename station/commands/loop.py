@@ -8,7 +8,8 @@ from station.cli_util import emit_json, flag_error
 from station.commands.robust import add_command, command
 from station.services.errors import ServiceError
 
-_FLAGS = {"attempts": "--attempts", "loops": "--loops", "budget": "--budget", "rounds": "--rounds",
+_FLAGS = {"attempts": "--attempts", "loops": "--loops", "budget": "--budget",
+          "reoptimize_budget": "--reoptimize-budget", "candidates": "--candidates", "rounds": "--rounds",
           "baseline": "--baseline", "predict_samples": "--predict-samples", "fit_draws": "--fit-draws",
           "fit_sobol": "--fit-sobol", "fit_rounds": "--fit-rounds", "camera": "--camera", "world": "--world",
           "settings": "--settings", "workers": "--workers", "scheduler": "--scheduler"}
@@ -27,7 +28,10 @@ def register(subparsers) -> None:
         "placed with the projector highlighting the parts, checked by the simulated camera and corrected until "
         "within tolerance (at most --rounds corrections), run, and logged in the trial log with its check and its "
         "predicted physical success. After each loop the simulator is calibrated from every trial so far and the "
-        "layout optimized again under the calibrated physics. The baseline is the thesis's workflow in the same "
+        "layout optimized again under the calibrated physics. Each time the loop places, among the optimizer's "
+        "verified candidates and the layout placed before, the one predicted to succeed most often under the physics "
+        "it knows (loop 1: the scenario's values and ranges; later: the calibrated values and intervals). "
+        "The baseline is the thesis's workflow in the same "
         "world (the optimized layout from the printed sheet: no highlight, no check, no calibration). Everything "
         "is in the station database: the same command again resumes a stopped run and ends with the same figures "
         "(more --loops carry a finished run on).",
@@ -42,7 +46,18 @@ def register(subparsers) -> None:
                         help="attempts per loop (default %(default)s)")
     parser.add_argument("--loops", type=int, default=defaults.loops, metavar="K", help="loops (default %(default)s)")
     parser.add_argument("--budget", type=int, default=defaults.budget, metavar="N",
-                        help="simulations of each optimization (default %(default)s)")
+                        help="simulations of loop 1's optimization (default: station optimize's, the thesis's "
+                        "budget for the scenario; made once and cached for every world)")
+    parser.add_argument("--reoptimize-budget", type=int, default=defaults.reoptimize_budget, metavar="N",
+                        help="simulations of each later loop's optimization under the calibrated physics "
+                        "(default %(default)s)")
+    parser.add_argument("--candidates", type=int, default=defaults.candidates, metavar="N",
+                        help="layouts of each optimization compared by predicted physical success; the loop places "
+                        "the best (default %(default)s)")
+    parser.add_argument("--uncertain-only", action="store_true",
+                        help="treat only the material values the scenario marks uncertain as unknown (default: every "
+                        "material value, the plain numbers within a default range, in loop 1's choice and in "
+                        "every calibration)")
     parser.add_argument("--rounds", type=int, default=defaults.rounds, metavar="R",
                         help="corrections after the first check at most (default %(default)s)")
     parser.add_argument("--baseline", type=int, default=None, metavar="N",
@@ -74,7 +89,9 @@ def run_loop(args) -> int:
     from station.services.loop import LoopSettings
     from station.services.loop import run_loop as run
 
-    settings = LoopSettings(attempts=args.attempts, loops=args.loops, budget=args.budget, rounds=args.rounds,
+    settings = LoopSettings(attempts=args.attempts, loops=args.loops, budget=args.budget,
+                            reoptimize_budget=args.reoptimize_budget, candidates=args.candidates,
+                            every_material=not args.uncertain_only, rounds=args.rounds,
                             baseline=args.baseline, predict_samples=args.predict_samples, fit_draws=args.fit_draws,
                             fit_sobol=args.fit_sobol, fit_rounds=args.fit_rounds, camera=args.camera,
                             settings=args.settings, workers=args.workers, scheduler=args.scheduler)

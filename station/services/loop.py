@@ -1,9 +1,14 @@
 """The whole station loop on the simulated world, unattended (issue 21; thesis 5.2.3): optimize, guide, place,
 check, run, log, calibrate, re-optimize.
 
-Used by ``station loop`` (and the bench). Per loop: the layout (loop 1: ``station optimize``'s service under the
-scenario's physics, a modest budget, cached; loop k > 1: optimized again under the physics profile calibrated from
-every trial of the loops before), its guide, and ``attempts`` attempts. An attempt: the simulated maker places every
+Used by ``station loop`` (and the bench). Per loop: the layout, its guide, and ``attempts`` attempts. The layout:
+``station optimize``'s service gives a layout and its verified runners-up (loop 1: under the scenario's physics, its
+default budget, made once and cached; loop k > 1: under the physics profile calibrated from every trial of the loops
+before, a smaller budget), and the loop places the one of them (and of the layouts placed before) predicted to succeed
+most often physically under what it knows of the physics: loop 1 the scenario's values and ranges (with
+``every_material``, the plain numbers within default ranges too), later loops the calibrated values and intervals.
+The optimizer takes the physics as exact; a layout that works across the plausible physics is the one to place.
+An attempt: the simulated maker places every
 part with the projector highlighting it (:meth:`drivers.sim.world.SimulatedWorld.place`), the simulated camera sees
 the parts as placed and :func:`station.services.check.check_frame` checks them, the maker applies the instructions
 and the camera checks again until every part is within its tolerance (at most ``rounds`` corrections), the world
@@ -11,7 +16,8 @@ runs (:func:`station.services.world.run_attempt`), the station predicts the phys
 measured (:func:`station.services.predict.predict_layout` with the check's residual error, under the loop's profile
 and its intervals; in loop 1, before any trial, under the scenario's values and uncertain ranges) and logs the trial
 (with the CHECK.json and the profile) and the attempt in one transaction. The **baseline** is the thesis's workflow
-in the same world: the loop-1 layout placed from the printed sheet (no highlight), no check, no calibration.
+in the same world: the optimizer's own loop-1 layout placed from the printed sheet (no highlight), no check, no
+calibration.
 
 Everything is in the station database (:mod:`station.loopstore`): a run is keyed by its arguments, every random
 draw is seeded by the world seed, the loop, the attempt and the round, and a loop's layout and profile are stored
@@ -37,7 +43,7 @@ __all__ = ["AttemptProgress", "LoopResult", "LoopSettings", "LoopSummary", "run_
 
 #: The world's attempt numbers: loop k's attempt a is ``k * ATTEMPT_BLOCK + a`` (the baseline is loop 0).
 ATTEMPT_BLOCK = 1000
-_CALIBRATE, _PREDICT, _CAMERA = 12, 13, 14  # what a derived seed is for
+_CALIBRATE, _PREDICT, _CAMERA, _CHOOSE = 12, 13, 14, 15  # what a derived seed is for
 #: The optimizer's seed (``station optimize``'s default): loop 1's layout is the same in every world, and cached once
 #: (its physics are the scenario's); a later loop's differs by its calibrated profile only.
 OPTIMIZE_SEED = 0
@@ -53,8 +59,18 @@ class LoopSettings:
         Attempts per loop.
     loops : int
         Loops (each after the first calibrates and re-optimizes); a later run with more loops carries on.
-    budget : int
-        Simulations of each optimization (``station optimize --budget``).
+    budget : int or None
+        Simulations of loop 1's optimization (``station optimize --budget``; None: its default, the thesis's budget
+        for the scenario). It is made once per scenario and cached: it is the same in every world.
+    reoptimize_budget : int
+        Simulations of each later loop's optimization under the calibrated physics.
+    candidates : int
+        Layouts of each optimization compared by their predicted physical success (its verified candidates, best
+        first): the loop places the one predicted to succeed most often under the physics it knows.
+    every_material : bool
+        Treat every material value as unknown, not only those the scenario marks uncertain: the plain numbers in their
+        default range (:func:`design.contraption.materials.default_range`), in loop 1's prior and in every
+        calibration (the world may differ from any of them).
     rounds : int
         Corrections after the first check at most (the camera checks again after each).
     baseline : int or None
@@ -71,7 +87,10 @@ class LoopSettings:
 
     attempts: int = 5
     loops: int = 2
-    budget: int = 60
+    budget: int | None = None
+    reoptimize_budget: int = 200
+    candidates: int = 4
+    every_material: bool = True
     rounds: int = 3
     baseline: int | None = None
     predict_samples: int = 32
@@ -87,11 +106,16 @@ class LoopSettings:
         """Refuse a bad size (a ServiceError naming it)."""
         from station.services.robust import MINIMUM_BUDGET, SETTINGS_CHOICES
 
-        for name, low in (("attempts", 1), ("loops", 1), ("budget", MINIMUM_BUDGET), ("rounds", 0),
+        for name, low in (("attempts", 1), ("loops", 1), ("reoptimize_budget", MINIMUM_BUDGET), ("candidates", 1),
+                          ("rounds", 0),
                           ("predict_samples", 1), ("fit_draws", 1), ("fit_sobol", 2), ("fit_rounds", 0)):
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, int) or value < low:
                 raise ServiceError(f"{name} must be an integer >= {low}, got {value!r}", field=name, value=value)
+        if self.budget is not None and (isinstance(self.budget, bool) or not isinstance(self.budget, int)
+                                        or self.budget < MINIMUM_BUDGET):
+            raise ServiceError(f"budget must be an integer >= {MINIMUM_BUDGET}, got {self.budget!r}", field="budget",
+                               value=self.budget)
         if self.baseline is not None and (not isinstance(self.baseline, int) or self.baseline < 0):
             raise ServiceError(f"baseline must be an integer >= 0, got {self.baseline!r}", field="baseline",
                                value=self.baseline)
@@ -211,7 +235,7 @@ class _Loop:
         self.report.emit(AttemptProgress(stage, done, total, message))
 
     # -- layouts ------------------------------------------------------------------------------------------------
-    def optimized(self, profile_path: Path | None, seed: int) -> dict:
+    def optimized(self, profile_path: Path | None, budget: int | None) -> dict:
         """The LAYOUT.json of ``station optimize`` for the scenario (under the profile), cached in the database by
         what it was optimized from."""
         from station.loopstore import run_key
@@ -219,12 +243,13 @@ class _Loop:
         from station.services.physics import problem_with_physics
 
         problem = problem_with_physics(robust.load_problem(self.scenario.source), profile_path)
-        key = run_key({"content_hash": problem.scenario.content_hash, "budget": self.settings.budget, "seed": seed,
+        budget = robust.default_budget(problem, budget)
+        key = run_key({"content_hash": problem.scenario.content_hash, "budget": budget, "seed": OPTIMIZE_SEED,
                        "settings": self.settings.settings})
         cached = self.store.cached_layout(key)
         if cached is not None:
             return cached
-        result = robust.optimize(problem, self.settings.budget, seed, robust.psp_settings(self.settings.settings),
+        result = robust.optimize(problem, budget, OPTIMIZE_SEED, robust.psp_settings(self.settings.settings),
                                  progress=self.report.emit, **self.where)
         payload = result.to_json(problem)
         self.store.cache_layout(key, payload)
@@ -238,34 +263,50 @@ class _Loop:
         if row is not None:
             return row
         self.stop_point()
+        first = self.optimized(None, self.settings.budget)
         if k == 1:
-            values = {name: value for name, (value, _) in self.scenario.uncertain_parameters().items()}
-            row = LoopRow(1, self.optimized(None, OPTIMIZE_SEED), None, None, values)
+            values = {name: value for name, (value, _) in self.prior_ranges().items()}
+            # The same choice in every world (the prior is the scenario's): its simulations are cached once.
+            layout = self.choose(candidate_layouts(first, self.settings.candidates), self.prior(), k, world_seed=0)
+            row = LoopRow(1, layout, None, None, values)
         else:
             profile = self.calibrate(k)
             text = profile.to_toml()
             path = self.folder / f"profile-{k}.toml"
             path.write_text(text, encoding="utf-8")
-            layout = self.keep_better(self.optimized(path, OPTIMIZE_SEED), self.store.loop(self.run_id, k - 1).layout,
-                                      profile, k)
+            new = self.optimized(path, self.settings.reoptimize_budget)
+            options = [self.store.loop(self.run_id, k - 1).layout, *candidate_layouts(new, self.settings.candidates),
+                       *candidate_layouts(first, self.settings.candidates)]
+            layout = self.choose(options, profile, k, world_seed=self.world.seed)
             row = LoopRow(k, layout, profile.name, text, dict(profile.values))
         self.store.add_loop(self.run_id, row)
         return self.store.loop(self.run_id, k)
 
-    def keep_better(self, new: dict, old: dict, profile, k: int) -> dict:
-        """The new layout, unless the last loop's is predicted to succeed more often under the calibrated profile
-        (a small optimization budget can do worse than the layout already placed; the station then keeps that one).
-        Both are predicted as designed with the default placement error, on the same seed."""
+    def choose(self, options: list[dict], profile, k: int, *, world_seed: int) -> dict:
+        """The layout among ``options`` (LAYOUT.json data, the preferred first) predicted to succeed most often
+        physically under ``profile`` (values and intervals: the calibration's uncertainty is in the score) with the
+        default placement error; the first of equals. A small optimization budget, or physics the optimizer took as
+        exact, can make the optimizer's own pick fragile: a runner-up that works across the plausible physics is the
+        better layout to place. The choice and every score are written into the layout's ``loop_choice``."""
         from design.contraption.layout_io import layout_from_data
         from station.services.predict import predict_layout
 
+        options = distinct_layouts(options)
+        if len(options) == 1:
+            return options[0]
         scores = []
-        for data in (new, old):
+        for i, data in enumerate(options):
+            self.stop_point()
+            self.emit(f"loop {k}: choosing", i, len(options), f"layout {i + 1} of {len(options)}")
             x = np.asarray(layout_from_data(data, self.scenario, file="<loop layout>").x, dtype=float)
             scores.append(predict_layout(self.scenario, x, profile=profile, samples=self.settings.predict_samples,
-                                         seed=_seed(self.world.seed, _PREDICT, k, 0), progress=self.report.emit,
+                                         seed=_seed(world_seed, _CHOOSE, k), progress=self.report.emit,
                                          **self.where).probability)
-        return new if scores[0] >= scores[1] else old
+        best = int(np.argmax(scores))  # argmax keeps the first of equals
+        chosen = dict(options[best])
+        chosen["loop_choice"] = {"loop": k, "chosen": best, "predicted_physical_success": [float(v) for v in scores],
+                                 "samples": self.settings.predict_samples}
+        return chosen
 
     def calibrate(self, k: int):
         """The physics profile fitted to every trial of loops 1 .. k-1."""
@@ -277,7 +318,7 @@ class _Loop:
         fit = FitSettings(draws=s.fit_draws, sobol=s.fit_sobol, rounds=s.fit_rounds, held_out=0.0,
                           seed=_seed(self.world.seed, _CALIBRATE, k))
         result = calibrate_sim([self.scenario], trials, settings=fit, progress=self.report.emit, source="loop",
-                               **self.where)
+                               every_material=self.settings.every_material, **self.where)
         profile = result.profile(f"loop {k} of run {self.run_id}: calibrated {self.scenario.name}")
         # the creation time is the only thing of a profile that changes between two runs of the same data
         from dataclasses import replace
@@ -326,17 +367,23 @@ class _Loop:
                             who=f"simulated maker ({self.world.url})", notes=note)
         return self.store.add_attempt(self.run_id, k, a, trial, predicted=predicted, check_rounds=rounds)
 
+    def prior_ranges(self) -> dict:
+        from station.services.sim_calibration import material_ranges
+
+        return material_ranges(self.scenario, self.settings.every_material)
+
     def prior(self):
-        """What the station knows of the physics before any trial: the scenario's uncertain values and their ranges
-        (loop 1 predicts with them, so its probabilities carry that uncertainty, as a calibrated profile's do)."""
+        """What the station knows of the physics before any trial: the scenario's values and their ranges (the
+        uncertain ones', and with ``every_material`` the default ranges of the others). Loop 1 chooses its layout
+        and predicts with them, so its probabilities carry that uncertainty, as a calibrated profile's do."""
         from design.contraption.physics_profile import PhysicsProfile
 
-        uncertain = self.scenario.uncertain_parameters()
-        if not uncertain:
+        ranges = self.prior_ranges()
+        if not ranges:
             return None
         return PhysicsProfile(name=f"{self.scenario.name}: its own values and ranges",
-                              values={k: v for k, (v, _) in uncertain.items()},
-                              intervals={k: bounds for k, (_, bounds) in uncertain.items()})
+                              values={k: v for k, (v, _) in ranges.items()},
+                              intervals={k: bounds for k, (_, bounds) in ranges.items()})
 
     def predict(self, job, report, profile, k: int, a: int) -> float:
         from station.services.predict import as_built_from_check, predict_layout
@@ -366,6 +413,48 @@ class _Loop:
                 done[a] = self.attempt(job, row, profile, k, a, checked=checked)
         self.emit(stage, count, count, "done")
         return [done[a] for a in range(1, count + 1)]
+
+
+def candidate_layouts(payload: dict, limit: int) -> list[dict]:
+    """An optimizer's LAYOUT.json data and its verified runners-up that worked in simulation (best local success
+    first), as LAYOUT.json data each, at most ``limit``.
+
+    A runner-up gets the optimizer's payload with its own parameters and, where the payload carries the fitted
+    model, the model's PSP of it; ``"candidate"`` says which row of ``verification`` it is.
+    """
+    rows = [r for r in payload.get("verification", []) if not r.get("kept") and r.get("local_success_rate", 0) > 0]
+    rows.sort(key=lambda r: -float(r["local_success_rate"]))
+    out = [payload]
+    for row in rows[: max(0, limit - 1)]:
+        out.append(_with_normalized(payload, np.asarray(row["u"], dtype=float),
+                                    payload["verification"].index(row)))
+    return out
+
+
+def _with_normalized(payload: dict, u: np.ndarray, index: int) -> dict:
+    from design.robust.model_io import layout_model
+
+    data = {k: v for k, v in payload.items() if k != "loop_choice"}
+    data["parameters"] = [{**p, "value": float(p["lower"] + u[i] * (p["upper"] - p["lower"])),
+                           "normalized": float(u[i])} for i, p in enumerate(payload["parameters"])]
+    data["candidate"] = index
+    model = layout_model(payload)
+    if model is not None:
+        data["predicted_psp"] = float(model.predict(u[None, :])[0])
+    return data
+
+
+def distinct_layouts(options: list[dict], tolerance: float = 1e-6) -> list[dict]:
+    """``options`` without repeats (the same normalized parameters), first kept."""
+    seen: list[np.ndarray] = []
+    out = []
+    for data in options:
+        u = np.array([float(p.get("normalized", p["value"])) for p in data["parameters"]])
+        if any(len(u) == len(v) and np.max(np.abs(u - v)) <= tolerance for v in seen):
+            continue
+        seen.append(u)
+        out.append(data)
+    return out
 
 
 def run_loop(scenario: str, world: str, settings: LoopSettings | None = None, *, database: str | None = None,
@@ -412,10 +501,8 @@ def run_loop(scenario: str, world: str, settings: LoopSettings | None = None, *,
     outcomes: list[tuple[int, int, bool, float | None]] = []
     with LoopStore(database) as store, tempfile.TemporaryDirectory(prefix="station-loop-") as folder:
         run = _Loop(store, loaded, the_world, world, settings, report, should_stop, Path(folder))
-        first = None
         for k in range(1, settings.loops + 1):
             row = run.loop_row(k)
-            first = first or row
             attempts = run.run_attempts(row, k, settings.attempts, checked=True)
             rounds = float(np.mean([a.check_rounds for a in attempts]))
             summary = LoopSummary(k, len(attempts), sum(a.success for a in attempts), [a.predicted for a in attempts],
@@ -424,8 +511,13 @@ def run_loop(scenario: str, world: str, settings: LoopSettings | None = None, *,
             outcomes += [(k, a.attempt, a.success, a.predicted) for a in attempts]
             if on_loop is not None:
                 on_loop(summary)
-        baseline = run.run_attempts(first, 0, settings.baseline_attempts, checked=False) \
-            if settings.baseline_attempts else []
+        baseline = []
+        if settings.baseline_attempts:
+            from station.loopstore import LoopRow
+
+            # the thesis's workflow places the optimizer's own layout (no choice by physical prediction)
+            thesis = LoopRow(0, run.optimized(None, settings.budget), None, None, {})
+            baseline = run.run_attempts(thesis, 0, settings.baseline_attempts, checked=False)
         result = LoopResult(run.run_id, loaded.name, summaries, len(baseline), sum(a.success for a in baseline),
                             outcomes, run.hidden, [a.success for a in baseline])
     the_world.close()

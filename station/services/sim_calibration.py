@@ -62,13 +62,26 @@ def read_trials_json(path: str | Path) -> list[dict]:
     return export_trials(data, str(path))
 
 
-def choose_parameters(scenarios: Sequence[Scenario], params: Sequence[str] | None
-                      ) -> dict[str, tuple[float, tuple[float, float]]]:
-    """What to fit: ``params`` (default: every uncertain value of the scenarios), each with the scenarios' value and
-    range (the intersection where two scenarios give different ranges)."""
+def material_ranges(scenario: Scenario, every_material: bool = False) -> dict[str, tuple[float, tuple[float, float]]]:
+    """``{name: (value, (low, high))}``: the scenario's uncertain material values, and with ``every_material`` its
+    other material values too, each in its :func:`~design.contraption.materials.default_range`."""
+    from design.contraption.materials import default_range
+
+    ranges = scenario.uncertain_parameters()
+    if not every_material:
+        return ranges
+    return {name: ranges.get(name) or (value, default_range(name, value))
+            for name, value in scenario.physics_parameters().items()}
+
+
+def choose_parameters(scenarios: Sequence[Scenario], params: Sequence[str] | None, *,
+                      every_material: bool = False) -> dict[str, tuple[float, tuple[float, float]]]:
+    """What to fit: ``params`` (default: every uncertain value of the scenarios; with ``every_material``, every
+    material value, those without a range in their default one), each with the scenarios' value and range (the
+    intersection where two scenarios give different ranges)."""
     known: dict[str, tuple[float, tuple[float, float]]] = {}
     for scenario in scenarios:
-        for name, (value, (lo, hi)) in scenario.uncertain_parameters().items():
+        for name, (value, (lo, hi)) in material_ranges(scenario, every_material).items():
             if name in known:
                 _, (lo0, hi0) = known[name]
                 lo, hi = max(lo, lo0), min(hi, hi0)
@@ -87,7 +100,7 @@ def choose_parameters(scenarios: Sequence[Scenario], params: Sequence[str] | Non
         if name not in known:
             have = ", ".join(known) or "none"
             raise ServiceError(f"params: {name!r} is not an uncertain material value of the scenarios; they have: "
-                               f"{have}", field="params", value=name)
+                               f"{have} (--all-materials fits the others too)", field="params", value=name)
         chosen[name] = known[name]
     return chosen
 
@@ -120,7 +133,7 @@ def calibrate_sim(scenarios: Sequence[Scenario], trials: Sequence[Mapping[str, A
                   params: Sequence[str] | None = None, n_trials: int | None = None,
                   settings: FitSettings | None = None, workers: int | None = None, scheduler: str | None = None,
                   progress: ProgressCallback | None = None, should_stop=None,
-                  source: str = "<trials>") -> SimCalibration:
+                  source: str = "<trials>", every_material: bool = False) -> SimCalibration:
     """Fit the scenarios' uncertain material values (or ``params``) to their trials among ``trials``.
 
     Parameters
@@ -133,6 +146,9 @@ def calibrate_sim(scenarios: Sequence[Scenario], trials: Sequence[Mapping[str, A
         ``"MATERIAL.PARAM"`` names to fit (default: all uncertain values).
     n_trials : int, optional
         Use only the last ``n_trials`` trials of these scenarios (the most recent runs).
+    every_material : bool
+        Fit every material value, not only the uncertain ones (those without a range in their default one, see
+        :func:`material_ranges`): for when the plain numbers of the scenario may be off too.
     settings : FitSettings, optional
         The fit's sizes and seed.
 
@@ -148,7 +164,7 @@ def calibrate_sim(scenarios: Sequence[Scenario], trials: Sequence[Mapping[str, A
     if n_trials is not None and n_trials < 1:
         raise ServiceError(f"trials must be an integer >= 1, got {n_trials}", field="trials", value=n_trials)
     names = {s.name: s for s in scenarios}
-    chosen = choose_parameters(scenarios, params)
+    chosen = choose_parameters(scenarios, params, every_material=every_material)
     usable = fit_trials(trials, names, source)
     if not usable:
         raise ServiceError(f"trials: none of the {len(trials)} trials is of {', '.join(names)}; log runs with "

@@ -129,3 +129,26 @@ def test_a_problem_keeps_its_physics_in_worker_processes():
     again = pickle.loads(pickle.dumps(problem))
     assert again.scenario.object("plank").physics.friction == 0.7
     assert again.content_hash == problem.content_hash != load_problem(SLIDE).content_hash
+
+
+@pytest.mark.parametrize(("name", "value", "expected"), [
+    ("wood.friction", 0.5, (0.25, 0.75)), ("felt.rolling_friction", 0.01, (0.005, 0.015)),
+    ("wood.restitution", 0.2, (0.0, 0.5)), ("steel.restitution", 0.8, (0.5, 0.99)),
+    ("domino.angular_damping", 0.1, (0.025, 0.4)), ("wood.friction", 0.0, (0.0, 0.05))])
+def test_a_plain_material_value_has_a_default_range(name, value, expected):
+    from design.contraption.materials import default_range
+
+    assert default_range(name, value) == pytest.approx(expected)
+
+
+def test_every_material_adds_the_plain_values_in_their_default_ranges():
+    from station.services.sim_calibration import choose_parameters, material_ranges
+
+    scenario = load(BASE)
+    assert material_ranges(scenario) == {"wood.friction": (0.6, (0.3, 0.9))}
+    every = choose_parameters([scenario], None, every_material=True)
+    assert every == {"wood.friction": (0.6, (0.3, 0.9)), "wood.restitution": (0.2, (0.0, pytest.approx(0.5)))}
+    assert choose_parameters([scenario], ["wood.restitution"], every_material=True) == {
+        "wood.restitution": every["wood.restitution"]}
+    with pytest.raises(Exception, match="--all-materials"):
+        choose_parameters([scenario], ["wood.restitution"])
