@@ -84,6 +84,20 @@ def test_a_real_table_is_answered_event_by_event_and_wrong_answers_are_asked_aga
     assert trial["success"] is False and trial["check"]["scenario"] == "SIMPLE"
 
 
+def test_json_prints_the_logged_attempt_and_says_the_prompts_on_stderr(capsys, monkeypatch):
+    import json
+
+    code, out, err = run(capsys, monkeypatch, "s\n\n\ny\ny\nn\n\n", "simple", "success", "--json", *FAST)
+    assert code == 0, err
+    attempt = json.loads(out)  # stdout is the document alone
+    (trial,) = trials()
+    assert attempt["trial_id"] == trial["id"] and attempt["success"] is False
+    assert attempt["outcomes"] == trial["outcomes"] and attempt["scenario"] == "SIMPLE"
+    assert len(attempt["checks"]) == 1 and attempt["checks"][0]["format"] == "chaos-station check"
+    assert [f["when"] for f in attempt["forecasts"]][:2] == ["designed", "as placed"]
+    assert "a real table" in err and "predicted physical success" in err
+
+
 @pytest.mark.parametrize("answers, word", [("s\n\n", "the input ended"), ("s\nq\n", "left"),
                                            ("s\n\n\ny\ny\ny\ny\ny\nn\n", "not logged at your word")])
 def test_leaving_before_the_end_logs_nothing(capsys, monkeypatch, answers, word):

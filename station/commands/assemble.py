@@ -65,6 +65,9 @@ def register(subparsers) -> None:
     parser.add_argument("--who", metavar="NAME", help="who builds it (stored with the trial)")
     parser.add_argument("--max-checks", type=int, default=5, metavar="N", help="checks before the run is only "
                         "possible by accepting the parts as placed (default %(default)s)")
+    parser.add_argument("--json", action="store_true", help="say the prompts on stderr and print the logged attempt "
+                        "as one JSON document on stdout: scenario, layout, attempt, trial_id, success, outcomes, "
+                        "times, checks (each check's CHECK.json), fixes, forecasts")
     parser.set_defaults(func=run_assemble)
 
 
@@ -74,7 +77,7 @@ def run_assemble(args) -> int:
 
     if args.max_checks < 1:
         raise UsageError(f"--max-checks must be an integer >= 1, got {args.max_checks}")
-    out = sys.stdout
+    out = sys.stderr if args.json else sys.stdout
     projector_context = None
     assembly = None
     try:
@@ -87,6 +90,10 @@ def run_assemble(args) -> int:
                                              samples=args.samples, seed=args.seed, workers=args.workers,
                                              progress=view)
         _walk(assembly, args, out)
+        if args.json:
+            from station.cli_util import emit_json
+
+            emit_json(attempt_json(assembly))
     except ServiceError as error:
         raise flag_error(error, FLAGS) from None
     except (Quit, KeyboardInterrupt, Cancelled) as stop:
@@ -100,6 +107,15 @@ def run_assemble(args) -> int:
         if projector_context is not None:
             projector_context.__exit__(None, None, None)
     return 0
+
+
+def attempt_json(assembly) -> dict:
+    """The ``--json`` document of a logged attempt."""
+    job = assembly.job
+    return {"scenario": assembly.scenario.name, "layout": job.layout.describe(), "attempt": assembly.attempt,
+            "trial_id": assembly.trial_id, "success": assembly.success, "outcomes": dict(assembly.outcomes),
+            "times": dict(assembly.times), "checks": [c.to_json() for c in assembly.checks], "fixes": assembly.fixes,
+            "forecasts": [f.to_json() for f in assembly.forecasts]}
 
 
 def _open_projector(url: str | None):
