@@ -151,7 +151,7 @@ def _payload(kept_u, rows):
 
 
 def test_candidates_are_the_kept_layout_then_working_runners_up_best_first():
-    from station.services.loop import candidate_layouts, distinct_layouts
+    from station.services.layout_choice import candidate_layouts, distinct_layouts
 
     rows = [{"u": [0.1, 0.2], "local_success_rate": 0.4, "kept": False},
             {"u": [0.5, 0.5], "local_success_rate": 1.0, "kept": True},
@@ -168,29 +168,27 @@ def test_candidates_are_the_kept_layout_then_working_runners_up_best_first():
     assert distinct_layouts([payload, layouts[1], dict(payload)]) == [payload, layouts[1]]
 
 
-def test_a_loop_places_the_layout_predicted_to_succeed_most_often(tmp_path, station_home, monkeypatch):
-    """choose() scores every option by its physical prediction and keeps the best, recording the scores."""
-    from station.services import loop as loops
+def test_the_layout_placed_is_the_one_predicted_to_succeed_most_often(monkeypatch):
+    """choose_layout scores every option by its physical prediction and keeps the best, recording the scores."""
     from station.services import predict as predicting
+    from station.services.layout_choice import candidate_layouts, choose_layout
 
     scores = iter([0.4, 0.9, 0.9])
+    seen = []
 
     class Result:
-        def __init__(self):
+        def __init__(self, seed):
+            seen.append(seed)
             self.probability = next(scores)
 
-    monkeypatch.setattr(predicting, "predict_layout", lambda *a, **k: Result())
-    rows = [{"u": [0.1, 0.2], "local_success_rate": 0.4, "kept": False},
-            {"u": [0.7, 0.25], "local_success_rate": 0.8, "kept": False}]
-    payload = _payload([0.5, 0.5], rows)
-    options = loops.candidate_layouts(payload, 3)
-    run = loops._Loop.__new__(loops._Loop)
-    run.settings, run.where, run.should_stop = loops.LoopSettings(predict_samples=5), {}, None
-    run.report = loops.Reporter.of(None)
-    run.scenario = type("S", (), {"design_space": None})()
+    monkeypatch.setattr(predicting, "predict_layout", lambda *a, seed, **k: Result(seed))
     monkeypatch.setattr("design.contraption.layout_io.layout_from_data",
                         lambda data, scenario, file: type("L", (), {"x": [0.0, 0.0]})())
-    chosen = run.choose(options, None, 2, world_seed=1)
+    rows = [{"u": [0.1, 0.2], "local_success_rate": 0.4, "kept": False},
+            {"u": [0.7, 0.25], "local_success_rate": 0.8, "kept": False}]
+    options = candidate_layouts(_payload([0.5, 0.5], rows), 3)
+    chosen = choose_layout(None, options + [options[0]], None, samples=5, seed=7)  # the repeat is dropped
     assert chosen["candidate"] == 1  # 0.9 beats 0.4; of the two 0.9s the first is kept
-    assert chosen["loop_choice"] == {"loop": 2, "chosen": 1, "predicted_physical_success": [0.4, 0.9, 0.9],
-                                     "samples": 5}
+    assert chosen["physical_choice"] == {"chosen": 1, "predicted_physical_success": [0.4, 0.9, 0.9], "samples": 5}
+    assert seen == [7, 7, 7]  # every option meets the same draws
+    assert choose_layout(None, [options[0]], None) is options[0]  # nothing to choose: nothing simulated

@@ -413,20 +413,39 @@ def calibrate_from_log(scenario, store=None, *, settings=None, workers: int | No
 
 def reoptimize(scenario_path: str, physics: str | Path | None, *, budget: int = 40, seed: int = 0,
                workers: int | None = None, progress: ProgressCallback | None = None, should_stop=None,
-               out: str | Path | None = None, settings=None):
-    """Optimize the layout again under the physics profile ``physics`` (the calibrated one) and write its
-    LAYOUT.json (``out``, default the data folder's ``layouts/NAME-physics.json``). Returns ``(path, layout)``."""
+               out: str | Path | None = None, settings=None, current: str | None = None, candidates: int = 4,
+               samples: int = 16):
+    """Optimize the layout again under the physics profile ``physics`` (the calibrated one), choose among the
+    optimizer's verified candidates and the ``current`` layout (a LAYOUT.json) the one predicted to succeed most often
+    under the profile's values and intervals (:func:`station.services.layout_choice.choose_layout`, ``samples``
+    simulations each), and write it (``out``, default the data folder's ``layouts/NAME-physics.json``).
+
+    Returns ``(path, result, chosen)``: the optimizer's result and the LAYOUT.json data written (its
+    ``physical_choice`` says which option won and every option's predicted success).
+    """
     import json
 
     from station.paths import data_dir
     from station.services import robust
-    from station.services.physics import problem_with_physics
+    from station.services.layout_choice import candidate_layouts, choose_layout
+    from station.services.physics import problem_with_physics, read_profile
 
     problem = problem_with_physics(robust.load_problem(scenario_path), physics)
     settings = settings or robust.psp_settings(robust.DEFAULT_SETTINGS)
     result = robust.optimize(problem, budget, seed, settings, workers=workers, progress=progress,
                              should_stop=should_stop)
+    options = candidate_layouts(result.to_json(problem), candidates)
+    if current is not None and Path(current).is_file() and str(current).lower().endswith(".json"):
+        try:
+            placed = json.loads(Path(current).read_text(encoding="utf-8"))
+        except (OSError, ValueError):
+            placed = None
+        if isinstance(placed, dict) and isinstance(placed.get("parameters"), list):
+            options.append(placed)
+    profile = read_profile(physics) if physics is not None else None
+    chosen = choose_layout(problem.scenario, options, profile, samples=samples, seed=seed, workers=workers,
+                           progress=progress, should_stop=should_stop)
     path = Path(out) if out is not None else data_dir() / "layouts" / f"{result.scenario.lower()}-physics.json"
     path.parent.mkdir(parents=True, exist_ok=True)
-    path.write_text(json.dumps(result.to_json(problem), indent=2) + "\n", encoding="utf-8")
-    return path, result
+    path.write_text(json.dumps(chosen, indent=2) + "\n", encoding="utf-8")
+    return path, result, chosen

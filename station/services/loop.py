@@ -258,6 +258,7 @@ class _Loop:
     def loop_row(self, k: int):
         """Loop ``k``'s layout and physics: stored, or made now (and stored)."""
         from station.loopstore import LoopRow
+        from station.services.layout_choice import candidate_layouts
 
         row = self.store.loop(self.run_id, k)
         if row is not None:
@@ -283,30 +284,17 @@ class _Loop:
         return self.store.loop(self.run_id, k)
 
     def choose(self, options: list[dict], profile, k: int, *, world_seed: int) -> dict:
-        """The layout among ``options`` (LAYOUT.json data, the preferred first) predicted to succeed most often
-        physically under ``profile`` (values and intervals: the calibration's uncertainty is in the score) with the
-        default placement error; the first of equals. A small optimization budget, or physics the optimizer took as
-        exact, can make the optimizer's own pick fragile: a runner-up that works across the plausible physics is the
-        better layout to place. The choice and every score are written into the layout's ``loop_choice``."""
-        from design.contraption.layout_io import layout_from_data
-        from station.services.predict import predict_layout
+        """The layout among ``options`` (the preferred first) predicted to succeed most often physically under
+        ``profile`` (:func:`station.services.layout_choice.choose_layout`), with the default placement error."""
+        from station.services.layout_choice import choose_layout
 
-        options = distinct_layouts(options)
-        if len(options) == 1:
-            return options[0]
-        scores = []
-        for i, data in enumerate(options):
+        def scoring(i: int, count: int) -> None:
             self.stop_point()
-            self.emit(f"loop {k}: choosing", i, len(options), f"layout {i + 1} of {len(options)}")
-            x = np.asarray(layout_from_data(data, self.scenario, file="<loop layout>").x, dtype=float)
-            scores.append(predict_layout(self.scenario, x, profile=profile, samples=self.settings.predict_samples,
-                                         seed=_seed(world_seed, _CHOOSE, k), progress=self.report.emit,
-                                         **self.where).probability)
-        best = int(np.argmax(scores))  # argmax keeps the first of equals
-        chosen = dict(options[best])
-        chosen["loop_choice"] = {"loop": k, "chosen": best, "predicted_physical_success": [float(v) for v in scores],
-                                 "samples": self.settings.predict_samples}
-        return chosen
+            self.emit(f"loop {k}: choosing", i, count, f"layout {i + 1} of {count}")
+
+        return choose_layout(self.scenario, options, profile, samples=self.settings.predict_samples,
+                             seed=_seed(world_seed, _CHOOSE, k), progress=self.report.emit, on_option=scoring,
+                             **self.where)
 
     def calibrate(self, k: int):
         """The physics profile fitted to every trial of loops 1 .. k-1."""
@@ -413,48 +401,6 @@ class _Loop:
                 done[a] = self.attempt(job, row, profile, k, a, checked=checked)
         self.emit(stage, count, count, "done")
         return [done[a] for a in range(1, count + 1)]
-
-
-def candidate_layouts(payload: dict, limit: int) -> list[dict]:
-    """An optimizer's LAYOUT.json data and its verified runners-up that worked in simulation (best local success
-    first), as LAYOUT.json data each, at most ``limit``.
-
-    A runner-up gets the optimizer's payload with its own parameters and, where the payload carries the fitted
-    model, the model's PSP of it; ``"candidate"`` says which row of ``verification`` it is.
-    """
-    rows = [r for r in payload.get("verification", []) if not r.get("kept") and r.get("local_success_rate", 0) > 0]
-    rows.sort(key=lambda r: -float(r["local_success_rate"]))
-    out = [payload]
-    for row in rows[: max(0, limit - 1)]:
-        out.append(_with_normalized(payload, np.asarray(row["u"], dtype=float),
-                                    payload["verification"].index(row)))
-    return out
-
-
-def _with_normalized(payload: dict, u: np.ndarray, index: int) -> dict:
-    from design.robust.model_io import layout_model
-
-    data = {k: v for k, v in payload.items() if k != "loop_choice"}
-    data["parameters"] = [{**p, "value": float(p["lower"] + u[i] * (p["upper"] - p["lower"])),
-                           "normalized": float(u[i])} for i, p in enumerate(payload["parameters"])]
-    data["candidate"] = index
-    model = layout_model(payload)
-    if model is not None:
-        data["predicted_psp"] = float(model.predict(u[None, :])[0])
-    return data
-
-
-def distinct_layouts(options: list[dict], tolerance: float = 1e-6) -> list[dict]:
-    """``options`` without repeats (the same normalized parameters), first kept."""
-    seen: list[np.ndarray] = []
-    out = []
-    for data in options:
-        u = np.array([float(p.get("normalized", p["value"])) for p in data["parameters"]])
-        if any(len(u) == len(v) and np.max(np.abs(u - v)) <= tolerance for v in seen):
-            continue
-        seen.append(u)
-        out.append(data)
-    return out
 
 
 def run_loop(scenario: str, world: str, settings: LoopSettings | None = None, *, database: str | None = None,

@@ -280,17 +280,23 @@ class AttemptFlow:
         from station.services.robust import RunStopped
 
         try:
-            path, result = flow.reoptimize(scenario, physics, budget=self.optimize_budget,
-                                           workers=self.simulation_workers, progress=post_progress(self),
-                                           should_stop=self._stop_work.is_set, settings=self.optimize_settings)
+            current = self.query_one("#layout").value.strip() or None
+            path, result, chosen = flow.reoptimize(scenario, physics, budget=self.optimize_budget,
+                                                   workers=self.simulation_workers, progress=post_progress(self),
+                                                   should_stop=self._stop_work.is_set,
+                                                   settings=self.optimize_settings, current=current)
         except RunStopped:
             self.app.call_from_thread(self._reoptimized, None, "re-optimization stopped; its simulations are cached")
             return
         except (*FAILURES, flow.ServiceError) as error:
             self.app.call_from_thread(self._reoptimized, None, f"cannot re-optimize: {error}")
             return
-        self.app.call_from_thread(self._reoptimized, str(path), f"re-optimized: PSP {result.psp:.3f}; wrote {path}; "
-                                  "g builds its guide for the next attempt")
+        choice = chosen.get("physical_choice")
+        which = "" if choice is None else (
+            f"; of {len(choice['predicted_physical_success'])} layouts the one predicted to succeed most often "
+            f"physically ({max(choice['predicted_physical_success']):.2f})")
+        self.app.call_from_thread(self._reoptimized, str(path), f"re-optimized: PSP {result.psp:.3f}{which}; wrote "
+                                  f"{path}; g builds its guide for the next attempt")
 
     def _reoptimized(self, path: str | None, text: str) -> None:
         self._busy = ""
