@@ -2,8 +2,11 @@
 
 For each example scenario and each world seed: ``station loop``'s service (:func:`station.services.loop.run_loop`)
 with hidden physics (friction x U(0.7, 1.3), restitution +- 0.15, damping x U(0.5, 2)) and placement error (2 mm,
-2 deg per part; 0.5 mm, 0.5 deg when correcting; half when highlighted), and the thesis's workflow (the same
-optimized layout from the printed sheet: no highlight, no check, no calibration) in the same world. Per scenario:
+2 deg per part; 0.5 mm, 0.5 deg when correcting; half when highlighted), and the thesis's workflow (the
+optimizer's own loop-1 layout from the printed sheet: no highlight, no check, no calibration) in the same world.
+Default sizes (``FULL``): 5 attempts x 2 loops, loop 1 optimized at ``station optimize``'s default budget (the
+thesis's per scenario, cached across worlds), later loops at 200, 6 candidates compared, 16 simulations per
+prediction, a fit of 16 Sobol candidates + 2 rounds with 4 draws per trial. Per scenario:
 
 - the success rate of the attempts after the first calibration (loops >= 2; goal >= 90 %), with Wilson's interval;
 - the median number of attempts to the first success (loop 1's first attempt is 1; goal <= 2), and the baseline's;
