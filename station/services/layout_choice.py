@@ -28,12 +28,11 @@ def candidate_layouts(payload: dict, limit: int) -> list[dict]:
     A runner-up gets the optimizer's payload with its own parameters and, where the payload carries the fitted
     model, the model's PSP of it; its ``"candidate"`` says which row of ``verification`` it is.
     """
-    rows = [r for r in payload.get("verification", []) if not r.get("kept") and r.get("local_success_rate", 0) > 0]
-    rows.sort(key=lambda r: -float(r["local_success_rate"]))
-    out = [payload]
-    for row in rows[: max(0, limit - 1)]:
-        out.append(_with_normalized(payload, np.asarray(row["u"], dtype=float), payload["verification"].index(row)))
-    return out
+    rows = [(i, r) for i, r in enumerate(payload.get("verification", []))
+            if not r.get("kept") and r.get("local_success_rate", 0) > 0]
+    rows.sort(key=lambda item: -float(item[1]["local_success_rate"]))
+    runners_up = rows[: max(0, limit - 1)]
+    return [payload, *(_with_normalized(payload, np.asarray(r["u"], dtype=float), i) for i, r in runners_up)]
 
 
 def _with_normalized(payload: dict, u: np.ndarray, index: int) -> dict:
@@ -50,11 +49,11 @@ def _with_normalized(payload: dict, u: np.ndarray, index: int) -> dict:
 
 
 def distinct_layouts(options: list[dict], tolerance: float = 1e-6) -> list[dict]:
-    """``options`` without repeats (the same normalized parameters), the first kept."""
+    """``options`` without repeats (the same parameter values), the first kept."""
     seen: list[np.ndarray] = []
     out = []
     for data in options:
-        u = np.array([float(p.get("normalized", p["value"])) for p in data["parameters"]])
+        u = np.array([float(p["value"]) for p in data["parameters"]])
         if any(len(u) == len(v) and np.max(np.abs(u - v)) <= tolerance for v in seen):
             continue
         seen.append(u)

@@ -266,10 +266,10 @@ class _Loop:
         self.stop_point()
         first = self.optimized(None, self.settings.budget)
         if k == 1:
-            values = {name: value for name, (value, _) in self.prior_ranges().items()}
+            prior = self.prior()
             # The same choice in every world (the prior is the scenario's): its simulations are cached once.
-            layout = self.choose(candidate_layouts(first, self.settings.candidates), self.prior(), k, world_seed=0)
-            row = LoopRow(1, layout, None, None, values)
+            layout = self.choose(candidate_layouts(first, self.settings.candidates), prior, k, world_seed=0)
+            row = LoopRow(1, layout, None, None, dict(prior.values) if prior is not None else {})
         else:
             profile = self.calibrate(k)
             text = profile.to_toml()
@@ -355,18 +355,14 @@ class _Loop:
                             who=f"simulated maker ({self.world.url})", notes=note)
         return self.store.add_attempt(self.run_id, k, a, trial, predicted=predicted, check_rounds=rounds)
 
-    def prior_ranges(self) -> dict:
-        from station.services.sim_calibration import material_ranges
-
-        return material_ranges(self.scenario, self.settings.every_material)
-
     def prior(self):
         """What the station knows of the physics before any trial: the scenario's values and their ranges (the
         uncertain ones', and with ``every_material`` the default ranges of the others). Loop 1 chooses its layout
         and predicts with them, so its probabilities carry that uncertainty, as a calibrated profile's do."""
         from design.contraption.physics_profile import PhysicsProfile
+        from station.services.sim_calibration import material_ranges
 
-        ranges = self.prior_ranges()
+        ranges = material_ranges(self.scenario, self.settings.every_material)
         if not ranges:
             return None
         return PhysicsProfile(name=f"{self.scenario.name}: its own values and ranges",
