@@ -381,9 +381,11 @@ def open_assembly(scenario: str, layout: str | None, *, view: str | None = None,
 
 # -- after attempts: calibrate, re-optimize ----------------------------------------------------------------------------
 def calibrate_from_log(scenario, store=None, *, settings=None, workers: int | None = None,
-                       progress: ProgressCallback | None = None, should_stop=None, out: str | Path | None = None):
-    """Fit ``scenario``'s uncertain material values to its trials in the log (``store``, default the station's) and
-    write the physics profile (``out``, default the data folder's ``physics/NAME-calibrated.toml``).
+                       progress: ProgressCallback | None = None, should_stop=None, out: str | Path | None = None,
+                       every_material: bool = False):
+    """Fit ``scenario``'s uncertain material values (with ``every_material``, its plain ones too, each within its
+    default range, as ``station loop`` does) to its trials in the log (``store``, default the station's) and write the
+    physics profile (``out``, default the data folder's ``physics/NAME-calibrated.toml``).
 
     Returns ``(path, SimCalibration)``.
 
@@ -404,7 +406,7 @@ def calibrate_from_log(scenario, store=None, *, settings=None, workers: int | No
     else:
         trials = store.trials(scenario=scenario.name)
     result = calibrate_sim([scenario], trials, settings=settings, workers=workers, progress=progress,
-                           should_stop=should_stop, source="the trial log")
+                           should_stop=should_stop, source="the trial log", every_material=every_material)
     path = Path(out) if out is not None else data_dir() / "physics" / f"{scenario.name.lower()}-calibrated.toml"
     path.parent.mkdir(parents=True, exist_ok=True)
     return save(result, path, name=f"{scenario.name} calibrated on {result.fit.trials + result.fit.held_out} "

@@ -92,3 +92,20 @@ async def test_stop_key_stops_a_calibration(tmp_path):
         await _until(pilot, lambda: not panel.calibrating)
         assert "stopped; finished simulations are cached" in _text(app, "#sim-status")
         assert panel.result is None and app.query_one("#sim-start", Button).disabled is False
+
+
+async def test_every_material_box_lists_and_fits_the_plain_values_too(tmp_path):
+    app = Host(FitSettings(draws=2, sobol=4, rounds=0, per_round=2, held_out=0.0))
+    async with app.run_test(size=(150, 50)) as pilot:
+        panel = app.query_one(SimCalibrationPanel)
+        assert "pad.friction" not in _text(app, "#sim-uncertain")
+        await pilot.click("#sim-every")
+        await pilot.pause()
+        assert panel.every_material
+        assert "pad.friction 1 in [0.5, 1.5]" in _text(app, "#sim-uncertain")  # friction x 0.5-1.5
+        app.query_one("#sim-trials", Input).value = str(_trials(tmp_path))
+        app.query_one("#sim-values", DataTable).focus()
+        await pilot.press("c")
+        await _until(pilot, lambda: not panel.calibrating and panel.result is not None)
+        table = app.query_one("#sim-values", DataTable)
+        assert sorted(str(table.get_row_at(i)[0]) for i in range(table.row_count)) == ["pad.friction", "wood.friction"]

@@ -15,7 +15,8 @@ The whole attempt (:mod:`station.services.assemble`, as ``station assemble``): c
 camera sees them where they are), f says they were moved as the check said and checks again, a accepts them as
 placed, r runs the contraption (the world runs it and reports; on a real table tick what happened: y / n / u per
 event), l logs the trial with the check and the physics profile, g starts another attempt. k calibrates the
-physics on the scenario's logged trials (the Calibrate > Simulator fit) and puts the profile in the Physics field; o
+physics on the scenario's logged trials (the Calibrate > Simulator fit, of every material value as ``station loop``
+fits them) and puts the profile in the Physics field; o
 re-optimizes the layout with it and puts the new LAYOUT.json in the Layout field. The box at the top left always
 shows the attempt's stage, its predicted physical success and expected attempts (made again after the guide, every
 check and every logged trial).

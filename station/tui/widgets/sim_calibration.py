@@ -1,7 +1,8 @@
 """Calibrate > Simulator: fit the scenarios' uncertain material values to logged trials, with progress and a stop.
 
 A panel for the Calibrate screen: the scenarios (example names or files, comma-separated), the values to fit (blank:
-every uncertain one, listed under the field), where the trials come from (a trial export file, or the station's log
+every uncertain one, listed under the field; with "every material value" ticked, the plain numbers too, each within
+its default range, as ``station calibrate sim --all-materials`` and ``station loop`` fit them), where the trials come from (a trial export file, or the station's log
 when the screen gives :attr:`SimCalibrationPanel.trials_source`), Start (``c`` or Enter in a field), Stop (``s``),
 a :class:`~station.tui.widgets.progress.ProgressPanel`, and the result: each value before and fitted with its
 interval, the agreement per event before and after, and the held-out Brier score. ``w`` writes the physics profile
@@ -23,7 +24,7 @@ from textual.app import ComposeResult
 from textual.binding import Binding
 from textual.containers import Horizontal, Vertical
 from textual.message import Message
-from textual.widgets import Button, DataTable, Input, Label, Static
+from textual.widgets import Button, Checkbox, DataTable, Input, Label, Static
 
 from station.tui.widgets.progress import ProgressPanel, ProgressReported, post_progress
 
@@ -91,6 +92,7 @@ class SimCalibrationPanel(Vertical):
             with Vertical():
                 yield Label("Trials (export file; blank: the log)", classes="heading")
                 yield Input("", placeholder="trials.json", id="sim-trials")
+        yield Checkbox("every material value, the plain ones too", False, id="sim-every")
         yield Static("", id="sim-uncertain")
         with Horizontal(id="sim-buttons"):
             yield Button("Calibrate (c)", id="sim-start", variant="primary")
@@ -113,12 +115,22 @@ class SimCalibrationPanel(Vertical):
         """Show ``text`` under the panel (plain text: file names and errors are never read as markup)."""
         self.query_one("#sim-status", Static).update(text if isinstance(text, Text) else Text(text, style=style))
 
+    @property
+    def every_material(self) -> bool:
+        """Whether the plain material values are fitted too (the "every material value" box)."""
+        return self.query_one("#sim-every", Checkbox).value
+
     @on(Input.Changed, "#sim-scenarios")
     def _scenarios_changed(self, event: Input.Changed) -> None:
         self._list_uncertain(event.value)
 
+    @on(Checkbox.Changed, "#sim-every")
+    def _every_changed(self) -> None:
+        self._list_uncertain(self.query_one("#sim-scenarios", Input).value)
+
     def _list_uncertain(self, text: str) -> None:
         from station.services.contraption import open_scenario
+        from station.services.sim_calibration import material_ranges
 
         words = []
         for name in _split(text):
@@ -127,7 +139,7 @@ class SimCalibrationPanel(Vertical):
             except (ValueError, OSError):
                 continue  # still being typed
             values = ", ".join(f"{k} {v:g} in [{lo:g}, {hi:g}]" for k, (v, (lo, hi)) in
-                               scenario.uncertain_parameters().items()) or "none"
+                               material_ranges(scenario, self.every_material).items()) or "none"
             words.append(f"{scenario.name}: {values}")
         self.query_one("#sim-uncertain", Static).update(Text("\n".join(words)))
 
@@ -164,7 +176,7 @@ class SimCalibrationPanel(Vertical):
         self.query_one(ProgressPanel).start(None, "reading the trials ...")
         self.query_one("#sim-values", DataTable).focus()  # letters reach the bindings, not a field
         self.status(f"calibrating {', '.join(scenarios)} ...")
-        self.run_calibration(scenarios, params, trials_file)
+        self.run_calibration(scenarios, params, trials_file, self.every_material)
 
     def action_stop(self) -> None:
         if self.calibrating:
@@ -188,7 +200,8 @@ class SimCalibrationPanel(Vertical):
 
     # -- the work (a thread) -----------------------------------------------------------------------------------
     @work(thread=True, exclusive=True, group="sim-calibration")
-    def run_calibration(self, scenarios: list[str], params: list[str] | None, trials_file: str | None) -> None:
+    def run_calibration(self, scenarios: list[str], params: list[str] | None, trials_file: str | None,
+                        every_material: bool = False) -> None:
         from design.errors import DesignError
         from station.errors import StationError
         from station.services import sim_calibration as service
@@ -203,7 +216,8 @@ class SimCalibrationPanel(Vertical):
                 trials, source = self.trials_source(), "the trial log"
             result = service.calibrate_sim(loaded, trials, params=params, settings=self.fit_settings,
                                            workers=self.simulation_workers, progress=post_progress(self),
-                                           should_stop=self._stop.is_set, source=source)
+                                           should_stop=self._stop.is_set, source=source,
+                                           every_material=every_material)
         except RunStopped:
             self.post_message(CalibrationEnded(message="stopped; finished simulations are cached"))
             return
