@@ -2,9 +2,10 @@
 
 A panel for the Calibrate screen: the scenarios (example names or files, comma-separated), the values to fit (blank:
 every uncertain one, listed under the field; with "every material value" ticked, the plain numbers too, each within
-its default range, as ``station calibrate sim --all-materials`` and ``station loop`` fit them), where the trials come from (a trial export file, or the station's log
-when the screen gives :attr:`SimCalibrationPanel.trials_source`), Start (``c`` or Enter in a field), Stop (``s``),
-a :class:`~station.tui.widgets.progress.ProgressPanel`, and the result: each value before and fitted with its
+its default range, as ``station calibrate sim --all-materials`` and ``station loop`` fit them), where the trials
+come from (a trial export file, or the station's log when the screen gives
+:attr:`SimCalibrationPanel.trials_source`), Start (``c`` or Enter in a field), Stop (``s``), a
+:class:`~station.tui.widgets.progress.ProgressPanel`, and the result: each value before and fitted with its
 interval, the agreement per event before and after, and the held-out Brier score. ``w`` writes the physics profile
 to the station's data folder (``physics/``), for ``--physics`` and the Robust layouts screen.
 
