@@ -27,7 +27,7 @@ from pathlib import Path
 
 import pytest
 from rich.console import Console
-from textual.widgets import DataTable, RichLog
+from textual.widgets import DataTable, Input, RichLog
 
 from station.tui.registry import discover_screens
 
@@ -98,13 +98,16 @@ def prompt(app) -> None:
     """Have Textual do what it leaves for a widget's next idle or the screen's next refresh, so that the picture does
     not depend on when a worker's answer came.
 
-    A RichLog scrolls to a new line after a refresh. A DataTable widens a column for a new cell on its idle, but keeps
-    the rows it drew in between (its render caches are keyed by a count that widening does not change): when a probe
-    answers while the home screen is drawn, its column stays cut at "connected:" until something else redraws the
-    table (a key, a resize). The snapshot shows the table as drawn afresh.
+    A focused Input's cursor blinks on a timer of its own; it is shown steadily instead. A RichLog scrolls to a new
+    line after a refresh. A DataTable widens a column for a new cell on its idle, but keeps the rows it drew in
+    between (its render caches are keyed by a count that widening does not change): when a probe answers while the
+    home screen is drawn, its column stays cut at "connected:" until something else redraws the table (a key, a
+    resize). The snapshot shows the table as drawn afresh.
     """
     for widget in app.screen.walk_children(with_self=True):
         widget.check_idle()
+        if isinstance(widget, Input):
+            widget.cursor_blink = False  # a blinking cursor is on or off by when the picture is taken: shown, steady
         if isinstance(widget, DataTable):
             widget._clear_caches()  # Textual's own: no public way to redraw the rows
         elif isinstance(widget, RichLog) and widget.auto_scroll:
