@@ -5,7 +5,8 @@ with hidden physics (friction x U(0.7, 1.3), restitution +- 0.15, damping x U(0.
 2 deg per part; 0.5 mm, 0.5 deg when correcting; half when highlighted), and the thesis's workflow (the
 optimizer's own loop-1 layout from the printed sheet: no highlight, no check, no calibration) in the same world.
 Default sizes (``FULL``): 5 attempts x 2 loops, loop 1 optimized at ``station optimize``'s default budget (the
-thesis's per scenario, cached across worlds), later loops at 200, 6 candidates compared, 16 simulations per
+thesis's per scenario, cached across worlds), later loops at the same default (per world: the calibrated physics
+differ), 6 candidates compared, 16 simulations per
 prediction, a fit of 16 Sobol candidates + 2 rounds with 4 draws per trial. Per scenario:
 
 - the success rate of the attempts after the first calibration (loops >= 2; goal >= 90 %), with Wilson's interval;
@@ -38,7 +39,7 @@ ALL = ("simple", "ballrun", "causalityswitch_ball", "longchain", "teapotadventur
 QUICK = dict(attempts=4, loops=2, budget=120, reoptimize_budget=120, candidates=4, rounds=2, predict_samples=12,
              fit_draws=3, fit_sobol=8, fit_rounds=1)
 #: Loop 1's budget None: ``station optimize``'s default, the thesis's budget per scenario (made once, cached).
-FULL = dict(attempts=5, loops=2, budget=None, reoptimize_budget=200, candidates=6, rounds=3, predict_samples=16,
+FULL = dict(attempts=5, loops=2, budget=None, reoptimize_budget=None, candidates=6, rounds=3, predict_samples=16,
             fit_draws=4, fit_sobol=16, fit_rounds=2)
 
 
@@ -146,6 +147,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--seeds", default="1-5", help="world seeds, e.g. 1-5 or 1,3,7")
     parser.add_argument("--quick", action="store_true", help="small budgets (the default under `python -m bench`)")
     parser.add_argument("--budget", type=int, default=None, help="the optimizer's budget instead of the sizes'")
+    parser.add_argument("--reoptimize-budget", type=int, default=None,
+                        help="later loops' optimizer budget instead of the sizes'")
     parser.add_argument("--workers", type=int, default=2)
     parser.add_argument("--database", default=None, help="the bench database (default: the station cache folder)")
     parser.add_argument("--json", default=None, help="write the figures there")
@@ -158,6 +161,8 @@ def main(argv: list[str] | None = None) -> int:
     sizes = dict(QUICK if args.quick else FULL)
     if args.budget is not None:
         sizes["budget"] = args.budget
+    if args.reoptimize_budget is not None:
+        sizes["reoptimize_budget"] = args.reoptimize_budget
     database = args.database or str(cache_dir() / f"bench_loop{'_quick' if args.quick else ''}.sqlite3")
     print(f"bench_loop: {', '.join(names)} over world seeds {args.seeds}; sizes {sizes}; database {database}",
           flush=True)

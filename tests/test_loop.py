@@ -135,7 +135,8 @@ def test_bad_loop_arguments_are_one_line(tmp_path, station_home):
     env = {**os.environ, "PYTHONPATH": str(ROOT), "CHAOS_STATION_HOME": str(station_home),
            "CHAOS_STATION_DATABASE": str(tmp_path / "t.sqlite3")}
     for extra, words in ((["--attempts", "0"], "--attempts"), (["--world", "sim://world?seed=x"], "seed"),
-                         (["--camera", "0"], "--camera"), (["--world", "sim://projector"], "--world")):
+                         (["--camera", "0"], "--camera"), (["--world", "sim://projector"], "--world"),
+                         (["--reoptimize-budget", "3"], "--reoptimize-budget")):
         result = subprocess.run([sys.executable, "-m", "station", "loop", "simple", "--world", "sim://world", *extra],
                                 cwd=ROOT, env=env, capture_output=True, text=True, timeout=120)
         assert result.returncode == 2, (extra, result.stderr)

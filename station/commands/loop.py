@@ -50,7 +50,7 @@ def register(subparsers) -> None:
                         "budget for the scenario; made once and cached for every world)")
     parser.add_argument("--reoptimize-budget", type=int, default=defaults.reoptimize_budget, metavar="N",
                         help="simulations of each later loop's optimization under the calibrated physics "
-                        "(default %(default)s)")
+                        "(default: station optimize's, the thesis's budget for the scenario)")
     parser.add_argument("--candidates", type=int, default=defaults.candidates, metavar="N",
                         help="layouts of each optimization compared by predicted physical success; the loop places "
                         "the best (default %(default)s)")
