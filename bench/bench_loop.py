@@ -147,6 +147,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--seeds", default="1-5", help="world seeds, e.g. 1-5 or 1,3,7")
     parser.add_argument("--quick", action="store_true", help="small budgets (the default under `python -m bench`)")
     parser.add_argument("--budget", type=int, default=None, help="the optimizer's budget instead of the sizes'")
+    parser.add_argument("--loops", type=int, default=None, help="loops instead of the sizes' (a run carries on)")
     parser.add_argument("--reoptimize-budget", type=int, default=None,
                         help="later loops' optimizer budget instead of the sizes'")
     parser.add_argument("--workers", type=int, default=2)
@@ -161,6 +162,8 @@ def main(argv: list[str] | None = None) -> int:
     sizes = dict(QUICK if args.quick else FULL)
     if args.budget is not None:
         sizes["budget"] = args.budget
+    if args.loops is not None:
+        sizes["loops"] = args.loops
     if args.reoptimize_budget is not None:
         sizes["reoptimize_budget"] = args.reoptimize_budget
     database = args.database or str(cache_dir() / f"bench_loop{'_quick' if args.quick else ''}.sqlite3")
