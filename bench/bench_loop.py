@@ -6,8 +6,8 @@ with hidden physics (friction x U(0.7, 1.3), restitution +- 0.15, damping x U(0.
 optimizer's own loop-1 layout from the printed sheet: no highlight, no check, no calibration) in the same world.
 Default sizes (``FULL``): 5 attempts x 2 loops, loop 1 optimized at ``station optimize``'s default budget (the
 thesis's per scenario, cached across worlds), later loops at the same default (per world: the calibrated physics
-differ), 6 candidates compared, 16 simulations per
-prediction, a fit of 16 Sobol candidates + 2 rounds with 4 draws per trial. Per scenario:
+differ), 6 candidates compared, 16 simulations per prediction, a fit of 16 Sobol candidates + 2 rounds with 4 draws
+per trial. Per scenario:
 
 - the success rate of the attempts after the first calibration (loops >= 2; goal >= 90 %), with Wilson's interval;
 - the median number of attempts to the first success (loop 1's first attempt is 1; goal <= 2), and the baseline's;
