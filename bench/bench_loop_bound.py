@@ -18,9 +18,7 @@ Run: ``python -m bench.bench_loop_bound [--scenarios branching,longchain] [--see
 from __future__ import annotations
 
 import argparse
-import tempfile
 import time
-from pathlib import Path
 
 import numpy as np
 
@@ -29,16 +27,15 @@ from bench.bench_loop import _seeds
 POSITION_SIGMA_M, ANGLE_SIGMA_DEG = 0.0005, 0.5  # a checked and corrected placement (the world's defaults)
 
 
-def world_bound(name: str, seed: int, *, budget: int | None, candidates: int, samples: int, workers: int,
-                folder: Path) -> dict:
+def world_bound(name: str, seed: int, *, budget: int | None, candidates: int, samples: int, workers: int) -> dict:
     """The best candidate's success in world ``seed`` with its physics known: ``{"seed", "hidden", "candidates",
     "best", "success", "events", "budget"}``."""
     from design.contraption.layout_io import layout_from_data
     from design.contraption.physics_profile import PhysicsProfile, apply_profile
+    from design.robust.contraption import ContraptionProblem
     from station.services import robust
     from station.services import world as worlds
     from station.services.layout_choice import candidate_layouts
-    from station.services.physics import problem_with_physics
     from station.services.predict import predict_layout
     from station.services.trials import load_trial_scenario
 
@@ -46,12 +43,10 @@ def world_bound(name: str, seed: int, *, budget: int | None, candidates: int, sa
     world = worlds.open_world(f"sim://world?seed={seed}")
     hidden = worlds.prepare_world(world, scenario)
     profile = PhysicsProfile(name=f"world {seed}'s hidden physics", values=hidden, intervals={})
-    path = folder / f"{name}-{seed}.toml"
-    path.write_text(profile.to_toml(), encoding="utf-8")
-    problem = problem_with_physics(robust.load_problem(scenario.source), path)
+    known = apply_profile(scenario, profile)
+    problem = ContraptionProblem(robust.load_problem(scenario.source).path, known)
     budget = robust.default_budget(problem, budget)
     result = robust.optimize(problem, budget, 0, robust.psp_settings("recommended"), workers=workers)
-    known = apply_profile(scenario, profile)
 
     def success(x: np.ndarray, n: int, draw_seed: int):
         return predict_layout(known, x, profile=profile, position_sigma_m=POSITION_SIGMA_M,
@@ -82,21 +77,20 @@ def main(argv: list[str] | None = None) -> int:
           f"{args.budget or 'the scenario default'}, {args.candidates} candidates, {args.samples} simulations for the "
           f"best, placement {POSITION_SIGMA_M * 1000:g} mm / {ANGLE_SIGMA_DEG:g} deg", flush=True)
     rows = []
-    with tempfile.TemporaryDirectory() as folder:
-        for name in names:
-            bounds = []
-            for seed in _seeds(args.seeds):
-                started = time.perf_counter()
-                row = world_bound(name, seed, budget=args.budget, candidates=args.candidates, samples=args.samples,
-                                  workers=args.workers, folder=Path(folder))
-                weakest = sorted(row["events"].items(), key=lambda item: item[1])[:2]
-                print(f"  {name} world {seed}: best of {len(row['candidates'])} candidates "
-                      f"{row['success']:.2f} [{row['interval'][0]:.2f}, {row['interval'][1]:.2f}] "
-                      f"(budget {row['budget']}; weakest events "
-                      f"{', '.join(f'{e} {p:.2f}' for e, p in weakest)}; {time.perf_counter() - started:.0f} s)",
-                      flush=True)
-                bounds.append(row["success"])
-            rows.append((name, bounds))
+    for name in names:
+        bounds = []
+        for seed in _seeds(args.seeds):
+            started = time.perf_counter()
+            row = world_bound(name, seed, budget=args.budget, candidates=args.candidates, samples=args.samples,
+                              workers=args.workers)
+            weakest = sorted(row["events"].items(), key=lambda item: item[1])[:2]
+            print(f"  {name} world {seed}: best of {len(row['candidates'])} candidates "
+                  f"{row['success']:.2f} [{row['interval'][0]:.2f}, {row['interval'][1]:.2f}] "
+                  f"(budget {row['budget']}; weakest events "
+                  f"{', '.join(f'{e} {p:.2f}' for e, p in weakest)}; {time.perf_counter() - started:.0f} s)",
+                  flush=True)
+            bounds.append(row["success"])
+        rows.append((name, bounds))
     print("| scenario | success with the physics known, per world | mean | worlds >= 0.90 |")
     print("|---|---|---|---|")
     for name, bounds in rows:
