@@ -150,6 +150,9 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--loops", type=int, default=None, help="loops instead of the sizes' (a run carries on)")
     parser.add_argument("--reoptimize-budget", type=int, default=None,
                         help="later loops' optimizer budget instead of the sizes'")
+    parser.add_argument("--prediction-weight", type=float, default=None,
+                        help="what a prediction is worth against a placed layout's record, in attempts, instead of "
+                        "the loop's default")
     parser.add_argument("--workers", type=int, default=2)
     parser.add_argument("--database", default=None, help="the bench database (default: the station cache folder)")
     parser.add_argument("--json", default=None, help="write the figures there")
@@ -166,6 +169,8 @@ def main(argv: list[str] | None = None) -> int:
         sizes["loops"] = args.loops
     if args.reoptimize_budget is not None:
         sizes["reoptimize_budget"] = args.reoptimize_budget
+    if args.prediction_weight is not None:
+        sizes["prediction_weight"] = args.prediction_weight
     database = args.database or str(cache_dir() / f"bench_loop{'_quick' if args.quick else ''}.sqlite3")
     print(f"bench_loop: {', '.join(names)} over world seeds {args.seeds}; sizes {sizes}; database {database}",
           flush=True)

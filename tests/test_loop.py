@@ -126,6 +126,11 @@ def test_a_killed_loop_resumes_and_ends_with_the_same_figures(tmp_path, station_
     # every attempt once, each with its trial (none logged twice by the resume)
     assert connection.execute("SELECT count(*) FROM loop_attempts").fetchone()[0] == 5
     assert connection.execute("SELECT count(*) FROM trials").fetchone()[0] == 5
+    # loop 2 weighed loop 1's layout (its first option) with its record on the table
+    (text,) = connection.execute("SELECT layout FROM loop_loops WHERE loop_number = 2").fetchone()
+    choice = json.loads(text)["physical_choice"]
+    assert choice["record"][0] == [figures["loops"][0]["successes"], 2]
+    assert all(n == 0 for _, n in choice["record"][1:])
     connection.close()
     # a finished run again: nothing new, the same figures
     assert json.loads(_loop(killed_env).stdout) == figures
@@ -136,7 +141,8 @@ def test_bad_loop_arguments_are_one_line(tmp_path, station_home):
            "CHAOS_STATION_DATABASE": str(tmp_path / "t.sqlite3")}
     for extra, words in ((["--attempts", "0"], "--attempts"), (["--world", "sim://world?seed=x"], "seed"),
                          (["--camera", "0"], "--camera"), (["--world", "sim://projector"], "--world"),
-                         (["--reoptimize-budget", "3"], "--reoptimize-budget")):
+                         (["--reoptimize-budget", "3"], "--reoptimize-budget"),
+                         (["--prediction-weight", "0"], "--prediction-weight")):
         result = subprocess.run([sys.executable, "-m", "station", "loop", "simple", "--world", "sim://world", *extra],
                                 cwd=ROOT, env=env, capture_output=True, text=True, timeout=120)
         assert result.returncode == 2, (extra, result.stderr)
@@ -190,6 +196,65 @@ def test_the_layout_placed_is_the_one_predicted_to_succeed_most_often(monkeypatc
     options = candidate_layouts(_payload([0.5, 0.5], rows), 3)
     chosen = choose_layout(None, options + [options[0]], None, samples=5, seed=7)  # the repeat is dropped
     assert chosen["candidate"] == 1  # 0.9 beats 0.4; of the two 0.9s the first is kept
-    assert chosen["physical_choice"] == {"chosen": 1, "predicted_physical_success": [0.4, 0.9, 0.9], "samples": 5}
+    assert chosen["physical_choice"] == {"chosen": 1, "predicted_physical_success": [0.4, 0.9, 0.9],
+                                         "record": [[0, 0]] * 3, "prediction_weight": 4.0,
+                                         "expected_success": [0.4, 0.9, 0.9], "samples": 5}
     assert seen == [7, 7, 7]  # every option meets the same draws
     assert choose_layout(None, [options[0]], None) is options[0]  # nothing to choose: nothing simulated
+
+
+@pytest.mark.parametrize(("predicted", "record", "weight", "expected"), [
+    (0.6, (0, 0), 4.0, 0.6),          # never placed: the prediction
+    (0.56, (5, 5), 4.0, 7.24 / 9),    # worked 5 in 5: (4 * 0.56 + 5) / 9
+    (0.9, (0, 5), 4.0, 3.6 / 9),      # failed 5 in 5
+    (0.5, (3, 6), 2.0, 0.5),          # the record agrees with the prediction
+    (0.2, (1, 1), 1e9, 0.2),          # a huge weight: simulations only
+])
+def test_expected_success_is_the_prediction_updated_by_the_record(predicted, record, weight, expected):
+    from station.services.layout_choice import expected_success
+
+    assert expected_success(predicted, *record, weight=weight) == pytest.approx(expected)
+
+
+def test_a_layout_that_worked_on_the_table_is_kept_over_one_only_simulated_better(monkeypatch):
+    """A placed layout's trials (matched by its values) update its prediction: 5/5 at 0.56 beats a new 0.75, 0/5 at
+    0.9 loses to it; the record and the expected successes are in the choice."""
+    from station.services import predict as predicting
+    from station.services.layout_choice import candidate_layouts, choose_layout, layout_records
+
+    monkeypatch.setattr("design.contraption.layout_io.layout_from_data",
+                        lambda data, scenario, file: type("L", (), {"x": [0.0, 0.0]})())
+    rows = [{"u": [0.1, 0.2], "local_success_rate": 0.4, "kept": False}]
+    placed, new = candidate_layouts(_payload([0.5, 0.5], rows), 2)
+    values = {p["name"]: p["value"] for p in placed["parameters"]}
+    other = {"a": 1.0, "b": 0.0}
+    worked = [{"layout": values, "success": True}] * 5 + [{"layout": other, "success": False}] * 3
+    assert layout_records([placed, new], worked) == [(5, 5), (0, 0)]
+
+    for trials, predictions, winner in ((worked, [0.56, 0.75], 0),
+                                        ([{"layout": values, "success": False}] * 5, [0.9, 0.75], 1)):
+        scores = iter(predictions)
+        monkeypatch.setattr(predicting, "predict_layout",
+                            lambda *a, scores=scores, **k: type("R", (), {"probability": next(scores)})())
+        chosen = choose_layout(None, [placed, new], None, samples=5, trials=trials)
+        choice = chosen["physical_choice"]
+        assert choice["chosen"] == winner, choice
+        assert choice["record"][0][1] == 5 and choice["record"][1] == [0, 0]
+        assert choice["expected_success"][1] == pytest.approx(0.75)
+    with pytest.raises(ValueError, match="prediction_weight"):
+        choose_layout(None, [placed, new], None, prediction_weight=0)
+
+
+@pytest.mark.parametrize(("choice", "words"), [
+    (None, ""),
+    ({"chosen": 1, "predicted_physical_success": [0.4, 0.9]},  # written before records were kept
+     "; of 2 layouts the one expected to succeed most often physically (predicted 0.90)"),
+    ({"chosen": 0, "predicted_physical_success": [0.56, 0.75], "record": [[5, 5], [0, 0]],
+      "expected_success": [0.804, 0.75]},
+     "; of 2 layouts the one expected to succeed most often physically (0.80: predicted 0.56, worked 5 of 5 times "
+     "placed)"),
+])
+def test_the_choice_is_told_in_a_few_words(choice, words):
+    from station.services.layout_choice import describe_choice
+
+    assert describe_choice({} if choice is None else {"physical_choice": choice}) == words

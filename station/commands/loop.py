@@ -9,7 +9,8 @@ from station.commands.robust import add_command, command
 from station.services.errors import ServiceError
 
 _FLAGS = {"attempts": "--attempts", "loops": "--loops", "budget": "--budget",
-          "reoptimize_budget": "--reoptimize-budget", "candidates": "--candidates", "rounds": "--rounds",
+          "reoptimize_budget": "--reoptimize-budget", "candidates": "--candidates",
+          "prediction_weight": "--prediction-weight", "rounds": "--rounds",
           "baseline": "--baseline", "predict_samples": "--predict-samples", "fit_draws": "--fit-draws",
           "fit_sobol": "--fit-sobol", "fit_rounds": "--fit-rounds", "camera": "--camera", "world": "--world",
           "settings": "--settings", "workers": "--workers", "scheduler": "--scheduler"}
@@ -29,8 +30,9 @@ def register(subparsers) -> None:
         "within tolerance (at most --rounds corrections), run, and logged in the trial log with its check and its "
         "predicted physical success. After each loop the simulator is calibrated from every trial so far and the "
         "layout optimized again under the calibrated physics. Each time the loop places, among the optimizer's "
-        "verified candidates and the layout placed before, the one predicted to succeed most often under the physics "
-        "it knows (loop 1: the scenario's values and ranges; later: the calibrated values and intervals). "
+        "verified candidates and the layouts placed before, the one expected to succeed most often under the physics "
+        "it knows (loop 1: the scenario's values and ranges; later: the calibrated values and intervals) and, for a "
+        "layout placed before, given its record (its prediction counts as --prediction-weight attempts). "
         "The baseline is the thesis's workflow in the same "
         "world (the optimized layout from the printed sheet: no highlight, no check, no calibration). Everything "
         "is in the station database: the same command again resumes a stopped run and ends with the same figures "
@@ -54,6 +56,9 @@ def register(subparsers) -> None:
     parser.add_argument("--candidates", type=int, default=defaults.candidates, metavar="N",
                         help="layouts of each optimization compared by predicted physical success; the loop places "
                         "the best (default %(default)s)")
+    parser.add_argument("--prediction-weight", type=float, default=defaults.prediction_weight, metavar="W",
+                        help="what a layout's predicted success is worth against its record on the table, in "
+                        "attempts (default %(default)s: fitted to the bench's loops)")
     parser.add_argument("--uncertain-only", action="store_true",
                         help="treat only the material values the scenario marks uncertain as unknown (default: every "
                         "material value, the plain numbers within a default range, in loop 1's choice and in "
@@ -91,6 +96,7 @@ def run_loop(args) -> int:
 
     settings = LoopSettings(attempts=args.attempts, loops=args.loops, budget=args.budget,
                             reoptimize_budget=args.reoptimize_budget, candidates=args.candidates,
+                            prediction_weight=args.prediction_weight,
                             every_material=not args.uncertain_only, rounds=args.rounds,
                             baseline=args.baseline, predict_samples=args.predict_samples, fit_draws=args.fit_draws,
                             fit_sobol=args.fit_sobol, fit_rounds=args.fit_rounds, camera=args.camera,

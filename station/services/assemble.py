@@ -416,14 +416,15 @@ def calibrate_from_log(scenario, store=None, *, settings=None, workers: int | No
 def reoptimize(scenario_path: str, physics: str | Path | None, *, budget: int = 40, seed: int = 0,
                workers: int | None = None, progress: ProgressCallback | None = None, should_stop=None,
                out: str | Path | None = None, settings=None, current: str | None = None, candidates: int = 4,
-               samples: int = 16):
+               samples: int = 16, trials=None):
     """Optimize the layout again under the physics profile ``physics`` (the calibrated one), choose among the
-    optimizer's verified candidates and the ``current`` layout (a LAYOUT.json) the one predicted to succeed most often
+    optimizer's verified candidates and the ``current`` layout (a LAYOUT.json) the one expected to succeed most often
     under the profile's values and intervals (:func:`station.services.layout_choice.choose_layout`, ``samples``
-    simulations each), and write it (``out``, default the data folder's ``layouts/NAME-physics.json``).
+    simulations each) and, for the current layout, given its record in ``trials`` (default: the scenario's trials in
+    the station's log), and write it (``out``, default the data folder's ``layouts/NAME-physics.json``).
 
     Returns ``(path, result, chosen)``: the optimizer's result and the LAYOUT.json data written (its
-    ``physical_choice`` says which option won and every option's predicted success).
+    ``physical_choice`` says which option won and every option's predicted success, record and expected success).
     """
     import json
 
@@ -445,8 +446,13 @@ def reoptimize(scenario_path: str, physics: str | Path | None, *, budget: int = 
         if isinstance(placed, dict) and isinstance(placed.get("parameters"), list):
             options.append(placed)
     profile = read_profile(physics) if physics is not None else None
+    if trials is None and len(options) > 1:
+        from station.services.trials import open_store
+
+        with open_store() as store:
+            trials = store.trials(scenario=problem.scenario.name)
     chosen = choose_layout(problem.scenario, options, profile, samples=samples, seed=seed, workers=workers,
-                           progress=progress, should_stop=should_stop)
+                           trials=trials or (), progress=progress, should_stop=should_stop)
     path = Path(out) if out is not None else data_dir() / "layouts" / f"{result.scenario.lower()}-physics.json"
     path.parent.mkdir(parents=True, exist_ok=True)
     path.write_text(json.dumps(chosen, indent=2) + "\n", encoding="utf-8")

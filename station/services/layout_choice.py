@@ -1,4 +1,4 @@
-"""Which layout to place: among an optimizer's verified candidates (and layouts placed before), the one predicted to
+"""Which layout to place: among an optimizer's verified candidates (and layouts placed before), the one expected to
 succeed most often physically.
 
 The optimizer (:func:`station.services.robust.optimize`) takes the physics as exact and keeps the candidate that did
@@ -8,17 +8,31 @@ scored by :func:`station.services.predict.predict_layout` (placement error and m
 intervals, the same seed for every option so that they meet the same draws) and the best is kept; ties keep the
 earlier option, so the caller lists what it prefers first. Used by ``station loop`` and the Assemble screen's
 re-optimization.
+
+A layout already placed on the table also has a record: its successes in the trials logged with its values. The
+prediction is taken as a Beta prior worth ``prediction_weight`` attempts and the record updates it: the expected
+success of the next attempt is ``(w p + successes) / (w + attempts)`` (a layout never placed keeps ``p``). So a layout
+that just worked 5 times in 5 is not swapped for one only simulated to do a little better, and one that failed
+stops being chosen for its simulations' sake. The default weight, :data:`PREDICTION_WEIGHT`, is what the loop's own
+records say the predictions are worth (``python -m bench.bench_prediction_weight``: the beta-binomial maximum
+likelihood over the bench's layouts).
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Iterable, Mapping
 
 import numpy as np
 
 from common.progress import ProgressCallback
 
-__all__ = ["candidate_layouts", "choose_layout", "distinct_layouts"]
+__all__ = ["PREDICTION_WEIGHT", "candidate_layouts", "choose_layout", "describe_choice", "distinct_layouts",
+           "expected_success", "layout_records"]
+
+#: What a predicted success is worth, in attempts on the table (the strength of the Beta prior it centres). Fitted
+#: by ``bench/bench_prediction_weight.py`` to the bench loops' 103 layouts of five attempts each (4.4; 1: 247 of
+#: negative log-likelihood, 4: 232.5, 16: 236.7, simulations only: 244).
+PREDICTION_WEIGHT = 4.0
 
 
 def candidate_layouts(payload: dict, limit: int) -> list[dict]:
@@ -48,25 +62,54 @@ def _with_normalized(payload: dict, u: np.ndarray, index: int) -> dict:
     return data
 
 
+def _values(data: dict) -> dict[str, float]:
+    return {str(p["name"]): float(p["value"]) for p in data["parameters"]}
+
+
+def _same(a: dict[str, float], b: dict[str, float], tolerance: float) -> bool:
+    return a.keys() == b.keys() and all(abs(a[k] - b[k]) <= tolerance for k in a)
+
+
 def distinct_layouts(options: list[dict], tolerance: float = 1e-6) -> list[dict]:
     """``options`` without repeats (the same parameter values), the first kept."""
-    seen: list[np.ndarray] = []
+    seen: list[dict[str, float]] = []
     out = []
     for data in options:
-        u = np.array([float(p["value"]) for p in data["parameters"]])
-        if any(len(u) == len(v) and np.max(np.abs(u - v)) <= tolerance for v in seen):
+        values = _values(data)
+        if any(_same(values, v, tolerance) for v in seen):
             continue
-        seen.append(u)
+        seen.append(values)
         out.append(data)
     return out
 
 
+def layout_records(options: list[dict], trials: Iterable[Mapping], tolerance: float = 1e-6) -> list[tuple[int, int]]:
+    """Each option's record on the table: ``(successes, attempts)`` of the ``trials`` (trial records, the log's
+    form) whose layout values are the option's."""
+    logged = [({str(k): float(v) for k, v in (t.get("layout") or {}).items()}, bool(t.get("success")))
+              for t in trials]
+    records = []
+    for data in options:
+        values = _values(data)
+        outcomes = [success for layout, success in logged if _same(values, layout, tolerance)]
+        records.append((sum(outcomes), len(outcomes)))
+    return records
+
+
+def expected_success(predicted: float, successes: int = 0, attempts: int = 0,
+                     weight: float = PREDICTION_WEIGHT) -> float:
+    """The expected success of a layout's next attempt: its prediction as a Beta prior worth ``weight`` attempts,
+    updated by its record (``successes`` of ``attempts``)."""
+    return (weight * float(predicted) + successes) / (weight + attempts)
+
+
 def choose_layout(scenario, options: list[dict], profile=None, *, samples: int = 16, seed: int = 0,
+                  trials: Iterable[Mapping] = (), prediction_weight: float = PREDICTION_WEIGHT,
                   workers: int | None = None, scheduler: str | None = None,
                   progress: ProgressCallback | None = None, should_stop: Callable[[], bool] | None = None,
                   on_option: Callable[[int, int], None] | None = None) -> dict:
-    """The option predicted to succeed most often physically, with its ``"physical_choice"``: which option it was,
-    every option's predicted success and the simulations each had.
+    """The option expected to succeed most often physically, with its ``"physical_choice"``: which option it was,
+    every option's predicted success, record and expected success, and the simulations each had.
 
     Parameters
     ----------
@@ -77,6 +120,11 @@ def choose_layout(scenario, options: list[dict], profile=None, *, samples: int =
         Values and intervals to draw from (None: the scenario's own values, no draws).
     samples, seed : int
         Simulations per option, and their seed (the same for every option).
+    trials : iterable of dict, optional
+        Trial records (the log's form) of layouts placed before: an option's record updates its prediction
+        (:func:`expected_success`).
+    prediction_weight : float
+        What a prediction is worth, in attempts (> 0).
     on_option : callable, optional
         Called with ``(index, count)`` before each option is scored.
 
@@ -88,9 +136,12 @@ def choose_layout(scenario, options: list[dict], profile=None, *, samples: int =
     from design.contraption.layout_io import layout_from_data
     from station.services.predict import predict_layout
 
+    if not prediction_weight > 0:
+        raise ValueError(f"prediction_weight must be > 0, got {prediction_weight!r}")
     options = distinct_layouts(options)
     if len(options) == 1:
         return options[0]
+    records = layout_records(options, trials)
     scores = []
     for i, data in enumerate(options):
         if on_option is not None:
@@ -98,8 +149,28 @@ def choose_layout(scenario, options: list[dict], profile=None, *, samples: int =
         x = np.asarray(layout_from_data(data, scenario, file="<candidate layout>").x, dtype=float)
         scores.append(predict_layout(scenario, x, profile=profile, samples=samples, seed=seed, workers=workers,
                                      scheduler=scheduler, progress=progress, should_stop=should_stop).probability)
-    best = int(np.argmax(scores))  # the first of equals
+    expected = [expected_success(p, s, n, prediction_weight) for p, (s, n) in zip(scores, records)]
+    best = int(np.argmax(expected))  # the first of equals
     chosen = dict(options[best])
     chosen["physical_choice"] = {"chosen": best, "predicted_physical_success": [float(v) for v in scores],
-                                 "samples": samples}
+                                 "record": [list(r) for r in records], "prediction_weight": float(prediction_weight),
+                                 "expected_success": [float(v) for v in expected], "samples": samples}
     return chosen
+
+
+def describe_choice(chosen: dict) -> str:
+    """A few words on why ``chosen`` (:func:`choose_layout`'s answer) won, for a status line ("" if there was no
+    choice)."""
+    choice = chosen.get("physical_choice")
+    if not choice:
+        return ""
+    i = int(choice["chosen"])
+    predicted = float(choice["predicted_physical_success"][i])
+    expected = float(choice.get("expected_success", choice["predicted_physical_success"])[i])
+    successes, attempts = choice.get("record", [[0, 0]] * (i + 1))[i]
+    count = len(choice["predicted_physical_success"])
+    if attempts:
+        why = f"{expected:.2f}: predicted {predicted:.2f}, worked {successes} of {attempts} times placed"
+    else:
+        why = f"predicted {predicted:.2f}"
+    return f"; of {count} layouts the one expected to succeed most often physically ({why})"

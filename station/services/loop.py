@@ -4,10 +4,12 @@ check, run, log, calibrate, re-optimize.
 Used by ``station loop`` (and the bench). Per loop: the layout, its guide, and ``attempts`` attempts. The layout:
 ``station optimize``'s service gives a layout and its verified runners-up (loop 1: under the scenario's physics, its
 default budget, made once and cached; loop k > 1: under the physics profile calibrated from every trial of the loops
-before, a smaller budget), and the loop places the one of them (and of the layouts placed before) predicted to succeed
-most often physically under what it knows of the physics: loop 1 the scenario's values and ranges (with
-``every_material``, the plain numbers within default ranges too), later loops the calibrated values and intervals.
-The optimizer takes the physics as exact; a layout that works across the plausible physics is the one to place.
+before), and the loop places the one of them (and of the layouts placed before) expected to succeed most often
+physically under what it knows of the physics: loop 1 the scenario's values and ranges (with ``every_material``, the
+plain numbers within default ranges too), later loops the calibrated values and intervals, and for a layout placed
+before its record in the loop's trials (:func:`station.services.layout_choice.expected_success`). The optimizer takes
+the physics as exact; a layout that works across the plausible physics, and has worked on the table, is the one to
+place.
 An attempt: the simulated maker places every
 part with the projector highlighting it (:meth:`drivers.sim.world.SimulatedWorld.place`), the simulated camera sees
 the parts as placed and :func:`station.services.check.check_frame` checks them, the maker applies the instructions
@@ -38,6 +40,7 @@ import numpy as np
 
 from common.progress import Progress, ProgressCallback, Reporter
 from station.services.errors import ServiceError
+from station.services.layout_choice import PREDICTION_WEIGHT
 
 __all__ = ["AttemptProgress", "LoopResult", "LoopSettings", "LoopSummary", "run_loop"]
 
@@ -68,7 +71,10 @@ class LoopSettings:
         its default 600 20/25; see the README).
     candidates : int
         Layouts of each optimization compared by their predicted physical success (its verified candidates, best
-        first): the loop places the one predicted to succeed most often under the physics it knows.
+        first): the loop places the one expected to succeed most often under the physics it knows.
+    prediction_weight : float
+        What a predicted success is worth against a layout's record on the table, in attempts
+        (:data:`station.services.layout_choice.PREDICTION_WEIGHT`).
     every_material : bool
         Treat every material value as unknown, not only those the scenario marks uncertain: the plain numbers in their
         default range (:func:`design.contraption.materials.default_range`), in loop 1's prior and in every
@@ -92,6 +98,7 @@ class LoopSettings:
     budget: int | None = None
     reoptimize_budget: int | None = None
     candidates: int = 4
+    prediction_weight: float = PREDICTION_WEIGHT
     every_material: bool = True
     rounds: int = 3
     baseline: int | None = None
@@ -118,6 +125,10 @@ class LoopSettings:
             if value is not None and (isinstance(value, bool) or not isinstance(value, int) or value < MINIMUM_BUDGET):
                 raise ServiceError(f"{name} must be an integer >= {MINIMUM_BUDGET} (or left out: the scenario's "
                                    f"default), got {value!r}", field=name, value=value)
+        weight = self.prediction_weight
+        if isinstance(weight, bool) or not isinstance(weight, (int, float)) or not 0 < weight < math.inf:
+            raise ServiceError(f"prediction_weight must be a number > 0 (attempts), got {weight!r}",
+                               field="prediction_weight", value=weight)
         if self.baseline is not None and (not isinstance(self.baseline, int) or self.baseline < 0):
             raise ServiceError(f"baseline must be an integer >= 0, got {self.baseline!r}", field="baseline",
                                value=self.baseline)
@@ -278,16 +289,19 @@ class _Loop:
             path = self.folder / f"profile-{k}.toml"
             path.write_text(text, encoding="utf-8")
             new = self.optimized(path, self.settings.reoptimize_budget)
-            options = [self.store.loop(self.run_id, k - 1).layout, *candidate_layouts(new, self.settings.candidates),
+            # the layouts placed before (the latest first: ties keep it), each with its record in the trials
+            placed = [self.store.loop(self.run_id, j).layout for j in range(k - 1, 0, -1)]
+            options = [*placed, *candidate_layouts(new, self.settings.candidates),
                        *candidate_layouts(first, self.settings.candidates)]
-            layout = self.choose(options, profile, k, world_seed=self.world.seed)
+            layout = self.choose(options, profile, k, world_seed=self.world.seed, trials=self.trials(k))
             row = LoopRow(k, layout, profile.name, text, dict(profile.values))
         self.store.add_loop(self.run_id, row)
         return self.store.loop(self.run_id, k)
 
-    def choose(self, options: list[dict], profile, k: int, *, world_seed: int) -> dict:
-        """The layout among ``options`` (the preferred first) predicted to succeed most often physically under
-        ``profile`` (:func:`station.services.layout_choice.choose_layout`), with the default placement error."""
+    def choose(self, options: list[dict], profile, k: int, *, world_seed: int, trials: list[dict] = ()) -> dict:
+        """The layout among ``options`` (the preferred first) expected to succeed most often physically under
+        ``profile`` and given its record in ``trials`` (:func:`station.services.layout_choice.choose_layout`), with
+        the default placement error."""
         from station.services.layout_choice import choose_layout
 
         def scoring(i: int, count: int) -> None:
@@ -295,15 +309,20 @@ class _Loop:
             self.emit(f"loop {k}: choosing", i, count, f"layout {i + 1} of {count}")
 
         return choose_layout(self.scenario, options, profile, samples=self.settings.predict_samples,
-                             seed=_seed(world_seed, _CHOOSE, k), progress=self.report.emit, on_option=scoring,
-                             **self.where)
+                             seed=_seed(world_seed, _CHOOSE, k), trials=trials,
+                             prediction_weight=self.settings.prediction_weight, progress=self.report.emit,
+                             on_option=scoring, **self.where)
+
+    def trials(self, k: int) -> list[dict]:
+        """The trials of loops 1 .. k-1 (the baseline's, placed from the sheet with no check, left out)."""
+        return [self.store.trial(a.trial_id) for a in self.store.attempts(self.run_id) if 0 < a.loop < k]
 
     def calibrate(self, k: int):
         """The physics profile fitted to every trial of loops 1 .. k-1."""
         from calibration.sim_fit import FitSettings
         from station.services.sim_calibration import calibrate_sim
 
-        trials = [self.store.trial(a.trial_id) for a in self.store.attempts(self.run_id) if 0 < a.loop < k]
+        trials = self.trials(k)
         s = self.settings
         fit = FitSettings(draws=s.fit_draws, sobol=s.fit_sobol, rounds=s.fit_rounds, held_out=0.0,
                           seed=_seed(self.world.seed, _CALIBRATE, k))

@@ -20,6 +20,7 @@ from drivers.errors import DriverError
 from projector.errors import ProjectorError
 from station.errors import StationError
 from station.services import assemble as flow
+from station.services.layout_choice import describe_choice
 from station.tui.widgets.assemble_flow import NEXT, ForecastStatus
 from station.tui.widgets.outcomes import OutcomeTable
 from station.tui.widgets.progress import ProgressPanel, post_progress
@@ -296,12 +297,8 @@ class AttemptFlow:
         except (*FAILURES, flow.ServiceError) as error:
             self.app.call_from_thread(self._reoptimized, None, f"cannot re-optimize: {error}")
             return
-        choice = chosen.get("physical_choice")
-        which = "" if choice is None else (
-            f"; of {len(choice['predicted_physical_success'])} layouts the one predicted to succeed most often "
-            f"physically ({max(choice['predicted_physical_success']):.2f})")
-        self.app.call_from_thread(self._reoptimized, str(path), f"re-optimized: PSP {result.psp:.3f}{which}; wrote "
-                                  f"{path}; g builds its guide for the next attempt")
+        self.app.call_from_thread(self._reoptimized, str(path), f"re-optimized: PSP {result.psp:.3f}"
+                                  f"{describe_choice(chosen)}; wrote {path}; g builds its guide for the next attempt")
 
     def _reoptimized(self, path: str | None, text: str) -> None:
         self._busy = ""
