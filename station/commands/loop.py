@@ -110,7 +110,8 @@ def run_loop(args) -> int:
         print(f"loop {summary.loop}: {summary.attempts} attempts, {summary.successes} successes: success rate "
               f"{summary.success_rate:.2f} (95 % {lo:.2f} to {hi:.2f}), predicted "
               f"{'-' if predicted is None else f'{predicted:.2f}'}; {summary.check_rounds:.1f} corrections per "
-              f"attempt; physics: {summary.physics_name or 'the scenario'} ({_physics(summary.physics)})", file=out)
+              f"attempt; physics: {summary.physics_name or 'the scenario'} ({_physics(summary.physics)})"
+              f"{summary.choice}", file=out)
 
     try:
         result = run(args.scenario, args.world, settings, progress=args.bar, should_stop=args.stop.is_set,

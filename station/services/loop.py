@@ -40,7 +40,7 @@ import numpy as np
 
 from common.progress import Progress, ProgressCallback, Reporter
 from station.services.errors import ServiceError
-from station.services.layout_choice import PREDICTION_WEIGHT
+from station.services.layout_choice import PREDICTION_WEIGHT, describe_choice
 
 __all__ = ["AttemptProgress", "LoopResult", "LoopSettings", "LoopSummary", "run_loop"]
 
@@ -163,6 +163,7 @@ class LoopSummary:
     physics: dict[str, float]
     physics_name: str | None = None
     check_rounds: float = 0.0
+    choice: str = ""  #: why its layout was placed (:func:`station.services.layout_choice.describe_choice`)
 
     @property
     def success_rate(self) -> float:
@@ -236,6 +237,7 @@ class _Loop:
         self.run_id = store.run(run_key(identity), scenario=scenario.name, content_hash=scenario.content_hash,
                                 world=url, settings=identity)
         self.where = {"workers": settings.workers, "scheduler": settings.scheduler, "should_stop": should_stop}
+        self._problem = None
 
     # -- stopping and progress ------------------------------------------------------------------------------------
     def stop_point(self) -> None:
@@ -255,7 +257,9 @@ class _Loop:
         from station.services import robust
         from station.services.physics import problem_with_physics
 
-        problem = problem_with_physics(robust.load_problem(self.scenario.source), profile_path)
+        if self._problem is None:  # parsed once; a profile only changes its materials
+            self._problem = robust.load_problem(self.scenario.source)
+        problem = problem_with_physics(self._problem, profile_path)
         budget = robust.default_budget(problem, budget)
         key = run_key({"content_hash": problem.scenario.content_hash, "budget": budget, "seed": OPTIMIZE_SEED,
                        "settings": self.settings.settings})
@@ -469,7 +473,7 @@ def run_loop(scenario: str, world: str, settings: LoopSettings | None = None, *,
             attempts = run.run_attempts(row, k, settings.attempts, checked=True)
             rounds = float(np.mean([a.check_rounds for a in attempts]))
             summary = LoopSummary(k, len(attempts), sum(a.success for a in attempts), [a.predicted for a in attempts],
-                                  dict(row.physics_values), row.physics_name, rounds)
+                                  dict(row.physics_values), row.physics_name, rounds, describe_choice(row.layout))
             summaries.append(summary)
             outcomes += [(k, a.attempt, a.success, a.predicted) for a in attempts]
             if on_loop is not None:
