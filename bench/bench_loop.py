@@ -12,8 +12,9 @@ per trial. Per scenario:
 - the success rate of the attempts after the first calibration (loops >= 2; goal >= 90 %), with Wilson's interval;
 - the median number of attempts to the first success (loop 1's first attempt is 1; goal <= 2), and the baseline's;
 - the baseline's success rate;
-- the Brier score of the predicted success over every loop attempt (goal <= 0.15);
-- how many loops' predicted rates fall within Wilson's interval of their measured rate.
+- the Brier score of the predicted success over every loop attempt (goal <= 0.15), and of the forecast (the
+  prediction updated by the layout's record before the attempt, :func:`station.services.loop.record_forecasts`);
+- how many loops' predicted (and forecast) rates fall within Wilson's interval of their measured rate.
 
 CAUSALITYSWITCH has two files (the ball or the dominoes faster); this bench uses ``causalityswitch_ball.toml``
 unless ``--scenarios`` names the other. Everything is stored in one bench database (default under the station's
@@ -60,17 +61,20 @@ def scenario_figures(results: list) -> dict:
     """The acceptance figures of one scenario's runs (one per world seed)."""
     from calibration.sim_runs import wilson_interval
 
-    later = [s for r in results for (k, _, s, _) in r.outcomes if k >= 2]
-    predictions = [(p, s) for r in results for (_, _, s, p) in r.outcomes if p is not None]
-    firsts = [first_success([s for (_, _, s, _) in r.outcomes]) for r in results]
-    within = total = 0
+    later = [s for r in results for (k, _, s, _, _) in r.outcomes if k >= 2]
+    predictions = [(p, s) for r in results for (_, _, s, p, _) in r.outcomes if p is not None]
+    forecasts = [(f, s) for r in results for (_, _, s, _, f) in r.outcomes if f is not None]
+    firsts = [first_success([s for (_, _, s, _, _) in r.outcomes]) for r in results]
+    within = [0, 0]  # predicted, forecast
+    total = 0
     for r in results:
         for loop in r.loops:
             if loop.predicted_success is None:
                 continue
             lo, hi = loop.interval
             total += 1
-            within += lo - 1e-9 <= loop.predicted_success <= hi + 1e-9  # Wilson's ends carry rounding
+            for i, rate in enumerate((loop.predicted_success, loop.forecast_success)):
+                within[i] += lo - 1e-9 <= rate <= hi + 1e-9  # Wilson's ends carry rounding
     baseline = [r.baseline_successes / r.baseline_attempts for r in results if r.baseline_attempts]
     baseline_n = sum(r.baseline_attempts for r in results)
     baseline_k = sum(r.baseline_successes for r in results)
@@ -80,17 +84,23 @@ def scenario_figures(results: list) -> dict:
         "after_calibration": {"attempts": len(later), "successes": k,
                               "success_rate": k / len(later) if later else None,
                               "interval": list(wilson_interval(k, len(later))) if later else None},
-        "loop1_success_rate": float(np.mean([s for r in results for (kk, _, s, _) in r.outcomes if kk == 1])),
+        "loop1_success_rate": float(np.mean([s for r in results for (kk, _, s, _, _) in r.outcomes if kk == 1])),
         "median_attempts_to_first_success": float(np.median(firsts)) if firsts else None,
         "baseline": {"attempts": baseline_n, "success_rate": baseline_k / baseline_n if baseline_n else None,
                      "median_attempts_to_first_success":
                          float(np.median([first_success(r.baseline) for r in results if r.baseline]))
                          if any(r.baseline for r in results) else None},
-        "brier": float(np.mean([(p - s) ** 2 for p, s in predictions])) if predictions else None,
-        "predicted_within_interval": [within, total],
+        "brier": _brier(predictions),
+        "brier_forecast": _brier(forecasts),
+        "predicted_within_interval": [within[0], total],
+        "forecast_within_interval": [within[1], total],
         "per_seed": [{"run": r.run_id, **r.to_json(), "hidden": r.hidden} for r in results],
         "baseline_rates": baseline,
     }
+
+
+def _brier(pairs: list) -> float | None:
+    return float(np.mean([(p - s) ** 2 for p, s in pairs])) if pairs else None
 
 
 def run_bench(scenarios, seeds, sizes: dict, *, workers: int | None, database: str, world: str = "",
@@ -107,7 +117,8 @@ def run_bench(scenarios, seeds, sizes: dict, *, workers: int | None, database: s
             url = f"sim://world?seed={seed}{world}"
             result = run_loop(name, url, LoopSettings(**sizes, workers=workers), database=database)
             results.append(result)
-            rates = ", ".join(f"loop {s.loop} {s.successes}/{s.attempts} (pred {_f(s.predicted_success)})"
+            rates = ", ".join(f"loop {s.loop} {s.successes}/{s.attempts} (pred {_f(s.predicted_success)}, "
+                              f"forecast {_f(s.forecast_success)})"
                               for s in result.loops)
             log(f"  {name} seed {seed}: {rates}; baseline {result.baseline_successes}/{result.baseline_attempts} "
                 f"({time.perf_counter() - t0:.0f} s)")
@@ -126,17 +137,19 @@ def _f(value, digits: int = 2) -> str:
 def table(figures: dict) -> list[str]:
     """The README's table."""
     rows = ["| scenario | seeds | success after calibration (goal >= 0.90) | loop 1 | median attempts to 1st "
-            "success (goal <= 2) | baseline success | baseline median attempts | Brier (goal <= 0.15) | "
-            "predicted within interval |", "|---|---|---|---|---|---|---|---|---|"]
+            "success (goal <= 2) | baseline success | baseline median attempts | Brier (goal <= 0.15): "
+            "predicted, forecast | within the interval: predicted, forecast |", "|---|---|---|---|---|---|---|---|---|"]
     for name, f in figures.items():
         after = f["after_calibration"]
         interval = after["interval"] or [math.nan, math.nan]
         within, total = f["predicted_within_interval"]
+        within_forecast = f["forecast_within_interval"][0]
         rows.append(f"| {name} | {f['seeds']} | {_f(after['success_rate'])} ({after['successes']}/{after['attempts']}"
                     f"; 95 % {_f(interval[0])}-{_f(interval[1])}) | {_f(f['loop1_success_rate'])} | "
                     f"{_f(f['median_attempts_to_first_success'], 1)} | {_f(f['baseline']['success_rate'])} "
                     f"({f['baseline']['attempts']}) | {_f(f['baseline']['median_attempts_to_first_success'], 1)} | "
-                    f"{_f(f['brier'], 3)} | {within}/{total} |")
+                    f"{_f(f['brier'], 3)}, {_f(f['brier_forecast'], 3)} | {within}/{total}, "
+                    f"{within_forecast}/{total} |")
     return rows
 
 

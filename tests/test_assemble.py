@@ -175,6 +175,28 @@ def test_the_service_walks_the_stages_in_order_and_a_fix_brings_the_parts_closer
 
 
 
+def test_a_layout_logged_before_is_forecast_with_its_record():
+    from types import SimpleNamespace
+
+    from station.services.trials import layout_values
+
+    scenario = load_trial_scenario("simple")
+    x = [-0.15, 0.06, 68.0]
+    values = layout_values(scenario, x)
+    logged = [{"layout": values, "success": True}, {"layout": values, "success": False},
+              {"layout": {**values, "track.x": -0.1}, "success": True}]  # another layout's
+    assert service._layout_record(scenario, x, logged) == (1, 2)
+    prediction = SimpleNamespace(probability=0.8, interval=(0.6, 0.9), attempts=1.25, samples=10,
+                                 to_json=lambda: {"probability": 0.8})
+    forecast = service.Forecast("as placed", prediction, (1, 2))
+    assert forecast.with_record == pytest.approx((4 * 0.8 + 1) / 6)  # the loop's weight, 4 attempts
+    assert forecast.line() == ("predicted physical success 0.80 (0.60-0.90), expected attempts 1.2 (as placed, 10 "
+                               "simulations); 0.70 with its record here (1 of 2 worked)")
+    assert forecast.to_json()["record"] == [1, 2]
+    never = service.Forecast("designed", prediction)
+    assert never.with_record is None and "record" not in never.line()
+
+
 def test_the_projector_follows_the_steps_and_the_trial_keeps_the_physics_profile(capsys, monkeypatch, tmp_path):
     from drivers.sim.projector import forget_projectors, projector_named
 

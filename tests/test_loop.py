@@ -105,7 +105,7 @@ def test_a_killed_loop_resumes_and_ends_with_the_same_figures(tmp_path, station_
     assert [loop["attempts"] for loop in figures["loops"]] == [2, 2]
     assert figures["baseline"]["attempts"] == 1
     assert set(figures["loops"][0]) == {"loop", "attempts", "successes", "success_rate", "predicted_success",
-                                        "physics"}
+                                        "forecast_success", "physics"}
     assert figures["loops"][1]["physics"] != figures["loops"][0]["physics"]  # calibrated
     # the same run killed once its second attempt is logged, then run again
     database = tmp_path / "killed.sqlite3"
@@ -214,6 +214,32 @@ def test_expected_success_is_the_prediction_updated_by_the_record(predicted, rec
     from station.services.layout_choice import expected_success
 
     assert expected_success(predicted, *record, weight=weight) == pytest.approx(expected)
+
+
+def test_an_attempts_forecast_is_its_prediction_updated_by_its_layouts_record_before_it():
+    """The record counts earlier attempts of loops that placed the same values (earlier in its own loop too), never
+    the baseline's nor later ones."""
+    from station.loopstore import AttemptRow
+    from station.services.loop import record_forecasts
+
+    def layout(a):
+        return {"parameters": [{"name": "a", "value": a}]}
+
+    def row(loop, attempt, success, predicted):
+        return AttemptRow(loop, attempt, 0, success, predicted, 0)
+
+    layouts = {0: layout(9.0), 1: layout(1.0), 2: layout(2.0), 3: layout(1.0)}
+    attempts = [row(0, 1, True, None), row(1, 1, True, 0.5), row(1, 2, False, 0.5), row(2, 1, True, 0.8),
+                row(3, 1, True, 0.6), row(3, 2, True, None), row(3, 3, False, 0.6)]
+    assert record_forecasts(layouts, attempts, 2.0) == pytest.approx([
+        None,
+        0.5,                      # nothing before it
+        (1.0 + 1) / 3,            # loop 1's first attempt worked
+        0.8,                      # loop 2 placed other values
+        (1.2 + 1) / 4,            # loop 1's record (1 of 2): loop 3 placed its values again
+        None,                     # no prediction
+        (1.2 + 3) / 6,            # loop 1's 1 of 2, loop 3's 2 of 2 so far
+    ])
 
 
 def test_a_layout_that_worked_on_the_table_is_kept_over_one_only_simulated_better(monkeypatch):

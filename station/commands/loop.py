@@ -106,12 +106,14 @@ def run_loop(args) -> int:
     def said(summary) -> None:
         args.bar.close()
         lo, hi = summary.interval
-        predicted = summary.predicted_success
+        predicted, forecast = summary.predicted_success, summary.forecast_success
+        with_record = ("" if forecast is None or predicted is None or abs(forecast - predicted) < 5e-3
+                       else f", {forecast:.2f} with its record")
         print(f"loop {summary.loop}: {summary.attempts} attempts, {summary.successes} successes: success rate "
               f"{summary.success_rate:.2f} (95 % {lo:.2f} to {hi:.2f}), predicted "
-              f"{'-' if predicted is None else f'{predicted:.2f}'}; {summary.check_rounds:.1f} corrections per "
-              f"attempt; physics: {summary.physics_name or 'the scenario'} ({_physics(summary.physics)})"
-              f"{summary.choice}", file=out)
+              f"{'-' if predicted is None else f'{predicted:.2f}'}{with_record}; {summary.check_rounds:.1f} "
+              f"corrections per attempt; physics: {summary.physics_name or 'the scenario'} "
+              f"({_physics(summary.physics)}){summary.choice}", file=out)
 
     try:
         result = run(args.scenario, args.world, settings, progress=args.bar, should_stop=args.stop.is_set,

@@ -51,16 +51,34 @@ class Forecast:
 
     when: str
     prediction: Any
+    record: tuple[int, int] = (0, 0)  #: (successes, attempts) of the logged trials of this layout before it
+
+    @property
+    def with_record(self) -> float | None:
+        """The prediction updated by the layout's record, as ``station loop`` weighs it
+        (:func:`station.services.layout_choice.expected_success`); None without a record."""
+        from station.services.layout_choice import expected_success
+
+        return expected_success(self.prediction.probability, *self.record) if self.record[1] else None
+
+    def record_words(self) -> str:
+        """``"0.78 with its record here (3 of 4 worked)"``, or "" without a record."""
+        if self.with_record is None:
+            return ""
+        return f"{self.with_record:.2f} with its record here ({self.record[0]} of {self.record[1]} worked)"
 
     def line(self) -> str:
-        """``predicted physical success 0.83 (0.71-0.91), expected attempts 1.2 (as placed, 60 simulations)``."""
+        """``predicted physical success 0.83 (0.71-0.91), expected attempts 1.2 (as placed, 60 simulations)``, and
+        the record's word when the layout was logged before."""
         p = self.prediction
         attempts = "never" if np.isinf(p.attempts) else f"{p.attempts:.1f}"
+        record = f"; {self.record_words()}" if self.record[1] else ""
         return (f"predicted physical success {p.probability:.2f} ({p.interval[0]:.2f}-{p.interval[1]:.2f}), "
-                f"expected attempts {attempts} ({self.when}, {p.samples} simulations)")
+                f"expected attempts {attempts} ({self.when}, {p.samples} simulations){record}")
 
     def to_json(self) -> dict:
-        return {"when": self.when, **self.prediction.to_json()}
+        return {"when": self.when, **self.prediction.to_json(), "record": list(self.record),
+                "with_record": self.with_record}
 
 
 @dataclass
@@ -102,6 +120,7 @@ class Assembly:
     times: dict = field(default_factory=dict)
     fixes: int = 0
     trial_id: int | None = None
+    record: tuple[int, int] = (0, 0)  #: (successes, attempts) of this layout's trials in the log before this attempt
     _profile: Any = None
     _camera_name: str | None = None
 
@@ -292,7 +311,7 @@ class Assembly:
             when = f"{when}; this run: {'success' if self.success else 'failure'}"
         result = predict_layout(scenario, x, profile=self._profile, samples=self.samples, seed=self.seed,
                                 workers=self.workers, progress=progress, should_stop=should_stop, **sigma)
-        self.forecasts.append(Forecast(when, result))
+        self.forecasts.append(Forecast(when, result, self.record))
         return self.forecasts[-1]
 
     def close(self) -> None:
@@ -364,19 +383,30 @@ def open_assembly(scenario: str, layout: str | None, *, view: str | None = None,
             apply_profile(job.scenario, profile, str(physics))  # refuses a profile of another contraption, naming it
         if trial_scenario.content_hash != job.scenario.content_hash:
             raise ServiceError(f"scenario: {scenario} changed while it was read; start again", field="scenario")
+        if store is None:
+            with open_store() as opened:
+                logged = opened.trials(scenario=trial_scenario.name)
+        else:
+            logged = store.trials(scenario=trial_scenario.name)
         if attempt is None:
-            if store is None:
-                with open_store() as opened:
-                    attempt = 1 + len(opened.trials(scenario=trial_scenario.name))
-            else:
-                attempt = 1 + len(store.trials(scenario=trial_scenario.name))
+            attempt = 1 + len(logged)
+        record = _layout_record(trial_scenario, job.layout.x, logged)
     except BaseException:
         if opened_world is not None:
             opened_world.close()
         raise
     return Assembly(job, trial_scenario, camera=camera, world=opened_world, projector=projector,
                     physics=None if physics is None else str(physics), attempt=attempt, samples=samples, seed=seed,
-                    workers=workers, _profile=profile)
+                    workers=workers, record=record, _profile=profile)
+
+
+def _layout_record(scenario, x, trials) -> tuple[int, int]:
+    """``(successes, attempts)`` of the ``trials`` logged with the layout ``x``'s values."""
+    from station.services.layout_choice import layout_records
+    from station.services.trials import layout_values
+
+    values = layout_values(scenario, x)
+    return layout_records([{"parameters": [{"name": k, "value": v} for k, v in values.items()]}], trials)[0]
 
 
 # -- after attempts: calibrate, re-optimize ----------------------------------------------------------------------------

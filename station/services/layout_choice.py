@@ -27,7 +27,7 @@ import numpy as np
 from common.progress import ProgressCallback
 
 __all__ = ["PREDICTION_WEIGHT", "candidate_layouts", "choose_layout", "describe_choice", "distinct_layouts",
-           "expected_success", "layout_records"]
+           "expected_success", "layout_records", "same_layout"]
 
 #: What a predicted success is worth, in attempts on the table (the strength of the Beta prior it centres). Fitted
 #: by ``bench/bench_prediction_weight.py`` to the bench loops' 103 layouts of five attempts each (4.4; 1: 247 of
@@ -68,6 +68,11 @@ def _values(data: dict) -> dict[str, float]:
 
 def _same(a: dict[str, float], b: dict[str, float], tolerance: float) -> bool:
     return a.keys() == b.keys() and all(abs(a[k] - b[k]) <= tolerance for k in a)
+
+
+def same_layout(a: dict, b: dict, tolerance: float = 1e-6) -> bool:
+    """Whether two LAYOUT.json data have the same parameter values (within ``tolerance``)."""
+    return _same(_values(a), _values(b), tolerance)
 
 
 def distinct_layouts(options: list[dict], tolerance: float = 1e-6) -> list[dict]:

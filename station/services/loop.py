@@ -17,7 +17,9 @@ and the camera checks again until every part is within its tolerance (at most ``
 runs (:func:`station.services.world.run_attempt`), the station predicts the physical success of what the check
 measured (:func:`station.services.predict.predict_layout` with the check's residual error, under the loop's profile
 and its intervals; in loop 1, before any trial, under the scenario's values and uncertain ranges) and logs the trial
-(with the CHECK.json and the profile) and the attempt in one transaction. The **baseline** is the thesis's workflow
+(with the CHECK.json and the profile) and the attempt in one transaction. The attempt's **forecast** is that
+prediction updated by the layout's record before it, as the choice weighs it (:func:`record_forecasts`): what the
+station would tell the maker before the attempt. The **baseline** is the thesis's workflow
 in the same world: the optimizer's own loop-1 layout placed from the printed sheet (no highlight), no check, no
 calibration.
 
@@ -31,7 +33,7 @@ from __future__ import annotations
 import json
 import math
 import tempfile
-from collections.abc import Callable
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
@@ -42,7 +44,7 @@ from common.progress import Progress, ProgressCallback, Reporter
 from station.services.errors import ServiceError
 from station.services.layout_choice import PREDICTION_WEIGHT, describe_choice
 
-__all__ = ["AttemptProgress", "LoopResult", "LoopSettings", "LoopSummary", "run_loop"]
+__all__ = ["AttemptProgress", "LoopResult", "LoopSettings", "LoopSummary", "record_forecasts", "run_loop"]
 
 #: The world's attempt numbers: loop k's attempt a is ``k * ATTEMPT_BLOCK + a`` (the baseline is loop 0).
 ATTEMPT_BLOCK = 1000
@@ -164,6 +166,7 @@ class LoopSummary:
     physics_name: str | None = None
     check_rounds: float = 0.0
     choice: str = ""  #: why its layout was placed (:func:`station.services.layout_choice.describe_choice`)
+    forecast: list = field(default_factory=list)  #: each attempt's prediction updated by its layout's record
 
     @property
     def success_rate(self) -> float:
@@ -172,6 +175,12 @@ class LoopSummary:
     @property
     def predicted_success(self) -> float | None:
         known = [p for p in self.predicted if p is not None]
+        return float(np.mean(known)) if known else None
+
+    @property
+    def forecast_success(self) -> float | None:
+        """The mean of the attempts' forecasts (:func:`record_forecasts`)."""
+        known = [p for p in self.forecast if p is not None]
         return float(np.mean(known)) if known else None
 
     @property
@@ -184,7 +193,7 @@ class LoopSummary:
     def to_json(self) -> dict[str, Any]:
         return {"loop": self.loop, "attempts": self.attempts, "successes": self.successes,
                 "success_rate": self.success_rate, "predicted_success": self.predicted_success,
-                "physics": dict(self.physics)}
+                "forecast_success": self.forecast_success, "physics": dict(self.physics)}
 
 
 @dataclass(frozen=True)
@@ -196,7 +205,8 @@ class LoopResult:
     loops: list[LoopSummary]
     baseline_attempts: int
     baseline_successes: int
-    outcomes: list[tuple[int, int, bool, float | None]]  #: (loop, attempt, success, predicted) of every attempt
+    #: (loop, attempt, success, predicted, forecast) of every loop attempt
+    outcomes: list[tuple[int, int, bool, float | None, float | None]]
     hidden: dict[str, float]  #: the world's hidden material values (for benches: the station never reads them)
     baseline: list[bool] = field(default_factory=list)  #: the baseline's successes, in order
 
@@ -215,6 +225,36 @@ class AttemptProgress(Progress):
     """Progress of a loop's attempts (its unit said by the CLI's bar)."""
 
     unit: str = "attempts"
+
+
+def record_forecasts(layouts: Mapping[int, dict], attempts: Sequence, weight: float) -> list[float | None]:
+    """Each attempt's forecast: its predicted success updated by its layout's record before it.
+
+    The record of attempt ``a`` of loop ``k`` is every earlier attempt (of loops >= 1: the baseline places another
+    way) whose loop placed the same layout: in the loops before and earlier in loop ``k``. The forecast is
+    :func:`station.services.layout_choice.expected_success` of the prediction and that record, so it is what the
+    station could say before the attempt, knowing what it knew then.
+
+    Parameters
+    ----------
+    layouts : mapping of int to dict
+        Each loop's LAYOUT.json data.
+    attempts : sequence of AttemptRow
+        Attempts in order (loop, attempt); the baseline's (loop 0) get None.
+    weight : float
+        What a prediction is worth, in attempts.
+    """
+    from station.services.layout_choice import expected_success, same_layout
+
+    out: list[float | None] = []
+    for i, attempt in enumerate(attempts):
+        if attempt.loop < 1 or attempt.predicted is None:
+            out.append(None)
+            continue
+        record = [b.success for b in attempts[:i]
+                  if b.loop >= 1 and same_layout(layouts[b.loop], layouts[attempt.loop])]
+        out.append(expected_success(attempt.predicted, sum(record), len(record), weight))
+    return out
 
 
 def _seed(world_seed: int, *words: int) -> int:
@@ -465,17 +505,23 @@ def run_loop(scenario: str, world: str, settings: LoopSettings | None = None, *,
     the_world = worlds.open_world(world)
     worlds.prepare_world(the_world, loaded)
     summaries: list[LoopSummary] = []
-    outcomes: list[tuple[int, int, bool, float | None]] = []
+    outcomes: list[tuple[int, int, bool, float | None, float | None]] = []
+    layouts: dict[int, dict] = {}
+    placed: list = []  # every loop attempt so far, in order
     with LoopStore(database) as store, tempfile.TemporaryDirectory(prefix="station-loop-") as folder:
         run = _Loop(store, loaded, the_world, world, settings, report, should_stop, Path(folder))
         for k in range(1, settings.loops + 1):
             row = run.loop_row(k)
             attempts = run.run_attempts(row, k, settings.attempts, checked=True)
             rounds = float(np.mean([a.check_rounds for a in attempts]))
+            layouts[k] = row.layout
+            placed += attempts
+            forecast = record_forecasts(layouts, placed, settings.prediction_weight)[-len(attempts):]
             summary = LoopSummary(k, len(attempts), sum(a.success for a in attempts), [a.predicted for a in attempts],
-                                  dict(row.physics_values), row.physics_name, rounds, describe_choice(row.layout))
+                                  dict(row.physics_values), row.physics_name, rounds, describe_choice(row.layout),
+                                  forecast)
             summaries.append(summary)
-            outcomes += [(k, a.attempt, a.success, a.predicted) for a in attempts]
+            outcomes += [(k, a.attempt, a.success, a.predicted, f) for a, f in zip(attempts, forecast)]
             if on_loop is not None:
                 on_loop(summary)
         baseline = []
