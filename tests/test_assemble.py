@@ -191,10 +191,12 @@ def test_a_layout_logged_before_is_forecast_with_its_record():
     forecast = service.Forecast("as placed", prediction, (1, 2))
     assert forecast.with_record == pytest.approx((4 * 0.8 + 1) / 6)  # the loop's weight, 4 attempts
     assert forecast.line() == ("predicted physical success 0.80 (0.60-0.90), expected attempts 1.2 (as placed, 10 "
-                               "simulations); 0.70 with its record here (1 of 2 worked)")
+                               "simulations); 0.70 with its record here (1 of 2 worked; expected attempts 1.4)")
     assert forecast.to_json()["record"] == [1, 2]
     never = service.Forecast("designed", prediction)
     assert never.with_record is None and "record" not in never.line()
+    failed = service.Forecast("designed", SimpleNamespace(probability=0.0), (0, 3))
+    assert failed.record_words() == "0.00 with its record here (0 of 3 worked; expected attempts never)"
 
 
 def test_the_projector_follows_the_steps_and_the_trial_keeps_the_physics_profile(capsys, monkeypatch, tmp_path):

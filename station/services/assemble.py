@@ -62,10 +62,13 @@ class Forecast:
         return expected_success(self.prediction.probability, *self.record) if self.record[1] else None
 
     def record_words(self) -> str:
-        """``"0.78 with its record here (3 of 4 worked)"``, or "" without a record."""
-        if self.with_record is None:
+        """``"0.78 with its record here (3 of 4 worked; expected attempts 1.3)"``, or "" without a record."""
+        expected = self.with_record
+        if expected is None:
             return ""
-        return f"{self.with_record:.2f} with its record here ({self.record[0]} of {self.record[1]} worked)"
+        attempts = f"{1 / expected:.1f}" if expected > 0 else "never"
+        return (f"{expected:.2f} with its record here ({self.record[0]} of {self.record[1]} worked; expected attempts "
+                f"{attempts})")
 
     def line(self) -> str:
         """``predicted physical success 0.83 (0.71-0.91), expected attempts 1.2 (as placed, 60 simulations)``, and
