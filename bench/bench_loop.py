@@ -22,7 +22,8 @@ cache folder): a stopped bench resumes where it stopped (each run keyed by its a
 reuses the runs already made.
 
 Run: ``python -m bench.bench_loop [--scenarios simple,ballrun] [--seeds 1-5] [--quick] [--loops K]
-[--prediction-weight W] [--workers 2] [--database DB] [--json OUT.json]`` or ``python -m bench loop`` (quick, SIMPLE and CAUSALITYSWITCH, 5 seeds).
+[--prediction-weight W] [--workers 2] [--database DB] [--json OUT.json]`` or ``python -m bench loop`` (quick,
+SIMPLE and CAUSALITYSWITCH, 5 seeds).
 """
 
 from __future__ import annotations
