@@ -75,7 +75,8 @@ class Forecast:
         the record's word when the layout was logged before."""
         p = self.prediction
         attempts = "never" if np.isinf(p.attempts) else f"{p.attempts:.1f}"
-        record = f"; {self.record_words()}" if self.record[1] else ""
+        words = self.record_words()
+        record = f"; {words}" if words else ""
         return (f"predicted physical success {p.probability:.2f} ({p.interval[0]:.2f}-{p.interval[1]:.2f}), "
                 f"expected attempts {attempts} ({self.when}, {p.samples} simulations){record}")
 
@@ -405,11 +406,10 @@ def open_assembly(scenario: str, layout: str | None, *, view: str | None = None,
 
 def _layout_record(scenario, x, trials) -> tuple[int, int]:
     """``(successes, attempts)`` of the ``trials`` logged with the layout ``x``'s values."""
-    from station.services.layout_choice import layout_records
+    from station.services.layout_choice import layout_record
     from station.services.trials import layout_values
 
-    values = layout_values(scenario, x)
-    return layout_records([{"parameters": [{"name": k, "value": v} for k, v in values.items()]}], trials)[0]
+    return layout_record(layout_values(scenario, x), trials)
 
 
 # -- after attempts: calibrate, re-optimize ----------------------------------------------------------------------------

@@ -27,7 +27,7 @@ import numpy as np
 from common.progress import ProgressCallback
 
 __all__ = ["PREDICTION_WEIGHT", "candidate_layouts", "choose_layout", "describe_choice", "distinct_layouts",
-           "expected_success", "layout_records", "same_layout"]
+           "expected_success", "layout_record", "layout_records", "same_layout"]
 
 #: What a predicted success is worth, in attempts on the table (the strength of the Beta prior it centres). Fitted
 #: by ``bench/bench_prediction_weight.py`` to the bench loops' 103 layouts of five attempts each (4.4; 1: 247 of
@@ -88,17 +88,25 @@ def distinct_layouts(options: list[dict], tolerance: float = 1e-6) -> list[dict]
     return out
 
 
+def _logged(trials: Iterable[Mapping]) -> list[tuple[dict[str, float], bool]]:
+    return [({str(k): float(v) for k, v in (t.get("layout") or {}).items()}, bool(t.get("success"))) for t in trials]
+
+
+def _record(values: dict[str, float], logged, tolerance: float) -> tuple[int, int]:
+    outcomes = [success for layout, success in logged if _same(values, layout, tolerance)]
+    return sum(outcomes), len(outcomes)
+
+
+def layout_record(values: Mapping[str, float], trials: Iterable[Mapping], tolerance: float = 1e-6) -> tuple[int, int]:
+    """A layout's record on the table: ``(successes, attempts)`` of the ``trials`` (trial records, the log's form)
+    logged with its ``values`` (``{parameter: value}``)."""
+    return _record({str(k): float(v) for k, v in values.items()}, _logged(trials), tolerance)
+
+
 def layout_records(options: list[dict], trials: Iterable[Mapping], tolerance: float = 1e-6) -> list[tuple[int, int]]:
-    """Each option's record on the table: ``(successes, attempts)`` of the ``trials`` (trial records, the log's
-    form) whose layout values are the option's."""
-    logged = [({str(k): float(v) for k, v in (t.get("layout") or {}).items()}, bool(t.get("success")))
-              for t in trials]
-    records = []
-    for data in options:
-        values = _values(data)
-        outcomes = [success for layout, success in logged if _same(values, layout, tolerance)]
-        records.append((sum(outcomes), len(outcomes)))
-    return records
+    """Each option's record (:func:`layout_record`; the trials read once)."""
+    logged = _logged(trials)
+    return [_record(_values(data), logged, tolerance) for data in options]
 
 
 def expected_success(predicted: float, successes: int = 0, attempts: int = 0,

@@ -154,6 +154,11 @@ class LoopSettings:
         return data
 
 
+def _mean_known(values: list) -> float | None:
+    known = [v for v in values if v is not None]
+    return float(np.mean(known)) if known else None
+
+
 @dataclass(frozen=True)
 class LoopSummary:
     """One loop's figures."""
@@ -174,14 +179,12 @@ class LoopSummary:
 
     @property
     def predicted_success(self) -> float | None:
-        known = [p for p in self.predicted if p is not None]
-        return float(np.mean(known)) if known else None
+        return _mean_known(self.predicted)
 
     @property
     def forecast_success(self) -> float | None:
         """The mean of the attempts' forecasts (:func:`record_forecasts`)."""
-        known = [p for p in self.forecast if p is not None]
-        return float(np.mean(known)) if known else None
+        return _mean_known(self.forecast)
 
     @property
     def interval(self) -> tuple[float, float]:
@@ -246,14 +249,19 @@ def record_forecasts(layouts: Mapping[int, dict], attempts: Sequence, weight: fl
     """
     from station.services.layout_choice import expected_success, same_layout
 
+    # each loop's layout by the first loop that placed the same values: its record is kept under that loop
+    first = {k: next(j for j in sorted(layouts) if j >= 1 and same_layout(layouts[j], layouts[k]))
+             for k in layouts if k >= 1}
+    records: dict[int, list[int]] = {}  # first loop -> [successes, attempts]
     out: list[float | None] = []
-    for i, attempt in enumerate(attempts):
-        if attempt.loop < 1 or attempt.predicted is None:
+    for attempt in attempts:
+        if attempt.loop < 1:
             out.append(None)
             continue
-        record = [b.success for b in attempts[:i]
-                  if b.loop >= 1 and same_layout(layouts[b.loop], layouts[attempt.loop])]
-        out.append(expected_success(attempt.predicted, sum(record), len(record), weight))
+        record = records.setdefault(first[attempt.loop], [0, 0])
+        out.append(None if attempt.predicted is None else expected_success(attempt.predicted, *record, weight))
+        record[0] += attempt.success
+        record[1] += 1
     return out
 
 

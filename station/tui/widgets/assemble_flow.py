@@ -37,8 +37,9 @@ class ForecastStatus(Static):
             text.append(f"{p.probability:.2f}", style="bold green" if p.probability >= 0.8 else "bold yellow")
             text.append(f" ({p.interval[0]:.2f}-{p.interval[1]:.2f}) · expected attempts ")
             text.append(attempts, style="bold")
-            if forecast.record[1]:
-                text.append(f"\n{forecast.record_words()}")
+            words = forecast.record_words()
+            if words:
+                text.append(f"\n{words}")
             text.append(f"\n{forecast.when}\n", style="dim")
         else:
             text.append("physical success: -\n", style="dim")
