@@ -30,6 +30,11 @@ from design.contraption.world import World, build_world
 
 ASLEEP, AWAKE, SUCCESS, FAILURE = "asleep", "awake", "success", "failure"
 
+#: What a simulation returns depends on this code as well as on the scenario's content and the layout. Caches keyed by
+#: the content (the robust executor's simulations, the loop's optimized layouts) carry this number too: bump it with
+#: any change that alters outcomes, so results the code no longer gives are not read back.
+SIMULATOR_REVISION = 1
+
 
 @dataclass(frozen=True)
 class EventOutcome:

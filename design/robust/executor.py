@@ -2,7 +2,8 @@
 
 :class:`SimulationExecutor` maps a batch of normalized layouts to per-event success booleans. It
 
-- looks every layout up in a :class:`SimulationCache` first (SQLite, keyed by the scenario's content hash and the
+- looks every layout up in a :class:`SimulationCache` first (SQLite, keyed by the scenario's content hash, the
+  revision of the code that simulates it when the problem names one (``cache_revision``, :func:`cache_scope`) and the
   layout), so a repeated or interrupted run re-simulates nothing it already knows;
 - sends the rest to a backend: ``"inline"`` (this process, for cheap synthetic problems), ``"processes"`` (local
   worker processes, one per core by default, each preparing its own pybullet client once) or ``"dask"`` (a
@@ -53,6 +54,13 @@ SCHEDULER_CONNECT_TIMEOUT = 5.0
 def layout_key(u: np.ndarray) -> str:
     """Cache key of one normalized layout: its values rounded to 12 decimals (exact repeats hit)."""
     return ",".join(f"{v:.12f}" for v in np.asarray(u, dtype=float))
+
+
+def cache_scope(problem) -> str:
+    """What ``problem``'s outcomes are filed under in a :class:`SimulationCache`: its content hash, followed by its
+    ``cache_revision`` (the simulating code's) when it has one."""
+    revision = getattr(problem, "cache_revision", None)
+    return problem.content_hash if revision is None else f"{problem.content_hash}@{revision}"
 
 
 class SimulationCache:
@@ -355,7 +363,7 @@ class SimulationExecutor:
         """How many simulations :meth:`run` of ``U`` would run: its distinct layouts the cache does not know."""
         U = as_layout_batch(self.problem, U)
         keys = list(dict.fromkeys(layout_key(u) for u in U))
-        return len(keys) - len(self.cache.get_many(self.problem.content_hash, keys))
+        return len(keys) - len(self.cache.get_many(cache_scope(self.problem), keys))
 
     def run(
         self,
@@ -371,7 +379,7 @@ class SimulationExecutor:
         if len(U) == 0:
             return out
         keys = [layout_key(u) for u in U]
-        scenario = self.problem.content_hash
+        scenario = cache_scope(self.problem)
         known = self.cache.get_many(scenario, keys)
         todo: dict[str, list[int]] = {}
         for i, key in enumerate(keys):
@@ -389,7 +397,7 @@ class SimulationExecutor:
         """Yield ``(key, rows, events)`` for every new layout, storing each in the cache first."""
         items = list(todo.items())
         chunks = [items[i : i + self.chunk_size] for i in range(0, len(items), self.chunk_size)]
-        scenario = self.problem.content_hash
+        scenario = cache_scope(self.problem)
 
         def finish(chunk, results):
             for (key, _rows), events in zip(chunk, results):

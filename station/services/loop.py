@@ -300,7 +300,9 @@ class _Loop:
     # -- layouts ------------------------------------------------------------------------------------------------
     def optimized(self, profile_path: Path | None, budget: int | None) -> dict:
         """The LAYOUT.json of ``station optimize`` for the scenario (under the profile), cached in the database by
-        what it was optimized from."""
+        what it was optimized from and the revisions of the optimizing and simulating code."""
+        from design.contraption.simulation import SIMULATOR_REVISION
+        from design.robust.pipeline import OPTIMIZER_REVISION
         from station.loopstore import run_key
         from station.services import robust
         from station.services.physics import problem_with_physics
@@ -310,7 +312,8 @@ class _Loop:
         problem = problem_with_physics(self._problem, profile_path)
         budget = robust.default_budget(problem, budget)
         key = run_key({"content_hash": problem.scenario.content_hash, "budget": budget, "seed": OPTIMIZE_SEED,
-                       "settings": self.settings.settings})
+                       "settings": self.settings.settings, "optimizer": OPTIMIZER_REVISION,
+                       "simulator": SIMULATOR_REVISION})
         cached = self.store.cached_layout(key)
         if cached is not None:
             return cached

@@ -61,7 +61,7 @@ def test_restitution_recovered_from_bounce_times():
 
 
 def test_outcome_problem_numbers_through_the_executor_cache(slide, tmp_path):
-    from design.robust.executor import SimulationCache, SimulationExecutor
+    from design.robust.executor import SimulationCache, SimulationExecutor, cache_scope
 
     problem = OutcomeProblem(slide, ["wood.friction"], {"wood.friction": (0.3, 0.8)})
     rows = problem.rows(np.array([[0.5], [0.5]]), np.array([[35.0], [20.0]]))
@@ -75,7 +75,7 @@ def test_outcome_problem_numbers_through_the_executor_cache(slide, tmp_path):
         again = executor.run(rows)
         assert executor.n_simulated == 0 and executor.n_cache_hits == 2
     np.testing.assert_array_equal(again, out)
-    assert SimulationCache(tmp_path / "c.sqlite3").count(problem.content_hash) == 2
+    assert SimulationCache(tmp_path / "c.sqlite3").count(cache_scope(problem)) == 2
 
 
 def test_trials_are_read_as_logged_and_bad_ones_refused(slide, slide_trials):

@@ -25,7 +25,7 @@ from design.robust import (
     synthetic_branching,
     synthetic_chain,
 )
-from design.robust.executor import _process_gone
+from design.robust.executor import _process_gone, cache_scope
 from design.robust.optimize import energy, placement_offsets
 from design.robust.pipeline import plan_budget, verify_candidates
 from design.robust.problem import EllipsoidEvent, SyntheticProblem
@@ -386,12 +386,27 @@ def test_an_interrupted_run_keeps_its_simulations(tmp_path):
         with SimulationExecutor(problem, backend="inline", cache_path=cache) as executor:
             optimize_robust_layout(problem, executor, budget=200, seed=7, settings=SMALL,
                                    should_stop=lambda: CountingProblem.calls >= 60)
-    assert SimulationCache(cache).count(problem.content_hash) == 60
+    assert SimulationCache(cache).count(cache_scope(problem)) == 60
     CountingProblem.calls = 0
     with SimulationExecutor(problem, backend="inline", cache_path=cache) as executor:
         result = optimize_robust_layout(problem, executor, budget=200, seed=7, settings=SMALL)
         assert executor.n_cache_hits >= 60
     assert CountingProblem.calls == result.n_new_simulations == result.n_simulations - 60
+
+
+def test_outcomes_of_another_simulator_revision_are_not_read_back(tmp_path):
+    problem = counting_chain()
+    cache = tmp_path / "sims.sqlite3"
+    U = np.full((3, len(problem.parameter_names)), 0.5) + np.arange(3)[:, None] * 0.01
+    problem.cache_revision = "simulator-1"
+    with SimulationExecutor(problem, backend="inline", cache_path=cache) as executor:
+        executor.run(U)
+    problem.cache_revision = "simulator-2"  # the simulating code changed: its old outcomes may be stale
+    with SimulationExecutor(problem, backend="inline", cache_path=cache) as executor:
+        assert executor.count_new(U) == 3
+        executor.run(U)
+        assert executor.n_cache_hits == 0 and executor.n_simulated == 3
+    assert SimulationCache(cache).count() == 6
 
 
 def test_process_and_dask_backends_give_the_local_result():
