@@ -28,11 +28,6 @@ from design.robust.executor import SimulationExecutor
 from design.robust.model_io import model_to_json
 from design.robust.optimize import optimize_layout, placement_offsets
 from design.robust.problem import LayoutProblem, RobustError, check_seed
-
-#: Which layout :func:`optimize_robust_layout` returns for the same problem, executor outcomes, budget, seed and
-#: settings depends on this code: stores of optimized layouts keyed by those inputs (the station loop's) carry this
-#: number too. Bump it with any change to the pipeline's choices.
-OPTIMIZER_REVISION = 1
 from design.robust.psp import EventModel, FactorizedPSP, Samples, explore
 from design.robust.robustness import (
     EvaluationSet,
@@ -45,6 +40,11 @@ from design.robust.robustness import (
 )
 from design.robust.sampling import sobol_valid, valid_in_ball
 from design.robust.settings import METHODS, PSPSettings, RobustnessSettings
+
+#: Which layout :func:`optimize_robust_layout` returns for the same problem, executor outcomes, budget, seed and
+#: settings depends on this code: stores of optimized layouts keyed by those inputs (the station loop's) carry this
+#: number too. Bump it with any change to the pipeline's choices.
+OPTIMIZER_REVISION = 1
 
 
 @dataclass
