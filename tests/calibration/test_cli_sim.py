@@ -57,6 +57,7 @@ def test_calibrate_sim_json_and_profile(calibrate, trials_file, tmp_path, capsys
     assert 0.3 <= lo <= value <= hi <= 0.8
     profile = load_profile(out)
     assert profile.values == {"wood.friction": value} and profile.fit["trials"] == 6
+    assert profile.fit["prior_width"] == 0.25
     assert profile.source == "calibrate sim: 6 trials of SLIDE"
 
 
@@ -65,6 +66,7 @@ def test_calibrate_sim_json_and_profile(calibrate, trials_file, tmp_path, capsys
                                    "they have: wood.friction"),
     (["--trials", "0"], "--trials must be an integer >= 1, got 0"),
     (["--physics", "p.toml"], "--physics: calibrate sim fits the physics"),
+    (["--prior-width", "-0.1"], "--prior-width must be a share of each range >= 0 (0: no prior), got -0.1"),
 ])
 def test_calibrate_sim_refuses_bad_input_in_one_line(calibrate, trials_file, capsys, argv, message):
     assert calibrate(SLIDE, "--trials-json", trials_file, *argv) == 2

@@ -60,6 +60,27 @@ def test_restitution_recovered_from_bounce_times():
     assert fit.brier_before is None and fit.held_out == 0
 
 
+def test_the_prior_keeps_a_value_the_trials_say_nothing_about():
+    # A vertical drop does not depend on the ball's friction: the likelihood is flat along it, and only the prior
+    # (centred on the scenario's 0.5) decides it; restitution is still read from the bounce times.
+    bounce = load_scenario(DATA / "bounce.toml")
+    rng = np.random.default_rng(5)
+    raw = synthetic_trials(bounce, [[z] for z in rng.uniform(0.05, 0.2, 6)], {"rubber.restitution": 0.72}, seed=6)
+    parameters = {**bounce.uncertain_parameters(), "rubber.friction": (0.5, (0.2, 0.8))}
+    fit = fit_simulator(fit_trials(raw, {"BOUNCE": bounce}), parameters,
+                        settings=FitSettings(draws=2, sobol=8, rounds=1, per_round=3, held_out=0.0, seed=0))
+    values, intervals = fit.values(), fit.intervals()
+    print(f"prior 0.25: restitution {values['rubber.restitution']:.3f}, friction {values['rubber.friction']:.3f} "
+          f"{intervals['rubber.friction']}")
+    assert abs(values["rubber.restitution"] - 0.72) <= 0.15 * 0.72
+    assert abs(values["rubber.friction"] - 0.5) <= 0.05
+    low, high = intervals["rubber.friction"]
+    assert 0.2 <= low < 0.5 < high <= 0.8
+    assert fit.prior_width == 0.25 and fit.fit_summary()["prior_width"] == 0.25
+    with pytest.raises(CalibrationError, match="prior_width"):
+        FitSettings(prior_width=0.0)
+
+
 def test_outcome_problem_numbers_through_the_executor_cache(slide, tmp_path):
     from design.robust.executor import SimulationCache, SimulationExecutor, cache_scope
 
