@@ -142,7 +142,8 @@ def test_bad_loop_arguments_are_one_line(tmp_path, station_home):
     for extra, words in ((["--attempts", "0"], "--attempts"), (["--world", "sim://world?seed=x"], "seed"),
                          (["--camera", "0"], "--camera"), (["--world", "sim://projector"], "--world"),
                          (["--reoptimize-budget", "3"], "--reoptimize-budget"),
-                         (["--prediction-weight", "0"], "--prediction-weight")):
+                         (["--prediction-weight", "0"], "--prediction-weight"),
+                         (["--fit-prior-width", "-1"], "--fit-prior-width")):
         result = subprocess.run([sys.executable, "-m", "station", "loop", "simple", "--world", "sim://world", *extra],
                                 cwd=ROOT, env=env, capture_output=True, text=True, timeout=120)
         assert result.returncode == 2, (extra, result.stderr)

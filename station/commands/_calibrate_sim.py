@@ -36,10 +36,10 @@ def add_sim_parser(calibrate_subparsers, trials_source=None) -> None:
         "check was made), with the check's placement error: the most probable values given which events happened "
         "(and when, where timed) under the simulator and a prior centred on the scenario's values (a quarter of "
         "each range wide; --prior-width 0 for plain maximum likelihood), found with a Sobol design, a "
-        "Gaussian-process surrogate and a local refinement. Prints each value with a 95 % interval, the agreement per event before and after, and "
-        "the Brier score of the success probability on held-out trials before and after; --out saves a physics "
-        "profile for --physics. --json prints {\"parameters\": [{\"name\", \"value\", \"interval\"}], \"trials\", "
-        "\"brier_before\", \"brier_after\"}.",
+        "Gaussian-process surrogate and a local refinement. Prints each value with a 95 % interval, the agreement "
+        "per event before and after, and the Brier score of the success probability on held-out trials before "
+        "and after; --out saves a physics profile for --physics. --json prints {\"parameters\": [{\"name\", "
+        "\"value\", \"interval\"}], \"trials\", \"brier_before\", \"brier_after\"}.",
         epilog="examples:\n  station calibrate sim ballrun --out wood.toml\n"
         "  station calibrate sim simple ballrun --params wood.friction --trials 40 --json\n"
         "  station calibrate sim slide.toml --trials-json trials.json --out slide.toml --workers 2",

@@ -12,7 +12,8 @@ _FLAGS = {"attempts": "--attempts", "loops": "--loops", "budget": "--budget",
           "reoptimize_budget": "--reoptimize-budget", "candidates": "--candidates",
           "prediction_weight": "--prediction-weight", "rounds": "--rounds",
           "baseline": "--baseline", "predict_samples": "--predict-samples", "fit_draws": "--fit-draws",
-          "fit_sobol": "--fit-sobol", "fit_rounds": "--fit-rounds", "camera": "--camera", "world": "--world",
+          "fit_sobol": "--fit-sobol", "fit_rounds": "--fit-rounds", "fit_prior_width": "--fit-prior-width",
+          "camera": "--camera", "world": "--world",
           "settings": "--settings", "workers": "--workers", "scheduler": "--scheduler"}
 
 
@@ -75,6 +76,9 @@ def register(subparsers) -> None:
                         help="calibration: candidates of the initial design (default %(default)s)")
     parser.add_argument("--fit-rounds", type=int, default=defaults.fit_rounds, metavar="N",
                         help="calibration: refinement rounds (default %(default)s)")
+    parser.add_argument("--fit-prior-width", type=float, default=defaults.fit_prior_width, metavar="W",
+                        help="calibration: the prior around the scenario's values, a share of each range (default "
+                        "%(default)s; 0: none, maximum likelihood)")
     parser.add_argument("--camera", default=defaults.camera, metavar="URL",
                         help="the simulated camera (default %(default)s)")
     parser.add_argument("--settings", default=defaults.settings, choices=("recommended", "thesis"),
@@ -99,7 +103,8 @@ def run_loop(args) -> int:
                             prediction_weight=args.prediction_weight,
                             every_material=not args.uncertain_only, rounds=args.rounds,
                             baseline=args.baseline, predict_samples=args.predict_samples, fit_draws=args.fit_draws,
-                            fit_sobol=args.fit_sobol, fit_rounds=args.fit_rounds, camera=args.camera,
+                            fit_sobol=args.fit_sobol, fit_rounds=args.fit_rounds,
+                            fit_prior_width=args.fit_prior_width, camera=args.camera,
                             settings=args.settings, workers=args.workers, scheduler=args.scheduler)
     out = sys.stderr if args.json else sys.stdout
 

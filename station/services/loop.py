@@ -89,6 +89,9 @@ class LoopSettings:
         Simulations per attempt's predicted success.
     fit_draws, fit_sobol, fit_rounds : int
         The simulator calibration's sizes (:class:`calibration.sim_fit.FitSettings` draws, sobol, rounds).
+    fit_prior_width : float
+        The calibration's prior around the scenario's values, a share of each range (``prior_width``; 0: none,
+        maximum likelihood).
     camera : str
         The simulated camera (``sim://camera?...``).
     settings : str
@@ -108,6 +111,7 @@ class LoopSettings:
     fit_draws: int = 4
     fit_sobol: int = 8
     fit_rounds: int = 2
+    fit_prior_width: float = 0.25
     camera: str = "sim://camera?supersample=1"
     settings: str = "recommended"
     workers: int | None = field(default=None, compare=False)
@@ -127,6 +131,10 @@ class LoopSettings:
             if value is not None and (isinstance(value, bool) or not isinstance(value, int) or value < MINIMUM_BUDGET):
                 raise ServiceError(f"{name} must be an integer >= {MINIMUM_BUDGET} (or left out: the scenario's "
                                    f"default), got {value!r}", field=name, value=value)
+        width = self.fit_prior_width
+        if isinstance(width, bool) or not isinstance(width, (int, float)) or not 0 <= width < math.inf:
+            raise ServiceError(f"fit_prior_width must be a share of each range >= 0 (0: no prior), got {width!r}",
+                               field="fit_prior_width", value=width)
         weight = self.prediction_weight
         if isinstance(weight, bool) or not isinstance(weight, (int, float)) or not 0 < weight < math.inf:
             raise ServiceError(f"prediction_weight must be a number > 0 (attempts), got {weight!r}",
@@ -380,7 +388,7 @@ class _Loop:
         trials = self.trials(k)
         s = self.settings
         fit = FitSettings(draws=s.fit_draws, sobol=s.fit_sobol, rounds=s.fit_rounds, held_out=0.0,
-                          seed=_seed(self.world.seed, _CALIBRATE, k))
+                          prior_width=s.fit_prior_width or None, seed=_seed(self.world.seed, _CALIBRATE, k))
         result = calibrate_sim([self.scenario], trials, settings=fit, progress=self.report.emit, source="loop",
                                every_material=self.settings.every_material, **self.where)
         profile = result.profile(f"loop {k} of run {self.run_id}: calibrated {self.scenario.name}")
