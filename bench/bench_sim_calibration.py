@@ -5,7 +5,11 @@ Trials are made by the simulator itself under hidden material values with 1 mm /
 settings (:class:`calibration.sim_fit.FitSettings`). Targets: friction within ±5 % from 10 runs with event times
 and from 30 runs with outcomes only; restitution within ±15 %; the held-out Brier score of the success probability
 improves. Scenarios: SLIDE (a block on a tilted plank, friction) and BOUNCE (a ball dropped on a plate, restitution),
-tests/calibration/data. About 2-4 minutes on one core. Draws docs/sim_calibration.png: each fit's candidates.
+tests/calibration/data. About 2-4 minutes per seed on one core. Draws docs/sim_calibration.png: each fit's
+candidates (the first seed's).
+
+Run: ``python -m bench.bench_sim_calibration [--seeds 0,1,2] [--prior-width W]`` (0: maximum likelihood) or
+``python -m bench sim_calibration`` (seed 0, the default prior).
 """
 
 from __future__ import annotations
@@ -75,7 +79,8 @@ def draw_fit(fits: list[tuple[str, object, float]], path: Path = FIGURE) -> Path
     return path
 
 
-def run_case(label, file, hidden, span, runs, times, tolerance, seed: int = 0, fits: list | None = None) -> bool:
+def run_case(label, file, hidden, span, runs, times, tolerance, seed: int = 0, prior_width: float | None = 0.25,
+             fits: list | None = None) -> bool:
     from calibration.sim_fit import FitSettings, fit_simulator
     from calibration.sim_synthetic import export, synthetic_trials
     from calibration.sim_trials import export_trials, fit_trials
@@ -87,7 +92,8 @@ def run_case(label, file, hidden, span, runs, times, tolerance, seed: int = 0, f
     raw = export(synthetic_trials(scenario, layouts, hidden, seed=200 + seed, times=times))
     trials = fit_trials(export_trials(raw), {scenario.name: scenario})
     start = time.perf_counter()
-    fit = fit_simulator(trials, scenario.uncertain_parameters(), settings=FitSettings(seed=seed))
+    fit = fit_simulator(trials, scenario.uncertain_parameters(),
+                        settings=FitSettings(seed=seed, prior_width=prior_width or None))
     seconds = time.perf_counter() - start
     ok = True
     print(f"  {label} ({scenario.name}, seed {seed}): {fit.trials} fitted + {fit.held_out} held out, "
@@ -112,12 +118,26 @@ def run_case(label, file, hidden, span, runs, times, tolerance, seed: int = 0, f
     return ok
 
 
-def main() -> None:
+def main(argv: list[str] | None = None) -> None:
+    import argparse
+
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--seeds", default="0", help="seeds, e.g. 0,1,2 (the figure is drawn for the first)")
+    parser.add_argument("--prior-width", type=float, default=0.25,
+                        help="the fit's prior width, a share of each range (default %(default)s; 0: none)")
+    args = parser.parse_args([] if argv is None else argv)
+    seeds = [int(s) for s in args.seeds.split(",")]
+    print(f"bench_sim_calibration: seeds {seeds}, prior width {args.prior_width or 'none (maximum likelihood)'}")
     fits: list = []
-    results = [run_case(*case, fits=fits) for case in CASES]
-    print(f"  recovery: {sum(results)} of {len(results)} cases met their targets")
+    results = []
+    for seed in seeds:
+        results += [run_case(*case, seed=seed, prior_width=args.prior_width, fits=fits if seed == seeds[0] else None)
+                    for case in CASES]
+    print(f"  recovery: {sum(results)} of {len(results)} fits met their targets")
     print(f"  wrote {draw_fit(fits)}")
 
 
 if __name__ == "__main__":
-    main()
+    import sys
+
+    main(sys.argv[1:])
