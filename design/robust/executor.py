@@ -422,7 +422,8 @@ class SimulationExecutor:
             with usable_std_streams():  # submitting may start worker processes
                 pool = self._ensure_pool()
                 futures = {
-                    pool.submit(_simulate_in_worker, scenario, U[[rows[0] for _, rows in chunk]]): chunk
+                    pool.submit(_simulate_in_worker, self.problem.content_hash, U[[rows[0] for _, rows in chunk]]):
+                    chunk
                     for chunk in chunks
                 }
         else:

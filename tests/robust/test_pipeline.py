@@ -399,6 +399,7 @@ def test_outcomes_of_another_simulator_revision_are_not_read_back(tmp_path):
     cache = tmp_path / "sims.sqlite3"
     U = np.full((3, len(problem.parameter_names)), 0.5) + np.arange(3)[:, None] * 0.01
     problem.cache_revision = "simulator-1"
+    CountingProblem.calls = 0
     with SimulationExecutor(problem, backend="inline", cache_path=cache) as executor:
         executor.run(U)
     problem.cache_revision = "simulator-2"  # the simulating code changed: its old outcomes may be stale

@@ -9,7 +9,9 @@ import numpy as np
 import pytest
 from sklearn.metrics import roc_auc_score
 
+from design.contraption.simulation import SIMULATOR_REVISION
 from design.robust import FactorizedPSP, PSPSettings, SimulationExecutor, explore, optimize_robust_layout
+from design.robust.executor import SimulationCache, cache_scope
 from design.robust.sampling import sobol_valid
 from station.cli import main
 
@@ -72,10 +74,13 @@ def test_simple_psp_separates_success_from_failure(simple, simple_data):
 
 def test_simple_optimization_is_valid_and_cached(simple, tmp_path):
     cache = tmp_path / "cache.sqlite3"
-    with SimulationExecutor(simple, workers=1, cache_path=cache) as executor:
+    # A worker process: it knows the problem by its content hash, the cache files it under the simulator's revision.
+    with SimulationExecutor(simple, backend="processes", workers=1, cache_path=cache) as executor:
         first = optimize_robust_layout(simple, executor, budget=60, seed=1, settings=TINY)
     assert simple.is_valid(first.u[None, :])[0]
     assert first.n_simulations <= 60
+    assert cache_scope(simple) == f"{simple.content_hash}@simulator-{SIMULATOR_REVISION}"
+    assert SimulationCache(cache).count(cache_scope(simple)) == SimulationCache(cache).count() > 0
     with SimulationExecutor(simple, workers=1, cache_path=cache) as executor:
         second = optimize_robust_layout(simple, executor, budget=60, seed=1, settings=TINY)
         assert executor.n_simulated == 0
