@@ -17,7 +17,7 @@ likelihood of those observations under the simulator:
   the thesis's calibration): a Gaussian prior centred on that value with a standard deviation of ``prior_width``
   (default a quarter) of the range, independently per value. With a few trials and several values the likelihood
   is flat along most directions, and its maximum alone lands on the ranges' edges (a world-1 CAUSALITYSWITCH fit
-  from ten trials put table friction at 1.5x, wood friction at its upper bound); the prior keeps what the trials
+  from five trials put table friction at 1.5x, wood friction at its upper bound); the prior keeps what the trials
   do not tell at the scenario's value. ``prior_width=None`` is plain maximum likelihood.
 - **Search.** A scrambled Sobol design over the parameters' ranges (plus the scenario's own values), a Gaussian
   process surrogate of the log-likelihood (scikit-learn, Matérn 5/2 with a white-noise term), then rounds of local
