@@ -64,7 +64,8 @@ def cache_scope(problem) -> str:
 
 
 class SimulationCache:
-    """Simulation outcomes on disk, keyed by scenario content hash and layout.
+    """Simulation outcomes on disk, keyed by scope (:func:`cache_scope`: the scenario's content hash, and the
+    simulator's revision) and layout.
 
     Parameters
     ----------
@@ -421,9 +422,9 @@ class SimulationExecutor:
         if self.backend == "processes":
             with usable_std_streams():  # submitting may start worker processes
                 pool = self._ensure_pool()
+                known_as = self.problem.content_hash  # the workers' name for the problem (not its cache scope)
                 futures = {
-                    pool.submit(_simulate_in_worker, self.problem.content_hash, U[[rows[0] for _, rows in chunk]]):
-                    chunk
+                    pool.submit(_simulate_in_worker, known_as, U[[rows[0] for _, rows in chunk]]): chunk
                     for chunk in chunks
                 }
         else:
