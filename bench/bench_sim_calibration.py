@@ -20,6 +20,8 @@ from pathlib import Path
 
 import numpy as np
 
+from calibration.sim_fit import FitSettings
+
 DATA = Path(__file__).resolve().parents[1] / "tests" / "calibration" / "data"
 
 #: (label, scenario file, hidden values, designed layouts' range, runs, with times, tolerance)
@@ -79,9 +81,9 @@ def draw_fit(fits: list[tuple[str, object, float]], path: Path = FIGURE) -> Path
     return path
 
 
-def run_case(label, file, hidden, span, runs, times, tolerance, seed: int = 0, prior_width: float | None = 0.25,
-             fits: list | None = None) -> bool:
-    from calibration.sim_fit import FitSettings, fit_simulator
+def run_case(label, file, hidden, span, runs, times, tolerance, seed: int = 0,
+             prior_width: float | None = FitSettings.prior_width, fits: list | None = None) -> bool:
+    from calibration.sim_fit import fit_simulator
     from calibration.sim_synthetic import export, synthetic_trials
     from calibration.sim_trials import export_trials, fit_trials
     from design.contraption import load_scenario
@@ -123,7 +125,7 @@ def main(argv: list[str] | None = None) -> None:
 
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--seeds", default="0", help="seeds, e.g. 0,1,2 (the figure is drawn for the first)")
-    parser.add_argument("--prior-width", type=float, default=0.25,
+    parser.add_argument("--prior-width", type=float, default=FitSettings.prior_width,
                         help="the fit's prior width, a share of each range (default %(default)s; 0: none)")
     args = parser.parse_args([] if argv is None else argv)
     seeds = [int(s) for s in args.seeds.split(",")]

@@ -23,7 +23,7 @@ import numpy as np
 
 from design.contraption.model import Scenario
 from design.contraption.schema import ANGLE_KEYS
-from design.contraption.simulation import SIMULATOR_REVISION
+from design.contraption.simulation import SIMULATOR_CACHE_REVISION
 
 YES, NO, NOT_REACHED = 1.0, 0.0, -1.0
 #: The export format's words for the codes.
@@ -90,7 +90,7 @@ class OutcomeProblem:
         self.n_outputs = 1 + 2 * len(self.event_names)
         key = f"{scenario.content_hash}|outcomes v1|settled|{self.physics}|{self.lower.tolist()}|{self.upper.tolist()}"
         self.content_hash = hashlib.sha256(key.encode()).hexdigest()
-        self.cache_revision = f"simulator-{SIMULATOR_REVISION}"
+        self.cache_revision = SIMULATOR_CACHE_REVISION
         self._scenario: Scenario | None = None
         self._by_values: dict[tuple, Scenario] = {}
 

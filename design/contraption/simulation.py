@@ -34,6 +34,8 @@ ASLEEP, AWAKE, SUCCESS, FAILURE = "asleep", "awake", "success", "failure"
 #: the content (the robust executor's simulations, the loop's optimized layouts) carry this number too: bump it with
 #: any change that alters outcomes, so results the code no longer gives are not read back.
 SIMULATOR_REVISION = 1
+#: The revision as problems name it for the executor's cache (``cache_revision``).
+SIMULATOR_CACHE_REVISION = f"simulator-{SIMULATOR_REVISION}"
 
 
 @dataclass(frozen=True)

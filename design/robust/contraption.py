@@ -13,7 +13,7 @@ from pathlib import Path
 import numpy as np
 
 from design.contraption import SUCCESS, Scenario, Simulator, check_validity, clearances, load_scenario, simulate
-from design.contraption.simulation import SIMULATOR_REVISION
+from design.contraption.simulation import SIMULATOR_CACHE_REVISION
 from design.robust.problem import RobustError
 
 #: Body pairs closer than this (m) enter the validity constraint; the constraint is capped there, so a pair coming
@@ -87,7 +87,7 @@ class ContraptionProblem:
             raise RobustError(f"{self.path}: scenario {self.scenario.name!r} has no design space (no ranges)")
         self.name = self.scenario.name
         self.content_hash = self.scenario.content_hash
-        self.cache_revision = f"simulator-{SIMULATOR_REVISION}"
+        self.cache_revision = SIMULATOR_CACHE_REVISION
         self.parameter_names = tuple(space.names)
         self.lower = np.array(space.lower, dtype=float)
         self.upper = np.array(space.upper, dtype=float)

@@ -260,6 +260,7 @@ class SimulationExecutor:
         if int(chunk_size) != chunk_size or chunk_size < 1:
             raise RobustError(f"executor: chunk_size must be a positive integer, got {chunk_size!r}")
         self.problem = problem
+        self.scope = cache_scope(problem)  #: what its outcomes are filed under in the cache
         self.workers = int(workers) if workers is not None else (os.cpu_count() or 1)
         if backend == "auto":
             backend = "dask" if scheduler is not None else ("processes" if self.workers > 1 else "inline")
@@ -364,7 +365,7 @@ class SimulationExecutor:
         """How many simulations :meth:`run` of ``U`` would run: its distinct layouts the cache does not know."""
         U = as_layout_batch(self.problem, U)
         keys = list(dict.fromkeys(layout_key(u) for u in U))
-        return len(keys) - len(self.cache.get_many(cache_scope(self.problem), keys))
+        return len(keys) - len(self.cache.get_many(self.scope, keys))
 
     def run(
         self,
@@ -380,8 +381,7 @@ class SimulationExecutor:
         if len(U) == 0:
             return out
         keys = [layout_key(u) for u in U]
-        scenario = cache_scope(self.problem)
-        known = self.cache.get_many(scenario, keys)
+        known = self.cache.get_many(self.scope, keys)
         todo: dict[str, list[int]] = {}
         for i, key in enumerate(keys):
             if key in known:
@@ -398,11 +398,10 @@ class SimulationExecutor:
         """Yield ``(key, rows, events)`` for every new layout, storing each in the cache first."""
         items = list(todo.items())
         chunks = [items[i : i + self.chunk_size] for i in range(0, len(items), self.chunk_size)]
-        scenario = cache_scope(self.problem)
 
         def finish(chunk, results):
             for (key, _rows), events in zip(chunk, results):
-                self.cache.put(scenario, key, events)
+                self.cache.put(self.scope, key, events)
                 self.n_simulated += 1
             if on_result is not None:
                 on_result(len(chunk))
