@@ -21,9 +21,10 @@ run: install
 lint: install
 	$(VENV)/bin/ruff check .
 
-## Install, lint and run the default test suite (no slow tests; see `make bench`).
+## Install, lint and run the default test suite (no slow tests; see `make bench`), one process per core
+## (pytest-xdist; at most four: the Pilot and process-pool tests start processes of their own).
 test: lint
-	$(PY) -m pytest -q
+	$(PY) -m pytest -q -n auto --maxprocesses=4
 
 ## Remake the screens' snapshots (tests/snapshots) after a deliberate change to a screen; then review the SVGs.
 snapshots: install
