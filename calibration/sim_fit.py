@@ -6,7 +6,8 @@ placement error of that layout, and which events happened (and when, where timed
 likelihood of those observations under the simulator:
 
 - **Likelihood.** For material values θ, each trial is simulated ``draws`` times at its layout plus Gaussian
-  placement errors (the check's residual error, else 1 mm / 1 degree). An event's observed outcome has probability
+  placement errors (the check's residual error, else 1 mm / 1 degree; a parameter the check did not measure at
+  least 1 mm / 1 degree). An event's observed outcome has probability
   ``(k + α) / (draws + 3α)`` (``k`` draws agree, α = 1/2: never 0 or 1 from a few draws); an event that happened at
   a logged time ``t`` has the density ``(Σ_agreeing N(t; t_m, s) + α / T) / (draws + 3α)`` (a kernel estimate of
   the simulated times, ``s`` at least the timing error ``time_sigma``; ``T`` the scenario's duration). The events
@@ -238,7 +239,7 @@ class _Groups:
                 rng = np.random.default_rng([seed, i])
                 trial = trials[i]
                 layouts.append(noisy_layouts(scenario, trial.layout, draws, trial.position_sigma_m,
-                                             trial.angle_sigma_deg, rng))
+                                             trial.angle_sigma_deg, rng, trial.unmeasured))
             self.groups.append((problem, index, members, np.concatenate(layouts)))
         self.draws = draws
         self.n = len(trials)

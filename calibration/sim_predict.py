@@ -3,17 +3,17 @@ measured placement error.
 
 The probability that one physical attempt succeeds is estimated by ``n`` simulations of the layout (as designed, or
 as built from a check) each with its own Gaussian placement error (the check's residual error, else 1 mm /
-1 degree) and, when the physics comes with intervals (a calibrated profile), its own material values drawn from
-them (normal, the 95 % interval as ±1.96 σ, kept in the scenario's range): the probability then carries the
-calibration's uncertainty as well as the placement's. Its 95 % interval is Wilson's (the simulation count's
-uncertainty). Attempts until the first success are geometric: expected ``1 / p``, with the interval
-``[1 / p_high, 1 / p_low]`` (infinite when ``p_low`` is 0).
+1 degree; the parameters the check did not measure at least 1 mm / 1 degree) and, when the physics comes with
+intervals (a calibrated profile), its own material values drawn from them (normal, the 95 % interval as
+±1.96 σ, kept in the scenario's range): the probability then carries the calibration's uncertainty as well as the
+placement's. Its 95 % interval is Wilson's (the simulation count's uncertainty). Attempts until the first success
+are geometric: expected ``1 / p``, with the interval ``[1 / p_high, 1 / p_low]`` (infinite when ``p_low`` is 0).
 """
 
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
+from collections.abc import Collection, Mapping
 from dataclasses import dataclass
 from typing import Any
 
@@ -39,6 +39,8 @@ class PhysicalPrediction:
     position_sigma_mm: float
     angle_sigma_deg: float
     physics: Mapping[str, float]  #: the material values (centres) simulated
+    #: the design parameters no check measured (placed with at least the unchecked error)
+    unmeasured: tuple[str, ...] = ()
 
     def to_json(self) -> dict[str, Any]:
         finite = lambda v: None if math.isinf(v) else v  # noqa: E731 - JSON has no infinity
@@ -46,7 +48,8 @@ class PhysicalPrediction:
                 "expected_attempts": finite(self.attempts),
                 "attempts_interval": [finite(v) for v in self.attempts_interval],
                 "samples": self.samples, "successes": self.successes, "events": dict(self.events),
-                "placement_error": {"position_mm": self.position_sigma_mm, "heading_deg": self.angle_sigma_deg},
+                "placement_error": {"position_mm": self.position_sigma_mm, "heading_deg": self.angle_sigma_deg,
+                                    "unmeasured": list(self.unmeasured)},
                 "physics": dict(self.physics)}
 
 
@@ -59,7 +62,7 @@ def attempts_of(probability: float, interval: tuple[float, float]) -> tuple[floa
 def predict_success(scenario: Scenario, layout: np.ndarray, *, values: Mapping[str, float] | None = None,
                     intervals: Mapping[str, tuple[float, float]] | None = None, position_sigma_m: float = 0.001,
                     angle_sigma_deg: float = 1.0, samples: int = 200, seed: int = 0,
-                    run: Runner | None = None) -> PhysicalPrediction:
+                    run: Runner | None = None, unmeasured: Collection[str] = ()) -> PhysicalPrediction:
     """Estimate the physical success probability of ``layout`` (real units) by simulation.
 
     Parameters
@@ -72,6 +75,8 @@ def predict_success(scenario: Scenario, layout: np.ndarray, *, values: Mapping[s
         Material values to simulate (a physics profile's) and their 95 % intervals (drawn from when given).
     position_sigma_m, angle_sigma_deg : float
         The placement error (one standard deviation).
+    unmeasured : collection of str, optional
+        Design parameters no check measured: their error is at least the unchecked one (1 mm, 1 degree).
     samples, seed : int
         Simulations, and the seed of their placement errors and material draws.
     run : Runner, optional
@@ -87,7 +92,8 @@ def predict_success(scenario: Scenario, layout: np.ndarray, *, values: Mapping[s
     ranges = {k: uncertain[k][1] if k in uncertain else (0.0, max(2.0 * centres[k], 1.0)) for k in names}
     base = scenario.with_physics({k: v for k, v in centres.items() if k not in spread})
     rng = np.random.default_rng(seed)
-    layouts = noisy_layouts(scenario, np.asarray(layout, dtype=float), samples, position_sigma_m, angle_sigma_deg, rng)
+    layouts = noisy_layouts(scenario, np.asarray(layout, dtype=float), samples, position_sigma_m, angle_sigma_deg, rng,
+                           unmeasured)
     thetas = np.empty((samples, len(names)))
     for j, name in enumerate(names):
         lo, hi = spread[name]
@@ -112,4 +118,5 @@ def predict_success(scenario: Scenario, layout: np.ndarray, *, values: Mapping[s
     events = {name: float(np.mean(codes[:, i] == YES)) for i, name in enumerate(problem.event_names)}
     return PhysicalPrediction(p, interval, attempts, attempts_interval, samples, k, events,
                               position_sigma_m * 1000.0, angle_sigma_deg,
-                              {**scenario.physics_parameters(), **centres})
+                              {**scenario.physics_parameters(), **centres},
+                              tuple(n for n in scenario.design_space.names if n in unmeasured))

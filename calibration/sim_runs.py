@@ -12,12 +12,15 @@ physical run, while the optimizer's rule stops at the first decided leaf and lea
 
 Placement errors (:func:`noisy_layouts`) are Gaussian with one standard deviation for positions (m) and one for
 angles (degrees), on the design parameters (the parts the maker places; fixed parts are taken as placed exactly).
+A check measures some parameters (its residual error is then theirs) and not others (a part without a tag, a height
+or a tilt no camera sees): those are as uncertain as a layout placed with no check, at least
+:data:`DEFAULT_POSITION_SIGMA_M` and :data:`DEFAULT_ANGLE_SIGMA_DEG`.
 """
 
 from __future__ import annotations
 
 import hashlib
-from collections.abc import Mapping, Sequence
+from collections.abc import Collection, Mapping, Sequence
 
 import numpy as np
 
@@ -174,14 +177,26 @@ class OutcomeProblem:
         return out[:, 0], out[:, 1 : 1 + n_events], out[:, 1 + n_events :]
 
 
-def noisy_layouts(scenario: Scenario, layout: np.ndarray, n: int, position_sigma_m: float, angle_sigma_deg: float,
-                  rng: np.random.Generator) -> np.ndarray:
-    """``n`` placements of ``layout`` (real units) with Gaussian errors: ``position_sigma_m`` on x, y, z and
-    ``angle_sigma_deg`` on heading, pitch and roll of every design parameter. Shape ``(n, d)``."""
+def placement_sigma(scenario: Scenario, position_sigma_m: float, angle_sigma_deg: float,
+                    unmeasured: Collection[str] = ()) -> np.ndarray:
+    """One standard deviation per design parameter (real units, design order): ``position_sigma_m`` on x, y, z and
+    ``angle_sigma_deg`` on heading, pitch and roll, and at least the unchecked defaults on the ``unmeasured`` ones
+    (a check's residual error says nothing of a parameter it did not measure)."""
     names = scenario.design_space.names
-    sigma = np.array([angle_sigma_deg if name.rsplit(".", 1)[1] in ANGLE_KEYS else position_sigma_m
-                      for name in names], dtype=float)
-    return np.asarray(layout, dtype=float)[None, :] + rng.standard_normal((n, len(names))) * sigma[None, :]
+    angle = np.array([name.rsplit(".", 1)[1] in ANGLE_KEYS for name in names])
+    unseen = np.array([name in unmeasured for name in names], dtype=bool)
+    measured = np.where(angle, angle_sigma_deg, position_sigma_m)
+    unchecked = np.where(angle, max(angle_sigma_deg, DEFAULT_ANGLE_SIGMA_DEG),
+                         max(position_sigma_m, DEFAULT_POSITION_SIGMA_M))
+    return np.where(unseen, unchecked, measured).astype(float)
+
+
+def noisy_layouts(scenario: Scenario, layout: np.ndarray, n: int, position_sigma_m: float, angle_sigma_deg: float,
+                  rng: np.random.Generator, unmeasured: Collection[str] = ()) -> np.ndarray:
+    """``n`` placements of ``layout`` (real units) with Gaussian errors (:func:`placement_sigma`). Shape
+    ``(n, d)``."""
+    sigma = placement_sigma(scenario, position_sigma_m, angle_sigma_deg, unmeasured)
+    return np.asarray(layout, dtype=float)[None, :] + rng.standard_normal((n, len(sigma))) * sigma[None, :]
 
 
 def wilson_interval(successes: float, n: int, z: float = 1.959964) -> tuple[float, float]:

@@ -43,6 +43,9 @@ class FitTrial:
         Whether ``layout`` is a measured one.
     position_sigma_m, angle_sigma_deg : float
         The placement error around ``layout`` (the check's residual error, else 1 mm and 1 degree).
+    unmeasured : tuple of str
+        The design parameters the check did not measure (its ``not_measured``): placed as with no check, at least
+        1 mm and 1 degree (:func:`calibration.sim_runs.placement_sigma`).
     codes : ndarray
         One outcome code per event of ``scenario`` (:data:`~calibration.sim_runs.YES`, ``NO``, ``NOT_REACHED``).
     times : ndarray
@@ -60,6 +63,7 @@ class FitTrial:
     codes: np.ndarray
     times: np.ndarray
     success: bool
+    unmeasured: tuple[str, ...] = ()
 
 
 def export_trials(data: Any, file: str = "<trials>") -> list[dict]:
@@ -142,6 +146,7 @@ def _fit_trial(trial: Mapping, scenario: Scenario, where: str) -> FitTrial:
             raise CalibrationError(f"{where}.layout.{name}: expected a number, got {value!r}")
         layout[space.names.index(name)] = float(value)
     position, angle = DEFAULT_POSITION_SIGMA_M, DEFAULT_ANGLE_SIGMA_DEG
+    unmeasured: tuple[str, ...] = ()
     check = trial.get("check")
     if isinstance(check, Mapping) and isinstance(check.get("residual_error"), Mapping):
         residual = check["residual_error"]
@@ -149,6 +154,8 @@ def _fit_trial(trial: Mapping, scenario: Scenario, where: str) -> FitTrial:
             position = float(residual["position_mm"]) / 1000.0
         if isinstance(residual.get("heading_deg"), (int, float)) and residual["heading_deg"] > 0:
             angle = float(residual["heading_deg"])
+    if isinstance(check, Mapping):
+        unmeasured = _not_measured(check, space.names, where)
     outcomes = trial.get("outcomes")
     if not isinstance(outcomes, Mapping):
         raise CalibrationError(f"{where}.outcomes: expected {{event: \"yes\" | \"no\" | \"not-reached\"}}")
@@ -169,4 +176,18 @@ def _fit_trial(trial: Mapping, scenario: Scenario, where: str) -> FitTrial:
     success = trial.get("success")
     if not isinstance(success, bool):
         raise CalibrationError(f"{where}.success: expected true or false, got {success!r}")
-    return FitTrial(trial.get("id", where), scenario, layout, bool(as_built), position, angle, codes, times, success)
+    return FitTrial(trial.get("id", where), scenario, layout, bool(as_built), position, angle, codes, times, success,
+                    unmeasured)
+
+
+def _not_measured(check: Mapping, names: Sequence[str], where: str) -> tuple[str, ...]:
+    """A check's ``not_measured`` design parameters (none when the check does not say)."""
+    listed = check.get("not_measured", [])
+    if not isinstance(listed, list) or not all(isinstance(n, str) for n in listed):
+        raise CalibrationError(f"{where}.check.not_measured: expected a list of design parameter names, got "
+                               f"{listed!r}")
+    unknown = [n for n in listed if n not in names]
+    if unknown:
+        raise CalibrationError(f"{where}.check.not_measured: {unknown[0]!r} is not a design parameter (expected one "
+                               f"of {', '.join(names)})")
+    return tuple(listed)

@@ -308,8 +308,8 @@ class Assembly:
         sigma = {}
         when = "designed"
         if self.check is not None and self.check.report.plane is not None:
-            x, position, angle = as_built_from_check(self.check.to_json(), scenario, x, "the last check")
-            sigma = {"position_sigma_m": position, "angle_sigma_deg": angle}
+            x, position, angle, unmeasured = as_built_from_check(self.check.to_json(), scenario, x, "the last check")
+            sigma = {"position_sigma_m": position, "angle_sigma_deg": angle, "unmeasured": unmeasured}
             when = "as placed"
         if self.stage in ("log", "done"):
             when = f"{when}; this run: {'success' if self.success else 'failure'}"

@@ -411,7 +411,8 @@ def check_measurement(job, measurement, image: np.ndarray, intrinsics, *, simula
         check_count(predict, "predict")
         physical = predict_layout(scenario, built.x, profile=physics,
                                   position_sigma_m=max(residual["position_mm"], 0.1) / 1000.0,
-                                  angle_sigma_deg=max(residual["heading_deg"], 0.1), samples=predict, seed=seed,
+                                  angle_sigma_deg=max(residual["heading_deg"], 0.1), unmeasured=built.not_measured,
+                                  samples=predict, seed=seed,
                                   progress=report, should_stop=should_stop)
     missing = () if measurement.plane is None else tuple(  # without a plane nothing is measured: none is missing
         c.tag_id for c in checks if not c.found and c.tag_id not in measurement.duplicate_ids)
@@ -458,17 +459,17 @@ def _scores(model, problem, x, built, guide) -> tuple[float, float, dict[str, fl
 
 def _simulate(problem, built, residual, n: int, seed: int, report: Reporter, should_stop) -> float:
     """The success rate of ``n`` layouts around the as-built one: each measured parameter moved by the residual
-    measurement error (mm for positions, degrees for rotations), Gaussian; an invalid layout (parts overlapping)
-    counts as a failure."""
+    measurement error (mm for positions, degrees for rotations), each one not measured by at least the error of a
+    layout placed with no check (:func:`calibration.sim_runs.placement_sigma`), Gaussian; an invalid layout (parts
+    overlapping) counts as a failure."""
+    from calibration.sim_runs import placement_sigma
     from design.robust.budget import BudgetedOracle
     from station.services.robust import simulations
 
     rng = np.random.default_rng(seed)
     names = list(problem.parameter_names)
-    sigma = np.zeros(len(names))
-    for name in built.measured:
-        angle = name.rsplit(".", 1)[-1] in ("heading", "pitch", "roll")
-        sigma[names.index(name)] = residual["heading_deg"] if angle else residual["position_mm"] / 1000.0
+    sigma = placement_sigma(problem.scenario, residual["position_mm"] / 1000.0, residual["heading_deg"],
+                            built.not_measured)
     layouts = np.clip(built.x + rng.standard_normal((n, len(names))) * sigma, problem.lower, problem.upper)
     U = problem.to_normalized(layouts)
     valid = problem.is_valid(U)

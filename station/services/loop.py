@@ -456,9 +456,11 @@ class _Loop:
     def predict(self, job, report, profile, k: int, a: int) -> float:
         from station.services.predict import as_built_from_check, predict_layout
 
-        x, position, angle = as_built_from_check(report, self.scenario, np.asarray(job.layout.x, float), "<check>")
+        x, position, angle, unmeasured = as_built_from_check(report, self.scenario, np.asarray(job.layout.x, float),
+                                                             "<check>")
         result = predict_layout(self.scenario, x, profile=profile, position_sigma_m=position, angle_sigma_deg=angle,
-                                samples=self.settings.predict_samples, seed=_seed(self.world.seed, _PREDICT, k, a),
+                                unmeasured=unmeasured, samples=self.settings.predict_samples,
+                                seed=_seed(self.world.seed, _PREDICT, k, a),
                                 progress=self.report.emit, **self.where)
         return float(result.probability)
 

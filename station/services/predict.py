@@ -8,7 +8,7 @@ so the calibration's uncertainty is in the probability). See :mod:`calibration.s
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -43,8 +43,9 @@ class Prediction:
 
 
 def as_built_from_check(check: Any, scenario: Scenario, designed: np.ndarray, file: str
-                        ) -> tuple[np.ndarray, float, float]:
-    """The as-built layout and the placement error (m, degrees) of a CHECK.json's content.
+                        ) -> tuple[np.ndarray, float, float, tuple[str, ...]]:
+    """The as-built layout, the placement error (m, degrees) of a CHECK.json's content, and the design parameters it
+    did not measure (its ``not_measured``: placed with at least the unchecked error).
 
     Raises
     ------
@@ -83,7 +84,17 @@ def as_built_from_check(check: Any, scenario: Scenario, designed: np.ndarray, fi
         position = float(residual["position_mm"]) / 1000.0
     if isinstance(residual.get("heading_deg"), (int, float)) and residual["heading_deg"] > 0:
         angle = float(residual["heading_deg"])
-    return built, position, angle
+    return built, position, angle, not_measured(check, scenario, fail)
+
+
+def not_measured(check: Any, scenario: Scenario, fail=None) -> tuple[str, ...]:
+    """A check's ``not_measured`` design parameters (none when it does not say)."""
+    listed = check.get("not_measured", []) if isinstance(check, dict) else []
+    names = scenario.design_space.names
+    if not isinstance(listed, list) or not all(isinstance(n, str) and n in names for n in listed):
+        message = f"not_measured: expected a list of design parameters of {scenario.name!r}, got {listed!r}"
+        raise (fail(message) if fail else ServiceError(f"check {message}", field="check"))
+    return tuple(listed)
 
 
 def predict(scenario: str | Scenario, layout: str | None, *, physics: str | Path | None = None,
@@ -120,7 +131,7 @@ def predict(scenario: str | Scenario, layout: str | None, *, physics: str | Path
     loaded = open_scenario(scenario) if isinstance(scenario, str) else scenario
     chosen = choose_layout(loaded, layout=layout)
     x = np.asarray(chosen.x, dtype=float)
-    position, angle = DEFAULT_POSITION_SIGMA_M, DEFAULT_ANGLE_SIGMA_DEG
+    position, angle, unmeasured = DEFAULT_POSITION_SIGMA_M, DEFAULT_ANGLE_SIGMA_DEG, ()
     if as_built is not None:
         from common.datafiles import load_json
 
@@ -130,15 +141,15 @@ def predict(scenario: str | Scenario, layout: str | None, *, physics: str | Path
                                field="as_built", value=str(path))
         data = load_json(path, "a CHECK.json of `station check`",
                          error=lambda detail: ServiceError(f"as_built {detail}", field="as_built"))
-        x, position, angle = as_built_from_check(data, loaded, x, str(path))
+        x, position, angle, unmeasured = as_built_from_check(data, loaded, x, str(path))
     profile = read_profile(physics) if physics is not None else None
     if profile is not None:
         from design.contraption.physics_profile import apply_profile
 
         apply_profile(loaded, profile, str(physics))  # refuses a profile for another contraption, names the file
     result = predict_layout(loaded, x, profile=profile, position_sigma_m=position, angle_sigma_deg=angle,
-                            samples=samples, seed=seed, workers=workers, scheduler=scheduler, progress=progress,
-                            should_stop=should_stop)
+                            unmeasured=unmeasured, samples=samples, seed=seed, workers=workers, scheduler=scheduler,
+                            progress=progress, should_stop=should_stop)
     return Prediction(loaded, chosen, x, as_built is not None, profile.name if profile else None, result)
 
 
@@ -146,7 +157,8 @@ def predict_layout(scenario: Scenario, x: np.ndarray, *, profile: PhysicsProfile
                    position_sigma_m: float = DEFAULT_POSITION_SIGMA_M,
                    angle_sigma_deg: float = DEFAULT_ANGLE_SIGMA_DEG, samples: int = 200, seed: int = 0,
                    workers: int | None = None, scheduler: str | None = None,
-                   progress: ProgressCallback | None = None, should_stop=None) -> PhysicalPrediction:
+                   progress: ProgressCallback | None = None, should_stop=None,
+                   unmeasured: Sequence[str] = ()) -> PhysicalPrediction:
     """The prediction for data already in hand (after a check or a logged trial: the scenario, the layout vector,
     the profile, the placement error), on the station's executors and cache."""
     from station.services.sim_calibration import station_runner
@@ -154,7 +166,8 @@ def predict_layout(scenario: Scenario, x: np.ndarray, *, profile: PhysicsProfile
     with station_runner(workers=workers, scheduler=scheduler, progress=progress, should_stop=should_stop) as run:
         return predict_success(scenario, x, values=profile.values if profile else None,
                                intervals=profile.intervals if profile else None, position_sigma_m=position_sigma_m,
-                               angle_sigma_deg=angle_sigma_deg, samples=samples, seed=seed, run=run)
+                               angle_sigma_deg=angle_sigma_deg, samples=samples, seed=seed, run=run,
+                               unmeasured=unmeasured)
 
 
 def outlook_line(result: PhysicalPrediction) -> str:
@@ -183,10 +196,12 @@ def predict_trial(scenario: Scenario, trial: Mapping[str, Any], *, samples: int 
         profile = profile_from_text(trial["physics"]["content"], trial["physics"].get("name") or "<profile>")
         scenario = apply_profile(scenario, profile)
     position, angle = DEFAULT_POSITION_SIGMA_M, DEFAULT_ANGLE_SIGMA_DEG
+    unmeasured = not_measured(trial["check"], scenario) if trial.get("check") else ()
     residual = (trial.get("check") or {}).get("residual_error") or {}
     if isinstance(residual.get("position_mm"), (int, float)) and residual["position_mm"] > 0:
         position = float(residual["position_mm"]) / 1000.0
     if isinstance(residual.get("heading_deg"), (int, float)) and residual["heading_deg"] > 0:
         angle = float(residual["heading_deg"])
     return predict_layout(scenario, x, profile=profile, position_sigma_m=position, angle_sigma_deg=angle,
-                          samples=samples, seed=seed, progress=progress, should_stop=should_stop)
+                          unmeasured=unmeasured, samples=samples, seed=seed, progress=progress,
+                          should_stop=should_stop)

@@ -98,7 +98,14 @@ def test_predict_as_built_from_a_check(tmp_path, capsys):
     assert cli.main([*argv, "--as-built", str(tmp_path / "CHECK.json")]) == 0
     built = json.loads(capsys.readouterr().out)
     assert built["as_built"] is True and built["probability"] == 1.0 and built["expected_attempts"] == 1.0
-    assert built["placement_error"] == {"position_mm": 0.5, "heading_deg": 0.5}
+    assert built["placement_error"] == {"position_mm": 0.5, "heading_deg": 0.5, "unmeasured": []}
+    # a parameter the check did not measure is placed as with no check (at least 1 degree), and is named
+    (tmp_path / "CHECK.json").write_text(json.dumps({**check, "not_measured": ["plank.roll"]}))
+    assert cli.main([*argv, "--as-built", str(tmp_path / "CHECK.json")]) == 0
+    assert json.loads(capsys.readouterr().out)["placement_error"]["unmeasured"] == ["plank.roll"]
+    (tmp_path / "CHECK.json").write_text(json.dumps({**check, "not_measured": ["plank.x"]}))
+    assert cli.main([*argv, "--as-built", str(tmp_path / "CHECK.json")]) == 2
+    assert "not_measured: expected a list of design parameters of 'SLIDE', got ['plank.x']" in capsys.readouterr().err
     check["layout"] = {"plank.roll": 30.0}
     (tmp_path / "CHECK.json").write_text(json.dumps(check))
     assert cli.main([*argv, "--as-built", str(tmp_path / "CHECK.json")]) == 2

@@ -12,12 +12,14 @@ import pytest
 from calibration.errors import CalibrationError
 from calibration.sim_fit import FitSettings, fit_simulator
 from calibration.sim_predict import attempts_of, predict_success
-from calibration.sim_runs import NOT_REACHED, YES, OutcomeProblem, wilson_interval
+from calibration.sim_runs import (NOT_REACHED, YES, OutcomeProblem, noisy_layouts, placement_sigma,
+                                  wilson_interval)
 from calibration.sim_synthetic import export, synthetic_trials
 from calibration.sim_trials import export_trials, fit_trials
 from design.contraption import load_scenario
 
 DATA = Path(__file__).parent / "data"
+EXAMPLES = Path(__file__).parents[2] / "examples" / "scenarios"
 
 
 @pytest.fixture(scope="module")
@@ -108,6 +110,9 @@ def test_trials_are_read_as_logged_and_bad_ones_refused(slide, slide_trials):
     checked["check"] = {"residual_error": {"position_mm": 2.0, "heading_deg": 0.5}}
     (one,) = fit_trials([checked], {"SLIDE": slide})
     assert one.as_built and one.layout[0] == 33.5 and (one.position_sigma_m, one.angle_sigma_deg) == (0.002, 0.5)
+    assert one.unmeasured == ()
+    checked["check"]["not_measured"] = ["plank.roll"]
+    assert fit_trials([checked], {"SLIDE": slide})[0].unmeasured == ("plank.roll",)
     assert fit_trials(slide_trials, {"BALLRUN": slide}) == []
     for change, message in [
         (lambda t: t["outcomes"].update(block_slides="maybe"),
@@ -117,6 +122,10 @@ def test_trials_are_read_as_logged_and_bad_ones_refused(slide, slide_trials):
         (lambda t: t["times"].update(nothing=1.0), "t.json: trials[0].times.nothing: not an event of 'SLIDE'"),
         (lambda t: t["layout"].update({"plank.x": 0.1}), "t.json: trials[0].layout.plank.x: not a design parameter"),
         (lambda t: t.update(success="yes"), "t.json: trials[0].success: expected true or false"),
+        (lambda t: t.update(check={"not_measured": ["plank.x"]}),
+         "t.json: trials[0].check.not_measured: 'plank.x' is not a design parameter (expected one of plank.roll)"),
+        (lambda t: t.update(check={"not_measured": "plank.roll"}),
+         "t.json: trials[0].check.not_measured: expected a list of design parameter names, got 'plank.roll'"),
         (lambda t: t["scenario"].update(content="[[objects]]\nname = 1\n"), "trials[0].scenario.content"),
     ]:
         bad = copy.deepcopy(slide_trials[0])
@@ -126,6 +135,22 @@ def test_trials_are_read_as_logged_and_bad_ones_refused(slide, slide_trials):
         assert message in str(error.value) and "\n" not in str(error.value)
     with pytest.raises(CalibrationError, match="t.json: version: expected 1"):
         export_trials({"format": "chaos-station trials", "version": 2, "trials": []}, "t.json")
+
+
+@pytest.mark.parametrize("position, angle, unmeasured, expected", [
+    (0.0002, 0.3, (), [0.0002, 0.3, 0.0002, 0.0002]),
+    # what a check did not measure is placed as with no check: 1 mm, 1 degree
+    (0.0002, 0.3, ("plank.x", "track.roll"), [0.001, 1.0, 0.0002, 0.0002]),
+    # and never more precisely than what it measured
+    (0.003, 2.0, ("track.roll", "goblet.x"), [0.003, 2.0, 0.003, 0.003]),
+])
+def test_a_parameter_no_check_measured_keeps_the_unchecked_error(position, angle, unmeasured, expected):
+    scenario = load_scenario(EXAMPLES / "branching.toml")
+    assert scenario.design_space.names == ("plank.x", "track.roll", "lever.x", "goblet.x")
+    assert placement_sigma(scenario, position, angle, unmeasured).tolist() == expected
+    layouts = noisy_layouts(scenario, scenario.design_space.default, 4000, position, angle,
+                            np.random.default_rng(0), unmeasured)
+    assert np.allclose(layouts.std(axis=0), expected, rtol=0.05)
 
 
 def test_predicted_success_with_interval_and_attempts(slide):
