@@ -62,6 +62,9 @@ class AsBuilt:
     residual : dict of str to tuple
         Per part, what the fitted parameters could not reproduce: ``(du mm, dv mm, dheading deg)`` per measured pose
         (a part moved along an axis no parameter of it moves).
+    unclipped : ndarray
+        ``x`` before the clip: where the parts really are, which the simulations of calibration and prediction (on
+        widened ranges) can use; the success model only knows the range.
     """
 
     x: np.ndarray
@@ -69,6 +72,12 @@ class AsBuilt:
     not_measured: tuple[str, ...]
     clipped: tuple[str, ...]
     residual: Mapping[str, tuple[float, ...]]
+    unclipped: np.ndarray | None = None
+
+    def measured_values(self, names: Sequence[str]) -> dict[str, float]:
+        """``{name: value}`` of the measured parameters as measured (not clipped), in design-space order."""
+        x = self.x if self.unclipped is None else self.unclipped
+        return {name: float(value) for name, value in zip(names, x) if name in self.measured}
 
     def parameters(self, names: Sequence[str]) -> dict[str, float]:
         """``{name: value}`` in design-space order (``names`` is the design space's)."""
@@ -185,6 +194,7 @@ def as_built_layout(scenario, x, plane: GuidePlane, measured: Mapping[str, Plane
             fitted.extend(free)
         residual[part] = tuple(float(r) for r in fit.error(values))
     clipped = tuple(n for n in fitted if not lower[names.index(n)] <= x[names.index(n)] <= upper[names.index(n)])
+    unclipped = x.copy()
     x = np.clip(x, lower, upper)
     not_measured = tuple(n for n in names if n not in fitted)
-    return AsBuilt(x, tuple(n for n in names if n in fitted), not_measured, clipped, residual)
+    return AsBuilt(x, tuple(n for n in names if n in fitted), not_measured, clipped, residual, unclipped)

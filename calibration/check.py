@@ -21,7 +21,7 @@ a track seen edge-on) are checked *by eye* against the sheet.
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field, replace
 
 import numpy as np
@@ -115,6 +115,8 @@ class CheckReport:
     prediction_note: str | None = None
     simulated_success_as_built: float | None = None
     missing_reference_tags: tuple[int, ...] = field(default=())
+    #: the measured parameters as measured: ``as_built`` keeps each in its design range, these may leave it
+    as_measured: dict[str, float] = field(default_factory=dict)
 
     def to_json(self) -> dict:
         plane = None if self.plane is None else {
@@ -127,7 +129,8 @@ class CheckReport:
             "missing_tags": list(self.missing_tags), "unknown_tags": list(self.unknown_tags),
             "duplicate_tags": list(self.duplicate_tags), "by_eye": list(self.by_eye),
             "missing_reference_tags": list(self.missing_reference_tags),
-            "as_built": _values(self.as_built), "not_measured": list(self.not_measured),
+            "as_built": _values(self.as_built), "as_measured": _values(self.as_measured),
+            "not_measured": list(self.not_measured),
             "residual_error": {k: _r(v) for k, v in self.residual_error.items()},
             "predicted_success_as_built": _p(self.predicted_success_as_built),
             "predicted_success_as_designed": _p(self.predicted_success_as_designed),
@@ -142,6 +145,24 @@ def _r(value) -> float:
 
 def _p(value) -> float | None:
     return None if value is None else round(float(value), 4)
+
+
+def as_built_values(check: Mapping, fail: Callable[[str], Exception]) -> dict[str, float]:
+    """The as-built layout of a CHECK.json's content: its ``as_built``, each measured parameter as measured
+    (``as_measured``, which may leave the design range; checks written before it existed have none).
+
+    ``fail(message)`` makes the error raised for a malformed table (``as_built.NAME: expected a number...``).
+    """
+    values: dict[str, float] = {}
+    for table in ("as_built", "as_measured"):
+        given = check.get(table, {} if table == "as_measured" else None)
+        if not isinstance(given, Mapping):
+            raise fail(f"{table}: expected {{parameter: value}}, got {given!r:.40}")
+        for name, value in given.items():
+            if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+                raise fail(f"{table}.{name}: expected a number, got {value!r}")
+            values[str(name)] = float(value)
+    return values
 
 
 def _values(values: dict[str, float]) -> dict[str, float]:

@@ -136,6 +136,8 @@ def test_the_cli_prints_and_writes_check_json(tmp_path, capsys):
     assert part["name"] == "goblet" and set(part["error"]) == {"du_mm", "dv_mm", "distance_mm", "heading_deg"}
     assert set(printed) >= {"missing_tags", "unknown_tags", "as_built", "predicted_success_as_built",
                             "predicted_success_as_designed", "by_eye", "not_measured", "prediction_note"}
+    # every measured parameter as measured (here inside its range: the same as as_built), none of the others
+    assert printed["as_measured"] == {k: v for k, v in printed["as_built"].items() if k not in printed["not_measured"]}
     assert Image.open(overlay).size == (1920, 1080)
     physical = printed["physical_success"]  # the as-built layout's physical success and the attempts to expect
     assert physical["samples"] == 4 and physical["interval"][0] <= physical["probability"] <= physical["interval"][1]

@@ -274,13 +274,12 @@ class Assembly:
     # -- log --------------------------------------------------------------------------------------------------------
     def trial(self, *, who: str | None = None, notes: str | None = None) -> dict:
         """The trial record (the trial log's form) of this attempt."""
-        from station.services.trials import build_trial, layout_values, read_physics
+        from station.services.trials import build_trial, check_values, layout_values, read_physics
 
         self._expect("log")
         check = self.check.to_json() if self.check is not None else None  # CHECK.json: what the log stores
         return build_trial(self.scenario, layout_values(self.scenario, self.job.layout.x), self.outcomes,
-                           times=self.times, as_built=None if check is None else dict(check["as_built"]),
-                           check=check,
+                           times=self.times, as_built=None if check is None else check_values(check), check=check,
                            physics=read_physics(self.physics) if self.physics else None, who=who,
                            notes=notes or f"station assemble, attempt {self.attempt}, {self.fixes} fix(es)")
 

@@ -409,7 +409,7 @@ def check_measurement(job, measurement, image: np.ndarray, intrinsics, *, simula
         from station.services.predict import predict_layout
 
         check_count(predict, "predict")
-        physical = predict_layout(scenario, built.x, profile=physics,
+        physical = predict_layout(scenario, built.unclipped, profile=physics,
                                   position_sigma_m=max(residual["position_mm"], 0.1) / 1000.0,
                                   angle_sigma_deg=max(residual["heading_deg"], 0.1), unmeasured=built.not_measured,
                                   samples=predict, seed=seed,
@@ -423,7 +423,8 @@ def check_measurement(job, measurement, image: np.ndarray, intrinsics, *, simula
         by_eye=tuple(by_eye), as_built=built.parameters(names), not_measured=built.not_measured,
         residual_error=residual, predicted_success_as_built=predicted_built,
         predicted_success_as_designed=predicted_designed, prediction_note="; ".join(notes) or None,
-        simulated_success_as_built=simulated, missing_reference_tags=tuple(measurement.missing_reference_ids))
+        simulated_success_as_built=simulated, missing_reference_tags=tuple(measurement.missing_reference_ids),
+        as_measured=built.measured_values(names))
     return CheckJob(result, job, image, measurement, intrinsics, physical)
 
 

@@ -412,7 +412,7 @@ class _Loop:
         """One attempt: place, check and correct (when ``checked``), run, predict, log."""
         from station.services import world as worlds
         from station.services.check import check_frame
-        from station.services.trials import build_trial, layout_values
+        from station.services.trials import build_trial, check_values, layout_values
 
         guide, scenario = job.guide, self.scenario
         number = k * ATTEMPT_BLOCK + a
@@ -435,7 +435,7 @@ class _Loop:
         if predicted is not None:
             note += f"; predicted physical success {predicted:.3f}"
         trial = build_trial(scenario, layout_values(scenario, job.layout.x), run.outcomes, times=run.times,
-                            as_built=report["as_built"] if report else None, check=report, physics=physics,
+                            as_built=check_values(report) if report else None, check=report, physics=physics,
                             who=f"simulated maker ({self.world.url})", notes=note)
         return self.store.add_attempt(self.run_id, k, a, trial, predicted=predicted, check_rounds=rounds)
 

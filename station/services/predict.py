@@ -68,16 +68,13 @@ def as_built_from_check(check: Any, scenario: Scenario, designed: np.ndarray, fi
             i = space.names.index(name)
             if abs(float(value) - designed[i]) > 1e-6 * max(1.0, abs(designed[i])):
                 raise fail(f"is a check of another layout ({name} = {value:g} there, {designed[i]:g} here)")
+    from calibration.check import as_built_values
+
     built = designed.astype(float).copy()
-    as_built = check.get("as_built") or {}
-    if not isinstance(as_built, dict):
-        raise fail("as_built: expected {parameter: value}")
-    for name, value in as_built.items():
+    for name, value in as_built_values({"as_built": {}, **check}, fail).items():
         if name not in space.names:
             raise fail(f"as_built.{name}: not a design parameter of {scenario.name!r}")
-        if isinstance(value, bool) or not isinstance(value, (int, float)):
-            raise fail(f"as_built.{name}: expected a number, got {value!r}")
-        built[space.names.index(name)] = float(value)
+        built[space.names.index(name)] = value
     position, angle = DEFAULT_POSITION_SIGMA_M, DEFAULT_ANGLE_SIGMA_DEG
     residual = check.get("residual_error") or {}
     if isinstance(residual.get("position_mm"), (int, float)) and residual["position_mm"] > 0:

@@ -165,16 +165,23 @@ def read_as_built(path: str | Path, scenario: Scenario, layout: Mapping[str, flo
     extra = sorted(set(checked) - set(layout))
     if extra:
         raise fail(f"layout.{extra[0]}: not a parameter of {scenario.name}; a check of another layout")
-    built = data.get("as_built")
-    if not isinstance(built, dict):
-        raise fail(f"as_built: expected {{parameter: value}}, got {built!r:.40}")
+    from calibration.check import as_built_values
+
+    built = as_built_values(data, fail)
     values = {}
     for name in layout:
-        value = built.get(name)
-        if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
-            raise fail(f"as_built.{name}: expected a number, got {value!r}")
-        values[name] = float(value)
+        if name not in built:
+            raise fail(f"as_built.{name}: expected a number, got None")
+        values[name] = built[name]
     return values, data
+
+
+def check_values(check: Mapping[str, Any]) -> dict[str, float]:
+    """A check's as-built layout for the trial log: its ``as_built``, the measured parameters as measured
+    (:func:`calibration.check.as_built_values`)."""
+    from calibration.check import as_built_values
+
+    return as_built_values(check, lambda message: ServiceError(f"check: {message}", field="check"))
 
 
 def read_physics(path: str | Path) -> dict[str, str]:

@@ -10,6 +10,7 @@ import pytest
 
 from calibration.asbuilt import PlanePose, as_built_layout, measurable_parameters
 from calibration.check import check_parts, instruction, measured_pose
+from calibration.sim_runs import widened
 from design.contraption import load_scenario
 from design.contraption.catalog import resolve_scenario_path
 from projector.build import build_guide
@@ -142,3 +143,40 @@ def test_tolerances_decide_within_per_axis():
 ])
 def test_instructions_speak_the_sheets_words(view, error, words):
     assert instruction("bottom_track", error, view) == words
+
+
+def test_a_part_placed_beyond_its_range_is_scored_at_the_end_and_kept_as_measured():
+    scenario, x = _ballrun()
+    names = list(scenario.design_space.names)
+    i = names.index("goblet.x")
+    x = np.array(x, dtype=float)
+    x[i] = scenario.design_space.upper[i]  # an optimizer's layout on its range's end, as they often are
+    guide = build_guide(scenario, x)
+    # where the part really is: 2 mm past the range's end (drawn on the ranges the calibration simulates)
+    there = build_guide(widened(scenario), _moved(scenario, x, {"goblet.x": 0.002}), view="side")
+    checks, _ = check_parts(guide, Seen(_tags_of(there, ["goblet"])))
+    poses = {c.name: PlanePose(c.measured_center_mm, c.measured_heading_deg) for c in checks if c.found}
+    built = as_built_layout(scenario, x, guide.plane, poses, {p.name: p.parameters for p in guide.parts})
+    assert built.clipped == ("goblet.x",) and built.x[i] == scenario.design_space.upper[i]
+    assert built.unclipped[i] == pytest.approx(x[i] + 0.002, abs=1e-6)
+    measured = built.measured_values(names)
+    assert measured["goblet.x"] == pytest.approx(x[i] + 0.002, abs=1e-6) and "top_track.x" not in measured
+
+
+@pytest.mark.parametrize("check, expected", [
+    ({"as_built": {"a.x": 0.1, "b.roll": 3.0}}, {"a.x": 0.1, "b.roll": 3.0}),  # a check written before as_measured
+    ({"as_built": {"a.x": 0.1, "b.roll": 3.0}, "as_measured": {"a.x": 0.1021}}, {"a.x": 0.1021, "b.roll": 3.0}),
+    ({"as_built": {"a.x": 0.1}, "as_measured": {"a.x": "far"}}, "as_measured.a.x: expected a number, got 'far'"),
+    ({"as_built": {"a.x": True}}, "as_built.a.x: expected a number, got True"),
+    ({"as_built": [0.1]}, "as_built: expected {parameter: value}, got [0.1]"),
+    ({}, "as_built: expected {parameter: value}, got None"),
+])
+def test_the_as_built_of_a_check_takes_each_measured_value_as_measured(check, expected):
+    from calibration.check import as_built_values
+
+    if isinstance(expected, dict):
+        assert as_built_values(check, ValueError) == expected
+    else:
+        with pytest.raises(ValueError) as error:
+            as_built_values(check, ValueError)
+        assert str(error.value) == expected
