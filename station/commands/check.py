@@ -20,7 +20,7 @@ JSON_SHAPE = ('{"format": "chaos-station check", "version", "scenario", "content
               '{"residual_mm", "reference_ids", "moved_mm"}, "parts": [{"name", "tag_id", "found", "measured": '
               '{"center_mm", "heading_deg"}, "error": {"du_mm", "dv_mm", "distance_mm", "heading_deg"}, '
               '"within_tolerance", "instruction", "cost"}], "missing_tags", "unknown_tags", "duplicate_tags", '
-              '"by_eye", "missing_reference_tags", "as_built", "not_measured", "residual_error", '
+              '"by_eye", "missing_reference_tags", "as_built", "as_measured", "not_measured", "residual_error", '
               '"predicted_success_as_built", "predicted_success_as_designed", "prediction_note", '
               '"simulated_success_as_built", "physical_success": {"probability", "interval", "expected_attempts", '
               '"attempts_interval", "samples", "successes", "events", "placement_error", "physics"}}')

@@ -566,7 +566,8 @@ def report_lines(report) -> list[str]:
         if ids:
             lines.append(f"{words}: {', '.join(map(str, ids))}")
     if report.not_measured:
-        lines.append(f"not measured (kept at the layout's value): {', '.join(report.not_measured)}")
+        lines.append(f"not measured (kept at the layout's value; predictions place them as with no check, 1 mm / "
+                     f"1 deg): {', '.join(report.not_measured)}")
     lines.extend(summary_lines(report)[:-1])
     if report.prediction_note:
         lines.append(f"note: {report.prediction_note}")
