@@ -72,12 +72,11 @@ class AsBuilt:
     not_measured: tuple[str, ...]
     clipped: tuple[str, ...]
     residual: Mapping[str, tuple[float, ...]]
-    unclipped: np.ndarray | None = None
+    unclipped: np.ndarray
 
     def measured_values(self, names: Sequence[str]) -> dict[str, float]:
         """``{name: value}`` of the measured parameters as measured (not clipped), in design-space order."""
-        x = self.x if self.unclipped is None else self.unclipped
-        return {name: float(value) for name, value in zip(names, x) if name in self.measured}
+        return {name: float(value) for name, value in zip(names, self.unclipped) if name in self.measured}
 
     def parameters(self, names: Sequence[str]) -> dict[str, float]:
         """``{name: value}`` in design-space order (``names`` is the design space's)."""
