@@ -177,6 +177,17 @@ class OutcomeProblem:
         return out[:, 0], out[:, 1 : 1 + n_events], out[:, 1 + n_events :]
 
 
+def residual_sigma(check: Mapping | None) -> tuple[float, float]:
+    """The placement error (m, degrees) a CHECK.json's ``residual_error`` gives the parameters it measured; the
+    unchecked defaults where it gives none (no check, a missing or non-positive value)."""
+    residual = check.get("residual_error") if isinstance(check, Mapping) else None
+    residual = residual if isinstance(residual, Mapping) else {}
+    position, angle = residual.get("position_mm"), residual.get("heading_deg")
+    number = lambda v: isinstance(v, (int, float)) and not isinstance(v, bool) and v > 0  # noqa: E731
+    return (float(position) / 1000.0 if number(position) else DEFAULT_POSITION_SIGMA_M,
+            float(angle) if number(angle) else DEFAULT_ANGLE_SIGMA_DEG)
+
+
 def placement_sigma(scenario: Scenario, position_sigma_m: float, angle_sigma_deg: float,
                     unmeasured: Collection[str] = ()) -> np.ndarray:
     """One standard deviation per design parameter (real units, design order): ``position_sigma_m`` on x, y, z and

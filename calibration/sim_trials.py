@@ -19,7 +19,7 @@ from typing import Any
 import numpy as np
 
 from calibration.errors import CalibrationError
-from calibration.sim_runs import DEFAULT_ANGLE_SIGMA_DEG, DEFAULT_POSITION_SIGMA_M, OUTCOME_WORDS
+from calibration.sim_runs import OUTCOME_WORDS, residual_sigma
 from design.contraption.model import Scenario
 from design.errors import DesignError
 
@@ -145,17 +145,9 @@ def _fit_trial(trial: Mapping, scenario: Scenario, where: str) -> FitTrial:
         if isinstance(value, bool) or not isinstance(value, (int, float)) or not np.isfinite(value):
             raise CalibrationError(f"{where}.layout.{name}: expected a number, got {value!r}")
         layout[space.names.index(name)] = float(value)
-    position, angle = DEFAULT_POSITION_SIGMA_M, DEFAULT_ANGLE_SIGMA_DEG
-    unmeasured: tuple[str, ...] = ()
     check = trial.get("check")
-    if isinstance(check, Mapping) and isinstance(check.get("residual_error"), Mapping):
-        residual = check["residual_error"]
-        if isinstance(residual.get("position_mm"), (int, float)) and residual["position_mm"] > 0:
-            position = float(residual["position_mm"]) / 1000.0
-        if isinstance(residual.get("heading_deg"), (int, float)) and residual["heading_deg"] > 0:
-            angle = float(residual["heading_deg"])
-    if isinstance(check, Mapping):
-        unmeasured = _not_measured(check, space.names, where)
+    position, angle = residual_sigma(check)
+    unmeasured = _not_measured(check, space.names, where) if isinstance(check, Mapping) else ()
     outcomes = trial.get("outcomes")
     if not isinstance(outcomes, Mapping):
         raise CalibrationError(f"{where}.outcomes: expected {{event: \"yes\" | \"no\" | \"not-reached\"}}")

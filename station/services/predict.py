@@ -16,7 +16,7 @@ from typing import Any
 import numpy as np
 
 from calibration.sim_predict import PhysicalPrediction, predict_success
-from calibration.sim_runs import DEFAULT_ANGLE_SIGMA_DEG, DEFAULT_POSITION_SIGMA_M
+from calibration.sim_runs import DEFAULT_ANGLE_SIGMA_DEG, DEFAULT_POSITION_SIGMA_M, residual_sigma
 from common.progress import ProgressCallback
 from design.contraption.layout_io import LoadedLayout
 from design.contraption.physics_profile import PhysicsProfile
@@ -75,13 +75,7 @@ def as_built_from_check(check: Any, scenario: Scenario, designed: np.ndarray, fi
         if name not in space.names:
             raise fail(f"as_built.{name}: not a design parameter of {scenario.name!r}")
         built[space.names.index(name)] = value
-    position, angle = DEFAULT_POSITION_SIGMA_M, DEFAULT_ANGLE_SIGMA_DEG
-    residual = check.get("residual_error") or {}
-    if isinstance(residual.get("position_mm"), (int, float)) and residual["position_mm"] > 0:
-        position = float(residual["position_mm"]) / 1000.0
-    if isinstance(residual.get("heading_deg"), (int, float)) and residual["heading_deg"] > 0:
-        angle = float(residual["heading_deg"])
-    return built, position, angle, not_measured(check, scenario, fail)
+    return built, *residual_sigma(check), not_measured(check, scenario, fail)
 
 
 def not_measured(check: Any, scenario: Scenario, fail=None) -> tuple[str, ...]:
@@ -192,13 +186,8 @@ def predict_trial(scenario: Scenario, trial: Mapping[str, Any], *, samples: int 
     if trial.get("physics"):
         profile = profile_from_text(trial["physics"]["content"], trial["physics"].get("name") or "<profile>")
         scenario = apply_profile(scenario, profile)
-    position, angle = DEFAULT_POSITION_SIGMA_M, DEFAULT_ANGLE_SIGMA_DEG
     unmeasured = not_measured(trial["check"], scenario) if trial.get("check") else ()
-    residual = (trial.get("check") or {}).get("residual_error") or {}
-    if isinstance(residual.get("position_mm"), (int, float)) and residual["position_mm"] > 0:
-        position = float(residual["position_mm"]) / 1000.0
-    if isinstance(residual.get("heading_deg"), (int, float)) and residual["heading_deg"] > 0:
-        angle = float(residual["heading_deg"])
+    position, angle = residual_sigma(trial.get("check"))
     return predict_layout(scenario, x, profile=profile, position_sigma_m=position, angle_sigma_deg=angle,
                           unmeasured=unmeasured, samples=samples, seed=seed, progress=progress,
                           should_stop=should_stop)
