@@ -199,7 +199,9 @@ def test_the_layout_placed_is_the_one_predicted_to_succeed_most_often(monkeypatc
     assert chosen["candidate"] == 1  # 0.9 beats 0.4; of the two 0.9s the first is kept
     assert chosen["physical_choice"] == {"chosen": 1, "predicted_physical_success": [0.4, 0.9, 0.9],
                                          "record": [[0, 0]] * 3, "prediction_weight": 4.0,
-                                         "expected_success": [0.4, 0.9, 0.9], "samples": 5}
+                                         "expected_success": [0.4, 0.9, 0.9],
+                                         "lower_quartile": pytest.approx([0.2234, 0.8587, 0.8587], abs=1e-4),
+                                         "samples": 5}
     assert seen == [7, 7, 7]  # every option meets the same draws
     assert choose_layout(None, [options[0]], None) is options[0]  # nothing to choose: nothing simulated
 
@@ -272,6 +274,47 @@ def test_a_layout_that_worked_on_the_table_is_kept_over_one_only_simulated_bette
         choose_layout(None, [placed, new], None, prediction_weight=0)
 
 
+@pytest.mark.parametrize(("predicted", "record", "expected"), [
+    (0.75, (0, 0), 0.25 ** (1 / 3)),   # Beta(3, 1): its cdf is q ** 3
+    (0.5, (3, 4), 0.5),               # Beta(5, 3)'s lower quartile, from scipy's own beta (below)
+    (1.0, (0, 0), None),              # a prediction of 1 is held at 0.99: Beta(3.96, 0.04)
+])
+def test_options_are_ranked_by_the_lower_quartile_of_their_success(predicted, record, expected):
+    from scipy.stats import beta
+
+    from station.services.layout_choice import choice_score
+
+    if expected is None:
+        assert 0.99 < choice_score(predicted, *record) <= 1.0
+    elif record == (3, 4):
+        assert choice_score(predicted, *record) == pytest.approx(beta.ppf(0.25, 5.0, 3.0))
+    else:
+        assert choice_score(predicted, *record) == pytest.approx(expected)
+
+
+def test_a_near_tie_goes_to_the_layout_with_a_record_and_a_clear_win_to_the_higher_mean(monkeypatch):
+    """The loop's world-3 case: 4 of 5 at 0.81 (expected 0.804) against a new 0.8125 keeps the placed layout; a new
+    0.95 beats it; a placed layout that failed 3 of 5 at 0.6 loses to a new 0.75."""
+    from station.services import predict as predicting
+    from station.services.layout_choice import candidate_layouts, choose_layout
+
+    monkeypatch.setattr("design.contraption.layout_io.layout_from_data",
+                        lambda data, scenario, file: type("L", (), {"x": [0.0, 0.0]})())
+    rows = [{"u": [0.1, 0.2], "local_success_rate": 0.4, "kept": False}]
+    placed, new = candidate_layouts(_payload([0.5, 0.5], rows), 2)
+    values = {p["name"]: p["value"] for p in placed["parameters"]}
+    four_of_five = [{"layout": values, "success": True}] * 4 + [{"layout": values, "success": False}]
+    two_of_five = [{"layout": values, "success": True}] * 2 + [{"layout": values, "success": False}] * 3
+    for trials, predictions, winner in ((four_of_five, [0.81, 0.8125], 0), (four_of_five, [0.81, 0.95], 1),
+                                        (two_of_five, [0.6, 0.75], 1)):
+        scores = iter(predictions)
+        monkeypatch.setattr(predicting, "predict_layout",
+                            lambda *a, scores=scores, **k: type("R", (), {"probability": next(scores)})())
+        choice = choose_layout(None, [placed, new], None, samples=16, trials=trials)["physical_choice"]
+        assert choice["chosen"] == winner, choice
+    assert choice["expected_success"][0] == pytest.approx((2.4 + 2) / 9)
+
+
 @pytest.mark.parametrize(("choice", "words"), [
     (None, ""),
     ({"chosen": 1, "predicted_physical_success": [0.4, 0.9]},  # written before records were kept
@@ -280,6 +323,13 @@ def test_a_layout_that_worked_on_the_table_is_kept_over_one_only_simulated_bette
       "expected_success": [0.804, 0.75]},
      "; of 2 layouts the one expected to succeed most often physically (0.80: predicted 0.56, worked 5 of 5 times "
      "placed)"),
+    ({"chosen": 0, "predicted_physical_success": [0.56, 0.75], "record": [[5, 5], [0, 0]],
+      "expected_success": [0.804, 0.75], "lower_quartile": [0.7318, 0.63]},
+     "; of 2 layouts the one surest to succeed often physically (expected 0.80: predicted 0.56, worked 5 of 5 "
+     "times placed; 75 % sure of 0.73)"),
+    ({"chosen": 1, "predicted_physical_success": [0.4, 0.9], "record": [[0, 0], [0, 0]],
+      "expected_success": [0.4, 0.9], "lower_quartile": [0.2, 0.86]},
+     "; of 2 layouts the one surest to succeed often physically (predicted 0.90; 75 % sure of 0.86)"),
 ])
 def test_the_choice_is_told_in_a_few_words(choice, words):
     from station.services.layout_choice import describe_choice

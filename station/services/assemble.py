@@ -450,7 +450,7 @@ def reoptimize(scenario_path: str, physics: str | Path | None, *, budget: int = 
                out: str | Path | None = None, settings=None, current: str | None = None, candidates: int = 4,
                samples: int = 16, trials=None):
     """Optimize the layout again under the physics profile ``physics`` (the calibrated one), choose among the
-    optimizer's verified candidates and the ``current`` layout (a LAYOUT.json) the one expected to succeed most often
+    optimizer's verified candidates and the ``current`` layout (a LAYOUT.json) the one surest to succeed often
     under the profile's values and intervals (:func:`station.services.layout_choice.choose_layout`, ``samples``
     simulations each) and, for the current layout, given its record in ``trials`` (default: the scenario's trials in
     the station's log), and write it (``out``, default the data folder's ``layouts/NAME-physics.json``).

@@ -4,10 +4,10 @@ check, run, log, calibrate, re-optimize.
 Used by ``station loop`` (and the bench). Per loop: the layout, its guide, and ``attempts`` attempts. The layout:
 ``station optimize``'s service gives a layout and its verified runners-up (loop 1: under the scenario's physics, its
 default budget, made once and cached; loop k > 1: under the physics profile calibrated from every trial of the loops
-before), and the loop places the one of them (and of the layouts placed before) expected to succeed most often
+before), and the loop places the one of them (and of the layouts placed before) surest to succeed often
 physically under what it knows of the physics: loop 1 the scenario's values and ranges (with ``every_material``, the
 plain numbers within default ranges too), later loops the calibrated values and intervals, and for a layout placed
-before its record in the loop's trials (:func:`station.services.layout_choice.expected_success`). The optimizer takes
+before its record in the loop's trials (:func:`station.services.layout_choice.choice_score`). The optimizer takes
 the physics as exact; a layout that works across the plausible physics, and has worked on the table, is the one to
 place.
 An attempt: the simulated maker places every
@@ -73,7 +73,7 @@ class LoopSettings:
         its default 600 20/25; see the README).
     candidates : int
         Layouts of each optimization compared by their predicted physical success (its verified candidates, best
-        first): the loop places the one expected to succeed most often under the physics it knows.
+        first): the loop places the one surest to succeed often under the physics it knows.
     prediction_weight : float
         What a predicted success is worth against a layout's record on the table, in attempts
         (:data:`station.services.layout_choice.PREDICTION_WEIGHT`).
@@ -362,7 +362,7 @@ class _Loop:
         return self.store.loop(self.run_id, k)
 
     def choose(self, options: list[dict], profile, k: int, *, world_seed: int, trials: list[dict] = ()) -> dict:
-        """The layout among ``options`` (the preferred first) expected to succeed most often physically under
+        """The layout among ``options`` (the preferred first) surest to succeed often physically under
         ``profile`` and given its record in ``trials`` (:func:`station.services.layout_choice.choose_layout`), with
         the default placement error."""
         from station.services.layout_choice import choose_layout
