@@ -18,6 +18,7 @@ from typing import Any
 
 import numpy as np
 
+from calibration.check import not_measured_names
 from calibration.errors import CalibrationError
 from calibration.sim_runs import OUTCOME_WORDS, residual_sigma
 from design.contraption.model import Scenario
@@ -147,7 +148,8 @@ def _fit_trial(trial: Mapping, scenario: Scenario, where: str) -> FitTrial:
         layout[space.names.index(name)] = float(value)
     check = trial.get("check")
     position, angle = residual_sigma(check)
-    unmeasured = _not_measured(check, space.names, where) if isinstance(check, Mapping) else ()
+    unmeasured = (not_measured_names(check, space.names, lambda m: CalibrationError(f"{where}.check.{m}"))
+                  if isinstance(check, Mapping) else ())
     outcomes = trial.get("outcomes")
     if not isinstance(outcomes, Mapping):
         raise CalibrationError(f"{where}.outcomes: expected {{event: \"yes\" | \"no\" | \"not-reached\"}}")
@@ -172,14 +174,3 @@ def _fit_trial(trial: Mapping, scenario: Scenario, where: str) -> FitTrial:
                     unmeasured)
 
 
-def _not_measured(check: Mapping, names: Sequence[str], where: str) -> tuple[str, ...]:
-    """A check's ``not_measured`` design parameters (none when the check does not say)."""
-    listed = check.get("not_measured", [])
-    if not isinstance(listed, list) or not all(isinstance(n, str) for n in listed):
-        raise CalibrationError(f"{where}.check.not_measured: expected a list of design parameter names, got "
-                               f"{listed!r}")
-    unknown = [n for n in listed if n not in names]
-    if unknown:
-        raise CalibrationError(f"{where}.check.not_measured: {unknown[0]!r} is not a design parameter (expected one "
-                               f"of {', '.join(names)})")
-    return tuple(listed)

@@ -79,13 +79,14 @@ def as_built_from_check(check: Any, scenario: Scenario, designed: np.ndarray, fi
 
 
 def not_measured(check: Any, scenario: Scenario, fail=None) -> tuple[str, ...]:
-    """A check's ``not_measured`` design parameters (none when it does not say)."""
-    listed = check.get("not_measured", []) if isinstance(check, dict) else []
-    names = scenario.design_space.names
-    if not isinstance(listed, list) or not all(isinstance(n, str) and n in names for n in listed):
-        message = f"not_measured: expected a list of design parameters of {scenario.name!r}, got {listed!r}"
-        raise (fail(message) if fail else ServiceError(f"check {message}", field="check"))
-    return tuple(listed)
+    """A check's ``not_measured`` design parameters (none when it does not say;
+    :func:`calibration.check.not_measured_names`)."""
+    from calibration.check import not_measured_names
+
+    if not isinstance(check, dict):
+        return ()
+    return not_measured_names(check, scenario.design_space.names,
+                              fail or (lambda m: ServiceError(f"check {m}", field="check")))
 
 
 def predict(scenario: str | Scenario, layout: str | None, *, physics: str | Path | None = None,

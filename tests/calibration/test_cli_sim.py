@@ -105,7 +105,7 @@ def test_predict_as_built_from_a_check(tmp_path, capsys):
     assert json.loads(capsys.readouterr().out)["placement_error"]["unmeasured"] == ["plank.roll"]
     (tmp_path / "CHECK.json").write_text(json.dumps({**check, "not_measured": ["plank.x"]}))
     assert cli.main([*argv, "--as-built", str(tmp_path / "CHECK.json")]) == 2
-    assert "not_measured: expected a list of design parameters of 'SLIDE', got ['plank.x']" in capsys.readouterr().err
+    assert "not_measured: 'plank.x' is not a design parameter (expected one of plank.roll)" in capsys.readouterr().err
     check["layout"] = {"plank.roll": 30.0}
     (tmp_path / "CHECK.json").write_text(json.dumps(check))
     assert cli.main([*argv, "--as-built", str(tmp_path / "CHECK.json")]) == 2
