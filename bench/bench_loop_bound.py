@@ -35,36 +35,47 @@ POSITION_SIGMA_M, ANGLE_SIGMA_DEG = 0.0005, 0.5  # a checked and corrected place
 BY_EYE_SIGMA_M, BY_EYE_SIGMA_DEG = 0.001, 1.0  # a part the check does not measure, placed with the highlight
 
 
+def _known_world(name: str, seed: int):
+    """``(scenario, hidden, known)``: the example scenario, world ``seed``'s hidden material values (read as no
+    station service may) and the scenario with them."""
+    from design.contraption.physics_profile import PhysicsProfile, apply_profile
+    from station.services import world as worlds
+    from station.services.trials import load_trial_scenario
+
+    scenario = load_trial_scenario(name)
+    hidden = worlds.prepare_world(worlds.open_world(f"sim://world?seed={seed}"), scenario)
+    known = apply_profile(scenario, PhysicsProfile(name=f"world {seed}'s hidden physics", values=hidden, intervals={}))
+    return scenario, hidden, known
+
+
+def _success(known, hidden, run, x: np.ndarray, n: int, draw_seed: int, *, position_sigma_m: float = POSITION_SIGMA_M,
+             angle_sigma_deg: float = ANGLE_SIGMA_DEG):
+    """The success of layout ``x`` over ``n`` simulations under the world's physics (no material draws)."""
+    from calibration.sim_predict import predict_success
+
+    return predict_success(known, x, values=hidden, position_sigma_m=position_sigma_m, angle_sigma_deg=angle_sigma_deg,
+                           samples=n, seed=draw_seed, run=run)
+
+
 def world_bound(name: str, seed: int, *, budget: int | None, candidates: int, samples: int, workers: int) -> dict:
     """The best candidate's success in world ``seed`` with its physics known: ``{"seed", "hidden", "candidates",
     "best", "success", "events", "budget"}``."""
     from design.contraption.layout_io import layout_from_data
-    from design.contraption.physics_profile import PhysicsProfile, apply_profile
     from design.robust.contraption import ContraptionProblem
     from station.services import robust
-    from station.services import world as worlds
     from station.services.layout_choice import candidate_layouts
-    from station.services.predict import predict_layout
-    from station.services.trials import load_trial_scenario
+    from station.services.sim_calibration import station_runner
 
-    scenario = load_trial_scenario(name)
-    world = worlds.open_world(f"sim://world?seed={seed}")
-    hidden = worlds.prepare_world(world, scenario)
-    profile = PhysicsProfile(name=f"world {seed}'s hidden physics", values=hidden, intervals={})
-    known = apply_profile(scenario, profile)
+    scenario, hidden, known = _known_world(name, seed)
     problem = ContraptionProblem(robust.load_problem(scenario.source).path, known)
     budget = robust.default_budget(problem, budget)
     result = robust.optimize(problem, budget, 0, robust.psp_settings("recommended"), workers=workers)
-
-    def success(x: np.ndarray, n: int, draw_seed: int):
-        return predict_layout(known, x, profile=profile, position_sigma_m=POSITION_SIGMA_M,
-                              angle_sigma_deg=ANGLE_SIGMA_DEG, samples=n, seed=draw_seed, workers=workers)
-
     layouts = [np.asarray(layout_from_data(data, known, file="<candidate>").x, dtype=float)
                for data in candidate_layouts(result.to_json(problem), candidates)]
-    scores = [success(x, 16, 1).probability for x in layouts]
-    best = int(np.argmax(scores))
-    measured = success(layouts[best], samples, 7)
+    with station_runner(workers=workers) as run:  # one pool for every layout: a pool per layout costs seconds
+        scores = [_success(known, hidden, run, x, 16, 1).probability for x in layouts]
+        best = int(np.argmax(scores))
+        measured = _success(known, hidden, run, layouts[best], samples, 7)
     return {"seed": seed, "budget": budget, "candidates": scores, "best": best, "success": measured.probability,
             "interval": list(measured.interval), "events": dict(measured.events), "hidden": hidden}
 
@@ -75,34 +86,19 @@ def world_scan(name: str, seed: int, *, layouts: int, scan_samples: int, top: in
     keys; ``"budget"`` is the simulations spent, ``"candidates"`` the top layouts' fresh measurements)."""
     from scipy.stats import qmc
 
-    from calibration.sim_predict import predict_success
-    from design.contraption.physics_profile import PhysicsProfile, apply_profile
-    from station.services import world as worlds
     from station.services.sim_calibration import station_runner
-    from station.services.trials import load_trial_scenario
 
-    scenario = load_trial_scenario(name)
-    world = worlds.open_world(f"sim://world?seed={seed}")
-    hidden = worlds.prepare_world(world, scenario)
-    profile = PhysicsProfile(name=f"world {seed}'s hidden physics", values=hidden, intervals={})
-    known = apply_profile(scenario, profile)
+    _, hidden, known = _known_world(name, seed)
     space = known.design_space
     lower, upper = np.asarray(space.lower, dtype=float), np.asarray(space.upper, dtype=float)
-    u = qmc.Sobol(d=len(lower), scramble=True, seed=seed).random(layouts)
-    xs = lower + u * (upper - lower)
-
-    with station_runner(workers=workers) as run:  # one pool for every layout: a pool per layout costs seconds
-
-        def success(x: np.ndarray, n: int, draw_seed: int):
-            return predict_success(known, x, values=hidden, position_sigma_m=POSITION_SIGMA_M,
-                                   angle_sigma_deg=ANGLE_SIGMA_DEG, samples=n, seed=draw_seed, run=run)
-
-        screened = np.array([success(x, scan_samples, 1).probability for x in xs])
+    xs = lower + qmc.Sobol(d=len(lower), scramble=True, seed=seed).random(layouts) * (upper - lower)
+    with station_runner(workers=workers) as run:
+        screened = np.array([_success(known, hidden, run, x, scan_samples, 1).probability for x in xs])
         order = np.argsort(-screened, kind="stable")[:top]
-        measured = [success(xs[i], samples, 7) for i in order]
+        measured = [_success(known, hidden, run, xs[i], samples, 7) for i in order]
         best = int(np.argmax([m.probability for m in measured]))
-        by_eye = predict_success(known, xs[order[best]], values=hidden, position_sigma_m=BY_EYE_SIGMA_M,
-                                 angle_sigma_deg=BY_EYE_SIGMA_DEG, samples=samples, seed=11, run=run)
+        by_eye = _success(known, hidden, run, xs[order[best]], samples, 11, position_sigma_m=BY_EYE_SIGMA_M,
+                          angle_sigma_deg=BY_EYE_SIGMA_DEG)
     return {"seed": seed, "budget": layouts * scan_samples + top * samples,
             "candidates": [m.probability for m in measured], "best": int(order[best]),
             "success": measured[best].probability, "interval": list(measured[best].interval),

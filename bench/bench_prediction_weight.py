@@ -24,8 +24,9 @@ from pathlib import Path
 
 import numpy as np
 
-#: Predictions of exactly 0 or 1 give a degenerate prior; they are held this far inside.
-EDGE = 0.01
+# Predictions of exactly 0 or 1 give a degenerate prior: held as far inside as the loop's choice holds them.
+from station.services.layout_choice import PREDICTION_EDGE as EDGE
+
 GRID = (1.0, 2.0, 4.0, 8.0, 16.0, 64.0, 1e6)
 
 

@@ -165,13 +165,14 @@ def as_built_values(check: Mapping, fail: Callable[[str], Exception]) -> dict[st
     return values
 
 
-def not_measured_names(check: Mapping, names: Sequence[str], fail: Callable[[str], Exception]) -> tuple[str, ...]:
+def not_measured_names(check: Mapping | None, names: Sequence[str],
+                       fail: Callable[[str], Exception]) -> tuple[str, ...]:
     """A CHECK.json content's ``not_measured``: the design parameters (of ``names``) the check did not measure (none
-    when the check does not say).
+    when there is no check or it does not say).
 
     ``fail(message)`` makes the error raised for a malformed list (``not_measured: ...``).
     """
-    listed = check.get("not_measured", [])
+    listed = check.get("not_measured", []) if isinstance(check, Mapping) else []
     if not isinstance(listed, list) or not all(isinstance(n, str) for n in listed):
         raise fail(f"not_measured: expected a list of design parameter names, got {listed!r}")
     unknown = [n for n in listed if n not in names]

@@ -148,8 +148,7 @@ def _fit_trial(trial: Mapping, scenario: Scenario, where: str) -> FitTrial:
         layout[space.names.index(name)] = float(value)
     check = trial.get("check")
     position, angle = residual_sigma(check)
-    unmeasured = (not_measured_names(check, space.names, lambda m: CalibrationError(f"{where}.check.{m}"))
-                  if isinstance(check, Mapping) else ())
+    unmeasured = not_measured_names(check, space.names, lambda m: CalibrationError(f"{where}.check.{m}"))
     outcomes = trial.get("outcomes")
     if not isinstance(outcomes, Mapping):
         raise CalibrationError(f"{where}.outcomes: expected {{event: \"yes\" | \"no\" | \"not-reached\"}}")

@@ -32,8 +32,9 @@ import numpy as np
 
 from common.progress import ProgressCallback
 
-__all__ = ["CHOICE_QUANTILE", "PREDICTION_WEIGHT", "candidate_layouts", "choice_score", "choose_layout",
-           "describe_choice", "distinct_layouts", "expected_success", "layout_record", "layout_records", "same_layout"]
+__all__ = ["CHOICE_QUANTILE", "PREDICTION_EDGE", "PREDICTION_WEIGHT", "candidate_layouts", "choice_score",
+           "choose_layout", "describe_choice", "distinct_layouts", "expected_success", "layout_record",
+           "layout_records", "same_layout"]
 
 #: What a predicted success is worth, in attempts on the table (the strength of the Beta prior it centres). Fitted
 #: by ``bench/bench_prediction_weight.py`` to the bench loops' 103 layouts of five attempts each (4.4; 1: 247 of
@@ -44,7 +45,7 @@ PREDICTION_WEIGHT = 4.0
 CHOICE_QUANTILE = 0.25
 
 #: Predictions of exactly 0 or 1 would give a degenerate Beta prior; they are held this far inside.
-_EDGE = 0.01
+PREDICTION_EDGE = 0.01
 
 
 def candidate_layouts(payload: dict, limit: int) -> list[dict]:
@@ -134,7 +135,7 @@ def choice_score(predicted: float, successes: int = 0, attempts: int = 0, weight
     attempts (held 0.01 inside 0 and 1) updated by its record (``successes`` of ``attempts``)."""
     from scipy.stats import beta
 
-    p = min(max(float(predicted), _EDGE), 1.0 - _EDGE)
+    p = min(max(float(predicted), PREDICTION_EDGE), 1.0 - PREDICTION_EDGE)
     return float(beta.ppf(quantile, weight * p + successes, weight * (1.0 - p) + attempts - successes))
 
 
@@ -207,12 +208,11 @@ def describe_choice(chosen: dict) -> str:
     expected = float(choice.get("expected_success", choice["predicted_physical_success"])[i])
     successes, attempts = choice.get("record", [[0, 0]] * (i + 1))[i]
     count = len(choice["predicted_physical_success"])
+    why = f"predicted {predicted:.2f}"
     if attempts:
-        why = f"{expected:.2f}: predicted {predicted:.2f}, worked {successes} of {attempts} times placed"
-    else:
-        why = f"predicted {predicted:.2f}"
-    if "lower_quartile" in choice:
-        why = why if not attempts else f"expected {why}"
-        return (f"; of {count} layouts the one surest to succeed often physically ({why}; "
-                f"75 % sure of {float(choice['lower_quartile'][i]):.2f})")
-    return f"; of {count} layouts the one expected to succeed most often physically ({why})"
+        why = f"{expected:.2f}: {why}, worked {successes} of {attempts} times placed"
+    if "lower_quartile" not in choice:  # chosen by the mean, before the quartile
+        return f"; of {count} layouts the one expected to succeed most often physically ({why})"
+    sure = f"{(1.0 - CHOICE_QUANTILE) * 100:g} % sure of {float(choice['lower_quartile'][i]):.2f}"
+    return (f"; of {count} layouts the one surest to succeed often physically "
+            f"({'expected ' if attempts else ''}{why}; {sure})")

@@ -83,8 +83,6 @@ def not_measured(check: Any, scenario: Scenario, fail=None) -> tuple[str, ...]:
     :func:`calibration.check.not_measured_names`)."""
     from calibration.check import not_measured_names
 
-    if not isinstance(check, dict):
-        return ()
     return not_measured_names(check, scenario.design_space.names,
                               fail or (lambda m: ServiceError(f"check {m}", field="check")))
 
@@ -187,7 +185,7 @@ def predict_trial(scenario: Scenario, trial: Mapping[str, Any], *, samples: int 
     if trial.get("physics"):
         profile = profile_from_text(trial["physics"]["content"], trial["physics"].get("name") or "<profile>")
         scenario = apply_profile(scenario, profile)
-    unmeasured = not_measured(trial["check"], scenario) if trial.get("check") else ()
+    unmeasured = not_measured(trial.get("check"), scenario)
     position, angle = residual_sigma(trial.get("check"))
     return predict_layout(scenario, x, profile=profile, position_sigma_m=position, angle_sigma_deg=angle,
                           unmeasured=unmeasured, samples=samples, seed=seed, progress=progress,
