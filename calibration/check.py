@@ -29,8 +29,8 @@ import numpy as np
 from projector.drawing import placement_deltas
 from projector.guide import Guide, PartDrawing
 
-__all__ = ["CHECK_FORMAT", "CheckReport", "PartCheck", "check_parts", "instruction", "part_tags",
-           "reference_tags", "residual_error"]
+__all__ = ["CHECK_FORMAT", "LAYOUT_DECIMALS", "CheckReport", "PartCheck", "check_parts", "instruction", "part_tags",
+           "reference_tags", "residual_error", "same_layout_value"]
 
 CHECK_FORMAT = "chaos-station check"
 CHECK_VERSION = 1
@@ -181,8 +181,20 @@ def not_measured_names(check: Mapping | None, names: Sequence[str],
     return tuple(listed)
 
 
+#: CHECK.json writes layout values to this many decimals (metres and degrees: a micrometre, a millionth of a degree).
+LAYOUT_DECIMALS = 6
+
+
 def _values(values: dict[str, float]) -> dict[str, float]:
-    return {k: round(float(v), 6) + 0.0 for k, v in values.items()}
+    return {k: round(float(v), LAYOUT_DECIMALS) + 0.0 for k, v in values.items()}
+
+
+def same_layout_value(checked: float, value: float) -> bool:
+    """Whether ``checked`` (a CHECK.json's ``layout`` value, written to :data:`LAYOUT_DECIMALS`) is ``value`` (a
+    layout's, at full precision) as the check wrote it: equal after the same rounding, give or take the float's own
+    last digit."""
+    rounded = round(float(value), LAYOUT_DECIMALS)
+    return abs(float(checked) - rounded) <= 1e-12 * max(1.0, abs(rounded))
 
 
 def reference_tags(guide: Guide) -> list[tuple[int, tuple[float, float], float]]:

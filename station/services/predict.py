@@ -61,15 +61,15 @@ def as_built_from_check(check: Any, scenario: Scenario, designed: np.ndarray, fi
         raise fail(f"version: expected 1, got {check.get('version')!r}")
     if check.get("scenario") != scenario.name:
         raise fail(f"is a check of scenario {check.get('scenario')!r}, not of {scenario.name!r}")
+    from calibration.check import as_built_values, same_layout_value
+
     space = scenario.design_space
     checked = check.get("layout") or {}
     for name, value in checked.items() if isinstance(checked, dict) else ():
         if name in space.names and isinstance(value, (int, float)):
             i = space.names.index(name)
-            if abs(float(value) - designed[i]) > 1e-6 * max(1.0, abs(designed[i])):
+            if not same_layout_value(value, designed[i]):
                 raise fail(f"is a check of another layout ({name} = {value:g} there, {designed[i]:g} here)")
-    from calibration.check import as_built_values
-
     built = designed.astype(float).copy()
     for name, value in as_built_values({"as_built": {}, **check}, fail).items():
         if name not in space.names:

@@ -40,10 +40,6 @@ CHECK_FORMAT, CHECK_VERSION = "chaos-station check", 1
 #: A physics profile (CONTRACT20), as simulator calibration writes it.
 PHYSICS_FORMAT, PHYSICS_VERSION = "chaos-station physics", 1
 
-#: Two layout values this close are the same (JSON numbers survive a round trip exactly; this allows a rounding).
-SAME_VALUE = 1e-9
-
-
 def open_store(url: str | None = None) -> TrialStore:
     """The station's trial log (:func:`station.db.database_url` unless ``url`` is given)."""
     return TrialStore(url)
@@ -119,10 +115,6 @@ def parse_times(items: Iterable[str]) -> dict[str, float]:
     return times
 
 
-def _same(a: float, b: float) -> bool:
-    return abs(a - b) <= SAME_VALUE * max(1.0, abs(a), abs(b))
-
-
 def read_as_built(path: str | Path, scenario: Scenario, layout: Mapping[str, float]) -> tuple[dict, dict | None]:
     """``(as_built values, check or None)`` from a CHECK.json (of this scenario and this layout) or a layout file.
 
@@ -154,18 +146,19 @@ def read_as_built(path: str | Path, scenario: Scenario, layout: Mapping[str, flo
         raise fail(f"content_hash: a check of another scenario ({data.get('scenario')!r}, "
                    f"{str(data.get('content_hash'))[:12]}...); this trial is of {scenario.name} "
                    f"({scenario.content_hash[:12]}...)")
+    from calibration.check import as_built_values, same_layout_value
+
     checked = data.get("layout")
     if not isinstance(checked, dict):
         raise fail(f"layout: expected {{parameter: value}}, got {checked!r:.40}")
     for name, value in layout.items():
         other = checked.get(name)
-        if isinstance(other, bool) or not isinstance(other, (int, float)) or not _same(float(other), value):
+        if isinstance(other, bool) or not isinstance(other, (int, float)) or not same_layout_value(other, value):
             raise fail(f"layout.{name}: a check of another layout ({other!r} checked, {value!r} in this trial's "
                        "layout)")
     extra = sorted(set(checked) - set(layout))
     if extra:
         raise fail(f"layout.{extra[0]}: not a parameter of {scenario.name}; a check of another layout")
-    from calibration.check import as_built_values
 
     built = as_built_values(data, fail)
     values = {}

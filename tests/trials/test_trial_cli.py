@@ -212,3 +212,24 @@ def test_import_refuses_a_bad_file_in_one_line_and_adds_nothing(tmp_path, capsys
     line = _refused(capsys, "trial", "import", str(out))
     assert f"{out}: {field}" in line
     assert len(json.loads(run_cli(capsys, "trial", "list", "--json")[1])) == 1
+
+
+def test_the_check_of_an_optimized_layout_feeds_the_trial_log(tmp_path, capsys):
+    # The optimizer writes LAYOUT.json at full precision, CHECK.json writes the layout to six decimals: the check
+    # of that very layout is accepted by the trial log and by the prediction.
+    layout, check = str(tmp_path / "layout.json"), str(tmp_path / "check.json")
+    code, _, err = run_cli(capsys, "optimize", "simple", "--budget", "20", "--seed", "1", "--out", layout)
+    assert code == 0, err
+    values = {p["name"]: p["value"] for p in json.loads((tmp_path / "layout.json").read_text())["parameters"]}
+    assert any(round(v, 6) != v for v in values.values())  # the case at hand: values a rounding changes
+    code, _, err = run_cli(capsys, "check", "simple", layout, "--camera", "sim://camera", "--sim-offset",
+                           "track=2,-1", "--predict", "0", "--out", check)
+    assert code == 0, err
+    code, out, err = run_cli(capsys, "trial", "log", "simple", layout, "--as-built", check,
+                             "--outcome", "last_stops=yes", "--predict", "0", "--json")
+    assert code == 0, err
+    code, out, err = run_cli(capsys, "trial", "show", str(json.loads(out)["id"]), "--json")
+    built = json.loads(out)["as_built"]
+    assert abs(built["track.x"] - (values["track.x"] + 0.002)) < 0.0005  # the check's measurement, not the design
+    code, _, err = run_cli(capsys, "predict", "simple", layout, "--as-built", check, "--samples", "2")
+    assert code == 0, err
