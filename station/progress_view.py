@@ -118,8 +118,8 @@ class ProgressView:
         """End the bars (``clear``: remove them, e.g. before a refusal's one line)."""
         with self._lock:
             if self._rich is not None:
-                if clear:
-                    self._rich.transient = True
+                if clear:  # the live display's own flag: rich's Progress only passes its own to it when made
+                    self._rich.live.transient = True
                 self._rich.stop()
                 self._rich = None
                 self._task = None

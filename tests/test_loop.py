@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import json
 import os
+import re
 import signal
 import sqlite3
 import subprocess
@@ -149,6 +150,103 @@ def test_bad_loop_arguments_are_one_line(tmp_path, station_home):
         assert result.returncode == 2, (extra, result.stderr)
         lines = result.stderr.strip().splitlines()
         assert len(lines) == 1 and words in lines[0], (extra, result.stderr)
+
+
+#: A loop whose maker places badly enough (8 mm, 8 deg) and whose optimization is good enough (80) for the check to
+#: have parts moved; small everywhere else.
+SAID = ["--world", "sim://world?seed=2&place_mm=8&place_deg=8", "--attempts", "3", "--loops", "2", "--budget", "80",
+        "--reoptimize-budget", "20", "--candidates", "2", "--rounds", "2", "--baseline", "1", "--predict-samples", "3",
+        "--fit-draws", "1", "--fit-sobol", "4", "--fit-rounds", "0", "--workers", "1"]
+ATTEMPT_LINE = re.compile(r"^(?:loop (\d+)|baseline), attempt (\d+) \(trial (\d+)\): (.*); ran: (success|failed.*)$")
+
+
+def test_the_loop_says_each_stage_and_attempt_in_short_lines(tmp_path, station_home):
+    """Every progress line names the loop and what it does (calibrating, re-optimizing, choosing among candidate
+    layouts); every attempt has a line saying what the check had corrected and how the run went, matching the
+    trial it logged; no line is longer than 120 characters, the physics a table of its own."""
+    database = tmp_path / "said.sqlite3"
+    env = {**os.environ, "PYTHONPATH": str(ROOT), "CHAOS_STATION_HOME": str(station_home),
+           "CHAOS_STATION_DATABASE": str(database)}
+    result = subprocess.run([sys.executable, "-m", "station", "loop", "simple", *SAID], cwd=ROOT, env=env,
+                            capture_output=True, text=True, timeout=600)
+    assert result.returncode == 0, result.stderr[-2000:]
+    progress = result.stderr.splitlines()
+    assert progress and all(re.match(r"(loop \d+|baseline)\b", line) for line in progress), progress
+    assert any(line.startswith("loop 1: optimizing the layout (exploration): ") for line in progress)
+    assert any(line.startswith("loop 2: calibrating the simulator from 3 trials: ") and line.endswith(" simulations")
+               for line in progress)
+    assert any(line.startswith("loop 2: re-optimizing the layout for the calibrated physics (") for line in progress)
+    assert "loop 1: choosing the layout to place: 2/2 candidate layouts" in progress
+    assert any(line.startswith("loop 2, attempt 3: predicting its physical success as checked: ") for line in progress)
+
+    lines = result.stdout.splitlines()
+    assert max(len(line) for line in lines) <= 120, max(lines, key=len)
+    said = {}
+    for line in lines:
+        match = ATTEMPT_LINE.match(line)
+        if match:
+            loop, attempt, trial, check, ran = match.groups()
+            said[int(loop or 0), int(attempt)] = (int(trial), check, ran == "success")
+    assert sorted(said) == [(0, 1), (1, 1), (1, 2), (1, 3), (2, 1), (2, 2), (2, 3)]
+    connection = sqlite3.connect(database)
+    try:
+        stored = connection.execute("SELECT a.loop_number, a.attempt, a.trial_id, a.success, a.check_rounds, t.notes "
+                                    "FROM loop_attempts a JOIN trials t ON t.id = a.trial_id").fetchall()
+    finally:
+        connection.close()
+    moved = 0
+    for loop, attempt, trial, success, rounds, notes in stored:
+        line_trial, check, line_success = said[loop, attempt]
+        assert (line_trial, line_success) == (trial, bool(success))
+        if loop == 0:
+            assert check == "placed from the printed sheet, not checked"
+        elif rounds:  # the parts the check had moved, and in the trial's notes the check's own words for them
+            moved += 1
+            assert re.fullmatch(r"the check had `track` (moved \d+\.\d mm( and turned \d+\.\d deg)?|turned "
+                                r"\d+\.\d deg)( in \d rounds)?", check), check
+            assert "the maker corrected as the check said" in notes and "move `track`" in notes, notes
+        else:
+            assert check == "the check found every part within its tolerance"
+    assert moved, "no attempt needed a correction: the test shows no correction line"
+    # each loop's figures: its successes are its attempts' lines', its physics a table of name-value cells
+    for k in (1, 2):
+        (summary,) = [line for line in lines if line.startswith(f"loop {k}: ") and "attempts succeeded" in line]
+        successes = int(summary.split(": ")[1].split(" of ")[0])
+        assert successes == sum(ok for (loop, _), (_, _, ok) in said.items() if loop == k)
+    table = [line for line in lines if re.match(r"^    \w+\.\w+ +[-\d.e]+", line)]
+    assert sum("domino.angular_damping" in line for line in table) == 2  # in both loops' tables
+
+
+def test_a_loops_progress_and_attempts_are_said_in_its_words():
+    """An optimizer's or calibration's progress is labelled with what the loop is doing, its own figures kept; an
+    attempt's corrections are each part's moves over its rounds, summed, in the check's words."""
+    from common.progress import Progress
+    from design.robust.budget import Progress as RobustProgress
+    from station.services.loop import AttemptReport, _corrections, labelled
+
+    phase = labelled(RobustProgress("exploration", 4, 20, cv_accuracy=0.8, best_psp=0.5), "loop 2: re-optimizing")
+    assert (phase.stage, phase.done, phase.total, phase.cv_accuracy, phase.unit) == (
+        "loop 2: re-optimizing (exploration)", 4, 20, 0.8, "simulations")
+    fit = labelled(Progress("simulations", 12, 216), "loop 2: calibrating the simulator from 5 trials")
+    assert (fit.stage, fit.done, fit.total, fit.unit) == ("loop 2: calibrating the simulator from 5 trials", 12, 216,
+                                                           "simulations")
+    assert labelled(RobustProgress("check", 1, 2), "loop 1: optimizing").stage == \
+        "loop 1: optimizing (verifying its best layouts)"
+
+    # a move is designed minus measured: +u is to the maker's right; two rounds on the track add up
+    rounds = [[{"name": "track", "du_mm": 2.0, "dv_mm": 1.0, "dheading_deg": -3.0},
+               {"name": "plank", "du_mm": 0.0, "dv_mm": 0.0, "dheading_deg": 4.0}],
+              [{"name": "track", "du_mm": 1.0, "dv_mm": 3.0, "dheading_deg": 0.0}]]
+    track, plank = _corrections(rounds, "top")
+    assert (track.name, track.distance_mm, track.turn_deg) == ("track", pytest.approx(5.0), pytest.approx(-3.0))
+    assert track.instruction == "move `track` 3.0 mm right and 4.0 mm away from you, turn it 3.0 deg clockwise"
+    assert plank.instruction == "turn `plank` 4.0 deg counter-clockwise"
+    report = AttemptReport(1, 3, 12, False, True, (track, plank), rounds=2, left=("plank",), failed_at="last_stops")
+    assert report.describe() == ("loop 1, attempt 3 (trial 12): the check had `track` moved 5.0 mm and turned "
+                                 "3.0 deg, `plank` turned 4.0 deg in 2 rounds; still out of tolerance: `plank`; "
+                                 "ran: failed (`last_stops` did not happen)")
+    assert report.correction_words().startswith("the maker corrected as the check said (2 rounds): move `track` 3.0 "
+                                                "mm right")
 
 
 def _payload(kept_u, rows):

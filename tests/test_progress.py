@@ -54,3 +54,14 @@ def test_terminal_form_draws_a_bar():
         view.note("a note")
     text = out.getvalue()
     assert "build half" in text and "a note" in text
+
+
+@pytest.mark.parametrize("clear", [False, True])
+def test_closing_with_clear_erases_the_bars_on_a_terminal(clear):
+    """close(clear=True) takes the bars off the screen (a line said after them reads alone); close() leaves them."""
+    out = io.StringIO()
+    view = ProgressView(out, tty=True)
+    view(Progress("stage one", 1, 4))
+    view.close(clear=clear)
+    erase = "\x1b[1A\x1b[2K"  # the cursor up a line, the line erased
+    assert out.getvalue().endswith(erase) == clear

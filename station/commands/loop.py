@@ -1,12 +1,20 @@
-"""``station loop``: the whole station loop, unattended, on the simulated world (issue 21)."""
+"""``station loop``: the whole station loop, unattended, on the simulated world.
+
+What it prints is read by a maker: a line per attempt (what the check found and the simulated maker corrected, how
+the run went), then per loop a few short lines and its physics as a small table; every line fits 120 columns.
+"""
 
 from __future__ import annotations
 
 import sys
+import textwrap
 
 from station.cli_util import emit_json, flag_error
-from station.commands.robust import add_command, command
+from station.commands.robust import ProgressBar, add_command, command
 from station.services.errors import ServiceError
+
+#: The longest line the loop prints (a 120-column terminal; a longer line is wrapped, its rest indented).
+WIDTH = 118
 
 _FLAGS = {"attempts": "--attempts", "loops": "--loops", "budget": "--budget",
           "reoptimize_budget": "--reoptimize-budget", "candidates": "--candidates",
@@ -90,8 +98,64 @@ def register(subparsers) -> None:
     parser.add_argument("--json", action="store_true", help="print the figures as JSON")
 
 
-def _physics(values) -> str:
-    return ", ".join(f"{k} {v:.3g}" for k, v in values.items()) or "none uncertain"
+class LoopBar(ProgressBar):
+    """The robust commands' bar saying ``stage: done/total unit`` on a terminal too: a loop's stage is a phrase
+    ("loop 2: calibrating the simulator from 5 trials") and what it counts changes from stage to stage."""
+
+    def _describe(self, progress) -> str:
+        unit = getattr(progress, "unit", "simulations")
+        counts = f" {progress.done:g}/{progress.total:g} {unit}" if progress.total else ""
+        return f"{progress.stage}:{counts}"
+
+
+def wrapped(lines) -> list[str]:
+    """``lines`` each within :data:`WIDTH`, a long one's rest indented two spaces more than it."""
+    out = []
+    for line in lines:
+        indent = " " * (len(line) - len(line.lstrip(" ")) + 2)
+        out += textwrap.wrap(line, WIDTH, subsequent_indent=indent, break_on_hyphens=False) or [""]
+    return out
+
+
+def physics_table(values, indent: str = "    ") -> list[str]:
+    """The material values as a compact table: ``name value`` cells, as many a line as fit."""
+    if not values:
+        return [f"{indent}none uncertain"]
+    name_width = max(len(name) for name in values)
+    cells = [f"{name:<{name_width}}  {value:<8.3g}" for name, value in values.items()]
+    per_line = max(1, (WIDTH - len(indent)) // (len(cells[0]) + 3))
+    return [indent + "   ".join(cells[i:i + per_line]).rstrip() for i in range(0, len(cells), per_line)]
+
+
+def loop_lines(summary) -> list[str]:
+    """A loop's figures in short lines: its success rate, the predicted physical success, why its layout was
+    placed, the corrections, and its physics as a table."""
+    lo, hi = summary.interval
+    lines = [f"loop {summary.loop}: {summary.successes} of {summary.attempts} attempts succeeded: success rate "
+             f"{summary.success_rate:.2f} (95 % {lo:.2f} to {hi:.2f})"]
+    predicted, forecast = summary.predicted_success, summary.forecast_success
+    if predicted is not None:
+        record = ("" if forecast is None or abs(forecast - predicted) < 5e-3
+                  else f"; {forecast:.2f} with the layout's record")
+        lines.append(f"  predicted physical success on the table: {predicted:.2f} (the attempts' mean, as checked)"
+                     f"{record}")
+    if summary.choice:
+        lines.append(f"  layout placed: {summary.choice.removeprefix('; ')}")
+    lines.append(f"  corrections: {summary.check_rounds:.1f} per attempt after the first check")
+    physics = summary.physics_name or "the scenario's values and ranges (before any trial)"
+    lines.append(f"  physics: {physics}")
+    return wrapped(lines) + physics_table(summary.physics)
+
+
+def baseline_lines(result) -> list[str]:
+    """The baseline's figures in short lines."""
+    from calibration.sim_runs import wilson_interval
+
+    lo, hi = wilson_interval(result.baseline_successes, result.baseline_attempts)
+    return wrapped([f"baseline: {result.baseline_successes} of {result.baseline_attempts} attempts succeeded: "
+                    f"success rate {result.baseline_rate:.2f} (95 % {lo:.2f} to {hi:.2f})",
+                    "  the thesis's workflow: the optimized layout placed from the printed sheet, no check, no "
+                    "calibration"])
 
 
 @command
@@ -108,30 +172,25 @@ def run_loop(args) -> int:
                             fit_prior_width=args.fit_prior_width, camera=args.camera,
                             settings=args.settings, workers=args.workers, scheduler=args.scheduler)
     out = sys.stderr if args.json else sys.stdout
+    # the command's own bar (the wrapper closes whichever args.bar holds)
+    args.bar = LoopBar()
 
-    def said(summary) -> None:
-        args.bar.close()
-        lo, hi = summary.interval
-        predicted, forecast = summary.predicted_success, summary.forecast_success
-        with_record = ("" if forecast is None or predicted is None or abs(forecast - predicted) < 5e-3
-                       else f", {forecast:.2f} with its record")
-        print(f"loop {summary.loop}: {summary.attempts} attempts, {summary.successes} successes: success rate "
-              f"{summary.success_rate:.2f} (95 % {lo:.2f} to {hi:.2f}), predicted "
-              f"{'-' if predicted is None else f'{predicted:.2f}'}{with_record}; {summary.check_rounds:.1f} "
-              f"corrections per attempt; physics: {summary.physics_name or 'the scenario'} "
-              f"({_physics(summary.physics)}){summary.choice}", file=out)
+    def say(lines) -> None:
+        # the bars of the work said go (on a terminal), so the lines read as the run's record
+        args.bar.close(clear=True)
+        print("\n".join(lines), file=out, flush=True)
 
     try:
         result = run(args.scenario, args.world, settings, progress=args.bar, should_stop=args.stop.is_set,
-                     on_loop=said)
+                     on_loop=lambda summary: say(loop_lines(summary)),
+                     on_attempt=lambda attempt: say(wrapped([attempt.describe()])))
     except ServiceError as error:
         raise flag_error(error, _FLAGS) from None
-    args.bar.close()
+    args.bar.close(clear=True)
     if result.baseline_attempts:
-        print(f"baseline (optimized layout, printed sheet, no check, no calibration): {result.baseline_attempts} "
-              f"attempts, {result.baseline_successes} successes: success rate {result.baseline_rate:.2f}", file=out)
-    print(f"run {result.run_id} in the station database; its trials are in the trial log (station trial list "
-          f"--scenario {result.scenario!r})", file=out)
+        say(baseline_lines(result))
+    say(wrapped([f"run {result.run_id} in the station database; its trials are in the trial log (station trial "
+                 f"list --scenario {result.scenario!r})"]))
     if args.json:
         emit_json(result.to_json())
     return 0

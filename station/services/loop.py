@@ -1,5 +1,5 @@
-"""The whole station loop on the simulated world, unattended (issue 21; thesis 5.2.3): optimize, guide, place,
-check, run, log, calibrate, re-optimize.
+"""The whole station loop on the simulated world, unattended (thesis 5.2.3): optimize, guide, place, check, run, log,
+calibrate, re-optimize.
 
 Used by ``station loop`` (and the bench). Per loop: the layout, its guide, and ``attempts`` attempts. The layout:
 ``station optimize``'s service gives a layout and its verified runners-up (loop 1: under the scenario's physics, its
@@ -23,6 +23,13 @@ station would tell the maker before the attempt. The **baseline** is the thesis'
 in the same world: the optimizer's own loop-1 layout placed from the printed sheet (no highlight), no check, no
 calibration.
 
+What it says is for a maker: every progress stage names the loop and what it does in their words ("loop 2:
+calibrating the simulator from 5 trials", "loop 2: re-optimizing the layout for the calibrated physics
+(exploration)", "loop 1: choosing the layout to place" counting candidate layouts), the work it calls (optimizer,
+calibration, predictions) reported under those words (:func:`labelled`); and each attempt ends with an
+:class:`AttemptReport`: what the check had the maker correct, and how the run went (the trial's notes keep the
+check's own words for it).
+
 Everything is in the station database (:mod:`station.loopstore`): a run is keyed by its arguments, every random
 draw is seeded by the world seed, the loop, the attempt and the round, and a loop's layout and profile are stored
 when made, so a second run with the same arguments resumes where the first stopped and ends with the same figures.
@@ -34,7 +41,7 @@ import json
 import math
 import tempfile
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -44,7 +51,8 @@ from common.progress import Progress, ProgressCallback, Reporter
 from station.services.errors import ServiceError
 from station.services.layout_choice import PREDICTION_WEIGHT, describe_choice
 
-__all__ = ["AttemptProgress", "LoopResult", "LoopSettings", "LoopSummary", "record_forecasts", "run_loop"]
+__all__ = ["AttemptReport", "Correction", "LoopProgress", "LoopResult", "LoopSettings", "LoopSummary", "labelled",
+           "record_forecasts", "run_loop"]
 
 #: The world's attempt numbers: loop k's attempt a is ``k * ATTEMPT_BLOCK + a`` (the baseline is loop 0).
 ATTEMPT_BLOCK = 1000
@@ -232,10 +240,143 @@ class LoopResult:
 
 
 @dataclass(frozen=True)
-class AttemptProgress(Progress):
-    """Progress of a loop's attempts (its unit said by the CLI's bar)."""
+class LoopProgress(Progress):
+    """Progress of the loop: its stage says, in the maker's words, which loop and what it does ("loop 2:
+    calibrating the simulator from 5 trials"); ``unit`` what ``done`` and ``total`` count (said by the CLI's bar)."""
 
     unit: str = "attempts"
+
+
+#: The optimizer's phases where the loop's words would be ambiguous ("check" is the camera's in the loop).
+_OPTIMIZER_PHASES = {"check": "verifying its best layouts"}
+
+
+def labelled(progress: Progress, words: str) -> Progress:
+    """``progress`` of work the loop called (an optimization, a calibration, a prediction) under the loop's
+    ``words``: the work's own stage kept in parentheses when it says more than its unit ("exploration"), its type
+    and figures kept (a robust run's CV accuracy)."""
+    unit = getattr(progress, "unit", "simulations")
+    own = _OPTIMIZER_PHASES.get(progress.stage, progress.stage)
+    stage = words if own in ("", unit, "simulations") else f"{words} ({own})"
+    if hasattr(progress, "unit"):
+        return replace(progress, stage=stage)
+    return LoopProgress(stage, progress.done, progress.total, progress.message, unit="simulations")
+
+
+@dataclass(frozen=True)
+class Correction:
+    """What the check had the maker do to one part over an attempt's rounds (each round's moves summed).
+
+    Attributes
+    ----------
+    name : str
+    distance_mm, turn_deg : float
+        How far it was moved on the sheet and turned (the turn signed, counter-clockwise positive).
+    instruction : str
+        The same in the check's own words (:func:`calibration.check.instruction`: which way to move and turn).
+    """
+
+    name: str
+    distance_mm: float
+    turn_deg: float
+    instruction: str
+
+    def short(self) -> str:
+        """``"`track` moved 2.1 mm and turned 4.0 deg"`` (a negligible move or turn left out)."""
+        from calibration.check import NEGLIGIBLE_DEG, NEGLIGIBLE_MM
+
+        did = []
+        if self.distance_mm >= NEGLIGIBLE_MM:
+            did.append(f"moved {self.distance_mm:.1f} mm")
+        if abs(self.turn_deg) >= NEGLIGIBLE_DEG:
+            did.append(f"turned {abs(self.turn_deg):.1f} deg")
+        return f"`{self.name}` " + (" and ".join(did) or "nudged")
+
+
+@dataclass(frozen=True)
+class AttemptReport:
+    """One attempt in a line of its own (:meth:`describe`): what the check found and the simulated maker corrected,
+    and how the run went.
+
+    Attributes
+    ----------
+    loop, attempt, trial_id : int
+        Loop 0 is the baseline; ``trial_id`` the trial it logged.
+    success : bool
+    checked : bool
+        Placed with the highlight and checked (False: the baseline, from the printed sheet).
+    corrections : tuple of Correction or None
+        Per part the check had moved or turned, in the order first asked; None for an attempt logged by an earlier
+        run of the same loop (its trial's notes say).
+    rounds : int
+        Corrections made (each followed by another check).
+    left : tuple of str
+        Parts still out of their tolerance after the last correction allowed.
+    failed_at : str or None
+        The first event of the scenario that did not happen in a failed run.
+    """
+
+    loop: int
+    attempt: int
+    trial_id: int
+    success: bool
+    checked: bool
+    corrections: tuple[Correction, ...] | None
+    rounds: int = 0
+    left: tuple[str, ...] = ()
+    failed_at: str | None = None
+
+    def _check(self, full: bool) -> str:
+        if self.corrections is None:
+            return f"logged by an earlier run (`station trial show {self.trial_id}` says what was corrected)"
+        if not self.checked:
+            return "placed from the printed sheet, not checked"
+        if not self.corrections:
+            words = "the check found every part within its tolerance"
+        elif full:
+            rounds = f" ({self.rounds} rounds)" if self.rounds > 1 else ""
+            words = (f"the maker corrected as the check said{rounds}: "
+                     f"{'; '.join(c.instruction for c in self.corrections)}")
+        else:
+            rounds = f" in {self.rounds} rounds" if self.rounds > 1 else ""
+            words = f"the check had {', '.join(c.short() for c in self.corrections)}{rounds}"
+        if self.left:
+            words += f"; still out of tolerance: {', '.join(f'`{name}`' for name in self.left)}"
+        return words
+
+    def correction_words(self) -> str:
+        """What the check found and the maker did, in the check's words (a trial's notes): ``"the maker corrected
+        as the check said: move `track` 2.1 mm right, turn it 4.0 deg clockwise"``."""
+        return self._check(full=True)
+
+    def describe(self) -> str:
+        """The attempt in a short line: ``"loop 1, attempt 3 (trial 12): the check had `track` moved 2.1 mm and
+        turned 4.0 deg; ran: success"``."""
+        who = f"loop {self.loop}, attempt {self.attempt}" if self.loop else f"baseline, attempt {self.attempt}"
+        ran = "success" if self.success else (f"failed (`{self.failed_at}` did not happen)" if self.failed_at
+                                              else "failed")
+        return f"{who} (trial {self.trial_id}): {self._check(full=False)}; ran: {ran}"
+
+
+def _failed_at(scenario, outcomes: Mapping[str, str]) -> str | None:
+    """The first event (in the scenario's order) that did not happen."""
+    return next((name for name in scenario.events if outcomes.get(name) == "no"), None)
+
+
+def _corrections(rounds: Sequence[Sequence[Mapping[str, Any]]], view: str) -> tuple[Correction, ...]:
+    """What the check had the maker do over ``rounds`` (each round's :func:`station.services.world.check_moves`),
+    per part in the order first asked: its moves summed."""
+    from calibration.check import instruction
+
+    total: dict[str, list[float]] = {}
+    for moves in rounds:
+        for move in moves:
+            summed = total.setdefault(str(move["name"]), [0.0, 0.0, 0.0])
+            for i, key in enumerate(("du_mm", "dv_mm", "dheading_deg")):
+                summed[i] += float(move[key])
+    # a move is designed minus measured; the check's words undo an error, measured minus designed
+    return tuple(Correction(name, math.hypot(du, dv), dh, instruction(name, (-du, -dv, math.hypot(du, dv), -dh), view))
+                 for name, (du, dv, dh) in total.items())
 
 
 def record_forecasts(layouts: Mapping[int, dict], attempts: Sequence, weight: float) -> list[float | None]:
@@ -302,13 +443,18 @@ class _Loop:
         if self.should_stop is not None and self.should_stop():
             raise RunStopped(0, simulation_cache_path())
 
-    def emit(self, stage: str, done: int, total: int, message: str = "") -> None:
-        self.report.emit(AttemptProgress(stage, done, total, message))
+    def emit(self, stage: str, done: int, total: int, message: str = "", unit: str = "attempts") -> None:
+        self.report.emit(LoopProgress(stage, done, total, message, unit=unit))
+
+    def under(self, words: str) -> ProgressCallback:
+        """The progress callback of work the loop calls, reporting under ``words`` (:func:`labelled`)."""
+        return lambda progress: self.report.emit(labelled(progress, words))
 
     # -- layouts ------------------------------------------------------------------------------------------------
-    def optimized(self, profile_path: Path | None, budget: int | None) -> dict:
+    def optimized(self, profile_path: Path | None, budget: int | None, words: str) -> dict:
         """The LAYOUT.json of ``station optimize`` for the scenario (under the profile), cached in the database by
-        what it was optimized from and the revisions of the optimizing and simulating code."""
+        what it was optimized from and the revisions of the optimizing and simulating code; its progress reported
+        under ``words``."""
         from design.contraption.simulation import SIMULATOR_REVISION
         from design.robust.pipeline import OPTIMIZER_REVISION
         from station.loopstore import run_key
@@ -326,7 +472,7 @@ class _Loop:
         if cached is not None:
             return cached
         result = robust.optimize(problem, budget, OPTIMIZE_SEED, robust.psp_settings(self.settings.settings),
-                                 progress=self.report.emit, **self.where)
+                                 progress=self.under(words), **self.where)
         payload = result.to_json(problem)
         self.store.cache_layout(key, payload)
         return payload
@@ -340,7 +486,7 @@ class _Loop:
         if row is not None:
             return row
         self.stop_point()
-        first = self.optimized(None, self.settings.budget)
+        first = self.optimized(None, self.settings.budget, "loop 1: optimizing the layout")
         if k == 1:
             prior = self.prior()
             # The same choice in every world (the prior is the scenario's): its simulations are cached once.
@@ -351,7 +497,8 @@ class _Loop:
             text = profile.to_toml()
             path = self.folder / f"profile-{k}.toml"
             path.write_text(text, encoding="utf-8")
-            new = self.optimized(path, self.settings.reoptimize_budget)
+            new = self.optimized(path, self.settings.reoptimize_budget,
+                                 f"loop {k}: re-optimizing the layout for the calibrated physics")
             # the layouts placed before (the latest first: ties keep it), each with its record in the trials
             placed = [self.store.loop(self.run_id, j).layout for j in range(k - 1, 0, -1)]
             options = [*placed, *candidate_layouts(new, self.settings.candidates),
@@ -367,14 +514,26 @@ class _Loop:
         the default placement error."""
         from station.services.layout_choice import choose_layout
 
+        scored = [0, 0]  # the option being scored, of how many
+
         def scoring(i: int, count: int) -> None:
             self.stop_point()
-            self.emit(f"loop {k}: choosing", i, count, f"layout {i + 1} of {count}")
+            scored[:] = [i, count]
+            self.emit(f"loop {k}: choosing the layout to place", i, count, f"candidate layout {i + 1} of {count}",
+                      unit="candidate layouts")
 
-        return choose_layout(self.scenario, options, profile, samples=self.settings.predict_samples,
-                             seed=_seed(world_seed, _CHOOSE, k), trials=trials,
-                             prediction_weight=self.settings.prediction_weight, progress=self.report.emit,
-                             on_option=scoring, **self.where)
+        def predicting(progress: Progress) -> None:
+            self.report.emit(labelled(progress, f"loop {k}: predicting candidate layout {scored[0] + 1} of "
+                                                f"{scored[1]}"))
+
+        chosen = choose_layout(self.scenario, options, profile, samples=self.settings.predict_samples,
+                               seed=_seed(world_seed, _CHOOSE, k), trials=trials,
+                               prediction_weight=self.settings.prediction_weight, progress=predicting,
+                               on_option=scoring, **self.where)
+        if scored[1]:
+            self.emit(f"loop {k}: choosing the layout to place", scored[1], scored[1], "chosen",
+                      unit="candidate layouts")
+        return chosen
 
     def trials(self, k: int) -> list[dict]:
         """The trials of loops 1 .. k-1 (the baseline's, placed from the sheet with no check, left out)."""
@@ -389,12 +548,11 @@ class _Loop:
         s = self.settings
         fit = FitSettings(draws=s.fit_draws, sobol=s.fit_sobol, rounds=s.fit_rounds, held_out=0.0,
                           prior_width=s.fit_prior_width or None, seed=_seed(self.world.seed, _CALIBRATE, k))
-        result = calibrate_sim([self.scenario], trials, settings=fit, progress=self.report.emit, source="loop",
+        words = f"loop {k}: calibrating the simulator from {len(trials)} trial{'s' if len(trials) != 1 else ''}"
+        result = calibrate_sim([self.scenario], trials, settings=fit, progress=self.under(words), source="loop",
                                every_material=self.settings.every_material, **self.where)
         profile = result.profile(f"loop {k} of run {self.run_id}: calibrated {self.scenario.name}")
         # the creation time is the only thing of a profile that changes between two runs of the same data
-        from dataclasses import replace
-
         return replace(profile, created="", source=f"station loop run {self.run_id}: {len(trials)} trials of loops "
                        f"1-{k - 1}")
 
@@ -409,7 +567,8 @@ class _Loop:
         return layout, profile
 
     def attempt(self, job, row, profile, k: int, a: int, *, checked: bool):
-        """One attempt: place, check and correct (when ``checked``), run, predict, log."""
+        """One attempt: place, check and correct (when ``checked``), run, predict, log. Returns the stored attempt
+        and its :class:`AttemptReport`."""
         from station.services import world as worlds
         from station.services.check import check_frame
         from station.services.trials import build_trial, check_values, layout_values
@@ -417,7 +576,7 @@ class _Loop:
         guide, scenario = job.guide, self.scenario
         number = k * ATTEMPT_BLOCK + a
         worlds.place_parts(self.world, guide, attempt=number, highlighted=checked)
-        report, rounds = None, 0
+        report, applied, left = None, [], []
         if checked:
             for r in range(self.settings.rounds + 1):
                 image, lens = worlds.grab_placed(self.settings.camera, guide, self.world.placed(),
@@ -425,19 +584,24 @@ class _Loop:
                 report = check_frame(job, image, lens).to_json()
                 moves = worlds.check_moves(report, guide)
                 if not moves or r == self.settings.rounds:
+                    left = [move["name"] for move in moves]
                     break
                 self.world.apply(moves, round=r + 1)
-                rounds += 1
+                applied.append(moves)
         run = worlds.run_attempt(scenario, job.layout.x, guide, self.world, self.hidden)
         predicted = self.predict(job, report, profile, k, a) if checked else None
         physics = None if row.physics_content is None else {"name": row.physics_name, "content": row.physics_content}
+        said = AttemptReport(k, a, 0, run.success, checked, _corrections(applied, guide.view), len(applied),
+                             tuple(left), _failed_at(scenario, run.outcomes))
         note = f"station loop run {self.run_id}: " + (f"loop {k} attempt {a}" if k else f"baseline attempt {a}")
         if predicted is not None:
             note += f"; predicted physical success {predicted:.3f}"
+        note += f"; {said.correction_words()}"
         trial = build_trial(scenario, layout_values(scenario, job.layout.x), run.outcomes, times=run.times,
                             as_built=check_values(report) if report else None, check=report, physics=physics,
                             who=f"simulated maker ({self.world.url})", notes=note)
-        return self.store.add_attempt(self.run_id, k, a, trial, predicted=predicted, check_rounds=rounds)
+        stored = self.store.add_attempt(self.run_id, k, a, trial, predicted=predicted, check_rounds=len(applied))
+        return stored, replace(said, trial_id=stored.trial_id)
 
     def prior(self):
         """What the station knows of the physics before any trial: the scenario's values and their ranges (the
@@ -461,33 +625,50 @@ class _Loop:
         result = predict_layout(self.scenario, x, profile=profile, position_sigma_m=position, angle_sigma_deg=angle,
                                 unmeasured=unmeasured, samples=self.settings.predict_samples,
                                 seed=_seed(self.world.seed, _PREDICT, k, a),
-                                progress=self.report.emit, **self.where)
+                                progress=self.under(f"loop {k}, attempt {a}: predicting its physical success as "
+                                                    "checked"), **self.where)
         return float(result.probability)
 
-    def run_attempts(self, row, k: int, count: int, *, checked: bool) -> list:
-        """Loop ``k``'s attempts (``k`` 0: the baseline, on loop 1's layout), the stored ones kept."""
+    def run_attempts(self, row, k: int, count: int, *, checked: bool,
+                     on_attempt: Callable[[AttemptReport], None] | None = None) -> list:
+        """Loop ``k``'s attempts (``k`` 0: the baseline, on loop 1's layout), the stored ones kept; ``on_attempt``
+        is told each attempt in order (a stored one as logged by an earlier run)."""
         from station.services.guide import make_guide
         from station.services.physics import read_profile
 
         done = {a.attempt: a for a in self.store.attempts(self.run_id, k)}
-        stage = f"loop {k}" if k else "baseline"
-        if len(done) < count:
-            layout_path, profile_path = self.files(row)
-            profile = read_profile(profile_path) if profile_path else self.prior()
-            job = make_guide(self.scenario.source, str(layout_path), physics=profile_path)
-            for a in range(1, count + 1):
-                if a in done:
-                    continue
+        who = f"loop {k}" if k else "baseline"
+        stage = f"{who}: placing, checking and running" if k else f"{who}: placing from the printed sheet and running"
+        job = profile = None
+        for a in range(1, count + 1):
+            if a in done:
+                said = self.stored_report(done[a], checked)
+            else:
+                if job is None:
+                    layout_path, profile_path = self.files(row)
+                    profile = read_profile(profile_path) if profile_path else self.prior()
+                    job = make_guide(self.scenario.source, str(layout_path), physics=profile_path,
+                                     progress=self.under(f"{who}: making the guide"))
                 self.stop_point()
                 self.emit(stage, len(done), count, f"attempt {a} of {count}")
-                done[a] = self.attempt(job, row, profile, k, a, checked=checked)
+                done[a], said = self.attempt(job, row, profile, k, a, checked=checked)
+            if on_attempt is not None:
+                on_attempt(said)
         self.emit(stage, count, count, "done")
         return [done[a] for a in range(1, count + 1)]
+
+    def stored_report(self, stored, checked: bool) -> AttemptReport:
+        """The :class:`AttemptReport` of an attempt logged by an earlier run: its corrections only in its trial's
+        notes."""
+        trial = self.store.trial(stored.trial_id)
+        return AttemptReport(stored.loop, stored.attempt, stored.trial_id, stored.success, checked, None,
+                             stored.check_rounds, (), _failed_at(self.scenario, trial.get("outcomes") or {}))
 
 
 def run_loop(scenario: str, world: str, settings: LoopSettings | None = None, *, database: str | None = None,
              progress: ProgressCallback | None = None, should_stop: Callable[[], bool] | None = None,
-             on_loop: Callable[[LoopSummary], None] | None = None) -> LoopResult:
+             on_loop: Callable[[LoopSummary], None] | None = None,
+             on_attempt: Callable[[AttemptReport], None] | None = None) -> LoopResult:
     """Run (or resume) the station loop of ``scenario`` in the simulated ``world``.
 
     Parameters
@@ -504,6 +685,9 @@ def run_loop(scenario: str, world: str, settings: LoopSettings | None = None, *,
         :class:`~station.services.robust.RunStopped`; what was logged stays, and the next run resumes).
     on_loop : callable, optional
         Called with each loop's summary as it ends (a CLI prints it).
+    on_attempt : callable, optional
+        Called with each attempt's :class:`AttemptReport` as it ends (an attempt logged by an earlier run too, as
+        the loop reaches it), the baseline's last.
 
     Raises
     ------
@@ -533,7 +717,7 @@ def run_loop(scenario: str, world: str, settings: LoopSettings | None = None, *,
         run = _Loop(store, loaded, the_world, world, settings, report, should_stop, Path(folder))
         for k in range(1, settings.loops + 1):
             row = run.loop_row(k)
-            attempts = run.run_attempts(row, k, settings.attempts, checked=True)
+            attempts = run.run_attempts(row, k, settings.attempts, checked=True, on_attempt=on_attempt)
             rounds = float(np.mean([a.check_rounds for a in attempts]))
             layouts[k] = row.layout
             placed += attempts
@@ -550,8 +734,9 @@ def run_loop(scenario: str, world: str, settings: LoopSettings | None = None, *,
             from station.loopstore import LoopRow
 
             # the thesis's workflow places the optimizer's own layout (no choice by physical prediction)
-            thesis = LoopRow(0, run.optimized(None, settings.budget), None, None, {})
-            baseline = run.run_attempts(thesis, 0, settings.baseline_attempts, checked=False)
+            thesis = LoopRow(0, run.optimized(None, settings.budget, "baseline: optimizing the layout"), None, None,
+                             {})
+            baseline = run.run_attempts(thesis, 0, settings.baseline_attempts, checked=False, on_attempt=on_attempt)
         result = LoopResult(run.run_id, loaded.name, summaries, len(baseline), sum(a.success for a in baseline),
                             outcomes, run.hidden, [a.success for a in baseline])
     the_world.close()
