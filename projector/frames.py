@@ -315,14 +315,40 @@ class _Canvas:
         reach = float(np.max(np.abs((corners - centre) @ towards))) + 0.8 * self.line
         self._text(image, str(tag.id), centre + reach * towards, WHITE, 0.7, centre=True)
 
-    def _caption(self, image: np.ndarray, lines: list[tuple[str, tuple]]) -> None:
-        if not self.true_scale:
-            lines = [*lines, (NOT_TRUE, WARNING)]
+    def _caption_lines(self, lines: list[tuple[str, tuple]]) -> list[tuple[str, tuple]]:
+        """The caption's lines as drawn: a frame not at true scale says so on a line of its own, and a line wider
+        than the frame goes on over the next lines, broken between words."""
+        lines = list(lines) if self.true_scale else [*lines, (NOT_TRUE, WARNING)]
+        cv2 = _cv2()
+        room = self.size[0] - self.line
+        drawn = []
+        for text, colour in lines:
+            row = ""
+            for word in _ascii(text).split(" "):
+                wider = f"{row} {word}" if row else word
+                if row and cv2.getTextSize(wider, cv2.FONT_HERSHEY_SIMPLEX, self.font, self.thick)[0][0] > room:
+                    drawn.append((row, colour))
+                    row = "  " + word  # a line going on is indented
+                else:
+                    row = wider
+            drawn.append((row, colour))
+        return drawn
+
+    def _caption_box(self, lines: list[tuple[str, tuple]]) -> tuple[int, int, int, int]:
+        """The pixels ``(x0, y0, x1, y1)`` the caption's dark band covers (what else is drawn keeps off it)."""
+        lines = self._caption_lines(lines)
+        if not lines:
+            return 0, 0, 0, 0
         cv2 = _cv2()
         height = int(self.line * (len(lines) + 0.4))
         width = max(cv2.getTextSize(_ascii(t), cv2.FONT_HERSHEY_SIMPLEX, self.font, self.thick)[0][0]
                     for t, _ in lines) + self.line
-        image[:height, :min(width, self.size[0])] //= 4  # a dark band under the words, over what may lie there
+        return 0, 0, min(width, self.size[0]), height
+
+    def _caption(self, image: np.ndarray, lines: list[tuple[str, tuple]]) -> None:
+        _, _, width, height = self._caption_box(lines)
+        lines = self._caption_lines(lines)
+        image[:height, :width] //= 4  # a dark band under the words, over what may lie there
         for row, (text, colour) in enumerate(lines):
             self._text(image, text, np.array([self.line / 2, self.line * (row + 1)]), colour, 1.0)
 
