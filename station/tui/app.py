@@ -117,6 +117,17 @@ class StationApp(App):
         name = contraption.layout_names[contraption.layout_index]
         return scenario.source, "" if name == "file default" else name
 
+    def current_assembly(self) -> tuple[str, str] | None:
+        """The Assemble screen's scenario file and layout (a file, a name in the scenario, or "" for its own), for
+        the Trials screen: those of the guide it built, else those in its fields; None in an app without that screen
+        or before it was opened."""
+        try:
+            assemble = self.get_screen("assemble")
+        except KeyError:
+            return None
+        chosen = getattr(assemble, "chosen_layout", None)
+        return chosen() if chosen is not None else None
+
     def machines_screen(self) -> Screen | None:
         """The Machines screen (it owns the device sessions and the job queues); None in an app without it."""
         try:

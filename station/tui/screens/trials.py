@@ -6,7 +6,9 @@ that follow from the others are shown dim in brackets (events after one that did
 events a "yes" needed happened) and need no key. l logs the trial (one short transaction in the station database);
 the list below shows past trials, filtered by the text in the filter field (a scenario name, "success" or
 "failure", a name); e exports the listed scenario's trials (or all) to the file in the export field (.json or .csv).
-Files and the database are read and written in workers, never on the UI thread.
+y / n / u still tick the events table's highlighted event while the past trials have the focus. The screen shows
+the scenario and layout chosen on the Assemble screen (its guide, or its fields) whenever that choice changes; c
+takes the Contraptions screen's. Files and the database are read and written in workers, never on the UI thread.
 """
 
 from __future__ import annotations
@@ -57,8 +59,12 @@ class TrialsScreen(Screen):
     TrialsScreen .heading { text-style: bold; margin-top: 1; }
     """
 
-    #: y / n / u / space / backspace are the events table's own keys (:class:`OutcomeTable`).
+    #: y / n / u / space / backspace are the events table's own keys (:class:`OutcomeTable`); y / n / u are the
+    #: screen's too, so that they stay shown and working while the past trials have the focus.
     BINDINGS = [
+        Binding("y", "outcome('yes')", "Yes"),
+        Binding("n", "outcome('no')", "No"),
+        Binding("u", "outcome('not-reached')", "Not reached"),
         Binding("l", "log", "Log trial"),
         Binding("e", "export", "Export"),
         Binding("c", "from_contraption", "From Contraptions"),
@@ -74,6 +80,8 @@ class TrialsScreen(Screen):
         self.trials: list[dict[str, Any]] = []
         self._all: list[dict[str, Any]] = []
         self.last_logged: int | None = None
+        #: The Assemble screen's choice last shown here (scenario file, layout text).
+        self._assembly_choice: tuple[str, str] | None = None
 
     def compose(self) -> ComposeResult:
         yield Header()
@@ -108,7 +116,8 @@ class TrialsScreen(Screen):
         self.query_one("#trials", DataTable).add_columns("id", "when", "scenario", "result", "events", "layout",
                                                           "who")
         select = self.query_one("#scenario", Select)
-        if select.value is not Select.BLANK:
+        self.take_assembly_choice()
+        if self.scenario is None and select.value is not Select.BLANK:
             self.choose_scenario(str(select.value))
         self.refresh_trials()
         events.focus()
@@ -116,6 +125,8 @@ class TrialsScreen(Screen):
     # -- the scenario and its events ---------------------------------------------------------------------------
     @on(Select.Changed, "#scenario")
     def _scenario_changed(self, event: Select.Changed) -> None:
+        if event.value != event.select.value:
+            return  # a change the Select has made since (the screen chose another scenario meanwhile)
         if event.value is not Select.BLANK and (self.scenario is None or self.scenario.source != str(event.value)):
             self.choose_scenario(str(event.value))
 
@@ -139,6 +150,23 @@ class TrialsScreen(Screen):
         self.query_one("#events", OutcomeTable).load(scenario)
         self.set_status(f"{scenario.name}: say what happened to each event, in order")
         return True
+
+    def action_outcome(self, word: str) -> None:
+        """y / n / u while the past trials have the focus: the events table's highlighted event."""
+        self.query_one("#events", OutcomeTable).action_outcome(word)
+
+    def take_assembly_choice(self) -> bool:
+        """Show the scenario and layout chosen on the Assemble screen, when that choice changed since it was last
+        shown here (so that a scenario picked here is kept until the maker chooses another there)."""
+        choice = self.app.current_assembly() if hasattr(self.app, "current_assembly") else None
+        if choice is None or choice == self._assembly_choice:
+            return False
+        self._assembly_choice = choice
+        scenario, layout = choice
+        if self.scenario is not None and Path(self.scenario.source).resolve() == Path(scenario).resolve():
+            self.query_one("#layout", Input).value = layout  # the same scenario: the ticks already made stay
+            return True
+        return self.choose_scenario(scenario, layout)
 
     def action_from_contraption(self) -> None:
         """Take the scenario and layout shown on the Contraptions screen (the one just simulated and built)."""
@@ -254,6 +282,7 @@ class TrialsScreen(Screen):
         self._show_trials(self._all)
 
     def on_screen_resume(self) -> None:
+        self.take_assembly_choice()
         self.refresh_trials()  # another station or the CLI may have logged meanwhile
 
     @on(Button.Pressed, "#export")
