@@ -226,3 +226,108 @@ async def test_k_calibrates_the_physics_on_the_log_and_o_reoptimizes_with_it(tmp
         await settle(app, pilot)
         assert screen.assembly.physics == physics and screen.assembly.job.layout.source == layout_file
         assert screen.assembly.attempt == 7
+
+
+def _footer(app) -> str:
+    """The footer's line as drawn (what a maker sees at the bottom of the screen)."""
+    import io
+
+    from rich.console import Console
+
+    width, height = app.size
+    console = Console(width=width, height=height, file=io.StringIO(), force_terminal=True, record=True)
+    console.print(app.screen._compositor.render_update(full=True, screen_stack=app._background_screens,
+                                                        simplify=True))
+    return console.export_text().splitlines()[height - 1]
+
+
+def _shown_keys(app) -> list[str]:
+    """Every key the screen and its focused widget take, as "KEY label" (the bindings meant to be shown)."""
+    return [f"{app.get_key_display(binding)} {binding.description}"
+            for _, binding, _, _ in app.screen.active_bindings.values() if binding.show]
+
+
+def _in_view(screen, widget) -> bool:
+    """Whether all of ``widget`` is drawn on the screen (not scrolled or pushed out of its container's view)."""
+    from textual.errors import NoWidget
+
+    try:
+        geometry = screen.find_widget(widget)
+    except NoWidget:
+        return False
+    return bool(geometry.region) and geometry.visible_region == geometry.region
+
+
+async def test_every_key_shows_in_the_footer_at_160_columns(tmp_path):
+    async with opened(tmp_path, "a") as (app, pilot):
+        screen = app.screen
+        screen.open_layout(str(SIMPLE), "success")
+        await settle(app, pilot)
+        keys, footer = _shown_keys(app), _footer(app)
+        assert [key for key in keys if key not in footer] == [], footer
+        assert {"r", "l", "g", "k", "o"} <= {key.split()[0] for key in keys}
+        await pilot.press("c")
+        await settle(app, pilot)
+        await pilot.press("a", "r")  # a real table: the outcome table takes y / n / u
+        await settle(app, pilot)
+        keys, footer = _shown_keys(app), _footer(app)
+        assert [key for key in keys if key not in footer] == [], footer
+        assert {"y", "n", "u", "o"} <= {key.split()[0] for key in keys}
+
+
+async def test_the_progress_stays_in_view_under_the_forecast_whatever_the_status_says(tmp_path):
+    """k (calibrate) on a real table's logged trial: its progress panel is in view from the key on, at 160x50,
+    while the status above it says a whole logged trial and the forecast box grows."""
+    from calibration.sim_fit import FitSettings
+    from station.tui.widgets.progress import ProgressPanel
+
+    async with opened(tmp_path, "a") as (app, pilot):
+        screen = app.screen
+        screen.fit_settings = FitSettings(draws=2, sobol=4, rounds=1, per_round=2, held_out=0.0)
+        screen.open_layout(str(SIMPLE), "success")
+        await settle(app, pilot)
+        await pilot.press("c")
+        await settle(app, pilot)
+        await pilot.press("a", "r", "y", "y", "n", "l")
+        await settle(app, pilot)
+        assert screen.assembly.stage == "done", str(screen.query_one("#status", Static).render())
+        panel = screen.query_one("#check-progress", ProgressPanel)
+        await pilot.press("k")
+        await pilot.pause()
+        assert _in_view(screen, panel) and _in_view(screen, panel.bar)
+        await settle(app, pilot)
+        assert panel.message.startswith("calibrated:"), panel.message
+        assert _in_view(screen, panel) and _in_view(screen, panel.bar)
+
+
+async def test_the_fields_read_as_hints_and_the_projector_is_named_once(tmp_path):
+    async with opened(tmp_path, "a") as (app, pilot):
+        screen = app.screen
+        world = screen.query_one("#world", Input)
+        assert world.placeholder.startswith("e.g. sim://world") and "empty: a real table" in world.placeholder
+        assert screen.query_one("#physics", Input).placeholder.startswith("e.g. ")
+        screen.open_layout(str(SIMPLE), "success")
+        await settle(app, pilot)
+        status = str(screen.query_one("#status", Static).render())
+        assert "projector (sim://projector) follows the steps" in status and "projector projector" not in status
+
+
+async def test_e_names_the_export_by_scenario_and_layout_and_keeps_another_layouts(tmp_path):
+    """Two layouts of SIMPLE exported one after the other: two files, the first left as it was; the same layout
+    exported again replaces its own."""
+    async with opened(tmp_path, "a") as (app, pilot):
+        screen = app.screen
+        written = []
+        for layout in ("success", "failure", str(LAYOUT), "success"):
+            screen.open_layout(str(SIMPLE), layout)
+            await settle(app, pilot)
+            await pilot.press("e")
+            await settle(app, pilot)
+            status = str(screen.query_one("#status", Static).render())
+            assert status.startswith("wrote "), status
+            written.append(Path(status.split()[1]))
+        success, failure, model, again = written
+        assert success.name.startswith("simple-success-") and failure.name.startswith("simple-failure-")
+        assert model.name.startswith("simple-simple-layout-with-model-")
+        assert len({success, failure, model}) == 3 and again == success
+        assert all(path.exists() and path.with_suffix(".svg").exists() for path in written)

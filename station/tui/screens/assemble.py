@@ -4,9 +4,10 @@ Pick a scenario and a layout (a LAYOUT.json path, a layout named in the scenario
 layout) and press Enter (or the button): the guide is built in a worker, drawn here with the current step
 highlighted, and shown on the station's projector (simulated by default), which follows the steps. n / p step
 through the parts, t shows the tolerance map (how carefully each part must be placed), e writes the 1:1 PDF sheets
-and the SVG to the station's data folder, 0 shows the calibrate frame. c checks the placed parts with the station's
-camera (``sim://camera`` by default, shown the guide's tags at their designed poses): the camera frame with the
-check drawn on it, a table of every tagged part (how far it is off, within its tolerance or not, what to do), the
+and the SVG to the station's data folder (``guides/``, named by the scenario, the layout and a hash of its values, so
+that one layout's export never replaces another's), 0 shows the calibrate frame. c checks the placed parts with the
+station's camera (``sim://camera`` by default, shown the guide's tags at their designed poses): the camera frame with
+the check drawn on it, a table of every tagged part (how far it is off, within its tolerance or not, what to do), the
 predicted success as placed, and the projector shows an arrow per misplaced part to where it must go; press c again
 after moving them. The Robust layouts screen opens its result here with a.
 
@@ -19,11 +20,15 @@ physics on the scenario's logged trials (the Calibrate > Simulator fit, of every
 fits them) and puts the profile in the Physics field; o
 re-optimizes the layout with it and puts the new LAYOUT.json in the Layout field. The box at the top left always
 shows the attempt's stage, its predicted physical success and expected attempts (made again after the guide, every
-check and every logged trial).
+check and every logged trial); the progress of a check, a calibration or a re-optimization is right under it, above
+the fields, where no status text can push it out of view. The footer's labels are short so that every key shows
+in 160 columns.
 """
 
 from __future__ import annotations
 
+import hashlib
+import re
 from pathlib import Path
 
 from PIL import Image
@@ -40,12 +45,13 @@ from textual.widgets import Button, DataTable, Footer, Header, Input, Label, Sel
 from design.errors import DesignError
 from drivers.errors import DriverError
 from projector.errors import ProjectorError
+from projector.overlay import misplaced
 from station.errors import StationError
 from station.paths import data_dir
 from station.services import assemble as flow
 from station.services import check as checks
 from station.services import guide as service
-from station.services.projectors import configured_projector, open_projector
+from station.services.projectors import configured_projector, mapping_of, open_projector
 from station.tui.registry import ScreenEntry
 from station.tui.screens._assemble_flow import AttemptFlow
 from station.tui.widgets.assemble_flow import ForecastStatus
@@ -92,19 +98,21 @@ class AssembleScreen(AttemptFlow, Screen):
     AssembleScreen .heading { text-style: bold; margin-top: 1; }
     """
 
+    #: Short labels: every key shows in a 160-column footer, the outcome table's y / n / u included (the box at the
+    #: top left says which keys come next, and what they do).
     BINDINGS = [
-        Binding("n", "next_step", "Next part"),
-        Binding("p", "previous_step", "Previous part"),
-        Binding("t", "tolerances", "Tolerance map"),
-        Binding("e", "export", "Export PDF + SVG"),
-        Binding("c", "check", "Check with the camera"),
-        Binding("0", "calibrate_frame", "Calibrate frame"),
-        Binding("f", "fix", "Moved: check again"),
-        Binding("a", "accept", "Accept as placed"),
+        Binding("n", "next_step", "Next"),
+        Binding("p", "previous_step", "Prev"),
+        Binding("t", "tolerances", "Tolerances"),
+        Binding("e", "export", "Export"),
+        Binding("c", "check", "Check"),
+        Binding("0", "calibrate_frame", "Frame"),
+        Binding("f", "fix", "Moved"),
+        Binding("a", "accept", "Accept"),
         Binding("r", "run", "Run"),
-        Binding("l", "log", "Log trial"),
-        Binding("g", "again", "Another attempt"),
-        Binding("k", "calibrate", "Calibrate physics"),
+        Binding("l", "log", "Log"),
+        Binding("g", "again", "Again"),
+        Binding("k", "calibrate", "Calibrate"),
         Binding("o", "reoptimize", "Re-optimize"),
         Binding("s", "stop", "Stop", show=False),
     ]
@@ -128,6 +136,7 @@ class AssembleScreen(AttemptFlow, Screen):
         with Horizontal():
             with Vertical(id="controls"):
                 yield ForecastStatus(id="forecast")
+                yield ProgressPanel(idle="c: check the placed parts with the camera", id="check-progress")
                 yield Label("Scenario", classes="heading")
                 choices = scenario_choices()
                 yield Select(choices, id="scenario", allow_blank=not choices,
@@ -138,12 +147,11 @@ class AssembleScreen(AttemptFlow, Screen):
                 yield Select([("chosen from the scenario", "auto"), ("top (the table)", "top"),
                               ("side (the backboard)", "side")], id="view", allow_blank=False, value="auto")
                 yield Label("World (empty: a real table)")
-                yield Input("", placeholder="sim://world?seed=1", id="world")
+                yield Input("", placeholder="e.g. sim://world?seed=1 (empty: a real table)", id="world")
                 yield Label("Physics profile (optional)")
-                yield Input("", placeholder="PROFILE.toml", id="physics")
+                yield Input("", placeholder="e.g. PROFILE.toml (empty: the scenario's)", id="physics")
                 yield Button("Build the guide (Enter)", id="build", variant="primary")
                 yield Static("", id="status")
-                yield ProgressPanel(idle="c: check the placed parts with the camera", id="check-progress")
             with Vertical(id="main"):
                 yield HalfBlockPicture(id="frame", empty="(no guide yet: pick a scenario and a layout, press Enter)")
                 yield Static("", id="caption")
@@ -151,7 +159,9 @@ class AssembleScreen(AttemptFlow, Screen):
                 yield DataTable(id="tolerances", cursor_type="row", zebra_stripes=True)
                 yield DataTable(id="check", cursor_type="row", zebra_stripes=True)
                 yield OutcomeTable(id="outcomes", on_change=self.outcomes_changed)
-        yield Footer()
+        # compact, without the palette's key (ctrl+p still opens it): every key fits in 160 columns, the outcome
+        # table's y / n / u included
+        yield Footer(compact=True, show_command_palette=False)
 
     def on_mount(self) -> None:
         self.query_one("#steps", DataTable).add_columns("step", "part", "kind", "tag", "centre mm", "care")
@@ -193,6 +203,21 @@ class AssembleScreen(AttemptFlow, Screen):
         self.query_one("#layout", Input).value = layout
         self.action_build()
 
+    def chosen_layout(self) -> tuple[str, str] | None:
+        """The scenario file and the layout chosen here (a file, a name, or "" for the scenario's own), for the
+        Trials screen: the built guide's, else the fields' once the maker changed them; None before."""
+        if self.job is not None:
+            layout = self.job.layout
+            text = {"defaults": "", "named": layout.name}.get(layout.format, layout.source)
+            return str(self.job.scenario.source), text
+        try:
+            select = self.query_one("#scenario", Select)
+            layout = self.query_one("#layout", Input).value.strip()
+        except NoMatches:  # never opened
+            return None
+        untouched = not layout and select.value == next(iter(scenario_choices()), (None, Select.BLANK))[1]
+        return None if untouched or select.value is Select.BLANK else (str(select.value), layout)
+
     def action_build(self) -> None:
         scenario = self.query_one("#scenario", Select).value
         if scenario is Select.BLANK:
@@ -233,13 +258,15 @@ class AssembleScreen(AttemptFlow, Screen):
         device = configured_projector()
         if device is None:
             return "no projector configured"
+        # a projector named as its kind (the default "projector") is said once: "projector (sim://projector)"
+        said = "projector" if device.name == device.kind else f"projector {device.name}"
         try:
             context = open_projector(device)
             self.projector = context.__enter__()
             self._projector_context = context
         except (DriverError, StationError) as error:
-            return f"projector {device.name}: {error}"
-        return f"projector {device.name} ({device.url}) follows the steps"
+            return f"{said}: {error}"
+        return f"{said} ({device.url}) follows the steps"
 
     def _close_projector(self) -> None:
         context, self._projector_context, self.projector = self._projector_context, None, None
@@ -265,7 +292,8 @@ class AssembleScreen(AttemptFlow, Screen):
                           "-" if part.tag_id is None else str(part.tag_id),
                           f"({part.center_mm[0]:.1f}, {part.center_mm[1]:.1f})", care, key=part.name)
         self._fill_tolerances()
-        scale = "" if self.frames.true_scale else "; projector not calibrated: the guide is fitted, not at true scale"
+        mapping = None if self.projector is None else mapping_of(self.projector)  # the one the steps go through
+        scale = "" if mapping is None else f"; {mapping.scale_text()}"
         source = {"none": "no tolerances (the layout carries no success model)"}.get(
             guide.tolerance_source, f"tolerances from {guide.tolerance_source}")
         self._set_status(f"{guide.scenario}: {self.job.layout.describe()}, {guide.view} view, {len(guide.parts)} "
@@ -370,8 +398,10 @@ class AssembleScreen(AttemptFlow, Screen):
             error = part.error
             numbers = (["-"] * 4 if error is None else
                        [f"{error[0]:+.1f}", f"{error[1]:+.1f}", f"{error[2]:.1f}", f"{error[3]:+.1f}"])
-            ok = {True: Text("yes", style="green"), False: Text("NO", style="bold red"), None: Text("?")}[
-                part.within_tolerance]
+            # the check's one rule: no zone on the sheet (*) and off by 1 mm / 1 deg or more is to move
+            star = "*" if part.within_tolerance is None and error is not None else ""
+            ok = (Text("-", style="dim") if error is None else Text("NO" + star, style="bold red")
+                  if misplaced(part) else Text("yes" + star, style="green"))
             table.add_row(Text(part.name), str(part.tag_id), *numbers, ok,
                           "-" if part.cost is None else f"{part.cost:.2f}", Text(part.instruction), key=part.name)
         for name in report.by_eye:
@@ -379,7 +409,7 @@ class AssembleScreen(AttemptFlow, Screen):
                           Text("check by eye against the sheet"), key=f"eye:{name}")
         table.display = True
         self.query_one("#frame", HalfBlockPicture).set_image(Image.fromarray(message.picture))
-        lines = checks.summary_lines(report)
+        lines = checks.summary_lines(report, message.check.physical)
         if report.prediction_note:
             lines.append(report.prediction_note)
         self.query_one("#caption", Static).update(Text("\n".join(lines)))
@@ -398,7 +428,7 @@ class AssembleScreen(AttemptFlow, Screen):
             return
         folder = data_dir() / "guides"
         folder.mkdir(parents=True, exist_ok=True)
-        stem = folder / f"{self.job.guide.scenario.lower()}-{self.job.guide.view}"
+        stem = folder / export_name(self.job)
         self._set_status("writing the PDF and the SVG…")
         self._export(stem.with_suffix(".pdf"), stem.with_suffix(".svg"))
 
@@ -412,6 +442,19 @@ class AssembleScreen(AttemptFlow, Screen):
         pages = len(job.guide.pages)
         self.app.call_from_thread(self._set_status, f"wrote {pdf} ({pages} sheets and the steps; print at 100 %, "
                                   f"check the 100 mm bar) and {svg}")
+
+
+def export_name(job) -> str:
+    """The file name (no suffix) of ``job``'s export: the scenario, the layout (its name, its file's name, or "own"
+    for the scenario's own), a hash of the layout's values and the view, e.g. ``simple-success-1f0c2a-top``. The
+    hash (of the values at 6 decimals, as a check keeps them) tells apart two layouts named alike (two files called
+    layout.json, a scenario file edited), so that one layout's export never replaces another's."""
+    layout = job.layout
+    which = {"defaults": "own", "named": layout.name}.get(layout.format) or Path(layout.source).stem or "values"
+    values = ",".join(f"{value:.6f}" for value in layout.x)
+    digest = hashlib.sha256(f"{job.guide.scenario}\n{values}".encode()).hexdigest()[:6]
+    name = f"{job.guide.scenario}-{which}-{digest}-{job.guide.view}".lower()
+    return re.sub(r"[^a-z0-9._-]+", "-", name)
 
 
 SCREEN = ScreenEntry(
