@@ -6,8 +6,10 @@ its default range, as ``station calibrate sim --all-materials`` and ``station lo
 come from (a trial export file, or the station's log when the screen gives
 :attr:`SimCalibrationPanel.trials_source`), Start (``c`` or Enter in a field), Stop (``s``), a
 :class:`~station.tui.widgets.progress.ProgressPanel`, and the result: each value before and fitted with its
-interval, the agreement per event before and after, and the held-out Brier score. ``w`` writes the physics profile
-to the station's data folder (``physics/``), for ``--physics`` and the Robust layouts screen.
+interval, the agreement per event before and after, and the held-out Brier score (the line under the progress,
+then the two tables, each as tall as its rows: the panel scrolls, and shows the result from its progress down when a
+calibration ends). ``w`` writes the physics profile to the station's data folder (``physics/``), for ``--physics``
+and the Robust layouts screen.
 
 The work runs in a thread worker through :func:`station.services.sim_calibration.calibrate_sim` (simulations on the
 optimizer's executors and shared cache, so a stopped calibration keeps what it simulated).
@@ -52,13 +54,14 @@ class SimCalibrationPanel(Vertical):
     """
 
     DEFAULT_CSS = """
-    SimCalibrationPanel { height: auto; }
+    SimCalibrationPanel { height: auto; overflow-y: auto; }
     SimCalibrationPanel #sim-fields { height: auto; }
     SimCalibrationPanel #sim-fields Vertical { width: 1fr; height: auto; padding: 0 1; }
     SimCalibrationPanel #sim-fields Input { width: 100%; }
     SimCalibrationPanel #sim-buttons { height: auto; }
     SimCalibrationPanel #sim-buttons Button { margin-right: 1; }
-    SimCalibrationPanel DataTable { height: auto; max-height: 12; }
+    SimCalibrationPanel DataTable { height: auto; }
+    SimCalibrationPanel #sim-status { height: auto; }
     SimCalibrationPanel .heading { text-style: bold; }
     """
 
@@ -100,14 +103,15 @@ class SimCalibrationPanel(Vertical):
             yield Button("Stop (s)", id="sim-stop", disabled=True)
             yield Button("Write profile (w)", id="sim-write", disabled=True)
         yield ProgressPanel("Name the scenarios and press c (or Enter in a field).", id="sim-progress")
-        yield DataTable(id="sim-values", cursor_type="row", zebra_stripes=True)
-        yield DataTable(id="sim-events", cursor_type="row", zebra_stripes=True)
         yield Static("", id="sim-status")
+        yield DataTable(id="sim-values", cursor_type="row", zebra_stripes=True)
+        # headers on two lines: the six columns fit the Calibrate screen's half width (80 columns) unscrolled
+        yield DataTable(id="sim-events", cursor_type="row", zebra_stripes=True, header_height=2)
 
     def on_mount(self) -> None:
         self.query_one("#sim-values", DataTable).add_columns("value", "before", "fitted", "95 % interval", "range")
-        self.query_one("#sim-events", DataTable).add_columns("event", "observed", "sim before", "sim after",
-                                                             "agree before", "agree after")
+        self.query_one("#sim-events", DataTable).add_columns("event", "observed\nyes", "sim\nbefore", "sim\nafter",
+                                                             "agree\nbefore", "agree\nafter")
         if self._first_scenarios:
             self._list_uncertain(self._first_scenarios)
 
@@ -259,6 +263,8 @@ class SimCalibrationPanel(Vertical):
             brier = f"held-out Brier {fit.brier_before:.3f} before, {fit.brier_after:.3f} after"
         self.query_one(ProgressPanel).say(f"{fit.simulations} simulations, {fit.candidates} candidate values")
         self.status(f"{fit.trials} trials fitted, {fit.held_out} held out; {brier}. w writes the profile.")
+        # the result, from the progress down, in view: the fields above it scroll out of the way
+        self.call_after_refresh(self.scroll_to_widget, self.query_one(ProgressPanel), top=True, animate=False)
 
 
 def _split(text: str) -> list[str]:
