@@ -213,6 +213,10 @@ def test_the_loop_says_each_stage_and_attempt_in_short_lines(tmp_path, station_h
         (summary,) = [line for line in lines if line.startswith(f"loop {k}: ") and "attempts succeeded" in line]
         successes = int(summary.split(": ")[1].split(" of ")[0])
         assert successes == sum(ok for (loop, _), (_, _, ok) in said.items() if loop == k)
+        heads = [line for line in lines[lines.index(summary) + 1:][:8] if not line.startswith("    ")]  # unwrapped
+        assert heads[0].startswith("  predicted physical success on the table: ")
+        assert heads[1].startswith("  layout placed: ") and heads[2].startswith("  corrections: ")
+        assert heads[3].startswith("  physics: ")
     table = [line for line in lines if re.match(r"^    \w+\.\w+ +[-\d.e]+", line)]
     assert sum("domino.angular_damping" in line for line in table) == 2  # in both loops' tables
 
@@ -244,7 +248,7 @@ def test_a_loops_progress_and_attempts_are_said_in_its_words():
     report = AttemptReport(1, 3, 12, False, True, (track, plank), rounds=2, left=("plank",), failed_at="last_stops")
     assert report.describe() == ("loop 1, attempt 3 (trial 12): the check had `track` moved 5.0 mm and turned "
                                  "3.0 deg, `plank` turned 4.0 deg in 2 rounds; still out of tolerance: `plank`; "
-                                 "ran: failed (`last_stops` did not happen)")
+                                 "ran: failed at `last_stops`")
     assert report.correction_words().startswith("the maker corrected as the check said (2 rounds): move `track` 3.0 "
                                                 "mm right")
 

@@ -139,8 +139,9 @@ def loop_lines(summary) -> list[str]:
                   else f"; {forecast:.2f} with the layout's record")
         lines.append(f"  predicted physical success on the table: {predicted:.2f} (the attempts' mean, as checked)"
                      f"{record}")
-    if summary.choice:
-        lines.append(f"  layout placed: {summary.choice.removeprefix('; ')}")
+    # no choice: the optimization had no other candidate that worked in its simulations (or --candidates 1)
+    choice = summary.choice.removeprefix("; ") or "the optimizer's own, no other candidate to compare"
+    lines.append(f"  layout placed: {choice}")
     lines.append(f"  corrections: {summary.check_rounds:.1f} per attempt after the first check")
     physics = summary.physics_name or "the scenario's values and ranges (before any trial)"
     lines.append(f"  physics: {physics}")

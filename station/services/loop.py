@@ -313,7 +313,7 @@ class AttemptReport:
     left : tuple of str
         Parts still out of their tolerance after the last correction allowed.
     failed_at : str or None
-        The first event of the scenario that did not happen in a failed run.
+        The first event of the scenario that did not happen in a failed run (where it failed).
     """
 
     loop: int
@@ -353,8 +353,7 @@ class AttemptReport:
         """The attempt in a short line: ``"loop 1, attempt 3 (trial 12): the check had `track` moved 2.1 mm and
         turned 4.0 deg; ran: success"``."""
         who = f"loop {self.loop}, attempt {self.attempt}" if self.loop else f"baseline, attempt {self.attempt}"
-        ran = "success" if self.success else (f"failed (`{self.failed_at}` did not happen)" if self.failed_at
-                                              else "failed")
+        ran = "success" if self.success else (f"failed at `{self.failed_at}`" if self.failed_at else "failed")
         return f"{who} (trial {self.trial_id}): {self._check(full=False)}; ran: {ran}"
 
 
