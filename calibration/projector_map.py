@@ -341,13 +341,15 @@ def map_projector(plan: GrayCodePlan, images: Sequence[np.ndarray], plane_from_u
     return fit_projector_map(found, plane, plan.projector_size, ransac_mm=ransac_mm, finest_px=plan.finest_px)
 
 
-def save_projector_map(projector_map: ProjectorMap, path: str | Path) -> None:
-    """Write the map as JSON (via a ``.partial`` file, so a crash never leaves half a file)."""
+def save_projector_map(projector_map: ProjectorMap, path: str | Path, *, extra: dict | None = None) -> None:
+    """Write the map as JSON (via a ``.partial`` file, so a crash never leaves half a file), with the fields of
+    ``extra`` beside it (what it was measured on; :meth:`ProjectorMap.from_json` reads past them)."""
     path = Path(path)
     partial = path.with_name(path.name + ".partial")
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
-        partial.write_text(json.dumps(projector_map.to_json(), indent=1) + "\n", encoding="utf-8")
+        partial.write_text(json.dumps({**(extra or {}), **projector_map.to_json()}, indent=1) + "\n",
+                           encoding="utf-8")
         partial.replace(path)
     except OSError as error:
         raise CalibrationError(f"{path}: cannot write the projector map ({error.strerror or error})") from None

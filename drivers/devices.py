@@ -42,6 +42,7 @@ __all__ = [
     "Projector",
     "UnknownDeviceURL",
     "probe",
+    "projector_identity",
     "resolve",
 ]
 
@@ -323,6 +324,30 @@ def resolve(url: str) -> DriverInfo:
         if pattern.match(text):
             return DriverInfo(text, kind, driver, simulated, factory)
     raise UnknownDeviceURL(f"device URL {str(url)!r} matches no driver; accepted: {ACCEPTED_FORMS}")
+
+
+def projector_identity(url: str) -> str:
+    """Which projector ``url`` drives, as a text that two URLs of the same projector share: ``display:N`` for a
+    display (SDL's display N), ``sim://projector?name=NAME`` for a shared simulated twin whatever its other
+    options, ``sim://projector`` for an unnamed one. What is measured on a projector (its calibration) is kept
+    under it.
+
+    Raises
+    ------
+    UnknownDeviceURL
+        ``url`` matches no driver, or names another kind of device.
+    SimConfigError
+        A ``sim://projector`` URL with a bad option.
+    """
+    info = resolve(url)
+    if info.kind != "projector":
+        raise UnknownDeviceURL(f"device URL {info.url!r} is a {info.kind}, not a projector; projector: "
+                               f"{FORMS['projector']}")
+    if info.driver == _SIM_PROJECTOR:
+        from drivers.sim.projector import twin_identity
+
+        return twin_identity(info.url)
+    return info.url
 
 
 def probe(url: str, timeout: float = 0.5) -> str:

@@ -212,14 +212,14 @@ def test_the_projected_check_uses_the_projectors_saved_map():
     from station.services import projectors
     from station.services.projector_calibration import projector_map_file
 
-    assert projectors.projector_homography("projector", (1280, 800)) is None  # no map: fitted to the screen
+    assert projectors.projector_mapping("sim://projector", (1280, 800)).homography is None  # no map: fitted
     plane_from_pixel = np.array([[0.5, 0.0, -300.0], [0.0, -0.5, 200.0], [0.0, 0.0, 1.0]])
     path = projector_map_file("projector")
     path.parent.mkdir(parents=True, exist_ok=True)
     save_projector_map(ProjectorMap(plane_from_pixel, (1280, 800), {"p50": 0.2, "p95": 0.4, "max": 0.6}, {}), path)
-    homography = projectors.projector_homography("projector", (1280, 800))
+    homography = projectors.projector_mapping("sim://projector", (1280, 800)).homography  # the default's key
     assert np.allclose(homography @ plane_from_pixel, np.eye(3))  # guide mm -> projector pixels
-    assert projectors.projector_homography("projector", (1920, 1080)) is None  # a map of another screen size
+    assert projectors.projector_mapping("sim://projector", (1920, 1080)).homography is None  # another size
     # the guide's steps go through the same map: the configured projector (simulated, named "projector") at its
     # own size shows them at true scale
     from drivers.sim.projector import SimulatedProjector

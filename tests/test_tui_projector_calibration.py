@@ -10,6 +10,7 @@ from textual.widgets import Input
 
 from drivers.sim.projector import sim_projector
 from station.services.projector_calibration import projector_map_file
+from station.services.projectors import projector_mapping
 from station.tui.widgets.progress import ProgressPanel
 from station.tui.widgets.projector_calibration import ProjectorCalibrationPanel
 
@@ -53,7 +54,11 @@ async def test_the_panel_maps_the_projector_and_shows_the_landing_error(station_
         panel = app.query_one(ProjectorCalibrationPanel)
         assert "landing error at " in panel.result_text and "saved " in panel.result_text
         assert panel.query_one("#projector-progress", ProgressPanel).message.startswith("done: landing error p95 ")
-        assert projector_map_file("projector").is_file()
+        # kept under the projector it was measured on (the twin named panel), where the guide and the check look
+        assert f"saved {projector_map_file('panel')}" in panel.result_text
+        assert not projector_map_file("projector").exists()  # the station's own projector is not calibrated by it
+        assert projector_mapping(PROJECTOR, (320, 200)).true_scale
+        assert not projector_mapping("sim://projector?size=320x200", (320, 200)).true_scale
 
 
 async def test_a_wrong_url_is_one_line_in_the_panel(station_home):
@@ -83,4 +88,4 @@ async def test_stop_cancels_between_patterns_and_blanks_the_projector(station_ho
         await settle(app, pilot)
         assert panel.result_text == "stopped; the projector is blank, nothing saved"
         assert _sim_pair.blanked and _sim_pair.frames_shown < 26
-        assert not projector_map_file("projector").exists()
+        assert not projector_map_file("panel").exists() and not projector_map_file("projector").exists()

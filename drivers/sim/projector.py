@@ -41,7 +41,8 @@ from drivers.errors import DriverError, SimConfigError
 from drivers.projector.frame import as_rgb, fit_to_screen
 from drivers.sim.shared import SharedTwins
 
-__all__ = ["DEFAULT_SIZE", "SimulatedProjector", "forget_projectors", "projector_named", "sim_projector"]
+__all__ = ["DEFAULT_SIZE", "SimulatedProjector", "forget_projectors", "projector_named", "sim_projector",
+           "twin_identity"]
 
 DEFAULT_SIZE = (1280, 800)
 DEFAULT_KEEP = 32
@@ -206,6 +207,14 @@ def sim_projector(url: str = "sim://projector", timeout: float = 0.0) -> Simulat
     """The registry's factory: a new twin, or the shared one when the URL has ``name=`` (a later open with another
     size than the shared one's is refused)."""
     return _SHARED.share(SimulatedProjector(url, timeout), url)
+
+
+def twin_identity(url: str) -> str:
+    """Which twin ``url`` opens, for what is measured on it: ``sim://projector?name=NAME`` for a shared twin (every
+    open of that name is the same projector, whatever its other options), ``sim://projector`` for an unnamed one
+    (a new twin at each open, placed by its URL). A bad option is a :class:`SimConfigError`."""
+    name = parse_options(url)["name"]
+    return f"sim://projector?name={urllib.parse.quote(name, safe='')}" if name else "sim://projector"
 
 
 def projector_named(name: str) -> SimulatedProjector | None:

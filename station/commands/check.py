@@ -116,17 +116,15 @@ def run_check(args) -> int:
 
 def _project(check) -> str:
     from station.services import check as service
-    from station.services.projectors import configured_projector, open_projector, projector_homography
+    from station.services.projectors import configured_projector, open_projector, projector_mapping
 
     device = configured_projector()
     if device is None:
         raise UsageError("--project: no projector configured (add one to station.toml; see `station devices`)")
     with open_projector(device) as projector:
-        homography = projector_homography(device.name, tuple(projector.size))
-        projector.show(service.overlay_frame(check, tuple(projector.size), homography))
-    scale = ("at true scale (its saved map)" if homography is not None else
-             "fitted to the screen (NOT at true scale until `station calibrate projector`)")
-    return f"projected the check on {device.name} ({device.url}), {scale}"
+        mapping = projector_mapping(device.url, tuple(projector.size))
+        projector.show(service.overlay_frame(check, tuple(projector.size), mapping.homography))
+    return f"projected the check on {device.name} ({device.url}), {mapping.scale_text()}"
 
 
 def _print(check, out: Path | None, overlay: Path | None, projected: str | None) -> None:

@@ -30,7 +30,9 @@ def register(subparsers) -> None:
         "part how carefully it must be placed (its tolerance, from the layout's success model; --verify N checks "
         "each by N simulations). --pdf writes the sheets at exactly 1:1, tiled over the paper with overlap, join "
         "marks and a 100 mm scale bar to check the print; --svg one drawing in mm with a layer per kind, for a "
-        "laser or plotter to mark a board. --project shows the steps on the configured projector. "
+        "laser or plotter to mark a board. --project shows the steps on the configured projector (or "
+        "--projector URL), at true scale through the calibration measured on that projector "
+        "(`station calibrate projector`), else fitted to the screen, and says which. "
         f"--json prints the guide's manifest: {JSON_SHAPE}.",
         epilog="examples:\n"
         "  station guide ballrun layout.json --pdf ballrun.pdf\n"
@@ -55,6 +57,8 @@ def register(subparsers) -> None:
     parser.add_argument("--project", action="store_true", help="show the guide on the configured projector "
                         "(station devices): the calibrate frame, or --step N")
     parser.add_argument("--step", type=int, metavar="N", help="with --project: show step N (1-based)")
+    parser.add_argument("--projector", metavar="URL", help="with --project: the projector (default: the station's; "
+                        "sim://projector?name=NAME, display:N)")
     parser.add_argument("--json", action="store_true", help=f"print the guide's manifest as JSON: {JSON_SHAPE}")
     parser.set_defaults(func=run_guide)
 
@@ -67,6 +71,8 @@ def run_guide(args) -> int:
         raise UsageError("nothing to write: give --pdf OUT.pdf, --svg OUT.svg, --project or --json")
     if args.step is not None and not args.project:
         raise UsageError("--step goes with --project")
+    if args.projector is not None and not args.project:
+        raise UsageError("--projector goes with --project")
     pdf = check_output_file(args.pdf, {".pdf"}, "--pdf") if args.pdf else None
     svg = check_output_file(args.svg, {".svg"}, "--svg") if args.svg else None
     try:
@@ -76,7 +82,7 @@ def run_guide(args) -> int:
                                      tolerances=not args.no_tolerances, progress=view, physics=args.physics)
         job = service.export_guide(job, pdf=pdf, svg=svg, paper=args.paper)
         if args.project:
-            _project(job, args.step)
+            _project(job, args.step, args.projector)
     except ServiceError as error:
         raise flag_error(error) from None
     if args.json:
@@ -86,19 +92,18 @@ def run_guide(args) -> int:
     return 0
 
 
-def _project(job, step: int | None) -> None:
+def _project(job, step: int | None, url: str | None) -> None:
     from station.services import guide as service
-    from station.services.projectors import configured_projector, open_projector
+    from station.services.projectors import open_projector, projector_device, projector_mapping
 
-    device = configured_projector()
+    device = projector_device(url)
     if device is None:
-        raise UsageError("--project: no projector configured (add one to station.toml; see `station devices`)")
+        raise UsageError("--project: no projector configured (add one to station.toml, or give --projector URL)")
     with open_projector(device) as projector:
-        true_scale = service.show_step(job, projector, step)
+        mapping = projector_mapping(device.url, tuple(projector.size))
+        service.show_step(job, projector, step, homography=mapping.homography)
         shown = "the calibrate frame" if step is None else f"step {step} of {len(job.guide.parts)}"
-        scale = ("at true scale" if true_scale
-                 else "fitted to the screen, NOT at true scale: calibrate the projector first")
-        print(f"projected {shown} on {device.name} ({device.url}), {scale}")
+        print(f"projected {shown} on {device.name} ({device.url}), {mapping.scale_text()}")
 
 
 def _print_summary(job, pdf, svg) -> None:

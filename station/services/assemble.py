@@ -213,12 +213,12 @@ class Assembly:
         """Show the last check on the projector (an arrow per misplaced part to where it must go, a ring at the
         target); False without a projector or a check."""
         from station.services.check import overlay_frame
-        from station.services.projectors import saved_homography
+        from station.services.projectors import projector_homography
 
         if self.projector is None or self.check is None:
             return False
         size = tuple(self.projector.size)
-        self.projector.show(overlay_frame(self.check, size, saved_homography(size)))
+        self.projector.show(overlay_frame(self.check, size, projector_homography(self.projector)))
         return True
 
     def fix(self) -> list[dict]:

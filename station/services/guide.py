@@ -152,9 +152,9 @@ def show_step(job: GuideJob, projector, step: int | None = None, homography=None
     """Show step ``step`` (1-based; None: the calibrate frame) of the guide on an open ``projector`` device, drawn
     at the projector's own size (a frame of another size would be letterboxed, and no longer true to scale).
 
-    ``homography`` (guide mm -> projector pixels) defaults to the configured projector's saved map (`station
-    calibrate projector`) when it has one of this size. Returns whether the frame is at true scale (False until the
-    projector is calibrated).
+    ``homography`` (guide mm -> projector pixels) defaults to the map measured on this projector (`station
+    calibrate projector`, :func:`station.services.projectors.projector_homography`) when it has one of this size.
+    Returns whether the frame is at true scale (False until the projector is calibrated).
 
     Raises
     ------
@@ -168,9 +168,9 @@ def show_step(job: GuideJob, projector, step: int | None = None, homography=None
         raise ServiceError(f"step must be from 1 to {count}, got {step}", field="step", value=step)
     size = tuple(projector.size)
     if homography is None:
-        from station.services.projectors import saved_homography
+        from station.services.projectors import projector_homography
 
-        homography = saved_homography(size)
+        homography = projector_homography(projector)
     if step is None:
         frame = render_calibrate(job.guide, size, homography)
     else:

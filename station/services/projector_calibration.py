@@ -1,9 +1,11 @@
 """Projector calibration as a service: show Gray code stripes through a projector, grab each with a camera, map
 projector pixels to the guide plane (:mod:`calibration.projector_map`) and keep the map per projector.
 
-Used by ``station calibrate projector`` and the Calibrate screen's projector panel. The map is saved as
-``calibration/projectors/<name>.json`` in the station's data folder (:func:`station.paths.data_dir`); the guide's
-projected frames then land at true scale.
+Used by ``station calibrate projector`` and the Calibrate screen's projector panel. The map is saved under the
+projector it was measured on, as ``calibration/projectors/<key>.json`` in the station's data folder
+(:func:`station.paths.data_dir`; the key from :func:`station.services.projectors.projector_key`: the projector's
+``station.toml`` name, else a simulated twin's ``name=``, else ``display-N``), and records that projector; frames
+projected on it then land at true scale, and frames on any other projector do not borrow it.
 
 The camera's view of the plane is needed (undistorted pixel -> plane mm at h = 0, and the intrinsics that
 undistort): given as arguments, else the camera's saved plane fix (``calibration/planes/<camera>.json``, written by
@@ -21,6 +23,8 @@ from pathlib import Path
 import numpy as np
 
 from common.progress import CancelCheck, ProgressCallback, Reporter
+from drivers.devices import projector_identity
+from station.services import projectors
 from station.services.errors import ServiceError
 
 __all__ = ["DEFAULT_SETTLE_S", "ProjectorCalibration", "calibrate_projector", "projector_map_file",
@@ -33,8 +37,9 @@ _NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.-]{0,63}$")
 
 @dataclass(frozen=True)
 class ProjectorCalibration:
-    """A finished mapping: the map, where it was saved (None: not saved), which devices, and where the camera's
-    plane and intrinsics came from."""
+    """A finished mapping: the map, where it was saved (None: not saved), the key it is kept under, which devices
+    (``projector_identity``: the projector as :func:`drivers.devices.projector_identity` names it), and where the
+    camera's plane and intrinsics came from."""
 
     projector_map: object  # calibration.projector_map.ProjectorMap
     path: Path | None
@@ -44,19 +49,19 @@ class ProjectorCalibration:
     frames: int
     plane_source: str
     intrinsics_source: str
+    projector_identity: str = ""
 
     def to_dict(self) -> dict:
         path = None if self.path is None else str(self.path)
         return {**self.projector_map.to_json(), "name": self.name, "path": path,
-                "camera": self.camera_url, "projector": self.projector_url, "frames": self.frames,
-                "plane_source": self.plane_source, "intrinsics_source": self.intrinsics_source}
+                "camera": self.camera_url, "projector": self.projector_url, "device": self.projector_identity,
+                "frames": self.frames, "plane_source": self.plane_source,
+                "intrinsics_source": self.intrinsics_source}
 
 
 def projector_map_file(name: str) -> Path:
-    """Where the map of projector ``name`` is kept."""
-    from station.paths import data_dir
-
-    return data_dir() / "calibration" / "projectors" / f"{_check_name(name)}.json"
+    """Where the map kept under ``name`` is (a projector's key: :func:`station.services.projectors.projector_key`)."""
+    return projectors.maps_folder() / f"{_check_name(name)}.json"
 
 
 def _check_name(name: str) -> str:
@@ -115,7 +120,10 @@ def calibrate_projector(*, camera: str | None = None, projector: str | None = No
                         out: str | Path | None = None, progress: ProgressCallback | Reporter | None = None,
                         cancelled: CancelCheck | None = None) -> ProjectorCalibration:
     """Map the projector at ``projector`` (URL; default the station's) with the camera at ``camera`` (default the
-    station's), and save it as ``calibration/projectors/<name>.json`` (or ``out``; ``save=False``: not saved).
+    station's), and save it as ``calibration/projectors/<name>.json`` (or ``out``; ``save=False``: not saved),
+    recording the projector. ``name`` defaults to the projector's key
+    (:func:`station.services.projectors.projector_key`), where the guide and the check look for it; a map kept
+    under another name is still found for that projector, as it records it.
 
     ``plane`` is the camera's 3x3 undistorted-pixel -> plane homography, or a JSON file holding it as
     ``"homography"`` (what ``station calibrate plane`` keeps); ``intrinsics`` a camera file (OpenCV's names). Both
@@ -136,8 +144,9 @@ def calibrate_projector(*, camera: str | None = None, projector: str | None = No
 
     report = Reporter.of(progress, cancelled)
     camera_name, camera_url = _configured("camera") if camera is None else ("camera", camera)
-    projector_name, projector_url = _configured("projector") if projector is None else ("projector", projector)
-    name = _check_name(name or projector_name)
+    projector_url = _configured("projector")[1] if projector is None else str(projector).strip()
+    key = projectors.projector_key(projector_url)  # not a projector URL: one line on its field
+    name = _check_name(name or key)
     target = Path(out) if out is not None else projector_map_file(name)
     if not isinstance(finest_px, int) or finest_px < 1:
         raise ServiceError(f"finest must be a whole number of projector pixels >= 1, got {finest_px!r}",
@@ -171,10 +180,12 @@ def calibrate_projector(*, camera: str | None = None, projector: str | None = No
                     "'sim://camera?projector=wall' --projector 'sim://projector?name=wall&area=-300,-190,300,190'")
         raise ServiceError(f"camera: {error}{hint}", field="camera") from None
     report("projector map", 1, 1, f"landing error p95 {result.landing_error_mm['p95']:.2f} mm")
+    identity = projector_identity(projector_url)
     if save:
-        save_projector_map(result, target)
+        save_projector_map(result, target, extra={"device": identity, "projector": projector_url})
     return ProjectorCalibration(result, target if save else None, name, camera_url, projector_url, len(images),
-                                plane_source, intrinsics_source)
+                                plane_source, intrinsics_source, identity)
+
 
 
 def _json_file(path: Path, what: str, field: str) -> dict:
@@ -249,7 +260,7 @@ def projector_summary(done: ProjectorCalibration) -> list[str]:
     """The lines the CLI prints and the Calibrate screen shows."""
     landing, cells = done.projector_map.landing_error_mm, done.projector_map.cells
     width, height = done.projector_map.projector_size
-    lines = [f"projector {done.name} ({done.projector_url}, {width}x{height}) seen by {done.camera_url}: "
+    lines = [f"{done.projector_url} ({width}x{height}), kept as {done.name!r}, seen by {done.camera_url}: "
              f"{done.frames} patterns",
              f"cells seen {cells.get('seen')}, fitted {cells.get('fitted')} ({cells.get('inliers')} inliers)",
              f"landing error at {landing.get('check_points')} check points: p50 {landing['p50']:.2f} mm, "
