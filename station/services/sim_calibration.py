@@ -80,27 +80,31 @@ def choose_parameters(scenarios: Sequence[Scenario], params: Sequence[str] | Non
     material value, those without a range in their default one), each with the scenarios' value and range (the
     intersection where two scenarios give different ranges)."""
     known: dict[str, tuple[float, tuple[float, float]]] = {}
+    disjoint: set[str] = set()  # a value the scenarios give ranges without a common part: refused only if fitted
     for scenario in scenarios:
         for name, (value, (lo, hi)) in material_ranges(scenario, every_material).items():
             if name in known:
                 _, (lo0, hi0) = known[name]
                 lo, hi = max(lo, lo0), min(hi, hi0)
                 if not lo < hi:
-                    raise ServiceError(f"params: {name} has ranges that do not overlap in the scenarios",
-                                       field="params", value=name)
+                    disjoint.add(name)
+                    continue
                 value = min(max(known[name][0], lo), hi)
             known[name] = (value, (lo, hi))
     if not params:
         if not known:
             raise ServiceError("params: the scenarios have no uncertain material value to fit (give one a range: "
                                "friction = { value = 0.5, range = [0.3, 0.8] })", field="params")
-        return known
+        params = list(known)
     chosen = {}
     for name in params:
         if name not in known:
             have = ", ".join(known) or "none"
             raise ServiceError(f"params: {name!r} is not an uncertain material value of the scenarios; they have: "
                                f"{have} (--all-materials fits the others too)", field="params", value=name)
+        if name in disjoint:
+            raise ServiceError(f"params: {name} has ranges that do not overlap in the scenarios (fit it per "
+                               "scenario, or leave it out with --params)", field="params", value=name)
         chosen[name] = known[name]
     return chosen
 
