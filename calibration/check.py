@@ -26,7 +26,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from projector.drawing import placement_deltas
+from projector.drawing import UNTOLERATED_DEG, UNTOLERATED_MM, must_move, placement_deltas
 from projector.guide import Guide, PartDrawing
 
 __all__ = ["CHECK_FORMAT", "LAYOUT_DECIMALS", "CheckReport", "PartCheck", "check_parts", "instruction", "part_tags",
@@ -117,6 +117,8 @@ class CheckReport:
     missing_reference_tags: tuple[int, ...] = field(default=())
     #: the measured parameters as measured: ``as_built`` keeps each in its design range, these may leave it
     as_measured: dict[str, float] = field(default_factory=dict)
+    #: misplaced parts no design parameter places: the predictions simulate them where the guide puts them
+    not_simulated: tuple[str, ...] = field(default=())
 
     def to_json(self) -> dict:
         plane = None if self.plane is None else {
@@ -136,6 +138,7 @@ class CheckReport:
             "predicted_success_as_designed": _p(self.predicted_success_as_designed),
             "prediction_note": self.prediction_note,
             "simulated_success_as_built": _p(self.simulated_success_as_built),
+            "not_simulated": list(self.not_simulated),
         }
 
 
@@ -311,6 +314,9 @@ def instruction(name: str, error: Sequence[float], view: str, within: bool | Non
     text = ", ".join(words)
     if within:
         return f"`{name}` is within its tolerance (to centre it: {text})"
+    if not must_move(error, within):
+        return (f"`{name}` is in place: off by less than {UNTOLERATED_MM:g} mm / {UNTOLERATED_DEG:g} deg, what a part "
+                f"with no tolerance on the sheet may be (to centre it: {text})")
     return text
 
 

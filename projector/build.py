@@ -59,6 +59,7 @@ from projector.guide import (
     PartDrawing,
     PartKind,
     ReferenceTag,
+    where_text,
 )
 from projector.order import PartFacts, assembly_order, part_kind
 from projector.outline import PlacedBody, Surface, fit_tag, part_outline
@@ -178,13 +179,10 @@ def steps_text(guide: Guide) -> list[str]:
         what = f"`{part.name}`"
         if part.tag_id is not None:
             what += f" (tag {part.tag_id})"
-        words = [f"centre {_point(part.center_mm)} mm"]
+        words = [where_text(part)]
         pieces = len(getattr(part.outline, "geoms", [part.outline]))
         if pieces > 1:
-            # A run of dominoes: its frame's origin and turn mean little to the maker, its outlines everything.
-            middle = part.outline.centroid
             verb, what = "Stand", f"the {pieces} pieces of {what} on their outlines"
-            words = [f"around {_point((middle.x, middle.y))} mm"]
         elif not _round(part.outline):
             angle = f"turned {part.heading_deg:.1f} deg"
             if not said:

@@ -20,8 +20,8 @@ from shapely.geometry.base import BaseGeometry
 from projector.guide import Guide, GuidePlane, ParameterTolerance, PartDrawing
 
 __all__ = ["CARE_COLORS", "Label", "arc_points", "arrow", "care_color", "hatch_segments", "heading_length",
-           "placement_deltas", "place_labels", "polygons", "tag_black_rects", "tag_box", "tolerance_axes",
-           "tolerance_text", "tolerance_zone"]
+           "must_move", "off_sheet_word", "placement_deltas", "place_labels", "polygons", "tag_black_rects", "tag_box",
+           "tolerance_axes", "tolerance_text", "tolerance_zone"]
 
 #: Colours of the care levels (RGB 0..1): tight red, normal orange, loose green.
 CARE_COLORS = {"tight": (0.85, 0.11, 0.11), "normal": (0.96, 0.55, 0.0), "loose": (0.13, 0.6, 0.2)}
@@ -83,21 +83,49 @@ def placement_deltas(part: PartDrawing, plane: GuidePlane) -> tuple[float | None
     return du, dv, dtheta
 
 
+#: Off by at least this much, a part with no tolerance on the sheet must move (:func:`must_move`).
+UNTOLERATED_MM, UNTOLERATED_DEG = 1.0, 1.0
+
+
+def must_move(error, within: bool | None) -> bool:
+    """The one rule for "this part must move" (the check's count and instructions, the overlays, the Assemble
+    screen), from its error ``(du, dv, distance, dheading)`` and whether it is within its tolerance on the sheet
+    (None: no tolerance there, then off by :data:`UNTOLERATED_MM` or :data:`UNTOLERATED_DEG` or more)."""
+    if within is not None:
+        return not within
+    return error[2] >= UNTOLERATED_MM or abs(error[3]) >= UNTOLERATED_DEG
+
+
+def off_sheet_word(tolerance: ParameterTolerance, plane: GuidePlane) -> str:
+    """What an out-of-plane tolerance bounds, in the maker's words: ``"height"`` (a position along the plane's
+    normal: above the table, or off a backboard), ``"tilt"`` (a turn about an axis in the plane), else the
+    parameter's last name."""
+    component = tolerance.parameter.rsplit(".", 1)[-1]
+    if tolerance.unit == "mm" and component in _POSITION_AXES:
+        if abs(np.asarray(_POSITION_AXES[component]) @ plane.normal) > 0.5:
+            return "height" if plane.view == "top" else "distance from the board"
+    if tolerance.unit == "deg" and component in _ROTATION_AXES:
+        return "tilt"
+    return component
+
+
 def tolerance_text(part: PartDrawing, plane: GuidePlane) -> str:
-    """A short line for the label: the care level and the tightest deltas on the plane (``"tight ±2.1 mm ±1.5°"``);
-    the deltas out of the plane when none is on it."""
+    """A short line for the label: the care level and the tightest deltas on the plane (``"tight ±2.1 mm ±1.5°"``,
+    the zone the check measures against); when none is on the plane, the deltas out of it named by what they bound
+    (``"height ±5.3 mm, tilt ±10.6°"``: set by hand, no camera check sees them)."""
     du, dv, dtheta = placement_deltas(part, plane)
     mm = [d for d in (du, dv) if d is not None]
-    deg = [] if dtheta is None else [dtheta]
-    if not mm and not deg:
-        mm = [abs(t.delta) for t in part.tolerances if t.delta is not None and t.unit == "mm"]
-        deg = [abs(t.delta) for t in part.tolerances if t.delta is not None and t.unit == "deg"]
     words = [part.care] if part.care else []
     if mm:
         words.append(f"±{min(mm):.1f} mm")
-    if deg:
-        words.append(f"±{min(deg):.1f}°")
-    return " ".join(words)
+    if dtheta is not None:
+        words.append(f"±{dtheta:.1f}°")
+    if mm or dtheta is not None:
+        return " ".join(words)
+    off = [t for t in part.tolerances if t.placement_delta is not None and not tolerance_axes(t, plane)]
+    unit = {"mm": " mm", "deg": "°"}
+    named = ", ".join(f"{off_sheet_word(t, plane)} ±{abs(t.delta):.1f}{unit.get(t.unit, ' ' + t.unit)}" for t in off)
+    return " ".join([*words, named]) if named else " ".join(words)
 
 
 def tolerance_zone(outline: BaseGeometry, du: float | None, dv: float | None) -> BaseGeometry | None:

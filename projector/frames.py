@@ -26,7 +26,7 @@ from shapely.geometry.base import BaseGeometry
 
 from projector.drawing import arc_points, placement_deltas, tolerance_zone
 from projector.errors import ProjectorError
-from projector.guide import Guide, GuidePlane, PartDrawing, PartKind, ReferenceTag
+from projector.guide import Guide, GuidePlane, PartDrawing, PartKind, ReferenceTag, where_text
 from projector.tags import TAG_CELLS, tag_image
 
 __all__ = ["Frames", "fit_homography", "render_calibrate", "render_frames", "render_step", "step_caption"]
@@ -132,7 +132,7 @@ def step_caption(part: PartDrawing, steps: int) -> str:
 
 def detail_caption(part: PartDrawing) -> str:
     """The second line: where the part goes and its tolerances."""
-    text = f"centre ({part.center_mm[0]:.1f}, {part.center_mm[1]:.1f}) mm, heading {part.heading_deg:.1f} deg"
+    text = f"{where_text(part)}, heading {part.heading_deg:.1f} deg"
     known = [t for t in part.tolerances if t.placement_delta is not None]
     if known:
         text += ", tolerance " + ", ".join(f"{t.parameter.rsplit('.', 1)[-1]} +-{t.delta:.1f} {t.unit}" for t in known)

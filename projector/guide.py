@@ -31,6 +31,9 @@ __all__ = [
     "PartKind",
     "ParameterTolerance",
     "ReferenceTag",
+    "where_point",
+    "where_text",
+    "where_word",
 ]
 
 #: The AprilTag family of every tag the station prints (upstream tag36h11, ids 0..586).
@@ -273,6 +276,10 @@ class Guide:
         Where the tolerances come from: ``"model"``, ``"simulation"`` or ``"none"`` (the sheet says which).
     pages : tuple of GuidePage
         The printed sheets, once tiled (empty before).
+    tolerance_note : str or None
+        Why the tolerances come from there, when it is not the obvious (the sheet says it).
+    headline : str or None
+        The layout's physical success on the table, in the station's words, when it is known (the sheet shows it).
     """
 
     scenario: str
@@ -283,6 +290,8 @@ class Guide:
     extent_mm: tuple[float, float, float, float]
     tolerance_source: str = "none"
     pages: tuple[GuidePage, ...] = field(default=())
+    tolerance_note: str | None = None
+    headline: str | None = None
 
     @property
     def view(self) -> str:
@@ -298,7 +307,7 @@ class Guide:
     def manifest(self) -> dict:
         """The guide's JSON manifest (``station guide --json``), a public contract::
 
-            {"scenario", "content_hash", "view", "units": "mm", "tolerance_source",
+            {"scenario", "content_hash", "view", "units": "mm", "tolerance_source", "tolerance_note", "headline",
              "pages": [{"index", "label", "paper", "size_mm": [w, h], "origin_mm": [u, v]}],
              "reference_tags": [{"id", "center_mm": [u, v], "size_mm"}],
              "parts": [{"name", "kind", "step", "tag_id", "tag_center_mm", "tag_size_mm", "tag_height_mm",
@@ -316,6 +325,8 @@ class Guide:
             "view": self.view,
             "units": "mm",
             "tolerance_source": self.tolerance_source,
+            "tolerance_note": self.tolerance_note,
+            "headline": self.headline,
             "pages": [
                 {"index": p.index, "label": p.label, "paper": p.paper, "size_mm": [*map(_r, p.size_mm)],
                  "origin_mm": [*map(_r, p.origin_mm)]}
@@ -367,3 +378,25 @@ def _part_manifest(part: PartDrawing) -> dict:
             for b in part.body_tags
         ],
     }
+
+
+def where_point(part: PartDrawing) -> tuple[float, float]:
+    """The point the guide gives for a part, on the plane (mm): its centre, or for a run of pieces (dominoes) the
+    centroid of their outlines (the run's frame origin and turn mean little to the maker, its outlines
+    everything). The steps, the parts list and the projected frames all give this one."""
+    if len(getattr(part.outline, "geoms", [part.outline])) > 1:
+        middle = part.outline.centroid
+        return float(middle.x), float(middle.y)
+    return float(part.center_mm[0]), float(part.center_mm[1])
+
+
+def where_word(part: PartDrawing) -> str:
+    """``"around"`` for a run of pieces (:func:`where_point` is their centroid), else ``"centre"``."""
+    return "around" if len(getattr(part.outline, "geoms", [part.outline])) > 1 else "centre"
+
+
+def where_text(part: PartDrawing) -> str:
+    """``"centre (-60.0, 0.0) mm"`` or ``"around (35.0, 0.0) mm"``: :func:`where_point` in words, to 0.1 mm (a -0.04
+    reads "0.0", not "-0.0")."""
+    u, v = (round(c, 1) + 0.0 for c in where_point(part))
+    return f"{where_word(part)} ({u:.1f}, {v:.1f}) mm"

@@ -9,7 +9,7 @@ from __future__ import annotations
 from xml.sax.saxutils import escape
 
 from projector.drawing import CARE_COLORS, tolerance_axes
-from projector.guide import Guide
+from projector.guide import Guide, where_text
 from projector.tiling import FOOTER_MM, PRINTABLE_MM, grid_shape, sheet_format
 
 __all__ = ["SOURCE_TEXT", "draw_lists", "tolerance_source_text"]
@@ -19,7 +19,7 @@ SOURCE_TEXT = {
     "model": "Tolerances from the layout's success model: \u00b1delta is the largest error of that parameter alone "
              "that keeps the predicted success at 90 % or more of the layout's; predicted is the success there as a "
              "fraction of the layout's.",
-    "simulation": "Tolerances by simulation (the layout carries no success model): \u00b1delta was checked by "
+    "simulation": "Tolerances by simulation: \u00b1delta was checked by "
                   "simulating layouts with that parameter off by \u00b1delta; measured is their success rate.",
     "none": "No tolerances: the layout carries no fitted success model and none were simulated, so every part "
             "should be placed as precisely as you can (add --verify N to measure them by simulation).",
@@ -29,6 +29,8 @@ SOURCE_TEXT = {
 def tolerance_source_text(guide: Guide) -> str:
     """The sentence saying where the guide's tolerances come from."""
     text = SOURCE_TEXT.get(guide.tolerance_source, f"Tolerances: {guide.tolerance_source}.")
+    if guide.tolerance_note:
+        text = f"{guide.tolerance_note[0].upper()}{guide.tolerance_note[1:]}. " + text
     if guide.tolerance_source != "none" and any(t.measured is not None for p in guide.parts for t in p.tolerances):
         text += " Measured: the success rate of simulated layouts at \u00b1delta (--verify)."
     return text
@@ -81,6 +83,7 @@ def _story(guide: Guide, steps: list[str], title: str) -> list:
           f"marked margins and lay each sheet over its neighbour matching the grid and the join marks. Place the "
           f"parts in the order of their numbers; coloured zones show how far each may be off (red tight, orange "
           f"normal, green loose)."),
+        *([p(f"<b>Chance it works:</b> {escape(guide.headline)}.")] if guide.headline else []),
         p("<b>On the sheets:</b> a black outline is a part you place, a grey hatched one is fixed (a support, the "
           "floor); the number in a circle is its step; + is its centre, the point the steps give; the blue arrow "
           "its heading; the dashed coloured zone is where its outline may lie and the coloured arc how far its "
@@ -90,15 +93,16 @@ def _story(guide: Guide, steps: list[str], title: str) -> list:
         Spacer(1, 3 * mm),
         p("Parts", h2),
     ]
-    rows_ = [["#", "part", "kind", "centre (u, v) mm", "heading", "tag", "care"]]
+    rows_ = [["#", "part", "kind", "where (u, v) mm", "heading", "tag", "care"]]
     for part in guide.parts:
         care = part.care or "\u2013"
         if part.care in CARE_COLORS:
             care = f'<font color="{_hex(CARE_COLORS[part.care])}"><b>{part.care}</b></font>'
         rows_.append([str(part.step), p(escape(part.name), cell), str(part.kind),
-                      f"({part.center_mm[0]:.1f}, {part.center_mm[1]:.1f})", f"{part.heading_deg:.1f}\u00b0",
+                      where_text(part).removesuffix(" mm"),
+                      f"{part.heading_deg:.1f}\u00b0",
                       "\u2013" if part.tag_id is None else str(part.tag_id), p(care, cell)])
-    story += [table(rows_, [9, 55, 15, 35, 17, 11, 16]), Spacer(1, 3 * mm), p("Steps", h2)]
+    story += [table(rows_, [9, 50, 15, 40, 17, 11, 16]), Spacer(1, 3 * mm), p("Steps", h2)]
     if steps:
         story += [p(escape(step)) for step in steps]
     else:

@@ -51,7 +51,7 @@ def test_a_simulated_world_places_is_checked_fixed_runs_and_the_trial_is_logged(
     # skip the steps, placed, fix once, then accept (or run: nothing left to move), run, log
     code, out, err = run(capsys, monkeypatch, "s\n\nf\na\n\n\n", "ballrun", "success", "--world", url, *FAST)
     assert code == 0, err + out
-    assert out.count("predicted physical success") >= 4  # designed, after each check, after the run
+    assert out.count("physical success on the table") >= 4  # designed, after each check, after the run
     assert "the simulated maker placed 8 parts" in out and "the simulated maker moved" in out
     logged = trials()
     assert len(logged) == 1
@@ -95,7 +95,7 @@ def test_json_prints_the_logged_attempt_and_says_the_prompts_on_stderr(capsys, m
     assert attempt["outcomes"] == trial["outcomes"] and attempt["scenario"] == "SIMPLE"
     assert len(attempt["checks"]) == 1 and attempt["checks"][0]["format"] == "chaos-station check"
     assert [f["when"] for f in attempt["forecasts"]][:2] == ["designed", "as placed"]
-    assert "a real table" in err and "predicted physical success" in err
+    assert "a real table" in err and "physical success on the table" in err
 
 
 @pytest.mark.parametrize("answers, word", [("s\n\n", "the input ended"), ("s\nq\n", "left"),
@@ -186,12 +186,13 @@ def test_a_layout_logged_before_is_forecast_with_its_record():
     logged = [{"layout": values, "success": True}, {"layout": values, "success": False},
               {"layout": {**values, "track.x": -0.1}, "success": True}]  # another layout's
     assert service._layout_record(scenario, x, logged) == (1, 2)
-    prediction = SimpleNamespace(probability=0.8, interval=(0.6, 0.9), attempts=1.25, samples=10,
-                                 to_json=lambda: {"probability": 0.8})
+    prediction = SimpleNamespace(probability=0.8, interval=(0.6, 0.9), attempts=1.25, attempts_interval=(1.1, 1.7),
+                                 samples=10, to_json=lambda: {"probability": 0.8})
     forecast = service.Forecast("as placed", prediction, (1, 2))
     assert forecast.with_record == pytest.approx((4 * 0.8 + 1) / 6)  # the loop's weight, 4 attempts
-    assert forecast.line() == ("predicted physical success 0.80 (0.60-0.90), expected attempts 1.2 (as placed, 10 "
-                               "simulations); 0.70 with its record here (1 of 2 worked; expected attempts 1.4)")
+    assert forecast.line() == ("physical success on the table 0.80 (95 %: 0.60-0.90): expect 1.2 attempts (1.1-1.7) "
+                               "(as placed, 10 simulations); 0.70 with its record here (1 of 2 worked; expected "
+                               "attempts 1.4)")
     assert forecast.to_json()["record"] == [1, 2]
     never = service.Forecast("designed", prediction)
     assert never.with_record is None and "record" not in never.line()

@@ -232,3 +232,21 @@ def test_the_projected_check_uses_the_projectors_saved_map():
         assert show_step(job, shown, 1) is True
     with SimulatedProjector("sim://projector?size=1024x768") as shown:
         assert show_step(job, shown, 1) is False  # its map is of another size: fitted to the screen
+
+
+def test_the_headline_is_the_physical_success_and_a_misplaced_part_no_parameter_places_is_said(capsys):
+    # BALLRUN's low_plank has a tag but no design parameter: the simulations put it where the guide does, so the
+    # physical success leaves its error out, and says so (text and CHECK.json's not_simulated).
+    argv = ["check", "ballrun", "success", "--camera", "sim://camera", "--sim-offset", "low_plank=-12,0,20",
+            "--predict", "4"]
+    assert main([*argv, "--json"]) == 0
+    printed = json.loads(capsys.readouterr().out)
+    assert printed["not_simulated"] == ["low_plank"]
+    assert main(argv) == 0
+    lines = capsys.readouterr().out.splitlines()
+    assert lines[2].startswith("physical success on the table ") and "(as placed, 4 simulations)" in lines[2]
+    assert any("leave out where `low_plank` stands" in line for line in lines)
+    assert not any(line.startswith("predicted success") for line in lines)
+    row = next(line for line in lines if line.startswith("low_plank "))
+    assert row.split()[-2:] == ["NO*", "-"]  # no zone on the sheet and off by 12 mm: to move; no model cost
+    assert any(line.strip().startswith("NO*/yes*: no zone on the sheet") for line in lines)

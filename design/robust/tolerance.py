@@ -122,6 +122,9 @@ class ToleranceMap:
         The share of it the tolerances keep.
     layout_success : bool or None
         The layout's own simulated success, when it was simulated.
+    note : str or None
+        Why the tolerances came from where they did, when that is not the obvious (a success model too weak at
+        the layout to be trusted).
     """
 
     entries: tuple[ToleranceEntry, ...]
@@ -129,6 +132,7 @@ class ToleranceMap:
     layout_psp: float | None = None
     ratio: float = RATIO
     layout_success: bool | None = None
+    note: str | None = None
 
     def by_part(self) -> dict[str, list[ToleranceEntry]]:
         """The entries grouped by part, in design-space order."""
@@ -142,10 +146,10 @@ class ToleranceMap:
         return {part: care_level(entries) for part, entries in self.by_part().items()}
 
     def to_dict(self) -> dict:
-        """JSON-friendly: source, layout_psp, ratio, layout_success, entries, and care per part."""
+        """JSON-friendly: source, layout_psp, ratio, layout_success, entries, care per part, and the note."""
         return {"source": self.source, "layout_psp": self.layout_psp, "ratio": self.ratio,
                 "layout_success": self.layout_success, "entries": [e.to_dict() for e in self.entries],
-                "care": self.care()}
+                "care": self.care(), "note": self.note}
 
 
 def care_level(entries: Sequence[ToleranceEntry]) -> str | None:

@@ -47,8 +47,8 @@ def register(subparsers) -> None:
         "default station's) the camera is shown the guide's tags at their designed poses; --sim-offset and "
         f"--sim-cover change that simulated scene only (demos and tests). --json prints {JSON_SHAPE}.",
         epilog="examples:\n"
-        "  station check ballrun layout.json --image frame.png --intrinsics desk.json\n"
-        "  station check ballrun layout.json --camera 0 --guide guide.json --out check.json --project\n"
+        "  station check simple layout.json --image frame.png --intrinsics desk.json\n"
+        "  station check simple layout.json --guide guide.json --out check.json --project\n"
         "  station check simple layout.json --camera sim://camera --sim-offset track=3,-1 --simulate 20",
     )
     parser.add_argument("scenario", help="scenario file, or an example's name (simple, ballrun, ...)")
@@ -134,14 +134,10 @@ def _print(check, out: Path | None, overlay: Path | None, projected: str | None)
     guide_job = check.guide_job
     print(f"{report.scenario}: {guide_job.layout.describe()}, {report.view} view, camera "
           f"{check.intrinsics.name or 'guessed'}")
-    for line in service.report_lines(report):
+    for line in service.report_lines(report, check.physical):
         print(line)
     for path, what in ((out, "the check (CHECK.json)"), (overlay, "the camera frame with the check")):
         if path is not None:
             print(f"wrote {what} to {path}")
-    if check.physical is not None:
-        from station.services.predict import outlook_line
-
-        print(outlook_line(check.physical))
     if projected:
         print(projected)

@@ -35,10 +35,10 @@ def register(subparsers) -> None:
         "(`station calibrate projector`), else fitted to the screen, and says which. "
         f"--json prints the guide's manifest: {JSON_SHAPE}.",
         epilog="examples:\n"
-        "  station guide ballrun layout.json --pdf ballrun.pdf\n"
+        "  station guide ballrun ballrun-layout.json --pdf ballrun.pdf\n"
         "  station guide simple layout.json --pdf simple.pdf --svg simple.svg --paper letter --view top\n"
-        "  station guide ballrun layout.json --pdf ballrun.pdf --verify 40 --json\n"
-        "  station guide ballrun layout.json --project --step 3",
+        "  station guide simple layout.json --pdf simple.pdf --verify 40 --json\n"
+        "  station guide ballrun ballrun-layout.json --project --step 3",
     )
     parser.add_argument("scenario", help="scenario file, or an example's name (simple, ballrun, ...)")
     parser.add_argument("layout", help="layout file (LAYOUT.json, {\"parameters\": {...}}) or a layout named in the "
@@ -116,6 +116,10 @@ def _print_summary(job, pdf, svg) -> None:
     source = {"model": "from the layout's success model", "simulation": "by simulation",
               "none": "none (the layout carries no success model; --verify N estimates them by simulation)"}
     print(f"tolerances: {source.get(guide.tolerance_source, guide.tolerance_source)}")
+    if guide.tolerance_note:
+        print(f"  note: {guide.tolerance_note}")
+    if guide.headline:
+        print(guide.headline)
     if pdf is not None:
         pages = guide.pages
         columns = max((ord(p.label[0]) - ord("A") + 1 for p in pages), default=0)

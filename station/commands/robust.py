@@ -281,6 +281,10 @@ def register(subparsers) -> None:
                           "thesis and recommended)")
     add_settings_choice(optimize)
     optimize.add_argument("--json", action="store_true", help="also print the layout as JSON on stdout")
+    optimize.add_argument("--predict", type=int, default=48, metavar="N",
+                          help="the optimized layout's physical success on the table and the attempts to expect, "
+                          "from N simulations placed by the guide with no check (1 mm / 1 deg), written to "
+                          "LAYOUT.json's physical_success (default %(default)s; 0: none)")
 
     robustness = add_command(
         subparsers, "robustness", run_robustness,
@@ -290,7 +294,7 @@ def register(subparsers) -> None:
         "curve ρ_l(ε) (success rate within a normalized distance ε) and the global robustness ρ_g. Simulations are "
         "cached, so a second run of the same layout is quick. It says up front how many simulations it needs.",
         examples=["examples/scenarios/simple.toml layout.json --eval 128 --local 10",
-                  "ballrun layout.json --plot rho.png --json"],
+                  "ballrun ballrun-layout.json --plot rho.png --json"],
     )
     add_scenario_and_layout(robustness)
     add_sampling(robustness, "the layout")
@@ -339,22 +343,45 @@ def run_optimize(args) -> int:
     if args.placement_error is not None:
         changes["placement_error"] = args.placement_error
     settings = psp_settings(args.settings, **changes)
+    from station.services.predict import layout_outlook  # simulation code: deferred so that --help stays quick
+
+    service.check_count(args.predict, "predict", 0)
     result = service.optimize(problem, budget, args.seed, settings, progress=args.bar, **_where(args))
+    outlook = layout_outlook(problem, problem.to_real(result.u), physics=getattr(args, "physics", None),
+                             samples=args.predict, seed=args.seed, progress=args.bar, **_where(args))
     args.bar.close()
     payload = result.to_json(problem)
+    if outlook is not None:
+        payload["physical_success"] = outlook.to_json()
     out.write_text(json.dumps(payload, indent=2) + "\n", encoding="utf-8")
     if args.json:
         emit_json(payload)
     else:
-        print(f"{problem.name}: predicted PSP {result.psp:.3f}, simulated "
-              f"{'success' if result.simulated_success else 'FAILURE'}, {result.n_simulations} simulations "
-              f"({result.n_new_simulations} new), {result.seconds:.1f} s -> {out}")
-        for name, value in zip(problem.parameter_names, problem.to_real(result.u)):
-            print(f"  {name:24s} {value: .5g}")
-        for name, p in zip(result.factor_names, result.factor_probabilities):
-            print(f"  P({name}) = {p:.3f}")
-        _print_verification(result)
+        _print_optimized(problem, result, outlook, out)
     return 0 if result.simulated_success else 1
+
+
+def _print_optimized(problem, result, outlook, out) -> None:
+    """The optimized layout as a maker reads it: the physical success on the table first, the model's score last."""
+    from station.services.outlook import disagreement, success_headline
+
+    if outlook is not None:
+        print(f"{problem.name}: " + success_headline(outlook, when=f"placed by the guide, {outlook.samples} "
+                                                     "simulations"))
+    lead = f"{problem.name}:" if outlook is None else " "
+    works = "works" if result.simulated_success else "FAILS"
+    print(f"{lead} the layout {works} in simulation; {result.n_simulations} simulations "
+          f"({result.n_new_simulations} new), {result.seconds:.1f} s -> {out}")
+    for name, value in zip(problem.parameter_names, problem.to_real(result.u)):
+        print(f"  {name:24s} {value: .5g}")
+    _print_verification(result)
+    warning = disagreement(result.psp, outlook.probability if outlook is not None else
+                           float(result.simulated_success), outlook.samples if outlook is not None else None)
+    if warning:
+        print(f"note: {warning}")
+    print(f"detail: the success model's own score (predicted PSP) {result.psp:.3f}, per event:")
+    for name, p in zip(result.factor_names, result.factor_probabilities):
+        print(f"  P({name}) = {p:.3f}")
 
 
 def _print_verification(result) -> None:

@@ -28,7 +28,7 @@ def register(subparsers) -> None:
     tight, loose = CARE_RULE["mm"]
     parser = add_command(
         subparsers, "tolerances", run_tolerances,
-        help="how far each layout parameter may be off on its own (the tolerance map, issue 18)",
+        help="how far each layout parameter may be off on its own (the tolerance map)",
         description=f"For each free parameter of a layout, the largest error ±delta it tolerates on its own (the "
         f"others fixed) while the predicted success stays >= {RATIO:.0%} of the layout's, from the fitted success "
         "model a LAYOUT.json of `station optimize` carries; positions in mm, angles in degrees. Each part gets a care "
@@ -37,7 +37,7 @@ def register(subparsers) -> None:
         "the predicted one. A layout without a model (hand-written) gets tolerances by simulation with --verify N, "
         "else none. " + JSON_SHAPE,
         examples=["examples/scenarios/simple.toml layout.json",
-                  "ballrun ballrun-layout.json --verify 40 --seed 1 --json"],
+                  "simple layout.json --verify 20 --seed 1 --json"],
     )
     parser.add_argument("scenario", help="a scenario file (.toml/.json) or an example name")
     parser.add_argument("layout", help="a layout file: the LAYOUT.json of `station optimize` (with its model), or "
@@ -78,11 +78,14 @@ def run_tolerances(args) -> int:
         return 0
     tolerance_map = result.map
     source = {"model": "from the layout's fitted success model",
-              "simulation": f"by simulation (no model in the layout; {args.verify} layouts per step)",
+              "simulation": (f"by simulation ({result.verify} layouts per step)" if result.model is not None else
+                             f"by simulation (no model in the layout; {result.verify} layouts per step)"),
               "none": "none: the layout carries no fitted model (give --verify N to search by simulation)"}
     print(f"{result.problem.name}: tolerances of {result.layout.describe()} {source[tolerance_map.source]}")
-    if tolerance_map.layout_psp is not None:
-        print(f"  predicted success of the layout {tolerance_map.layout_psp:.3f}; each delta keeps >= "
+    if tolerance_map.note:
+        print(f"  note: {tolerance_map.note}")
+    if tolerance_map.layout_psp is not None and tolerance_map.source == "model":
+        print(f"  the success model's score of the layout {tolerance_map.layout_psp:.3f}; each delta keeps >= "
               f"{tolerance_map.ratio:.0%} of it")
     if tolerance_map.layout_success is not None:
         print(f"  the layout itself {'succeeds' if tolerance_map.layout_success else 'FAILS'} in simulation")

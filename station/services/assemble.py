@@ -29,6 +29,7 @@ import numpy as np
 
 from common.progress import ProgressCallback
 from station.services.errors import ServiceError
+from station.services.outlook import success_headline
 
 __all__ = ["STAGES", "Assembly", "Forecast", "calibrate_from_log", "open_assembly", "reoptimize"]
 
@@ -71,14 +72,12 @@ class Forecast:
                 f"{attempts})")
 
     def line(self) -> str:
-        """``predicted physical success 0.83 (0.71-0.91), expected attempts 1.2 (as placed, 60 simulations)``, and
-        the record's word when the layout was logged before."""
-        p = self.prediction
-        attempts = "never" if np.isinf(p.attempts) else f"{p.attempts:.1f}"
+        """The headline (:func:`station.services.outlook.success_headline`) with when and from how many
+        simulations, and the record's word when the layout was logged before: ``physical success on the table 0.83
+        (95 %: 0.71-0.91): expect 1.2 attempts (1.1-1.4) (as placed, 60 simulations)``."""
         words = self.record_words()
         record = f"; {words}" if words else ""
-        return (f"predicted physical success {p.probability:.2f} ({p.interval[0]:.2f}-{p.interval[1]:.2f}), "
-                f"expected attempts {attempts} ({self.when}, {p.samples} simulations){record}")
+        return success_headline(self.prediction, when=f"{self.when}, {self.prediction.samples} simulations") + record
 
     def to_json(self) -> dict:
         return {"when": self.when, **self.prediction.to_json(), "record": list(self.record),

@@ -382,8 +382,9 @@ def check_measurement(job, measurement, image: np.ndarray, intrinsics, *, simula
     problem = getattr(job.tolerances, "problem", None)
     predicted_built = predicted_designed = None
     if model is None:
-        notes.insert(0, "no prediction: the layout carries no fitted success model (the LAYOUT.json of `station "
-                     "optimize` has one)" if names else "no prediction: the scenario has no design parameters")
+        notes.insert(0, "no success-model score: the layout carries no fitted success model (a LAYOUT.json of "
+                     "`station optimize` has one)" if names else
+                     "no success-model score: the scenario has no design parameters")
     else:
         predicted_designed, predicted_built, costs = _scores(model, problem, x, built, guide)
         checks = [replace(c, cost=costs.get(c.owner)) for c in checks]
@@ -414,6 +415,17 @@ def check_measurement(job, measurement, image: np.ndarray, intrinsics, *, simula
                                   angle_sigma_deg=max(residual["heading_deg"], 0.1), unmeasured=built.not_measured,
                                   samples=predict, seed=seed,
                                   progress=report, should_stop=should_stop)
+    # a misplaced part no design parameter places: the simulations put it where the guide does, and say so
+    from projector.overlay import misplaced
+    from station.services.outlook import disagreement
+
+    owners_placed = {p.name for p in guide.parts if p.parameters}
+    not_simulated = tuple(dict.fromkeys(c.owner for c in checks if misplaced(c) and c.owner not in owners_placed))
+    simulated_rate = physical.probability if physical is not None else simulated
+    warning = disagreement(predicted_built, simulated_rate,
+                           physical.samples if physical is not None else (simulate or None))
+    if warning:
+        notes.append(warning)
     missing = () if measurement.plane is None else tuple(  # without a plane nothing is measured: none is missing
         c.tag_id for c in checks if not c.found and c.tag_id not in measurement.duplicate_ids)
     result = CheckReport(
@@ -424,7 +436,7 @@ def check_measurement(job, measurement, image: np.ndarray, intrinsics, *, simula
         residual_error=residual, predicted_success_as_built=predicted_built,
         predicted_success_as_designed=predicted_designed, prediction_note="; ".join(notes) or None,
         simulated_success_as_built=simulated, missing_reference_tags=tuple(measurement.missing_reference_ids),
-        as_measured=built.measured_values(names))
+        as_measured=built.measured_values(names), not_simulated=not_simulated)
     return CheckJob(result, job, image, measurement, intrinsics, physical)
 
 
@@ -484,20 +496,36 @@ def _simulate(problem, built, residual, n: int, seed: int, report: Reporter, sho
 
 
 # -- what the check shows ---------------------------------------------------------------------------------------------
-def summary_lines(report) -> list[str]:
-    """The check's headline in words: the prediction as placed (or why there is none) and what to do."""
+def summary_lines(report, physical=None) -> list[str]:
+    """The check's headline in words, most important first: the physical success as placed (``physical``, a
+    :class:`calibration.sim_predict.PhysicalPrediction`; else the simulated success of ``--simulate``), the parts to
+    move, what the predictions leave out, and the success model's own score as a detail."""
+    from projector.drawing import UNTOLERATED_DEG, UNTOLERATED_MM
     from projector.overlay import misplaced
+    from station.services.outlook import left_out_words, model_detail, success_headline
 
     to_move = sum(1 for p in report.parts if misplaced(p))
+    unknown = sum(1 for p in report.parts if misplaced(p) and p.within_tolerance is None)
     found = sum(1 for p in report.parts if p.found)
     lines = []
-    if report.predicted_success_as_built is not None:
-        lines.append(f"predicted success as placed: {report.predicted_success_as_built:.2f} "
-                     f"(as designed: {report.predicted_success_as_designed:.2f})")
-    if report.simulated_success_as_built is not None:
-        lines.append(f"simulated success as placed: {report.simulated_success_as_built:.2f}")
-    lines.append(f"{found} of {len(report.parts)} tagged parts measured, {to_move} to move"
+    if physical is not None:
+        lines.append(success_headline(physical, when=f"as placed, {physical.samples} simulations"))
+    elif report.simulated_success_as_built is not None:
+        lines.append(f"simulated success as placed {report.simulated_success_as_built:.2f} (with the check's "
+                     "measurement error)")
+    why = (f" ({unknown} with no tolerance on the sheet: off by {UNTOLERATED_MM:g} mm / {UNTOLERATED_DEG:g} deg or "
+           "more)" if unknown else "")
+    lines.append(f"{found} of {len(report.parts)} tagged parts measured, {to_move} to move{why}"
                  + (f", {len(report.by_eye)} to check by eye" if report.by_eye else ""))
+    left_out = left_out_words(getattr(report, "not_simulated", ()))
+    if left_out:
+        lines.append(left_out)
+    if physical is not None and report.simulated_success_as_built is not None:
+        lines.append(f"detail: simulated success as placed {report.simulated_success_as_built:.2f} (with the "
+                     "check's measurement error alone)")
+    detail = model_detail(report.predicted_success_as_built, report.predicted_success_as_designed)
+    if detail:
+        lines.append(detail)
     return lines
 
 
@@ -507,7 +535,7 @@ def overlay_frame(check: CheckJob, size: tuple[int, int], homography=None) -> np
     from projector.overlay import render_check
 
     return render_check(check.guide_job.guide, check.report.parts, tuple(size), homography,
-                        caption=summary_lines(check.report)[:2])
+                        caption=summary_lines(check.report, check.physical)[:2])
 
 
 def camera_overlay(check: CheckJob) -> np.ndarray:
@@ -531,31 +559,46 @@ def camera_overlay(check: CheckJob) -> np.ndarray:
         return pixels.reshape(-1, 2)
 
     return draw_check(image, check.guide_job.guide, check.report.parts, project,
-                      caption=summary_lines(check.report)[:2])
+                      caption=summary_lines(check.report, check.physical)[:2])
 
 
-def report_lines(report) -> list[str]:
-    """The check as text: one row per tagged part (costliest first), the instructions, what was not measured and
-    the prediction as placed."""
+def report_lines(report, physical=None) -> list[str]:
+    """The check as text: the headline (:func:`summary_lines`), one row per tagged part (costliest first) with a
+    legend, the instructions, what was not measured and the notes, the success model's score last (a detail)."""
+    from projector.drawing import UNTOLERATED_DEG, UNTOLERATED_MM
+    from projector.overlay import misplaced
+
+    summary = summary_lines(report, physical)
+    detail = [line for line in summary if line.startswith("detail: ")]
     lines = []
     if report.plane is not None:
         moved = "" if report.plane.moved_mm is None else f", moved {report.plane.moved_mm:.1f} mm since the last check"
         lines.append(f"plane from reference tags {', '.join(map(str, report.plane.reference_ids))} (residual "
                      f"{report.plane.residual_mm:.2f} mm{moved})")
+    lines.extend(line for line in summary if line not in detail)
     header = ("part", "tag", "du mm", "dv mm", "dist mm", "turn deg", "tolerance", "ok", "cost")
     rows = [header]
+    starred = False
     for part in report.parts:
         tolerance = "/".join("-" if t is None else f"{t:.1f}" for t in part.tolerance)
         if part.error is None:
             values = ["not seen" if part.tag_id not in report.duplicate_tags else "twice", "", "", ""]
+            ok = "-"
         else:
             values = [f"{part.error[0]:+.1f}", f"{part.error[1]:+.1f}", f"{part.error[2]:.1f}", f"{part.error[3]:+.1f}"]
-        ok = {True: "yes", False: "NO", None: "?"}[part.within_tolerance]
+            ok = {True: "yes", False: "NO"}.get(part.within_tolerance) or ("NO*" if misplaced(part) else "yes*")
+            starred = starred or part.within_tolerance is None
         rows.append((part.name, str(part.tag_id), *values, tolerance, ok, "-" if part.cost is None
-                     else f"{part.cost:.2f}"))
+                     else f"{round(part.cost, 2) + 0.0:.2f}"))
     widths = [max(len(row[i]) for row in rows) for i in range(len(header))]
     for row in rows:
         lines.append("  ".join(cell.ljust(width) for cell, width in zip(row, widths)).rstrip())
+    if len(rows) > 1:
+        lines.append("  tolerance: +-u/+-v mm, +-turn deg, the zone drawn on the sheet (-: none there)")
+        if starred:
+            lines.append(f"  NO*/yes*: no zone on the sheet, so off by {UNTOLERATED_MM:g} mm / {UNTOLERATED_DEG:g} "
+                         "deg or more is to move")
+        lines.append("  cost: how much the success model's score falls with that part's error alone (-: none)")
     steps = [p.instruction for p in report.parts if p.instruction]
     lines.extend(f"  {i}. {text}" for i, text in enumerate(steps, start=1))
     if report.by_eye:
@@ -568,7 +611,7 @@ def report_lines(report) -> list[str]:
     if report.not_measured:
         lines.append(f"not measured (kept at the layout's value; predictions place them as with no check, 1 mm / "
                      f"1 deg): {', '.join(report.not_measured)}")
-    lines.extend(summary_lines(report)[:-1])
     if report.prediction_note:
         lines.append(f"note: {report.prediction_note}")
+    lines.extend(detail)
     return lines

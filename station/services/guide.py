@@ -108,7 +108,19 @@ def make_guide(scenario: str, layout: str | None, *, view: str | None = None, ve
     else:
         loaded_layout = choose_layout(loaded_scenario, layout=layout)
     guide = build_guide(loaded_scenario, loaded_layout.x, view=view, tolerances=by_parameter)
+    guide = replace(guide, tolerance_note=tolerance_map.map.note if tolerance_map is not None else None,
+                    headline=_layout_headline(layout))
     return GuideJob(guide, tuple(steps_text(guide)), loaded_layout, tolerance_map, loaded_scenario)
+
+
+def _layout_headline(layout: str | None) -> str | None:
+    """The physical success a LAYOUT.json carries (``station optimize`` writes it), in the station's words."""
+    from design.contraption.layout_io import read_layout_data
+    from station.services.outlook import layout_headline
+
+    if layout is None or not Path(str(layout)).is_file():
+        return None
+    return layout_headline(read_layout_data(str(layout)))
 
 
 def export_guide(job: GuideJob, *, pdf: str | Path | None = None, svg: str | Path | None = None,

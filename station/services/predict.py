@@ -7,7 +7,6 @@ so the calibration's uncertainty is in the probability). See :mod:`calibration.s
 
 from __future__ import annotations
 
-import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -22,6 +21,7 @@ from design.contraption.layout_io import LoadedLayout
 from design.contraption.physics_profile import PhysicsProfile
 from design.contraption.scenario import Scenario
 from station.services.errors import ServiceError
+from station.services.outlook import success_headline
 
 CHECK_FORMAT = "chaos-station check"
 
@@ -160,14 +160,29 @@ def predict_layout(scenario: Scenario, x: np.ndarray, *, profile: PhysicsProfile
                                unmeasured=unmeasured)
 
 
+def layout_outlook(problem, x: np.ndarray, *, physics: str | Path | None = None, samples: int = 48, seed: int = 0,
+                   workers: int | None = None, scheduler: str | None = None,
+                   progress: ProgressCallback | None = None, should_stop=None) -> PhysicalPrediction | None:
+    """The physical success of a layout the maker has not placed yet (after ``station optimize``): simulated
+    ``samples`` times placed by the guide with no check (the unchecked error, 1 mm / 1 deg), under the profile at
+    ``physics`` when given; None for a problem with no scenario (nothing to place) or ``samples`` 0."""
+    from design.robust.contraption import ContraptionProblem
+    from station.services.physics import read_profile
+    from station.services.robust import check_count
+
+    if not samples or not isinstance(problem, ContraptionProblem):
+        return None
+    check_count(samples, "predict")
+    profile = read_profile(physics) if physics is not None else None
+    return predict_layout(problem.scenario, np.asarray(x, dtype=float), profile=profile, samples=samples, seed=seed,
+                          workers=workers, scheduler=scheduler, progress=progress, should_stop=should_stop)
+
+
 def outlook_line(result: PhysicalPrediction) -> str:
-    """One line a maker reads after a check or a logged trial: the physical success with its interval and the
-    attempts to expect (``physical success 0.82 [0.70, 0.90]; expect 1.2 attempts [1.1, 1.4]``)."""
-    low, high = result.interval
-    attempts_low, attempts_high = result.attempts_interval
-    number = lambda v: "never" if math.isinf(v) else f"{v:.1f}"  # noqa: E731
-    return (f"physical success {result.probability:.2f} [{low:.2f}, {high:.2f}] over {result.samples} simulations; "
-            f"expect {number(result.attempts)} attempts [{number(attempts_low)}, {number(attempts_high)}]")
+    """One line a maker reads after a check or a logged trial: the headline of
+    :func:`station.services.outlook.success_headline` with the simulations it came from (``physical success on the
+    table 0.82 (95 %: 0.70-0.90): expect 1.2 attempts (1.1-1.4) (48 simulations)``)."""
+    return success_headline(result, when=f"{result.samples} simulations")
 
 
 def predict_trial(scenario: Scenario, trial: Mapping[str, Any], *, samples: int = 48, seed: int = 0,

@@ -11,12 +11,13 @@ when ``verify > 0``, else none; the result's ``map.source`` says which. Progress
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import TYPE_CHECKING
 
 from station.services import robust
 from station.services.errors import ServiceError
+from station.services.outlook import disagreement
 
 if TYPE_CHECKING:
     import numpy as np
@@ -29,6 +30,9 @@ if TYPE_CHECKING:
 
 #: Bisection steps per parameter of the search by simulation (no model): delta to 1/16 of the parameter's room.
 SIMULATION_STEPS = 4
+#: Layouts per step of the search by simulation when the layout's model is too weak to trust (the model and the
+#: simulations disagree about the layout): a guide never prints a model's tolerances that do not hold.
+WEAK_MODEL_VERIFY = 8
 
 
 @dataclass(frozen=True)
@@ -88,6 +92,24 @@ def layout_and_model(layout: str, problem):
     return layout_from_data(data, problem.scenario, file=layout), layout_model(data, problem, file=layout)
 
 
+def layout_simulated_success(layout: str) -> float | None:
+    """What simulation says of a layout file's success: its ``physical_success`` probability (``station optimize``
+    writes it), else its ``simulated_success`` (one simulation at the point) as 0 or 1; None for a named layout or
+    a file with neither."""
+    from design.contraption.layout_io import read_layout_data
+
+    if not Path(layout).is_file():
+        return None
+    data = read_layout_data(layout)
+    if not isinstance(data, dict):
+        return None
+    physical = data.get("physical_success")
+    if isinstance(physical, dict) and isinstance(physical.get("probability"), (int, float)):
+        return float(physical["probability"])
+    simulated = data.get("simulated_success")
+    return float(simulated) if isinstance(simulated, bool) else None
+
+
 def contraption_problem(scenario):
     """A scenario file or example name, or a loaded :class:`design.contraption.Scenario`, as a problem."""
     from design.contraption import Scenario
@@ -145,8 +167,20 @@ def tolerance_map(scenario, layout: str, *, verify: int = 0, seed: int = 0, work
     d = problem.dim
     if progress is not None:
         progress(Progress("tolerance map", 0, d, unit="parameters"))
+    note = None
     if model is not None:
         tolerances = model_tolerances(model, problem, u, is_valid=problem.is_valid)
+        simulated = layout_simulated_success(str(layout))
+        if disagreement(tolerances.layout_psp, simulated) is not None:
+            # the model is no guide here: its tolerances are searched again by simulation, or (with --verify)
+            # kept with their measured success beside them
+            note = (f"the success model is weak at this layout (its score {tolerances.layout_psp:.2f}, the "
+                    f"simulations' {simulated:.2f})")
+            if verify == 0:
+                note += f": tolerances searched by simulation instead ({WEAK_MODEL_VERIFY} layouts a step)"
+                tolerances, verify = None, WEAK_MODEL_VERIFY
+            else:
+                note += ": read the measured success at each delta, not the predicted"
     elif verify == 0:
         tolerances = no_tolerances(problem)
     else:
@@ -168,4 +202,6 @@ def tolerance_map(scenario, layout: str, *, verify: int = 0, seed: int = 0, work
             else:
                 tolerances = verify_tolerances(tolerances, problem, u, oracle, verify, seed=seed, model=model,
                                                on_parameter=parameter)
+    if note is not None:
+        tolerances = replace(tolerances, note=note)
     return Tolerances(problem, loaded, u, tolerances, model, verify)

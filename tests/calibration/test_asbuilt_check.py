@@ -134,12 +134,15 @@ def test_tolerances_decide_within_per_axis():
 
 
 @pytest.mark.parametrize(("view", "error", "words"), [
-    ("top", (3.2, -1.0, 0, 1.5), "move `bottom_track` 3.2 mm left and 1.0 mm away from you, turn it 1.5 deg "
-                                 "clockwise"),
-    ("top", (-0.5, 2.0, 0, 0.0), "move `bottom_track` 0.5 mm right and 2.0 mm towards you"),
-    ("side", (0.0, 1.0, 0, -2.0), "move `bottom_track` 1.0 mm down, turn it 2.0 deg counter-clockwise"),
-    ("side", (0.04, 0.0, 0, -0.7), "turn `bottom_track` 0.7 deg counter-clockwise"),
-    ("side", (0.3, -0.4, 0, 0.2), "`bottom_track` is in place"),  # under what the camera resolves
+    ("top", (3.2, -1.0, 3.35, 1.5), "move `bottom_track` 3.2 mm left and 1.0 mm away from you, turn it 1.5 deg "
+                                    "clockwise"),
+    ("top", (-0.5, 2.0, 2.06, 0.0), "move `bottom_track` 0.5 mm right and 2.0 mm towards you"),
+    ("side", (0.0, 1.0, 1.0, -2.0), "move `bottom_track` 1.0 mm down, turn it 2.0 deg counter-clockwise"),
+    ("side", (0.04, 0.0, 0.04, -1.2), "turn `bottom_track` 1.2 deg counter-clockwise"),
+    ("side", (0.3, -0.4, 0.5, 0.2), "`bottom_track` is in place"),  # under what the camera resolves
+    # no tolerance on the sheet and off by less than 1 mm / 1 deg: in place, as the count of parts to move says
+    ("top", (-0.7, 0.0, 0.7, 0.0), "`bottom_track` is in place: off by less than 1 mm / 1 deg, what a part with no "
+                                   "tolerance on the sheet may be (to centre it: move `bottom_track` 0.7 mm right)"),
 ])
 def test_instructions_speak_the_sheets_words(view, error, words):
     assert instruction("bottom_track", error, view) == words

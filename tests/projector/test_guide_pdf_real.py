@@ -56,3 +56,17 @@ def test_ballruns_sheets_measure_true_and_its_reference_tags_decode_where_the_ma
             found_on[tag.tag_id].append(page.label)
     assert all(found_on.values()), found_on  # each reference tag is whole on some sheet and decodes there
     document.close()
+
+
+def test_the_parts_list_the_steps_and_the_frames_give_a_run_of_dominoes_the_same_point():
+    # SIMPLE's run of three dominoes: its frame's origin is x = 20 mm, the middle of its outlines 35 mm. The steps,
+    # the printed parts list and the projected step frame all say "around (35.0, 0.0)".
+    from projector.frames import detail_caption
+
+    guide, document = printed("simple", "top")
+    dominoes = guide.part("dominoes")
+    step = next(line for line in steps_text(guide) if "dominoes" in line)
+    assert "around (35.0, 0.0) mm" in step and "around (35.0, 0.0) mm" in detail_caption(dominoes)
+    lists = " ".join("".join(text(document, i) for i in range(len(guide.pages), len(document))).split())
+    assert "around (35.0, 0.0)" in lists and "(20.0, 0.0)" not in lists
+    document.close()

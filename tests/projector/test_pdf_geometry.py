@@ -50,6 +50,17 @@ def test_the_tighter_of_two_tolerances_on_an_axis_is_drawn():
     assert tolerance_text(part, side_plane()) == "tight ±1.5 mm"  # y and heading are out of a backboard's plane
 
 
+def test_a_label_with_no_zone_on_the_sheet_names_the_height_and_tilt_it_gives():
+    # SIMPLE's track in the top view: x is bound only by its range's end (no zone to keep to), its height and tilt
+    # are off the sheet. The label names them (the check has no zone to measure against either).
+    tolerances = (ParameterTolerance("track.x", 30.6, "mm", bound_limited=True),
+                  ParameterTolerance("track.z", 5.3, "mm"), ParameterTolerance("track.roll", -10.6, "deg"))
+    part = PartDrawing("track", PartKind.STATIC, 1, U_SHAPE, (0, 0), 0.0, tolerances=tolerances, care="normal")
+    assert placement_deltas(part, top_plane()) == (None, None, None)
+    assert tolerance_text(part, top_plane()) == "normal height ±5.3 mm, tilt ±10.6°"
+    assert tolerance_text(part, side_plane()) == "normal ±5.3 mm ±10.6°"  # on a backboard both are on its plane
+
+
 def test_the_tolerance_zone_is_the_outline_swept_over_the_box():
     zone = tolerance_zone(U_SHAPE, 2.0, 1.0)
     # Brute force: the union of the outline moved over a fine grid of the box.

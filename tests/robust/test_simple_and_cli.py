@@ -101,7 +101,13 @@ def test_cli_optimize_then_robustness(tmp_path, capsys):
                                                   "last_topples", "last_stops"}
     assert layout["simulations_used"] <= layout["simulation_budget"] == 30
     assert code == (0 if layout["simulated_success"] else 1)
-    capsys.readouterr()
+    # the headline is the physical success on the table (placed by the guide), the model's score a detail
+    physical = layout["physical_success"]
+    assert physical["samples"] == 48 and physical["interval"][0] <= physical["probability"] <= physical["interval"][1]
+    printed = capsys.readouterr().out.splitlines()
+    assert printed[0].startswith("SIMPLE: physical success on the table ") and "placed by the guide" in printed[0]
+    assert not any("predicted PSP" in line and not line.startswith("detail: ") for line in printed)
+    assert any(line.startswith("detail: the success model's own score (predicted PSP)") for line in printed)
     plot = tmp_path / "curve.png"
     code = main(["robustness", str(SIMPLE), str(out), "--eval", "48", "--local", "20", "--workers", "1", "--json",
                  "--plot", str(plot)])

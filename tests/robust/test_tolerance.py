@@ -203,3 +203,32 @@ def test_the_service_takes_a_loaded_scenario_and_gives_the_guide_its_tolerances(
     assert list(guide) == ["track"] and all(isinstance(t, ParameterTolerance) for t in guide["track"])
     assert [t.unit for t in guide["track"]] == ["mm", "mm", "deg"] and guide["track"][0].source == "model"
     assert result.care() == {"track": care_level(result.map.entries)}
+
+
+def test_a_model_the_simulations_contradict_gives_no_tolerances_searched_by_simulation(tmp_path, capsys):
+    # The fixture's model scores its layout 0.87; a LAYOUT.json whose own simulations say 0.05 has a model too weak
+    # there to trust: the guide's tolerances are then searched by simulation, and the guide and sheet say why.
+    from projector.pdf_lists import tolerance_source_text
+    from station.services.guide import make_guide
+    from station.services.tolerances import WEAK_MODEL_VERIFY
+
+    data = json.loads(FIXTURE.read_text())
+    data["physical_success"] = {"probability": 0.05, "interval": [0.01, 0.2], "expected_attempts": 20.0,
+                                "attempts_interval": [5.0, 100.0], "samples": 48}
+    weak = tmp_path / "weak.json"
+    weak.write_text(json.dumps(data))
+    job = make_guide("simple", str(weak))
+    guide = job.guide
+    assert job.tolerances.map.source == "simulation" and job.tolerances.verify == WEAK_MODEL_VERIFY
+    assert guide.tolerance_source == "simulation" and "the success model is weak at this layout" in guide.tolerance_note
+    assert "0.87" in guide.tolerance_note and "0.05" in guide.tolerance_note
+    assert tolerance_source_text(guide).startswith("The success model is weak at this layout")
+    manifest = guide.manifest()
+    assert manifest["tolerance_note"] == guide.tolerance_note
+    assert manifest["headline"].startswith("physical success on the table 0.05 (95 %: 0.01-0.20)")
+    # the same file as its own simulations agree with it: the model's tolerances, no note
+    data["physical_success"]["probability"] = 0.9
+    weak.write_text(json.dumps(data))
+    agreed = make_guide("simple", str(weak)).guide
+    assert agreed.tolerance_source == "model" and agreed.tolerance_note is None
+    assert agreed.headline.startswith("physical success on the table 0.90")

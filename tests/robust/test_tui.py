@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import asyncio
+import json
+from pathlib import Path
 
 import pytest
 from textual.widgets import Button, DataTable, Input, Select, Static
@@ -47,8 +49,9 @@ async def test_optimize_shows_progress_probabilities_and_layouts(tmp_path):
         screen.query_one("#optimize", Button).press()
         await pilot.pause()
         await wait_until_idle(app, pilot)
-        assert seen and seen[-1].phase == "done"
-        assert {p.phase for p in seen} >= {"exploration", "optimization"}
+        optimizing = [p for p in seen if hasattr(p, "phase")]  # then the optimized layout's physical success
+        assert optimizing and optimizing[-1].phase == "done" and len(optimizing) < len(seen)
+        assert {p.phase for p in optimizing} >= {"exploration", "optimization"}
         events = screen.query_one("#events", DataTable)
         assert events.row_count == 6  # five events and the product
         layout = screen.query_one("#layout", DataTable)
@@ -57,11 +60,14 @@ async def test_optimize_shows_progress_probabilities_and_layouts(tmp_path):
         assert panel.bar.progress == screen.result.n_simulations and panel.stage == "done"
         assert f"simulations {screen.result.n_simulations}/{screen.result.budget}" in panel.message
         status = str(screen.query_one("#status", Static).render())
-        assert "PSP" in status and f"kept {screen.result.kept_candidate()}" in status
+        assert status.startswith("SIMPLE: physical success on the table ") and "PSP" not in status
+        assert f"kept {screen.result.kept_candidate()}" in status
         assert screen.query_one("#picture").image is not None
         await pilot.press("w")
         await pilot.pause()
-        assert "wrote" in str(screen.query_one("#status", Static).render())
+        wrote = str(screen.query_one("#status", Static).render())
+        assert wrote.startswith("wrote ")
+        assert json.loads(Path(wrote.removeprefix("wrote ").strip()).read_text())["physical_success"]["samples"] == 48
         # a opens the result on the Assemble screen: its guide, from the layout just written (with its model)
         await pilot.press("a")
         for _ in range(3):

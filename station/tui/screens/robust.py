@@ -30,6 +30,8 @@ from design.robust import Progress, PSPSettings, RobustLayout
 from station.paths import data_dir
 from station.services import robust as service
 from station.services.errors import ServiceError
+from station.services.outlook import disagreement, success_headline
+from station.services.predict import layout_outlook
 from station.services.robust import DEFAULT_BUDGET, DEFAULT_SETTINGS, SETTINGS_CHOICES, RunStopped, thesis_budget
 from station.tui.registry import ScreenEntry
 from station.tui.widgets.picture import HalfBlockPicture
@@ -38,7 +40,11 @@ from station.tui.widgets.scenario_select import scenario_choices, select_scenari
 
 
 def describe_progress(progress: Progress) -> str:
-    """A robust run's progress line: simulations of the budget, the CV accuracy and best PSP once known."""
+    """A robust run's progress line: simulations of the budget, the CV accuracy and best PSP once known; the
+    prediction of the optimized layout's physical success after it (a plain progress) in its own words."""
+    if not isinstance(progress, Progress):
+        total = "" if progress.total is None else f"/{progress.total:g}"
+        return f"predicting its physical success on the table: {progress.stage} {progress.done:g}{total}"
     parts = [f"simulations {progress.simulations}/{progress.budget}"]
     if progress.cv_accuracy is not None:
         parts.append(f"CV accuracy {progress.cv_accuracy:.2f}")
@@ -53,9 +59,10 @@ class OptimizationEnded(Message):
     """An optimization ended: with its problem, result and side-view picture, or stopped or refused (``message``)."""
 
     def __init__(self, problem=None, result: RobustLayout | None = None, png: bytes | None = None,
-                 message: str | Text = "") -> None:
+                 message: str | Text = "", outlook=None) -> None:
         super().__init__()
         self.problem, self.result, self.png, self.message = problem, result, png, message
+        self.outlook = outlook  #: the layout's physical success (calibration.sim_predict.PhysicalPrediction)
 
 
 class RobustScreen(Screen):
@@ -88,6 +95,8 @@ class RobustScreen(Screen):
         #: PSP settings that override the "Settings" choice (tests shrink them); None: the choice decides.
         self.psp_settings: PSPSettings | None = None
         self.result: RobustLayout | None = None
+        self.outlook = None
+        self._optimized_progress: Progress | None = None
         self.problem = None
         self._stop = threading.Event()
         self._optimizing = False
@@ -210,7 +219,10 @@ class RobustScreen(Screen):
         folder = data_dir() / "layouts"
         folder.mkdir(parents=True, exist_ok=True)
         path = folder / f"{self.result.scenario.lower()}-seed{self.result.seed}.json"
-        path.write_text(json.dumps(self.result.to_json(self.problem), indent=2) + "\n", encoding="utf-8")
+        payload = self.result.to_json(self.problem)
+        if self.outlook is not None:
+            payload["physical_success"] = self.outlook.to_json()
+        path.write_text(json.dumps(payload, indent=2) + "\n", encoding="utf-8")
         self._set_status(f"wrote {path}")
         return path
 
@@ -233,6 +245,8 @@ class RobustScreen(Screen):
             problem = service.load_problem(scenario_path)
             result = service.optimize(problem, budget, seed, settings, workers=self.simulation_workers,
                                       progress=post_progress(self), should_stop=self._stop.is_set)
+            outlook = layout_outlook(problem, problem.to_real(result.u), seed=seed, workers=self.simulation_workers,
+                                     progress=post_progress(self), should_stop=self._stop.is_set)
             picture = io.BytesIO()
             render_layouts(problem, [("initial", problem.initial_layout()), ("optimized", result.u)]).save(
                 picture, format="PNG")
@@ -242,25 +256,28 @@ class RobustScreen(Screen):
         except (DesignError, ServiceError, OSError) as error:
             self.post_message(OptimizationEnded(message=Text(f"cannot optimize: {error}", "red")))
             return
-        self.post_message(OptimizationEnded(problem, result, picture.getvalue()))
+        self.post_message(OptimizationEnded(problem, result, picture.getvalue(), outlook=outlook))
 
     def on_progress_reported(self, message: ProgressReported) -> None:
         self._show_progress(message.progress)
 
     def _show_progress(self, progress: Progress) -> None:
+        if isinstance(progress, Progress):
+            self._optimized_progress = progress  # the panel ends on the optimization's figures, not the prediction's
         self.query_one(ProgressPanel).show(progress)
 
     def on_optimization_ended(self, message: OptimizationEnded) -> None:
-        self._finished(message.problem, message.result, message.png, message.message)
+        self._finished(message.problem, message.result, message.png, message.message, message.outlook)
 
-    def _finished(self, problem, result: RobustLayout | None, png: bytes | None, message: str) -> None:
+    def _finished(self, problem, result: RobustLayout | None, png: bytes | None, message: str,
+                  outlook=None) -> None:
         self._optimizing = False
         self.query_one("#optimize", Button).disabled = False
         self.query_one("#stop", Button).disabled = True
         if result is None:
             self._set_status(message)
             return
-        self.problem, self.result = problem, result
+        self.problem, self.result, self.outlook = problem, result, outlook
         events = self.query_one("#events", DataTable)
         events.clear()
         simulated = dict(zip(result.event_names, result.simulated_events))
@@ -269,7 +286,7 @@ class RobustScreen(Screen):
             note = " (quasi-det.)" if name in result.quasi_deterministic else ""
             events.add_row(Text(labels.get(name, name)), f"{p:.3f}{note}",
                            "success" if simulated.get(name) else "failure", key=name)
-        events.add_row("[b]PSP (product)[/b]", f"{result.psp:.3f}",
+        events.add_row("[b]model's score (PSP, product)[/b]", f"{result.psp:.3f}",
                        "success" if result.simulated_success else "failure", key="__psp__")
         layout = self.query_one("#layout", DataTable)
         layout.clear()
@@ -280,13 +297,19 @@ class RobustScreen(Screen):
                            f"[{problem.lower[i]:.4g}, {problem.upper[i]:.4g}]", key=name)
         self.query_one("#picture", HalfBlockPicture).set_png(png)
         verdict = "succeeds" if result.simulated_success else "FAILS"
-        self._set_status(f"{result.scenario}: PSP {result.psp:.3f}; the optimized layout {verdict} in simulation; "
+        headline = (success_headline(outlook, when="placed by the guide") + "; " if outlook is not None else "")
+        warning = disagreement(result.psp, outlook.probability if outlook is not None else None)
+        self._set_status(f"{result.scenario}: {headline}the optimized layout {verdict} in simulation; "
                          f"{result.n_simulations} simulations ({result.n_new_simulations} new), "
-                         f"{result.seconds:.1f} s; kept {result.kept_candidate()}. w writes it.")
+                         f"{result.seconds:.1f} s; kept {result.kept_candidate()}. w writes it."
+                         + (f" Note: {warning}." if warning else ""))
         moved = float(np.linalg.norm(result.u - problem.initial_layout()))
+        if self._optimized_progress is not None:
+            self.query_one(ProgressPanel).show(self._optimized_progress)
         self.query_one(ProgressPanel).say(
             f"simulations {result.n_simulations}/{result.budget}   CV accuracy {result.cv_accuracy:.2f}   "
-            f"PSP {result.psp:.3f}   moved {moved:.2f} (normalized) from the initial layout")
+            f"success model's own score (PSP) {result.psp:.3f}   moved {moved:.2f} (normalized) from the initial "
+            "layout")
 
 
 SCREEN = ScreenEntry(
