@@ -249,8 +249,9 @@ class SimCalibrationPanel(Vertical):
         values = self.query_one("#sim-values", DataTable)
         values.clear()
         for p in fit.parameters:
-            values.add_row(p.name, f"{p.before:.4g}", f"{p.value:.4g}", f"[{p.interval[0]:.4g}, {p.interval[1]:.4g}]",
-                           f"[{p.range[0]:g}, {p.range[1]:g}]", key=p.name)
+            # intervals as "lo-hi" at 3 digits: the five columns fit the screen's half width unscrolled
+            values.add_row(p.name, f"{p.before:.4g}", f"{p.value:.4g}", f"{p.interval[0]:.3g}-{p.interval[1]:.3g}",
+                           f"{p.range[0]:.3g}-{p.range[1]:.3g}", key=p.name)
         events = self.query_one("#sim-events", DataTable)
         events.clear()
         for a in fit.agreement:
