@@ -75,7 +75,7 @@ def test_a_configured_projector_reads_the_map_measured_on_it_by_url(capsys, stat
         '[[devices]]\nname = "shop"\nkind = "projector"\nurl = "sim://projector?name=wall&size=320x200"\n\n'
         '[[devices]]\nname = "camera"\nkind = "camera"\nurl = "sim://camera"\n', encoding="utf-8")
     out = calibrate(capsys)  # given by its URL: the configured projector of that twin, named shop
-    assert f"saved {projector_map_file('shop')}" in out and "kept as 'shop'" in out
+    assert f"saved {projector_map_file('shop')}" in out and out.startswith("projector 'shop' (")
     assert "at true scale" in projected(capsys)  # the station's projector, shop
     assert projector_device(WALL).name == "shop"
 

@@ -257,16 +257,17 @@ def _intrinsics(intrinsics, camera_device, camera_name: str) -> tuple[np.ndarray
 
 
 def projector_summary(done: ProjectorCalibration) -> list[str]:
-    """The lines the CLI prints and the Calibrate screen shows."""
+    """The lines the CLI prints and the Calibrate screen shows: how true the map lands and where it is kept first
+    (a panel may show only the first few)."""
     landing, cells = done.projector_map.landing_error_mm, done.projector_map.cells
     width, height = done.projector_map.projector_size
-    lines = [f"{done.projector_url} ({width}x{height}), kept as {done.name!r}, seen by {done.camera_url}: "
-             f"{done.frames} patterns",
-             f"cells seen {cells.get('seen')}, fitted {cells.get('fitted')} ({cells.get('inliers')} inliers)",
-             f"landing error at {landing.get('check_points')} check points: p50 {landing['p50']:.2f} mm, "
-             f"p95 {landing['p95']:.2f} mm, max {landing['max']:.2f} mm"
-             + (f" ({landing['outliers']} check points off the plane left out)" if landing.get("outliers") else ""),
-             f"camera plane: {done.plane_source}; intrinsics: {done.intrinsics_source}"]
+    lines = [f"projector {done.name!r} ({done.projector_url}, {width}x{height}): landing error at "
+             f"{landing.get('check_points')} check points: p50 {landing['p50']:.2f} mm, p95 {landing['p95']:.2f} mm, "
+             f"max {landing['max']:.2f} mm"
+             + (f" ({landing['outliers']} check points off the plane left out)" if landing.get("outliers") else "")]
     if done.path is not None:
         lines.append(f"saved {done.path}")
+    lines += [f"{done.frames} patterns seen by {done.camera_url}: cells seen {cells.get('seen')}, fitted "
+              f"{cells.get('fitted')} ({cells.get('inliers')} inliers)",
+              f"camera plane: {done.plane_source}; intrinsics: {done.intrinsics_source}"]
     return lines

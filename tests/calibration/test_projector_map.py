@@ -96,8 +96,9 @@ def test_oblique_projector_maps_within_half_a_millimetre(station_home):
     assert stages.count("projector patterns") == len(GrayCodePlan(PROJECTOR).names) + 1
     assert np.allclose(load_projector_map(done.path).plane_from_pixel, result.plane_from_pixel)
     lines = projector_summary(done)
-    assert lines[2].startswith(f"landing error at {result.landing_error_mm['check_points']} check points: p50 ")
-    assert "camera plane: given" in lines[3]
+    assert lines[0].startswith(f"projector 'wall' (sim://projector?name=wall&size=1280x800, 1280x800): landing "
+                               f"error at {result.landing_error_mm['check_points']} check points: p50 ")
+    assert lines[1] == f"saved {projector_map_file('wall')}" and "camera plane: given" in lines[3]
 
 
 def small_devices(name="bench", target="0,0"):
