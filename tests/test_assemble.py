@@ -96,6 +96,8 @@ def test_json_prints_the_logged_attempt_and_says_the_prompts_on_stderr(capsys, m
     assert len(attempt["checks"]) == 1 and attempt["checks"][0]["format"] == "chaos-station check"
     assert [f["when"] for f in attempt["forecasts"]][:2] == ["designed", "as placed"]
     assert "a real table" in err and "physical success on the table" in err
+    # the sheets are named by scenario and layout (the TUI's export name): another layout's are never replaced
+    assert "/guides/simple-success-" in err and "-top.pdf" in err
 
 
 @pytest.mark.parametrize("answers, word", [("s\n\n", "the input ended"), ("s\nq\n", "left"),

@@ -106,7 +106,7 @@ async def test_c_checks_the_placed_parts_with_the_camera_and_the_projector_follo
         assert float(goblet[4]) < 0.3 and "in place" in str(goblet[8])  # placed as designed: nothing to do
         assert "by eye" in str(rows["top_track"][6])
         caption = str(screen.query_one("#caption", Static).render())
-        assert "tagged parts measured" in caption and "no prediction" in caption
+        assert "tagged parts measured" in caption and "no success-model score" in caption
         picture = screen.query_one("#frame", HalfBlockPicture)
         assert picture.full is not None and picture.full.size == (1920, 1080)  # the camera's frame, drawn on
         assert len(screen.projector.frames) == shown + 1  # the projector shows the check

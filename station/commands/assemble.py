@@ -39,9 +39,11 @@ def register(subparsers) -> None:
         "after the check and after the run it prints the predicted physical success and the expected attempts. "
         "q, Ctrl-C or the end of the input leave having logged nothing.",
         epilog="examples:\n"
-        "  station assemble ballrun layout.json --project\n"
-        "  station assemble simple success --world 'sim://world?seed=3' --physics fitted.toml --sheet guide.pdf\n"
-        "  printf '\\n\\n\\n\\n\\n\\n\\n\\n\\ny\\n' | station assemble simple success --world sim://world",
+        "  station assemble ballrun ballrun-layout.json --project\n"
+        "  station assemble simple success --world 'sim://world?seed=3' --physics simple-physics.toml "
+        "--sheet guide.pdf\n"
+        "  printf 's\\n\\na\\n\\ny\\n' | station assemble simple success --world sim://world\n"
+        "    (the answers piped: s skips the guide's steps, Enter: placed, a: run as placed, Enter: run, y: log it)",
         formatter_class=__import__("argparse").RawDescriptionHelpFormatter,
     )
     parser.add_argument("scenario", help="scenario file, or an example's name (simple, ballrun, ...)")
@@ -169,6 +171,7 @@ def _forecast(assembly, out) -> None:
 
 def _walk(assembly, args, out) -> None:
     from station.paths import data_dir
+    from station.services.guide import export_name
 
     job = assembly.job
     world = f"world {args.world} (a simulated maker places and runs)" if assembly.world is not None else \
@@ -178,7 +181,7 @@ def _walk(assembly, args, out) -> None:
     _forecast(assembly, out)
     # -- guide
     if not args.project:
-        path = args.sheet or str(data_dir() / "guides" / f"{job.guide.scenario.lower()}-{job.guide.view}.pdf")
+        path = args.sheet or str(data_dir() / "guides" / f"{export_name(job)}.pdf")
         os.makedirs(os.path.dirname(os.path.abspath(path)), exist_ok=True)
         assembly.write_sheet(path)
         out.write(f"wrote the guide sheets to {path} (print at 100 %; check the 100 mm bar)\n")

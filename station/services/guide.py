@@ -7,6 +7,8 @@ tolerances on the guide, writes the outputs and shows the steps on a projector.
 
 from __future__ import annotations
 
+import hashlib
+import re
 from dataclasses import dataclass, replace
 from pathlib import Path
 
@@ -206,3 +208,16 @@ def _title(job: GuideJob) -> str:
 def _guide_tolerances(tolerances) -> dict[str, ParameterTolerance]:
     """The tolerances in the guide's units (mm and degrees), by layout parameter."""
     return {t.parameter: t for per_part in tolerances.parameter_tolerances().values() for t in per_part}
+
+
+def export_name(job) -> str:
+    """The file name (no suffix) of ``job``'s export: the scenario, the layout (its name, its file's name, or "own"
+    for the scenario's own), a hash of the layout's values and the view, e.g. ``simple-success-1f0c2a-top``. The
+    hash (of the values at 6 decimals, as a check keeps them) tells apart two layouts named alike (two files called
+    layout.json, a scenario file edited), so that one layout's export never replaces another's."""
+    layout = job.layout
+    which = {"defaults": "own", "named": layout.name}.get(layout.format) or Path(layout.source).stem or "values"
+    values = ",".join(f"{value:.6f}" for value in layout.x)
+    digest = hashlib.sha256(f"{job.guide.scenario}\n{values}".encode()).hexdigest()[:6]
+    name = f"{job.guide.scenario}-{which}-{digest}-{job.guide.view}".lower()
+    return re.sub(r"[^a-z0-9._-]+", "-", name)

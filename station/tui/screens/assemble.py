@@ -27,8 +27,6 @@ in 160 columns.
 
 from __future__ import annotations
 
-import hashlib
-import re
 from pathlib import Path
 
 from PIL import Image
@@ -428,7 +426,7 @@ class AssembleScreen(AttemptFlow, Screen):
             return
         folder = data_dir() / "guides"
         folder.mkdir(parents=True, exist_ok=True)
-        stem = folder / export_name(self.job)
+        stem = folder / service.export_name(self.job)
         self._set_status("writing the PDF and the SVG…")
         self._export(stem.with_suffix(".pdf"), stem.with_suffix(".svg"))
 
@@ -442,19 +440,6 @@ class AssembleScreen(AttemptFlow, Screen):
         pages = len(job.guide.pages)
         self.app.call_from_thread(self._set_status, f"wrote {pdf} ({pages} sheets and the steps; print at 100 %, "
                                   f"check the 100 mm bar) and {svg}")
-
-
-def export_name(job) -> str:
-    """The file name (no suffix) of ``job``'s export: the scenario, the layout (its name, its file's name, or "own"
-    for the scenario's own), a hash of the layout's values and the view, e.g. ``simple-success-1f0c2a-top``. The
-    hash (of the values at 6 decimals, as a check keeps them) tells apart two layouts named alike (two files called
-    layout.json, a scenario file edited), so that one layout's export never replaces another's."""
-    layout = job.layout
-    which = {"defaults": "own", "named": layout.name}.get(layout.format) or Path(layout.source).stem or "values"
-    values = ",".join(f"{value:.6f}" for value in layout.x)
-    digest = hashlib.sha256(f"{job.guide.scenario}\n{values}".encode()).hexdigest()[:6]
-    name = f"{job.guide.scenario}-{which}-{digest}-{job.guide.view}".lower()
-    return re.sub(r"[^a-z0-9._-]+", "-", name)
 
 
 SCREEN = ScreenEntry(
