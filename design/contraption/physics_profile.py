@@ -8,6 +8,7 @@ A profile (``station calibrate sim`` writes one; ``--physics PROFILE.toml`` uses
     name = "makerspace wood"
     created = "2026-12-03T12:00:00Z"
     source = "calibrate sim: 34 trials of BALLRUN"     # where the values came from
+    scenarios = ["BALLRUN"]                             # optional: the contraptions it was fitted on
     [values]
     "wood.friction" = 0.42
     [intervals]                                         # optional: an uncertainty interval per value
@@ -17,7 +18,9 @@ A profile (``station calibrate sim`` writes one; ``--physics PROFILE.toml`` uses
 
 Applying a profile to a scenario (:func:`apply_profile`) sets the values of the scenario's materials that the
 profile names and leaves the others: a profile fitted on several scenarios may name materials one of them lacks.
-A profile none of whose values is a material of the scenario is refused (it was made for another contraption).
+A profile made for another contraption is refused: one whose ``scenarios`` do not name the scenario (two
+contraptions may share a material's name, ``wood``, and not its wood), or one none of whose values is a material
+of the scenario. A profile without ``scenarios`` (written by hand) applies wherever its values fit.
 """
 
 from __future__ import annotations
@@ -59,6 +62,8 @@ class PhysicsProfile:
         ``{"wood.friction": (0.40, 0.44)}``, for some or all of ``values``.
     fit : mapping
         Numbers (and words) about the fit that made it: ``brier_before``, ``brier_after``, ``trials``, ...
+    scenarios : tuple of str
+        The names of the scenarios it was fitted on (``("BALLRUN",)``); empty: not said, it applies to any.
     """
 
     name: str
@@ -67,11 +72,15 @@ class PhysicsProfile:
     created: str = ""
     source: str = ""
     fit: Mapping[str, Any] = field(default_factory=dict)
+    scenarios: tuple[str, ...] = ()
 
     def to_toml(self) -> str:
         """The profile as TOML text (what :func:`save_profile` writes and :func:`profile_from_text` reads)."""
         lines = ["[profile]", f"format = {_toml(FORMAT)}", f"version = {VERSION}", f"name = {_toml(self.name)}",
-                 f"created = {_toml(self.created)}", f"source = {_toml(self.source)}", "", "[values]"]
+                 f"created = {_toml(self.created)}", f"source = {_toml(self.source)}"]
+        if self.scenarios:
+            lines.append(f"scenarios = {_toml(list(self.scenarios))}")
+        lines += ["", "[values]"]
         lines += [f"{_toml(k)} = {_toml(v)}" for k, v in self.values.items()]
         if self.intervals:
             lines += ["", "[intervals]"]
@@ -132,7 +141,7 @@ def profile_from_text(raw: bytes | str, file: str = "<profile>") -> PhysicsProfi
     if "profile" not in top:
         raise check.fail("profile", f'missing; expected a [profile] table with format = "{FORMAT}"')
     header = check.table(top["profile"], "profile")
-    check.only(header, "profile", ("format", "version", "name", "created", "source"))
+    check.only(header, "profile", ("format", "version", "name", "created", "source", "scenarios"))
     if header.get("format") != FORMAT:
         raise check.fail("profile.format", f'expected "{FORMAT}", got {describe(header.get("format"))}')
     version = header.get("version")
@@ -140,6 +149,10 @@ def profile_from_text(raw: bytes | str, file: str = "<profile>") -> PhysicsProfi
         raise check.fail("profile.version", f"expected {VERSION} (this station reads version {VERSION}), got "
                          f"{describe(version)}")
     text = {k: check.string(header.get(k, ""), f"profile.{k}") for k in ("name", "created", "source")}
+    scenarios = header.get("scenarios", [])
+    if not isinstance(scenarios, list) or not all(isinstance(s, str) and s.strip() for s in scenarios):
+        raise check.fail("profile.scenarios", f"expected a list of scenario names (\"BALLRUN\"), got "
+                         f"{describe(scenarios)}")
     if "values" not in top:
         raise check.fail("values", 'missing; expected a [values] table of "MATERIAL.PARAM" = number')
     values = {}
@@ -159,7 +172,7 @@ def profile_from_text(raw: bytes | str, file: str = "<profile>") -> PhysicsProfi
         intervals[name] = (lo, hi)
     fit = dict(check.table(top.get("fit", {}), "fit"))
     return PhysicsProfile(name=text["name"] or Path(file).stem, values=values, intervals=intervals,
-                          created=text["created"], source=text["source"], fit=fit)
+                          created=text["created"], source=text["source"], fit=fit, scenarios=tuple(scenarios))
 
 
 def _check_name(check: Checker, path: str, name: str) -> None:
@@ -187,10 +200,14 @@ def apply_profile(scenario: Scenario, profile: PhysicsProfile, file: str = "") -
     Raises
     ------
     PhysicsProfileError
-        When the profile names none of the scenario's material values, or a value lies outside the scenario's range
-        for it (one line naming the profile file and the value).
+        When the profile was fitted on other scenarios, names none of the scenario's material values, or a value
+        lies outside the scenario's range for it (one line naming the profile file and the field).
     """
     file = file or profile.name
+    if profile.scenarios and scenario.name.casefold() not in {s.casefold() for s in profile.scenarios}:
+        raise PhysicsProfileError(file, "profile.scenarios", f"a profile for another contraption "
+                                  f"({', '.join(profile.scenarios)}); expected one fitted on {scenario.name}'s trials "
+                                  "(`station calibrate sim --out`)")
     known = scenario.physics_parameters()
     values = {k: v for k, v in profile.values.items() if k in known}
     if not values:

@@ -40,7 +40,7 @@ class SimCalibration:
         return PhysicsProfile(name=name or f"calibrated {names}", values=self.fit.values(),
                               intervals=self.fit.intervals(), created=created,
                               source=f"calibrate sim: {self.fit.trials + self.fit.held_out} trials of {names}",
-                              fit=fit)
+                              fit=fit, scenarios=tuple(s.name for s in self.scenarios))
 
     def to_json(self) -> dict[str, Any]:
         """Exactly the contract's ``station calibrate sim --json``."""

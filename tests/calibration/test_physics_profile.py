@@ -90,3 +90,29 @@ def test_the_simulating_commands_take_physics(command, capsys):
     with pytest.raises(SystemExit):
         main([command, "--help"])
     assert "--physics PROFILE.toml" in capsys.readouterr().out
+
+
+def test_a_profile_says_the_contraptions_it_was_fitted_on(tmp_path):
+    profile = PhysicsProfile("simple wood", {"wood.friction": 0.42}, scenarios=("SIMPLE", "BALLRUN"))
+    path = save_profile(profile, tmp_path / "both.toml")
+    assert 'scenarios = ["SIMPLE", "BALLRUN"]' in path.read_text()
+    assert load_profile(path) == profile
+    assert load_profile(save_profile(PhysicsProfile("hand", {"wood.friction": 0.4}), tmp_path / "hand.toml")) \
+        .scenarios == ()
+    with pytest.raises(PhysicsProfileError) as error:
+        profile_from_text(HEADER + 'scenarios = "SIMPLE"\n[values]\n"wood.friction" = 0.5\n', "p.toml")
+    assert str(error.value).startswith('p.toml: profile.scenarios: expected a list of scenario names')
+
+
+def test_a_profile_of_another_contraption_is_refused_by_name_not_by_a_range():
+    # SLIDE's wood is not SIMPLE's: a SIMPLE profile is refused even where its values would fit SLIDE's ranges.
+    slide = load_scenario(SLIDE)
+    simple_wood = PhysicsProfile("calibrated SIMPLE", {"wood.friction": 0.5}, scenarios=("SIMPLE",))
+    with pytest.raises(PhysicsProfileError) as error:
+        apply_profile(slide, simple_wood, "simple-physics.toml")
+    assert str(error.value) == ("simple-physics.toml: profile.scenarios: a profile for another contraption (SIMPLE); "
+                                "expected one fitted on SLIDE's trials (`station calibrate sim --out`)")
+    both = PhysicsProfile("p", {"wood.friction": 0.7}, scenarios=("SIMPLE", "slide"))
+    assert apply_profile(slide, both).physics_overrides == {"wood.friction": 0.7}
+    assert apply_profile(slide, PhysicsProfile("hand", {"wood.friction": 0.7})).physics_overrides == {
+        "wood.friction": 0.7}
