@@ -315,12 +315,12 @@ class _Canvas:
         reach = float(np.max(np.abs((corners - centre) @ towards))) + 0.8 * self.line
         self._text(image, str(tag.id), centre + reach * towards, WHITE, 0.7, centre=True)
 
-    def _caption_lines(self, lines: list[tuple[str, tuple]]) -> list[tuple[str, tuple]]:
+    def _caption_lines(self, lines: list[tuple[str, tuple]], room: float | None = None) -> list[tuple[str, tuple]]:
         """The caption's lines as drawn: a frame not at true scale says so on a line of its own, and a line wider
-        than the frame goes on over the next lines, broken between words."""
+        than ``room`` pixels (default the frame's width) goes on over the next lines, broken between words."""
         lines = list(lines) if self.true_scale else [*lines, (NOT_TRUE, WARNING)]
         cv2 = _cv2()
-        room = self.size[0] - self.line
+        room = (self.size[0] if room is None else room) - self.line
         drawn = []
         for text, colour in lines:
             row = ""
@@ -334,23 +334,29 @@ class _Canvas:
             drawn.append((row, colour))
         return drawn
 
-    def _caption_box(self, lines: list[tuple[str, tuple]]) -> tuple[int, int, int, int]:
-        """The pixels ``(x0, y0, x1, y1)`` the caption's dark band covers (what else is drawn keeps off it)."""
-        lines = self._caption_lines(lines)
+    def _caption_box(self, lines: list[tuple[str, tuple]], bottom: bool = False, left: float = 0,
+                     room: float | None = None) -> tuple[int, int, int, int]:
+        """The pixels ``(x0, y0, x1, y1)`` the caption's dark band covers: at the top of the frame (``bottom``: at
+        its foot), from ``left``, its lines broken to ``room`` pixels (default the frame's width); what else is
+        drawn keeps off it."""
+        lines = self._caption_lines(lines, room)
         if not lines:
             return 0, 0, 0, 0
         cv2 = _cv2()
-        height = int(self.line * (len(lines) + 0.4))
+        height = min(int(self.line * (len(lines) + 0.4)), self.size[1])
         width = max(cv2.getTextSize(_ascii(t), cv2.FONT_HERSHEY_SIMPLEX, self.font, self.thick)[0][0]
                     for t, _ in lines) + self.line
-        return 0, 0, min(width, self.size[0]), height
+        top = self.size[1] - height if bottom else 0
+        left = int(left)
+        return left, top, min(left + width, self.size[0]), top + height
 
-    def _caption(self, image: np.ndarray, lines: list[tuple[str, tuple]]) -> None:
-        _, _, width, height = self._caption_box(lines)
-        lines = self._caption_lines(lines)
-        image[:height, :width] //= 4  # a dark band under the words, over what may lie there
+    def _caption(self, image: np.ndarray, lines: list[tuple[str, tuple]], bottom: bool = False, left: float = 0,
+                 room: float | None = None) -> None:
+        x0, top, x1, end = self._caption_box(lines, bottom, left, room)
+        lines = self._caption_lines(lines, room)
+        image[top:end, x0:x1] //= 4  # a dark band under the words, over what may lie there
         for row, (text, colour) in enumerate(lines):
-            self._text(image, text, np.array([self.line / 2, self.line * (row + 1)]), colour, 1.0)
+            self._text(image, text, np.array([x0 + self.line / 2, top + self.line * (row + 1)]), colour, 1.0)
 
     # -- drawing primitives (pixel space) --
 

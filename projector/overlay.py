@@ -33,11 +33,12 @@ from shapely.geometry import LineString, Point, Polygon, box
 from shapely.geometry.base import BaseGeometry
 from shapely.ops import nearest_points, unary_union
 
+from projector.drawing import must_move
 from projector.frames import DEFAULT_SIZE, WHITE, _ascii, _Canvas, _cv2, _point, _rings
 from projector.guide import Guide
 
 __all__ = ["CAMERA_COLOURS", "LEGEND", "PROJECTOR_COLOURS", "CheckLayout", "Label", "check_layout", "draw_check",
-           "misplaced", "must_move", "render_check"]
+           "misplaced", "render_check"]
 
 #: Colours (RGB) on a projector (light on black) and over a camera frame (dark on a light table or sheet); ``text``
 #: is the legend's words.
@@ -48,8 +49,6 @@ CAMERA_COLOURS = {"move": (235, 80, 0), "in_place": (0, 150, 40), "missing": (11
 #: The legend's rows: the colour's key, its words, whether its swatch is dashed (as a part not seen is drawn).
 LEGEND = (("move", "where it stands", False), ("target", "where it must go", False),
           ("in_place", "in place", False), ("missing", "not seen", True))
-#: Off by at least this much, a part without a tolerance is drawn as misplaced.
-UNTOLERATED_MM, UNTOLERATED_DEG = 1.0, 1.0
 #: The smallest target ring (mm).
 RING_MM = 3.0
 #: How far a label may stand from its part, in text lines beyond a small gap, tried nearest first.
@@ -87,18 +86,12 @@ class CheckLayout:
     legend: Box
     caption: Box
     tags: tuple[np.ndarray, ...]
-
-
-def must_move(error: Sequence[float], within: bool | None) -> bool:
-    """Whether a part off by ``error`` (``du, dv, distance, dheading``) must move: out of its tolerance
-    (``within`` False), or, without one (None), off by :data:`UNTOLERATED_MM` or :data:`UNTOLERATED_DEG` or more."""
-    if within is not None:
-        return not within
-    return error[2] >= UNTOLERATED_MM or abs(error[3]) >= UNTOLERATED_DEG
+    #: the width the caption's lines are broken to (None: the frame's)
+    caption_room: float | None = None
 
 
 def misplaced(check) -> bool:
-    """Whether the check says the part must move (see the module notes)."""
+    """Whether the check says the part must move (:func:`projector.drawing.must_move`: see the module notes)."""
     if not check.found or check.error is None:
         return False
     return must_move(check.error, check.within_tolerance)
@@ -129,9 +122,10 @@ def draw_check(image: np.ndarray, guide: Guide, checks: Sequence,
         out = np.repeat(out[:, :, None], 3, axis=2)
     lines = [(line, WHITE) for line in caption]
     marks = canvas.marks(checks)
-    canvas.draw(out, marks, canvas.lay_out(marks, lines))
+    layout = canvas.lay_out(marks, lines)
+    canvas.draw(out, marks, layout)
     if lines:
-        canvas._caption(out, lines)
+        canvas._caption(out, lines, bottom=layout.caption[1] > 0, left=layout.caption[0], room=layout.caption_room)
     return out
 
 
@@ -273,11 +267,11 @@ class _CheckCanvas(_Canvas):
         """The legend in the corner covering the fewest parts, then each mark's label at the nearest free place."""
         tags = tuple(self._tag_squares(marks))
         margin = max(2.0, 0.15 * self.line)
-        caption_box = self._caption_box(caption)
         hard = [Polygon(square).buffer(margin) for square in tags]
+        soft = unary_union(self._part_areas(marks))
+        caption_box, room = self._caption_place(caption, unary_union(hard), soft)
         if caption_box[2] > 0:
             hard.append(box(*caption_box).buffer(margin))
-        soft = unary_union(self._part_areas(marks))
         legend = self._place_legend(unary_union(hard), soft)
         hard.append(box(*legend).buffer(margin))
         taken = unary_union(hard)
@@ -286,7 +280,39 @@ class _CheckCanvas(_Canvas):
             label = self._place_label(mark, taken, soft)
             labels.append(label)
             taken = taken.union(box(*label.box).buffer(margin))
-        return CheckLayout(tuple(labels), legend, caption_box, tags)
+        return CheckLayout(tuple(labels), legend, caption_box, tags, room)
+
+    def _caption_place(self, caption: list[tuple[str, tuple]], hard: BaseGeometry,
+                       soft: BaseGeometry) -> tuple[Box, float | None]:
+        """The caption's band and the width its lines are broken to: at the top of the frame; over a camera frame
+        (where the reference tags may lie at the frame's edges) the first of the top, the foot, and the widest gap
+        between the tags at the top or the foot that covers the fewest tags, then the fewest parts. A projector's
+        fit leaves the top free for it."""
+        top = self._caption_box(caption)
+        if self.project is None or top[2] <= 0:
+            return top, None
+        width, height = self.size
+        margin = max(4.0, 0.3 * self.line)
+        places = [(False, 0.0, None), (True, 0.0, None)]
+        for bottom in (False, True):
+            edge = [b for b in (getattr(hard, "geoms", None) or [hard]) if not b.is_empty
+                    and (b.bounds[3] > 0.7 * height if bottom else b.bounds[1] < 0.3 * height)]
+            stops = sorted([(0.0, 0.0)] + [(b.bounds[0], b.bounds[2]) for b in edge] + [(width, width)])
+            gaps, reach = [], 0.0
+            for start, end in stops:
+                if start - reach > 8 * self.line:
+                    gaps.append((reach, start))
+                reach = max(reach, end)
+            if gaps:
+                left, right = max(gaps, key=lambda gap: gap[1] - gap[0])
+                places.append((bottom, left + margin, right - left - 2 * margin))
+
+        def covered(place):
+            drawn = box(*self._caption_box(caption, *place))
+            return drawn.intersection(hard).area, drawn.intersection(soft).area
+
+        bottom, left, room = min(places, key=covered)
+        return self._caption_box(caption, bottom, left, room), room
 
     def _tag_squares(self, marks: Sequence[_Mark]) -> Iterator[np.ndarray]:
         """Pixel corners of every tag square: the reference tags, each checked part's tag where it stands (where it
