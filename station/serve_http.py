@@ -10,6 +10,7 @@ import asyncio
 import logging
 import time
 from collections.abc import Callable
+from pathlib import Path
 from typing import Any
 
 import aiohttp_jinja2
@@ -39,6 +40,11 @@ GUARD_HEADERS = {
     "X-Content-Type-Options": "nosniff",
 }
 
+#: The page's template: textual-serve's, with every asset it loads (the terminal font too) served by the station
+#: itself from textual-serve's static folder, so that the page works on a network without internet and calls no
+#: one else.
+PAGE_TEMPLATES = Path(__file__).resolve().parent / "serve_page"
+
 REFUSED = ("403 forbidden: this station is served only to who has its token; open the URL that `station serve` "
            "printed (it ends in ?token=...)\n")
 REFUSED_LOCAL = "403 forbidden: this station is served on this computer only\n"
@@ -64,7 +70,7 @@ class StationServer(Server):
 
     def __init__(self, command: str, host: str, port: int, token: str | None, *,
                  say: Callable[[str], Any] = print, ssl_context=None) -> None:
-        super().__init__(command, host=host, port=port, title="Crafting Chaos station")
+        super().__init__(command, host=host, port=port, title="Crafting Chaos station", templates_path=PAGE_TEMPLATES)
         self.token = token
         self.say = say
         self.ssl_context = ssl_context

@@ -21,6 +21,7 @@ import sys
 import threading
 import time
 from pathlib import Path
+from typing import NamedTuple
 
 import aiohttp
 import pyte
@@ -177,11 +178,23 @@ def chromium() -> str | None:
     return None
 
 
+class BrowserShot(NamedTuple):
+    """What headless Chromium saw of a page (:func:`chromium_screenshot`)."""
+
+    png: bytes
+    #: The session's text so far.
+    text: str
+    #: Every URL the page made the browser request (the page, its assets, the websocket), in order.
+    requested: list[str]
+    #: The page's web fonts: (family, style, status) of each ``FontFace`` (status "loaded" once fetched and used).
+    fonts: list[tuple[str, str, str]]
+
+
 async def chromium_screenshot(url: str, needle: str, profile: Path, *, size: tuple[int, int] = (1280, 800),
-                              timeout: float = 45.0) -> tuple[bytes, str]:
+                              timeout: float = 45.0) -> BrowserShot:
     """Open ``url`` in headless Chromium, wait until its session's websocket has brought ``needle`` (read from the
     frames Chromium itself received, over the DevTools protocol) and the page shows the terminal; the screenshot
-    (PNG) and the session's text so far.
+    (PNG), the session's text so far, what the page requested and its fonts.
 
     ``chromium --headless --screenshot URL`` alone takes its picture at the page's load event, before the session
     has sent anything (it shows textual-serve's start dialog): the DevTools protocol lets the test wait for it.
@@ -227,10 +240,11 @@ def _devtools_endpoint(browser: subprocess.Popen, timeout: float) -> str:
     return found[0]
 
 
-async def _load_and_shoot(devtools, url: str, needle: str, timeout: float) -> tuple[bytes, str]:
+async def _load_and_shoot(devtools, url: str, needle: str, timeout: float) -> BrowserShot:
     ids = iter(range(1, 1_000_000))
     answers: dict[int, dict] = {}
     frames: list[bytes] = []
+    requested: list[str] = []
 
     async def call(method: str, **params) -> dict:
         number = next(ids)
@@ -243,6 +257,8 @@ async def _load_and_shoot(devtools, url: str, needle: str, timeout: float) -> tu
         message = json.loads((await devtools.receive(timeout=timeout)).data)
         if "id" in message:
             answers[message["id"]] = message.get("result", message)
+        elif message.get("method") in ("Network.requestWillBeSent", "Network.webSocketCreated"):
+            requested.append(message["params"].get("request", message["params"]).get("url", ""))
         elif message.get("method") == "Network.webSocketFrameReceived":
             frame = message["params"]["response"]
             if frame.get("opcode") == 2:
@@ -266,4 +282,7 @@ async def _load_and_shoot(devtools, url: str, needle: str, timeout: float) -> tu
         await asyncio.sleep(0.1)
     await asyncio.sleep(1.0)  # the opacity transition (0.3 s) and the app's last frames
     shot = await call("Page.captureScreenshot", format="png")
-    return base64.b64decode(shot["data"]), terminal_text(b"".join(frames))
+    fonts = await call("Runtime.evaluate", returnByValue=True,
+                       expression="[...document.fonts].map(f => [f.family.replace(/[\"']/g, ''), f.style, f.status])")
+    return BrowserShot(base64.b64decode(shot["data"]), terminal_text(b"".join(frames)), requested,
+                       [tuple(face) for face in fonts["result"].get("value", [])])

@@ -6,9 +6,12 @@ from __future__ import annotations
 import importlib
 import os
 import pkgutil
+import re
 import shlex
 import stat
 import sys
+from html.parser import HTMLParser
+from urllib.parse import urljoin, urlsplit
 
 import pytest
 from aiohttp import ClientSession, WSServerHandshakeError
@@ -188,6 +191,80 @@ async def test_a_local_station_refuses_a_websocket_from_another_sites_page():
         with pytest.raises(WSServerHandshakeError) as refused:
             await client.ws_connect(served.base + "/ws", headers={"Origin": "http://evil.example"})
         assert refused.value.status == 403
+
+
+# ---------------------------------------------------------------------------------------------------- the page
+
+#: What a style sheet makes the browser fetch: ``url(...)`` and ``@import "..."``.
+CSS_REFERENCES = re.compile(r"""url\(\s*['"]?([^'")\s]+)|@import\s+(?:url\()?['"]([^'"]+)""")
+
+#: An absolute URL written out in a script or a page (a script can fetch what it names).
+ABSOLUTE_URL = re.compile(r"""\b(?:https?|wss?)://[^\s'"`<>)]*""", re.IGNORECASE)
+
+
+class PageReferences(HTMLParser):
+    """The URLs a page makes a browser load: ``href``/``src`` attributes, ``data-*`` attributes that hold a URL (the
+    session's websocket, textual-serve's ping), and what its ``<style>`` blocks and ``style=`` attributes name."""
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.found: list[str] = []
+        self._in_style = False
+
+    def handle_starttag(self, tag, attrs):
+        self._in_style = tag == "style"
+        for name, value in attrs:
+            if not value:
+                continue
+            if name in ("href", "src") or (name.startswith("data-") and name.endswith("url")):
+                self.found.append(value)
+            elif name == "style":
+                self.found.extend(css_references(value))
+
+    def handle_endtag(self, tag):
+        self._in_style = False
+
+    def handle_data(self, data):
+        if self._in_style:
+            self.found.extend(css_references(data))
+
+
+def css_references(text: str) -> list[str]:
+    text = re.sub(r"/\*.*?\*/", "", text, flags=re.DOTALL)  # a licence's URLs in a comment are never fetched
+    return [a or b for a, b in CSS_REFERENCES.findall(text)]
+
+
+async def test_the_page_and_every_asset_it_names_come_from_the_station():
+    # A station on a makerspace network without internet: the page, its script, styles, images and the terminal's
+    # font all come from the station itself, and nothing the page or its script names points off the machine.
+    async with Served(TOKEN) as served, ClientSession() as client:
+        station = urlsplit(served.base).netloc
+        async with client.get(f"{served.base}/?token={TOKEN}") as response:
+            assert response.status == 200
+            page = await response.text()
+        parser = PageReferences()
+        parser.feed(page)
+        queue = [urljoin(served.base + "/", found) for found in parser.found]
+        queue += ABSOLUTE_URL.findall(page)
+        fetched: dict[str, bytes] = {}
+        while queue:
+            address = queue.pop()
+            assert urlsplit(address).netloc == station, f"the page loads {address} from off the station"
+            if address in fetched or urlsplit(address).scheme in ("ws", "wss"):  # the session: tested elsewhere
+                continue
+            async with client.get(address, cookies={TOKEN_COOKIE: TOKEN}) as response:
+                assert response.status == 200, address
+                fetched[address] = body = await response.read()
+                kind = response.content_type
+            if kind == "text/css":
+                queue += [urljoin(address, found) for found in css_references(body.decode())]
+            elif "javascript" in kind:
+                queue += ABSOLUTE_URL.findall(body.decode())
+    paths = {urlsplit(address).path for address in fetched}
+    assert {"/static/js/textual.js", "/static/css/xterm.css"} <= paths
+    # textual.js draws the terminal in 'Roboto Mono': the page gets it from the station, and it is a TrueType font
+    fonts = [body for address, body in fetched.items() if "RobotoMono" in address]
+    assert fonts and all(body[:4] == b"\x00\x01\x00\x00" for body in fonts), sorted(paths)
 
 
 # ---------------------------------------------------------------------------------------------------- the keys

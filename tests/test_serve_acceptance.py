@@ -10,6 +10,7 @@ import ssl
 import stat
 import subprocess
 import sys
+from urllib.parse import urlsplit
 
 import aiohttp
 import numpy as np
@@ -127,8 +128,13 @@ async def test_on_another_address_every_request_needs_the_token(tmp_path):
 
 @pytest.mark.skipif(chromium() is None, reason="no chromium on this machine (apt-get install chromium)")
 async def test_headless_chromium_shows_the_home_screen(served, tmp_path):
-    png, text = await chromium_screenshot(served.url, "Recent machine jobs", tmp_path / "profile")
+    png, text, requested, fonts = await chromium_screenshot(served.url, "Recent machine jobs", tmp_path / "profile")
     assert all(needle in text for needle in HOME_TEXT), text
+    # everything the browser fetched came from the station (a makerspace network may have no internet), and the
+    # terminal's font is the station's Roboto Mono, loaded, not a fallback
+    station = urlsplit(served.url).netloc
+    assert requested and all(urlsplit(address).netloc == station for address in requested), requested
+    assert ("Roboto Mono", "normal", "loaded") in fonts, fonts
     path = tmp_path / "home.png"
     path.write_bytes(png)
     if os.environ.get("STATION_SERVE_SCREENSHOT"):  # how docs/station-serve-home.png is made
