@@ -27,7 +27,8 @@ IDS = [" ".join(path) for path, _ in COMMANDS]
 
 
 def examples_of(parser: argparse.ArgumentParser) -> list[str]:
-    """The ``station ...`` command lines of the epilog's ``example:`` / ``examples:`` part."""
+    """The command lines of the epilog's ``example:`` / ``examples:`` part: those that start with ``station``, and
+    shell lines that pipe into it (``printf 'y\\n' | station assemble ...``)."""
     epilog = parser.epilog or ""
     _, found, rest = epilog.partition("example")
     if not found:
@@ -35,7 +36,7 @@ def examples_of(parser: argparse.ArgumentParser) -> list[str]:
     lines = []
     for line in rest.split("\n"):
         line = line.strip().removeprefix("s:").removeprefix(":").strip()
-        if line.startswith("station "):
+        if line.startswith("station ") or any(part.strip().startswith("station ") for part in line.split("|")[1:]):
             lines.append(line)
     return lines
 
@@ -91,3 +92,30 @@ def test_help_loads_no_heavy_library():
     )
     loaded = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout.strip()
     assert loaded == "", f"building the parser imported {loaded}"
+
+
+def command_groups(parser: argparse.ArgumentParser, path: tuple[str, ...] = ()):
+    """(command words, the group's line in its parent's command list, parser, its commands) for every command that
+    has commands of its own (``calibrate``: board, camera, ...)."""
+    for action in parser._actions:
+        if isinstance(action, argparse._SubParsersAction):
+            lines = {choice.dest: choice.help or "" for choice in action._choices_actions}
+            for name, sub in action.choices.items():
+                inner = [a for a in sub._actions if isinstance(a, argparse._SubParsersAction)]
+                if inner:
+                    yield (*path, name), lines.get(name, ""), sub, list(inner[0].choices)
+                yield from command_groups(sub, (*path, name))
+
+
+GROUPS = list(command_groups(build_parser()))
+
+
+@pytest.mark.parametrize(("path", "line", "parser", "commands"), GROUPS, ids=[" ".join(g[0]) for g in GROUPS])
+def test_a_group_names_each_of_its_commands(path, line, parser, commands):
+    # `station --help` lists the group in one line and `station GROUP --help` describes it: both name every command
+    # (a command added to a group is not hidden behind an older summary).
+    import re
+
+    for where, text in (("station --help line", line), ("description", parser.description or "")):
+        missing = [c for c in commands if not re.search(rf"\b{re.escape(c)}\b", text)]
+        assert not missing, f"{' '.join(path)}: its {where} does not name {missing}: {text!r}"

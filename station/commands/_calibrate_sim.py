@@ -40,9 +40,10 @@ def add_sim_parser(calibrate_subparsers, trials_source=None) -> None:
         "per event before and after, and the Brier score of the success probability on held-out trials before "
         "and after; --out saves a physics profile for --physics. --json prints {\"parameters\": [{\"name\", "
         "\"value\", \"interval\"}], \"trials\", \"brier_before\", \"brier_after\"}.",
-        epilog="examples:\n  station calibrate sim ballrun --out wood.toml\n"
-        "  station calibrate sim simple ballrun --params wood.friction --trials 40 --json\n"
-        "  station calibrate sim slide.toml --trials-json trials.json --out slide.toml --workers 2",
+        epilog="examples:\n  station calibrate sim simple --out simple-physics.toml\n"
+        "  station calibrate sim simple ballrun --params wood.friction --draws 2 --trials 40 --json\n"
+        "  station calibrate sim examples/scenarios/simple.toml --trials-json trials.json --out simple-physics.toml "
+        "--workers 2",
     )
     parser.add_argument("scenarios", nargs="+", metavar="SCENARIO", help="scenario files or example names")
     parser.add_argument("--params", metavar="MATERIAL.PARAM,...", default=None,

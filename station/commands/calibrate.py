@@ -24,16 +24,22 @@ PLANE_JSON = ('{"source", "camera", "guide", "intrinsics": {"name", "rms_px", "n
 
 def register(subparsers) -> None:
     parser = subparsers.add_parser(
-        "calibrate", help="calibrate the camera (ChArUco board), check the plane from the reference tags",
-        description="Calibration for the camera-checked assembly: `board` writes the ChArUco board as a 1:1 PDF to "
-        "print; `camera` solves the camera's intrinsics from views of it (a folder of images, or N frames grabbed "
-        "from the camera while you move the board) and saves them per camera under the station's data folder "
-        "(calibration/cameras/NAME.json, OpenCV's names); `plane` finds the guide plane in one frame through the "
-        "guide's four reference tags and reports the residual and how far the plane moved since the last check.",
+        "calibrate", help="calibrate the camera, the guide plane, the projector and the simulator (board, camera, "
+        "plane, projector, sim)",
+        description="Calibration for the camera-checked assembly and the simulator: `board` writes the ChArUco "
+        "board as a 1:1 PDF to print; `camera` solves the camera's intrinsics from views of it (a folder of images, "
+        "or N frames grabbed from the camera while you move the board) and saves them per camera under the "
+        "station's data folder (calibration/cameras/NAME.json, OpenCV's names); `plane` finds the guide plane in "
+        "one frame through the guide's four reference tags and reports the residual and how far the plane moved "
+        "since the last check; `projector` maps the projector's pixels onto the guide plane with the camera, so "
+        "that projected guides land at true scale; `sim` fits a scenario's uncertain material values (friction, "
+        "restitution, damping) to the logged trials and writes a physics profile for --physics.",
         epilog="examples:\n  station calibrate board --pdf board.pdf\n"
         "  station calibrate camera --images shots/ --name desk\n"
-        "  station calibrate camera --capture 15 --camera 0 --out desk.json\n"
-        "  station calibrate plane --image frame.png --guide guide.json")
+        "  station calibrate plane --image frame.png --guide guide.json\n"
+        "  station calibrate projector --camera 'sim://camera?projector=wall' "
+        "--projector 'sim://projector?name=wall&area=-300,-190,300,190'\n"
+        "  station calibrate sim simple --out simple-physics.toml")
     sub = parser.add_subparsers(dest="calibrate_command", metavar="WHAT")
 
     board = sub.add_parser("board", help="the ChArUco calibration board as a 1:1 PDF",
@@ -71,7 +77,7 @@ def register(subparsers) -> None:
                            "and how far the plane moved since the camera's last check (a bumped camera). "
                            f"--json prints {PLANE_JSON}.",
                            epilog="examples:\n  station calibrate plane --image frame.png --guide guide.json\n"
-                           "  station calibrate plane --camera sim://camera --guide guide.json --json")
+                           "  station calibrate plane --image frame.png --guide guide.json --name desk --json")
     where = plane.add_mutually_exclusive_group()
     where.add_argument("--camera", metavar="URL", help="grab the frame from this camera (default: the station's)")
     where.add_argument("--image", metavar="FRAME", help="a frame saved as an image file")

@@ -25,7 +25,7 @@ def register(subparsers) -> None:
         "2 on bad input.",
         epilog="examples:\n"
         "  station simulate examples/scenarios/simple.toml\n"
-        "  station simulate ballrun --layout layout.json --render run.png --json",
+        "  station simulate ballrun --layout ballrun-layout.json --render run.png --json",
     )
     simulate.add_argument("scenario", metavar="SCENARIO", help="a scenario file (.toml/.json) or an example name")
     layout = simulate.add_mutually_exclusive_group()
@@ -43,7 +43,11 @@ def register(subparsers) -> None:
     add_physics_option(simulate)
     simulate.set_defaults(func=run_simulate)
 
-    scenario = subparsers.add_parser("scenario", help="scenario files: check")
+    scenario = subparsers.add_parser(
+        "scenario", help="scenario files: check",
+        description="Scenario files (a contraption's objects, materials, causal graph and design parameters): "
+        "`check` validates one and lists what it holds.",
+        epilog="example:\n  station scenario check examples/scenarios/simple.toml")
     actions = scenario.add_subparsers(dest="scenario_command", metavar="ACTION")
     check = actions.add_parser(
         "check",

@@ -19,8 +19,8 @@ def register(subparsers) -> None:
         "error; else 1 mm and 1 degree) and, with --physics, the calibrated material values (drawn from their "
         "intervals). --as-built CHECK.json simulates the layout the check measured instead of the designed one. "
         "The interval of the probability is Wilson's 95 % interval; that of the attempts is its inverse.",
-        examples=["ballrun layout.json --physics wood.toml",
-                  "simple success --as-built CHECK.json --samples 400 --json"],
+        examples=["simple layout.json --physics simple-physics.toml",
+                  "simple layout.json --as-built check.json --samples 100 --json"],
     )
     add_scenario_and_layout(parser)
     parser.add_argument("--as-built", metavar="CHECK.json", default=None,

@@ -40,7 +40,7 @@ def register(subparsers) -> None:
         "refined (--refine). A sector sketch is also read as its copies chained in drawing order. "
         "The first run builds the candidate databases (about 20 s of CPU) and caches them.",
         epilog='sketch JSON: [[[x, y], ...], ...] or {"strokes": [...], "symmetry": K, "center": [x, y]}.  '
-        "example: station retrieve examples/sketches/trefoil-sector.json --top 5 --out /tmp/retrieval",
+        "example: station retrieve examples/sketches/trefoil-sector.json --top 5 --out retrieval",
     )
     parser.add_argument("sketch", metavar="SKETCH", help="a .json or .svg sketch file")
     parser.add_argument("--symmetry", type=int, metavar="K", help="rotational symmetry order (copies strokes K times)")

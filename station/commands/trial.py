@@ -43,9 +43,10 @@ def register(subparsers) -> None:
     trial = subparsers.add_parser(
         "trial", help="the log of physical runs: log, list, show, export, import",
         description="Physical trials of contraptions: what happened to each event of the causal graph in a real "
-        "run, the layout as designed and as built, the physics used. The log lives in the station database "
-        "(CHAOS_STATION_DATABASE or [database] url in station.toml: the local SQLite file, or a PostgreSQL "
-        "database several stations share).")
+        "run, the layout as designed and as built, the physics used. `log` records a run, `list` and `show` read "
+        "the log, `export` writes it as JSON and `import` reads such a file back. The log lives in the station "
+        "database (CHAOS_STATION_DATABASE or [database] url in station.toml: the local SQLite file, or a "
+        "PostgreSQL database several stations share).")
     actions = trial.add_subparsers(dest="trial_command", metavar="ACTION")
     log = actions.add_parser(
         "log", help="record a physical run",
@@ -54,9 +55,9 @@ def register(subparsers) -> None:
         "not-reached, and the events a 'yes' needed (its parents) happened. Every other event is required. "
         "Success is the goal: every leaf event happened. Prints the trial's id.",
         epilog="examples:\n"
-        "  station trial log simple success --outcome dominoes_fall=yes --time dominoes_fall=1.4\n"
-        "  station trial log ballrun layout.json --outcome ball_rolls=yes --outcome ball_hits_lever=no "
-        "--as-built CHECK.json --who ann --photo run3.jpg",
+        "  station trial log simple success --outcome last_stops=yes --time last_topples=1.4\n"
+        "  station trial log simple layout.json --outcome first_topples=no --as-built check.json --who ann "
+        "--photo run3.jpg",
     )
     log.add_argument("scenario", metavar="SCENARIO", help="a scenario file (.toml/.json) or an example name")
     log.add_argument("layout", metavar="LAYOUT", help="the layout as designed: a layout file (the LAYOUT.json of "
@@ -90,7 +91,7 @@ def register(subparsers) -> None:
     show = actions.add_parser("show", help="one trial in full",
                               description="Show one trial: when, who, success, every event's outcome in the causal "
                               "graph's order with its time, the layout as designed and as built, notes, photos.",
-                              epilog="example: station trial show 12")
+                              epilog="example: station trial show 1")
     show.add_argument("id", metavar="ID", type=int, help="the trial's id (`station trial list`)")
     show.add_argument("--json", action="store_true", help="print the trial as JSON (the export's form)")
     show.set_defaults(func=run_show)
