@@ -160,3 +160,16 @@ async def test_side_view_says_no_layout_yet_before_a_run(tmp_path):
         screen = open_screen(app)
         shown = str(screen.query_one("#picture").render())
         assert "no layout yet" in shown and "sheet" not in shown
+
+
+async def test_enter_on_a_bad_budget_keeps_the_field_to_mend(tmp_path):
+    """A refused budget leaves the focus in its field, so the digits typed next go there (not to the table)."""
+    async with opened(tmp_path, "o", wait=False) as (app, pilot):
+        screen = open_screen(app)
+        screen.query_one("#budget", Input).focus()
+        await pilot.press("end", *["backspace"] * 6, "enter")
+        await pilot.pause()
+        assert "budget must be an integer >= 20, got ''" in str(screen.query_one("#status", Static).render())
+        assert app.focused is screen.query_one("#budget", Input) and not screen._optimizing
+        await pilot.press("2", "5")
+        assert screen.query_one("#budget", Input).value == "25"

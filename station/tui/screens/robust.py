@@ -173,6 +173,7 @@ class RobustScreen(Screen):
             value = None
         if value is None or value < minimum:
             self._set_status(f"{name} must be an integer >= {minimum}, got {text!r}", style="red")
+            self.query_one(f"#{widget_id}", Input).focus()  # back to the field to mend, where typing goes
             return None
         return value
 
