@@ -2,7 +2,9 @@
 
 Format
 ------
-One ``[[devices]]`` table per device, in the order the station lists them::
+Every section is optional: without ``[[devices]]`` tables the station has its built-in devices (all simulated),
+without ``[database]`` the local SQLite file; a section that is there is checked. One ``[[devices]]`` table per
+device, in the order the station lists them::
 
     [[devices]]
     name = "plotter"                  # unique: letters, digits, '-', '_', '.' (at most 32)
@@ -69,6 +71,8 @@ DEFAULT_CONFIG_TEXT = """\
 #            camera: sim://camera, 0 (an index), /dev/video0, rtsp://...   projector: sim://projector, display:1
 #   profile  plotters and lasers: a built-in profile (plotter, laser) or a profile file (relative to this folder)
 #   options  plotters and lasers: { timeout = 2.5 } seconds a probe waits (a board that resets on open needs ~2)
+# The simulated camera sees what the simulated projector it names (projector=NAME) throws on the table, where its
+# area= (u0,v0,u1,v1 in mm) says: `station calibrate projector` measures that pair as it would a real one.
 # `station devices` lists them with their state.
 
 [[devices]]
@@ -86,12 +90,12 @@ profile = "laser"
 [[devices]]
 name = "camera"
 kind = "camera"
-url = "sim://camera"
+url = "sim://camera?projector=projector"
 
 [[devices]]
 name = "projector"
 kind = "projector"
-url = "sim://projector"
+url = "sim://projector?name=projector&area=-320,-200,320,200"
 """
 
 
@@ -200,6 +204,8 @@ def database_from_text(text: str, file: str = "<text>", folder: Path | None = No
         return None
     table = check.table(top["database"], "database")
     check.only(table, "database", ("url",))
+    if "url" not in table:  # an empty [database]: the local SQLite file, as without one
+        return None
     expected = "a database URL (postgresql://USER:PASSWORD@HOST/DB, sqlite:///PATH or a file path)"
     url = check.string(check.required(table, "database", "url", expected), "database.url", what=expected).strip()
     try:
@@ -212,12 +218,15 @@ def database_from_text(text: str, file: str = "<text>", folder: Path | None = No
 
 
 def devices_from_data(data: Any, file: str, folder: Path) -> tuple[DeviceEntry, ...]:
-    """The devices of parsed config ``data`` (see the module docstring for the format)."""
+    """The devices of parsed config ``data`` (see the module docstring for the format); the built-in default
+    (:func:`station.devices.default_devices`) when it has no ``devices``."""
     check = _ConfigChecker(file)
     top = check.table(data, "")
     check.only(top, "", TOP_KEYS)
+    if "devices" not in top:  # every section is optional: a file that sets only the database keeps the default
+        return default_devices()
     expected = "[[devices]] tables (an array of tables)"
-    listed = check.required(top, "", "devices", expected)
+    listed = top["devices"]
     if isinstance(listed, dict):
         raise check.fail("devices", f"expected {expected}, got a table ([devices] or [devices.NAME])")
     if not isinstance(listed, list):

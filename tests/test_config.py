@@ -30,7 +30,6 @@ BAD = [
     ("devices = 3", "devices: expected [[devices]] tables (an array of tables), got a number (3)"),
     ('[devices.plotter]\nkind = "plotter"',
      "devices: expected [[devices]] tables (an array of tables), got a table ([devices] or [devices.NAME])"),
-    ("", "devices: missing; expected [[devices]] tables (an array of tables)"),
     ('colour = "red"\n' + PLOTTER, "colour: unknown field; expected one of: devices, database"),
     ("devices = [1]", "devices[0]: expected a table (mapping), got a number (1)"),
     ("[[devices]\n", "not valid TOML (Expected ']]' at the end of an array declaration at line 1 column 10); "
@@ -132,6 +131,29 @@ def test_no_file_is_the_all_simulated_default(station_home, monkeypatch):
     config = load_config()
     assert (config.path, config.devices) == (None, default_devices())
     assert configured_devices() == default_devices()
+
+
+def test_every_section_is_optional_and_only_what_is_there_is_checked(station_home, monkeypatch, capsys):
+    monkeypatch.delenv(CONFIG_VARIABLE, raising=False)
+    monkeypatch.delenv("CHAOS_STATION_DATABASE", raising=False)
+    for text in ("", "# nothing set yet\n", "[database]\n"):
+        assert devices_from_text(text, "station.toml", station_home) == default_devices()
+    # a file that only says where the database is: the simulated devices, and that database for the trial log
+    (station_home / "station.toml").write_text('[database]\nurl = "shared.sqlite3"\n')
+    config = load_config()
+    assert config.devices == default_devices()
+    assert config.database == str(station_home / "shared.sqlite3")
+    assert main(["trial", "list"]) == 0
+    assert capsys.readouterr().out == f"no trials yet (database {station_home / 'shared.sqlite3'})\n"
+    assert main(["devices", "--no-probe", "--json"]) == 0
+    assert [d["name"] for d in json.loads(capsys.readouterr().out)["devices"]] == [d.name for d in default_devices()]
+    # what is there and wrong is still refused, with or without the other section
+    (station_home / "station.toml").write_text('[database]\nurl = "mysql://x/y"\n')
+    assert main(["trial", "list"]) == 2
+    assert "station.toml: database.url: database URL 'mysql://x/y': expected" in capsys.readouterr().err
+    (station_home / "station.toml").write_text('[database]\nurl = "shared.sqlite3"\n[[devices]]\nname = "x"\n')
+    assert main(["trial", "list"]) == 2
+    assert "station.toml: devices[0].kind: missing" in capsys.readouterr().err
 
 
 def test_the_config_in_the_data_folder_is_read(station_home, monkeypatch):
