@@ -30,7 +30,7 @@ from collections.abc import Callable
 import numpy as np
 
 from drivers.errors import DeviceStateError, JobRefused, ProtocolError
-from drivers.gcode import GcodeError, Toolpath, interpret
+from drivers.gcode import GcodeError, Toolpath, WorkOffsets, interpret
 from drivers.grbl.connection import GrblConnection, StreamStopped
 from drivers.grbl.job_types import FINAL_STATES, Job, JobProgress, JobResult, frame_lines
 from drivers.grbl.preflight import (
@@ -38,10 +38,12 @@ from drivers.grbl.preflight import (
     SPAN_WORDS,
     check_line_lengths,
     check_machine_space,
+    check_placed,
     check_span,
     commanded_extent,
     job_kind,
     kind_warning,
+    offset_note,
 )
 from drivers.grbl.protocol import Error
 
@@ -98,6 +100,7 @@ class JobRunner:
         self._last_report = 0.0
         self._acked_streamed = 0
         self._toolpath: Toolpath | None = None  # of the streamed lines, from where the head stood (pre-flight)
+        self._wco: np.ndarray | None = None  # the work offset the job started with (the toolpath's machine = + this)
         self._frozen = False  # the stream stopped: the planner's fill no longer says which line ran
 
     # ------------------------------------------------------------------ pre-flight
@@ -140,8 +143,12 @@ class JobRunner:
             wpos = status.work_position(conn.work_offset())
             if wpos is not None:
                 start = wpos
-        toolpath = interpret(self._lines, start=start, wco=conn.work_offset())
-        self._toolpath = toolpath
+        wco = np.array(conn.work_offset(), dtype=float)
+        # the offsets table too: a job that sets G92, G10 L2/L20 or selects G55.. runs where those put it
+        toolpath = interpret(self._lines, start=start, wco=wco,
+                             offsets=WorkOffsets.from_report(conn.offsets, conn.parser_state))
+        self._toolpath, self._wco = toolpath, wco
+        check_placed(self.job.name, toolpath, self._origin)
         rapid = min(conn.settings.get(110, 500.0), conn.settings.get(111, 500.0))
         durations = toolpath.durations(rapid_rate=rapid)
         self._durations = durations
@@ -151,12 +158,12 @@ class JobRunner:
         extent = toolpath.extent()
         if extent is not None:
             lo, hi = extent
-            wco = np.array(conn.work_offset())
             checked.update(extent_lo=lo.tolist(), extent_hi=hi.tolist(), work_offset=wco.tolist())
+            note = offset_note(toolpath, self._lines, self._origin)
             if conn.homing_enabled:
-                check_machine_space(self.job.name, conn, lo, hi, wco)
+                check_machine_space(self.job.name, conn, lo, hi, wco, note)
             else:
-                check_span(self.job.name, conn, toolpath, lo, hi)
+                check_span(self.job.name, conn, toolpath, lo, hi, note)
         return checked
 
     def _build_lines(self) -> tuple[list[str], list[int]]:
@@ -165,6 +172,11 @@ class JobRunner:
         origin: list[int] = []
         if start > 0:
             state = self.job.toolpath.states[start]
+            if not state.rebuildable:
+                raise JobRefused(
+                    f"job {self.job.name!r}: cannot resume from line {self.from_line}: the job sets a work offset "
+                    "(G92) where the head stood when it ran, and a reset clears it; send it from line 1 with the "
+                    "head where it started, or set work zero with G10 L20 P1 in the job instead")
             for line in state.preamble(self.job.pen_up if not self.is_laser else ("M5",)):
                 lines.append(line)
                 origin.append(-1)
@@ -443,7 +455,9 @@ class JobRunner:
         line = guess
         toolpath = self._toolpath
         if status is not None and status.mpos is not None and toolpath is not None and len(toolpath.line):
-            position = np.array(status.mpos, dtype=float) - np.array(self.connection.work_offset())
+            # in the work coordinates the job started in: a reset clears a G92 the job set
+            wco = self._wco if self._wco is not None else np.array(self.connection.work_offset())
+            position = np.array(status.mpos, dtype=float) - wco
             a, b = toolpath.start, toolpath.end
             direction = b - a
             length2 = np.einsum("ij,ij->i", direction, direction)
@@ -485,15 +499,16 @@ class JobRunner:
         conn = self.connection
         if status is None or status.mpos is None:
             return None
-        wco = np.array(conn.work_offset())
-        position = np.array(status.mpos) - wco
-        toolpath = interpret(self._lines)
+        wco = self._wco if self._wco is not None else np.array(conn.work_offset())
+        position = np.array(status.mpos) - wco  # in the work coordinates the job started in, as the toolpath's
+        toolpath = self._toolpath or interpret(self._lines)
         first = stopped.first_unconfirmed if stopped.first_unconfirmed is not None else 0
         sent = self.progress.lines_sent
         candidates = range(min(sent, len(self._lines)) - 1, max(first, 1) - 2, -1)
         for index in candidates:
             state = toolpath.states[index + 1]
-            if state.position_known and np.allclose(state.position[:2], position[:2], atol=0.01):
+            placed = state.position + state.shift
+            if state.position_known and np.allclose(placed[:2], position[:2], atol=0.01):
                 # the next line of the job that was not executed (0: none left, the job ran to its end)
                 for later in range(index + 1, len(self._lines)):
                     if self._origin[later] >= 0:

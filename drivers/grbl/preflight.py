@@ -7,6 +7,12 @@ stands) must lie in the machine space GRBL's soft limits use (-travel..0 per axi
 zero is wherever the head stood at power-up: the job's own size on each axis must fit the travel (``$130``-``$132``),
 and so must the way from where the head stands to the job; the refusal says by how much ("this job is 300.0 mm
 wide; your machine travels 200.0 mm in X").
+
+Both checks see the job where it runs: a job that moves its work coordinates (``G92``, ``G10 L2``/``L20``,
+``G54``-``G59``, ``G43.1``) has the moves after that placed by the offsets (GRBL's ``$#`` and ``$G``, read before the
+job), and a refusal names the line that moved them. A job that sets an offset where the head's position cannot be
+known (after a ``G38`` probe, or a ``G28`` whose stored position is not known) is refused: nobody can tell where the
+rest of it runs.
 """
 
 from __future__ import annotations
@@ -20,8 +26,8 @@ from drivers.gcode import GcodeError, Toolpath, clean_line, tokenize
 from drivers.grbl.connection import GrblConnection
 from drivers.grbl.job_types import Job
 
-__all__ = ["LINE_BUFFER_SIZE", "SPAN_WORDS", "check_line_lengths", "check_machine_space", "check_span",
-           "commanded_extent", "job_kind", "kind_warning"]
+__all__ = ["LINE_BUFFER_SIZE", "SPAN_WORDS", "check_line_lengths", "check_machine_space", "check_placed",
+           "check_span", "offset_note", "commanded_extent", "job_kind", "kind_warning"]
 
 #: GRBL's line buffer (LINE_BUFFER_SIZE): a block has at most 79 characters after comments and spaces are removed.
 LINE_BUFFER_SIZE = 80
@@ -63,9 +69,43 @@ def commanded_extent(toolpath: Toolpath) -> tuple[np.ndarray, np.ndarray]:
     return lo, hi
 
 
-def check_machine_space(name: str, conn: GrblConnection, lo: np.ndarray, hi: np.ndarray, wco: np.ndarray) -> None:
-    """A homed machine: every point of the job (``lo``..``hi`` in work mm, plus the work offset ``wco``) inside the
-    machine space GRBL's soft limits use; else :class:`JobRefused` naming each axis that leaves it."""
+def _job_line(origin: Sequence[int] | None, index: int) -> int | None:
+    """The 1-based job line of streamed line ``index`` (None for a line the runner added)."""
+    if origin is None:
+        return index + 1
+    return origin[index] + 1 if 0 <= index < len(origin) and origin[index] >= 0 else None
+
+
+def offset_note(toolpath: Toolpath, lines: Sequence[str], origin: Sequence[int] | None = None) -> str:
+    """``"line 3 (G92X-100) moves the job's work coordinates"``: where a job moves its work coordinates, for a
+    refusal (``""`` when it never does)."""
+    moved = [index for index in toolpath.offset_lines() if _job_line(origin, index) is not None]
+    if not moved:
+        return ""
+    index = moved[0]
+    more = f" and {len(moved) - 1} more line(s)" if len(moved) > 1 else ""
+    return f"line {_job_line(origin, index)} ({clean_line(lines[index])}){more} moves the job's work coordinates"
+
+
+def check_placed(name: str, toolpath: Toolpath, origin: Sequence[int] | None = None) -> None:
+    """Every move of the job runs where the interpreter can tell: else :class:`JobRefused` naming the line that set
+    a work offset where the head's position was not known (after a probe or a go-home to an unknown place)."""
+    index = toolpath.unplaced_line()
+    if index is None:
+        return
+    setting = next((i for i in toolpath.offset_lines() if not toolpath.states[i + 1].frame_known), index)
+    where = _job_line(origin, setting)
+    raise JobRefused(f"job {name!r}: line {where} sets a work offset where the head's position is not known (after "
+                     "a G38 probe or a G28/G30 to an unknown place), so the pre-flight cannot tell where the moves "
+                     "after it run; set the offset before that move, or with G10 L2 (absolute)")
+
+
+def check_machine_space(name: str, conn: GrblConnection, lo: np.ndarray, hi: np.ndarray, wco: np.ndarray,
+                        note: str = "") -> None:
+    """A homed machine: every point of the job (``lo``..``hi`` in work mm, in the work coordinates the job starts
+    in, plus the work offset ``wco`` it starts with) inside the machine space GRBL's soft limits use; else
+    :class:`JobRefused` naming each axis that leaves it; ``note`` (:func:`offset_note`) says where the job moved
+    its work coordinates."""
     travel = np.array(conn.travel, dtype=float)
     allowed_lo, allowed_hi = (np.array(bound, dtype=float) for bound in conn.machine_bounds())
     mlo, mhi = lo + wco, hi + wco
@@ -82,10 +122,12 @@ def check_machine_space(name: str, conn: GrblConnection, lo: np.ndarray, hi: np.
     ]
     if bad:
         raise JobRefused(f"job {name!r} leaves the machine's travel ($130-$132 with work offset "
-                         f"{', '.join(f'{v:.2f}' for v in wco)}): " + "; ".join(bad))
+                         f"{', '.join(f'{v:.2f}' for v in wco)}{'; ' + note if note else ''}): "
+                         + "; ".join(bad))
 
 
-def check_span(name: str, conn: GrblConnection, toolpath: Toolpath, lo: np.ndarray, hi: np.ndarray) -> None:
+def check_span(name: str, conn: GrblConnection, toolpath: Toolpath, lo: np.ndarray, hi: np.ndarray,
+               note: str = "") -> None:
     """A machine without homing: machine zero is wherever the head stood at power-up, so machine coordinates
     say nothing about the machine's ends. What is known: the job's own size on each axis, and the way from
     where the head stands to the job, must each fit the travel ($130-$132)."""
@@ -98,7 +140,8 @@ def check_span(name: str, conn: GrblConnection, toolpath: Toolpath, lo: np.ndarr
         for i in _longer_than_travel(own_hi - own_lo, travel, named)
     ]
     if too_big:
-        raise JobRefused(f"job {name!r} does not fit the machine: " + "; ".join(too_big)
+        raise JobRefused(f"job {name!r} does not fit the machine{f' ({note})' if note else ''}: "
+                         + "; ".join(too_big)
                          + ". Scale the job down (station plot --size), or check $130-$132 if the machine "
                          "travels further")
     start = toolpath.start[0]  # where the head stands (the first segment leaves from there)
@@ -109,8 +152,9 @@ def check_span(name: str, conn: GrblConnection, toolpath: Toolpath, lo: np.ndarr
     ]
     if too_far:
         raise JobRefused(f"job {name!r} cannot run from where the head stands (no homing: the job runs "
-                         "relative to work zero): " + "; ".join(too_far) + ". Jog the head to where the job "
-                         "should start, set work zero there (G10 L20 P1 X0 Y0) and send the frame first")
+                         f"relative to work zero{'; ' + note if note else ''}): " + "; ".join(too_far)
+                         + ". Jog the head to where the job should start, set work zero there (G10 L20 P1 X0 Y0) "
+                         "and send the frame first")
 
 
 def _longer_than_travel(spans: np.ndarray, travel: np.ndarray, named: np.ndarray) -> list[int]:

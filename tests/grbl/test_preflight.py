@@ -150,3 +150,98 @@ def test_a_laser_job_streams_end_to_end_on_a_machine_without_homing(make_connect
     assert [b.end[:2] for b in record.executed] == [(10, 10), (190, 10), (190, 190), (10, 190), (10, 10), (0, 0)]
     assert [b.power for b in record.executed] == [0, 600, 600, 600, 600, 0]
     assert record.samples[-1].power == 0.0
+
+
+# ------------------------------------------------------------------ jobs that move their own work coordinates
+# The homed laser: work zero (G54) at machine -400, -400; the head at machine 0. ``G0 X300 Y300`` puts it at
+# machine -100, -100, and ``G0 X100 Y100`` at -300, -300.
+
+
+@pytest.mark.parametrize(("lines", "leaves"), [
+    # G92 sets work zero where the head stands: X200 is then machine +100, outside; X-50 from -300 is -350, inside
+    (("G0 X300 Y300", "G92 X0 Y0", "G1 X200 Y50 F1000"), "X"),
+    (("G0 X100 Y100", "G92 X0 Y0", "G1 X-50 Y-50 F1000"), ""),
+    # G92 with one axis shifts that axis alone
+    (("G0 X300 Y300", "G92 Y0", "G1 X350 Y200 F1000"), "Y"),
+    # G10 L20 P1 (G54 itself) and P0 (the active system) move work zero as G92 does, but in the machine's EEPROM
+    (("G0 X300 Y300", "G10 L20 P1 X0 Y0", "G1 X200 Y50 F1000"), "X"),
+    (("G0 X100 Y100", "G10 L20 P0 X0 Y0", "G1 X-50 Y-50 F1000"), ""),
+    # G10 L2 sets the offset itself (machine mm): G54 at -300 puts X350 at machine +50
+    (("G10 L2 P1 X-300 Y-300", "G0 X350 Y100"), "X"),
+    (("G10 L2 P1 X-300 Y-300", "G0 X250 Y250"), ""),
+    # G92.1 clears G92: the job is back in G54's coordinates
+    (("G0 X300 Y300", "G92 X0 Y0", "G92.1", "G1 X200 Y50 F1000"), ""),
+    # an offset set for another system matters only once the job selects it
+    (("G10 L2 P2 X-200 Y-200", "G0 X250 Y100"), ""),
+    (("G10 L2 P2 X-200 Y-200", "G55", "G0 X250 Y100"), "X"),
+])
+def test_a_job_is_checked_where_its_own_work_offsets_put_it(homed, lines, leaves):
+    if not leaves:
+        preflight(homed, "G21 G90", *lines)
+        return
+    message = refusal(homed, "G21 G90", *lines)
+    assert "leaves the machine's travel" in message and f"{leaves} " in message.split("): ", 1)[1]
+    moved = next(i for i, line in enumerate(lines) if line.startswith(("G92", "G10 L20", "G10 L2 P1", "G55")))
+    assert f"; line {moved + 2} ({lines[moved].replace(' ', '')}) moves the job's work coordinates): " in message
+
+
+def test_the_g92_a_job_starts_with_is_the_machines_own(homed):
+    # the maker set work zero at the head (machine 0) by hand: a job clearing it runs in G54's coordinates
+    homed.command("G92 X0 Y0")
+    try:
+        assert "X 0.00..300.00 (machine 0.00..300.00" in refusal(homed, "G21 G90", "G0 X300 Y300")
+        preflight(homed, "G21 G90", "G92.1", "G0 X300 Y300")
+    finally:
+        homed.command("G92.1")
+
+
+def test_a_g92_jobs_size_counts_without_homing(unhomed):
+    # two 150 mm strokes, work zero moved to the end of the first: 300 mm of X on a 200 mm machine
+    message = refusal(unhomed, "G21 G90", "G0 X0 Y0", "G1 X150 F3000", "G92 X0", "G1 X150")
+    assert "(line 4 (G92X0) moves the job's work coordinates): this job is 300.0 mm wide" in message
+    preflight(unhomed, "G21 G90", "G0 X0 Y0", "G1 X150 F3000", "G92 X150", "G1 X0")
+
+
+def test_an_offset_set_where_the_head_cannot_be_known_is_refused(homed):
+    # the probe stops wherever it touches: G92 there puts the rest of the job nobody can say where
+    message = refusal(homed, "G21 G90", "G0 X100 Y100", "G38.2 Z-10 F100", "G92 Z0", "G1 X120 F1000")
+    assert "line 4 sets a work offset where the head's position is not known" in message
+    preflight(homed, "G21 G90", "G0 X100 Y100", "G38.2 Z-10 F100", "G0 Z0", "G1 X120 F1000")  # no offset: fine
+
+
+def test_resuming_a_g92_job_rebuilds_its_work_offset(make_connection):
+    conn = make_connection(sim_url("laser", time_scale=0.002))
+    lines = ["G21 G90", "G0 X300 Y300", "G92 X0 Y0", "G1 X50 Y0 F3000", "G1 X50 Y50", "G1 X0 Y50"]
+    job = Job("g92", lines)
+    preamble = job.toolpath.states[4].preamble()
+    assert preamble[2:5] == ["G92.1", "G0 X350 Y300", "G92 X50 Y0"]
+    result = JobRunner(conn, job, from_line=5).run()
+    assert result.ok, result.message
+    ends = [block.end[:2] for block in conn.port.machine.snapshot().executed]
+    assert ends[-2:] == [(-50.0, -50.0), (-100.0, -50.0)]  # where the whole job would have drawn them
+
+
+def test_resuming_past_a_g92_set_where_the_job_started_is_refused(make_connection):
+    conn = make_connection(sim_url("laser"))
+    job = Job("here", ["G21 G90", "G92 X0 Y0", "G1 X-50 Y0 F3000", "G1 X-50 Y-50"])
+    with pytest.raises(JobRefused, match="cannot resume from line 4: the job sets a work offset"):
+        JobRunner(conn, job, from_line=4).preflight()
+    JobRunner(conn, job).preflight()  # from line 1 it runs where the head stands
+
+
+@pytest.mark.parametrize("lines", [
+    ("G0 X100 Y100", "G92 X0 Y0", "G1 X-50 Y-50 F3000", "G92 Y20", "G1 X-60 Y0"),
+    ("G0 X100 Y100", "G10 L20 P0 X0 Y0", "G1 X-50 Y-50 F3000"),
+    ("G10 L2 P1 X-300 Y-300", "G0 X250 Y250", "G10 L2 P2 X-200 Y-100", "G55 G0 X10 Y-20", "G54 G1 X5 Y5 F3000"),
+    ("G0 X300 Y300", "G92 X0 Y0", "G92.1", "G1 X200 Y50 F3000"),
+])
+def test_the_machine_runs_an_offset_job_where_the_pre_flight_placed_it(make_connection, lines):
+    conn = make_connection(sim_url("laser", time_scale=0.002))
+    job = Job("offsets", ["G21 G90", *lines])
+    runner = JobRunner(conn, job)
+    result = runner.run()
+    assert result.ok, result.message
+    toolpath, wco = runner._toolpath, runner._wco
+    planned = [tuple(np.round(end + wco, 3)[:2]) for end in toolpath.end]
+    executed = [tuple(np.round(block.end[:2], 3)) for block in conn.port.machine.snapshot().executed]
+    assert executed == planned
