@@ -6,12 +6,16 @@ file, where in it (line and column) and what was expected::
 
 ``json.loads`` alone lets three kinds of bad file escape as something else: bytes that are not UTF-8
 (``UnicodeDecodeError``), arrays nested deeper than the interpreter's recursion limit (``RecursionError``) and the
-non-JSON constants ``NaN`` and ``Infinity`` (read as floats). Every reader of a user's data file (designs, patterns,
-sketches, scenarios, layouts, machine profiles, the station's config) calls :func:`load_json`, :func:`parse_json`,
-:func:`parse_toml` or :func:`parse_data` instead. The error is the caller's: each package passes ``error``, a factory
-that makes its own type (``design``'s :class:`~design.errors.FileFormatError`, ``drivers``' ``ProfileError``,
-``station``'s ``ConfigError``) from the same message; without one it is a :class:`DataFileError` (a ``ValueError``).
-It lives in ``common`` because ``design`` and ``drivers`` may not import each other.
+non-JSON constants ``NaN`` and ``Infinity`` (read as floats); ``tomllib`` recurses the same way on nested arrays and
+inline tables. A file nested deeper than :data:`MAX_DEPTH` is refused whatever reads it: no data file of the station
+nests beyond a few levels, and the code that walks what was read (validation, hashing, JSON output) recurses too.
+
+Every reader of a user's data file (designs, patterns, sketches, scenarios, layouts, machine profiles, the station's
+config) calls :func:`load_json`, :func:`parse_json`, :func:`parse_toml` or :func:`parse_data` instead. The error is
+the caller's: each package passes ``error``, a factory that makes its own type (``design``'s
+:class:`~design.errors.FileFormatError`, ``drivers``' ``ProfileError``, ``station``'s ``ConfigError``) from the same
+message; without one it is a :class:`DataFileError` (a ``ValueError``). It lives in ``common`` because ``design``
+and ``drivers`` may not import each other.
 """
 
 from __future__ import annotations
@@ -31,6 +35,12 @@ else:  # pragma: no cover
 
 class DataFileError(ValueError):
     """A data file that cannot be read as its format (the default error when the caller gives no factory)."""
+
+
+#: The deepest nesting of arrays and tables (objects) a data file may have. The station's own files nest a few
+#: levels; tomllib reaches Python's recursion limit at 400 levels of inline tables (500 of arrays), and the code
+#: that walks what was read recurses as well, so the limit sits well under that.
+MAX_DEPTH = 100
 
 
 #: Makes the error from the part of the message after ``FILE: `` (default: a :class:`DataFileError` naming the file).
@@ -69,14 +79,15 @@ def parse_json(raw: bytes, file: str, expected: str, *, error: ErrorFactory | No
     fail = error or _file_error(file)
     text = _decode(raw, expected, fail)
     try:
-        return json.loads(text, parse_constant=_reject_constant, object_pairs_hook=object_pairs_hook)
+        data = json.loads(text, parse_constant=_reject_constant, object_pairs_hook=object_pairs_hook)
     except json.JSONDecodeError as decode:
         raise fail(f"not valid JSON ({decode.msg} at line {decode.lineno} column {decode.colno}); "
                    f"expected {expected}") from None
     except RecursionError:
-        raise fail(f"not valid JSON (nested too deeply to read); expected {expected}") from None
+        raise fail(_too_deep(expected)) from None
     except _NotJSON as constant:  # NaN, Infinity
         raise fail(f"not valid JSON ({constant}); expected {expected}") from None
+    return _shallow(data, expected, fail)
 
 
 def parse_toml(raw: bytes, file: str, expected: str, *, error: ErrorFactory | None = None) -> Any:
@@ -84,12 +95,15 @@ def parse_toml(raw: bytes, file: str, expected: str, *, error: ErrorFactory | No
     fail = error or _file_error(file)
     text = _decode(raw, expected, fail)
     try:
-        return tomllib.loads(text)
+        data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as decode:
         # "Invalid value (at line 1, column 5)" -> "Invalid value at line 1 column 5", as JSON's messages read
         where = re.fullmatch(r"(.*) \(at line (\d+), column (\d+)\)", str(decode))
         detail = f"{where[1]} at line {where[2]} column {where[3]}" if where else str(decode)
         raise fail(f"not valid TOML ({detail}); expected {expected}") from None
+    except RecursionError:  # arrays or inline tables within each other, hundreds deep
+        raise fail(_too_deep(expected)) from None
+    return _shallow(data, expected, fail)
 
 
 def parse_data(raw: bytes, file: str, expected: str, *, error: ErrorFactory | None = None,
@@ -98,6 +112,24 @@ def parse_data(raw: bytes, file: str, expected: str, *, error: ErrorFactory | No
     if file.lower().endswith(".toml"):
         return parse_toml(raw, file, expected, error=error)
     return parse_json(raw, file, expected, error=error, object_pairs_hook=object_pairs_hook)
+
+
+def _too_deep(expected: str) -> str:
+    return f"nested deeper than {MAX_DEPTH} levels of arrays and tables; expected {expected}"
+
+
+def _shallow(data: Any, expected: str, fail: ErrorFactory) -> Any:
+    """``data``, refused if its arrays and tables nest deeper than :data:`MAX_DEPTH` (walked without recursion)."""
+    stack = [(data, 1)]
+    while stack:
+        value, depth = stack.pop()
+        children = value.values() if isinstance(value, dict) else value if isinstance(value, list) else None
+        if children is None:
+            continue
+        if depth > MAX_DEPTH:
+            raise fail(_too_deep(expected))
+        stack.extend((child, depth + 1) for child in children if isinstance(child, (dict, list)))
+    return data
 
 
 def _file_error(file: str) -> ErrorFactory:

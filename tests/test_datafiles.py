@@ -12,7 +12,7 @@ from station.cli import main
 BAD = {
     "syntax.json": (b'{"points": [[0, 0],\n  [1 1]]}', "not valid JSON (Expecting ',' delimiter at line 2 column 6)"),
     "latin.json": (b'{"name": "caf\xe9"}', "not UTF-8 text (invalid continuation byte at byte 13)"),
-    "deep.json": (b"[" * 100_000, "not valid JSON (nested too deeply to read)"),
+    "deep.json": (b"[" * 100_000, "nested deeper than 100 levels of arrays and tables"),
     "nan.json": (b'{"points": [[NaN, 0]]}', "not valid JSON (NaN is not a JSON number)"),
     "empty.json": (b"", "not valid JSON (Expecting value at line 1 column 1)"),
 }
@@ -71,7 +71,7 @@ def test_design_file_nested_too_deeply_is_one_line(tmp_path, capsys):
     path = tmp_path / "deep.json"
     path.write_bytes(b"[" * 100_000)
     assert main(["pattern", "spirograph", "--design", str(path)]) == 2
-    assert "not valid JSON" in capsys.readouterr().err
+    assert "nested deeper than 100 levels" in capsys.readouterr().err
 
 
 def test_sketch_file_nested_too_deeply_is_a_file_format_error(tmp_path):
@@ -81,3 +81,34 @@ def test_sketch_file_nested_too_deeply_is_a_file_format_error(tmp_path):
     path.write_bytes(b"[" * 100_000)
     with pytest.raises(FileFormatError):
         load_sketch(path)
+
+
+#: Files nested deeper than common.datafiles.MAX_DEPTH (100): TOML that tomllib cannot read (a RecursionError), and
+#: files that read but that the code walking them would recurse through.
+DEEP = {
+    "arrays.toml": "a = " + "[" * 5000 + "]" * 5000,
+    "inline.toml": "a = " + "{b = " * 2000 + "1" + "}" * 2000,
+    "tables.toml": "[" + ".".join(["a"] * 5000) + "]",
+    "inline-150.toml": "a = " + "{b = " * 150 + "1" + "}" * 150,
+    "arrays-150.json": "[" * 150 + "]" * 150,
+}
+
+
+@pytest.mark.parametrize("name", sorted(DEEP))
+def test_a_file_nested_too_deeply_is_refused_whatever_its_format(tmp_path, name):
+    from common.datafiles import DataFileError, parse_data
+
+    with pytest.raises(DataFileError) as info:
+        parse_data(DEEP[name].encode(), name, "a scenario")
+    assert str(info.value) == f"{name}: nested deeper than 100 levels of arrays and tables; expected a scenario"
+
+
+def test_a_file_nested_to_the_limit_reads():
+    from common.datafiles import parse_data
+
+    def depth(value) -> int:
+        return 1 + depth(value[0]) if isinstance(value, list) and value else 1
+
+    # The TOML file's own table is the first level.
+    assert depth(parse_data(("[" * 100 + "]" * 100).encode(), "a.json", "x")) == 100
+    assert depth(parse_data(("a = " + "[" * 99 + "]" * 99).encode(), "a.toml", "x")["a"]) == 99
