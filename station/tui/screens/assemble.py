@@ -42,6 +42,7 @@ from textual.widgets import Button, DataTable, Footer, Header, Input, Label, Sel
 
 from design.errors import DesignError
 from drivers.errors import DriverError
+from projector.drawing import UNTOLERATED_DEG, UNTOLERATED_MM
 from projector.errors import ProjectorError
 from projector.overlay import misplaced
 from station.errors import StationError
@@ -408,6 +409,9 @@ class AssembleScreen(AttemptFlow, Screen):
         table.display = True
         self.query_one("#frame", HalfBlockPicture).set_image(Image.fromarray(message.picture))
         lines = checks.summary_lines(report, message.check.physical)
+        if any(part.found and part.within_tolerance is None for part in report.parts):
+            lines.append(f"yes*/NO*: no zone on the sheet, so off by {UNTOLERATED_MM:g} mm / {UNTOLERATED_DEG:g} deg "
+                         "or more is to move")
         if report.prediction_note:
             lines.append(report.prediction_note)
         self.query_one("#caption", Static).update(Text("\n".join(lines)))

@@ -9,6 +9,8 @@ from __future__ import annotations
 from rich.text import Text
 from textual.widgets import Static
 
+from station.services.outlook import attempts_words
+
 #: What to do next at each stage, in keys.
 NEXT = {
     None: "pick a scenario and a layout, press Enter",
@@ -31,12 +33,12 @@ class ForecastStatus(Static):
         if stage is not None:
             text.append(f"attempt {attempt} · {stage}\n", style="bold")
         if forecast is not None:
+            # the station's headline (station.services.outlook), split over lines to fit the narrow column
             p = forecast.prediction
-            attempts = "never" if p.attempts == float("inf") else f"{p.attempts:.1f}"
-            text.append("physical success ")
+            text.append("physical success on the table ")
             text.append(f"{p.probability:.2f}", style="bold green" if p.probability >= 0.8 else "bold yellow")
-            text.append(f" ({p.interval[0]:.2f}-{p.interval[1]:.2f}) · expected attempts ")
-            text.append(attempts, style="bold")
+            text.append(f" (95 %: {p.interval[0]:.2f}-{p.interval[1]:.2f})\n")
+            text.append(attempts_words(p.attempts, p.attempts_interval), style="bold")
             words = forecast.record_words()
             if words:
                 text.append(f"\n{words}")
