@@ -71,8 +71,8 @@ DEFAULT_CONFIG_TEXT = """\
 #            camera: sim://camera, 0 (an index), /dev/video0, rtsp://...   projector: sim://projector, display:1
 #   profile  plotters and lasers: a built-in profile (plotter, laser) or a profile file (relative to this folder)
 #   options  plotters and lasers: { timeout = 2.5 } seconds a probe waits (a board that resets on open needs ~2)
-# The simulated camera sees what the simulated projector it names (projector=NAME) throws on the table, where its
-# area= (u0,v0,u1,v1 in mm) says: `station calibrate projector` measures that pair as it would a real one.
+# The simulated camera sees what the simulated projector it names (projector=NAME) throws on the table (640 x 400 mm
+# in the middle of its view, or area=u0,v0,u1,v1 in mm): `station calibrate projector` measures the pair as real ones.
 # `station devices` lists them with their state.
 
 [[devices]]
@@ -95,7 +95,7 @@ url = "sim://camera?projector=projector"
 [[devices]]
 name = "projector"
 kind = "projector"
-url = "sim://projector?name=projector&area=-320,-200,320,200"
+url = "sim://projector?name=projector"
 """
 
 

@@ -72,8 +72,10 @@ def default_devices() -> tuple[DeviceEntry, ...]:
     return (
         DeviceEntry("plotter", "plotter", "sim://grbl?profile=plotter", True, "plotter"),
         DeviceEntry("laser", "laser", "sim://grbl?profile=laser", True, "laser"),
-        DeviceEntry("camera", "camera", "sim://camera", True),
-        DeviceEntry("projector", "projector", "sim://projector", True),
+        # linked: the camera sees what the projector throws (640 x 400 mm in the middle of its view), so that the
+        # projector can be calibrated, and the check sees the guide's light, as on a real table
+        DeviceEntry("camera", "camera", "sim://camera?projector=projector", True),
+        DeviceEntry("projector", "projector", "sim://projector?name=projector", True),
     )
 
 

@@ -209,17 +209,19 @@ def test_a_domino_run_is_checked_by_its_first_and_last_dominoes(tmp_path):
 
 def test_the_projected_check_uses_the_projectors_saved_map():
     from calibration.projector_map import ProjectorMap, save_projector_map
+    from station.devices import default_devices
     from station.services import projectors
     from station.services.projector_calibration import projector_map_file
 
-    assert projectors.projector_mapping("sim://projector", (1280, 800)).homography is None  # no map: fitted
+    default = next(device.url for device in default_devices() if device.kind == "projector")
+    assert projectors.projector_mapping(default, (1280, 800)).homography is None  # no map: fitted
     plane_from_pixel = np.array([[0.5, 0.0, -300.0], [0.0, -0.5, 200.0], [0.0, 0.0, 1.0]])
     path = projector_map_file("projector")
     path.parent.mkdir(parents=True, exist_ok=True)
     save_projector_map(ProjectorMap(plane_from_pixel, (1280, 800), {"p50": 0.2, "p95": 0.4, "max": 0.6}, {}), path)
-    homography = projectors.projector_mapping("sim://projector", (1280, 800)).homography  # the default's key
+    homography = projectors.projector_mapping(default, (1280, 800)).homography  # the default's key
     assert np.allclose(homography @ plane_from_pixel, np.eye(3))  # guide mm -> projector pixels
-    assert projectors.projector_mapping("sim://projector", (1920, 1080)).homography is None  # another size
+    assert projectors.projector_mapping(default, (1920, 1080)).homography is None  # another size
     # the guide's steps go through the same map: the configured projector (simulated, named "projector") at its
     # own size shows them at true scale
     from drivers.sim.projector import SimulatedProjector
@@ -228,9 +230,9 @@ def test_the_projected_check_uses_the_projectors_saved_map():
 
     assert configured_projector().name == "projector"
     job = make_guide("simple", "success", tolerances=False)
-    with SimulatedProjector("sim://projector?size=1280x800") as shown:
+    with SimulatedProjector("sim://projector?name=projector&size=1280x800") as shown:
         assert show_step(job, shown, 1) is True
-    with SimulatedProjector("sim://projector?size=1024x768") as shown:
+    with SimulatedProjector("sim://projector?name=projector&size=1024x768") as shown:
         assert show_step(job, shown, 1) is False  # its map is of another size: fitted to the screen
 
 

@@ -222,9 +222,9 @@ def test_devices_command_json_contract(station_home, monkeypatch, capsys):
          "driver": "grbl-serial", "state": "connected: Grbl 1.1h, Idle"},
         {"name": "laser", "kind": "laser", "url": "sim://grbl?profile=laser", "simulated": True,
          "driver": "grbl-serial", "state": "connected: Grbl 1.1h, Idle"},
-        {"name": "camera", "kind": "camera", "url": "sim://camera", "simulated": True, "driver": "sim-camera",
-         "state": "open: 1920x1080"},
-        {"name": "projector", "kind": "projector", "url": "sim://projector", "simulated": True,
+        {"name": "camera", "kind": "camera", "url": "sim://camera?projector=projector", "simulated": True,
+         "driver": "sim-camera", "state": "open: 1920x1080"},
+        {"name": "projector", "kind": "projector", "url": "sim://projector?name=projector", "simulated": True,
          "driver": "sim-projector", "state": "open: 1280x800"},
     ]
 

@@ -13,6 +13,7 @@ from calibration.projector_map import ProjectorMap, save_projector_map
 from drivers.devices import projector_identity
 from drivers.sim.projector import SimulatedProjector
 from station.cli import main
+from station.devices import default_devices
 from station.services.errors import ServiceError
 from station.services.guide import make_guide, show_step
 from station.services.projector_calibration import projector_map_file
@@ -21,6 +22,8 @@ from station.services.projectors import projector_device, projector_homography, 
 SIMPLE = Path(__file__).resolve().parents[1] / "examples" / "scenarios" / "simple.toml"
 CAMERA = "sim://camera?size=320x180&f=220&supersample=1&projector=wall"
 WALL = "sim://projector?name=wall&size=320x200&area=-140,-85,150,95"
+#: The station's own projector when no station.toml names one: the twin the default camera sees.
+STATIONS = next(device.url for device in default_devices() if device.kind == "projector")
 
 
 @pytest.fixture(autouse=True)
@@ -50,7 +53,7 @@ def test_a_map_measured_on_one_projector_is_kept_and_used_for_that_projector_onl
                     f"(its map {projector_map_file('wall')}, landing error p95 "
                     f"{saved['landing_error_mm']['p95']:.2f} mm)")
     # the station's configured projector has no calibration of its own, and says so
-    assert projected(capsys) == ("projected the calibrate frame on projector (sim://projector), fitted to the "
+    assert projected(capsys) == (f"projected the calibrate frame on projector ({STATIONS}), fitted to the "
                                  "screen, NOT at true scale: projector has no calibration of its own (`station "
                                  "calibrate projector`)")
     line = projected(capsys, "--projector", "sim://projector?name=hall&size=320x200", "--step", "2")
@@ -98,19 +101,20 @@ def test_a_map_recording_no_projector_stays_its_keys():
                           {"p50": 0.2, "p95": 0.4, "max": 0.6}, {})
     save_projector_map(legacy, projector_map_file("projector"))
     assert "device" not in json.loads(projector_map_file("projector").read_text(encoding="utf-8"))
-    assert projector_mapping("sim://projector", (1280, 800)).true_scale
+    assert projector_mapping(STATIONS, (1280, 800)).true_scale
     other = projector_mapping("sim://projector?name=wall", (1280, 800))
     assert not other.true_scale and other.reason.startswith("wall has no calibration of its own")
 
 
 def test_keys():
-    assert projector_key("sim://projector") == "projector"  # the default station's projector
-    assert projector_key("sim://projector?size=640x400") == "projector"  # an unnamed twin is the default one
+    assert projector_key(STATIONS) == "projector"  # the default station's projector
+    assert projector_key("sim://projector?name=projector&size=1280x800") == "projector"  # the same twin
+    assert projector_key("sim://projector?size=640x400") == "sim-projector"  # an unnamed twin is another one
     assert projector_key("sim://projector?name=wall&area=0,0,600,400") == "wall"
     assert projector_key(" display:1 ") == "display-1"
     assert projector_identity("display:1") == "display:1"
-    hashed = projector_key("sim://projector?name=projector")  # not the configured projector: another key
-    assert hashed.startswith("projector-") and len(hashed) == len("projector-") + 6
+    hashed = projector_key("sim://projector?name=camera")  # the configured camera's name: another key
+    assert hashed.startswith("camera-") and len(hashed) == len("camera-") + 6
     assert projector_key("sim://projector?name=my%20wall").startswith("my-wall-")
     with pytest.raises(ServiceError, match=r"^projector: 'sim://camera' is not a projector the station can drive "
                                            r"\(it names a camera\)$"):
@@ -142,7 +146,7 @@ async def test_the_assemble_screen_says_whether_its_projector_has_a_map_of_its_o
         status = str(app.screen.query_one("#status", Static).render())
         assert ("NOT at true scale: projector has no calibration of its own (`station calibrate projector`); "
                 f"{projector_map_file('projector')} was measured on sim://projector?name=wall") in status
-    save_projector_map(measured, projector_map_file("projector"), extra={"device": "sim://projector"})
+    save_projector_map(measured, projector_map_file("projector"), extra={"device": projector_identity(STATIONS)})
     async with opened(tmp_path, "a") as (app, pilot):
         app.screen.open_layout(str(SIMPLE), "success")
         await settle(app, pilot)

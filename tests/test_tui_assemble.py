@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 from textual.widgets import DataTable, Input, Static
 
+from station.devices import default_devices
 from station.tui.screens.assemble import AssembleScreen
 
 from .conftest import opened, settle
@@ -310,7 +311,8 @@ async def test_the_fields_read_as_hints_and_the_projector_is_named_once(tmp_path
         screen.open_layout(str(SIMPLE), "success")
         await settle(app, pilot)
         status = str(screen.query_one("#status", Static).render())
-        assert "projector (sim://projector) follows the steps" in status and "projector projector" not in status
+        default = next(device.url for device in default_devices() if device.kind == "projector")
+        assert f"projector ({default}) follows the steps" in status and "projector projector" not in status
 
 
 async def test_e_names_the_export_by_scenario_and_layout_and_keeps_another_layouts(tmp_path):

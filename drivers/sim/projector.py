@@ -7,8 +7,9 @@ URL options (``sim://projector?size=1280x800&folder=frames&name=bench``)
 made when the projector opens), ``name`` (share one projector, its frames and its placement, between the opens of
 that name, as ``sim://grbl?name=`` does), ``keep`` (how many of the latest frames to keep in memory, default 32;
 the count of frames shown goes on), ``area`` (``u0,v0,u1,v1``: where the image lands on the guide plane, in mm: its
-lower-left corner on (u0, v0) and its upper-right on (u1, v1), a projector square to the plane; see
-:meth:`SimulatedProjector.place` for any other placement). An unknown option or a bad value is one
+lower-left corner on (u0, v0) and its upper-right on (u1, v1), a projector square to the plane; default: centred on
+the plane's origin at :data:`DEFAULT_MM_PER_PIXEL`, 640 x 400 mm for 1280x800, in the middle of a simulated camera's
+default view; see :meth:`SimulatedProjector.place` for any other placement). An unknown option or a bad value is one
 :class:`drivers.errors.SimConfigError` line naming it.
 
 What a camera sees: :meth:`SimulatedProjector.light`
@@ -46,6 +47,8 @@ __all__ = ["DEFAULT_SIZE", "SimulatedProjector", "forget_projectors", "projector
 
 DEFAULT_SIZE = (1280, 800)
 DEFAULT_KEEP = 32
+#: The guide plane's millimetres per pixel of an image without ``area=``.
+DEFAULT_MM_PER_PIXEL = 0.5
 _OPTIONS = ("area", "folder", "keep", "name", "size")
 
 _SHARED: SharedTwins[SimulatedProjector] = SharedTwins("projector")
@@ -79,8 +82,9 @@ class SimulatedProjector:
         self.keep: int = options["keep"]
         self.name: str = options["name"]
         self.plane_from_pixel: np.ndarray | None = None
-        if options["area"] is not None:
-            self.place(area_homography(options["area"], self._size))
+        # a camera linked to it sees its light where it lands, without being told (``sim://camera?projector=NAME``)
+        half_w, half_h = (DEFAULT_MM_PER_PIXEL * n / 2 for n in self._size)
+        self.place(area_homography(options["area"] or (-half_w, -half_h, half_w, half_h), self._size))
         self.frames: list[np.ndarray] = []
         self.notes: list[str | None] = []
         self.frames_shown = 0

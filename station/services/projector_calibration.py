@@ -175,7 +175,7 @@ def calibrate_projector(*, camera: str | None = None, projector: str | None = No
     except CalibrationError as error:
         hint = ""
         if camera_url.startswith("sim://camera") and "projector=" not in camera_url:
-            # the station's default twins are not linked: a simulated camera sees a projector only when named
+            # a simulated camera sees a simulated projector only when it names it (the station's default two do)
             hint = ("; a simulated camera sees a simulated projector only when linked, e.g. --camera "
                     "'sim://camera?projector=wall' --projector 'sim://projector?name=wall&area=-300,-190,300,190'")
         raise ServiceError(f"camera: {error}{hint}", field="camera") from None

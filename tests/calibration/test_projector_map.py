@@ -101,6 +101,50 @@ def test_oblique_projector_maps_within_half_a_millimetre(station_home):
     assert lines[1] == f"saved {projector_map_file('wall')}" and "camera plane: given" in lines[3]
 
 
+def test_the_default_camera_sees_what_the_default_projector_throws(station_home):
+    # the station's default twins are linked: `station calibrate projector` works out of the box on them
+    from drivers.devices import resolve
+    from station.config import configured_devices
+
+    urls = {device.kind: device.url for device in configured_devices()}
+    projector = resolve(urls["projector"]).factory(urls["projector"])
+    camera = resolve(urls["camera"]).factory(urls["camera"])
+    projector.open()
+    camera.open()
+    try:
+        width, height = projector.size
+        lit = np.zeros((height, width, 3), np.uint8)
+        lit[:, : width // 2] = 255  # the left half of the projector's image white
+        projector.show(lit)
+        shown = np.asarray(camera.grab(), dtype=float).mean(axis=2)
+        projector.blank()
+        dark = np.asarray(camera.grab(), dtype=float).mean(axis=2)
+    finally:
+        camera.close()
+        projector.close()
+    # where the light lands: the left half of the projector's area, around the middle of the camera's view
+    table = table_homography(camera.camera_model)
+    left, right = (cv2.perspectiveTransform(np.float64([[[u, 0.0]]]), np.linalg.inv(table))[0, 0] for u in (-160, 160))
+
+    def at(frame, point):  # the mean of 10 x 10 pixels around ``point``
+        column, row = int(point[0]), int(point[1])
+        return frame[row - 5:row + 5, column - 5:column + 5].mean()
+
+    assert at(shown, left) > at(dark, left) + 30  # lighter where the white half lands (the table is light grey)
+    assert abs(at(shown, right) - at(dark, right)) < 5  # and unchanged where the black half does
+
+
+@pytest.mark.slow  # the full-size pair: 32 frames of 1920x1080 rendered at 3x3 samples (10-30 s on two cores)
+def test_the_default_devices_calibrate_the_projector_with_no_options(station_home):
+    done = calibrate_projector()
+    assert done.name == "projector" and done.path == projector_map_file("projector") and done.path.is_file()
+    assert done.projector_map.landing_error_mm["p95"] <= 0.5
+    # the map is the default projector's own placement (640 x 400 mm centred on the origin: 0.5 mm a pixel)
+    grid = np.float64([[0, 0], [1279, 0], [1279, 799], [0, 799], [640, 400]])
+    expected = np.column_stack([-320 + 0.5 * (grid[:, 0] + 0.5), 200 - 0.5 * (grid[:, 1] + 0.5)])
+    assert np.abs(done.projector_map.plane_from(grid) - expected).max() <= 0.5
+
+
 def small_devices(name="bench", target="0,0"):
     projector = sim_projector(f"sim://projector?size=320x200&name={name}")
     projector.place(oblique((320, 200)))
