@@ -13,6 +13,12 @@ SQLite is opened in WAL mode (readers never wait for a writer), with foreign key
 one short ``BEGIN IMMEDIATE`` transaction (:meth:`Database.transaction`): it takes the write lock first, so it never
 has to upgrade a read snapshot that another writer made stale (which SQLite refuses at once, busy timeout or not).
 
+A writer that must not give up (a logged trial) goes through :meth:`Database.write`: the whole transaction is run
+again, after a growing pause, while the database stays busy (SQLite still locked after its busy timeout; PostgreSQL's
+serialization failures and deadlocks, which abort one of two transactions for the other's sake), for up to
+:data:`WRITE_PATIENCE_SECONDS`. Every failure of the database is a :class:`DatabaseError` (:class:`DatabaseBusy`
+when waiting longer could help), one line naming the database.
+
 Where
 -----
 :func:`database_url`: ``CHAOS_STATION_DATABASE``, else ``[database] url`` in ``station.toml``, else the SQLite file
@@ -27,10 +33,10 @@ from __future__ import annotations
 import os
 import sqlite3
 import time
-from collections.abc import Iterator, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from contextlib import contextmanager
 from pathlib import Path
-from typing import Any
+from typing import Any, TypeVar
 from urllib.parse import urlsplit, urlunsplit
 
 from station.errors import StationError
@@ -38,8 +44,47 @@ from station.errors import StationError
 #: The environment variable that names the station database (a URL or a SQLite file path).
 DATABASE_VARIABLE = "CHAOS_STATION_DATABASE"
 
-#: How long a writer waits for another before giving up (seconds).
+#: How long one statement waits for another process's write lock (SQLite's busy timeout, seconds): longer than the
+#: slowest writer holds it (an import of thousands of trials, a migration) on a loaded machine.
 BUSY_SECONDS = 30.0
+
+#: How long :meth:`Database.write` keeps trying one transaction while the database stays busy (seconds, in all).
+WRITE_PATIENCE_SECONDS = 120.0
+
+#: The pauses between :meth:`Database.write`'s attempts: the first, and the longest as it doubles (seconds).
+RETRY_FIRST_PAUSE, RETRY_LONGEST_PAUSE = 0.2, 5.0
+
+#: PostgreSQL's codes for a transaction aborted for another's sake (serialization_failure, deadlock_detected,
+#: lock_not_available): the same transaction run again succeeds.
+_PG_RETRY_CODES = frozenset({"40001", "40P01", "55P03"})
+
+T = TypeVar("T")
+
+
+class DatabaseError(StationError):
+    """The station database failed (cannot be opened, a lost server, a full disk, still busy): one line naming it.
+
+    Attributes
+    ----------
+    where : str
+        The database as messages name it (a SQLite file, or a PostgreSQL URL without its password).
+    """
+
+    def __init__(self, message: str, where: str = "") -> None:
+        super().__init__(message)
+        self.where = where
+
+
+class DatabaseBusy(DatabaseError):
+    """Another writer kept the database (SQLite still locked after :data:`BUSY_SECONDS`), or PostgreSQL aborted the
+    transaction for another one's sake: the same transaction may succeed when tried again."""
+
+
+def _is_busy(error: BaseException) -> bool:
+    """Whether a driver error says "another writer is in the way" rather than "this cannot work"."""
+    if isinstance(error, sqlite3.OperationalError):
+        return "locked" in str(error) or "busy" in str(error)
+    return getattr(error, "sqlstate", None) in _PG_RETRY_CODES
 
 #: SQLite's migrations. Each entry upgrades the schema by one version. Append; never edit a released migration.
 MIGRATIONS: list[str] = [
@@ -193,23 +238,28 @@ def open_database(path: str | Path) -> sqlite3.Connection:
 
     Raises
     ------
-    StationError
-        If the file is not a SQLite database or was written by a newer station.
+    DatabaseError
+        If the file cannot be opened, is not a SQLite database or was written by a newer station
+        (:class:`DatabaseBusy`: another process kept it locked while it had to be migrated).
     """
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
+    where = str(path)
     try:
+        path.parent.mkdir(parents=True, exist_ok=True)
         connection = sqlite3.connect(path, timeout=BUSY_SECONDS)
-    except sqlite3.Error as error:
-        raise StationError(f"database {str(path)!r}: cannot open ({error})") from None
+    except (sqlite3.Error, OSError) as error:
+        raise DatabaseError(f"database {where!r}: cannot open ({error})", where) from None
     try:
         _prepare_sqlite(connection)
-        _migrate_sqlite(connection, str(path))
+        _migrate_sqlite(connection, where)
     except sqlite3.DatabaseError as error:
         connection.close()
         if "not a database" in str(error) or "malformed" in str(error):
-            raise StationError(f"database {str(path)!r}: not a SQLite database ({error})") from None
-        raise StationError(f"database {str(path)!r}: {error}") from None
+            raise DatabaseError(f"database {where!r}: not a SQLite database ({error})", where) from None
+        if _is_busy(error):
+            raise DatabaseBusy(f"database {where!r}: still busy after {BUSY_SECONDS:g} s (another station "
+                               "process is writing to it)", where) from None
+        raise DatabaseError(f"database {where!r}: {error}", where) from None
     except StationError:
         connection.close()
         raise
@@ -242,9 +292,9 @@ def _migrate_sqlite(connection: sqlite3.Connection, where: str) -> None:
     try:
         version = schema_version(connection)
         if version > len(MIGRATIONS):
-            raise StationError(
+            raise DatabaseError(
                 f"database {where!r}: schema version {version} is newer than this station "
-                f"(knows up to {len(MIGRATIONS)}); upgrade the station"
+                f"(knows up to {len(MIGRATIONS)}); upgrade the station", where
             )
         for number in range(version, len(MIGRATIONS)):
             for statement in statements(MIGRATIONS[number]):
@@ -326,6 +376,8 @@ class Database:
     Raises
     ------
     StationError
+        A URL of another database (:func:`parse_url`).
+    DatabaseError
         The database cannot be opened (no server, wrong password, not a SQLite file, newer schema): one line.
     """
 
@@ -355,7 +407,7 @@ class Database:
         """One transaction: ``write`` takes the write lock at once (SQLite ``BEGIN IMMEDIATE``); a read-only one
         sees one snapshot (PostgreSQL ``REPEATABLE READ``)."""
         if self._connection is None:
-            raise StationError(f"database {self.where!r} is closed")
+            raise DatabaseError(f"database {self.where!r} is closed", self.where)
         if self.dialect == "sqlite":
             begin = "BEGIN IMMEDIATE" if write else "BEGIN"
         else:
@@ -363,10 +415,46 @@ class Database:
         self._run(begin)
         try:
             yield Transaction(self)
+            self._run("COMMIT")  # a COMMIT SQLite finds busy leaves the transaction open: rolled back below
         except BaseException:
             self._rollback()
             raise
-        self._run("COMMIT")
+
+    def write(self, work: Callable[[Transaction], T], *, on_wait: Callable[[str], None] | None = None) -> T:
+        """``work(tx)`` in one write transaction, run again from the start while the database is busy
+        (:class:`DatabaseBusy`), after a pause that doubles from :data:`RETRY_FIRST_PAUSE` to
+        :data:`RETRY_LONGEST_PAUSE`, for up to :data:`WRITE_PATIENCE_SECONDS` in all. ``work`` must do nothing but
+        statements in ``tx`` (it may run several times; only the last run is committed).
+
+        ``on_wait(message)`` is called once, when the first attempt found the database busy (a command says that
+        it waits).
+
+        Raises
+        ------
+        DatabaseBusy
+            Still busy after :data:`WRITE_PATIENCE_SECONDS`: one line naming the database and the time waited.
+        DatabaseError
+            Any other failure of the database (not retried).
+        """
+        start = time.monotonic()
+        pause, attempts = RETRY_FIRST_PAUSE, 0
+        while True:
+            attempts += 1
+            try:
+                with self.transaction() as tx:
+                    return work(tx)
+            except DatabaseBusy as error:
+                waited = time.monotonic() - start
+                if waited + pause > WRITE_PATIENCE_SECONDS:
+                    why = ("another station process is writing to it" if self.dialect == "sqlite"
+                           else f"the last: {_reason(error, self.where)}")
+                    raise DatabaseBusy(f"database {self.where!r}: still busy after {waited:.0f} s and {attempts} "
+                                       f"attempts ({why})", self.where) from None
+                if attempts == 1 and on_wait is not None:
+                    on_wait(f"database {self.where!r} is busy (another station process is writing to it); "
+                            f"trying again for up to {WRITE_PATIENCE_SECONDS - waited:.0f} s more")
+            time.sleep(pause)
+            pause = min(2.0 * pause, RETRY_LONGEST_PAUSE)
 
     def _rollback(self) -> None:
         try:
@@ -379,16 +467,23 @@ class Database:
             sql = sql.replace("?", "%s")
         try:
             return self._connection.execute(sql, tuple(params))
-        except sqlite3.OperationalError as error:
-            if "locked" in str(error) or "busy" in str(error):
-                raise StationError(f"database {self.where!r}: still busy after {BUSY_SECONDS:g} s (another "
-                                   "station process holds it); try again") from None
-            raise StationError(f"database {self.where!r}: {error}") from None
         except Exception as error:  # the driver's own errors (disk full, read-only file, a lost server): one line
             if not isinstance(error, sqlite3.Error) and not type(error).__module__.startswith("psycopg"):
                 raise
-            detail = " ".join(str(error).split())
-            raise StationError(f"database {self.where!r}: {detail or type(error).__name__}") from None
+            if _is_busy(error):
+                what = (f"still busy after {BUSY_SECONDS:g} s (another station process is writing to it)"
+                        if self.dialect == "sqlite" else _reason(error, self.where))
+                raise DatabaseBusy(f"database {self.where!r}: {what}", self.where) from None
+            raise DatabaseError(f"database {self.where!r}: {_reason(error, self.where)}", self.where) from None
+
+
+def _reason(error: BaseException, where: str) -> str:
+    """A driver error's words on one line, without the database's name (a message names it once)."""
+    if isinstance(error, DatabaseError):
+        text = str(error)
+        prefix = f"database {where!r}: "
+        return text[len(prefix):] if text.startswith(prefix) else text
+    return " ".join(str(error).split()) or type(error).__name__
 
 
 class Transaction:
@@ -412,13 +507,13 @@ def _connect_postgres(uri: str, where: str) -> Any:
     try:
         import psycopg
     except ImportError:
-        raise StationError(f"database {where!r}: PostgreSQL needs the psycopg package "
-                           "(pip install 'chaos-station[postgres]')") from None
+        raise DatabaseError(f"database {where!r}: PostgreSQL needs the psycopg package "
+                            "(pip install 'chaos-station[postgres]')", where) from None
     try:
         connection = psycopg.connect(uri, autocommit=True, connect_timeout=10)
     except psycopg.Error as error:
         detail = " ".join(str(error).split())
-        raise StationError(f"database {where!r}: cannot connect ({detail})") from None
+        raise DatabaseError(f"database {where!r}: cannot connect ({detail})", where) from None
     try:
         _migrate_postgres(connection, where)
     except BaseException:
@@ -437,8 +532,8 @@ def _migrate_postgres(connection: Any, where: str) -> None:
         row = connection.execute("SELECT version FROM station_schema").fetchone()
         version = int(row[0]) if row else 0
         if version > len(POSTGRES_MIGRATIONS):
-            raise StationError(f"database {where!r}: schema version {version} is newer than this station "
-                               f"(knows up to {len(POSTGRES_MIGRATIONS)}); upgrade the station")
+            raise DatabaseError(f"database {where!r}: schema version {version} is newer than this station "
+                                f"(knows up to {len(POSTGRES_MIGRATIONS)}); upgrade the station", where)
         for number in range(version, len(POSTGRES_MIGRATIONS)):
             for statement in statements(POSTGRES_MIGRATIONS[number]):
                 connection.execute(statement)

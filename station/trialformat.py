@@ -21,6 +21,7 @@ import csv
 import hashlib
 import math
 import re
+import unicodedata
 from collections.abc import Iterable, Mapping
 from functools import lru_cache
 from typing import Any, TextIO
@@ -46,6 +47,50 @@ _STAMP = re.compile(r"^\d{4}-\d\d-\d\dT\d\d:\d\d:\d\d(\.\d+)?(Z|[+-]\d\d:\d\d)$"
 def text_hash(text: str) -> str:
     """The sha256 of a text (the database stores each scenario text once under it)."""
     return hashlib.sha256(text.encode("utf-8")).hexdigest()
+
+
+# -- text a terminal or a spreadsheet would act on --------------------------------------------------------------------
+#: Format characters that are harmless inside words: the zero-width (non-)joiners of emoji and of several scripts.
+_JOINERS = frozenset("\u200c\u200d")
+
+
+def hidden_character(char: str) -> bool:
+    """Whether ``char`` changes how a terminal shows the text around it rather than showing itself: a control
+    character (C0, DEL, C1: escape sequences, carriage returns), a format character (the bidirectional embeddings,
+    overrides, isolates and marks, which can make a line read otherwise than it is stored; zero-width and tag
+    characters), a line or paragraph separator."""
+    return unicodedata.category(char) in ("Cc", "Cf", "Zl", "Zp", "Cs") and char not in _JOINERS
+
+
+def show_text(text: str) -> str:
+    """``text`` for a terminal: every :func:`hidden_character` shown as its escape (``\\u202e``, ``\\x1b``,
+    ``\\n``), the rest as it is."""
+    if not any(hidden_character(c) for c in text):
+        return text
+    return "".join(c.encode("unicode_escape").decode("ascii") if hidden_character(c) else c for c in text)
+
+
+def check_text(value: Any, where: str, *, lines: bool = False) -> str | None:
+    """A name or a note as a trial keeps it: text (None, or blank: None) without :func:`hidden_character`s
+    (``lines``: new lines and tabs allowed, as in a note).
+
+    Raises
+    ------
+    ServiceError
+        ``field=where``: not text, or the first hidden character, escaped.
+    """
+    if value is None:
+        return None
+    if not isinstance(value, str):
+        raise ServiceError(f"{where}: expected text, got {type(value).__name__} {str(value)[:40]!r}", field=where)
+    allowed = "\n\t" if lines else ""
+    for char in value:
+        if hidden_character(char) and char not in allowed:
+            escaped = char.encode("unicode_escape").decode("ascii")
+            raise ServiceError(f"{where}: expected plain text{' (new lines and tabs allowed)' if lines else ''}, "
+                               f"got a control or bidirectional character ({escaped}) in '{show_text(value)[:60]}'",
+                               field=where)
+    return value.strip() or None
 
 
 # -- the causal graph's outcome rules --------------------------------------------------------------------------------
@@ -162,7 +207,9 @@ def goal_reached(scenario: Scenario, outcomes: Mapping[str, str]) -> bool:
 
 def check_times(scenario: Scenario, times: Mapping[str, Any], outcomes: Mapping[str, str], *,
                 field: str = "time") -> dict[str, float]:
-    """Event times (seconds from the start), only for events that happened, in the graph's order."""
+    """Event times (seconds from the start), only for events that happened, in the graph's order; at most the
+    scenario's ``[settings] max_duration`` (the simulator says an event later than that never happened)."""
+    longest = float(scenario.settings.max_duration)
     for name, value in times.items():
         where = f"{field}.{name}"
         if name not in outcomes:
@@ -170,6 +217,9 @@ def check_times(scenario: Scenario, times: Mapping[str, Any], outcomes: Mapping[
                                f"{', '.join(scenario.graph_order)}", field=where)
         if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) or value < 0:
             raise ServiceError(f"{where}: expected a number of seconds >= 0, got {value!r}", field=where)
+        if value > longest:
+            raise ServiceError(f"{where}: expected at most {longest:g} s, the scenario {scenario.name}'s duration "
+                               f"([settings] max_duration), got {value:g}", field=where)
         if outcomes[name] != YES:
             raise ServiceError(f"{where}: a time is for an event that happened; its outcome is "
                                f"{outcomes[name]!r}", field=where)
@@ -205,6 +255,14 @@ class _Reader:
         if not isinstance(value, types):
             raise self.fail(where, f"expected {expected}, got {type(value).__name__} {str(value)[:40]!r}")
         return value
+
+    def text(self, value: Any, where: str, *, lines: bool = False) -> str | None:
+        """A name or a note (text or null), as :func:`check_text` takes it from a maker."""
+        self.kind(value, str, where, "text or null", nullable=True)
+        try:
+            return check_text(value, where, lines=lines)
+        except ServiceError as error:
+            raise self.fail(where, str(error).split(": ", 1)[1]) from None
 
     def values(self, value: Any, where: str, names: tuple[str, ...], *, nullable: bool = False) -> dict | None:
         table = self.kind(value, dict, where, "{parameter: number}", nullable)
@@ -292,9 +350,9 @@ class _Reader:
                                      "content": head["content"]},
             "layout": layout, "as_built": as_built, "check": check, "physics": physics, "outcomes": outcomes,
             "times": times, "success": success,
-            "who": self.kind(item["who"], str, f"{at}.who", "text or null", nullable=True),
+            "who": self.text(item["who"], f"{at}.who"),
             "created_at": stamp,
-            "notes": self.kind(item["notes"], str, f"{at}.notes", "text or null", nullable=True),
+            "notes": self.text(item["notes"], f"{at}.notes", lines=True),
             "photos": list(photos),
         }
 
@@ -322,10 +380,28 @@ def export_document(trials: Iterable[Mapping[str, Any]]) -> dict[str, Any]:
 CSV_COLUMNS = ("id", "uid", "created_at", "who", "scenario", "content_hash", "success", "physics", "checked",
                "notes", "photos")
 
+#: What a spreadsheet reads as the start of a formula (OWASP, CSV injection): = + - @, a tab, a carriage return,
+#: and their full-width forms, which some spreadsheets take as the same.
+_FORMULA_STARTS = frozenset("=+-@\t\r\uff1d\uff0b\uff0d\uff20")
+#: A plain decimal number (``-0.05``, ``1e-3``): a spreadsheet reads it as that number, never as a formula.
+_PLAIN_NUMBER = re.compile(r"^[+-]?(\d+\.?\d*|\.\d+)([eE][+-]?\d+)?$")
+
+
+def spreadsheet_cell(value: Any) -> str:
+    """``value`` as a CSV cell a spreadsheet shows and never runs: text whose first character (after spaces) could
+    start a formula gets a leading ``'`` (OWASP's CSV-injection advice); a plain number, negative ones included, is
+    left a number. :func:`write_csv` puts every cell in double quotes."""
+    text = "" if value is None else str(value)
+    head = text.lstrip(" ")[:1]
+    if head and head in _FORMULA_STARTS and not _PLAIN_NUMBER.match(text):
+        return "'" + text
+    return text
+
 
 def write_csv(trials: list[Mapping[str, Any]], stream: TextIO) -> None:
     """One row per trial, for a spreadsheet: trials of several scenarios share the columns of the events and
-    parameters they have (empty elsewhere). Photos are joined with ``;``. Not read back: import takes the JSON."""
+    parameters they have (empty elsewhere). Photos are joined with ``;``. Every cell goes through
+    :func:`spreadsheet_cell` (a note ``=HYPERLINK(...)`` stays text). Not read back: import takes the JSON."""
     extra: dict[str, None] = {}
     for trial in trials:
         for prefix in ("outcome", "time"):
@@ -333,8 +409,10 @@ def write_csv(trials: list[Mapping[str, Any]], stream: TextIO) -> None:
             extra.update({f"{prefix}:{name}": None for name in source})
         for prefix in ("layout", "as_built"):
             extra.update({f"{prefix}:{name}": None for name in trial[prefix] or {}})
-    writer = csv.writer(stream, lineterminator="\n")
-    writer.writerow([*CSV_COLUMNS, *extra])
+    # every cell in double quotes (OWASP): a spreadsheet that splits on ';' (a locale's separator) keeps a note
+    # "a;=1+1" one cell; a quoted number is still read as a number
+    writer = csv.writer(stream, lineterminator="\n", quoting=csv.QUOTE_ALL)
+    writer.writerow([spreadsheet_cell(column) for column in (*CSV_COLUMNS, *extra)])
     for trial in trials:
         row: dict[str, Any] = {
             "id": trial["id"], "uid": trial["uid"], "created_at": trial["created_at"], "who": trial["who"] or "",
@@ -348,4 +426,4 @@ def write_csv(trials: list[Mapping[str, Any]], stream: TextIO) -> None:
         row.update({f"time:{k}": repr(v) for k, v in trial["times"].items()})
         for prefix in ("layout", "as_built"):
             row.update({f"{prefix}:{k}": repr(v) for k, v in (trial[prefix] or {}).items()})
-        writer.writerow([row.get(column, "") for column in (*CSV_COLUMNS, *extra)])
+        writer.writerow([spreadsheet_cell(row.get(column, "")) for column in (*CSV_COLUMNS, *extra)])

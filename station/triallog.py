@@ -10,20 +10,24 @@ Python API (also what simulator calibration reads)::
         added, duplicates = store.import_trials(records)
 
 A trial is written in one short transaction (its scenario text once per distinct text, its row, one row per event),
-so a process killed at any moment leaves either the whole trial or none of it.
+so a process killed at any moment leaves either the whole trial or none of it; while another process keeps the
+database busy the transaction is tried again (:meth:`station.db.Database.write`).
 """
 
 from __future__ import annotations
 
 import json
 import uuid
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from datetime import datetime, timezone
 from typing import Any
 
 from station.db import Database, Transaction, database_url
 from station.services.errors import ServiceError
 from station.trialformat import text_hash
+
+#: Trial ids are 64-bit integers in both databases (SQLite's INTEGER, PostgreSQL's BIGINT).
+MAX_ID = 2**63 - 1
 
 
 def now_utc() -> str:
@@ -83,38 +87,46 @@ class TrialStore:
         return self.database.where
 
     # -- writing ---------------------------------------------------------------------------------------------------
-    def add(self, record: Mapping[str, Any]) -> int:
+    def add(self, record: Mapping[str, Any], *, on_wait: Callable[[str], None] | None = None) -> int:
         """Store one checked trial (the export's form; ``uid`` and ``created_at`` are made when missing) in one
-        transaction and return its id.
+        transaction and return its id. While another process keeps the database busy the transaction is tried
+        again (``on_wait``: see :meth:`station.db.Database.write`).
 
         Raises
         ------
         ServiceError
             ``field="uid"``: a trial with that uid is already in the log.
+        station.db.DatabaseError
+            The database failed, or stayed busy (:class:`station.db.DatabaseBusy`).
         """
         record = {**record, "uid": record.get("uid") or new_uid()}
-        with self.database.transaction() as tx:
-            trial_id = self._insert(tx, record)
+        trial_id = self.database.write(lambda tx: self._insert(tx, record), on_wait=on_wait)
         if trial_id is None:
             raise ServiceError(f"uid: the trial {record['uid']} is already in the log", field="uid")
         return trial_id
 
-    def import_trials(self, records: Sequence[Mapping[str, Any]]) -> tuple[list[int], list[str]]:
+    def import_trials(self, records: Sequence[Mapping[str, Any]], *,
+                      on_wait: Callable[[str], None] | None = None) -> tuple[list[int], list[str]]:
         """Store checked trials from an export in one transaction: ``(new ids, uids already in the log)``; a trial
         already there is refused (not added twice), the others are added."""
-        added, duplicates = [], []
-        with self.database.transaction() as tx:
+
+        def insert(tx: Transaction) -> tuple[list[int], list[str]]:
+            added, duplicates = [], []  # made again by each attempt: only the committed one counts
             for record in records:
                 trial_id = self._insert(tx, record)
                 if trial_id is None:
                     duplicates.append(record["uid"])
                 else:
                     added.append(trial_id)
-        return added, duplicates
+            return added, duplicates
+
+        return self.database.write(insert, on_wait=on_wait)
 
     def _insert(self, tx: Transaction, record: Mapping[str, Any]) -> int | None:
         """Insert within ``tx``; None when the uid is already there (nothing written)."""
         uid = record.get("uid") or new_uid()
+        if tx.one("SELECT 1 FROM trials WHERE uid = ?", (uid,)) is not None:
+            return None  # already there: asked first, as an insert refused by its uid still uses up an id in SQLite
         scenario = record["scenario"]
         digest = text_hash(scenario["content"])
         tx.execute("INSERT INTO scenarios (text_hash, content_hash, name, content) VALUES (?, ?, ?, ?) "
@@ -178,6 +190,9 @@ class TrialStore:
 
     def get(self, trial_id: int) -> dict[str, Any]:
         """One trial (raises :class:`ServiceError` with ``field="id"`` when there is none with that id)."""
+        if isinstance(trial_id, bool) or not isinstance(trial_id, int) or not 1 <= trial_id <= MAX_ID:
+            raise ServiceError(f"id: expected a trial id, a whole number from 1 to {MAX_ID}, got {trial_id!r}",
+                               field="id", value=trial_id)
         with self.database.transaction(write=False) as tx:
             row = tx.one(_SELECT + " WHERE t.id = ?", (int(trial_id),))
             if row is None:

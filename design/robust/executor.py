@@ -51,6 +51,10 @@ class SchedulerUnreachable(RobustError):
 SCHEDULER_CONNECT_TIMEOUT = 5.0
 
 
+#: How long a cache write waits for another process's (seconds): SQLite's busy timeout.
+CACHE_BUSY_SECONDS = 60.0
+
+
 def layout_key(u: np.ndarray) -> str:
     """Cache key of one normalized layout: its values rounded to 12 decimals (exact repeats hit)."""
     return ",".join(f"{v:.12f}" for v in np.asarray(u, dtype=float))
@@ -78,7 +82,10 @@ class SimulationCache:
         if self.path is not None:
             self.path.parent.mkdir(parents=True, exist_ok=True)
         self._lock = threading.Lock()
-        self._connection = sqlite3.connect(str(self.path) if self.path else ":memory:", check_same_thread=False)
+        # several processes share the file (two `station trial log` predicting at once): a writer waits for another
+        # rather than failing with "database is locked"
+        self._connection = sqlite3.connect(str(self.path) if self.path else ":memory:", check_same_thread=False,
+                                           timeout=CACHE_BUSY_SECONDS)
         self._connection.execute(
             "CREATE TABLE IF NOT EXISTS simulations (scenario TEXT NOT NULL, layout TEXT NOT NULL, "
             "events TEXT NOT NULL, PRIMARY KEY (scenario, layout))"

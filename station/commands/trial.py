@@ -2,13 +2,16 @@
 
 from __future__ import annotations
 
+import sqlite3
 import sys
 
+from common.progress import Cancelled
 from design.contraption.layout_io import resolve_layout
 from station.cli_util import emit_json
-from station.errors import UsageError
+from station.errors import StationError, UsageError
 from station.services.errors import ServiceError
 from station.services.trials import (
+    TrialKept,
     build_trial,
     check_photos,
     describe_trial,
@@ -16,9 +19,11 @@ from station.services.trials import (
     import_trials,
     layout_values,
     load_trial_scenario,
+    log_trial,
     open_store,
     parse_outcomes,
     parse_times,
+    pending_files,
     read_as_built,
     read_physics,
     trial_line,
@@ -26,7 +31,8 @@ from station.services.trials import (
 
 #: A service field's command-line flag (``outcome.EVENT`` becomes ``--outcome EVENT``).
 _FLAGS = {"outcome": "--outcome", "time": "--time", "as_built": "--as-built", "physics": "--physics",
-          "photo": "--photo", "out": "--out", "id": "ID", "file": "FILE", "predict": "--predict"}
+          "photo": "--photo", "out": "--out", "id": "ID", "file": "FILE", "predict": "--predict", "who": "--who",
+          "notes": "--notes"}
 
 
 def _usage(error: ServiceError) -> UsageError:
@@ -126,22 +132,32 @@ def run_log(args) -> int:
         physics = read_physics(args.physics) if args.physics else None
         record = build_trial(scenario, layout, outcomes, times=times, as_built=as_built, check=check,
                              physics=physics, who=args.who, notes=args.notes, photos=check_photos(args.photo))
-        with open_store() as store:
-            trial_id = store.add(record)
     except ServiceError as error:
         raise _usage(error) from None
-    # the trial is logged before anything is predicted: a prediction that fails or is stopped loses no run
     if args.predict < 0:
         raise UsageError(f"--predict: expected a number of simulations >= 0, got {args.predict}")
+    try:
+        logged = log_trial(record, on_wait=lambda message: print(f"station: {message}", file=sys.stderr))
+    except TrialKept as kept:  # what the maker typed is in a file (or, failing that, on stdout): say where
+        if kept.path is None:
+            emit_json(kept.document)
+        print(f"station: error: {kept}", file=sys.stderr)
+        return 130 if kept.interrupted else 2
+    trial_id = logged.id
+    for line in logged.problems:
+        print(f"station: {line}", file=sys.stderr)
+    if logged.delivered:
+        print(f"station: also logged {len(logged.delivered)} trial(s) kept by an earlier run (ids "
+              f"{', '.join(map(str, logged.delivered))})", file=sys.stderr)
+    if not args.json:  # the id first: a prediction that fails or is stopped loses no run, nor its id
+        print(trial_id, flush=True)
     outlook = _outlook(scenario, record, args.predict)
     if args.json:
         emit_json({"id": trial_id} if outlook is None else {"id": trial_id, "physical_success": outlook.to_json()})
-    else:
-        print(trial_id)
-        if outlook is not None:
-            from station.services.predict import outlook_line
+    elif outlook is not None:
+        from station.services.predict import outlook_line
 
-            print(f"trial {trial_id}: {outlook_line(outlook)}", file=sys.stderr)
+        print(f"trial {trial_id}: {outlook_line(outlook)}", file=sys.stderr)
     return 0
 
 
@@ -156,15 +172,23 @@ def _outlook(scenario, record, samples: int):
     try:
         with ProgressView(sys.stderr, prefix="predict: ") as view:
             return predict_trial(scenario, record, samples=samples, progress=view)
-    except (ServiceError, DesignError) as error:  # the trial is logged: say why there is no prediction, and go on
+    except (StationError, DesignError) as error:  # the trial is logged: say why there is no prediction, and go on
         print(f"no prediction: {error}", file=sys.stderr)
-        return None
+    except sqlite3.Error as error:  # the simulation cache, kept busy by another process
+        print(f"no prediction: the simulation cache: {error}", file=sys.stderr)
+    except (Cancelled, KeyboardInterrupt):
+        print("no prediction: stopped (the trial is logged)", file=sys.stderr)
+    return None
 
 
 def run_list(args) -> int:
     with open_store() as store:
         trials = store.trials(scenario=args.scenario)
         where = store.where
+    kept = pending_files()
+    if kept:  # trials a busy or unreachable database could not take yet
+        print(f"station: {len(kept)} trial(s) kept in {kept[0].parent} wait to be logged (the next `station trial "
+              "log` logs them)", file=sys.stderr)
     if args.json:
         emit_json(trials)
         return 0

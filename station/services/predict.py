@@ -23,8 +23,6 @@ from design.contraption.scenario import Scenario
 from station.services.errors import ServiceError
 from station.services.outlook import success_headline
 
-CHECK_FORMAT = "chaos-station check"
-
 
 @dataclass
 class Prediction:
@@ -45,37 +43,23 @@ class Prediction:
 def as_built_from_check(check: Any, scenario: Scenario, designed: np.ndarray, file: str
                         ) -> tuple[np.ndarray, float, float, tuple[str, ...]]:
     """The as-built layout, the placement error (m, degrees) of a CHECK.json's content, and the design parameters it
-    did not measure (its ``not_measured``: placed with at least the unchecked error).
+    did not measure (its ``not_measured``: placed with at least the unchecked error), as the trial log reads the same
+    file (:func:`station.services.trials.read_check`).
 
     Raises
     ------
     ServiceError
-        Not a check, a check of another scenario, or of another layout (``field="as_built"``).
+        Not a check, a check of another scenario or layout, or a field that is not what a check writes
+        (``field="as_built"``, the message naming the field).
     """
+    from station.services.trials import layout_values, read_check
+
     def fail(message: str) -> ServiceError:
         return ServiceError(f"as_built {file}: {message}", field="as_built", value=file)
 
-    if not isinstance(check, dict) or check.get("format") != CHECK_FORMAT:
-        raise fail(f'expected a CHECK.json ("format": "{CHECK_FORMAT}"), written by `station check --out`')
-    if check.get("version") != 1:
-        raise fail(f"version: expected 1, got {check.get('version')!r}")
-    if check.get("scenario") != scenario.name:
-        raise fail(f"is a check of scenario {check.get('scenario')!r}, not of {scenario.name!r}")
-    from calibration.check import as_built_values, same_layout_value
-
-    space = scenario.design_space
-    checked = check.get("layout") or {}
-    for name, value in checked.items() if isinstance(checked, dict) else ():
-        if name in space.names and isinstance(value, (int, float)):
-            i = space.names.index(name)
-            if not same_layout_value(value, designed[i]):
-                raise fail(f"is a check of another layout ({name} = {value:g} there, {designed[i]:g} here)")
-    built = designed.astype(float).copy()
-    for name, value in as_built_values({"as_built": {}, **check}, fail).items():
-        if name not in space.names:
-            raise fail(f"as_built.{name}: not a design parameter of {scenario.name!r}")
-        built[space.names.index(name)] = value
-    return built, *residual_sigma(check), not_measured(check, scenario, fail)
+    built = read_check(check, scenario, layout_values(scenario, designed), fail)
+    x = np.array([built.values[name] for name in scenario.design_space.names], dtype=float)
+    return x, built.position_sigma_m, built.angle_sigma_deg, built.not_measured
 
 
 def not_measured(check: Any, scenario: Scenario, fail=None) -> tuple[str, ...]:

@@ -109,8 +109,8 @@ def test_predict_as_built_from_a_check(tmp_path, capsys):
     check["layout"] = {"plank.roll": 30.0}
     (tmp_path / "CHECK.json").write_text(json.dumps(check))
     assert cli.main([*argv, "--as-built", str(tmp_path / "CHECK.json")]) == 2
-    assert "is a check of another layout (plank.roll = 30 there, 25 here)" in capsys.readouterr().err
+    assert "layout.plank.roll: a check of another layout (30.0 checked, 25.0 designed)" in capsys.readouterr().err
     check.update(scenario="BALLRUN", layout={})
     (tmp_path / "CHECK.json").write_text(json.dumps(check))
     assert cli.main([*argv, "--as-built", str(tmp_path / "CHECK.json")]) == 2
-    assert "is a check of scenario 'BALLRUN', not of 'SLIDE'" in capsys.readouterr().err
+    assert "scenario: a check of scenario 'BALLRUN', not of 'SLIDE'" in capsys.readouterr().err

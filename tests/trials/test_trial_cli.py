@@ -175,7 +175,7 @@ def test_bad_input_is_refused_in_one_line_naming_the_field(tmp_path, capsys):
     assert line.startswith("station: error: --as-built: ") and "content_hash: a check of another scenario" in line
     other_layout, _ = check_json(tmp_path, layout={**SIMPLE_LAYOUT, "track.roll": 45.0}, name="moved.json")
     line = _refused(capsys, *log, "--outcome", "last_stops=yes", "--as-built", str(other_layout))
-    assert "layout.track.roll: a check of another layout (45.0 checked, 30.0 in this trial's layout)" in line
+    assert "layout.track.roll: a check of another layout (45.0 checked, 30.0 designed)" in line
     newer, _ = check_json(tmp_path, version=2, name="v2.json")
     assert "version: expected 1, got 2" in _refused(
         capsys, *log, "--outcome", "last_stops=yes", "--as-built", str(newer))

@@ -135,3 +135,27 @@ def test_the_loop_store_on_both_databases(where, request, tmp_path):
         assert store.cached_layout("k") is None
         store.cache_layout("k", {"x": [3.0]})
         assert store.cached_layout("k") == {"x": [3.0]}
+
+
+def test_a_transaction_postgresql_aborts_for_another_ones_sake_is_run_again(pg_url):
+    # PostgreSQL aborts one of two conflicting transactions (serialization_failure, deadlock_detected) and expects it
+    # to be run again: here the server itself aborts the first two attempts to store the trial
+    with TrialStore(pg_url) as store:
+        store.add(_trial(last_stops="yes"))  # the schema is there
+        with store.database.transaction() as tx:
+            tx.execute("CREATE SEQUENCE attempts")
+            tx.execute("CREATE FUNCTION abort_twice() RETURNS trigger LANGUAGE plpgsql AS $$ BEGIN "
+                       "IF nextval('attempts') = 1 THEN RAISE EXCEPTION 'could not serialize access' USING "
+                       "ERRCODE = 'serialization_failure'; END IF; IF currval('attempts') = 2 THEN RAISE EXCEPTION "
+                       "'deadlock detected' USING ERRCODE = 'deadlock_detected'; END IF; RETURN NEW; END $$")
+            tx.execute("CREATE TRIGGER abort_twice BEFORE INSERT ON trials FOR EACH ROW EXECUTE FUNCTION "
+                       "abort_twice()")
+        waits = []
+        record = _trial(ball_hits_domino="no")
+        trial_id = store.add(record, on_wait=waits.append)
+        assert store.get(trial_id)["uid"] == record["uid"] and store.count() == 2
+        assert len(waits) == 1 and "is busy" in waits[0]
+        with store.database.transaction(write=False) as tx:
+            assert tx.one("SELECT last_value FROM attempts") == (3,)  # two aborted attempts, then the one kept
+            # the aborted attempts left nothing: one row per event of the one trial
+            assert tx.one("SELECT count(*) FROM trial_events WHERE trial_id = ?", (trial_id,)) == (5,)
