@@ -8,6 +8,7 @@ import sys
 from common.progress import Cancelled
 from design.contraption.layout_io import resolve_layout
 from station.cli_util import emit_json
+from station.db import WRITE_PATIENCE_SECONDS
 from station.errors import StationError, UsageError
 from station.services.errors import ServiceError
 from station.services.trials import (
@@ -59,7 +60,9 @@ def register(subparsers) -> None:
         description="Record one physical run of SCENARIO at LAYOUT. Give each event's outcome with --outcome "
         "EVENT=yes|no|not-reached. Implied outcomes may be left out: events after one that did not happen are "
         "not-reached, and the events a 'yes' needed (its parents) happened. Every other event is required. "
-        "Success is the goal: every leaf event happened. Prints the trial's id.",
+        "Success is the goal: every leaf event happened. Prints the trial's id. While another station process "
+        f"writes to the database it waits (up to {WRITE_PATIENCE_SECONDS:g} s); a trial the database cannot take "
+        "is kept in the data folder (pending-trials/) and logged first by the next `station trial log`.",
         epilog="examples:\n"
         "  station trial log simple success --outcome last_stops=yes --time last_topples=1.4\n"
         "  station trial log simple layout.json --outcome first_topples=no --as-built check.json --who ann "
@@ -71,13 +74,14 @@ def register(subparsers) -> None:
     log.add_argument("--outcome", action="append", default=[], metavar="EVENT=yes|no|not-reached",
                      help="what happened to an event (repeatable)")
     log.add_argument("--time", action="append", default=[], metavar="EVENT=SECONDS",
-                     help="when an event that happened happened, seconds from the start (repeatable)")
+                     help="when an event that happened happened, seconds from the start, at most the scenario's "
+                     "[settings] max_duration (repeatable)")
     log.add_argument("--as-built", metavar="CHECK.json|LAYOUT.json",
                      help="the layout as built: the as-built check's CHECK.json (of this scenario and layout) "
                      "or a layout file")
     log.add_argument("--physics", metavar="PROFILE.toml", help="the physics profile the run was predicted with")
-    log.add_argument("--who", metavar="NAME", help="who ran it")
-    log.add_argument("--notes", metavar="TEXT", help="anything worth remembering")
+    log.add_argument("--who", metavar="NAME", help="who ran it (plain text: no control or bidirectional characters)")
+    log.add_argument("--notes", metavar="TEXT", help="anything worth remembering (new lines and tabs allowed)")
     log.add_argument("--photo", action="append", default=[], metavar="PATH", help="a photo of the run (repeatable)")
     log.add_argument("--predict", type=int, default=48, metavar="N",
                      help="after logging, predict the physical success and expected attempts of the layout (as "
@@ -105,7 +109,8 @@ def register(subparsers) -> None:
     export = actions.add_parser(
         "export", help="write the log to JSON or CSV",
         description="Write every trial (or one scenario's) to FILE.json (the trial export, which `station trial "
-        "import` and simulator calibration read) or FILE.csv (one row per trial, for a spreadsheet).",
+        "import` and simulator calibration read) or FILE.csv (one row per trial, for a spreadsheet: every cell "
+        "quoted, and text that a spreadsheet would run as a formula, starting with = + - @, gets a leading ').",
         epilog="example: station trial export --out trials.json")
     export.add_argument("--out", required=True, metavar="FILE.json|FILE.csv", help="the file to write")
     export.add_argument("--scenario", metavar="NAME", help="only trials of this scenario (its name)")
