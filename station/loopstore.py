@@ -1,11 +1,11 @@
-"""What ``station loop`` keeps in the station database (issue 21): its runs, loops and attempts, and a cache of
+"""What ``station loop`` keeps in the station database: its runs, loops and attempts, and a cache of
 optimized layouts.
 
-A run is keyed by its arguments (:func:`run_key`): a second ``station loop`` with the same ones finds the run and
-carries on from the last attempt stored. An attempt and its trial are written in one transaction
-(:meth:`LoopStore.add_attempt`): a loop killed at any moment has either logged the attempt whole or not at all, so
-the resumed run replays exactly the attempts that were lost (their seeds depend on the run, the loop and the
-attempt only). The tables are migration 4 of :mod:`station.db` (SQLite and PostgreSQL).
+A run is keyed by its arguments (:func:`run_key`): a second ``station loop`` with the same ones finds the run (the
+same id: one per run, not per invocation) and carries on from the last attempt stored. An attempt and its trial are
+written in one transaction (:meth:`LoopStore.add_attempt`): a loop killed at any moment has either logged the
+attempt whole or not at all, so the resumed run replays exactly the attempts that were lost (their seeds depend on
+the run, the loop and the attempt only). The tables are migration 4 of :mod:`station.db` (SQLite and PostgreSQL).
 """
 
 from __future__ import annotations
@@ -74,14 +74,23 @@ class LoopStore:
         self.database.close()
 
     # -- runs ---------------------------------------------------------------------------------------------------
-    def run(self, key: str, *, scenario: str, content_hash: str, world: str, settings: Mapping[str, Any]) -> int:
-        """The id of the run with ``key``, made if new."""
+    def run(self, key: str, *, scenario: str, content_hash: str, world: str,
+            settings: Mapping[str, Any]) -> tuple[int, bool]:
+        """The id of the run with ``key``, made if new, and whether it was made now (False: an earlier ``station
+        loop`` began it).
+
+        Looked up before any insert: an insert that finds the run there uses up an id all the same (SQLite's
+        AUTOINCREMENT and PostgreSQL's identity both count it), so the next run's id would skip one per resume.
+        """
         with self.database.transaction() as tx:
+            row = tx.one("SELECT id FROM loop_runs WHERE run_key = ?", (key,))
+            if row is not None:
+                return int(row[0]), False
             tx.execute("INSERT INTO loop_runs (run_key, scenario_name, content_hash, world, settings, created_at) "
                        "VALUES (?, ?, ?, ?, ?, ?) ON CONFLICT (run_key) DO NOTHING",
                        (key, scenario, content_hash, world, json.dumps(dict(settings), sort_keys=True, default=str),
                         now_utc()))
-            return int(tx.one("SELECT id FROM loop_runs WHERE run_key = ?", (key,))[0])
+            return int(tx.one("SELECT id FROM loop_runs WHERE run_key = ?", (key,))[0]), True
 
     # -- loops --------------------------------------------------------------------------------------------------
     def loop(self, run_id: int, loop: int) -> LoopRow | None:

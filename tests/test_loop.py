@@ -137,6 +137,114 @@ def test_a_killed_loop_resumes_and_ends_with_the_same_figures(tmp_path, station_
     assert json.loads(_loop(killed_env).stdout) == figures
 
 
+def _tiny_settings():
+    from station.cli import build_parser
+    from station.commands.loop import resume_command
+
+    args = build_parser().parse_args(["loop", "simple", "--world", "sim://world?seed=2", *TINY])
+    return args, resume_command(args)
+
+
+def test_a_stopped_run_keeps_its_id_when_resumed_and_says_so(tmp_path, station_home):
+    # stopped before its first layout is made (nothing simulated): each resume finds the same run, and the next
+    # run's id is the next number (an insert that found the run used one up)
+    from station.services.loop import LoopSettings, LoopStopped, run_loop
+
+    database = str(tmp_path / "ids.sqlite3")
+    settings = LoopSettings(attempts=2, loops=2, baseline=1)
+    started, stops = [], []
+    for world in ("sim://world?seed=2", "sim://world?seed=2", "sim://world?seed=2", "sim://world?seed=3"):
+        with pytest.raises(LoopStopped) as stopped:
+            run_loop("simple", world, settings, database=database, should_stop=lambda: True, on_start=started.append)
+        stops.append(stopped.value)
+    assert [(log.run_id, log.resumed) for log in started] == [(1, False), (1, True), (1, True), (2, False)]
+    assert started[1].resuming() == "resuming run 1: 0 attempts already logged"
+    assert [(stop.log.run_id, stop.log.attempts) for stop in stops] == [(1, 0), (1, 0), (1, 0), (2, 0)]
+    assert str(stops[0]) == "run 1 stopped: 0 attempts logged (loop 1: 0 of 2)"
+    connection = sqlite3.connect(database)
+    try:
+        assert connection.execute("SELECT seq FROM sqlite_sequence WHERE name = 'loop_runs'").fetchone() == (2,)
+    finally:
+        connection.close()
+
+
+def test_what_a_stopped_run_has_logged_is_said_per_loop():
+    from station.services.loop import RunLog
+
+    log = RunLog(4, True, {1: 2, 2: 1}, {1: 2, 2: 2, 3: 2, 0: 1})
+    assert log.logged_words() == "3 attempts logged (loop 1: 2 of 2, loop 2: 1 of 2)"
+    assert log.resuming() == "resuming run 4: 3 attempts already logged"
+    done = RunLog(5, True, {0: 1, 1: 1}, {0: 1, 1: 1})
+    assert done.logged_words() == "2 attempts logged (loop 1: 1 of 1, baseline: 1 of 1)"
+    assert RunLog(6, False, {1: 1}, {1: 3}).resuming() == "resuming run 6: 1 attempt already logged"
+
+
+def test_the_resume_command_is_the_same_run():
+    import shlex
+
+    from station.cli import build_parser
+
+    args, command = _tiny_settings()
+    words = shlex.split(command)
+    assert words[:5] == ["station", "loop", "simple", "--world", "sim://world?seed=2"]
+    again = build_parser().parse_args(words[1:])
+    assert vars(again) | {"func": None} == vars(args) | {"func": None}
+    defaults = shlex.split(resume_of(["loop", "simple", "--world", "sim://world?seed=2"]))
+    assert defaults == ["station", "loop", "simple", "--world", "sim://world?seed=2"]  # the defaults left out
+
+
+def resume_of(argv):
+    from station.cli import build_parser
+    from station.commands.loop import resume_command
+
+    return resume_command(build_parser().parse_args(argv))
+
+
+@pytest.mark.slow  # a loop stopped after its first attempt, then resumed to its end: 15-40 s on two cores
+def test_an_interrupted_loop_says_what_it_logged_and_its_command_resumes_it(tmp_path, station_home):
+    import shlex
+
+    database = tmp_path / "interrupted.sqlite3"
+    env = {**os.environ, "PYTHONPATH": str(ROOT), "CHAOS_STATION_HOME": str(station_home),
+           "CHAOS_STATION_DATABASE": str(database)}
+    argv = ["loop", "simple", "--world", "sim://world?seed=2", "--attempts", "3", "--loops", "1", "--budget", "20",
+            "--candidates", "1", "--rounds", "1", "--baseline", "0", "--predict-samples", "3", "--workers", "1"]
+    process = subprocess.Popen([sys.executable, "-m", "station", *argv], cwd=ROOT, env=env, stdout=subprocess.PIPE,
+                               stderr=subprocess.PIPE, text=True)
+    deadline = time.monotonic() + 300
+    while _attempts(database) < 1 and process.poll() is None and time.monotonic() < deadline:
+        time.sleep(0.1)
+    process.send_signal(signal.SIGINT)  # Ctrl-C
+    out, err = process.communicate(timeout=300)
+    assert process.returncode == 130, err[-2000:]
+    logged = _attempts(database)
+    assert 1 <= logged < 3, "the interrupt came too late to test a resume"
+    said = err.splitlines()
+    words = "attempt" if logged == 1 else "attempts"
+    assert (f"station: stopped run 1: {logged} {words} logged (loop 1: {logged} of 3), each with its trial in the "
+            "trial log") in said, said[-5:]
+    (resume,) = [line.split(": ", 2)[2] for line in said if line.startswith("station: the same command resumes it: ")]
+    assert said[-1] == "station: interrupted" and "Traceback" not in err
+    assert out.count("(trial ") == logged  # each attempt logged was said
+    # the printed command, as a maker would paste it, resumes the run and says so
+    words = shlex.split(resume)
+    assert words[:2] == ["station", "loop"]
+    resumed = subprocess.run([sys.executable, "-m", "station", *words[1:]], cwd=ROOT, env=env, capture_output=True,
+                             text=True, timeout=600)
+    assert resumed.returncode == 0, resumed.stderr[-2000:]
+    lines = resumed.stdout.splitlines()
+    assert lines[0] == f"resuming run 1: {logged} {'attempt' if logged == 1 else 'attempts'} already logged"
+    assert lines[-1].startswith("run 1 in the station database")
+    assert sum(line.startswith("loop 1, attempt ") and "already logged" in line for line in lines) == logged
+    assert _attempts(database) == 3
+    connection = sqlite3.connect(database)
+    try:
+        assert connection.execute("SELECT id FROM loop_runs").fetchall() == [(1,)]
+        assert connection.execute("SELECT seq FROM sqlite_sequence WHERE name = 'loop_runs'").fetchone() == (1,)
+    finally:
+        connection.close()
+
+
 def test_bad_loop_arguments_are_one_line(tmp_path, station_home):
     env = {**os.environ, "PYTHONPATH": str(ROOT), "CHAOS_STATION_HOME": str(station_home),
            "CHAOS_STATION_DATABASE": str(tmp_path / "t.sqlite3")}

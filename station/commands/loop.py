@@ -6,10 +6,11 @@ the run went), then per loop a few short lines and its physics as a small table;
 
 from __future__ import annotations
 
+import shlex
 import sys
 import textwrap
 
-from station.cli_util import emit_json, flag_error
+from station.cli_util import NON_NEGATIVE, POSITIVE, emit_json, flag_error
 from station.commands.robust import ProgressBar, add_command, command
 from station.services.errors import ServiceError
 
@@ -66,7 +67,7 @@ def register(subparsers) -> None:
     parser.add_argument("--candidates", type=int, default=defaults.candidates, metavar="N",
                         help="layouts of each optimization compared by predicted physical success; the loop places "
                         "the best (default %(default)s)")
-    parser.add_argument("--prediction-weight", type=float, default=defaults.prediction_weight, metavar="W",
+    parser.add_argument("--prediction-weight", type=POSITIVE, default=defaults.prediction_weight, metavar="W",
                         help="what a layout's predicted success is worth against its record on the table, in "
                         "attempts (default %(default)s: fitted to the bench's loops)")
     parser.add_argument("--uncertain-only", action="store_true",
@@ -85,7 +86,7 @@ def register(subparsers) -> None:
                         help="calibration: candidates of the initial design (default %(default)s)")
     parser.add_argument("--fit-rounds", type=int, default=defaults.fit_rounds, metavar="N",
                         help="calibration: refinement rounds (default %(default)s)")
-    parser.add_argument("--fit-prior-width", type=float, default=defaults.fit_prior_width, metavar="W",
+    parser.add_argument("--fit-prior-width", type=NON_NEGATIVE, default=defaults.fit_prior_width, metavar="W",
                         help="calibration: the prior around the scenario's values, a share of each range (default "
                         "%(default)s; 0: none, maximum likelihood)")
     parser.add_argument("--camera", default=defaults.camera, metavar="URL",
@@ -159,9 +160,34 @@ def baseline_lines(result) -> list[str]:
                     "calibration"])
 
 
+def resume_command(args) -> str:
+    """The command that resumes this run: the scenario, the world and every option given a value other than its
+    default (the run is keyed by them), quoted for a shell."""
+    from station.services.loop import LoopSettings
+
+    defaults = LoopSettings()
+    words = ["station", "loop", args.scenario, "--world", args.world]
+    for name, flag in _FLAGS.items():
+        value = getattr(args, name)
+        if name != "world" and value != getattr(defaults, name):
+            words += [flag, str(value)]
+    words += ["--uncertain-only"] * args.uncertain_only + ["--json"] * args.json
+    return shlex.join(words)
+
+
+def stopped_lines(stopped, args) -> list[str]:
+    """What a stopped run says (on stderr): what it logged, what the cache keeps, and the command that resumes it."""
+    lines = wrapped([f"station: stopped run {stopped.log.run_id}: {stopped.log.logged_words()}, each with its trial "
+                     "in the trial log"])
+    if stopped.new_simulations:
+        lines += wrapped([f"station: the {stopped.new_simulations} new simulations of this run are kept in the cache "
+                          f"({stopped.cache})"])
+    return lines + [f"station: the same command resumes it: {resume_command(args)}"]  # one line, to copy whole
+
+
 @command
 def run_loop(args) -> int:
-    from station.services.loop import LoopSettings
+    from station.services.loop import LoopSettings, LoopStopped
     from station.services.loop import run_loop as run
 
     settings = LoopSettings(attempts=args.attempts, loops=args.loops, budget=args.budget,
@@ -181,12 +207,20 @@ def run_loop(args) -> int:
         args.bar.close(clear=True)
         print("\n".join(lines), file=out, flush=True)
 
+    def started(log) -> None:
+        if log.resumed:
+            say([log.resuming()])
+
     try:
         result = run(args.scenario, args.world, settings, progress=args.bar, should_stop=args.stop.is_set,
-                     on_loop=lambda summary: say(loop_lines(summary)),
+                     on_start=started, on_loop=lambda summary: say(loop_lines(summary)),
                      on_attempt=lambda attempt: say(wrapped([attempt.describe()])))
     except ServiceError as error:
         raise flag_error(error, _FLAGS) from None
+    except LoopStopped as stopped:
+        args.bar.close(clear=True)
+        print("\n".join(stopped_lines(stopped, args)), file=sys.stderr, flush=True)
+        raise KeyboardInterrupt from None  # exit 130, as every interrupted command
     args.bar.close(clear=True)
     if result.baseline_attempts:
         say(baseline_lines(result))

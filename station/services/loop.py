@@ -50,9 +50,10 @@ import numpy as np
 from common.progress import Progress, ProgressCallback, Reporter
 from station.services.errors import ServiceError
 from station.services.layout_choice import PREDICTION_WEIGHT, describe_choice
+from station.services.robust import RunStopped, simulation_cache_path
 
-__all__ = ["AttemptReport", "Correction", "LoopProgress", "LoopResult", "LoopSettings", "LoopSummary", "labelled",
-           "record_forecasts", "run_loop"]
+__all__ = ["AttemptReport", "Correction", "LoopProgress", "LoopResult", "LoopSettings", "LoopStopped", "LoopSummary",
+           "RunLog", "labelled", "record_forecasts", "run_loop"]
 
 #: The world's attempt numbers: loop k's attempt a is ``k * ATTEMPT_BLOCK + a`` (the baseline is loop 0).
 ATTEMPT_BLOCK = 1000
@@ -127,7 +128,7 @@ class LoopSettings:
 
     def check(self) -> None:
         """Refuse a bad size (a ServiceError naming it)."""
-        from station.services.robust import MINIMUM_BUDGET, SETTINGS_CHOICES
+        from station.services.robust import SETTINGS_CHOICES, check_budget
 
         for name, low in (("attempts", 1), ("loops", 1), ("candidates", 1), ("rounds", 0),
                           ("predict_samples", 1), ("fit_draws", 1), ("fit_sobol", 2), ("fit_rounds", 0)):
@@ -135,10 +136,7 @@ class LoopSettings:
             if isinstance(value, bool) or not isinstance(value, int) or value < low:
                 raise ServiceError(f"{name} must be an integer >= {low}, got {value!r}", field=name, value=value)
         for name in ("budget", "reoptimize_budget"):
-            value = getattr(self, name)
-            if value is not None and (isinstance(value, bool) or not isinstance(value, int) or value < MINIMUM_BUDGET):
-                raise ServiceError(f"{name} must be an integer >= {MINIMUM_BUDGET} (or left out: the scenario's "
-                                   f"default), got {value!r}", field=name, value=value)
+            check_budget(getattr(self, name), name)  # None: the scenario's default
         width = self.fit_prior_width
         if isinstance(width, bool) or not isinstance(width, (int, float)) or not 0 <= width < math.inf:
             raise ServiceError(f"fit_prior_width must be a share of each range >= 0 (0: no prior), got {width!r}",
@@ -239,6 +237,58 @@ class LoopResult:
                 "baseline": {"attempts": self.baseline_attempts, "success_rate": self.baseline_rate}}
 
 
+def _attempts_words(count: int) -> str:
+    return f"{count} attempt{'' if count == 1 else 's'}"
+
+
+@dataclass(frozen=True)
+class RunLog:
+    """What a run of the loop has in the station database: its id, whether an earlier ``station loop`` began it,
+    and its attempts logged against those it makes.
+
+    Attributes
+    ----------
+    run_id : int
+    resumed : bool
+        An earlier invocation with the same arguments began the run (this one carries it on).
+    logged : dict of int to int
+        Attempts logged per loop (0: the baseline), each with its trial.
+    planned : dict of int to int
+        Attempts the run makes per loop (0: the baseline, when it has one).
+    """
+
+    run_id: int
+    resumed: bool
+    logged: dict[int, int]
+    planned: dict[int, int]
+
+    @property
+    def attempts(self) -> int:
+        """Attempts logged in all."""
+        return sum(self.logged.values())
+
+    def resuming(self) -> str:
+        """``"resuming run 3: 4 attempts already logged"``."""
+        return f"resuming run {self.run_id}: {_attempts_words(self.attempts)} already logged"
+
+    def logged_words(self) -> str:
+        """``"3 attempts logged (loop 1: 2 of 2, loop 2: 1 of 2, baseline: 0 of 1)"``: every loop begun or done."""
+        parts = [f"{f'loop {k}' if k else 'baseline'}: {self.logged.get(k, 0)} of {n}"
+                 for k, n in sorted(self.planned.items(), key=lambda item: (item[0] == 0, item[0]))
+                 if self.logged.get(k, 0) or k == 1]
+        return f"{_attempts_words(self.attempts)} logged ({', '.join(parts)})"
+
+
+class LoopStopped(RunStopped):
+    """A run of the loop stopped on request (Ctrl-C, SIGTERM, a stop check): every attempt logged stays (each with
+    its trial), and the same arguments resume the run (:attr:`log` says what it has)."""
+
+    def __init__(self, log: RunLog, new_simulations: int, cache: Path) -> None:
+        super().__init__(new_simulations, cache)
+        self.log = log
+        self.args = (f"run {log.run_id} stopped: {log.logged_words()}",)
+
+
 @dataclass(frozen=True)
 class LoopProgress(Progress):
     """Progress of the loop: its stage says, in the maker's words, which loop and what it does ("loop 2:
@@ -306,8 +356,8 @@ class AttemptReport:
     checked : bool
         Placed with the highlight and checked (False: the baseline, from the printed sheet).
     corrections : tuple of Correction or None
-        Per part the check had moved or turned, in the order first asked; None for an attempt logged by an earlier
-        run of the same loop (its trial's notes say).
+        Per part the check had moved or turned, in the order first asked; None for an attempt logged before the run
+        was resumed (its trial's notes say).
     rounds : int
         Corrections made (each followed by another check).
     left : tuple of str
@@ -328,7 +378,7 @@ class AttemptReport:
 
     def _check(self, full: bool) -> str:
         if self.corrections is None:
-            return f"logged by an earlier run (`station trial show {self.trial_id}` says what was corrected)"
+            return f"already logged (`station trial show {self.trial_id}` says what was corrected)"
         if not self.checked:
             return "placed from the printed sheet, not checked"
         if not self.corrections:
@@ -430,15 +480,24 @@ class _Loop:
         self.hidden = world.hidden_physics()
         identity = {"scenario": scenario.content_hash, "scenario_name": scenario.name, "world": url,
                     **settings.identity()}
-        self.run_id = store.run(run_key(identity), scenario=scenario.name, content_hash=scenario.content_hash,
-                                world=url, settings=identity)
+        self.run_id, made = store.run(run_key(identity), scenario=scenario.name, content_hash=scenario.content_hash,
+                                      world=url, settings=identity)
+        self.resumed = not made
         self.where = {"workers": settings.workers, "scheduler": settings.scheduler, "should_stop": should_stop}
         self._problem = None
 
+    def log(self) -> RunLog:
+        """What the run has logged so far."""
+        logged: dict[int, int] = {}
+        for attempt in self.store.attempts(self.run_id):
+            logged[attempt.loop] = logged.get(attempt.loop, 0) + 1
+        planned = {k: self.settings.attempts for k in range(1, self.settings.loops + 1)}
+        if self.settings.baseline_attempts:
+            planned[0] = self.settings.baseline_attempts
+        return RunLog(self.run_id, self.resumed, logged, planned)
+
     # -- stopping and progress ------------------------------------------------------------------------------------
     def stop_point(self) -> None:
-        from station.services.robust import RunStopped, simulation_cache_path
-
         if self.should_stop is not None and self.should_stop():
             raise RunStopped(0, simulation_cache_path())
 
@@ -631,7 +690,7 @@ class _Loop:
     def run_attempts(self, row, k: int, count: int, *, checked: bool,
                      on_attempt: Callable[[AttemptReport], None] | None = None) -> list:
         """Loop ``k``'s attempts (``k`` 0: the baseline, on loop 1's layout), the stored ones kept; ``on_attempt``
-        is told each attempt in order (a stored one as logged by an earlier run)."""
+        is told each attempt in order (a stored one as logged before this run was resumed)."""
         from station.services.guide import make_guide
         from station.services.physics import read_profile
 
@@ -657,8 +716,8 @@ class _Loop:
         return [done[a] for a in range(1, count + 1)]
 
     def stored_report(self, stored, checked: bool) -> AttemptReport:
-        """The :class:`AttemptReport` of an attempt logged by an earlier run: its corrections only in its trial's
-        notes."""
+        """The :class:`AttemptReport` of an attempt logged before the run was resumed: its corrections only in its
+        trial's notes."""
         trial = self.store.trial(stored.trial_id)
         return AttemptReport(stored.loop, stored.attempt, stored.trial_id, stored.success, checked, None,
                              stored.check_rounds, (), _failed_at(self.scenario, trial.get("outcomes") or {}))
@@ -666,6 +725,7 @@ class _Loop:
 
 def run_loop(scenario: str, world: str, settings: LoopSettings | None = None, *, database: str | None = None,
              progress: ProgressCallback | None = None, should_stop: Callable[[], bool] | None = None,
+             on_start: Callable[[RunLog], None] | None = None,
              on_loop: Callable[[LoopSummary], None] | None = None,
              on_attempt: Callable[[AttemptReport], None] | None = None) -> LoopResult:
     """Run (or resume) the station loop of ``scenario`` in the simulated ``world``.
@@ -680,16 +740,21 @@ def run_loop(scenario: str, world: str, settings: LoopSettings | None = None, *,
     database : str, optional
         The station database (default :func:`station.db.database_url`).
     progress, should_stop : callables, optional
-        Progress (:class:`common.progress.Progress`) and the stop check (a stop raises
-        :class:`~station.services.robust.RunStopped`; what was logged stays, and the next run resumes).
+        Progress (:class:`common.progress.Progress`) and the stop check.
+    on_start : callable, optional
+        Called with the run's :class:`RunLog` once it is found or made (``resumed``: an earlier ``station loop``
+        with the same arguments began it, and its attempts logged are kept).
     on_loop : callable, optional
         Called with each loop's summary as it ends (a CLI prints it).
     on_attempt : callable, optional
-        Called with each attempt's :class:`AttemptReport` as it ends (an attempt logged by an earlier run too, as
+        Called with each attempt's :class:`AttemptReport` as it ends (an attempt logged before a resume too, as
         the loop reaches it), the baseline's last.
 
     Raises
     ------
+    LoopStopped
+        A stop (``should_stop``, or KeyboardInterrupt: a second Ctrl-C): what was logged stays, and the same
+        arguments resume the run; it says what the run has logged.
     ServiceError
         A bad setting or world URL (naming it).
     drivers.errors.SimConfigError
@@ -708,35 +773,46 @@ def run_loop(scenario: str, world: str, settings: LoopSettings | None = None, *,
                            "check", field="scenario", value=scenario)
     the_world = worlds.open_world(world)
     worlds.prepare_world(the_world, loaded)
+    with LoopStore(database) as store, tempfile.TemporaryDirectory(prefix="station-loop-") as folder:
+        run = _Loop(store, loaded, the_world, world, settings, report, should_stop, Path(folder))
+        if on_start is not None:
+            on_start(run.log())
+        try:
+            result = _run(run, settings, on_loop, on_attempt)
+        except (RunStopped, KeyboardInterrupt) as stopped:
+            new = stopped.new_simulations if isinstance(stopped, RunStopped) else 0
+            raise LoopStopped(run.log(), new, simulation_cache_path()) from None
+        finally:
+            the_world.close()
+    return result
+
+
+def _run(run: _Loop, settings: LoopSettings, on_loop, on_attempt) -> LoopResult:
+    """The loops and the baseline of ``run`` (see :func:`run_loop`)."""
+    from station.loopstore import LoopRow
+
     summaries: list[LoopSummary] = []
     outcomes: list[tuple[int, int, bool, float | None, float | None]] = []
     layouts: dict[int, dict] = {}
     placed: list = []  # every loop attempt so far, in order
-    with LoopStore(database) as store, tempfile.TemporaryDirectory(prefix="station-loop-") as folder:
-        run = _Loop(store, loaded, the_world, world, settings, report, should_stop, Path(folder))
-        for k in range(1, settings.loops + 1):
-            row = run.loop_row(k)
-            attempts = run.run_attempts(row, k, settings.attempts, checked=True, on_attempt=on_attempt)
-            rounds = float(np.mean([a.check_rounds for a in attempts]))
-            layouts[k] = row.layout
-            placed += attempts
-            forecast = record_forecasts(layouts, placed, settings.prediction_weight)[-len(attempts):]
-            summary = LoopSummary(k, len(attempts), sum(a.success for a in attempts), [a.predicted for a in attempts],
-                                  dict(row.physics_values), row.physics_name, rounds, describe_choice(row.layout),
-                                  forecast)
-            summaries.append(summary)
-            outcomes += [(k, a.attempt, a.success, a.predicted, f) for a, f in zip(attempts, forecast)]
-            if on_loop is not None:
-                on_loop(summary)
-        baseline = []
-        if settings.baseline_attempts:
-            from station.loopstore import LoopRow
-
-            # the thesis's workflow places the optimizer's own layout (no choice by physical prediction)
-            thesis = LoopRow(0, run.optimized(None, settings.budget, "baseline: optimizing the layout"), None, None,
-                             {})
-            baseline = run.run_attempts(thesis, 0, settings.baseline_attempts, checked=False, on_attempt=on_attempt)
-        result = LoopResult(run.run_id, loaded.name, summaries, len(baseline), sum(a.success for a in baseline),
-                            outcomes, run.hidden, [a.success for a in baseline])
-    the_world.close()
-    return result
+    for k in range(1, settings.loops + 1):
+        row = run.loop_row(k)
+        attempts = run.run_attempts(row, k, settings.attempts, checked=True, on_attempt=on_attempt)
+        rounds = float(np.mean([a.check_rounds for a in attempts]))
+        layouts[k] = row.layout
+        placed += attempts
+        forecast = record_forecasts(layouts, placed, settings.prediction_weight)[-len(attempts):]
+        summary = LoopSummary(k, len(attempts), sum(a.success for a in attempts), [a.predicted for a in attempts],
+                              dict(row.physics_values), row.physics_name, rounds, describe_choice(row.layout),
+                              forecast)
+        summaries.append(summary)
+        outcomes += [(k, a.attempt, a.success, a.predicted, f) for a, f in zip(attempts, forecast)]
+        if on_loop is not None:
+            on_loop(summary)
+    baseline = []
+    if settings.baseline_attempts:
+        # the thesis's workflow places the optimizer's own layout (no choice by physical prediction)
+        thesis = LoopRow(0, run.optimized(None, settings.budget, "baseline: optimizing the layout"), None, None, {})
+        baseline = run.run_attempts(thesis, 0, settings.baseline_attempts, checked=False, on_attempt=on_attempt)
+    return LoopResult(run.run_id, run.scenario.name, summaries, len(baseline), sum(a.success for a in baseline),
+                      outcomes, run.hidden, [a.success for a in baseline])
