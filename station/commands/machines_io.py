@@ -24,7 +24,15 @@ from drivers.gcode import clean_line
 from drivers.grbl import GrblConnection, Job, JobProgress, JobResult, JobRunner, frame_lines, list_ports
 from drivers.grbl.job import FINAL_STATES, kind_warning
 from drivers.profiles import MachineProfile, load_profile
-from station.cli_util import add_design_options, design_parameters, emit_json, output_suffix
+from station.cli_util import (
+    NON_NEGATIVE,
+    POSITIVE,
+    add_design_options,
+    check_output_file,
+    design_parameters,
+    emit_json,
+    number,
+)
 from station.errors import StationError, UsageError
 from station.joblog import JOB_KINDS, JobLog
 from station.progress_view import ProgressView
@@ -50,10 +58,13 @@ def register(subparsers) -> None:
     plot.add_argument("--pattern", metavar="FILE.json", help="a pattern written by `station pattern --json`")
     plot.add_argument("--profile", default="plotter",
                       help="machine profile TOML, or a built-in: plotter (default), laser")
-    plot.add_argument("--size", type=float, metavar="MM", help="largest side of the drawing (default: fit the paper)")
-    plot.add_argument("--tolerance", type=float, metavar="MM", help="simplification tolerance (default: profile's)")
+    plot.add_argument("--size", type=POSITIVE, metavar="MM",
+                      help="largest side of the drawing (default: fit the paper)")
+    plot.add_argument("--tolerance", type=NON_NEGATIVE, metavar="MM",
+                      help="simplification tolerance (default: profile's)")
     plot.add_argument("--points", type=int, default=DEFAULT_POINTS, help="samples of the pattern (default 4096)")
-    plot.add_argument("--power", type=float, default=0.3, help="laser power as a fraction of max (laser profiles)")
+    plot.add_argument("--power", type=number(0, 1, above=True, why="a fraction of the maximum"), default=0.3,
+                      help="laser power as a fraction of max (laser profiles)")
     plot.add_argument("--out", metavar="JOB.gcode", help="output file (default: standard output)")
     plot.add_argument("--json", action="store_true", help="print a JSON summary on stdout (needs --out)")
     plot.set_defaults(func=run_plot)
@@ -166,13 +177,13 @@ def plot_job(polylines, profile: MachineProfile, size: float | None, tolerance: 
 
 def run_plot(args) -> int:
     profile = _profile(args.profile)
-    if args.json and not args.out:
+    if args.json and args.out is None:
         raise UsageError("--json prints a summary and needs --out for the G-code")
-    if args.out:
-        output_suffix(args.out, {".gcode", ".nc", ".ngc", ".txt"})
+    if args.out is not None:
+        check_output_file(args.out, {".gcode", ".nc", ".ngc", ".txt"}, "--out")
     polylines, description = pattern_polylines(args)
     text, fitted, simplified, options = plot_job(polylines, profile, args.size, args.tolerance, args.power)
-    if args.out:
+    if args.out is not None:
         Path(args.out).write_text(text, encoding="utf-8")
     else:
         sys.stdout.write(text)
@@ -196,7 +207,7 @@ def run_plot(args) -> int:
     print(
         f"plot: {summary['points_in']} -> {summary['points_out']} points (tolerance {summary['tolerance_mm']:g} mm), "
         f"{length:.0f} mm of drawing, about {summary['draw_time_s'] / 60:.1f} min at F{options.draw_feed:g}"
-        + (f"; wrote {args.out}" if args.out else ""),
+        + (f"; wrote {args.out}" if args.out is not None else ""),
         file=sys.stderr,
     )
     return 0
