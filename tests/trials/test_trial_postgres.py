@@ -120,8 +120,8 @@ def test_the_loop_store_on_both_databases(where, request, tmp_path):
     url = request.getfixturevalue("pg_url") if where == "postgresql" else str(tmp_path / "t.sqlite3")
     key = run_key({"scenario": "SIMPLE", "world": "sim://world?seed=1"})
     with LoopStore(url) as store:
-        run = store.run(key, scenario="SIMPLE", content_hash="h", world="sim://world?seed=1", settings={"a": 1})
-        assert store.run(key, scenario="SIMPLE", content_hash="h", world="w", settings={}) == run
+        run, made = store.run(key, scenario="SIMPLE", content_hash="h", world="sim://world?seed=1", settings={"a": 1})
+        assert made and store.run(key, scenario="SIMPLE", content_hash="h", world="w", settings={}) == (run, False)
         assert store.loop(run, 1) is None
         row = LoopRow(1, {"x": [1.0]}, None, None, {"wood.friction": 0.5})
         store.add_loop(run, row)
