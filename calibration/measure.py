@@ -32,6 +32,7 @@ import numpy as np
 
 from calibration.errors import CalibrationError
 from calibration.intrinsics import CameraIntrinsics, to_gray
+from common.opencv import undistort_points
 
 __all__ = ["PlaneFix", "TagPose", "Measurement", "measure", "plane_from_points", "rays_to_height",
            "fit_square", "sort_ids", "square_corners", "detected_corners", "undistort", "MIN_REFERENCE_TAGS",
@@ -136,8 +137,8 @@ def undistort(points_px: np.ndarray, intrinsics: CameraIntrinsics) -> np.ndarray
         return np.zeros((0, 2))
     matrix = np.asarray(intrinsics.camera_matrix, dtype=np.float64)
     # the iterative solver's default (5 steps) leaves ~0.05 px at the corners of a wide lens: ask for more
-    out = cv2.undistortPointsIter(points, matrix, np.asarray(intrinsics.dist_coeffs, dtype=np.float64), None,
-                                  matrix, (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 50, 1e-9))
+    out = undistort_points(points, matrix, np.asarray(intrinsics.dist_coeffs, dtype=np.float64), None,
+                           matrix, (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 50, 1e-9))
     return out.reshape(-1, 2)
 
 

@@ -41,6 +41,7 @@ from pathlib import Path
 import numpy as np
 
 from calibration.errors import CalibrationError
+from common.opencv import undistort_points
 
 __all__ = ["CHECK_BLOCK", "CHECK_EVERY", "Correspondences", "GrayCodePlan", "ProjectorMap", "apply_homography",
            "camera_to_plane",
@@ -221,8 +222,8 @@ def camera_to_plane(camera_px: np.ndarray, plane_from_undistorted: np.ndarray, c
     points = np.asarray(camera_px, dtype=np.float64).reshape(-1, 1, 2)
     if len(points) and dist_coeffs is not None and np.any(dist_coeffs):
         criteria = (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 50, 1e-9)
-        points = cv2.undistortPointsIter(points, camera_matrix, np.asarray(dist_coeffs, dtype=np.float64), None,
-                                         camera_matrix, criteria)
+        points = undistort_points(points, camera_matrix, np.asarray(dist_coeffs, dtype=np.float64), None,
+                                  camera_matrix, criteria)
     return apply_homography(matrix, points.reshape(-1, 2))
 
 

@@ -47,6 +47,7 @@ from dataclasses import dataclass, replace
 import cv2
 import numpy as np
 
+from common.opencv import undistort_points
 from drivers.errors import SimConfigError
 from drivers.sim.camera_scene import (
     CameraModel,
@@ -176,8 +177,8 @@ def _normalized_grid(camera: CameraModel) -> np.ndarray:
     pixels = np.stack([xs, ys], axis=-1).reshape(-1, 1, 2)
     if np.any(camera.dist_coeffs):
         criteria = (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 40, 1e-9)
-        normal = cv2.undistortPointsIter(pixels, camera.camera_matrix, camera.dist_coeffs, np.eye(3), np.eye(3),
-                                         criteria)
+        normal = undistort_points(pixels, camera.camera_matrix, camera.dist_coeffs, np.eye(3), np.eye(3),
+                                  criteria)
     else:
         matrix = camera.camera_matrix
         y = (pixels[..., 1] - matrix[1, 2]) / matrix[1, 1]
@@ -483,8 +484,8 @@ def _unfolded(camera: CameraModel, points: np.ndarray, pixels: np.ndarray) -> bo
     local = points @ camera.rotation.T + camera.tvec
     ideal = local[:, :2] / local[:, 2:3]
     criteria = (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 40, 1e-9)
-    back = cv2.undistortPointsIter(pixels.reshape(-1, 1, 2).astype(np.float64), camera.camera_matrix,
-                                   camera.dist_coeffs, np.eye(3), np.eye(3), criteria).reshape(-1, 2)
+    back = undistort_points(pixels.reshape(-1, 1, 2).astype(np.float64), camera.camera_matrix,
+                            camera.dist_coeffs, np.eye(3), np.eye(3), criteria).reshape(-1, 2)
     return bool(np.abs(back - ideal).max() < 1e-4)
 
 
