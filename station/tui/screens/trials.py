@@ -214,8 +214,9 @@ class TrialsScreen(Screen):
                                else (None, None))
             record = service.build_trial(scenario, layout, given, as_built=as_built, check=check,
                                          who=fields["who"], notes=fields["notes"])
+            # the service's log: a busy database is waited for, and a trial it cannot take is kept in a file
+            trial_id = service.log_trial(record, url=database_url()).id
             with service.open_store(database_url()) as store:
-                trial_id = store.add(record)
                 trials = store.trials()
         except (DesignError, StationError, OSError) as error:
             self.app.call_from_thread(self.set_status, str(error).replace("outcome.", "", 1), "red")
