@@ -140,11 +140,21 @@ class JobLog:
 
     def finish(self, job_id: int, status: str, lines_acked: int, message: str,
                resume_line: int | None = None) -> None:
-        """Record how job ``job_id`` ended."""
+        """Record how job ``job_id`` ended.
+
+        An unfinished job (:data:`UNFINISHED`) finished without a ``resume_line`` keeps the line :meth:`progress`
+        recorded last: an ending that could not tell (the runner did not answer in time after an interrupt) never
+        erases where the machine was. A job that finished has none.
+        """
         if not job_id:
             return
         detail = self._detail(job_id)
-        detail.update(lines_acked=int(lines_acked), message=message, resume_line=resume_line)
+        if resume_line is None and status in UNFINISHED:
+            resume_line = detail.get("resume_line")
+        elif status not in UNFINISHED:
+            resume_line = None
+        detail.update(lines_acked=int(lines_acked), message=message,
+                      resume_line=None if resume_line is None else int(resume_line))
         self._write("UPDATE jobs SET status = ?, detail = ?, finished_at = strftime('%Y-%m-%dT%H:%M:%fZ', 'now') "
                     "WHERE id = ?", (status, json.dumps(detail), job_id))
 

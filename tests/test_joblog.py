@@ -135,3 +135,20 @@ def test_an_interrupted_job_says_where_it_was(log, tmp_path):
     (record,) = log.recent()
     assert record.status == INTERRUPTED and record.lines_acked == 61
     assert record.resume_hint() == "resume from line 57"
+
+
+@pytest.mark.parametrize("status", ["aborted", "stopped", "error", "position_lost", INTERRUPTED])
+def test_an_ending_without_a_line_keeps_the_line_recorded_while_it_ran(log, status):
+    # recorded every 2 s while the job ran: the machine was on line 195 when the station was told to stop
+    job_id = log.start("run", "laser", "cut.gcode", 2028)
+    log.progress(job_id, 214, 195)
+    log.finish(job_id, status, 215, "stopped by Ctrl-C", None)
+    (record,) = log.recent()
+    assert (record.status, record.resume_line) == (status, 195)
+    assert record.resume_hint().startswith("resume from line 195")
+    log.finish(job_id, status, 215, "stopped", 190)  # a line the ending knows better wins
+    assert log.recent()[0].resume_line == 190
+    done = log.start("run", "laser", "cut.gcode", 100)  # a job that finished has no line to resume from
+    log.progress(done, 90, 88)
+    log.finish(done, "done", 100, "done", None)
+    assert log.recent()[0].resume_line is None

@@ -50,6 +50,9 @@ from drivers.grbl.protocol import Error
 __all__ = ["FINAL_STATES", "LINE_BUFFER_SIZE", "SPAN_WORDS", "Job", "JobProgress", "JobResult", "JobRunner",
            "commanded_extent", "frame_lines", "job_kind", "kind_warning"]
 
+#: States of a job that ran and did not finish: each has a line to resume from.
+RESUMABLE_STATES = ("stopped", "aborted", "error", "position_lost")
+
 
 class JobRunner:
     """Runs one job on a connection.
@@ -209,14 +212,18 @@ class JobRunner:
             return self.run()
         except Exception as error:  # noqa: BLE001 - the last line of defence; the message names the failure
             laser_off = False
+            resume = None
+            self._frozen = True  # before the reset empties the planner (it would read as "every line ran")
             try:
                 self.connection.soft_reset(wait=True)  # GRBL's reset stops motion and the laser at once
                 laser_off = self._laser_off()
+                resume = self._resume_line(self.connection.status)  # the line the machine stood on
             except Exception:  # noqa: BLE001 - the port may be the thing that failed
                 pass
+            where = f"; resume from line {resume}" if resume is not None else ""
             self._finish("error", f"job {self.job.name!r} stopped by an internal error ({type(error).__name__}: "
-                         f"{error}); the machine was reset" + ("" if laser_off else "; check that the laser is off"),
-                         laser_off=laser_off)
+                         f"{error}); the machine was reset" + ("" if laser_off else "; check that the laser is off")
+                         + where, laser_off=laser_off, resume=resume)
             return self.result
 
     def wait(self, timeout: float | None = None) -> JobResult | None:
@@ -521,6 +528,9 @@ class JobRunner:
 
     def _finish(self, state: str, message: str, *, laser_off: bool = True, resume: int | None = None,
                 errors: list | None = None) -> JobResult:
+        if resume is None and state in RESUMABLE_STATES and self.progress.lines_sent:
+            # every ending of a job that ran says where to go on: at least the line the planner's fill pointed to
+            resume = self._resume_line(None)
         self._update(state, message)
         self.result = JobResult(
             state=state, message=message, lines_total=len(self.job.lines), lines_acked=self.progress.lines_acked,

@@ -10,7 +10,10 @@ from __future__ import annotations
 
 import contextlib
 import dataclasses
+import signal
 import sys
+import threading
+import time
 from pathlib import Path
 from typing import Any
 
@@ -34,7 +37,7 @@ from station.cli_util import (
     number,
 )
 from station.errors import StationError, UsageError
-from station.joblog import JOB_KINDS, JobLog
+from station.joblog import INTERRUPTED, JOB_KINDS, JobLog
 from station.progress_view import ProgressView
 from station.services.errors import ServiceError
 from station.services.machines import plot_job as _plot_job
@@ -332,28 +335,79 @@ def _ask(question: str, default: bool) -> bool:
     return default if not answer else answer in ("y", "yes")
 
 
+class SendSignals:
+    """SIGINT (Ctrl-C, ``kill -INT``) and SIGTERM (``kill``) while ``station send`` runs, handled by the command.
+
+    Installed even when the process started with SIGINT ignored: a background job of a script gets SIGINT ignored
+    from its shell, Python then keeps it so, and ``kill -INT`` would let a laser job burn to its end. While a job
+    streams a signal only asks for the stop (the job loop aborts the job: soft reset, laser off, the history
+    written, the result printed); at any other time it raises KeyboardInterrupt, as Python's own handler does.
+    Off the main thread (where no handler can be set) nothing is installed.
+    """
+
+    def __init__(self) -> None:
+        self.stop = threading.Event()
+        self.streaming = False
+        self.signum: int | None = None
+        self._previous: dict[int, Any] = {}
+
+    def __enter__(self) -> SendSignals:
+        if threading.current_thread() is threading.main_thread():
+            for signum in (signal.SIGINT, signal.SIGTERM):
+                self._previous[signum] = signal.signal(signum, self._handle)
+        return self
+
+    def __exit__(self, *exc) -> None:
+        for signum, handler in self._previous.items():
+            signal.signal(signum, handler)
+        self._previous.clear()
+
+    def _handle(self, signum, frame) -> None:
+        self.signum = signum
+        self.stop.set()
+        if not self.streaming:
+            raise KeyboardInterrupt
+
+    @property
+    def cause(self) -> str:
+        """``SIGINT (Ctrl-C)`` or ``SIGTERM``: what stopped the job."""
+        if self.signum == signal.SIGINT:
+            return "SIGINT (Ctrl-C)"
+        return signal.Signals(self.signum).name if self.signum is not None else "Ctrl-C"
+
+
+#: How often ``station send`` records a running job's progress in the history (seconds).
+HISTORY_INTERVAL = 2.0
+
+
 def _stream(conn, history, job: Job, kind: str, url: str, title: str, *, from_line: int = 1, dry_run: bool = False,
-            bar: SendProgress | None = None) -> JobResult:
-    """Run ``job`` on ``conn`` with a progress bar and a row in the job history; Ctrl-C (or SIGTERM) aborts it
-    (soft reset, laser off), records it and goes on as KeyboardInterrupt."""
+            bar: SendProgress | None = None, signals: SendSignals | None = None) -> JobResult:
+    """Run ``job`` on ``conn`` with a progress bar and a row in the job history. A signal (``signals``), or Ctrl-C
+    without them, aborts it (soft reset, laser off) and ends it as ``interrupted``, with the line to resume from."""
     runner = JobRunner(conn, job, from_line=from_line, dry_run=dry_run, on_progress=bar)
     job_id = history.start(kind, url, title, len(job.lines), "station send")
-    runner.start()
+    stop = signals.stop if signals is not None else threading.Event()
+    if signals is not None:
+        signals.streaming = True
     try:
-        while runner.wait(2.0) is None and runner.running:
-            # the line being executed, so that a station killed now still says where to resume
-            resume = runner.progress.current_line + 1 if runner.progress.lines_acked and not dry_run else None
-            history.progress(job_id, runner.progress.lines_acked, resume)
+        runner.start()
+        recorded = time.monotonic()
+        while runner.wait(0) is None and runner.running:
+            if stop.wait(0.1):
+                break
+            if time.monotonic() - recorded >= HISTORY_INTERVAL:
+                recorded = time.monotonic()
+                # the line being executed, so that a station killed now still says where to resume
+                resume = runner.progress.current_line + 1 if runner.progress.lines_acked and not dry_run else None
+                history.progress(job_id, runner.progress.lines_acked, resume)
     except KeyboardInterrupt:
-        runner.abort()
-        runner.wait(10.0)
-        if bar:
-            bar.close()
-        done = runner.result
-        history.finish(job_id, "aborted", runner.progress.lines_acked, "stopped by Ctrl-C or SIGTERM",
-                       done.resume_line if done else None)
-        raise
-    result = runner.result
+        stop.set()
+    finally:
+        if signals is not None:
+            signals.streaming = False
+    if stop.is_set() and runner.result is None:
+        return _interrupted(conn, history, runner, job_id, signals.cause if signals is not None else "Ctrl-C", bar)
+    result = runner.wait(None)
     history.finish(job_id, result.state, result.lines_acked, result.message, result.resume_line)
     if bar:
         if result.state in ("refused", "position_lost"):
@@ -362,6 +416,37 @@ def _stream(conn, history, job: Job, kind: str, url: str, title: str, *, from_li
             bar(runner.progress)  # the end, whatever the last report was
             bar.close()
     return result
+
+
+def _interrupted(conn, history, runner: JobRunner, job_id: int, cause: str, bar: SendProgress | None) -> JobResult:
+    """Abort ``runner``'s job after a signal and end it as ``interrupted``: the laser switched off as the driver
+    does it (soft reset, then ``M5 S0``; once more from here if the job thread does not end in time), the line the
+    machine stood on kept, the history written."""
+    runner.abort()
+    done = runner.wait(10.0)
+    progress = runner.progress
+    if done is not None:
+        laser_off, resume = done.laser_off, done.resume_line
+    else:  # the job thread did not end: reset from here (GRBL's reset switches the spindle and laser off)
+        try:
+            laser_off = conn.soft_reset(wait=True, timeout=3.0)
+        except Exception:  # noqa: BLE001 - a vanished port: nothing more can be done from here
+            laser_off = False
+        resume = progress.current_line + 1 if progress.lines_acked and not runner.dry_run else None
+    if bar:
+        bar.close()
+    tool = "laser" if runner.is_laser else "spindle"
+    parts = [f"interrupted by {cause}: job aborted, soft reset sent",
+             f"{tool} off" if laser_off else f"{tool} not confirmed off: check the machine"]
+    if conn.alarm is not None:
+        parts.append(f"{conn.alarm}; {conn.alarm.recovery}")
+    if resume is not None:
+        parts.append(f"resume from line {resume}")
+    message = "; ".join(parts)
+    history.finish(job_id, INTERRUPTED, progress.lines_acked, message, resume)
+    return JobResult(state=INTERRUPTED, message=message, lines_total=len(runner.job.lines),
+                     lines_acked=progress.lines_acked, elapsed=progress.elapsed, resume_line=resume,
+                     laser_off=laser_off)
 
 
 def run_send(args) -> int:
@@ -387,7 +472,7 @@ def run_send(args) -> int:
     bar = None if args.json else SendProgress()
     kind = JOB_KINDS["frame" if args.frame else "dry" if args.dry_run else "run"]
     title = str(path) if kind == "run" else f"{kind} of {path}"
-    with GrblConnection(url, baud) as conn, _job_history() as history:
+    with SendSignals() as signals, GrblConnection(url, baud) as conn, _job_history() as history:
         warning = kind_warning(original, conn.laser_mode)
         if warning:
             print(f"station: warning: {warning}", file=sys.stderr)
@@ -406,7 +491,10 @@ def run_send(args) -> int:
             elif _ask("No homing ($22=0): trace the job's frame first (laser at frame power)?", default=True):
                 frame = _frame_job(original, path.name, laser, profile, pen_up)
                 framed = _stream(conn, history, frame, JOB_KINDS["frame"], url, f"frame of {path}",
-                                 bar=SendProgress())
+                                 bar=SendProgress(), signals=signals)
+                if framed.state == INTERRUPTED:
+                    print(f"station: frame {framed.message}; {path.name} not started", file=sys.stderr)
+                    return 130
                 if not framed.ok:
                     print(framed.message, file=sys.stderr)
                     if framed.state == "refused":
@@ -416,7 +504,7 @@ def run_send(args) -> int:
                     print(f"station: {path.name} not started", file=sys.stderr)
                     return 0
         result = _stream(conn, history, job, kind, url, title, from_line=1 if args.frame else args.from_line,
-                         dry_run=args.dry_run, bar=bar)
+                         dry_run=args.dry_run, bar=bar, signals=signals)
     document = {
         "job": str(path), "port": url, "state": result.state, "message": result.message,
         "lines_total": result.lines_total, "lines_acked": result.lines_acked, "elapsed_s": result.elapsed,
@@ -425,7 +513,13 @@ def run_send(args) -> int:
     }
     if args.json:
         emit_json(document)
-    elif result.state not in ("refused", "position_lost"):  # those are raised: one line from station.cli
+    if result.state == INTERRUPTED:
+        # on stderr with --json too: whoever pressed Ctrl-C reads there whether the laser is off
+        go_on = (f" (the same command with --from-line {result.resume_line})"
+                 if result.resume_line is not None and kind == "run" else "")
+        print(f"station: {result.message}{go_on}", file=sys.stderr)
+        return 130
+    if not args.json and result.state not in ("refused", "position_lost"):  # those are raised: one line
         print(result.message, file=sys.stderr)
         for _, text in result.errors:
             print(f"  {text}", file=sys.stderr)

@@ -86,3 +86,23 @@ def test_job_progress_is_the_one_progress_type_with_its_own_fields_kept():
     assert dataclasses.replace(progress) == progress
     with pytest.raises(ValueError, match="total must be 1"):
         JobProgress(total=200)
+
+
+def test_a_job_ended_by_an_internal_error_still_says_where_to_resume(make_connection):
+    # a bug in the caller's progress callback, mid-job: the runner resets the machine and ends as "error"
+    conn = make_connection(sim_url("laser", time_scale=0.25))
+    lines = ["G21 G90", "M4 S400", "G0 X10 Y10"] + [f"G1 X{10 + 10 * (i % 2)} Y{11 + i} F3000" for i in range(60)]
+    raised = []
+
+    def broken(progress) -> None:
+        if progress.current_line >= 30 and not raised:  # the machine is half-way
+            raised.append(progress)
+            raise RuntimeError("a bug in the progress view")
+
+    result = JobRunner(conn, Job("zigzag", lines, laser=True), on_progress=broken).run_safely()
+    assert result.state == "error" and "a bug in the progress view" in result.message
+    assert result.laser_off
+    record = conn.port.machine.snapshot()
+    expected = first_unfinished_line(lines, record, record.resets[-1])
+    assert 4 < expected < len(lines)  # mid-job
+    assert result.resume_line == expected and f"resume from line {expected}" in result.message

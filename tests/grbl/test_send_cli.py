@@ -11,6 +11,7 @@ import signal
 import subprocess
 import sys
 import threading
+import time
 from pathlib import Path
 
 import pytest
@@ -306,3 +307,91 @@ def test_the_example_profile_without_homing_takes_a_job_as_wide_as_its_bed(tmp_p
     job.write_text(laser_job(301, 100, rows=2))
     assert main(["send", str(job), "--profile", str(path), "--port", port]) == 2
     assert "this job is 301.0 mm wide; your machine travels 300.0 mm in X ($130)" in capsys.readouterr().err
+
+
+def _start_long_laser_job(tmp_path, *options: str, ignore_sigint: bool = False):
+    """``station send`` of a laser job lasting about a minute (a separate process); returns it, its record file and
+    the station's database once the machine has confirmed lines after ``M4`` (the laser burns)."""
+    from station.paths import database_path
+
+    job = tmp_path / "long.gcode"
+    lines = ["G21 G90", "G0 X10 Y10", "M4 S700"] + [f"G1 X{10 + 5 * (i % 2)} Y{10 + i % 100} F300"
+                                                    for i in range(400)]
+    job.write_text("\n".join([*lines, "M5 S0"]) + "\n")
+    record = tmp_path / "record.json"
+    url = f"sim://grbl?profile=laser&time_scale=0.25&record={record}"
+
+    def ignore() -> None:  # what a shell does to a background job of a script
+        signal.signal(signal.SIGINT, signal.SIG_IGN)
+
+    process = subprocess.Popen(
+        [sys.executable, "-m", "station.cli", "send", str(job), "--laser", "--port", url, *options],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=Path(__file__).resolve().parents[2],
+        env=dict(os.environ), preexec_fn=ignore if ignore_sigint else None,
+    )
+    database = database_path()
+    deadline = time.monotonic() + 60
+    while time.monotonic() < deadline and process.poll() is None:
+        if database.exists():
+            from station.db import open_database
+            from station.joblog import JobLog
+
+            connection = open_database(database)
+            try:
+                records = JobLog(connection).recent(1)
+            finally:
+                connection.close()
+            if records and records[0].lines_acked > 3:  # recorded every 2 s while it runs
+                return process, record, database
+        time.sleep(0.2)
+    process.kill()
+    raise AssertionError(f"the job did not start: {process.communicate()}")
+
+
+def _jobs_json() -> list[dict]:
+    out = subprocess.run([sys.executable, "-m", "station.cli", "jobs", "--json"], capture_output=True, text=True,
+                         check=True, cwd=Path(__file__).resolve().parents[2], env=dict(os.environ)).stdout
+    return json.loads(out)["jobs"]
+
+
+def _laser_off_after_the_reset(record: Path) -> None:
+    document = json.loads(record.read_text())
+    samples, resets = document["samples"], document["resets"]
+    assert any(power > 0 for _, _, _, _, power, _ in samples)  # it was burning
+    assert resets, "no soft reset reached the machine"
+    assert all(power == 0.0 for t, _, _, _, power, _ in samples if t >= resets[-1])
+
+
+def test_an_interrupted_send_json_prints_the_job_with_where_to_resume_and_the_laser_off(tmp_path):
+    process, record, _ = _start_long_laser_job(tmp_path, "--json")
+    try:
+        process.send_signal(signal.SIGINT)
+        out, err = process.communicate(timeout=60)
+    finally:
+        if process.poll() is None:
+            process.kill()
+    assert process.returncode == 130, err
+    result = json.loads(out)
+    assert result["state"] == "interrupted" and result["laser_off"] is True
+    assert isinstance(result["resume_line"], int) and 3 <= result["resume_line"] < result["lines_total"]
+    assert "interrupted by SIGINT" in result["message"] and "laser off" in result["message"]
+    assert f"resume from line {result['resume_line']}" in err and "laser off" in err
+    _laser_off_after_the_reset(record)
+    (job,) = _jobs_json()
+    assert (job["status"], job["resume_line"]) == ("interrupted", result["resume_line"])
+
+
+def test_send_started_with_sigint_ignored_still_stops_on_kill_int(tmp_path):
+    # a background job of a script: the shell left SIGINT ignored, which Python keeps unless told otherwise
+    process, record, _ = _start_long_laser_job(tmp_path, ignore_sigint=True)
+    try:
+        process.send_signal(signal.SIGINT)
+        out, err = process.communicate(timeout=30)  # the job itself would burn for more than a minute
+    finally:
+        if process.poll() is None:
+            process.kill()
+    assert process.returncode == 130, err
+    assert "station: interrupted by SIGINT" in err and "laser off" in err
+    _laser_off_after_the_reset(record)
+    (job,) = _jobs_json()
+    assert job["status"] == "interrupted" and job["resume_line"] is not None
