@@ -1,12 +1,14 @@
-"""Helpers shared by CLI commands: ``--set NAME=VALUE`` parsing, JSON output, output files."""
+"""Helpers shared by CLI commands: ``--set NAME=VALUE`` parsing, number options, JSON output, output files."""
 
 from __future__ import annotations
 
+import argparse
+import errno
 import json
 import math
 import os
 import sys
-from collections.abc import Iterable
+from collections.abc import Callable, Iterable
 from pathlib import Path
 from typing import Any, TextIO
 
@@ -40,6 +42,46 @@ def parse_assignments(items: Iterable[str] | None, option: str = "--set") -> dic
             raise UsageError(f"{option}: {name!r} is given twice")
         values[name] = value
     return values
+
+
+def number(low: float | None = None, high: float | None = None, *, above: bool = False,
+           why: str = "") -> Callable[[str], float]:
+    """An argparse ``type`` for a number option: a finite float in ``[low, high]`` (``above``: greater than ``low``).
+
+    ``float`` alone takes ``nan``, ``inf`` and ``1e999``, which pass every later ``<`` check unnoticed (a plot of
+    no moves, a sleep for ever); a bad value is refused where it is parsed, as argparse says it: ``argument --size:
+    expected a number > 0, got 'nan'``. ``why`` (a few words) follows a range that is the station's own choice.
+    """
+    if low is None and high is None:
+        expected = "a finite number"
+    elif high is None:
+        expected = f"a number {'>' if above else '>='} {low:g}"
+    elif low is None:
+        expected = f"a number <= {high:g}"
+    else:
+        expected = f"a number in {'(' if above else '['}{low:g}, {high:g}]"
+    if why:
+        expected += f" ({why})"
+
+    def parse(text: str) -> float:
+        try:
+            value = float(text)
+        except ValueError:
+            value = math.nan
+        if not (math.isfinite(value) and (low is None or value > low or (value == low and not above))
+                and (high is None or value <= high)):
+            raise argparse.ArgumentTypeError(f"expected {expected}, got {text!r}")
+        return value
+
+    parse.__name__ = "number"
+    parse.expected = expected  # type: ignore[attr-defined]
+    return parse
+
+
+#: The number types most options take: any finite number, one above zero, one not below zero.
+FINITE = number()
+POSITIVE = number(0, above=True)
+NON_NEGATIVE = number(0)
 
 
 def flag_error(error: ServiceError, flags: dict[str, str] | None = None) -> UsageError:
@@ -156,47 +198,104 @@ def check_output_folder(path: str | Path, option: str = "--out", contents: str =
     """``path`` as the output folder of ``option``, refused before any work if it cannot be made or written.
 
     The folder may be missing (it is created, with its parents, when the outputs are written); it must not be a
-    file, nor lie under one, and the nearest existing folder must be writable. Nothing is created here, so a
-    refusal later leaves no empty folder behind.
+    file, nor lie under one, and a file must be creatable in it: tried by making the first missing folder (or a
+    file in the folder) and removing it at once, so that a refusal later leaves nothing behind and a folder the
+    permissions allow but the file system refuses (``/proc``, a read-only mount) is found now.
 
     Raises
     ------
     UsageError
         Naming the option, the path and what is wrong.
     """
+    if str(path) == "":
+        raise UsageError(f"{option} '': expected a folder name")
     path = Path(path)
-    if path.exists() and not path.is_dir():
-        raise UsageError(f"{option} {str(path)!r}: is a file; expected a folder (it gets {contents}), "
-                         "e.g. a new folder name")
-    existing = path
-    while not existing.exists() and existing != existing.parent:
-        existing = existing.parent
-    if not existing.is_dir():
-        raise UsageError(f"{option} {str(path)!r}: {str(existing)!r} is a file, so the folder cannot be made; "
-                         "expected a folder path")
-    if not os.access(existing, os.W_OK | os.X_OK):
-        raise UsageError(f"{option} {str(path)!r}: cannot write in {str(existing)!r} (permission denied)")
+    try:
+        if path.exists() and not path.is_dir():
+            raise UsageError(f"{option} {str(path)!r}: is a file; expected a folder (it gets {contents}), "
+                             "e.g. a new folder name")
+        existing = path
+        while not existing.exists() and existing != existing.parent:
+            existing = existing.parent
+        if not existing.is_dir():
+            raise UsageError(f"{option} {str(path)!r}: {str(existing)!r} is a file, so the folder cannot be made; "
+                             "expected a folder path")
+    except OSError as error:  # a name too long, a loop of links
+        raise UsageError(f"{option} {str(path)!r}: cannot make that folder ({_reason(error)})") from None
+    if existing == path:
+        _try_file(path / f".station-write-test-{os.getpid()}", option, path)
+    else:
+        first = path
+        while first.parent != existing:
+            first = first.parent
+        try:
+            first.mkdir()
+        except OSError as error:
+            raise UsageError(f"{option} {str(path)!r}: cannot make a folder in {str(existing)!r} "
+                             f"({_reason(error)})") from None
+        first.rmdir()
     return path
 
 
-def check_output_file(path: str | Path, suffixes: set[str], option: str) -> Path:
+def check_output_file(path: str | Path, suffixes: Iterable[str], option: str) -> Path:
     """``path`` as an output file of ``option``, refused before any work if it cannot be written at the end.
 
-    A run takes minutes to hours; a missing folder, a folder given as the file, a wrong suffix or a folder one may
-    not write in must not be found only when the result is ready.
+    The one check of every command's output file: a run takes seconds to hours, and an empty name, a wrong suffix,
+    a folder given as the file, a missing folder or one under a file, or a place the file cannot be created must not
+    be found only when the result is ready. The file is created and removed at once (an existing one is opened for
+    appending and left as it is), so that what the file system refuses (``/proc``, a read-only mount, a name too
+    long) is refused now, whatever the permissions say.
+
+    Raises
+    ------
+    UsageError
+        Naming the option, the path and what was expected.
     """
+    suffixes = sorted(suffixes)
+    if str(path) == "":
+        raise UsageError(f"{option} '': expected a file name ending in {', '.join(suffixes)}")
     path = Path(path)
     output_suffix(path, suffixes)
-    folder = path.parent
-    if path.is_dir():
-        raise UsageError(f"{option} {path}: is a folder; expected a file name ending in {', '.join(sorted(suffixes))}")
-    if not folder.exists():
-        raise UsageError(f"{option} {path}: the folder {folder} does not exist (create it first, or choose another)")
-    if not folder.is_dir():
-        raise UsageError(f"{option} {path}: {folder} is not a folder")
-    if not os.access(folder, os.W_OK | os.X_OK) or (path.exists() and not os.access(path, os.W_OK)):
-        raise UsageError(f"{option} {path}: cannot write there (permission denied)")
+    try:
+        if path.is_dir():
+            raise UsageError(f"{option} {path}: is a folder; expected a file name ending in {', '.join(suffixes)}")
+        folder = path.parent
+        blocker = folder
+        while not blocker.exists() and blocker != blocker.parent:
+            blocker = blocker.parent
+        if not blocker.is_dir():
+            raise UsageError(f"{option} {path}: {blocker} is not a folder")
+        if not folder.exists():
+            raise UsageError(f"{option} {path}: the folder {folder} does not exist (create it first, or choose "
+                             "another)")
+    except OSError as error:  # a name too long, a loop of links: what pathlib's checks do not take for "no"
+        raise UsageError(f"{option} {path}: cannot create a file there ({_reason(error)})") from None
+    _try_file(path, option, path)
     return path
+
+
+def _try_file(path: Path, option: str, named: Path) -> None:
+    """Create ``path`` and remove it (or open an existing one for appending, changing nothing), or refuse ``option``
+    ``named`` with the system's reason."""
+    try:
+        if path.exists():
+            with path.open("ab"):
+                pass
+            return
+        descriptor = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o644)
+    except OSError as error:
+        raise UsageError(f"{option} {named}: cannot create a file there ({_reason(error)})") from None
+    os.close(descriptor)
+    path.unlink()
+
+
+def _reason(error: OSError) -> str:
+    """Why the system refused, in words for a folder known to exist (where "no such file" would mislead)."""
+    if error.errno in (errno.EACCES, errno.EPERM):
+        return "permission denied"
+    if error.errno == errno.ENOENT:
+        return "the file system there takes no new files"
+    return error.strerror or str(error)
 
 
 def add_physics_option(parser) -> None:

@@ -44,11 +44,16 @@ PARSER = build_parser()
 COMMANDS = _leaf_commands(PARSER)
 
 
+def _numeric(action: argparse.Action) -> bool:
+    """An option taking a number: ``int``, or one of station.cli_util's number types (``number(...)``)."""
+    return action.type in (int, float) or hasattr(action.type, "expected")
+
+
 def _placeholder(action: argparse.Action) -> str:
     """A value argparse accepts for ``action`` (the command never runs: every case here fails in parsing)."""
     if action.choices:
         return str(next(iter(action.choices)))
-    if action.type in (int, float):
+    if _numeric(action):
         return "1"
     return "x"
 
@@ -66,7 +71,7 @@ def _required_args(parser: argparse.ArgumentParser) -> list[str]:
 
 
 def _typed_options(parser: argparse.ArgumentParser) -> list[str]:
-    return [a.option_strings[0] for a in parser._actions if a.option_strings and a.type in (int, float)]
+    return [a.option_strings[0] for a in parser._actions if a.option_strings and _numeric(a)]
 
 
 def _run(argv: list[str], capsys) -> tuple[int, str, str]:

@@ -22,7 +22,17 @@ from design.contraption.errors import ScenarioFormatError
 from design.contraption.fields import Checker
 from design.contraption.graph import check_event_graph, check_references, resolve_body_ref
 from design.contraption.materials import MaterialValue, parse_materials
-from design.contraption.model import EventSpec, ObjectSpec, Physics, Scenario, Settings, Tag, Transform, content_hash
+from design.contraption.model import (
+    EventSpec,
+    ObjectSpec,
+    Physics,
+    Scenario,
+    Settings,
+    Tag,
+    Transform,
+    content_hash,
+    domino_count,
+)
 from design.contraption.schema import (
     EVENT_COMMON,
     EVENTS,
@@ -43,6 +53,15 @@ from design.datafiles import parse_json, parse_toml
 
 #: What a scenario file should be, the end of the message for one that is not TOML or JSON.
 SCENARIO_FILE = "a scenario: [scenario], [[objects]] and [[events]] tables (TOML or JSON)"
+
+#: The most parts a scenario may have: its objects, a domino run counting each domino. Each is a body every
+#: simulation builds and steps, and building grows faster than their number: 2000 dominoes take about 2 s of CPU a
+#: simulation, 10 000 about 50 s, a million would take weeks; optimize runs hundreds of simulations and robustness
+#: thousands. The thesis's largest scenario has about 70.
+MAX_PARTS = 2000
+_WHY_PARTS = "each is a body every simulation builds; optimize and robustness run hundreds to thousands of them"
+#: The most wall panels of a Goblet (each a collision shape of its body; 12 by default).
+MAX_GOBLET_SIDES = 64
 
 
 def load_scenario(path: str | Path) -> Scenario:
@@ -88,6 +107,10 @@ def scenario_from_data(data: Any, *, file: str = "<data>") -> Scenario:
     settings = _settings(check, top.get("settings", {}))
     materials = parse_materials(check, top.get("materials", {}))
     objects = _objects(check, top, materials)
+    parts = sum(domino_count(o.shape) if o.type == "DominoRun" else 1 for o in objects)
+    if parts > MAX_PARTS:
+        raise check.fail("objects", f"expected at most {MAX_PARTS} parts (objects, a domino run counting each "
+                         f"domino), got {parts} ({_WHY_PARTS})")
     by_name = {o.name: o for o in objects}
     for i, (a, b) in enumerate(settings.ignore_overlap):
         for j, ref in enumerate((a, b)):
@@ -155,7 +178,10 @@ def _tables(check: Checker, top: dict, section: str, what: str) -> Iterator[tupl
     """
     if section not in top:
         raise check.fail(section, f"missing; expected an array of {what} tables ([[{section}]])")
-    for i, item in enumerate(check.array(top[section], section, min_len=1)):
+    items = check.array(top[section], section, min_len=1)
+    if section == "objects" and len(items) > MAX_PARTS:
+        raise check.fail(section, f"expected at most {MAX_PARTS} objects, got {len(items)} ({_WHY_PARTS})")
+    for i, item in enumerate(items):
         path = f"{section}[{i}]"
         yield i, path, check.table(item, path)
 
@@ -286,8 +312,9 @@ def _check_shape(check: Checker, kind: str, shape: dict, path: str) -> None:
     if kind == "Goblet":
         if shape["thickness"] >= min(shape["radius_top"], shape["radius_bottom"]):
             raise check.fail(f"{path}.thickness", "expected a wall thinner than the smaller radius")
-        if shape["sides"] < 3:
-            raise check.fail(f"{path}.sides", f"expected an integer >= 3, got {shape['sides']}")
+        if not 3 <= shape["sides"] <= MAX_GOBLET_SIDES:
+            raise check.fail(f"{path}.sides", f"expected an integer in [3, {MAX_GOBLET_SIDES}] (wall panels), got "
+                             f"{shape['sides']}")
     elif kind == "Track":
         if 2 * shape["wall_thickness"] >= shape["width"] or shape["wall_thickness"] >= shape["height"] + 1e-12:
             raise check.fail(f"{path}.wall_thickness", "expected walls thinner than half the width and the height")
@@ -312,6 +339,11 @@ def _check_shape(check: Checker, kind: str, shape: dict, path: str) -> None:
             if np.any(lengths <= 1e-9):
                 i = int(np.argmax(lengths <= 1e-9))
                 raise check.fail(f"{path}.path[{i + 1}]", "expected a point distinct from the previous one")
+        count = domino_count(shape)
+        if count > MAX_PARTS:
+            field = "poses" if has_poses else "count" if "count" in shape else "spacing"
+            raise check.fail(f"{path}.{field}", f"expected at most {MAX_PARTS} dominoes in a run, got {count} "
+                             f"({_WHY_PARTS})")
     elif kind == "Pivot":
         if "other" in shape and shape["other"] == shape["body"]:
             raise check.fail(f"{path}.other", "expected a body other than 'body' (or none: the world)")
@@ -398,8 +430,6 @@ def _tag(check, value, kind: str, shape, path: str, *, body: bool) -> Tag:
         raise check.fail(f"{path}.id", "missing; expected an AprilTag id (integer >= 0)")
     index = None
     if "body" in tag_table or body:
-        from design.contraption.model import domino_count  # only a run's tags name a body
-
         count = domino_count(shape) if kind == "DominoRun" else 0
         if kind != "DominoRun":
             raise check.fail(f"{path}.body", "only a DominoRun's tag names a body (the domino it is on)")

@@ -15,6 +15,9 @@ from design.errors import ConstraintViolation, parameter_error
 from design.fabrication.catalog import FABRICABLE_MACHINES
 from design.fabrication.tooth_system import GearSettings
 
+#: The largest scale, in mm per model unit: at 1000 a gear of model radius 1 is 2 m across, beyond any laser's bed,
+#: with over 1300 teeth at the default module (and a scale of 1e308 overflows the tooth count).
+MAX_SCALE = 1000.0
 
 @dataclass(frozen=True)
 class Hardware:
@@ -95,8 +98,9 @@ def checked_design(machine: str, params: Mapping[str, float], scale: float, sett
     hardware = hardware if hardware is not None else Hardware()
     if machine not in FABRICABLE_MACHINES:
         raise parameter_error("fabrication", "machine", f"one of {list(FABRICABLE_MACHINES)}", machine)
-    if not (isinstance(scale, (int, float)) and math.isfinite(scale) and scale > 0):
-        raise parameter_error("fabrication", "scale", "a positive number of mm per model unit", scale)
+    if not (isinstance(scale, (int, float)) and math.isfinite(scale) and 0 < scale <= MAX_SCALE):
+        raise parameter_error("fabrication", "scale", f"a positive number of mm per model unit, at most "
+                              f"{MAX_SCALE:g} (a metre per unit is beyond any laser's bed)", scale)
     model = get_machine(machine)
     validated = model.validate(params)
     violations = model.violations(validated)

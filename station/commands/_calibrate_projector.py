@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import sys
 
-from station.cli_util import check_output_file, emit_json, flag_error
+from station.cli_util import check_output_file, emit_json, flag_error, number
 from station.services.errors import ServiceError
 
 __all__ = ["PROJECTOR_JSON", "add_projector_parser", "run_projector"]
@@ -46,8 +46,8 @@ def add_projector_parser(calibrate_subparsers) -> None:
                         "one)")
     parser.add_argument("--finest", type=int, default=8, metavar="PX",
                         help="the finest stripe in projector pixels (default 8; larger for a far or blurry camera)")
-    parser.add_argument("--settle", type=float, metavar="S", help="seconds between a pattern and its frame "
-                        "(default 0.3 for real devices, 0 simulated)")
+    parser.add_argument("--settle", type=number(0, 10, why="seconds"), metavar="S",
+                        help="seconds between a pattern and its frame (default 0.3 for real devices, 0 simulated)")
     parser.add_argument("--out", metavar="MAP.json", help="write the map here instead of the station's "
                         "calibration/projectors/KEY.json (the station does not look for it there)")
     parser.add_argument("--json", action="store_true", help="print the result as JSON")
@@ -58,7 +58,7 @@ def run_projector(args) -> int:
     from station.progress_view import ProgressView
     from station.services import projector_calibration as service
 
-    out = check_output_file(args.out, {".json"}, "--out") if args.out else None
+    out = check_output_file(args.out, {".json"}, "--out") if args.out is not None else None
     try:
         with ProgressView(sys.stderr, prefix="calibrate projector: ") as view:
             done = service.calibrate_projector(camera=args.camera, projector=args.projector, name=args.name,

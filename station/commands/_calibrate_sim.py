@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import sys
 
-from station.cli_util import check_output_file, emit_json, flag_error
+from station.cli_util import NON_NEGATIVE, check_output_file, emit_json, flag_error
 from station.commands.robust import _where, add_workers, command
 from station.errors import UsageError
 from station.services.errors import ServiceError
@@ -59,7 +59,7 @@ def add_sim_parser(calibrate_subparsers, trials_source=None) -> None:
     parser.add_argument("--draws", type=int, default=8, metavar="N",
                         help="placement draws simulated per trial and candidate (default %(default)s)")
     parser.add_argument("--seed", type=int, default=0, help="seed of the placement draws and the design (default 0)")
-    parser.add_argument("--prior-width", type=float, default=0.25, metavar="W",
+    parser.add_argument("--prior-width", type=NON_NEGATIVE, default=0.25, metavar="W",
                         help="the prior's standard deviation as a share of each value's range, around the "
                         "scenario's value (default %(default)s; 0: no prior, maximum likelihood)")
     add_workers(parser)
@@ -84,7 +84,7 @@ def _calibrate_sim(args) -> int:
     check_seed(args.seed)
     if args.physics is not None:
         raise UsageError("--physics: calibrate sim fits the physics; it starts from the scenarios' own values")
-    if args.out:
+    if args.out is not None:
         check_output_file(args.out, {".toml"}, "--out")
     if args.draws < 1:
         raise UsageError(f"--draws must be an integer >= 1, got {args.draws}")
@@ -103,7 +103,7 @@ def _calibrate_sim(args) -> int:
                                                         prior_width=args.prior_width or None), progress=args.bar,
                                    source=source, every_material=args.all_materials, **_where(args))
     args.bar.close()
-    if args.out:
+    if args.out is not None:
         service.save(result, args.out)
         print(f"wrote {args.out}", file=sys.stderr)
     if args.json:

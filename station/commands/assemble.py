@@ -11,7 +11,7 @@ import os
 import sys
 
 from common.progress import Cancelled
-from station.cli_util import flag_error
+from station.cli_util import check_output_file, flag_error
 from station.errors import UsageError
 from station.services.errors import ServiceError
 
@@ -79,6 +79,8 @@ def run_assemble(args) -> int:
 
     if args.max_checks < 1:
         raise UsageError(f"--max-checks must be an integer >= 1, got {args.max_checks}")
+    if args.sheet:  # "" (--sheet alone): the data folder's guides/
+        check_output_file(args.sheet, {".pdf"}, "--sheet")
     out = sys.stderr if args.json else sys.stdout
     projector_context = None
     assembly = None

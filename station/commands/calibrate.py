@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import sys
 
-from station.cli_util import check_output_file, emit_json, flag_error
+from station.cli_util import check_output_file, emit_json, flag_error, number
 from station.errors import UsageError
 from station.services.errors import ServiceError
 
@@ -62,7 +62,7 @@ def register(subparsers) -> None:
     source.add_argument("--images", metavar="DIR", help="a folder of board images (png, jpg, ...)")
     source.add_argument("--capture", type=int, metavar="N", help="grab N frames from the camera")
     camera.add_argument("--camera", metavar="URL", help="with --capture: the camera (default: the station's)")
-    camera.add_argument("--interval", type=float, default=2.0, metavar="S",
+    camera.add_argument("--interval", type=number(0, 60, why="seconds"), default=2.0, metavar="S",
                         help="with --capture: seconds between frames, to move the board (default 2)")
     camera.add_argument("--name", help="the camera's name (default: its device name, or 'camera')")
     camera.add_argument("--out", metavar="CAMERA.json", help="write here instead of the station's "
@@ -116,7 +116,7 @@ def run_camera(args) -> int:
         raise UsageError("give --images DIR (a folder of board images) or --capture N (frames to grab)")
     if args.camera is not None and args.capture is None:
         raise UsageError("--camera goes with --capture N")
-    out = check_output_file(args.out, {".json"}, "--out") if args.out else None
+    out = check_output_file(args.out, {".json"}, "--out") if args.out is not None else None
     try:
         with ProgressView(sys.stderr, prefix="calibrate: ") as view:
             done = service.calibrate_camera(images=args.images, capture=args.capture, camera=args.camera,

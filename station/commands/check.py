@@ -85,10 +85,12 @@ def run_check(args) -> int:
     from station.services import check as service
     from station.services.physics import read_profile
 
-    out = check_output_file(args.out, {".json"}, "--out") if args.out else None
-    overlay = check_output_file(args.overlay, {".png"}, "--overlay") if args.overlay else None
+    out = check_output_file(args.out, {".json"}, "--out") if args.out is not None else None
+    overlay = check_output_file(args.overlay, {".png"}, "--overlay") if args.overlay is not None else None
     try:
         offsets = dict(service.parse_offset(text) for text in args.sim_offset or [])
+        if args.image is not None:  # a frame of the wrong size is refused before the guide is made
+            service.check_image_file(args.image, "image")
         with ProgressView(sys.stderr, prefix="check: ") as view:
             job = service.prepare_check(args.scenario, args.layout, guide=args.guide, progress=view)
             image, intrinsics, name, previous = service.camera_frame(

@@ -97,7 +97,7 @@ def report_layout(layout: LoadedLayout, stream=None) -> None:
 
 
 def run_simulate(args) -> int:
-    if args.render:
+    if args.render is not None:
         # Refused now, not after the simulation: the render is what the user waits for.
         check_output_file(args.render, {".png"}, "--render")
     scenario = open_scenario(args.scenario, physics=args.physics)
@@ -116,7 +116,7 @@ def run_simulate(args) -> int:
             for problem in outcome.problems:
                 print(f"  - {problem.message}")
         return 1
-    if args.render:
+    if args.render is not None:
         render(outcome, args.render)
         print(f"wrote {args.render}", file=sys.stderr)
     if args.json:

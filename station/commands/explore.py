@@ -11,7 +11,7 @@ import sys
 from typing import Any
 
 from design.machines import declared_machine_names, get_machine
-from station.cli_util import add_design_options, design_parameters, emit_json, flag_error, output_suffix
+from station.cli_util import add_design_options, check_output_file, design_parameters, emit_json, flag_error
 from station.errors import UsageError
 from station.services.errors import ServiceError
 from station.services.explore import check_points, explore, write_picture
@@ -66,20 +66,20 @@ def run_explore(args) -> int:
     model = get_machine(args.machine)
     try:
         check_points(args.points)
-        suffix = output_suffix(args.out, {".png"}) if args.out else None
+        out = check_output_file(args.out, {".png"}, "--out") if args.out is not None else None
         keeps = [parse_keep(spec) for spec in args.keep]
         moves = [parse_move(text) for text in args.move]
         exploration = explore(model.name, design_parameters(args, model.name), keeps, moves, points=args.points)
     except ServiceError as error:
         raise flag_error(error) from None
-    if suffix:
-        write_picture(exploration, args.out)
+    if out is not None:
+        write_picture(exploration, out)
     if args.json:
         emit_json(exploration.document)
     else:
         print_text(exploration.document, sys.stdout)
-        if args.out:
-            print(f"wrote {args.out}")
+        if out is not None:
+            print(f"wrote {out}")
     return 0
 
 

@@ -11,7 +11,15 @@ from __future__ import annotations
 
 import sys
 
-from station.cli_util import add_design_options, check_output_folder, design_parameters, emit_json
+from station.cli_util import (
+    FINITE,
+    NON_NEGATIVE,
+    POSITIVE,
+    add_design_options,
+    check_output_folder,
+    design_parameters,
+    emit_json,
+)
 from station.errors import UsageError
 from station.progress_view import ProgressView
 from station.services.errors import ServiceError
@@ -51,29 +59,30 @@ def register(subparsers) -> None:
     parser.add_argument("machine", choices=FABRICABLE_MACHINES, metavar="MACHINE",
                         help=f"one of {', '.join(FABRICABLE_MACHINES)}")
     add_design_options(parser)
-    parser.add_argument("--scale", type=float, required=True, metavar="MM_PER_UNIT",
+    parser.add_argument("--scale", type=POSITIVE, required=True, metavar="MM_PER_UNIT",
                         help="millimetres per model unit (gear radius 1 = this many mm)")
-    parser.add_argument("--kerf", type=float, default=None, metavar="MM",
+    parser.add_argument("--kerf", type=NON_NEGATIVE, default=None, metavar="MM",
                         help="laser kerf width, compensated on every contour (default: the material's kerf in the "
                         f"profile, else {DEFAULT_KERF})")
     parser.add_argument("--sheet", default=None, metavar="WxH", help="sheet size in mm (default: the work area)")
     parser.add_argument("--max-sheets", type=int, default=4, metavar="N",
                         help="parts that do not fit one sheet go on further sheets, up to N (default 4); "
                              "sheet k > 1 writes parts-k.svg, laser-k.gcode, sheet-k.png")
-    parser.add_argument("--gap", type=float, default=DEFAULT_GAP, metavar="MM",
+    parser.add_argument("--gap", type=NON_NEGATIVE, default=DEFAULT_GAP, metavar="MM",
                         help=f"least distance between parts and to the sheet's edges (default {DEFAULT_GAP})")
     parser.add_argument("--profile", default="laser", metavar="PROFILE.toml",
                         help="laser machine profile (a TOML file or a built-in name; default: laser)")
     parser.add_argument("--material", default=None, metavar="NAME",
                         help="material from the profile's [materials.NAME] table (default plywood_3mm)")
-    parser.add_argument("--module", type=float, default=1.5, metavar="MM",
+    parser.add_argument("--module", type=POSITIVE, default=1.5, metavar="MM",
                         help="nominal gear module; the one used makes every gear's tooth count an integer")
-    parser.add_argument("--pressure-angle", type=float, default=20.0, metavar="DEG", help="default 20")
-    parser.add_argument("--backlash", type=float, default=0.15, metavar="MM",
+    parser.add_argument("--pressure-angle", type=FINITE, default=20.0, metavar="DEG", help="default 20")
+    parser.add_argument("--backlash", type=NON_NEGATIVE, default=0.15, metavar="MM",
                         help="circumferential backlash of each mesh (default 0.15)")
-    parser.add_argument("--pen-hole", type=float, default=3.0, metavar="MM", help="pen hole diameter (default 3)")
-    parser.add_argument("--axle-hole", type=float, default=4.2, metavar="MM", help="axle hole diameter (default 4.2)")
-    parser.add_argument("--pin-hole", type=float, default=3.2, metavar="MM",
+    parser.add_argument("--pen-hole", type=POSITIVE, default=3.0, metavar="MM", help="pen hole diameter (default 3)")
+    parser.add_argument("--axle-hole", type=POSITIVE, default=4.2, metavar="MM",
+                        help="axle hole diameter (default 4.2)")
+    parser.add_argument("--pin-hole", type=POSITIVE, default=3.2, metavar="MM",
                         help="pivot and slider pin hole diameter (default 3.2)")
     parser.add_argument("--out", required=True, metavar="DIR", help="output folder")
     parser.add_argument("--json", action="store_true", help="print the summary (parts.json) on stdout as JSON")

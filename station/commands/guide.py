@@ -67,14 +67,14 @@ def run_guide(args) -> int:
     from station.progress_view import ProgressView
     from station.services import guide as service
 
-    if not (args.pdf or args.svg or args.project or args.json):
+    if args.pdf is None and args.svg is None and not (args.project or args.json):
         raise UsageError("nothing to write: give --pdf OUT.pdf, --svg OUT.svg, --project or --json")
     if args.step is not None and not args.project:
         raise UsageError("--step goes with --project")
     if args.projector is not None and not args.project:
         raise UsageError("--projector goes with --project")
-    pdf = check_output_file(args.pdf, {".pdf"}, "--pdf") if args.pdf else None
-    svg = check_output_file(args.svg, {".svg"}, "--svg") if args.svg else None
+    pdf = check_output_file(args.pdf, {".pdf"}, "--pdf") if args.pdf is not None else None
+    svg = check_output_file(args.svg, {".svg"}, "--svg") if args.svg is not None else None
     try:
         service.check_paper(args.paper)  # before any simulation
         with ProgressView(sys.stderr, prefix="guide: ") as view:

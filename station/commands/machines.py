@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import json
-import math
 from pathlib import Path
 from typing import Any
 
@@ -11,7 +10,7 @@ import numpy as np
 
 from design.machines import declared_machine_names, get_machine, machine_names, shapes_to_jsonable
 from design.machines.render import shape_polylines, write_png, write_svg
-from station.cli_util import add_design_options, design_parameters, emit_json, output_suffix, to_jsonable
+from station.cli_util import FINITE, add_design_options, check_output_file, design_parameters, emit_json, to_jsonable
 from station.errors import UsageError
 
 OUTPUT_SUFFIXES = {".svg", ".png", ".json"}
@@ -51,7 +50,7 @@ def register(subparsers) -> None:
     pattern.add_argument("--out", metavar="FILE", help="write the pattern to FILE (.svg, .png or .json)")
     pattern.add_argument(
         "--mechanism",
-        type=float,
+        type=FINITE,
         metavar="T",
         help="also draw the machine's parts at time T (in the picture; in JSON under 'mechanism')",
     )
@@ -99,9 +98,7 @@ def run_pattern(args) -> int:
         raise UsageError(f"--points must be an integer in [3, {MAX_POINTS}], got {args.points}")
     if not 16 <= args.size <= 8000:
         raise UsageError(f"--size must be in [16, 8000] pixels, got {args.size}")
-    if args.mechanism is not None and not math.isfinite(args.mechanism):
-        raise UsageError(f"--mechanism must be a finite time, got {args.mechanism}")
-    suffix = output_suffix(args.out, OUTPUT_SUFFIXES) if args.out else None
+    suffix = check_output_file(args.out, OUTPUT_SUFFIXES, "--out").suffix.lower() if args.out is not None else None
     params = design_parameters(args, model.name)
     document = pattern_document(model.name, params, args.points, args.spacing)
     shapes = model.mechanism(document["params"], args.mechanism) if args.mechanism is not None else None
@@ -118,7 +115,7 @@ def run_pattern(args) -> int:
             f"{model.name}: {values}; period {document['period']:.6g} ({document['turns']} turns), "
             f"{document['symmetry_order']}-fold symmetry, {len(document['points'])} points ({args.spacing})"
         )
-        if args.out:
+        if args.out is not None:
             print(f"wrote {args.out}")
     return 0
 

@@ -22,7 +22,7 @@ import numpy as np
 
 from common.progress import Progress as BaseProgress
 from design.robust.settings import METHODS, RobustnessSettings
-from station.cli_util import add_physics_option, check_output_file, emit_json
+from station.cli_util import NON_NEGATIVE, add_physics_option, check_output_file, emit_json
 from station.errors import UsageError
 from station.progress_view import ProgressView
 from station.services import robust as service
@@ -275,7 +275,7 @@ def register(subparsers) -> None:
     optimize.add_argument("--out", required=True, metavar="LAYOUT.json", help="output layout file")
     optimize.add_argument("--global-psp", action="store_true", help="one classifier of global success (no per-event "
                           "factorization, thesis 4.5 instead of 4.6)")
-    optimize.add_argument("--placement-error", type=float, default=None, metavar="EPS",
+    optimize.add_argument("--placement-error", type=NON_NEGATIVE, default=None, metavar="EPS",
                           help="optimize the mean success probability under a uniform placement error of EPS "
                           "(normalized units, e.g. 0.1) instead of at the point (default: the settings', 0 in "
                           "thesis and recommended)")
@@ -409,7 +409,7 @@ def run_robustness(args) -> int:
 
     service.check_seed(args.seed)
     service.check_count(args.eval, "n_evaluation")
-    if args.plot:
+    if args.plot is not None:
         check_output_file(args.plot, {".png"}, "--plot")
     problem = _problem(args)
     layout = read_layout(args.layout, problem)
@@ -433,7 +433,7 @@ def run_robustness(args) -> int:
         measured = run.simulate()
     bar.close()
     curve, evaluation = measured.curve, measured.evaluation
-    if args.plot:
+    if args.plot is not None:
         plot_robustness({"layout": (curve.epsilon, curve.local, np.zeros_like(curve.local))}, args.plot,
                         f"{problem.name}: {Path(args.layout).name}")
     payload = {"scenario": problem.name, "valid": curve.valid, "rho_g": curve.global_robustness,
@@ -457,7 +457,7 @@ def run_compare(args) -> int:
     service.check_seed(args.seed)
     service.check_count(args.runs, "runs")
     service.check_count(args.eval, "n_evaluation")
-    if args.plot:
+    if args.plot is not None:
         check_output_file(args.plot, {".png"}, "--plot")
     service.check_count(args.local, "n_local")
     robustness = RobustnessSettings(n_evaluation=args.eval, n_local=args.local)
@@ -470,7 +470,7 @@ def run_compare(args) -> int:
                                     f"{run.n_simulations} simulations, {run.seconds:.1f} s"), **_where(args))
     bar.close()
     rows = comparison.table()
-    if args.plot:
+    if args.plot is not None:
         title = f"{problem.name} (T = {args.runs}, B = {comparison.budget})"
         plot_robustness(comparison.mean_curves(), args.plot, title)
     if args.json:

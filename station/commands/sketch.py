@@ -13,7 +13,7 @@ from pathlib import Path
 
 from common.progress import Progress
 from design.machines import declared_machine_names
-from station.cli_util import emit_json, flag_error
+from station.cli_util import NON_NEGATIVE, check_output_folder, emit_json, flag_error
 from station.errors import UsageError
 from station.progress_view import ProgressView
 from station.services.errors import ServiceError
@@ -55,7 +55,7 @@ def register(subparsers) -> None:
                         help=f"refine the continuous parameters of the N best by a local search of the same "
                              f"distance, {_range(REFINE_RANGE)} (default {defaults.refine}; 0: the databases' "
                              "designs as they are)")
-    parser.add_argument("--smoothing", type=float, default=defaults.smoothing, metavar="S",
+    parser.add_argument("--smoothing", type=NON_NEGATIVE, default=defaults.smoothing, metavar="S",
                         help=f"spline smoothing, fraction of the sketch size, {_range(SMOOTHING_RANGE)} "
                              f"(default {defaults.smoothing:g})")
     parser.add_argument("--no-prune", action="store_true", help="compare every candidate (skip the Fourier pruning)")
@@ -106,9 +106,7 @@ def run_retrieve(args) -> int:
         options.check()
     except ServiceError as error:
         raise flag_error(error) from None
-    out_dir = Path(args.out) if args.out else None
-    if out_dir is not None and out_dir.exists() and not out_dir.is_dir():
-        raise UsageError(f"--out {args.out!r}: expected a directory, got an existing file")
+    out_dir = check_output_folder(args.out, "--out", "the contact sheet PNG") if args.out is not None else None
     sketch = load_sketch(args.sketch, symmetry=args.symmetry, center=_parse_center(args.center))
     with ProgressView(describe=describe_progress) as view:
         result = retrieve(sketch, options, progress=view)

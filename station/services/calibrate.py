@@ -75,12 +75,16 @@ def write_board(path: str | Path, paper: str = "a4"):
 def _read_image(path: Path, field: str = "images") -> np.ndarray:
     import cv2
 
+    from station.services.check import check_frame_size, check_image_file
+
     if not path.is_file():
         raise ServiceError(f"{field}: no such file: {path}", field=field, value=str(path))
+    check_image_file(path, field)  # from the header: a huge image is refused before it is decoded
     image = cv2.imread(str(path), cv2.IMREAD_GRAYSCALE)
     if image is None:
         raise ServiceError(f"{field}: {path} is not an image OpenCV can read (expected {', '.join(IMAGE_SUFFIXES)})",
                            field=field, value=str(path))
+    check_frame_size(path, (image.shape[1], image.shape[0]), field)
     return image
 
 
@@ -217,27 +221,11 @@ def intrinsics_for(image_size: tuple[int, int], *, intrinsics: str | Path | None
 
 
 def reference_tags_from_guide(path: str | Path) -> list[tuple[int, tuple[float, float], float]]:
-    """The reference tags of a guide manifest (what ``station guide --json`` prints) as (id, (u, v), size)."""
-    from common.datafiles import load_json
+    """The reference tags of a guide manifest (what ``station guide --json`` prints) as (id, (u, v), size), read by
+    :func:`station.services.guide_manifest.read_manifest` (the check's reader too)."""
+    from station.services.guide_manifest import read_manifest, reference_tags
 
-    path = Path(path)
-    expected = 'a guide manifest (`station guide --json`) with "reference_tags": [{"id", "center_mm", "size_mm"}]'
-    try:
-        data = load_json(path, expected, error=lambda detail: ServiceError(f"{path}: {detail}", field="guide"))
-    except OSError as error:
-        raise ServiceError(f"guide: cannot read {path} ({error.strerror or error})", field="guide") from None
-    tags = data.get("reference_tags") if isinstance(data, dict) else None
-    if not isinstance(tags, list) or not tags:
-        raise ServiceError(f"{path}: field 'reference_tags' missing or empty; expected {expected}", field="guide")
-    out = []
-    for index, tag in enumerate(tags):
-        try:
-            tag_id, (u, v), size = int(tag["id"]), tag["center_mm"], float(tag["size_mm"])
-            out.append((tag_id, (float(u), float(v)), size))
-        except (KeyError, TypeError, ValueError):
-            raise ServiceError(f"{path}: field 'reference_tags[{index}]': expected {{\"id\": int, \"center_mm\": "
-                               f"[u, v], \"size_mm\": number}}, got {tag!r:.80}", field="guide") from None
-    return out
+    return reference_tags(read_manifest(path, parts=False))
 
 
 @dataclass(frozen=True)

@@ -109,18 +109,9 @@ def _model_of(scenario, layout: str) -> ScoringModel | None:
 
 
 def _read_manifest(path) -> dict:
-    try:
-        data = json.loads(Path(path).read_text(encoding="utf-8"))
-    except FileNotFoundError:
-        raise ServiceError(f"guide {path}: no such file (expected the manifest `station guide --json` prints)",
-                           field="guide", value=str(path)) from None
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as error:
-        raise ServiceError(f"guide {path}: not a guide manifest ({error}); expected what `station guide --json` prints",
-                           field="guide", value=str(path)) from None
-    if not isinstance(data, dict) or not isinstance(data.get("parts"), list):
-        raise ServiceError(f"guide {path}: not a guide manifest (no parts list); expected what `station guide --json` "
-                           "prints", field="guide", value=str(path))
-    return data
+    from station.services.guide_manifest import read_manifest
+
+    return read_manifest(path)
 
 
 def apply_manifest(guide, manifest: Mapping, source: str = "<manifest>"):
@@ -180,17 +171,55 @@ def _same_scenario(manifest: Mapping, name: str, content_hash: str, source: str)
 
 # -- the frame --------------------------------------------------------------------------------------------------------
 def load_image(path: str | Path) -> np.ndarray:
-    """A camera frame from a file (PNG, JPEG...) as RGB uint8; a ServiceError naming ``image`` otherwise."""
+    """A camera frame from a file (PNG, JPEG...) as RGB uint8; a ServiceError naming ``image`` otherwise (also for a
+    frame of a size :func:`projector.detection.frame_size_problem` refuses, found from the header before decoding)."""
     from PIL import Image, UnidentifiedImageError
 
     try:
         with Image.open(path) as picture:
+            check_frame_size(path, picture.size, "image")
             return np.asarray(picture.convert("RGB"))
     except FileNotFoundError:
         raise ServiceError(f"image {path}: no such file", field="image", value=str(path)) from None
+    except Image.DecompressionBombError:
+        raise _too_large(path, "image") from None
     except (OSError, UnidentifiedImageError) as error:
         raise ServiceError(f"image {path}: not an image the station can read ({error})", field="image",
                            value=str(path)) from None
+
+
+def check_image_file(path: str | Path, field: str) -> None:
+    """Refuse an image file whose header gives a frame size :func:`projector.detection.frame_size_problem` refuses,
+    before a reader decodes it; a file Pillow cannot read is left to the caller's reader."""
+    from PIL import Image, UnidentifiedImageError
+
+    try:
+        with Image.open(path) as picture:
+            size = picture.size
+    except Image.DecompressionBombError:
+        raise _too_large(path, field) from None
+    except (OSError, UnidentifiedImageError):
+        return
+    check_frame_size(path, size, field)
+
+
+def check_frame_size(path: str | Path, size: tuple[int, int], field: str) -> None:
+    """A ServiceError naming ``field`` and the file when a frame of ``size`` (width, height) cannot be checked."""
+    from projector.detection import frame_size_problem
+
+    problem = frame_size_problem(*size)
+    if problem is not None:
+        raise ServiceError(f"{field} {path}: {problem}", field=field, value=str(path))
+
+
+def _too_large(path: str | Path, field: str) -> ServiceError:
+    from PIL import Image
+
+    from projector.detection import MAX_FRAME_PIXELS
+
+    return ServiceError(f"{field} {path}: over {2 * Image.MAX_IMAGE_PIXELS / 1e6:.0f} MP, too large; expected at most "
+                        f"{MAX_FRAME_PIXELS / 1e6:.0f} megapixels (a camera frame or a phone photo)", field=field,
+                        value=str(path))
 
 
 def grab_frame(url: str, guide, *, offsets=None, occluded: Sequence[int] = (), scene=None, seed: int | None = None):

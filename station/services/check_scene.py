@@ -18,6 +18,12 @@ from station.services.errors import ServiceError
 __all__ = ["parse_offset", "sim_scene"]
 
 
+#: The largest simulated offset: a metre moves a part off any table the camera sees (and 1e308 mm overflows the
+#: camera's projection), a turn is every heading.
+MAX_OFFSET_MM = 1000.0
+MAX_OFFSET_DEG = 360.0
+
+
 def parse_offset(text: str) -> tuple[str, tuple[float, float, float]]:
     """``PART=DU,DV[,DEG]`` (mm, mm, degrees) as ``(part, (du, dv, deg))``; a ServiceError naming ``sim_offset``."""
     name, _, values = str(text).partition("=")
@@ -28,7 +34,11 @@ def parse_offset(text: str) -> tuple[str, tuple[float, float, float]]:
     if not name or len(numbers) not in (2, 3) or not all(math.isfinite(n) for n in numbers):
         raise ServiceError(f"sim_offset must be PART=DU,DV[,DEG] (mm, mm, degrees), got {text!r}",
                            field="sim_offset", value=text)
-    return name, (numbers[0], numbers[1], numbers[2] if len(numbers) == 3 else 0.0)
+    du, dv, deg = numbers[0], numbers[1], numbers[2] if len(numbers) == 3 else 0.0
+    if max(abs(du), abs(dv)) > MAX_OFFSET_MM or abs(deg) > MAX_OFFSET_DEG:
+        raise ServiceError(f"sim_offset must move a part at most {MAX_OFFSET_MM:g} mm and turn it at most "
+                           f"{MAX_OFFSET_DEG:g} degrees each way, got {text!r}", field="sim_offset", value=text)
+    return name, (du, dv, deg)
 
 
 def sim_scene(guide, offsets: Mapping[str, Sequence[float]] | None = None, *, occluded: Sequence[int] = (),

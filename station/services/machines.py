@@ -5,6 +5,8 @@ Used by ``station plot`` and the Machines screen's "plot the design" action.
 
 from __future__ import annotations
 
+import math
+
 from drivers.gcode import WriterOptions, fit_polylines, simplify_polylines, write_plot_gcode
 from drivers.profiles import MachineProfile
 from station.services.errors import ServiceError
@@ -22,9 +24,10 @@ def plot_job(polylines, profile: MachineProfile, size: float | None, tolerance: 
         margin = 5.0
         box = (x0 + margin, y0 + margin, x1 - margin, y1 - margin)
     tolerance = profile.plot.tolerance if tolerance is None else tolerance
-    if tolerance < 0:
+    # written so that NaN fails them too (every comparison with NaN is false)
+    if not 0 <= tolerance < math.inf:
         raise ServiceError(f"tolerance must be >= 0 mm, got {tolerance}", field="tolerance", value=tolerance)
-    if size is not None and size <= 0:
+    if size is not None and not 0 < size < math.inf:
         raise ServiceError(f"size must be positive (mm), got {size}", field="size", value=size)
     if not 0 < power <= 1:
         raise ServiceError(f"power must be a fraction in (0, 1], got {power}", field="power", value=power)

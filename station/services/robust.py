@@ -42,6 +42,11 @@ THESIS_BUDGETS = {"CAUSALITYSWITCH": 614, "BALLRUN": 1120, "LONGCHAIN": 1915, "T
 DEFAULT_BUDGET = 600
 #: The smallest budget a run may have (the PSP's first exploration needs it).
 MINIMUM_BUDGET = 20
+#: The largest budget a run may have, 8 times the thesis's largest. The simulations are not what limits it (a small
+#: scenario simulates about 10 a second) but the success classifiers, refitted as the samples grow: a fit takes
+#: about three times as long for twice the samples (36 s for 4000 on one core), so a run much beyond this would
+#: take days.
+MAXIMUM_BUDGET = 20_000
 #: The PSP settings one can choose: the thesis's method as published, or ours (see PSPSettings.recommended).
 SETTINGS_CHOICES = {
     "thesis": "the thesis's method as published",
@@ -83,6 +88,19 @@ def check_count(value: int | None, name: str, minimum: int = 1) -> None:
         raise ServiceError(f"{name} must be an integer >= {minimum}, got {value}", field=name, value=value)
 
 
+def check_budget(budget: int | None, name: str = "budget") -> None:
+    """Refuse a simulation budget outside [:data:`MINIMUM_BUDGET`, :data:`MAXIMUM_BUDGET`]; None (the default)
+    passes."""
+    if budget is None:
+        return
+    if isinstance(budget, bool) or not isinstance(budget, int) or budget < MINIMUM_BUDGET:
+        raise ServiceError(f"{name} must be an integer >= {MINIMUM_BUDGET}, got {budget!r}", field=name, value=budget)
+    if budget > MAXIMUM_BUDGET:
+        raise ServiceError(f"{name} must be at most {MAXIMUM_BUDGET} simulations, got {budget} (the success "
+                           "classifiers' fits grow faster than the simulations: a run much larger would take days)",
+                           field=name, value=budget)
+
+
 def check_seed(seed: int) -> None:
     """Refuse a negative seed before any work (numpy refuses it only once the first random draw is made)."""
     if seed < 0:
@@ -100,7 +118,7 @@ def default_budget(problem, budget: int | None) -> int:
     """``budget``, checked; None: the thesis's budget for the problem's scenario."""
     if budget is None:
         return thesis_budget(problem.name)
-    check_count(budget, "budget", MINIMUM_BUDGET)
+    check_budget(budget)
     return budget
 
 
@@ -270,7 +288,7 @@ def optimize(problem, budget: int, seed: int, settings: PSPSettings, *, workers:
     from design.robust.pipeline import optimize_robust_layout
 
     check_seed(seed)
-    check_count(budget, "budget", MINIMUM_BUDGET)
+    check_budget(budget)
     with simulations(problem, workers=workers, scheduler=scheduler, should_stop=should_stop) as executor:
         return optimize_robust_layout(problem, executor, budget, seed, settings, progress=progress,
                                       should_stop=should_stop)
@@ -380,7 +398,7 @@ def compare(problem, methods: Sequence[str], runs: int, budget: int, seed: int, 
 
     check_seed(seed)
     check_count(runs, "runs")
-    check_count(budget, "budget", MINIMUM_BUDGET)
+    check_budget(budget)
     with simulations(problem, workers=workers, scheduler=scheduler, should_stop=should_stop) as executor:
         return compare_methods(problem, executor, list(methods), runs, budget, seed, settings=settings,
                                robustness=robustness, progress=progress, should_stop=should_stop, on_run=on_run)
