@@ -110,18 +110,9 @@ def fabricate(machine: str, params: dict[str, float], scale: float, *, kerf: flo
         machine_parts,
         nest_sheets,
         part_sizes,
-        render_png,
-        sheet_paths,
-        write_svg,
     )
     from design.machines import get_machine
-    from drivers.laser_job import (
-        check_work_area,
-        material_settings,
-        plan_laser_job,
-        travel_moves,
-        write_laser_gcode,
-    )
+    from drivers.laser_job import material_settings
     from drivers.profiles import builtin_profile
 
     report = Reporter.of(progress, cancelled)
@@ -150,25 +141,10 @@ def fabricate(machine: str, params: dict[str, float], scale: float, *, kerf: flo
     report(NESTING_STAGE, 0, None,
            f"nesting {len(parts)} parts on {width:g}x{height:g} mm sheets (kerf {kerf:g} mm, gap {gap:g} mm)")
     sheets = nest_sheets(parts, width, height, gap=gap, kerf=kerf, max_sheets=max_sheets)
-    xmin, ymin, _, _ = profile.work_bounds()
-    outputs: list[SheetOutput] = []
-    for index, sheet in enumerate(sheets, start=1):
-        report(SHEETS_STAGE, index - 1, len(sheets), f"ordering the laser job of sheet {index} of {len(sheets)}")
-        paths = sheet_paths(sheet)
-        job = plan_laser_job(paths["engrave"], paths["cut"], engrave_ops, cut_ops, profile.laser.max_power,
-                             profile.plot.travel_feed, offset=(xmin, ymin), start=(xmin, ymin),
-                             metadata={"machine": machine, "scale": f"{scale:g} mm per unit",
-                                       "sheet": f"{index} of {len(sheets)}", "material": material_name,
-                                       "profile": profile.name})
-        check_work_area(job, profile.work_bounds(), profile.name)
-        gcode = io.StringIO()
-        write_laser_gcode(job, gcode, profile.work_bounds(), profile.laser.laser_mode, profile.name)
-        svg = io.StringIO()
-        write_svg(sheet, svg, title=f"{machine} parts at {scale:g} mm per unit, sheet {index} of {len(sheets)}")
-        # The preview shows travel in sheet coordinates.
-        moves = [m - [xmin, ymin] for m in travel_moves(job)]
-        outputs.append(SheetOutput(index, sheet, job, svg.getvalue(), gcode.getvalue(),
-                                   render_png(sheet, travel=moves)))
+    outputs = laser_sheets(sheets, profile, engrave_ops, cut_ops,
+                           {"machine": machine, "scale": f"{scale:g} mm per unit", "material": material_name,
+                            "profile": profile.name},
+                           f"{machine} parts at {scale:g} mm per unit", report)
     parts_area = sum(o.sheet.parts_area for o in outputs)
     estimates = [o.job.estimate_seconds() for o in outputs]
     summary = {
@@ -208,6 +184,35 @@ def fabricate(machine: str, params: dict[str, float], scale: float, *, kerf: flo
     report(SHEETS_STAGE, len(outputs), len(outputs),
            f"{len(parts)} parts on {len(outputs)} sheet{'' if len(outputs) == 1 else 's'}")
     return FabricationResult(machine, dict(params), scale, outputs, summary)
+
+
+def laser_sheets(sheets, profile, engrave_ops, cut_ops, metadata: dict[str, str], title: str,
+                 report: Reporter | None = None) -> list[SheetOutput]:
+    """Each nested sheet's laser job (engraving, then each part's holes before its outline; dark travels), checked
+    against the profile's work area, with its G-code, SVG and PNG preview (the travel drawn grey). ``metadata`` goes
+    in the G-code's header (the sheet's number is added); ``title`` names the SVG (", sheet i of n" is added)."""
+    from design.fabrication import render_png, sheet_paths, write_svg
+    from drivers.laser_job import check_work_area, plan_laser_job, travel_moves, write_laser_gcode
+
+    report = report if report is not None else Reporter.of(None)
+    xmin, ymin, _, _ = profile.work_bounds()
+    outputs: list[SheetOutput] = []
+    for index, sheet in enumerate(sheets, start=1):
+        report(SHEETS_STAGE, index - 1, len(sheets), f"ordering the laser job of sheet {index} of {len(sheets)}")
+        paths = sheet_paths(sheet)
+        job = plan_laser_job(paths["engrave"], paths["cut"], engrave_ops, cut_ops, profile.laser.max_power,
+                             profile.plot.travel_feed, offset=(xmin, ymin), start=(xmin, ymin),
+                             metadata={**metadata, "sheet": f"{index} of {len(sheets)}"})
+        check_work_area(job, profile.work_bounds(), profile.name)
+        gcode = io.StringIO()
+        write_laser_gcode(job, gcode, profile.work_bounds(), profile.laser.laser_mode, profile.name)
+        svg = io.StringIO()
+        write_svg(sheet, svg, title=f"{title}, sheet {index} of {len(sheets)}")
+        # The preview shows travel in sheet coordinates.
+        moves = [m - [xmin, ymin] for m in travel_moves(job)]
+        outputs.append(SheetOutput(index, sheet, job, svg.getvalue(), gcode.getvalue(),
+                                   render_png(sheet, travel=moves)))
+    return outputs
 
 
 def _job_summary(job) -> dict[str, Any]:
