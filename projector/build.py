@@ -63,6 +63,7 @@ from projector.guide import (
 )
 from projector.order import PartFacts, assembly_order, part_kind
 from projector.outline import PlacedBody, Surface, fit_tag, part_outline
+from projector.parameters import check_set_with, describe_parts, how_text
 from projector.plane import VIEWS, guide_plane, heading_in_plane, plane_normals, range_axes
 
 __all__ = ["AUTO_TAG_SIZES_MM", "build_guide", "choose_view", "steps_text"]
@@ -82,7 +83,7 @@ _FLOOR = GuidePlane("top", np.zeros(3), np.array([1.0, 0.0, 0.0]), np.array([0.0
 
 def build_guide(scenario: Scenario, x=None, *, view: str | None = None,
                 tolerances: Mapping[str, ParameterTolerance] | None = None, tag_size_mm: float | None = None,
-                reference_tag_size_mm: float = 40.0) -> Guide:
+                reference_tag_size_mm: float = 40.0, set_with: Mapping[str, str] | None = None) -> Guide:
     """The assembly guide of ``scenario`` at layout ``x``.
 
     Parameters
@@ -98,12 +99,15 @@ def build_guide(scenario: Scenario, x=None, *, view: str | None = None,
         One size for every automatic part tag (a part it does not fit gets none); None picks per part.
     reference_tag_size_mm : float
         The reference tags' black square edge.
+    set_with : mapping of str to str, optional
+        Per layout parameter, how the guide tells the maker to set it (``"jig"`` for one a laser-cut jig sets);
+        the others as :mod:`projector.parameters` says.
 
     Raises
     ------
     ProjectorError
-        A layout outside the design space, an unknown view or tolerance parameter, a bad size, a scenario tag id
-        that is a reference tag's.
+        A layout outside the design space, an unknown view, tolerance or ``set_with`` parameter, a bad size or way
+        of setting, a scenario tag id that is a reference tag's.
     """
     if tag_size_mm is not None:
         _check_size(tag_size_mm, "tag_size_mm")
@@ -113,6 +117,7 @@ def build_guide(scenario: Scenario, x=None, *, view: str | None = None,
     if unknown:
         raise ProjectorError(f"tolerances: unknown layout parameter {unknown[0]!r}; expected one of "
                              f"{', '.join(scenario.design_space.names) or '(none: the scenario has no ranges)'}")
+    check_set_with(set_with, tuple(scenario.design_space.names))
     try:
         transforms = scenario.transforms(x)
     except LayoutError as error:
@@ -138,6 +143,7 @@ def build_guide(scenario: Scenario, x=None, *, view: str | None = None,
             heading_deg=heading_in_plane(frames[name].rotation, plane), parameters=own, tolerances=known,
             care=care_level(known)))
     drawings = _with_tags(scenario, frames, bodies, plane, drawings, tag_size_mm)
+    drawings = describe_parts(scenario, x, frames, bodies, plane, drawings, set_with)
     references = _reference_tags(drawings, reference_tag_size_mm)
     return Guide(scenario=scenario.name, content_hash=scenario.content_hash, plane=plane, parts=tuple(drawings),
                  reference_tags=references, extent_mm=_extent(drawings, references),
@@ -166,11 +172,17 @@ def steps_text(guide: Guide) -> list[str]:
     """The assembly steps in words, one line per part, e.g.::
 
         3. Fix `bottom_track`: centre (-50.0, 60.0) mm, turned -15.0 deg, tolerance +-2.1 mm / +-1.5 deg
+        1. Fix `track` (tag 0): centre (-60.0, 0.0) mm, turned 0.0 deg (...), tolerance +-4.0 mm; height above the
+           table: its underside at the middle 58.7 mm (+-5.3 mm), with a ruler; tilt: 30.0 deg (+-10.6 deg), lower
+           end towards `dominoes` (to your right): its underside 33.7 mm above the table at the lower end, 83.7 mm
+           at the upper end, with a ruler
 
     Static parts are fixed, the others placed; a domino run's dominoes are stood on their outlines. The angle is
     the part's heading on the sheet, counter-clockwise as the maker sees it (said once, in the first line that has
     one; none for a ball). A run of pieces (dominoes) is stood on its outlines, located by their centroid. The
-    tolerance clause is left out when no tolerance is known.
+    tolerance clause gives the tightest tolerances on the sheet (left out when none is known); each parameter off
+    the sheet (a height, a tilt) follows in the maker's words (:mod:`projector.parameters`) with its tolerance and
+    how to set it.
     """
     facing = "seen from above" if guide.view == "top" else "facing the board"
     lines, said = [], False
@@ -189,10 +201,15 @@ def steps_text(guide: Guide) -> list[str]:
                 angle += f" (counter-clockwise, {facing})"
                 said = True
             words.append(angle)
-        clause = _tolerance_clause(part.tolerances)
+        off = {s.name for s in part.settings if not s.in_plane}
+        clause = _tolerance_clause([t for t in part.tolerances if t.parameter not in off])
         if clause:
             words.append(clause)
-        lines.append(f"{part.step}. {verb} {what}: {', '.join(words)}")
+        line = f"{part.step}. {verb} {what}: {', '.join(words)}"
+        for setting in part.settings:
+            if not setting.in_plane:
+                line += f"; {setting.meaning}, {how_text(setting.set_with)}"
+        lines.append(line)
     return lines
 
 

@@ -18,6 +18,7 @@ from shapely.geometry import LineString, Point, Polygon, box
 from shapely.geometry.base import BaseGeometry
 
 from projector.guide import Guide, GuidePlane, ParameterTolerance, PartDrawing
+from projector.parameters import off_plane_text
 
 __all__ = ["CARE_COLORS", "Label", "arc_points", "arrow", "care_color", "hatch_segments", "heading_length",
            "must_move", "off_sheet_word", "placement_deltas", "place_labels", "polygons", "tag_black_rects", "tag_box",
@@ -236,6 +237,9 @@ class Label:
     text: tuple[float, float]
     box: Polygon
     leader: tuple[tuple[float, float], tuple[float, float]] | None
+    #: What the sheet cannot show (a height, a tilt: :func:`projector.parameters.off_plane_text`), a line below the
+    #: detail; empty for a part on the plane.
+    off_plane: str = ""
 
 
 #: Sizes of a label (mm): the number's circle, the name's and the detail's text heights.
@@ -273,8 +277,10 @@ def place_labels(guide: Guide, width: Callable[..., float] = _default_width, *,
     radius = CIRCLE_MM / 2
     for part in guide.parts:
         detail = tolerance_text(part, guide.plane)
-        text_w = max(width(part.name, NAME_MM, True), width(detail, DETAIL_MM) if detail else 0.0)
-        box_w, box_h = CIRCLE_MM + 1.2 + text_w + 1.0, CIRCLE_MM + 1.0
+        off_plane = off_plane_text(part, guide.view, symbols=True)
+        text_w = max(width(part.name, NAME_MM, True), width(detail, DETAIL_MM) if detail else 0.0,
+                     width(off_plane, DETAIL_MM) if off_plane else 0.0)
+        box_w, box_h = CIRCLE_MM + 1.2 + text_w + 1.0, CIRCLE_MM + 1.0 + (DETAIL_MM + 0.6 if off_plane else 0.0)
         anchor = part.outline.representative_point() if not part.outline.is_empty else Point(part.center_mm)
         target = part.outline if not part.outline.is_empty else anchor  # what the label points at
         candidates = _candidates(part.outline, anchor, box_w, box_h)
@@ -295,14 +301,14 @@ def place_labels(guide: Guide, width: Callable[..., float] = _default_width, *,
         (x0, y0), inside = best
         rect = box(x0, y0, x0 + box_w, y0 + box_h)
         placed.append(rect)
-        circle = (x0 + 0.5 + radius, y0 + box_h / 2)
+        circle = (x0 + 0.5 + radius, y0 + box_h - 0.5 - radius)
         leader = None
         if not inside:
             end = ops.nearest_points(target, Point(circle))[0]
             if end.distance(Point(circle)) > radius + 0.5:
                 leader = ((circle[0], circle[1]), (end.x, end.y))
         labels[part.name] = Label(part.name, part.step, detail, circle, radius,
-                                  (x0 + CIRCLE_MM + 1.7, y0 + box_h / 2), rect, leader)
+                                  (x0 + CIRCLE_MM + 1.7, circle[1]), rect, leader, off_plane)
     return labels
 
 

@@ -27,6 +27,7 @@ from shapely.geometry.base import BaseGeometry
 from projector.drawing import arc_points, placement_deltas, tolerance_zone
 from projector.errors import ProjectorError
 from projector.guide import Guide, GuidePlane, PartDrawing, PartKind, ReferenceTag, where_text
+from projector.parameters import off_plane_text
 from projector.tags import TAG_CELLS, tag_image
 
 __all__ = ["Frames", "fit_homography", "render_calibrate", "render_frames", "render_step", "step_caption"]
@@ -130,15 +131,18 @@ def step_caption(part: PartDrawing, steps: int) -> str:
     return f"Step {part.step} of {steps}: {verb} {part.name}{care}"
 
 
-def detail_caption(part: PartDrawing) -> str:
-    """The second line: where the part goes and its tolerances."""
+def detail_caption(part: PartDrawing, view: str = "top") -> str:
+    """The second line: where the part goes and its tolerances, then what the sheet cannot show (its height above
+    the table, or depth in front of the board on a ``side`` view, and its tilt: :func:`off_plane_text`)."""
     text = f"{where_text(part)}, heading {part.heading_deg:.1f} deg"
-    known = [t for t in part.tolerances if t.placement_delta is not None]
+    off = {s.name for s in part.settings if not s.in_plane}
+    known = [t for t in part.tolerances if t.placement_delta is not None and t.parameter not in off]
     if known:
         text += ", tolerance " + ", ".join(f"{t.parameter.rsplit('.', 1)[-1]} +-{t.delta:.1f} {t.unit}" for t in known)
     elif part.kind == PartKind.PLACED:
         text += ", tolerance unknown"
-    return text
+    off_plane = off_plane_text(part, view)
+    return f"{text}; {off_plane}" if off_plane else text
 
 
 def apply_homography(homography: np.ndarray, points: np.ndarray) -> np.ndarray:
@@ -202,7 +206,8 @@ class _Canvas:
             self._text(image, str(part.step), self._px(part.center_mm)[0], PLACED_EDGE, 0.8, centre=True)
         self._current(image, self.guide.parts[k - 1])
         part = self.guide.parts[k - 1]
-        self._caption(image, [(step_caption(part, len(self.guide.parts)), WHITE), (detail_caption(part), WHITE)])
+        self._caption(image, [(step_caption(part, len(self.guide.parts)), WHITE),
+                              (detail_caption(part, self.guide.view), WHITE)])
         return image
 
     def calibrate(self) -> np.ndarray:

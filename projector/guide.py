@@ -20,7 +20,10 @@ from shapely.geometry.base import BaseGeometry
 
 __all__ = [
     "CARE_LEVELS",
+    "IN_PLANE_ROLES",
+    "SET_WITH",
     "BodyTag",
+    "Elevation",
     "FIRST_REFERENCE_TAG",
     "REFERENCE_TAG_IDS",
     "TAG_FAMILY",
@@ -29,6 +32,7 @@ __all__ = [
     "GuidePlane",
     "PartDrawing",
     "PartKind",
+    "PartParameter",
     "ParameterTolerance",
     "ReferenceTag",
     "where_point",
@@ -43,6 +47,13 @@ REFERENCE_TAG_IDS = (583, 584, 585, 586)
 FIRST_REFERENCE_TAG = REFERENCE_TAG_IDS[0]
 #: How carefully a part must be placed, from its tolerances.
 CARE_LEVELS = ("tight", "normal", "loose")
+#: How the guide tells the maker to set a parameter: on its outline on the sheet, with a ruler (or protractor), with
+#: a laser-cut jig, or on the sheet and then measured by the camera check (a tagged part).
+SET_WITH = ("sheet", "ruler", "jig", "check")
+#: What a parameter does on the guide plane: moves the part along ``u`` or ``v``, turns it about the plane's normal
+#: (these three the sheet shows), or moves it off the plane (``height``: above the table, or in front of the board)
+#: or tilts it about an axis in the plane (``tilt``), which no sheet can show.
+IN_PLANE_ROLES = ("u", "v", "turn")
 
 
 @dataclass(frozen=True)
@@ -127,6 +138,82 @@ class ParameterTolerance:
 
 
 @dataclass(frozen=True)
+class PartParameter:
+    """One design parameter of a part, as the guide tells the maker to set it.
+
+    Parameters
+    ----------
+    name : str
+        The layout parameter (``"track.z"``).
+    value : float
+        Its value at the layout, in ``unit`` (a position in mm, an angle in degrees).
+    unit : str
+        ``"mm"`` or ``"deg"``.
+    role : str
+        What it does on the guide plane: ``"u"``, ``"v"``, ``"turn"`` (on the sheet), ``"height"`` or ``"tilt"`` (off
+        it; :data:`IN_PLANE_ROLES`).
+    meaning : str
+        The maker's words: a named point of the part and where it goes, the tilt and which way it falls, the turn.
+    set_with : str
+        How the guide tells the maker to set it (:data:`SET_WITH`).
+    tolerance : ParameterTolerance or None
+        Its tolerance, when one is known.
+    """
+
+    name: str
+    value: float
+    unit: str
+    role: str
+    meaning: str
+    set_with: str
+    tolerance: ParameterTolerance | None = None
+
+    @property
+    def in_plane(self) -> bool:
+        """Whether the sheet shows it (a place along u or v, a turn on the plane)."""
+        return self.role in IN_PLANE_ROLES
+
+
+@dataclass(frozen=True)
+class Elevation:
+    """A part alone seen from the side, for the parameters the sheet cannot show (its height and tilt).
+
+    Coordinates ``(s, h)`` in mm: ``s`` along :attr:`direction_uv` on the guide plane (drawn to the right), ``h`` off
+    the plane along its normal (above the table, or in front of the board); ``h = 0`` is the table (the board).
+
+    Parameters
+    ----------
+    direction_uv : tuple of float
+        The unit direction on the guide plane drawn to the right.
+    seen_from : str
+        Where the maker looks at it from, in words (``"from the front"``).
+    profile : shapely geometry
+        The part's outline seen that way (the union of its collision parts' projections).
+    ends : tuple of two (s, h)
+        The underside (the back, on a board) at each end of the part along its length: the lower end first.
+    middle : tuple of float
+        The underside at the middle between the two ends.
+    tilt_deg : float
+        The angle between the part's length and the plane (>= 0; 0 when level).
+    toward : str
+        Which way the lower end points, in words (``"towards `dominoes` (to your right)"``); empty when level.
+    """
+
+    direction_uv: tuple[float, float]
+    seen_from: str
+    profile: BaseGeometry
+    ends: tuple[tuple[float, float], tuple[float, float]]
+    middle: tuple[float, float]
+    tilt_deg: float
+    toward: str = ""
+
+    @property
+    def level(self) -> bool:
+        """Level to the printed 0.1 deg."""
+        return self.tilt_deg < 0.05
+
+
+@dataclass(frozen=True)
 class BodyTag:
     """A tag on one body of a part made of many (a domino of a run: the first and the last are tagged).
 
@@ -193,6 +280,10 @@ class PartDrawing:
         ``"tight"``, ``"normal"`` or ``"loose"`` from its tolerances; None when unknown.
     body_tags : tuple of BodyTag
         Tags on single bodies of the part (a domino run's first and last), checked in its stead.
+    settings : tuple of PartParameter
+        Every parameter of :attr:`parameters` as the maker sets it (value, meaning, tolerance, how).
+    elevation : Elevation or None
+        The part seen from the side, when a parameter moves it off the plane (a height, a tilt).
     """
 
     name: str
@@ -210,6 +301,8 @@ class PartDrawing:
     tolerances: tuple[ParameterTolerance, ...] = ()
     care: str | None = None
     body_tags: tuple[BodyTag, ...] = ()
+    settings: tuple[PartParameter, ...] = ()
+    elevation: Elevation | None = None
 
     def tag_views(self) -> tuple[PartDrawing, ...]:
         """Every tag the part carries, each as the part with that tag (its own, then those on its bodies): what the
@@ -315,9 +408,13 @@ class Guide:
                         "care", "tolerances": [{"parameter", "delta", "unit", "predicted", "measured", "source",
                                         "bound_limited"}],
                         "body_tags": [{"body", "tag_id", "tag_center_mm", "tag_size_mm", "tag_height_mm",
-                                       "tag_heading_deg", "center_mm", "heading_deg"}]}]}
+                                       "tag_heading_deg", "center_mm", "heading_deg"}],
+                        "parameters": [{"name", "value", "unit", "meaning", "set_with", "role", "tolerance"}]}]}
 
         ``outline_mm`` is a list of polygons, each its exterior ring (holes are not needed to place a part).
+        ``parameters``: every design parameter that moves the part, ``value`` in ``unit`` (``"mm"`` or ``"deg"``),
+        ``meaning`` in the maker's words, ``set_with`` one of ``sheet``, ``ruler``, ``jig``, ``check``, ``role`` one of
+        ``u``, ``v``, ``turn``, ``height``, ``tilt``, ``tolerance`` the ±delta to keep (null when unknown).
         """
         return {
             "scenario": self.scenario,
@@ -376,6 +473,13 @@ def _part_manifest(part: PartDrawing) -> dict:
              "tag_heading_deg": _r(b.tag_heading_deg), "center_mm": [*map(_r, b.center_mm)],
              "heading_deg": _r(b.heading_deg)}
             for b in part.body_tags
+        ],
+        "parameters": [
+            {"name": p.name, "value": _r(p.value), "unit": p.unit, "meaning": p.meaning, "set_with": p.set_with,
+             "role": p.role,
+             "tolerance": None if p.tolerance is None or p.tolerance.placement_delta is None
+             else _r(p.tolerance.placement_delta)}
+            for p in part.settings
         ],
     }
 

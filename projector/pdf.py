@@ -369,11 +369,18 @@ def _label(canvas, label: Label, part: PartDrawing) -> None:
     tu, tv = label.text
     canvas.setFillColorRGB(*INK) if placed else canvas.setFillGray(0.3)
     canvas.setFont(BOLD, NAME_MM)
-    if label.detail:
-        canvas.drawString(tu, tv + 0.5, label.name)
-        canvas.setFillColorRGB(*CARE_COLORS.get(part.care or "", care_color(None)))
-        canvas.setFont(FONT, DETAIL_MM)
-        canvas.drawString(tu, tv - DETAIL_MM - 0.2, label.detail)
+    if label.detail or label.off_plane:
+        canvas.drawString(tu, tv + 0.5, label.name + ("  (fixed)" if not placed and not label.detail else ""))
+        below = tv - DETAIL_MM - 0.2
+        if label.detail:
+            canvas.setFillColorRGB(*CARE_COLORS.get(part.care or "", care_color(None)))
+            canvas.setFont(FONT, DETAIL_MM)
+            canvas.drawString(tu, below, label.detail)
+            below -= DETAIL_MM + 0.6
+        if label.off_plane:  # the height and tilt the sheet cannot show
+            canvas.setFillColorRGB(*INK)
+            canvas.setFont(FONT, DETAIL_MM)
+            canvas.drawString(tu, below, label.off_plane)
     else:
         canvas.drawString(tu, tv - NAME_MM * 0.36, label.name + ("  (fixed)" if not placed else ""))
 

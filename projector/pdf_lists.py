@@ -1,4 +1,5 @@
-"""The PDF guide's last page(s): the parts list, the assembly steps and the tolerance table (reportlab platypus).
+"""The PDF guide's last page(s): the parts list, every parameter in the maker's words, the side views of the parts
+lifted or tilted off the sheet, the assembly steps and the tolerance table (reportlab platypus).
 
 Every text from the guide (part names, parameters, steps) is escaped before it reaches a Paragraph, so any name
 prints as written.
@@ -44,7 +45,7 @@ def _hex(rgb) -> str:
     return "#" + "".join(f"{round(255 * c):02x}" for c in rgb)
 
 
-def _story(guide: Guide, steps: list[str], title: str) -> list:
+def _story(guide: Guide, steps: list[str], title: str, frame_mm: tuple[float, float] = (190.0, 253.0)) -> list:
     from reportlab.lib import colors
     from reportlab.lib.styles import ParagraphStyle, getSampleStyleSheet
     from reportlab.lib.units import mm
@@ -102,7 +103,9 @@ def _story(guide: Guide, steps: list[str], title: str) -> list:
                       where_text(part).removesuffix(" mm"),
                       f"{part.heading_deg:.1f}\u00b0",
                       "\u2013" if part.tag_id is None else str(part.tag_id), p(care, cell)])
-    story += [table(rows_, [9, 50, 15, 40, 17, 11, 16]), Spacer(1, 3 * mm), p("Steps", h2)]
+    story += [table(rows_, [9, 50, 15, 40, 17, 11, 16]), Spacer(1, 3 * mm)]
+    story += _parameters(guide, p, cell, table, h2, *frame_mm)
+    story += [Spacer(1, 3 * mm), p("Steps", h2)]
     if steps:
         story += [p(escape(step)) for step in steps]
     else:
@@ -119,6 +122,54 @@ def _story(guide: Guide, steps: list[str], title: str) -> list:
     return story
 
 
+#: How the parameters table says each is set.
+SET_WITH_TEXT = {"sheet": "on the sheet", "ruler": "ruler", "jig": "jig", "check": "sheet, camera check"}
+
+
+def _parameters(guide: Guide, p, cell, table, h2, width_mm: float, height_mm: float) -> list:
+    """The parameters table (every design parameter: value, tolerance, how it is set, in the maker's words) and the
+    dimensioned side view of each part lifted or tilted off the sheet."""
+    from reportlab.lib.units import mm
+    from reportlab.platypus import CondPageBreak, Spacer
+
+    from projector.pdf_elevation import ElevationDrawing
+
+    settings = [(part, s) for part in guide.parts for s in part.settings]
+    if not settings:
+        return []
+    story = [p("Parameters", h2),
+             p("Every design parameter of the layout, as you set it: on the sheet (the outline), with a ruler (a "
+               "height above the table or a tilt, not on the sheet), with a jig, or on the sheet and then measured "
+               "by the camera check (a part with a tag).")]
+    rows = [["#", "part", "parameter", "value", "±", "set with", "in your words"]]
+    for part, setting in settings:
+        t = setting.tolerance
+        tolerance = "\u2013" if t is None or t.delta is None else \
+            f"{'>= ' if t.bound_limited else ''}{abs(t.delta):.1f} {setting.unit}"
+        rows.append([str(part.step), p(escape(part.name), cell), p(escape(setting.name), cell),
+                     f"{setting.value:.1f} {setting.unit}", p(escape(tolerance), cell),
+                     p(SET_WITH_TEXT.get(setting.set_with, setting.set_with), cell), p(escape(setting.meaning), cell)])
+    story += [Spacer(1, 1.5 * mm), table(rows, [8, 26, 28, 19, 17, 18, 74])]
+    lifted = [part for part in guide.parts if part.elevation is not None]
+    if lifted:
+        off = "above the table" if guide.view == "top" else "in front of the board"
+        story += [Spacer(1, 3 * mm), p("Heights and tilts", h2),
+                  p("Each part a parameter lifts or tilts off the sheet, alone and seen from the side: its "
+                    f"underside's height {off} at each end and at the middle (mm), and its tilt. Drawn at 1:1 where "
+                    "it fits (hold the part against the drawing); the 20 mm bar checks the print.")]
+        for part in lifted:
+            drawing = ElevationDrawing(part.elevation, guide.view)
+            words = "; ".join(escape(f"{s.meaning}, {SET_WITH_TEXT.get(s.set_with, s.set_with)}")
+                              for s in part.settings if not s.in_plane)
+            _, tall = drawing.wrap(width_mm * mm, height_mm * mm)
+            # the part's name, its drawing and its words on one page (a bare frame cannot keep them together)
+            story += [CondPageBreak(tall + 24 * mm),
+                      p(f"<b>{part.step}. {escape(part.name)}</b>, {escape(part.elevation.seen_from)}, "
+                        f"{drawing.scale_text}"),
+                      drawing, p(words, cell), Spacer(1, 2 * mm)]
+    return story
+
+
 def _where(tolerance, plane) -> str:
     """Which mark on the sheet shows this tolerance: the zone along u or v, the arc, or none (listed only; a delta
     bound only by the range's end is a lower bound, not drawn)."""
@@ -126,7 +177,7 @@ def _where(tolerance, plane) -> str:
         return "range end (>=)"
     axes = tolerance_axes(tolerance, plane) if tolerance.placement_delta is not None else ()
     if not axes:
-        return "listed only"
+        return "side view (heights and tilts)"
     return "arc" if axes == ("arc",) else "zone along " + "/".join(axes)
 
 
@@ -139,7 +190,7 @@ def draw_lists(canvas, guide: Guide, steps: list[str], title: str) -> int:
 
     fmt = sheet_format(guide.pages[0].paper if guide.pages else "a4", "portrait")
     width, height = fmt.size_mm
-    story = _story(guide, steps, title)
+    story = _story(guide, steps, title, (width - 2 * PRINTABLE_MM, height - 2 * PRINTABLE_MM - FOOTER_MM))
     count = 0
     while story:
         canvas.setPageSize((width * mm, height * mm))

@@ -204,9 +204,13 @@ def _labels(drawing, layer, guide: Guide, frame: _Frame) -> None:
         number = text_polylines(str(label.number), shapes.CIRCLE_MM * 0.45)
         strokes += [s + label.circle for s in number]
         lines = [(label.name, shapes.NAME_MM, 0.0)]
-        if label.detail:  # the name above the middle, the tolerance below it
-            lines = [(label.name, shapes.NAME_MM, 0.5 + shapes.NAME_MM / 2),
-                     (label.detail, shapes.DETAIL_MM, -0.2 - shapes.DETAIL_MM / 2)]
+        if label.detail or label.off_plane:  # the name above the middle, the tolerance and the height below it
+            lines = [(label.name, shapes.NAME_MM, 0.5 + shapes.NAME_MM / 2)]
+            below = -0.2 - shapes.DETAIL_MM / 2
+            for text in (label.detail, label.off_plane):
+                if text:
+                    lines.append((text, shapes.DETAIL_MM, below))
+                    below -= shapes.DETAIL_MM + 0.6
         for text, height, dy in lines:
             # The single-stroke font is ASCII: spell out the two signs a tolerance uses.
             written = text_polylines(text.replace("\u00b1", "+-").replace("\u00b0", " deg"), height)

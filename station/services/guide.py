@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import hashlib
 import re
+from collections.abc import Mapping
 from dataclasses import dataclass, replace
 from pathlib import Path
 
@@ -16,8 +17,8 @@ from common.progress import ProgressCallback, Reporter
 from projector.guide import Guide, ParameterTolerance
 from station.services.errors import ServiceError
 
-__all__ = ["PAPERS", "VIEWS", "GuideJob", "check_paper", "export_guide", "make_guide", "projected_frames",
-           "show_step"]
+__all__ = ["PAPERS", "VIEWS", "GuideJob", "check_paper", "export_guide", "make_guide", "portable_name",
+           "projected_frames", "show_step"]
 
 PAPERS = ("a4", "letter", "a3")
 VIEWS = ("top", "side")
@@ -48,16 +49,34 @@ class GuideJob:
     scenario: object
 
     def manifest(self) -> dict:
-        """The guide's manifest (the ``--json`` contract of ``station guide``) plus the layout it draws and steps."""
+        """The guide's manifest (the ``--json`` contract of ``station guide``) plus the layout it draws and steps.
+
+        The layout's ``source`` is its file relative to the folder the command ran in, or its name when it lies
+        elsewhere: a manifest names no path of the machine that made it."""
         data = self.guide.manifest()
         data["layout"] = self.layout.to_dict()
+        data["layout"]["source"] = portable_name(data["layout"].get("source") or "")
         data["steps"] = list(self.steps)
         return data
 
 
+def portable_name(path: str | Path) -> str:
+    """``path`` as a manifest or a sheet may name it: relative to the working folder when it lies under it, else its
+    file's name (never an absolute path of this machine); empty stays empty."""
+    if not str(path):
+        return ""
+    path = Path(path)
+    if not path.is_absolute():
+        return path.as_posix()
+    try:
+        return path.resolve().relative_to(Path.cwd().resolve()).as_posix()
+    except (ValueError, OSError):
+        return path.name
+
+
 def make_guide(scenario: str, layout: str | None, *, view: str | None = None, verify: int = 0, seed: int = 0,
                tolerances: bool = True, progress: Reporter | ProgressCallback | None = None,
-               physics: str | None = None) -> GuideJob:
+               physics: str | None = None, set_with: Mapping[str, str] | None = None) -> GuideJob:
     """Build the guide of ``layout`` (a LAYOUT.json, any form :mod:`design.contraption.layout_io` reads, a layout
     named in the scenario, or None for the scenario's own layout) for ``scenario`` (a file or an example's name).
 
@@ -76,6 +95,9 @@ def make_guide(scenario: str, layout: str | None, *, view: str | None = None, ve
     physics : str, optional
         A physics profile: the tolerances' simulations use its material values (the drawing, and the guide's
         content hash, are the scenario's: materials change no part's place).
+    set_with : mapping of str to str, optional
+        Per layout parameter, how the guide tells the maker to set it (``"jig"`` for one a laser-cut jig sets:
+        :data:`projector.guide.SET_WITH`); the others as :mod:`projector.parameters` says.
 
     Raises
     ------
@@ -87,6 +109,7 @@ def make_guide(scenario: str, layout: str | None, *, view: str | None = None, ve
         The scenario cannot be drawn in that view.
     """
     from projector.build import build_guide, steps_text
+    from projector.parameters import check_set_with
     from station.services.contraption import choose_layout, open_scenario
     from station.services.robust import check_count, check_seed
 
@@ -96,6 +119,7 @@ def make_guide(scenario: str, layout: str | None, *, view: str | None = None, ve
     check_seed(seed)
     report = Reporter.of(progress)
     loaded_scenario = open_scenario(scenario)
+    check_set_with(set_with, tuple(loaded_scenario.design_space.names))  # before the tolerances' simulations
     tolerance_map = None
     by_parameter: dict[str, ParameterTolerance] | None = None
     if tolerances and layout is not None:
@@ -109,7 +133,7 @@ def make_guide(scenario: str, layout: str | None, *, view: str | None = None, ve
         by_parameter = _guide_tolerances(tolerance_map)
     else:
         loaded_layout = choose_layout(loaded_scenario, layout=layout)
-    guide = build_guide(loaded_scenario, loaded_layout.x, view=view, tolerances=by_parameter)
+    guide = build_guide(loaded_scenario, loaded_layout.x, view=view, tolerances=by_parameter, set_with=set_with)
     guide = replace(guide, tolerance_note=tolerance_map.map.note if tolerance_map is not None else None,
                     headline=_layout_headline(layout))
     return GuideJob(guide, tuple(steps_text(guide)), loaded_layout, tolerance_map, loaded_scenario)

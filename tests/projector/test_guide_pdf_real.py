@@ -65,7 +65,7 @@ def test_the_parts_list_the_steps_and_the_frames_give_a_run_of_dominoes_the_same
 
     guide, document = printed("simple", "top")
     dominoes = guide.part("dominoes")
-    step = next(line for line in steps_text(guide) if "dominoes" in line)
+    step = steps_text(guide)[dominoes.step - 1]
     assert "around (35.0, 0.0) mm" in step and "around (35.0, 0.0) mm" in detail_caption(dominoes)
     lists = " ".join("".join(text(document, i) for i in range(len(guide.pages), len(document))).split())
     assert "around (35.0, 0.0)" in lists and "(20.0, 0.0)" not in lists

@@ -3,7 +3,9 @@
 Pick a scenario and a layout (a LAYOUT.json path, a layout named in the scenario, or nothing for the scenario's own
 layout) and press Enter (or the button): the guide is built in a worker, drawn here with the current step
 highlighted, and shown on the station's projector (simulated by default), which follows the steps. n / p step
-through the parts, t shows the tolerance map (how carefully each part must be placed), e writes the 1:1 PDF sheets
+through the parts (under the steps, every design parameter of the current part: its value, tolerance, how to set
+it and what it means at the table, e.g. its underside's height above the table and its tilt), t shows the tolerance
+map (how carefully each part must be placed), e writes the 1:1 PDF sheets
 and the SVG to the station's data folder (``guides/``, named by the scenario, the layout and a hash of its values, so
 that one layout's export never replaces another's), 0 shows the calibrate frame. c checks the placed parts with the
 station's camera (``sim://camera`` by default, shown the guide's tags at their designed poses): the camera frame with
@@ -62,6 +64,8 @@ from station.tui.widgets.scenario_select import scenario_choices, select_scenari
 #: The frames drawn here (and sent to a projector of another size, which letterboxes them).
 FRAME_SIZE = (960, 600)
 CARE_STYLE = {"tight": "red", "normal": "dark_orange", "loose": "green"}
+#: How the parameters table says each is set (projector.guide.SET_WITH).
+HOW_TEXT = {"sheet": "on the sheet", "ruler": "ruler", "jig": "jig", "check": "sheet + camera check"}
 
 
 class GuideLoaded(Message):
@@ -94,6 +98,7 @@ class AssembleScreen(AttemptFlow, Screen):
     AssembleScreen #caption { height: auto; padding: 0 1; }
     AssembleScreen #steps, AssembleScreen #tolerances, AssembleScreen #check, AssembleScreen #outcomes {
         height: auto; max-height: 14; }
+    AssembleScreen #parameters { height: auto; max-height: 10; padding: 0 1; }
     AssembleScreen .heading { text-style: bold; margin-top: 1; }
     """
 
@@ -155,6 +160,7 @@ class AssembleScreen(AttemptFlow, Screen):
                 yield HalfBlockPicture(id="frame", empty="(no guide yet: pick a scenario and a layout, press Enter)")
                 yield Static("", id="caption")
                 yield DataTable(id="steps", cursor_type="row", zebra_stripes=True)
+                yield Static("", id="parameters")
                 yield DataTable(id="tolerances", cursor_type="row", zebra_stripes=True)
                 yield DataTable(id="check", cursor_type="row", zebra_stripes=True)
                 yield OutcomeTable(id="outcomes", on_change=self.outcomes_changed)
@@ -164,6 +170,7 @@ class AssembleScreen(AttemptFlow, Screen):
 
     def on_mount(self) -> None:
         self.query_one("#steps", DataTable).add_columns("step", "part", "kind", "tag", "centre mm", "care")
+        self.query_one("#parameters", Static).display = False
         table = self.query_one("#tolerances", DataTable)
         table.add_columns("part", "parameter", "± delta", "predicted", "measured")
         table.display = False
@@ -325,8 +332,25 @@ class AssembleScreen(AttemptFlow, Screen):
         self.query_one("#caption", Static).update(Text(caption))
         if self.step:
             self.query_one("#steps", DataTable).move_cursor(row=self.step - 1)
+        self._fill_parameters()
         if self.projector is not None:
             self._project(self.step)
+
+    def _fill_parameters(self) -> None:
+        """The current step's part: a line per design parameter that moves it, with its value, tolerance, how to set
+        it and what it means at the table (hidden on the calibrate frame and for a part no parameter moves)."""
+        lines = self.query_one("#parameters", Static)
+        part = self.job.guide.parts[self.step - 1] if self.step and self.job is not None else None
+        settings = () if part is None else part.settings
+        text = Text()
+        for setting in settings:  # the meaning carries the tolerance: "... 58.7 mm (+-5.3 mm)"
+            if text:
+                text.append("\n")
+            text.append(f"{setting.name} = {setting.value:.1f} {setting.unit}", style="bold")
+            text.append(f"  [{HOW_TEXT.get(setting.set_with, setting.set_with)}]  ", style="cyan")
+            text.append(setting.meaning)
+        lines.update(text)
+        lines.display = bool(settings)
 
     @work(thread=True, exclusive=True, group="projector")
     def _project(self, step: int) -> None:
