@@ -334,3 +334,31 @@ async def test_e_names_the_export_by_scenario_and_layout_and_keeps_another_layou
         assert model.name.startswith("simple-simple-layout-with-model-")
         assert len({success, failure, model}) == 3 and again == success
         assert all(path.exists() and path.with_suffix(".svg").exists() for path in written)
+
+
+async def test_the_current_parts_parameters_are_shown_with_value_tolerance_and_how_to_set_them(tmp_path):
+    async with opened(tmp_path, "a") as (app, pilot):
+        screen = app.screen
+        screen.open_layout(str(SIMPLE), str(LAYOUT))
+        await settle(app, pilot)
+        assert screen.job is not None, str(screen.query_one("#status", Static).render())
+        lines = screen.query_one("#parameters", Static)
+        text = str(lines.render())
+        track = screen.job.guide.part("track")
+        assert lines.display and [line.split(" = ")[0] for line in text.splitlines()[:3]] == [
+            "track.x", "track.z", "track.roll"]
+        for setting in track.settings:  # the value, how to set it, and the words with the tolerance
+            assert f"{setting.name} = {setting.value:.1f} {setting.unit}" in text
+            assert f"{setting.tolerance.delta:.1f}" in text
+        assert "[ruler]  height above the table: its underside at the middle" in text
+        assert "[sheet + camera check]  left-right on the sheet" in text
+        assert f"tilt: {track.elevation.tilt_deg:.1f} deg" in " ".join(text.split())
+        await pilot.press("n")  # the dominoes: no design parameter moves them
+        await settle(app, pilot)
+        assert screen.step == 2 and not lines.display
+        await pilot.press("p")
+        await settle(app, pilot)
+        assert lines.display
+        await pilot.press("0")
+        await settle(app, pilot)
+        assert not lines.display
