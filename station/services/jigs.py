@@ -25,8 +25,8 @@ from station.cli_util import to_jsonable
 from station.services.errors import ServiceError
 from station.services.fabricate import DEFAULT_GAP, DEFAULT_KERF, KERF_SOURCES, SheetOutput, laser_sheets, parse_sheet
 
-__all__ = ["JIG_TAG_IDS", "JigOptions", "JigsResult", "PlannedJigs", "attach_jigs", "cut_jigs", "jigs_manifest",
-           "make_jigs", "plan_guide_jigs", "write_jig_outputs"]
+__all__ = ["JIG_TAG_IDS", "JigOptions", "JigsResult", "PlannedJigs", "attach_jigs", "check_options", "cut_jigs",
+           "jigs_manifest", "make_jigs", "plan_guide_jigs", "write_jig_outputs"]
 
 #: The AprilTag ids the jigs take, in order (module notes).
 JIG_TAG_IDS = tuple(range(500, 583))
@@ -88,10 +88,35 @@ def plan_guide_jigs(job, options: JigOptions | None = None) -> PlannedJigs:
     drivers.errors.JobRefused, drivers.profiles.ProfileError
         A profile that is not a laser's, or a material it does not have (the message lists them).
     """
-    from design.jigs import JigSettings, PartInput, plan_jigs
+    from design.jigs import PartInput, plan_jigs
     from design.robust.tolerance import CARE_RULE
-    from drivers.laser_job import material_settings
     from projector.tags import tag_cells
+
+    profile, material_name, settings, source = check_options(options)
+    guide = job.guide
+    parts = [PartInput(p.name, p.step, tuple(p.parameters), p.outline) for p in guide.parts]
+    tight = {t.parameter for p in guide.parts for t in p.tolerances
+             if t.placement_delta is not None and t.placement_delta < CARE_RULE[t.unit][0]}
+    used = {t.id for t in guide.reference_tags} | {p.tag_id for p in guide.parts if p.tag_id is not None} \
+        | {b.tag_id for p in guide.parts for b in p.body_tags}
+    free = iter([i for i in JIG_TAG_IDS if i not in used])
+    plan = plan_jigs(job.scenario, job.layout.x, guide.plane, parts, settings, tight=tight, tag_ids=free,
+                     tag_cells=tag_cells)
+    return PlannedJigs(plan, settings, profile, material_name, source)
+
+
+def check_options(options: JigOptions | None = None):
+    """``(profile, material name, design.jigs.JigSettings, kerf source)`` of ``options``, refused before any work.
+
+    Raises
+    ------
+    ServiceError
+        A bad sheet (``sheet``), kerf (``kerf``) or gap (``gap``).
+    drivers.errors.JobRefused, drivers.profiles.ProfileError
+        A profile that is not a laser's, or a material it does not have (the message lists them).
+    """
+    from design.jigs import JigSettings
+    from drivers.laser_job import material_settings
 
     options = options or JigOptions()
     profile = _profile(options.profile)
@@ -102,21 +127,13 @@ def plan_guide_jigs(job, options: JigOptions | None = None) -> PlannedJigs:
     if isinstance(sheet, str):
         sheet = parse_sheet(sheet)
     width, height = sheet if sheet is not None else (profile.width, profile.height)
-    if not (isinstance(options.gap, (int, float)) and 0 <= options.gap < min(width, height) / 4):
+    if isinstance(options.gap, bool) or not isinstance(options.gap, (int, float)) \
+            or not 0 <= options.gap < min(width, height) / 4:
         raise ServiceError(f"gap must be a length in mm from 0 to a quarter of the sheet, got {options.gap!r}",
                            field="gap", value=options.gap)
-    guide = job.guide
     settings = JigSettings(thickness=float(material.thickness), sheet=(float(width), float(height)),
                            gap=float(options.gap), kerf=float(kerf))
-    parts = [PartInput(p.name, p.step, tuple(p.parameters), p.outline) for p in guide.parts]
-    tight = {t.parameter for p in guide.parts for t in p.tolerances
-             if t.placement_delta is not None and t.placement_delta < CARE_RULE[t.unit][0]}
-    used = {t.id for t in guide.reference_tags} | {p.tag_id for p in guide.parts if p.tag_id is not None} \
-        | {b.tag_id for p in guide.parts for b in p.body_tags}
-    free = iter([i for i in JIG_TAG_IDS if i not in used])
-    plan = plan_jigs(job.scenario, job.layout.x, guide.plane, parts, settings, tight=tight, tag_ids=free,
-                     tag_cells=tag_cells)
-    return PlannedJigs(plan, settings, profile, material_name, source)
+    return profile, material_name, settings, source
 
 
 def _kerf(given: float | None, material_kerf: float | None) -> tuple[float, str]:
@@ -190,6 +207,7 @@ def make_jigs(scenario: str, layout: str | None, options: JigOptions | None = No
 
     report = Reporter.of(progress)
     options = options or JigOptions()
+    check_options(options)  # a bad sheet, kerf or material before the guide's work
     job = make_guide(scenario, layout, view=view, tolerances=tolerances, physics=physics, progress=report)
     report(PLAN_STAGE, 0, 1, "planning the jigs")
     planned = plan_guide_jigs(job, options)
