@@ -15,8 +15,9 @@ from station.services.errors import ServiceError
 #: The ``--json`` contract (the guide's manifest), quoted in the help text; keep its names.
 JSON_SHAPE = ('{"scenario", "content_hash", "view", "units": "mm", "tolerance_source", "pages": [{"index", "label", '
               '"paper", "size_mm", "origin_mm"}], "reference_tags": [{"id", "center_mm", "size_mm"}], "parts": '
-              '[{"name", "kind", "step", "tag_id", "center_mm", "heading_deg", "outline_mm", "care", "tolerances"}], '
-              '"layout", "steps"}')
+              '[{"name", "kind", "step", "tag_id", "center_mm", "heading_deg", "outline_mm", "care", "tolerances", '
+              '"parameters": [{"name", "value", "unit", "meaning", "set_with", "role", "tolerance"}]}], "layout", '
+              '"steps"}')
 
 
 def register(subparsers) -> None:
@@ -26,11 +27,13 @@ def register(subparsers) -> None:
         description="Turn a contraption layout (the optimizer's LAYOUT.json, {\"parameters\": {...}}, or a layout "
         "named in the scenario) into what a maker assembles against: every part's true outline on the guide plane "
         "(the table seen from above, or the backboard seen from the front), its assembly number, tag and heading, "
-        "the assembly steps in order, four reference AprilTags (ids 583-586) for the camera check, and for every "
-        "part how carefully it must be placed (its tolerance, from the layout's success model; --verify N checks "
-        "each by N simulations). --pdf writes the sheets at exactly 1:1, tiled over the paper with overlap, join "
-        "marks and a 100 mm scale bar to check the print; --svg one drawing in mm with a layer per kind, for a "
-        "laser or plotter to mark a board. --project shows the steps on the configured projector (or "
+        "the assembly steps in order (every design parameter in the maker's words: a height above the table as "
+        "the height of a named point of the part, a tilt in degrees and which way it falls), four reference "
+        "AprilTags (ids 583-586) for the camera check, and for every part how carefully it must be placed (its "
+        "tolerance, from the layout's success model; --verify N checks each by N simulations). --pdf writes the "
+        "sheets at exactly 1:1, tiled over the paper with overlap, join marks and a 100 mm scale bar to check the "
+        "print, and a side view of each part lifted or tilted off the sheet; --svg one drawing in mm with a layer "
+        "per kind, for a laser or plotter to mark a board. --project shows the steps on the configured projector (or "
         "--projector URL), at true scale through the calibration measured on that projector "
         "(`station calibrate projector`), else fitted to the screen, and says which. "
         f"--json prints the guide's manifest: {JSON_SHAPE}.",
