@@ -249,6 +249,7 @@ OUTPUTS = [
     (["explore", "spirograph"], "--out", ".png"),
     (["retrieve", str(SKETCH)], "--out", None),
     (["fabricate", "spirograph", "--scale", "8"], "--out", None),
+    (["jigs", "simple", "success"], "--out", None),
     (["check", "simple", "success", "--camera", "sim://camera", "--predict", "0"], "--out", ".json"),
     (["check", "simple", "success", "--camera", "sim://camera", "--predict", "0"], "--overlay", ".png"),
     (["calibrate", "board"], "--pdf", ".pdf"),
