@@ -110,10 +110,11 @@ def off_sheet_word(tolerance: ParameterTolerance, plane: GuidePlane) -> str:
     return component
 
 
-def tolerance_text(part: PartDrawing, plane: GuidePlane) -> str:
+def tolerance_text(part: PartDrawing, plane: GuidePlane, off_plane: bool = True) -> str:
     """A short line for the label: the care level and the tightest deltas on the plane (``"tight ±2.1 mm ±1.5°"``,
     the zone the check measures against); when none is on the plane, the deltas out of it named by what they bound
-    (``"height ±5.3 mm, tilt ±10.6°"``: set by hand, no camera check sees them)."""
+    (``"height ±5.3 mm, tilt ±10.6°"``: set by hand, no camera check sees them), unless ``off_plane`` is False (the
+    label's own line gives them, with their values)."""
     du, dv, dtheta = placement_deltas(part, plane)
     mm = [d for d in (du, dv) if d is not None]
     words = [part.care] if part.care else []
@@ -121,7 +122,7 @@ def tolerance_text(part: PartDrawing, plane: GuidePlane) -> str:
         words.append(f"±{min(mm):.1f} mm")
     if dtheta is not None:
         words.append(f"±{dtheta:.1f}°")
-    if mm or dtheta is not None:
+    if mm or dtheta is not None or not off_plane:
         return " ".join(words)
     off = [t for t in part.tolerances if t.placement_delta is not None and not tolerance_axes(t, plane)]
     unit = {"mm": " mm", "deg": "°"}
@@ -276,8 +277,8 @@ def place_labels(guide: Guide, width: Callable[..., float] = _default_width, *,
     labels: dict[str, Label] = {}
     radius = CIRCLE_MM / 2
     for part in guide.parts:
-        detail = tolerance_text(part, guide.plane)
         off_plane = off_plane_text(part, guide.view, symbols=True)
+        detail = tolerance_text(part, guide.plane, off_plane=not off_plane)
         text_w = max(width(part.name, NAME_MM, True), width(detail, DETAIL_MM) if detail else 0.0,
                      width(off_plane, DETAIL_MM) if off_plane else 0.0)
         box_w, box_h = CIRCLE_MM + 1.2 + text_w + 1.0, CIRCLE_MM + 1.0 + (DETAIL_MM + 0.6 if off_plane else 0.0)

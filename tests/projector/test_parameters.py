@@ -231,3 +231,15 @@ def test_a_malformed_parameters_list_is_one_clear_error():
     with pytest.raises(ProjectorError, match=r"a\.x is 2\.0 mm here and differs on another part"):
         layout_from_manifest({"parts": [{"parameters": [{"name": "a.x", "value": 1.0, "unit": "mm"}]},
                                         {"parameters": [{"name": "a.x", "value": 2.0, "unit": "mm"}]}]})
+
+
+def test_a_label_says_a_height_and_tilt_once_with_their_values():
+    scenario = _scenario("causalityswitch_ball.toml")
+    tolerances = {"track_joint.z": ParameterTolerance("track_joint.z", 3.0, "mm", 0.9),
+                  "track_joint.roll": ParameterTolerance("track_joint.roll", 1.2, "deg", 0.9)}
+    guide = build_guide(scenario, tolerances=tolerances)
+    label = place_labels(guide)["ball_track"]
+    middle = guide.part("ball_track").elevation.middle[1]
+    assert label.detail == "tight"  # the care; the deltas stand by their values on the line below
+    assert label.off_plane == (f"height {middle:.1f} mm ±3.0 mm, tilt 10.0° ±1.2°, lower end towards ball_run "
+                               "(to your left)")
