@@ -121,6 +121,7 @@ def describe_parts(scenario: Scenario, x, frames, bodies, plane: GuidePlane, dra
     overrides = check_set_with(set_with, names)
     x = np.asarray(scenario.default_layout() if x is None else x, dtype=float)
     moved = {}  # per parameter, the world frames with it moved a hair (computed once, for every part it moves)
+    spans = None  # each part's reach off the plane (mm), once one part needs it
     result = []
     for part in drawings:
         if not part.parameters:
@@ -133,7 +134,9 @@ def describe_parts(scenario: Scenario, x, frames, bodies, plane: GuidePlane, dra
             roles[name] = _role(name, frames[part.name], moved[name][part.name], plane)
         elevation = None
         if any(role in ("height", "tilt") for role, _ in roles.values()):
-            elevation = _elevation(scenario, part, frames[part.name], bodies[part.name], plane, drawings,
+            if spans is None:
+                spans = _spans(bodies, plane)
+            elevation = _elevation(scenario, part, frames[part.name], bodies[part.name], plane, drawings, spans,
                                    next((axis for role, axis in roles.values() if role == "tilt"), None))
         known = {t.parameter: t for t in part.tolerances}
         tagged = bool(part.tag_views())
@@ -262,7 +265,18 @@ def _role(name: str, before, after, plane: GuidePlane) -> tuple[str, np.ndarray 
 
 # -- the part seen from the side ----------------------------------------------------------------------------------
 
-def _elevation(scenario, part: PartDrawing, frame, group, plane: GuidePlane, drawings, tilt_axis) -> Elevation:
+def _spans(bodies, plane: GuidePlane) -> dict[str, tuple[float, float]]:
+    """Each part's lowest and highest point off the plane (mm)."""
+    spans = {}
+    for name, group in bodies.items():
+        points = np.concatenate([b.world_points() for b in group])
+        heights = 1000.0 * (points - plane.origin) @ plane.normal
+        spans[name] = (float(heights.min()), float(heights.max())) if len(heights) else (0.0, 0.0)
+    return spans
+
+
+def _elevation(scenario, part: PartDrawing, frame, group, plane: GuidePlane, drawings, spans,
+               tilt_axis) -> Elevation:
     normal = np.asarray(plane.normal, dtype=float)
     if tilt_axis is not None:
         direction = np.cross(tilt_axis, normal)
@@ -303,7 +317,8 @@ def _elevation(scenario, part: PartDrawing, frame, group, plane: GuidePlane, dra
     if tilt >= 0.05:
         out = 1.0 if s[low] >= s[high] else -1.0
         start = plane.to_plane(points[low])[0]
-        toward = _toward(scenario, part, drawings, start, out * np.array([du, dv]), plane.view)
+        toward = _toward(scenario, part, drawings, spans, start, float(h[low]), out * np.array([du, dv]),
+                         plane.view)
     return Elevation(direction_uv=(du, dv), seen_from=_seen_from(direction, normal, plane), profile=profile,
                      ends=((float(s[low]), float(h[low])), (float(s[high]), float(h[high]))),
                      middle=(middle_s, middle_h), tilt_deg=tilt, toward=toward)
@@ -348,9 +363,11 @@ def _direction_words(uv, view: str) -> str:
     return " and ".join(text for size, text in said if size >= 0.38) or said[0][1]
 
 
-def _toward(scenario, part: PartDrawing, drawings, start, out, view: str) -> str:
-    """``"towards `dominoes` (to your right)"``: the nearest other part in a strip from ``start`` along ``out``
-    (none riding on this part), and the direction in the maker's words."""
+def _toward(scenario, part: PartDrawing, drawings, spans, start, height: float, out, view: str) -> str:
+    """``"towards `dominoes` (to your right)"``: the nearest other part in a strip from ``start`` (the lower end, at
+    ``height`` off the plane) along ``out`` (none riding on this part), nearest counting how far above or below
+    that height the part lies (a part far under the lower end is not what it points at), and the direction in the
+    maker's words."""
     out = np.asarray(out, dtype=float) / max(float(np.linalg.norm(out)), 1e-12)
     riders = _riders(scenario, part.name)
     across = np.array([-out[1], out[0]])
@@ -366,7 +383,8 @@ def _toward(scenario, part: PartDrawing, drawings, start, out, view: str) -> str
         seen = other.outline.intersection(strip)
         if seen.is_empty:
             continue
-        distance = origin.distance(seen)
+        low, high = spans.get(other.name, (height, height))
+        distance = math.hypot(origin.distance(seen), max(low - height, height - high, 0.0))
         if distance < best_distance:
             best, best_distance = other.name, distance
     where = _direction_words(out, view)
