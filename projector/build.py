@@ -66,7 +66,7 @@ from projector.outline import PlacedBody, Surface, fit_tag, part_outline
 from projector.parameters import check_set_with, describe_parts, how_text
 from projector.plane import VIEWS, guide_plane, heading_in_plane, plane_normals, range_axes
 
-__all__ = ["AUTO_TAG_SIZES_MM", "build_guide", "choose_view", "steps_text"]
+__all__ = ["AUTO_TAG_SIZES_MM", "build_guide", "choose_view", "steps_text", "with_jigs"]
 
 #: The tag sizes tried, largest first (the black square's edge, mm). None under 15 mm: a camera 1 m above the
 #: plane at f = 1400 px sees a 10 mm tag 14 px across, too few for the detector to decode it reliably
@@ -148,6 +148,23 @@ def build_guide(scenario: Scenario, x=None, *, view: str | None = None,
     return Guide(scenario=scenario.name, content_hash=scenario.content_hash, plane=plane, parts=tuple(drawings),
                  reference_tags=references, extent_mm=_extent(drawings, references),
                  tolerance_source=_source(tolerances))
+
+
+def with_jigs(guide: Guide, jigs) -> Guide:
+    """The guide with the laser-cut jigs its steps use (:class:`~projector.guide.JigDrawing`): the reference tags
+    move out to clear their footprints too (a stand's base reaches past its part), and the extent takes them in."""
+    jigs = tuple(jigs)
+    size = guide.reference_tags[0].size_mm if guide.reference_tags else 40.0
+    drawn = [*guide.parts, *(_Outline(j.footprint) for j in jigs if not j.footprint.is_empty)]
+    references = _reference_tags(drawn, size)
+    return replace(guide, jigs=jigs, reference_tags=references, extent_mm=_extent(drawn, references))
+
+
+class _Outline:
+    """Something drawn on the plane with an outline (a jig's footprint), for the extent and the reference tags."""
+
+    def __init__(self, outline) -> None:
+        self.outline = outline
 
 
 def choose_view(scenario: Scenario, frames, bodies: Mapping[str, list[PlacedBody]], points: np.ndarray) -> str:

@@ -41,6 +41,7 @@ CURRENT_FILL, CURRENT_EDGE = (40, 190, 255), (255, 255, 255)
 PLACED_FILL, PLACED_EDGE = (38, 38, 38), (105, 105, 105)
 STATIC_FILL, STATIC_EDGE = (24, 30, 52), (80, 100, 150)
 ARROW = (255, 255, 150)
+JIG_EDGE = (230, 160, 80)  # a laser-cut jig's footprint: the current part's, laid before the part
 WARNING = (255, 140, 0)
 GRID, GRID_MAJOR = (45, 45, 45), (90, 90, 90)
 CARE_COLOURS = {"tight": (255, 60, 60), "normal": (255, 205, 0), "loose": (70, 235, 70), None: (190, 190, 190)}
@@ -204,8 +205,13 @@ class _Canvas:
             self._fill(image, part.outline, STATIC_FILL if static else PLACED_FILL, 1.0)
             self._edges(image, _rings(part.outline), STATIC_EDGE if static else PLACED_EDGE, 1)
             self._text(image, str(part.step), self._px(part.center_mm)[0], PLACED_EDGE, 0.8, centre=True)
-        self._current(image, self.guide.parts[k - 1])
         part = self.guide.parts[k - 1]
+        for jig in self.guide.jigs:  # the current part's jig first: it is laid before the part
+            if jig.part == part.name:
+                self._edges(image, _rings(jig.footprint), JIG_EDGE, self.thick)
+                corner = self._px(np.asarray(jig.footprint.exterior.coords)).min(axis=0)
+                self._text(image, f"jig {jig.id}", corner - np.array([0.0, 0.3 * self.line]), JIG_EDGE, 0.7)
+        self._current(image, part)
         self._caption(image, [(step_caption(part, len(self.guide.parts)), WHITE),
                               (detail_caption(part, self.guide.view), WHITE)])
         return image

@@ -30,6 +30,7 @@ __all__ = [
     "Guide",
     "GuidePage",
     "GuidePlane",
+    "JigDrawing",
     "PartDrawing",
     "PartKind",
     "PartParameter",
@@ -314,6 +315,42 @@ class PartDrawing:
 
 
 @dataclass(frozen=True)
+class JigDrawing:
+    """A laser-cut placement jig on the guide (:mod:`design.jigs`): where it lies and what the maker does with it.
+
+    Parameters
+    ----------
+    id : str
+        ``"J1"``...
+    part : str
+        The part it sets.
+    kind : str
+        ``"stand"``, ``"board stand"`` or ``"template"``.
+    footprint : shapely Polygon
+        Where it lies on the plane (a stand's base, a board stand's plate, a template), mm.
+    parameters : tuple of str
+        The layout parameters it sets.
+    words : str
+        What the maker does with it, in the part's step.
+    tag_id : int or None
+        Its engraved AprilTag; ``tag_center_mm``, ``tag_size_mm``, ``tag_height_mm``, ``tag_heading_deg`` as a
+        part's.
+    """
+
+    id: str
+    part: str
+    kind: str
+    footprint: BaseGeometry
+    parameters: tuple[str, ...] = ()
+    words: str = ""
+    tag_id: int | None = None
+    tag_center_mm: tuple[float, float] | None = None
+    tag_size_mm: float = 20.0
+    tag_height_mm: float = 0.0
+    tag_heading_deg: float = 0.0
+
+
+@dataclass(frozen=True)
 class ReferenceTag:
     """One of the four tags that locate the guide plane (printed on the sheets, seen by the camera)."""
 
@@ -373,6 +410,8 @@ class Guide:
         Why the tolerances come from there, when it is not the obvious (the sheet says it).
     headline : str or None
         The layout's physical success on the table, in the station's words, when it is known (the sheet shows it).
+    jigs : tuple of JigDrawing
+        The laser-cut jigs the steps use (empty unless asked for: ``station guide --jigs``).
     """
 
     scenario: str
@@ -385,6 +424,7 @@ class Guide:
     pages: tuple[GuidePage, ...] = field(default=())
     tolerance_note: str | None = None
     headline: str | None = None
+    jigs: tuple[JigDrawing, ...] = ()
 
     @property
     def view(self) -> str:
@@ -409,7 +449,9 @@ class Guide:
                                         "bound_limited"}],
                         "body_tags": [{"body", "tag_id", "tag_center_mm", "tag_size_mm", "tag_height_mm",
                                        "tag_heading_deg", "center_mm", "heading_deg"}],
-                        "parameters": [{"name", "value", "unit", "meaning", "set_with", "role", "tolerance"}]}]}
+                        "parameters": [{"name", "value", "unit", "meaning", "set_with", "role", "tolerance"}]}],
+             "jigs": [{"id", "part", "kind", "parameters", "words", "footprint_mm": [[u, v], ...], "tag_id",
+                       "tag_center_mm", "tag_size_mm", "tag_height_mm", "tag_heading_deg"}]}
 
         ``outline_mm`` is a list of polygons, each its exterior ring (holes are not needed to place a part).
         ``parameters``: every design parameter that moves the part, ``value`` in ``unit`` (``"mm"`` or ``"deg"``),
@@ -434,6 +476,14 @@ class Guide:
                 for t in self.reference_tags
             ],
             "parts": [_part_manifest(p) for p in self.parts],
+            "jigs": [
+                {"id": j.id, "part": j.part, "kind": j.kind, "parameters": list(j.parameters), "words": j.words,
+                 "footprint_mm": _rings(j.footprint)[0] if not j.footprint.is_empty else [], "tag_id": j.tag_id,
+                 "tag_center_mm": None if j.tag_center_mm is None else [*map(_r, j.tag_center_mm)],
+                 "tag_size_mm": _r(j.tag_size_mm), "tag_height_mm": _r(j.tag_height_mm),
+                 "tag_heading_deg": _r(j.tag_heading_deg)}
+                for j in self.jigs
+            ],
         }
 
 

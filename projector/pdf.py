@@ -2,9 +2,9 @@
 
 Each sheet shows its part of the guide plane (1 mm on the plane is 1 mm on paper: reportlab's ``mm`` unit), clipped
 to its drawing area: a light grey 10 mm grid labelled every 50 mm in guide millimetres (the lines to join sheets by),
-the parts (placed ones solid, static ones hatched grey), their numbered labels, heading arrows, tolerance zones and
-arcs coloured by care, where each part's tag goes, the four reference tags at their exact size, join marks in the
-overlaps, and in the footer the page map and a 100 mm scale bar to check the print. The last page(s)
+the footprints of the laser-cut jigs the steps use, the parts (placed ones solid, static ones hatched grey), their
+numbered labels, heading arrows, tolerance zones and arcs coloured by care, where each part's tag goes, the four
+reference tags at their exact size, join marks in the overlaps, and in the footer the page map and a 100 mm scale bar to check the print. The last page(s)
 (:mod:`projector.pdf_lists`) list the parts, the steps and the tolerances.
 """
 
@@ -45,6 +45,7 @@ GRID_LIGHT, GRID_DARK = 0.86, 0.68  # grey levels of the 10 mm and 50 mm lines
 INK = (0.0, 0.0, 0.0)
 ARROW_COLOR = (0.1, 0.25, 0.65)
 STATIC_FILL = 0.86
+JIG_FILL, JIG_EDGE = (0.96, 0.91, 0.82), (0.55, 0.35, 0.15)  # a laser-cut jig's footprint: light wood, brown edge
 
 
 def write_pdf(guide: Guide, stream_or_path: BinaryIO | str | PathLike, *, paper: str = "a4",
@@ -179,8 +180,10 @@ def _grid(canvas, area) -> None:
 
 
 def _drawing(canvas, guide: Guide, labels: dict[str, Label]) -> None:
-    """Everything on the guide plane, back to front: tolerance zones, parts, where their tags go, heading arrows,
-    reference tags, labels."""
+    """Everything on the guide plane, back to front: the jigs' footprints, tolerance zones, parts, where their tags
+    go, heading arrows, reference tags, labels."""
+    for jig in guide.jigs:
+        _jig(canvas, guide, jig)
     for part in guide.parts:
         du, dv, _ = placement_deltas(part, guide.plane)
         zone = tolerance_zone(part.outline, du, dv)
@@ -213,6 +216,26 @@ def _drawing(canvas, guide: Guide, labels: dict[str, Label]) -> None:
                                  f"reference tag {tag.id}")
     for part in guide.parts:
         _label(canvas, labels[part.name], part)
+
+
+def _jig(canvas, guide: Guide, jig) -> None:
+    """A laser-cut jig's footprint, where the maker lays it: wood-coloured, a dashed brown edge and its name where
+    the part does not cover it."""
+    canvas.setFillColorRGB(*JIG_FILL)
+    canvas.setStrokeColorRGB(*JIG_EDGE)
+    canvas.setLineWidth(0.4)
+    canvas.setDash(2.0, 1.0)
+    _fill_geometry(canvas, jig.footprint, stroke=1, fill=1)
+    canvas.setDash()
+    try:
+        covered = guide.part(jig.part).outline
+    except KeyError:
+        covered = None
+    free = jig.footprint if covered is None else jig.footprint.difference(covered.buffer(1.0))
+    where = (free if not free.is_empty and free.area > 4.0 else jig.footprint).representative_point()
+    canvas.setFillColorRGB(*JIG_EDGE)
+    canvas.setFont(BOLD, 3.0)
+    canvas.drawCentredString(where.x, where.y - 1.0, f"jig {jig.id}")
 
 
 def _reminders(canvas, guide: Guide, labels: dict[str, Label], area, overlap_mm: float) -> None:

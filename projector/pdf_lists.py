@@ -90,7 +90,9 @@ def _story(guide: Guide, steps: list[str], title: str, frame_mm: tuple[float, fl
           "its heading; the dashed coloured zone is where its outline may lie and the coloured arc how far its "
           "heading may turn; a grey square with a dark corner is where its tag goes (the dark corner is the tag's "
           "lower-left corner, the tag's id above it); the black squares are the reference tags the camera finds "
-          "the board by (leave them uncovered); the purple targets are the join marks of two sheets."),
+          "the board by (leave them uncovered); the purple targets are the join marks of two sheets."
+          + (" A light brown zone with a dashed edge is where a laser-cut jig lies (its name in it): lay the jig on "
+             "it before the part, as its step says." if guide.jigs else "")),
         Spacer(1, 3 * mm),
         p("Parts", h2),
     ]

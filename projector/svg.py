@@ -5,7 +5,7 @@ margin. ``v`` is up on the guide plane and down in SVG, so ``y = top - v``; the 
 mapping back to guide-plane (u, v) mm. One Inkscape layer per kind, in this order:
 
 - ``outlines``: each part's outline (placed parts black, static parts grey and hatched), its centre cross and
-  heading arrow;
+  heading arrow, and the footprint of each laser-cut jig the steps use (brown, dashed);
 - ``tolerances``: the tolerance zone and the heading's arc of each part, coloured by care (red tight, orange normal,
   green loose);
 - ``tags``: where each part's tag goes (its square, first corner filled, its id), not a decodable tag;
@@ -121,6 +121,10 @@ def _rings(geometry) -> list[np.ndarray]:
 
 
 def _outlines(drawing, layer, guide: Guide, frame: _Frame) -> None:
+    for jig in guide.jigs:  # a laser-cut jig's footprint, where the maker lays it (brown, dashed)
+        group = drawing.g(id=f"jig-{jig.id}", stroke="#8c5a26", stroke_dasharray="2,1")
+        group.add(drawing.path(d=frame.path(_rings(jig.footprint), closed=True)))
+        layer.add(group)
     for part in guide.parts:
         static = part.kind == PartKind.STATIC
         group = drawing.g(id=f"outline-{part.step}", stroke="#808080" if static else "#000000")

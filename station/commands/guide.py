@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import sys
 
-from station.cli_util import add_physics_option, check_output_file, emit_json, flag_error
+from station.cli_util import add_physics_option, check_output_file, check_output_folder, emit_json, flag_error
 from station.errors import UsageError
 from station.services.errors import ServiceError
 
@@ -35,12 +35,15 @@ def register(subparsers) -> None:
         "print, and a side view of each part lifted or tilted off the sheet; --svg one drawing in mm with a layer "
         "per kind, for a laser or plotter to mark a board. --project shows the steps on the configured projector (or "
         "--projector URL), at true scale through the calibration measured on that projector "
-        "(`station calibrate projector`), else fitted to the screen, and says which. "
+        "(`station calibrate projector`), else fitted to the screen, and says which. --jigs plans the laser-cut "
+        "jigs that set the parts' heights and tilts (`station jigs`): the steps say how to use each, the sheets draw "
+        "where each stands, and --jigs DIR also writes their laser job there. "
         f"--json prints the guide's manifest: {JSON_SHAPE}.",
         epilog="examples:\n"
         "  station guide ballrun ballrun-layout.json --pdf ballrun.pdf\n"
         "  station guide simple layout.json --pdf simple.pdf --svg simple.svg --paper letter --view top\n"
         "  station guide simple layout.json --pdf simple.pdf --verify 40 --json\n"
+        "  station guide simple layout.json --pdf simple-jigs.pdf --jigs simple-jigs\n"
         "  station guide ballrun ballrun-layout.json --project --step 3",
     )
     parser.add_argument("scenario", help="scenario file, or an example's name (simple, ballrun, ...)")
@@ -62,6 +65,10 @@ def register(subparsers) -> None:
     parser.add_argument("--step", type=int, metavar="N", help="with --project: show step N (1-based)")
     parser.add_argument("--projector", metavar="URL", help="with --project: the projector (default: the station's; "
                         "sim://projector?name=NAME, display:N)")
+    parser.add_argument("--jigs", nargs="?", const="", default=None, metavar="DIR",
+                        help="use laser-cut jigs for the heights and tilts (the laser profile's default material; "
+                        "`station jigs` chooses another): the steps and sheets show them; with DIR, write their "
+                        "jigs.svg, jigs.gcode, jigs.json and sheet.png there")
     parser.add_argument("--json", action="store_true", help=f"print the guide's manifest as JSON: {JSON_SHAPE}")
     parser.set_defaults(func=run_guide)
 
@@ -78,12 +85,19 @@ def run_guide(args) -> int:
         raise UsageError("--projector goes with --project")
     pdf = check_output_file(args.pdf, {".pdf"}, "--pdf") if args.pdf is not None else None
     svg = check_output_file(args.svg, {".svg"}, "--svg") if args.svg is not None else None
+    jigs_dir = check_output_folder(args.jigs, "--jigs", "jigs.svg, jigs.gcode, jigs.json and sheet.png") \
+        if args.jigs else None
     try:
         service.check_paper(args.paper)  # before any simulation
         with ProgressView(sys.stderr, prefix="guide: ") as view:
             job = service.make_guide(args.scenario, args.layout, view=args.view, verify=args.verify, seed=args.seed,
-                                     tolerances=not args.no_tolerances, progress=view, physics=args.physics)
+                                     tolerances=not args.no_tolerances, progress=view, physics=args.physics,
+                                     jigs=args.jigs is not None)
         job = service.export_guide(job, pdf=pdf, svg=svg, paper=args.paper)
+        if jigs_dir is not None:
+            from station.services.jigs import cut_jigs, write_jig_outputs
+
+            written = write_jig_outputs(cut_jigs(job, job.jigs), jigs_dir)
         if args.project:
             _project(job, args.step, args.projector)
     except ServiceError as error:
@@ -92,6 +106,11 @@ def run_guide(args) -> int:
         emit_json(job.manifest())
         return 0
     _print_summary(job, pdf, svg)
+    if jigs_dir is not None:
+        count = len(job.guide.jigs)
+        print(f"wrote {count} jig{'' if count == 1 else 's'} to {jigs_dir}: "
+              + (f"{written['gcode'].name} (send it with `station send`), " if "gcode" in written else "")
+              + "jigs.json and a picture of each")
     return 0
 
 

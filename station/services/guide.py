@@ -40,6 +40,8 @@ class GuideJob:
         The tolerance map, None when none was asked for (or for the scenario's own layout).
     scenario : design.contraption.Scenario
         The scenario.
+    jigs : station.services.jigs.PlannedJigs or None
+        The laser-cut jigs the steps use, when asked for (their footprints are on the guide).
     """
 
     guide: Guide
@@ -47,6 +49,7 @@ class GuideJob:
     layout: object
     tolerances: object | None
     scenario: object
+    jigs: object | None = None
 
     def manifest(self) -> dict:
         """The guide's manifest (the ``--json`` contract of ``station guide``) plus the layout it draws and steps.
@@ -76,7 +79,8 @@ def portable_name(path: str | Path) -> str:
 
 def make_guide(scenario: str, layout: str | None, *, view: str | None = None, verify: int = 0, seed: int = 0,
                tolerances: bool = True, progress: Reporter | ProgressCallback | None = None,
-               physics: str | None = None, set_with: Mapping[str, str] | None = None) -> GuideJob:
+               physics: str | None = None, set_with: Mapping[str, str] | None = None,
+               jigs=None) -> GuideJob:
     """Build the guide of ``layout`` (a LAYOUT.json, any form :mod:`design.contraption.layout_io` reads, a layout
     named in the scenario, or None for the scenario's own layout) for ``scenario`` (a file or an example's name).
 
@@ -98,6 +102,10 @@ def make_guide(scenario: str, layout: str | None, *, view: str | None = None, ve
     set_with : mapping of str to str, optional
         Per layout parameter, how the guide tells the maker to set it (``"jig"`` for one a laser-cut jig sets:
         :data:`projector.guide.SET_WITH`); the others as :mod:`projector.parameters` says.
+    jigs : True or station.services.jigs.JigOptions, optional
+        Plan the laser-cut jigs of the layout (for the profile's material, or the options' one): the parameters
+        they set are set ``"jig"``, the sheets draw their footprints and the steps say how to use them
+        (:func:`station.services.jigs.attach_jigs`); the plan is the job's ``jigs``.
 
     Raises
     ------
@@ -136,7 +144,12 @@ def make_guide(scenario: str, layout: str | None, *, view: str | None = None, ve
     guide = build_guide(loaded_scenario, loaded_layout.x, view=view, tolerances=by_parameter, set_with=set_with)
     guide = replace(guide, tolerance_note=tolerance_map.map.note if tolerance_map is not None else None,
                     headline=_layout_headline(layout))
-    return GuideJob(guide, tuple(steps_text(guide)), loaded_layout, tolerance_map, loaded_scenario)
+    job = GuideJob(guide, tuple(steps_text(guide)), loaded_layout, tolerance_map, loaded_scenario)
+    if jigs:
+        from station.services.jigs import JigOptions, attach_jigs, plan_guide_jigs
+
+        job = attach_jigs(job, plan_guide_jigs(job, jigs if isinstance(jigs, JigOptions) else None))
+    return job
 
 
 def _layout_headline(layout: str | None) -> str | None:

@@ -152,7 +152,7 @@ def attach_jigs(job, planned: PlannedJigs):
     them), each jig's footprint on the guide and its words in its part's step."""
     from dataclasses import replace as replace_job
 
-    from projector.build import build_guide, steps_text
+    from projector.build import build_guide, steps_text, with_jigs
     from projector.guide import JigDrawing
 
     plan = planned.plan
@@ -169,7 +169,7 @@ def attach_jigs(job, planned: PlannedJigs):
                                 tag_size_mm=j.tag_size_mm, tag_height_mm=j.tag_height_mm,
                                 tag_heading_deg=j.tag_heading_deg)
                      for j in plan.jigs)
-    guide = replace(guide, jigs=drawings)
+    guide = with_jigs(guide, drawings)
     steps = jig_steps(steps_text(guide), guide, plan)
     return replace_job(job, guide=guide, steps=tuple(steps), jigs=planned)
 
