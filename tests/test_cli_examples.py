@@ -123,9 +123,22 @@ def environment(home: Path) -> dict[str, str]:
 
 
 def run(command: str, folder: Path, *, answers: str | None = None, timeout: float = 600):
-    """``command`` in a shell in ``folder`` with the station home ``folder/home``."""
-    return subprocess.run(["bash", "-c", command], cwd=folder, env=environment(folder / "home"), input=answers or "",
-                          capture_output=True, text=True, timeout=timeout)
+    """``command`` in a shell in ``folder`` with the station home ``folder/home``; one that outlives ``timeout``
+    seconds is stopped as ``kill`` stops it (SIGTERM: the station shuts its simulation pools down) and fails."""
+    process = subprocess.Popen(["bash", "-c", command], cwd=folder, env=environment(folder / "home"),
+                               stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                               start_new_session=True)
+    try:
+        out, err = process.communicate(answers or "", timeout=timeout)
+    except subprocess.TimeoutExpired:
+        os.killpg(process.pid, signal.SIGTERM)
+        try:
+            out, err = process.communicate(timeout=60)
+        except subprocess.TimeoutExpired:
+            os.killpg(process.pid, signal.SIGKILL)
+            out, err = process.communicate()
+        pytest.fail(f"`{command}` did not finish within {timeout:g} s; it said:\n{err[-2000:]}")
+    return subprocess.CompletedProcess(process.args, process.returncode, out, err)
 
 
 def prepare(folder: Path, command: str) -> None:
@@ -191,6 +204,7 @@ def make_workshop(folder: Path) -> None:
     prepare(folder, "station check simple layout.json --guide guide.json --out check.json --predict 0")
     prepare(folder, "station trial export --out trials.json")
     prepare(folder, "station plot spirograph --set d=2.5 --size 150 --out spiro.gcode")
+    prepare(folder, "station jigs causalityswitch_ball success --out switch-jigs --material mdf_3mm --sheet 300x200")
     if shutil.which("openssl"):
         subprocess.run(["openssl", "req", "-x509", "-newkey", "rsa:2048", "-nodes", "-keyout", "station.key", "-out",
                         "station.pem", "-days", "2", "-subj", "/CN=localhost"], cwd=folder, check=True,
@@ -246,7 +260,7 @@ def test_every_table_names_an_example():
 def test_the_example_runs_as_written(example, workshop, tmp_path):
     folder = tmp_path / "workshop"
     shutil.copytree(workshop, folder, symlinks=True)
-    done = run(example, folder, answers=ANSWERS.get(example), timeout=900)
+    done = run(example, folder, answers=ANSWERS.get(example), timeout=4 * 3600 if example in SLOW else 900)
     tail = "\n".join((done.stderr.strip() or done.stdout.strip()).splitlines()[-8:])
     assert done.returncode == 0, f"`{example}` exited {done.returncode}:\n{tail}"
     assert "Traceback" not in done.stderr + done.stdout, f"`{example}` printed a traceback:\n{done.stderr}"

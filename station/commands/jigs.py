@@ -37,7 +37,7 @@ def register(subparsers) -> None:
         "  station jigs simple layout.json --out simple-jigs\n"
         "  station jigs causalityswitch_ball success --out switch-jigs --material mdf_3mm --sheet 300x200\n"
         "  station jigs branching success --out branching-jigs --kerf 0.2 --json\n"
-        "  station send simple-jigs/jigs.gcode --port 'sim://grbl?profile=laser&time_scale=0.01'",
+        "  station send switch-jigs/jigs.gcode --port 'sim://grbl?profile=laser&time_scale=0.01'",
     )
     parser.add_argument("scenario", help="scenario file, or an example's name (simple, branching, ...)")
     parser.add_argument("layout", help="layout file (LAYOUT.json, {\"parameters\": {...}}) or a layout named in the "
