@@ -23,6 +23,17 @@ After any banner (power-up or reset) or alarm, the character counter is cleared;
 ignored until the reset banner (the soft-limit line's ``ok`` arrives only after the reset). An ``ok`` is never
 invented: a lost one stops the stream with a clear message.
 
+A hard or soft limit (ALARM:1, ALARM:2) leaves GRBL in its critical-event loop (``protocol_exec_rt_system``): it
+answers nothing, not even ``?``, until a soft reset, and a reset that arrives before GRBL has printed
+``[MSG:Reset to continue]`` is swallowed by that loop. So the status thread sends the reset itself once GRBL asks for
+it (or a moment after the alarm), and again while no banner follows; meanwhile the silence watchdog rests. After the
+reset GRBL is still locked: :meth:`GrblConnection.recover` unlocks it (``$X``) only after ALARM:2, whose position GRBL
+kept; after ALARM:1 it stays locked for homing.
+
+Status reports come in whatever form ``$10`` asks for (``MPos`` or ``WPos``, with or without ``Bf``): the connection
+never changes that setting. Each report is completed with the other position from the work offset GRBL reports
+(``WCO``, or ``$#`` and ``$G`` until a report brings one), so callers always find both ``mpos`` and ``wpos``.
+
 Why this module stays over 600 lines: :class:`GrblConnection` is one class on purpose. Its reader thread, its
 streamer and its real-time path share one lock, one count of the bytes in GRBL's RX buffer and one fault state, and
 the rules that keep a machine safe hold across all three (never more than one RX buffer of G-code in flight, an
@@ -39,7 +50,7 @@ import threading
 import time
 from collections import deque
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import serial
 
@@ -47,6 +58,7 @@ from drivers.errors import DeviceStateError, PortError, ProtocolError
 from drivers.gcode import clean_line
 from drivers.grbl.machine_settings import MachineSettings
 from drivers.grbl.protocol import (
+    CRITICAL_ALARMS,
     Alarm,
     Banner,
     Error,
@@ -66,6 +78,12 @@ __all__ = ["GrblConnection", "LineResult", "StreamStopped", "open_port"]
 
 DEFAULT_RX_SIZE = 128
 DEFAULT_PLANNER_SIZE = 15
+#: Seconds after ALARM:1/2 before the reset is sent when GRBL has not said ``[MSG:Reset to continue]`` (a lost line).
+CRITICAL_RESET_DELAY = 0.5
+#: Seconds to wait for the banner after such a reset before sending another (the first may have come too early).
+CRITICAL_RESET_RETRY = 1.0
+#: Resets sent after ALARM:1/2 without a banner before the controller counts as gone.
+CRITICAL_RESET_TRIES = 5
 
 
 def open_port(url: str, baud: int = 115200, timeout: float = 0.05) -> serial.SerialBase:
@@ -183,6 +201,11 @@ class GrblConnection(MachineSettings):
         self._pending: deque[_Pending] = deque()
         self._ignore_oks = 0  # stale replies still to come after an alarm (at most one: GRBL runs one line at a time)
         self._expect_banner = False
+        self._owed_banners: deque[float] = deque()  # when each soft reset not answered by a banner yet was sent
+        self._reset_sent_at = 0.0  # monotonic time of the last soft reset written
+        self._critical_since: float | None = None  # ALARM:1/2 came at this time and no banner since
+        self._critical_asked = False  # GRBL said "[MSG:Reset to continue]" since then
+        self._critical_resets = 0  # resets sent since then
         self._banner_count = 0
         self._last_rx = 0.0  # monotonic time of the last byte read (reader thread)
         self._reader_beat = 0.0  # monotonic time the reader thread last went round its loop
@@ -204,7 +227,7 @@ class GrblConnection(MachineSettings):
     def open(self) -> GrblConnection:
         """Open the port, wait for the banner (soft-reset if none comes), read ``$I``, ``$$``, ``$#``, ``$G``.
 
-        Makes sure status reports carry ``Bf`` (``$10`` bit 1), which the lost-``ok`` watchdog needs.
+        Changes no setting: status reports are read in the form ``$10`` gives them (see the module docstring).
         """
         self.port = open_port(self.url, self.baud)
         self._stop.clear()
@@ -224,11 +247,6 @@ class GrblConnection(MachineSettings):
         self._threads.append(poller)
         poller.start()  # before the first queries: the lost-reply watchdog needs status reports
         self.refresh()
-        if int(self.settings.get(10, 0)) & 2 == 0:
-            value = int(self.settings.get(10, 1)) | 2
-            self._log("info", f"status reports need buffer data: setting $10={value}")
-            self.command(f"$10={value}", timeout=2.0, retries=2)  # idempotent
-            self.settings[10] = value
         self.fresh_status()
         return self
 
@@ -256,15 +274,17 @@ class GrblConnection(MachineSettings):
                 self.firmware = parse_version(reply.text)
                 self.version = self.firmware.version
         self.settings = {r.key: r.value for r in self.command("$$", retries=2) if isinstance(r, SettingLine)}
-        self.offsets = {}
-        self.wco = None  # until a status report brings it again, the offsets below are the truth
+        offsets = {}
         for reply in self.command("$#", retries=2):
             if isinstance(reply, Feedback):
                 values = reply.text.split(":")[0]
                 try:
-                    self.offsets[reply.kind] = tuple(float(v) for v in values.split(","))
+                    offsets[reply.kind] = tuple(float(v) for v in values.split(","))
                 except ValueError:
                     continue
+        with self._lock:  # one change, so that status reports meanwhile are completed with one set of offsets
+            self.offsets = offsets
+            self.wco = None  # until a status report brings it again, these offsets are the truth
         for reply in self.command("$G", retries=2):
             if isinstance(reply, Feedback) and reply.kind == "GC":
                 self.parser_state = reply.text
@@ -328,6 +348,22 @@ class GrblConnection(MachineSettings):
         tlo = self.offsets.get("TLO", (0.0,))[0]
         return (base[0] + g92[0], base[1] + g92[1], base[2] + g92[2] + tlo)
 
+    def _completed(self, status: StatusReport) -> StatusReport:
+        """``status`` with both positions: GRBL sends ``MPos`` or ``WPos`` as ``$10`` bit 0 says, and WPos = MPos -
+        WCO with the WCO of this report, of the last report that had one, or from ``$#``/``$G`` before any did."""
+        if (status.mpos is None) == (status.wpos is None):
+            return status
+        if self.wco is None and not self.offsets:
+            return status  # connecting: no offset known yet
+        wco = self.work_offset()
+        return replace(status, mpos=status.machine_position(wco), wpos=status.work_position(wco))
+
+    @property
+    def alarm_locked(self) -> bool:
+        """True from ALARM:1/2 until the reset's banner: GRBL answers nothing meanwhile (see the module docstring)."""
+        with self._lock:
+            return self._critical_since is not None
+
     # ------------------------------------------------------------------ writing
 
     def _write(self, data: bytes, stop: threading.Event | None = None) -> bool:
@@ -355,6 +391,8 @@ class GrblConnection(MachineSettings):
         if byte == b"\x18":
             with self._lock:
                 self._expect_banner = True
+                self._reset_sent_at = time.monotonic()
+                self._owed_banners.append(self._reset_sent_at)  # a reset sent again may be answered twice
         self._write(byte)
 
     def feed_hold(self) -> None:
@@ -393,6 +431,39 @@ class GrblConnection(MachineSettings):
             return True
         return self._wait_for(lambda: self._banner_count > banners or self.position_lost,
                               timeout or self.banner_timeout) and not self.position_lost
+
+    def recover(self) -> str:
+        """After a stream stopped (an error, an alarm, a lost ``ok``): reset GRBL (motion stops, the laser goes off)
+        and unlock it where that is safe. Returns what was done, for the user.
+
+        After ALARM:1/2 the status thread sends the reset (GRBL asks for it and answers nothing else): this waits for
+        its banner. GRBL is then still locked: after ALARM:2 (a soft limit: "Machine position retained. Alarm may be
+        safely unlocked") this sends ``$X``; after ALARM:1 (a hard limit, the position likely lost) it stays locked
+        for homing. Any other stop gets a soft reset here, and no unlock (ALARM:3 after a reset in motion means the
+        position is lost too).
+        """
+        with self._lock:
+            critical = self._critical_since is not None
+            alarm = self.alarm
+        if critical:
+            ok = self._wait_for(lambda: self._critical_since is None or self.position_lost,
+                                CRITICAL_RESET_DELAY + CRITICAL_RESET_TRIES * CRITICAL_RESET_RETRY
+                                + self.poll_interval * 2) and not self.position_lost
+            if not ok:
+                return ""
+        elif not self.soft_reset(wait=True):
+            return ""
+        status = self.fresh_status()
+        if status is None or status.state != "Alarm":
+            return "GRBL reset"
+        if alarm is not None and alarm.code == 2 and critical:
+            try:
+                self.command("$X", timeout=3.0)
+            except (ProtocolError, DeviceStateError) as error:
+                return f"GRBL reset, still locked ($X failed: {error})"
+            self.fresh_status()  # Idle: the alarm is over (see _handle)
+            return "GRBL reset and unlocked ($X; a soft limit keeps the position)"
+        return "GRBL reset, still locked"
 
     def command(self, line: str, timeout: float | None = None, retries: int = 0) -> list:
         """Send-response: send ``line`` alone (after every pending line is answered) and return the messages that
@@ -642,10 +713,11 @@ class GrblConnection(MachineSettings):
             if isinstance(message, (Ok, Error)):
                 self._reply(message, text)
             elif isinstance(message, StatusReport):
-                self.status = message
-                self.status_time = time.monotonic()
                 if message.wco is not None:
                     self.wco = message.wco
+                message = self._completed(message)
+                self.status = message
+                self.status_time = time.monotonic()
                 if self.alarm is not None and self._reset_since_alarm and message.state != "Alarm":
                     self.alarm = None  # unlocked or homed after the alarm's reset
                 self._check_lost_ok(message)
@@ -657,11 +729,23 @@ class GrblConnection(MachineSettings):
                 self._clear_counter("alarm")
                 # the line that raised it may still be answered: after the reset (soft limit) or at once (probe)
                 self._ignore_oks = 1
+                if message.code in CRITICAL_ALARMS:
+                    self._critical_since = time.monotonic()
+                    self._critical_asked = False
+                    self._critical_resets = 0
             elif isinstance(message, Banner):
                 self.version = self.version or message.version
                 self.firmware = self.firmware if self.firmware.version else VersionInfo(message.version)
-                unexpected = not self._expect_banner
+                now = time.monotonic()
+                while self._owed_banners and now - self._owed_banners[0] > 2 * max(self.banner_timeout,
+                                                                                     CRITICAL_RESET_RETRY):
+                    self._owed_banners.popleft()  # that reset never got an answer (lost in GRBL's alarm loop)
+                owed = bool(self._owed_banners)
+                if owed:
+                    self._owed_banners.popleft()
+                unexpected = not (self._expect_banner or owed)
                 self._expect_banner = False
+                self._critical_since = None
                 self._ignore_oks = 0
                 self._clear_counter("reset")
                 self._banner_count += 1
@@ -677,6 +761,8 @@ class GrblConnection(MachineSettings):
                     self._pending[0].result.replies.append(message)
                 if isinstance(message, Feedback) and message.kind == "MSG":
                     self.messages.append(message.text)
+                    if message.text == "Reset to continue" and self._critical_since is not None:
+                        self._critical_asked = True  # printed just before GRBL starts waiting for the reset
             elif isinstance(message, Garbled):
                 self._log("info", f"ignored unrecognized line {text!r}")
             self._cond.notify_all()
@@ -742,6 +828,12 @@ class GrblConnection(MachineSettings):
             if self.position_lost:
                 return
             previous, tick = tick, time.monotonic()
+            if self._critical_since is not None:
+                # GRBL answers nothing until it is reset: send the reset instead of '?' (the watchdog rests)
+                self._silence.reset()
+                if not self._reset_critical(tick):
+                    return
+                continue
             if self._silence.step(previous, tick, last_rx=self._last_rx, reader_beat=self._reader_beat,
                                   paused=self._reports_paused, waiting=self._bytes_waiting):
                 self._port_lost(self._silence.describe())
@@ -752,6 +844,33 @@ class GrblConnection(MachineSettings):
             except (PortError, DeviceStateError):
                 return
             self._silence.asked(asked)  # taken before the write: a reply can only be read after it
+
+    def _reset_critical(self, now: float) -> bool:
+        """One tick of the status thread while GRBL waits for a reset after ALARM:1/2: send it when due. False when the
+        port is gone (the thread ends)."""
+        with self._lock:
+            since = self._critical_since
+            if since is None:
+                return True
+            if self._reset_sent_at > since:
+                due = now - self._reset_sent_at >= CRITICAL_RESET_RETRY  # no banner: that reset came too early
+            else:
+                due = self._critical_asked or now - since >= CRITICAL_RESET_DELAY
+            tries = self._critical_resets
+            alarm = self.alarm
+        if not due:
+            return True
+        if tries >= CRITICAL_RESET_TRIES:
+            self._port_lost(f"no banner after {tries} soft resets following {alarm or 'a limit alarm'}")
+            return False
+        with self._lock:
+            self._critical_resets += 1
+        self._log("info", f"{alarm}: GRBL waits for a reset; sending it" + (f" (again, {tries + 1})" if tries else ""))
+        try:
+            self.realtime(b"\x18")
+        except (PortError, DeviceStateError):
+            return False
+        return True
 
     def _bytes_waiting(self) -> int:
         try:

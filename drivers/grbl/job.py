@@ -412,10 +412,12 @@ class JobRunner:
         status_before = conn.status
         lost_ok = reason == "fault" and "lost ok" in (conn.fault or "")
         fault_text = conn.fault
-        # Leave the machine safe: a reset stops everything and switches the laser off in the controller.
-        # (After an abort the reset was sent already; alarms 1 and 2 need one to continue.)
+        alarm = conn.alarm if reason == "alarm" else None
+        # Leave the machine safe: a reset stops everything and switches the laser off in the controller (after
+        # alarms 1 and 2 GRBL waits for it, and after 2 it is unlocked again). After an abort it was sent already.
+        recovered = ""
         if not aborted:
-            conn.soft_reset(wait=True)
+            recovered = conn.recover()
         else:
             conn.wait_for(lambda: not conn._expect_banner or conn.position_lost, conn.banner_timeout)
         conn.wait_for(lambda: conn.status is not None and conn.status.state in ("Idle", "Alarm"), 1.0)
@@ -445,8 +447,10 @@ class JobRunner:
                 message += f"; {alarm}; {alarm.recovery}"
             return self._finish("aborted", message + where, laser_off=laser_off, resume=resume)
         message = f"job stopped: {stopped}"
-        if conn.alarm is not None and reason == "alarm":
-            message = f"job stopped by {conn.alarm}; {conn.alarm.recovery}"
+        if alarm is not None:
+            locked = conn.alarm is not None or not recovered
+            message = f"job stopped by {alarm}; " + (f"{recovered}; " if recovered else "") + (
+                alarm.recovery if locked else alarm.cause)
         return self._finish("stopped", message + where, laser_off=laser_off, resume=resume)
 
     def _resume_line(self, status) -> int | None:

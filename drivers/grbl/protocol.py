@@ -9,6 +9,7 @@ from drivers.errors import ProtocolError
 
 __all__ = [
     "ALARM_CODES",
+    "CRITICAL_ALARMS",
     "ERROR_CODES",
     "SYNC_COMMANDS",
     "Alarm",
@@ -83,11 +84,20 @@ ALARM_CODES: dict[int, str] = {
     10: "Homing fail. Second dual axis limit switch failed to trigger within configured search distance.",
 }
 
-#: Recovery advice per alarm, shown with the alarm.
+#: Alarms after which GRBL answers nothing but a soft reset (hard and soft limits: ``protocol_exec_rt_system``
+#: "Halt everything upon a critical event flag"); the driver sends that reset itself.
+CRITICAL_ALARMS = frozenset({1, 2})
+
+#: What a limit alarm says about the job or the machine: what is left to check once GRBL is reset (and unlocked).
+ALARM_CAUSE: dict[int, str] = {
+    1: "check what hit the limit switch",
+    2: "the job goes outside the machine's travel: check its extent and the work offset",
+}
+
+#: Recovery advice per alarm, shown with the alarm (after 1 and 2 the driver sends the reset GRBL waits for).
 ALARM_RECOVERY: dict[int, str] = {
-    1: "check what hit the limit switch, then reset and home ($H)",
-    2: "reset, then unlock ($X) or home ($H); the job goes outside the machine's travel: check its extent and "
-    "the work offset",
+    1: "check what hit the limit switch, then home ($H): the position is likely lost",
+    2: "unlock ($X; the position is kept) or home ($H); " + ALARM_CAUSE[2],
     3: "position is lost: home ($H) before any job (or unlock with $X only if you re-zero by hand)",
     4: "check the probe wiring, then reset and unlock ($X)",
     5: "move the probe closer to the work, then reset and unlock ($X)",
@@ -140,6 +150,11 @@ class Alarm:
     @property
     def recovery(self) -> str:
         return ALARM_RECOVERY.get(self.code, "reset, then unlock ($X) or home ($H)")
+
+    @property
+    def cause(self) -> str:
+        """What is left to check once GRBL is reset and unlocked (the recovery advice for other alarms)."""
+        return ALARM_CAUSE.get(self.code, self.recovery)
 
     def __str__(self) -> str:
         return f"ALARM:{self.code} ({self.meaning})"
@@ -328,7 +343,7 @@ class VersionInfo:
 
     GRBL 1.1 prints ``[VER:<version>.<build date>:<build info>]`` (``report_build_info`` in report.c:
     ``"[VER:" GRBL_VERSION "." GRBL_VERSION_BUILD ":"``, then the build info string a user stores with ``$I=``, then
-    ``]``), e.g. ``[VER:1.1h.20190825:]`` with an empty build info.
+    ``]``), e.g. ``[VER:1.1h.20190830:]`` with an empty build info.
 
     Attributes
     ----------

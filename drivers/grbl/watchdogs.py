@@ -20,7 +20,10 @@ Lost ``ok``
 -----------
 :class:`LostOkWatchdog` declares a reply lost when status reports show the controller idle with empty planner and
 RX buffer while lines are still counted as pending, for ``timeout`` s plus the dwells (``G4``) of those lines. An
-``ok`` is never invented: the connection stops the stream with the message this watchdog writes.
+``ok`` is never invented: the connection stops the stream with the message this watchdog writes. A machine whose
+``$10`` leaves the buffer state (``Bf``) out of its reports is judged by its state alone: while GRBL is Idle its main
+loop reads and runs every line in its RX buffer within milliseconds (motion would make it Run, a hold Hold), so
+Idle held for the timeout with lines pending means the same.
 """
 
 from __future__ import annotations
@@ -30,7 +33,7 @@ from collections.abc import Callable, Sequence
 from typing import Protocol
 
 from drivers.gcode import GcodeError, tokenize
-from drivers.grbl.protocol import StatusReport, needs_sync
+from drivers.grbl.protocol import StatusReport
 
 __all__ = ["LostOkWatchdog", "SilenceWatchdog", "dwell_seconds", "pauses_reports"]
 
@@ -154,8 +157,7 @@ class LostOkWatchdog:
               fault: str | None, now: float) -> str | None:
         """One status report: the fault message when a lost ``ok`` is declared now, else None."""
         if status.planner_free is None or status.rx_free is None:
-            # no buffer data yet ($10 without bit 1, while connecting): only a lone send-response line can be judged
-            empty = len(pending) == 1 and needs_sync(pending[0].result.text)
+            empty = True  # no buffer state ($10 without bit 1): Idle says it (see the module docstring)
         else:
             empty = status.planner_free == planner_size and status.rx_free == rx_size
         quiet = bool(pending) and status.state in ("Idle", "Check") and empty  # Check: nothing ever moves

@@ -25,7 +25,7 @@ What it models
   for an axis homing towards +, ``-travel + $27`` for one whose ``$23`` bit is set, 0 with HOMING_FORCE_SET_ORIGIN.
   As in GRBL 1.1, ``?`` gets no answer while the cycle runs (1.5 simulated seconds): one ``<Home|...>`` report
   follows its end, however many were asked for.
-- ``$I`` prints ``[VER:1.1h.20190825:<build info>]`` (report.c's format) with the build info ``$I=`` stored.
+- ``$I`` prints ``[VER:1.1h.20190830:<build info>]`` (report.c's format) with the build info ``$I=`` stored.
 - Reset during motion: ALARM:3 and alarm lock; laser mode ``$32=1`` with M3 (constant) and M4 (dynamic) power,
   dark rapids and dark feed hold.
 - A record of what it executed (:class:`SimRecord`): every block's end position, laser power and timing, samples of
@@ -204,11 +204,15 @@ class SimulatedGrbl(Wire, SystemCommands, GcodeInterpreter, Planner):
         self.spindle_speed = 0.0
         self.tool = 0
         self._spindle_out = 0.0
+        self._laser_fs = 0.0  # laser mode: the spindle speed status reports show (set by motion, see Planner)
+        self.probe_position = np.zeros(3)  # the last probe cycle's ($# PRB:); a reset clears it
+        self.probe_succeeded = False
         self._wco_counter = 0
         self._ovr_counter = 0
         self.overrides = [100, 100, 100]
         self._home_until = 0.0
         self._report_owed = False  # a status request that came while homing
+        self._critical = False  # ALARM:1/2: GRBL serves nothing but a reset (protocol_exec_rt_system's alarm loop)
         self._fill_changed(self.clock.now())
 
     def _wco(self) -> np.ndarray:
@@ -306,6 +310,8 @@ class SimulatedGrbl(Wire, SystemCommands, GcodeInterpreter, Planner):
             return not self._planner and not self._hold and self._state not in ("Run", "Jog")
         if kind == "time":
             return now >= self._wait[1]
+        if kind == "stopped":
+            return self._decel is None
         return False
 
     def _resume_gen(self) -> None:
@@ -395,8 +401,13 @@ class SimulatedGrbl(Wire, SystemCommands, GcodeInterpreter, Planner):
         rate = 0.0
         if block is not None and not self._hold and block.duration > 0:
             rate = block.length / block.duration * self.config.time_scale * 60.0
-        spindle = self.spindle_speed if self.modal["spindle"] in (3, 4) else 0.0
+        if self._laser_mode():
+            spindle = self._laser_fs
+        else:
+            spindle = self.spindle_speed if self.modal["spindle"] in (3, 4) else 0.0
         fields.append(f"FS:{rate:.0f},{spindle:.0f}")
+        if self._probe_pin(pos):
+            fields.append("Pn:P")  # REPORT_FIELD_PIN_STATE: the probe touches
         busy = state not in ("Idle", "Alarm", "Check")
         if self._wco_counter > 0:
             self._wco_counter -= 1

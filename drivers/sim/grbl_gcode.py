@@ -16,7 +16,10 @@ from dataclasses import dataclass
 import numpy as np
 
 from drivers import gcode_words
-from drivers.sim.grbl_settings import Halt
+from drivers.sim.grbl_settings import Halt, xyz
+
+#: G38.2-G38.5: probe towards the work (alarm if nothing is touched / no alarm), away from it (the same).
+PROBE_MODES = (38.2, 38.3, 38.4, 38.5)
 
 
 class GrblError(Exception):
@@ -58,6 +61,7 @@ class _Classified:
 
 _G_GROUPS = {
     0.0: ("motion", 0), 1.0: ("motion", 1), 2.0: ("motion", 2), 3.0: ("motion", 3), 80.0: ("motion", 80),
+    38.2: ("motion", 38.2), 38.3: ("motion", 38.3), 38.4: ("motion", 38.4), 38.5: ("motion", 38.5),
     4.0: ("nonmodal", 4.0), 10.0: ("nonmodal", 10.0), 28.0: ("nonmodal", 28.0), 28.1: ("nonmodal", 28.1),
     30.0: ("nonmodal", 30.0), 30.1: ("nonmodal", 30.1), 53.0: ("nonmodal", 53.0), 92.0: ("nonmodal", 92.0),
     92.1: ("nonmodal", 92.1), 17.0: ("plane", 17), 18.0: ("plane", 18), 19.0: ("plane", 19),
@@ -190,10 +194,13 @@ class GcodeInterpreter:
         axis_user = nonmodal in (10.0, 28.0, 30.0, 92.0)
         if axis_words and not axis_user and motion == 80:
             return 31
-        uses_motion = bool(axis_words) and not axis_user and motion in (0, 1, 2, 3)
+        probe = motion in PROBE_MODES
+        if probe and "motion" in block.groups and not axis_words:
+            return 26  # [G38 Errors]: no axis words
+        uses_motion = bool(axis_words) and not axis_user and (motion in (0, 1, 2, 3) or probe)
         if "motion" in block.groups and motion in (1, 2, 3) and not axis_words and not axis_user:
             uses_motion = False
-        if uses_motion and motion in (1, 2, 3) and feed <= 0:
+        if uses_motion and (motion in (1, 2, 3) or probe) and feed <= 0:
             return 22
         if motion in (2, 3) and uses_motion:
             if not ({"I", "J", "K", "R"} & values.keys()):
@@ -288,6 +295,13 @@ class GcodeInterpreter:
                 yield from self._move(work_target(self._gc_pos), True, feed, text)
             yield from self._move(stored.copy(), True, feed, text)
             return 0
+        if uses_motion and probe:
+            target = work_target(self._gc_pos)
+            if np.allclose(target, self._gc_pos):
+                return 33  # [G38 Errors]: the target is where the head is
+            self.modal["motion"] = motion
+            yield from self._probe(target, motion, feed, text)
+            return 0
         if "motion" in block.groups:
             self.modal["motion"] = block.groups["motion"]
         if uses_motion:
@@ -306,6 +320,7 @@ class GcodeInterpreter:
                 yield "sync"
                 self._hold = True
                 self._state = "Hold:0"
+                self._hold_complete()
         elif stop in (2, 30):
             if not self._check_mode:
                 yield "sync"
@@ -323,6 +338,11 @@ class GcodeInterpreter:
 
     def _move(self, target: np.ndarray, rapid: bool, feed: float, text: str):
         if int(self.settings[20]) and not self._within_travel(target):
+            if self._state == "Run":
+                # limits_soft_check: a feed hold brings the running motion to a controlled stop (Hold:1 in the
+                # reports meanwhile), and only then comes the alarm: the position is kept
+                self._feed_hold(self._parse_time)
+                yield "stopped"
             self._soft_limit_alarm()
             raise Halt
         if self._check_mode:
@@ -335,14 +355,65 @@ class GcodeInterpreter:
             feed = length * feed if feed > 0 else feed
         self._plan(target, rapid, feed, text)
 
+    def _probe_pin(self, position: np.ndarray) -> bool:
+        """Whether the probe touches at ``position`` (machine mm): the twin's probe is a plate whose top is at machine
+        Z ``probe_z`` (the URL option); without one nothing is ever touched."""
+        return self.config.probe_z is not None and position[2] <= self.config.probe_z + 1e-9
+
+    def _probe(self, target: np.ndarray, motion: float, feed: float, text: str):
+        """G38.2 (towards the work, alarm if nothing is touched), G38.3 (the same without the alarm), G38.4/G38.5 (away
+        from it, until contact is lost), as gnea/grbl's ``mc_probe_cycle`` runs them."""
+        away, no_error = motion in (38.4, 38.5), motion in (38.3, 38.5)
+        if int(self.settings[20]) and not self._within_travel(target):
+            self._soft_limit_alarm()  # mc_line checks the probe's target like any other
+            raise Halt
+        if self._check_mode:
+            self._gc_pos = target.copy()  # GC_PROBE_CHECK_MODE: the parser takes the target
+            return
+        yield "sync"  # protocol_buffer_synchronize: the planner empties first
+        start = self.mpos.copy()
+        if self._probe_pin(start) != away:
+            self._probe_alarm(4)  # "Probe is not in the expected initial state": no motion, no [PRB:] report
+            return
+        end, contact = target, None
+        if self.config.probe_z is not None and start[2] != target[2]:
+            t = (start[2] - self.config.probe_z) / (start[2] - target[2])
+            if 0.0 <= t <= 1.0:
+                contact = start + (target - start) * t
+                # the stepper cancels the motion at contact and decelerates to a stop a little further on
+                length = float(np.linalg.norm(target - start))
+                rate = min(feed, self.settings[110], self.settings[111], self.settings[112]) / 60.0
+                stop = rate * rate / (2.0 * min(self.settings[120], self.settings[121], self.settings[122]))
+                end = contact + (target - start) / length * min(stop, length * (1.0 - t))
+        self._plan(end, False, feed, text)
+        yield "sync"  # the cycle runs until the machine is idle again
+        self._gc_pos = self.mpos.copy()
+        if contact is not None:
+            self.probe_position, self.probe_succeeded = contact, True
+        elif no_error:
+            self.probe_position, self.probe_succeeded = self.mpos.copy(), False
+        else:
+            self.probe_succeeded = False  # the last probe position stays
+            self._probe_alarm(5)
+        self._emit(f"[PRB:{xyz(self.probe_position)}:{int(self.probe_succeeded)}]")
+
+    def _probe_alarm(self, code: int) -> None:
+        # not a critical event: GRBL reports it, locks G-code (Alarm) and still answers the line and '?'
+        self._state = "Alarm"
+        self.record.alarms.append(code)
+        self._emit(f"ALARM:{code}", "alarm")
+
     def _soft_limit_alarm(self) -> None:
         now = self._parse_time
-        # GRBL feed-holds to a stop, then resets and waits for the user's reset: position is kept.
+        # GRBL has stopped (see _move), resets and spins in its critical-event loop until the user's reset:
+        # the position is kept, and nothing but a reset is served meanwhile (not even a status request).
         self.mpos = self._position(now)
         self._planner.clear()
         self._hold = False
+        self._decel = None
         self._state = "Alarm"
         self._halted = True
+        self._critical = True
         self._owed_ok = True
         self._spindle_out = 0.0
         self._sample(now, 0.0)

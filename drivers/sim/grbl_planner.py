@@ -116,9 +116,16 @@ class Planner:
                 self._hold = True
                 self._state = "Hold:0"
                 self._sample(now, 0.0 if self._laser_mode() else None)
+                self._hold_complete()
             self._fill_changed(now)
         elif self._state == "Jog":
             self._jog_cancel(now)
+
+    def _hold_complete(self) -> None:
+        # DISABLE_LASER_DURING_HOLD: in laser mode a completed hold stops the spindle (protocol_exec_rt_suspend's
+        # spindle stop override), and the status report's spindle speed reads 0 until the cycle resumes
+        if self._laser_mode():
+            self._laser_fs = 0.0
 
     def _jog_cancel(self, now: float) -> None:
         if self._state == "Jog":
@@ -133,11 +140,14 @@ class Planner:
         if self._state == "Hold:0":  # GRBL ignores cycle start until the hold is complete
             self._hold = False
             block = self._current_block()
+            if self._laser_mode() and self.modal["spindle"] in (3, 4):
+                self._emit("[MSG:Restoring spindle]")  # the spindle stop override of the hold ends
             if block is not None:
                 block.seg_start = self.mpos.copy()
                 block.t0 = now
                 block.duration = self._hold_remaining
                 self._state = "Run"
+                self._laser_fs = self._block_power(block)
             else:
                 self._state = "Idle"
             self._sample(now)
@@ -149,6 +159,7 @@ class Planner:
             self._decel = None
             self._state = "Hold:0"
             self._sample(now, 0.0 if self._laser_mode() else None)
+            self._hold_complete()
         if self._state == "Home" and now >= self._home_until:
             # where limits_go_home sets each axis: pulled off the switch, inside the machine space
             pulloff = self.settings[27]
@@ -185,6 +196,8 @@ class Planner:
             else:
                 if self._state in ("Run", "Jog"):
                     self._state = "Idle"
+                if block.spindle == 4:
+                    self._laser_fs = 0.0  # M4's power follows the speed, which is now 0 (M3 keeps its S)
                 self.record.samples.append(Sample(t_end, *map(float, self.mpos), 0.0 if self._laser_mode()
                                                   else self._spindle_out, self._state))
             self._fill_changed(t_end)
@@ -207,6 +220,8 @@ class Planner:
         block.duration = block.length / max(speed, 1e-6) * self.config.time_scale
         if self._state in ("Idle", "Run", "Jog"):
             self._state = "Jog" if block.jog else "Run"
+        # laser mode: the stepper sets the spindle speed a report shows as each block starts (0 on G0 and jogs)
+        self._laser_fs = self._block_power(block)
         self._sample(t, self._block_power(block))
 
     def _plan(self, target: np.ndarray, rapid: bool, feed: float, text: str, jog: bool = False) -> None:

@@ -21,7 +21,7 @@ from drivers.profiles.firmware import INTEGERS
 from drivers.sim.clock import CLOCKS
 
 VERSION = "1.1h"
-BUILD_DATE = "20190825"
+BUILD_DATE = "20190830"  # GRBL_VERSION_BUILD of gnea/grbl 1.1h (grbl.h)
 BANNER = f"Grbl {VERSION} ['$' for help]"
 PLANNER_BLOCKS = 15
 RX_BUFFER_SIZE = 128
@@ -50,7 +50,7 @@ def _flag(value: str) -> bool:
 #: The URL's options by name: what each takes (for messages) and how its text becomes a value.
 _OPTIONS: dict[str, tuple[str, object]] = {
     **{key: ("a number", float) for key in ("time_scale", "latency", "drop", "corrupt", "stray", "delay",
-                                            "delay_max", "pace")},
+                                            "delay_max", "pace", "probe_z")},
     **{key: ("a whole number", int) for key in ("seed", "disconnect_at", "drop_reply_at")},
     **{key: ("0 or 1", _flag) for key in ("wire", "locked", "homing", "force_origin")},
     **{key: ("text", str) for key in ("profile", "name", "record")},
@@ -84,6 +84,7 @@ class SimConfig:
     homing: bool | None = None  # None: the profile's $22
     travel: tuple[float, ...] | None = None  # $130, $131 (and $132); None: the profile's
     force_origin: bool = False  # built with HOMING_FORCE_SET_ORIGIN ('Z' in [OPT:])
+    probe_z: float | None = None  # the top of a touch plate (machine Z, mm): G38.x touches it; None: no plate
     record: str = ""  # a JSON file the record is written to when the machine stops
     clock: str = "wall"
     pace: float = 0.0  # virtual clock: at most this many simulated seconds per wall second (0: no limit)
@@ -212,7 +213,7 @@ class SystemCommands:
             self._emit(f"[G30:{xyz(self.g30)}]")
             self._emit(f"[G92:{xyz(self.g92)}]")
             self._emit(f"[TLO:{self.tlo:.3f}]")
-            self._emit("[PRB:0.000,0.000,0.000:0]")
+            self._emit(f"[PRB:{xyz(self.probe_position)}:{int(self.probe_succeeded)}]")
             return 0
         if text == "$G":
             m = self.modal

@@ -195,7 +195,13 @@ class Wire:
     # ------------------------------------------------------------------ real-time commands
 
     def _realtime(self, byte: int, now: float) -> None:
-        """A real-time byte, acted on when it arrives (GRBL's ``protocol_execute_realtime``)."""
+        """A real-time byte, acted on when it arrives (GRBL's ``protocol_execute_realtime``).
+
+        After a hard or soft limit (ALARM:1, ALARM:2) GRBL spins in ``protocol_exec_rt_system``'s critical-event loop,
+        which serves nothing but a reset: a status request, a hold or an override only sets a flag that the reset
+        then clears, so they are never answered."""
+        if self._critical and byte != REALTIME_RESET:
+            return
         if byte == REALTIME_STATUS:
             if self._state == "Home":
                 # limits_go_home has "no time to run protocol_execute_realtime()": the request waits for the end

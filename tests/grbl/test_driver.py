@@ -35,19 +35,21 @@ def test_connect_reads_buffer_size_settings_and_status(machine_url, make_connect
     conn = make_connection(machine_url)
     assert conn.rx_size >= 128 and conn.planner_size >= 15
     assert {10, 30, 32, 130, 131, 132} <= set(conn.settings)
-    assert int(conn.settings[10]) & 2  # buffer data in status reports
-    assert conn.status is not None and conn.status.planner_free is not None
+    mask = int(conn.settings[10])
+    conn.refresh()
+    assert int(conn.settings[10]) == mask  # the machine's status report mask is left as it was
+    assert conn.status is not None and conn.status.mpos is not None and conn.status.wpos is not None
     assert conn.version.startswith("1.1") and ":" not in conn.version and conn.firmware.version == conn.version
     assert any(direction == "in" for _, direction, _ in conn.log)
 
 
 def test_firmware_version_build_date_and_build_info_from_the_sim(make_connection):
     conn = make_connection(sim_url("laser"))
-    assert (conn.version, conn.firmware.build, conn.firmware.info) == ("1.1h", "20190825", "")
-    assert str(conn.firmware) == "GRBL 1.1h (build 20190825)"
+    assert (conn.version, conn.firmware.build, conn.firmware.info) == ("1.1h", "20190830", "")
+    assert str(conn.firmware) == "GRBL 1.1h (build 20190830)"
     conn.command("$I=bench laser")
     conn.refresh()
-    assert str(conn.firmware) == "GRBL 1.1h (build 20190825, info 'BENCHLASER')" and conn.version == "1.1h"
+    assert str(conn.firmware) == "GRBL 1.1h (build 20190830, info 'BENCHLASER')" and conn.version == "1.1h"
 
 
 def test_command_errors_carry_their_meaning(machine_url, make_connection):

@@ -106,16 +106,16 @@ def test_send_response_rules(block, sync):
     "line, expected, shown",
     [
         # report.c: "[VER:" GRBL_VERSION "." GRBL_VERSION_BUILD ":" <build info> "]"; a stock GRBL has no info
-        (b"[VER:1.1h.20190825:]\r\n", VersionInfo("1.1h", "20190825", ""), "GRBL 1.1h (build 20190825)"),
+        (b"[VER:1.1h.20190830:]\r\n", VersionInfo("1.1h", "20190830", ""), "GRBL 1.1h (build 20190830)"),
         (b"[VER:1.1f.20170801:MYLASER]\r\n", VersionInfo("1.1f", "20170801", "MYLASER"),
          "GRBL 1.1f (build 20170801, info 'MYLASER')"),
-        (b"[VER:1.1h.20190825:A:B]\r\n", VersionInfo("1.1h", "20190825", "A:B"),
-         "GRBL 1.1h (build 20190825, info 'A:B')"),
+        (b"[VER:1.1h.20190830:A:B]\r\n", VersionInfo("1.1h", "20190830", "A:B"),
+         "GRBL 1.1h (build 20190830, info 'A:B')"),
         (b"[VER:1.1-fork:]\r\n", VersionInfo("1.1-fork", "", ""), "GRBL 1.1-fork"),
     ],
 )
 def test_version_line_splits_version_build_date_and_build_info(line, expected, shown):
-    # The TUI showed 'GRBL 1.1h.20190825:' (the whole body of the line as the version)
+    # The TUI showed 'GRBL 1.1h.20190830:' (the whole body of the line as the version)
     message = parse_line(line.decode("latin-1").rstrip("\r\n"))
     assert message == Feedback("VER", message.text)
     assert parse_version(message.text) == expected

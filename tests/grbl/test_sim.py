@@ -64,7 +64,7 @@ def raw():
 
 def test_banner_info_settings_and_parser_state(raw):
     port = raw()
-    assert port.ask("$I") == b"[VER:1.1h.20190825:]\r\n[OPT:V,15,128]\r\nok\r\n"
+    assert port.ask("$I") == b"[VER:1.1h.20190830:]\r\n[OPT:V,15,128]\r\nok\r\n"
     settings = port.ask("$$").decode()
     assert settings.startswith("$0=10\r\n$1=25\r\n") and "$10=1\r\n" in settings and "$11=0.010\r\n" in settings
     assert "$30=1000\r\n" in settings and "$32=1\r\n" in settings and "$130=400.000\r\n" in settings
@@ -97,15 +97,38 @@ def test_locked_after_power_up_then_unlock(raw):
     assert port.ask("G0 X1") == b"ok\r\n"
 
 
-def test_soft_limit_alarm_withholds_ok_until_reset(raw):
+def test_soft_limit_alarm_answers_nothing_but_a_reset(raw):
+    # gnea/grbl protocol.c: after ALARM:1/2 protocol_exec_rt_system spins "until user issues reset": a status request
+    # only sets a flag that the reset clears, and lines sent meanwhile are dropped with the RX buffer
     port = raw()
     port.port.write(b"G0 X500\n")  # machine X = 500 - 400 = 100 > 0: outside the travel
     assert port.read_until(b"Reset to continue]\r\n") == b"ALARM:2\r\n[MSG:Reset to continue]\r\n"
-    assert port.status().startswith("<Alarm|")
+    port.port.write(b"?$#\n!~\x91?")
+    time.sleep(0.3)
+    assert port.port.read(4096) == b""
     port.port.write(b"\x18")
     assert port.read_until(UNLOCK) == b"ok\r\n" + BANNER + UNLOCK
     assert port.machine.snapshot().alarms == [2]
+    assert port.status().startswith("<Alarm|MPos:0.000,0.000,0.000|")  # no report owed from the lock
     assert port.ask("G0 X1", b"error:9\r\n") == b"error:9\r\n"
+    assert port.ask("$X") == b"[MSG:Caution: Unlocked]\r\nok\r\n"
+    assert port.status().startswith("<Idle|MPos:0.000,0.000,0.000|")
+
+
+def test_soft_limit_during_motion_holds_to_a_stop_first(raw):
+    # limits_soft_check: while a cycle runs, a feed hold brings it to a controlled stop (Hold in the reports), and
+    # only then comes ALARM:2: the position is where the hold stopped, on the path
+    port = raw("profile=laser&time_scale=1&s120=50")  # 50 mm/s^2: a hold from 50 mm/s takes 1 s
+    assert port.ask("G1 X200 F3000") == b"ok\r\n"  # machine X -200 .. 0 (G54 at -400)
+    port.wait_state("Run")
+    port.port.write(b"G1 X500\n")
+    port.wait_state("Hold:1", timeout=0.5)
+    assert port.read_until(b"Reset to continue]\r\n").endswith(b"ALARM:2\r\n[MSG:Reset to continue]\r\n")
+    port.port.write(b"\x18")
+    assert port.read_until(UNLOCK).endswith(b"ok\r\n" + BANNER + UNLOCK)
+    report = port.status()
+    x = float(report.split("MPos:")[1].split(",")[0])
+    assert report.startswith("<Alarm|") and -200.0 < x < 0.0 and port.machine.snapshot().alarms == [2]
 
 
 def test_reset_during_motion_is_alarm_3_and_lock(raw):
@@ -183,6 +206,64 @@ def test_laser_mode_power_feed_hold_and_m5(raw):
     assert record.samples[-1].power == 0.0
 
 
+def test_laser_mode_status_reports_the_power_motion_set(raw):
+    # as gnea/grbl 1.1h (grbl-sim) reports it: in laser mode the stepper sets the spindle speed as motion runs,
+    # a completed hold switches it off (FS:0,0, DISABLE_LASER_DURING_HOLD) until "~" restores it, and M4's power
+    # follows the speed (0 once stopped) where M3 keeps its S
+    def fs(report: str) -> str:
+        return report.split("FS:")[1].split("|")[0].rstrip(">")
+
+    def spindle(report: str) -> str:
+        return fs(report).split(",")[1]
+
+    port = raw("profile=laser&time_scale=1&s120=100")
+    port.ask("M3 S500")
+    assert fs(port.status()) == "0,0"  # M3 alone sets no power in laser mode
+    port.ask("G91 G1 X-10 F600")  # 1 s, inside the machine space (-400..0)
+    report = port.wait_state("Run")
+    assert spindle(report) == "500"
+    port.port.write(b"!")
+    assert fs(port.wait_state("Hold:0")) == "0,0"
+    port.port.write(b"~")
+    assert port.read_until(b"\r\n") == b"[MSG:Restoring spindle]\r\n"
+    assert spindle(port.wait_state("Run")) == "500"
+    assert fs(port.wait_state("Idle", timeout=10)) == "0,500"  # M3: the last block's power stays set
+    port.ask("M4 S400")
+    port.ask("G1 X-2")
+    assert fs(port.wait_state("Idle", timeout=10)) == "0,0"
+    plotter = raw("profile=plotter&time_scale=1")  # spindle mode: the servo's S is set at once, and kept held
+    plotter.ask("M3 S30")
+    assert fs(plotter.status()) == "0,30"
+
+
+def test_probing_touches_the_plate_or_fails_with_grbls_alarms(raw):
+    # mc_probe_cycle: G38.2 moves until the probe touches ([PRB:...:1], the machine stops just past contact), a
+    # probe that touches before it starts is ALARM:4, one that never touches ALARM:5; G38.3 fails without the alarm
+    port = raw("profile=plotter&homing=0&probe_z=-10&time_scale=0.01")
+    assert port.ask("G38.2 Z-20", b"\r\n") == b"error:22\r\n"  # no feed rate
+    assert port.ask("G38.2 F100", b"\r\n") == b"error:26\r\n"  # no axis words
+    assert port.ask("G38.2 Z0 F100", b"\r\n") == b"error:33\r\n"  # the target is where the head is
+    assert port.ask("G38.2 Z-20 F100") == b"[PRB:0.000,0.000,-10.000:1]\r\nok\r\n"
+    assert port.status().startswith("<Idle|MPos:0.000,0.000,-10.0")
+    assert "|Pn:P" in port.status()
+    assert "[PRB:0.000,0.000,-10.000:1]" in port.ask("$#").decode()
+    assert port.ask("$G").startswith(b"[GC:G38.2 G54 ")
+    assert port.ask("G38.2 Z-15") == b"ALARM:4\r\nok\r\n"  # already touching: no motion
+    assert port.status().startswith("<Alarm|") and port.ask("G0 Z0", b"error:9\r\n") == b"error:9\r\n"
+    assert port.ask("$X").endswith(b"ok\r\n") and port.ask("G0 Z0") == b"ok\r\n"
+    assert port.ask("G38.4 Z5 F100") == b"ALARM:4\r\nok\r\n"  # away: must start touching
+    port.ask("$X")
+    assert port.ask("G38.3 X10 F100") == b"[PRB:10.000,0.000,0.000:0]\r\nok\r\n"  # no contact, no alarm
+    assert port.ask("G38.2 X20") == b"ALARM:5\r\n[PRB:10.000,0.000,0.000:0]\r\nok\r\n"  # G38.2 is modal now
+    assert port.status().startswith("<Alarm|MPos:20.000,0.000,0.000")
+    port.port.write(b"\x18")
+    port.read_until(UNLOCK)
+    assert "[PRB:0.000,0.000,0.000:0]" in port.ask("$#").decode()  # a reset forgets the probe
+    plain = raw("profile=plotter&homing=0&time_scale=0.01")  # no plate: a probe never touches
+    assert plain.ask("G38.2 Z-5 F300") == b"ALARM:5\r\n[PRB:0.000,0.000,0.000:0]\r\nok\r\n"
+    assert 4 not in plain.machine.snapshot().alarms and port.machine.snapshot().alarms == [4, 4, 5]
+
+
 def test_spindle_mode_servo_holds_its_value(raw):
     port = raw("profile=plotter&time_scale=0.01")
     port.ask("M3 S30")
@@ -237,7 +318,7 @@ def test_homing_answers_no_status_request_until_the_cycle_ends(raw):
 def test_build_info_stored_with_dollar_i_follows_the_build_date(raw):
     port = raw()
     assert port.ask("$I=my laser 2") == b"ok\r\n"  # stored as GRBL keeps the line: upper case, no spaces
-    assert port.ask("$I").startswith(b"[VER:1.1h.20190825:MYLASER2]\r\n[OPT:V,15,128]")
+    assert port.ask("$I").startswith(b"[VER:1.1h.20190830:MYLASER2]\r\n[OPT:V,15,128]")
 
 
 def test_unplug_makes_reads_and_writes_fail(raw):
@@ -319,7 +400,7 @@ def test_soft_limit_checks_both_ends_of_every_axis(raw):
 def test_force_origin_build_puts_axes_with_a_homing_dir_bit_in_positive_space(raw):
     # HOMING_FORCE_SET_ORIGIN: X and Y ($23 bits 0 and 1) live in 0..+travel, Z (bit clear) in -travel..0
     port = raw("profile=laser&force_origin=1&s23=3&time_scale=0.001")
-    assert port.ask("$I").startswith(b"[VER:1.1h.20190825:]\r\n[OPT:VZ,15,128]")
+    assert port.ask("$I").startswith(b"[VER:1.1h.20190830:]\r\n[OPT:VZ,15,128]")
     assert port.ask("$#").startswith(b"[G54:0.000,0.000,0.000]\r\n")
     assert port.ask("G53 G0 X399 Y399 Z-19") == b"ok\r\n"
     for target in ("X-1", "Z1"):
