@@ -197,7 +197,14 @@ class Elevation:
     tilt_deg : float
         The angle between the part's length and the plane (>= 0; 0 when level).
     toward : str
-        Which way the lower end points, in words (``"towards `dominoes` (to your right)"``); empty when level.
+        Which way the lower end points, in words (``"towards `dominoes` (to your right)"``); for a standing part,
+        which way its top leans; empty when level (or upright).
+    standing : bool
+        The part's length is its own up axis (a goblet, a post): it leans :attr:`lean_deg` from upright, its lower
+        end its foot.
+    axis : tuple of two (s, h), optional
+        The part's length as drawn: from the middle of its lower end to the middle of its upper end (the angle is
+        measured along it).
     """
 
     direction_uv: tuple[float, float]
@@ -207,11 +214,18 @@ class Elevation:
     middle: tuple[float, float]
     tilt_deg: float
     toward: str = ""
+    standing: bool = False
+    axis: tuple[tuple[float, float], tuple[float, float]] | None = None
+
+    @property
+    def lean_deg(self) -> float:
+        """How far a standing part leans from upright (the complement of :attr:`tilt_deg`)."""
+        return 90.0 - self.tilt_deg
 
     @property
     def level(self) -> bool:
-        """Level to the printed 0.1 deg."""
-        return self.tilt_deg < 0.05
+        """Level (or, standing, upright) to the printed 0.1 deg: no tilt to set."""
+        return (self.lean_deg if self.standing else self.tilt_deg) < 0.05
 
 
 @dataclass(frozen=True)

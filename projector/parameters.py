@@ -18,6 +18,8 @@ angle (without a tilt, along the outline's shorter side), the guide-plane direct
 one nearer +u (else +v). The part's **length** is the axis of its own frame, across the line of sight, that it
 reaches furthest along; its two **ends** are the faces across its length, and at each end the named point is the
 one nearest the plane ("the underside at the lower end"); the **middle** is the underside halfway between them.
+A part whose length is its own up axis (local z: a goblet, a post) is **standing**: its lower end is its foot, its
+upper end's named point its top (the highest), and its tilt how far it leans from upright, towards its top.
 The **tilt** is the angle between the length and the plane; the **lower end** the end nearer it, and **which way
 it falls** names the nearest other part (not one that rides on it) in a strip from the lower end outwards, and the
 direction as the maker sees it ("towards `dominoes` (to your right)").
@@ -187,16 +189,20 @@ def off_plane_text(part: PartDrawing, view: str, symbols: bool = False) -> str:
             + (" (range end)" if t.bound_limited and not symbols else "")
 
     phrases = []
+    toward = elevation.toward.replace("`", "") if symbols else elevation.toward
     for setting in part.settings:
         if setting.role == "height":
-            phrases.append(f"{'height' if view == 'top' else 'depth'} {elevation.middle[1]:.1f}{mm}"
-                           f"{tolerance(setting, mm)}")
+            what, at = ("foot", elevation.ends[0][1]) if elevation.standing else \
+                ("height" if view == "top" else "depth", elevation.middle[1])
+            phrases.append(f"{what} {at:.1f}{mm}{tolerance(setting, mm)}")
         elif setting.role == "tilt":
             if elevation.level:
-                phrases.append(f"level{tolerance(setting, deg)}")
+                phrases.append(f"{'upright' if elevation.standing else 'level'}{tolerance(setting, deg)}")
+            elif elevation.standing:
+                phrases.append(f"leans {elevation.lean_deg:.1f}{deg}{tolerance(setting, deg)}")
+                phrases.append(f"top {toward}")
             else:
                 phrases.append(f"tilt {elevation.tilt_deg:.1f}{deg}{tolerance(setting, deg)}")
-                toward = elevation.toward.replace("`", "") if symbols else elevation.toward
                 phrases.append(f"{words['lower']} {toward}")
     return ", ".join(phrases)
 
@@ -295,8 +301,9 @@ def _elevation(scenario, part: PartDrawing, frame, group, plane: GuidePlane, dra
     # the part's length: of its frame's axes across the line of sight, the one it reaches furthest along
     points = np.concatenate([b.world_points() for b in group])
     sight = np.cross(direction, normal)
-    axes = [axis for axis in frame.rotation.as_matrix().T if abs(float(axis @ sight)) < math.sqrt(0.5)]
-    length = max(axes, key=lambda axis: (float(np.ptp(points @ axis)), abs(float(axis @ direction))))
+    axes = [(k, axis) for k, axis in enumerate(frame.rotation.as_matrix().T)
+            if abs(float(axis @ sight)) < math.sqrt(0.5)]
+    along, length = max(axes, key=lambda item: (float(np.ptp(points @ item[1])), abs(float(item[1] @ direction))))
     length = length if length @ direction >= 0 else -length
     tilt = abs(math.degrees(math.atan2(float(length @ normal), float(length @ direction))))
     tilt = min(tilt, 180.0 - tilt)
@@ -305,23 +312,27 @@ def _elevation(scenario, part: PartDrawing, frame, group, plane: GuidePlane, dra
     h = 1000.0 * (points - plane.origin) @ normal
     t = 1000.0 * (points - frame.position) @ length
     band = 0.5 + 0.002 * float(t.max() - t.min())
-    ends = []
-    for extreme in (t.min(), t.max()):
-        chosen = np.flatnonzero(np.abs(t - extreme) <= band)
-        ends.append(int(chosen[np.argmin(h[chosen])]))
-    ends.sort(key=lambda i: (round(float(h[i]), 6), float(s[i])))  # the lower end first (level: the left one)
-    low, high = ends
+    faces = [np.flatnonzero(np.abs(t - extreme) <= band) for extreme in (t.min(), t.max())]
+    # the lower end first (level: the left one); at each end its point nearest the plane
+    faces.sort(key=lambda face: (round(float(h[face].min()), 6), float(s[face[np.argmin(h[face])]])))
+    low, high = (int(face[np.argmin(h[face])]) for face in faces)
+    standing = along == 2  # its length is its own up (a goblet, a post): it stands, however far it leans
+    if standing:  # a standing part's top is the highest point of its upper end
+        high = int(faces[1][np.argmax(h[faces[1]])])
     middle_s = 0.5 * float(s[low] + s[high])
     middle_h = _underside(profile, middle_s, 0.5 * float(h[low] + h[high]))
     toward = ""
-    if tilt >= 0.05:
-        out = 1.0 if s[low] >= s[high] else -1.0
-        start = plane.to_plane(points[low])[0]
-        toward = _toward(scenario, part, drawings, spans, start, float(h[low]), out * np.array([du, dv]),
-                         plane.view)
+    if (90.0 - tilt if standing else tilt) >= 0.05:
+        # which way it falls: from the lower end outwards; a standing part's top, the way it leans
+        end = high if standing else low
+        foot, top = (float(s[face].mean()) for face in faces)  # the ends' middles: which way the length runs
+        out = 1.0 if (top >= foot if standing else foot >= top) else -1.0
+        toward = _toward(scenario, part, drawings, spans, plane.to_plane(points[end])[0], float(h[end]),
+                         out * np.array([du, dv]), plane.view)
     return Elevation(direction_uv=(du, dv), seen_from=_seen_from(direction, normal, plane), profile=profile,
                      ends=((float(s[low]), float(h[low])), (float(s[high]), float(h[high]))),
-                     middle=(middle_s, middle_h), tilt_deg=tilt, toward=toward)
+                     middle=(middle_s, middle_h), tilt_deg=tilt, toward=toward, standing=standing,
+                     axis=tuple((float(s[face].mean()), float(h[face].mean())) for face in faces))
 
 
 def _long_side(part: PartDrawing, plane: GuidePlane) -> np.ndarray:
@@ -421,6 +432,13 @@ def _meaning(part: PartDrawing, role: str, unit: str, tolerance, elevation: Elev
         return f"turn on the sheet: {abs(heading):.1f} deg {way}, {words['facing']} ({tol})"
     assert elevation is not None
     (_, low), (_, high) = elevation.ends
+    if elevation.standing:
+        if role == "height":
+            return f"{words['height']}: its foot {low:.1f} mm ({tol})"
+        if elevation.level:
+            return f"tilt: upright (0.0 deg from upright, {tol}), its foot {low:.1f} mm {words['off']}"
+        return (f"tilt: leans {elevation.lean_deg:.1f} deg from upright ({tol}), its top {elevation.toward}: its "
+                f"foot {low:.1f} mm {words['off']}, its top {high:.1f} mm")
     if role == "height":
         at = "" if elevation.level else " at the middle"
         return f"{words['height']}: its {words['under']}{at} {elevation.middle[1]:.1f} mm ({tol})"

@@ -111,12 +111,18 @@ class ElevationDrawing(Flowable):
         canvas.setStrokeColorRGB(*_DIM)
         canvas.setFillColorRGB(*_DIM)
         (s_low, h_low), (s_high, h_high) = e.ends
-        marks = [(s_low, h_low, "lower end" if not e.level else "end"),
-                 (s_high, h_high, "upper end" if not e.level else "end"), (*e.middle, "middle")]
+        if e.standing:  # a goblet, a post: its foot and its top, and how far it leans from upright
+            marks = [(s_low, h_low, "foot"), (s_high, h_high, "top")]
+        else:
+            marks = [(s_low, h_low, "lower end" if not e.level else "end"),
+                     (s_high, h_high, "upper end" if not e.level else "end"), (*e.middle, "middle")]
         for s, h, name in marks:
-            self._height(canvas, at(s, 0.0), at(s, h), f"{h:.1f}", name, s < e.middle[0] or name == "middle")
+            left = s < max(s_low, s_high) if e.standing else s < e.middle[0] or name == "middle"
+            self._height(canvas, at(s, 0.0), at(s, h), f"{h:.1f}", name, left)
         if not e.level:
-            self._angle(canvas, at(s_low, h_low), at(s_high, h_high), e.tilt_deg)
+            (a0, b0), (a1, b1) = e.axis or e.ends  # the angle runs along the part's length
+            self._angle(canvas, at(s_low, h_low), math.atan2(b1 - b0, a1 - a0),
+                        e.lean_deg if e.standing else e.tilt_deg, e.standing)
         # a 20 mm bar to check the scale
         canvas.setFillColorRGB(0, 0, 0)
         canvas.rect(2.0, 1.5, 20.0 * scale, 1.2, stroke=0, fill=1)
@@ -150,24 +156,25 @@ class ElevationDrawing(Flowable):
             canvas.drawString(x + 1.0, middle - 2.8, name)
 
     @staticmethod
-    def _angle(canvas, low, high, tilt: float) -> None:
-        """The tilt at the lower end: a level line towards the upper end and the arc up to the part's underside."""
-        (x0, y0), (x1, y1) = low, high
-        toward = 1.0 if x1 >= x0 else -1.0
-        reach = min(30.0, 0.6 * math.hypot(x1 - x0, y1 - y0))
+    def _angle(canvas, low, along: float, degrees: float, upright: bool = False) -> None:
+        """The tilt at the lower end ``low``: a level line the way the part rises (``upright``: a plumb line up from
+        its foot) and the arc from it to the part's length (at ``along`` radians on the paper), with its angle."""
+        x0, y0 = low
+        reach = 20.0
+        start = math.pi / 2 if upright else (0.0 if math.cos(along) >= 0 else math.pi)
         canvas.setLineWidth(0.25)
         canvas.setDash(1.2, 0.8)
-        canvas.line(x0, y0, x0 + toward * reach * 1.15, y0)
+        canvas.line(x0, y0, x0 + 1.15 * reach * math.cos(start), y0 + 1.15 * reach * math.sin(start))
         canvas.setDash()
-        angles = np.radians(np.linspace(0.0, tilt, 24))
-        points = [(x0 + toward * reach * math.cos(a), y0 + reach * math.sin(a)) for a in angles]
+        angles = np.linspace(start, along, 24)
+        points = [(x0 + reach * math.cos(a), y0 + reach * math.sin(a)) for a in angles]
         path = canvas.beginPath()
         path.moveTo(*points[0])
         for point in points[1:]:
             path.lineTo(*point)
         canvas.drawPath(path, stroke=1, fill=0)
-        middle = math.radians(tilt / 2)
-        tx, ty = x0 + toward * (reach + 1.5) * math.cos(middle), y0 + (reach + 1.5) * math.sin(middle) - 1.0
+        middle = (start + along) / 2
+        tx, ty = x0 + (reach + 1.5) * math.cos(middle), y0 + (reach + 1.5) * math.sin(middle) - 1.0
         canvas.setFont(_BOLD, _TEXT_MM)
-        text = f"{tilt:.1f}\u00b0"
-        (canvas.drawString if toward > 0 else canvas.drawRightString)(tx, ty, text)
+        text = f"{degrees:.1f}\u00b0" + (" from upright" if upright else "")
+        (canvas.drawString if math.cos(middle) >= 0 else canvas.drawRightString)(tx, ty, text)

@@ -243,3 +243,18 @@ def test_a_label_says_a_height_and_tilt_once_with_their_values():
     assert label.detail == "tight"  # the care; the deltas stand by their values on the line below
     assert label.off_plane == (f"height {middle:.1f} mm ±3.0 mm, tilt 10.0° ±1.2°, lower end towards ball_run "
                                "(to your left)")
+
+
+def test_a_standing_part_leans_from_upright_towards_its_top():
+    # BALLRUN's goblet drawn from above: it stands, turned 20 deg about y (its roll), so its top leans 20 deg to +x
+    guide = build_guide(_scenario("ballrun.toml"), view="top")
+    goblet = guide.part("goblet")
+    side = goblet.elevation
+    assert side.standing and side.lean_deg == pytest.approx(20.0) and side.toward.endswith("(to your right)")
+    (_, foot), (_, top) = side.ends
+    assert top > foot
+    words = {s.role: s.meaning for s in goblet.settings}
+    assert words["height"] == f"height above the table: its foot {foot:.1f} mm (tolerance unknown)"
+    assert words["tilt"].startswith("tilt: leans 20.0 deg from upright (tolerance unknown), its top towards ")
+    (a0, b0), (a1, b1) = side.axis
+    assert math.degrees(math.atan2(a1 - a0, b1 - b0)) == pytest.approx(20.0)  # the length, 20 deg off plumb to +s
