@@ -18,6 +18,7 @@ line N (modal state) and by tests to read a job back.
 from __future__ import annotations
 
 import math
+import re
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field, replace
 from typing import TextIO
@@ -26,6 +27,7 @@ import numpy as np
 
 from drivers.errors import DriverError
 from drivers.gcode_words import (
+    NUMBER,
     PLANE_AXES,
     WordSyntaxError,
     arc_chords,
@@ -60,7 +62,13 @@ def clean_line(line: str) -> str:
 
     ``$`` system commands keep their case-insensitive text but lose whitespace too, as GRBL does.
     """
-    return "".join(strip_comments(line).split()).upper()
+    if "(" in line or ";" in line:  # most lines of a job have no comment: the regular expression is skipped
+        line = strip_comments(line)
+    return "".join(line.split()).upper()
+
+
+#: A word as :func:`drivers.gcode_words.iter_words` reads it (a letter and GRBL's number), to find them all at once.
+_WORD = re.compile(r"([A-Z])(" + NUMBER.pattern + ")")
 
 
 def tokenize(block: str) -> list[tuple[str, float]]:
@@ -71,6 +79,9 @@ def tokenize(block: str) -> list[tuple[str, float]]:
     GcodeError
         If the block has text that is not a letter followed by a number.
     """
+    words = _WORD.findall(block)
+    if sum(len(letter) + len(number) for letter, number in words) == len(block):
+        return [(letter, float(number)) for letter, number in words]  # the words cover the block: all valid
     try:
         return list(iter_words(block))
     except WordSyntaxError as error:
@@ -311,6 +322,13 @@ class ModalState:
     def copy(self) -> ModalState:
         return replace(self, position=self.position.copy(), g92=self.g92.copy(), shift=self.shift.copy())
 
+    def _snapshot(self) -> ModalState:
+        # what :func:`interpret` keeps per line: it replaces the arrays and never writes into them, so they are
+        # shared (a dataclass replace and three copies per line cost more than the rest of the line)
+        snapshot = object.__new__(ModalState)
+        snapshot.__dict__.update(self.__dict__)
+        return snapshot
+
     @property
     def rebuildable(self) -> bool:
         """Whether :meth:`preamble` can rebuild the work offsets of this state on a reset machine (GRBL's reset
@@ -503,7 +521,7 @@ def interpret(
         state.position = target
 
     for index, raw in enumerate(lines):
-        states.append(state.copy())
+        states.append(state._snapshot())
         block = clean_line(raw)
         if not block or block.startswith("$"):
             continue
@@ -517,7 +535,7 @@ def interpret(
         radius = None
         values: dict[str, float] = {}
         g_values = [v for letter, v in words if letter == "G"]
-        before = frames.total(state)
+        wcs = state.wcs
         for letter, value in words:
             if letter == "G":
                 if value in (20.0, 21.0):
@@ -548,7 +566,8 @@ def interpret(
                 radius = value
             else:
                 values[letter] = value
-        frames.moved(state, before)  # a G54..G59 in this block: the same place reads in the new system
+        if state.wcs != wcs:  # a G54..G59 in this block: the same place reads in the new system
+            frames.moved(state, frames.table[wcs] + state.g92 + np.array([0.0, 0.0, state.tlo]))
         if 4.0 in g_values:
             dwell[index] = values.get("P") or 0.0
             continue
@@ -614,7 +633,7 @@ def interpret(
         state.position = target
         # a probe stops where it touches, anywhere up to its target
         state.position_known = state.motion != 38
-    states.append(state.copy())
+    states.append(state._snapshot())
     as_array = lambda rows: np.array(rows, dtype=float).reshape(-1, 3)  # noqa: E731
     return Toolpath(
         start=as_array(starts),
@@ -662,6 +681,7 @@ def _set_offsets(state: ModalState, frames: _Frames, g_values: list[float], axis
         frames.table[system] = data
     if 92.0 in g_values and named:
         state.offsets_used = True
+        state.g92 = state.g92.copy()  # the states kept per line share their arrays: never written in place
         for i, value in named:
             # the head's place reads as ``value``: G92 = MPos - WCS - TLO - value
             state.g92[i] = state.position[i] + state.g92[i] - value

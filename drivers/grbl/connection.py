@@ -51,6 +51,7 @@ import time
 from collections import deque
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field, replace
+from typing import NamedTuple
 
 import serial
 
@@ -116,6 +117,16 @@ class LineResult:
     status: str = "pending"  # pending, ok, error, unconfirmed
     error: int | None = None
     replies: list = field(default_factory=list)
+
+
+class _Prepared(NamedTuple):
+    """A line read ahead by the streamer (see :meth:`GrblConnection._prepare`)."""
+
+    result: LineResult
+    data: bytes
+    sync: bool
+    dwell: float
+    busy: float
 
 
 @dataclass
@@ -379,8 +390,11 @@ class GrblConnection(MachineSettings):
         except (serial.SerialException, OSError) as error:
             self._port_lost(f"write failed: {error}")
             raise PortError(f"{self.url}: port vanished ({error}); position lost") from None
-        if data not in (b"?",):
-            self._log("out", data.decode("latin-1").rstrip("\n") if data[:1] not in (b"\x18",) else "<soft reset>")
+        if data[:1] == b"\x18":
+            self._log("out", "<soft reset>")
+        elif data != b"?":
+            for text in data.decode("latin-1").rstrip("\n").split("\n"):  # a streamer's write may hold several lines
+                self._log("out", text)
         return True
 
     def realtime(self, byte: bytes) -> None:
@@ -532,44 +546,70 @@ class GrblConnection(MachineSettings):
                     raise StreamStopped(f"line {result.index + 1} ({result.text!r}): {Error(result.error)}",
                                         "error")
 
+        room = self.rx_size - 1  # GRBL's RX ring buffer holds one byte less than its size
+        ahead: deque[_Prepared] = deque()  # lines read ahead (their results listed), not written yet
+        prepared = [0, 0, 0]  # lines read ahead so far, bytes of them not written, 1 while the first one waits
+
+        def read_ahead() -> None:
+            # a buffer's worth of lines, so that as many as fit go in one write; not past a line that goes alone
+            while prepared[0] < len(lines) and prepared[1] < room and not (ahead and ahead[-1].sync):
+                item = self._prepare(lines[prepared[0]], prepared[0], sync_all)
+                results.append(item.result)
+                ahead.append(item)
+                prepared[0] += 1
+                prepared[1] += len(item.data)
+
         try:
-            for index, raw in enumerate(lines):
-                block = clean_line(raw) if not raw.lstrip().startswith("$") else "".join(raw.split())
-                result = LineResult(index, block)
-                results.append(result)
-                if not block:
-                    result.status = "ok"
+            while True:
+                read_ahead()
+                if not ahead:
+                    break
+                first = ahead[0]
+                if not first.data:  # an empty line (only a comment): nothing to send
+                    ahead.popleft()
                     report()
                     continue
-                data = (block + "\n").encode("latin-1")
-                if len(data) > self.rx_size - 1:
-                    raise ProtocolError(f"line {index + 1} is {len(data)} bytes, longer than GRBL's RX buffer "
-                                        f"({self.rx_size}): {block[:40]!r}...")
-                sync = sync_all or needs_sync(block)
-                dwell = dwell_seconds(block)
-                busy = self.homing_seconds() if block.upper().startswith("$H") else 0.0
+                if len(first.data) > room:
+                    raise ProtocolError(f"line {first.result.index + 1} is {len(first.data)} bytes, longer than "
+                                        f"GRBL's RX buffer ({self.rx_size}): {first.result.text[:40]!r}...")
                 with self._cond:
-                    ready = self._no_pending if sync else functools.partial(self._has_room, len(data))
+                    ready = self._no_pending if first.sync else functools.partial(self._has_room, len(first.data))
+                    prepared[2] = 1
                     self._wait_locked(ready, stop, reply_timeout, "waiting for buffer space", since, report)
-                    entry = _Pending(result, len(data), dwell, busy)
-                    self._pending.append(entry)
+                    prepared[2] = 0
+                    batch = [ahead.popleft()]
+                    if not first.sync:
+                        # every following line that fits now goes in the same write: fewer writes and wake-ups at
+                        # both ends of the wire, and the buffer as full as character counting allows
+                        free = room - self._pending_bytes() - len(first.data)
+                        while ahead and not ahead[0].sync and len(ahead[0].data) <= free:
+                            free -= len(ahead[0].data)
+                            batch.append(ahead.popleft())
+                    entries = [_Pending(item.result, len(item.data), item.dwell, item.busy)
+                               for item in batch if item.data]
+                    self._pending.extend(entries)
                     self.max_pending_bytes = max(self.max_pending_bytes, self._pending_bytes())
                     self._lost_ok.clear()
+                data = b"".join(item.data for item in batch)
+                prepared[1] -= len(data)
                 try:
                     written = self._write(data, stop)
                 except (PortError, DeviceStateError):
                     raise StreamStopped(f"{self.url}: {self.fault or 'port lost'}", "fault") from None
                 if not written:
                     with self._cond:
-                        if entry in self._pending:
-                            self._pending.remove(entry)
+                        for entry in entries:
+                            if entry in self._pending:
+                                self._pending.remove(entry)
                     raise StreamStopped(f"{self.url}: stopped", "stopped")
                 if on_sent:
-                    on_sent(index)
-                if sync:
+                    for entry in entries:
+                        on_sent(entry.result.index)
+                if first.sync:
+                    entry = entries[0]
                     with self._cond:
                         self._wait_locked(entry.done.is_set, stop, reply_timeout + entry.dwell + entry.busy,
-                                          f"waiting for the reply to {block!r}", since, report)
+                                          f"waiting for the reply to {first.result.text!r}", since, report)
                 report()
             with self._cond:
                 self._wait_locked(lambda: not self._pending, stop,
@@ -580,10 +620,23 @@ class GrblConnection(MachineSettings):
             if any(r.status == "unconfirmed" for r in results):
                 raise StreamStopped(f"{self.url}: the controller was reset; lines sent were never answered", "reset")
         except StreamStopped as stopped:
+            # the lines read ahead and not written are not part of what happened (but one that waited for room is)
+            del results[len(results) - (len(ahead) - prepared[2]):]
             stopped.first_unconfirmed = self._first_unconfirmed(results)
             stopped.results = results
             raise
         return results
+
+    def _prepare(self, raw: str, index: int, sync_all: bool) -> _Prepared:
+        """A line as the streamer sends it: cleaned (GRBL's own rules), its bytes, whether it goes alone, and the
+        time its reply may take beyond the usual (a dwell, homing). An empty line is answered at once."""
+        block = clean_line(raw) if not raw.lstrip().startswith("$") else "".join(raw.split())
+        result = LineResult(index, block)
+        if not block:
+            result.status = "ok"
+            return _Prepared(result, b"", False, 0.0, 0.0)
+        return _Prepared(result, (block + "\n").encode("latin-1"), sync_all or needs_sync(block),
+                         dwell_seconds(block), self.homing_seconds() if block.upper().startswith("$H") else 0.0)
 
     def _no_pending(self) -> bool:
         return not self._pending

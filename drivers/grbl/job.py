@@ -53,6 +53,9 @@ __all__ = ["FINAL_STATES", "LINE_BUFFER_SIZE", "SPAN_WORDS", "Job", "JobProgress
 #: States of a job that ran and did not finish: each has a line to resume from.
 RESUMABLE_STATES = ("stopped", "aborted", "error", "position_lost")
 
+#: Seconds between two progress snapshots while lines are confirmed (a change of state makes one at once).
+SNAPSHOT_INTERVAL = 0.05
+
 
 class JobRunner:
     """Runs one job on a connection.
@@ -86,7 +89,10 @@ class JobRunner:
         self.from_line = from_line
         self.dry_run = dry_run
         self.on_progress = on_progress
-        self.progress = JobProgress(lines_total=len(job.lines))
+        self._progress = JobProgress(lines_total=len(job.lines))
+        self._sent = 0  # lines written and job lines confirmed: plain counts, folded into the snapshot when read
+        self._acked = 0
+        self._last_snapshot = 0.0
         self._progress_lock = threading.Lock()  # snapshots are replaced from the job thread and the caller's
         self.result: JobResult | None = None
         self._stop = threading.Event()
@@ -213,8 +219,9 @@ class JobRunner:
         except Exception as error:  # noqa: BLE001 - the last line of defence; the message names the failure
             laser_off = False
             resume = None
-            self._frozen = True  # before the reset empties the planner (it would read as "every line ran")
             try:
+                self._update(force=True, report=False)
+                self._frozen = True  # before the reset empties the planner (it would read as "every line ran")
                 self.connection.soft_reset(wait=True)  # GRBL's reset stops motion and the laser at once
                 laser_off = self._laser_off()
                 resume = self._resume_line(self.connection.status)  # the line the machine stood on
@@ -267,6 +274,7 @@ class JobRunner:
     def abort(self) -> None:
         """Stop now: soft reset (0x18) first, then the job thread switches the laser off with ``M5 S0``."""
         self._aborted = True
+        self._update(force=True, report=False)  # the line being executed, from the planner's fill before the reset
         self._frozen = True  # before the reset empties the planner (it would read as "every line ran")
         self._stop.set()  # first: the stream writes no line after this (checked under the port's write lock)
         try:
@@ -276,16 +284,35 @@ class JobRunner:
 
     # ------------------------------------------------------------------ running
 
+    @property
+    def progress(self) -> JobProgress:
+        """The job's progress now: the latest snapshot with the lines sent and confirmed up to this moment (the rest
+        of it, ETA and the line being executed, is at most :data:`SNAPSHOT_INTERVAL` old while lines are
+        confirmed)."""
+        with self._progress_lock:
+            return self._counted()
+
+    def _counted(self) -> JobProgress:
+        # with the lock held
+        p = self._progress
+        if p.lines_sent != self._sent or p.lines_acked != self._acked:
+            p = self._progress = dataclasses.replace(p, lines_sent=self._sent, lines_acked=self._acked)
+        return p
+
     def _set_progress(self, **changes) -> JobProgress:
         """Replace the progress snapshot with ``changes`` applied (fields by their names: ``stage``, ``done``...)."""
         with self._progress_lock:
-            self.progress = dataclasses.replace(self.progress, **changes)
-            return self.progress
+            self._progress = dataclasses.replace(self._counted(), **changes)
+            return self._progress
 
-    def _update(self, state: str | None = None, message: str | None = None) -> None:
+    def _update(self, state: str | None = None, message: str | None = None, *, force: bool = False,
+                report: bool = True) -> None:
         now = time.monotonic()
+        if state is None and message is None and not force and now - self._last_snapshot < SNAPSHOT_INTERVAL:
+            return  # a stream confirms a line every millisecond: a snapshot each time would cost more than the line
+        self._last_snapshot = now
         with self._progress_lock:
-            p = self.progress
+            p = self._counted()
             stage = state or p.stage
             held = self._held + (now - self._hold_started if self._hold_started else 0.0)
             elapsed = max(0.0, now - self._start_time - held) if self._start_time else 0.0
@@ -319,11 +346,11 @@ class JobRunner:
                 eta = (total - done) / max(rate, 1e-6)
             else:
                 eta = total if total else None
-            p = self.progress = dataclasses.replace(
+            p = self._progress = dataclasses.replace(
                 p, stage=stage, message=p.message if message is None else message, elapsed=elapsed, done=fraction,
                 eta=eta, current_line=current_line)
         # at most 10 updates a second, but every change of state
-        if self.on_progress and (state or now - self._last_report >= 0.1):
+        if report and self.on_progress and (state or now - self._last_report >= 0.1):
             self._last_report = now
             self.on_progress(p)
 
@@ -349,18 +376,17 @@ class JobRunner:
         refused = self.check()
         if refused is not None:
             return refused
-        job_acked = [0]
+        self._sent = self._acked = 0
 
         def on_ack(result) -> None:
             self._acked_streamed = result.index + 1
             # a line answered with an error did not run (in a dry run it was checked: that is the point)
             if self._origin[result.index] >= 0 and (result.status == "ok" or self.dry_run):
-                job_acked[0] += 1
-                self._set_progress(lines_acked=job_acked[0])
+                self._acked += 1
             self._update()
 
         def on_sent(index: int) -> None:
-            self._set_progress(lines_sent=index + 1)
+            self._sent = index + 1
 
         self._start_time = time.monotonic()
         try:
