@@ -421,7 +421,10 @@ class JobRunner:
             conn.command("$C")  # leaving check mode resets GRBL
         except (ProtocolError, DeviceStateError):
             conn.soft_reset()
-        conn.wait_for(lambda: conn.status is not None and conn.status.state == "Idle", 2.0)
+        # ask at once rather than wait for the next poll: a dry run's end is what its user waits for
+        status = conn.fresh_status(1.0)
+        if status is None or status.state != "Idle":
+            conn.wait_for(lambda: conn.status is not None and conn.status.state == "Idle", 2.0)
         if errors:
             return self._finish("stopped", f"dry run: {len(errors)} line(s) rejected", errors=errors)
         return self._finish("done", f"dry run: all {len(self.job.lines)} lines accepted (check mode)")

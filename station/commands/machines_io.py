@@ -92,7 +92,8 @@ def register(subparsers) -> None:
         "against the machine's travel: with homing ($22=1) the machine space of GRBL's soft limits, without homing "
         "the job's size and the way from the head to it against $130-$132. Laser jobs need laser mode ($32=1) and "
         "always end with M5 S0; on a machine without homing, a laser job is offered its frame first when run from a "
-        "terminal. Ctrl-C aborts (soft reset, laser off).",
+        "terminal. Ctrl-C, kill -INT or kill abort the job (soft reset, laser off) and end it as interrupted with the "
+        "line to resume from (exit 130), even when started with SIGINT ignored.",
         epilog='example: station send spiro.gcode --port "sim://grbl?profile=plotter&time_scale=0.01"',
     )
     send.add_argument("job", metavar="JOB.gcode", help="the G-code file to stream (from `station plot` or "
@@ -107,8 +108,8 @@ def register(subparsers) -> None:
                       help="only trace the job's bounding box (pen up, or laser at the profile's frame power)")
     send.add_argument("--from-line", type=int, default=1, metavar="N", help="resume from line N (1-based)")
     send.add_argument("--json", action="store_true",
-                      help="print the result as JSON (state, message, lines confirmed, resume line, laser off); "
-                      "no progress bar")
+                      help="print the result as JSON (state, message, lines confirmed, resume line, laser off), "
+                      "also when interrupted; no progress bar")
     send.set_defaults(func=run_send)
 
 
