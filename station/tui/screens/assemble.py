@@ -1,17 +1,18 @@
 """Assemble screen: a contraption layout as a step-by-step assembly guide (thesis 4.8.1, 5.2.3).
 
 Pick a scenario and a layout (a LAYOUT.json path, a layout named in the scenario, or nothing for the scenario's own
-layout) and press Enter (or the button): the guide is built in a worker, drawn here with the current step
-highlighted, and shown on the station's projector (simulated by default), which follows the steps. n / p step
-through the parts (under the steps, every design parameter of the current part: its value, tolerance, how to set
-it and what it means at the table, e.g. its underside's height above the table and its tilt), t shows the tolerance
-map (how carefully each part must be placed), e writes the 1:1 PDF sheets
-and the SVG to the station's data folder (``guides/``, named by the scenario, the layout and a hash of its values, so
-that one layout's export never replaces another's), 0 shows the calibrate frame. c checks the placed parts with the
-station's camera (``sim://camera`` by default, shown the guide's tags at their designed poses): the camera frame with
-the check drawn on it, a table of every tagged part (how far it is off, within its tolerance or not, what to do), the
-predicted success as placed, and the projector shows an arrow per misplaced part to where it must go; press c again
-after moving them. The Robust layouts screen opens its result here with a.
+layout) and press Enter (or the button): the guide is built in a worker, drawn here with the current step highlighted,
+and shown on the station's projector (simulated by default), which follows the steps. n / p step through the parts
+(under the steps, every design parameter of the current part: its value, tolerance, how to set it and what it means at
+the table, e.g. its underside's height above the table and its tilt), t shows the tolerance map (how carefully each part
+must be placed), e writes the 1:1 PDF sheets and the SVG to the station's data folder (``guides/``, named by the
+scenario, the layout and a hash of its values, so that one layout's export never replaces another's), j writes the
+layout's laser-cut jigs there (``jigs/``, named the same: ``station jigs``'s files) and queues their laser job on the
+Machines screen, 0 shows the calibrate frame. c checks the placed parts with the station's camera (``sim://camera`` by
+default, shown the guide's tags at their designed poses): the camera frame with the check drawn on it, a table of every
+tagged part (how far it is off, within its tolerance or not, what to do), the predicted success as placed, and the
+projector shows an arrow per misplaced part to where it must go; press c again after moving them. The Robust layouts
+screen opens its result here with a.
 
 The whole attempt (:mod:`station.services.assemble`, as ``station assemble``): c after placing the parts checks them
 (with a simulated world, ``sim://world?seed=S`` in the World field, the simulated maker places them first and the
@@ -109,6 +110,7 @@ class AssembleScreen(AttemptFlow, Screen):
         Binding("p", "previous_step", "Prev"),
         Binding("t", "tolerances", "Tolerances"),
         Binding("e", "export", "Export"),
+        Binding("j", "jigs", "Jigs"),
         Binding("c", "check", "Check"),
         Binding("0", "calibrate_frame", "Frame"),
         Binding("f", "fix", "Moved"),
@@ -468,6 +470,50 @@ class AssembleScreen(AttemptFlow, Screen):
         pages = len(job.guide.pages)
         self.app.call_from_thread(self._set_status, f"wrote {pdf} ({pages} sheets and the steps; print at 100 %, "
                                   f"check the 100 mm bar) and {svg}")
+
+    def action_jigs(self) -> None:
+        if self.job is None:
+            self._set_status("no guide yet: build one first", "red")
+            return
+        folder = data_dir() / "jigs" / service.export_name(self.job)
+        self._set_status("planning the jigs and their laser job…")
+        self._jigs(self.job, folder)
+
+    @work(thread=True, exclusive=True, group="jigs")
+    def _jigs(self, job, folder: Path) -> None:
+        from station.services.jigs import cut_jigs, plan_guide_jigs, write_jig_outputs
+
+        try:
+            result = cut_jigs(job, plan_guide_jigs(job))
+            write_jig_outputs(result, folder)
+        except (DesignError, ProjectorError, StationError, DriverError, OSError) as error:
+            self.app.call_from_thread(self._set_status, f"cannot make the jigs: {error}", "red")
+            return
+        self.app.call_from_thread(self._jigs_written, result, folder)
+
+    def _jigs_written(self, result, folder: Path) -> None:
+        """Say what was written, and queue each sheet's laser job on the Machines screen (nothing moves until the
+        maker frames and starts it there)."""
+        plan = result.plan
+        words = f"wrote {len(plan.jigs)} jig{'' if len(plan.jigs) == 1 else 's'} to {folder}"
+        if plan.by_hand:
+            words += "; by hand: " + ", ".join(f"{b.part} ({b.reason})" for b in plan.by_hand)
+        if not result.sheets:
+            self._set_status(words + "; nothing to cut")
+            return
+        queue = getattr(self.app.machines_screen(), "queue_job", None)
+        if queue is None:
+            self._set_status(f"{words}; send jigs.gcode to the laser (`station send`)")
+            return
+        count = len(result.sheets)
+        try:
+            for output in result.sheets:
+                queue("laser", output.gcode, title=f"jigs of {self.job.guide.scenario}"
+                      + (f", sheet {output.index}/{count}" if count > 1 else ""), laser=True)
+        except (DriverError, StationError, ValueError) as error:
+            self._set_status(f"{words}; the laser refused the job: {error}", "red")
+            return
+        self._set_status(f"{words}; their laser job is queued on the Machines screen (m: f frames it, g cuts)")
 
 
 SCREEN = ScreenEntry(

@@ -148,6 +148,7 @@ class MachinesScreen(Screen):
 
     def on_mount(self) -> None:
         self._render_status()
+        self._refresh_queue()  # jobs other screens queued before this one was first shown (the Assemble screen's jigs)
         self.set_interval(0.05, self._drain_calls)
 
     def on_screen_resume(self) -> None:
