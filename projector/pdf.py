@@ -1,11 +1,11 @@
 """The printed guide: a PDF at exactly 1:1, tiled over sheets of A4 / Letter / A3, and a last page of lists.
 
-Each sheet shows its part of the guide plane (1 mm on the plane is 1 mm on paper: reportlab's ``mm`` unit), clipped
-to its drawing area: a light grey 10 mm grid labelled every 50 mm in guide millimetres (the lines to join sheets by),
-the footprints of the laser-cut jigs the steps use, the parts (placed ones solid, static ones hatched grey), their
-numbered labels, heading arrows, tolerance zones and arcs coloured by care, where each part's tag goes, the four
-reference tags at their exact size, join marks in the overlaps, and in the footer the page map and a 100 mm scale bar to check the print. The last page(s)
-(:mod:`projector.pdf_lists`) list the parts, the steps and the tolerances.
+Each sheet shows its part of the guide plane (1 mm on the plane is 1 mm on paper: reportlab's ``mm`` unit), clipped to
+its drawing area: a light grey 10 mm grid labelled every 50 mm in guide millimetres (the lines to join sheets by), the
+footprints of the laser-cut jigs the steps use, the parts (placed ones solid, static ones hatched grey), their numbered
+labels, heading arrows, tolerance zones and arcs coloured by care, where each part's tag goes, the four reference tags
+at their exact size, join marks in the overlaps, and in the footer the page map and a 100 mm scale bar to check the
+print. The last page(s) (:mod:`projector.pdf_lists`) list the parts, the steps and the tolerances.
 """
 
 from __future__ import annotations
