@@ -36,7 +36,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Iterator, Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 import shapely
@@ -257,7 +257,7 @@ def plan_jigs(scenario: Scenario, x, plane, parts: Sequence[PartInput], settings
                 else:
                     skipped.append(f"{part.name}: {reason}")
                 continue
-            jigs.append(jig)
+            jigs.append(_after(jig, jigs))
             continue
         if out_of_plane:
             by_hand.append(ByHand(part.name, part.step, out_of_plane,
@@ -266,10 +266,18 @@ def plan_jigs(scenario: Scenario, x, plane, parts: Sequence[PartInput], settings
         wanted = tuple(name for name in part.parameters if name in tight and keys[name] in IN_PLANE[view])
         if wanted and view == "top":
             try:
-                jigs.append(context.template(part, f"J{len(jigs) + 1}"))
+                jigs.append(_after(context.template(part, f"J{len(jigs) + 1}"), jigs))
             except _NoJig as reason:
                 skipped.append(f"{part.name}: {reason}")
     return JigPlan(view, tuple(jigs), tuple(by_hand), tuple(skipped))
+
+
+def _after(jig: Jig, earlier: Sequence[Jig]) -> Jig:
+    """``jig``, with a note when it lies where an earlier jig lies (that one must be taken away first)."""
+    taken = [other.id for other in earlier if other.footprint.intersection(jig.footprint).area > 1.0]
+    if not taken:
+        return jig
+    return replace(jig, notes=(*jig.notes, f"it lies where jig {', '.join(taken)} lies: take that one away first"))
 
 
 def _by_hand_words(part: str, parameters: Sequence[str], view: str) -> str:
@@ -615,8 +623,16 @@ class _Context:
         room = size * 1.25 / 2.0 + TAG_ROOM_MM
         a, b = self._support(name, cut, frame)
         slope = abs(float((b[1] - a[1]) / (b[0] - a[0])))
-        band = 2.0 * room * (1.0 + slope) + 6.0  # deep enough for the tag's square in the sloping strip
-        plate, a, b, stop, lower, tilt, notes = self._plate(name, cut, frame, band)
+        # deep enough for the tag's square in the sloping strip; where another part lies under the part on the board,
+        # a strip just deep enough for the name (no tag)
+        for band in (2.0 * room * (1.0 + slope) + 6.0, LABEL_MM + 8.0):
+            try:
+                plate, a, b, stop, lower, tilt, notes = self._plate(name, cut, frame, band)
+                break
+            except _NoJig as refused:
+                reason = refused
+        else:
+            raise reason
         if not self._fits_sheet(plate):
             raise self._too_large(plate, "plate")
         x0, ground = plate.bounds[0], plate.bounds[1]

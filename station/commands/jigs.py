@@ -113,10 +113,13 @@ def _print_summary(summary: dict, files: dict) -> None:
     for line in summary["skipped"]:
         print(f"  no jig: {line}")
     for sheet in summary["sheets"]:
-        print(f"sheet {sheet['index']}: {len(sheet['pieces'])} pieces, laser about "
+        count = len(sheet["pieces"])
+        print(f"sheet {sheet['index']}: {count} piece{'' if count == 1 else 's'}, laser about "
               f"{sheet['job']['estimate_seconds']['total'] / 60:.1f} min")
     if not jigs:
-        print("nothing to cut: no part of this layout has a height or tilt to set, nor a tight place")
+        print("nothing to cut: " + ("no jig can be made for this layout (above: why, and how to set it by hand)"
+                                    if by_hand or summary["skipped"] else
+                                    "no part of this layout has a height or tilt to set, nor a tight place"))
     for name, path in files.items():
         print(f"  {name}: {path}")
 
