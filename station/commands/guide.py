@@ -16,8 +16,8 @@ from station.services.errors import ServiceError
 JSON_SHAPE = ('{"scenario", "content_hash", "view", "units": "mm", "tolerance_source", "pages": [{"index", "label", '
               '"paper", "size_mm", "origin_mm"}], "reference_tags": [{"id", "center_mm", "size_mm"}], "parts": '
               '[{"name", "kind", "step", "tag_id", "center_mm", "heading_deg", "outline_mm", "care", "tolerances", '
-              '"parameters": [{"name", "value", "unit", "meaning", "set_with", "role", "tolerance"}]}], "layout", '
-              '"steps"}')
+              '"parameters": [{"name", "value", "unit", "meaning", "set_with", "role", "tolerance"}]}], "jigs": '
+              '[{"id", "part", "kind", "parameters", "words", "footprint_mm", "tag_id"}], "layout", "steps"}')
 
 
 def register(subparsers) -> None:
