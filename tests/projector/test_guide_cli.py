@@ -29,7 +29,7 @@ def test_json_is_the_manifest_with_layout_steps_and_model_tolerances(capsys):
 def test_project_shows_a_step_on_the_simulated_projector(capsys):
     assert main(["guide", "ballrun", "success", "--project", "--step", "3", "--no-tolerances"]) == 0
     out = capsys.readouterr().out
-    assert "projected step 3 of 8 on projector (sim://projector)" in out and "NOT at true scale" in out
+    assert "projected step 3 of 8 on projector (sim://projector?name=projector)" in out and "NOT at true scale" in out
 
 
 @pytest.mark.parametrize("argv, words", [
