@@ -401,13 +401,16 @@ def _stream(conn, history, job: Job, kind: str, url: str, title: str, *, from_li
                 # the line being executed, so that a station killed now still says where to resume
                 resume = runner.progress.current_line + 1 if runner.progress.lines_acked and not dry_run else None
                 history.progress(job_id, runner.progress.lines_acked, resume)
-    except KeyboardInterrupt:
+        if stop.is_set() and runner.result is None:
+            # a second signal meanwhile only asks again: the clean-up (at most ~13 s) confirms the laser is off
+            return _interrupted(conn, history, runner, job_id, signals.cause if signals is not None else "Ctrl-C",
+                                bar)
+    except KeyboardInterrupt:  # without signals: Python's own Ctrl-C
         stop.set()
+        return _interrupted(conn, history, runner, job_id, "Ctrl-C", bar)
     finally:
         if signals is not None:
             signals.streaming = False
-    if stop.is_set() and runner.result is None:
-        return _interrupted(conn, history, runner, job_id, signals.cause if signals is not None else "Ctrl-C", bar)
     result = runner.wait(None)
     history.finish(job_id, result.state, result.lines_acked, result.message, result.resume_line)
     if bar:
