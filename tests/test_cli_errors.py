@@ -149,6 +149,7 @@ MISSING_FILE = {
     ("simulate",): ["simulate", "missing.toml"],
     ("tolerances",): ["tolerances", "simple", "missing.json"],
     ("guide",): ["guide", "simple", "missing.json", "--pdf", "OUT.pdf"],
+    ("jigs",): ["jigs", "simple", "missing.json", "--out", "OUT"],
     ("trial", "log"): ["trial", "log", "missing.toml", "success", "--outcome", "last_stops=yes"],
     ("trial", "list"): None,
     ("trial", "show"): None,
