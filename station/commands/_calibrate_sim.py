@@ -88,8 +88,6 @@ def _calibrate_sim(args) -> int:
         check_output_file(args.out, {".toml"}, "--out")
     if args.draws < 1:
         raise UsageError(f"--draws must be an integer >= 1, got {args.draws}")
-    if not args.prior_width >= 0:  # also refuses nan
-        raise UsageError(f"--prior-width must be a share of each range >= 0 (0: no prior), got {args.prior_width}")
     scenarios = [open_scenario(name) for name in args.scenarios]
     params = [p.strip() for p in args.params.split(",") if p.strip()] if args.params else None
     if args.trials_json is not None:
