@@ -60,6 +60,7 @@ from drivers.gcode import clean_line
 from drivers.grbl.machine_settings import MachineSettings
 from drivers.grbl.protocol import (
     CRITICAL_ALARMS,
+    HOMING_FAIL_ALARMS,
     Alarm,
     Banner,
     Error,
@@ -250,6 +251,8 @@ class GrblConnection(MachineSettings):
         reader.start()
         if not self._wait_for(lambda: self._banner_count > banners, self.banner_timeout):
             self._log("info", "no banner after opening; sending soft reset")
+            with self._lock:
+                self._owed_banners.append(time.monotonic())  # a board slow to start may still greet, then reset
             self.soft_reset()
         if self._banner_count == banners:
             self.close()
@@ -483,8 +486,9 @@ class GrblConnection(MachineSettings):
         """Send-response: send ``line`` alone (after every pending line is answered) and return the messages that
         came with its ``ok``.
 
-        ``retries`` re-sends a line whose reply was lost: only for read-only queries (``$I``, ``$$``, ``$#``,
-        ``$G``), which change nothing if they ran twice.
+        ``retries`` re-sends a line whose reply was lost, or that a reset overtook (a board slow to start greets after
+        the reset the connection sent): only for read-only queries (``$I``, ``$$``, ``$#``, ``$G``), which change
+        nothing if they ran twice.
 
         Raises
         ------
@@ -498,7 +502,8 @@ class GrblConnection(MachineSettings):
                 results = self.stream([line], sync_all=True, timeout=timeout)
                 break
             except StreamStopped as stopped:
-                if attempt < retries and (self.recover_lost_ok() or self._recover_timeout(stopped)):
+                if attempt < retries and (self.recover_lost_ok() or self._recover_timeout(stopped)
+                                          or (stopped.reason == "reset" and not self.position_lost)):
                     self._log("info", f"resending {line!r} after its reply was lost (read-only query)")
                     continue
                 raise
@@ -786,6 +791,8 @@ class GrblConnection(MachineSettings):
                     self._critical_since = time.monotonic()
                     self._critical_asked = False
                     self._critical_resets = 0
+                elif message.code in HOMING_FAIL_ALARMS:
+                    self._expect_banner = True  # GRBL resets itself after a failed homing cycle
             elif isinstance(message, Banner):
                 self.version = self.version or message.version
                 self.firmware = self.firmware if self.firmware.version else VersionInfo(message.version)

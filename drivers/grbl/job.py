@@ -133,8 +133,15 @@ class JobRunner:
             raise DeviceStateError(f"{conn.url}: position lost ({conn.fault}); reconnect and home ($H) first")
         status = conn.fresh_status() or conn.status
         if status is not None and status.state == "Alarm":
-            raise DeviceStateError(f"{conn.url}: machine is in alarm ({conn.alarm or 'locked'}); "
-                                   "home ($H) or unlock ($X) first")
+            if conn.homing_enabled:
+                # GRBL locks a homing machine at power-up (HOMING_INIT_LOCK) until it homes: only then do its machine
+                # coordinates, its soft limits and the pre-flight's machine space mean the machine's travel
+                raise DeviceStateError(
+                    f"{conn.url}: machine is locked ({conn.alarm or 'homing is on ($22=1) and it has not homed'}): "
+                    "home it ($H), then set work zero where the job should start unless G54 holds it already "
+                    "(jog there, G10 L20 P1 X0 Y0)")
+            raise DeviceStateError(f"{conn.url}: machine is in alarm ({conn.alarm or 'locked'}); unlock it ($X) "
+                                   "and set work zero again if the position was lost (G10 L20 P1 X0 Y0)")
         if status is not None and status.state not in ("Idle", "Check"):
             raise DeviceStateError(f"{conn.url}: machine is busy ({status.label}); wait for Idle")
         conn.refresh()  # confirm the settings and offsets now, not from the connect time

@@ -123,7 +123,8 @@ def check_machine_space(name: str, conn: GrblConnection, lo: np.ndarray, hi: np.
     if bad:
         raise JobRefused(f"job {name!r} leaves the machine's travel ($130-$132 with work offset "
                          f"{', '.join(f'{v:.2f}' for v in wco)}{'; ' + note if note else ''}): "
-                         + "; ".join(bad))
+                         + "; ".join(bad) + ". Set work zero where the job should start (jog there, then "
+                         "G10 L20 P1 X0 Y0), after homing ($H) if the machine has not homed since it was switched on")
 
 
 def check_span(name: str, conn: GrblConnection, toolpath: Toolpath, lo: np.ndarray, hi: np.ndarray,

@@ -10,6 +10,7 @@ from drivers.errors import ProtocolError
 __all__ = [
     "ALARM_CODES",
     "CRITICAL_ALARMS",
+    "HOMING_FAIL_ALARMS",
     "ERROR_CODES",
     "SYNC_COMMANDS",
     "Alarm",
@@ -87,6 +88,9 @@ ALARM_CODES: dict[int, str] = {
 #: Alarms after which GRBL answers nothing but a soft reset (hard and soft limits: ``protocol_exec_rt_system``
 #: "Halt everything upon a critical event flag"); the driver sends that reset itself.
 CRITICAL_ALARMS = frozenset({1, 2})
+
+#: Homing failures: GRBL resets itself after them (``limits_go_home`` calls ``mc_reset``), so a banner follows.
+HOMING_FAIL_ALARMS = frozenset(range(6, 11))
 
 #: What a limit alarm says about the job or the machine: what is left to check once GRBL is reset (and unlocked).
 ALARM_CAUSE: dict[int, str] = {

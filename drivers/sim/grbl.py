@@ -18,16 +18,23 @@ What it models
 - Soft limits as GRBL 1.1 checks them (``system_check_travel_limits``): only with ``$20=1``, which needs homing
   (``$20=1`` with ``$22=0`` answers error:10, and ``$22=0`` also clears ``$20``); every axis in -travel..0, or with
   the build option HOMING_FORCE_SET_ORIGIN (``force_origin=1``, ``Z`` in ``[OPT:]``) an axis whose ``$23`` bit is
-  set in 0..+travel. A target outside: ALARM:2, ``[MSG:Reset to continue]``, and the triggering line's ``ok`` only
-  after the reset. Without homing there are no machine-space limits at all: machine zero is where the head stood at
-  power-up (and G54 starts at zero there, GRBL's default).
+  set in 0..+travel. A target outside: a running cycle is held to a stop first (``limits_soft_check``), then
+  ALARM:2, ``[MSG:Reset to continue]``, nothing at all (not even a status report) until a soft reset, and the
+  triggering line's ``ok`` only after the reset. Without homing there are no machine-space limits at all: machine
+  zero is where the head stood at power-up (and G54 starts at zero there, GRBL's default).
 - Homing ``$H`` (error:5 with ``$22=0``) ends where GRBL's ``limits_go_home`` sets the position: ``-$27`` (pull-off)
   for an axis homing towards +, ``-travel + $27`` for one whose ``$23`` bit is set, 0 with HOMING_FORCE_SET_ORIGIN.
   As in GRBL 1.1, ``?`` gets no answer while the cycle runs (1.5 simulated seconds): one ``<Home|...>`` report
   follows its end, however many were asked for.
 - ``$I`` prints ``[VER:1.1h.20190830:<build info>]`` (report.c's format) with the build info ``$I=`` stored.
 - Reset during motion: ALARM:3 and alarm lock; laser mode ``$32=1`` with M3 (constant) and M4 (dynamic) power,
-  dark rapids and dark feed hold.
+  dark rapids and dark feed hold (the status report's spindle speed is what motion set: ``FS:0,0`` in a completed
+  hold, ``[MSG:Restoring spindle]`` when it resumes).
+- Probing ``G38.2``-``G38.5`` as ``mc_probe_cycle`` runs it, against a touch plate whose top is at machine Z
+  ``probe_z``: ``[PRB:x,y,z:1]`` at contact (the machine stops just past it), ALARM:4 when the probe touches before it
+  starts (away: does not touch), ALARM:5 when a G38.2/G38.4 never touches, ``Pn:P`` while touching, ``$#``'s
+  ``[PRB:]``.
+- Power-up: with homing (``$22=1``) and ``homed=0``, GRBL's HOMING_INIT_LOCK: alarm until ``$H`` or ``$X``, G54 at 0.
 - A record of what it executed (:class:`SimRecord`): every block's end position, laser power and timing, samples of
   position and laser power over time, soft resets, lines received.
 
@@ -38,8 +45,12 @@ simulated second), ``latency`` (seconds each way), ``wire`` (0 disables the baud
 ``drop`` / ``corrupt`` / ``stray`` / ``delay`` (probabilities per reply line), ``delay_max`` (seconds),
 ``disconnect_at`` (the N-th G-code line received unplugs the port), ``drop_reply_at`` (the reply to the N-th
 G-code line is lost), ``locked`` (power up in alarm), ``homing`` (``0``: ``$22=0``, which also clears soft limits
-``$20`` as GRBL does; ``1``: ``$22=1``), ``travel`` (``$130``-``$132`` as ``WxD`` or ``WxDxH`` in mm, e.g.
-``travel=400x400``), ``force_origin`` (``1``: built with HOMING_FORCE_SET_ORIGIN), ``record`` (a file the machine
+``$20`` as GRBL does; ``1``: ``$22=1``), ``homed`` (with homing: ``1``, the default, is the station's machine as its
+maker left it, homed at machine zero with work zero, G54, at the front-left corner; ``0`` is GRBL as switched on:
+locked in alarm until ``$H`` or ``$X`` (HOMING_INIT_LOCK), at machine zero, with G54 at 0 as a fresh EEPROM has it),
+``travel`` (``$130``-``$132`` as ``WxD`` or ``WxDxH`` in mm, e.g.
+``travel=400x400``), ``force_origin`` (``1``: built with HOMING_FORCE_SET_ORIGIN), ``probe_z`` (the top of a touch
+plate, machine Z in mm; without it a probe never touches), ``record`` (a file the machine
 writes its record to as JSON when its port closes: what another process, e.g. a test of ``station send``, can
 inspect), ``clock`` (``wall``, the default, or ``virtual``: simulated time skips the machine's waits; the record's
 times are then simulated seconds from 0, and ``time_scale`` still scales them), ``pace`` (with ``clock=virtual``:
@@ -144,15 +155,18 @@ class SimulatedGrbl(Wire, SystemCommands, GcodeInterpreter, Planner):
         self._wire_event_next = False  # the next event is a byte on the wire (see _next_event)
         # EEPROM: work coordinate systems G54..G59 (machine mm), G28/G30 positions
         self.coords = {n: np.zeros(3) for n in range(54, 60)}
-        if int(self.settings[22]):
-            # homed machine space: the work origin at the front-left corner (the lowest X and Y)
+        homing = bool(int(self.settings[22]))
+        if homing and config.homed:
+            # a machine its maker set up: work zero (kept in EEPROM) at the front-left corner of the homed machine
+            # space (the lowest X and Y)
             self.coords[54] = np.array([self._machine_bounds()[0][0], self._machine_bounds()[0][1], 0.0])
         self.g28 = np.zeros(3)
         self.g30 = np.zeros(3)
         self.startup_lines = ["", ""]
         self.build_info = ""  # what $I= stored (EEPROM), printed after the build date by $I
         self.mpos = np.zeros(3)
-        self._power_on_state = "Alarm" if config.locked else "Idle"
+        # HOMING_INIT_LOCK (main.c): with homing enabled GRBL powers up in alarm until $H (or $X)
+        self._power_on_state = "Alarm" if config.locked or (homing and not config.homed) else "Idle"
         self._init_runtime(self._power_on_state)
         self._emit_banner()
         self._thread = threading.Thread(target=self._loop, name=f"sim-grbl-{config.profile}", daemon=True)

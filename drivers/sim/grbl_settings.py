@@ -52,7 +52,7 @@ _OPTIONS: dict[str, tuple[str, object]] = {
     **{key: ("a number", float) for key in ("time_scale", "latency", "drop", "corrupt", "stray", "delay",
                                             "delay_max", "pace", "probe_z")},
     **{key: ("a whole number", int) for key in ("seed", "disconnect_at", "drop_reply_at")},
-    **{key: ("0 or 1", _flag) for key in ("wire", "locked", "homing", "force_origin")},
+    **{key: ("0 or 1", _flag) for key in ("wire", "locked", "homing", "homed", "force_origin")},
     **{key: ("text", str) for key in ("profile", "name", "record")},
     "clock": (" or ".join(CLOCKS), str),
 }
@@ -82,6 +82,7 @@ class SimConfig:
     drop_reply_at: int = 0  # the reply to the N-th G-code line is lost
     locked: bool = False  # power up in alarm
     homing: bool | None = None  # None: the profile's $22
+    homed: bool = True  # with homing: set up and homed (False: GRBL as switched on, locked, G54 at 0)
     travel: tuple[float, ...] | None = None  # $130, $131 (and $132); None: the profile's
     force_origin: bool = False  # built with HOMING_FORCE_SET_ORIGIN ('Z' in [OPT:])
     probe_z: float | None = None  # the top of a touch plate (machine Z, mm): G38.x touches it; None: no plate

@@ -143,6 +143,9 @@ class _LimitGrbl:
             self.listening_since = time.monotonic() + self.msg_delay + self.clear_delay
             self._send(f"ALARM:{self.alarm}\r\n".encode())
             self._send(b"[MSG:Reset to continue]\r\n", self.msg_delay)
+        elif block == b"$H":  # no switch found: GRBL resets itself (limits_go_home calls mc_reset)
+            self.state = "Alarm"
+            self._send(b"ALARM:9\r\nok\r\n\r\nGrbl 1.1h ['$' for help]\r\n[MSG:'$H'|'$X' to unlock]\r\n", 0.2)
         elif block == b"$X":
             self.state = "Idle"
             self._send(b"[MSG:Caution: Unlocked]\r\nok\r\n")
@@ -208,3 +211,12 @@ def test_a_hard_limit_stops_the_job_and_grbl_stays_locked_for_homing(limit_grbl)
     assert "GRBL reset, still locked" in result.message and "then home ($H)" in result.message
     assert b"$X" not in grbl.lines and grbl.resets == 1 and not conn.position_lost
     assert conn.fresh_status().state == "Alarm"
+
+
+def test_a_failed_homing_cycle_resets_grbl_and_that_is_no_restart(limit_grbl):
+    grbl, conn = limit_grbl()
+    with pytest.raises(DeviceStateError, match="ALARM:9"):
+        conn.command("$H")
+    assert conn.wait_for(lambda: conn.status is not None and conn.status.state == "Alarm", 5.0)
+    time.sleep(0.3)
+    assert not conn.position_lost, conn.fault

@@ -66,15 +66,15 @@ def test_banner_info_settings_and_parser_state(raw):
     port = raw()
     assert port.ask("$I") == b"[VER:1.1h.20190830:]\r\n[OPT:V,15,128]\r\nok\r\n"
     settings = port.ask("$$").decode()
-    assert settings.startswith("$0=10\r\n$1=25\r\n") and "$10=1\r\n" in settings and "$11=0.010\r\n" in settings
+    assert settings.startswith("$0=10\r\n$1=25\r\n") and "$10=3\r\n" in settings and "$11=0.010\r\n" in settings
     assert "$30=1000\r\n" in settings and "$32=1\r\n" in settings and "$130=400.000\r\n" in settings
     assert port.ask("$G") == b"[GC:G0 G54 G17 G21 G90 G94 M5 M9 T0 F0 S0]\r\nok\r\n"
     offsets = port.ask("$#").decode()
     assert offsets.startswith("[G54:-400.000,-400.000,0.000]\r\n[G55:0.000,0.000,0.000]\r\n")
     assert offsets.endswith("[TLO:0.000]\r\n[PRB:0.000,0.000,0.000:0]\r\nok\r\n")
-    assert port.status() == "<Idle|MPos:0.000,0.000,0.000|FS:0,0|WCO:-400.000,-400.000,0.000>"
-    assert port.ask("$10=3") == b"ok\r\n"
-    assert port.status() == "<Idle|MPos:0.000,0.000,0.000|Bf:15,128|FS:0,0>"
+    assert port.status() == "<Idle|MPos:0.000,0.000,0.000|Bf:15,128|FS:0,0|WCO:-400.000,-400.000,0.000>"
+    assert port.ask("$10=0") == b"ok\r\n"  # work position, no buffer state
+    assert port.status() == "<Idle|WPos:400.000,400.000,0.000|FS:0,0>"
 
 
 @pytest.mark.parametrize(

@@ -7,6 +7,8 @@ import pytest
 
 from drivers.gcode import clean_line
 from drivers.grbl import Job, JobRunner
+from station.devices import DeviceEntry
+from station.tui.widgets.machines_status import status_lines
 
 from .conftest import sim_url
 
@@ -55,3 +57,12 @@ def test_a_work_offset_set_in_wpos_mode_moves_both_positions(make_connection):
     conn.command("G10 L20 P1 X0 Y0")  # work zero here: machine (-300, -350)
     assert conn.wait_for(lambda: conn.status.wpos == (0.0, 0.0, 0.0), 5.0)
     assert conn.status.mpos == (-300.0, -350.0, 0.0) and conn.work_offset() == (-300.0, -350.0, 0.0)
+
+
+def test_the_machines_panel_shows_both_positions_and_says_when_buffers_are_not_reported(make_connection):
+    url = sim_url("laser", s10=0)  # WPos only
+    conn = make_connection(url)
+    conn.fresh_status()
+    lines = status_lines(DeviceEntry("laser", "laser", url, True), conn, 1.0)
+    assert "WPos X  400.000  Y  400.000  Z    0.000" in lines and "MPos X    0.000  Y    0.000  Z    0.000" in lines
+    assert any(line.startswith("planner and RX not reported ($10=0)   feed 0 mm/min") for line in lines)

@@ -48,9 +48,11 @@ def status_lines(device: DeviceEntry | None, conn: GrblConnection | None, jog_st
             if position:
                 lines.append(f"{name} " + "  ".join(f"{a} {v:8.3f}" for a, v in zip("XYZ", position)))
         if status.planner_free is not None:
-            lines.append(f"planner {conn.planner_size - status.planner_free}/{conn.planner_size} blocks"
-                         f"   RX {conn.rx_size - status.rx_free}/{conn.rx_size} bytes"
-                         f"   feed {status.feed or 0:.0f} mm/min  S {status.spindle or 0:.0f}")
+            buffers = (f"planner {conn.planner_size - status.planner_free}/{conn.planner_size} blocks"
+                       f"   RX {conn.rx_size - status.rx_free}/{conn.rx_size} bytes")
+        else:  # the machine's $10 leaves the buffer state out of its reports (the station never changes it)
+            buffers = f"planner and RX not reported ($10={int(conn.settings.get(10, 1))})"
+        lines.append(f"{buffers}   feed {status.feed or 0:.0f} mm/min  S {status.spindle or 0:.0f}")
     if conn.alarm is not None:
         lines.append(f"[red]{escape(str(conn.alarm))}[/red]")
         lines.append(f"  recovery: {escape(str(conn.alarm.recovery))}")
