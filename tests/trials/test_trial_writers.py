@@ -9,6 +9,7 @@ import os
 import sqlite3
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 import pytest
@@ -215,11 +216,18 @@ def test_ctrl_c_while_waiting_keeps_the_trial(impatient, capsys, monkeypatch):
     log_json(capsys, "simple", "success", "--outcome", "last_stops=yes")
     holder = _hold(database_path())
 
-    def interrupted(seconds):
-        raise KeyboardInterrupt
+    class Interrupted:
+        """The database module's clock, whose pause is a Ctrl-C (only there: other threads keep time.sleep)."""
+
+        def __getattr__(self, name):
+            return getattr(time, name)
+
+        @staticmethod
+        def sleep(seconds):
+            raise KeyboardInterrupt
 
     with monkeypatch.context() as patched:
-        patched.setattr(db.time, "sleep", interrupted)  # Ctrl-C during the pause between two attempts
+        patched.setattr(db, "time", Interrupted())  # Ctrl-C during the pause between two attempts
         code, out, err = run_cli(capsys, "trial", "log", "simple", "success", "--outcome", "last_stops=yes",
                                  "--notes", "stopped", "--predict", "0")
     assert code == 130 and out == ""
