@@ -199,11 +199,7 @@ class SimulatedCamera:
         projector = projector_named(self.projector_name)
         if projector is None:
             return None
-        light = projector.light()
-        if light["plane_from_pixel"] is None:
-            raise DriverError(f"camera {self.url}: the simulated projector {self.projector_name!r} has no placement "
-                              "(give it area=u0,v0,u1,v1 or place() it)")
-        return light
+        return projector.light()
 
 
 def sim_camera(url: str = "sim://camera", timeout: float = 2.0, **_: Any) -> SimulatedCamera:

@@ -21,8 +21,7 @@ A dict of plain data (builtins and one numpy array; no import of ``design`` or `
                                    # row 0 is the top of the image, pixel (x, y) has its centre at (x, y)
      "blank": bool,                # True when showing black (blank(), closed, or nothing shown yet)
      "frames_shown": int,          # how many frames show() has been given
-     "plane_from_pixel": [[...]] or None,  # 3x3 homography: guide-plane (u, v, 1) mm ~ H @ (x, y, 1); None when
-                                           # the placement is unknown
+     "plane_from_pixel": [[...]],  # 3x3 homography: guide-plane (u, v, 1) mm ~ H @ (x, y, 1)
      "note": str or None}          # how the last frame was fitted to the screen, None when pixel for pixel
 
 A simulated camera that knows its own pose on the guide plane lights each of its pixels with
@@ -81,7 +80,6 @@ class SimulatedProjector:
         self.folder: Path | None = options["folder"]
         self.keep: int = options["keep"]
         self.name: str = options["name"]
-        self.plane_from_pixel: np.ndarray | None = None
         # a camera linked to it sees its light where it lands, without being told (``sim://camera?projector=NAME``)
         half_w, half_h = (DEFAULT_MM_PER_PIXEL * n / 2 for n in self._size)
         self.place(area_homography(options["area"] or (-half_w, -half_h, half_w, half_h), self._size))
@@ -171,7 +169,7 @@ class SimulatedProjector:
             note = self.notes[-1] if self.notes and not self.blanked else None
             blank = self.blanked or not self.frames
         return {"size": list(size), "image": image, "blank": blank, "frames_shown": self.frames_shown,
-                "plane_from_pixel": None if self.plane_from_pixel is None else self.plane_from_pixel.tolist(),
+                "plane_from_pixel": self.plane_from_pixel.tolist(),
                 "note": note}
 
     def state(self) -> str:

@@ -20,6 +20,7 @@ from typing import Any
 import numpy as np
 
 from common.progress import Progress
+from common.signals import HandledSignals
 from design.datafiles import load_json
 from design.errors import FileFormatError
 from drivers.errors import DeviceStateError, JobRefused
@@ -336,7 +337,7 @@ def _ask(question: str, default: bool) -> bool:
     return default if not answer else answer in ("y", "yes")
 
 
-class SendSignals:
+class SendSignals(HandledSignals):
     """SIGINT (Ctrl-C, ``kill -INT``) and SIGTERM (``kill``) while ``station send`` runs, handled by the command.
 
     Installed even when the process started with SIGINT ignored: a background job of a script gets SIGINT ignored
@@ -347,21 +348,10 @@ class SendSignals:
     """
 
     def __init__(self) -> None:
+        super().__init__()
         self.stop = threading.Event()
         self.streaming = False
         self.signum: int | None = None
-        self._previous: dict[int, Any] = {}
-
-    def __enter__(self) -> SendSignals:
-        if threading.current_thread() is threading.main_thread():
-            for signum in (signal.SIGINT, signal.SIGTERM):
-                self._previous[signum] = signal.signal(signum, self._handle)
-        return self
-
-    def __exit__(self, *exc) -> None:
-        for signum, handler in self._previous.items():
-            signal.signal(signum, handler)
-        self._previous.clear()
 
     def _handle(self, signum, frame) -> None:
         self.signum = signum

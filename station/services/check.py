@@ -22,6 +22,7 @@ import numpy as np
 from common.progress import ProgressCallback, Reporter
 from station.services.check_scene import parse_offset, sim_scene
 from station.services.errors import ServiceError
+from station.services.guide_manifest import read_manifest
 
 __all__ = ["CheckJob", "apply_manifest", "camera_frame", "camera_overlay", "check_frame", "check_measurement",
            "grab_frame", "load_image", "overlay_frame", "parse_offset", "prepare_check",
@@ -77,7 +78,7 @@ def prepare_check(scenario: str, layout: str, *, guide: str | Path | None = None
     from station.services import guide as guides
     from station.services.contraption import open_scenario
 
-    manifest = _read_manifest(guide) if guide is not None else None
+    manifest = read_manifest(guide) if guide is not None else None
     view = manifest.get("view") if manifest is not None else None
     if manifest is None:
         return guides.make_guide(scenario, layout, progress=progress)
@@ -106,12 +107,6 @@ def _model_of(scenario, layout: str) -> ScoringModel | None:
     except ValueError:  # no design space: nothing to score
         return None
     return ScoringModel(problem, layout_and_model(str(layout), problem)[1])
-
-
-def _read_manifest(path) -> dict:
-    from station.services.guide_manifest import read_manifest
-
-    return read_manifest(path)
 
 
 def apply_manifest(guide, manifest: Mapping, source: str = "<manifest>"):
@@ -525,6 +520,13 @@ def _simulate(problem, built, residual, n: int, seed: int, report: Reporter, sho
 
 
 # -- what the check shows ---------------------------------------------------------------------------------------------
+def no_zone_words() -> str:
+    """What a starred ok (``yes*``, ``NO*``) means, in the check's text and on the Assemble screen."""
+    from projector.drawing import UNTOLERATED_DEG, UNTOLERATED_MM
+
+    return f"no zone on the sheet, so off by {UNTOLERATED_MM:g} mm / {UNTOLERATED_DEG:g} deg or more is to move"
+
+
 def summary_lines(report, physical=None) -> list[str]:
     """The check's headline in words, most important first: the physical success as placed (``physical``, a
     :class:`calibration.sim_predict.PhysicalPrediction`; else the simulated success of ``--simulate``), the parts to
@@ -594,7 +596,6 @@ def camera_overlay(check: CheckJob) -> np.ndarray:
 def report_lines(report, physical=None) -> list[str]:
     """The check as text: the headline (:func:`summary_lines`), one row per tagged part (costliest first) with a
     legend, the instructions, what was not measured and the notes, the success model's score last (a detail)."""
-    from projector.drawing import UNTOLERATED_DEG, UNTOLERATED_MM
     from projector.overlay import misplaced
 
     summary = summary_lines(report, physical)
@@ -625,8 +626,7 @@ def report_lines(report, physical=None) -> list[str]:
     if len(rows) > 1:
         lines.append("  tolerance: +-u/+-v mm, +-turn deg, the zone drawn on the sheet (-: none there)")
         if starred:
-            lines.append(f"  NO*/yes*: no zone on the sheet, so off by {UNTOLERATED_MM:g} mm / {UNTOLERATED_DEG:g} "
-                         "deg or more is to move")
+            lines.append(f"  NO*/yes*: {no_zone_words()}")
         lines.append("  cost: how much the success model's score falls with that part's error alone (-: none)")
     steps = [p.instruction for p in report.parts if p.instruction]
     lines.extend(f"  {i}. {text}" for i, text in enumerate(steps, start=1))

@@ -143,7 +143,7 @@ def make_guide(scenario: str, layout: str | None, *, view: str | None = None, ve
         loaded_layout = choose_layout(loaded_scenario, layout=layout)
     guide = build_guide(loaded_scenario, loaded_layout.x, view=view, tolerances=by_parameter, set_with=set_with)
     guide = replace(guide, tolerance_note=tolerance_map.map.note if tolerance_map is not None else None,
-                    headline=_layout_headline(layout))
+                    headline=_layout_headline(layout, tolerance_map))
     job = GuideJob(guide, tuple(steps_text(guide)), loaded_layout, tolerance_map, loaded_scenario)
     if jigs:
         from station.services.jigs import JigOptions, attach_jigs, plan_guide_jigs
@@ -152,11 +152,14 @@ def make_guide(scenario: str, layout: str | None, *, view: str | None = None, ve
     return job
 
 
-def _layout_headline(layout: str | None) -> str | None:
-    """The physical success a LAYOUT.json carries (``station optimize`` writes it), in the station's words."""
+def _layout_headline(layout: str | None, tolerance_map=None) -> str | None:
+    """The physical success a LAYOUT.json carries (``station optimize`` writes it), in the station's words; from the
+    tolerance map's reading of the file when there is one."""
     from design.contraption.layout_io import read_layout_data
     from station.services.outlook import layout_headline
 
+    if tolerance_map is not None:
+        return layout_headline(tolerance_map.layout_data)
     if layout is None or not Path(str(layout)).is_file():
         return None
     return layout_headline(read_layout_data(str(layout)))

@@ -11,7 +11,6 @@ kept. Refused input is a :class:`~station.services.errors.ServiceError` naming t
 
 from __future__ import annotations
 
-import signal
 import threading
 from collections.abc import Callable, Iterator, Sequence
 from contextlib import contextmanager
@@ -20,6 +19,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from common.progress import Cancelled
+from common.signals import HandledSignals
 from design.errors import FileFormatError
 from design.robust.problem import RobustError
 from design.robust.settings import METHODS, PSPSettings, RobustnessSettings
@@ -184,7 +184,7 @@ def read_layout(path: str, problem):
 
 
 # -- stopping -----------------------------------------------------------------------------------------------------
-class StopRequest:
+class StopRequest(HandledSignals):
     """Ctrl-C and SIGTERM during a run, as a request the work polls at safe points (``should_stop=stop.is_set``).
 
     Python's default raises KeyboardInterrupt wherever the main thread is, and the station's SIGTERM handler does
@@ -197,19 +197,8 @@ class StopRequest:
     """
 
     def __init__(self) -> None:
+        super().__init__()
         self._event = threading.Event()
-        self._previous: dict[int, object] = {}
-
-    def __enter__(self) -> StopRequest:
-        if threading.current_thread() is threading.main_thread():  # handlers can be set there only
-            for signum in (signal.SIGINT, signal.SIGTERM):
-                self._previous[signum] = signal.signal(signum, self._handle)
-        return self
-
-    def __exit__(self, *exc) -> None:
-        for signum, handler in self._previous.items():
-            signal.signal(signum, handler)
-        self._previous.clear()
 
     def _handle(self, signum, frame) -> None:
         if self._event.is_set():

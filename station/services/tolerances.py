@@ -11,7 +11,7 @@ when ``verify > 0``, else none; the result's ``map.source`` says which. Progress
 
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -53,6 +53,9 @@ class Tolerances:
         The fitted model the layout file carried.
     verify : int
         Layouts simulated per parameter (0: none).
+    layout_data : object
+        The layout file's content as read (None for a layout named in the scenario): what else it carries, e.g. the
+        physical success ``station optimize`` wrote.
     """
 
     problem: object
@@ -61,6 +64,7 @@ class Tolerances:
     map: ToleranceMap
     model: PortablePSP | None
     verify: int
+    layout_data: object = field(default=None, repr=False)
 
     def parameter_tolerances(self) -> dict[str, tuple[ParameterTolerance, ...]]:
         """Per part, its parameters' tolerances as the guide's :class:`projector.guide.ParameterTolerance`."""
@@ -83,24 +87,25 @@ class Tolerances:
 def layout_and_model(layout: str, problem):
     """The layout ``layout`` names and the fitted model its file carries (None for a layout without one), from one
     reading of the file."""
+    return _read_layout(layout, problem)[:2]
+
+
+def _read_layout(layout: str, problem):
+    """``(layout, model or None, the file's data or None)``: what :func:`layout_and_model` gives and the data read
+    for it (None for a layout named in the scenario)."""
     from design.contraption.layout_io import layout_from_data, read_layout_data
     from design.robust.model_io import layout_model
 
     if not Path(layout).is_file():  # a layout named in the scenario, or a missing file: the reader says which
-        return robust.read_layout(layout, problem), None
+        return robust.read_layout(layout, problem), None, None
     data = read_layout_data(layout)
-    return layout_from_data(data, problem.scenario, file=layout), layout_model(data, problem, file=layout)
+    return layout_from_data(data, problem.scenario, file=layout), layout_model(data, problem, file=layout), data
 
 
-def layout_simulated_success(layout: str) -> float | None:
-    """What simulation says of a layout file's success: its ``physical_success`` probability (``station optimize``
-    writes it), else its ``simulated_success`` (one simulation at the point) as 0 or 1; None for a named layout or
-    a file with neither."""
-    from design.contraption.layout_io import read_layout_data
-
-    if not Path(layout).is_file():
-        return None
-    data = read_layout_data(layout)
+def layout_simulated_success(data) -> float | None:
+    """What simulation says of a layout file's success, from its data: its ``physical_success`` probability
+    (``station optimize`` writes it), else its ``simulated_success`` (one simulation at the point) as 0 or 1; None
+    for a named layout (no data) or a file with neither."""
     if not isinstance(data, dict):
         return None
     physical = data.get("physical_success")
@@ -162,7 +167,7 @@ def tolerance_map(scenario, layout: str, *, verify: int = 0, seed: int = 0, work
     from station.services.physics import problem_with_physics
 
     problem = problem_with_physics(contraption_problem(scenario), physics)
-    loaded, model = layout_and_model(str(layout), problem)
+    loaded, model, data = _read_layout(str(layout), problem)
     u = np.clip(problem.to_normalized(loaded.x), 0.0, 1.0)
     d = problem.dim
     if progress is not None:
@@ -170,7 +175,7 @@ def tolerance_map(scenario, layout: str, *, verify: int = 0, seed: int = 0, work
     note = None
     if model is not None:
         tolerances = model_tolerances(model, problem, u, is_valid=problem.is_valid)
-        simulated = layout_simulated_success(str(layout))
+        simulated = layout_simulated_success(data)
         if disagreement(tolerances.layout_psp, simulated) is not None:
             # the model is no guide here: its tolerances are searched again by simulation, or (with --verify)
             # kept with their measured success beside them
@@ -204,4 +209,4 @@ def tolerance_map(scenario, layout: str, *, verify: int = 0, seed: int = 0, work
                                                on_parameter=parameter)
     if note is not None:
         tolerances = replace(tolerances, note=note)
-    return Tolerances(problem, loaded, u, tolerances, model, verify)
+    return Tolerances(problem, loaded, u, tolerances, model, verify, data)

@@ -45,7 +45,6 @@ from textual.widgets import Button, DataTable, Footer, Header, Input, Label, Sel
 
 from design.errors import DesignError
 from drivers.errors import DriverError
-from projector.drawing import UNTOLERATED_DEG, UNTOLERATED_MM
 from projector.errors import ProjectorError
 from projector.overlay import misplaced
 from station.errors import StationError
@@ -436,8 +435,7 @@ class AssembleScreen(AttemptFlow, Screen):
         self.query_one("#frame", HalfBlockPicture).set_image(Image.fromarray(message.picture))
         lines = checks.summary_lines(report, message.check.physical)
         if any(part.found and part.within_tolerance is None for part in report.parts):
-            lines.append(f"yes*/NO*: no zone on the sheet, so off by {UNTOLERATED_MM:g} mm / {UNTOLERATED_DEG:g} deg "
-                         "or more is to move")
+            lines.append(f"yes*/NO*: {checks.no_zone_words()}")
         if report.prediction_note:
             lines.append(report.prediction_note)
         self.query_one("#caption", Static).update(Text("\n".join(lines)))
