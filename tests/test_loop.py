@@ -43,7 +43,7 @@ def test_the_camera_measures_parts_where_the_maker_put_them(simple_job):
     assert set(hidden) == set(simple_job.scenario.physics_parameters())
     for name, (_, (lo, hi)) in simple_job.scenario.uncertain_parameters().items():
         assert lo <= hidden[name] <= hi
-    worlds.place_parts(world, guide, attempt=1, highlighted=False)
+    worlds.place_parts(world, guide, attempt=1, highlighted=False, scenario=simple_job.scenario)
     placed = world.placed()["track"]
     drawn = next(p for p in guide.parts if p.name == "track")
     truth = np.subtract(placed["center_mm"], drawn.center_mm)

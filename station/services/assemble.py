@@ -185,7 +185,8 @@ class Assembly:
         if self.world is not None:
             from station.services.world import place_parts
 
-            place_parts(self.world, self.job.guide, attempt=self.attempt, highlighted=self.projector is not None)
+            place_parts(self.world, self.job.guide, attempt=self.attempt, highlighted=self.projector is not None,
+                        scenario=self.job.scenario)
         self.stage = "check"
 
     # -- check ------------------------------------------------------------------------------------------------------

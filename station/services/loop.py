@@ -633,7 +633,7 @@ class _Loop:
 
         guide, scenario = job.guide, self.scenario
         number = k * ATTEMPT_BLOCK + a
-        worlds.place_parts(self.world, guide, attempt=number, highlighted=checked)
+        worlds.place_parts(self.world, guide, attempt=number, highlighted=checked, scenario=scenario)
         report, applied, left = None, [], []
         if checked:
             for r in range(self.settings.rounds + 1):

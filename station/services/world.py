@@ -7,9 +7,13 @@ simulated maker places (:func:`guide_parts`), the maker's placed poses into the 
 :func:`station.services.check_scene.sim_scene`, so the check measures them as it would on a real table), a check
 into the moves its instructions ask for (:func:`check_moves`), and runs an attempt (:func:`run_attempt`): the placed
 poses become design parameters (:func:`calibration.asbuilt.as_built_layout`, the *as-placed* layout), and the
-scenario simulates it under the world's hidden material values. Parameters the camera cannot see (a height in the
-top view) are placed with the world's correcting error (``fix_mm`` / ``fix_deg``, drawn from the run's seed): the
-maker sets them with a ruler, and no check corrects them.
+scenario simulates it under the world's hidden material values.
+
+The simulated maker knows only what the guide says: the world is handed the guide's manifest (each part's drawn
+pose and its ``parameters`` with their ``set_with``, the jigs) and the ranges of the design parameters, never the
+layout. Parameters off the plane (a height, a tilt) are those the world set on its own with the error of how the
+guide said to set them (:meth:`drivers.sim.world.SimulatedWorld.settings`); a parameter the guide did not state at
+all is the maker's guess over its range.
 
 The hidden physics is read here and nowhere else in the station (the bench reports it next to what calibration
 found).
@@ -24,10 +28,11 @@ from typing import Any
 
 import numpy as np
 
+from projector.guide import IN_PLANE_ROLES
 from station.services.errors import ServiceError
 
-__all__ = ["AttemptRun", "as_placed_layout", "check_moves", "grab_placed", "guide_parts", "open_world", "place_parts",
-           "prepare_world", "run_attempt", "world_scene"]
+__all__ = ["AttemptRun", "as_placed_layout", "check_moves", "design_ranges", "grab_placed", "guide_jigs", "guide_parts",
+           "open_world", "place_parts", "prepare_world", "run_attempt", "world_scene"]
 
 
 def open_world(url: str):
@@ -56,9 +61,30 @@ def prepare_world(world, scenario) -> dict[str, float]:
 
 
 def guide_parts(guide) -> list[dict]:
-    """Every part of ``guide`` as the world places it: ``{"name", "center_mm", "heading_deg"}``."""
+    """Every part of ``guide`` as the maker is told it: ``{"name", "center_mm", "heading_deg", "parameters"}``, the
+    parameters as the guide manifest states them (``name``, ``value``, ``unit``, ``role``, ``set_with``)."""
     return [{"name": p.name, "center_mm": [float(p.center_mm[0]), float(p.center_mm[1])],
-             "heading_deg": float(p.heading_deg)} for p in guide.parts]
+             "heading_deg": float(p.heading_deg),
+             "parameters": [{"name": q.name, "value": float(q.value), "unit": q.unit, "role": q.role,
+                             "set_with": q.set_with} for q in p.settings]} for p in guide.parts]
+
+
+def guide_jigs(guide) -> list[dict]:
+    """The jigs the guide's steps use, as the maker is told them: ``{"id", "part", "parameters"}``."""
+    return [{"id": j.id, "part": j.part, "parameters": list(j.parameters)} for j in guide.jigs]
+
+
+def design_ranges(scenario) -> dict[str, list]:
+    """Every design parameter's range as a maker sees it on the contraption: ``{name: [lower, upper, unit]}``, in
+    mm or degrees (what the maker guesses within when the guide does not state a parameter)."""
+    from design.contraption.schema import ANGLE_KEYS
+
+    space = scenario.design_space
+    ranges = {}
+    for name, lower, upper in zip(space.names, space.lower, space.upper):
+        scale, unit = (1.0, "deg") if name.rsplit(".", 1)[-1] in ANGLE_KEYS else (1000.0, "mm")
+        ranges[name] = [float(lower) * scale, float(upper) * scale, unit]
+    return ranges
 
 
 def _offsets(guide, placed: Mapping[str, Mapping]) -> dict[str, tuple[float, float, float]]:
@@ -159,25 +185,35 @@ class AttemptRun:
         return {"outcomes": dict(self.outcomes), "times": dict(self.times), "success": self.success}
 
 
-def as_placed_layout(scenario, x, guide, world) -> np.ndarray:
-    """The layout as the world's parts are really placed: in-plane parameters from :meth:`world.placed`, the others
-    (which no camera sees) the designed value plus the world's correcting error, seeded by the run."""
+def as_placed_layout(scenario, guide, world) -> np.ndarray:
+    """The layout as the world's parts are really placed: every parameter as the maker set it
+    (:meth:`drivers.sim.world.SimulatedWorld.settings`: out of the plane with the error of its ``set_with``, a
+    parameter the guide did not state guessed over its range), then the in-plane ones the guide states fitted to the
+    parts' poses as placed (:meth:`~drivers.sim.world.SimulatedWorld.placed`). The designed layout is not read.
+
+    Raises
+    ------
+    ServiceError
+        A design parameter the world did not set (placed without the scenario's ranges: :func:`place_parts`).
+    """
     from calibration.asbuilt import PlanePose, as_built_layout
     from calibration.sim_runs import widened
-    from design.contraption.schema import ANGLE_KEYS
 
+    names = list(scenario.design_space.names)
+    settings = world.settings()
+    missing = [n for n in names if n not in settings]
+    if missing:
+        raise ServiceError(f"world: {', '.join(missing)} not set by the maker: the guide does not state it and the "
+                           "world was placed without the scenario's ranges (place_parts(..., scenario=...))",
+                           field="world", value=missing[0])
+    values = np.array([settings[n]["value"] / (1.0 if settings[n]["unit"] == "deg" else 1000.0) for n in names])
+    in_plane = {p.name: [q.name for q in p.settings if q.role in IN_PLANE_ROLES] for p in guide.parts}
     placed = world.placed()
     poses = {name: PlanePose(tuple(pose["center_mm"]), pose["heading_deg"]) for name, pose in placed.items()
-             if any(p.name == name and p.parameters for p in guide.parts)}
+             if in_plane.get(name)}
     wide = widened(scenario)
-    built = as_built_layout(wide, x, guide.plane, poses, {p.name: p.parameters for p in guide.parts})
-    names = list(scenario.design_space.names)
-    rng = np.random.default_rng(world.run_seed())
-    unseen = np.array([n in built.not_measured for n in names])
-    sigma = np.array([world.options["fix_deg"] if n.rsplit(".", 1)[-1] in ANGLE_KEYS
-                      else world.options["fix_mm"] / 1000.0 for n in names])
-    values = np.asarray(built.x, dtype=float) + np.where(unseen, rng.standard_normal(len(names)) * sigma, 0.0)
-    return np.clip(values, wide.design_space.lower, wide.design_space.upper)
+    built = as_built_layout(wide, values, guide.plane, poses, in_plane)
+    return np.clip(np.asarray(built.x, dtype=float), wide.design_space.lower, wide.design_space.upper)
 
 
 def run_attempt(scenario, x, guide, world, hidden: Mapping[str, float] | None = None) -> AttemptRun:
@@ -188,7 +224,8 @@ def run_attempt(scenario, x, guide, world, hidden: Mapping[str, float] | None = 
     scenario : Scenario
         As the maker has it (its own material values are not used).
     x : array_like
-        The designed layout (real units), the one the guide draws.
+        The designed layout (real units), the one the guide draws: named for the record, never read (the maker set
+        what the guide told them, :func:`as_placed_layout`).
     guide : projector.guide.Guide
     world : drivers.sim.world.SimulatedWorld
         Placed (:meth:`~drivers.sim.world.SimulatedWorld.place`) and possibly corrected.
@@ -202,7 +239,7 @@ def run_attempt(scenario, x, guide, world, hidden: Mapping[str, float] | None = 
     if not hidden:
         raise ServiceError("world: no hidden physics drawn yet (prepare_world first)", field="world")
     truth = widened(scenario.with_physics(hidden))
-    layout = as_placed_layout(scenario, np.asarray(x, dtype=float), guide, world)
+    layout = as_placed_layout(scenario, guide, world)
     result = simulate(truth, layout, early_stop="settled")
     outcomes, times = {}, {}
     for event in scenario.events:
@@ -216,6 +253,9 @@ def run_attempt(scenario, x, guide, world, hidden: Mapping[str, float] | None = 
     return AttemptRun(outcomes, times, bool(result.success), dict(zip(names, map(float, layout))))
 
 
-def place_parts(world, guide, *, attempt: int, highlighted: bool) -> None:
-    """The maker places every part of ``guide`` for ``attempt`` (highlighted: the projector shows each)."""
-    world.place(guide_parts(guide), attempt=attempt, highlighted=highlighted)
+def place_parts(world, guide, *, attempt: int, highlighted: bool, scenario=None) -> None:
+    """The maker places every part of ``guide`` for ``attempt`` (highlighted: the projector shows each), on its jig
+    where the guide has one, and sets every parameter as the guide says; with ``scenario``, a parameter the guide
+    does not state is guessed over its range (without it, :func:`as_placed_layout` refuses such a guide)."""
+    world.place(guide_parts(guide), attempt=attempt, highlighted=highlighted, jigs=guide_jigs(guide),
+                ranges=None if scenario is None else design_ranges(scenario))

@@ -27,6 +27,8 @@ def _errors(world: SimulatedWorld) -> np.ndarray:
     ("sim://world?friction=1.3,0.7", "friction"),
     ("sim://world?damping=2", "damping"),
     ("sim://world?highlight=2", "highlight"),
+    ("sim://world?ruler_mm=-1", "ruler_mm"),
+    ("sim://world?jig_deg=x", "jig_deg"),
     ("sim://world?colour=red", "colour"),
     ("sim://world?name=", "name"),
     ("sim://camera", "sim://world"),
@@ -128,3 +130,121 @@ def test_named_worlds_are_shared():
         assert sim_world("sim://world?seed=4") is not a
     finally:
         forget_worlds()
+
+
+def _stated(count: int, how: str, unit: str, role: str = "height") -> list[dict]:
+    """``count`` parts each stating one parameter of its own, set ``how``."""
+    return [{"name": f"q{i}", "center_mm": [5.0 * i, 0.0], "heading_deg": 0.0,
+             "parameters": [{"name": f"q{i}.{'roll' if unit == 'deg' else 'z'}", "value": 10.0 + i, "unit": unit,
+                             "role": role, "set_with": how}]} for i in range(count)]
+
+
+def _set_errors(world: SimulatedWorld, parts: list[dict]) -> np.ndarray:
+    settings = world.settings()
+    return np.array([settings[p["parameters"][0]["name"]]["value"] - p["parameters"][0]["value"] for p in parts])
+
+
+URL = "sim://world?seed=9&place_mm=2&place_deg=3&ruler_mm=1.5&ruler_deg=2&jig_mm=0.2&jig_deg=0.3&fix_mm=0.5&fix_deg=0.7"
+
+
+@pytest.mark.parametrize("how, unit, highlighted, sigma", [
+    ("ruler", "mm", False, 1.5), ("ruler", "deg", False, 2.0), ("ruler", "mm", True, 1.5),  # a ruler is not lit
+    ("jig", "mm", False, 0.2), ("jig", "deg", True, 0.3),
+    ("sheet", "mm", False, 2.0), ("sheet", "mm", True, 1.0), ("sheet", "deg", False, 3.0),
+    ("check", "mm", True, 1.0),  # by eye until a check's instruction moves it
+])
+def test_each_way_of_setting_a_parameter_has_its_own_spread(how, unit, highlighted, sigma):
+    world = SimulatedWorld(URL)
+    parts = _stated(600, how, unit)
+    world.place(parts, attempt=1, highlighted=highlighted)
+    errors = _set_errors(world, parts)
+    assert errors.std() == pytest.approx(sigma, rel=0.1)
+    assert abs(errors.mean()) < 4 * sigma / np.sqrt(len(errors))
+    assert {s["set_with"] for s in world.settings().values()} == {how}
+    world.place(parts, attempt=2, highlighted=highlighted)  # a new attempt, new errors; the same attempt, the same
+    assert not np.allclose(_set_errors(world, parts), errors)
+    world.place(parts[::-1], attempt=1, highlighted=highlighted)
+    assert np.allclose(_set_errors(world, parts), errors)
+
+
+def test_a_checks_instruction_sets_a_parameter_with_the_correcting_error():
+    world = SimulatedWorld(URL)
+    parts = _stated(600, "check", "mm")
+    world.place(parts, attempt=1)
+    errors = _set_errors(world, parts)
+    world.apply([{"name": p["name"], "parameters": {p["parameters"][0]["name"]: -e}} for p, e in zip(parts, errors)],
+                round=1)
+    assert _set_errors(world, parts).std() == pytest.approx(0.5, rel=0.1)
+    with pytest.raises(SimConfigError, match="parameters"):
+        world.apply([{"name": "q0", "parameters": {"q1.nope": 1.0}}], round=2)
+
+
+def test_a_parameter_the_guide_does_not_state_is_guessed_uniformly_over_its_range():
+    world = SimulatedWorld(URL)
+    parts = _stated(1, "ruler", "mm")
+    ranges = {"q0.z": [0.0, 45.0, "mm"], "a.roll": [-18.0, 0.0, "deg"], "b.x": [-200.0, 100.0, "mm"]}
+    guesses = {name: [] for name in ranges}
+    for attempt in range(800):
+        world.place(parts, attempt=attempt, ranges=ranges)
+        settings = world.settings()
+        assert settings["q0.z"]["set_with"] == "ruler"  # stated: set as the guide says, not guessed
+        for name in ("a.roll", "b.x"):
+            assert settings[name]["set_with"] == "guess"
+            guesses[name].append(settings[name]["value"])
+    for name in ("a.roll", "b.x"):
+        lower, upper, _ = ranges[name]
+        values = np.array(guesses[name])
+        assert lower <= values.min() < lower + 0.02 * (upper - lower)
+        assert upper - 0.02 * (upper - lower) < values.max() <= upper
+        assert values.std() == pytest.approx((upper - lower) / np.sqrt(12.0), rel=0.08)  # a uniform's spread
+        assert np.mean(values) == pytest.approx((lower + upper) / 2, abs=0.05 * (upper - lower))
+    with pytest.raises(SimConfigError, match="ranges"):
+        world.place(parts, attempt=0, ranges={"c.x": [1.0, 0.0, "mm"]})
+
+
+def test_a_part_on_a_jig_takes_the_jigs_placement_by_eye_plus_its_seating():
+    parts = [{"name": f"p{i}", "center_mm": [10.0 * i, 0.0], "heading_deg": 0.0,
+              "parameters": [{"name": f"p{i}.x", "value": 10.0 * i, "unit": "mm", "role": "u", "set_with": "jig"}]}
+             for i in range(600)]
+    jigs = [{"id": f"J{i}", "part": f"p{i}", "parameters": [f"p{i}.x"]} for i in range(600)]
+
+    def pose_errors(url: str, highlighted: bool) -> np.ndarray:
+        world = SimulatedWorld(url)
+        world.place(parts, attempt=1, highlighted=highlighted, jigs=jigs)
+        placed = world.placed()
+        return np.array([[placed[p["name"]]["center_mm"][0] - p["center_mm"][0],
+                          placed[p["name"]]["heading_deg"]] for p in parts])
+
+    # the jig laid by eye over its footprint (the sheet's error, lit or not), the part seated on it
+    by_eye = pose_errors("sim://world?seed=3&place_mm=2&place_deg=3&jig_mm=0&jig_deg=0", False)
+    assert by_eye[:, 0].std() == pytest.approx(2.0, rel=0.1) and by_eye[:, 1].std() == pytest.approx(3.0, rel=0.1)
+    assert np.allclose(pose_errors("sim://world?seed=3&place_mm=2&place_deg=3&jig_mm=0&jig_deg=0", True), by_eye / 2)
+    seated = pose_errors("sim://world?seed=3&place_mm=0&place_deg=0&jig_mm=0.2&jig_deg=0.3", False)
+    assert seated[:, 0].std() == pytest.approx(0.2, rel=0.1) and seated[:, 1].std() == pytest.approx(0.3, rel=0.1)
+    both = pose_errors("sim://world?seed=3&place_mm=2&place_deg=3&jig_mm=0.2&jig_deg=0.3", False)
+    assert np.allclose(both, by_eye + seated)
+    # without its jig the same part is placed by eye with its own error
+    world = SimulatedWorld("sim://world?seed=3&place_mm=2&place_deg=3&jig_mm=0&jig_deg=0")
+    world.place(parts, attempt=1)
+    alone = np.array([world.placed()[p["name"]]["center_mm"][0] - p["center_mm"][0] for p in parts])
+    assert alone.std() == pytest.approx(2.0, rel=0.1) and not np.allclose(alone, by_eye[:, 0])
+
+
+def test_a_part_set_with_a_ruler_in_the_plane_has_the_rulers_error():
+    parts = _stated(600, "ruler", "mm", role="u")
+    world = SimulatedWorld("sim://world?seed=4&place_mm=5&ruler_mm=1.5")
+    world.place(parts, attempt=1, highlighted=True)
+    errors = np.array([world.placed()[p["name"]]["center_mm"] for p in parts]) - [p["center_mm"] for p in parts]
+    assert errors.std() == pytest.approx(1.5, rel=0.1)
+
+
+@pytest.mark.parametrize("parameters", [
+    [{"name": "a.z", "value": 1.0, "unit": "cm", "role": "height", "set_with": "ruler"}],
+    [{"name": "a.z", "value": 1.0, "unit": "mm", "role": "height", "set_with": "tape"}],
+    [{"name": "a.z", "value": "x", "unit": "mm", "role": "height", "set_with": "ruler"}],
+    [{"value": 1.0, "unit": "mm", "role": "height", "set_with": "ruler"}],
+])
+def test_bad_stated_parameters_are_one_line(parameters):
+    with pytest.raises(SimConfigError) as caught:
+        SimulatedWorld().place([{"name": "a", "center_mm": [0, 0], "parameters": parameters}], attempt=0)
+    assert "parameters" in str(caught.value) and "\n" not in str(caught.value)

@@ -1,0 +1,85 @@
+"""The world twin as the station drives it: the simulated maker knows only what the guide says (the manifest's
+parameters and how to set each), never the layout's own values."""
+
+from __future__ import annotations
+
+import json
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+LAYOUT = {"x": [-0.15, 0.06, 68.0]}  # a SIMPLE layout: track.x, track.z (m), track.roll (deg)
+
+
+@pytest.fixture(scope="module")
+def simple_job(tmp_path_factory):
+    from station.services.guide import make_guide
+
+    path = tmp_path_factory.mktemp("layout") / "layout.json"
+    path.write_text(json.dumps(LAYOUT))
+    return make_guide("simple", str(path), tolerances=False)
+
+
+def _without(guide, parameter: str):
+    """The guide with ``parameter`` stated nowhere (as an older or partial guide would have it)."""
+    parts = tuple(replace(p, settings=tuple(q for q in p.settings if q.name != parameter)) for p in guide.parts)
+    return replace(guide, parts=parts)
+
+
+def test_a_parameter_the_guide_does_not_state_is_not_read_from_the_layout(simple_job):
+    from station.services import world as worlds
+
+    scenario = simple_job.scenario
+    guide = _without(simple_job.guide, "track.z")
+    names = list(scenario.design_space.names)
+    z = names.index("track.z")
+    other = np.array(LAYOUT["x"], dtype=float)
+    other[z] = 0.09  # another layout with another height, the same guide
+    world = worlds.open_world("sim://world?seed=4")
+    worlds.prepare_world(world, scenario)
+    worlds.place_parts(world, guide, attempt=1, highlighted=True, scenario=scenario)
+    runs = [worlds.run_attempt(scenario, x, guide, world) for x in (np.array(LAYOUT["x"]), other)]
+    # the height as placed is the maker's guess, whichever layout the station designed
+    assert runs[0].as_placed["track.z"] == runs[1].as_placed["track.z"]
+    lower, upper = scenario.design_space.lower[z], scenario.design_space.upper[z]
+    guesses = []
+    for attempt in range(300):
+        worlds.place_parts(world, guide, attempt=attempt, highlighted=True, scenario=scenario)
+        guesses.append(worlds.as_placed_layout(scenario, guide, world)[z])
+    guesses = np.array(guesses)
+    assert lower <= guesses.min() and guesses.max() <= upper
+    # spread over the whole range, not gathered round the layout's 60 mm
+    assert guesses.std() == pytest.approx((upper - lower) / np.sqrt(12.0), rel=0.15)
+    assert np.mean(np.abs(guesses - LAYOUT["x"][z]) < 0.002) < 0.2
+
+
+@pytest.mark.parametrize("how, option, sigma", [("ruler", "ruler_mm", 1.5), ("jig", "jig_mm", 0.2)])
+def test_a_stated_height_is_set_as_the_guide_says_with_its_error(simple_job, how, option, sigma):
+    from station.services import world as worlds
+
+    scenario = simple_job.scenario
+    parts = tuple(replace(p, settings=tuple(replace(q, set_with=how) if q.name == "track.z" else q
+                                             for q in p.settings)) for p in simple_job.guide.parts)
+    guide = replace(simple_job.guide, parts=parts)
+    (stated,) = [q.value for p in guide.parts for q in p.settings if q.name == "track.z"]
+    z = list(scenario.design_space.names).index("track.z")
+    world = worlds.open_world(f"sim://world?seed=5&{option}={sigma}")
+    heights = []
+    for attempt in range(300):
+        worlds.place_parts(world, guide, attempt=attempt, highlighted=True, scenario=scenario)
+        heights.append(worlds.as_placed_layout(scenario, guide, world)[z] * 1000.0)
+    errors = np.array(heights) - stated
+    assert errors.std() == pytest.approx(sigma, rel=0.15)
+    assert abs(errors.mean()) < 4 * sigma / np.sqrt(len(errors))
+
+
+def test_a_guide_without_a_parameter_and_no_ranges_is_refused(simple_job):
+    from station.services import world as worlds
+    from station.services.errors import ServiceError
+
+    guide = _without(simple_job.guide, "track.roll")
+    world = worlds.open_world("sim://world?seed=4")
+    worlds.place_parts(world, guide, attempt=1, highlighted=False)
+    with pytest.raises(ServiceError, match="track.roll"):
+        worlds.as_placed_layout(simple_job.scenario, guide, world)
