@@ -15,6 +15,7 @@ from types import MappingProxyType
 from typing import Any
 
 from common.datafiles import parse_toml
+from drivers.gcode import GcodeError, clean_line, tokenize
 from drivers.profiles.firmware import check_grbl_settings, parse_grbl_table
 from drivers.profiles.model import (
     LaserOperation,
@@ -197,7 +198,7 @@ def profile_from_dict(data: Mapping[str, Any], source: str = "<dict>") -> Machin
             raise ProfileError(f"{source}: [laser] and [materials] are only for kind = 'laser'")
         table = _table(data, "pen", source)
         where = f"{source} [pen]"
-        _check_keys(table, {"mode", "up", "down", "up_delay", "down_delay", "z_feed"}, where)
+        _check_keys(table, {"mode", "up", "down", "up_delay", "down_delay", "z_feed", "change"}, where)
         mode = table.get("mode", "servo")
         if mode not in _PEN_MODES:
             raise ProfileError(f"{where}.mode: expected one of {list(_PEN_MODES)}, got {mode!r}")
@@ -216,6 +217,7 @@ def profile_from_dict(data: Mapping[str, Any], source: str = "<dict>") -> Machin
             down_delay=_positive(parse_duration(table.get("down_delay", 0.15), f"{where}.down_delay"),
                                  f"{where}.down_delay", allow_zero=True),
             z_feed=_positive(parse_feed(table.get("z_feed", 1000), f"{where}.z_feed"), f"{where}.z_feed"),
+            change=_gcode_lines(table.get("change", ["M0"]), f"{where}.change"),
         )
         table = _table(data, "paper", source)
         where = f"{source} [paper]"
@@ -240,6 +242,20 @@ def profile_from_dict(data: Mapping[str, Any], source: str = "<dict>") -> Machin
         laser=laser, pen=pen, paper=paper, plot=plot, materials=MappingProxyType(materials), source=source,
         grbl=MappingProxyType(grbl),
     )
+
+
+def _gcode_lines(value: Any, where: str) -> tuple[str, ...]:
+    """A list of G-code lines (a pen-change macro): each one a block GRBL can read, none ending the program."""
+    if not isinstance(value, list) or not all(isinstance(line, str) for line in value):
+        raise ProfileError(f'{where}: expected a list of G-code lines such as ["G0 X0 Y0", "M0"], got {value!r:.60}')
+    for line in value:
+        try:
+            words = tokenize(clean_line(line))
+        except GcodeError:
+            raise ProfileError(f"{where}: {line!r} is not a G-code line (a letter and a number per word)") from None
+        if ("M", 2.0) in words or ("M", 30.0) in words:
+            raise ProfileError(f"{where}: {line!r} ends the program; expected a pause such as M0")
+    return tuple(value)
 
 
 def _number(value: Any, where: str) -> float:

@@ -89,6 +89,9 @@ class PenSettings:
 
     ``mode="servo"``: pen up/down by ``M3 S<up>`` / ``M3 S<down>`` (servo on the spindle PWM);
     ``mode="z"``: pen up/down by ``G0 Z<up>`` / ``G1 Z<down>``. Delays (s) are dwells after each lift/drop.
+    ``change`` is what a multi-pen plot writes between two layers, the pen up: GRBL's program pause ``M0`` by
+    default (the station tells which pen to put in and resumes with cycle start); a profile may move the head to
+    where the pen is reached first (``["G0 X0 Y0", "M0"]``) or run a pen changer's own lines.
     """
 
     mode: str = "servo"
@@ -97,6 +100,7 @@ class PenSettings:
     up_delay: float = 0.15
     down_delay: float = 0.15
     z_feed: float = 1000.0
+    change: tuple[str, ...] = ("M0",)
 
     def up_commands(self) -> list[str]:
         """G-code lines that lift the pen (with the dwell)."""

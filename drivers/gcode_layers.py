@@ -1,0 +1,182 @@
+"""Plot jobs of several layers, one pen each: the writer, and the reader of the layer marks it leaves in the G-code.
+
+A layered job is one G-code program: the header, then per layer a mark comment, for every layer after the first the
+pen change (a message comment and the profile's pen-change lines, ``M0`` by default: GRBL's program pause), and the
+layer's polylines with its own feed. GRBL ignores comments; the station reads them back (:func:`layer_marks`) to say
+which layer a line belongs to, which pen to put in at a pause, and where a layer starts (resume from a layer)::
+
+    (layer 2/3 "hatch": pen "red 0.5 mm" #d62728)
+    (pen change: put in pen "red 0.5 mm" for layer 2/3 "hatch", then resume)
+    G0 X0 Y0
+    M0
+
+The comments stay short (GRBL counts a line's characters without its comments, but some senders do not).
+"""
+
+from __future__ import annotations
+
+import re
+from collections.abc import Sequence
+from dataclasses import dataclass, field, replace
+from typing import TextIO
+
+import numpy as np
+
+from drivers.gcode import GcodeError, WriterOptions, clean_line, tokenize, write_plot_gcode
+
+__all__ = ["LayerMark", "PenLayer", "layer_at", "layer_marks", "pause_lines", "write_layers_gcode"]
+
+#: The pen-change lines when a profile names none: GRBL's program pause (cycle start ``~`` resumes).
+DEFAULT_PEN_CHANGE = ("M0",)
+
+_MARK = re.compile(r'^\(layer (\d+)/(\d+) "([^"]*)": pen "([^"]*)" (#[0-9a-fA-F]{6})\)\s*$')
+_UNSAFE = re.compile(r'[()";\r\n]+')
+
+
+def _safe(text: str, limit: int = 40) -> str:
+    """A name as it can stand in a G-code comment: no parentheses, quotes, semicolons or line breaks."""
+    return _UNSAFE.sub(" ", str(text)).strip()[:limit] or "-"
+
+
+@dataclass(frozen=True)
+class PenLayer:
+    """One layer of a plot: its name, the pen that draws it (what the maker puts in, and its colour for previews),
+    its polylines (``(n, 2)`` work mm) and its drawing feed (mm/min; None: the writer's)."""
+
+    name: str
+    pen: str
+    color: str = "#000000"
+    polylines: Sequence[np.ndarray] = field(default_factory=tuple)
+    draw_feed: float | None = None
+
+
+@dataclass(frozen=True)
+class LayerMark:
+    """A layer of a written job: 1-based ``number`` of ``count``, its name, pen and colour; ``line`` the 0-based
+    index of its mark, ``pause`` the 0-based index of its pen change's ``M0`` (None: no pause before it)."""
+
+    number: int
+    count: int
+    name: str
+    pen: str
+    color: str
+    line: int
+    pause: int | None = None
+
+    @property
+    def label(self) -> str:
+        """``layer 2/3 "hatch" (pen "red 0.5 mm")``."""
+        return f'layer {self.number}/{self.count} "{self.name}" (pen "{self.pen}")'
+
+    def to_dict(self) -> dict:
+        return {"number": self.number, "count": self.count, "name": self.name, "pen": self.pen,
+                "color": self.color, "line": self.line + 1}
+
+
+def write_layers_gcode(layers: Sequence[PenLayer], stream: TextIO, options: WriterOptions | None = None,
+                       pen_change: Sequence[str] = DEFAULT_PEN_CHANGE) -> int:
+    """Write ``layers`` as one job: ``options``' header, each layer's mark, a pen change before every layer after the
+    first (a message comment, then ``pen_change``'s lines), the layer's polylines with its feed, the footer.
+
+    ``pen_change`` empty writes no pause (a laser has no pen to change). Returns the number of lines written.
+    """
+    options = options or WriterOptions()
+    count = len(layers)
+    if count == 0:
+        raise GcodeError("nothing to write: no layers")
+    for line in pen_change:
+        tokenize(clean_line(line))  # a bad macro line is refused before any G-code is written
+    written = 0
+    for index, layer in enumerate(layers):
+        name, pen = _safe(layer.name), _safe(layer.pen)
+        mark = f'(layer {index + 1}/{count} "{name}": pen "{pen}" {_color(layer.color)})'
+        head: list[str] = [options.comment and f"({options.comment})", *options.header, *options.pen_up] \
+            if index == 0 else []
+        head = [line for line in head if line]
+        head.append(mark)
+        if index > 0 and pen_change:
+            head.append(f'(pen change: put in pen "{pen}" for layer {index + 1}/{count} "{name}", then resume)')
+            head.extend(pen_change)
+        for line in head:
+            stream.write(line + "\n")
+        written += len(head)
+        last = index == count - 1
+        body = replace(options, comment="", header=(), pen_up=options.pen_up, home_at_end=last and options.home_at_end,
+                       footer=options.footer if last else (),
+                       draw_feed=layer.draw_feed if layer.draw_feed is not None else options.draw_feed)
+        written += _write_body(layer.polylines, stream, body)
+    return written
+
+
+def _write_body(polylines, stream: TextIO, options: WriterOptions) -> int:
+    """The polylines of one layer: :func:`write_plot_gcode` without its opening pen lift (the pen is up already)."""
+    import io
+
+    buffer = io.StringIO()
+    write_plot_gcode(polylines, buffer, options)
+    lines = buffer.getvalue().splitlines()
+    lines = lines[len(options.pen_up):]  # write_plot_gcode lifts the pen first: it is up since the last layer
+    for line in lines:
+        stream.write(line + "\n")
+    return len(lines)
+
+
+def _color(text: str) -> str:
+    text = str(text).strip()
+    return text if re.fullmatch(r"#[0-9a-fA-F]{6}", text) else "#000000"
+
+
+def layer_marks(lines: Sequence[str]) -> list[LayerMark]:
+    """The layers of a job written by :func:`write_layers_gcode`, in order (empty for a job without marks)."""
+    marks: list[LayerMark] = []
+    for index, raw in enumerate(lines):
+        if not raw.startswith("(layer "):
+            continue
+        match = _MARK.match(raw.strip())
+        if match is None:
+            continue
+        number, count, name, pen, color = match.groups()
+        marks.append(LayerMark(int(number), int(count), name, pen, color, index))
+    pauses = pause_lines(lines)
+    result = []
+    for k, mark in enumerate(marks):
+        end = marks[k + 1].line if k + 1 < len(marks) else len(lines)
+        # the layer's pen change: a pause between its mark and its first drawing move
+        pause = next((p for p in pauses if mark.line < p < end and not _draws_before(lines, mark.line, p)), None)
+        result.append(replace(mark, pause=pause) if mark.number > 1 else mark)
+    return result
+
+
+def _draws_before(lines: Sequence[str], start: int, stop: int) -> bool:
+    for raw in lines[start + 1:stop]:
+        block = clean_line(raw)
+        if block.startswith("G1") or block.startswith("G01"):
+            return True
+    return False
+
+
+def pause_lines(lines: Sequence[str]) -> list[int]:
+    """0-based indices of the program pauses (``M0``) of a job: where GRBL holds until cycle start."""
+    found = []
+    for index, raw in enumerate(lines):
+        block = clean_line(raw)
+        if "M" not in block or block.startswith("$"):
+            continue
+        try:
+            words = tokenize(block)
+        except GcodeError:
+            continue
+        if ("M", 0.0) in words:
+            found.append(index)
+    return found
+
+
+def layer_at(marks: Sequence[LayerMark], line: int) -> LayerMark | None:
+    """The layer the 0-based ``line`` belongs to (the last mark at or before it), or None before the first mark."""
+    found = None
+    for mark in marks:
+        if mark.line <= line:
+            found = mark
+        else:
+            break
+    return found
