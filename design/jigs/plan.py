@@ -175,6 +175,14 @@ class Jig:
     stop: str | None = None
     tilt_deg: float | None = None
     notes: tuple[str, ...] = ()
+    #: A stand's second tag, engraved on its plate's face (jig frame, mm): a camera facing that face (the side
+    #: camera's board) measures the plate's height and tilt through it.
+    face_tag_id: int | None = None
+    face_tag_center_mm: tuple[float, float] | None = None
+    face_tag_size_mm: float = 20.0
+    #: A stand's jig frame in the scene, on its engraved face: ``(origin, x axis, y axis, face normal)``, the origin
+    #: in metres (the plate's lower left end as seen from that face), the axes unit vectors.
+    face_frame: tuple[tuple[float, float, float], ...] | None = None
 
 
 @dataclass(frozen=True)
@@ -570,8 +578,13 @@ class _Context:
             engrave += place_label(free.difference(_strokes_box(label)), "STOP", 3.0,
                                    near=(length if stop == "b" else 0.0, -side * (half + 4.0)))
         plate_face = _compass(-f_uv)
-        plate_label = place_label(outline, f"{jig_id} {name}", LABEL_MM, near=(length / 2.0, 0.0))
-        plate_engrave = plate_label + place_label(outline.difference(_strokes_box(plate_label)),
+        face_tag, face_size, face_box = self._face_tag(outline, affinity.translate(self._silhouette(name, frame),
+                                                                                   -x0, 0.0))
+        face = outline.difference(face_box) if face_tag is not None else outline
+        plate_label = place_label(face, f"{jig_id} {name}", LABEL_MM, near=(length / 2.0, 0.0))
+        plate_engrave = list(tag_strokes(self.tag_cells(face_tag[0]), face_size, face_tag[1])) \
+            if face_tag is not None else []
+        plate_engrave += plate_label + place_label(face.difference(_strokes_box(plate_label)),
                                                   f"this face {plate_face}", 3.0, near=(length / 2.0, 0.0))
         end_words = self._stop_words(stop, lower, tilt)
         rest = f"{end_words} against the stop" if stop else "its ends over its outline on the sheet"
@@ -587,7 +600,41 @@ class _Context:
                    (Piece(jig_id, outline, tuple(plate_engrave)), Piece(f"{jig_id} base", base_shape, tuple(engrave))),
                    words, tag_id=tag_id, tag_center_mm=tag_uv, tag_size_mm=size, tag_height_mm=t,
                    tag_heading_deg=_angle(heading), faces=plate_face, stop=end_words or None, tilt_deg=tilt,
-                   notes=tuple(notes))
+                   notes=tuple(notes), face_tag_id=None if face_tag is None else face_tag[0],
+                   face_tag_center_mm=None if face_tag is None else face_tag[1], face_tag_size_mm=face_size,
+                   face_frame=self._face_frame(foot, x0, d, f))
+
+    def _face_frame(self, foot: np.ndarray, x0: float, d: np.ndarray, f: np.ndarray) -> tuple:
+        """The stand's jig frame on its engraved face, in the scene (:attr:`Jig.face_frame`)."""
+        origin = np.asarray(foot, float) + (x0 * d - self.settings.thickness / 2.0 * f) / 1000.0
+        return tuple(tuple(float(c) for c in vector) for vector in (origin, d, self.normal, -f))
+
+    def _face_tag(self, outline: Polygon, silhouette: BaseGeometry):
+        """Where a tag fits on a stand's face: ``((id, centre), size, box)`` in the jig frame, clear of the base's
+        slot (the plate's lowest thickness) and of the part resting on it; ``(None, size, empty)`` when none fits (the
+        settings' size first, then 15 mm) or no id is free."""
+        t = self.settings.thickness
+        for size in dict.fromkeys((self.settings.tag_size, min(self.settings.tag_size, 15.0))):
+            room = size * 1.25 / 2.0 + TAG_ROOM_MM
+            free = outline.difference(box(-1e3, -1e3, 1e4, t + 1.0))
+            if not silhouette.is_empty:
+                free = free.difference(silhouette.buffer(1.0))
+            centres = free.buffer(-room, join_style="mitre")
+            if centres.is_empty:
+                continue
+            # the centres' region nearest the plate's tall end, low down: the tag sits where the plate is widest
+            biggest = max(getattr(centres, "geoms", [centres]), key=lambda g: g.area)
+            centre = biggest.representative_point() if biggest.area < 1.0 else biggest.centroid
+            if not biggest.contains(centre):
+                centre = biggest.representative_point()
+            tag_box = box(centre.x - room, centre.y - room, centre.x + room, centre.y + room)
+            if not free.contains(tag_box):
+                continue
+            tag_id = self._next_tag()
+            if tag_id is None:
+                break
+            return (tag_id, (float(centre.x), float(centre.y))), size, tag_box
+        return None, self.settings.tag_size, Polygon()
 
     def _along(self, parameter: str, d: np.ndarray) -> bool:
         """Whether an in-plane position parameter moves the part along the stand (its stop then sets it)."""

@@ -254,14 +254,16 @@ def jigs_manifest(result: JigsResult) -> dict[str, Any]:
          "jigs": [{"id", "kind", "part", "step", "parameters", "tag_id", "tag_center_mm", "tag_size_mm",
                    "tag_height_mm", "tag_heading_deg", "thickness_mm", "outline_mm": [[x, y], ...],
                    "support_mm": [[x, y], [x, y]] or null, "footprint_mm": [[u, v], ...], "faces", "stop",
-                   "tilt_deg", "words", "notes", "pieces": [{"name", "sheet", "bbox_on_sheet_mm"}], "picture"}],
+                   "tilt_deg", "words", "notes", "pieces": [{"name", "sheet", "bbox_on_sheet_mm"}], "picture",
+                   "face_tag_id", "face_tag_center_mm", "face_tag_size_mm"}],
          "by_hand": [{"part", "step", "parameters", "reason", "how", "set_with": "ruler"}],
          "skipped": [text], "sheets": [{"index", "files", "pieces", "job"}]}
 
     ``outline_mm``: the cut outline in the jig's own plane (a stand's: x along the table, y up from it, y = 0 the
     edge that stands on the table), as designed (the laser's path runs kerf/2 outside it); ``support_mm``: the
     segment the part rests on, in that frame, left end first; ``footprint_mm``: where the jig lies on the guide
-    plane, in the guide's (u, v) mm.
+    plane, in the guide's (u, v) mm; ``face_tag_*``: a stand's second tag, engraved on its plate's face in the jig's
+    own frame (null where none fits), which the side camera reads (:mod:`station.services.check_side`).
     """
     job, plan, settings = result.job, result.plan, result.planned.settings
     placed = {}
@@ -309,6 +311,9 @@ def jigs_manifest(result: JigsResult) -> dict[str, Any]:
             "pieces": [{"name": piece.name, "sheet": placed.get(piece.name, (None, None))[0],
                         "bbox_on_sheet_mm": placed.get(piece.name, (None, None))[1]} for piece in jig.pieces],
             "picture": f"jig-{jig.id}.png",
+            "face_tag_id": jig.face_tag_id,
+            "face_tag_center_mm": None if jig.face_tag_center_mm is None else [_r(v) for v in jig.face_tag_center_mm],
+            "face_tag_size_mm": _r(jig.face_tag_size_mm),
         } for jig in plan.jigs],
         "by_hand": [{"part": b.part, "step": b.step, "parameters": list(b.parameters), "reason": b.reason,
                      "how": b.how, "set_with": b.set_with} for b in plan.by_hand],
