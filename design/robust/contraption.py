@@ -1,8 +1,8 @@
 """The contraption simulation core (:mod:`design.contraption`) as a :class:`~design.robust.problem.LayoutProblem`.
 
 The problem holds the scenario file's path, not the loaded scenario nor a pybullet client, so it pickles to worker
-processes and Dask workers; each worker loads the scenario once and simulates with its own per-thread pybullet
-client (the core's :func:`~design.contraption.simulate` reuses one DIRECT client per thread).
+processes and Dask workers; each worker loads the scenario once and keeps a simulator of it per thread
+(:func:`thread_simulator`), so pybullet's client and the scenario's world are made once per worker.
 """
 
 from __future__ import annotations
@@ -12,7 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
-from design.contraption import SUCCESS, Scenario, Simulator, check_validity, clearances, load_scenario, simulate
+from design.contraption import SUCCESS, Scenario, Simulator, check_validity, clearances, load_scenario
 from design.contraption.simulation import SIMULATOR_CACHE_REVISION
 from design.robust.problem import RobustError
 
@@ -46,23 +46,63 @@ def _connect_with_fd1_silenced(client_class, pybullet):
         os.close(null)
 
 
-def thread_client():
-    """This thread's pybullet DIRECT client, made once.
+def _new_client():
+    """A new pybullet DIRECT client, its banner silenced whatever ``sys.stdout`` is.
 
     The core's :func:`~design.contraption.bullet.direct_client` silences pybullet's banner by duplicating the
     stdout/stderr file descriptors; under a Textual app (whose streams report unusable descriptors) that raises
     ``OSError``, so we then silence file descriptor 1 ourselves around the connection.
     """
+    from design.contraption.bullet import BulletClient, direct_client, pybullet
+
+    try:
+        return direct_client()
+    except OSError:
+        return _connect_with_fd1_silenced(BulletClient, pybullet)
+
+
+def thread_client():
+    """This thread's pybullet DIRECT client, made once (validity checks, clearances, pictures)."""
     client = getattr(_clients, "client", None)
     if client is None:
-        from design.contraption.bullet import BulletClient, direct_client, pybullet
+        client = _clients.client = _new_client()
+    return client
+
+
+#: Simulators a thread keeps (one per scenario content; the oldest is closed beyond this).
+KEPT_SIMULATORS = 4
+
+
+def thread_simulator(scenario: Scenario) -> Simulator:
+    """This thread's simulator of ``scenario``, made once and kept: a worker pays pybullet's client and the
+    scenario's world once, not per simulation.
+
+    Each kept simulator owns its client: the thread's shared client (:func:`thread_client`) is reset by every
+    validity check, which would tear down a world the simulator keeps between runs.
+    """
+    kept = getattr(_clients, "simulators", None)
+    if kept is None:
+        kept = _clients.simulators = {}
+    key = scenario.content_hash
+    simulator = kept.pop(key, None)
+    if simulator is None or simulator.client is None:
+        simulator = Simulator(scenario, client=_new_client())
+        while len(kept) >= KEPT_SIMULATORS:
+            _close(kept.pop(next(iter(kept))))
+    kept[key] = simulator  # most recently used last
+    return simulator
+
+
+def _close(simulator: Simulator) -> None:
+    client = simulator.client
+    simulator.close()  # a simulator given a client leaves it connected: the client is ours
+    if client is not None:
+        from design.contraption.bullet import pybullet
 
         try:
-            client = direct_client()
-        except OSError:
-            client = _connect_with_fd1_silenced(BulletClient, pybullet)
-        _clients.client = client
-    return client
+            client.disconnect()
+        except pybullet.error:  # pragma: no cover - already gone
+            pass
 
 
 class ContraptionProblem:
@@ -153,11 +193,13 @@ class ContraptionProblem:
         return gradient
 
     def prepare_worker(self) -> None:
-        """Load the scenario in this process (the core creates a pybullet client per thread on first use)."""
-        _ = self.scenario
+        """Load the scenario and make this thread's simulator of it (pybullet's import and client, the world), so a
+        worker pays its start-up before its first task rather than inside it."""
+        thread_simulator(self.scenario).build(self.scenario.default_layout())
 
     def simulate(self, u: np.ndarray) -> np.ndarray:
-        result = simulate(self.scenario, self.to_real(u), early_stop=True, client=thread_client())
+        x = self.scenario.design_space.check_bounds(self.to_real(u))
+        result = thread_simulator(self.scenario).run(x, early_stop=True)
         return np.array([result.events[name].state == SUCCESS for name in self.event_names], dtype=bool)
 
 

@@ -6,9 +6,10 @@
   revision of the code that simulates it when the problem names one (``cache_revision``, :func:`cache_scope`) and the
   layout), so a repeated or interrupted run re-simulates nothing it already knows;
 - sends the rest to a backend: ``"inline"`` (this process, for cheap synthetic problems), ``"processes"`` (local
-  worker processes, one per core by default, each preparing its own pybullet client once) or ``"dask"`` (a
-  ``distributed`` cluster given by scheduler address or client);
-- stores each result as soon as it arrives (an interruption loses at most the simulations still running);
+  worker processes, one per core by default) or ``"dask"`` (a ``distributed`` cluster given by scheduler address
+  or client); each worker prepares the problem once (``prepare_worker``: a contraption's pybullet client and world)
+  and keeps it for every task, and a batch goes out in a few tasks per worker (see ``chunk_size``);
+- stores each task's results as soon as they arrive (an interruption loses at most the tasks still running);
 - calls ``on_result(n_new)`` after each arrival (progress), and ``should_stop()`` between arrivals (a TUI's cancel
   button): a stop raises :class:`SimulationCancelled`, Ctrl-C raises ``KeyboardInterrupt``; both keep the cache.
 
@@ -50,6 +51,12 @@ class SchedulerUnreachable(RobustError):
 #: wrong address is reported at once (distributed's own default is 30 s, with a traceback per retry loop).
 SCHEDULER_CONNECT_TIMEOUT = 5.0
 
+
+#: Tasks per worker a batch is cut into when no chunk size is given: enough for the workers to finish together
+#: (simulations differ in length), few enough that sending them is a small part of the time.
+TASKS_PER_WORKER = 4
+#: The most layouts in one automatic task: progress and a stop request are seen at least this often.
+MAX_CHUNK = 32
 
 #: How long a cache write waits for another process's (seconds): SQLite's busy timeout.
 CACHE_BUSY_SECONDS = 60.0
@@ -109,14 +116,14 @@ class SimulationCache:
 
     def put(self, scenario: str, key: str, events: np.ndarray) -> None:
         """Store one outcome (committed at once, so an interruption keeps it)."""
-        events = np.asarray(events)
-        if events.dtype == bool:
-            text = "".join("1" if e else "0" for e in events)
-        else:
-            text = json.dumps([None if not math.isfinite(v) else v for v in events.astype(float).tolist()])
+        self.put_many(scenario, [(key, events)])
+
+    def put_many(self, scenario: str, rows: list[tuple[str, np.ndarray]]) -> None:
+        """Store outcomes ``(key, events)`` in one transaction (one commit for a task's layouts)."""
+        values = [(scenario, key, _encode(events)) for key, events in rows]
         with self._lock:
-            self._connection.execute(
-                "INSERT OR REPLACE INTO simulations (scenario, layout, events) VALUES (?, ?, ?)", (scenario, key, text)
+            self._connection.executemany(
+                "INSERT OR REPLACE INTO simulations (scenario, layout, events) VALUES (?, ?, ?)", values
             )
             self._connection.commit()
 
@@ -132,6 +139,14 @@ class SimulationCache:
     def close(self) -> None:
         with self._lock:
             self._connection.close()
+
+
+def _encode(events) -> str:
+    """A cached row: one ``0``/``1`` per event, or a JSON array of numbers (NaN as null)."""
+    events = np.asarray(events)
+    if events.dtype == bool:
+        return "".join("1" if e else "0" for e in events)
+    return json.dumps([None if not math.isfinite(v) else v for v in events.astype(float).tolist()])
 
 
 def _decode(text: str) -> np.ndarray:
@@ -244,8 +259,10 @@ class SimulationExecutor:
         A Dask scheduler address (``tcp://HOST:PORT``) or an existing client.
     cache_path : path or None
         SQLite cache file; ``None`` for an in-memory cache.
-    chunk_size : int
-        Layouts per task sent to a worker (larger amortizes overhead for cheap simulations).
+    chunk_size : int or None
+        Layouts per task sent to a worker. ``None`` (default): a batch is cut into about
+        :data:`TASKS_PER_WORKER` tasks per worker (at most :data:`MAX_CHUNK` layouts each), so the messages between
+        processes stay a small part of the time while the workers still finish together.
     connect_timeout : float
         Seconds to wait for a scheduler given by address (see :meth:`connect`).
     """
@@ -257,14 +274,14 @@ class SimulationExecutor:
         workers: int | None = None,
         scheduler=None,
         cache_path: str | Path | None = None,
-        chunk_size: int = 1,
+        chunk_size: int | None = None,
         connect_timeout: float | None = None,
     ) -> None:
         if backend not in {"auto", "inline", "processes", "dask"}:
             raise RobustError(f"executor: backend must be one of auto, inline, processes, dask, got {backend!r}")
         if workers is not None and (int(workers) != workers or workers < 1):
             raise RobustError(f"executor: workers must be a positive integer, got {workers!r}")
-        if int(chunk_size) != chunk_size or chunk_size < 1:
+        if chunk_size is not None and (int(chunk_size) != chunk_size or chunk_size < 1):
             raise RobustError(f"executor: chunk_size must be a positive integer, got {chunk_size!r}")
         self.problem = problem
         self.scope = cache_scope(problem)  #: what its outcomes are filed under in the cache
@@ -275,7 +292,8 @@ class SimulationExecutor:
             raise RobustError("executor: the dask backend needs a scheduler address or client")
         self.backend = backend
         self.scheduler = scheduler
-        self.chunk_size = int(chunk_size)
+        self.chunk_size = None if chunk_size is None else int(chunk_size)
+        self.n_tasks = 0  # tasks sent to workers (one per chunk of layouts)
         self.connect_timeout = SCHEDULER_CONNECT_TIMEOUT if connect_timeout is None else float(connect_timeout)
         self.cache = SimulationCache(cache_path)
         self.n_simulated = 0  # new simulations actually run
@@ -401,15 +419,27 @@ class SimulationExecutor:
                 out[rows] = events
         return out
 
+    def _chunk_size(self, n: int) -> int:
+        """Layouts per task for a batch of ``n`` new layouts."""
+        if self.chunk_size is not None:
+            return self.chunk_size
+        if self.backend == "inline":
+            return 1  # no messages to amortize; a stop is seen after every simulation
+        slots = self.workers
+        if self.backend == "dask":
+            slots = sum(self._ensure_client().nthreads().values()) or 1
+        return max(1, min(MAX_CHUNK, math.ceil(n / (slots * TASKS_PER_WORKER))))
+
     def _simulate(self, U, todo, should_stop, on_result):
         """Yield ``(key, rows, events)`` for every new layout, storing each in the cache first."""
         items = list(todo.items())
-        chunks = [items[i : i + self.chunk_size] for i in range(0, len(items), self.chunk_size)]
+        size = self._chunk_size(len(items))
+        chunks = [items[i : i + size] for i in range(0, len(items), size)]
+        self.n_tasks += len(chunks)
 
         def finish(chunk, results):
-            for (key, _rows), events in zip(chunk, results):
-                self.cache.put(self.scope, key, events)
-                self.n_simulated += 1
+            self.cache.put_many(self.scope, [(key, events) for (key, _rows), events in zip(chunk, results)])
+            self.n_simulated += len(chunk)
             if on_result is not None:
                 on_result(len(chunk))
             return [(key, rows, events) for (key, rows), events in zip(chunk, results)]

@@ -225,7 +225,7 @@ def _check_stop(should_stop: StopCheck | None) -> None:
 
 
 def connected_executor(problem, *, workers: int | None = None, scheduler: str | None = None,
-                       chunk_size: int = 1) -> SimulationExecutor:
+                       chunk_size: int | None = None) -> SimulationExecutor:
     """An executor of ``problem`` on the shared simulation cache, its Dask scheduler (if any) already reached (a
     wrong address is a :class:`ServiceError` naming ``scheduler``)."""
     from design.robust.executor import SchedulerUnreachable, SimulationExecutor
