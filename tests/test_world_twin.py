@@ -83,3 +83,72 @@ def test_a_guide_without_a_parameter_and_no_ranges_is_refused(simple_job):
     worlds.place_parts(world, guide, attempt=1, highlighted=False)
     with pytest.raises(ServiceError, match="track.roll"):
         worlds.as_placed_layout(simple_job.scenario, guide, world)
+
+
+def test_the_simulated_maker_cuts_the_jigs_on_the_laser_twin():
+    from station.services import world as worlds
+    from station.services.errors import ServiceError
+    from station.services.guide import make_guide
+
+    job = make_guide("simple", "success", tolerances=False, jigs=True)
+    (sheet,) = worlds.cut_jigs(job)
+    assert sheet["state"] == "done" and sheet["lines"] > 100
+    with pytest.raises(ServiceError, match="no jigs"):
+        worlds.cut_jigs(make_guide("simple", "success", tolerances=False))
+
+
+def test_the_loop_with_jigs_sets_their_parameters_on_them_and_says_so(tmp_path, station_home, monkeypatch):
+    from drivers.sim.world import forget_worlds, world_named
+    from station.loopstore import LoopStore
+    from station.services import loop as loops
+    from station.services.loop import LoopSettings, run_loop
+
+    # SIMPLE's "success" layout, whose track a stand can carry (the optimizer's may stand it too steep for one)
+    success = {"parameters": [{"name": n, "value": v, "lower": lo, "upper": hi} for n, v, lo, hi in
+                              (("track.x", -0.06, -0.15, 0.0), ("track.z", 0.06, 0.0, 0.15),
+                               ("track.roll", 30.0, 15.0, 75.0))]}
+    monkeypatch.setattr(loops._Loop, "optimized", lambda self, *args: success)
+    settings = LoopSettings(attempts=1, loops=1, budget=20, candidates=1, rounds=0, baseline=1, predict_samples=1,
+                            fit_draws=1, fit_sobol=2, fit_rounds=0, workers=1, jigs=True)
+    database = f"sqlite:///{tmp_path / 'loop.sqlite3'}"
+    forget_worlds()
+    placed = []
+    place = loops._Loop.attempt
+
+    def attempt(self, *args, **kwargs):
+        stored = place(self, *args, **kwargs)
+        placed.append({n: s["set_with"] for n, s in self.world.settings().items()})
+        return stored
+
+    monkeypatch.setattr(loops._Loop, "attempt", attempt)
+    try:
+        result = run_loop("simple", "sim://world?seed=3&name=jigs", settings, database=database)
+        assert world_named("jigs") is not None
+    finally:
+        forget_worlds()
+    # loop 1 on the stand J1 (it sets the track's place along the table, its height and its tilt); the baseline,
+    # the thesis's workflow, with a ruler
+    assert placed == [{"track.x": "jig", "track.z": "jig", "track.roll": "jig"},
+                      {"track.x": "check", "track.z": "ruler", "track.roll": "ruler"}]
+    assert result.to_json()["jigs"] is True and result.loops[0].jigs
+    with LoopStore(database) as store:
+        (loop_attempt,) = store.attempts(result.run_id, 1)
+        (baseline,) = store.attempts(result.run_id, 0)
+        assert "set on laser-cut jigs J1" in store.trial(loop_attempt.trial_id)["notes"]
+        assert "jigs" not in store.trial(baseline.trial_id)["notes"]
+    # another run: with jigs or without is part of what a run is
+    plain = run_loop("simple", "sim://world?seed=3", LoopSettings(**{**settings.__dict__, "jigs": False}),
+                     database=database)
+    assert plain.run_id != result.run_id and plain.to_json()["jigs"] is False
+
+
+def test_the_loops_resume_command_keeps_jigs():
+    import shlex
+
+    from station.cli import build_parser
+    from station.commands.loop import resume_command
+
+    args = build_parser().parse_args(["loop", "simple", "--world", "sim://world?seed=2", "--jigs"])
+    words = shlex.split(resume_command(args))
+    assert "--jigs" in words
+    assert build_parser().parse_args(words[1:]).jigs is True

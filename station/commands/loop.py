@@ -49,12 +49,15 @@ def register(subparsers) -> None:
         "is in the station database: the same command again resumes a stopped run and ends with the same figures "
         "(more --loops carry a finished run on).",
         examples=["simple --world 'sim://world?seed=1'",
-                  "ballrun --world 'sim://world?seed=3&place_mm=3' --attempts 8 --loops 3 --json"],
+                  "ballrun --world 'sim://world?seed=3&place_mm=3' --attempts 8 --loops 3 --json",
+                  "causalityswitch_ball --world 'sim://world?seed=2&ruler_mm=1' --jigs"],
     )
     parser.add_argument("scenario", help="a scenario file (.toml/.json) or an example name")
     parser.add_argument("--world", required=True, metavar="URL",
-                        help="the simulated world: sim://world?seed=S[&place_mm=2&place_deg=2&fix_mm=0.5&fix_deg=0.5"
-                        "&highlight=0.5&friction=0.7,1.3&restitution=0.15&damping=0.5,2]")
+                        help="the simulated world: sim://world?seed=S[&place_mm=2&place_deg=2&highlight=0.5"
+                        "&ruler_mm=1.5&ruler_deg=2&jig_mm=0.2&jig_deg=0.2&fix_mm=0.5&fix_deg=0.5&friction=0.7,1.3"
+                        "&restitution=0.15&damping=0.5,2]: the maker sets each parameter as the guide says (on the "
+                        "sheet, with a ruler, on a jig, after a check), each with its own error")
     parser.add_argument("--attempts", type=int, default=defaults.attempts, metavar="N",
                         help="attempts per loop (default %(default)s)")
     parser.add_argument("--loops", type=int, default=defaults.loops, metavar="K", help="loops (default %(default)s)")
@@ -96,6 +99,10 @@ def register(subparsers) -> None:
     parser.add_argument("--workers", type=int, default=None, help="local worker processes (default: all cores)")
     parser.add_argument("--scheduler", default=None, metavar="tcp://HOST:PORT",
                         help="run simulations on a Dask distributed cluster instead of local processes")
+    parser.add_argument("--jigs", action="store_true",
+                        help="the loop's attempts use the layout's laser-cut jigs: per loop the simulated maker cuts "
+                        "them on the laser twin (their laser job run to its end), lays each on its outline and sets "
+                        "its part on it (the baseline never does)")
     parser.add_argument("--json", action="store_true", help="print the figures as JSON")
 
 
@@ -144,6 +151,8 @@ def loop_lines(summary) -> list[str]:
     choice = summary.choice.removeprefix("; ") or "the optimizer's own, no other candidate to compare"
     lines.append(f"  layout placed: {choice}")
     lines.append(f"  corrections: {summary.check_rounds:.1f} per attempt after the first check")
+    if summary.jigs:
+        lines.append("  jigs: cut on the laser, each part they set placed on its jig")
     physics = summary.physics_name or "the scenario's values and ranges (before any trial)"
     lines.append(f"  physics: {physics}")
     return wrapped(lines) + physics_table(summary.physics)
@@ -171,7 +180,7 @@ def resume_command(args) -> str:
         value = getattr(args, name)
         if name != "world" and value != getattr(defaults, name):
             words += [flag, str(value)]
-    words += ["--uncertain-only"] * args.uncertain_only + ["--json"] * args.json
+    words += ["--uncertain-only"] * args.uncertain_only + ["--jigs"] * args.jigs + ["--json"] * args.json
     return shlex.join(words)
 
 
@@ -197,7 +206,7 @@ def run_loop(args) -> int:
                             baseline=args.baseline, predict_samples=args.predict_samples, fit_draws=args.fit_draws,
                             fit_sobol=args.fit_sobol, fit_rounds=args.fit_rounds,
                             fit_prior_width=args.fit_prior_width, camera=args.camera,
-                            settings=args.settings, workers=args.workers, scheduler=args.scheduler)
+                            settings=args.settings, jigs=args.jigs, workers=args.workers, scheduler=args.scheduler)
     out = sys.stderr if args.json else sys.stdout
     # the command's own bar (the wrapper closes whichever args.bar holds)
     args.bar = LoopBar()

@@ -10,14 +10,15 @@ plain numbers within default ranges too), later loops the calibrated values and 
 before its record in the loop's trials (:func:`station.services.layout_choice.choice_score`). The optimizer takes
 the physics as exact; a layout that works across the plausible physics, and has worked on the table, is the one to
 place.
-An attempt: the simulated maker places every
-part with the projector highlighting it (:meth:`drivers.sim.world.SimulatedWorld.place`), the simulated camera sees
-the parts as placed and :func:`station.services.check.check_frame` checks them, the maker applies the instructions
-and the camera checks again until every part is within its tolerance (at most ``rounds`` corrections), the world
-runs (:func:`station.services.world.run_attempt`), the station predicts the physical success of what the check
-measured (:func:`station.services.predict.predict_layout` with the check's residual error, under the loop's profile
-and its intervals; in loop 1, before any trial, under the scenario's values and uncertain ranges) and logs the trial
-(with the CHECK.json and the profile) and the attempt in one transaction. The attempt's **forecast** is that
+An attempt: the simulated maker places every part with the projector highlighting it, each parameter set as the guide
+says (on the sheet, with a ruler, on a laser-cut jig the maker cut first with ``jigs``, after a check:
+:meth:`drivers.sim.world.SimulatedWorld.place`), the simulated camera sees the parts as placed and
+:func:`station.services.check.check_frame` checks them, the maker applies the instructions and the camera checks again
+until every part is within its tolerance (at most ``rounds`` corrections), the world runs
+(:func:`station.services.world.run_attempt`), the station predicts the physical success of what the check measured
+(:func:`station.services.predict.predict_layout` with the check's residual error, under the loop's profile and its
+intervals; in loop 1, before any trial, under the scenario's values and uncertain ranges) and logs the trial (with the
+CHECK.json and the profile) and the attempt in one transaction. The attempt's **forecast** is that
 prediction updated by the layout's record before it, as the choice weighs it (:func:`record_forecasts`): what the
 station would tell the maker before the attempt. The **baseline** is the thesis's workflow
 in the same world: the optimizer's own loop-1 layout placed from the printed sheet (no highlight), no check, no
@@ -48,6 +49,7 @@ from typing import Any
 import numpy as np
 
 from common.progress import Progress, ProgressCallback, Reporter
+from drivers.sim.world import WORLD_REVISION
 from station.services.errors import ServiceError
 from station.services.layout_choice import PREDICTION_WEIGHT, describe_choice
 from station.services.robust import RunStopped, simulation_cache_path
@@ -105,6 +107,11 @@ class LoopSettings:
         The simulated camera (``sim://camera?...``).
     settings : str
         The optimizer's PSP settings (``recommended`` or ``thesis``).
+    jigs : bool
+        Loop attempts use the layout's laser-cut jigs (:mod:`station.services.jigs`): per loop the simulated maker
+        cuts them (their laser job run to its end on the laser twin, :func:`station.services.world.cut_jigs`),
+        lays each over its footprint and sets its part on it; the parameters they set are ``set_with: "jig"``.
+        The baseline (the thesis's workflow) never does.
     """
 
     attempts: int = 5
@@ -123,6 +130,7 @@ class LoopSettings:
     fit_prior_width: float = 0.25
     camera: str = "sim://camera?supersample=1"
     settings: str = "recommended"
+    jigs: bool = False
     workers: int | None = field(default=None, compare=False)
     scheduler: str | None = field(default=None, compare=False)
 
@@ -165,6 +173,7 @@ class LoopSettings:
         for name in ("loops", "workers", "scheduler", "baseline"):
             data.pop(name)
         data["baseline"] = self.baseline_attempts
+        data["world_revision"] = WORLD_REVISION  # a run made in another world is not carried on in this one
         return data
 
 
@@ -186,6 +195,7 @@ class LoopSummary:
     check_rounds: float = 0.0
     choice: str = ""  #: why its layout was placed (:func:`station.services.layout_choice.describe_choice`)
     forecast: list = field(default_factory=list)  #: each attempt's prediction updated by its layout's record
+    jigs: bool = False  #: its attempts used the layout's laser-cut jigs
 
     @property
     def success_rate(self) -> float:
@@ -226,15 +236,17 @@ class LoopResult:
     outcomes: list[tuple[int, int, bool, float | None, float | None]]
     hidden: dict[str, float]  #: the world's hidden material values (for benches: the station never reads them)
     baseline: list[bool] = field(default_factory=list)  #: the baseline's successes, in order
+    jigs: bool = False  #: the loop attempts used the layout's laser-cut jigs
 
     @property
     def baseline_rate(self) -> float | None:
         return self.baseline_successes / self.baseline_attempts if self.baseline_attempts else None
 
     def to_json(self) -> dict[str, Any]:
-        """Exactly the contract's ``station loop --json``."""
+        """Exactly the contract's ``station loop --json`` (``jigs``: the loop attempts used the laser-cut jigs)."""
         return {"loops": [s.to_json() for s in self.loops],
-                "baseline": {"attempts": self.baseline_attempts, "success_rate": self.baseline_rate}}
+                "baseline": {"attempts": self.baseline_attempts, "success_rate": self.baseline_rate},
+                "jigs": self.jigs}
 
 
 def _attempts_words(count: int) -> str:
@@ -652,6 +664,8 @@ class _Loop:
         said = AttemptReport(k, a, 0, run.success, checked, _corrections(applied, guide.view), len(applied),
                              tuple(left), _failed_at(scenario, run.outcomes))
         note = f"station loop run {self.run_id}: " + (f"loop {k} attempt {a}" if k else f"baseline attempt {a}")
+        if guide.jigs:
+            note += f"; set on laser-cut jigs {', '.join(j.id for j in guide.jigs)}"
         if predicted is not None:
             note += f"; predicted physical success {predicted:.3f}"
         note += f"; {said.correction_words()}"
@@ -706,7 +720,10 @@ class _Loop:
                     layout_path, profile_path = self.files(row)
                     profile = read_profile(profile_path) if profile_path else self.prior()
                     job = make_guide(self.scenario.source, str(layout_path), physics=profile_path,
-                                     progress=self.under(f"{who}: making the guide"))
+                                     progress=self.under(f"{who}: making the guide"),
+                                     jigs=bool(k and self.settings.jigs))
+                    if job.jigs is not None:
+                        self.cut(job, who)
                 self.stop_point()
                 self.emit(stage, len(done), count, f"attempt {a} of {count}")
                 done[a], said = self.attempt(job, row, profile, k, a, checked=checked)
@@ -714,6 +731,16 @@ class _Loop:
                 on_attempt(said)
         self.emit(stage, count, count, "done")
         return [done[a] for a in range(1, count + 1)]
+
+    def cut(self, job, who: str) -> None:
+        """The simulated maker cuts the guide's jigs on the laser twin (their laser job run to its end)."""
+        from station.services import world as worlds
+
+        count = len(job.jigs.plan.jigs)
+        stage = f"{who}: cutting the jigs on the laser"
+        self.emit(stage, 0, 1, f"{count} jig{'' if count == 1 else 's'}", unit="laser jobs")
+        worlds.cut_jigs(job)
+        self.emit(stage, 1, 1, "cut", unit="laser jobs")
 
     def stored_report(self, stored, checked: bool) -> AttemptReport:
         """The :class:`AttemptReport` of an attempt logged before the run was resumed: its corrections only in its
@@ -804,7 +831,7 @@ def _run(run: _Loop, settings: LoopSettings, on_loop, on_attempt) -> LoopResult:
         forecast = record_forecasts(layouts, placed, settings.prediction_weight)[-len(attempts):]
         summary = LoopSummary(k, len(attempts), sum(a.success for a in attempts), [a.predicted for a in attempts],
                               dict(row.physics_values), row.physics_name, rounds, describe_choice(row.layout),
-                              forecast)
+                              forecast, settings.jigs)
         summaries.append(summary)
         outcomes += [(k, a.attempt, a.success, a.predicted, f) for a, f in zip(attempts, forecast)]
         if on_loop is not None:
@@ -815,4 +842,4 @@ def _run(run: _Loop, settings: LoopSettings, on_loop, on_attempt) -> LoopResult:
         thesis = LoopRow(0, run.optimized(None, settings.budget, "baseline: optimizing the layout"), None, None, {})
         baseline = run.run_attempts(thesis, 0, settings.baseline_attempts, checked=False, on_attempt=on_attempt)
     return LoopResult(run.run_id, run.scenario.name, summaries, len(baseline), sum(a.success for a in baseline),
-                      outcomes, run.hidden, [a.success for a in baseline])
+                      outcomes, run.hidden, [a.success for a in baseline], settings.jigs)

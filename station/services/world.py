@@ -31,8 +31,8 @@ import numpy as np
 from projector.guide import IN_PLANE_ROLES
 from station.services.errors import ServiceError
 
-__all__ = ["AttemptRun", "as_placed_layout", "check_moves", "design_ranges", "grab_placed", "guide_jigs", "guide_parts",
-           "open_world", "place_parts", "prepare_world", "run_attempt", "world_scene"]
+__all__ = ["AttemptRun", "as_placed_layout", "check_moves", "cut_jigs", "design_ranges", "grab_placed", "guide_jigs",
+           "guide_parts", "open_world", "place_parts", "prepare_world", "run_attempt", "world_scene"]
 
 
 def open_world(url: str):
@@ -251,6 +251,47 @@ def run_attempt(scenario, x, guide, world, hidden: Mapping[str, float] | None = 
             outcomes[event] = "not-reached" if outcome.state == ASLEEP else "no"
     names = scenario.design_space.names
     return AttemptRun(outcomes, times, bool(result.success), dict(zip(names, map(float, layout))))
+
+
+#: The laser the simulated maker cuts the jigs on: the station's laser twin on a virtual clock (a cut of minutes runs
+#: in well under a second; the G-code, the pre-flight and the streaming are the real ones).
+JIG_LASER = "sim://grbl?profile=laser&clock=virtual"
+
+
+def cut_jigs(job, laser: str = JIG_LASER) -> list[dict]:
+    """The simulated maker cuts a guide job's jigs (``make_guide(..., jigs=True)``): each sheet's laser job, as
+    ``station jigs`` writes it (``jigs.gcode``), pre-flighted and run to its end on the laser at ``laser``.
+
+    Returns
+    -------
+    list of dict
+        Per sheet: ``{"sheet", "lines", "state"}``.
+
+    Raises
+    ------
+    ServiceError
+        The job has no jigs, or a sheet's job did not run to its end with the beam off (naming the sheet).
+    """
+    from drivers.grbl import GrblConnection, Job, JobRunner
+    from station.services.jigs import cut_jigs as laser_job
+
+    if job.jigs is None:
+        raise ServiceError("jigs: the guide has no jigs to cut (make_guide(..., jigs=True))", field="jigs")
+    sheets = laser_job(job, job.jigs).sheets
+    done = []
+    connection = GrblConnection(laser, poll_interval=0.05, lost_ok_timeout=0.3, silence_timeout=0.6).open()
+    try:
+        for output in sheets:
+            runner = JobRunner(connection, Job.from_text(f"jigs sheet {output.index}", output.gcode, laser=True))
+            runner.preflight()
+            result = runner.run()
+            if result.state != "done" or not result.laser_off:
+                raise ServiceError(f"jigs: sheet {output.index}'s laser job did not finish on {laser}: "
+                                   f"{result.message}", field="jigs", value=output.index)
+            done.append({"sheet": output.index, "lines": len(output.gcode.splitlines()), "state": result.state})
+    finally:
+        connection.close()
+    return done
 
 
 def place_parts(world, guide, *, attempt: int, highlighted: bool, scenario=None) -> None:
