@@ -22,9 +22,14 @@ Candidate settings: ``--engine KEY=VALUE`` (merged into every ``setPhysicsEngine
 e.g. ``sleepThreshold=0.02``). Acceptance: identical labels on >= 99 % of the layouts and every success layout
 still a success.
 
+``--parallel N`` measures the robust executor instead: a batch of N valid layouts simulated in one process, then on
+``--workers`` worker processes (a fresh pool, its start-up counted: "cold"), then a second batch on the warm pool;
+efficiency is the serial time over workers x the pooled time, for the reference tree and this one.
+
 Run: ``python -m bench.bench_simulation [--scenarios simple,longchain] [--layouts 6] [--seed 0]
 [--reference 599036c] [--equivalence 500 [--against current]] [--engine K=V ...] [--dynamics K=V ...]
-[--json OUT.json]`` or ``python -m bench simulation`` (every example scenario, 6 random layouts each).
+[--parallel N [--workers 2]] [--json OUT.json]`` or ``python -m bench simulation`` (every example scenario, 6
+random layouts each).
 """
 
 from __future__ import annotations
@@ -205,6 +210,47 @@ def equivalence(names, args, reference_root: Path, workdir: Path) -> list[dict]:
     return rows
 
 
+def parallel_table(names, args, reference_root: Path, workdir: Path) -> list[dict]:
+    from design.robust.contraption import load_problem
+    from design.robust.sampling import sobol_valid
+
+    w = args.workers
+    print(f"executor: {args.parallel} valid Sobol layouts per batch (seed {args.seed}) in this process, then on {w} "
+          f"worker processes; efficiency = serial time / ({w} x pooled time); cold: the pool's start-up counted, "
+          "warm: a second batch on the same pool", flush=True)
+    header = (f"{'scenario':<24} {'code':<9} {'serial sims/s':>13} {'pooled sims/s':>13} {'tasks':>5} "
+              f"{'efficiency cold':>15} {'efficiency warm':>15} {'same':>5}")
+    print(header)
+    print("-" * len(header))
+    rows = []
+    for name in names:
+        path = EXAMPLES_DIR / f"{name}.toml"
+        problem = load_problem(path)
+        both = sobol_valid(problem, 2 * args.parallel, seed=args.seed)
+        spec = {"parallel": w, "U": both[: args.parallel].tolist(), "U2": both[args.parallel:].tolist()}
+        for code, root in (("reference", reference_root), ("now", REPOSITORY)):
+            source = workdir / f"{name}-{code}-parallel.in.json"
+            result = workdir / f"{name}-{code}-parallel.out.json"
+            source.write_text(json.dumps({"scenario": str(path), **spec}), encoding="utf-8")
+            process = subprocess.Popen([sys.executable, str(PROBE), "--root", str(root), "--input", str(source),
+                                        "--output", str(result)], cwd=str(root))
+            out = finish_probe(process, result)
+            n = args.parallel
+            row = {"scenario": problem.name, "file": name, "code": code, "n": n, "workers": w,
+                   "serial_sims_per_s": 2 * n / (out["serial"] + out["serial2"]),
+                   "pooled_sims_per_s": 2 * n / (out["pooled"] + out["pooled2"]),
+                   "efficiency_cold": out["serial"] / (w * out["pooled"]),
+                   "efficiency_warm": out["serial2"] / (w * out["pooled2"]),
+                   "tasks": out["tasks"], "same": out["same"]}
+            rows.append(row)
+            tasks = "-" if row["tasks"] is None else row["tasks"]
+            print(f"{name[:24]:<24} {code:<9} {row['serial_sims_per_s']:>13.1f} {row['pooled_sims_per_s']:>13.1f} "
+                  f"{tasks:>5} {row['efficiency_cold']:>15.2f} {row['efficiency_warm']:>15.2f} "
+                  f"{'yes' if row['same'] else 'NO':>5}", flush=True)
+    print("-" * len(header))
+    return rows
+
+
 def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(prog="bench_simulation", description=__doc__.splitlines()[0])
     parser.add_argument("--scenarios", default="", help="comma-separated example names (default: all)")
@@ -216,6 +262,9 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--against", choices=("reference", "current"), default="reference")
     parser.add_argument("--engine", action="append", default=[], metavar="KEY=VALUE")
     parser.add_argument("--dynamics", action="append", default=[], metavar="KEY=VALUE")
+    parser.add_argument("--parallel", type=int, default=0, metavar="N",
+                        help="measure the executor's efficiency on batches of N layouts instead")
+    parser.add_argument("--workers", type=int, default=2, help="worker processes for --parallel")
     parser.add_argument("--json", type=Path, help="write the figures here")
     args = parser.parse_args(argv if argv is not None else sys.argv[1:] if __name__ == "__main__" else [])
     args.engine_params = _pairs(args.engine, "--engine")
@@ -229,7 +278,9 @@ def main(argv: list[str] | None = None) -> None:
     reference_root = reference_tree(args.reference) if needs_reference else REPOSITORY
     with tempfile.TemporaryDirectory(prefix="bench-simulation-") as folder:
         workdir = Path(folder)
-        if args.equivalence:
+        if args.parallel:
+            rows = parallel_table(names, args, reference_root, workdir)
+        elif args.equivalence:
             rows = equivalence(names, args, reference_root, workdir)
         else:
             rows = speed_table(names, args, reference_root, workdir)

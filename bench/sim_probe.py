@@ -7,7 +7,8 @@ wrapping ``pybullet.stepSimulation`` in the module itself: a ``BulletClient`` lo
 call, so the wrapper sees every step whichever way the simulator reaches the engine.
 
 Input (JSON file): ``{"scenario": PATH, "layouts": [[...], ...], "engine": {...}, "dynamics": {...},
-"bare": true}``; ``engine`` is merged into every ``setPhysicsEngineParameter`` call, ``dynamics`` is applied
+"bare": true}``, or ``{"scenario": PATH, "parallel": WORKERS, "U": [...], "U2": [...]}`` for the executor's
+serial and pooled times; ``engine`` is merged into every ``setPhysicsEngineParameter`` call, ``dynamics`` is applied
 with ``changeDynamics`` to every body as it is created (e.g. ``{"sleepThreshold": 0.01}``). Output (JSON on the
 path given): per-layout outcomes, wall and engine time, steps, and the bare engine's steps per second.
 """
@@ -35,6 +36,13 @@ def main(argv: list[str] | None = None) -> int:
     import design
     from design.contraption import Simulator, load_scenario
     from design.contraption.bullet import pybullet
+
+    if spec.get("parallel"):
+        out = parallel(spec, np)
+        out["code"] = design.__file__
+        with open(args.output, "w", encoding="utf-8") as handle:
+            json.dump(out, handle)
+        return 0
 
     engine_time = [0.0, 0]
     raw_step = pybullet.stepSimulation
@@ -101,6 +109,33 @@ def main(argv: list[str] | None = None) -> int:
     with open(args.output, "w", encoding="utf-8") as handle:
         json.dump(out, handle)
     return 0
+
+
+def parallel(spec: dict, np) -> dict:
+    """Seconds for the batch ``U`` run by the executor in this process, then by ``parallel`` worker processes (a
+    fresh pool: its start-up counted), then a second batch ``U2`` on the same, warm pool."""
+    from design.robust import SimulationExecutor
+    from design.robust.contraption import load_problem
+
+    problem = load_problem(spec["scenario"])
+    U, U2 = np.asarray(spec["U"], dtype=float), np.asarray(spec["U2"], dtype=float)
+    start = time.perf_counter()
+    with SimulationExecutor(problem, backend="inline", cache_path=None) as executor:
+        serial = executor.run(U)
+        serial_time = time.perf_counter() - start
+        start = time.perf_counter()
+        executor.run(U2)
+        serial_time2 = time.perf_counter() - start
+    with SimulationExecutor(problem, backend="processes", workers=int(spec["parallel"]), cache_path=None) as executor:
+        start = time.perf_counter()
+        pooled = executor.run(U)
+        pooled_time = time.perf_counter() - start
+        start = time.perf_counter()
+        executor.run(U2)
+        pooled_time2 = time.perf_counter() - start
+        tasks = getattr(executor, "n_tasks", None)
+    return {"serial": serial_time, "serial2": serial_time2, "pooled": pooled_time, "pooled2": pooled_time2,
+            "same": bool(np.array_equal(serial, pooled)), "tasks": tasks}
 
 
 if __name__ == "__main__":
