@@ -27,6 +27,7 @@ __all__ = [
     "LaserJob",
     "OperationSettings",
     "plan_laser_job",
+    "plan_operations",
     "order_paths",
     "write_laser_gcode",
     "check_work_area",
@@ -333,6 +334,42 @@ def plan_laser_job(engrave: Sequence[np.ndarray], cut: Sequence[tuple[Sequence[n
             paths.append(LaserPath("cut", outline[0], True, index))
             position = outline[0][-1]
     return LaserJob(tuple(paths), operations, max_power, travel_feed, travel_unordered, tuple(start_xy),
+                    dict(metadata or {}))
+
+
+def plan_operations(groups: Sequence[tuple[str, object, Sequence[np.ndarray], bool]], max_power: float = 1000.0,
+                    travel_feed: float = 6000.0, offset=(0.0, 0.0), start=(0.0, 0.0),
+                    metadata: Mapping[str, str] | None = None) -> LaserJob:
+    """A job of named operations burned one after the other, each with its own settings (a test card's cells).
+
+    ``groups`` holds ``(name, settings, paths, closed)``: ``settings`` has ``power``, ``feed`` and ``passes`` (or is
+    a ``(power, feed, passes)`` tuple); the paths of one group are ordered for travel from where the laser stands.
+    A name may come back in a later group with the same settings (one tag's fill, then the next one's).
+    """
+    offset = np.asarray(offset, dtype=float)
+    position = np.asarray(start, dtype=float)
+    operations: dict[str, OperationSettings] = {}
+    paths: list[LaserPath] = []
+    unordered: list[np.ndarray] = []
+    for name, settings, group, closed in groups:
+        power, feed, passes = (settings if isinstance(settings, tuple)
+                               else (settings.power, settings.feed, settings.passes))
+        power, feed, passes = float(power), float(feed), int(passes)
+        if name in operations and operations[name] != OperationSettings(power, feed, passes):
+            raise JobRefused(f"operation {name!r} is given two different settings")
+        if not 0.0 <= power <= 1.0:
+            raise JobRefused(f"{name}: power must be a fraction of max power in [0, 1], got {power}")
+        if not feed > 0 or passes < 1:
+            raise JobRefused(f"{name}: feed must be positive and passes at least 1, got feed {feed}, passes {passes}")
+        operations[name] = OperationSettings(power, feed, passes)
+        shifted = [np.asarray(p, dtype=float) + offset for p in group if len(p) >= 2]
+        unordered += shifted
+        ordered, _ = order_paths(shifted, [closed] * len(shifted), position)
+        paths += [LaserPath(name, p, closed) for p in ordered]
+        if ordered:
+            position = ordered[-1][-1]
+    return LaserJob(tuple(paths), operations, max_power, travel_feed,
+                    path_travel(unordered, np.asarray(start, dtype=float)), tuple(np.asarray(start, dtype=float)),
                     dict(metadata or {}))
 
 
