@@ -112,14 +112,18 @@ TIME_FACTOR = 0.25
 
 
 @contextlib.contextmanager
-def firmware(exe: Path, folder: Path | None = None) -> Iterator[str]:
+def firmware(exe: Path, folder: Path | None = None, steps: Path | None = None,
+             step_time: float = 0.005) -> Iterator[str]:
     """GRBL switched on behind a pty, with the EEPROM kept in ``folder`` (a fresh one in a temporary folder by
-    default); yields the pty's path. The firmware and socat are stopped at the end (grbl-sim spins a core while it
-    runs)."""
+    default); yields the pty's path. ``steps``: a file where grbl-sim writes the machine's position every
+    ``step_time`` simulated seconds while a block runs, and at each block's start and end (its own clock: what
+    :mod:`bench.bench_job_estimate` times jobs with). The firmware and socat are stopped at the end (grbl-sim spins a
+    core while it runs)."""
     with tempfile.TemporaryDirectory(prefix="grbl-sim-") as scratch:
         folder = folder or Path(scratch)
         link = Path(scratch) / "tty"
-        command = f"stdbuf -i0 -o0 {exe} -n -t {TIME_FACTOR:g} -s /dev/null -b /dev/null"
+        record = f"-r {step_time:g} -s {steps}" if steps is not None else "-s /dev/null"
+        command = f"stdbuf -i0 -o0 {exe} -n -t {TIME_FACTOR:g} {record} -b /dev/null"
         process = subprocess.Popen(["socat", f"PTY,raw,echo=0,link={link}", f"EXEC:'{command}',pty,raw,echo=0"],
                                    cwd=folder, start_new_session=True, stdout=subprocess.DEVNULL,
                                    stderr=subprocess.DEVNULL)

@@ -12,6 +12,7 @@ device, in the order the station lists them::
     url = "/dev/ttyUSB0"              # see drivers.devices for the accepted forms of each kind
     profile = "plotter"               # plotters and lasers only: a built-in profile or a profile file
     options = { timeout = 2.5 }       # plotters and lasers: seconds a probe waits for the machine
+                                      # a camera: { laser = "NAME" }, the laser whose bed it looks down on
 
 An array of tables rather than ``[devices.NAME]`` tables: the order is the file's, the name is a field like the
 others, and a message names the entry as it is counted (``devices[2].kind``). ``profile`` defaults to the profile
@@ -243,6 +244,11 @@ def devices_from_data(data: Any, file: str, folder: Path) -> tuple[DeviceEntry, 
                 raise check.fail(f"{path}.url", f"expected a port no other device uses, got {device.url!r} "
                                  f"(devices[{other_index}] uses it)")
         devices.append(device)
+    lasers = [d.name for d in devices if d.kind == "laser"]
+    for index, device in enumerate(devices):
+        if device.options.get("laser") is not None and device.options["laser"] not in lasers:
+            raise check.fail(f"devices[{index}].options.laser", f"expected the name of a laser in this file "
+                             f"({', '.join(lasers) or 'none'}), got {device.options['laser']!r}")
     return tuple(devices)
 
 
@@ -319,8 +325,14 @@ def _profile(check: _ConfigChecker, value: Any, path: str, kind: str, folder: Pa
 
 
 def _options(check: _ConfigChecker, value: Any, path: str, kind: str) -> dict[str, Any]:
-    """A device's ``options`` table: GRBL machines take ``timeout``; cameras and projectors none yet."""
+    """A device's ``options`` table: GRBL machines take ``timeout``; a camera ``laser`` (the name of the laser whose
+    bed it looks down on: ``station calibrate bed`` and the Machines screen's placement use it); projectors none."""
     table = check.table(value, path)
+    if kind == "camera":
+        check.only(table, path, ("laser",))
+        if "laser" in table:
+            return {"laser": check.string(table["laser"], f"{path}.laser", pattern=NAME, what=NAME_EXPECTED)}
+        return {}
     if kind not in GRBL_KINDS:
         for key in table:
             raise check.fail(join_path(path, key), f"unknown option; a {kind} takes no options yet")

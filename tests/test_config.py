@@ -74,7 +74,11 @@ BAD = [
     (PLOTTER + "options = { timeout = 60 }\n", "devices[0].options.timeout: expected at most 10 s, got 60"),
     (PLOTTER + 'options = { timeout = "2s" }\n', "devices[0].options.timeout: expected a number, got text ('2s')"),
     (PLOTTER + "options = 3\n", "devices[0].options: expected a table (mapping), got a number (3)"),
-    (CAMERA + "options = { fps = 30 }\n", "devices[0].options.fps: unknown option; a camera takes no options yet"),
+    (CAMERA + "options = { fps = 30 }\n", "devices[0].options.fps: unknown field; expected one of: laser"),
+    (CAMERA + 'options = { laser = "shop-laser" }\n',
+     "devices[0].options.laser: expected the name of a laser in this file (none), got 'shop-laser'"),
+    (CAMERA + "options = { laser = 3 }\n", "devices[0].options.laser: expected a name of letters, digits, '-', '_' "
+     "and '.' (at most 32), got a number (3)"),
 ]
 
 
@@ -251,3 +255,10 @@ def test_devices_init_refuses_to_overwrite(station_home, monkeypatch, capsys):
     assert capsys.readouterr().out.startswith(f"wrote {station_home / 'station.toml'}")
     assert main(["devices", "--init"]) == 2
     assert "already exists; the station never writes over it" in capsys.readouterr().err
+
+
+def test_a_camera_names_the_laser_whose_bed_it_looks_down_on():
+    text = ('[[devices]]\nname = "shop-laser"\nkind = "laser"\nurl = "sim://grbl?profile=laser"\n' + CAMERA
+            + 'options = { laser = "shop-laser" }\n')
+    devices = devices_from_text(text)
+    assert dict(devices[1].options) == {"laser": "shop-laser"}

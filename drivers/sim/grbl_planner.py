@@ -32,6 +32,7 @@ class Block:
     line_no: int
     text: str
     jog: bool = False
+    from_rest: bool = False  # planned with the planner empty: GRBL enters it at speed 0 (drivers.sim.grbl_motion)
     t0: float = 0.0
     duration: float = 0.0
     seg_start: np.ndarray | None = None
@@ -189,7 +190,7 @@ class Planner:
             self._planner.popleft()
             self.record.executed.append(ExecutedBlock(
                 block.line_no, block.text, tuple(float(v) for v in block.end), self._block_power(block), block.feed,
-                block.rapid, block.jog, t_end))
+                block.rapid, block.jog, t_end, tuple(float(v) for v in block.start), block.from_rest))
             self._motion_t = t_end
             if self._planner:
                 self._start_block(self._planner[0], t_end)
@@ -230,6 +231,6 @@ class Planner:
             return  # GRBL drops zero-length blocks
         power = self.spindle_speed if self.modal["spindle"] in (3, 4) else 0.0
         self._planner.append(Block(self._gc_pos.copy(), target.copy(), length, feed, rapid, power,
-                                    self.modal["spindle"], self._gcode_lines, text, jog))
+                                    self.modal["spindle"], self._gcode_lines, text, jog, not self._planner))
         self._gc_pos = target.copy()
         self._fill_changed(self._parse_time)

@@ -12,7 +12,8 @@ from dataclasses import dataclass, field
 
 @dataclass(frozen=True)
 class ExecutedBlock:
-    """One planner block the machine finished: the G-code line it came from and where it ended (machine mm)."""
+    """One planner block the machine finished: the G-code line it came from, where it started and ended (machine
+    mm), and whether it was planned with the planner empty (``from_rest``: GRBL enters it at speed 0)."""
 
     line_no: int
     text: str
@@ -22,6 +23,8 @@ class ExecutedBlock:
     rapid: bool
     jog: bool
     t_end: float
+    start: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    from_rest: bool = False
 
 
 @dataclass(frozen=True)
