@@ -40,6 +40,7 @@ class JobRecord:
     lines_acked: int
     message: str
     resume_line: int | None
+    layer: dict | None = None  # a multi-pen plot's layer the machine stood on: number, count, name, pen, line
 
     def to_dict(self) -> dict[str, Any]:
         return dict(self.__dict__)
@@ -58,9 +59,18 @@ class JobRecord:
         if not self.unfinished:
             return ""
         after = " after homing ($H)" if self.status == "position_lost" else ""
+        layer = self.layer_hint()
         if self.resume_line:
-            return f"resume from line {self.resume_line}{after}"
-        return f"resume at or before line {min(self.lines_acked + 1, max(self.lines_total, 1))}{after}"
+            return f"resume from line {self.resume_line}{after}{layer}"
+        return f"resume at or before line {min(self.lines_acked + 1, max(self.lines_total, 1))}{after}{layer}"
+
+    def layer_hint(self) -> str:
+        """``; in layer 2/3 "star" (pen "red"): --from-layer 2 starts it again`` for a multi-pen plot, else ``""``."""
+        layer = self.layer if isinstance(self.layer, dict) else None
+        if not layer or "number" not in layer:
+            return ""
+        return (f'; in layer {layer["number"]}/{layer.get("count", "?")} "{layer.get("name", "")}" '
+                f'(pen "{layer.get("pen", "")}"): --from-layer {layer["number"]} starts it again')
 
 
 def _alive(pid: int | None) -> bool:
@@ -127,19 +137,23 @@ class JobLog:
         return self._write("INSERT INTO jobs (kind, device, status, detail) VALUES (?, ?, ?, ?)",
                            (kind, device, RUNNING, json.dumps(detail)))
 
-    def progress(self, job_id: int, lines_acked: int, resume_line: int | None = None) -> None:
+    def progress(self, job_id: int, lines_acked: int, resume_line: int | None = None,
+                 layer: dict | None = None) -> None:
         """Record how far a running job has got (so an interrupted one still tells): the lines confirmed and,
-        when known, the line the machine is executing (where to resume if the station dies now)."""
+        when known, the line the machine is executing (where to resume if the station dies now) and the layer of
+        a multi-pen plot it stands on (:meth:`drivers.gcode_layers.LayerMark.to_dict`)."""
         if not job_id:
             return
         detail = self._detail(job_id)
         detail["lines_acked"] = int(lines_acked)
         if resume_line is not None:
             detail["resume_line"] = int(resume_line)
+        if layer is not None:
+            detail["layer"] = dict(layer)
         self._write("UPDATE jobs SET detail = ? WHERE id = ?", (json.dumps(detail), job_id))
 
     def finish(self, job_id: int, status: str, lines_acked: int, message: str,
-               resume_line: int | None = None) -> None:
+               resume_line: int | None = None, layer: dict | None = None) -> None:
         """Record how job ``job_id`` ended.
 
         An unfinished job (:data:`UNFINISHED`) finished without a ``resume_line`` keeps the line :meth:`progress`
@@ -155,6 +169,8 @@ class JobLog:
             resume_line = None
         detail.update(lines_acked=int(lines_acked), message=message,
                       resume_line=None if resume_line is None else int(resume_line))
+        if layer is not None:
+            detail["layer"] = dict(layer)
         self._write("UPDATE jobs SET status = ?, detail = ?, finished_at = strftime('%Y-%m-%dT%H:%M:%fZ', 'now') "
                     "WHERE id = ?", (status, json.dumps(detail), job_id))
 
@@ -179,5 +195,6 @@ class JobLog:
                 created_at=created, finished_at=finished, lines_total=int(detail.get("lines_total", 0)),
                 lines_acked=int(detail.get("lines_acked", 0)), message=str(detail.get("message", "")),
                 resume_line=detail.get("resume_line"),
+                layer=detail.get("layer") if isinstance(detail.get("layer"), dict) else None,
             ))
         return records

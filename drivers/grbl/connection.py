@@ -329,6 +329,11 @@ class GrblConnection(MachineSettings):
         connection's lock is held): hand the data to your own thread or queue."""
         self._listeners.append(callback)
 
+    def remove_listener(self, callback: Callable[[str, object], None]) -> None:
+        """Stop calling ``callback`` (one added with :meth:`add_listener`; another is ignored)."""
+        if callback in self._listeners:
+            self._listeners.remove(callback)
+
     def _notify(self, event: str, data: object) -> None:
         for callback in list(self._listeners):
             try:

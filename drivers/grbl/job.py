@@ -31,6 +31,7 @@ import numpy as np
 
 from drivers.errors import DeviceStateError, JobRefused, ProtocolError
 from drivers.gcode import GcodeError, Toolpath, WorkOffsets, interpret
+from drivers.gcode_layers import LayerMark, layer_at, layer_marks, pause_lines
 from drivers.grbl.connection import GrblConnection, StreamStopped
 from drivers.grbl.job_types import FINAL_STATES, Job, JobProgress, JobResult, frame_lines
 from drivers.grbl.preflight import (
@@ -111,6 +112,11 @@ class JobRunner:
         self._toolpath: Toolpath | None = None  # of the streamed lines, from where the head stood (pre-flight)
         self._wco: np.ndarray | None = None  # the work offset the job started with (the toolpath's machine = + this)
         self._frozen = False  # the stream stopped: the planner's fill no longer says which line ran
+        self._pauses = pause_lines(job.lines)  # the job's own program pauses (M0): a pen change, for one
+        self._marks = layer_marks(job.lines)
+        self._pause_started: float | None = None
+        self.pause_line: int | None = None  # 0-based job line of the program pause the machine waits at, or None
+        self._stopped_pause: int | None = None  # the pause the job was stopped at: it resumes there (pen not changed)
 
     # ------------------------------------------------------------------ pre-flight
 
@@ -275,8 +281,9 @@ class JobRunner:
         if self._hold_started is not None:
             self._held += time.monotonic() - self._hold_started
             self._hold_started = None
+        self._end_pause()
         if self.result is None:
-            self._set_progress(stage="running")
+            self._set_progress(stage="running", message="")
 
     def abort(self) -> None:
         """Stop now: soft reset (0x18) first, then the job thread switches the laser off with ``M5 S0``."""
@@ -288,6 +295,48 @@ class JobRunner:
             self.connection.soft_reset(wait=False)
         except Exception:  # noqa: BLE001 - the port may already be gone; the job thread reports it
             pass
+
+    # ------------------------------------------------------------------ program pauses
+
+    @property
+    def layers(self) -> list[LayerMark]:
+        """The job's layers (a multi-pen plot's marks; empty for a job written without them)."""
+        return list(self._marks)
+
+    def layer(self, line: int | None = None) -> LayerMark | None:
+        """The layer of the 0-based job ``line`` (default: the line being executed), or None."""
+        return layer_at(self._marks, self.progress.current_line if line is None else line)
+
+    def pause_message(self, line: int) -> str:
+        """What to tell the maker at the program pause on 0-based ``line``: which pen to put in at a pen change."""
+        mark = next((m for m in self._marks if m.pause == line), None)
+        if mark is not None:
+            return f'pen change: put in pen "{mark.pen}" for {mark.label.split(" (pen")[0]}'
+        return f"program pause (M0) at line {line + 1}"
+
+    def _watch(self, event: str, data) -> None:
+        """Status reports while the job runs: the machine holding at one of the job's ``M0`` lines is a program
+        pause (GRBL's feed hold, entered by the program itself), told apart from a hold the user asked for."""
+        if event != "status" or self.result is not None or not self._start_time or self.dry_run:
+            return
+        label = getattr(data, "label", "")
+        if label == "Hold:0" and self._pause_started is None and self._hold_started is None and self._pauses:
+            self._update(force=True, report=False)
+            current = self.progress.current_line
+            at = [p for p in self._pauses if p <= current <= p + 2]
+            if at:
+                self._pause_started = time.monotonic()
+                self.pause_line = at[-1]
+                self._update("paused", self.pause_message(at[-1]))
+        elif self._pause_started is not None and not label.startswith("Hold"):
+            self._end_pause()
+            self._update("running", "")
+
+    def _end_pause(self) -> None:
+        if self._pause_started is not None:
+            self._held += time.monotonic() - self._pause_started
+            self._pause_started = None
+            self.pause_line = None
 
     # ------------------------------------------------------------------ running
 
@@ -321,7 +370,8 @@ class JobRunner:
         with self._progress_lock:
             p = self._counted()
             stage = state or p.stage
-            held = self._held + (now - self._hold_started if self._hold_started else 0.0)
+            held = self._held + (now - self._hold_started if self._hold_started else 0.0) + (
+                now - self._pause_started if self._pause_started else 0.0)
             elapsed = max(0.0, now - self._start_time - held) if self._start_time else 0.0
             total = float(self._cumulative[-1]) if len(self._cumulative) else 0.0
             status = self.connection.status
@@ -400,8 +450,14 @@ class JobRunner:
             if self.dry_run:
                 return self._dry_run(on_ack)
             self._update("running")
-            conn.stream(self._lines, on_ack=on_ack, on_sent=on_sent, stop=self._stop, timeout=math.inf)
+            conn.add_listener(self._watch)
+            try:
+                conn.stream(self._lines, on_ack=on_ack, on_sent=on_sent, stop=self._stop, timeout=math.inf)
+            finally:
+                conn.remove_listener(self._watch)
         except StreamStopped as stopped:
+            self._stopped_pause = self.pause_line
+            self._end_pause()
             return self._stopped(stopped)
         return self._finish("done", f"job {self.job.name!r} done: {len(self.job.lines)} lines", laser_off=True)
 
@@ -498,6 +554,8 @@ class JobRunner:
         """
         if self.dry_run or not self._origin:
             return None
+        if self._stopped_pause is not None:
+            return self._stopped_pause + 1  # stopped while it waited for a pen: the pause comes again first
         guess = max(self.progress.current_line, self.from_line - 1)  # 0-based job line
         line = guess
         toolpath = self._toolpath

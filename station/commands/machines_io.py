@@ -8,6 +8,7 @@ dry run (check mode), frame, resume from a line, and a progress bar.
 
 from __future__ import annotations
 
+import argparse
 import contextlib
 import dataclasses
 import signal
@@ -25,21 +26,24 @@ from design.datafiles import load_json
 from design.errors import FileFormatError
 from drivers.errors import DeviceStateError, JobRefused
 from drivers.gcode import clean_line
+from drivers.gcode_layers import layer_at, layer_marks
 from drivers.grbl import GrblConnection, Job, JobProgress, JobResult, JobRunner, frame_lines, list_ports
 from drivers.grbl.job import FINAL_STATES, kind_warning
 from drivers.profiles import MachineProfile, load_profile
 from station.cli_util import (
     NON_NEGATIVE,
     POSITIVE,
-    add_design_options,
     check_output_file,
     design_parameters,
     emit_json,
+    load_design,
     number,
+    parse_assignments,
 )
 from station.errors import StationError, UsageError
 from station.joblog import INTERRUPTED, JOB_KINDS, JobLog
 from station.progress_view import ProgressView
+from station.services import plot as plot_service
 from station.services.errors import ServiceError
 from station.services.machines import plot_job as _plot_job
 
@@ -49,17 +53,39 @@ DEFAULT_POINTS = 4096
 def register(subparsers) -> None:
     plot = subparsers.add_parser(
         "plot",
-        help="write a plot job (G-code) for a drawing-machine pattern",
+        help="write a plot job (G-code): patterns and SVGs, one pen per layer",
         description="Sample MACHINE's pattern (or read --pattern FILE.json from `station pattern --json`), scale and "
         "centre it on the profile's paper, simplify the polyline within the tolerance and write G-code for a GRBL "
-        "pen plotter (pen up/down from the profile) or laser (M4 power, dark G0 travels).",
+        "pen plotter (pen up/down from the profile) or laser (M4 power, dark G0 travels). Several patterns "
+        "(--design repeated, or a --compose file) and SVG files (--svg: each SVG layer, or stroke colour with "
+        "--by color, a plot layer; hidden layers are not drawn) make a plot of layers, one pen each: vpype merges, "
+        "re-seams and sorts each layer's paths (--no-sort keeps them as drawn), and the job pauses between layers "
+        "(the profile's [pen] change lines, M0 by default) with a message saying which pen to put in; "
+        "`station send` waits there for Enter.",
         epilog="examples: station plot spirograph --set d=2.5 --size 150 --out spiro.gcode\n"
         "          station pattern hoot_nanny --json > hn.json && station plot --pattern hn.json "
-        "--profile plotter --out hn.gcode",
+        "--profile plotter --out hn.gcode\n"
+        "          station plot --svg drawing.svg --out drawing.gcode --preview drawing.png\n"
+        "          station plot --compose examples/plots/three-pens.toml --out three.gcode --preview three.png",
     )
     plot.add_argument("machine", nargs="?", help="drawing machine name (see `station machines`)")
-    add_design_options(plot)
+    plot.add_argument("--design", action="append", default=[], metavar="FILE.json",
+                      help='start from a design file: what `station pattern --json` prints, or {"params": {...}}; '
+                      "repeated: one layer per design")
+    plot.add_argument("--set", action="append", metavar="NAME=VALUE", default=[],
+                      help="a parameter value (repeatable, wins)")
     plot.add_argument("--pattern", metavar="FILE.json", help="a pattern written by `station pattern --json`")
+    plot.add_argument("--compose", metavar="FILE.toml",
+                      help="a composition: [[patterns]], [[svg]] and [[layers]] (pens); see docs/guide/plotting.md")
+    plot.add_argument("--svg", action="append", default=[], metavar="FILE.svg",
+                      help="an SVG drawing to plot, centred on the paper at its own size (repeatable)")
+    plot.add_argument("--by", choices=("layer", "color"), default="layer",
+                      help="an SVG's plot layers: its layers (default) or its stroke colours")
+    plot.add_argument("--no-sort", action="store_true",
+                      help="keep each layer's paths as drawn (no vpype linemerge, reloop, linesort)")
+    plot.add_argument("--seed", type=int, default=0, metavar="N", help="seed of the seams reloop moves (0)")
+    plot.add_argument("--preview", metavar="FILE.png",
+                      help="also draw the plot: layers in their pens' colours, travel in grey, time per layer")
     plot.add_argument("--profile", default="plotter",
                       help="machine profile TOML, or a built-in: plotter (default), laser")
     plot.add_argument("--size", type=POSITIVE, metavar="MM",
@@ -108,6 +134,9 @@ def register(subparsers) -> None:
     send.add_argument("--frame", action="store_true",
                       help="only trace the job's bounding box (pen up, or laser at the profile's frame power)")
     send.add_argument("--from-line", type=int, default=1, metavar="N", help="resume from line N (1-based)")
+    send.add_argument("--from-layer", type=int, default=None, metavar="N",
+                      help="start at layer N of a multi-pen plot (its pen change first): where `station jobs` says "
+                      "an unfinished plot stood")
     send.add_argument("--json", action="store_true",
                       help="print the result as JSON (state, message, lines confirmed, resume line, laser off), "
                       "also when interrupted; no progress bar")
@@ -180,18 +209,35 @@ def plot_job(polylines, profile: MachineProfile, size: float | None, tolerance: 
         raise
 
 
+def _layered(args) -> bool:
+    """Whether the plot is one of layers: several designs, a composition, an SVG."""
+    return bool(args.compose or args.svg or len(args.design) > 1)
+
+
 def run_plot(args) -> int:
     profile = _profile(args.profile)
     if args.json and args.out is None:
         raise UsageError("--json prints a summary and needs --out for the G-code")
     if args.out is not None:
         check_output_file(args.out, {".gcode", ".nc", ".ngc", ".txt"}, "--out")
+    if args.preview is not None:
+        check_output_file(args.preview, {".png"}, "--preview")
+    if _layered(args):
+        return _run_layered_plot(args, profile)
+    args.design = args.design[0] if args.design else None  # one design: the pattern plot
     polylines, description = pattern_polylines(args)
     text, fitted, simplified, options = plot_job(polylines, profile, args.size, args.tolerance, args.power)
     if args.out is not None:
         Path(args.out).write_text(text, encoding="utf-8")
     else:
         sys.stdout.write(text)
+    if args.preview is not None:
+        layer = plot_service.PlotLayer(description["machine"] or "pattern", "pen", plot_service.PALETTE[1][1],
+                                       polylines=list(simplified))
+        paper, box = plot_service.drawable_box(profile)
+        document = plot_service.PlotDocument([layer], paper, box)
+        result = plot_service.PlotResult(text, document, options, plot_service.summarize(text, document, profile))
+        plot_service.write_preview_png(result, args.preview)
     stacked = np.concatenate(fitted)
     length = float(sum(np.linalg.norm(np.diff(p, axis=0), axis=1).sum() for p in simplified))
     summary = {
@@ -212,9 +258,84 @@ def run_plot(args) -> int:
     print(
         f"plot: {summary['points_in']} -> {summary['points_out']} points (tolerance {summary['tolerance_mm']:g} mm), "
         f"{length:.0f} mm of drawing, about {summary['draw_time_s'] / 60:.1f} min at F{options.draw_feed:g}"
-        + (f"; wrote {args.out}" if args.out is not None else ""),
+        + (f"; wrote {args.out}" if args.out is not None else "")
+        + (f" and {args.preview}" if args.preview is not None else ""),
         file=sys.stderr,
     )
+    return 0
+
+
+def _sample(source: plot_service.PatternSource) -> np.ndarray:
+    from design.machines import get_machine
+
+    model = get_machine(source.machine)
+    values = model.validate(source.params)
+    return np.asarray(model.sample(values, n=source.points, spacing="arclength"), dtype=float)
+
+
+def plot_composition(args) -> plot_service.Composition:
+    """What ``station plot`` was asked to draw as layers: the --compose file's sources, then MACHINE with each
+    --design (or --pattern), then each --svg."""
+    if args.pattern and args.machine:
+        raise UsageError("give either MACHINE (with --set) or --pattern FILE.json, not both")
+    if args.design and not args.machine:
+        raise UsageError("--design needs the MACHINE it is a design of")
+    composition = (plot_service.load_composition(args.compose, load_design) if args.compose
+                   else plot_service.Composition())
+    if args.points < 16:
+        raise UsageError(f"--points must be at least 16, got {args.points}")
+    if args.machine:
+        from design.machines import get_machine
+
+        name = get_machine(args.machine).name
+        for design in args.design or [None]:
+            params = load_design(design, name) if design else {}
+            params.update(parse_assignments(args.set))
+            label = Path(design).stem if design else name
+            composition.sources.append(plot_service.PatternSource(name, params, size=args.size, points=args.points,
+                                                                  label=label))
+    elif args.pattern:
+        one = argparse.Namespace(**{**vars(args), "design": None})
+        (points,), description = pattern_polylines(one)
+        composition.sources.append(plot_service.PatternSource(
+            description["machine"] or "pattern", description["params"], size=args.size,
+            label=Path(args.pattern).stem, polyline=points))
+    elif args.set:
+        raise UsageError("--set applies to MACHINE; give the drawing MACHINE too")
+    for svg in args.svg:
+        composition.sources.append(plot_service.SvgSource(Path(svg), by=args.by))
+    return composition
+
+
+def _run_layered_plot(args, profile: MachineProfile) -> int:
+    composition = plot_composition(args)
+    try:
+        result = plot_service.plot(composition, profile, sample=_sample, sort=not args.no_sort,
+                                   tolerance=args.tolerance, power=args.power, seed=args.seed)
+    except ServiceError as error:
+        if error.field in ("tolerance", "power"):
+            raise UsageError(f"--{error}") from None
+        raise
+    if args.out is not None:
+        Path(args.out).write_text(result.gcode, encoding="utf-8")
+    else:
+        sys.stdout.write(result.gcode)
+    if args.preview is not None:
+        plot_service.write_preview_png(result, args.preview)
+    pauses = sum(1 for layer in result.layers if layer.pause_line is not None)
+    if args.json:
+        emit_json({"profile": profile.name, "out": args.out, "preview": args.preview, "sorted": not args.no_sort,
+                   "layers": [layer.to_dict() for layer in result.layers], "pen_changes": pauses,
+                   "travel_mm": result.travel_mm, "time_s": result.time_s, "lines": result.gcode.count("\n")})
+    for layer in result.layers:
+        pause = f", pen change at line {layer.pause_line}" if layer.pause_line is not None else ""
+        print(f"  layer {layer.number} {layer.name!r}: pen {layer.pen!r} {layer.color}, {layer.paths} paths, "
+              f"{layer.draw_mm:.0f} mm drawn, {layer.travel_mm:.0f} mm travel, about "
+              f"{plot_service.format_minutes(layer.time_s)}{pause}", file=sys.stderr)
+    wrote = [name for name in (args.out, args.preview) if name is not None]
+    print(f"plot: {len(result.layers)} layers, {pauses} pen changes, {result.travel_mm:.0f} mm travel, about "
+          f"{plot_service.format_minutes(result.time_s)} (estimate)" + (f"; wrote {' and '.join(wrote)}" if wrote
+                                                                          else ""), file=sys.stderr)
     return 0
 
 
@@ -371,6 +492,49 @@ class SendSignals(HandledSignals):
 HISTORY_INTERVAL = 2.0
 
 
+class PenChangePrompt:
+    """A job's program pause (a multi-pen plot's pen change) while ``station send`` streams it: says on stderr which
+    pen to put in and resumes the job when a line comes on standard input (Enter at a terminal). Standard input at
+    its end means nobody is there to change the pen: :attr:`closed` is set, and the caller stops the job."""
+
+    def __init__(self, runner: JobRunner, stream=None) -> None:
+        self.runner = runner
+        self.stream = stream
+        self.asked: int | None = None
+        self.closed = False
+        self.pauses = 0
+
+    def poll(self) -> None:
+        """Call often while the job runs: asks once per pause."""
+        progress = self.runner.progress
+        line = self.runner.pause_line
+        if progress.state != "paused" or line is None:
+            self.asked = None
+            return
+        if self.asked == line:
+            return
+        self.asked = line
+        self.pauses += 1
+        print(f"station: {progress.message}: press Enter to resume (Ctrl-C aborts)", file=sys.stderr, flush=True)
+        threading.Thread(target=self._wait_for_enter, name="pen-change", daemon=True).start()
+
+    def _wait_for_enter(self) -> None:
+        stream = self.stream if self.stream is not None else sys.stdin
+        answer = stream.readline() if stream is not None else ""
+        if answer:
+            self.runner.resume()
+        else:
+            self.closed = True
+
+
+def _layer_record(runner: JobRunner, resume_line: int | None = None) -> dict | None:
+    """The layer of a multi-pen plot the machine stands on (or of ``resume_line``), for the job history."""
+    if not runner.layers:
+        return None
+    mark = runner.layer(resume_line - 1 if resume_line else None)
+    return mark.to_dict() if mark is not None else None
+
+
 def _stream(conn, history, job: Job, kind: str, url: str, title: str, *, from_line: int = 1, dry_run: bool = False,
             bar: SendProgress | None = None, signals: SendSignals | None = None) -> JobResult:
     """Run ``job`` on ``conn`` with a progress bar and a row in the job history. A signal (``signals``), or Ctrl-C
@@ -378,6 +542,7 @@ def _stream(conn, history, job: Job, kind: str, url: str, title: str, *, from_li
     runner = JobRunner(conn, job, from_line=from_line, dry_run=dry_run, on_progress=bar)
     job_id = history.start(kind, url, title, len(job.lines), "station send")
     stop = signals.stop if signals is not None else threading.Event()
+    prompt = PenChangePrompt(runner)
     if signals is not None:
         signals.streaming = True
     try:
@@ -386,11 +551,17 @@ def _stream(conn, history, job: Job, kind: str, url: str, title: str, *, from_li
         while runner.wait(0) is None and runner.running:
             if stop.wait(0.1):
                 break
+            prompt.poll()
+            if prompt.closed and runner.result is None:
+                print("station: standard input closed at the pen change: nobody to put the pen in; job stopped",
+                      file=sys.stderr)
+                prompt.closed = False
+                runner.abort()
             if time.monotonic() - recorded >= HISTORY_INTERVAL:
                 recorded = time.monotonic()
                 # the line being executed, so that a station killed now still says where to resume
                 resume = runner.progress.current_line + 1 if runner.progress.lines_acked and not dry_run else None
-                history.progress(job_id, runner.progress.lines_acked, resume)
+                history.progress(job_id, runner.progress.lines_acked, resume, _layer_record(runner))
         if stop.is_set() and runner.result is None:
             # a second signal meanwhile only asks again: the clean-up (at most ~13 s) confirms the laser is off
             return _interrupted(conn, history, runner, job_id, signals.cause if signals is not None else "Ctrl-C",
@@ -402,7 +573,8 @@ def _stream(conn, history, job: Job, kind: str, url: str, title: str, *, from_li
         if signals is not None:
             signals.streaming = False
     result = runner.wait(None)
-    history.finish(job_id, result.state, result.lines_acked, result.message, result.resume_line)
+    history.finish(job_id, result.state, result.lines_acked, result.message, result.resume_line,
+                   _layer_record(runner, result.resume_line))
     if bar:
         if result.state in ("refused", "position_lost"):
             bar.close(clear=True)  # the error's one line says it all
@@ -437,10 +609,20 @@ def _interrupted(conn, history, runner: JobRunner, job_id: int, cause: str, bar:
     if resume is not None:
         parts.append(f"resume from line {resume}")
     message = "; ".join(parts)
-    history.finish(job_id, INTERRUPTED, progress.lines_acked, message, resume)
+    history.finish(job_id, INTERRUPTED, progress.lines_acked, message, resume, _layer_record(runner, resume))
     return JobResult(state=INTERRUPTED, message=message, lines_total=len(runner.job.lines),
                      lines_acked=progress.lines_acked, elapsed=progress.elapsed, resume_line=resume,
                      laser_off=laser_off)
+
+
+def _layer_tip(marks, result: JobResult) -> str:
+    """``, or --from-layer 2 to start layer 2/3 "star" again`` for an unfinished multi-pen plot, else ``""``."""
+    if not marks or result.resume_line is None:
+        return ""
+    mark = layer_at(marks, result.resume_line - 1)
+    if mark is None:
+        return ""
+    return f', or --from-layer {mark.number} to start layer {mark.number}/{mark.count} "{mark.name}" again'
 
 
 def run_send(args) -> int:
@@ -456,6 +638,17 @@ def run_send(args) -> int:
     if args.from_line < 1 or args.from_line > len(job.lines):
         raise UsageError(f"--from-line must be between 1 and {len(job.lines)} (lines in {path.name}), "
                          f"got {args.from_line}")
+    marks = layer_marks(job.lines)
+    if args.from_layer is not None:
+        if args.from_line != 1:
+            raise UsageError("give --from-line or --from-layer, not both")
+        if not marks:
+            raise UsageError(f"job {str(path)!r}: --from-layer needs a plot of layers (`station plot` with several "
+                             "patterns or an SVG writes them); this job has none")
+        if not 1 <= args.from_layer <= len(marks):
+            raise UsageError(f"--from-layer must be between 1 and {len(marks)} (layers in {path.name}), "
+                             f"got {args.from_layer}")
+        args.from_line = marks[args.from_layer - 1].line + 1
     url = args.port or (profile.port if profile else None)
     if not url:
         raise UsageError("give --port URL (e.g. /dev/ttyUSB0 or sim://grbl?profile=plotter) or --profile")
@@ -497,6 +690,10 @@ def run_send(args) -> int:
                 if not _ask(f"Frame done. Start the laser job {path.name}?", default=False):
                     print(f"station: {path.name} not started", file=sys.stderr)
                     return 0
+        if args.from_layer is not None and not args.frame:
+            mark = marks[args.from_layer - 1]
+            print(f"station: starting at {mark.label}" + (": the machine pauses for its pen first"
+                  if mark.pause is not None else f': pen "{mark.pen}" must be in'), file=sys.stderr)
         result = _stream(conn, history, job, kind, url, title, from_line=1 if args.frame else args.from_line,
                          dry_run=args.dry_run, bar=bar, signals=signals)
     document = {
@@ -505,16 +702,21 @@ def run_send(args) -> int:
         "resume_line": result.resume_line, "errors": result.errors, "laser_off": result.laser_off,
         "dry_run": args.dry_run, "frame": args.frame,
     }
+    if marks:
+        stood = layer_at(marks, result.resume_line - 1) if result.resume_line else None
+        document["layers"] = len(marks)
+        document["layer"] = stood.to_dict() if stood is not None else None
     if args.json:
         emit_json(document)
     if result.state == INTERRUPTED:
         # on stderr with --json too: whoever pressed Ctrl-C reads there whether the laser is off
-        go_on = (f" (the same command with --from-line {result.resume_line})"
+        go_on = (f" (the same command with --from-line {result.resume_line}{_layer_tip(marks, result)})"
                  if result.resume_line is not None and kind == "run" else "")
         print(f"station: {result.message}{go_on}", file=sys.stderr)
         return 130
     if not args.json and result.state not in ("refused", "position_lost"):  # those are raised: one line
-        print(result.message, file=sys.stderr)
+        tip = _layer_tip(marks, result)
+        print(result.message + (f" ({tip.lstrip(', ')})" if tip and kind == "run" else ""), file=sys.stderr)
         for _, text in result.errors:
             print(f"  {text}", file=sys.stderr)
     if result.state == "refused":
