@@ -29,8 +29,8 @@ import numpy as np
 from projector.drawing import UNTOLERATED_DEG, UNTOLERATED_MM, must_move, placement_deltas
 from projector.guide import Guide, PartDrawing
 
-__all__ = ["CHECK_FORMAT", "LAYOUT_DECIMALS", "CheckReport", "PartCheck", "check_parts", "instruction", "part_tags",
-           "reference_tags", "residual_error", "same_layout_value"]
+__all__ = ["CHECK_FORMAT", "LAYOUT_DECIMALS", "CheckReport", "PartCheck", "check_parts", "instruction", "jig_views",
+           "part_tags", "reference_tags", "residual_error", "same_layout_value"]
 
 CHECK_FORMAT = "chaos-station check"
 CHECK_VERSION = 1
@@ -77,6 +77,10 @@ class PartCheck:
     cost: float | None = None
     part: str = ""
     body: int | None = None
+    #: The view that measured it (``"top"``, ``"side"``; empty: the guide's own) and the jig whose tag it was
+    #: measured through (empty: the part's own tag).
+    view: str = ""
+    via: str = ""
 
     @property
     def owner(self) -> str:
@@ -90,7 +94,8 @@ class PartCheck:
                                                          (_r(e) for e in self.error)))
         return {"name": self.name, "tag_id": self.tag_id, "found": self.found, "measured": measured, "error": error,
                 "within_tolerance": self.within_tolerance, "instruction": self.instruction,
-                "cost": None if self.cost is None else round(float(self.cost), 4)}
+                "cost": None if self.cost is None else round(float(self.cost), 4),
+                "view": self.view or None, "via_jig": self.via or None}
 
 
 @dataclass(frozen=True)
@@ -119,6 +124,12 @@ class CheckReport:
     as_measured: dict[str, float] = field(default_factory=dict)
     #: misplaced parts no design parameter places: the predictions simulate them where the guide puts them
     not_simulated: tuple[str, ...] = field(default=())
+    #: every camera's view: ``{"view", "camera", "plane": {...} or None}`` (the first the top's)
+    views: tuple[dict, ...] = field(default=())
+    #: the side camera's checks (heights and tilts on the board's plane)
+    side_parts: tuple[PartCheck, ...] = field(default=())
+    #: per measured design parameter, the view that measured it
+    measured_by: dict[str, str] = field(default_factory=dict)
 
     def to_json(self) -> dict:
         plane = None if self.plane is None else {
@@ -139,6 +150,9 @@ class CheckReport:
             "prediction_note": self.prediction_note,
             "simulated_success_as_built": _p(self.simulated_success_as_built),
             "not_simulated": list(self.not_simulated),
+            "views": [dict(v) for v in self.views],
+            "side_parts": [p.to_json() for p in self.side_parts],
+            "measured_by": dict(self.measured_by),
         }
 
 
@@ -206,8 +220,24 @@ def reference_tags(guide: Guide) -> list[tuple[int, tuple[float, float], float]]
 
 
 def part_tags(guide: Guide) -> dict[int, tuple[float, float]]:
-    """The part tags as :func:`calibration.measure.measure` takes them: ``id -> (size mm, height mm)``."""
-    return {t.tag_id: (float(t.tag_size_mm), float(t.tag_height_mm)) for p in guide.parts for t in p.tag_views()}
+    """The part tags as :func:`calibration.measure.measure` takes them: ``id -> (size mm, height mm)``, the jigs'
+    tags among them (a jig's tag measures the part it carries)."""
+    tags = {t.tag_id: (float(t.tag_size_mm), float(t.tag_height_mm)) for p in guide.parts for t in p.tag_views()}
+    tags.update({j.tag_id: (float(j.tag_size_mm), float(j.tag_height_mm)) for j in guide.jigs
+                 if j.tag_id is not None and j.tag_center_mm is not None})
+    return tags
+
+
+def jig_views(guide: Guide, part: PartDrawing) -> list[tuple[str, PartDrawing]]:
+    """A part without a tag of its own, as the tag of the stand it rests on shows it: ``(jig id, the part with the
+    jig's tag)``. A stand carries its part rigidly on the plane (the part rests on its plate, against its stop); a
+    template is lifted off once the part is in its pocket, so it measures nothing at check time."""
+    if part.tag_views():
+        return []
+    return [(j.id, replace(part, tag_id=j.tag_id, tag_center_mm=tuple(j.tag_center_mm), tag_size_mm=j.tag_size_mm,
+                           tag_height_mm=j.tag_height_mm, tag_heading_deg=j.tag_heading_deg))
+            for j in guide.jigs if j.part == part.name and j.kind == "stand" and j.tag_id is not None
+            and j.tag_center_mm is not None][:1]
 
 
 def _wrap(angle: float) -> float:
@@ -233,11 +263,16 @@ def check_parts(guide: Guide, measurement) -> tuple[list[PartCheck], list[str]]:
         views += [(b.body, replace(part, name=f"{part.name}[{b.body}]", center_mm=b.center_mm,
                                    heading_deg=b.heading_deg, tag_id=b.tag_id, tag_center_mm=b.tag_center_mm,
                                    tag_heading_deg=b.tag_heading_deg)) for b in part.body_tags]
-        if not views:
+        carried = jig_views(guide, part)
+        if not views and not carried:
             by_eye.append(part.name)
         for body, view in views:
             checks.append(replace(_check_one(view, measurement, guide), part=part.name if body is not None else "",
                                   body=body))
+        for jig, view in carried:
+            check = _check_one(view, measurement, guide)
+            words = check.instruction.replace(f"`{part.name}`", f"jig {jig} (with `{part.name}` on it)", 1)
+            checks.append(replace(check, via=jig, instruction=words))
     return checks, by_eye
 
 

@@ -11,8 +11,18 @@ grey levels), ``vignetting`` (0..1), ``jpeg`` (quality 1..100), ``exposure`` (ga
 (samples per pixel along each axis, default 3), ``seed`` (of the noise: frame ``n`` uses ``seed + n``), ``name``
 (share one camera, its scene and its faults, between the opens of that name, as ``sim://projector?name=`` does) and
 ``projector`` (the name of a shared simulated projector, ``sim://projector?name=NAME``: each frame shows the light it
-throws now; none while no projector of that name is open: it is off). An unknown option or a bad value is one
-:class:`drivers.errors.SimConfigError` line naming it.
+throws now; none while no projector of that name is open: it is off) and ``view`` (``top``, the default: the
+camera over the table, whose plane is the guide's; ``side``: the camera in front of the table facing the upright
+reference board behind the parts, whose plane is the board's, ``height`` then its distance from the board and
+``tilt`` how far below the target it stands). The station hands each view its own scene. An unknown option or a bad
+value is one :class:`drivers.errors.SimConfigError` line naming it.
+
+Over a laser's bed (:mod:`drivers.sim.camera_bed`): ``laser`` (the name of a shared simulated GRBL,
+``sim://grbl?name=NAME``: the camera sees what it burned on the stock), ``bed`` (``u,v,angle``: where the laser's
+machine X0 Y0 lies on the plane and how its X axis is turned, default ``200,200,0``: a 400 mm bed homed at the
+back-right around the view's middle), ``stock`` (``u,v,w,h,angle``: a sheet's lower-left corner, size and turn on the
+plane, mm and degrees) and ``kerf`` (the burn's width, mm, default 0.15). With ``laser`` or ``stock`` the plane is
+the bed's dark honeycomb.
 
 Faults (:meth:`SimulatedCamera.inject`)
 -----------------------------------------
@@ -32,6 +42,7 @@ from typing import Any
 import numpy as np
 
 from drivers.errors import DriverError, SimConfigError
+from drivers.sim.camera_bed import BED_COLOR, BedView, burns_of
 from drivers.sim.camera_render import render
 from drivers.sim.camera_scene import CameraModel, PlaneScene, RenderOptions, TagTruth
 from drivers.sim.shared import SharedTwins, bounded_number
@@ -46,9 +57,12 @@ _NUMBERS = {  # option: (lowest, highest, what it takes)
     "blur": (0.0, 50.0, "a Gaussian sigma in pixels from 0 to 50"), "noise": (0.0, 255.0, "grey levels from 0 to 255"),
     "vignetting": (0.0, 1.0, "a number from 0 to 1"), "exposure": (1e-3, 100.0, "a gain > 0"),
     **{k: (-10.0, 10.0, "a distortion coefficient from -10 to 10") for k in _DISTORTION},
+    "kerf": (0.01, 5.0, "a burn width in mm from 0.01 to 5"),
 }
 _WHOLE = {"jpeg": (1, 100), "supersample": (1, 8), "seed": (0, 2**32 - 1)}
-_OPTIONS = ("size", "target", "name", "projector", *_NUMBERS, *_WHOLE)
+_OPTIONS = ("size", "target", "name", "projector", "view", "laser", "bed", "stock", *_NUMBERS, *_WHOLE)
+#: The planes a simulated camera can look at (module notes).
+VIEWS = ("top", "side")
 
 _SHARED: SharedTwins[SimulatedCamera] = SharedTwins("camera")
 
@@ -76,6 +90,12 @@ class SimulatedCamera:
         parsed = parse_camera_options(self.url)
         self.name: str = parsed["name"]
         self.projector_name: str = parsed["projector"]
+        #: The plane it looks at: ``"top"`` (the table) or ``"side"`` (the board behind the parts).
+        self.view: str = parsed["view"]
+        #: A laser's bed, its stock and burns (None: not over a laser's bed).
+        self.bed_view: BedView | None = parsed["bed"]
+        #: The simulated GRBL whose burns it sees (set by the station for a twin opened without ``name=``).
+        self.laser_machine = None
         self.timeout = float(timeout)
         self.options: RenderOptions = parsed["render"]
         self._model: CameraModel = parsed["model"]
@@ -120,6 +140,12 @@ class SimulatedCamera:
             scene = self._scene
             if self.projector_name:
                 scene = replace(scene, light=self._projector_light())
+            if self.bed_view is not None:
+                from drivers.sim.protocol_sim import machine_named
+
+                laser = self.laser_machine or (machine_named(self.bed_view.laser) if self.bed_view.laser else None)
+                burns = burns_of(laser)
+                scene = replace(scene, images=scene.images + self.bed_view.items(burns), background=BED_COLOR)
             options = replace(self.options, seed=(self.options.seed + self.frames_grabbed) % 2**32)
             image, truth = render(scene, self._model, options)
             if "black" in self._faults:
@@ -214,14 +240,16 @@ camera_named, forget_cameras = _SHARED.named, _SHARED.forget
 
 def parse_camera_options(url: str) -> dict:
     """A ``sim://camera?...`` URL's options, checked: ``{"model": CameraModel, "render": RenderOptions, "name": str,
-    "projector": str}`` (SimConfigError naming a bad option)."""
+    "projector": str, "view": str}`` (SimConfigError naming a bad option)."""
     parts = urllib.parse.urlsplit(url)
     if parts.scheme != "sim" or (parts.netloc or parts.path.lstrip("/")) != "camera":
         raise SimConfigError(f"expected a sim://camera URL, got {url!r}")
     query = {k: v[-1] for k, v in urllib.parse.parse_qs(parts.query, keep_blank_values=True).items()}
-    values: dict[str, Any] = {"size": (1920, 1080), "target": (0.0, 0.0), "name": "", "projector": "", "f": 1400.0,
+    values: dict[str, Any] = {"size": (1920, 1080), "target": (0.0, 0.0), "name": "", "projector": "", "view": "top",
+                              "f": 1400.0,
                               "height": 1000.0, "tilt": 0.0, "roll": 0.0, "blur": 0.0, "noise": 0.0,
                               "vignetting": 0.0, "exposure": 1.0, "jpeg": None, "supersample": 3, "seed": 0,
+                              "laser": "", "bed": (200.0, 200.0, 0.0), "stock": None, "kerf": 0.15,
                               **dict.fromkeys(_DISTORTION, 0.0)}
     for key, text in query.items():
         if key not in _OPTIONS:
@@ -234,11 +262,30 @@ def parse_camera_options(url: str) -> dict:
     options = RenderOptions(blur_px=values["blur"], noise=values["noise"], vignetting=values["vignetting"],
                             jpeg_quality=values["jpeg"], exposure=values["exposure"],
                             supersample=values["supersample"], seed=values["seed"])
-    return {"model": model, "render": options, "name": values["name"], "projector": values["projector"]}
+    bed = None
+    if values["laser"] or values["stock"] is not None:
+        bed = BedView(values["laser"], values["bed"], values["stock"], values["kerf"])
+    return {"model": model, "render": options, "name": values["name"], "projector": values["projector"],
+            "view": values["view"], "bed": bed}
 
 
 def _option(key: str, text: str) -> Any:
-    if key in ("name", "projector"):
+    if key == "view":
+        if text not in VIEWS:
+            raise SimConfigError(f"sim camera option view: expected one of {', '.join(VIEWS)}, got {text!r}")
+        return text
+    if key in ("bed", "stock"):
+        count, form = (3, "u,v,angle (mm, mm, degrees)") if key == "bed" else (5, "u,v,w,h,angle (mm, degrees)")
+        try:
+            numbers = tuple(float(v) for v in text.split(","))
+        except ValueError:
+            numbers = ()
+        if len(numbers) != count or not all(math.isfinite(v) for v in numbers) or (
+                key == "stock" and min(numbers[2:4]) <= 0):
+            raise SimConfigError(f"sim camera option {key}: expected {form}"
+                                 f"{', w and h > 0' if key == 'stock' else ''}, got {text!r}")
+        return numbers
+    if key in ("name", "projector", "laser"):
         if not text.strip():
             raise SimConfigError(f"sim camera option {key}: expected a name, got ''")
         return text

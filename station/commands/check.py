@@ -23,8 +23,11 @@ JSON_SHAPE = ('{"format": "chaos-station check", "version", "scenario", "content
               '"by_eye", "missing_reference_tags", "as_built", "as_measured", "not_measured", "residual_error", '
               '"predicted_success_as_built", "predicted_success_as_designed", "prediction_note", '
               '"simulated_success_as_built", "physical_success": {"probability", "interval", "expected_attempts", '
-              '"attempts_interval", "samples", "successes", "events", "placement_error", "physics"}}')
+              '"attempts_interval", "samples", "successes", "events", "placement_error", "physics"}, "views": '
+              '[{"view", "camera", "plane"}], "side_parts": [a part as in "parts", "view": "side", "via_jig"], '
+              '"measured_by": {parameter: "top" or "side"}}')
 FLAGS = {"guide": "--guide", "image": "--image", "camera": "--camera", "sim_offset": "--sim-offset",
+         "sim_side_offset": "--sim-side-offset",
          "simulate": "--simulate", "seed": "--seed", "intrinsics": "--intrinsics", "physics": "--physics",
          "predict": "--predict"}
 
@@ -45,19 +48,29 @@ def register(subparsers) -> None:
         "from the scenario and the layout (default options), or read from --guide (the manifest `station guide "
         "--json` printed, whose tags were stuck on the parts). With the simulated camera (sim://camera, the "
         "default station's) the camera is shown the guide's tags at their designed poses; --sim-offset and "
-        f"--sim-cover change that simulated scene only (demos and tests). --json prints {JSON_SHAPE}.",
+        "--sim-cover change that simulated scene only (demos and tests). Heights and tilts (a track's, a plank's) "
+        "are seen by a second camera: a side camera in front of the table facing the upright board sheet `station "
+        "guide --pdf` prints next to the guide (four tags, 579-582), which reads the tag engraved on each jig "
+        "stand's face (--jigs: the guide with its jigs); give both with --camera (repeatable; a simulated side camera "
+        "is sim://camera?view=side&height=700, height its distance from the board), or name both cameras in "
+        "station.toml. Its instructions say how to raise or lower a part's lower end and tilt it steeper or flatter; "
+        "CHECK.json says which view measured each parameter. "
+        f"--json prints {JSON_SHAPE}.",
         epilog="examples:\n"
         "  station check simple layout.json --image frame.png --intrinsics desk.json\n"
         "  station check simple layout.json --guide guide.json --out check.json --project\n"
-        "  station check simple layout.json --camera sim://camera --sim-offset track=3,-1 --simulate 20",
+        "  station check simple layout.json --camera sim://camera --sim-offset track=3,-1 --simulate 20\n"
+        "  station check simple success --jigs --camera sim://camera --camera 'sim://camera?view=side&height=700' "
+        "--sim-side-offset track=0,-3,1.5",
     )
     parser.add_argument("scenario", help="scenario file, or an example's name (simple, ballrun, ...)")
     parser.add_argument("layout", help="the layout checked against (LAYOUT.json, {\"parameters\": {...}}, or a "
                         "layout named in the scenario)")
     source = parser.add_mutually_exclusive_group()
     source.add_argument("--image", metavar="FRAME.png", help="check this camera frame (a file)")
-    source.add_argument("--camera", metavar="URL", help="grab the frame from this camera (default: the station's "
-                        "camera, `station devices`)")
+    source.add_argument("--camera", metavar="URL", action="append", help="grab the frame from this camera "
+                        "(default: the station's cameras, `station devices`); repeat it for a side camera facing the "
+                        "board (sim://camera?view=side, or a real camera whose frame shows the board's tags)")
     parser.add_argument("--intrinsics", metavar="CAMERA.json", help="the camera's calibration (`station calibrate "
                         "camera`); default the saved one of the station's camera, else guessed (and said)")
     parser.add_argument("--guide", metavar="GUIDE.json", help="the guide's manifest (`station guide --json`); "
@@ -74,6 +87,11 @@ def register(subparsers) -> None:
                         "arrow per misplaced part to where it must go, a ring at the target")
     parser.add_argument("--sim-offset", action="append", metavar="PART=DU,DV[,DEG]", help="SIMULATION ONLY: with "
                         "a simulated camera, show PART moved by DU, DV mm and turned DEG degrees (repeatable)")
+    parser.add_argument("--jigs", action="store_true", help="check against the guide with its laser-cut jigs "
+                        "(`station guide --jigs`): the jigs' tags measure the parts they carry")
+    parser.add_argument("--sim-side-offset", action="append", metavar="PART=DU,DUP[,DEG]", help="SIMULATION ONLY: "
+                        "with a simulated side camera, show PART moved DU mm along the board, DUP mm up and turned "
+                        "DEG degrees counter-clockwise as that camera sees it (repeatable)")
     parser.add_argument("--sim-cover", action="append", type=int, metavar="TAG", help="SIMULATION ONLY: with a "
                         "simulated camera, cover tag TAG with a hand (repeatable)")
     parser.add_argument("--json", action="store_true", help=f"print the whole check as JSON: {JSON_SHAPE}")
@@ -83,6 +101,7 @@ def register(subparsers) -> None:
 def run_check(args) -> int:
     from station.progress_view import ProgressView
     from station.services import check as service
+    from station.services import check_side
     from station.services.physics import read_profile
 
     out = check_output_file(args.out, {".json"}, "--out") if args.out is not None else None
@@ -91,15 +110,26 @@ def run_check(args) -> int:
         offsets = dict(service.parse_offset(text) for text in args.sim_offset or [])
         if args.image is not None:  # a frame of the wrong size is refused before the guide is made
             service.check_image_file(args.image, "image")
+        side_offsets = {}
+        for text in args.sim_side_offset or []:
+            part, offset = service.parse_offset(text)
+            side_offsets[part] = offset
+        cameras = _cameras(args)
         with ProgressView(sys.stderr, prefix="check: ") as view:
-            job = service.prepare_check(args.scenario, args.layout, guide=args.guide, progress=view)
-            image, intrinsics, name, previous = service.camera_frame(
-                job.guide, image=args.image, camera=args.camera, intrinsics=args.intrinsics, offsets=offsets,
-                occluded=tuple(args.sim_cover or ()))
+            job = service.prepare_check(args.scenario, args.layout, guide=args.guide, progress=view, jigs=args.jigs)
             physics = read_profile(args.physics) if args.physics else None
-            check = service.check_frame(job, image, intrinsics, simulate=args.simulate, seed=args.seed,
-                                        previous=previous, physics=physics, predict=args.predict, progress=view)
-        service.remember_plane(name, check)
+            if len(cameras) > 1 or side_offsets or any(check_side.is_side_url(url) for _, url in cameras):
+                check = check_side.check_views(
+                    job, cameras, image=args.image, intrinsics=args.intrinsics, offsets=offsets,
+                    side_offsets=side_offsets, occluded=tuple(args.sim_cover or ()), simulate=args.simulate,
+                    seed=args.seed, physics=physics, predict=args.predict, progress=view)
+            else:
+                image, intrinsics, name, previous = service.camera_frame(
+                    job.guide, image=args.image, camera=cameras[0][1] if cameras else None,
+                    intrinsics=args.intrinsics, offsets=offsets, occluded=tuple(args.sim_cover or ()))
+                check = service.check_frame(job, image, intrinsics, simulate=args.simulate, seed=args.seed,
+                                            previous=previous, physics=physics, predict=args.predict, progress=view)
+                service.remember_plane(name, check)
         if out is not None:
             out.write_text(json.dumps(check.to_json(), indent=1) + "\n", encoding="utf-8")
         if overlay is not None:
@@ -114,6 +144,20 @@ def run_check(args) -> int:
         return 0
     _print(check, out, overlay, projected)
     return 0
+
+
+def _cameras(args) -> list[tuple[str, str]]:
+    """The cameras to check with, ``(name, url)``: the ``--camera`` URLs (the first named as the station's camera),
+    else with no ``--image`` every camera of station.toml (none configured: the default one)."""
+    from station.config import configured_devices
+    from station.services.calibrate import DEFAULT_CAMERA
+
+    if args.camera:
+        return [(DEFAULT_CAMERA if i == 0 else f"{DEFAULT_CAMERA}-{i + 1}", url) for i, url in enumerate(args.camera)]
+    if args.image is not None:
+        return []
+    configured = [(d.name, d.url) for d in configured_devices() if d.kind == "camera"]
+    return configured if len(configured) > 1 else []
 
 
 def _project(check) -> str:

@@ -28,8 +28,9 @@ def register(subparsers) -> None:
         "in-plane place the tolerance map rates tight gets a template with a pocket it drops into. Material "
         "thickness and kerf come from the laser profile's material table (--kerf overrides the kerf); every cut is "
         "kerf-compensated, the pieces are nested on the sheet and engraved with the jig's name, the way its face "
-        "looks and an AprilTag (ids 500-582) the camera check can find. A height no jig can hold (a part hanging "
-        "from a rope, a plate larger than the sheet) is listed with how to set it by hand. Writes DIR/jigs.svg, "
+        "looks and an AprilTag (ids 500-578) the camera check can find (a stand a second one on its plate's face, "
+        "for the side camera). A height no jig can hold (a part hanging from a rope, a plate larger than the sheet) "
+        "is listed with how to set it by hand. Writes DIR/jigs.svg, "
         "DIR/jigs.gcode (send it with `station send`: framing, laser dark on every travel, pre-flight), "
         "DIR/jigs.json, DIR/sheet.png and DIR/jig-J1.png... (each jig with its part resting on it). "
         f"--json prints jigs.json: {JSON_SHAPE}.",

@@ -66,9 +66,11 @@ class CheckJob:
 
 # -- the guide --------------------------------------------------------------------------------------------------------
 def prepare_check(scenario: str, layout: str, *, guide: str | Path | None = None,
-                  progress: Reporter | ProgressCallback | None = None):
+                  progress: Reporter | ProgressCallback | None = None, jigs: bool = False):
     """The guide to check against: made again from the scenario and the layout with the default options, or the
     manifest ``guide`` (``station guide --json``) applied to it (the tags, reference tags and tolerances printed).
+    With ``jigs`` (or a manifest that lists jigs) the guide has the layout's laser-cut jigs, whose tags the check
+    reads.
 
     Raises
     ------
@@ -81,11 +83,13 @@ def prepare_check(scenario: str, layout: str, *, guide: str | Path | None = None
     manifest = read_manifest(guide) if guide is not None else None
     view = manifest.get("view") if manifest is not None else None
     if manifest is None:
-        return guides.make_guide(scenario, layout, progress=progress)
+        return guides.make_guide(scenario, layout, progress=progress, jigs=jigs or None)
+    jigs = jigs or bool(manifest.get("jigs"))
     # refused before any work: the scenario is cheap to read, the tolerances are not (and the manifest has them)
     loaded = open_scenario(scenario)
     _same_scenario(manifest, loaded.name, loaded.content_hash, str(guide))
-    job = guides.make_guide(loaded.source, layout, view=view if view in guides.VIEWS else None, tolerances=False)
+    job = guides.make_guide(loaded.source, layout, view=view if view in guides.VIEWS else None, tolerances=False,
+                            jigs=jigs or None)
     return replace(job, guide=apply_manifest(job.guide, manifest, str(guide)),
                    tolerances=_model_of(loaded, layout))
 
@@ -331,7 +335,7 @@ def _twin_intrinsics(camera, url: str):
 # -- the check --------------------------------------------------------------------------------------------------------
 def check_frame(job, image: np.ndarray, intrinsics=None, *, simulate: int = 0, seed: int = 0, previous=None,
                 detector=None, physics=None, predict: int = 0, progress: Reporter | ProgressCallback | None = None,
-                should_stop=None) -> CheckJob:
+                should_stop=None, side=None, camera: str = "") -> CheckJob:
     """Check the parts in one camera frame against the guide ``job`` (:func:`prepare_check`).
 
     Parameters
@@ -354,6 +358,11 @@ def check_frame(job, image: np.ndarray, intrinsics=None, *, simulate: int = 0, s
     predict : int
         Predict the as-built layout's physical success and expected attempts from this many simulations under the
         physics and the residual measurement error as placement noise (0: none).
+    side : station.services.check_side.SideView, optional
+        The side camera's frame measured (:func:`station.services.check_side.measure_side`): the heights and tilts
+        it measured join the as-built layout, its checks the report (``side_parts``).
+    camera : str
+        The top camera's name, for the report's ``views``.
 
     Raises
     ------
@@ -379,12 +388,14 @@ def check_frame(job, image: np.ndarray, intrinsics=None, *, simulate: int = 0, s
     measurement = measure(image, intrinsics, reference_tags(guide), part_tags(guide), previous, detector=detector)
     report.emit(_progress("measure", 1, 1))
     return check_measurement(job, measurement, image, intrinsics, simulate=simulate, seed=seed, notes=notes,
-                             physics=physics, predict=predict, progress=report, should_stop=should_stop)
+                             physics=physics, predict=predict, progress=report, should_stop=should_stop, side=side,
+                             camera=camera)
 
 
 def check_measurement(job, measurement, image: np.ndarray, intrinsics, *, simulate: int = 0, seed: int = 0,
                       notes: Sequence[str] = (), physics=None, predict: int = 0,
-                      progress: Reporter | ProgressCallback | None = None, should_stop=None) -> CheckJob:
+                      progress: Reporter | ProgressCallback | None = None, should_stop=None, side=None,
+                      camera: str = "") -> CheckJob:
     """The check of a :class:`~calibration.measure.Measurement` already made (see :func:`check_frame`)."""
     from calibration.asbuilt import PlanePose, as_built_layout
     from calibration.check import CheckReport, check_parts, residual_error
@@ -402,6 +413,18 @@ def check_measurement(job, measurement, image: np.ndarray, intrinsics, *, simula
         if c.found:
             poses.setdefault(c.owner, []).append((c.body, PlanePose(c.measured_center_mm, c.measured_heading_deg)))
     built = as_built_layout(scenario, x, guide.plane, poses, {p.name: p.parameters for p in guide.parts})
+    measured_by = {n: "top" if guide.view == "top" else guide.view for n in built.measured}
+    views = ({"view": guide.view, "camera": camera, "plane": _plane_json(measurement.plane)},)
+    if side is not None:
+        from station.services.check_side import merge_as_built
+
+        built, measured_by = merge_as_built(job, built, side)
+        views += ({"view": "side", "camera": side.camera, "plane": side.plane_json(),
+                   "missing_reference_tags": list(side.measurement.missing_reference_ids),
+                   "unknown_tags": list(side.measurement.unknown_ids)},)
+        if side.measurement.plane is None:
+            notes.append("side view: too few board tags seen (missing "
+                         f"{', '.join(map(str, side.measurement.missing_reference_ids))}): no height measured")
     model = getattr(job.tolerances, "model", None)
     problem = getattr(job.tolerances, "problem", None)
     predicted_built = predicted_designed = None
@@ -460,8 +483,16 @@ def check_measurement(job, measurement, image: np.ndarray, intrinsics, *, simula
         residual_error=residual, predicted_success_as_built=predicted_built,
         predicted_success_as_designed=predicted_designed, prediction_note="; ".join(notes) or None,
         simulated_success_as_built=simulated, missing_reference_tags=tuple(measurement.missing_reference_ids),
-        as_measured=built.measured_values(names), not_simulated=not_simulated)
+        as_measured=built.measured_values(names), not_simulated=not_simulated, views=views,
+        side_parts=tuple(side.checks) if side is not None else (), measured_by=measured_by)
     return CheckJob(result, job, image, measurement, intrinsics, physical)
+
+
+def _plane_json(plane) -> dict | None:
+    if plane is None:
+        return None
+    return {"residual_mm": round(float(plane.residual_mm), 3), "reference_ids": [int(i) for i in plane.reference_ids],
+            "moved_mm": None if plane.moved_mm is None else round(float(plane.moved_mm), 3)}
 
 
 def _progress(stage: str, done: int, total: int):
@@ -637,10 +668,36 @@ def report_lines(report, physical=None) -> list[str]:
                        ("reference tags not seen", report.missing_reference_tags)):
         if ids:
             lines.append(f"{words}: {', '.join(map(str, ids))}")
+    lines.extend(side_lines(report))
     if report.not_measured:
         lines.append(f"not measured (kept at the layout's value; predictions place them as with no check, 1 mm / "
                      f"1 deg): {', '.join(report.not_measured)}")
     if report.prediction_note:
         lines.append(f"note: {report.prediction_note}")
     lines.extend(detail)
+    return lines
+
+
+def side_lines(report) -> list[str]:
+    """The side camera's part of the check in words: its plane, each part's height and tilt and what to do, the
+    parameters it measured (none without a side camera)."""
+    side = next((v for v in getattr(report, "views", ()) if v.get("view") == "side"), None)
+    if side is None:
+        return []
+    plane = side.get("plane")
+    if plane is None:
+        missing = ", ".join(map(str, side.get("missing_reference_tags", ())))
+        return [f"side view: no plane: too few board tags seen (missing {missing}); no height measured"]
+    lines = [f"side view (heights and tilts): plane from board tags {', '.join(map(str, plane['reference_ids']))} "
+             f"(residual {plane['residual_mm']:.2f} mm)"]
+    for part in report.side_parts:
+        via = f", on jig {part.via}" if part.via else ""
+        if part.error is None:
+            lines.append(f"  {part.name} (tag {part.tag_id}{via}): {part.instruction}")
+        else:
+            lines.append(f"  {part.name} (tag {part.tag_id}{via}): up {part.error[1]:+.1f} mm, turn "
+                         f"{part.error[3]:+.1f} deg: {part.instruction}")
+    measured = [name for name, view in report.measured_by.items() if view == "side"]
+    if measured:
+        lines.append(f"measured by the side camera: {', '.join(measured)}")
     return lines

@@ -2,7 +2,8 @@
 
 A real camera sees the real parts. The simulated one (``sim://camera``) is handed a plain description of the plane
 (:mod:`drivers.sim.camera_scene`): the guide's reference tags, every part tag at its part's designed pose and face
-height, and a picture of the guide sheet under them; ``--sim-offset PART=DU,DV[,DEG]`` moves a part and
+height (a part resting on a jig stand: the stand's tag, carried with it), and a picture of the guide sheet under
+them; ``--sim-offset PART=DU,DV[,DEG]`` moves a part and
 ``--sim-cover TAG`` puts a hand over a tag, for demos and tests.
 """
 
@@ -55,10 +56,11 @@ def sim_scene(guide, offsets: Mapping[str, Sequence[float]] | None = None, *, oc
     ServiceError
         An offset of a part the guide has no tag on (``sim_offset``).
     """
+    from calibration.check import jig_views
     from drivers.sim.camera_scene import ImageItem, Occluder, PlaneScene, TagItem
 
     offsets = dict(offsets or {})
-    tagged = {p.name: p for p in guide.parts if p.tag_views()}
+    tagged = {p.name: p for p in guide.parts if p.tag_views() or jig_views(guide, p)}
     unknown = sorted(set(offsets) - set(tagged))
     if unknown:
         raise ServiceError(f"sim_offset: no tagged part {unknown[0]!r}; tagged parts: {', '.join(tagged) or 'none'}",
@@ -68,7 +70,8 @@ def sim_scene(guide, offsets: Mapping[str, Sequence[float]] | None = None, *, oc
     for name, part in tagged.items():
         du, dv, turn = offsets.get(name, (0.0, 0.0, 0.0))
         c, s = math.cos(math.radians(turn)), math.sin(math.radians(turn))
-        for view in part.tag_views():  # the part's own tag, or its bodies': all move with the part
+        # the part's own tag, or its bodies', or the stand's it rests on: all move with the part
+        for view in part.tag_views() or tuple(view for _, view in jig_views(guide, part)):
             offset = np.subtract(view.tag_center_mm, part.center_mm)
             centre = np.asarray(part.center_mm) + [du, dv] + [c * offset[0] - s * offset[1],
                                                               s * offset[0] + c * offset[1]]

@@ -9,8 +9,9 @@ against the work area), ``sheet.png``, plus ``jigs.json`` (:func:`jigs_manifest`
 of each jig with its part on it (``jig-J1.png``...).
 
 **Tags**: each jig gets an AprilTag (tag36h11) from :data:`JIG_TAG_IDS`, the ids just under the reference tags
-(583-586): the guide numbers the parts' own tags from 0 and skips the ids a scenario gives, so the two ranges meet
-only in a guide of 500 tagged parts; an id the guide uses is skipped all the same.
+(the side camera's board 579-582, the table's 583-586), and a stand a second one engraved on its plate's face (for
+the side camera): the guide numbers the parts' own tags from 0 and skips the ids a scenario gives, so the two ranges
+meet only in a guide of 500 tagged parts; an id the guide uses is skipped all the same.
 """
 
 from __future__ import annotations
@@ -28,8 +29,8 @@ from station.services.fabricate import DEFAULT_GAP, DEFAULT_KERF, KERF_SOURCES, 
 __all__ = ["JIG_TAG_IDS", "JigOptions", "JigsResult", "PlannedJigs", "attach_jigs", "check_options", "cut_jigs",
            "jigs_manifest", "make_jigs", "plan_guide_jigs", "write_jig_outputs"]
 
-#: The AprilTag ids the jigs take, in order (module notes).
-JIG_TAG_IDS = tuple(range(500, 583))
+#: The AprilTag ids the jigs take, in order (module notes): up to the side camera's board tags (579-582).
+JIG_TAG_IDS = tuple(range(500, 579))
 #: Progress stages: planning the jigs (one step), nesting (one step), then the sheets' laser jobs.
 PLAN_STAGE, NESTING_STAGE = "planning", "nesting"
 
