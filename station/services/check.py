@@ -405,6 +405,7 @@ def check_measurement(job, measurement, image: np.ndarray, intrinsics, *, simula
     notes = list(notes)
     guide = job.guide
     checks, by_eye = check_parts(guide, measurement)
+    checks = [replace(c, view=guide.view) for c in checks]
     scenario = job.scenario
     names = list(scenario.design_space.names)
     x = np.asarray(job.layout.x, dtype=float)

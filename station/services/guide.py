@@ -60,6 +60,10 @@ class GuideJob:
         data["layout"] = self.layout.to_dict()
         data["layout"]["source"] = portable_name(data["layout"].get("source") or "")
         data["steps"] = list(self.steps)
+        from projector.board import side_board
+
+        board = side_board(self.guide)
+        data["side_board"] = None if board is None else board.manifest()
         return data
 
 
@@ -167,7 +171,8 @@ def _layout_headline(layout: str | None, tolerance_map=None) -> str | None:
 
 def export_guide(job: GuideJob, *, pdf: str | Path | None = None, svg: str | Path | None = None,
                  paper: str = "a4") -> GuideJob:
-    """Write the PDF sheet set and/or the SVG; returns the job with the guide's pages (after a PDF).
+    """Write the PDF sheet set and/or the SVG; returns the job with the guide's pages (after a PDF). A table guide's
+    PDF comes with the side camera's board sheet next to it (:func:`board_pdf_path`: ``NAME-board.pdf``).
 
     Raises
     ------
@@ -180,12 +185,23 @@ def export_guide(job: GuideJob, *, pdf: str | Path | None = None, svg: str | Pat
         from projector.pdf import write_pdf
 
         guide = write_pdf(guide, Path(pdf), paper=paper, steps=job.steps, title=_title(job))
+        from projector.board import side_board, write_board_pdf
+
+        board = side_board(guide, paper)
+        if board is not None:
+            write_board_pdf(board, board_pdf_path(pdf), title=_title(job))
     if svg is not None:
         from projector.svg import write_svg
 
         with open(svg, "w", encoding="utf-8") as stream:
             write_svg(guide, stream)
     return replace(job, guide=guide)
+
+
+def board_pdf_path(pdf: str | Path) -> Path:
+    """Where the board sheet of the guide PDF ``pdf`` goes: next to it, ``NAME-board.pdf``."""
+    pdf = Path(pdf)
+    return pdf.with_name(f"{pdf.stem}-board.pdf")
 
 
 def check_paper(paper: str) -> None:
