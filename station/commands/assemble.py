@@ -42,6 +42,7 @@ def register(subparsers) -> None:
         "  station assemble ballrun ballrun-layout.json --project\n"
         "  station assemble simple success --world 'sim://world?seed=3' --physics simple-physics.toml "
         "--sheet guide.pdf\n"
+        "  station assemble causalityswitch_ball success --world 'sim://world?seed=2' --jigs\n"
         "  printf 's\\n\\na\\n\\ny\\n' | station assemble simple success --world sim://world\n"
         "    (the answers piped: s skips the guide's steps, Enter: placed, a: run as placed, Enter: run, y: log it)",
         formatter_class=__import__("argparse").RawDescriptionHelpFormatter,
@@ -58,6 +59,9 @@ def register(subparsers) -> None:
     guide.add_argument("--sheet", nargs="?", const="", metavar="GUIDE.pdf", help="write the guide's 1:1 PDF "
                        "sheets (default: the station's data folder, guides/) and step through them here (default)")
     guide.add_argument("--project", action="store_true", help="show each step on the projector")
+    parser.add_argument("--jigs", action="store_true", help="the guide's steps use the layout's laser-cut jigs "
+                        "(`station jigs` writes them; cut them first); with --world the simulated maker cuts them on "
+                        "the laser twin and sets the parts on them")
     parser.add_argument("--attempt", type=int, metavar="N", help="this attempt's number (default: one more than "
                         "the scenario's logged trials; a simulated maker's errors are seeded by it)")
     parser.add_argument("--samples", type=int, default=60, metavar="N", help="simulations per prediction "
@@ -92,7 +96,7 @@ def run_assemble(args) -> int:
             assembly = service.open_assembly(args.scenario, args.layout, camera=args.camera, world=args.world,
                                              projector=projector, physics=args.physics, attempt=args.attempt,
                                              samples=args.samples, seed=args.seed, workers=args.workers,
-                                             progress=view)
+                                             jigs=args.jigs, progress=view)
         _walk(assembly, args, out)
         if args.json:
             from station.cli_util import emit_json
@@ -119,7 +123,8 @@ def attempt_json(assembly) -> dict:
     return {"scenario": assembly.scenario.name, "layout": job.layout.describe(), "attempt": assembly.attempt,
             "trial_id": assembly.trial_id, "success": assembly.success, "outcomes": dict(assembly.outcomes),
             "times": dict(assembly.times), "checks": [c.to_json() for c in assembly.checks], "fixes": assembly.fixes,
-            "forecasts": [f.to_json() for f in assembly.forecasts]}
+            "forecasts": [f.to_json() for f in assembly.forecasts],
+            "jigs": [] if job.jigs is None else [jig.id for jig in job.jigs.plan.jigs]}
 
 
 def _open_projector(url: str | None):
@@ -180,6 +185,11 @@ def _walk(assembly, args, out) -> None:
         "a real table (you place, run and say)"
     out.write(f"{job.guide.scenario}: {job.layout.describe()}, {len(assembly.parts)} parts, attempt "
               f"{assembly.attempt}; {world}\n")
+    if job.jigs is not None:
+        made = ", ".join(f"{jig.id} for `{jig.part}`" for jig in job.jigs.plan.jigs) or "none can be made"
+        cut = " (the simulated maker cut them on the laser)" if assembly.world is not None and job.jigs.plan.jigs \
+            else ""
+        out.write(f"laser-cut jigs: {made}{cut}\n")
     _forecast(assembly, out)
     # -- guide
     if not args.project:

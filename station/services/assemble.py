@@ -326,7 +326,7 @@ class Assembly:
 
 def open_assembly(scenario: str, layout: str | None, *, view: str | None = None, camera: str | None = None,
                   world: str | None = None, projector=None, physics: str | Path | None = None,
-                  attempt: int | None = None,
+                  attempt: int | None = None, jigs: bool = False,
                   samples: int = DEFAULT_SAMPLES, seed: int = 0, workers: int | None = None, store=None,
                   progress: ProgressCallback | None = None) -> Assembly:
     """Start an attempt: the guide of ``layout`` for ``scenario`` (with its tolerances), the world opened.
@@ -350,6 +350,10 @@ def open_assembly(scenario: str, layout: str | None, *, view: str | None = None,
     attempt : int, optional
         This attempt's number (the simulated maker's errors are seeded by it); default one more than the trials
         of the scenario in ``store`` (the station's log).
+    jigs : bool
+        The guide's steps use the layout's laser-cut jigs (``station jigs`` writes them): the parameters they set
+        are set on them. With a simulated world the simulated maker cuts them first, their laser job run to its end
+        on the laser twin (:func:`station.services.world.cut_jigs`), and sets the parts on them.
     samples, seed, workers :
         The forecasts' simulations, their seed and worker processes.
 
@@ -377,9 +381,13 @@ def open_assembly(scenario: str, layout: str | None, *, view: str | None = None,
         opened_world = open_world(world)
     try:
         job = guides.make_guide(scenario, layout, view=view, progress=progress,
-                                physics=None if physics is None else str(physics))
+                                physics=None if physics is None else str(physics), jigs=bool(jigs))
         if opened_world is not None:
             prepare_world(opened_world, job.scenario)
+            if job.jigs is not None and job.jigs.plan.jigs:
+                from station.services.world import cut_jigs
+
+                cut_jigs(job)
         if profile is not None:
             from design.contraption.physics_profile import apply_profile
 

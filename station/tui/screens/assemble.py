@@ -11,8 +11,9 @@ layout's laser-cut jigs there (``jigs/``, named the same: ``station jigs``'s fil
 Machines screen, 0 shows the calibrate frame. c checks the placed parts with the station's camera (``sim://camera`` by
 default, shown the guide's tags at their designed poses): the camera frame with the check drawn on it, a table of every
 tagged part (how far it is off, within its tolerance or not, what to do), the predicted success as placed, and the
-projector shows an arrow per misplaced part to where it must go; press c again after moving them. The Robust layouts
-screen opens its result here with a.
+projector shows an arrow per misplaced part to where it must go; press c again after moving them. The jigs
+switch builds the guide on the layout's laser-cut jigs (its steps set the parts they carry on them; a simulated world's
+maker cuts them on the laser twin first). The Robust layouts screen opens its result here with a.
 
 The whole attempt (:mod:`station.services.assemble`, as ``station assemble``): c after placing the parts checks them
 (with a simulated world, ``sim://world?seed=S`` in the World field, the simulated maker places them first and the
@@ -41,7 +42,7 @@ from textual.containers import Horizontal, Vertical
 from textual.css.query import NoMatches
 from textual.message import Message
 from textual.screen import Screen
-from textual.widgets import Button, DataTable, Footer, Header, Input, Label, Select, Static
+from textual.widgets import Button, DataTable, Footer, Header, Input, Label, Select, Static, Switch
 
 from design.errors import DesignError
 from drivers.errors import DriverError
@@ -92,6 +93,8 @@ class AssembleScreen(AttemptFlow, Screen):
     AssembleScreen #controls { width: 38; padding: 0 1; overflow-y: auto; }
     AssembleScreen #controls Input, AssembleScreen #controls Select, AssembleScreen #controls Button { width: 100%; }
     AssembleScreen #controls Button { margin-top: 1; }
+    AssembleScreen #jigs-row { height: auto; margin-top: 1; }
+    AssembleScreen #jigs-label { padding: 1 0 0 1; }
     AssembleScreen #status { height: auto; margin-top: 1; }
     AssembleScreen #main { width: 1fr; }
     AssembleScreen #frame { height: 1fr; min-height: 10; }
@@ -155,6 +158,9 @@ class AssembleScreen(AttemptFlow, Screen):
                 yield Input("", placeholder="e.g. sim://world?seed=1 (empty: a real table)", id="world")
                 yield Label("Physics profile (optional)")
                 yield Input("", placeholder="e.g. PROFILE.toml (empty: the scenario's)", id="physics")
+                with Horizontal(id="jigs-row"):
+                    yield Switch(value=False, id="jigs")
+                    yield Label("parts on laser-cut jigs", id="jigs-label")
                 yield Button("Build the guide (Enter)", id="build", variant="primary")
                 yield Static("", id="status")
             with Vertical(id="main"):
@@ -236,20 +242,21 @@ class AssembleScreen(AttemptFlow, Screen):
         self.query_one("#steps", DataTable).focus()
         world = self.query_one("#world", Input).value.strip() or None
         physics = self.query_one("#physics", Input).value.strip() or None
+        jigs = self.query_one("#jigs", Switch).value
         if self.assembly is not None:
             self.assembly.close()
-        self._build(str(scenario), layout or None, None if view == "auto" else str(view), world, physics)
+        self._build(str(scenario), layout or None, None if view == "auto" else str(view), world, physics, jigs)
 
     @work(thread=True, exclusive=True, group="assemble")
     def _build(self, scenario: str, layout: str | None, view: str | None, world: str | None = None,
-               physics: str | None = None) -> None:
+               physics: str | None = None, jigs: bool = False) -> None:
         from station.db import database_url
         from station.services.trials import open_store
 
         said = self._ensure_projector()
         try:
             with open_store(database_url()) as store:
-                assembly = flow.open_assembly(scenario, layout, view=view, world=world, physics=physics,
+                assembly = flow.open_assembly(scenario, layout, view=view, world=world, physics=physics, jigs=jigs,
                                               projector=self.projector, store=store, samples=self.forecast_samples,
                                               workers=self.simulation_workers)
             frames = service.projected_frames(assembly.job, FRAME_SIZE)
