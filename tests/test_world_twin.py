@@ -152,3 +152,20 @@ def test_the_loops_resume_command_keeps_jigs():
     words = shlex.split(resume_command(args))
     assert "--jigs" in words
     assert build_parser().parse_args(words[1:]).jigs is True
+
+
+@pytest.mark.slow  # two guides with their tolerance maps: about 20 s
+def test_an_assembly_with_jigs_sets_their_parameters_on_them(station_home, monkeypatch):
+    from station.services import assemble
+    from station.services import world as worlds
+
+    cut = []
+    monkeypatch.setattr(worlds, "cut_jigs", lambda job, *args: cut.append([j.id for j in job.jigs.plan.jigs]))
+    for jigs, expected in ((True, "jig"), (False, "ruler")):
+        assembly = assemble.open_assembly("simple", "success", world="sim://world?seed=1", samples=1, jigs=jigs)
+        try:
+            assembly.placed()
+            assert {n: s["set_with"] for n, s in assembly.world.settings().items()}["track.z"] == expected
+        finally:
+            assembly.close()
+    assert cut == [["J1"]]  # the simulated maker cut them once, for the assembly with jigs
