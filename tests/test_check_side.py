@@ -1,0 +1,135 @@
+"""The side camera (issue 40): heights and tilts read on the board's plane through each jig stand's face tag.
+
+The moved layouts are moved in their design parameters and the side scene placed by the scene graph
+(:func:`calibration.asbuilt.part_plane_pose` of the moved layout), so the check's own arithmetic is not what puts
+the tags where they are. The frames are the camera twin's (its own tag bitmaps and ray casting) at 1080p, 700 mm
+from the board, with blur, noise and JPEG.
+"""
+
+from __future__ import annotations
+
+import functools
+import json
+import re
+
+import numpy as np
+import pypdfium2 as pdfium
+import pytest
+
+from calibration.side import side_instruction
+from projector.board import BOARD_TAG_IDS, side_board
+from projector.detection import TagDetector
+from station.cli import main
+from station.services import check as service
+from station.services import check_side
+
+SIDE_URL = "sim://camera?view=side&height=700&blur=0.8&noise=2&jpeg=90&seed=4"
+
+
+@functools.cache
+def _simple():
+    return service.prepare_check("simple", "success", jigs=True)
+
+
+def _check(changes: dict[str, float]):
+    """The check of SIMPLE's parts with the layout moved by ``changes`` as the side camera sees them."""
+    job = _simple()
+    board = side_board(job.guide)
+    targets = check_side.side_targets(job, board)
+    x = np.array(job.layout.x, dtype=float)
+    names = list(job.scenario.design_space.names)
+    for name, delta in changes.items():
+        x[names.index(name)] += delta
+    picture, lens = check_side.side_frame(job, board, targets, SIDE_URL, layout=x)
+    side = check_side.measure_side(job, board, targets, picture, lens, camera="side")
+    frame, top_lens, _, _ = service.camera_frame(job.guide, camera="sim://camera?seed=2")
+    return service.check_frame(job, frame, top_lens, side=side, camera="top").report, x, names
+
+
+def test_the_side_camera_reads_the_jig_stand_and_measures_height_and_tilt():
+    report, x, names = _check({"track.z": -0.003})
+    assert report.measured_by["track.z"] == "side" and report.measured_by["track.roll"] == "side"
+    assert "track.z" not in report.not_measured and "track.roll" not in report.not_measured
+    assert abs(report.as_measured["track.z"] - x[names.index("track.z")]) < 0.0005
+    assert abs(report.as_measured["track.roll"] - x[names.index("track.roll")]) < 0.5
+    (side,) = report.side_parts
+    assert (side.name, side.via, side.view, side.found) == ("track", "J1", "side", True)
+    raised = re.match(r"raise `track`'s lower end (\d+\.\d) mm", side.instruction)
+    assert raised and abs(float(raised.group(1)) - 3.0) <= 0.2, side.instruction  # the measurement's own 0.1-0.2 mm
+    assert "tilt" not in side.instruction
+
+
+@pytest.mark.parametrize("steeper", [True, False])
+def test_a_tilt_off_by_1_5_deg_is_told_steeper_or_flatter(steeper):
+    job = _simple()
+    (target,) = check_side.side_targets(job, side_board(job.guide))
+    from calibration.asbuilt import part_plane_pose
+
+    names = list(job.scenario.design_space.names)
+    x = np.array(job.layout.x, dtype=float)
+    x[names.index("track.roll")] += 1.5
+    turn = part_plane_pose(job.scenario, x, side_board(job.guide).plane, ["track"])["track"].heading_deg \
+        - target.heading_deg
+    flatter = abs(target.tilt_deg + turn) < abs(target.tilt_deg)  # the scene graph's own answer
+    delta = 1.5 if flatter == steeper else -1.5
+    report, _, _ = _check({"track.roll": delta})
+    words = report.side_parts[0].instruction
+    tilt = re.search(r"tilt it (\d+\.\d) deg (steeper|flatter)", words)
+    assert tilt and tilt.group(2) == ("steeper" if steeper else "flatter"), words
+    assert abs(float(tilt.group(1)) - 1.5) <= 0.2, words
+
+
+def test_the_instructions_words():
+    assert side_instruction("track", (0.2, -3.0), 1.5, -30.0) == \
+        "raise `track`'s lower end 3.0 mm, tilt it 1.5 deg steeper"
+    assert side_instruction("track", (0.0, 2.0), -1.5, -30.0) == "lower `track`'s lower end 2.0 mm, tilt it 1.5 deg " \
+        "flatter"
+    assert side_instruction("plank", (0.0, 0.1), 0.8, 0.0) == \
+        "tilt `plank` 0.8 deg back to level: lower its right end as the side camera sees it"
+    assert side_instruction("track", (0.0, 0.2), 0.1, 20.0) == "`track` is at its height and tilt"
+    assert side_instruction("track", (0.0, -1.0), 0.0, 20.0, via="J1").endswith(
+        "(through jig J1: is its plate down in the base's slot and its base flat on the table?)")
+
+
+def test_station_check_with_two_cameras_writes_the_views_in_check_json(tmp_path, capsys):
+    out = tmp_path / "check.json"
+    code = main(["check", "simple", "success", "--jigs", "--camera", "sim://camera", "--camera", SIDE_URL,
+                 "--sim-side-offset", "track=0,-3", "--predict", "0", "--out", str(out)])
+    assert code == 0
+    text = capsys.readouterr().out
+    assert "side view (heights and tilts): plane from board tags 579, 580, 581, 582" in text
+    assert re.search(r"raise `track`'s lower end (2\.[89]|3\.[01]) mm", text), text
+    data = json.loads(out.read_text())
+    for key in ("format", "version", "parts", "plane", "as_built", "as_measured", "not_measured", "view"):
+        assert key in data  # the contract's fields stay
+    assert [v["view"] for v in data["views"]] == ["top", "side"]
+    assert data["views"][1]["plane"]["reference_ids"] == list(BOARD_TAG_IDS)
+    assert data["views"][1]["plane"]["residual_mm"] < 0.2
+    assert data["measured_by"]["track.z"] == "side" and data["measured_by"]["track.x"] == "top"
+    (side,) = data["side_parts"]
+    assert side["view"] == "side" and side["via_jig"] == "J1" and side["tag_id"] >= 500
+    assert abs(side["error"]["dv_mm"] + 3.0) < 0.3
+    assert data["parts"][0]["view"] == "top"
+
+
+def test_a_side_offset_without_a_side_camera_is_one_line(capsys):
+    assert main(["check", "simple", "success", "--jigs", "--camera", "sim://camera", "--sim-side-offset",
+                 "nothing=0,-3", "--predict", "0"]) == 2
+    errors = [line for line in capsys.readouterr().err.splitlines() if "error" in line]
+    assert len(errors) == 1 and "--sim-side-offset: no side camera" in errors[0]
+
+
+def test_the_guide_writes_the_board_sheet_and_says_where_it_stands(tmp_path, capsys):
+    pdf = tmp_path / "simple.pdf"
+    assert main(["guide", "simple", "success", "--pdf", str(pdf), "--no-tolerances"]) == 0
+    assert "simple-board.pdf: the side camera's board sheet" in capsys.readouterr().out
+    board = tmp_path / "simple-board.pdf"
+    page = pdfium.PdfDocument(str(board))[0]
+    width, height = page.get_size()
+    assert abs(width / 72 * 25.4 - 297.0) < 0.5 and abs(height / 72 * 25.4 - 210.0) < 0.5  # A4 landscape, 1:1
+    grey = np.asarray(page.render(scale=150 / 72).to_pil().convert("L"))
+    assert sorted(t.tag_id for t in TagDetector(1.0, 1).detect(grey)) == list(BOARD_TAG_IDS)
+    assert main(["guide", "simple", "success", "--json", "--no-tolerances"]) == 0
+    manifest = json.loads(capsys.readouterr().out)
+    assert [t["id"] for t in manifest["side_board"]["reference_tags"]] == list(BOARD_TAG_IDS)
+    assert "lower edge on the table" in manifest["side_board"]["words"]
