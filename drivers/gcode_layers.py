@@ -35,7 +35,7 @@ _UNSAFE = re.compile(r'[()";\r\n]+')
 
 def _safe(text: str, limit: int = 40) -> str:
     """A name as it can stand in a G-code comment: no parentheses, quotes, semicolons or line breaks."""
-    return _UNSAFE.sub(" ", str(text)).strip()[:limit] or "-"
+    return " ".join(_UNSAFE.sub(" ", str(text)).split())[:limit] or "-"
 
 
 @dataclass(frozen=True)

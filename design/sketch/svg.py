@@ -29,10 +29,20 @@ from design.sketch.strokes import MAX_STROKES, Sketch, check_file_size, make_ske
 #: Points per curve segment when SVG Bezier curves are flattened (elliptical arcs get twice as many).
 BEZIER_STEPS = 16
 
-#: CSS pixels per millimetre (96 per inch): svgelements gives user space in pixels.
-PX_PER_MM = 96.0 / 25.4
+#: Millimetres per physical unit of a drawing's size.
+_MM_PER_UNIT = {"mm": 1.0, "cm": 10.0, "q": 0.25, "in": 25.4, "pt": 25.4 / 72, "pc": 25.4 / 6}
 
-_PHYSICAL = re.compile(r"^\s*[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?\s*(mm|cm|in|pt|pc|q)\s*$", re.IGNORECASE)
+_PHYSICAL = re.compile(r"^\s*([-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?)\s*(mm|cm|in|pt|pc|q)\s*$", re.IGNORECASE)
+
+
+def _mm_per_px(size: str | None, pixels: float) -> float | None:
+    """Millimetres per pixel of svgelements' output for a drawing ``size`` (``"210mm"``) of ``pixels`` pixels:
+    from the two, not from a constant, since svgelements rounds a millimetre to 0.0393701 in. None for a size
+    without physical units."""
+    match = _PHYSICAL.match(size or "")
+    if match is None or not pixels:
+        return None
+    return float(match.group(1)) * _MM_PER_UNIT[match.group(2).lower()] / pixels
 
 
 def _read_text(path: Path, kind: str) -> str:
@@ -131,8 +141,8 @@ def load_svg(path: Path, symmetry: int | None, center: object) -> Sketch:
         drawing = svgelements.SVG.parse(io.StringIO(text), reify=True, ppi=svgelements.DEFAULT_PPI)
     except Exception as error:  # noqa: BLE001 - svgelements raises many kinds on odd input: one line naming the file
         raise SketchFileError(f"{path}: cannot read the SVG ({type(error).__name__}: {error})") from None
-    physical = bool(_PHYSICAL.match(root.get("width", "")) or _PHYSICAL.match(root.get("height", "")))
-    unit = 1.0 / PX_PER_MM if physical else 1.0
+    unit = (_mm_per_px(root.get("width"), float(drawing.width or 0.0))
+            or _mm_per_px(root.get("height"), float(drawing.height or 0.0)) or 1.0)
     strokes: list[np.ndarray] = []
     for element in drawing.elements():
         if not isinstance(element, svgelements.Shape) or isinstance(element, svgelements.Text):

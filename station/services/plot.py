@@ -655,15 +655,10 @@ def write_preview_png(result: PlotResult, target, size: int = 1200) -> None:
     draw.rectangle([20, 20, 20 + width_mm * scale, 20 + height_mm * scale], fill="white", outline="#999999")
     x0, y0, x1, y1 = document.box
     draw.rectangle([*to_px(np.array([[x0, y1]]))[0], *to_px(np.array([[x1, y0]]))[0]], outline="#dddddd")
-    position = np.zeros(2)
-    travel: list[tuple[np.ndarray, np.ndarray]] = []
-    for layer in document.layers:
-        for polyline in layer.polylines:
-            travel.append((position, polyline[0]))
-            position = polyline[-1]
-    travel.append((position, np.zeros(2)))
-    for a, b in travel:
-        draw.line(to_px(np.array([a, b])), fill="#b0b0b0", width=1)
+    # the travel the job makes (the pen-change park moves too), read from its G-code as the streamer reads it
+    toolpath = interpret(result.gcode.splitlines(), start=(0.0, 0.0, 0.0))
+    for k in np.flatnonzero(toolpath.rapid):
+        draw.line(to_px(np.array([toolpath.start[k, :2], toolpath.end[k, :2]])), fill="#b0b0b0", width=1)
     for layer in document.layers:
         pen_px = max(1, int(round(layer.width * scale)))
         for polyline in layer.polylines:
