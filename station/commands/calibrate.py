@@ -88,11 +88,13 @@ def register(subparsers) -> None:
     plane.add_argument("--json", action="store_true", help="print the result as JSON")
     plane.set_defaults(func=run_plane)
 
+    from station.commands._calibrate_bed import add_bed_parser
     from station.commands._calibrate_projector import add_projector_parser
     from station.commands._calibrate_sim import add_sim_parser
     from station.services.trials import logged_trials
 
     add_projector_parser(sub)
+    add_bed_parser(sub)
     add_sim_parser(sub, trials_source=logged_trials)
 
 

@@ -153,7 +153,10 @@ def verify_job(lines: Sequence[str], *, name: str = "job", profile: MachineProfi
     lengths = np.linalg.norm(ends - starts, axis=1) if executed else np.zeros(0)
     rapid = np.array([b.rapid for b in executed], dtype=bool)
     power = np.array([b.power for b in executed], dtype=float)
-    lit = tuple((b.line_no, b.text) for b in executed if b.rapid and b.power > 0) if laser else ()
+    # a laser machine's travels must be dark, whatever the job says it is (a job sent without --laser to a
+    # machine whose laser mode is off fires on every G0)
+    laser_machine = laser or (profile is not None and profile.is_laser)
+    lit = tuple((b.line_no, b.text) for b in executed if b.rapid and b.power > 0) if laser_machine else ()
     extent_lo = extent_hi = None
     within = not any(a == 2 for a in record.alarms)
     if executed:
@@ -176,7 +179,7 @@ def verify_job(lines: Sequence[str], *, name: str = "job", profile: MachineProfi
         straight_s=float(toolpath.durations(rapid_rate=rapid_rate).sum()), twin_clock_s=float(twin_clock),
         blocks=len(executed), from_rest=sum(1 for b in executed if b.from_rest),
         burn_mm=float(lengths[~rapid & (power > 0)].sum()) if executed else 0.0,
-        travel_mm=float(lengths[rapid].sum()) if executed else 0.0, lit_travels=lit, laser=laser,
+        travel_mm=float(lengths[rapid].sum()) if executed else 0.0, lit_travels=lit, laser=laser_machine,
         extent_lo=extent_lo, extent_hi=extent_hi, bounds_lo=tuple(map(float, bounds[0])),
         bounds_hi=tuple(map(float, bounds[1])), homing=homing, within_travel=within,
         alarms=tuple(record.alarms), outline=outline)
@@ -209,6 +212,8 @@ def _duration(seconds: float) -> str:
 
 def verify_summary(done: JobVerification) -> list[str]:
     """The verification in a few lines for a person."""
+    if done.blocks == 0 and done.state != "done":
+        return [f"verify {done.name}: {done.state} on the twin: {done.message}"]
     lines = [f"verify {done.name}: {done.state} on the twin; about {_duration(done.estimate_s)} with acceleration "
              f"(GRBL's planner; {_duration(done.straight_s)} at the programmed feeds), {done.blocks} blocks, "
              f"{done.from_rest} from rest"]
