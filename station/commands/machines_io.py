@@ -40,6 +40,7 @@ from station.cli_util import (
     number,
     parse_assignments,
 )
+from station.commands._send_place import add_place_options, placed_job, verify_before_send
 from station.errors import StationError, UsageError
 from station.joblog import INTERRUPTED, JOB_KINDS, JobLog
 from station.progress_view import ProgressView
@@ -140,6 +141,7 @@ def register(subparsers) -> None:
     send.add_argument("--json", action="store_true",
                       help="print the result as JSON (state, message, lines confirmed, resume line, laser off), "
                       "also when interrupted; no progress bar")
+    add_place_options(send)
     send.set_defaults(func=run_send)
 
 
@@ -632,7 +634,7 @@ def run_send(args) -> int:
         raise UsageError(f"job {str(path)!r}: no such file")
     laser = args.laser or (profile is not None and profile.is_laser)
     pen_up = tuple(profile.pen.up_commands()) if profile is not None and profile.pen else ("M5",)
-    job = Job.from_file(path, laser=laser, pen_up=pen_up)
+    job = placed_job(args, Job.from_file(path, laser=laser, pen_up=pen_up))
     if not any(clean_line(line) for line in job.lines):
         raise UsageError(f"job {str(path)!r}: the file has no G-code lines (it is empty or only comments)")
     if args.from_line < 1 or args.from_line > len(job.lines):
@@ -661,6 +663,7 @@ def run_send(args) -> int:
     title = str(path) if kind == "run" else f"{kind} of {path}"
     with SendSignals() as signals, GrblConnection(url, baud) as conn, _job_history() as history:
         warning = kind_warning(original, conn.laser_mode)
+        verify_before_send(args, original, profile, conn)
         if warning:
             print(f"station: warning: {warning}", file=sys.stderr)
         if (laser and kind == "run" and args.from_line == 1 and not args.json and not conn.homing_enabled
@@ -701,6 +704,7 @@ def run_send(args) -> int:
         "lines_total": result.lines_total, "lines_acked": result.lines_acked, "elapsed_s": result.elapsed,
         "resume_line": result.resume_line, "errors": result.errors, "laser_off": result.laser_off,
         "dry_run": args.dry_run, "frame": args.frame,
+        **({"verify": args.verified.to_dict()} if getattr(args, "verified", None) else {}),
     }
     if marks:
         stood = layer_at(marks, result.resume_line - 1) if result.resume_line else None
