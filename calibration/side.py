@@ -72,6 +72,10 @@ class SideTarget:
     heading_deg: float
     lower_end_mm: tuple[float, float]
     tilt_deg: float
+    #: The jig's plate and the part resting on it, as the side camera sees them on the board's plane (rings of
+    #: (u, v) mm; pictures only: the measurement reads the tag alone).
+    plate_mm: tuple[tuple[float, float], ...] = ()
+    silhouette_mm: tuple[tuple[tuple[float, float], ...], ...] = ()
 
 
 def side_guide(guide: Guide, board, targets: Sequence[SideTarget]) -> Guide:

@@ -80,10 +80,17 @@ def side_targets(job, board) -> list:
         tilt = math.degrees(math.atan2(right[1] - left[1], right[0] - left[0]))
         pose = part_plane_pose(job.scenario, job.layout.x, plane, [jig.part])[jig.part]
         tag_centre = board_point(jig.face_tag_center_mm)
+
+        def ring(coords, board_point=board_point) -> tuple:
+            return tuple(tuple(float(c) for c in board_point(p)) for p in list(coords)[:-1])
+
+        silhouette = tuple(ring(g.exterior.coords) for g in getattr(jig.silhouette, "geoms", [jig.silhouette])
+                           if not g.is_empty and hasattr(g, "exterior"))
         targets.append(SideTarget(jig.part, jig.id, int(jig.face_tag_id), float(jig.face_tag_size_mm),
                                   (float(tag_centre[0]), float(tag_centre[1])), depth, tag_heading,
                                   tuple(pose.center_mm), float(pose.heading_deg),
-                                  (float(lower[0]), float(lower[1])), tilt))
+                                  (float(lower[0]), float(lower[1])), tilt, ring(jig.outline.exterior.coords),
+                                  silhouette))
     return targets
 
 
@@ -126,6 +133,16 @@ def side_scene(job, board, targets, offsets: Mapping[str, Sequence[float]] | Non
     for target in targets:
         du, dv, turn = offsets.get(target.part, (0.0, 0.0, 0.0))
         c, s = math.cos(math.radians(turn)), math.sin(math.radians(turn))
+
+        def moved(points, c=c, s=s, du=du, dv=dv, target=target) -> np.ndarray:
+            offset = np.asarray(points, float).reshape(-1, 2) - target.center_mm
+            return np.asarray(target.center_mm) + [du, dv] + offset @ np.array([[c, s], [-s, c]])
+
+        # the plate the tag is engraved on, and the part resting on it just in front (pictures: the tag is clear)
+        if target.plate_mm:
+            occluders.append(Occluder(moved(target.plate_mm), target.tag_depth_mm, color=(214, 180, 132)))
+        occluders.extend(Occluder(moved(ring), target.tag_depth_mm + 1.0, color=(120, 124, 132))
+                         for ring in target.silhouette_mm)
         offset = np.subtract(target.tag_center_mm, target.center_mm)
         centre = np.asarray(target.center_mm) + [du, dv] + [c * offset[0] - s * offset[1],
                                                             s * offset[0] + c * offset[1]]
