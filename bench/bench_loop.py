@@ -1,9 +1,12 @@
 """Acceptance bench of the station loop on the simulated world (issue 21; thesis 5.2.3 and 4.8).
 
 For each example scenario and each world seed: ``station loop``'s service (:func:`station.services.loop.run_loop`)
-with hidden physics (friction x U(0.7, 1.3), restitution +- 0.15, damping x U(0.5, 2)) and placement error (2 mm,
-2 deg per part; 0.5 mm, 0.5 deg when correcting; half when highlighted), and the thesis's workflow (the
-optimizer's own loop-1 layout from the printed sheet: no highlight, no check, no calibration) in the same world.
+with hidden physics (friction x U(0.7, 1.3), restitution +- 0.15, damping x U(0.5, 2)) and a simulated maker who
+knows only what the guide says (:mod:`drivers.sim.world`: each parameter set as the guide tells, by eye on the sheet
+2 mm, 2 deg, half when highlighted; with a ruler 1.5 mm, 2 deg; on a laser-cut jig 0.2 mm, 0.2 deg, the jig laid by
+eye; after a check's instruction 0.5 mm, 0.5 deg), and the thesis's workflow (the optimizer's own loop-1 layout from
+the printed sheet: no highlight, no check, no calibration, no jigs) in the same world. With ``--jigs`` the loop's
+attempts use the layout's laser-cut jigs (cut on the laser twin per loop); the baseline is the same either way.
 Default sizes (``FULL``): 5 attempts x 2 loops, loop 1 optimized at ``station optimize``'s default budget (the
 thesis's per scenario, cached across worlds), later loops at the same default (per world: the calibrated physics
 differ), 6 candidates compared, 16 simulations per prediction, a fit of 16 Sobol candidates + 2 rounds with 4 draws
@@ -21,9 +24,9 @@ unless ``--scenarios`` names the other. Everything is stored in one bench databa
 cache folder): a stopped bench resumes where it stopped (each run keyed by its arguments), and a run with more seeds
 reuses the runs already made.
 
-Run: ``python -m bench.bench_loop [--scenarios simple,ballrun] [--seeds 1-5] [--quick] [--loops K]
-[--prediction-weight W] [--workers 2] [--database DB] [--json OUT.json]`` or ``python -m bench loop`` (quick,
-SIMPLE and CAUSALITYSWITCH, 5 seeds).
+Run: ``python -m bench.bench_loop [--scenarios simple,ballrun] [--seeds 1-5] [--quick] [--loops K] [--jigs]
+[--world '&ruler_mm=1'] [--prediction-weight W] [--workers 2] [--database DB] [--json OUT.json]`` or
+``python -m bench loop`` (quick, SIMPLE and CAUSALITYSWITCH, 5 seeds).
 """
 
 from __future__ import annotations
@@ -105,7 +108,7 @@ def _brier(pairs: list) -> float | None:
 
 
 def run_bench(scenarios, seeds, sizes: dict, *, workers: int | None, database: str, world: str = "",
-              log=print) -> dict:
+              jigs: bool = False, log=print) -> dict:
     """Every scenario over every seed; the figures per scenario (and the seconds each took)."""
     from station.services.loop import LoopSettings, run_loop
 
@@ -116,14 +119,16 @@ def run_bench(scenarios, seeds, sizes: dict, *, workers: int | None, database: s
         for seed in seeds:
             t0 = time.perf_counter()
             url = f"sim://world?seed={seed}{world}"
-            result = run_loop(name, url, LoopSettings(**sizes, workers=workers), database=database)
+            result = run_loop(name, url, LoopSettings(**sizes, jigs=jigs, workers=workers), database=database)
             results.append(result)
             rates = ", ".join(f"loop {s.loop} {s.successes}/{s.attempts} (pred {_f(s.predicted_success)}, "
                               f"forecast {_f(s.forecast_success)})"
                               for s in result.loops)
-            log(f"  {name} seed {seed}: {rates}; baseline {result.baseline_successes}/{result.baseline_attempts} "
+            log(f"  {name}{' (jigs)' if jigs else ''} seed {seed}: {rates}; "
+                f"baseline {result.baseline_successes}/{result.baseline_attempts} "
                 f"({time.perf_counter() - t0:.0f} s)")
-        figures[name] = {**scenario_figures(results), "seconds": round(time.perf_counter() - started, 1)}
+        figures[name] = {**scenario_figures(results), "jigs": jigs,
+                         "seconds": round(time.perf_counter() - started, 1)}
     return figures
 
 
@@ -145,7 +150,8 @@ def table(figures: dict) -> list[str]:
         interval = after["interval"] or [math.nan, math.nan]
         within, total = f["predicted_within_interval"]
         within_forecast = f["forecast_within_interval"][0]
-        rows.append(f"| {name} | {f['seeds']} | {_f(after['success_rate'])} ({after['successes']}/{after['attempts']}"
+        label = f"{name} with jigs" if f.get("jigs") else name
+        rows.append(f"| {label} | {f['seeds']} | {_f(after['success_rate'])} ({after['successes']}/{after['attempts']}"
                     f"; 95 % {_f(interval[0])}-{_f(interval[1])}) | {_f(f['loop1_success_rate'])} | "
                     f"{_f(f['median_attempts_to_first_success'], 1)} | {_f(f['baseline']['success_rate'])} "
                     f"({f['baseline']['attempts']}) | {_f(f['baseline']['median_attempts_to_first_success'], 1)} | "
@@ -167,6 +173,10 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--prediction-weight", type=float, default=None,
                         help="what a prediction is worth against a placed layout's record, in attempts, instead of "
                         "the loop's default")
+    parser.add_argument("--jigs", action="store_true",
+                        help="the loop's attempts use the layouts' laser-cut jigs (the baseline never does)")
+    parser.add_argument("--world", default="", metavar="OPTIONS",
+                        help="more sim://world options after the seed, e.g. '&ruler_mm=1&jig_mm=0.3'")
     parser.add_argument("--workers", type=int, default=2)
     parser.add_argument("--database", default=None, help="the bench database (default: the station cache folder)")
     parser.add_argument("--json", default=None, help="write the figures there")
@@ -186,15 +196,16 @@ def main(argv: list[str] | None = None) -> int:
     if args.prediction_weight is not None:
         sizes["prediction_weight"] = args.prediction_weight
     database = args.database or str(cache_dir() / f"bench_loop{'_quick' if args.quick else ''}.sqlite3")
-    print(f"bench_loop: {', '.join(names)} over world seeds {args.seeds}; sizes {sizes}; database {database}",
-          flush=True)
-    figures = run_bench(names, _seeds(args.seeds), sizes, workers=args.workers, database=database,
-                        log=lambda line: print(line, flush=True))
+    world = args.world if not args.world or args.world.startswith("&") else f"&{args.world}"
+    print(f"bench_loop: {', '.join(names)} over world seeds {args.seeds}{' with jigs' if args.jigs else ''}"
+          f"{f' (world {world})' if world else ''}; sizes {sizes}; database {database}", flush=True)
+    figures = run_bench(names, _seeds(args.seeds), sizes, workers=args.workers, database=database, world=world,
+                        jigs=args.jigs, log=lambda line: print(line, flush=True))
     for line in table(figures):
         print(line)
     if args.json:
-        Path(args.json).write_text(json.dumps({"sizes": sizes, "seeds": args.seeds, "figures": figures}, indent=2,
-                                              default=str) + "\n", encoding="utf-8")
+        Path(args.json).write_text(json.dumps({"sizes": sizes, "seeds": args.seeds, "jigs": args.jigs, "world": world,
+                                               "figures": figures}, indent=2, default=str) + "\n", encoding="utf-8")
     return 0
 
 
