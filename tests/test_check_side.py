@@ -133,3 +133,20 @@ def test_the_guide_writes_the_board_sheet_and_says_where_it_stands(tmp_path, cap
     manifest = json.loads(capsys.readouterr().out)
     assert [t["id"] for t in manifest["side_board"]["reference_tags"]] == list(BOARD_TAG_IDS)
     assert "lower edge on the table" in manifest["side_board"]["words"]
+
+
+def test_the_simulated_world_serves_the_side_camera_where_its_maker_set_the_part():
+    from calibration.asbuilt import part_plane_pose
+    from station.services.world import as_placed_layout, grab_placed_side, open_world, place_parts
+
+    job = _simple()
+    world = open_world("sim://world?seed=3&jig_mm=2&jig_deg=2")
+    place_parts(world, job.guide, attempt=0, highlighted=False, scenario=job.scenario)
+    picture, lens = grab_placed_side(SIDE_URL, job, world, seed=1)
+    board = side_board(job.guide)
+    side = check_side.measure_side(job, board, check_side.side_targets(job, board), picture, lens)
+    truth = part_plane_pose(job.scenario, as_placed_layout(job.scenario, job.guide, world), board.plane,
+                            ["track"])["track"]
+    (check,) = side.checks
+    assert abs(check.measured_center_mm[1] - truth.center_mm[1]) < 0.5
+    assert abs(check.measured_heading_deg - truth.heading_deg) < 0.5

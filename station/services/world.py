@@ -31,8 +31,9 @@ import numpy as np
 from projector.guide import IN_PLANE_ROLES
 from station.services.errors import ServiceError
 
-__all__ = ["AttemptRun", "as_placed_layout", "check_moves", "cut_jigs", "design_ranges", "grab_placed", "guide_jigs",
-           "guide_parts", "open_world", "place_parts", "prepare_world", "run_attempt", "world_scene"]
+__all__ = ["AttemptRun", "as_placed_layout", "check_moves", "cut_jigs", "design_ranges", "grab_placed",
+           "grab_placed_side", "guide_jigs", "guide_parts", "open_world", "place_parts", "prepare_world", "run_attempt",
+           "world_scene"]
 
 
 def open_world(url: str):
@@ -102,9 +103,10 @@ def _offsets(guide, placed: Mapping[str, Mapping]) -> dict[str, tuple[float, flo
 def world_scene(guide, placed: Mapping[str, Mapping]):
     """The :class:`~drivers.sim.camera_scene.PlaneScene` of the parts as placed: reference tags, every tag carried
     with its part's pose, the sheet under them (with the parts' footprints where they are)."""
+    from calibration.check import jig_views
     from station.services.check_scene import sim_scene
 
-    tagged = {p.name for p in guide.parts if p.tag_views()}
+    tagged = {p.name for p in guide.parts if p.tag_views() or jig_views(guide, p)}  # a stand's tag moves with its part
     offsets = {k: v for k, v in _offsets(guide, placed).items() if k in tagged}
     return sim_scene(guide, offsets)
 
@@ -115,6 +117,20 @@ def grab_placed(camera_url: str, guide, placed: Mapping[str, Mapping], seed: int
     from station.services.check import grab_frame
 
     return grab_frame(camera_url, guide, scene=world_scene(guide, placed), seed=seed)
+
+
+def grab_placed_side(camera_url: str, job, world, seed: int):
+    """One frame of the parts as placed from the simulated side camera at ``camera_url`` (``sim://camera?view=side``,
+    facing the board behind them): the board's tags and each jig stand's face tag where the world's maker really set
+    its part (:func:`as_placed_layout`: its height and tilt as the guide told them to be set, with that way's error),
+    and the twin's own intrinsics; what :func:`station.services.check_side.measure_side` reads."""
+    from projector.board import side_board
+    from station.services.check_side import side_frame, side_targets
+
+    board = side_board(job.guide)
+    targets = side_targets(job, board)
+    layout = as_placed_layout(job.scenario, job.guide, world)
+    return side_frame(job, board, targets, camera_url, layout=layout, seed=seed)
 
 
 #: The zone a part is kept to when its check knows no tolerance for it (none fitted, or bound only by its range's
