@@ -14,7 +14,8 @@ everything is measured there, in millimetres:
 * **kerf** from the comb: each slot's opening is the distance between its two edges, each found where the profile
   across the slot (averaged along the slot's middle) crosses halfway from the light in the slot to the darkest char
   beside it; a slot cut on its nominal outline opens ``nominal + kerf``. The kerf is the mean over the slots; its
-  uncertainty the standard error over the slots combined with the tag fit's residual.
+  uncertainty the standard error over the slots combined with the tag fit's residual taken as a scale error (the
+  residual over the tags' span, on the slots' opening).
 """
 
 from __future__ import annotations
@@ -249,7 +250,10 @@ def read_card(image: np.ndarray, manifest: CardManifest, *, px_per_mm: float = R
     kerfs = np.array([s.kerf_mm for s in slots if s.kerf_mm is not None])
     if kerfs.size:
         spread = float(np.std(kerfs, ddof=1) / math.sqrt(kerfs.size)) if kerfs.size > 1 else float("nan")
-        fit = residual / math.sqrt(len(card_points))
+        # The tag fit's residual as a scale error over the tags' span, on an opening of the slots' width.
+        span = float(np.ptp(card_points, axis=0).max())
+        openings = np.mean([s.opening_mm for s in slots if s.opening_mm is not None])
+        fit = residual * openings / span
         uncertainty = math.sqrt((spread if math.isfinite(spread) else residual) ** 2 + fit ** 2)
         kerf, kerf_u = round(float(kerfs.mean()), 4), round(uncertainty, 4)
     else:

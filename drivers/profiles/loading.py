@@ -175,7 +175,7 @@ def profile_from_dict(data: Mapping[str, Any], source: str = "<dict>") -> Machin
             where = f"{source} [materials.{mat_name}]"
             if not isinstance(mat, Mapping):
                 raise ProfileError(f"{where}: must be a table")
-            _check_keys(mat, {"thickness", "cut", "engrave", "kerf"}, where)
+            _check_keys(mat, {"thickness", "cut", "engrave", "kerf", "measured"}, where)
             for key in ("cut", "engrave"):
                 if key not in mat:
                     raise ProfileError(f"{where}: missing table {key!r}")
@@ -186,6 +186,7 @@ def profile_from_dict(data: Mapping[str, Any], source: str = "<dict>") -> Machin
                 cut=_operation(mat["cut"], f"{where}.cut"),
                 engrave=_operation(mat["engrave"], f"{where}.engrave"),
                 kerf=_kerf(mat["kerf"], f"{where}.kerf") if "kerf" in mat else None,
+                measured=_measured(mat.get("measured", {}), f"{where}.measured"),
             )
         for mat in materials.values():
             for op_name in ("cut", "engrave"):
@@ -256,6 +257,17 @@ def _gcode_lines(value: Any, where: str) -> tuple[str, ...]:
         if ("M", 2.0) in words or ("M", 30.0) in words:
             raise ProfileError(f"{where}: {line!r} ends the program; expected a pause such as M0")
     return tuple(value)
+
+
+def _measured(value: Any, where: str) -> Mapping[str, Any]:
+    """A material's ``measured`` table: where its settings came from (``station calibrate material`` writes it),
+    plain values only (text, numbers, true/false)."""
+    if not isinstance(value, Mapping):
+        raise ProfileError(f"{where}: expected a table of measured values, got {value!r:.60}")
+    for key, item in value.items():
+        if not isinstance(item, (str, int, float, bool)):
+            raise ProfileError(f"{where}.{key}: expected text, a number or true/false, got {item!r:.60}")
+    return MappingProxyType(dict(value))
 
 
 def _number(value: Any, where: str) -> float:

@@ -56,7 +56,9 @@ class Material:
     """A laser material with its cut and engrave settings (thickness and kerf in mm).
 
     ``kerf`` is the width of the strip the laser burns away in this material (measured with a kerf test: cut a
-    square, measure it); ``None`` when the profile does not say.
+    square, measure it, or read a test card with ``station calibrate material``); ``None`` when the profile does not
+    say. ``measured`` is the profile's record of where the settings came from (the card, the frame, the measured
+    values and their uncertainty), empty when they were written by hand.
     """
 
     name: str
@@ -64,6 +66,7 @@ class Material:
     cut: LaserOperation
     engrave: LaserOperation
     kerf: float | None = None
+    measured: Mapping[str, object] = field(default_factory=lambda: MappingProxyType({}), compare=False)
 
     def operation(self, kind: str) -> LaserOperation:
         """``"cut"`` or ``"engrave"``."""

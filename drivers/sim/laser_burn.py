@@ -29,9 +29,11 @@ from scipy.special import erf
 
 from drivers.errors import SimConfigError
 from drivers.gcode import interpret
+from drivers.sim.camera_render import render
+from drivers.sim.camera_scene import CameraModel, ImageItem, PlaneScene, RenderOptions
 
-__all__ = ["SIM_MATERIALS", "BurnMaterial", "BurnedSheet", "burn_gcode", "line_kerf", "line_goes_through",
-           "sim_material"]
+__all__ = ["SIM_MATERIALS", "BurnMaterial", "BurnedSheet", "burn_gcode", "line_energy", "line_goes_through",
+           "line_kerf", "photograph", "sim_material"]
 
 
 @dataclass(frozen=True)
@@ -199,3 +201,30 @@ def burn_gcode(lines: Sequence[str], material: BurnMaterial, region: Sequence[fl
     surface = wood * (1.0 - darkness[..., None]) + char * darkness[..., None]
     return BurnedSheet(np.clip(surface, 0, 255).astype(np.float32), through, darkness, (xmin, ymin),
                        float(px_per_mm))
+
+
+def photograph(sheet: BurnedSheet, *, under_rgb: Sequence[int] = (240, 240, 235), angle_deg: float = 7.0,
+               shift_mm: Sequence[float] = (3.0, -2.0), px_per_mm: float = 20.0, height_mm: float = 250.0,
+               noise: float = 2.0, blur_px: float = 0.7, supersample: int = 2, seed: int = 0,
+               ) -> tuple[np.ndarray, CameraModel]:
+    """A photo of the burned sheet taken from above (a phone held over the card, or the station's camera): the
+    sheet lies turned by ``angle_deg`` on a surface of ``under_rgb`` (a light box, white paper: what shows through
+    the cuts), the camera ``height_mm`` above it sees ``px_per_mm`` at the centre; the frame is just large enough
+    for the sheet. Returns the RGB frame and the camera (its truth)."""
+    for name, value, low, high in (("angle_deg", angle_deg, -360.0, 360.0), ("px_per_mm", px_per_mm, 2.0, 60.0),
+                                   ("height_mm", height_mm, 50.0, 5000.0), ("noise", noise, 0.0, 50.0),
+                                   ("blur_px", blur_px, 0.0, 10.0)):
+        if not (math.isfinite(value) and low <= value <= high):
+            raise SimConfigError(f"photograph: {name}: expected {low:g} to {high:g}, got {value!r}")
+    width, height = sheet.size_mm
+    theta = math.radians(angle_deg)
+    rotation = np.array([[math.cos(theta), -math.sin(theta)], [math.sin(theta), math.cos(theta)]])
+    corners = sheet.corners_mm() - (np.asarray(sheet.origin_mm) + [width / 2.0, height / 2.0])
+    corners = corners @ rotation.T + np.asarray(shift_mm, dtype=float)
+    extent = np.abs(corners).max(axis=0) + 8.0  # mm of surface around the sheet on each side
+    image_size = tuple(int(math.ceil(2 * e * px_per_mm / 2.0) * 2) for e in extent)
+    camera = CameraModel.looking_down((0.0, 0.0), height_mm, image_size, px_per_mm * height_mm)
+    scene = PlaneScene(images=(ImageItem(sheet.picture(under_rgb), corners),), background=tuple(under_rgb))
+    frame, _ = render(scene, camera, RenderOptions(blur_px=blur_px, noise=noise, seed=seed,
+                                                           supersample=supersample))
+    return frame, camera

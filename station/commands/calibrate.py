@@ -39,7 +39,8 @@ def register(subparsers) -> None:
         "  station calibrate plane --image frame.png --guide guide.json\n"
         "  station calibrate projector --camera 'sim://camera?projector=wall' "
         "--projector 'sim://projector?name=wall&area=-300,-190,300,190'\n"
-        "  station calibrate sim simple --out simple-physics.toml")
+        "  station calibrate sim simple --out simple-physics.toml\n"
+        "  station calibrate material --image frame.png --card card/card.json")
     sub = parser.add_subparsers(dest="calibrate_command", metavar="WHAT")
 
     board = sub.add_parser("board", help="the ChArUco calibration board as a 1:1 PDF",
@@ -89,6 +90,7 @@ def register(subparsers) -> None:
     plane.set_defaults(func=run_plane)
 
     from station.commands._calibrate_bed import add_bed_parser
+    from station.commands._calibrate_material import add_material_parser
     from station.commands._calibrate_projector import add_projector_parser
     from station.commands._calibrate_sim import add_sim_parser
     from station.services.trials import logged_trials
@@ -96,6 +98,7 @@ def register(subparsers) -> None:
     add_projector_parser(sub)
     add_bed_parser(sub)
     add_sim_parser(sub, trials_source=logged_trials)
+    add_material_parser(sub)
 
 
 def run_board(args) -> int:

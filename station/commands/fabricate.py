@@ -71,7 +71,8 @@ def register(subparsers) -> None:
     parser.add_argument("--gap", type=NON_NEGATIVE, default=DEFAULT_GAP, metavar="MM",
                         help=f"least distance between parts and to the sheet's edges (default {DEFAULT_GAP})")
     parser.add_argument("--profile", default="laser", metavar="PROFILE.toml",
-                        help="laser machine profile (a TOML file or a built-in name; default: laser)")
+                        help="laser machine profile (a TOML file or a built-in name, which means the station's "
+                        "copy of it once `station calibrate material` wrote one; default: laser)")
     parser.add_argument("--material", default=None, metavar="NAME",
                         help="material from the profile's [materials.NAME] table (default plywood_3mm)")
     parser.add_argument("--module", type=POSITIVE, default=1.5, metavar="MM",
@@ -91,13 +92,13 @@ def register(subparsers) -> None:
 
 def run_fabricate(args) -> int:
     from design.fabrication import GearSettings, Hardware
-    from drivers.profiles import load_profile
+    from station.services.profiles import load_station_profile
 
     params = design_parameters(args, args.machine)
     if args.max_sheets < 1:
         raise UsageError(f"--max-sheets must be at least 1, got {args.max_sheets}")
     sheet_size = parse_sheet(args.sheet) if args.sheet is not None else None
-    profile = load_profile(args.profile)
+    profile = load_station_profile(args.profile)
     settings = GearSettings(module=args.module, pressure_angle=args.pressure_angle, backlash=args.backlash)
     hardware = Hardware(pen_hole=args.pen_hole, axle_hole=args.axle_hole, pin_hole=args.pin_hole)
     out = check_output_folder(args.out, "--out", "parts.svg, laser.gcode, parts.json and sheet.png")
