@@ -266,17 +266,19 @@ class JobQueue:
         self._last_logged = -float("inf")
         return from_line
 
-    def progress(self, entry: QueuedJob, lines_acked: int) -> None:
-        """Record how far the job being sent has got (at most once per ``progress_interval``)."""
+    def progress(self, entry: QueuedJob, lines_acked: int, layer: dict | None = None) -> None:
+        """Record how far the job being sent has got (at most once per ``progress_interval``), with the layer of
+        a multi-pen plot it stands on."""
         if not entry.active:
             return
         now = self.clock()
         if now - self._last_logged >= self.progress_interval:
             self._last_logged = now
-            self.log.progress(entry.log_id, lines_acked)
+            self.log.progress(entry.log_id, lines_acked, layer=layer)
 
-    def finish(self, entry: QueuedJob, result: JobResult) -> JobState:
-        """Record how the send of ``entry`` ended and move the job to its next state (returned).
+    def finish(self, entry: QueuedJob, result: JobResult, layer: dict | None = None) -> JobState:
+        """Record how the send of ``entry`` ended (with the layer of a multi-pen plot it stood on) and move the job
+        to its next state (returned).
 
         Raises
         ------
@@ -286,7 +288,7 @@ class JobQueue:
         if not entry.active:
             raise JobStateError(f"cannot finish {entry.describe()}: it is not being sent",
                                 number=entry.number, state=entry.state, action="finish")
-        self.log.finish(entry.log_id, result.state, result.lines_acked, result.message, result.resume_line)
+        self.log.finish(entry.log_id, result.state, result.lines_acked, result.message, result.resume_line, layer)
         mode, entry.mode, entry.log_id = entry.mode, None, 0
         entry.message = result.message
         if mode is JobMode.RUN:

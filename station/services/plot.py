@@ -44,6 +44,7 @@ __all__ = [
     "SvgSource",
     "compose",
     "layered_gcode",
+    "job_layers",
     "load_composition",
     "optimize",
     "plot",
@@ -587,27 +588,52 @@ def rapid_rate(profile: MachineProfile) -> float:
     return float(min(rates)) if rates else float(profile.max_feed)
 
 
-def summarize(gcode: str, document: PlotDocument, profile: MachineProfile) -> list[LayerSummary]:
-    """Per layer of the written job: paths, drawing and travel lengths and the estimated time, read from the G-code
-    itself with the streamer's interpreter (so the figures are those of the job that runs)."""
-    lines = gcode.splitlines()
+def job_layers(lines: Sequence[str], profile: MachineProfile) -> list[LayerSummary]:
+    """The layers of a written job (its marks) with their drawing, travel and estimated time, read from the G-code
+    with the streamer's interpreter (so the figures are those of the job that runs); empty for a job without marks.
+    Paths and points count the pen-down runs."""
+    lines = list(lines)
     marks = layer_marks(lines)
+    if not marks:
+        return []
     toolpath = interpret(lines, start=(0.0, 0.0, 0.0))
     per_line = toolpath.durations(rapid_rate=rapid_rate(profile))
     lengths = np.linalg.norm(toolpath.end - toolpath.start, axis=1)
     result = []
-    for k, (mark, layer) in enumerate(zip(marks, document.layers)):
+    for k, mark in enumerate(marks):
         first = 0 if k == 0 else mark.line
         last = marks[k + 1].line if k + 1 < len(marks) else len(lines)
         in_layer = (toolpath.line >= first) & (toolpath.line < last)
+        drawing = in_layer & ~toolpath.rapid
+        # a path starts at every feed segment that does not continue the one before it
+        index = np.flatnonzero(drawing)
+        starts = 0
+        if len(index):
+            joined = np.all(np.abs(toolpath.start[index[1:]] - toolpath.end[index[:-1]]) < 1e-9, axis=1) & (
+                np.diff(index) == 1)
+            starts = 1 + int(np.count_nonzero(~joined))
         result.append(LayerSummary(
-            number=mark.number, name=mark.name, pen=mark.pen, color=mark.color, paths=len(layer.polylines),
-            points=int(sum(len(p) for p in layer.polylines)),
-            draw_mm=float(lengths[in_layer & ~toolpath.rapid].sum()),
-            travel_mm=float(lengths[in_layer & toolpath.rapid].sum()),
-            time_s=float(per_line[first:last].sum()), line=mark.line + 1,
-            pause_line=None if mark.pause is None else mark.pause + 1))
+            number=mark.number, name=mark.name, pen=mark.pen, color=mark.color, paths=starts,
+            points=int(len(index) + starts), draw_mm=float(lengths[drawing].sum()),
+            travel_mm=float(lengths[in_layer & toolpath.rapid].sum()), time_s=float(per_line[first:last].sum()),
+            line=mark.line + 1, pause_line=None if mark.pause is None else mark.pause + 1))
     return result
+
+
+def summarize(gcode: str, document: PlotDocument, profile: MachineProfile) -> list[LayerSummary]:
+    """Per layer of the written job: :func:`job_layers`, with the paths and points the document has (a job without
+    marks is one layer)."""
+    lines = gcode.splitlines()
+    layers = job_layers(lines, profile)
+    if not layers and document.layers:
+        layer = document.layers[0]
+        toolpath = interpret(lines, start=(0.0, 0.0, 0.0))
+        lengths = np.linalg.norm(toolpath.end - toolpath.start, axis=1)
+        per_line = toolpath.durations(rapid_rate=rapid_rate(profile))
+        layers = [LayerSummary(1, layer.name, layer.pen, layer.color, 0, 0, float(lengths[~toolpath.rapid].sum()),
+                               float(lengths[toolpath.rapid].sum()), float(per_line.sum()), 1, None)]
+    return [replace(summary, paths=len(layer.polylines), points=int(sum(len(p) for p in layer.polylines)))
+            for summary, layer in zip(layers, document.layers)]
 
 
 def plot(composition: Composition, profile: MachineProfile, *, sample=None, sort: bool = True,

@@ -11,7 +11,11 @@ states are a :class:`station.services.job_queue.JobQueue`, and the panels are wi
 
 Keys: c connect/disconnect · v switch device · h home · u unlock · arrows jog X/Y, PgUp/PgDn jog Z, [ ] step ·
 f frame · y dry run · g start · p hold · r resume · ctrl+x abort (always works, even in the console) · a abort ·
-+ / - / = feed override · n plot the current design · : console.
++ / - / = feed override · n plot the current design · b place the next laser job on the stock by camera ·
+: console.
+
+A multi-pen plot (``station plot`` with several patterns or an SVG) shows its layers in their pens' colours with
+each layer's time estimate; at a pen change the job pauses, the screen says which pen to put in, and r resumes.
 """
 
 from __future__ import annotations
@@ -37,7 +41,9 @@ from station.devices import DeviceEntry, machine_profile
 from station.errors import StationError
 from station.joblog import JobLog
 from station.services.job_queue import JobMode, JobQueue, JobState, QueuedJob, frame_job
+from station.services.plot import format_minutes, job_layers
 from station.tui.registry import MachineDesign, ScreenEntry
+from station.tui.screens.bed_place import open_bed_placement
 from station.tui.widgets.machines_console import MachineConsole
 from station.tui.widgets.machines_preview import JobPreview
 from station.tui.widgets.machines_status import JobProgressRow, JobQueueTable, MachineStatus
@@ -53,6 +59,15 @@ JOG_KEYS = {"left": (-1, 0, 0), "right": (1, 0, 0), "up": (0, 1, 0), "down": (0,
 #: Feed override keys: the key, GRBL's override action and the binding's description.
 FEED_OVERRIDE_KEYS = (("plus", "+10", "Feed +10%"), ("minus", "-10", "Feed -10%"),
                       ("equals_sign", "reset", "Feed 100%"))
+
+
+def layer_estimates(lines: list[str], profile: MachineProfile) -> str:
+    """``; 3 pens: 1 rosette (blue 0.3 mm) 0:24, 2 star (red 0.5 mm) 0:34, ...`` for a multi-pen plot, else ``""``."""
+    layers = job_layers(lines, profile)
+    if not layers:
+        return ""
+    return f"; {len(layers)} pens: " + ", ".join(
+        f"{layer.number} {layer.name} ({layer.pen}) {format_minutes(layer.time_s)}" for layer in layers)
 
 
 class MachinesScreen(Screen):
@@ -87,6 +102,7 @@ class MachinesScreen(Screen):
         Binding("h", "home", "Home"),
         Binding("u", "unlock", "Unlock"),
         Binding("n", "plot_design", "Plot design"),
+        Binding("b", "place_on_bed", "Place on bed"),
         Binding("colon", "console", "Console"),
         # "jog(-1, 0, 0)" ...: the tuple's own text is the action's arguments
         *(Binding(key, f"jog{move}", "Jog Z" if move[2] else "Jog", show=False) for key, move in JOG_KEYS.items()),
@@ -109,6 +125,7 @@ class MachinesScreen(Screen):
         self._auto_connected = False
         self._job_queue: JobQueue | None = None
         self._after_abort = None  # called with the job's last message once an abort for quitting has ended it
+        self._asked_pause: int | None = None  # the pen change the screen has asked for
 
     @property
     def job_queue(self) -> JobQueue:
@@ -344,7 +361,8 @@ class MachinesScreen(Screen):
             # a simulated machine needs no hardware: connect it so that f/g work at once (a real one waits for c,
             # since opening its port resets the board)
             self.action_connect()
-        self._say(f"queued {entry.title!r} for {target.name} ({len(entry.job.lines)} lines): f frames, g starts")
+        self._say(f"queued {entry.title!r} for {target.name} ({len(entry.job.lines)} lines): f frames, g starts"
+                  + layer_estimates(entry.job.lines, profile))
         return entry
 
     def _refresh_queue(self) -> None:
@@ -415,8 +433,14 @@ class MachinesScreen(Screen):
     def _show_progress(self, progress: JobProgress) -> None:
         now = time.monotonic()
         entry = self.running_job
+        runner = self.runner
+        if progress.state == "paused" and runner is not None and runner.pause_line != self._asked_pause:
+            self._asked_pause = runner.pause_line
+            self._say(f"{progress.message}: r resumes", "bold yellow")
+        elif progress.state != "paused":
+            self._asked_pause = None
         if entry is not None:
-            self.job_queue.progress(entry, progress.lines_acked)
+            self.job_queue.progress(entry, progress.lines_acked, self._layer_record(runner))
             if entry.state is JobState.RUNNING and (now - self._last_preview > 0.5 or progress.state != "running"):
                 self._last_preview = now
                 self._show_preview(entry, progress.current_line)
@@ -431,7 +455,7 @@ class MachinesScreen(Screen):
     def _job_done(self, runner: JobRunner, entry: QueuedJob, result: JobResult) -> None:
         if entry.state is JobState.RUNNING:
             self._show_preview(entry, len(entry.job.lines) if result.ok else runner.progress.current_line)
-        self.job_queue.finish(entry, result)
+        self.job_queue.finish(entry, result, self._layer_record(runner, result.resume_line))
         if self.runner is runner:
             self.runner = None
         self._refresh_queue()
@@ -444,6 +468,14 @@ class MachinesScreen(Screen):
         if self._after_abort is not None and self.runner is None:
             callback, self._after_abort = self._after_abort, None
             callback(result.message)
+
+    @staticmethod
+    def _layer_record(runner: JobRunner | None, resume_line: int | None = None) -> dict | None:
+        """The layer of a multi-pen plot the machine stands on (or of ``resume_line``), for the job history."""
+        if runner is None or not runner.layers:
+            return None
+        mark = runner.layer(resume_line - 1 if resume_line else None)
+        return mark.to_dict() if mark is not None else None
 
     def action_hold(self) -> None:
         if self.runner is not None and self.runner.result is None:
@@ -532,6 +564,10 @@ class MachinesScreen(Screen):
         except (DriverError, OSError) as error:
             self._from_thread(self._say, f"{line}: {error}", "red")
         self._from_thread(self._render_status)
+
+    def action_place_on_bed(self) -> None:
+        """The next laser job placed on the stock by camera (station.tui.screens.bed_place)."""
+        open_bed_placement(self)
 
     def action_plot_design(self) -> None:
         """Queue the Drawing screen's current design as a plot job for the selected device."""

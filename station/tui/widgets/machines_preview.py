@@ -3,7 +3,9 @@ left (grey).
 
 The drawing is :func:`drivers.gcode.drawn_polylines` of the job (feed moves with the spindle on: the laser burning,
 the servo pen of a plotter); each point is then tied to the job line that drew it, so that progress (the line the
-machine is executing) splits the drawing without reading the G-code again.
+machine is executing) splits the drawing without reading the G-code again. A multi-pen plot (its layer marks, see
+:mod:`drivers.gcode_layers`) is drawn in its pens' colours (what is done in them, the rest grey while it runs), with
+its pen-up travel as dim lines.
 """
 
 from __future__ import annotations
@@ -11,6 +13,7 @@ from __future__ import annotations
 import numpy as np
 
 from drivers.gcode import GcodeError, Toolpath, drawn_polylines
+from drivers.gcode_layers import layer_at, layer_marks
 from drivers.grbl import Job
 from station.tui.widgets.canvas import PatternCanvas
 
@@ -51,19 +54,22 @@ def _lines_of_points(polylines: list[np.ndarray], toolpath: Toolpath) -> list[np
     return result
 
 
-def split_at_line(runs: list[PreviewRun], current_line: int | None) -> tuple[list[np.ndarray], list[str]]:
+def split_at_line(runs: list[PreviewRun], current_line: int | None,
+                  pens: list[str] | None = None) -> tuple[list[np.ndarray], list[str]]:
     """Polylines and colours to show: all white without ``current_line``; else green up to and including that
-    0-based line, grey50 after it (the two parts share the point where the line is cut)."""
+    0-based line, grey50 after it (the two parts share the point where the line is cut). ``pens`` (a colour per
+    run: a multi-pen plot's) replaces white and green."""
     polylines, colors = [], []
-    for points, lines in runs:
+    for k, (points, lines) in enumerate(runs):
+        pen = pens[k] if pens is not None else None
         if current_line is None:
             polylines.append(points)
-            colors.append("white")
+            colors.append(pen or "white")
             continue
         cut = int(np.searchsorted(lines, current_line, side="right"))
         if cut >= 2:
             polylines.append(points[:cut])
-            colors.append("green")
+            colors.append(pen or "green")
         if len(points) - max(cut - 1, 0) >= 2:
             polylines.append(points[max(cut - 1, 0):])
             colors.append("grey50")
@@ -100,5 +106,24 @@ class JobPreview(PatternCanvas):
         return runs
 
     def show_job(self, job: Job, current_line: int | None = None) -> None:
-        """Draw ``job``; with ``current_line`` (0-based), what is done in green and the rest in grey."""
-        self.set_polylines(*split_at_line(self.runs_of(job), current_line))
+        """Draw ``job``; with ``current_line`` (0-based), what is done in green (a multi-pen plot: in its pens'
+        colours) and the rest in grey."""
+        runs = self.runs_of(job)
+        marks = layer_marks(job.lines)
+        if not marks:
+            self.set_polylines(*split_at_line(runs, current_line))
+            return
+        pens = [(layer_at(marks, int(lines[0])) or marks[0]).color for _, lines in runs]
+        polylines, colors = split_at_line(runs, current_line, pens)
+        travel = travel_segments(job)
+        self.set_polylines(travel + polylines, ["grey27"] * len(travel) + colors)
+
+
+def travel_segments(job: Job) -> list[np.ndarray]:
+    """The pen-up travel of a job: its rapid moves, each a two-point polyline (empty for a job that cannot be read)."""
+    try:
+        toolpath = job.toolpath
+    except GcodeError:
+        return []
+    rapid = np.flatnonzero(toolpath.rapid)
+    return [np.array([toolpath.start[k, :2], toolpath.end[k, :2]]) for k in rapid]
