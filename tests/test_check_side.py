@@ -150,3 +150,25 @@ def test_the_simulated_world_serves_the_side_camera_where_its_maker_set_the_part
     (check,) = side.checks
     assert abs(check.measured_center_mm[1] - truth.center_mm[1]) < 0.5
     assert abs(check.measured_heading_deg - truth.heading_deg) < 0.5
+
+
+def test_frames_of_an_independent_renderer_read_back_the_height_and_tilt():
+    # bench/side_render.py shares no convention with the twin or with the board-plane arithmetic: its own look-at
+    # pinhole, the jig's face tag carried in 3-D with its part, Pillow's rasteriser
+    from bench.side_render import independent_side_frame
+    from calibration.asbuilt import PlanePose, as_built_layout
+
+    job = _simple()
+    board = side_board(job.guide)
+    names = list(job.scenario.design_space.names)
+    moved = np.array(job.layout.x, dtype=float)
+    moved[names.index("track.z")] -= 0.004
+    moved[names.index("track.roll")] += 2.0
+    picture, lens = independent_side_frame(job, board, moved, seed=5)
+    side = check_side.measure_side(job, board, check_side.side_targets(job, board), picture, lens)
+    (check,) = side.checks
+    fitted = as_built_layout(job.scenario, job.layout.x, board.plane,
+                             {"track": PlanePose(check.measured_center_mm, check.measured_heading_deg)},
+                             {"track": ("track.z", "track.roll")})
+    assert abs(fitted.unclipped[names.index("track.z")] - moved[names.index("track.z")]) < 0.0005
+    assert abs(fitted.unclipped[names.index("track.roll")] - moved[names.index("track.roll")]) < 0.5
