@@ -73,7 +73,7 @@ def parse_steps(text: str, field: str, low: float, high: float, unit: str) -> tu
     """``"a:b:n"`` → ``(a, b, n)``: ``n`` values from ``a`` to ``b`` (``"a"`` alone is one value); a
     :class:`ServiceError` naming ``field`` otherwise."""
     parts = str(text).split(":")
-    example = f"{low:g}:{high:g}:5" if unit == "" else "200:3000:5"
+    example = "0.2:1:5" if unit == "" else "200:3000:5"
     try:
         if len(parts) == 1:
             first = last = float(parts[0])
