@@ -172,3 +172,14 @@ def test_frames_of_an_independent_renderer_read_back_the_height_and_tilt():
                              {"track": ("track.z", "track.roll")})
     assert abs(fitted.unclipped[names.index("track.z")] - moved[names.index("track.z")]) < 0.0005
     assert abs(fitted.unclipped[names.index("track.roll")] - moved[names.index("track.roll")]) < 0.5
+
+
+def test_the_cameras_named_in_station_toml_are_both_used(tmp_path, monkeypatch, capsys):
+    config = tmp_path / "station.toml"
+    config.write_text('[[devices]]\nname = "overhead"\nkind = "camera"\nurl = "sim://camera"\n\n'
+                      f'[[devices]]\nname = "front"\nkind = "camera"\nurl = "{SIDE_URL}"\n', encoding="utf-8")
+    monkeypatch.setenv("CHAOS_STATION_CONFIG", str(config))
+    assert main(["check", "simple", "success", "--jigs", "--predict", "0", "--json"]) == 0
+    data = json.loads(capsys.readouterr().out)
+    assert [(v["view"], v["camera"]) for v in data["views"]] == [("top", "overhead"), ("side", "front")]
+    assert data["side_parts"][0]["found"] is True
