@@ -4,7 +4,7 @@ VENV ?= .venv
 PY := $(VENV)/bin/python
 STAMP := $(VENV)/.installed-stamp
 
-.PHONY: run test lint install bench snapshots clean
+.PHONY: run test lint install bench snapshots docs clean
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -21,7 +21,8 @@ run: install
 lint: install
 	$(VENV)/bin/ruff check .
 
-## Install, lint and run the default test suite (no slow tests; see `make bench`), one process per core
+## Install, lint and run the default test suite (no slow tests; see `make bench`; the documentation's strict build
+## is one of its tests), one process per core
 ## (pytest-xdist; at most four: the Pilot and process-pool tests start processes of their own).
 test: lint
 	$(PY) -m pytest -q -n auto --maxprocesses=4
@@ -29,6 +30,11 @@ test: lint
 ## Remake the screens' snapshots (tests/snapshots) after a deliberate change to a screen; then review the SVGs.
 snapshots: install
 	STATION_UPDATE_SNAPSHOTS=1 $(PY) -m pytest -q tests/test_snapshots.py
+
+## The documentation site (MkDocs, Material theme) into build/site, strict: a broken link, a missing page or a page
+## left out of the navigation fails. It builds offline; the test suite builds it too (tests/test_docs.py).
+docs: install
+	NO_MKDOCS_2_WARNING=1 $(VENV)/bin/mkdocs build --strict --site-dir build/site
 
 ## Benchmarks print figures; they never fail on timings.
 bench: install
