@@ -93,8 +93,9 @@ class AssembleScreen(AttemptFlow, Screen):
     AssembleScreen #controls { width: 38; padding: 0 1; overflow-y: auto; }
     AssembleScreen #controls Input, AssembleScreen #controls Select, AssembleScreen #controls Button { width: 100%; }
     AssembleScreen #controls Button { margin-top: 1; }
-    AssembleScreen #jigs-row { height: auto; margin-top: 1; }
-    AssembleScreen #jigs-label { padding: 1 0 0 1; }
+    AssembleScreen #jigs-row { height: 1; margin-top: 1; }
+    AssembleScreen #jigs { border: none; height: 1; padding: 0; width: auto; }
+    AssembleScreen #jigs-label { padding: 0 1; }
     AssembleScreen #status { height: auto; margin-top: 1; }
     AssembleScreen #main { width: 1fr; }
     AssembleScreen #frame { height: 1fr; min-height: 10; }
