@@ -82,7 +82,8 @@ def register(subparsers) -> None:
     add_physics_option(parser)
     parser.add_argument("--seed", type=int, default=0, help="seed of those simulations (default 0)")
     parser.add_argument("--out", metavar="CHECK.json", help="write the check (what --json prints) to this file")
-    parser.add_argument("--overlay", metavar="OUT.png", help="write the camera frame with the check drawn on it")
+    parser.add_argument("--overlay", metavar="OUT.png", help="write the camera frame with the check drawn on it (and "
+                        "with a side camera, OUT-side.png: its frame with each jig where it is and where it goes)")
     parser.add_argument("--project", action="store_true", help="show the check on the configured projector: an "
                         "arrow per misplaced part to where it must go, a ring at the target")
     parser.add_argument("--sim-offset", action="append", metavar="PART=DU,DV[,DEG]", help="SIMULATION ONLY: with "
@@ -136,6 +137,9 @@ def run_check(args) -> int:
             from PIL import Image
 
             Image.fromarray(service.camera_overlay(check)).save(overlay)
+            if check.side is not None:  # the side camera's frame, next to the top one
+                side_overlay = overlay.with_name(f"{overlay.stem}-side.png")
+                Image.fromarray(check_side.side_overlay(check.side)).save(side_overlay)
         projected = _project(check) if args.project else None
     except ServiceError as error:
         raise flag_error(error, FLAGS) from None
@@ -185,5 +189,7 @@ def _print(check, out: Path | None, overlay: Path | None, projected: str | None)
     for path, what in ((out, "the check (CHECK.json)"), (overlay, "the camera frame with the check")):
         if path is not None:
             print(f"wrote {what} to {path}")
+    if overlay is not None and check.side is not None:
+        print(f"wrote the side camera's frame with the check to {overlay.with_name(f'{overlay.stem}-side.png')}")
     if projected:
         print(projected)

@@ -55,6 +55,8 @@ class CheckJob:
     intrinsics: object
     #: The physical success of the as-built layout (calibration.sim_predict.PhysicalPrediction), when asked for.
     physical: object = None
+    #: The side camera's view (station.services.check_side.SideView), when there was one.
+    side: object = None
 
     def to_json(self) -> dict:
         """CHECK.json; with a physical prediction, its ``physical_success`` too (``station predict``'s fields)."""
@@ -486,7 +488,7 @@ def check_measurement(job, measurement, image: np.ndarray, intrinsics, *, simula
         simulated_success_as_built=simulated, missing_reference_tags=tuple(measurement.missing_reference_ids),
         as_measured=built.measured_values(names), not_simulated=not_simulated, views=views,
         side_parts=tuple(side.checks) if side is not None else (), measured_by=measured_by)
-    return CheckJob(result, job, image, measurement, intrinsics, physical)
+    return CheckJob(result, job, image, measurement, intrinsics, physical, side)
 
 
 def _plane_json(plane) -> dict | None:

@@ -22,8 +22,8 @@ import numpy as np
 
 from station.services.errors import ServiceError
 
-__all__ = ["SideView", "camera_view", "measure_side", "merge_as_built", "side_scene", "side_targets",
-           "view_of_frame"]
+__all__ = ["SideView", "camera_view", "check_views", "measure_side", "merge_as_built", "side_overlay", "side_scene",
+           "side_targets", "view_of_frame"]
 
 
 @dataclass(frozen=True)
@@ -36,6 +36,8 @@ class SideView:
     measurement: object
     checks: tuple
     camera: str = ""
+    image: object = None
+    intrinsics: object = None
 
     def plane_json(self) -> dict | None:
         plane = self.measurement.plane
@@ -194,7 +196,7 @@ def measure_side(job, board, targets, image, intrinsics, previous=None, camera: 
     checks, _ = check_parts(guide, measurement)
     via = {t.part: t.via for t in targets}
     checks = [replace(c, view="side", via=via.get(c.name, "")) for c in side_view_checks(checks, targets)]
-    return SideView(board, tuple(targets), guide, measurement, tuple(checks), camera)
+    return SideView(board, tuple(targets), guide, measurement, tuple(checks), camera, np.asarray(image), intrinsics)
 
 
 def merge_as_built(job, top, side: SideView):
@@ -339,3 +341,48 @@ def check_views(job, cameras: Sequence[tuple[str, str]], *, image=None, intrinsi
         except OSError:
             pass  # the check stands without it; only the next "moved" report is lost
     return result
+
+
+def side_overlay(side: SideView) -> np.ndarray:
+    """The side camera's frame with its check drawn on it (RGB): each jig plate where the guide wants it (green) and
+    where the camera found it (orange, carried by its tag), the instructions written above. Drawn through the board's
+    plane found in the frame (the frame as it is when none was found)."""
+    import cv2
+
+    out = np.array(side.image, dtype=np.uint8, copy=True)
+    if out.ndim == 2:
+        out = np.repeat(out[:, :, None], 3, axis=2)
+    plane = side.measurement.plane
+    lines = [c.instruction for c in side.checks] or ["the side camera reads no tag"]
+    if plane is None:
+        lines = ["side view: too few board tags seen: no plane"]
+    else:
+        matrix = np.asarray(side.intrinsics.camera_matrix, float)
+        dist = np.asarray(side.intrinsics.dist_coeffs, float)
+
+        def pixels(points, depth) -> np.ndarray:
+            points = np.column_stack([np.asarray(points, float).reshape(-1, 2), np.full(len(points), float(depth))])
+            found, _ = cv2.projectPoints(points, np.asarray(plane.rvec, float), np.asarray(plane.tvec, float), matrix,
+                                         dist)
+            return np.round(found.reshape(-1, 2) * 16).astype(np.int32)
+
+        checks = {c.name: c for c in side.checks}
+        for target in side.targets:
+            if not target.plate_mm:
+                continue
+            cv2.polylines(out, [pixels(target.plate_mm, target.tag_depth_mm)], True, (40, 200, 60), 2, cv2.LINE_AA,
+                          4)
+            check = checks.get(target.part)
+            if check is not None and check.found:
+                turn = math.radians(check.measured_heading_deg - target.heading_deg)
+                c, s = math.cos(turn), math.sin(turn)
+                offset = np.asarray(target.plate_mm, float) - target.center_mm
+                moved = np.asarray(check.measured_center_mm) + offset @ np.array([[c, s], [-s, c]])
+                cv2.polylines(out, [pixels(moved, target.tag_depth_mm)], True, (255, 140, 0), 3, cv2.LINE_AA, 4)
+    scale = max(out.shape[1] / 1920.0, 0.4)
+    for i, line in enumerate(lines[:6]):
+        y = int((40 + 34 * i) * scale)
+        cv2.putText(out, line, (int(20 * scale), y), cv2.FONT_HERSHEY_SIMPLEX, 0.75 * scale, (0, 0, 0), 4, cv2.LINE_AA)
+        cv2.putText(out, line, (int(20 * scale), y), cv2.FONT_HERSHEY_SIMPLEX, 0.75 * scale, (255, 255, 255), 1,
+                    cv2.LINE_AA)
+    return out
