@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import queue
 import time
+from pathlib import Path
 
 from rich.text import Text
 from textual import on, work
@@ -59,6 +60,11 @@ JOG_KEYS = {"left": (-1, 0, 0), "right": (1, 0, 0), "up": (0, 1, 0), "down": (0,
 #: Feed override keys: the key, GRBL's override action and the binding's description.
 FEED_OVERRIDE_KEYS = (("plus", "+10", "Feed +10%"), ("minus", "-10", "Feed -10%"),
                       ("equals_sign", "reset", "Feed 100%"))
+
+
+#: What the console field starts with after o: the rest is the path of a G-code file to queue (G-code has no such
+#: word, so no line meant for the machine starts so).
+OPEN_PREFIX = "open "
 
 
 def layer_estimates(lines: list[str], profile: MachineProfile) -> str:
@@ -104,6 +110,7 @@ class MachinesScreen(Screen):
         Binding("n", "plot_design", "Plot design"),
         Binding("b", "place_on_bed", "Place on bed"),
         Binding("colon", "console", "Console"),
+        Binding("o", "open_job", "Open job"),
         # "jog(-1, 0, 0)" ...: the tuple's own text is the action's arguments
         *(Binding(key, f"jog{move}", "Jog Z" if move[2] else "Jog", show=False) for key, move in JOG_KEYS.items()),
         Binding("left_square_bracket", "step(-1)", "Step-", show=False),
@@ -542,11 +549,45 @@ class MachinesScreen(Screen):
     def action_console(self) -> None:
         self.query_one("#console-input", Input).focus()
 
+    def action_open_job(self) -> None:
+        """Type the path of a G-code file (``station plot``'s) in the console field: Enter queues it."""
+        field = self.query_one("#console-input", Input)
+        field.value = OPEN_PREFIX
+        field.focus()
+
+        def after_focus() -> None:
+            # the field selects its text when focused: typing would replace the prefix
+            field.cursor_position = len(OPEN_PREFIX)
+
+        self.call_after_refresh(after_focus)
+
+    def open_job(self, path: str) -> QueuedJob | None:
+        """Queue the G-code file ``path`` for the selected device (a plot of layers shows its pens)."""
+        device = self.device
+        if device is None:
+            self._say("no plotter or laser configured")
+            return None
+        file = Path(path).expanduser()
+        try:
+            text = file.read_text(encoding="utf-8")
+        except (OSError, UnicodeDecodeError) as error:
+            self._say(f"cannot open {path}: {getattr(error, 'strerror', None) or error}", "red")
+            return None
+        try:
+            return self.queue_job(device.name, text, file.name)
+        except StationError as error:
+            self._say(str(error), "red")
+            return None
+
     @on(Input.Submitted, "#console-input")
     def _console_submitted(self, event: Input.Submitted) -> None:
         line = event.value.strip()
         event.input.value = ""
         if not line:
+            return
+        if line.startswith(OPEN_PREFIX.strip() + " "):
+            self.set_focus(None)
+            self.open_job(line[len(OPEN_PREFIX):].strip())
             return
         if self._ready_connection() is not None:
             self._send_worker(line)
