@@ -113,13 +113,14 @@ def fabricate(machine: str, params: dict[str, float], scale: float, *, kerf: flo
     )
     from design.machines import get_machine
     from drivers.laser_job import material_settings
-    from drivers.profiles import builtin_profile
+    from station.services.profiles import load_station_profile
 
     report = Reporter.of(progress, cancelled)
     if machine in FABRICABLE_MACHINES:
         # The summary records the complete design (defaults filled in), as the parts were made from it.
         params = dict(get_machine(machine).validate(params))
-    profile = profile if profile is not None else builtin_profile("laser")
+    # The station's copy of the built-in laser profile when a test card's measurement wrote one.
+    profile = profile if profile is not None else load_station_profile("laser")
     engrave_ops, cut_ops, material_name = material_settings(profile, material)
     if kerf is None:
         material_kerf = profile.material(material_name).kerf

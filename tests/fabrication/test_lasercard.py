@@ -214,3 +214,20 @@ def test_calibrate_material_bad_input_is_one_line(tmp_path, capsys, station_home
     for extra, expected in cases:
         assert expected in bad(["calibrate", "material", *extra], capsys)
     assert not (station_home / "profiles").exists()
+
+
+async def test_fabricate_screen_makes_a_test_card_and_queues_it(tmp_path, station_home):
+    from .test_tui import opened, wait_for
+
+    async with opened(tmp_path, "f", wait=False) as (app, pilot):
+        screen = app.screen
+        await wait_for(pilot, screen, lambda: screen.result is not None)
+        await pilot.press("t")
+        machines = app.get_screen("machines")
+        await wait_for(pilot, screen, lambda: getattr(machines, "jobs", None))
+        entry = machines.jobs[-1]
+        assert entry.device == "laser" and entry.job.laser
+        cards = sorted((station_home / "lasertest").glob("plywood_3mm-*/card.json"))
+        assert len(cards) == 1
+        assert entry.job.lines == (cards[0].parent / "card.gcode").read_text().splitlines()
+        assert "test card (plywood_3mm)" in screen.last_message

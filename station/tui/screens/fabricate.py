@@ -5,7 +5,9 @@ design. The nested sheet is drawn as a picture in the terminal (two pixels per c
 parts list and the job estimate. Tab reaches the fields (scale, kerf, sheet, material); Enter there regenerates.
 From the parts table: g regenerates, r reloads the Drawing screen's design, z zooms on the parts, n shows the next
 sheet (when the parts need several), w writes parts.svg, laser.gcode, parts.json and sheet.png into the station's
-data folder, s queues the jobs for the laser on the Machines screen (where f frames a job and g runs it).
+data folder, s queues the jobs for the laser on the Machines screen (where f frames a job and g runs it). t makes a
+test card for the material (``station lasertest card``), shows it and queues it for the laser; a photo of the burned
+card is read by ``station calibrate material``, whose measured settings the next generation here uses.
 """
 
 from __future__ import annotations
@@ -64,6 +66,7 @@ class FabricateScreen(Screen):
         Binding("r", "reload", "Reload design"),
         Binding("z", "zoom", "Zoom to parts"),
         Binding("n", "next_sheet", "Next sheet"),
+        Binding("t", "test_card", "Test card"),
     ]
 
     def __init__(self) -> None:
@@ -300,6 +303,54 @@ class FabricateScreen(Screen):
         # Show the Machines screen first, so that its queue table exists when the jobs arrive.
         self.app.action_open_area("machines")
         self.app.call_after_refresh(self._queue_on_machines, queue, jobs)
+
+    def action_test_card(self) -> None:
+        """A test card for the material field's material: written, shown, and queued for the laser."""
+        material = self.query_one("#material", Input).value.strip() or "plywood_3mm"
+        self._set_status(f"making a test card for {material}…")
+        self._make_test_card(material)
+
+    @work(thread=True, exclusive=True, group="test-card")
+    def _make_test_card(self, material: str) -> None:
+        from station.services.lasertest import make_card, write_card
+
+        try:
+            output = make_card("laser", material)
+        except (DesignError, DriverError, StationError) as error:
+            self.post_message(self.TestCardMade(None, None, str(error)))
+            return
+        folder = data_dir() / "lasertest" / f"{material}-{time.strftime('%Y%m%d-%H%M%S')}"
+        self.post_message(self.TestCardMade(output, write_card(output, folder), ""))
+
+    class TestCardMade(Message):
+        """A test card was made (its output and files), or the error that stopped it."""
+
+        def __init__(self, output, files: dict | None, error: str) -> None:
+            super().__init__()
+            self.output, self.files, self.error = output, files, error
+
+    def on_fabricate_screen_test_card_made(self, message: TestCardMade) -> None:
+        if message.output is None:
+            self._set_status(f"cannot make a test card: {message.error}", style="red")
+            return
+        manifest = message.output.manifest
+        picture = self.query_one(HalfBlockPicture)
+        picture.crop = None
+        picture.set_png(message.output.png)
+        self.query_one("#job", Static).update(
+            f"test card: {manifest['material']}, {manifest['card_mm'][0]:g}×{manifest['card_mm'][1]:g} mm, "
+            f"{len(manifest['powers'])} powers × {len(manifest['feeds_mm_min'])} feeds, about "
+            f"{manifest['estimate_seconds'] / 60:.0f} min\nthen: station calibrate material --image PHOTO "
+            f"--card {message.files['json']}")
+        self.notify(f"burn it, photograph it on a light surface, then: station calibrate material --image PHOTO "
+                    f"--card {message.files['json']}", title="Test card", timeout=20)
+        queue = getattr(self.app.machines_screen(), "queue_job", None)
+        if queue is None:
+            self._set_status(f"test card written to {message.files['json'].parent}")
+            return
+        self.app.action_open_area("machines")
+        self.app.call_after_refresh(self._queue_on_machines, queue,
+                                    [(f"test card ({manifest['material']})", message.output.gcode)])
 
     def _queue_on_machines(self, queue, jobs: list[tuple[str, str]]) -> None:
         for title, gcode in jobs:
