@@ -9,7 +9,8 @@ The board's plane (:class:`SideBoard`'s ``plane``, a :class:`~projector.guide.Gu
 ``u`` is the table guide's ``u`` (so the board's millimetres along it are the guide's), ``v`` is the height above
 the table, the normal points from the board towards the parts and the maker. The sheet stands on the table with its
 lower edge on it (so its ``v`` is the height above the table), its face along the guide-plane line
-``v = line_v_mm``, its centre mark at ``u = center_u_mm``. Its four tags take the ids under the table's reference
+``v = line_v_mm``, its centre mark at ``u = center_u_mm`` (chosen so that its lower tags are not hidden behind a jig
+stand). Its four tags take the ids under the table's reference
 tags (:data:`BOARD_TAG_IDS`), so neither camera mistakes one board for the other.
 """
 
@@ -91,16 +92,32 @@ def side_board(guide: Guide, paper: str = "a4") -> SideBoard | None:
     short, long = PAPERS[paper]
     u0, _, u1, v1 = guide.extent_mm
     line_v = float(v1) + BOARD_GAP_MM
-    centre_u = round((float(u0) + float(u1)) / 2.0)
+    inset = PRINTABLE_MM + BOARD_TAG_MM * 10.0 / 8.0 / 2.0  # the tag's white border inside the printable area
+    centre_u = _clear_centre((float(u0) + float(u1)) / 2.0, long / 2.0 - inset, BOARD_TAG_MM * 10.0 / 8.0 / 2.0,
+                             [j.footprint.bounds for j in guide.jigs if j.kind == "stand"], long)
     plane = guide.plane
     origin = plane.to_world(np.array([[0.0, line_v]]))[0]
     board_plane = GuidePlane("side", origin, np.asarray(plane.u_axis, float), np.asarray(plane.normal, float),
                              -np.asarray(plane.v_axis, float))
-    inset = PRINTABLE_MM + BOARD_TAG_MM * 10.0 / 8.0 / 2.0  # the tag's white border inside the printable area
     tags = tuple(ReferenceTag(tag_id, (centre_u + su * (long / 2.0 - inset), h), BOARD_TAG_MM)
                  for tag_id, (su, h) in zip(BOARD_TAG_IDS, ((-1, inset), (1, inset), (1, short - inset),
                                                             (-1, short - inset))))
     return SideBoard(board_plane, line_v, float(centre_u), (long, short), paper, tags)
+
+
+def _clear_centre(middle: float, reach: float, half: float, stands, span: float) -> float:
+    """Where along u to centre the board so that its lower tags (at ``middle +- reach``, ``half`` wide each side)
+    stand clear of every jig stand's plate as the side camera sees it (the plate nearer the camera looks larger: its
+    extent along u widened by a quarter, and 10 mm): the nearest whole millimetre to ``middle`` within ``span``,
+    else ``middle`` (the check then finds the plane from the tags it sees: two are enough)."""
+    shadows = [((a + b) / 2.0 - 0.625 * (b - a) - 10.0, (a + b) / 2.0 + 0.625 * (b - a) + 10.0)
+               for a, _, b, _ in stands]
+    for step in range(int(span) + 1):
+        for centre in (round(middle) + step, round(middle) - step):
+            tags = [(centre + side * reach - half, centre + side * reach + half) for side in (-1, 1)]
+            if not any(lo < t1 and t0 < hi for t0, t1 in tags for lo, hi in shadows):
+                return float(centre)
+    return float(round(middle))
 
 
 def write_board_pdf(board: SideBoard, path: str | PathLike, title: str = "") -> None:

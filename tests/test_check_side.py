@@ -28,7 +28,9 @@ SIDE_URL = "sim://camera?view=side&height=700&blur=0.8&noise=2&jpeg=90&seed=4"
 
 @functools.cache
 def _simple():
-    return service.prepare_check("simple", "success", jigs=True)
+    from station.services.guide import make_guide
+
+    return make_guide("simple", "success", tolerances=False, jigs=True)  # the check's guide, without its tolerances
 
 
 def _check(changes: dict[str, float]):
