@@ -205,6 +205,9 @@ def make_workshop(folder: Path) -> None:
     prepare(folder, "station trial export --out trials.json")
     prepare(folder, "station plot spirograph --set d=2.5 --size 150 --out spiro.gcode")
     prepare(folder, "station jigs causalityswitch_ball success --out switch-jigs --material mdf_3mm --sheet 300x200")
+    # a laser test card, burned and photographed on the twins (what a maker's laser and phone give)
+    prepare(folder, "station lasertest card --profile laser --material plywood_3mm --out card")
+    prepare(folder, "station lasertest render --card card/card.json --out card/frame.png")
     if shutil.which("openssl"):
         subprocess.run(["openssl", "req", "-x509", "-newkey", "rsa:2048", "-nodes", "-keyout", "station.key", "-out",
                         "station.pem", "-days", "2", "-subj", "/CN=localhost"], cwd=folder, check=True,

@@ -31,9 +31,8 @@ def add_material_parser(calibrate_subparsers) -> None:
         "uncertainty, card, frame), and draws the measured values on the card (--report). A built-in profile is "
         "written as the station's own copy (its data folder's profiles/NAME.toml, which --profile NAME then means); "
         f"a profile file of yours only with --yes. --json prints {MATERIAL_JSON}.",
-        epilog="examples:\n  station calibrate material --image frame.png --card card/card.json\n"
-        "  station calibrate material --camera 0 --card card/card.json --darkness 0.5\n"
-        "  station calibrate material --image frame.jpg --card card/card.json --profile shop.toml --yes --json")
+        epilog="examples:\n  station calibrate material --image card/frame.png --card card/card.json\n"
+        "  station calibrate material --image card/frame.png --card card/card.json --darkness 0.5 --dry-run --json")
     where = parser.add_mutually_exclusive_group(required=True)
     where.add_argument("--image", metavar="FRAME", help="a photo of the card (png, jpg, ...)")
     where.add_argument("--camera", metavar="URL", help="grab the frame from this camera")

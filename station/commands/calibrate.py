@@ -24,8 +24,8 @@ PLANE_JSON = ('{"source", "camera", "guide", "intrinsics": {"name", "rms_px", "n
 
 def register(subparsers) -> None:
     parser = subparsers.add_parser(
-        "calibrate", help="calibrate the camera, the guide plane, the projector and the simulator (board, camera, "
-        "plane, projector, sim)",
+        "calibrate", help="calibrate the camera, the guide plane, the projector, the simulator, the laser's bed camera "
+        "and laser materials (board, camera, plane, projector, sim, bed, material)",
         description="Calibration for the camera-checked assembly and the simulator: `board` writes the ChArUco "
         "board as a 1:1 PDF to print; `camera` solves the camera's intrinsics from views of it (a folder of images, "
         "or N frames grabbed from the camera while you move the board) and saves them per camera under the "
@@ -33,14 +33,16 @@ def register(subparsers) -> None:
         "one frame through the guide's four reference tags and reports the residual and how far the plane moved "
         "since the last check; `projector` maps the projector's pixels onto the guide plane with the camera, so "
         "that projected guides land at true scale; `sim` fits a scenario's uncertain material values (friction, "
-        "restitution, damping) to the logged trials and writes a physics profile for --physics.",
+        "restitution, damping) to the logged trials and writes a physics profile for --physics; `bed` registers the "
+        "laser's bed camera to machine coordinates; `material` reads a burned laser test card (`station lasertest "
+        "card`) from a photo and writes the material's kerf, cut and engrave settings into the laser profile.",
         epilog="examples:\n  station calibrate board --pdf board.pdf\n"
         "  station calibrate camera --images shots/ --name desk\n"
         "  station calibrate plane --image frame.png --guide guide.json\n"
         "  station calibrate projector --camera 'sim://camera?projector=wall' "
         "--projector 'sim://projector?name=wall&area=-300,-190,300,190'\n"
         "  station calibrate sim simple --out simple-physics.toml\n"
-        "  station calibrate material --image frame.png --card card/card.json")
+        "  station calibrate material --image card/frame.png --card card/card.json")
     sub = parser.add_subparsers(dest="calibrate_command", metavar="WHAT")
 
     board = sub.add_parser("board", help="the ChArUco calibration board as a 1:1 PDF",

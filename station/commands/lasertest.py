@@ -22,7 +22,8 @@ RENDER_JSON = '{"frame", "truth": {"material", "kerf_mm", "kerf_settings", "cell
 
 def register(subparsers) -> None:
     parser = subparsers.add_parser(
-        "lasertest", help="a laser material test card: power x feed grid, kerf comb, reference tags",
+        "lasertest", help="a laser material test card (card: power x feed grid, kerf comb, reference tags) and "
+        "its burn and photo on the twins (render)",
         description="`card` writes a material test card as a laser job: a power x feed grid of engraved squares "
         "and cut lines, each cell labelled, a kerf comb (slots cut at nominal widths, with a matching tab) and four "
         "reference tags at the corners; DIR/card.gcode (send it with `station send`: framing and pre-flight as "
@@ -30,7 +31,7 @@ def register(subparsers) -> None:
         "`render` burns the card's G-code on the laser twin's simulated material and photographs it, for a round "
         "trip without a laser. Read the burned card with `station calibrate material`.",
         epilog="examples:\n  station lasertest card --profile laser --material plywood_3mm --out card\n"
-        "  station lasertest card --profile shop.toml --material mdf_3mm --power 0.3:1:4 --feed 150:2400:6 "
+        "  station lasertest card --profile laser --material mdf_3mm --power 0.3:1:4 --feed 150:2400:6 "
         "--passes 3 --out mdf-card\n"
         "  station lasertest render --card card/card.json --out card/frame.png")
     sub = parser.add_subparsers(dest="lasertest_command", metavar="WHAT")
@@ -65,8 +66,7 @@ def register(subparsers) -> None:
         "millimetre, cut through where the beam's dose passes the material's threshold; the twin's true kerf) and "
         "photograph it lying on a light surface, turned a little, with camera noise. Prints the twin's truth (the "
         f"comb's true kerf, which cut lines went through). --json prints {RENDER_JSON}.",
-        epilog="examples:\n  station lasertest render --card card/card.json --out card/frame.png\n"
-        "  station lasertest render --card card/card.json --out frame.png --seed 3 --noise 4 --json")
+        epilog="examples:\n  station lasertest render --card card/card.json --out card/frame.png")
     render.add_argument("--card", required=True, metavar="CARD.json", help="the card's manifest")
     render.add_argument("--gcode", metavar="FILE", help="the G-code burned (default: the card's, beside card.json)")
     render.add_argument("--out", required=True, metavar="FRAME.png", help="the photo to write")
