@@ -185,3 +185,20 @@ def test_the_cameras_named_in_station_toml_are_both_used(tmp_path, monkeypatch, 
     data = json.loads(capsys.readouterr().out)
     assert [(v["view"], v["camera"]) for v in data["views"]] == [("top", "overhead"), ("side", "front")]
     assert data["side_parts"][0]["found"] is True
+
+
+def test_the_top_camera_reads_a_jig_stands_base_tag_for_a_part_without_its_own():
+    from dataclasses import replace
+
+    job = _simple()
+    untagged = tuple(replace(p, tag_id=None, tag_center_mm=None) if p.name == "track" else p for p in job.guide.parts)
+    job = replace(job, guide=replace(job.guide, parts=untagged))
+    (stand,) = job.guide.jigs
+    frame, lens = service.grab_frame("sim://camera?seed=3", job.guide, offsets={"track": (2.0, -1.0, 0.0)})
+    report = service.check_frame(job, frame, lens).report
+    (track,) = [p for p in report.parts if p.name == "track"]
+    assert (track.tag_id, track.via, track.found) == (stand.tag_id, "J1", True)
+    assert abs(track.error[0] - 2.0) < 0.3 and abs(track.error[1] + 1.0) < 0.3
+    assert track.instruction.startswith("move jig J1 (with `track` on it) 2.0 mm left")
+    assert "track" not in report.by_eye and stand.tag_id not in report.unknown_tags
+    assert report.measured_by.get("track.x") == "top"
