@@ -31,11 +31,14 @@ from calibration.measure import detected_corners
 from design.fabrication.lasercard import CardManifest
 from projector.detection import detect_tags
 
-__all__ = ["CardReading", "CellReading", "SlotReading", "read_card", "RECTIFIED_PX_PER_MM"]
+__all__ = ["CardReading", "CellReading", "SlotReading", "read_card", "MIN_FRAME_PX_PER_MM", "RECTIFIED_PX_PER_MM"]
 
 RECTIFIED_PX_PER_MM = 20.0
 MARGIN_MM = 4.0
 THROUGH_SHARE = 0.95
+#: Below this many frame pixels per card millimetre the comb's edges are too coarse: on the twins the kerf reads
+#: 0.01-0.02 mm wide at 8 px/mm, within 0.005 mm from 12 px/mm (docs/results/2026-12-05-laser-test-cards.md).
+MIN_FRAME_PX_PER_MM = 12.0
 
 
 @dataclass(frozen=True)
@@ -80,6 +83,7 @@ class CardReading:
     kerf_mm: float | None
     kerf_uncertainty_mm: float | None
     rectified: np.ndarray           # RGB uint8, card + margin at RECTIFIED_PX_PER_MM
+    frame_px_per_mm: float = float("nan")  # the frame's pixels per card millimetre at the card's centre
     margin_mm: float = MARGIN_MM
     px_per_mm: float = RECTIFIED_PX_PER_MM
 
@@ -258,5 +262,8 @@ def read_card(image: np.ndarray, manifest: CardManifest, *, px_per_mm: float = R
         kerf, kerf_u = round(float(kerfs.mean()), 4), round(uncertainty, 4)
     else:
         kerf, kerf_u = None, None
+    centre = np.array([[[width / 2, height / 2]], [[width / 2 + 1, height / 2]], [[width / 2, height / 2 + 1]]])
+    seen = cv2.perspectiveTransform(centre, homography).reshape(3, 2)
+    scale = math.sqrt(abs(float(np.cross(seen[1] - seen[0], seen[2] - seen[0]))))
     return CardReading(tuple(ids), round(residual, 4), homography, round(light, 1), round(wood, 1), cells, slots,
-                       kerf, kerf_u, rect_rgb)
+                       kerf, kerf_u, rect_rgb, round(scale, 2))

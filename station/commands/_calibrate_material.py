@@ -71,8 +71,11 @@ def run_material(args) -> int:
                    "profile_written": bool(update and update.written)})
         return 0
     reading, chosen = result, result["chosen"]
-    print(f"card {reading['card']}: tags {len(reading['tags_found'])}/4 found, fit {reading['tag_fit_mm']:.3f} mm; "
+    print(f"card {reading['card']}: tags {len(reading['tags_found'])}/4 found, fit {reading['tag_fit_mm']:.3f} mm, "
+          f"{reading['frame_px_per_mm']:.1f} px per mm; "
           f"under the card grey {reading['levels']['under_card']:.0f}, wood {reading['levels']['wood']:.0f}")
+    for note in reading["warnings"]:
+        print(f"  note: {note}")
     if reading["kerf_mm"] is None:
         print("  kerf: not measured (no comb slot opened: was the comb cut through?)")
     else:

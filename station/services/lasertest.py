@@ -20,7 +20,7 @@ from typing import Any
 import numpy as np
 from PIL import Image, ImageDraw, ImageFont
 
-from calibration.lasercard import CardReading, read_card
+from calibration.lasercard import MIN_FRAME_PX_PER_MM, CardReading, read_card
 from common.datafiles import load_json
 from design.fabrication.lasercard import (
     Card,
@@ -309,6 +309,17 @@ class MaterialMeasurement:
     frame_source: str
     darkness_target: float
 
+    def warnings(self) -> list[str]:
+        """What makes this reading less sure than usual, in words."""
+        notes = []
+        if self.reading.frame_px_per_mm < MIN_FRAME_PX_PER_MM:
+            notes.append(f"the card is {self.reading.frame_px_per_mm:.1f} px per mm in the frame: below "
+                         f"{MIN_FRAME_PX_PER_MM:g} the kerf may read up to 0.02 mm wide; photograph it closer")
+        if len(self.reading.tags_found) < 4:
+            notes.append(f"{len(self.reading.tags_found)} of the 4 reference tags found: the card's plane is less "
+                         "sure")
+        return notes
+
     def to_dict(self) -> dict[str, Any]:
         r, c = self.reading, self.choice
 
@@ -318,7 +329,8 @@ class MaterialMeasurement:
         return {
             "card": self.manifest.source, "frame": self.frame_source, "material": self.manifest.material,
             "profile": self.manifest.profile,
-            "tags_found": list(r.tags_found), "tag_fit_mm": r.residual_mm,
+            "tags_found": list(r.tags_found), "tag_fit_mm": r.residual_mm, "frame_px_per_mm": r.frame_px_per_mm,
+            "warnings": self.warnings(),
             "levels": {"under_card": r.light_level, "wood": r.wood_level},
             "kerf_mm": r.kerf_mm, "kerf_uncertainty_mm": r.kerf_uncertainty_mm,
             "kerf_settings": settings(self.manifest.comb),
@@ -473,6 +485,7 @@ def material_block(measurement: MaterialMeasurement, profile: MachineProfile, wh
         "card": str(Path(measurement.manifest.source).resolve()),
         "frame": measurement.frame_source,
         "tag_fit_mm": reading.residual_mm,
+        "frame_px_per_mm": reading.frame_px_per_mm,
     }
     if reading.kerf_mm is not None:
         record.update(kerf_mm=reading.kerf_mm, kerf_uncertainty_mm=reading.kerf_uncertainty_mm,
