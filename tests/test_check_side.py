@@ -202,3 +202,27 @@ def test_the_top_camera_reads_a_jig_stands_base_tag_for_a_part_without_its_own()
     assert track.instruction.startswith("move jig J1 (with `track` on it) 2.0 mm left")
     assert "track" not in report.by_eye and stand.tag_id not in report.unknown_tags
     assert report.measured_by.get("track.x") == "top"
+
+
+def test_frames_from_files_for_both_views(tmp_path, capsys):
+    from PIL import Image
+
+    job = _simple()
+    board = side_board(job.guide)
+    targets = check_side.side_targets(job, board)
+    side, side_lens = check_side.side_frame(job, board, targets, SIDE_URL, offsets={"track": (0.0, 2.5, 0.0)})
+    top, top_lens = service.grab_frame("sim://camera?seed=2", job.guide)
+    files = {}
+    for name, picture, lens in (("top", top, top_lens), ("side", side, side_lens)):
+        files[name] = (tmp_path / f"{name}.png", tmp_path / f"{name}.json")
+        Image.fromarray(picture).save(files[name][0])
+        files[name][1].write_text(json.dumps(lens.to_json()))
+    assert main(["check", "simple", "success", "--jigs", "--image", str(files["top"][0]), "--intrinsics",
+                 str(files["top"][1]), "--side-image", str(files["side"][0]), "--side-intrinsics",
+                 str(files["side"][1]), "--predict", "0", "--json"]) == 0
+    data = json.loads(capsys.readouterr().out)
+    (part,) = data["side_parts"]
+    assert abs(part["error"]["dv_mm"] - 2.5) < 0.3 and part["instruction"].startswith("lower `track`'s lower end")
+    assert main(["check", "simple", "success", "--jigs", "--image", str(files["top"][0]), "--side-intrinsics",
+                 str(files["side"][1])]) == 2
+    assert "--side-intrinsics goes with --side-image" in capsys.readouterr().err

@@ -27,7 +27,7 @@ JSON_SHAPE = ('{"format": "chaos-station check", "version", "scenario", "content
               '[{"view", "camera", "plane"}], "side_parts": [a part as in "parts", "view": "side", "via_jig"], '
               '"measured_by": {parameter: "top" or "side"}}')
 FLAGS = {"guide": "--guide", "image": "--image", "camera": "--camera", "sim_offset": "--sim-offset",
-         "sim_side_offset": "--sim-side-offset",
+         "sim_side_offset": "--sim-side-offset", "side_image": "--side-image",
          "simulate": "--simulate", "seed": "--seed", "intrinsics": "--intrinsics", "physics": "--physics",
          "predict": "--predict"}
 
@@ -88,6 +88,10 @@ def register(subparsers) -> None:
                         "arrow per misplaced part to where it must go, a ring at the target")
     parser.add_argument("--sim-offset", action="append", metavar="PART=DU,DV[,DEG]", help="SIMULATION ONLY: with "
                         "a simulated camera, show PART moved by DU, DV mm and turned DEG degrees (repeatable)")
+    parser.add_argument("--side-image", metavar="FRAME.png", help="the side camera's frame from a file (a photo of "
+                        "the parts in front of the board sheet), with --image or a top --camera")
+    parser.add_argument("--side-intrinsics", metavar="CAMERA.json", help="the side camera's calibration for "
+                        "--side-image (default its saved one, camera-side, else guessed and said)")
     parser.add_argument("--jigs", action="store_true", help="check against the guide with its laser-cut jigs "
                         "(`station guide --jigs`): the jigs' tags measure the parts they carry")
     parser.add_argument("--sim-side-offset", action="append", metavar="PART=DU,DUP[,DEG]", help="SIMULATION ONLY: "
@@ -111,6 +115,10 @@ def run_check(args) -> int:
         offsets = dict(service.parse_offset(text) for text in args.sim_offset or [])
         if args.image is not None:  # a frame of the wrong size is refused before the guide is made
             service.check_image_file(args.image, "image")
+        if args.side_image is not None:
+            service.check_image_file(args.side_image, "side_image")
+        elif args.side_intrinsics is not None:
+            raise UsageError("--side-intrinsics goes with --side-image")
         side_offsets = {}
         for text in args.sim_side_offset or []:
             part, offset = service.parse_offset(text)
@@ -119,11 +127,13 @@ def run_check(args) -> int:
         with ProgressView(sys.stderr, prefix="check: ") as view:
             job = service.prepare_check(args.scenario, args.layout, guide=args.guide, progress=view, jigs=args.jigs)
             physics = read_profile(args.physics) if args.physics else None
-            if len(cameras) > 1 or side_offsets or any(check_side.is_side_url(url) for _, url in cameras):
+            if len(cameras) > 1 or side_offsets or args.side_image is not None \
+                    or any(check_side.is_side_url(url) for _, url in cameras):
                 check = check_side.check_views(
                     job, cameras, image=args.image, intrinsics=args.intrinsics, offsets=offsets,
-                    side_offsets=side_offsets, occluded=tuple(args.sim_cover or ()), simulate=args.simulate,
-                    seed=args.seed, physics=physics, predict=args.predict, progress=view)
+                    side_offsets=side_offsets, occluded=tuple(args.sim_cover or ()), side_image=args.side_image,
+                    side_intrinsics=args.side_intrinsics, simulate=args.simulate, seed=args.seed, physics=physics,
+                    predict=args.predict, progress=view)
             else:
                 image, intrinsics, name, previous = service.camera_frame(
                     job.guide, image=args.image, camera=cameras[0][1] if cameras else None,

@@ -278,12 +278,14 @@ def plane_name(name: str) -> str:
 
 
 def check_views(job, cameras: Sequence[tuple[str, str]], *, image=None, intrinsics=None, offsets=None,
-                side_offsets=None, occluded: Sequence[int] = (), **check):
+                side_offsets=None, occluded: Sequence[int] = (), side_image=None, side_intrinsics=None, **check):
     """The check of ``job`` with every camera in ``cameras`` (``(name, url)``): the top camera's frame (or the file
     ``image``) measures the table's plane, a side camera's the heights and tilts on the board's plane; the
     parameters combine in the as-built layout and CHECK.json says which view measured what. ``check`` goes to
     :func:`station.services.check.check_frame` (``simulate``, ``seed``, ``physics``, ``predict``, ``progress``).
-    The planes are remembered per camera (the next check says how far each moved).
+    The planes are remembered per camera (the next check says how far each moved). ``side_image`` is the side
+    camera's frame from a file (a photo), read with ``side_intrinsics`` (a file; else the side camera's saved
+    calibration, else guessed and said).
 
     Raises
     ------
@@ -306,6 +308,11 @@ def check_views(job, cameras: Sequence[tuple[str, str]], *, image=None, intrinsi
         if len(found) > 1:
             raise ServiceError(f"camera: {len(found)} cameras see the {view} view ({', '.join(u for _, u in found)});"
                                " expected one per view", field="camera", value=found[1][1])
+    if side_image is not None:
+        side_cameras.append(("camera-side", None))
+        if len(side_cameras) > 1:
+            raise ServiceError(f"side_image: {side_image} and the camera {side_cameras[0][1]} both see the side view;"
+                               " expected one", field="side_image", value=str(side_image))
     if side_cameras and board is None:
         raise ServiceError(f"camera: a side camera checks a table guide; this one is drawn on the {job.guide.view} "
                            "view, its own camera sees the heights already", field="camera", value=side_cameras[0][1])
@@ -317,7 +324,13 @@ def check_views(job, cameras: Sequence[tuple[str, str]], *, image=None, intrinsi
         name, url = side_cameras[0]
         name = name if name != calibrate.DEFAULT_CAMERA else f"{name}-side"
         targets = side_targets(job, board)
-        if url in frames:
+        if url is None:  # a file
+            from station.services.check import load_image
+
+            picture = load_image(side_image)
+            lens = calibrate.intrinsics_for((picture.shape[1], picture.shape[0]), intrinsics=side_intrinsics,
+                                            name=name)
+        elif url in frames:
             picture = frames[url][0]
             lens = calibrate.intrinsics_for((picture.shape[1], picture.shape[0]), name=name)
         else:
