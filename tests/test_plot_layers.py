@@ -188,7 +188,7 @@ def test_station_plot_an_svg_alone_with_a_preview(tmp_path, capsys):
     job, picture = tmp_path / "frame.gcode", tmp_path / "frame.png"
     assert main(["plot", "--svg", str(EXAMPLES / "frame.svg"), "--out", str(job), "--preview", str(picture)]) == 0
     err = capsys.readouterr().err
-    assert "1 layers, 0 pen changes" in err and f"wrote {job} and {picture}" in err
+    assert "1 layer, 0 pen changes" in err and f"wrote {job} and {picture}" in err
     assert [m.name for m in layer_marks(job.read_text().splitlines())] == ["frame"]
     image = np.asarray(Image.open(picture).convert("RGB"))
     green = np.all(image == (0x2C, 0xA0, 0x2C), axis=2)

@@ -335,7 +335,9 @@ def _run_layered_plot(args, profile: MachineProfile) -> int:
               f"{layer.draw_mm:.0f} mm drawn, {layer.travel_mm:.0f} mm travel, about "
               f"{plot_service.format_minutes(layer.time_s)}{pause}", file=sys.stderr)
     wrote = [name for name in (args.out, args.preview) if name is not None]
-    print(f"plot: {len(result.layers)} layers, {pauses} pen changes, {result.travel_mm:.0f} mm travel, about "
+    count = len(result.layers)
+    print(f"plot: {count} layer{'s' * (count != 1)}, {pauses} pen change{'s' * (pauses != 1)}, "
+          f"{result.travel_mm:.0f} mm travel, about "
           f"{plot_service.format_minutes(result.time_s)} (estimate)" + (f"; wrote {' and '.join(wrote)}" if wrote
                                                                           else ""), file=sys.stderr)
     return 0
