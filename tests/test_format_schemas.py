@@ -5,7 +5,9 @@ Each command runs as a maker runs it (the ``station`` console script, in a works
 package: LAYOUT.json, CHECK.json (a part in place and one misplaced), the guide manifest (with and without jigs),
 jigs.json, the trial log's export (a trial with its check), ``station loop --json`` and ``station devices --json``.
 A schema that would accept anything is caught too: each real output with a required field taken away, or a value
-of the wrong type, must fail.
+of the wrong type, must fail. The schemas let a later version add fields (a reader ignores what it does not know;
+removing or retyping a field is a new version of the format), so a test also checks that every field the station
+writes is described in its schema.
 """
 
 from __future__ import annotations
@@ -101,6 +103,35 @@ def test_the_schemas_are_package_data():
 @pytest.mark.parametrize(("schema", "output"), CASES)
 def test_the_real_output_matches_its_schema(workshop, schema, output):
     assert problems(schema, workshop[output]) == []
+
+
+def undescribed(document, schema: dict, path: str = "") -> list[str]:
+    """The fields of ``document`` its schema does not describe. A schema leaves room for fields a later version
+    adds (readers ignore what they do not know), so validation alone would let one go undocumented."""
+    if "$ref" in schema:
+        schema = load_schema(schema["$ref"].removesuffix(".schema.json"))
+    for branch in schema.get("oneOf", []):
+        if document is not None and branch.get("type") == "object" or "items" in branch:
+            schema = branch
+    found = []
+    if isinstance(document, dict) and "properties" in schema:
+        for key, value in document.items():
+            if key not in schema["properties"]:
+                found.append(f"{path}/{key}")
+            else:
+                found += undescribed(value, schema["properties"][key], f"{path}/{key}")
+    elif isinstance(document, dict) and isinstance(schema.get("additionalProperties"), dict):
+        for key, value in document.items():
+            found += undescribed(value, schema["additionalProperties"], f"{path}/{key}")
+    elif isinstance(document, list) and isinstance(schema.get("items"), dict):
+        for index, value in enumerate(document):
+            found += undescribed(value, schema["items"], f"{path}/{index}")
+    return found
+
+
+@pytest.mark.parametrize(("schema", "output"), CASES)
+def test_every_field_of_the_real_output_is_in_its_schema(workshop, schema, output):
+    assert sorted(set(undescribed(workshop[output], load_schema(schema)))) == []
 
 
 def test_the_outputs_exercise_what_the_schemas_constrain(workshop):
