@@ -241,7 +241,8 @@ def tui_reference() -> str:
     entries = discover_screens()
     out = ["# Terminal UI keys", "",
            "Made from the screens' key bindings when the site is built. `station` (or `make run`) opens the home "
-           "screen; each area has one key there.", "",
+           "screen; each area has one key there. On every screen Tab and Shift+Tab move the focus between fields and "
+           "tables (Textual's own keys); a text field with the focus takes the letters typed.", "",
            "## Everywhere", "", *_binding_table(StationApp), "",
            "## Home screen", "", "| key | opens |", "| --- | --- |"]
     out += [f"| `{e.key}` | [{_cell(e.title)}](#{_slug(e.title)}): {_cell(e.description)} |" for e in entries]

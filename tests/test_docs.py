@@ -44,7 +44,7 @@ def runnable_blocks(text: str) -> list[list[str]]:
 
 def pages_with_runnable_blocks() -> list[str]:
     return sorted(p.relative_to(DOCS).as_posix() for p in DOCS.rglob("*.md")
-                  if RUN_MARK in p.read_text(encoding="utf-8"))
+                  if runnable_blocks(p.read_text(encoding="utf-8")))
 
 
 def test_the_site_builds_strictly(tmp_path):
