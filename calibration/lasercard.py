@@ -15,7 +15,8 @@ everything is measured there, in millimetres:
   across the slot (averaged along the slot's middle) crosses halfway from the light in the slot to the darkest char
   beside it; a slot cut on its nominal outline opens ``nominal + kerf``. The kerf is the mean over the slots; its
   uncertainty the standard error over the slots combined with the tag fit's residual taken as a scale error (the
-  residual over the tags' span, on the slots' opening).
+  residual over the tags' span, on the slots' opening) and with :data:`EDGE_PX` of a frame pixel for where an
+  edge is placed.
 """
 
 from __future__ import annotations
@@ -39,6 +40,10 @@ THROUGH_SHARE = 0.95
 #: Below this many frame pixels per card millimetre the comb's edges are too coarse: on the twins the kerf reads
 #: 0.01-0.02 mm wide at 8 px/mm, within 0.005 mm from 12 px/mm (docs/results/2026-12-05-laser-test-cards.md).
 MIN_FRAME_PX_PER_MM = 12.0
+#: How far off a slot's opening may be, in frame pixels, whatever the slots agree on: the charred band beside a
+#: cut, when it is narrower than the blur, pulls the edges (the twins' campaign, docs/results: at 12 px/mm and more,
+#: up to 0.1 pixel on plywood and MDF, 0.3 on card, whose cuts char less).
+EDGE_PX = 0.25
 
 
 @dataclass(frozen=True)
@@ -251,6 +256,9 @@ def read_card(image: np.ndarray, manifest: CardManifest, *, px_per_mm: float = R
                                f"than the card's wood (grey {wood:.0f}); lay the card on a light surface so that "
                                "what is cut through shows")
     slots = tuple(_slot(card, slot.rect, slot.nominal_width, light, wood, char) for slot in manifest.slots)
+    centre = np.array([[[width / 2, height / 2]], [[width / 2 + 1, height / 2]], [[width / 2, height / 2 + 1]]])
+    seen = cv2.perspectiveTransform(centre, homography).reshape(3, 2)
+    scale = math.sqrt(abs(float(np.cross(seen[1] - seen[0], seen[2] - seen[0]))))
     kerfs = np.array([s.kerf_mm for s in slots if s.kerf_mm is not None])
     if kerfs.size:
         spread = float(np.std(kerfs, ddof=1) / math.sqrt(kerfs.size)) if kerfs.size > 1 else float("nan")
@@ -258,12 +266,10 @@ def read_card(image: np.ndarray, manifest: CardManifest, *, px_per_mm: float = R
         span = float(np.ptp(card_points, axis=0).max())
         openings = np.mean([s.opening_mm for s in slots if s.opening_mm is not None])
         fit = residual * openings / span
-        uncertainty = math.sqrt((spread if math.isfinite(spread) else residual) ** 2 + fit ** 2)
+        edges = EDGE_PX / scale  # how well an edge is placed, whatever the slots agree on
+        uncertainty = math.sqrt((spread if math.isfinite(spread) else residual) ** 2 + fit ** 2 + edges ** 2)
         kerf, kerf_u = round(float(kerfs.mean()), 4), round(uncertainty, 4)
     else:
         kerf, kerf_u = None, None
-    centre = np.array([[[width / 2, height / 2]], [[width / 2 + 1, height / 2]], [[width / 2, height / 2 + 1]]])
-    seen = cv2.perspectiveTransform(centre, homography).reshape(3, 2)
-    scale = math.sqrt(abs(float(np.cross(seen[1] - seen[0], seen[2] - seen[0]))))
     return CardReading(tuple(ids), round(residual, 4), homography, round(light, 1), round(wood, 1), cells, slots,
                        kerf, kerf_u, rect_rgb, round(scale, 2))

@@ -57,7 +57,7 @@ SIM_MATERIALS = {
     "plywood_3mm": BurnMaterial("plywood_3mm"),
     "mdf_3mm": BurnMaterial("mdf_3mm", beam_sigma_mm=0.075, through_dose=11.0, dark_dose=0.8,
                             wood_rgb=(160, 120, 80), char_rgb=(30, 22, 18), grain=0.015),
-    "cardboard_2mm": BurnMaterial("cardboard_2mm", beam_sigma_mm=0.08, through_dose=4.0, dark_dose=0.9,
+    "cardboard_2mm": BurnMaterial("cardboard_2mm", beam_sigma_mm=0.08, through_dose=2.5, dark_dose=0.9,
                                   wood_rgb=(190, 160, 120), grain=0.02),
     "acrylic_3mm_black": BurnMaterial("acrylic_3mm_black", beam_sigma_mm=0.06, through_dose=12.0, dark_dose=4.0,
                                       wood_rgb=(30, 30, 32), char_rgb=(120, 120, 120), grain=0.0),
