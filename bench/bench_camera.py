@@ -112,9 +112,10 @@ def bench_projector_mapping() -> None:
 
 
 def example_frame(path: str = "docs/camera_sim_frame.png") -> None:
-    """The README's camera frame: 1280x720 (the acceptance camera's field of view), tilted 6 deg, k1 -0.05, a hand
-    over one part, the projector showing rings and arrows; blur, noise, vignetting, JPEG 85 (which also keeps the
-    PNG under 300 kB). ``python -c "from bench.bench_camera import example_frame; example_frame()"``."""
+    """The camera check guide's frame (docs/guide/camera-check.md): 1280x720 (the acceptance camera's field of
+    view), tilted 6 deg, k1 -0.05, a hand over one part, the projector showing rings and arrows; blur, noise,
+    vignetting, JPEG 85 (which also keeps the PNG under 300 kB).
+    ``python -c "from bench.bench_camera import example_frame; example_frame()"``."""
     from drivers.sim.projector import area_homography
 
     scene = acceptance_scene(seed=3, parts=18)

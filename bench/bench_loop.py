@@ -141,7 +141,7 @@ def _f(value, digits: int = 2) -> str:
 
 
 def table(figures: dict) -> list[str]:
-    """The README's table."""
+    """The results page's table (docs/results/2026-12-04-the-loop.md)."""
     rows = ["| scenario | seeds | success after calibration (goal >= 0.90) | loop 1 | median attempts to 1st "
             "success (goal <= 2) | baseline success | baseline median attempts | Brier (goal <= 0.15): "
             "predicted, forecast | within the interval: predicted, forecast |", "|---|---|---|---|---|---|---|---|---|"]

@@ -6,7 +6,7 @@ the field's path and what was expected (``t.toml: objects[3].transform.heading: 
 ('north')``); what needs the whole file (references, parents, the causal graph) is checked by
 :mod:`design.contraption.graph` once every object and event is read. This is hand-written rather than a pydantic
 model: most rules relate several fields (a range holds its transform's value, a DominoRun takes poses or a path,
-body references and the graph), and pydantic's messages need rewriting into this form (see the README).
+body references and the graph), and pydantic's messages need rewriting into this form (see docs/architecture.md).
 """
 
 from __future__ import annotations

@@ -228,7 +228,7 @@ class PSPSettings:
         It measures the quasi-deterministic test on the uniform start, searches C, γ by ROC AUC, and verifies the
         three best optima and the three densest successes of the start with 15 simulations each, in a ball of
         radius 0.01, keeping the one of highest estimated ρ_g (see the attributes). Figures against the thesis's
-        settings and the baselines are in the README's robust-layouts section.
+        settings and the baselines are on the results page docs/results/2026-12-04-robust-layouts.md.
         """
         return cls(**{**RECOMMENDED_CHANGES, **changes})
 

@@ -326,7 +326,8 @@ def add_settings_choice(parser) -> None:
     parser.add_argument("--settings", default=DEFAULT_SETTINGS, metavar="NAME|LAYOUT.json",
                         help="PSP settings of ours: " + "; ".join(f"{k}: {v}" for k, v in SETTINGS_CHOICES.items())
                         + "; or a LAYOUT.json of an earlier run, to repeat it with its settings (give its --seed "
-                        "and --budget too) (default %(default)s; figures of both in the README)")
+                        "and --budget too) (default %(default)s; figures of both: "
+                        "docs/results/2026-12-04-robust-layouts.md)")
     parser.add_argument("--recommended", dest="settings", action="store_const", const="recommended",
                         help="short for --settings recommended")
 

@@ -81,7 +81,7 @@ class LoopSettings:
     reoptimize_budget : int or None
         Simulations of each later loop's optimization under the calibrated physics (None: ``station optimize``'s
         default, the thesis's budget for the scenario: at 200 BRANCHING's loop 2 succeeded 15/25 in five worlds, at
-        its default 600 20/25; see the README).
+        its default 600 20/25; see docs/results/2026-12-04-the-loop.md).
     candidates : int
         Layouts of each optimization compared by their predicted physical success (its verified candidates, best
         first): the loop places the one surest to succeed often under the physics it knows.

@@ -53,7 +53,8 @@ SETTINGS_CHOICES = {
     "recommended": "ours: quasi-deterministic test on the uniform start, C/γ by calibrated log loss, checked "
                    "subspaces, calibrated product, three verified candidates",
 }
-#: Ours is the default: at the thesis's budgets it beat the thesis's settings on CAUSALITYSWITCH and BALLRUN (README).
+#: Ours is the default: at the thesis's budgets it beat the thesis's settings on CAUSALITYSWITCH and BALLRUN
+#: (docs/results/2026-12-04-robust-layouts.md).
 DEFAULT_SETTINGS = "recommended"
 
 StopCheck = Callable[[], bool]
