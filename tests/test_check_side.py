@@ -226,3 +226,13 @@ def test_frames_from_files_for_both_views(tmp_path, capsys):
     assert main(["check", "simple", "success", "--jigs", "--image", str(files["top"][0]), "--side-intrinsics",
                  str(files["side"][1])]) == 2
     assert "--side-intrinsics goes with --side-image" in capsys.readouterr().err
+
+
+def test_the_worlds_maker_is_told_the_side_cameras_heights_and_tilts():
+    from station.services.world import check_moves
+
+    report, _, _ = _check({"track.z": -0.003, "track.roll": -2.0})
+    (move,) = [m for m in check_moves(report.to_json(), _simple().guide) if m["name"] == "track"]
+    assert abs(move["parameters"]["track.z"] - 3.0) < 0.3 and abs(move["parameters"]["track.roll"] - 2.0) < 0.3
+    small, _, _ = _check({"track.z": -0.0003})
+    assert not [m for m in check_moves(small.to_json(), _simple().guide) if "parameters" in m]

@@ -143,7 +143,8 @@ def check_moves(check: Mapping[str, Any], guide, *, all_parts: bool = False) -> 
     part out of its tolerance (or, with no tolerance known, off by more than :data:`UNKNOWN_TOLERANCE_MM` /
     :data:`UNKNOWN_TOLERANCE_DEG`), designed minus measured (``all_parts``: every part the instruction moves). A
     part checked by its bodies (a run's first and last dominoes) is moved by its first measured body: the part's
-    origin found from it as :func:`calibration.check.measured_pose` does.
+    origin found from it as :func:`calibration.check.measured_pose` does. A part the side camera found off also
+    carries ``"parameters": {name: change}`` (mm or degrees): its height and tilt set again as the side view says.
     """
     from calibration.check import NEGLIGIBLE_DEG, NEGLIGIBLE_MM
 
@@ -174,7 +175,39 @@ def check_moves(check: Mapping[str, Any], guide, *, all_parts: bool = False) -> 
                 and abs(dv) <= UNKNOWN_TOLERANCE_MM and abs(dheading) <= UNKNOWN_TOLERANCE_DEG:
             continue
         moves[owner] = {"name": owner, "du_mm": -float(du), "dv_mm": -float(dv), "dheading_deg": -float(dheading)}
+    for owner, changes in _side_changes(check, by_name, all_parts).items():  # a side camera's heights and tilts
+        moves.setdefault(owner, {"name": owner, "du_mm": 0.0, "dv_mm": 0.0, "dheading_deg": 0.0})["parameters"] = \
+            changes
     return list(moves.values())
+
+
+def _side_changes(check: Mapping[str, Any], by_name, all_parts: bool) -> dict[str, dict[str, float]]:
+    """Per part the side camera found off (``side_parts``, the same rule as :func:`check_moves`), the change of
+    each parameter it measured (``measured_by`` "side"): designed minus measured, in mm or degrees."""
+    from calibration.check import NEGLIGIBLE_DEG, NEGLIGIBLE_MM
+    from design.contraption.schema import ANGLE_KEYS
+
+    layout, measured, by = check.get("layout", {}), check.get("as_measured", {}), check.get("measured_by", {})
+    result = {}
+    for entry in check.get("side_parts", []):
+        owner, error = str(entry.get("name", "")), entry.get("error")
+        part = by_name.get(owner)
+        if part is None or error is None or entry.get("within_tolerance") is True and not all_parts:
+            continue
+        changes = {}
+        for name in part.parameters:
+            if by.get(name) != "side" or name not in measured or name not in layout:
+                continue
+            angle = name.rsplit(".", 1)[-1] in ANGLE_KEYS
+            change = (float(layout[name]) - float(measured[name])) * (1.0 if angle else 1000.0)
+            limit = (UNKNOWN_TOLERANCE_DEG if angle else UNKNOWN_TOLERANCE_MM) \
+                if entry.get("within_tolerance") is None and not all_parts else \
+                (NEGLIGIBLE_DEG if angle else NEGLIGIBLE_MM)
+            if abs(change) >= limit:
+                changes[name] = change
+        if changes:
+            result[owner] = changes
+    return result
 
 
 @dataclass(frozen=True)
