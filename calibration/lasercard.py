@@ -258,7 +258,8 @@ def read_card(image: np.ndarray, manifest: CardManifest, *, px_per_mm: float = R
     slots = tuple(_slot(card, slot.rect, slot.nominal_width, light, wood, char) for slot in manifest.slots)
     centre = np.array([[[width / 2, height / 2]], [[width / 2 + 1, height / 2]], [[width / 2, height / 2 + 1]]])
     seen = cv2.perspectiveTransform(centre, homography).reshape(3, 2)
-    scale = math.sqrt(abs(float(np.cross(seen[1] - seen[0], seen[2] - seen[0]))))
+    (ax, ay), (bx, by) = seen[1] - seen[0], seen[2] - seen[0]
+    scale = math.sqrt(abs(float(ax * by - ay * bx)))  # pixels per mm: the root of the area of a mm square
     kerfs = np.array([s.kerf_mm for s in slots if s.kerf_mm is not None])
     if kerfs.size:
         spread = float(np.std(kerfs, ddof=1) / math.sqrt(kerfs.size)) if kerfs.size > 1 else float("nan")
