@@ -103,7 +103,7 @@ def main() -> None:
                           f"{truth:>7.4f} "
                           f"{error:>7} {reading.kerf_uncertainty_mm or 0:>6.4f} "
                           f"{'yes' if not wrong else ','.join(wrong):>10} "
-                          f"{'same' if choice.cut_cell == chosen_truth else choice.cut_cell:>9} {read_s:>6.2f}",
+                          f"{'same' if choice.cut_cell == chosen_truth else str(choice.cut_cell):>9} {read_s:>6.2f}",
                           flush=True)
 
 
