@@ -66,7 +66,7 @@ def register(subparsers) -> None:
         epilog="examples: station plot spirograph --set d=2.5 --size 150 --out spiro.gcode\n"
         "          station pattern hoot_nanny --json > hn.json && station plot --pattern hn.json "
         "--profile plotter --out hn.gcode\n"
-        "          station plot --svg drawing.svg --out drawing.gcode --preview drawing.png\n"
+        "          station plot --svg examples/plots/frame.svg --out frame.gcode --preview frame.png\n"
         "          station plot --compose examples/plots/three-pens.toml --out three.gcode --preview three.png",
     )
     plot.add_argument("machine", nargs="?", help="drawing machine name (see `station machines`)")

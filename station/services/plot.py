@@ -50,7 +50,6 @@ __all__ = [
     "plot",
     "read_svg_layers",
     "summarize",
-    "travel_length",
     "write_preview_png",
 ]
 
@@ -265,8 +264,8 @@ def load_composition(path: str | Path, load_design: Callable[[Path, str], dict] 
             width=_number(table["width"], f"{where}.width", positive=True) if "width" in table else None,
             feed=_number(table["feed"], f"{where}.feed", positive=True) if "feed" in table else None))
     entries: list[tuple[int, str, dict]] = []
-    # in the file's order: a TOML file keeps its tables' order per kind, so patterns come before SVGs unless
-    # an entry says `order`
+    # patterns first, then SVGs, each in the file's order (the layers' order is the [[layers]] tables', then as
+    # sources first draw on them)
     for kind in ("patterns", "svg"):
         for k, table in enumerate(_table(data, kind, str(path)), start=1):
             entries.append((k, kind, table))
@@ -544,22 +543,6 @@ def _linesort(lines, start: complex):
         ordered.append(line)
         position = line[-1]
     return ordered
-
-
-def travel_length(document: PlotDocument, start: Sequence[float] = (0.0, 0.0), home: bool = True) -> list[float]:
-    """Pen-up travel per layer (mm): from where the pen was (``start`` for the first layer) to each path's start;
-    the last layer's includes the way home when ``home``."""
-    position = np.asarray(start, dtype=float)
-    result = []
-    for layer in document.layers:
-        total = 0.0
-        for polyline in layer.polylines:
-            total += float(np.hypot(*(polyline[0] - position)))
-            position = polyline[-1]
-        result.append(total)
-    if home and result:
-        result[-1] += float(np.hypot(*(position - np.asarray(start, dtype=float))))
-    return result
 
 
 # ----------------------------------------------------------------------------------------------------------- G-code
