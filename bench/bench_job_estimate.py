@@ -51,7 +51,7 @@ def plot_lines() -> list[str]:
 
     model = get_machine("spirograph")
     points = np.asarray(model.sample(model.validate({}), n=1500, spacing="arclength"), dtype=float)
-    text, *_ = plot_job([points], load_profile("plotter"), 90.0, 0.05)
+    text, *_ = plot_job([points], load_profile("plotter"), 60.0, 0.05)
     return text.splitlines()
 
 
@@ -69,15 +69,14 @@ def cut_lines() -> list[str]:
     engrave = OperationSettings(power=0.3, feed=3000.0, passes=1)
     cut = OperationSettings(power=1.0, feed=900.0, passes=1)
     strokes = [np.array([[22.0, 22.0], [32.0, 26.0], [42.0, 22.0]])]
-    groups = [([_circle(30, 40, 4), _circle(45, 40, 4)], _square(15, 15, 45)),
-              ([_circle(90, 37, 6)], _circle(90, 37, 20))]
+    groups = [([_circle(25, 32, 4), _circle(38, 32, 4)], _square(15, 15, 35))]
     job = plan_laser_job(strokes, groups, engrave, cut, 1000.0)
     out = io.StringIO()
     write_laser_gcode(job, out, (0.0, 0.0, 400.0, 400.0))
     return out.getvalue().splitlines()
 
 
-def raster_lines(width: float = 30.0, height: float = 12.0, pixel: float = 0.4, feed: float = 3000.0) -> list[str]:
+def raster_lines(width: float = 20.0, height: float = 6.0, pixel: float = 0.4, feed: float = 3000.0) -> list[str]:
     """A grey-level raster engraved line by line, both ways, one ``G1 X.. S..`` per pixel (M4: power follows
     speed)."""
     lines = ["; chaos-station laser job: raster", "G21", "G90", "M4 S0", "G0 X20 Y20", f"F{feed:g}"]
@@ -133,7 +132,12 @@ def run_on_firmware(exe: Path, lines: list[str], settings: dict[int, float], las
         steps = Path(folder) / "steps.txt"
         with grbl_firmware.firmware(exe, steps=steps) as port:
             grbl_firmware.configure(port, settings)
-            with GrblConnection(port) as conn, grbl_firmware.stall_guard(conn) as restarts:
+            # a slow simulation reads the serial line at its own (simulated) baud rate: the replies take longer in
+            # wall time, and the driver's watchdogs must wait as long
+            slow = 1.0 / grbl_firmware.TIME_FACTOR
+            with GrblConnection(port, poll_interval=0.05 * slow, silence_timeout=0.7 * slow,
+                                lost_ok_timeout=1.5 * slow, banner_timeout=3.0 * slow,
+                                reply_timeout=10.0 * slow) as conn, grbl_firmware.stall_guard(conn) as restarts:
                 result = JobRunner(conn, Job("bench", lines, laser=laser, pen_up=pen_up)).run()
         return firmware_motion_seconds(steps), len(restarts), f"{result.state}: {result.message}"
 

@@ -154,7 +154,8 @@ def configure(port: str, settings: dict[int, float]) -> None:
                 data += link.read(4096)
             return data
 
-        read_until((b"['$' for help]\r\n",), 15.0, "switching on")
+        # GRBL waits a simulated second before it reads: a slower simulation takes longer in wall time
+        read_until((b"['$' for help]\r\n",), max(15.0, 4.0 / TIME_FACTOR), "switching on")
         time.sleep(0.3)
         link.read(65536)
         for key, value in settings.items():
@@ -163,7 +164,7 @@ def configure(port: str, settings: dict[int, float]) -> None:
             if b"ok" not in reply:
                 raise SystemExit(f"grbl-sim: ${key}={value:g} -> {reply!r}")
         link.write(b"\x18")  # settings in force; a reset keeps the state
-        read_until((b"['$' for help]\r\n",), 5.0, "a reset")
+        read_until((b"['$' for help]\r\n",), max(5.0, 2.0 / TIME_FACTOR), "a reset")
 
 
 @contextlib.contextmanager

@@ -22,6 +22,7 @@ laser burns).
 
 from __future__ import annotations
 
+import contextlib
 import itertools
 import json
 import math
@@ -41,7 +42,7 @@ from station.services.errors import ServiceError
 __all__ = ["MARK_SIZES", "SIM_BED_CAMERA", "BedCalibration", "BedRegistration", "bed_camera", "bed_file",
            "bed_picture", "calibrate_bed", "default_mark_area", "find_marks", "find_stock", "job_outline",
            "load_registration", "mark_positions", "marks_job", "placement_on_stock", "register_bed",
-           "save_registration"]
+           "save_registration", "BedPlacement"]
 
 #: The edge of each registration mark (mm), in the order of the area's corners: lower-left, lower-right,
 #: upper-right, upper-left. Their areas differ by a third or more: the camera tells them apart by size.
@@ -349,12 +350,14 @@ class BedCalibration:
 def calibrate_bed(*, laser: str | None = None, port: str | None = None, camera: str | None = None,
                   image: str | Path | np.ndarray | None = None, area: Sequence[float] | None = None,
                   engrave: bool = True, power: float = 0.3, feed: float | None = None,
-                  progress: ProgressCallback | None = None) -> BedCalibration:
+                  progress: ProgressCallback | None = None, connection=None) -> BedCalibration:
     """Engrave the marks (unless ``engrave`` is False: they are there already), grab a frame (or read ``image``),
     register the bed and save it under the laser's name.
 
     ``laser`` is a configured laser's name (default the first), ``port`` another URL for it; ``power`` a fraction
     of the laser's maximum, ``feed`` mm/min (default the profile's engrave feed of its first material, else 3000).
+    ``connection``: the laser's open :class:`drivers.grbl.GrblConnection` (the Machines screen's), else one is
+    opened.
     """
     from drivers.grbl import GrblConnection, Job, JobRunner
     from station.devices import machine_profile
@@ -377,7 +380,9 @@ def calibrate_bed(*, laser: str | None = None, port: str | None = None, camera: 
     engrave_feed = feed or (materials[0].engrave.feed if materials else 3000.0)
     kerf = materials[0].kerf if materials and getattr(materials[0], "kerf", None) else 0.15
     max_power = profile.laser.max_power if profile.laser else 1000.0
-    with GrblConnection(url, profile.baud or 115200) as conn:
+    opened = contextlib.nullcontext(connection) if connection is not None else GrblConnection(
+        url, profile.baud or 115200)
+    with opened as conn:
         if engrave:
             lines = marks_job(marks_work, power=power * max_power, feed=engrave_feed, kerf=kerf)
             say("engrave", f"engraving the four marks on {device.name}")
@@ -550,3 +555,73 @@ def placed_outline_machine(lines: Sequence[str], placement: Placement, work_offs
         raise ServiceError(f"job: {error}", field="job") from None
     offset = np.asarray(work_offset[:2], dtype=float)
     return [p + offset for p in paths]
+
+
+# ----------------------------------------------------------------------------------------------------------- session
+
+
+@dataclass
+class BedPlacement:
+    """A job being placed on the bed by camera (the Machines screen's placement): the registration, the last frame,
+    the job's lines, the machine's work offset and the placement so far."""
+
+    registration: BedRegistration
+    lines: list[str]
+    work_offset: tuple[float, float, float]
+    travel: tuple | None = None  # ((x0, y0), (x1, y1)) machine mm
+    placement: Placement = field(default_factory=Placement)
+    frame: np.ndarray | None = None
+    stock: np.ndarray | None = None
+
+    def __post_init__(self) -> None:
+        outline = job_outline(self.lines)
+        points = np.concatenate(outline) if outline else np.zeros((1, 2))
+        #: The job's own lower-left corner and centre (work mm, unplaced).
+        self.lower_left = points.min(axis=0)
+        self.centre = (points.min(axis=0) + points.max(axis=0)) / 2.0
+
+    def see(self, frame: np.ndarray) -> None:
+        """A new frame: the stock is looked for in it."""
+        self.frame = frame
+        self.stock = find_stock(frame, self.registration)
+
+    def move(self, dx: float, dy: float) -> None:
+        p = self.placement
+        self.placement = Placement(p.x + dx, p.y + dy, p.angle)
+
+    def turn(self, degrees: float) -> None:
+        """Turn the job about its own centre (where it lies stays where it is)."""
+        p = self.placement
+        centre = np.array(p.apply(*self.centre))
+        turned = Placement(0.0, 0.0, p.angle + degrees)
+        offset = centre - np.array(turned.apply(*self.centre))
+        self.placement = Placement(float(offset[0]), float(offset[1]), (p.angle + degrees) % 360.0)
+
+    def snap(self, margin: float = 5.0) -> bool:
+        """Put the job on the stock found (its lower-left corner ``margin`` inside the stock's); False: no stock."""
+        if self.stock is None:
+            return False
+        self.placement = placement_on_stock(self.stock, self.work_offset, self.lower_left, margin)
+        return True
+
+    def placed_lines(self) -> list[str]:
+        return place_lines(self.lines, self.placement)
+
+    def picture(self) -> np.ndarray:
+        """The frame with the placed outline, the stock and the travel drawn, cropped to the travel (or the frame)."""
+        outline = placed_outline_machine(self.lines, self.placement, self.work_offset)
+        picture = bed_picture(self.frame, self.registration, outline, stock_mm=self.stock, travel_mm=self.travel)
+        if self.travel is None:
+            return picture
+        (x0, y0), (x1, y1) = self.travel
+        corners = self.registration.to_pixels(np.array([[x0, y0], [x1, y0], [x1, y1], [x0, y1]]))
+        h, w = picture.shape[:2]
+        left, top = (max(0, int(v) - 10) for v in corners.min(axis=0))
+        right, bottom = int(min(w, corners[:, 0].max() + 10)), int(min(h, corners[:, 1].max() + 10))
+        return picture[top:bottom, left:right] if right - left > 10 and bottom - top > 10 else picture
+
+    def describe(self) -> str:
+        p = self.placement
+        stock = "stock found" if self.stock is not None else "no stock found"
+        return (f"placed at X {p.x:.1f} Y {p.y:.1f} mm, turned {p.angle:.1f} deg; {stock}; bed residual "
+                f"{self.registration.residual_rms_mm:.2f} mm")

@@ -59,6 +59,7 @@ class JobVerification:
     within_travel: bool = True
     alarms: tuple[int, ...] = ()
     outline: tuple[tuple[tuple[float, float], ...], ...] = field(default=(), compare=False)
+    block_seconds: tuple[float, ...] = field(default=(), compare=False)  # per executed block, GRBL's planner
 
     @property
     def ok(self) -> bool:
@@ -182,7 +183,7 @@ def verify_job(lines: Sequence[str], *, name: str = "job", profile: MachineProfi
         travel_mm=float(lengths[rapid].sum()) if executed else 0.0, lit_travels=lit, laser=laser_machine,
         extent_lo=extent_lo, extent_hi=extent_hi, bounds_lo=tuple(map(float, bounds[0])),
         bounds_hi=tuple(map(float, bounds[1])), homing=homing, within_travel=within,
-        alarms=tuple(record.alarms), outline=outline)
+        alarms=tuple(record.alarms), outline=outline, block_seconds=tuple(map(float, planned.seconds)))
 
 
 def _outline(executed) -> tuple:
