@@ -27,6 +27,9 @@ async def test_a_job_is_placed_on_the_stock_and_queued_where_it_lies(tmp_path):
         assert "no queued job" in screen.last_message or "no queued job" in str(
             screen.query_one("#message").render())
         screen.queue_job("laser", RECTANGLE, title="rectangle")
+        await pilot.press("e")  # the job as it is, on the twin
+        await _until(pilot, lambda: screen.last_message.startswith("verify rectangle"), 120)
+        assert "laser dark on every travel" in screen.last_message
         await pilot.press("b")
         await _until(pilot, lambda: isinstance(app.screen, BedPlacementScreen))
         placing = app.screen

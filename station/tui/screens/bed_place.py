@@ -267,3 +267,34 @@ def open_bed_placement(machines) -> None:
         machines._say("no queued job for the laser to place")
         return
     machines.app.push_screen(BedPlacementScreen(machines, entry, device, conn, machines.profile_for(device)))
+
+
+def verify_next_job(machines) -> None:
+    """Run the Machines screen's next job on the twin of its machine at virtual time (its settings and work offset
+    when connected) and say what it found: the time with acceleration, the laser dark on travels, the travel."""
+    device = machines.device
+    entry = machines.next_job()
+    if device is None or entry is None:
+        machines._say("no queued job for this device to verify")
+        return
+    conn = machines.connection()
+    try:
+        profile = machines.profile_for(device)
+    except StationError as error:
+        machines._say(f"cannot verify: {error}", "red")
+        return
+    machines._say(f"running {entry.title!r} on the twin of {device.name}...")
+
+    def run() -> None:
+        settings = ({k: float(v) for k, v in conn.settings.items() if isinstance(k, int)}
+                    if conn is not None else None)
+        try:
+            done = verify_job(entry.job.lines, name=entry.title, profile=profile, laser=entry.job.laser,
+                              settings=settings, work_offset=conn.work_offset() if conn is not None else None)
+        except (DriverError, StationError, OSError) as error:
+            machines.app.call_from_thread(machines._say, f"cannot verify {entry.title!r}: {error}", "red")
+            return
+        text = " · ".join(line.strip() for line in verify_summary(done))
+        machines.app.call_from_thread(machines._say, text, "green" if done.ok else "red")
+
+    machines.run_worker(run, thread=True, group="verify", exclusive=True)

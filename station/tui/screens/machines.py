@@ -12,7 +12,7 @@ states are a :class:`station.services.job_queue.JobQueue`, and the panels are wi
 Keys: c connect/disconnect · v switch device · h home · u unlock · arrows jog X/Y, PgUp/PgDn jog Z, [ ] step ·
 f frame · y dry run · g start · p hold · r resume · ctrl+x abort (always works, even in the console) · a abort ·
 + / - / = feed override · n plot the current design · b place the next laser job on the stock by camera ·
-: console.
+e run the next job on the twin (time with acceleration, dark travels, travel) · : console.
 
 A multi-pen plot (``station plot`` with several patterns or an SVG) shows its layers in their pens' colours with
 each layer's time estimate; at a pen change the job pauses, the screen says which pen to put in, and r resumes.
@@ -44,7 +44,7 @@ from station.joblog import JobLog
 from station.services.job_queue import JobMode, JobQueue, JobState, QueuedJob, frame_job
 from station.services.plot import format_minutes, job_layers
 from station.tui.registry import MachineDesign, ScreenEntry
-from station.tui.screens.bed_place import open_bed_placement
+from station.tui.screens.bed_place import open_bed_placement, verify_next_job
 from station.tui.widgets.machines_console import MachineConsole
 from station.tui.widgets.machines_preview import JobPreview
 from station.tui.widgets.machines_status import JobProgressRow, JobQueueTable, MachineStatus
@@ -109,6 +109,7 @@ class MachinesScreen(Screen):
         Binding("u", "unlock", "Unlock"),
         Binding("n", "plot_design", "Plot design"),
         Binding("b", "place_on_bed", "Place on bed"),
+        Binding("e", "verify_job", "Verify on twin"),
         Binding("colon", "console", "Console"),
         Binding("o", "open_job", "Open job"),
         # "jog(-1, 0, 0)" ...: the tuple's own text is the action's arguments
@@ -605,6 +606,10 @@ class MachinesScreen(Screen):
         except (DriverError, OSError) as error:
             self._from_thread(self._say, f"{line}: {error}", "red")
         self._from_thread(self._render_status)
+
+    def action_verify_job(self) -> None:
+        """The next job run on the machine's twin at virtual time (station.tui.screens.bed_place)."""
+        verify_next_job(self)
 
     def action_place_on_bed(self) -> None:
         """The next laser job placed on the stock by camera (station.tui.screens.bed_place)."""
