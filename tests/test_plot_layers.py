@@ -249,3 +249,35 @@ def test_a_bad_pen_change_macro_in_a_profile_is_refused(tmp_path):
     bad.write_text(text.replace('change = ["G0 X0 Y0", "M0"]', 'change = ["G0 X0 Y0", "M30"]'))
     with pytest.raises(ProfileError, match=r"\[pen\]\.change: 'M30' ends the program"):
         load_profile(str(bad))
+
+
+def test_a_hold_the_maker_asks_for_is_not_a_pause_of_the_program():
+    import time
+
+    from drivers.grbl import GrblConnection, Job, JobRunner
+
+    lines = ["G21 G90 G94", "M3 S50", "G0 X10 Y10", *(f"G1 X{10 + i} Y10 F300" for i in range(1, 21)), "M0",
+             "G1 X10 Y20"]
+    seen: list[str] = []
+    with GrblConnection("sim://grbl?profile=plotter&clock=virtual&pace=3") as conn:
+        runner = JobRunner(conn, Job("pause", lines), on_progress=lambda p: seen.append(p.state))
+        runner.start()
+        deadline = time.monotonic() + 60  # a liveness guard: the machine runs on the virtual clock
+
+        def until(predicate) -> None:
+            while not predicate():
+                assert time.monotonic() < deadline, "condition not reached in time"
+                time.sleep(0.02)
+
+        until(lambda: runner.progress.lines_acked > 4)
+        runner.hold()
+        until(lambda: conn.status is not None and conn.status.label == "Hold:0")
+        time.sleep(0.3)  # status reports keep coming while held
+        assert runner.progress.state == "holding" and runner.pause_line is None
+        runner.resume()
+        until(lambda: runner.progress.state == "paused")
+        assert runner.pause_line == lines.index("M0")
+        assert runner.progress.message == f"program pause (M0) at line {lines.index('M0') + 1}"
+        runner.resume()
+        assert runner.wait(60).state == "done"
+    assert "paused" in seen  # told to whoever draws the progress
