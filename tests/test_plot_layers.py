@@ -196,6 +196,19 @@ def test_station_plot_an_svg_alone_with_a_preview(tmp_path, capsys):
     assert green.sum() > 1000 and red.sum() == 0  # the frame in its colour; the hidden red layer nowhere
 
 
+def test_a_pattern_at_a_scale_keeps_its_size_in_mm_per_unit():
+    from design.machines import get_machine
+
+    model = get_machine("spirograph")
+    curve = model.sample(model.validate({}), n=512, spacing="arclength")
+    composition = plot_service.Composition([plot_service.PatternSource("spirograph", {}, scale=6.0, points=512,
+                                                                       offset=(10.0, -5.0))])
+    document = plot_service.compose(composition, load_profile("plotter"), sample=_sample)
+    lo, hi = plot_service._bounds(document.layers[0].polylines)
+    assert np.allclose(hi - lo, 6.0 * np.ptp(curve, axis=0), atol=1e-9)
+    assert np.allclose((lo + hi) / 2, [297 / 2 + 10, 210 / 2 - 5], atol=1e-9)
+
+
 def test_several_designs_make_one_layer_each(tmp_path, capsys):
     design = tmp_path / "d.json"
     design.write_text(json.dumps({"machine": "spirograph", "params": {"d": 1.0}}))
@@ -215,6 +228,8 @@ def test_several_designs_make_one_layer_each(tmp_path, capsys):
     ("[[layers]]\nname = 'a'\ncolor = 'red'\n[[svg]]\nfile = 'frame.svg'\n",
      "layers[1].color: expected a colour as #rrggbb, got 'red'"),
     ("", "nothing to plot"),
+    ("[[patterns]]\nmachine = 'spirograph'\nsize = 50\nscale = 2\n", "patterns[1]: give size (mm, its largest side) "
+     "or scale (mm per unit), not both"),
 ])
 def test_a_bad_composition_is_one_line_naming_the_file_and_field(tmp_path, capsys, text, words):
     shutil.copy(EXAMPLES / "frame.svg", tmp_path / "frame.svg")

@@ -69,7 +69,8 @@ MAX_SVG_BYTES = 20_000_000
 #: How close (mm) two path ends are to be merged into one path (vpype linemerge's default).
 MERGE_TOLERANCE = 0.05
 
-COMPOSITION = ("a plot composition: [[patterns]] (machine, design, set, size, offset, rotation, layer), [[svg]] "
+COMPOSITION = ("a plot composition: [[patterns]] (machine, design, set, size or scale, offset, rotation, layer), "
+               "[[svg]] "
                "(file, by, scale, offset, rotation, layer) and [[layers]] (name, pen, color, width, feed)")
 
 
@@ -89,9 +90,10 @@ class PenSpec:
 
 @dataclass(frozen=True)
 class PatternSource:
-    """A drawing-machine pattern placed on the paper: ``size`` its largest side in mm (None: the largest that fits
-    the drawable area), ``offset`` its centre from the paper's centre (mm), ``rotation`` degrees counter-clockwise,
-    ``layer`` the plot layer it is drawn on (None: a layer of its own, named after ``label``)."""
+    """A drawing-machine pattern placed on the paper: ``size`` its largest side in mm, or ``scale`` mm per unit of
+    the machine's lengths (gear radii: a pattern keeps its size against another of the same machine; neither: the
+    largest that fits the drawable area), ``offset`` its centre from the paper's centre (mm), ``rotation`` degrees
+    counter-clockwise, ``layer`` the plot layer it is drawn on (None: a layer of its own, named after ``label``)."""
 
     machine: str
     params: dict[str, Any] = field(default_factory=dict)
@@ -102,6 +104,7 @@ class PatternSource:
     points: int = 4096
     label: str = ""
     polyline: np.ndarray | None = None  # the pattern's points when already sampled (a `station pattern` file)
+    scale: float | None = None
 
 
 @dataclass(frozen=True)
@@ -279,7 +282,9 @@ def load_composition(path: str | Path, load_design: Callable[[Path, str], dict] 
             "layer": _text(table["layer"], f"{where}.layer") if "layer" in table else None,
         }
         if kind == "patterns":
-            _keys(table, {"machine", "design", "set", "size", "offset", "rotation", "layer", "points"}, where)
+            _keys(table, {"machine", "design", "set", "size", "scale", "offset", "rotation", "layer", "points"}, where)
+            if "size" in table and "scale" in table:
+                raise ServiceError(f"{where}: give size (mm, its largest side) or scale (mm per unit), not both")
             machine = _text(table.get("machine"), f"{where}.machine")
             params: dict[str, Any] = {}
             if "design" in table:
@@ -297,6 +302,7 @@ def load_composition(path: str | Path, load_design: Callable[[Path, str], dict] 
             composition.sources.append(PatternSource(
                 machine=machine, params=params, points=points, label=machine,
                 size=_number(table["size"], f"{where}.size", positive=True) if "size" in table else None,
+                scale=_number(table["scale"], f"{where}.scale", positive=True) if "scale" in table else None,
                 **placement))
         else:
             _keys(table, {"file", "by", "scale", "offset", "rotation", "layer"}, where)
@@ -449,9 +455,9 @@ def compose(composition: Composition, profile: MachineProfile,
         if isinstance(source, PatternSource):
             what = f"pattern {k} ({source.label or source.machine})"
             points = source.polyline if source.polyline is not None else sample(source)
-            placed = _place([np.asarray(points, dtype=float)], None, source.size, source.offset, source.rotation,
-                            box, what)
-            _check_inside(placed, box, what, "size")
+            placed = _place([np.asarray(points, dtype=float)], source.scale, source.size, source.offset,
+                            source.rotation, box, what)
+            _check_inside(placed, box, what, "scale" if source.scale is not None else "size")
             base = source.layer or source.label or source.machine
             name = base
             if source.layer is None:
