@@ -121,7 +121,9 @@ def register(subparsers) -> None:
         "the job's size and the way from the head to it against $130-$132. Laser jobs need laser mode ($32=1) and "
         "always end with M5 S0; on a machine without homing, a laser job is offered its frame first when run from a "
         "terminal. Ctrl-C, kill -INT or kill abort the job (soft reset, laser off) and end it as interrupted with the "
-        "line to resume from (exit 130), even when started with SIGINT ignored.",
+        "line to resume from (exit 130), even when started with SIGINT ignored. At a program pause (M0: a multi-pen "
+        "plot's pen change) it says which pen to put in and waits for Enter (a line on standard input; at its end the "
+        "job is stopped there).",
         epilog='example: station send spiro.gcode --port "sim://grbl?profile=plotter&time_scale=0.01"',
     )
     send.add_argument("job", metavar="JOB.gcode", help="the G-code file to stream (from `station plot` or "
