@@ -32,7 +32,8 @@ from calibration.measure import detected_corners
 from design.fabrication.lasercard import CardManifest
 from projector.detection import detect_tags
 
-__all__ = ["CardReading", "CellReading", "SlotReading", "read_card", "MIN_FRAME_PX_PER_MM", "RECTIFIED_PX_PER_MM"]
+__all__ = ["CardReading", "CellReading", "SlotReading", "read_card", "MIN_FRAME_PX_PER_MM", "RECTIFIED_PX_PER_MM",
+           "SOFT_EDGE_MM"]
 
 RECTIFIED_PX_PER_MM = 20.0
 MARGIN_MM = 4.0
@@ -44,6 +45,9 @@ MIN_FRAME_PX_PER_MM = 12.0
 #: cut, when it is narrower than the blur, pulls the edges (the twins' campaign, docs/results: at 12 px/mm and more,
 #: up to 0.1 pixel on plywood and MDF, 0.3 on card, whose cuts char less).
 EDGE_PX = 0.25
+#: Comb edges wider than this (mm, from a quarter to three quarters of the way down) come from a soft photo: the
+#: kerf then reads wide, by 0.02-0.05 mm at 0.12-0.17 mm on the twins (docs/results).
+SOFT_EDGE_MM = 0.09
 
 
 @dataclass(frozen=True)
@@ -72,6 +76,7 @@ class SlotReading:
     nominal_mm: float
     opening_mm: float | None
     kerf_mm: float | None
+    edge_mm: float | None = None    # how wide its edges look: from a quarter to three quarters of the way down
 
 
 @dataclass(frozen=True)
@@ -89,6 +94,7 @@ class CardReading:
     kerf_uncertainty_mm: float | None
     rectified: np.ndarray           # RGB uint8, card + margin at RECTIFIED_PX_PER_MM
     frame_px_per_mm: float = float("nan")  # the frame's pixels per card millimetre at the card's centre
+    edge_px: float = float("nan")   # how wide the comb's edges look in frame pixels (a soft photo's are wide)
     margin_mm: float = MARGIN_MM
     px_per_mm: float = RECTIFIED_PX_PER_MM
 
@@ -159,8 +165,15 @@ def _slot(card: _Card, rect, nominal: float, light: float, wood: float, char: fl
     right = _crossing(profile, middle, +1, 0.5 * (plateau + min(dark_right, char)))
     if left is None or right is None:
         return SlotReading(nominal, None, None)
+    widths = []
+    for step, dark in ((-1, dark_left), (+1, dark_right)):
+        upper = _crossing(profile, middle, step, plateau - 0.25 * (plateau - dark))
+        lower = _crossing(profile, middle, step, plateau - 0.75 * (plateau - dark))
+        if upper is not None and lower is not None:
+            widths.append(abs(lower - upper) / card.px)
     opening = (right - left) / card.px
-    return SlotReading(nominal, round(opening, 4), round(opening - nominal, 4))
+    return SlotReading(nominal, round(opening, 4), round(opening - nominal, 4),
+                       round(float(np.mean(widths)), 4) if widths else None)
 
 
 def _line_through(band: np.ndarray, centre: int, contrast: float) -> np.ndarray:
@@ -272,5 +285,7 @@ def read_card(image: np.ndarray, manifest: CardManifest, *, px_per_mm: float = R
         kerf, kerf_u = round(float(kerfs.mean()), 4), round(uncertainty, 4)
     else:
         kerf, kerf_u = None, None
+    edges = [s.edge_mm for s in slots if s.edge_mm is not None]
+    edge_px = float(np.median(edges)) * scale if edges else float("nan")
     return CardReading(tuple(ids), round(residual, 4), homography, round(light, 1), round(wood, 1), cells, slots,
-                       kerf, kerf_u, rect_rgb, round(scale, 2))
+                       kerf, kerf_u, rect_rgb, round(scale, 2), round(edge_px, 2))

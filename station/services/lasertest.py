@@ -20,7 +20,7 @@ from typing import Any
 import numpy as np
 from PIL import Image, ImageDraw, ImageFont
 
-from calibration.lasercard import MIN_FRAME_PX_PER_MM, CardReading, read_card
+from calibration.lasercard import MIN_FRAME_PX_PER_MM, SOFT_EDGE_MM, CardReading, read_card
 from common.datafiles import load_json
 from design.fabrication.lasercard import (
     Card,
@@ -315,6 +315,10 @@ class MaterialMeasurement:
         if self.reading.frame_px_per_mm < MIN_FRAME_PX_PER_MM:
             notes.append(f"the card is {self.reading.frame_px_per_mm:.1f} px per mm in the frame: below "
                          f"{MIN_FRAME_PX_PER_MM:g} the kerf may read up to 0.02 mm wide; photograph it closer")
+        edges = [s.edge_mm for s in self.reading.slots if s.edge_mm is not None]
+        if edges and float(np.median(edges)) > SOFT_EDGE_MM:
+            notes.append(f"the comb's edges look soft ({float(np.median(edges)):.2f} mm from light to dark): the kerf "
+                         "may read 0.02-0.05 mm wide; photograph it sharper or closer")
         if len(self.reading.tags_found) < 4:
             notes.append(f"{len(self.reading.tags_found)} of the 4 reference tags found: the card's plane is less "
                          "sure")
@@ -330,12 +334,13 @@ class MaterialMeasurement:
             "card": self.manifest.source, "frame": self.frame_source, "material": self.manifest.material,
             "profile": self.manifest.profile,
             "tags_found": list(r.tags_found), "tag_fit_mm": r.residual_mm, "frame_px_per_mm": r.frame_px_per_mm,
+            "edge_px": r.edge_px,
             "warnings": self.warnings(),
             "levels": {"under_card": r.light_level, "wood": r.wood_level},
             "kerf_mm": r.kerf_mm, "kerf_uncertainty_mm": r.kerf_uncertainty_mm,
             "kerf_settings": settings(self.manifest.comb),
-            "slots": [{"nominal_width_mm": s.nominal_mm, "opening_mm": s.opening_mm, "kerf_mm": s.kerf_mm}
-                      for s in r.slots],
+            "slots": [{"nominal_width_mm": s.nominal_mm, "opening_mm": s.opening_mm, "kerf_mm": s.kerf_mm,
+                       "edge_mm": s.edge_mm} for s in r.slots],
             "cells": [{"name": x.name, "power": x.power, "feed_mm_min": x.feed, "darkness": x.darkness,
                        "darkness_spread": x.darkness_spread, "square_through": x.square_through,
                        "cut_through": x.through, "cut_through_share": x.through_share,
