@@ -144,7 +144,7 @@ class SimulatedCamera:
                 from drivers.sim.protocol_sim import machine_named
 
                 laser = self.laser_machine or (machine_named(self.bed_view.laser) if self.bed_view.laser else None)
-                burns = burns_of(laser)
+                burns = burns_of(laser, self.bed_view.since)
                 scene = replace(scene, images=scene.images + self.bed_view.items(burns), background=BED_COLOR)
             options = replace(self.options, seed=(self.options.seed + self.frames_grabbed) % 2**32)
             image, truth = render(scene, self._model, options)

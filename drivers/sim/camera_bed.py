@@ -36,6 +36,8 @@ class BedView:
     bed: tuple[float, float, float] = (0.0, 0.0, 0.0)
     stock: tuple[float, float, float, float, float] | None = None
     kerf: float = 0.15
+    #: Blocks the laser ran before this sheet was laid on the bed (their burns are on another sheet).
+    since: int = 0
 
     def plane_from_machine(self, points) -> np.ndarray:
         """Machine ``(n, 2)`` mm -> plane (u, v) mm."""
@@ -90,10 +92,11 @@ class BedView:
         return math.cos(angle), math.sin(angle)
 
 
-def burns_of(machine) -> list[tuple[np.ndarray, np.ndarray]]:
-    """The feed moves a simulated GRBL ran with the laser on: ``[(start, end)]`` machine XY mm."""
+def burns_of(machine, since: int = 0) -> list[tuple[np.ndarray, np.ndarray]]:
+    """The feed moves a simulated GRBL ran with the laser on (from its ``since``-th block): ``[(start, end)]``
+    machine XY mm."""
     if machine is None:
         return []
     record = machine.snapshot()
-    return [(np.array(b.start[:2]), np.array(b.end[:2])) for b in record.executed
+    return [(np.array(b.start[:2]), np.array(b.end[:2])) for b in record.executed[since:]
             if b.power > 0 and not b.rapid and not b.jog]
