@@ -101,3 +101,19 @@ def test_a_frame_without_the_marks_is_refused_in_one_line(twins):
         frame = camera.grab()  # nothing engraved yet
     with pytest.raises(bed.ServiceError, match="found 0 dark square"):
         bed.register_bed(frame, bed.mark_positions((130, 150, 270, 250)))
+
+
+@pytest.mark.parametrize(("option", "expected"), [
+    ("stock=1,2,3", "sim camera option stock: expected u,v,w,h,angle (mm, degrees), w and h > 0, got '1,2,3'"),
+    ("stock=0,0,-5,10,0", "sim camera option stock: expected u,v,w,h,angle (mm, degrees), w and h > 0, got "
+     "'0,0,-5,10,0'"),
+    ("bed=1,x,0", "sim camera option bed: expected u,v,angle (mm, mm, degrees), got '1,x,0'"),
+    ("kerf=0", "kerf"),
+])
+def test_the_simulated_bed_camera_refuses_bad_options_in_one_line(option, expected):
+    from drivers.errors import SimConfigError
+    from drivers.sim.camera import SimulatedCamera
+
+    with pytest.raises(SimConfigError) as error:
+        SimulatedCamera(f"sim://camera?{option}")
+    assert expected in str(error.value) and "\n" not in str(error.value)

@@ -158,6 +158,7 @@ MISSING_FILE = {
     ("calibrate", "board"): None,
     ("calibrate", "camera"): ["calibrate", "camera", "--images", "missing.d", "--out", "OUT.json"],
     ("calibrate", "plane"): ["calibrate", "plane", "--image", "missing.png"],
+    ("calibrate", "bed"): ["calibrate", "bed", "--image", "missing.png", "--out", "OUT.png"],
     ("serve",): None,  # reads no file; its --cert/--key refusals are tests/test_serve.py's
     ("calibrate", "sim"): ["calibrate", "sim", "simple", "--trials-json", "missing.json"],
     ("calibrate", "projector"): ["calibrate", "projector", "--camera", "sim://camera", "--projector",

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import argparse
 import sys
+from pathlib import Path
 
 import numpy as np
 
@@ -64,6 +65,8 @@ def run_bed(args) -> int:
     out = check_output_file(args.out, {".png"}, "--out") if args.out is not None else None
     if args.image is not None and args.camera is not None:
         raise UsageError("give --image FRAME or --camera URL, not both")
+    if args.image is not None and not Path(args.image).is_file():  # before the laser is asked for anything
+        raise UsageError(f"--image {args.image!r}: no such file; expected a frame of the engraved marks")
 
     try:
         with ProgressView(sys.stderr, prefix="calibrate bed: ") as view:
