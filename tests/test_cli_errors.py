@@ -159,6 +159,10 @@ MISSING_FILE = {
     ("calibrate", "camera"): ["calibrate", "camera", "--images", "missing.d", "--out", "OUT.json"],
     ("calibrate", "plane"): ["calibrate", "plane", "--image", "missing.png"],
     ("calibrate", "bed"): ["calibrate", "bed", "--image", "missing.png", "--out", "OUT.png"],
+    ("calibrate", "material"): ["calibrate", "material", "--card", "missing.json", "--image", "missing.png"],
+    ("lasertest", "card"): ["lasertest", "card", "--profile", "missing.toml", "--material", "plywood_3mm", "--out",
+                            "OUT"],
+    ("lasertest", "render"): ["lasertest", "render", "--card", "missing.json", "--out", "OUT.png"],
     ("serve",): None,  # reads no file; its --cert/--key refusals are tests/test_serve.py's
     ("calibrate", "sim"): ["calibrate", "sim", "simple", "--trials-json", "missing.json"],
     ("calibrate", "projector"): ["calibrate", "projector", "--camera", "sim://camera", "--projector",

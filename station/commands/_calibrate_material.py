@@ -33,7 +33,7 @@ def add_material_parser(calibrate_subparsers) -> None:
         f"a profile file of yours only with --yes. --json prints {MATERIAL_JSON}.",
         epilog="examples:\n  station calibrate material --image card/frame.png --card card/card.json\n"
         "  station calibrate material --image card/frame.png --card card/card.json --darkness 0.5 --dry-run --json")
-    where = parser.add_mutually_exclusive_group(required=True)
+    where = parser.add_mutually_exclusive_group()
     where.add_argument("--image", metavar="FRAME", help="a photo of the card (png, jpg, ...)")
     where.add_argument("--camera", metavar="URL", help="grab the frame from this camera")
     parser.add_argument("--card", required=True, metavar="CARD.json", help="the card's manifest")
@@ -53,6 +53,8 @@ def add_material_parser(calibrate_subparsers) -> None:
 def run_material(args) -> int:
     from station.services import lasertest as service
 
+    if args.image is None and args.camera is None:
+        raise UsageError("give --image FRAME (a photo of the card) or --camera URL (grab one)")
     if args.darkness is not None and args.darkness >= 1:
         raise UsageError(f"--darkness {args.darkness:g}: expected a number between 0 and 1 (0 bare wood, 1 char)")
     report = args.report or str(Path(args.card).with_name("card-report.png"))

@@ -210,6 +210,7 @@ def test_calibrate_material_bad_input_is_one_line(tmp_path, capsys, station_home
         (["--image", str(blank), "--card", str(other)], "other.json.cells[0].cut_line_mm: expected two [x, y]"),
         (["--image", str(blank), "--card", str(card_json)], "found 0 of the card's reference tags"),
         (["--image", str(blank), "--card", str(card_json), "--darkness", "1.5"], "--darkness"),
+        (["--card", str(card_json)], "give --image FRAME (a photo of the card) or --camera URL"),
     ]
     for extra, expected in cases:
         assert expected in bad(["calibrate", "material", *extra], capsys)
