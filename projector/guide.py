@@ -362,6 +362,8 @@ class JigDrawing:
     tag_size_mm: float = 20.0
     tag_height_mm: float = 0.0
     tag_heading_deg: float = 0.0
+    #: A stand's second tag, engraved on its plate's face for the side camera (None: none).
+    face_tag_id: int | None = None
 
 
 @dataclass(frozen=True)
@@ -465,7 +467,7 @@ class Guide:
                                        "tag_heading_deg", "center_mm", "heading_deg"}],
                         "parameters": [{"name", "value", "unit", "meaning", "set_with", "role", "tolerance"}]}],
              "jigs": [{"id", "part", "kind", "parameters", "words", "footprint_mm": [[u, v], ...], "tag_id",
-                       "tag_center_mm", "tag_size_mm", "tag_height_mm", "tag_heading_deg"}]}
+                       "tag_center_mm", "tag_size_mm", "tag_height_mm", "tag_heading_deg", "face_tag_id"}]}
 
         ``outline_mm`` is a list of polygons, each its exterior ring (holes are not needed to place a part).
         ``parameters``: every design parameter that moves the part, ``value`` in ``unit`` (``"mm"`` or ``"deg"``),
@@ -495,7 +497,7 @@ class Guide:
                  "footprint_mm": _rings(j.footprint)[0] if not j.footprint.is_empty else [], "tag_id": j.tag_id,
                  "tag_center_mm": None if j.tag_center_mm is None else [*map(_r, j.tag_center_mm)],
                  "tag_size_mm": _r(j.tag_size_mm), "tag_height_mm": _r(j.tag_height_mm),
-                 "tag_heading_deg": _r(j.tag_heading_deg)}
+                 "tag_heading_deg": _r(j.tag_heading_deg), "face_tag_id": j.face_tag_id}
                 for j in self.jigs
             ],
         }

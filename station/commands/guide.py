@@ -17,7 +17,9 @@ JSON_SHAPE = ('{"scenario", "content_hash", "view", "units": "mm", "tolerance_so
               '"paper", "size_mm", "origin_mm"}], "reference_tags": [{"id", "center_mm", "size_mm"}], "parts": '
               '[{"name", "kind", "step", "tag_id", "center_mm", "heading_deg", "outline_mm", "care", "tolerances", '
               '"parameters": [{"name", "value", "unit", "meaning", "set_with", "role", "tolerance"}]}], "jigs": '
-              '[{"id", "part", "kind", "parameters", "words", "footprint_mm", "tag_id"}], "layout", "steps"}')
+              '[{"id", "part", "kind", "parameters", "words", "footprint_mm", "tag_id", "face_tag_id"}], "layout", '
+              '"steps", "side_board": {"line_v_mm", "center_u_mm", "paper", "sheet_mm", "reference_tags", "words"} '
+              'or null}')
 
 
 def register(subparsers) -> None:

@@ -14,7 +14,8 @@ from station.services.errors import ServiceError
 #: The ``--json`` contract (jigs.json), quoted in the help text; keep its names.
 JSON_SHAPE = ('{"scenario", "view", "units": "mm", "material", "thickness_mm", "kerf_mm", "sheet_mm", "jigs": [{"id", '
               '"kind", "part", "parameters", "tag_id", "thickness_mm", "outline_mm", "support_mm", "footprint_mm", '
-              '"words", ...}], "by_hand": [{"part", "parameters", "reason", "how", "set_with"}], "sheets"}')
+              '"words", "face_tag_id", ...}], "by_hand": [{"part", "parameters", "reason", "how", "set_with"}], '
+              '"sheets"}')
 
 
 def register(subparsers) -> None:

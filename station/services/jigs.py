@@ -168,7 +168,7 @@ def attach_jigs(job, planned: PlannedJigs):
     drawings = tuple(JigDrawing(id=j.id, part=j.part, kind=j.kind, footprint=j.footprint, parameters=j.parameters,
                                 words=j.words, tag_id=j.tag_id, tag_center_mm=j.tag_center_mm,
                                 tag_size_mm=j.tag_size_mm, tag_height_mm=j.tag_height_mm,
-                                tag_heading_deg=j.tag_heading_deg)
+                                tag_heading_deg=j.tag_heading_deg, face_tag_id=j.face_tag_id)
                      for j in plan.jigs)
     guide = with_jigs(guide, drawings)
     steps = jig_steps(steps_text(guide), guide, plan)
