@@ -236,3 +236,22 @@ def test_the_worlds_maker_is_told_the_side_cameras_heights_and_tilts():
     assert abs(move["parameters"]["track.z"] - 3.0) < 0.3 and abs(move["parameters"]["track.roll"] - 2.0) < 0.3
     small, _, _ = _check({"track.z": -0.0003})
     assert not [m for m in check_moves(small.to_json(), _simple().guide) if "parameters" in m]
+
+
+@pytest.mark.parametrize("scenario", ["simple", "causalityswitch_ball"])
+def test_a_stands_face_tag_is_on_its_plate_clear_of_the_slot_and_the_part(scenario):
+    from shapely.geometry import box
+
+    from station.services.guide import make_guide
+
+    job = make_guide(scenario, "success", tolerances=False, jigs=True)
+    (stand,) = [j for j in job.jigs.plan.jigs if j.kind == "stand"]
+    ids = {j.tag_id for j in job.jigs.plan.jigs} | {p.tag_id for p in job.guide.parts}
+    assert stand.face_tag_id is not None and stand.face_tag_id not in ids and 500 <= stand.face_tag_id < 579
+    x, y = stand.face_tag_center_mm
+    half = stand.face_tag_size_mm * 10 / 8 / 2  # with its white border
+    square = box(x - half, y - half, x + half, y + half)
+    assert stand.outline.contains(square)
+    assert y - half > stand.thickness_mm  # above the base's slot
+    assert not square.intersects(stand.silhouette)  # the part resting on the plate does not hide it
+    assert [t["id"] for t in job.manifest()["jigs"]] and job.manifest()["jigs"][0]["face_tag_id"] == stand.face_tag_id
