@@ -152,7 +152,8 @@ def loop_lines(summary) -> list[str]:
     lines.append(f"  layout placed: {choice}")
     lines.append(f"  corrections: {summary.check_rounds:.1f} per attempt after the first check")
     if summary.jigs:
-        lines.append("  jigs: cut on the laser, each part they set placed on its jig")
+        lines.append("  jigs: cut on the laser, each part one can carry set on it (each trial's notes name them, "
+                     "and the parts no jig can carry)")
     physics = summary.physics_name or "the scenario's values and ranges (before any trial)"
     lines.append(f"  physics: {physics}")
     return wrapped(lines) + physics_table(summary.physics)

@@ -666,6 +666,8 @@ class _Loop:
         note = f"station loop run {self.run_id}: " + (f"loop {k} attempt {a}" if k else f"baseline attempt {a}")
         if guide.jigs:
             note += f"; set on laser-cut jigs {', '.join(j.id for j in guide.jigs)}"
+        if job.jigs is not None and job.jigs.plan.by_hand:
+            note += "; no jig for " + ", ".join(f"`{b.part}` ({b.reason})" for b in job.jigs.plan.by_hand)
         if predicted is not None:
             note += f"; predicted physical success {predicted:.3f}"
         note += f"; {said.correction_words()}"
