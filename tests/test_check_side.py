@@ -255,3 +255,35 @@ def test_a_stands_face_tag_is_on_its_plate_clear_of_the_slot_and_the_part(scenar
     assert y - half > stand.thickness_mm  # above the base's slot
     assert not square.intersects(stand.silhouette)  # the part resting on the plate does not hide it
     assert [t["id"] for t in job.manifest()["jigs"]] and job.manifest()["jigs"][0]["face_tag_id"] == stand.face_tag_id
+
+
+def test_real_cameras_are_told_apart_by_the_board_they_see(tmp_path, capsys):
+    # two "real" cameras (video files through OpenCV's driver), given in the wrong order: the frames say which is which
+    import cv2
+
+    from station.services import calibrate
+
+    job = _simple()
+    board = side_board(job.guide)
+    targets = check_side.side_targets(job, board)
+    side, side_lens = check_side.side_frame(job, board, targets, SIDE_URL, offsets={"track": (0.0, -2.0, 0.0)})
+    top, top_lens = service.grab_frame("sim://camera?seed=2", job.guide)
+    assert check_side.view_of_frame(side, board) == "side" and check_side.view_of_frame(top, board) == "top"
+    clips = {}
+    for name, picture in (("front", side), ("overhead", top)):
+        clips[name] = tmp_path / f"{name}.avi"
+        writer = cv2.VideoWriter(str(clips[name]), cv2.VideoWriter_fourcc(*"MJPG"), 5, picture.shape[1::-1])
+        for _ in range(3):
+            writer.write(cv2.cvtColor(picture, cv2.COLOR_RGB2BGR))
+        writer.release()
+    # their calibrations as `station calibrate camera` keeps them: the first --camera is "camera", the second
+    # "camera-2"
+    for name, lens in (("camera", side_lens), ("camera-2", top_lens)):
+        calibrate.camera_file(name).parent.mkdir(parents=True, exist_ok=True)
+        calibrate.camera_file(name).write_text(json.dumps(lens.to_json()))
+    assert main(["check", "simple", "success", "--jigs", "--camera", str(clips["front"]), "--camera",
+                 str(clips["overhead"]), "--predict", "0", "--json"]) == 0
+    data = json.loads(capsys.readouterr().out)
+    assert [(v["view"], v["camera"]) for v in data["views"]] == [("top", "camera-2"), ("side", "camera")]
+    assert abs(data["side_parts"][0]["error"]["dv_mm"] + 2.0) < 0.3  # through MJPEG's compression
+    assert "guessed" not in (data["prediction_note"] or "")

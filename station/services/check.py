@@ -261,17 +261,19 @@ def grab_frame(url: str, guide, *, offsets=None, occluded: Sequence[int] = (), s
 
 
 def camera_frame(guide, *, image: str | Path | None = None, camera: str | None = None,
-                 intrinsics: str | Path | None = None, offsets=None, occluded: Sequence[int] = (), scene=None):
+                 intrinsics: str | Path | None = None, offsets=None, occluded: Sequence[int] = (), scene=None,
+                 name: str | None = None):
     """The frame to check and how to read it: ``(image, intrinsics, camera name, its last plane fix)``.
 
     From the file ``image``, else grabbed from ``camera`` (a URL; default the station's camera, ``station
     devices``). The intrinsics: the file ``intrinsics``, else the camera's saved calibration, else a simulated
     camera's own, else guessed (their ``notes`` say so). Offsets, covered tags and a ``scene`` (a simulated world's,
-    :mod:`station.services.world`) go to a simulated camera only.
+    :mod:`station.services.world`) go to a simulated camera only. ``name`` names the camera ``camera`` is (its saved
+    calibration and plane: a station.toml camera's name); default the station's camera's.
     """
     from station.services import calibrate
 
-    name, twin = calibrate.DEFAULT_CAMERA, None
+    name, twin = name or calibrate.DEFAULT_CAMERA, None
     if image is not None:
         if offsets or occluded:
             raise ServiceError("sim_offset: simulation offsets change a simulated camera's scene, not an image file",
@@ -425,6 +427,7 @@ def check_measurement(job, measurement, image: np.ndarray, intrinsics, *, simula
         views += ({"view": "side", "camera": side.camera, "plane": side.plane_json(),
                    "missing_reference_tags": list(side.measurement.missing_reference_ids),
                    "unknown_tags": list(side.measurement.unknown_ids)},)
+        notes.extend(f"side camera: {note}" for note in getattr(side.intrinsics, "notes", ()))
         if side.measurement.plane is None:
             notes.append("side view: too few board tags seen (missing "
                          f"{', '.join(map(str, side.measurement.missing_reference_ids))}): no height measured")

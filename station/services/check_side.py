@@ -22,7 +22,7 @@ import numpy as np
 
 from station.services.errors import ServiceError
 
-__all__ = ["SideView", "camera_view", "check_views", "measure_side", "merge_as_built", "side_overlay", "side_scene",
+__all__ = ["SideView", "check_views", "measure_side", "merge_as_built", "side_overlay", "side_scene",
            "side_targets", "view_of_frame"]
 
 
@@ -165,19 +165,14 @@ def _wrap(angle: float) -> float:
     return 180.0 if angle == -180.0 else angle
 
 
-def camera_view(camera) -> str:
-    """The plane a simulated camera looks at (its ``view=`` option); a real camera's is found from its frame."""
-    return getattr(camera, "view", "top")
-
-
 def view_of_frame(image, board) -> str:
     """``"side"`` when the frame shows at least two of the board's tags, else ``"top"`` (a real camera's view)."""
     from calibration.intrinsics import to_gray
-    from calibration.measure import _detector
+    from projector.detection import TagDetector
 
     if board is None:
         return "top"
-    seen = {t.tag_id for t in _detector(2.0).detect(to_gray(np.asarray(image)))}
+    seen = {t.tag_id for t in TagDetector(2.0, 2).detect(to_gray(np.asarray(image)))}
     return "side" if len(seen & {t.id for t in board.reference_tags}) >= 2 else "top"
 
 
@@ -301,7 +296,7 @@ def check_views(job, cameras: Sequence[tuple[str, str]], *, image=None, intrinsi
     for name, url in cameras:
         side = is_side_url(url)
         if side is None:  # a real camera: its frame says which board it faces
-            frames[url] = camera_frame(job.guide, camera=url, intrinsics=None)
+            frames[url] = camera_frame(job.guide, camera=url, name=name)
             side = view_of_frame(frames[url][0], board) == "side"
         (side_cameras if side else top_cameras).append((name, url))
     for view, found in (("top", top_cameras), ("side", side_cameras)):
@@ -322,7 +317,6 @@ def check_views(job, cameras: Sequence[tuple[str, str]], *, image=None, intrinsi
     side_view = None
     if side_cameras:
         name, url = side_cameras[0]
-        name = name if name != calibrate.DEFAULT_CAMERA else f"{name}-side"
         targets = side_targets(job, board)
         if url is None:  # a file
             from station.services.check import load_image
@@ -345,7 +339,7 @@ def check_views(job, cameras: Sequence[tuple[str, str]], *, image=None, intrinsi
         frame, lens, _, previous = frames[top_url]
     else:
         frame, lens, _, previous = camera_frame(job.guide, image=image, camera=top_url, intrinsics=intrinsics,
-                                                offsets=offsets, occluded=occluded)
+                                                offsets=offsets, occluded=occluded, name=top_name)
     result = check_frame(job, frame, lens, previous=previous, side=side_view, camera=top_name, **check)
     remember_plane(top_name, result)
     if side_view is not None and side_view.measurement.plane is not None:
