@@ -1,4 +1,4 @@
-"""Height and tilt accuracy of the side camera on the camera twin (issue 40's figures).
+"""Height and tilt accuracy of the side camera on the camera twin.
 
 The side camera 700 mm in front of the board (``sim://camera?view=side&height=700``), 1080p, f = 1400 px, blur
 0.8 px, noise 2 grey levels, JPEG 90; the board's four 40 mm tags; each jig stand's 20 mm face tag. Over seeded

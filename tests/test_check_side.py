@@ -1,4 +1,4 @@
-"""The side camera (issue 40): heights and tilts read on the board's plane through each jig stand's face tag.
+"""The side camera: heights and tilts read on the board's plane through each jig stand's face tag.
 
 The moved layouts are moved in their design parameters and the side scene placed by the scene graph
 (:func:`calibration.asbuilt.part_plane_pose` of the moved layout), so the check's own arithmetic is not what puts

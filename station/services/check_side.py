@@ -1,4 +1,4 @@
-"""The side camera of a table check: the board it faces, the tags it reads, what it measures (issue 40's second view).
+"""The side camera of a table check: the board it faces, the tags it reads, what it measures.
 
 Used by :mod:`station.services.check` (``station check --camera TOP --camera SIDE``) and the simulated world. The
 geometry is :mod:`projector.board` (where the reference board stands) and :mod:`calibration.side` (a tag on the
@@ -40,12 +40,10 @@ class SideView:
     intrinsics: object = None
 
     def plane_json(self) -> dict | None:
-        plane = self.measurement.plane
-        if plane is None:
-            return None
-        return {"residual_mm": round(float(plane.residual_mm), 3), "reference_ids": [int(i) for i in
-                                                                                    plane.reference_ids],
-                "moved_mm": None if plane.moved_mm is None else round(float(plane.moved_mm), 3)}
+        """The board's plane as CHECK.json's ``views`` give a plane (None when none was found)."""
+        from station.services.check import _plane_json
+
+        return _plane_json(self.measurement.plane)
 
 
 def side_targets(job, board) -> list:
