@@ -123,7 +123,8 @@ def check(folder: Path, limit: int | None = None) -> int:
         rows = data["layouts"][:limit] if limit else data["layouts"]
         old_steps = new_steps = 0
         for row in rows:
-            new = outcome(simulate(scenario, np.array(row["x"]), early_stop=True))
+            result = simulate(scenario, np.array(row["x"]), early_stop=True)
+            new = outcome(result)
             old_steps += row["steps"]
             new_steps += new["steps"]
             problems = compare(row, new, data["time_step"])

@@ -15,11 +15,12 @@
 
 from __future__ import annotations
 
+import functools
 import math
 
 import numpy as np
-from scipy.spatial.transform import Rotation
 
+from design.contraption.bullet import pybullet
 from design.contraption.model import EventSpec
 from design.contraption.world import World, world_label
 
@@ -27,14 +28,53 @@ from design.contraption.world import World, world_label
 CONTACT_DISTANCE = 2e-4
 
 
+def bound(client, name: str):
+    """pybullet's function ``name`` bound to ``client``'s connection, made once (a BulletClient makes a new partial
+    at every attribute access, a cost paid at every step by every awake event)."""
+    number = getattr(client, "_client", None)
+    if isinstance(number, int):
+        return functools.partial(getattr(pybullet, name), physicsClientId=number)
+    return getattr(client, name)
+
+
+def _unit(q) -> tuple[float, float, float, float]:
+    x, y, z, w = (float(v) for v in q)
+    norm = math.sqrt(x * x + y * y + z * z + w * w)
+    return x / norm, y / norm, z / norm, w / norm
+
+
+def _compose(p, q) -> tuple[float, float, float, float]:
+    """The quaternion ``p * q`` (x, y, z, w), as scipy's Rotation composes them."""
+    cross = (p[1] * q[2] - p[2] * q[1], p[2] * q[0] - p[0] * q[2], p[0] * q[1] - p[1] * q[0])
+    return (p[3] * q[0] + q[3] * p[0] + cross[0],
+            p[3] * q[1] + q[3] * p[1] + cross[1],
+            p[3] * q[2] + q[3] * p[2] + cross[2],
+            p[3] * q[3] - p[0] * q[0] - p[1] * q[1] - p[2] * q[2])
+
+
+def _rotate_inverse(q, v) -> tuple[float, float, float]:
+    """``v`` rotated by the inverse of the unit quaternion ``q`` (the transpose of its matrix)."""
+    x, y, z, w = q
+    m00, m01, m02 = 1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)
+    m10, m11, m12 = 2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)
+    m20, m21, m22 = 2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)
+    return (m00 * v[0] + m10 * v[1] + m20 * v[2],
+            m01 * v[0] + m11 * v[1] + m21 * v[2],
+            m02 * v[0] + m12 * v[1] + m22 * v[2])
+
+
 class Condition:
-    """Base: resolves body references once; :meth:`__call__` evaluates the condition now."""
+    """Base: resolves body references and binds the pybullet queries once; :meth:`__call__` evaluates the condition
+    now. Conditions only read the simulation, so they cannot change a run's course, only when it is noticed."""
 
     def __init__(self, world: World, spec: EventSpec) -> None:
         self.world = world
         self.client = world.client
         self.spec = spec
         self.params = spec.params
+        self._velocity = bound(self.client, "getBaseVelocity")
+        self._pose = bound(self.client, "getBasePositionAndOrientation")
+        self._contacts = bound(self.client, "getContactPoints")
 
     def uid(self, key: str) -> int:
         return self.world.uid(world_label(self.world, self.params[key]))
@@ -47,18 +87,22 @@ def touching(client, a: int, b: int) -> bool:
     return any(point[8] <= CONTACT_DISTANCE for point in client.getContactPoints(bodyA=a, bodyB=b))
 
 
+def _touching(contacts, a: int, b: int) -> bool:
+    return any(point[8] <= CONTACT_DISTANCE for point in contacts(bodyA=a, bodyB=b))
+
+
 class Contact(Condition):
     def __init__(self, world, spec):
         super().__init__(world, spec)
         self.a, self.b = self.uid("a"), self.uid("b")
 
     def __call__(self) -> bool:
-        return touching(self.client, self.a, self.b)
+        return _touching(self._contacts, self.a, self.b)
 
 
 class NoContact(Contact):
     def __call__(self) -> bool:
-        return not touching(self.client, self.a, self.b)
+        return not _touching(self._contacts, self.a, self.b)
 
 
 class RollingOn(Condition):
@@ -68,8 +112,8 @@ class RollingOn(Condition):
         self.threshold = self.params["min_angular_speed"]
 
     def __call__(self) -> bool:
-        _, angular = self.client.getBaseVelocity(self.body)
-        return math.hypot(*angular) > self.threshold and touching(self.client, self.body, self.on)
+        _, angular = self._velocity(self.body)
+        return math.hypot(*angular) > self.threshold and _touching(self._contacts, self.body, self.on)
 
 
 class Falling(Condition):
@@ -81,7 +125,7 @@ class Falling(Condition):
         self.threshold = self.params["min_speed"]
 
     def __call__(self) -> bool:
-        linear, _ = self.client.getBaseVelocity(self.body)
+        linear, _ = self._velocity(self.body)
         return self.sign * linear[2] > self.threshold
 
 
@@ -95,13 +139,14 @@ class Pivoting(Condition):
         self.body = self.uid("body")
         self.threshold = self.params["min_angular_speed"]
         axis = self.params.get("axis")
-        self.axis = None if axis is None else np.asarray(axis, dtype=float) / np.linalg.norm(axis)
+        self.axis = None if axis is None else tuple(np.asarray(axis, dtype=float) / np.linalg.norm(axis))
 
     def __call__(self) -> bool:
-        _, angular = self.client.getBaseVelocity(self.body)
+        _, angular = self._velocity(self.body)
         if self.axis is None:
             return math.hypot(*angular) > self.threshold
-        return abs(float(np.dot(angular, self.axis))) > self.threshold
+        a = self.axis
+        return abs(angular[0] * a[0] + angular[1] * a[1] + angular[2] * a[2]) > self.threshold
 
 
 class Stopping(Condition):
@@ -112,7 +157,7 @@ class Stopping(Condition):
         self.max_angular = self.params["max_angular_speed"]
 
     def __call__(self) -> bool:
-        linear, angular = self.client.getBaseVelocity(self.body)
+        linear, angular = self._velocity(self.body)
         return math.hypot(*linear) < self.max_speed and math.hypot(*angular) < self.max_angular
 
 
@@ -121,12 +166,13 @@ class NotMoving(Condition):
         super().__init__(world, spec)
         label = world_label(world, self.params["body"])
         self.body = world.uid(label)
-        self.initial = world.bodies[label].initial.position
+        self.initial = tuple(float(v) for v in world.bodies[label].initial.position)
         self.tolerance = self.params["tolerance"]
 
     def __call__(self) -> bool:
-        position, _ = self.client.getBasePositionAndOrientation(self.body)
-        return float(np.linalg.norm(np.asarray(position) - self.initial)) <= self.tolerance
+        position, _ = self._pose(self.body)
+        x, y, z = (p - i for p, i in zip(position, self.initial))
+        return math.sqrt(x * x + y * y + z * z) <= self.tolerance
 
 
 class Toppling(Condition):
@@ -134,12 +180,14 @@ class Toppling(Condition):
         super().__init__(world, spec)
         label = world_label(world, self.params["body"])
         self.body = world.uid(label)
-        self.initial_inverse = world.bodies[label].initial.rotation.inv()
+        x, y, z, w = _unit(world.bodies[label].initial.rotation.as_quat())
+        self.initial_inverse = (-x, -y, -z, w)
         self.threshold = math.radians(self.params["angle"])
 
     def __call__(self) -> bool:
-        _, quaternion = self.client.getBasePositionAndOrientation(self.body)
-        return (self.initial_inverse * Rotation.from_quat(quaternion)).magnitude() > self.threshold
+        _, quaternion = self._pose(self.body)
+        x, y, z, w = _unit(_compose(self.initial_inverse, _unit(quaternion)))
+        return 2.0 * math.atan2(math.sqrt(x * x + y * y + z * z), abs(w)) > self.threshold
 
 
 class Inclusion(Condition):
@@ -168,10 +216,10 @@ class Inclusion(Condition):
         return bool(np.all(p >= self.lower) and np.all(p <= self.upper))
 
     def __call__(self) -> bool:
-        position, _ = self.client.getBasePositionAndOrientation(self.body)
-        c_position, c_quaternion = self.client.getBasePositionAndOrientation(self.container)
-        local = Rotation.from_quat(c_quaternion).inv().apply(np.asarray(position) - np.asarray(c_position))
-        return self.inside_local(local)
+        position, _ = self._pose(self.body)
+        c_position, c_quaternion = self._pose(self.container)
+        offset = tuple(p - c for p, c in zip(position, c_position))
+        return self.inside_local(np.array(_rotate_inverse(_unit(c_quaternion), offset)))
 
 
 CONDITIONS: dict[str, type[Condition]] = {

@@ -109,6 +109,7 @@ class Supervisor:
         self.time: dict[str, float | None] = {spec.name: None for spec in self.specs}
         self.woke: dict[str, float | None] = {spec.name: None for spec in self.specs}
         self.hold_start: dict[str, float | None] = {spec.name: None for spec in self.specs}
+        self.spec_of = {spec.name: spec for spec in self.specs}
         self.children = {spec.name: [e for e in self.specs if spec.name in e.after] for spec in self.specs}
         self.leaves = [e.name for e in self.specs if not self.children[e.name]]
         self.timeline: list[tuple[float, str, str]] = []
@@ -127,8 +128,7 @@ class Supervisor:
         woken: list[str] = []
         still_awake: list[str] = []
         for name in self._awake:
-            spec_index = self._index(name)
-            spec = self.specs[spec_index]
+            spec = self.spec_of[name]
             deadline = self.woke[name] + spec.timeout
             holds = self.conditions[name]()
             if spec.duration > 0.0:
@@ -285,7 +285,6 @@ class Simulator:
             Overrides the scenario's setting.
         """
         world = self.build(x)
-        client = self.client
         settings = self.scenario.settings
         dt = settings.time_step
         limit = settings.max_duration if max_duration is None else max_duration
@@ -299,8 +298,9 @@ class Simulator:
         settled = early_stop == "settled"
         verdict = None
         steps = 0
+        step_physics = world._bound("stepSimulation")
         for step in range(1, n_steps + 1):
-            client.stepSimulation()
+            step_physics()
             if ropes:
                 world.enforce_ropes(dt)
             steps = step

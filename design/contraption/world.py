@@ -14,11 +14,20 @@ Simplifications, said plainly:
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass, field
 
 import numpy as np
 from scipy.spatial.transform import Rotation
+
+# The rope impulses feed back into the physics, so they are computed with exactly the arithmetic scipy's Rotation
+# uses (its compiled backend, called here without the per-call array-API wrapping that dominated a step's time).
+# Without the backend (another scipy layout), Rotation itself does the same work, more slowly.
+try:
+    from scipy.spatial.transform import _rotation_cy as _rotations
+except ImportError:  # pragma: no cover - depends on scipy's private layout
+    _rotations = None
 
 from design.contraption.bullet import pybullet
 from design.contraption.geometry import Pose, world_poses
@@ -89,32 +98,56 @@ class World:
         return [(b.label, b.object_name, self.pose(b.label), b.spec) for b in self.bodies.values()]
 
     # -- ropes -----------------------------------------------------------------------------------------------
+    def _bound(self, name: str):
+        """pybullet's function ``name`` bound to this world's client once (a BulletClient makes a new partial at
+        every attribute access)."""
+        cache = self.__dict__.setdefault("_functions", {})
+        function = cache.get(name)
+        if function is None:
+            number = getattr(self.client, "_client", None)
+            if isinstance(number, int):
+                function = functools.partial(getattr(pybullet, name), physicsClientId=number)
+            else:
+                function = getattr(self.client, name)
+            cache[name] = function
+        return function
+
     def rope_path(self, rope: Rope) -> tuple[list[np.ndarray], float]:
+        path, length, _ = self._rope_path(rope)
+        return path, length
+
+    def _rope_path(self, rope: Rope):
+        """The rope's path and length, and each end body's (position, rotation) they were computed from."""
+        pose = self._bound("getBasePositionAndOrientation")
         points = []
+        ends = []
         for uid, anchor in zip(rope.ends, rope.anchors):
-            position, quaternion = self.client.getBasePositionAndOrientation(uid)
-            points.append(np.asarray(position) + Rotation.from_quat(quaternion).apply(anchor))
+            position, quaternion = pose(uid)
+            rotation = _from_quat(quaternion)
+            points.append(np.asarray(position) + _apply(rotation, anchor))
+            ends.append((position, rotation))
         path = [points[0], *rope.guides(self.client), points[1]]
         length = float(sum(np.linalg.norm(b - a) for a, b in zip(path[:-1], path[1:])))
-        return path, length
+        return path, length, ends
 
     def _inverse_inertia(self, uid: int):
         if uid not in self._inertia:
             info = self.client.getDynamicsInfo(uid, -1)
             mass = info[0]
             if mass <= 0:
-                self._inertia[uid] = (0.0, np.zeros(3), Rotation.identity())
+                self._inertia[uid] = (0.0, np.zeros(3), None)
             else:
                 diagonal = np.asarray(info[2], dtype=float)
                 inv = np.where(diagonal > 0, 1.0 / np.maximum(diagonal, 1e-300), 0.0)
-                self._inertia[uid] = (1.0 / mass, inv, Rotation.from_quat(info[4]))
+                self._inertia[uid] = (1.0 / mass, inv, _from_quat(info[4]))
         return self._inertia[uid]
 
     def enforce_ropes(self, dt: float) -> None:
         """Remove the stretching velocity of every taut rope (unilateral, velocity-level, see module notes)."""
-        client = self.client
+        velocity_of = self._bound("getBaseVelocity")
+        set_velocity = self._bound("resetBaseVelocity")
         for rope in self.ropes:
-            path, length = self.rope_path(rope)
+            path, length, ends = self._rope_path(rope)
             stretch = length - rope.length
             if stretch < -1e-4:
                 continue  # slack
@@ -130,31 +163,71 @@ class World:
                 if norm < 1e-9 or inv_mass == 0.0:
                     continue
                 u = direction / norm
-                position, quaternion = client.getBasePositionAndOrientation(uid)
-                linear, angular = client.getBaseVelocity(uid)
+                position, rotation = ends[end_index]
+                linear, angular = velocity_of(uid)
                 r = point - np.asarray(position)
-                velocity = np.asarray(linear) + np.cross(angular, r)
+                velocity = np.asarray(linear) + _cross(angular, r)
                 rate -= float(u @ velocity)  # dL/dt contribution: the end moving away from its next point
-                world_inertial = Rotation.from_quat(quaternion) * inertial
-                rxu_local = world_inertial.inv().apply(np.cross(r, u))
+                world_inertial = _compose(rotation, inertial)
+                inverse = _inverse(world_inertial)
+                rxu_local = _apply(inverse, _cross(r, u))
                 k += inv_mass + float(rxu_local @ (inv_diag * rxu_local))
-                terms.append((uid, u, r, inv_mass, inv_diag, world_inertial, linear, angular))
+                terms.append((uid, u, r, inv_mass, inv_diag, world_inertial, inverse, linear, angular))
             if k <= 0.0:
                 continue
             target = -0.2 * max(stretch, 0.0) / dt
             impulse = (rate - target) / k
             if impulse <= 0.0:
                 continue
-            for uid, u, r, inv_mass, inv_diag, world_inertial, linear, angular in terms:
+            for uid, u, r, inv_mass, inv_diag, world_inertial, inverse, linear, angular in terms:
                 dv = impulse * inv_mass * u
-                dw = world_inertial.apply(inv_diag * world_inertial.inv().apply(np.cross(r, impulse * u)))
-                client.resetBaseVelocity(uid, list(np.asarray(linear) + dv), list(np.asarray(angular) + dw))
+                dw = _apply(world_inertial, inv_diag * _apply(inverse, _cross(r, impulse * u)))
+                set_velocity(uid, list(np.asarray(linear) + dv), list(np.asarray(angular) + dw))
+
+
+def _cross(a, b) -> np.ndarray:
+    """``numpy.cross`` of two 3-vectors, bit for bit (the same products and differences), without its overhead."""
+    a0, a1, a2 = (float(v) for v in a)
+    b0, b1, b2 = (float(v) for v in b)
+    return np.array((a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0))
+
+
+def _from_quat(quaternion):
+    """``Rotation.from_quat(quaternion)``: scipy's normalized quaternion, shape (1, 4) (or the Rotation)."""
+    if _rotations is None:  # pragma: no cover
+        return Rotation.from_quat(quaternion)
+    return _rotations.from_quat(np.asarray([quaternion], dtype=float))
+
+
+def _compose(a, b):
+    """``a * b`` of two rotations made by :func:`_from_quat`, normalized as Rotation's product is."""
+    if _rotations is None:  # pragma: no cover
+        return a * b
+    return _rotations.from_quat(np.asarray(_rotations.compose_quat(a, b)))
+
+
+def _inverse(rotation):
+    if _rotations is None:  # pragma: no cover
+        return rotation.inv()
+    return _rotations.inv(rotation)
+
+
+def _apply(rotation, vector) -> np.ndarray:
+    """``rotation.apply(vector)`` for one rotation and one vector."""
+    if _rotations is None:  # pragma: no cover
+        return rotation.apply(vector)
+    return _rotations.apply(rotation, np.asarray(vector, dtype=float).reshape(1, 3))[0]
 
 
 def _create_body(client, spec: BodySpec, pose: Pose, mass: float) -> int:
     parts = spec.parts
+    visual = -1
     if len(parts) == 1 and parts[0].kind == "plane":
         shape = client.createCollisionShape(pybullet.GEOM_PLANE, planeNormal=[0, 0, 1])
+        # Without a visual shape of its own pybullet draws the plane's collision shape for its renderer (a large
+        # checkered mesh): 5-20 ms a plane, most of a small scene's building. Pictures come from render.py, never
+        # from pybullet's renderer, and visual shapes play no part in the physics.
+        visual = client.createVisualShape(pybullet.GEOM_SPHERE, radius=1e-3)
     elif len(parts) == 1 and parts[0].pose.rotation.magnitude() == 0.0 and not parts[0].pose.position.any():
         # A single primitive shape: much cheaper for Bullet than a compound of one child.
         part = parts[0]
@@ -176,6 +249,7 @@ def _create_body(client, spec: BodySpec, pose: Pose, mass: float) -> int:
     return client.createMultiBody(
         baseMass=mass,
         baseCollisionShapeIndex=shape,
+        baseVisualShapeIndex=visual,
         basePosition=pose.position.tolist(),
         baseOrientation=list(pose.quaternion),
         # Plain rigid bodies (not Featherstone multibodies): several times faster, and they can sleep.
