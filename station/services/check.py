@@ -419,10 +419,10 @@ def check_measurement(job, measurement, image: np.ndarray, intrinsics, *, simula
             poses.setdefault(c.owner, []).append((c.body, PlanePose(c.measured_center_mm, c.measured_heading_deg)))
     built = as_built_layout(scenario, x, guide.plane, poses, {p.name: p.parameters for p in guide.parts})
     measured_by = {n: "top" if guide.view == "top" else guide.view for n in built.measured}
-    views = ({"view": guide.view, "camera": camera, "plane": _plane_json(measurement.plane)},)
-    if side is not None:
-        from station.services.check_side import merge_as_built
+    from station.services.check_side import merge_as_built, plane_json
 
+    views = ({"view": guide.view, "camera": camera, "plane": plane_json(measurement.plane)},)
+    if side is not None:
         built, measured_by = merge_as_built(job, built, side)
         views += ({"view": "side", "camera": side.camera, "plane": side.plane_json(),
                    "missing_reference_tags": list(side.measurement.missing_reference_ids),
@@ -493,12 +493,6 @@ def check_measurement(job, measurement, image: np.ndarray, intrinsics, *, simula
         side_parts=tuple(side.checks) if side is not None else (), measured_by=measured_by)
     return CheckJob(result, job, image, measurement, intrinsics, physical, side)
 
-
-def _plane_json(plane) -> dict | None:
-    if plane is None:
-        return None
-    return {"residual_mm": round(float(plane.residual_mm), 3), "reference_ids": [int(i) for i in plane.reference_ids],
-            "moved_mm": None if plane.moved_mm is None else round(float(plane.moved_mm), 3)}
 
 
 def _progress(stage: str, done: int, total: int):
@@ -674,6 +668,8 @@ def report_lines(report, physical=None) -> list[str]:
                        ("reference tags not seen", report.missing_reference_tags)):
         if ids:
             lines.append(f"{words}: {', '.join(map(str, ids))}")
+    from station.services.check_side import side_lines
+
     lines.extend(side_lines(report))
     if report.not_measured:
         lines.append(f"not measured (kept at the layout's value; predictions place them as with no check, 1 mm / "
@@ -683,27 +679,3 @@ def report_lines(report, physical=None) -> list[str]:
     lines.extend(detail)
     return lines
 
-
-def side_lines(report) -> list[str]:
-    """The side camera's part of the check in words: its plane, each part's height and tilt and what to do, the
-    parameters it measured (none without a side camera)."""
-    side = next((v for v in getattr(report, "views", ()) if v.get("view") == "side"), None)
-    if side is None:
-        return []
-    plane = side.get("plane")
-    if plane is None:
-        missing = ", ".join(map(str, side.get("missing_reference_tags", ())))
-        return [f"side view: no plane: too few board tags seen (missing {missing}); no height measured"]
-    lines = [f"side view (heights and tilts): plane from board tags {', '.join(map(str, plane['reference_ids']))} "
-             f"(residual {plane['residual_mm']:.2f} mm)"]
-    for part in report.side_parts:
-        via = f", on jig {part.via}" if part.via else ""
-        if part.error is None:
-            lines.append(f"  {part.name} (tag {part.tag_id}{via}): {part.instruction}")
-        else:
-            lines.append(f"  {part.name} (tag {part.tag_id}{via}): up {part.error[1]:+.1f} mm, turn "
-                         f"{part.error[3]:+.1f} deg: {part.instruction}")
-    measured = [name for name, view in report.measured_by.items() if view == "side"]
-    if measured:
-        lines.append(f"measured by the side camera: {', '.join(measured)}")
-    return lines

@@ -22,8 +22,8 @@ import numpy as np
 
 from station.services.errors import ServiceError
 
-__all__ = ["SideView", "check_views", "measure_side", "merge_as_built", "side_overlay", "side_scene",
-           "side_targets", "view_of_frame"]
+__all__ = ["SideView", "check_views", "measure_side", "merge_as_built", "plane_json", "side_lines", "side_overlay",
+           "side_scene", "side_targets", "view_of_frame"]
 
 
 @dataclass(frozen=True)
@@ -41,9 +41,7 @@ class SideView:
 
     def plane_json(self) -> dict | None:
         """The board's plane as CHECK.json's ``views`` give a plane (None when none was found)."""
-        from station.services.check import _plane_json
-
-        return _plane_json(self.measurement.plane)
+        return plane_json(self.measurement.plane)
 
 
 def side_targets(job, board) -> list:
@@ -391,3 +389,37 @@ def side_overlay(side: SideView) -> np.ndarray:
         cv2.putText(out, line, (int(20 * scale), y), cv2.FONT_HERSHEY_SIMPLEX, 0.75 * scale, (255, 255, 255), 1,
                     cv2.LINE_AA)
     return out
+
+
+def plane_json(plane) -> dict | None:
+    """A plane fix as CHECK.json gives it: ``{"residual_mm", "reference_ids", "moved_mm"}`` (None: no plane)."""
+    if plane is None:
+        return None
+    return {"residual_mm": round(float(plane.residual_mm), 3), "reference_ids": [int(i) for i in plane.reference_ids],
+            "moved_mm": None if plane.moved_mm is None else round(float(plane.moved_mm), 3)}
+
+
+def side_lines(report) -> list[str]:
+    """The side camera's part of the check in words: its plane, each part's height and tilt and what to do, the
+    parameters it measured (none without a side camera)."""
+    side = next((v for v in getattr(report, "views", ()) if v.get("view") == "side"), None)
+    if side is None:
+        return []
+    plane = side.get("plane")
+    if plane is None:
+        missing = ", ".join(map(str, side.get("missing_reference_tags", ())))
+        return [f"side view: no plane: too few board tags seen (missing {missing}); no height measured"]
+    lines = [f"side view (heights and tilts): plane from board tags {', '.join(map(str, plane['reference_ids']))} "
+             f"(residual {plane['residual_mm']:.2f} mm)"]
+    for part in report.side_parts:
+        via = f", on jig {part.via}" if part.via else ""
+        if part.error is None:
+            lines.append(f"  {part.name} (tag {part.tag_id}{via}): {part.instruction}")
+        else:
+            lines.append(f"  {part.name} (tag {part.tag_id}{via}): up {part.error[1]:+.1f} mm, turn "
+                         f"{part.error[3]:+.1f} deg: {part.instruction}")
+    measured = [name for name, view in report.measured_by.items() if view == "side"]
+    if measured:
+        lines.append(f"measured by the side camera: {', '.join(measured)}")
+    return lines
+
