@@ -122,8 +122,12 @@ def test_a_side_offset_without_a_side_camera_is_one_line(capsys):
 
 
 def test_the_guide_writes_the_board_sheet_and_says_where_it_stands(tmp_path, capsys):
+    plain = tmp_path / "plain.pdf"
+    assert main(["guide", "simple", "success", "--pdf", str(plain), "--no-tolerances"]) == 0
+    assert not (tmp_path / "plain-board.pdf").exists()  # no jig stand: nothing for the side camera to read
+    capsys.readouterr()
     pdf = tmp_path / "simple.pdf"
-    assert main(["guide", "simple", "success", "--pdf", str(pdf), "--no-tolerances"]) == 0
+    assert main(["guide", "simple", "success", "--jigs", "--pdf", str(pdf), "--no-tolerances"]) == 0
     assert "simple-board.pdf: the side camera's board sheet" in capsys.readouterr().out
     board = tmp_path / "simple-board.pdf"
     page = pdfium.PdfDocument(str(board))[0]

@@ -34,9 +34,10 @@ def register(subparsers) -> None:
         "AprilTags (ids 583-586) for the camera check, and for every part how carefully it must be placed (its "
         "tolerance, from the layout's success model; --verify N checks each by N simulations). --pdf writes the "
         "sheets at exactly 1:1, tiled over the paper with overlap, join marks and a 100 mm scale bar to check the "
-        "print, and a side view of each part lifted or tilted off the sheet (a table guide also NAME-board.pdf: the "
-        "board sheet, four tags 579-582, that stands upright behind the parts for the side camera of `station "
-        "check`; the manifest's side_board says where); --svg one drawing in mm with a layer "
+        "print, and a side view of each part lifted or tilted off the sheet (a table guide with --jigs also "
+        "NAME-board.pdf: the board sheet, four tags 579-582, that stands upright behind the parts for the side "
+        "camera of `station check`, which reads the tag on each jig stand's face; the manifest's side_board says "
+        "where); --svg one drawing in mm with a layer "
         "per kind, for a laser or plotter to mark a board. --project shows the steps on the configured projector (or "
         "--projector URL), at true scale through the calibration measured on that projector "
         "(`station calibrate projector`), else fitted to the screen, and says which. --jigs plans the laser-cut "
@@ -153,10 +154,10 @@ def _print_summary(job, pdf, svg) -> None:
         print(f"wrote {pdf}: {len(pages)} sheets ({columns} x {rows}) of {pages[0].paper if pages else '?'} and a "
               "page of parts, steps and tolerances; check that the scale bar measures 100 mm")
         from projector.board import side_board
-        from station.services.guide import board_pdf_path
+        from station.services.guide import board_pdf_path, reads_side
 
         board = side_board(guide)
-        if board is not None:
+        if board is not None and reads_side(guide):
             print(f"wrote {board_pdf_path(pdf)}: the side camera's board sheet ({board.words()})")
     if svg is not None:
         print(f"wrote {svg}")

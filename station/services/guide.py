@@ -171,8 +171,9 @@ def _layout_headline(layout: str | None, tolerance_map=None) -> str | None:
 
 def export_guide(job: GuideJob, *, pdf: str | Path | None = None, svg: str | Path | None = None,
                  paper: str = "a4") -> GuideJob:
-    """Write the PDF sheet set and/or the SVG; returns the job with the guide's pages (after a PDF). A table guide's
-    PDF comes with the side camera's board sheet next to it (:func:`board_pdf_path`: ``NAME-board.pdf``).
+    """Write the PDF sheet set and/or the SVG; returns the job with the guide's pages (after a PDF). A table guide
+    whose jig stands carry a tag for the side camera (:func:`reads_side`) comes with the side camera's board sheet
+    next to its PDF (:func:`board_pdf_path`: ``NAME-board.pdf``).
 
     Raises
     ------
@@ -188,7 +189,7 @@ def export_guide(job: GuideJob, *, pdf: str | Path | None = None, svg: str | Pat
         from projector.board import side_board, write_board_pdf
 
         board = side_board(guide, paper)
-        if board is not None:
+        if board is not None and reads_side(guide):
             write_board_pdf(board, board_pdf_path(pdf), title=_title(job))
     if svg is not None:
         from projector.svg import write_svg
@@ -196,6 +197,11 @@ def export_guide(job: GuideJob, *, pdf: str | Path | None = None, svg: str | Pat
         with open(svg, "w", encoding="utf-8") as stream:
             write_svg(guide, stream)
     return replace(job, guide=guide)
+
+
+def reads_side(guide) -> bool:
+    """Whether the side camera has something to read in ``guide``: a jig stand with a tag on its plate's face."""
+    return any(j.face_tag_id is not None for j in guide.jigs)
 
 
 def board_pdf_path(pdf: str | Path) -> Path:
