@@ -47,7 +47,7 @@ GUIDE = [
 REFERENCE = ["reference/cli.md", "reference/tui.md", "reference/scenario.md", "reference/profile.md",
              "reference/station-toml.md"]
 FORMATS = ["formats/index.md", "formats/layout.md", "formats/check.md", "formats/guide-manifest.md",
-           "formats/jigs.md", "formats/trials.md", "formats/loop.md", "formats/devices.md"]
+           "formats/jigs.md", "formats/trials.md", "formats/loop.md", "formats/devices.md", "formats/test-card.md"]
 SCHEMA_LINE = re.compile(r"^<!-- schema: ([a-z-]+) -->$", re.M)
 #: argparse wraps its usage lines to the terminal; the reference is the same on every machine.
 COLUMNS = "100"

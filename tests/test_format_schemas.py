@@ -76,13 +76,16 @@ def workshop(tmp_path_factory):
     out["trials"] = json.loads((folder / "trials.json").read_text())
     out["loop"] = json.loads(station("loop simple --world 'sim://world?seed=1' --attempts 1 --loops 1 --budget 20 "
                                      "--reoptimize-budget 20 --json"))
+    station("lasertest card --profile laser --material plywood_3mm --power 0.4:1:2 --feed 300:3000:2 --out card")
+    out["test card"] = json.loads((folder / "card" / "card.json").read_text())
     return out
 
 
 #: (schema, output of the workshop) pairs: every schema has at least one real output.
 CASES = [("devices", "devices"), ("devices", "devices --no-probe"), ("layout", "layout"),
          ("guide-manifest", "manifest"), ("guide-manifest", "manifest with jigs"), ("jigs", "jigs"),
-         ("check", "check"), ("check", "check misplaced"), ("trials", "trials"), ("loop", "loop")]
+         ("check", "check"), ("check", "check misplaced"), ("trials", "trials"), ("loop", "loop"),
+         ("test-card", "test card")]
 
 
 def test_every_format_has_a_valid_draft_2020_12_schema_named_as_its_file():
@@ -157,6 +160,8 @@ def test_the_outputs_exercise_what_the_schemas_constrain(workshop):
     ("trials", "trials", lambda d: d["trials"][0]["outcomes"].update(ball_rolls="maybe")),
     ("loop", "loop", lambda d: d["loops"][0].update(success_rate=1.5)),
     ("devices", "devices", lambda d: d["devices"][0].update(kind="lazer")),
+    ("test-card", "test card", lambda d: d["cells"][0].pop("cut_line_mm")),
+    ("test-card", "test card", lambda d: d["comb"].update(power=1.5)),
 ])
 def test_a_broken_output_fails_its_schema(workshop, schema, output, breaking):
     document = copy.deepcopy(workshop[output])

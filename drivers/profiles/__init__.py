@@ -33,6 +33,11 @@ Example (a GRBL diode laser)::
     22 = 1                          # homing
     100 = 80.0                      # X steps/mm
 
+A material may say its ``kerf`` (the width the laser burns away, a length); ``station calibrate material`` writes a
+material's ``kerf``, ``cut`` and ``engrave`` from a test card read by the camera, with a
+``[materials.NAME.measured]`` table of where they came from (text, numbers and true/false only: the card, the photo,
+the measured values and their uncertainty).
+
 A pen plotter has a ``[pen]`` table (``mode = "servo"`` with ``up``/``down`` S values, or ``mode = "z"`` with
 ``up``/``down`` heights; ``up_delay`` and ``down_delay``) and a ``[paper]`` table (``width``, ``height``,
 ``margin``); a ``[plot]`` table holds ``draw_feed``, ``travel_feed`` and ``tolerance``.
