@@ -101,7 +101,8 @@ def run_card(args) -> int:
     powers = ", ".join(f"{100 * p:g}%" for p in manifest["powers"])
     feeds = ", ".join(f"{f:g}" for f in manifest["feeds_mm_min"])
     comb = manifest["comb"]
-    print(f"test card for {manifest['material']} on {output.profile.name}: {width:g}x{height:g} mm at "
+    source = "" if output.profile.source.startswith("builtin:") else f" ({output.profile.source})"
+    print(f"test card for {manifest['material']} on {output.profile.name}{source}: {width:g}x{height:g} mm at "
           f"X{manifest['offset_mm'][0]:g} Y{manifest['offset_mm'][1]:g}, about "
           f"{manifest['estimate_seconds'] / 60:.0f} min")
     print(f"  powers {powers}; feeds {feeds} mm/min; cut lines x{manifest['cut_passes']}")
