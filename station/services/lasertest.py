@@ -532,7 +532,7 @@ def update_profile(measurement: MaterialMeasurement, profile_name: str | None = 
         raise ProfileError(f"profile {name!r} is a {profile.kind}, not a laser")
     profile.material(measurement.manifest.material)  # the material must be in it
     block = material_block(measurement, profile, when)
-    path = station_copy_path(name) if builtin else Path(name)
+    path = station_copy_path(name, create=True) if builtin else Path(name)
     text = path.read_text(encoding="utf-8") if path.is_file() else BUILTIN_PROFILES[name]
     if builtin and not path.is_file():
         text = re.sub(r"^# Built-in profile[^\n]*\n", f"# The station's copy of the built-in profile '{name}', with "

@@ -8,18 +8,27 @@ built-in). A user's profile file is written only when the user says so (``--yes`
 
 from __future__ import annotations
 
+import os
 import re
 from pathlib import Path
 
+import platformdirs
+
 from drivers.profiles import BUILTIN_PROFILES, MachineProfile, load_profile, profile_from_toml
-from station.paths import data_dir
+from station.paths import APP_NAME, HOME_VARIABLE, data_dir
 
 __all__ = ["load_station_profile", "replace_material_table", "station_copy_path"]
 
 
-def station_copy_path(name: str) -> Path:
-    """Where the station keeps its copy of the built-in profile ``name`` (it may not exist)."""
-    return data_dir() / "profiles" / f"{name}.toml"
+def station_copy_path(name: str, *, create: bool = False) -> Path:
+    """Where the station keeps its copy of the built-in profile ``name`` (it may not exist). Only ``create`` makes
+    the data folder (and reports a folder that cannot be made): reading a profile never does."""
+    if create:
+        folder = data_dir()
+    else:
+        override = os.environ.get(HOME_VARIABLE)
+        folder = Path(override) if override else Path(platformdirs.user_data_dir(APP_NAME, appauthor=False))
+    return folder / "profiles" / f"{name}.toml"
 
 
 def load_station_profile(name_or_path: str) -> MachineProfile:
