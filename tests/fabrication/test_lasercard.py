@@ -232,3 +232,31 @@ async def test_fabricate_screen_makes_a_test_card_and_queues_it(tmp_path, statio
         assert len(cards) == 1
         assert entry.job.lines == (cards[0].parent / "card.gcode").read_text().splitlines()
         assert "test card (plywood_3mm)" in screen.last_message
+
+
+@pytest.mark.parametrize(("power", "feed", "passes"), [(1.0, 300.0, 2), (0.6, 400.0, 2), (0.5, 300.0, 1)])
+def test_the_laser_twins_burned_line_opens_its_true_kerf(power, feed, passes):
+    from drivers.sim.laser_burn import burn_gcode
+
+    material = sim_material("plywood_3mm")
+    s = 1000 * power
+    lines = ["G21 G90", "M4 S0", "G0 X2 Y5 S0"] + [f"G1 X18 Y5 S{s:g} F{feed:g}", "G0 X2 Y5 S0"] * passes + ["M5 S0"]
+    sheet = burn_gcode(lines, material, (0.0, 0.0, 20.0, 10.0), px_per_mm=40.0)
+    opened = sheet.through[:, 200].sum() / 40.0  # the column across the middle of the line
+    assert opened == pytest.approx(line_kerf(material, power, feed, passes), abs=0.004)
+    assert sheet.through[:, 20].sum() == 0  # before the line starts: nothing cut
+
+
+def test_a_material_missing_from_the_profile_file_is_appended(tmp_path):
+    from station.services.profiles import replace_material_table
+
+    text = BUILTIN_PROFILES["laser"]
+    block = ('[materials.balsa_2mm]\nthickness = "2mm"\nkerf = "0.1mm"\ncut = { power = 0.5, feed = "600mm/min" }\n'
+             'engrave = { power = 0.2, feed = "3000mm/min" }\n\n[materials.balsa_2mm.measured]\nby = "hand"\n')
+    updated = replace_material_table(text, "balsa_2mm", block, "p.toml")
+    assert updated.startswith(text.rstrip("\n"))
+    assert profile_from_toml(updated, "p.toml").material("balsa_2mm").measured["by"] == "hand"
+    again = replace_material_table(updated, "balsa_2mm", block.replace('"hand"', '"card"'), "p.toml")
+    assert again.count("[materials.balsa_2mm]") == 1 and 'by = "card"' in again and 'by = "hand"' not in again
+    with pytest.raises(ProfileError, match="p.toml"):
+        replace_material_table(text, "balsa_2mm", block.replace('"0.1mm"', '"9mm"'), "p.toml")
