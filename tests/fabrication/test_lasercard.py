@@ -144,7 +144,7 @@ def test_a_profile_file_of_yours_is_written_only_with_yes(tmp_path, capsys, stat
     mine.write_text(text)
     card_json = make_card(tmp_path / "card", profile=str(mine))
     frame = tmp_path / "frame.png"
-    assert main(["lasertest", "render", "--card", str(card_json), "--out", str(frame)]) == 0
+    assert main(["lasertest", "render", "--card", str(card_json), "--out", str(frame), "--px-per-mm", "12"]) == 0
     capsys.readouterr()
     assert main(["calibrate", "material", "--image", str(frame), "--card", str(card_json)]) == 0
     out = capsys.readouterr().out
