@@ -15,7 +15,9 @@ from __future__ import annotations
 
 import argparse
 import math
+import os
 import sys
+import tempfile
 from dataclasses import replace
 
 import numpy as np
@@ -38,6 +40,13 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--blur", type=float, default=0.7, help="camera blur, pixels (default 0.7)")
     parser.add_argument("--figure", help="write the last sheet's picture here (PNG)")
     args = parser.parse_args(argv)
+    with tempfile.TemporaryDirectory(prefix="placement-bench-") as home:
+        # the twin's registration is kept in a data folder of its own, not over the station's laser's
+        os.environ["CHAOS_STATION_HOME"] = home
+        return run(args)
+
+
+def run(args) -> int:
     rng = np.random.default_rng(args.seed)
     name = f"placement-bench-{args.seed}"
     laser_url = f"sim://grbl?profile=laser&clock=virtual&wire=0&name={name}"

@@ -37,9 +37,9 @@ def add_bed_parser(sub) -> None:
         "-> machine mm, from their 16 corners; report its residual in mm and save it under the laser's name "
         "(calibration/beds/LASER.json in the station's data folder). The Machines screen's placement (b) and "
         f"scripts use it. --json prints {BED_JSON}.",
-        epilog="examples:\n  station calibrate bed\n"
-        "  station calibrate bed --laser shop-laser --area 100,100,300,250 --power 0.4\n"
-        "  station calibrate bed --image frame.png --out bed.png --json")
+        epilog="examples:\n  station calibrate bed --port 'sim://grbl?profile=laser&clock=virtual'\n"
+        "  station calibrate bed --port 'sim://grbl?profile=laser&clock=virtual' --area 120,140,280,260 --power 0.4 "
+        "--out bed.png --json")
     bed.add_argument("--laser", metavar="NAME", help="the configured laser (default: the first)")
     bed.add_argument("--port", metavar="URL", help="the laser's port, when not its station.toml URL")
     bed.add_argument("--camera", metavar="URL", help="the camera over the bed (default: the laser's camera)")

@@ -124,7 +124,9 @@ def register(subparsers) -> None:
         "line to resume from (exit 130), even when started with SIGINT ignored. At a program pause (M0: a multi-pen "
         "plot's pen change) it says which pen to put in and waits for Enter (a line on standard input; at its end the "
         "job is stopped there).",
-        epilog='example: station send spiro.gcode --port "sim://grbl?profile=plotter&time_scale=0.01"',
+        epilog='examples:\n  station send spiro.gcode --port "sim://grbl?profile=plotter&time_scale=0.01"\n'
+        "  station send switch-jigs/jigs.gcode --profile laser --port 'sim://grbl?profile=laser&clock=virtual' "
+        "--place 20,30,5 --verify",
     )
     send.add_argument("job", metavar="JOB.gcode", help="the G-code file to stream (from `station plot` or "
                       "`station fabricate`)")
