@@ -95,6 +95,13 @@ def raster_lines(width: float = 20.0, height: float = 6.0, pixel: float = 0.4, f
     return lines
 
 
+def line_lines() -> list[str]:
+    """One 100 mm feed move from rest to rest: 2.05 s exactly at 3000 mm/min and 1000 mm/s^2 (0.05 s to reach
+    50 mm/s over 1.25 mm, the same to stop): what grbl-sim's own clock gives for it says how far to trust it."""
+    return ["; chaos-station laser job: one line", "G21", "G90", "M4 S0", "G0 X10 Y10", "G4 P0",
+            "G1 X110 Y10 S100 F3000", "M5 S0"]
+
+
 def firmware_motion_seconds(steps: Path) -> float:
     """Simulated seconds blocks ran, from grbl-sim's step record: the time from each block's start line to its last
     line, without the idle time between one block's end and the next one's start (dwells, syncs, stalls)."""
@@ -149,7 +156,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--cache", type=Path, help="where builds are kept (default: the user's cache folder)")
     parser.add_argument("--time-factor", type=float, default=grbl_firmware.TIME_FACTOR, metavar="T",
                         help="grbl-sim's -t: simulated seconds per wall second")
-    parser.add_argument("--jobs", default="plot,cut,raster", help="which jobs (default plot,cut,raster)")
+    parser.add_argument("--jobs", default="plot,cut,raster",
+                        help="which jobs, of plot, cut, raster and line (default plot,cut,raster)")
     args = parser.parse_args(argv)
     grbl_firmware.TIME_FACTOR = args.time_factor
     missing = grbl_firmware.missing_tools()
@@ -157,7 +165,8 @@ def main(argv: list[str] | None = None) -> int:
         print(f"job estimate bench: needs {', '.join(missing)}", file=sys.stderr)
         return 2
     exe = grbl_firmware.build(args.grbl, args.grbl_sim, args.cache)
-    jobs = {"plot": (plot_lines, "plotter"), "cut": (cut_lines, "laser"), "raster": (raster_lines, "laser")}
+    jobs = {"plot": (plot_lines, "plotter"), "cut": (cut_lines, "laser"), "raster": (raster_lines, "laser"),
+            "line": (line_lines, "laser")}
     print(f"{'job':8s} {'lines':>6s} {'blocks':>6s} {'dwell s':>8s} {'firmware s':>10s} {'estimate s':>10s} "
           f"{'ratio':>6s} {'straight s':>10s} {'ratio':>6s} {'restarts':>8s}")
     for key in args.jobs.split(","):

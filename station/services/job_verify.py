@@ -138,7 +138,7 @@ def verify_job(lines: Sequence[str], *, name: str = "job", profile: MachineProfi
         result = JobRunner(conn, job, on_progress=report).run()
         record = machine.snapshot()
         twin_clock = machine.clock.now() - start_time
-        bounds = machine._machine_bounds()
+        bounds = tuple(np.array(b, dtype=float) for b in conn.machine_bounds())
         homing = bool(int(machine.settings[22]))
         twin_settings = dict(machine.settings)
     finally:
