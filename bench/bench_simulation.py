@@ -20,14 +20,16 @@ candidate engine settings (``--against current``), both sides run at once (timin
 Candidate settings: ``--engine KEY=VALUE`` (merged into every ``setPhysicsEngineParameter`` call, e.g.
 ``solverResidualThreshold=1e-4``) and ``--dynamics KEY=VALUE`` (``changeDynamics`` of every body as it is made,
 e.g. ``sleepThreshold=0.02``). Acceptance: identical labels on >= 99 % of the layouts and every success layout
-still a success.
+still a success. ``--moved 1e-9`` moves the candidate side's layouts by that fraction of each parameter's range
+(seeded signs): how far the labels themselves follow the arithmetic, the floor any change of the engine's
+arithmetic meets.
 
 ``--parallel N`` measures the robust executor instead: a batch of N valid layouts simulated in one process, then on
 ``--workers`` worker processes (a fresh pool, its start-up counted: "cold"), then a second batch on the warm pool;
 efficiency is the serial time over workers x the pooled time, for the reference tree and this one.
 
 Run: ``python -m bench.bench_simulation [--scenarios simple,longchain] [--layouts 6] [--seed 0]
-[--reference 599036c] [--equivalence 500 [--against current]] [--engine K=V ...] [--dynamics K=V ...]
+[--reference 599036c] [--equivalence 500 [--against current] [--moved 1e-9]] [--engine K=V ...] [--dynamics K=V ...]
 [--parallel N [--workers 2]] [--json OUT.json]`` or ``python -m bench simulation`` (every example scenario, 6
 random layouts each).
 """
@@ -182,7 +184,8 @@ def speed_table(names, args, reference_root: Path, workdir: Path) -> list[dict]:
 def equivalence(names, args, reference_root: Path, workdir: Path) -> list[dict]:
     against = "this tree without the candidate settings" if args.against == "current" else args.reference
     print(f"labels of {args.equivalence} random valid layouts per scenario (seed {args.seed}) against {against}; "
-          f"engine {args.engine_params or '-'}, dynamics {args.dynamics_params or '-'}", flush=True)
+          f"engine {args.engine_params or '-'}, dynamics {args.dynamics_params or '-'}, layouts moved by "
+          f"{args.moved:g} of each range", flush=True)
     rows = []
     for name in names:
         path = EXAMPLES_DIR / f"{name}.toml"
@@ -190,7 +193,14 @@ def equivalence(names, args, reference_root: Path, workdir: Path) -> list[dict]:
         layouts, n_success = seeded_layouts(scenario, args.equivalence, args.seed)
         base_root = REPOSITORY if args.against == "current" else reference_root
         base = start_probe(base_root, path, layouts, workdir, f"{name}-base")
-        cand = start_probe(REPOSITORY, path, layouts, workdir, f"{name}-candidate", engine=args.engine_params,
+        moved = layouts
+        if args.moved:
+            # The outcomes' own floor: the same layouts moved by a tiny fraction of each range (seeded signs).
+            space = scenario.design_space
+            width = np.asarray(space.upper) - np.asarray(space.lower)
+            signs = np.random.default_rng(args.seed + 1).choice([-1.0, 1.0], size=(len(layouts), space.dim))
+            moved = list(np.clip(np.asarray(layouts) + args.moved * width * signs, space.lower, space.upper))
+        cand = start_probe(REPOSITORY, path, moved, workdir, f"{name}-candidate", engine=args.engine_params,
                            dynamics=args.dynamics_params)
         a, b = finish_probe(*base), finish_probe(*cand)
         same = compare(a, b)
@@ -260,6 +270,8 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--equivalence", type=int, default=0, metavar="N",
                         help="check labels on N random layouts instead of measuring speed")
     parser.add_argument("--against", choices=("reference", "current"), default="reference")
+    parser.add_argument("--moved", type=float, default=0.0, metavar="FRACTION",
+                        help="with --equivalence: move the candidate side's layouts by this fraction of each range")
     parser.add_argument("--engine", action="append", default=[], metavar="KEY=VALUE")
     parser.add_argument("--dynamics", action="append", default=[], metavar="KEY=VALUE")
     parser.add_argument("--parallel", type=int, default=0, metavar="N",
