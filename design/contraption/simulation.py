@@ -218,7 +218,10 @@ class Simulator:
     """Runs many simulations of one scenario in one pybullet DIRECT client (reset between runs).
 
     Every run resets the client (``resetSimulation``) and rebuilds the scene, so each run is independent of the
-    previous ones and deterministic; rebuilding costs about a millisecond against the hundreds of steps of a run.
+    previous ones and deterministic. Rebuilding costs a few milliseconds (pybullet's new physics world and bodies):
+    most of a small scenario's run, little of a large one's. A world moved back to a new layout instead (bodies reset
+    or remade, their broadphase entries renewed) does not give the same runs: Bullet's broadphase keeps a history
+    (its pair list's order, its stale pairs awaiting clean-up) that decides its simulation islands.
     One client per thread: pass ``client`` to share one you own, or let the simulator make its own.
 
     Parameters

@@ -64,6 +64,9 @@ class Rope:
     fixed_guides: list[np.ndarray]
     pulley_guides: list[tuple[int, float]]
     length: float = 0.0
+    #: When the rope was last found slack: its path length then and the poses of the bodies that carry its ends
+    #: and pulley wheels (see :meth:`World.enforce_ropes`).
+    slack_since: tuple | None = field(default=None, repr=False, compare=False)
 
     def guides(self, client) -> list[np.ndarray]:
         if not self.pulley_guides:
@@ -146,11 +149,18 @@ class World:
         """Remove the stretching velocity of every taut rope (unilateral, velocity-level, see module notes)."""
         velocity_of = self._bound("getBaseVelocity")
         set_velocity = self._bound("resetBaseVelocity")
+        pose = self._bound("getBasePositionAndOrientation")
         for rope in self.ropes:
+            carriers = (*rope.ends, *(uid for uid, _ in rope.pulley_guides))
+            poses = [pose(uid) for uid in carriers]
+            if rope.slack_since is not None and _still_slack(rope, poses):
+                continue  # slack, as the full computation would find
             path, length, ends = self._rope_path(rope)
             stretch = length - rope.length
             if stretch < -1e-4:
+                rope.slack_since = (length, poses)
                 continue  # slack
+            rope.slack_since = None
             terms = []
             rate = 0.0
             k = 0.0
@@ -183,6 +193,31 @@ class World:
                 dv = impulse * inv_mass * u
                 dw = _apply(world_inertial, inv_diag * _apply(inverse, _cross(r, impulse * u)))
                 set_velocity(uid, list(np.asarray(linear) + dv), list(np.asarray(angular) + dw))
+
+
+#: Metres added to the slack bound of :func:`_still_slack` for the rounding of the lengths it compares.
+_SLACK_ROUNDING = 1e-9
+
+
+def _still_slack(rope: Rope, poses: list) -> bool:
+    """Whether ``rope``, slack when last measured, is certainly still slack with its carriers at ``poses``.
+
+    Its path is its two end points joined through its guides. An end point ``c + R a`` moved at most
+    ``|c - c0| + 2 |a| |q - q0|`` (unit quaternions, the closer sign of ``q0``), a pulley's guide point as far as the
+    wheel's centre, and a path's length grows at most by its end points' moves plus twice its guides' moves.
+    """
+    length, before = rope.slack_since
+    anchors = (*rope.anchors, *(np.zeros(3) for _ in rope.pulley_guides))
+    weights = (1.0, 1.0, *(2.0 for _ in rope.pulley_guides))
+    growth = 0.0
+    for (c0, q0), (c1, q1), anchor, weight in zip(before, poses, anchors, weights):
+        moved = math.sqrt(sum((a - b) ** 2 for a, b in zip(c1, c0)))
+        if q0 != q1:
+            plus = math.sqrt(sum((a - b) ** 2 for a, b in zip(q1, q0)))
+            minus = math.sqrt(sum((a + b) ** 2 for a, b in zip(q1, q0)))
+            moved += 2.0 * math.sqrt(float(anchor @ anchor)) * min(plus, minus)
+        growth += weight * moved
+    return length + growth + _SLACK_ROUNDING < rope.length - 1e-4
 
 
 def _cross(a, b) -> np.ndarray:

@@ -95,3 +95,31 @@ def test_condition_rotations_agree_with_scipy():
         assert angle == pytest.approx(expected, abs=1e-12)
         local = events._rotate_inverse(events._unit(now), tuple(offset))
         assert np.allclose(local, Rotation.from_quat(now).inv().apply(offset), atol=1e-12)
+
+
+def test_a_rope_judged_still_slack_is_slack():
+    from design.contraption.simulation import Simulator
+
+    scenario = load_scenario(ROOT / "examples" / "scenarios" / "teapotadventure.toml")
+    rng = np.random.default_rng(41)
+    with Simulator(scenario) as simulator:
+        world = simulator.build(scenario.layout("success"))
+        rope = world.ropes[0]
+        carriers = (*rope.ends, *(uid for uid, _ in rope.pulley_guides))
+        start = [world.client.getBasePositionAndOrientation(uid) for uid in carriers]
+        # Make the rope slack by a known amount, then move its carriers at random by up to a few millimetres.
+        _, length = world.rope_path(rope)
+        rope.length = length + 0.005
+        rope.slack_since = (length, start)
+        judged = 0
+        for _ in range(300):
+            scale = rng.choice([1e-4, 1e-3, 5e-3])
+            for uid, (position, quaternion) in zip(carriers, start):
+                turn = Rotation.from_rotvec(rng.normal(size=3) * scale * 10) * Rotation.from_quat(quaternion)
+                world.client.resetBasePositionAndOrientation(
+                    uid, list(np.asarray(position) + rng.normal(size=3) * scale), list(turn.as_quat()))
+            poses = [world.client.getBasePositionAndOrientation(uid) for uid in carriers]
+            if world_module._still_slack(rope, poses):
+                judged += 1
+                assert world.rope_path(rope)[1] - rope.length < -1e-4
+        assert 0 < judged < 300
