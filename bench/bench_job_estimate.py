@@ -105,6 +105,12 @@ def line_lines() -> list[str]:
 def firmware_motion_seconds(steps: Path) -> float:
     """Simulated seconds blocks ran, from grbl-sim's step record: the time from each block's start line to its last
     line, without the idle time between one block's end and the next one's start (dwells, syncs, stalls)."""
+    return firmware_motion(steps)[0]
+
+
+def firmware_motion(steps: Path) -> tuple[float, int]:
+    """:func:`firmware_motion_seconds` and how many times the machine stood still between blocks (the job's syncs,
+    and grbl-sim's stalls: a block after either starts from rest)."""
     sections: list[list[tuple[float, tuple[int, ...]]]] = []
     before: list[tuple[float, tuple[int, ...]]] = []
     for raw in steps.read_text().splitlines():
@@ -116,7 +122,7 @@ def firmware_motion_seconds(steps: Path) -> float:
             continue
         sample = (float(parts[0]), tuple(int(v) for v in parts[1:4]))
         (sections[-1] if sections else before).append(sample)
-    total = 0.0
+    total, stops = 0.0, 0
     previous_last = before[-1] if before else None
     for section in sections:
         if not section:
@@ -126,15 +132,17 @@ def firmware_motion_seconds(steps: Path) -> float:
         for index, (a, b) in enumerate(zip(section, section[1:])):
             last = index == len(section) - 2
             if last and a[1] == b[1] and len(section) > 2:
+                stops += 1
                 continue  # this block ended at a; b is the next block's start after an idle time
             total += b[0] - a[0]
         previous_last = section[-1]
-    return total
+    return total, stops
 
 
 def run_on_firmware(exe: Path, lines: list[str], settings: dict[int, float], laser: bool,
-                    pen_up: tuple[str, ...]) -> tuple[float, int, str]:
-    """(motion seconds, cycle restarts, how the job ended) of ``lines`` on the real firmware."""
+                    pen_up: tuple[str, ...]) -> tuple[float, int, int, str]:
+    """(motion seconds, stops between blocks, cycle restarts, how the job ended) of ``lines`` on the real
+    firmware."""
     with tempfile.TemporaryDirectory(prefix="job-estimate-") as folder:
         steps = Path(folder) / "steps.txt"
         with grbl_firmware.firmware(exe, steps=steps) as port:
@@ -146,7 +154,8 @@ def run_on_firmware(exe: Path, lines: list[str], settings: dict[int, float], las
                                 lost_ok_timeout=1.5 * slow, banner_timeout=3.0 * slow,
                                 reply_timeout=10.0 * slow) as conn, grbl_firmware.stall_guard(conn) as restarts:
                 result = JobRunner(conn, Job("bench", lines, laser=laser, pen_up=pen_up)).run()
-        return firmware_motion_seconds(steps), len(restarts), f"{result.state}: {result.message}"
+        seconds, stops = firmware_motion(steps)
+        return seconds, stops, len(restarts), f"{result.state}: {result.message}"
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -168,7 +177,7 @@ def main(argv: list[str] | None = None) -> int:
     jobs = {"plot": (plot_lines, "plotter"), "cut": (cut_lines, "laser"), "raster": (raster_lines, "laser"),
             "line": (line_lines, "laser")}
     print(f"{'job':8s} {'lines':>6s} {'blocks':>6s} {'dwell s':>8s} {'firmware s':>10s} {'estimate s':>10s} "
-          f"{'ratio':>6s} {'straight s':>10s} {'ratio':>6s} {'restarts':>8s}")
+          f"{'ratio':>6s} {'straight s':>10s} {'ratio':>6s} {'stops':>9s} {'restarts':>8s}")
     for key in args.jobs.split(","):
         make, kind = jobs[key]
         lines = make()
@@ -180,11 +189,13 @@ def main(argv: list[str] | None = None) -> int:
             print(f"{key}: the twin did not run it: {verified.message}")
             continue
         dwell = float(interpret(lines).dwell.sum())
-        motion, restarts, ended = run_on_firmware(exe, lines, settings, profile.is_laser, pen_up)
+        motion, stops, restarts, ended = run_on_firmware(exe, lines, settings, profile.is_laser, pen_up)
         firmware = motion + dwell
+        # stops: the firmware's (after the first block) against the twin's blocks from rest after the first
         print(f"{key:8s} {len(lines):6d} {verified.blocks:6d} {dwell:8.2f} {firmware:10.2f} "
               f"{verified.estimate_s:10.2f} {verified.estimate_s / firmware:6.3f} {verified.straight_s:10.2f} "
-              f"{verified.straight_s / firmware:6.3f} {restarts:8d}", flush=True)
+              f"{verified.straight_s / firmware:6.3f} {f'{stops}/{verified.from_rest - 1}':>9s} {restarts:8d}",
+              flush=True)
         if not ended.startswith("done"):
             print(f"  firmware job: {ended}")
     return 0
