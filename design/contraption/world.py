@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import functools
 import math
+import weakref
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -308,8 +309,7 @@ def build_world(client, scenario: Scenario, x=None) -> World:
     transforms = scenario.transforms(x)
     frames = world_poses(scenario.objects, transforms)
     world = World(client=client, scenario=scenario)
-    for obj in scenario.objects:
-        specs = body_specs(obj)
+    for obj, specs in _scenario_specs(scenario):
         if not specs:
             continue
         physics = obj.physics
@@ -358,6 +358,21 @@ def build_world(client, scenario: Scenario, x=None) -> World:
             rope.length = obj.shape.get("length", initial_length)
             world.ropes.append(rope)
     return world
+
+
+#: Each scenario's body specs by object, made once per scenario: they do not depend on the layout, and remaking
+#: them (a domino run's poses, scipy rotations) was a fifth of a small scene's building.
+_specs: dict[int, tuple[weakref.ref, list]] = {}
+
+
+def _scenario_specs(scenario: Scenario) -> list:
+    key = id(scenario)
+    entry = _specs.get(key)
+    if entry is not None and entry[0]() is scenario:
+        return entry[1]
+    value = [(obj, body_specs(obj)) for obj in scenario.objects]
+    _specs[key] = (weakref.ref(scenario, lambda _, key=key: _specs.pop(key, None)), value)
+    return value
 
 
 def _object_of(ref: str) -> str:
