@@ -2,8 +2,8 @@
 
 A program that reads what the station writes has a contract here rather than prose: ``LAYOUT.json``
 (``layout``), ``CHECK.json`` (``check``), the guide manifest (``guide-manifest``), ``jigs.json`` (``jigs``), the
-trial log's export (``trials``), ``station loop --json`` (``loop``), ``station devices --json`` (``devices``) and a laser
-test card's ``card.json`` (``test-card``).
+trial log's export (``trials``), ``station loop --json`` (``loop``), ``station devices --json`` (``devices``) and a
+laser test card's ``card.json`` (``test-card``).
 Breaking a schema is a new version of that format. Each schema's ``$id`` ends in its file name, so a ``$ref`` from
 one to another (the trial export's ``check``) resolves within this folder; nothing is fetched.
 """
