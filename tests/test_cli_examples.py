@@ -60,6 +60,7 @@ SLOW = {
     "station compare causalityswitch_ball --seed 10 --runs 5 --plot curves.png --json",
     "station loop simple --world 'sim://world?seed=1'",  # optimizations and calibrations: minutes
     "station loop ballrun --world 'sim://world?seed=3&place_mm=3' --attempts 8 --loops 3 --json",
+    "station loop causalityswitch_ball --world 'sim://world?seed=2&ruler_mm=1' --jigs",  # CAUSALITYSWITCH's budgets
 }
 
 #: What a maker types into an interactive example: skip the guide's steps, Enter once placed, run as placed (a:
