@@ -61,6 +61,7 @@ SLOW = {
     "station loop simple --world 'sim://world?seed=1'",  # optimizations and calibrations: minutes
     "station loop ballrun --world 'sim://world?seed=3&place_mm=3' --attempts 8 --loops 3 --json",
     "station loop causalityswitch_ball --world 'sim://world?seed=2&ruler_mm=1' --jigs",  # CAUSALITYSWITCH's budgets
+    "station assemble causalityswitch_ball success --world 'sim://world?seed=2' --jigs",  # its tolerance map: ~40 s
 }
 
 #: What a maker types into an interactive example: skip the guide's steps, Enter once placed, run as placed (a:
@@ -70,6 +71,7 @@ ANSWERS = {
     "station assemble ballrun ballrun-layout.json --project": "s\n\na\n" + "y\n" * 8 + "y\n",
     "station assemble simple success --world 'sim://world?seed=3' --physics simple-physics.toml --sheet guide.pdf":
         "s\n\na\n\ny\n",
+    "station assemble causalityswitch_ball success --world 'sim://world?seed=2' --jigs": "s\n\na\n\ny\n",
 }
 
 #: Options whose value is a file (or folder) the example writes (``--sheet`` too, when it names a PDF).
