@@ -106,7 +106,13 @@ def test_the_guide_has_runnable_examples():
             assert block and all(line.startswith(("station ", "printf ")) for line in block), (page, block)
 
 
-@pytest.mark.parametrize("page", pages_with_runnable_blocks())
+#: Pages whose examples run optimizations, loops or laser cards for 10 s or more: with the slow tests
+#: (``pytest -m slow``), so the default suite keeps to its time.
+SLOW_PAGES = {"guide/the-loop.md", "guide/robust-layouts.md", "guide/laser-test-cards.md"}
+
+
+@pytest.mark.parametrize("page", [pytest.param(page, marks=pytest.mark.slow) if page in SLOW_PAGES else page
+                                  for page in pages_with_runnable_blocks()])
 def test_the_pages_examples_run_as_written(page, tmp_path):
     shutil.copytree(REPO / "examples", tmp_path / "examples")
     env = dict(os.environ)
