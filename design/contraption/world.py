@@ -361,7 +361,7 @@ def build_world(client, scenario: Scenario, x=None) -> World:
 
 
 #: Each scenario's body specs by object, made once per scenario: they do not depend on the layout, and remaking
-#: them (a domino run's poses, scipy rotations) was a fifth of a small scene's building.
+#: them (a domino run's poses, scipy rotations) is a large share of building a small scene.
 _specs: dict[int, tuple[weakref.ref, list]] = {}
 
 
