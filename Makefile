@@ -27,9 +27,9 @@ lint: install
 test: lint
 	$(PY) -m pytest -q -n auto --maxprocesses=4
 
-## Remake the screens' snapshots (tests/snapshots) after a deliberate change to a screen; then review the SVGs.
+## Remake the screens' snapshots (tests/station/tui/snapshots) after a deliberate change to a screen; then review the SVGs.
 snapshots: install
-	STATION_UPDATE_SNAPSHOTS=1 $(PY) -m pytest -q tests/test_snapshots.py
+	STATION_UPDATE_SNAPSHOTS=1 $(PY) -m pytest -q tests/station/tui/test_snapshots.py
 
 ## The documentation site (MkDocs, Material theme) into build/site, strict: a broken link, a missing page or a page
 ## left out of the navigation fails. It builds offline; the test suite builds it too (tests/test_docs.py).

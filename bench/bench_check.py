@@ -18,7 +18,7 @@ import numpy as np
 FRAMES = 6
 SEED = 19
 CASES = (("ballrun", "success", "goblet"),
-         ("simple", str(Path(__file__).resolve().parents[1] / "tests" / "robust" / "data"
+         ("simple", str(Path(__file__).resolve().parents[1] / "tests" / "data" / "robust"
                         / "simple-layout-with-model.json"), "track"))
 
 

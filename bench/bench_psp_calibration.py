@@ -1,6 +1,6 @@
 """Is the predicted PSP honest? Brier score and reliability on held-out simulations, per scenario, before and after.
 
-For every example scenario (examples/scenarios/*.toml) and the tilted plank (tests/robust/data/tilted_plank.toml, a
+For every example scenario (examples/scenarios/*.toml) and the tilted plank (tests/data/robust/tilted_plank.toml, a
 scenario nobody tuned on), ``station optimize``'s pipeline runs with a simulation budget and seed 0, under the
 settings as they were before the calibration fixes of issue 20 ("before") and under the station's recommended
 settings ("after"). Each fitted model is then scored on held-out simulations it never saw: a Sobol sample of the
@@ -37,7 +37,7 @@ from design.robust.reliability import held_out_layouts, psp_reliability
 from design.robust.settings import RECOMMENDED_BEFORE_CALIBRATION, PSPSettings
 
 ROOT = Path(__file__).resolve().parents[1]
-TILTED_PLANK = ROOT / "tests" / "robust" / "data" / "tilted_plank.toml"
+TILTED_PLANK = ROOT / "tests" / "data" / "robust" / "tilted_plank.toml"
 #: The held-out Sobol sample's seed: not 0.. (the runs' seeds), not the robustness evaluation set's 12345.
 HELD_OUT_SEED = 20_2020
 #: Per scenario: (budget, held-out uniform layouts, held-out layouts near the returned layout) of the QUICK run

@@ -5,7 +5,7 @@ Trials are made by the simulator itself under hidden material values with 1 mm /
 settings (:class:`calibration.sim_fit.FitSettings`). Targets: friction within ±5 % from 10 runs with event times
 and from 30 runs with outcomes only; restitution within ±15 %; the held-out Brier score of the success probability
 improves. Scenarios: SLIDE (a block on a tilted plank, friction) and BOUNCE (a ball dropped on a plate, restitution),
-tests/calibration/data. About 2-4 minutes per seed on one core. Draws docs/sim_calibration.png: each fit's
+tests/data/calibration. About 2-4 minutes per seed on one core. Draws docs/sim_calibration.png: each fit's
 candidates (the first seed's).
 
 Run: ``python -m bench.bench_sim_calibration [--seeds 0,1,2] [--prior-width W]`` (0: maximum likelihood) or
@@ -22,7 +22,7 @@ import numpy as np
 
 from calibration.sim_fit import FitSettings
 
-DATA = Path(__file__).resolve().parents[1] / "tests" / "calibration" / "data"
+DATA = Path(__file__).resolve().parents[1] / "tests" / "data" / "calibration"
 
 #: (label, scenario file, hidden values, designed layouts' range, runs, with times, tolerance)
 CASES = [

@@ -1,4 +1,4 @@
-"""Crash and concurrency tests of the trial log, shared by tests/trials/test_trial_crash.py (fast) and
+"""Crash and concurrency tests of the trial log, shared by tests/station/test_trial_crash.py (fast) and
 bench/bench_trials.py (full): writer processes log trials through the service in a loop and print each trial's id
 once :meth:`TrialStore.add` has returned (committed); the tests kill them with SIGKILL at random moments, or run two
 at once, and then look in the database.

@@ -1,13 +1,15 @@
 """Suite-wide fixtures: the station never writes into the real user's folders during tests.
 
 Also helpers shared by test files in different folders (imported as ``from .conftest import ...`` or
-``from ..conftest import ...``, as tests/grbl imports its own conftest)."""
+``from ..conftest import ...``, as tests/drivers imports its own conftest)."""
 
 from __future__ import annotations
 
 from contextlib import asynccontextmanager
 
 import pytest
+
+from drivers.grbl import GrblConnection
 
 
 @pytest.fixture(autouse=True)
@@ -63,3 +65,24 @@ async def opened(tmp_path, key: str | None = None, size: tuple[int, int] = (160,
             else:
                 await pilot.pause()
         yield app, pilot
+
+
+#: Fast settings for the simulator: motion 50x faster than real time, status at 20 Hz, short watchdogs.
+FAST = {"poll_interval": 0.05, "lost_ok_timeout": 0.3, "silence_timeout": 0.6}
+
+
+@pytest.fixture
+def make_connection():
+    """Open connections and close them at the end of the test."""
+    opened: list[GrblConnection] = []
+
+    def make(url: str, **kwargs) -> GrblConnection:
+        options = dict(FAST) if url.startswith("sim://") else {}
+        options.update(kwargs)
+        conn = GrblConnection(url, **options).open()
+        opened.append(conn)
+        return conn
+
+    yield make
+    for conn in opened:
+        conn.close()

@@ -17,7 +17,7 @@ from calibration.sim_synthetic import export, synthetic_trials
 from calibration.sim_trials import export_trials, fit_trials
 from design.contraption import load_scenario
 
-DATA = Path(__file__).parent / "data"
+DATA = Path(__file__).resolve().parents[1] / "data" / "calibration"
 EXAMPLES = Path(__file__).parents[2] / "examples" / "scenarios"
 
 
