@@ -4,7 +4,7 @@ a laser cut and a raster engraving.
     python -m bench.bench_job_estimate --grbl PATH/TO/grbl --grbl-sim PATH/TO/grbl-sim [--cache DIR]
 
 Each job runs twice: on the station's twin at virtual time (:func:`station.services.job_verify.verify_job`: the
-blocks the twin executed, timed by GRBL's planner in :mod:`drivers.sim.grbl_motion`) and on gnea/grbl 1.1h built
+blocks the twin executed, timed by GRBL's planner in :mod:`drivers.grbl.planner`) and on gnea/grbl 1.1h built
 with grbl-sim (:mod:`bench.grbl_firmware`), streamed by the station's driver, both machines with the same settings
 (the profile's ``$11``, ``$100``-``$132``, no homing). The firmware's time is read from grbl-sim's step record (its
 simulated clock, every 5 ms while a block runs, at each block's start and end): the time blocks ran, not the wall
@@ -29,7 +29,7 @@ from drivers.gcode import interpret
 from drivers.grbl import GrblConnection, Job, JobRunner
 from drivers.laser_job import OperationSettings, plan_laser_job, write_laser_gcode
 from drivers.profiles import load_profile
-from drivers.sim.grbl_settings import DEFAULT_SETTINGS, SIM_PROFILES
+from drivers.sim.grbl.settings import DEFAULT_SETTINGS, SIM_PROFILES
 from station.services.job_verify import verify_job
 
 #: The settings both machines get: motion from the profile, no homing (grbl-sim's switches read as pressed).

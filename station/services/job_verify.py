@@ -7,7 +7,7 @@ wire time), set up as the machine it is meant for: the profile's twin, with the 
 and work offset when the station is connected to it. What the twin executed (every planner block, where it started
 and ended, the laser's power, whether it started from rest) gives:
 
-- the time estimate of GRBL's planner (:func:`drivers.sim.grbl_motion.plan_times`: acceleration, junction speeds,
+- the time estimate of GRBL's planner (:func:`drivers.grbl.planner.plan_times`: acceleration, junction speeds,
   its 15-block look-ahead) plus the dwells, next to the straight-line figure (length over feed) the job's ETA uses
   before it runs;
 - the travels (rapid blocks) on which the laser was not dark (a machine with ``$32=0`` fires on a ``G0``);
@@ -26,8 +26,8 @@ import numpy as np
 from common.progress import Progress, ProgressCallback
 from drivers.gcode import GcodeError, interpret
 from drivers.grbl import GrblConnection, Job, JobRunner
+from drivers.grbl.planner import MotionBlock, plan_times
 from drivers.profiles import MachineProfile
-from drivers.sim.grbl_motion import MotionBlock, plan_times
 from station.services.errors import ServiceError
 
 __all__ = ["JobVerification", "twin_url", "verify_job", "verify_summary"]

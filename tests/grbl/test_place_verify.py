@@ -1,5 +1,5 @@
 """A job placed on the bed (drivers.gcode_place, station send --place) and verified on the twin at virtual time
-(drivers.sim.grbl_motion, station.services.job_verify, station send --verify)."""
+(drivers.grbl.planner, station.services.job_verify, station send --verify)."""
 
 from __future__ import annotations
 
@@ -12,8 +12,8 @@ import pytest
 from drivers.gcode import GcodeError, interpret
 from drivers.gcode_place import Placement, place_lines
 from drivers.grbl import Job, JobRunner
+from drivers.grbl.planner import MotionBlock, plan_times
 from drivers.profiles import load_profile
-from drivers.sim.grbl_motion import MotionBlock, plan_times
 from station.cli import main
 from station.services.job_verify import verify_job
 

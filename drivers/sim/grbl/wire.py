@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import time
 
-from drivers.sim.grbl_settings import BANNER, RX_BUFFER_SIZE
+from drivers.sim.grbl.settings import BANNER, RX_BUFFER_SIZE
 
 REALTIME_STATUS = 0x3F  # '?'
 REALTIME_HOLD = 0x21  # '!'
