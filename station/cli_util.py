@@ -14,8 +14,7 @@ from typing import Any, TextIO
 
 from design.datafiles import load_json
 from design.errors import FileFormatError
-from station.errors import UsageError
-from station.services.errors import ServiceError
+from station.errors import ServiceError, UsageError
 
 
 def parse_assignments(items: Iterable[str] | None, option: str = "--set") -> dict[str, float]:

@@ -23,7 +23,7 @@ from datetime import datetime, timezone
 from typing import Any
 
 from station.db import Database, Transaction, database_url
-from station.services.errors import ServiceError
+from station.errors import ServiceError
 from station.trialformat import text_hash
 
 #: Trial ids are 64-bit integers in both databases (SQLite's INTEGER, PostgreSQL's BIGINT).

@@ -13,8 +13,8 @@ import numpy as np
 import pytest
 
 from station.cli import main
+from station.errors import ServiceError
 from station.services import assemble as service
-from station.services.errors import ServiceError
 from station.services.trials import load_trial_scenario, open_store
 
 from .trials.test_trial_cli import PROFILE  # a physics profile for SIMPLE (wood.friction)

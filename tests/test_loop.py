@@ -70,8 +70,8 @@ def test_the_camera_measures_parts_where_the_maker_put_them(simple_job):
 
 def test_a_world_is_a_sim_world_url(simple_job):
     from drivers.errors import SimConfigError
+    from station.errors import ServiceError
     from station.services import world as worlds
-    from station.services.errors import ServiceError
 
     with pytest.raises(ServiceError, match="not a world"):
         worlds.open_world("sim://camera")

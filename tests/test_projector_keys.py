@@ -14,7 +14,7 @@ from drivers.devices import projector_identity
 from drivers.sim.projector import SimulatedProjector
 from station.cli import main
 from station.devices import default_devices
-from station.services.errors import ServiceError
+from station.errors import ServiceError
 from station.services.guide import make_guide, show_step
 from station.services.projector_calibration import projector_map_file
 from station.services.projectors import projector_device, projector_homography, projector_key, projector_mapping

@@ -75,8 +75,8 @@ def test_a_stated_height_is_set_as_the_guide_says_with_its_error(simple_job, how
 
 
 def test_a_guide_without_a_parameter_and_no_ranges_is_refused(simple_job):
+    from station.errors import ServiceError
     from station.services import world as worlds
-    from station.services.errors import ServiceError
 
     guide = _without(simple_job.guide, "track.roll")
     world = worlds.open_world("sim://world?seed=4")
@@ -86,8 +86,8 @@ def test_a_guide_without_a_parameter_and_no_ranges_is_refused(simple_job):
 
 
 def test_the_simulated_maker_cuts_the_jigs_on_the_laser_twin():
+    from station.errors import ServiceError
     from station.services import world as worlds
-    from station.services.errors import ServiceError
     from station.services.guide import make_guide
 
     job = make_guide("simple", "success", tolerances=False, jigs=True)

@@ -10,8 +10,7 @@ from pathlib import Path
 import numpy as np
 
 from station.cli_util import check_output_file, emit_json, flag_error, number
-from station.errors import UsageError
-from station.services.errors import ServiceError
+from station.errors import ServiceError, UsageError
 
 BED_JSON = ('{"homography" (pixels -> machine mm), "residual_rms_mm", "residual_max_mm", "image_size", "marks_mm": '
             '[[[x, y], size]], "camera", "laser", "path", "engraved", "work_offset"}')

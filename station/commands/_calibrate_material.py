@@ -9,8 +9,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from station.cli_util import check_output_file, emit_json, flag_error, number
-from station.errors import UsageError
-from station.services.errors import ServiceError
+from station.errors import ServiceError, UsageError
 
 MATERIAL_JSON = ('{"card", "frame", "material", "profile", "tags_found", "tag_fit_mm", "levels", "kerf_mm", '
                  '"kerf_uncertainty_mm", "kerf_settings", "slots": [...], "cells": [{"name", "power", '

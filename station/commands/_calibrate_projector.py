@@ -10,7 +10,7 @@ from __future__ import annotations
 import sys
 
 from station.cli_util import check_output_file, emit_json, flag_error, number
-from station.services.errors import ServiceError
+from station.errors import ServiceError
 
 __all__ = ["PROJECTOR_JSON", "add_projector_parser", "run_projector"]
 

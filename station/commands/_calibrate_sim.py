@@ -10,8 +10,7 @@ import sys
 
 from station.cli_util import NON_NEGATIVE, check_output_file, emit_json, flag_error
 from station.commands.robust import _where, add_workers, command
-from station.errors import UsageError
-from station.services.errors import ServiceError
+from station.errors import ServiceError, UsageError
 
 #: The flags of the service's fields where they are not ``--`` + the field.
 FLAGS = {"trials_json": "--trials-json"}

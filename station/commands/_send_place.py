@@ -12,8 +12,7 @@ from drivers.errors import JobRefused
 from drivers.gcode import GcodeError
 from drivers.gcode_place import Placement, place_lines
 from drivers.grbl import Job
-from station.errors import UsageError
-from station.services.errors import ServiceError
+from station.errors import ServiceError, UsageError
 
 __all__ = ["add_place_options", "placed_job", "verify_before_send"]
 

@@ -12,8 +12,7 @@ import sys
 
 from common.progress import Cancelled
 from station.cli_util import check_output_file, flag_error
-from station.errors import UsageError
-from station.services.errors import ServiceError
+from station.errors import ServiceError, UsageError
 
 FLAGS = {"world": "--world", "camera": "--camera", "physics": "--physics", "samples": "--samples",
          "attempt": "--attempt", "seed": "--seed"}

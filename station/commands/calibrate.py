@@ -11,8 +11,7 @@ from __future__ import annotations
 import sys
 
 from station.cli_util import check_output_file, emit_json, flag_error, number
-from station.errors import UsageError
-from station.services.errors import ServiceError
+from station.errors import ServiceError, UsageError
 
 CAMERA_JSON = ('{"camera": {camera file: "camera_matrix", "dist_coeffs", "image_size", "rms_px", "name", "notes"}, '
                '"rms_px", "views": [{"name", "corners", "rms_px", "skipped"}], "coverage", "uncovered_corners", '

@@ -12,8 +12,7 @@ import sys
 from pathlib import Path
 
 from station.cli_util import add_physics_option, check_output_file, emit_json, flag_error
-from station.errors import UsageError
-from station.services.errors import ServiceError
+from station.errors import ServiceError, UsageError
 
 #: The ``--json`` / CHECK.json contract, quoted in the help text; keep its names.
 JSON_SHAPE = ('{"format": "chaos-station check", "version", "scenario", "content_hash", "layout", "view", "plane": '

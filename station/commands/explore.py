@@ -12,8 +12,7 @@ from typing import Any
 
 from design.machines import declared_machine_names, get_machine
 from station.cli_util import add_design_options, check_output_file, design_parameters, emit_json, flag_error
-from station.errors import UsageError
-from station.services.errors import ServiceError
+from station.errors import ServiceError, UsageError
 from station.services.explore import check_points, explore, write_picture
 
 

@@ -20,9 +20,8 @@ from station.cli_util import (
     design_parameters,
     emit_json,
 )
-from station.errors import UsageError
+from station.errors import ServiceError, UsageError
 from station.progress_view import ProgressView
-from station.services.errors import ServiceError
 from station.services.fabricate import (  # noqa: F401 - re-exported: the work lives in the service
     DEFAULT_GAP,
     DEFAULT_KERF,

@@ -9,8 +9,7 @@ from __future__ import annotations
 import sys
 
 from station.cli_util import add_physics_option, check_output_file, check_output_folder, emit_json, flag_error
-from station.errors import UsageError
-from station.services.errors import ServiceError
+from station.errors import ServiceError, UsageError
 
 #: The ``--json`` contract (the guide's manifest), quoted in the help text; keep its names.
 JSON_SHAPE = ('{"scenario", "content_hash", "view", "units": "mm", "tolerance_source", "pages": [{"index", "label", '

@@ -9,7 +9,7 @@ from __future__ import annotations
 import sys
 
 from station.cli_util import NON_NEGATIVE, add_physics_option, check_output_folder, emit_json, flag_error
-from station.services.errors import ServiceError
+from station.errors import ServiceError
 
 #: The ``--json`` contract (jigs.json), quoted in the help text; keep its names.
 JSON_SHAPE = ('{"scenario", "view", "units": "mm", "material", "thickness_mm", "kerf_mm", "sheet_mm", "jigs": [{"id", '

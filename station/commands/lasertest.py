@@ -13,7 +13,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from station.cli_util import check_output_file, check_output_folder, emit_json, flag_error, number
-from station.services.errors import ServiceError
+from station.errors import ServiceError
 
 CARD_JSON = '{"files": {"gcode", "json", "png"}, "card_mm", "cells", "estimate_seconds", "profile", "material"}'
 RENDER_JSON = '{"frame", "truth": {"material", "kerf_mm", "kerf_settings", "cells": [{"name", "cut_kerf_mm", ' \

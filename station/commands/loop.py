@@ -12,7 +12,7 @@ import textwrap
 
 from station.cli_util import NON_NEGATIVE, POSITIVE, emit_json, flag_error
 from station.commands.robust import ProgressBar, add_command, command
-from station.services.errors import ServiceError
+from station.errors import ServiceError
 
 #: The longest line the loop prints (a 120-column terminal; a longer line is wrapped, its rest indented).
 WIDTH = 118

@@ -41,11 +41,10 @@ from station.cli_util import (
     parse_assignments,
 )
 from station.commands._send_place import add_place_options, placed_job, verify_before_send
-from station.errors import StationError, UsageError
+from station.errors import ServiceError, StationError, UsageError
 from station.joblog import INTERRUPTED, JOB_KINDS, JobLog
 from station.progress_view import ProgressView
 from station.services import plot as plot_service
-from station.services.errors import ServiceError
 from station.services.machines import plot_job as _plot_job
 
 DEFAULT_POINTS = 4096

@@ -7,7 +7,7 @@ import sys
 
 from station.cli_util import emit_json, flag_error
 from station.commands.robust import _where, add_command, add_scenario_and_layout, add_workers, command
-from station.services.errors import ServiceError
+from station.errors import ServiceError
 
 
 def register(subparsers) -> None:

@@ -14,9 +14,8 @@ from pathlib import Path
 from common.progress import Progress
 from design.machines import declared_machine_names
 from station.cli_util import NON_NEGATIVE, check_output_folder, emit_json, flag_error
-from station.errors import UsageError
+from station.errors import ServiceError, UsageError
 from station.progress_view import ProgressView
-from station.services.errors import ServiceError
 from station.services.sketch import (
     GRID_RANGE,
     REFINE_RANGE,

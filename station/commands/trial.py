@@ -9,8 +9,7 @@ from common.progress import Cancelled
 from design.contraption.layout_io import resolve_layout
 from station.cli_util import emit_json
 from station.db import WRITE_PATIENCE_SECONDS
-from station.errors import StationError, UsageError
-from station.services.errors import ServiceError
+from station.errors import ServiceError, StationError, UsageError
 from station.services.trials import (
     TrialKept,
     build_trial,

@@ -28,7 +28,7 @@ from typing import Any
 import numpy as np
 
 from common.progress import ProgressCallback
-from station.services.errors import ServiceError
+from station.errors import ServiceError
 from station.services.outlook import success_headline
 
 __all__ = ["STAGES", "Assembly", "Forecast", "calibrate_from_log", "open_assembly", "reoptimize"]

@@ -37,7 +37,7 @@ import numpy as np
 from common.progress import Progress, ProgressCallback
 from drivers.gcode import GcodeError, interpret
 from drivers.gcode_place import Placement, place_lines
-from station.services.errors import ServiceError
+from station.errors import ServiceError
 
 __all__ = ["MARK_SIZES", "SIM_BED_CAMERA", "BedCalibration", "BedRegistration", "bed_camera", "bed_file",
            "bed_picture", "calibrate_bed", "default_mark_area", "find_marks", "find_stock", "job_outline",

@@ -23,7 +23,7 @@ from pathlib import Path
 import numpy as np
 
 from common.progress import CancelCheck, ProgressCallback, Reporter
-from station.services.errors import ServiceError
+from station.errors import ServiceError
 
 __all__ = ["IMAGE_SUFFIXES", "CameraCalibration", "PlaneCheck", "calibrate_camera", "camera_file", "camera_summary",
            "capture_views", "check_name", "grab_frame", "intrinsics_for", "plane_check", "plane_summary",

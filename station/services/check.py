@@ -20,8 +20,8 @@ from pathlib import Path
 import numpy as np
 
 from common.progress import ProgressCallback, Reporter
+from station.errors import ServiceError
 from station.services.check_scene import parse_offset, sim_scene
-from station.services.errors import ServiceError
 from station.services.guide_manifest import read_manifest
 
 __all__ = ["CheckJob", "apply_manifest", "camera_frame", "camera_overlay", "check_frame", "check_measurement",

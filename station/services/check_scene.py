@@ -14,7 +14,7 @@ from collections.abc import Mapping, Sequence
 
 import numpy as np
 
-from station.services.errors import ServiceError
+from station.errors import ServiceError
 
 __all__ = ["parse_offset", "sim_scene"]
 

@@ -20,7 +20,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from station.services.errors import ServiceError
+from station.errors import ServiceError
 
 __all__ = ["SideView", "check_views", "measure_side", "merge_as_built", "plane_json", "side_lines", "side_overlay",
            "side_scene", "side_targets", "view_of_frame"]

@@ -13,7 +13,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from station.services.errors import ServiceError
+from station.errors import ServiceError
 
 if TYPE_CHECKING:  # scipy and shapely load only when a design is explored
     from design.explore import Explorer, PointOfInterest, ReleaseResult

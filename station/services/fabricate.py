@@ -15,7 +15,7 @@ from typing import Any
 
 from common.progress import CancelCheck, ProgressCallback, Reporter
 from station.cli_util import to_jsonable
-from station.services.errors import ServiceError
+from station.errors import ServiceError
 
 DEFAULT_KERF = 0.15
 #: Where the kerf came from, in words (``kerf_source`` in parts.json).

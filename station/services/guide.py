@@ -15,7 +15,7 @@ from pathlib import Path
 
 from common.progress import ProgressCallback, Reporter
 from projector.guide import Guide, ParameterTolerance
-from station.services.errors import ServiceError
+from station.errors import ServiceError
 
 __all__ = ["PAPERS", "VIEWS", "GuideJob", "check_paper", "export_guide", "make_guide", "portable_name",
            "projected_frames", "show_step"]

@@ -17,7 +17,7 @@ from pathlib import Path
 from typing import Any
 
 from common.datafiles import load_json
-from station.services.errors import ServiceError
+from station.errors import ServiceError
 
 __all__ = ["MANIFEST", "MAX_COORDINATE_MM", "MAX_TAG_MM", "read_manifest", "reference_tags"]
 

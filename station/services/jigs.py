@@ -23,7 +23,7 @@ from typing import Any
 
 from common.progress import ProgressCallback, Reporter
 from station.cli_util import to_jsonable
-from station.services.errors import ServiceError
+from station.errors import ServiceError
 from station.services.fabricate import DEFAULT_GAP, DEFAULT_KERF, KERF_SOURCES, SheetOutput, laser_sheets, parse_sheet
 
 __all__ = ["JIG_TAG_IDS", "JigOptions", "JigsResult", "PlannedJigs", "attach_jigs", "check_options", "cut_jigs",

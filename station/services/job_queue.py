@@ -25,8 +25,8 @@ from enum import Enum
 
 from drivers.grbl import Job, JobResult, frame_lines
 from drivers.profiles import MachineProfile
+from station.errors import ServiceError
 from station.joblog import JOB_KINDS, JobLog
-from station.services.errors import ServiceError
 
 __all__ = [
     "ACTIVE_STATES",

@@ -28,7 +28,7 @@ from drivers.gcode import GcodeError, interpret
 from drivers.grbl import GrblConnection, Job, JobRunner
 from drivers.grbl.planner import MotionBlock, plan_times
 from drivers.profiles import MachineProfile
-from station.services.errors import ServiceError
+from station.errors import ServiceError
 
 __all__ = ["JobVerification", "twin_url", "verify_job", "verify_summary"]
 

@@ -37,7 +37,7 @@ from drivers.laser_job import check_work_area, material_settings, plan_operation
 from drivers.profiles import BUILTIN_PROFILES, MachineProfile, ProfileError, profile_from_toml
 from drivers.sim.laser_burn import burn_gcode, line_kerf, photograph, sim_material
 from projector.tags import tag_cells
-from station.services.errors import ServiceError
+from station.errors import ServiceError
 from station.services.profiles import load_station_profile, replace_material_table, station_copy_path
 
 __all__ = [

@@ -50,7 +50,7 @@ import numpy as np
 
 from common.progress import Progress, ProgressCallback, Reporter
 from drivers.sim.world import WORLD_REVISION
-from station.services.errors import ServiceError
+from station.errors import ServiceError
 from station.services.layout_choice import PREDICTION_WEIGHT, describe_choice
 from station.services.robust import RunStopped, simulation_cache_path
 

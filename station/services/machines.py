@@ -9,7 +9,7 @@ import math
 
 from drivers.gcode import WriterOptions, fit_polylines, simplify_polylines, write_plot_gcode
 from drivers.profiles import MachineProfile
-from station.services.errors import ServiceError
+from station.errors import ServiceError
 
 
 def plot_job(polylines, profile: MachineProfile, size: float | None, tolerance: float | None, power: float = 0.3):

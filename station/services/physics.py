@@ -12,7 +12,7 @@ from pathlib import Path
 
 from design.contraption.physics_profile import PhysicsProfile, apply_profile, load_profile
 from design.contraption.scenario import Scenario
-from station.services.errors import ServiceError
+from station.errors import ServiceError
 
 
 def read_profile(path: str | Path) -> PhysicsProfile:

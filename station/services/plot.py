@@ -30,7 +30,7 @@ from common.datafiles import parse_data
 from drivers.gcode import WriterOptions, interpret
 from drivers.gcode_layers import PenLayer, layer_marks, write_layers_gcode
 from drivers.profiles import MachineProfile
-from station.services.errors import ServiceError
+from station.errors import ServiceError
 
 __all__ = [
     "PALETTE",

@@ -20,7 +20,7 @@ from common.progress import ProgressCallback
 from design.contraption.layout_io import LoadedLayout
 from design.contraption.physics_profile import PhysicsProfile
 from design.contraption.scenario import Scenario
-from station.services.errors import ServiceError
+from station.errors import ServiceError
 from station.services.outlook import success_headline
 
 

@@ -24,8 +24,8 @@ import numpy as np
 
 from common.progress import CancelCheck, ProgressCallback, Reporter
 from drivers.devices import projector_identity
+from station.errors import ServiceError
 from station.services import projectors
-from station.services.errors import ServiceError
 
 __all__ = ["DEFAULT_SETTLE_S", "ProjectorCalibration", "calibrate_projector", "projector_map_file",
            "projector_summary", "run_patterns"]

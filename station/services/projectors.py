@@ -27,9 +27,8 @@ from drivers.errors import DriverError
 from drivers.sim.projector import parse_options
 from station.config import configured_devices
 from station.devices import DeviceEntry
-from station.errors import StationError
+from station.errors import ServiceError, StationError
 from station.paths import data_dir
-from station.services.errors import ServiceError
 
 __all__ = ["ProjectorMapping", "configured_projector", "mapping_of", "maps_folder", "open_projector",
            "projector_device", "projector_homography", "projector_key", "projector_mapping"]

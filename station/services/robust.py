@@ -5,7 +5,7 @@ Used by ``station optimize``, ``station robustness``, ``station compare`` and th
 simulates through one executor on the station's shared simulation cache (:func:`simulations`), reports progress
 through one callback (a :class:`design.robust.Progress`, hence a :class:`common.progress.Progress`) and stops when
 ``should_stop()`` turns true: a stopped run raises :class:`RunStopped`, which says how many new simulations the cache
-kept. Refused input is a :class:`~station.services.errors.ServiceError` naming the value (``budget``, ``seed``,
+kept. Refused input is a :class:`~station.errors.ServiceError` naming the value (``budget``, ``seed``,
 ``settings``...); design errors (a bad scenario or layout) pass as they are.
 """
 
@@ -23,8 +23,8 @@ from common.signals import HandledSignals
 from design.errors import FileFormatError
 from design.robust.problem import RobustError
 from design.robust.settings import METHODS, PSPSettings, RobustnessSettings
+from station.errors import ServiceError
 from station.paths import cache_dir
-from station.services.errors import ServiceError
 
 if TYPE_CHECKING:
     import numpy as np

@@ -21,7 +21,7 @@ from calibration.sim_trials import export_trials, fit_trials
 from common.progress import Cancelled, ProgressCallback
 from design.contraption.physics_profile import PhysicsProfile, save_profile
 from design.contraption.scenario import Scenario
-from station.services.errors import ServiceError
+from station.errors import ServiceError
 
 
 @dataclass

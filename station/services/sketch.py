@@ -16,7 +16,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from common.progress import CancelCheck, ProgressCallback, Reporter
-from station.services.errors import ServiceError
+from station.errors import ServiceError
 
 if TYPE_CHECKING:  # scipy and the spline/FFT machinery load only when a sketch is retrieved
     import numpy as np

@@ -6,7 +6,7 @@ computes each free parameter's tolerance (:mod:`design.robust.tolerance`); ``ver
 ±delta per parameter on the shared simulation cache. A layout without a model gets its tolerances by simulation
 when ``verify > 0``, else none; the result's ``map.source`` says which. Progress goes to one callback (a
 :class:`design.robust.Progress`, hence a :class:`common.progress.Progress`); refused input is a
-:class:`~station.services.errors.ServiceError` naming the value (``verify``, ``seed``...).
+:class:`~station.errors.ServiceError` naming the value (``verify``, ``seed``...).
 """
 
 from __future__ import annotations
@@ -15,8 +15,8 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+from station.errors import ServiceError
 from station.services import robust
-from station.services.errors import ServiceError
 from station.services.outlook import disagreement
 
 if TYPE_CHECKING:

@@ -22,9 +22,8 @@ from design.contraption.catalog import resolve_scenario_path
 from design.contraption.layout_io import layout_from_data
 from design.contraption.model import Scenario
 from design.errors import DesignError
-from station.errors import StationError
+from station.errors import ServiceError, StationError
 from station.joblog import local_time
-from station.services.errors import ServiceError
 from station.trialformat import (
     FORMAT,
     OUTCOMES,

@@ -29,7 +29,7 @@ from typing import Any
 import numpy as np
 
 from projector.guide import IN_PLANE_ROLES
-from station.services.errors import ServiceError
+from station.errors import ServiceError
 
 __all__ = ["AttemptRun", "as_placed_layout", "check_moves", "cut_jigs", "design_ranges", "grab_placed",
            "grab_placed_side", "guide_jigs", "guide_parts", "open_world", "place_parts", "prepare_world", "run_attempt",

@@ -24,8 +24,8 @@ from calibration.intrinsics import CameraIntrinsics, load_intrinsics, save_intri
 from common.progress import Cancelled
 from drivers.sim.camera_render import render
 from station.cli import build_parser, main
+from station.errors import ServiceError
 from station.services import calibrate as service
-from station.services.errors import ServiceError
 
 SIZE = (640, 480)
 MATRIX = np.array([[520.0, 0.0, 319.5], [0.0, 520.0, 239.5], [0.0, 0.0, 1.0]])

@@ -157,8 +157,8 @@ def test_every_material_adds_the_plain_values_in_their_default_ranges():
 def test_ranges_that_do_not_overlap_refuse_only_the_value_that_is_fitted():
     # SIMPLE's steel.restitution ranges over [0.05, 0.5], BALLRUN's over [0.5, 0.95]: fitting both scenarios' wood
     # alone (`station calibrate sim simple ballrun --params wood.friction`) never looks at the steel.
+    from station.errors import ServiceError
     from station.services.contraption import open_scenario
-    from station.services.errors import ServiceError
     from station.services.sim_calibration import choose_parameters
 
     both = [open_scenario("simple"), open_scenario("ballrun")]

@@ -23,7 +23,7 @@ from common.progress import Cancelled
 from drivers.sim.camera import sim_camera
 from drivers.sim.camera_scene import Occluder, PlaneScene
 from drivers.sim.projector import sim_projector
-from station.services.errors import ServiceError
+from station.errors import ServiceError
 from station.services.projector_calibration import calibrate_projector, projector_map_file, projector_summary
 
 PROJECTOR = (1280, 800)

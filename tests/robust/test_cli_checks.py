@@ -151,9 +151,8 @@ def test_the_executor_reaches_its_scheduler_when_asked():
 def test_the_service_names_the_value_and_the_command_names_the_flag(tmp_path):
     # The Robust screen calls the service: its refusals must not speak of command-line flags.
     from station.commands.robust import usage_error
-    from station.errors import UsageError
+    from station.errors import ServiceError, UsageError
     from station.services import robust as service
-    from station.services.errors import ServiceError
 
     refusals = [
         (lambda: service.psp_settings("bogus"), "settings", "--settings must be one of recommended, thesis or a "

@@ -27,9 +27,9 @@ from textual.widgets import Button, DataTable, Footer, Header, Input, Label, Sel
 
 from design.errors import DesignError
 from design.robust import Progress, PSPSettings, RobustLayout
+from station.errors import ServiceError
 from station.paths import data_dir
 from station.services import robust as service
-from station.services.errors import ServiceError
 from station.services.outlook import disagreement, success_headline
 from station.services.predict import layout_outlook
 from station.services.robust import DEFAULT_BUDGET, DEFAULT_SETTINGS, SETTINGS_CHOICES, RunStopped, thesis_budget
