@@ -26,8 +26,8 @@ def main() -> None:
     from calibration.intrinsics import CameraIntrinsics
     from drivers.sim.camera_render import render
     from drivers.sim.camera_scene import CameraModel, RenderOptions
-    from projector.detection import TagDetector
     from station.services import check as service
+    from vision.detection import TagDetector
 
     rng = np.random.default_rng(SEED)
     options = RenderOptions(blur_px=0.8, noise=2.0, jpeg_quality=90, seed=SEED)

@@ -35,7 +35,7 @@ from calibration.evaluate import (
 from calibration.intrinsics import CameraIntrinsics, calibrate_camera, to_gray
 from calibration.measure import detected_corners, measure
 from drivers.sim.camera_render import render
-from projector.detection import TagDetector
+from vision.detection import TagDetector
 
 FRAMES = 10
 HEADINGS = tuple(range(-180, 180, 15))

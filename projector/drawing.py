@@ -212,7 +212,7 @@ def tag_black_rects(tag_id: int, center: tuple[float, float], size_mm: float) ->
     """The black cells of an unturned tag at ``center`` (its black square ``size_mm`` across), as rectangles
     ``(u0, v0, u1, v1)`` in guide mm, one per run of black cells in a row: neighbouring cells drawn as one shape
     leave no hairline seam between them."""
-    from projector.tags import TAG_CELLS, tag_cells
+    from vision.tags import TAG_CELLS, tag_cells
 
     cells = tag_cells(tag_id)
     cell = size_mm / 8

@@ -34,8 +34,8 @@ from projector.drawing import (
     tolerance_zone,
 )
 from projector.guide import Guide, GuidePage, PartDrawing, PartKind
-from projector.tags import tag_cells
 from projector.tiling import OVERLAP_MM, SheetFormat, grid_shape, page_format, tile
+from vision.tags import tag_cells
 
 __all__ = ["write_pdf", "SCALE_BAR_MM"]
 
@@ -333,7 +333,7 @@ def _heading(canvas, guide: Guide, part: PartDrawing) -> None:
 
 
 def draw_tag(canvas, tag_id: int, center, size_mm: float) -> None:
-    """A decodable tag from :func:`~projector.tags.tag_cells`: black square ``size_mm`` on a white border."""
+    """A decodable tag from :func:`~vision.tags.tag_cells`: black square ``size_mm`` on a white border."""
     half = size_mm * 10 / 8 / 2
     canvas.setFillColorRGB(1.0, 1.0, 1.0)
     canvas.rect(center[0] - half, center[1] - half, 2 * half, 2 * half, stroke=0, fill=1)

@@ -18,10 +18,10 @@ import pytest
 
 from calibration.side import side_instruction
 from projector.board import BOARD_TAG_IDS, side_board
-from projector.detection import TagDetector
 from station.cli import main
 from station.services import check as service
 from station.services import check_side
+from vision.detection import TagDetector
 
 SIDE_URL = "sim://camera?view=side&height=700&blur=0.8&noise=2&jpeg=90&seed=4"
 

@@ -303,7 +303,6 @@ def _references_seen(frame: np.ndarray, camera_model):
     """A measurement without a plane: which of the reference ids 583-586 are seen (once, twice, not at all)."""
     from calibration.intrinsics import to_gray
     from calibration.measure import Measurement, sort_ids
-    from projector.detection import detect_tags
     from projector.guide import REFERENCE_TAG_IDS
 
     camera_model.check_image(frame)
@@ -319,6 +318,7 @@ def save_plane(name: str, plane) -> None:
     partial.replace(path)
 
 
+    from vision.detection import detect_tags
 def load_plane(name: str):
     """The last plane fix of camera ``name``, or None (none yet, or a file that no longer reads: start afresh)."""
     from calibration.measure import PlaneFix

@@ -164,7 +164,7 @@ def _wrap(angle: float) -> float:
 def view_of_frame(image, board) -> str:
     """``"side"`` when the frame shows at least two of the board's tags, else ``"top"`` (a real camera's view)."""
     from calibration.intrinsics import to_gray
-    from projector.detection import TagDetector
+    from vision.detection import TagDetector
 
     if board is None:
         return "top"

@@ -36,9 +36,9 @@ from design.fabrication.lasercard import (
 from drivers.laser_job import check_work_area, material_settings, plan_operations, travel_moves, write_laser_gcode
 from drivers.profiles import BUILTIN_PROFILES, MachineProfile, ProfileError, profile_from_toml
 from drivers.sim.laser_burn import burn_gcode, line_kerf, photograph, sim_material
-from projector.tags import tag_cells
 from station.errors import ServiceError
 from station.services.profiles import load_station_profile, replace_material_table, station_copy_path
+from vision.tags import tag_cells
 
 __all__ = [
     "DEFAULT_DARKNESS",

@@ -19,7 +19,7 @@ from drivers.errors import DriverError, SimConfigError
 from drivers.sim.camera import SimulatedCamera, camera_named, sim_camera
 from drivers.sim.camera_scene import PlaneScene, TagItem
 from drivers.sim.projector import sim_projector
-from projector.detection import detect_tags
+from vision.detection import detect_tags
 
 pytestmark = pytest.mark.usefixtures("fresh_twins")
 

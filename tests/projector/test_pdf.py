@@ -14,12 +14,12 @@ import pypdfium2 as pdfium
 import pytest
 from scipy import ndimage
 
-from projector.detection import detect_tags
 from projector.errors import ProjectorError
 from projector.guide import REFERENCE_TAG_IDS
 from projector.pdf import write_pdf
 from projector.samples import sample_guide, tiny_guide
 from projector.tiling import page_format
+from vision.detection import detect_tags
 
 DPI = 200
 PX_PER_MM = DPI / 25.4
