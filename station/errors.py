@@ -115,23 +115,44 @@ def translated_errors() -> Iterator[None]:
         raise as_station_error(error).with_traceback(error.__traceback__) from error
 
 
-Function = TypeVar("Function", bound=Callable)
+Entry = TypeVar("Entry", bound=Callable)
+
+#: The special methods of a service's class that its callers reach (the rest are Python's own protocols).
+_ENTRY_DUNDERS = {"__init__", "__post_init__", "__call__", "__iter__", "__next__", "__enter__", "__exit__"}
 
 
-def station_errors(function: Function) -> Function:
-    """``function``, a service's entry point, raising the packages' errors as station errors: the service boundary.
+def station_errors(entry: Entry) -> Entry:
+    """``entry``, a service's function or class, raising the packages' errors as station errors: the service boundary.
 
     A generator function is wrapped as a generator, so that an error raised while it is iterated is translated too.
+    On a class, every public method (static, class, property) and the special methods a caller reaches
+    (construction, calling, iterating, ``with``) are wrapped.
     """
+    if inspect.isclass(entry):
+        for name, member in list(vars(entry).items()):
+            if name.startswith("_") and name not in _ENTRY_DUNDERS:
+                continue
+            if isinstance(member, (staticmethod, classmethod)):
+                setattr(entry, name, type(member)(station_errors(member.__func__)))
+            elif isinstance(member, property):
+                setattr(entry, name, member.getter(station_errors(member.fget)) if member.fget else member)
+            elif inspect.isfunction(member):
+                setattr(entry, name, station_errors(member))
+        return entry
+    function = entry
+    if getattr(function, "__station_errors__", False):
+        return function
     if inspect.isgeneratorfunction(function):
         @functools.wraps(function)
         def generator(*args, **kwargs):
             with translated_errors():
                 return (yield from function(*args, **kwargs))
+        generator.__station_errors__ = True
         return generator  # type: ignore[return-value]
 
     @functools.wraps(function)
     def wrapper(*args, **kwargs):
         with translated_errors():
             return function(*args, **kwargs)
+    wrapper.__station_errors__ = True
     return wrapper  # type: ignore[return-value]

@@ -23,7 +23,7 @@ from pathlib import Path
 import numpy as np
 
 from common.progress import CancelCheck, ProgressCallback, Reporter
-from station.errors import ServiceError
+from station.errors import ServiceError, station_errors
 
 __all__ = ["IMAGE_SUFFIXES", "CameraCalibration", "PlaneCheck", "calibrate_camera", "camera_file", "camera_summary",
            "capture_views", "check_name", "grab_frame", "intrinsics_for", "plane_check", "plane_summary",
@@ -34,6 +34,7 @@ DEFAULT_CAMERA = "camera"
 _NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.-]{0,63}$")
 
 
+@station_errors
 def check_name(name: str) -> str:
     """A camera name usable as a file name (letters, digits, ``_ . -``), or a :class:`ServiceError`."""
     if not isinstance(name, str) or not _NAME.match(name):
@@ -50,6 +51,7 @@ def _folder(kind: str) -> Path:
     return folder
 
 
+@station_errors
 def camera_file(name: str = DEFAULT_CAMERA) -> Path:
     """Where the intrinsics of camera ``name`` are kept."""
     return _folder("cameras") / f"{check_name(name)}.json"
@@ -59,6 +61,7 @@ def _plane_file(name: str) -> Path:
     return _folder("planes") / f"{check_name(name)}.json"
 
 
+@station_errors
 def write_board(path: str | Path, paper: str = "a4"):
     """Write the default ChArUco board (:class:`calibration.charuco.BoardSpec`) as a 1:1 PDF; the spec written."""
     from calibration.charuco import BoardSpec, write_board_pdf
@@ -88,6 +91,7 @@ def _read_image(path: Path, field: str = "images") -> np.ndarray:
     return image
 
 
+@station_errors
 def read_views(folder: str | Path) -> list[tuple[str, np.ndarray]]:
     """The images in ``folder`` (by name), grey, as (file name, image) pairs."""
     folder = Path(folder)
@@ -101,6 +105,7 @@ def read_views(folder: str | Path) -> list[tuple[str, np.ndarray]]:
     return [(p.name, _read_image(p)) for p in files]
 
 
+@station_errors
 def open_camera(url: str):
     from drivers.devices import resolve
 
@@ -113,6 +118,7 @@ def open_camera(url: str):
     return camera
 
 
+@station_errors
 def configured_camera_url() -> tuple[str, str]:
     """(name, url) of the station's first camera (``station devices``; ``sim://camera`` by default)."""
     from station.config import configured_devices
@@ -124,6 +130,7 @@ def configured_camera_url() -> tuple[str, str]:
     return device.name, device.url
 
 
+@station_errors
 def capture_views(url: str, count: int, *, interval_s: float = 1.0, progress: ProgressCallback | None = None,
                   cancelled: CancelCheck | None = None, sleep: Callable[[float], None] = time.sleep,
                   before: Callable[[object, int], None] | None = None) -> list[tuple[str, np.ndarray]]:
@@ -155,6 +162,7 @@ def capture_views(url: str, count: int, *, interval_s: float = 1.0, progress: Pr
     return views
 
 
+@station_errors
 @dataclass(frozen=True)
 class CameraCalibration:
     """A camera calibrated: the result (:class:`calibration.intrinsics.CalibrationResult`) and where it was saved."""
@@ -166,6 +174,7 @@ class CameraCalibration:
         return {**self.result.to_dict(), "saved": None if self.path is None else str(self.path)}
 
 
+@station_errors
 def calibrate_camera(*, images: str | Path | None = None, capture: int | None = None, camera: str | None = None,
                      name: str | None = None, out: str | Path | None = None, interval_s: float = 1.0,
                      progress: ProgressCallback | None = None, cancelled: CancelCheck | None = None,
@@ -203,6 +212,7 @@ def calibrate_camera(*, images: str | Path | None = None, capture: int | None = 
     return CameraCalibration(result, path)
 
 
+@station_errors
 def intrinsics_for(image_size: tuple[int, int], *, intrinsics: str | Path | None = None,
                    name: str = DEFAULT_CAMERA):
     """The camera's intrinsics: ``intrinsics`` (a file), else the saved ``calibration/cameras/<name>.json``, else a
@@ -220,6 +230,7 @@ def intrinsics_for(image_size: tuple[int, int], *, intrinsics: str | Path | None
     return loaded
 
 
+@station_errors
 def reference_tags_from_guide(path: str | Path) -> list[tuple[int, tuple[float, float], float]]:
     """The reference tags of a guide manifest (what ``station guide --json`` prints) as (id, (u, v), size), read by
     :func:`station.services.guide_manifest.read_manifest` (the check's reader too)."""
@@ -228,6 +239,7 @@ def reference_tags_from_guide(path: str | Path) -> list[tuple[int, tuple[float, 
     return reference_tags(read_manifest(path, parts=False))
 
 
+@station_errors
 @dataclass(frozen=True)
 class PlaneCheck:
     """One frame's plane check: the measurement, the intrinsics used, where the frame came from."""
@@ -250,6 +262,7 @@ class PlaneCheck:
                 "duplicate_ids": list(m.duplicate_ids)}
 
 
+@station_errors
 def grab_frame(url: str) -> np.ndarray:
     """One frame from the camera at ``url``."""
     camera = open_camera(url)
@@ -259,6 +272,7 @@ def grab_frame(url: str) -> np.ndarray:
         camera.close()
 
 
+@station_errors
 def plane_check(*, image: str | Path | np.ndarray | None = None, camera: str | None = None,
                 guide: str | Path | None = None, intrinsics: str | Path | None = None, name: str | None = None,
                 remember: bool = True) -> PlaneCheck:
@@ -303,6 +317,7 @@ def _references_seen(frame: np.ndarray, camera_model):
     """A measurement without a plane: which of the reference ids 583-586 are seen (once, twice, not at all)."""
     from calibration.intrinsics import to_gray
     from calibration.measure import Measurement, sort_ids
+    from projector.detection import detect_tags
     from projector.guide import REFERENCE_TAG_IDS
 
     camera_model.check_image(frame)
@@ -310,6 +325,7 @@ def _references_seen(frame: np.ndarray, camera_model):
     return Measurement(None, (), unknown, duplicates, missing)
 
 
+@station_errors
 def save_plane(name: str, plane) -> None:
     data = {**plane.to_dict(), "homography": np.asarray(plane.homography, dtype=float).tolist()}
     path = _plane_file(name)
@@ -318,7 +334,7 @@ def save_plane(name: str, plane) -> None:
     partial.replace(path)
 
 
-    from vision.detection import detect_tags
+@station_errors
 def load_plane(name: str):
     """The last plane fix of camera ``name``, or None (none yet, or a file that no longer reads: start afresh)."""
     from calibration.measure import PlaneFix
@@ -333,6 +349,7 @@ def load_plane(name: str):
         return None
 
 
+@station_errors
 def camera_summary(result, views: bool = True) -> list[str]:
     """A calibration result in lines: the camera, each view (unless ``views`` is False), the coverage and the
     warnings."""
@@ -351,6 +368,7 @@ def camera_summary(result, views: bool = True) -> list[str]:
     return lines
 
 
+@station_errors
 def plane_summary(check) -> list[str]:
     """A plane check in lines."""
     m = check.measurement

@@ -20,7 +20,7 @@ from pathlib import Path
 import numpy as np
 
 from common.progress import ProgressCallback, Reporter
-from station.errors import ServiceError
+from station.errors import ServiceError, station_errors
 from station.services.check_scene import parse_offset, sim_scene
 from station.services.guide_manifest import read_manifest
 
@@ -32,6 +32,7 @@ __all__ = ["CheckJob", "apply_manifest", "camera_frame", "camera_overlay", "chec
 STAGES = ("measure", "as-built", "simulation")
 
 
+@station_errors
 @dataclass(frozen=True)
 class CheckJob:
     """One check's result and what it was made from.
@@ -67,6 +68,7 @@ class CheckJob:
 
 
 # -- the guide --------------------------------------------------------------------------------------------------------
+@station_errors
 def prepare_check(scenario: str, layout: str, *, guide: str | Path | None = None,
                   progress: Reporter | ProgressCallback | None = None, jigs: bool = False):
     """The guide to check against: made again from the scenario and the layout with the default options, or the
@@ -115,6 +117,7 @@ def _model_of(scenario, layout: str) -> ScoringModel | None:
     return ScoringModel(problem, layout_and_model(str(layout), problem)[1])
 
 
+@station_errors
 def apply_manifest(guide, manifest: Mapping, source: str = "<manifest>"):
     """``guide`` with the manifest's reference tags, part tags and tolerances (what was printed and stuck on).
 
@@ -171,9 +174,10 @@ def _same_scenario(manifest: Mapping, name: str, content_hash: str, source: str)
 
 
 # -- the frame --------------------------------------------------------------------------------------------------------
+@station_errors
 def load_image(path: str | Path) -> np.ndarray:
     """A camera frame from a file (PNG, JPEG...) as RGB uint8; a ServiceError naming ``image`` otherwise (also for a
-    frame of a size :func:`vision.detection.frame_size_problem` refuses, found from the header before decoding)."""
+    frame of a size :func:`projector.detection.frame_size_problem` refuses, found from the header before decoding)."""
     from PIL import Image, UnidentifiedImageError
 
     try:
@@ -189,8 +193,9 @@ def load_image(path: str | Path) -> np.ndarray:
                            value=str(path)) from None
 
 
+@station_errors
 def check_image_file(path: str | Path, field: str) -> None:
-    """Refuse an image file whose header gives a frame size :func:`vision.detection.frame_size_problem` refuses,
+    """Refuse an image file whose header gives a frame size :func:`projector.detection.frame_size_problem` refuses,
     before a reader decodes it; a file Pillow cannot read is left to the caller's reader."""
     from PIL import Image, UnidentifiedImageError
 
@@ -204,9 +209,10 @@ def check_image_file(path: str | Path, field: str) -> None:
     check_frame_size(path, size, field)
 
 
+@station_errors
 def check_frame_size(path: str | Path, size: tuple[int, int], field: str) -> None:
     """A ServiceError naming ``field`` and the file when a frame of ``size`` (width, height) cannot be checked."""
-    from vision.detection import frame_size_problem
+    from projector.detection import frame_size_problem
 
     problem = frame_size_problem(*size)
     if problem is not None:
@@ -216,13 +222,14 @@ def check_frame_size(path: str | Path, size: tuple[int, int], field: str) -> Non
 def _too_large(path: str | Path, field: str) -> ServiceError:
     from PIL import Image
 
-    from vision.detection import MAX_FRAME_PIXELS
+    from projector.detection import MAX_FRAME_PIXELS
 
     return ServiceError(f"{field} {path}: over {2 * Image.MAX_IMAGE_PIXELS / 1e6:.0f} MP, too large; expected at most "
                         f"{MAX_FRAME_PIXELS / 1e6:.0f} megapixels (a camera frame or a phone photo)", field=field,
                         value=str(path))
 
 
+@station_errors
 def grab_frame(url: str, guide, *, offsets=None, occluded: Sequence[int] = (), scene=None, seed: int | None = None):
     """One frame from the camera at ``url``, and the intrinsics it knows of itself (a simulated camera's own; None
     for a real camera, which needs its calibration). A simulated camera is handed ``scene`` first (a simulated
@@ -260,6 +267,7 @@ def grab_frame(url: str, guide, *, offsets=None, occluded: Sequence[int] = (), s
     return image, intrinsics
 
 
+@station_errors
 def camera_frame(guide, *, image: str | Path | None = None, camera: str | None = None,
                  intrinsics: str | Path | None = None, offsets=None, occluded: Sequence[int] = (), scene=None,
                  name: str | None = None):
@@ -300,6 +308,7 @@ def _plane_name(name: str, guide) -> str:
     return f"{name}-check-{hashlib.sha256(sheet.encode()).hexdigest()[:12]}"
 
 
+@station_errors
 def remember_plane(name: str, check: CheckJob) -> None:
     """Keep the check's plane fix as camera ``name``'s last (the next check says how far the camera moved)."""
     from station.services import calibrate
@@ -337,6 +346,7 @@ def _twin_intrinsics(camera, url: str):
 
 
 # -- the check --------------------------------------------------------------------------------------------------------
+@station_errors
 def check_frame(job, image: np.ndarray, intrinsics=None, *, simulate: int = 0, seed: int = 0, previous=None,
                 detector=None, physics=None, predict: int = 0, progress: Reporter | ProgressCallback | None = None,
                 should_stop=None, side=None, camera: str = "") -> CheckJob:
@@ -355,7 +365,7 @@ def check_frame(job, image: np.ndarray, intrinsics=None, *, simulate: int = 0, s
         Seed of those simulations' noise.
     previous : PlaneFix, optional
         The last check's plane (a bumped camera is then said).
-    detector : vision.detection.TagDetector, optional
+    detector : projector.detection.TagDetector, optional
         One to reuse between checks.
     physics : PhysicsProfile, optional
         Simulate (``simulate``, ``predict``) with its material values instead of the scenario's.
@@ -396,6 +406,7 @@ def check_frame(job, image: np.ndarray, intrinsics=None, *, simulate: int = 0, s
                              camera=camera)
 
 
+@station_errors
 def check_measurement(job, measurement, image: np.ndarray, intrinsics, *, simulate: int = 0, seed: int = 0,
                       notes: Sequence[str] = (), physics=None, predict: int = 0,
                       progress: Reporter | ProgressCallback | None = None, should_stop=None, side=None,
@@ -551,6 +562,7 @@ def _simulate(problem, built, residual, n: int, seed: int, report: Reporter, sho
 
 
 # -- what the check shows ---------------------------------------------------------------------------------------------
+@station_errors
 def no_zone_words() -> str:
     """What a starred ok (``yes*``, ``NO*``) means, in the check's text and on the Assemble screen."""
     from projector.drawing import UNTOLERATED_DEG, UNTOLERATED_MM
@@ -558,6 +570,7 @@ def no_zone_words() -> str:
     return f"no zone on the sheet, so off by {UNTOLERATED_MM:g} mm / {UNTOLERATED_DEG:g} deg or more is to move"
 
 
+@station_errors
 def summary_lines(report, physical=None) -> list[str]:
     """The check's headline in words, most important first: the physical success as placed (``physical``, a
     :class:`calibration.sim_predict.PhysicalPrediction`; else the simulated success of ``--simulate``), the parts to
@@ -591,6 +604,7 @@ def summary_lines(report, physical=None) -> list[str]:
     return lines
 
 
+@station_errors
 def overlay_frame(check: CheckJob, size: tuple[int, int], homography=None) -> np.ndarray:
     """The projector frame after the check (:func:`projector.overlay.render_check`): an arrow per misplaced part
     from where it is to where it must go, a ring at the target, the prediction as placed in the caption."""
@@ -600,6 +614,7 @@ def overlay_frame(check: CheckJob, size: tuple[int, int], homography=None) -> np
                         caption=summary_lines(check.report, check.physical)[:2])
 
 
+@station_errors
 def camera_overlay(check: CheckJob) -> np.ndarray:
     """The camera frame with the check drawn over it through the camera's pose from the reference tags (the frame
     as it is when no plane was found)."""
@@ -624,6 +639,7 @@ def camera_overlay(check: CheckJob) -> np.ndarray:
                       caption=summary_lines(check.report, check.physical)[:2])
 
 
+@station_errors
 def report_lines(report, physical=None) -> list[str]:
     """The check as text: the headline (:func:`summary_lines`), one row per tagged part (costliest first) with a
     legend, the instructions, what was not measured and the notes, the success model's score last (a detail)."""

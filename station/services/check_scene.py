@@ -14,7 +14,7 @@ from collections.abc import Mapping, Sequence
 
 import numpy as np
 
-from station.errors import ServiceError
+from station.errors import ServiceError, station_errors
 
 __all__ = ["parse_offset", "sim_scene"]
 
@@ -25,6 +25,7 @@ MAX_OFFSET_MM = 1000.0
 MAX_OFFSET_DEG = 360.0
 
 
+@station_errors
 def parse_offset(text: str) -> tuple[str, tuple[float, float, float]]:
     """``PART=DU,DV[,DEG]`` (mm, mm, degrees) as ``(part, (du, dv, deg))``; a ServiceError naming ``sim_offset``."""
     name, _, values = str(text).partition("=")
@@ -42,6 +43,7 @@ def parse_offset(text: str) -> tuple[str, tuple[float, float, float]]:
     return name, (du, dv, deg)
 
 
+@station_errors
 def sim_scene(guide, offsets: Mapping[str, Sequence[float]] | None = None, *, occluded: Sequence[int] = (),
               sheet: bool = True):
     """What a simulated camera sees: the guide's reference tags on the plane and every part tag at its part's

@@ -20,12 +20,13 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from station.errors import ServiceError
+from station.errors import ServiceError, station_errors
 
 __all__ = ["SideView", "check_views", "measure_side", "merge_as_built", "plane_json", "side_lines", "side_overlay",
            "side_scene", "side_targets", "view_of_frame"]
 
 
+@station_errors
 @dataclass(frozen=True)
 class SideView:
     """A side frame measured: the board, the targets, the side guide, the measurement and its checks."""
@@ -44,6 +45,7 @@ class SideView:
         return plane_json(self.measurement.plane)
 
 
+@station_errors
 def side_targets(job, board) -> list:
     """The tags the side camera reads in ``job`` (a guide job with its jigs): each jig stand's face tag whose face
     looks at the camera (within :data:`calibration.side.FACING_DEG` of the board's normal), as a
@@ -98,6 +100,7 @@ def _side_guide(job, board, targets):
     return side_guide(job.guide, board, targets)
 
 
+@station_errors
 def side_scene(job, board, targets, offsets: Mapping[str, Sequence[float]] | None = None, *,
                layout=None, occluded: Sequence[int] = ()):
     """What the simulated side camera sees: the board's tags and every target's tag on the board's plane, a part
@@ -161,10 +164,11 @@ def _wrap(angle: float) -> float:
     return 180.0 if angle == -180.0 else angle
 
 
+@station_errors
 def view_of_frame(image, board) -> str:
     """``"side"`` when the frame shows at least two of the board's tags, else ``"top"`` (a real camera's view)."""
     from calibration.intrinsics import to_gray
-    from vision.detection import TagDetector
+    from projector.detection import TagDetector
 
     if board is None:
         return "top"
@@ -172,6 +176,7 @@ def view_of_frame(image, board) -> str:
     return "side" if len(seen & {t.id for t in board.reference_tags}) >= 2 else "top"
 
 
+@station_errors
 def measure_side(job, board, targets, image, intrinsics, previous=None, camera: str = "") -> SideView:
     """Measure a side frame: the board's plane from its tags, each target's tag at its depth, the checks in the side
     camera's words (:func:`calibration.side.side_view_checks`)."""
@@ -190,6 +195,7 @@ def measure_side(job, board, targets, image, intrinsics, previous=None, camera: 
     return SideView(board, tuple(targets), guide, measurement, tuple(checks), camera, np.asarray(image), intrinsics)
 
 
+@station_errors
 def merge_as_built(job, top, side: SideView):
     """The top check's as-built layout (:class:`calibration.asbuilt.AsBuilt`) with what the side view measured:
     each part's parameters the top view did not measure fitted to its pose on the board's plane."""
@@ -216,6 +222,7 @@ def merge_as_built(job, top, side: SideView):
     return merged, {n: by[n] for n in names if n in by}
 
 
+@station_errors
 def side_frame(job, board, targets, url: str, *, offsets=None, occluded: Sequence[int] = (), layout=None,
                seed: int | None = None, intrinsics=None, name: str = "camera-side"):
     """A frame from the side camera at ``url`` and how to read it: ``(image, intrinsics)``. A simulated camera is
@@ -253,6 +260,7 @@ def side_frame(job, board, targets, url: str, *, offsets=None, occluded: Sequenc
     return image, twin
 
 
+@station_errors
 def is_side_url(url: str) -> bool | None:
     """Whether a camera URL is a simulated side camera (``sim://camera?view=side``); None for a real camera (its
     frame tells: :func:`view_of_frame`)."""
@@ -263,11 +271,13 @@ def is_side_url(url: str) -> bool | None:
     return parse_camera_options(url)["view"] == "side"
 
 
+@station_errors
 def plane_name(name: str) -> str:
     """Where the side camera ``name`` keeps its last plane (the board's): apart from any table plane."""
     return f"{name}-board"
 
 
+@station_errors
 def check_views(job, cameras: Sequence[tuple[str, str]], *, image=None, intrinsics=None, offsets=None,
                 side_offsets=None, occluded: Sequence[int] = (), side_image=None, side_intrinsics=None, **check):
     """The check of ``job`` with every camera in ``cameras`` (``(name, url)``): the top camera's frame (or the file
@@ -346,6 +356,7 @@ def check_views(job, cameras: Sequence[tuple[str, str]], *, image=None, intrinsi
     return result
 
 
+@station_errors
 def side_overlay(side: SideView) -> np.ndarray:
     """The side camera's frame with its check drawn on it (RGB): each jig plate where the guide wants it (green) and
     where the camera found it (orange, carried by its tag), the instructions written above. Drawn through the board's
@@ -391,6 +402,7 @@ def side_overlay(side: SideView) -> np.ndarray:
     return out
 
 
+@station_errors
 def plane_json(plane) -> dict | None:
     """A plane fix as CHECK.json gives it: ``{"residual_mm", "reference_ids", "moved_mm"}`` (None: no plane)."""
     if plane is None:
@@ -399,6 +411,7 @@ def plane_json(plane) -> dict | None:
             "moved_mm": None if plane.moved_mm is None else round(float(plane.moved_mm), 3)}
 
 
+@station_errors
 def side_lines(report) -> list[str]:
     """The side camera's part of the check in words: its plane, each part's height and tilt and what to do, the
     parameters it measured (none without a side camera)."""

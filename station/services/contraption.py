@@ -18,6 +18,7 @@ from common.progress import ProgressCallback, Reporter
 from design.contraption.catalog import resolve_scenario_path
 from design.contraption.layout_io import LoadedLayout, default_layout, resolve_layout, values_layout
 from design.contraption.scenario import Scenario, load_scenario
+from station.errors import station_errors
 
 if TYPE_CHECKING:  # pybullet loads only when something is simulated
     from design.contraption.simulation import SimulationResult, ValidityProblem
@@ -27,6 +28,7 @@ if TYPE_CHECKING:  # pybullet loads only when something is simulated
 StateCallback = Callable[[float, dict[str, str], "World"], None]
 
 
+@station_errors
 def open_scenario(text: str, physics: str | Path | None = None) -> Scenario:
     """A scenario by file path or example name (``simple``, ``ballrun``...), validated; under the physics profile
     at ``physics`` when given (:mod:`station.services.physics`).
@@ -46,6 +48,7 @@ def open_scenario(text: str, physics: str | Path | None = None) -> Scenario:
     return scenario_with_physics(scenario, physics)
 
 
+@station_errors
 def choose_layout(scenario: Scenario, *, values: list[float] | None = None, layout: str | None = None,
                   what: str = "values") -> LoadedLayout:
     """The layout to simulate: ``values`` in design-space order (``what`` names where they came from in messages),
@@ -57,6 +60,7 @@ def choose_layout(scenario: Scenario, *, values: list[float] | None = None, layo
     return default_layout(scenario)
 
 
+@station_errors
 @dataclass
 class SimulationOutcome:
     """One simulated layout: the physical problems that stopped it, or the causal graph's result.
@@ -102,6 +106,7 @@ class SimulationOutcome:
         return {**data, **self.result.to_dict()}
 
 
+@station_errors
 def simulate(scenario: Scenario, x: np.ndarray, *, early_stop: bool = True, record: bool = False,
              on_change: StateCallback | None = None, progress: Reporter | ProgressCallback | None = None,
              client=None) -> SimulationOutcome:
@@ -136,6 +141,7 @@ def simulate(scenario: Scenario, x: np.ndarray, *, early_stop: bool = True, reco
     return SimulationOutcome(scenario, x, [], result)
 
 
+@station_errors
 def render(outcome: SimulationOutcome, path: str | Path) -> Path:
     """Top and side views at the start and the end of a recorded run (``record=True``), as a PNG."""
     from design.contraption.render import render_result
@@ -144,6 +150,7 @@ def render(outcome: SimulationOutcome, path: str | Path) -> Path:
     return Path(path)
 
 
+@station_errors
 def scenario_summary(scenario: Scenario) -> dict[str, Any]:
     """What ``station scenario check --json`` prints: objects, causal graph, design space, named layouts."""
     space = scenario.design_space

@@ -13,7 +13,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from station.errors import ServiceError
+from station.errors import ServiceError, station_errors
 
 if TYPE_CHECKING:  # scipy and shapely load only when a design is explored
     from design.explore import Explorer, PointOfInterest, ReleaseResult
@@ -22,6 +22,7 @@ if TYPE_CHECKING:  # scipy and shapely load only when a design is explored
 POINTS_RANGE = (256, 200_000)
 
 
+@station_errors
 def start_session(machine: str, params: Mapping[str, float], points: int | None = None) -> Explorer:
     """An exploration session on a design: its Points of Interest found, no invariant yet.
 
@@ -48,6 +49,7 @@ def start_session(machine: str, params: Mapping[str, float], points: int | None 
     return Explorer(get_machine(machine), dict(params), n_points=points)
 
 
+@station_errors
 def check_points(points: int | None) -> None:
     """Refuse a number of curve samples out of :data:`POINTS_RANGE` (:class:`ServiceError`, ``field="points"``)."""
     low, high = POINTS_RANGE
@@ -79,6 +81,7 @@ class Exploration:
     first_pois: list[PointOfInterest] = field(default_factory=list)
 
 
+@station_errors
 def explore(machine: str, params: Mapping[str, float], keeps: Sequence[tuple[str, Sequence[int]]] = (),
             moves: Sequence[tuple[int, float]] = (), points: int | None = None) -> Exploration:
     """Find the PoIs of a design, keep the invariants ``keeps`` (``(kind, poi ids)``, from
@@ -136,6 +139,7 @@ def _move_document(k: int, requested: float, applied: float, moved: dict[str, fl
     }
 
 
+@station_errors
 def invariant_errors(values: Mapping[str, float]) -> list[dict[str, Any]]:
     """``[{"invariant", "error", "unit"}]`` from an invariant-label → error mapping (a lost feature: None)."""
     from design.explore import ERROR_UNIT
@@ -147,6 +151,7 @@ def invariant_errors(values: Mapping[str, float]) -> list[dict[str, Any]]:
     return out
 
 
+@station_errors
 def write_picture(exploration: Exploration, path: str | Path) -> Path:
     """A PNG of the first and the last design with their PoIs, the kept ones highlighted."""
     from design.explore.render import write_png

@@ -15,7 +15,7 @@ from typing import Any
 
 from common.progress import CancelCheck, ProgressCallback, Reporter
 from station.cli_util import to_jsonable
-from station.errors import ServiceError
+from station.errors import ServiceError, station_errors
 
 DEFAULT_KERF = 0.15
 #: Where the kerf came from, in words (``kerf_source`` in parts.json).
@@ -27,6 +27,7 @@ DEFAULT_GAP = 3.0
 SIZES_STAGE, NESTING_STAGE, SHEETS_STAGE = "sizes", "nesting", "sheets"
 
 
+@station_errors
 @dataclass
 class SheetOutput:
     """One nested sheet with its files' contents: the laser job, SVG, G-code and preview."""
@@ -44,6 +45,7 @@ class SheetOutput:
         return "" if self.index == 1 else f"-{self.index}"
 
 
+@station_errors
 @dataclass
 class FabricationResult:
     """Everything one fabrication run produced (kept in memory for the TUI, written to files by the CLI).
@@ -78,6 +80,7 @@ class FabricationResult:
         return self.sheets[0].png
 
 
+@station_errors
 def parse_sheet(text: str) -> tuple[float, float]:
     """``"300x200"`` → ``(300.0, 200.0)`` mm; a :class:`ServiceError` (``field="sheet"``) otherwise."""
     match = re.fullmatch(r"\s*(\d+(?:\.\d*)?)\s*[xX×]\s*(\d+(?:\.\d*)?)\s*(?:mm)?\s*", text or "")
@@ -86,6 +89,7 @@ def parse_sheet(text: str) -> tuple[float, float]:
     return float(match.group(1)), float(match.group(2))
 
 
+@station_errors
 def fabricate(machine: str, params: dict[str, float], scale: float, *, kerf: float | None = None,
               sheet_size: tuple[float, float] | None = None, gap: float = DEFAULT_GAP, profile=None,
               material: str | None = None, gear_settings=None, hardware=None,
@@ -187,6 +191,7 @@ def fabricate(machine: str, params: dict[str, float], scale: float, *, kerf: flo
     return FabricationResult(machine, dict(params), scale, outputs, summary)
 
 
+@station_errors
 def laser_sheets(sheets, profile, engrave_ops, cut_ops, metadata: dict[str, str], title: str,
                  report: Reporter | None = None) -> list[SheetOutput]:
     """Each nested sheet's laser job (engraving, then each part's holes before its outline; dark travels), checked
@@ -242,6 +247,7 @@ def _part_summary(part, cut_shape, placement, sheet_index: int) -> dict[str, Any
     }
 
 
+@station_errors
 def write_outputs(result: FabricationResult, out: Path) -> dict[str, Path]:
     """Write parts.svg, laser.gcode, sheet.png (``-2``, ``-3``... for further sheets) and parts.json into ``out``."""
     out.mkdir(parents=True, exist_ok=True)

@@ -15,7 +15,7 @@ from pathlib import Path
 
 from common.progress import ProgressCallback, Reporter
 from projector.guide import Guide, ParameterTolerance
-from station.errors import ServiceError
+from station.errors import ServiceError, station_errors
 
 __all__ = ["PAPERS", "VIEWS", "GuideJob", "check_paper", "export_guide", "make_guide", "portable_name",
            "projected_frames", "show_step"]
@@ -24,6 +24,7 @@ PAPERS = ("a4", "letter", "a3")
 VIEWS = ("top", "side")
 
 
+@station_errors
 @dataclass(frozen=True)
 class GuideJob:
     """A guide ready to export or project.
@@ -67,6 +68,7 @@ class GuideJob:
         return data
 
 
+@station_errors
 def portable_name(path: str | Path) -> str:
     """``path`` as a manifest or a sheet may name it: relative to the working folder when it lies under it, else its
     file's name (never an absolute path of this machine); empty stays empty."""
@@ -81,6 +83,7 @@ def portable_name(path: str | Path) -> str:
         return path.name
 
 
+@station_errors
 def make_guide(scenario: str, layout: str | None, *, view: str | None = None, verify: int = 0, seed: int = 0,
                tolerances: bool = True, progress: Reporter | ProgressCallback | None = None,
                physics: str | None = None, set_with: Mapping[str, str] | None = None,
@@ -169,6 +172,7 @@ def _layout_headline(layout: str | None, tolerance_map=None) -> str | None:
     return layout_headline(read_layout_data(str(layout)))
 
 
+@station_errors
 def export_guide(job: GuideJob, *, pdf: str | Path | None = None, svg: str | Path | None = None,
                  paper: str = "a4") -> GuideJob:
     """Write the PDF sheet set and/or the SVG; returns the job with the guide's pages (after a PDF). A table guide
@@ -199,23 +203,27 @@ def export_guide(job: GuideJob, *, pdf: str | Path | None = None, svg: str | Pat
     return replace(job, guide=guide)
 
 
+@station_errors
 def reads_side(guide) -> bool:
     """Whether the side camera has something to read in ``guide``: a jig stand with a tag on its plate's face."""
     return any(j.face_tag_id is not None for j in guide.jigs)
 
 
+@station_errors
 def board_pdf_path(pdf: str | Path) -> Path:
     """Where the board sheet of the guide PDF ``pdf`` goes: next to it, ``NAME-board.pdf``."""
     pdf = Path(pdf)
     return pdf.with_name(f"{pdf.stem}-board.pdf")
 
 
+@station_errors
 def check_paper(paper: str) -> None:
     """Refuse a paper size the station does not know (``paper``), before any work."""
     if paper not in PAPERS:
         raise ServiceError(f"paper must be one of {', '.join(PAPERS)}, got {paper!r}", field="paper", value=paper)
 
 
+@station_errors
 def projected_frames(job: GuideJob, size: tuple[int, int], homography=None):
     """The guide's frames for a screen of ``size`` pixels (:func:`projector.frames.render_frames`): a calibrate
     frame and one per step; without a projector calibration the guide is fitted to the screen, not at true scale."""
@@ -224,6 +232,7 @@ def projected_frames(job: GuideJob, size: tuple[int, int], homography=None):
     return render_frames(job.guide, size=size, homography=homography)
 
 
+@station_errors
 def show_step(job: GuideJob, projector, step: int | None = None, homography=None) -> bool:
     """Show step ``step`` (1-based; None: the calibrate frame) of the guide on an open ``projector`` device, drawn
     at the projector's own size (a frame of another size would be letterboxed, and no longer true to scale).
@@ -272,6 +281,7 @@ def _guide_tolerances(tolerances) -> dict[str, ParameterTolerance]:
     return {t.parameter: t for per_part in tolerances.parameter_tolerances().values() for t in per_part}
 
 
+@station_errors
 def export_name(job) -> str:
     """The file name (no suffix) of ``job``'s export: the scenario, the layout (its name, its file's name, or "own"
     for the scenario's own), a hash of the layout's values and the view, e.g. ``simple-success-1f0c2a-top``. The

@@ -23,7 +23,7 @@ from typing import Any
 
 from common.progress import ProgressCallback, Reporter
 from station.cli_util import to_jsonable
-from station.errors import ServiceError
+from station.errors import ServiceError, station_errors
 from station.services.fabricate import DEFAULT_GAP, DEFAULT_KERF, KERF_SOURCES, SheetOutput, laser_sheets, parse_sheet
 
 __all__ = ["JIG_TAG_IDS", "JigOptions", "JigsResult", "PlannedJigs", "attach_jigs", "check_options", "cut_jigs",
@@ -58,6 +58,7 @@ class PlannedJigs:
     kerf_source: str
 
 
+@station_errors
 @dataclass
 class JigsResult:
     """The jigs of a layout, their sheets and pictures: what ``station jigs`` writes."""
@@ -79,6 +80,7 @@ def _profile(profile):
     return load_profile(profile) if isinstance(profile, (str, Path)) else profile
 
 
+@station_errors
 def plan_guide_jigs(job, options: JigOptions | None = None) -> PlannedJigs:
     """The jigs of a guide job's layout (:func:`station.services.guide.make_guide`), for ``options``' material.
 
@@ -91,7 +93,7 @@ def plan_guide_jigs(job, options: JigOptions | None = None) -> PlannedJigs:
     """
     from design.jigs import PartInput, plan_jigs
     from design.robust.tolerance import CARE_RULE
-    from vision.tags import tag_cells
+    from projector.tags import tag_cells
 
     profile, material_name, settings, source = check_options(options)
     guide = job.guide
@@ -106,6 +108,7 @@ def plan_guide_jigs(job, options: JigOptions | None = None) -> PlannedJigs:
     return PlannedJigs(plan, settings, profile, material_name, source)
 
 
+@station_errors
 def check_options(options: JigOptions | None = None):
     """``(profile, material name, design.jigs.JigSettings, kerf source)`` of ``options``, refused before any work.
 
@@ -148,6 +151,7 @@ def _kerf(given: float | None, material_kerf: float | None) -> tuple[float, str]
     return float(given), "given"
 
 
+@station_errors
 def attach_jigs(job, planned: PlannedJigs):
     """The guide job with its jigs: the parameters they set marked ``set_with: "jig"`` (the guide rebuilt with
     them), each jig's footprint on the guide and its words in its part's step."""
@@ -175,6 +179,7 @@ def attach_jigs(job, planned: PlannedJigs):
     return replace_job(job, guide=guide, steps=tuple(steps), jigs=planned)
 
 
+@station_errors
 def jig_steps(lines: list[str], guide, plan) -> list[str]:
     """The guide's steps with each jig's words first in its part's step (``"1. Stand jig J1 ...; then: Fix ..."``)
     and, for a part left to a ruler, why no jig sets it."""
@@ -193,6 +198,7 @@ def jig_steps(lines: list[str], guide, plan) -> list[str]:
     return result
 
 
+@station_errors
 def make_jigs(scenario: str, layout: str | None, options: JigOptions | None = None, *, view: str | None = None,
               tolerances: bool = True, physics: str | None = None,
               progress: Reporter | ProgressCallback | None = None) -> JigsResult:
@@ -217,6 +223,7 @@ def make_jigs(scenario: str, layout: str | None, options: JigOptions | None = No
     return cut_jigs(job, planned, report)
 
 
+@station_errors
 def cut_jigs(job, planned: PlannedJigs, progress: Reporter | ProgressCallback | None = None) -> JigsResult:
     """Nest a plan's pieces on the sheet and make its laser job, its files' contents and the jigs' pictures.
 
@@ -247,6 +254,7 @@ def cut_jigs(job, planned: PlannedJigs, progress: Reporter | ProgressCallback | 
     return result
 
 
+@station_errors
 def jigs_manifest(result: JigsResult) -> dict[str, Any]:
     """``jigs.json``, a public contract (``station jigs --json`` prints it)::
 
@@ -343,6 +351,7 @@ def _job(job) -> dict[str, Any]:
             "extent_mm": [[float(v) for v in lo], [float(v) for v in hi]]}
 
 
+@station_errors
 def write_jig_outputs(result: JigsResult, out: Path) -> dict[str, Path]:
     """Write jigs.svg, jigs.gcode and sheet.png (``-2``... for further sheets), jigs.json and each jig's picture
     (jig-J1.png...) into ``out``; returns them by name."""

@@ -36,9 +36,9 @@ from design.fabrication.lasercard import (
 from drivers.laser_job import check_work_area, material_settings, plan_operations, travel_moves, write_laser_gcode
 from drivers.profiles import BUILTIN_PROFILES, MachineProfile, ProfileError, profile_from_toml
 from drivers.sim.laser_burn import burn_gcode, line_kerf, photograph, sim_material
-from station.errors import ServiceError
+from projector.tags import tag_cells
+from station.errors import ServiceError, station_errors
 from station.services.profiles import load_station_profile, replace_material_table, station_copy_path
-from vision.tags import tag_cells
 
 __all__ = [
     "DEFAULT_DARKNESS",
@@ -69,6 +69,7 @@ CARD_OFFSET = 5.0
 GCODE_FILE, MANIFEST_FILE, PREVIEW_FILE = "card.gcode", "card.json", "card.png"
 
 
+@station_errors
 def parse_steps(text: str, field: str, low: float, high: float, unit: str) -> tuple[float, float, int]:
     """``"a:b:n"`` → ``(a, b, n)``: ``n`` values from ``a`` to ``b`` (``"a"`` alone is one value); a
     :class:`ServiceError` naming ``field`` otherwise."""
@@ -107,6 +108,7 @@ class CardOutput:
     profile: MachineProfile
 
 
+@station_errors
 def make_card(profile_name: str, material: str, *, power: str | None = None, feed: str | None = None,
               passes: int | None = None) -> CardOutput:
     """The test card for ``material`` of the profile ``profile_name`` (a built-in name, the station's copy of it, or a
@@ -144,6 +146,7 @@ def make_card(profile_name: str, material: str, *, power: str | None = None, fee
     return CardOutput(card, job, stream.getvalue(), manifest, _preview(card, job, offset), profile)
 
 
+@station_errors
 def write_card(output: CardOutput, folder: Path) -> dict[str, Path]:
     """card.gcode, card.json and card.png into ``folder``."""
     folder.mkdir(parents=True, exist_ok=True)
@@ -200,6 +203,7 @@ class TwinPhoto:
     truth: dict[str, Any]
 
 
+@station_errors
 def read_card_manifest(path: str | Path) -> CardManifest:
     """``card.json`` read and checked (one-line errors naming the file and the field)."""
     path = Path(path)
@@ -213,6 +217,7 @@ def read_card_manifest(path: str | Path) -> CardManifest:
     return read_manifest(data, str(path))
 
 
+@station_errors
 def photograph_card(card_json: str | Path, *, gcode: str | Path | None = None, seed: int = 0,
                     noise: float = 2.0, angle_deg: float = 7.0, px_per_mm: float = 20.0) -> TwinPhoto:
     """Burn the card's G-code (``gcode``, default the file card.json names beside it) into the twin's material of
@@ -266,6 +271,7 @@ class Choice:
     darkness: float | None = None
 
 
+@station_errors
 def choose_settings(reading: CardReading, manifest: CardManifest, darkness: float = DEFAULT_DARKNESS) -> Choice:
     """Cut: the fastest feed whose line went through, one power step above the lowest power that did (the lowest
     when it is the only one; the card's passes). Engrave:
@@ -298,6 +304,7 @@ def choose_settings(reading: CardReading, manifest: CardManifest, darkness: floa
     return Choice(cut, cut_cell, cut_why, None, None, "every square burned through: the profile's engrave is kept")
 
 
+@station_errors
 @dataclass
 class MaterialMeasurement:
     """A card read from a frame: the reading, the chosen settings, the report PNG, and where they came from."""
@@ -351,6 +358,7 @@ class MaterialMeasurement:
         }
 
 
+@station_errors
 def measure_material(card_json: str | Path, *, image: str | Path | np.ndarray | None = None,
                      camera: str | None = None, darkness: float = DEFAULT_DARKNESS) -> MaterialMeasurement:
     """Read a burned card from a frame (an image file, an array, or grabbed from ``camera``) and choose the
@@ -439,6 +447,7 @@ def _report(reading: CardReading, manifest: CardManifest, choice: Choice) -> byt
     return png_bytes(np.asarray(result))
 
 
+@station_errors
 def png_bytes(rgb: np.ndarray) -> bytes:
     """An RGB picture as PNG (OpenCV's encoder: several times faster than Pillow's on a camera frame)."""
     import cv2
@@ -474,6 +483,7 @@ def _toml_string(text: str) -> str:
     return json.dumps(str(text), ensure_ascii=False)
 
 
+@station_errors
 def material_block(measurement: MaterialMeasurement, profile: MachineProfile, when: datetime | None = None) -> str:
     """The ``[materials.NAME]`` table with the chosen settings and its ``measured`` record."""
     name = measurement.manifest.material
@@ -520,6 +530,7 @@ def material_block(measurement: MaterialMeasurement, profile: MachineProfile, wh
     return "\n".join(lines) + "\n"
 
 
+@station_errors
 def update_profile(measurement: MaterialMeasurement, profile_name: str | None = None, *, yes: bool = False,
                    when: datetime | None = None) -> ProfileUpdate:
     """Write the chosen settings into the profile the card was made for (or ``profile_name``): the station's copy of

@@ -31,6 +31,7 @@ from collections.abc import Callable, Iterable, Mapping
 import numpy as np
 
 from common.progress import ProgressCallback
+from station.errors import station_errors
 
 __all__ = ["CHOICE_QUANTILE", "PREDICTION_EDGE", "PREDICTION_WEIGHT", "candidate_layouts", "choice_score",
            "choose_layout", "describe_choice", "distinct_layouts", "expected_success", "layout_record",
@@ -48,6 +49,7 @@ CHOICE_QUANTILE = 0.25
 PREDICTION_EDGE = 0.01
 
 
+@station_errors
 def candidate_layouts(payload: dict, limit: int) -> list[dict]:
     """An optimizer's LAYOUT.json data and its verified runners-up that worked in simulation (best local success
     first), as LAYOUT.json data each, at most ``limit`` in all.
@@ -83,11 +85,13 @@ def _same(a: dict[str, float], b: dict[str, float], tolerance: float) -> bool:
     return a.keys() == b.keys() and all(abs(a[k] - b[k]) <= tolerance for k in a)
 
 
+@station_errors
 def same_layout(a: dict, b: dict, tolerance: float = 1e-6) -> bool:
     """Whether two LAYOUT.json data have the same parameter values (within ``tolerance``)."""
     return _same(_values(a), _values(b), tolerance)
 
 
+@station_errors
 def distinct_layouts(options: list[dict], tolerance: float = 1e-6) -> list[dict]:
     """``options`` without repeats (the same parameter values), the first kept."""
     seen: list[dict[str, float]] = []
@@ -110,18 +114,21 @@ def _record(values: dict[str, float], logged, tolerance: float) -> tuple[int, in
     return sum(outcomes), len(outcomes)
 
 
+@station_errors
 def layout_record(values: Mapping[str, float], trials: Iterable[Mapping], tolerance: float = 1e-6) -> tuple[int, int]:
     """A layout's record on the table: ``(successes, attempts)`` of the ``trials`` (trial records, the log's form)
     logged with its ``values`` (``{parameter: value}``)."""
     return _record({str(k): float(v) for k, v in values.items()}, _logged(trials), tolerance)
 
 
+@station_errors
 def layout_records(options: list[dict], trials: Iterable[Mapping], tolerance: float = 1e-6) -> list[tuple[int, int]]:
     """Each option's record (:func:`layout_record`; the trials read once)."""
     logged = _logged(trials)
     return [_record(_values(data), logged, tolerance) for data in options]
 
 
+@station_errors
 def expected_success(predicted: float, successes: int = 0, attempts: int = 0,
                      weight: float = PREDICTION_WEIGHT) -> float:
     """The expected success of a layout's next attempt: its prediction as a Beta prior worth ``weight`` attempts,
@@ -129,6 +136,7 @@ def expected_success(predicted: float, successes: int = 0, attempts: int = 0,
     return (weight * float(predicted) + successes) / (weight + attempts)
 
 
+@station_errors
 def choice_score(predicted: float, successes: int = 0, attempts: int = 0, weight: float = PREDICTION_WEIGHT,
                  quantile: float = CHOICE_QUANTILE) -> float:
     """What a layout is ranked by: the ``quantile`` of its success's Beta posterior, the prediction worth ``weight``
@@ -139,6 +147,7 @@ def choice_score(predicted: float, successes: int = 0, attempts: int = 0, weight
     return float(beta.ppf(quantile, weight * p + successes, weight * (1.0 - p) + attempts - successes))
 
 
+@station_errors
 def choose_layout(scenario, options: list[dict], profile=None, *, samples: int = 16, seed: int = 0,
                   trials: Iterable[Mapping] = (), prediction_weight: float = PREDICTION_WEIGHT,
                   workers: int | None = None, scheduler: str | None = None,
@@ -197,6 +206,7 @@ def choose_layout(scenario, options: list[dict], profile=None, *, samples: int =
     return chosen
 
 
+@station_errors
 def describe_choice(chosen: dict) -> str:
     """A few words on why ``chosen`` (:func:`choose_layout`'s answer) won, for a status line ("" if there was no
     choice)."""

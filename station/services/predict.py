@@ -20,10 +20,11 @@ from common.progress import ProgressCallback
 from design.contraption.layout_io import LoadedLayout
 from design.contraption.physics_profile import PhysicsProfile
 from design.contraption.scenario import Scenario
-from station.errors import ServiceError
+from station.errors import ServiceError, station_errors
 from station.services.outlook import success_headline
 
 
+@station_errors
 @dataclass
 class Prediction:
     """A prediction with what it was made of."""
@@ -40,6 +41,7 @@ class Prediction:
                 "as_built": self.as_built, "physics_profile": self.profile, **self.result.to_json()}
 
 
+@station_errors
 def as_built_from_check(check: Any, scenario: Scenario, designed: np.ndarray, file: str
                         ) -> tuple[np.ndarray, float, float, tuple[str, ...]]:
     """The as-built layout, the placement error (m, degrees) of a CHECK.json's content, and the design parameters it
@@ -62,6 +64,7 @@ def as_built_from_check(check: Any, scenario: Scenario, designed: np.ndarray, fi
     return x, built.position_sigma_m, built.angle_sigma_deg, built.not_measured
 
 
+@station_errors
 def not_measured(check: Any, scenario: Scenario, fail=None) -> tuple[str, ...]:
     """A check's ``not_measured`` design parameters (none when it does not say;
     :func:`calibration.check.not_measured_names`)."""
@@ -71,6 +74,7 @@ def not_measured(check: Any, scenario: Scenario, fail=None) -> tuple[str, ...]:
                               fail or (lambda m: ServiceError(f"check {m}", field="check")))
 
 
+@station_errors
 def predict(scenario: str | Scenario, layout: str | None, *, physics: str | Path | None = None,
             as_built: str | Path | None = None, samples: int = 200, seed: int = 0, workers: int | None = None,
             scheduler: str | None = None, progress: ProgressCallback | None = None, should_stop=None) -> Prediction:
@@ -127,6 +131,7 @@ def predict(scenario: str | Scenario, layout: str | None, *, physics: str | Path
     return Prediction(loaded, chosen, x, as_built is not None, profile.name if profile else None, result)
 
 
+@station_errors
 def predict_layout(scenario: Scenario, x: np.ndarray, *, profile: PhysicsProfile | None = None,
                    position_sigma_m: float = DEFAULT_POSITION_SIGMA_M,
                    angle_sigma_deg: float = DEFAULT_ANGLE_SIGMA_DEG, samples: int = 200, seed: int = 0,
@@ -144,6 +149,7 @@ def predict_layout(scenario: Scenario, x: np.ndarray, *, profile: PhysicsProfile
                                unmeasured=unmeasured)
 
 
+@station_errors
 def layout_outlook(problem, x: np.ndarray, *, physics: str | Path | None = None, samples: int = 48, seed: int = 0,
                    workers: int | None = None, scheduler: str | None = None,
                    progress: ProgressCallback | None = None, should_stop=None) -> PhysicalPrediction | None:
@@ -162,6 +168,7 @@ def layout_outlook(problem, x: np.ndarray, *, physics: str | Path | None = None,
                           workers=workers, scheduler=scheduler, progress=progress, should_stop=should_stop)
 
 
+@station_errors
 def outlook_line(result: PhysicalPrediction) -> str:
     """One line a maker reads after a check or a logged trial: the headline of
     :func:`station.services.outlook.success_headline` with the simulations it came from (``physical success on the
@@ -169,6 +176,7 @@ def outlook_line(result: PhysicalPrediction) -> str:
     return success_headline(result, when=f"{result.samples} simulations")
 
 
+@station_errors
 def predict_trial(scenario: Scenario, trial: Mapping[str, Any], *, samples: int = 48, seed: int = 0,
                   progress: ProgressCallback | None = None, should_stop=None) -> PhysicalPrediction:
     """The physical success of a logged trial's layout (as built when the trial has one), under the trial's physics

@@ -24,7 +24,7 @@ import numpy as np
 
 from common.progress import CancelCheck, ProgressCallback, Reporter
 from drivers.devices import projector_identity
-from station.errors import ServiceError
+from station.errors import ServiceError, station_errors
 from station.services import projectors
 
 __all__ = ["DEFAULT_SETTLE_S", "ProjectorCalibration", "calibrate_projector", "projector_map_file",
@@ -35,6 +35,7 @@ DEFAULT_SETTLE_S = 0.3
 _NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.-]{0,63}$")
 
 
+@station_errors
 @dataclass(frozen=True)
 class ProjectorCalibration:
     """A finished mapping: the map, where it was saved (None: not saved), the key it is kept under, which devices
@@ -59,6 +60,7 @@ class ProjectorCalibration:
                 "intrinsics_source": self.intrinsics_source}
 
 
+@station_errors
 def projector_map_file(name: str) -> Path:
     """Where the map kept under ``name`` is (a projector's key: :func:`station.services.projectors.projector_key`)."""
     return projectors.maps_folder() / f"{_check_name(name)}.json"
@@ -92,6 +94,7 @@ def _configured(kind: str) -> tuple[str, str]:
     return device.name, device.url
 
 
+@station_errors
 def run_patterns(camera, projector, patterns, *, settle_s: float = 0.0, progress: Reporter | None = None) -> list:
     """Show each ``(name, image)`` of ``patterns`` on the open ``projector`` and grab it with the open ``camera``.
 
@@ -114,6 +117,7 @@ def run_patterns(camera, projector, patterns, *, settle_s: float = 0.0, progress
     return images
 
 
+@station_errors
 def calibrate_projector(*, camera: str | None = None, projector: str | None = None, name: str | None = None,
                         plane: np.ndarray | str | Path | None = None, intrinsics: str | Path | None = None,
                         finest_px: int = 8, settle_s: float | None = None, save: bool = True,
@@ -256,6 +260,7 @@ def _intrinsics(intrinsics, camera_device, camera_name: str) -> tuple[np.ndarray
     return guess, np.zeros(5), f"guessed (f = {focal:g} px, no distortion: run `station calibrate camera`)"
 
 
+@station_errors
 def projector_summary(done: ProjectorCalibration) -> list[str]:
     """The lines the CLI prints and the Calibrate screen shows: how true the map lands and where it is kept first
     (a panel may show only the first few)."""

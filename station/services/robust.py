@@ -23,7 +23,7 @@ from common.signals import HandledSignals
 from design.errors import FileFormatError
 from design.robust.problem import RobustError
 from design.robust.settings import METHODS, PSPSettings, RobustnessSettings
-from station.errors import ServiceError
+from station.errors import ServiceError, station_errors
 from station.paths import cache_dir
 
 if TYPE_CHECKING:
@@ -60,6 +60,7 @@ DEFAULT_SETTINGS = "recommended"
 StopCheck = Callable[[], bool]
 
 
+@station_errors
 class RunStopped(Cancelled):
     """A run stopped on request (a stop asked for, Ctrl-C); the simulations it finished are kept in the cache.
 
@@ -77,18 +78,21 @@ class RunStopped(Cancelled):
         self.cache = cache
 
 
+@station_errors
 def simulation_cache_path() -> Path:
     """The shared simulation cache of every robust-layout command and the TUI."""
     return cache_dir() / "robust-simulations.sqlite3"
 
 
 # -- inputs -------------------------------------------------------------------------------------------------------
+@station_errors
 def check_count(value: int | None, name: str, minimum: int = 1) -> None:
     """Refuse an integer ``value`` (named ``name``) below ``minimum``; None (the default) passes."""
     if value is not None and value < minimum:
         raise ServiceError(f"{name} must be an integer >= {minimum}, got {value}", field=name, value=value)
 
 
+@station_errors
 def check_budget(budget: int | None, name: str = "budget") -> None:
     """Refuse a simulation budget outside [:data:`MINIMUM_BUDGET`, :data:`MAXIMUM_BUDGET`]; None (the default)
     passes."""
@@ -102,12 +106,14 @@ def check_budget(budget: int | None, name: str = "budget") -> None:
                            field=name, value=budget)
 
 
+@station_errors
 def check_seed(seed: int) -> None:
     """Refuse a negative seed before any work (numpy refuses it only once the first random draw is made)."""
     if seed < 0:
         raise ServiceError(f"seed must be a non-negative integer, got {seed}", field="seed", value=seed)
 
 
+@station_errors
 def thesis_budget(name: str) -> int:
     """The thesis's budget for a scenario named like one of Table 4.1 (``CAUSALITYSWITCH (ball faster)``,
     ``causalityswitch_ball``...), else :data:`DEFAULT_BUDGET`."""
@@ -115,6 +121,7 @@ def thesis_budget(name: str) -> int:
     return next((b for key, b in THESIS_BUDGETS.items() if upper.startswith(key)), DEFAULT_BUDGET)
 
 
+@station_errors
 def default_budget(problem, budget: int | None) -> int:
     """``budget``, checked; None: the thesis's budget for the problem's scenario."""
     if budget is None:
@@ -123,6 +130,7 @@ def default_budget(problem, budget: int | None) -> int:
     return budget
 
 
+@station_errors
 def parse_methods(text: str) -> list[str]:
     """``"ours,b1"`` → ``["ours", "b1"]``: the methods to compare, among :data:`design.robust.settings.METHODS`."""
     methods = [m.strip().lower() for m in text.split(",") if m.strip()]
@@ -132,6 +140,7 @@ def parse_methods(text: str) -> list[str]:
     return methods
 
 
+@station_errors
 def psp_settings(choice: str, **changes) -> PSPSettings:
     """The PSP settings named ``choice`` (a key of :data:`SETTINGS_CHOICES`, or a LAYOUT.json's path) with
     ``changes``."""
@@ -143,6 +152,7 @@ def psp_settings(choice: str, **changes) -> PSPSettings:
     return settings_of_layout(choice).with_changes(**changes)
 
 
+@station_errors
 def settings_of_layout(path: str) -> PSPSettings:
     """The PSP settings a LAYOUT.json recorded (``psp_settings``, as planned for its budget).
 
@@ -168,6 +178,7 @@ def settings_of_layout(path: str) -> PSPSettings:
         raise FileFormatError(str(error)) from None
 
 
+@station_errors
 def load_problem(path: str):
     """A scenario file, or an example by name (``simple``, ``ballrun``...), as a robust-layout problem."""
     from design.contraption.catalog import resolve_scenario_path
@@ -176,6 +187,7 @@ def load_problem(path: str):
     return load(resolve_scenario_path(path))
 
 
+@station_errors
 def read_layout(path: str, problem):
     """The layout ``path`` names for the problem's scenario (any form of :mod:`design.contraption.layout_io`: a
     LAYOUT.json, ``{"x": [...]}``, ``{"parameters": {...}}``, or a layout named in the scenario file)."""
@@ -185,6 +197,7 @@ def read_layout(path: str, problem):
 
 
 # -- stopping -----------------------------------------------------------------------------------------------------
+@station_errors
 class StopRequest(HandledSignals):
     """Ctrl-C and SIGTERM during a run, as a request the work polls at safe points (``should_stop=stop.is_set``).
 
@@ -225,6 +238,7 @@ def _check_stop(should_stop: StopCheck | None) -> None:
         raise Cancelled("stopped on request")
 
 
+@station_errors
 def connected_executor(problem, *, workers: int | None = None, scheduler: str | None = None,
                        chunk_size: int | None = None) -> SimulationExecutor:
     """An executor of ``problem`` on the shared simulation cache, its Dask scheduler (if any) already reached (a
@@ -242,6 +256,7 @@ def connected_executor(problem, *, workers: int | None = None, scheduler: str | 
 
 
 @contextmanager
+@station_errors
 def simulations(problem, *, workers: int | None = None, scheduler: str | None = None,
                 should_stop: StopCheck | None = None) -> Iterator[SimulationExecutor]:
     """An executor on the shared simulation cache, its Dask scheduler (if any) already reached.
@@ -268,6 +283,7 @@ def simulations(problem, *, workers: int | None = None, scheduler: str | None = 
 
 
 # -- the runs -----------------------------------------------------------------------------------------------------
+@station_errors
 def optimize(problem, budget: int, seed: int, settings: PSPSettings, *, workers: int | None = None,
              scheduler: str | None = None, progress: ProgressCallback | None = None,
              should_stop: StopCheck | None = None) -> RobustLayout:
@@ -284,6 +300,7 @@ def optimize(problem, budget: int, seed: int, settings: PSPSettings, *, workers:
                                       should_stop=should_stop)
 
 
+@station_errors
 @dataclass(frozen=True)
 class RobustnessPlan:
     """What a robustness measure will simulate, once its layouts are drawn: ``cached`` of ``layouts`` are known."""
@@ -305,6 +322,7 @@ class Robustness:
     evaluation: EvaluationSet
 
 
+@station_errors
 @dataclass
 class RobustnessRun:
     """How robust a layout is (thesis 4.8.3), in two steps: :meth:`draw` the layouts, then :meth:`simulate` them.
@@ -378,6 +396,7 @@ class RobustnessRun:
         return Robustness(curve, evaluation)
 
 
+@station_errors
 def compare(problem, methods: Sequence[str], runs: int, budget: int, seed: int, settings: PSPSettings,
             robustness: RobustnessSettings, *, workers: int | None = None, scheduler: str | None = None,
             progress: ProgressCallback | None = None, should_stop: StopCheck | None = None,

@@ -21,9 +21,10 @@ from calibration.sim_trials import export_trials, fit_trials
 from common.progress import Cancelled, ProgressCallback
 from design.contraption.physics_profile import PhysicsProfile, save_profile
 from design.contraption.scenario import Scenario
-from station.errors import ServiceError
+from station.errors import ServiceError, station_errors
 
 
+@station_errors
 @dataclass
 class SimCalibration:
     """A finished calibration: the fit, the scenarios it was for, and the profile it makes."""
@@ -47,6 +48,7 @@ class SimCalibration:
         return self.fit.to_json()
 
 
+@station_errors
 def read_trials_json(path: str | Path) -> list[dict]:
     """The trials of a trial export file (``station trial export --out FILE.json``)."""
     from common.datafiles import load_json
@@ -62,6 +64,7 @@ def read_trials_json(path: str | Path) -> list[dict]:
     return export_trials(data, str(path))
 
 
+@station_errors
 def material_ranges(scenario: Scenario, every_material: bool = False) -> dict[str, tuple[float, tuple[float, float]]]:
     """``{name: (value, (low, high))}``: the scenario's uncertain material values, and with ``every_material`` its
     other material values too, each in its :func:`~design.contraption.materials.default_range`."""
@@ -74,6 +77,7 @@ def material_ranges(scenario: Scenario, every_material: bool = False) -> dict[st
             for name, value in scenario.physics_parameters().items()}
 
 
+@station_errors
 def choose_parameters(scenarios: Sequence[Scenario], params: Sequence[str] | None, *,
                       every_material: bool = False) -> dict[str, tuple[float, tuple[float, float]]]:
     """What to fit: ``params`` (default: every uncertain value of the scenarios; with ``every_material``, every
@@ -110,6 +114,7 @@ def choose_parameters(scenarios: Sequence[Scenario], params: Sequence[str] | Non
 
 
 @contextlib.contextmanager
+@station_errors
 def station_runner(*, workers: int | None = None, scheduler: str | None = None,
                    progress: ProgressCallback | None = None, should_stop=None) -> Iterator[Runner]:
     """A :class:`~calibration.sim_fit.Runner` on the optimizer's executors and shared cache; a stop (``should_stop``,
@@ -133,6 +138,7 @@ def station_runner(*, workers: int | None = None, scheduler: str | None = None,
         raise RunStopped(runner.done, simulation_cache_path()) from None
 
 
+@station_errors
 def calibrate_sim(scenarios: Sequence[Scenario], trials: Sequence[Mapping[str, Any]], *,
                   params: Sequence[str] | None = None, n_trials: int | None = None,
                   settings: FitSettings | None = None, workers: int | None = None, scheduler: str | None = None,
@@ -180,6 +186,7 @@ def calibrate_sim(scenarios: Sequence[Scenario], trials: Sequence[Mapping[str, A
     return SimCalibration(fit, list(scenarios), list(chosen))
 
 
+@station_errors
 def save(result: SimCalibration, path: str | Path, name: str | None = None) -> Path:
     """Write the calibration's physics profile."""
     return save_profile(result.profile(name), path)

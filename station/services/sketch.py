@@ -16,7 +16,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from common.progress import CancelCheck, ProgressCallback, Reporter
-from station.errors import ServiceError
+from station.errors import ServiceError, station_errors
 
 if TYPE_CHECKING:  # scipy and the spline/FFT machinery load only when a sketch is retrieved
     import numpy as np
@@ -30,6 +30,7 @@ SMOOTHING_RANGE = (0.0, 0.5)
 GRID_RANGE = (1, 8)
 
 
+@station_errors
 @dataclass(frozen=True)
 class RetrieveOptions:
     """What to search and how.
@@ -90,6 +91,7 @@ def _check_integer(field: str, value: int, bounds: tuple[int, int]) -> None:
         raise ServiceError(f"{field} must be an integer in [{low}, {high}], got {value}", field=field, value=value)
 
 
+@station_errors
 def make_retriever(options: RetrieveOptions | None = None, *, progress: Reporter | ProgressCallback | None = None,
                    cancelled: CancelCheck | None = None, cache: str | Path | None = None) -> SketchRetriever:
     """A retriever over the options' machines, its databases cached in ``cache`` (default: the station's cache).
@@ -114,6 +116,7 @@ def make_retriever(options: RetrieveOptions | None = None, *, progress: Reporter
                            progress=progress, cancelled=cancelled)
 
 
+@station_errors
 def retrieve(sketch: Sketch, options: RetrieveOptions | None = None, *, retriever: SketchRetriever | None = None,
              progress: Reporter | ProgressCallback | None = None,
              cancelled: CancelCheck | None = None) -> RetrievalResult:
@@ -146,6 +149,7 @@ def retrieve(sketch: Sketch, options: RetrieveOptions | None = None, *, retrieve
                            smoothing=options.smoothing, mirror=options.mirror, machines=options.machine_list())
 
 
+@station_errors
 def candidate_curve(candidate: Candidate, points: int = 2048) -> np.ndarray:
     """The pattern of a candidate, ``(points, 2)`` uniform in arc length, for a preview."""
     from design.machines import get_machine
@@ -153,6 +157,7 @@ def candidate_curve(candidate: Candidate, points: int = 2048) -> np.ndarray:
     return get_machine(candidate.machine).sample(candidate.params, n=points, spacing="arclength")
 
 
+@station_errors
 def write_contact_sheet(result: RetrievalResult, path: str | Path, points: int = 2048) -> Path:
     """A PNG of the sketch (strokes and fitted curve) beside each ranked candidate, labelled with its distance."""
     from design.sketch.contact_sheet import render_contact_sheet

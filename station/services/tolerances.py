@@ -15,7 +15,7 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from station.errors import ServiceError
+from station.errors import ServiceError, station_errors
 from station.services import robust
 from station.services.outlook import disagreement
 
@@ -35,6 +35,7 @@ SIMULATION_STEPS = 4
 WEAK_MODEL_VERIFY = 8
 
 
+@station_errors
 @dataclass(frozen=True)
 class Tolerances:
     """A layout's tolerance map and what it was computed from.
@@ -84,6 +85,7 @@ class Tolerances:
                 **self.map.to_dict()}
 
 
+@station_errors
 def layout_and_model(layout: str, problem):
     """The layout ``layout`` names and the fitted model its file carries (None for a layout without one), from one
     reading of the file."""
@@ -102,6 +104,7 @@ def _read_layout(layout: str, problem):
     return layout_from_data(data, problem.scenario, file=layout), layout_model(data, problem, file=layout), data
 
 
+@station_errors
 def layout_simulated_success(data) -> float | None:
     """What simulation says of a layout file's success, from its data: its ``physical_success`` probability
     (``station optimize`` writes it), else its ``simulated_success`` (one simulation at the point) as 0 or 1; None
@@ -115,6 +118,7 @@ def layout_simulated_success(data) -> float | None:
     return float(simulated) if isinstance(simulated, bool) else None
 
 
+@station_errors
 def contraption_problem(scenario):
     """A scenario file or example name, or a loaded :class:`design.contraption.Scenario`, as a problem."""
     from design.contraption import Scenario
@@ -125,6 +129,7 @@ def contraption_problem(scenario):
     return robust.load_problem(str(scenario))
 
 
+@station_errors
 def tolerance_map(scenario, layout: str, *, verify: int = 0, seed: int = 0, workers: int | None = None,
                   scheduler: str | None = None, progress: ProgressCallback | None = None,
                   should_stop: robust.StopCheck | None = None, physics: str | None = None) -> Tolerances:

@@ -22,7 +22,7 @@ from design.contraption.catalog import resolve_scenario_path
 from design.contraption.layout_io import layout_from_data
 from design.contraption.model import Scenario
 from design.errors import DesignError
-from station.errors import ServiceError, StationError
+from station.errors import ServiceError, StationError, station_errors
 from station.joblog import local_time
 from station.trialformat import (
     FORMAT,
@@ -46,11 +46,13 @@ CHECK_FORMAT, CHECK_VERSION = "chaos-station check", 1
 #: A physics profile (CONTRACT20), as simulator calibration writes it.
 PHYSICS_FORMAT, PHYSICS_VERSION = "chaos-station physics", 1
 
+@station_errors
 def open_store(url: str | None = None) -> TrialStore:
     """The station's trial log (:func:`station.db.database_url` unless ``url`` is given)."""
     return TrialStore(url)
 
 
+@station_errors
 def logged_trials(url: str | None = None) -> list[dict]:
     """Every trial in the station's trial log (the export format, oldest first): what ``station calibrate sim`` and
     the Calibrate screen's simulator panel fit to."""
@@ -58,6 +60,7 @@ def logged_trials(url: str | None = None) -> list[dict]:
         return store.trials()
 
 
+@station_errors
 def load_trial_scenario(text: str) -> Scenario:
     """A scenario by example name or path, read once: its text is what a trial stores, and the scenario is parsed
     from that same text (a file edited meanwhile cannot give a trial another scenario's hash)."""
@@ -69,6 +72,7 @@ def load_trial_scenario(text: str) -> Scenario:
     return scenario_from_content(content, str(path))
 
 
+@station_errors
 def scenario_record(scenario: Scenario) -> dict[str, str]:
     """``{"name", "content_hash", "content"}`` of a scenario loaded by :func:`load_trial_scenario`."""
     content = Path(scenario.source).read_text(encoding="utf-8")
@@ -78,11 +82,13 @@ def scenario_record(scenario: Scenario) -> dict[str, str]:
     return {"name": scenario.name, "content_hash": scenario.content_hash, "content": content}
 
 
+@station_errors
 def layout_values(scenario: Scenario, x: Sequence[float]) -> dict[str, float]:
     """A layout vector as ``{parameter: value}`` in design-space order."""
     return {name: float(value) for name, value in zip(scenario.design_space.names, x)}
 
 
+@station_errors
 def parse_pairs(items: Iterable[str], field: str, expected: str) -> dict[str, str]:
     """``EVENT=VALUE`` strings as a dict; a missing ``=`` or an event given twice is refused naming ``field``."""
     pairs: dict[str, str] = {}
@@ -97,6 +103,7 @@ def parse_pairs(items: Iterable[str], field: str, expected: str) -> dict[str, st
     return pairs
 
 
+@station_errors
 def parse_outcomes(items: Iterable[str]) -> dict[str, str]:
     """``--outcome EVENT=yes|no|not-reached`` strings (the words checked later, against the graph)."""
     pairs = parse_pairs(items, "outcome", "|".join(OUTCOMES))
@@ -107,6 +114,7 @@ def parse_outcomes(items: Iterable[str]) -> dict[str, str]:
     return pairs
 
 
+@station_errors
 def parse_times(items: Iterable[str]) -> dict[str, float]:
     """``--time EVENT=SECONDS`` strings."""
     times: dict[str, float] = {}
@@ -121,6 +129,7 @@ def parse_times(items: Iterable[str]) -> dict[str, float]:
     return times
 
 
+@station_errors
 def read_as_built(path: str | Path, scenario: Scenario, layout: Mapping[str, float]) -> tuple[dict, dict | None]:
     """``(as_built values, check or None)`` from a CHECK.json (of this scenario and this layout, checked by
     :func:`read_check`) or a layout file.
@@ -178,6 +187,7 @@ _PART_FIELDS = {"name": "text", "tag_id": "a tag id (a whole number)", "found": 
                 "within_tolerance": "true, false or null", "instruction": "text", "cost": "a number or null"}
 
 
+@station_errors
 def read_check(data: Any, scenario: Scenario, layout: Mapping[str, float],
                fail: Callable[[str], Exception]) -> CheckedBuild:
     """The as-built layout a CHECK.json's content (``data``) says, after checking every field the trial log and the
@@ -293,6 +303,7 @@ def _part_value(key: str, value: Any) -> bool:
     return all(_number(value.get(k)) for k in ("du_mm", "dv_mm", "distance_mm", "heading_deg"))
 
 
+@station_errors
 def check_values(check: Mapping[str, Any]) -> dict[str, float]:
     """A check's as-built layout for the trial log: its ``as_built``, the measured parameters as measured
     (:func:`calibration.check.as_built_values`)."""
@@ -301,6 +312,7 @@ def check_values(check: Mapping[str, Any]) -> dict[str, float]:
     return as_built_values(check, lambda message: ServiceError(f"check: {message}", field="check"))
 
 
+@station_errors
 def read_physics(path: str | Path) -> dict[str, str]:
     """``{"name", "content"}`` of a physics profile (TOML: ``[profile]`` with format, version and name)."""
     file = str(path)
@@ -326,6 +338,7 @@ def read_physics(path: str | Path) -> dict[str, str]:
     return {"name": name.strip(), "content": raw.decode("utf-8")}
 
 
+@station_errors
 def check_photos(paths: Iterable[str | Path]) -> list[str]:
     """Photo paths, absolute; each must be a file."""
     result = []
@@ -337,6 +350,7 @@ def check_photos(paths: Iterable[str | Path]) -> list[str]:
     return result
 
 
+@station_errors
 def build_trial(scenario: Scenario, layout: Mapping[str, float], outcomes: Mapping[str, str], *,
                 times: Mapping[str, float] | None = None, as_built: Mapping[str, float] | None = None,
                 check: Mapping[str, Any] | None = None, physics: Mapping[str, str] | None = None,
@@ -362,6 +376,7 @@ def build_trial(scenario: Scenario, layout: Mapping[str, float], outcomes: Mappi
 PENDING_FOLDER = "pending-trials"
 
 
+@station_errors
 class TrialKept(ServiceError):
     """The database could not take the trial (still busy, unreachable, interrupted); it is kept in :attr:`path`, a
     trial export of that one trial, which the next :func:`log_trial` to the same database logs first (as ``station
@@ -385,6 +400,7 @@ class LoggedTrial:
     problems: tuple[str, ...] = ()
 
 
+@station_errors
 def pending_folder() -> Path:
     """Where kept trials wait (:data:`PENDING_FOLDER` in the data folder)."""
     from station.paths import data_dir
@@ -392,6 +408,7 @@ def pending_folder() -> Path:
     return data_dir() / PENDING_FOLDER
 
 
+@station_errors
 def pending_files() -> list[Path]:
     """The kept trials' files, oldest first."""
     folder = pending_folder()
@@ -406,6 +423,7 @@ def pending_files() -> list[Path]:
     return [file for _, _, file in sorted(files)]
 
 
+@station_errors
 def log_trial(record: Mapping[str, Any], *, url: str | None = None,
               on_wait: Callable[[str], None] | None = None) -> LoggedTrial:
     """Log a trial made by :func:`build_trial` in the station's database (``url``: another one), after the trials
@@ -451,6 +469,7 @@ def _kept(record: Mapping[str, Any], where: str | None, why: str, *, interrupted
                      f"`station trial import {path}`)", path, document, interrupted=interrupted)
 
 
+@station_errors
 def deliver_pending(store: TrialStore, *, on_wait: Callable[[str], None] | None = None
                     ) -> tuple[list[int], list[str]]:
     """Log the kept trials (:func:`pending_files`) meant for ``store``'s database and remove their files:
@@ -483,6 +502,7 @@ def deliver_pending(store: TrialStore, *, on_wait: Callable[[str], None] | None 
 
 
 # -- export and import -------------------------------------------------------------------------------------------
+@station_errors
 def export_trials(store: TrialStore, path: str | Path, *, scenario: str | None = None,
                   ids: Collection[int] | None = None) -> int:
     """Write the log (or one scenario's trials, or those with the ``ids`` given) to ``path`` (``.json``: the
@@ -509,6 +529,7 @@ def export_trials(store: TrialStore, path: str | Path, *, scenario: str | None =
     return len(trials)
 
 
+@station_errors
 def write_atomically(path: str | Path, write: Callable[[TextIO], None], *, field: str = "out") -> None:
     """A text file (UTF-8) whole or not at all: ``write(stream)`` writes it aside, in a hidden file of the same
     folder, which then replaces ``path`` in one rename.
@@ -545,6 +566,7 @@ def write_atomically(path: str | Path, write: Callable[[TextIO], None], *, field
         raise
 
 
+@station_errors
 def import_trials(store: TrialStore, path: str | Path) -> tuple[list[int], list[str]]:
     """Add the trials of a JSON export: ``(new ids, uids refused as already in the log)``. The whole file is
     checked first (format, version, every trial against its scenario's graph): a bad one adds nothing."""
@@ -562,11 +584,13 @@ def import_trials(store: TrialStore, path: str | Path) -> tuple[list[int], list[
 
 
 # -- words -------------------------------------------------------------------------------------------------------
+@station_errors
 def happened_count(trial: Mapping[str, Any]) -> str:
     outcomes = trial["outcomes"]
     return f"{sum(v == YES for v in outcomes.values())}/{len(outcomes)} events"
 
 
+@station_errors
 def trial_line(trial: Mapping[str, Any]) -> str:
     """One line: ``#12  2026-12-03 13:05  SIMPLE  success  5/5 events  as built (check)  physics fit-1  ann``."""
     built = "as built (check)" if trial["check"] else ("as built" if trial["as_built"] else "as designed")
@@ -579,6 +603,7 @@ def trial_line(trial: Mapping[str, Any]) -> str:
     return "  ".join(parts)
 
 
+@station_errors
 def describe_trial(trial: Mapping[str, Any]) -> list[str]:
     """Lines for ``station trial show``: the summary, every event's outcome in the graph's order, the layouts.
     Text from the log is shown with its control and bidirectional characters escaped
