@@ -103,6 +103,12 @@ class Assembly:
         What happened (every event, after :meth:`answer` or :meth:`run`), and when.
     trial_id : int or None
         The trial logged.
+    highlighted : bool or None
+        The projector highlights each part as the simulated maker places it (None: when there is a projector).
+    station_camera : bool
+        The camera is the station's own: its saved calibration read, and its plane kept between checks (and in the
+        data folder) so that a check says whether the camera was bumped since the last. False: a simulated camera
+        seen through its own lens and nothing kept (``station loop``'s unattended attempts).
     """
 
     job: Any
@@ -115,6 +121,9 @@ class Assembly:
     samples: int = DEFAULT_SAMPLES
     seed: int = 0
     workers: int | None = None
+    scheduler: str | None = None
+    highlighted: bool | None = None
+    station_camera: bool = True
     stage: str = "guide"
     step: int = 0
     checks: list = field(default_factory=list)
@@ -185,14 +194,17 @@ class Assembly:
         if self.world is not None:
             from station.services.world import place_parts
 
-            place_parts(self.world, self.job.guide, attempt=self.attempt, highlighted=self.projector is not None,
+            highlighted = self.projector is not None if self.highlighted is None else self.highlighted
+            place_parts(self.world, self.job.guide, attempt=self.attempt, highlighted=highlighted,
                         scenario=self.job.scenario)
         self.stage = "check"
 
     # -- check ------------------------------------------------------------------------------------------------------
-    def check_parts(self, progress: ProgressCallback | None = None):
+    def check_parts(self, progress: ProgressCallback | None = None, *, seed: int | None = None):
         """Grab a frame from the camera and check the parts as they stand (a simulated camera sees the world's
-        parts where the simulated maker put them, or the guide's tags at their designed poses without a world)."""
+        parts where the simulated maker put them, or the guide's tags at their designed poses without a world).
+        ``seed`` seeds a simulated camera's noise in this frame (without ``station_camera``; None: the camera's
+        own)."""
         from station.services import check as checks
 
         self._expect("check")
@@ -201,10 +213,15 @@ class Assembly:
             from station.services.world import world_scene
 
             scene = world_scene(self.job.guide, self.world.placed())
-        image, intrinsics, name, saved = checks.camera_frame(self.job.guide, camera=self.camera, scene=scene)
-        previous = self.check.measurement.plane if self.check is not None else saved
+        if self.station_camera:
+            image, intrinsics, name, saved = checks.camera_frame(self.job.guide, camera=self.camera, scene=scene)
+            previous = self.check.measurement.plane if self.check is not None else saved
+        else:
+            image, intrinsics = checks.grab_frame(self.camera, self.job.guide, scene=scene, seed=seed)
+            name = previous = None
         result = checks.check_frame(self.job, image, intrinsics, previous=previous, progress=progress)
-        checks.remember_plane(name, result)
+        if name is not None:
+            checks.remember_plane(name, result)
         self._camera_name = name
         self.checks.append(result)
         return result
@@ -221,15 +238,20 @@ class Assembly:
         self.projector.show(overlay_frame(self.check, size, projector_homography(self.projector)))
         return True
 
+    def moves(self) -> list[dict]:
+        """What the last check asks the maker to move (:func:`station.services.world.check_moves`); [] before the
+        first check."""
+        from station.services.world import check_moves
+
+        return [] if self.check is None else check_moves(self.check.to_json(), self.job.guide)
+
     def fix(self) -> list[dict]:
         """The maker moved the parts as the last check said (a simulated world applies the moves now, with the
-        maker's smaller error; :func:`station.services.world.check_moves`); check again next. Returns the moves."""
+        maker's smaller error); check again next. Returns the moves (:meth:`moves`)."""
         self._expect("check")
         if self.check is None:
             raise ServiceError("stage: no check yet; check the parts first", field="stage", value=self.stage)
-        from station.services.world import check_moves
-
-        moves = check_moves(self.check.to_json(), self.job.guide)
+        moves = self.moves()
         self.fixes += 1
         if self.world is not None and moves:
             self.world.apply(moves, round=self.fixes)
@@ -313,7 +335,8 @@ class Assembly:
         if self.stage in ("log", "done"):
             when = f"{when}; this run: {'success' if self.success else 'failure'}"
         result = predict_layout(scenario, x, profile=self._profile, samples=self.samples, seed=self.seed,
-                                workers=self.workers, progress=progress, should_stop=should_stop, **sigma)
+                                workers=self.workers, scheduler=self.scheduler, progress=progress,
+                                should_stop=should_stop, **sigma)
         self.forecasts.append(Forecast(when, result, self.record))
         return self.forecasts[-1]
 

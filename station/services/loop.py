@@ -636,46 +636,52 @@ class _Loop:
             profile.write_text(row.physics_content, encoding="utf-8")
         return layout, profile
 
-    def attempt(self, job, row, profile, k: int, a: int, *, checked: bool):
-        """One attempt: place, check and correct (when ``checked``), run, predict, log. Returns the stored attempt
-        and its :class:`AttemptReport`."""
-        from station.services import world as worlds
-        from station.services.check import check_frame
-        from station.services.trials import build_trial, check_values, layout_values
+    def attempt(self, job, physics: Path | None, profile, k: int, a: int, *, checked: bool):
+        """One attempt, an :class:`~station.services.assemble.Assembly` on the simulated world (the attempt
+        ``station assemble`` walks a maker through): placed, checked and corrected until no part is to move (when
+        ``checked``: highlighted, at most ``rounds`` corrections), run, predicted as checked, logged with the
+        attempt in one transaction. Returns the stored attempt and its :class:`AttemptReport`."""
+        from station.services.assemble import Assembly
 
-        guide, scenario = job.guide, self.scenario
-        number = k * ATTEMPT_BLOCK + a
-        worlds.place_parts(self.world, guide, attempt=number, highlighted=checked, scenario=scenario)
-        report, applied, left = None, [], []
+        s, seed = self.settings, self.world.seed
+        assembly = Assembly(job, self.scenario, camera=s.camera, world=self.world,
+                            physics=None if physics is None else str(physics), attempt=k * ATTEMPT_BLOCK + a,
+                            samples=s.predict_samples, seed=_seed(seed, _PREDICT, k, a), workers=s.workers,
+                            scheduler=s.scheduler, highlighted=checked, station_camera=False, _profile=profile)
+        assembly.placed()
+        applied, left = [], []
         if checked:
-            for r in range(self.settings.rounds + 1):
-                image, lens = worlds.grab_placed(self.settings.camera, guide, self.world.placed(),
-                                                 _seed(self.world.seed, _CAMERA, k, a, r))
-                report = check_frame(job, image, lens).to_json()
-                moves = worlds.check_moves(report, guide)
-                if not moves or r == self.settings.rounds:
+            for r in range(s.rounds + 1):
+                assembly.check_parts(seed=_seed(seed, _CAMERA, k, a, r))
+                moves = assembly.moves()
+                if not moves or r == s.rounds:
                     left = [move["name"] for move in moves]
                     break
-                self.world.apply(moves, round=r + 1)
-                applied.append(moves)
-        run = worlds.run_attempt(scenario, job.layout.x, guide, self.world, self.hidden)
-        predicted = self.predict(job, report, profile, k, a) if checked else None
-        physics = None if row.physics_content is None else {"name": row.physics_name, "content": row.physics_content}
-        said = AttemptReport(k, a, 0, run.success, checked, _corrections(applied, guide.view), len(applied),
-                             tuple(left), _failed_at(scenario, run.outcomes))
+                applied.append(assembly.fix())
+        assembly.accept()
+        run = assembly.run()
+        predicted = None
+        if checked:
+            words = f"loop {k}, attempt {a}: predicting its physical success as checked"
+            predicted = float(assembly.forecast(progress=self.under(words), should_stop=self.should_stop).prediction.probability)
+        said = AttemptReport(k, a, 0, run.success, checked, _corrections(applied, job.guide.view), len(applied),
+                             tuple(left), _failed_at(self.scenario, run.outcomes))
+        stored = self.store.add_attempt(self.run_id, k, a, assembly.trial(who=f"simulated maker ({self.world.url})",
+                                                                          notes=self.note(job, said, predicted)),
+                                        predicted=predicted, check_rounds=len(applied))
+        return stored, replace(said, trial_id=stored.trial_id)
+
+    def note(self, job, said: AttemptReport, predicted: float | None) -> str:
+        """An attempt's trial notes: the run, the jigs, the prediction and the check's corrections."""
+        k, a = said.loop, said.attempt
         note = f"station loop run {self.run_id}: " + (f"loop {k} attempt {a}" if k else f"baseline attempt {a}")
-        if guide.jigs:
-            note += f"; set on laser-cut jigs {', '.join(j.id for j in guide.jigs)}"
+        if job.guide.jigs:
+            note += f"; set on laser-cut jigs {', '.join(j.id for j in job.guide.jigs)}"
         if job.jigs is not None and job.jigs.plan.by_hand:
             note += "; no jig for " + ", ".join(f"`{b.part}` ({b.reason})" for b in job.jigs.plan.by_hand)
         if predicted is not None:
             note += f"; predicted physical success {predicted:.3f}"
-        note += f"; {said.correction_words()}"
-        trial = build_trial(scenario, layout_values(scenario, job.layout.x), run.outcomes, times=run.times,
-                            as_built=check_values(report) if report else None, check=report, physics=physics,
-                            who=f"simulated maker ({self.world.url})", notes=note)
-        stored = self.store.add_attempt(self.run_id, k, a, trial, predicted=predicted, check_rounds=len(applied))
-        return stored, replace(said, trial_id=stored.trial_id)
+        return note + f"; {said.correction_words()}"
 
     def prior(self):
         """What the station knows of the physics before any trial: the scenario's values and their ranges (the
@@ -691,18 +697,6 @@ class _Loop:
                               values={k: v for k, (v, _) in ranges.items()},
                               intervals={k: bounds for k, (_, bounds) in ranges.items()})
 
-    def predict(self, job, report, profile, k: int, a: int) -> float:
-        from station.services.predict import as_built_from_check, predict_layout
-
-        x, position, angle, unmeasured = as_built_from_check(report, self.scenario, np.asarray(job.layout.x, float),
-                                                             "<check>")
-        result = predict_layout(self.scenario, x, profile=profile, position_sigma_m=position, angle_sigma_deg=angle,
-                                unmeasured=unmeasured, samples=self.settings.predict_samples,
-                                seed=_seed(self.world.seed, _PREDICT, k, a),
-                                progress=self.under(f"loop {k}, attempt {a}: predicting its physical success as "
-                                                    "checked"), **self.where)
-        return float(result.probability)
-
     def run_attempts(self, row, k: int, count: int, *, checked: bool,
                      on_attempt: Callable[[AttemptReport], None] | None = None) -> list:
         """Loop ``k``'s attempts (``k`` 0: the baseline, on loop 1's layout), the stored ones kept; ``on_attempt``
@@ -713,7 +707,7 @@ class _Loop:
         done = {a.attempt: a for a in self.store.attempts(self.run_id, k)}
         who = f"loop {k}" if k else "baseline"
         stage = f"{who}: placing, checking and running" if k else f"{who}: placing from the printed sheet and running"
-        job = profile = None
+        job = profile = profile_path = None
         for a in range(1, count + 1):
             if a in done:
                 said = self.stored_report(done[a], checked)
@@ -728,7 +722,7 @@ class _Loop:
                         self.cut(job, who)
                 self.stop_point()
                 self.emit(stage, len(done), count, f"attempt {a} of {count}")
-                done[a], said = self.attempt(job, row, profile, k, a, checked=checked)
+                done[a], said = self.attempt(job, profile_path, profile, k, a, checked=checked)
             if on_attempt is not None:
                 on_attempt(said)
         self.emit(stage, count, count, "done")
