@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import time
 
+from cam.laser import material_settings, plan_laser_job
 from design.fabrication import (
     GearSettings,
     elliptic_gear,
@@ -18,7 +19,6 @@ from design.fabrication import (
     ring_gear,
     sheet_paths,
 )
-from drivers.laser_job import material_settings, plan_laser_job
 from drivers.profiles import builtin_profile
 
 MACHINES = ("spirograph", "elliptic_spirograph", "cycloid_drawing_machine", "hoot_nanny")

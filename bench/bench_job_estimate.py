@@ -25,9 +25,9 @@ from pathlib import Path
 import numpy as np
 
 from bench import grbl_firmware
+from cam.laser import OperationSettings, plan_laser_job, write_laser_gcode
 from drivers.gcode import interpret
 from drivers.grbl import GrblConnection, Job, JobRunner
-from drivers.laser_job import OperationSettings, plan_laser_job, write_laser_gcode
 from drivers.profiles import load_profile
 from drivers.sim.grbl.settings import DEFAULT_SETTINGS, SIM_PROFILES
 from station.services.job_verify import verify_job

@@ -10,14 +10,16 @@ import pytest
 ROOT = Path(__file__).resolve().parents[1]
 
 FORBIDDEN = {
-    "common": {"design", "drivers", "calibration", "projector", "vision", "station", "textual", "rich"},
-    "design": {"station", "drivers", "calibration", "projector", "vision", "textual"},
+    "common": {"design", "drivers", "calibration", "projector", "vision", "cam", "station", "textual", "rich"},
+    "design": {"station", "drivers", "calibration", "projector", "vision", "cam", "textual"},
     # The simulated camera draws its tags itself: a renderer sharing the station's tag code could not test it.
-    "drivers": {"design", "station", "vision", "textual"},
+    "drivers": {"design", "station", "vision", "cam", "textual"},
     "calibration": {"station", "textual"},
     "projector": {"station", "textual"},
     # Tags and their detection: one definition under guides (projector) and measurement (calibration) alike.
-    "vision": {"design", "drivers", "calibration", "projector", "station", "textual"},
+    "vision": {"design", "drivers", "calibration", "projector", "cam", "station", "textual"},
+    # Tool paths are written in the machines' G-code (drivers) from plain polylines the station hands over.
+    "cam": {"design", "calibration", "projector", "vision", "station", "textual"},
 }
 
 

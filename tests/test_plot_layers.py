@@ -14,8 +14,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from drivers.gcode import WriterOptions, drawn_polylines
-from drivers.gcode_layers import PenLayer, layer_marks, pause_lines, write_layers_gcode
+from cam.layers import PenLayer, write_layers_gcode
+from cam.plot import WriterOptions
+from drivers.gcode import drawn_polylines
+from drivers.gcode_layers import layer_marks, pause_lines
 from drivers.profiles import load_profile
 from station.cli import main
 from station.commands.machines_io import _sample

@@ -1,5 +1,5 @@
 """``station send --place X,Y,ANGLE`` and ``--verify``: the job placed on the stock, and run on the GRBL twin at
-virtual time before it is sent. The work is :mod:`drivers.gcode_place` and :mod:`station.services.job_verify`;
+virtual time before it is sent. The work is :mod:`cam.place` and :mod:`station.services.job_verify`;
 this module adds the options to ``station send``'s parser and applies them (the underscore keeps it from being
 discovered as a command of its own)."""
 
@@ -8,9 +8,9 @@ from __future__ import annotations
 import argparse
 import sys
 
+from cam.place import Placement, place_lines
 from drivers.errors import JobRefused
 from drivers.gcode import GcodeError
-from drivers.gcode_place import Placement, place_lines
 from drivers.grbl import Job
 from station.errors import ServiceError, UsageError
 

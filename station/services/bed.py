@@ -12,7 +12,7 @@ residual, which the registration reports.
 
 Placement: the stock (the largest light sheet on the dark bed) is found in a frame and mapped to machine mm; a
 job's outline (its laser-on moves) is drawn on the camera's picture at true scale, wherever a
-:class:`drivers.gcode_place.Placement` puts it; :func:`placement_on_stock` puts the job's lower-left corner a
+:class:`cam.place.Placement` puts it; :func:`placement_on_stock` puts the job's lower-left corner a
 margin inside the stock's lower-left corner, along the stock's edge.
 
 The camera over the bed: the configured camera whose ``options = { laser = "NAME" }`` names the laser; a
@@ -34,9 +34,9 @@ from pathlib import Path
 import cv2
 import numpy as np
 
+from cam.place import Placement, place_lines
 from common.progress import Progress, ProgressCallback
 from drivers.gcode import GcodeError, interpret
-from drivers.gcode_place import Placement, place_lines
 from station.errors import ServiceError
 
 __all__ = ["MARK_SIZES", "SIM_BED_CAMERA", "BedCalibration", "BedRegistration", "bed_camera", "bed_file",

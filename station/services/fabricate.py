@@ -108,6 +108,7 @@ def fabricate(machine: str, params: dict[str, float], scale: float, *, kerf: flo
     A part too large for the sheet is refused before any gear is generated (which takes minutes at large scales),
     with the largest scale that fits.
     """
+    from cam.laser import material_settings
     from design.fabrication import (
         FABRICABLE_MACHINES,
         check_sizes_fit,
@@ -116,7 +117,6 @@ def fabricate(machine: str, params: dict[str, float], scale: float, *, kerf: flo
         part_sizes,
     )
     from design.machines import get_machine
-    from drivers.laser_job import material_settings
     from station.services.profiles import load_station_profile
 
     report = Reporter.of(progress, cancelled)
@@ -197,8 +197,8 @@ def laser_sheets(sheets, profile, engrave_ops, cut_ops, metadata: dict[str, str]
     """Each nested sheet's laser job (engraving, then each part's holes before its outline; dark travels), checked
     against the profile's work area, with its G-code, SVG and PNG preview (the travel drawn grey). ``metadata`` goes
     in the G-code's header (the sheet's number is added); ``title`` names the SVG (", sheet i of n" is added)."""
+    from cam.laser import check_work_area, plan_laser_job, travel_moves, write_laser_gcode
     from design.fabrication import render_png, sheet_paths, write_svg
-    from drivers.laser_job import check_work_area, plan_laser_job, travel_moves, write_laser_gcode
 
     report = report if report is not None else Reporter.of(None)
     xmin, ymin, _, _ = profile.work_bounds()

@@ -119,8 +119,8 @@ def check_options(options: JigOptions | None = None):
     drivers.errors.JobRefused, drivers.profiles.ProfileError
         A profile that is not a laser's, or a material it does not have (the message lists them).
     """
+    from cam.laser import material_settings
     from design.jigs import JigSettings
-    from drivers.laser_job import material_settings
 
     options = options or JigOptions()
     profile = _profile(options.profile)
@@ -232,9 +232,9 @@ def cut_jigs(job, planned: PlannedJigs, progress: Reporter | ProgressCallback | 
     design.errors.ConstraintViolation
         The pieces need more than four sheets.
     """
+    from cam.laser import material_settings
     from design.fabrication import Part, nest_sheets
     from design.jigs.render import render_jig
-    from drivers.laser_job import material_settings
 
     report = Reporter.of(progress)
     plan, settings, profile = planned.plan, planned.settings, planned.profile

@@ -2,7 +2,7 @@
 burned card and write the material's measured settings into the profile.
 
 Used by ``station lasertest`` and ``station calibrate material``. The card's geometry is
-:mod:`design.fabrication.lasercard`, the laser job :func:`drivers.laser_job.plan_operations`, the twin's burn and
+:mod:`design.fabrication.lasercard`, the laser job :func:`cam.laser.plan_operations`, the twin's burn and
 photo :mod:`drivers.sim.laser_burn`, the reading :mod:`calibration.lasercard`.
 """
 
@@ -21,6 +21,7 @@ import numpy as np
 from PIL import Image, ImageDraw, ImageFont
 
 from calibration.lasercard import MIN_FRAME_PX_PER_MM, SOFT_EDGE_MM, CardReading, read_card
+from cam.laser import check_work_area, material_settings, plan_operations, travel_moves, write_laser_gcode
 from common.datafiles import load_json
 from design.fabrication.lasercard import (
     Card,
@@ -33,7 +34,6 @@ from design.fabrication.lasercard import (
     linear_steps,
     read_manifest,
 )
-from drivers.laser_job import check_work_area, material_settings, plan_operations, travel_moves, write_laser_gcode
 from drivers.profiles import BUILTIN_PROFILES, MachineProfile, ProfileError, profile_from_toml
 from drivers.sim.laser_burn import burn_gcode, line_kerf, photograph, sim_material
 from projector.tags import tag_cells

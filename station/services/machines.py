@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import math
 
-from drivers.gcode import WriterOptions, fit_polylines, simplify_polylines, write_plot_gcode
+from cam.plot import WriterOptions, fit_polylines, simplify_polylines, write_plot_gcode
 from drivers.profiles import MachineProfile
 from station.errors import ServiceError
 

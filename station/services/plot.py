@@ -26,9 +26,11 @@ from typing import Any
 
 import numpy as np
 
+from cam.layers import PenLayer, write_layers_gcode
+from cam.plot import WriterOptions
 from common.datafiles import parse_data
-from drivers.gcode import WriterOptions, interpret
-from drivers.gcode_layers import PenLayer, layer_marks, write_layers_gcode
+from drivers.gcode import interpret
+from drivers.gcode_layers import layer_marks
 from drivers.profiles import MachineProfile
 from station.errors import ServiceError
 

@@ -8,17 +8,8 @@ import numpy as np
 import pytest
 from shapely import LineString, Point
 
-from drivers.gcode import (
-    GcodeError,
-    WriterOptions,
-    clean_line,
-    drawn_polylines,
-    fit_polylines,
-    interpret,
-    simplify_polylines,
-    tokenize,
-    write_plot_gcode,
-)
+from cam.plot import WriterOptions, fit_polylines, simplify_polylines, write_plot_gcode
+from drivers.gcode import GcodeError, clean_line, drawn_polylines, interpret, tokenize
 from drivers.profiles import builtin_profile
 
 SQUARE = np.array([[0, 0], [10, 0], [10, 10], [0, 10], [0, 0]], dtype=float)

@@ -1,4 +1,4 @@
-"""A job placed on the bed (drivers.gcode_place, station send --place) and verified on the twin at virtual time
+"""A job placed on the bed (cam.place, station send --place) and verified on the twin at virtual time
 (drivers.grbl.planner, station.services.job_verify, station send --verify)."""
 
 from __future__ import annotations
@@ -9,8 +9,8 @@ import math
 import numpy as np
 import pytest
 
+from cam.place import Placement, place_lines
 from drivers.gcode import GcodeError, interpret
-from drivers.gcode_place import Placement, place_lines
 from drivers.grbl import Job, JobRunner
 from drivers.grbl.planner import MotionBlock, plan_times
 from drivers.profiles import load_profile

@@ -9,9 +9,7 @@ import numpy as np
 import pytest
 import serial
 
-from drivers.errors import JobRefused
-from drivers.gcode import clean_line, interpret, tokenize
-from drivers.laser_job import (
+from cam.laser import (
     OperationSettings,
     check_work_area,
     order_paths,
@@ -19,6 +17,8 @@ from drivers.laser_job import (
     plan_laser_job,
     write_laser_gcode,
 )
+from drivers.errors import JobRefused
+from drivers.gcode import clean_line, interpret, tokenize
 from drivers.profiles import builtin_profile
 
 ENGRAVE = OperationSettings(power=0.3, feed=3000.0, passes=1)

@@ -21,6 +21,7 @@ from typing import TextIO
 import numpy as np
 
 from drivers.errors import JobRefused
+from drivers.gcode import format_number
 
 __all__ = [
     "LaserPath",
@@ -394,11 +395,6 @@ def check_work_area(job: LaserJob, bounds: tuple[float, float, float, float], ma
             f"{machine} (X {xmin:g}..{xmax:g} mm, Y {ymin:g}..{ymax:g} mm); use a smaller sheet or scale")
 
 
-def _fmt(value: float) -> str:
-    text = f"{value:.3f}".rstrip("0").rstrip(".")
-    return "0" if text in ("-0", "") else text
-
-
 def write_laser_gcode(job: LaserJob, stream: TextIO, bounds: tuple[float, float, float, float] | None = None,
                       laser_mode: bool = True, machine: str = "the laser") -> int:
     """Write the job as GRBL 1.1 G-code; returns the number of lines.
@@ -413,26 +409,27 @@ def write_laser_gcode(job: LaserJob, stream: TextIO, bounds: tuple[float, float,
     lines = [f"; chaos-station laser job: {k}: {v}" for k, v in job.metadata.items()]
     estimate = job.estimate_seconds()
     for name, settings in job.operations.items():
-        lines.append(f"; {name}: S{_fmt(settings.power * job.max_power)} (power {settings.power:g}) "
-                     f"F{_fmt(settings.feed)} passes {settings.passes}")
+        lines.append(f"; {name}: S{format_number(settings.power * job.max_power)} (power {settings.power:g}) "
+                     f"F{format_number(settings.feed)} passes {settings.passes}")
     lines.append(f"; estimated run time {estimate['total'] / 60.0:.1f} min, travel {job.travel:.0f} mm")
     lines += ["G21 G90 G94 G17", "M5 S0", "M4 S0"]
     x, y = job.start
-    lines.append(f"G0 X{_fmt(x)} Y{_fmt(y)} S0")
+    lines.append(f"G0 X{format_number(x)} Y{format_number(y)} S0")
     # Where the head is after the last burn: a path that starts there continues without a travel.
     lines_at = None
     for path in job.paths:
         settings = job.operations[path.operation]
-        s_word = _fmt(settings.power * job.max_power)
+        s_word = format_number(settings.power * job.max_power)
         points = path.points
         for index in range(int(settings.passes)):
             run = points[::-1] if (not path.closed and index % 2 == 1) else points
             if not (lines_at is not None and np.allclose(lines_at, run[0], atol=5e-4)):
-                lines.append(f"G0 X{_fmt(run[0, 0])} Y{_fmt(run[0, 1])} S0")
+                lines.append(f"G0 X{format_number(run[0, 0])} Y{format_number(run[0, 1])} S0")
             lines_at = run[-1]
-            lines.append(f"G1 X{_fmt(run[1, 0])} Y{_fmt(run[1, 1])} S{s_word} F{_fmt(settings.feed)}")
-            lines.extend(f"G1 X{_fmt(px)} Y{_fmt(py)}" for px, py in run[2:])
-    lines.append(f"G0 X{_fmt(x)} Y{_fmt(y)} S0")
+            lines.append(f"G1 X{format_number(run[1, 0])} Y{format_number(run[1, 1])} S{s_word} "
+                         f"F{format_number(settings.feed)}")
+            lines.extend(f"G1 X{format_number(px)} Y{format_number(py)}" for px, py in run[2:])
+    lines.append(f"G0 X{format_number(x)} Y{format_number(y)} S0")
     lines.append("M5 S0")
     stream.write("\n".join(lines) + "\n")
     return len(lines)
