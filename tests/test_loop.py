@@ -17,6 +17,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from common.progress import Cancelled, Reporter
+
 ROOT = Path(__file__).resolve().parents[1]
 LAYOUT = {"x": [-0.15, 0.06, 68.0]}  # a SIMPLE layout (track.x, track.z, track.roll) that succeeds as designed
 TINY = ["--attempts", "2", "--loops", "2", "--budget", "20", "--reoptimize-budget", "20", "--candidates", "2",
@@ -148,18 +150,19 @@ def _tiny_settings():
 def test_a_stopped_run_keeps_its_id_when_resumed_and_says_so(tmp_path, station_home):
     # stopped before its first layout is made (nothing simulated): each resume finds the same run, and the next
     # run's id is the next number (an insert that found the run used one up)
-    from station.services.loop import LoopSettings, LoopStopped, run_loop
+    from station.services.loop import LoopSettings, run_loop
 
     database = str(tmp_path / "ids.sqlite3")
     settings = LoopSettings(attempts=2, loops=2, baseline=1)
     started, stops = [], []
     for world in ("sim://world?seed=2", "sim://world?seed=2", "sim://world?seed=2", "sim://world?seed=3"):
-        with pytest.raises(LoopStopped) as stopped:
-            run_loop("simple", world, settings, database=database, should_stop=lambda: True, on_start=started.append)
+        with pytest.raises(Cancelled) as stopped:
+            run_loop("simple", world, settings, database=database, report=Reporter(stop=lambda: True),
+                     on_start=started.append)
         stops.append(stopped.value)
     assert [(log.run_id, log.resumed) for log in started] == [(1, False), (1, True), (1, True), (2, False)]
     assert started[1].resuming() == "resuming run 1: 0 attempts already logged"
-    assert [(stop.log.run_id, stop.log.attempts) for stop in stops] == [(1, 0), (1, 0), (1, 0), (2, 0)]
+    assert [(stop.partial.run_id, stop.partial.attempts) for stop in stops] == [(1, 0), (1, 0), (1, 0), (2, 0)]
     assert str(stops[0]) == "run 1 stopped: 0 attempts logged (loop 1: 0 of 2)"
     connection = sqlite3.connect(database)
     try:

@@ -11,6 +11,7 @@ import sys
 
 from station.cli_util import check_output_file, emit_json, flag_error, number
 from station.errors import ServiceError
+from station.services.reporting import Reporter
 
 __all__ = ["PROJECTOR_JSON", "add_projector_parser", "run_projector"]
 
@@ -63,7 +64,7 @@ def run_projector(args) -> int:
         with ProgressView(sys.stderr, prefix="calibrate projector: ") as view:
             done = service.calibrate_projector(camera=args.camera, projector=args.projector, name=args.name,
                                                plane=args.plane, intrinsics=args.intrinsics, finest_px=args.finest,
-                                               settle_s=args.settle, out=out, progress=view)
+                                               settle_s=args.settle, out=out, report=Reporter(view))
     except ServiceError as error:
         raise flag_error(error) from None
     if args.json:

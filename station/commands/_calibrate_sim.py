@@ -97,7 +97,7 @@ def _calibrate_sim(args) -> int:
         raise UsageError("--trials-json EXPORT.json is required (this station has no trial log wired in)")
     result = service.calibrate_sim(scenarios, trials, params=params, n_trials=args.trials,
                                    settings=FitSettings(draws=args.draws, seed=args.seed,
-                                                        prior_width=args.prior_width or None), progress=args.bar,
+                                                        prior_width=args.prior_width or None),
                                    source=source, every_material=args.all_materials, **_where(args))
     args.bar.close()
     if args.out is not None:

@@ -10,9 +10,9 @@ from __future__ import annotations
 import os
 import sys
 
-from common.progress import Cancelled
 from station.cli_util import check_output_file, flag_error
 from station.errors import ServiceError, UsageError
+from station.services.reporting import Cancelled, Reporter
 
 FLAGS = {"world": "--world", "camera": "--camera", "physics": "--physics", "samples": "--samples",
          "attempt": "--attempt", "seed": "--seed"}
@@ -95,7 +95,7 @@ def run_assemble(args) -> int:
             assembly = service.open_assembly(args.scenario, args.layout, camera=args.camera, world=args.world,
                                              projector=projector, physics=args.physics, attempt=args.attempt,
                                              samples=args.samples, seed=args.seed, workers=args.workers,
-                                             jigs=args.jigs, progress=view)
+                                             jigs=args.jigs, report=Reporter(view))
         _walk(assembly, args, out)
         if args.json:
             from station.cli_util import emit_json
@@ -104,7 +104,7 @@ def run_assemble(args) -> int:
     except ServiceError as error:
         raise flag_error(error, FLAGS) from None
     except (Quit, KeyboardInterrupt, Cancelled) as stop:
-        # Ctrl-C (or kill) while a forecast simulates comes back as the runner's RunStopped (a Cancelled)
+        # Ctrl-C (or kill) while a forecast simulates comes back as the runner's Cancelled
         interrupted = not isinstance(stop, Quit)
         out.write(f"\n{'stopped' if interrupted else str(stop) or 'left'}: nothing logged\n")
         return 130 if interrupted else 1

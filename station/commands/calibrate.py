@@ -12,6 +12,7 @@ import sys
 
 from station.cli_util import check_output_file, emit_json, flag_error, number
 from station.errors import ServiceError, UsageError
+from station.services.reporting import Reporter
 
 CAMERA_JSON = ('{"camera": {camera file: "camera_matrix", "dist_coeffs", "image_size", "rms_px", "name", "notes"}, '
                '"rms_px", "views": [{"name", "corners", "rms_px", "skipped"}], "coverage", "uncovered_corners", '
@@ -126,7 +127,7 @@ def run_camera(args) -> int:
     try:
         with ProgressView(sys.stderr, prefix="calibrate: ") as view:
             done = service.calibrate_camera(images=args.images, capture=args.capture, camera=args.camera,
-                                            name=args.name, out=out, interval_s=args.interval, progress=view)
+                                            name=args.name, out=out, interval_s=args.interval, report=Reporter(view))
     except ServiceError as error:
         raise flag_error(error) from None
     if args.json:

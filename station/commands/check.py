@@ -13,6 +13,7 @@ from pathlib import Path
 
 from station.cli_util import add_physics_option, check_output_file, emit_json, flag_error
 from station.errors import ServiceError, UsageError
+from station.services.reporting import Reporter
 
 #: The ``--json`` / CHECK.json contract, quoted in the help text; keep its names.
 JSON_SHAPE = ('{"format": "chaos-station check", "version", "scenario", "content_hash", "layout", "view", "plane": '
@@ -124,7 +125,8 @@ def run_check(args) -> int:
             side_offsets[part] = offset
         cameras = _cameras(args)
         with ProgressView(sys.stderr, prefix="check: ") as view:
-            job = service.prepare_check(args.scenario, args.layout, guide=args.guide, progress=view, jigs=args.jigs)
+            report = Reporter(view)
+            job = service.prepare_check(args.scenario, args.layout, guide=args.guide, report=report, jigs=args.jigs)
             physics = read_profile(args.physics) if args.physics else None
             if len(cameras) > 1 or side_offsets or args.side_image is not None \
                     or any(check_side.is_side_url(url) for _, url in cameras):
@@ -132,13 +134,13 @@ def run_check(args) -> int:
                     job, cameras, image=args.image, intrinsics=args.intrinsics, offsets=offsets,
                     side_offsets=side_offsets, occluded=tuple(args.sim_cover or ()), side_image=args.side_image,
                     side_intrinsics=args.side_intrinsics, simulate=args.simulate, seed=args.seed, physics=physics,
-                    predict=args.predict, progress=view)
+                    predict=args.predict, report=report)
             else:
                 image, intrinsics, name, previous = service.camera_frame(
                     job.guide, image=args.image, camera=cameras[0][1] if cameras else None,
                     intrinsics=args.intrinsics, offsets=offsets, occluded=tuple(args.sim_cover or ()))
                 check = service.check_frame(job, image, intrinsics, simulate=args.simulate, seed=args.seed,
-                                            previous=previous, physics=physics, predict=args.predict, progress=view)
+                                            previous=previous, physics=physics, predict=args.predict, report=report)
                 service.remember_plane(name, check)
         if out is not None:
             out.write_text(json.dumps(check.to_json(), indent=1) + "\n", encoding="utf-8")

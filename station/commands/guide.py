@@ -10,6 +10,7 @@ import sys
 
 from station.cli_util import add_physics_option, check_output_file, check_output_folder, emit_json, flag_error
 from station.errors import ServiceError, UsageError
+from station.services.reporting import Reporter
 
 #: The ``--json`` contract (the guide's manifest), quoted in the help text; keep its names.
 JSON_SHAPE = ('{"scenario", "content_hash", "view", "units": "mm", "tolerance_source", "pages": [{"index", "label", '
@@ -95,7 +96,7 @@ def run_guide(args) -> int:
         service.check_paper(args.paper)  # before any simulation
         with ProgressView(sys.stderr, prefix="guide: ") as view:
             job = service.make_guide(args.scenario, args.layout, view=args.view, verify=args.verify, seed=args.seed,
-                                     tolerances=not args.no_tolerances, progress=view, physics=args.physics,
+                                     tolerances=not args.no_tolerances, report=Reporter(view), physics=args.physics,
                                      jigs=args.jigs is not None)
         job = service.export_guide(job, pdf=pdf, svg=svg, paper=args.paper)
         if jigs_dir is not None:

@@ -10,6 +10,7 @@ import sys
 
 from station.cli_util import NON_NEGATIVE, add_physics_option, check_output_folder, emit_json, flag_error
 from station.errors import ServiceError
+from station.services.reporting import Reporter
 
 #: The ``--json`` contract (jigs.json), quoted in the help text; keep its names.
 JSON_SHAPE = ('{"scenario", "view", "units": "mm", "material", "thickness_mm", "kerf_mm", "sheet_mm", "jigs": [{"id", '
@@ -81,7 +82,7 @@ def run_jigs(args) -> int:
     try:
         with ProgressView(sys.stderr, prefix="jigs: ") as view:
             result = service.make_jigs(args.scenario, args.layout, options, view=args.view,
-                                       tolerances=not args.no_tolerances, physics=args.physics, progress=view)
+                                       tolerances=not args.no_tolerances, physics=args.physics, report=Reporter(view))
     except ServiceError as error:
         raise flag_error(error) from None
     files = service.write_jig_outputs(result, out)

@@ -42,7 +42,7 @@ def run_predict(args) -> int:
 
     try:
         prediction = predict(args.scenario, args.layout, physics=args.physics, as_built=args.as_built,
-                             samples=args.samples, seed=args.seed, progress=args.bar, **_where(args))
+                             samples=args.samples, seed=args.seed, **_where(args))
     except ServiceError as error:
         raise flag_error(error, {"as_built": "--as-built"}) from None
     args.bar.close()

@@ -26,11 +26,11 @@ from station.cli_util import NON_NEGATIVE, add_physics_option, check_output_file
 from station.errors import ServiceError, UsageError
 from station.progress_view import ProgressView
 from station.services import robust as service
+from station.services.reporting import Cancelled, Reporter
 from station.services.robust import (  # noqa: F401 - re-exported: the work lives in the service
     DEFAULT_BUDGET,
     DEFAULT_SETTINGS,
     SETTINGS_CHOICES,
-    RunStopped,
     StopRequest,
     read_layout,
     simulation_cache_path,
@@ -201,10 +201,11 @@ def command(run: Callable[..., int]) -> Callable[..., int]:
             try:
                 with flag_words():
                     return run(args)
-            except RunStopped as stopped:
+            except Cancelled as stopped:
                 args.bar.close()
-                print(f"\nstation: stopping; the {stopped.new_simulations} new simulations of this run are kept in "
-                      f"the cache ({stopped.cache})", file=sys.stderr)
+                kept = (f"; the {stopped.new_simulations} new simulations of this run are kept in the cache "
+                        f"({stopped.cache})" if stopped.cache is not None else "")
+                print(f"\nstation: stopping{kept}", file=sys.stderr)
                 raise KeyboardInterrupt from None
             finally:
                 args.bar.close()
@@ -213,8 +214,9 @@ def command(run: Callable[..., int]) -> Callable[..., int]:
 
 
 def _where(args) -> dict:
-    """Where the simulations run and when they stop: the keyword arguments every run of the service takes."""
-    return {"workers": args.workers, "scheduler": args.scheduler, "should_stop": args.stop.is_set}
+    """Where the simulations run, and their reporter (the command's bar, its stop request): the keyword arguments
+    every run of the service takes."""
+    return {"workers": args.workers, "scheduler": args.scheduler, "report": Reporter(args.bar, stop=args.stop.is_set)}
 
 
 def add_common(parser, budget: bool = True) -> None:
@@ -346,9 +348,9 @@ def run_optimize(args) -> int:
     from station.services.predict import layout_outlook  # simulation code: deferred so that --help stays quick
 
     service.check_count(args.predict, "predict", 0)
-    result = service.optimize(problem, budget, args.seed, settings, progress=args.bar, **_where(args))
+    result = service.optimize(problem, budget, args.seed, settings, **_where(args))
     outlook = layout_outlook(problem, problem.to_real(result.u), physics=getattr(args, "physics", None),
-                             samples=args.predict, seed=args.seed, progress=args.bar, **_where(args))
+                             samples=args.predict, seed=args.seed, **_where(args))
     args.bar.close()
     payload = result.to_json(problem)
     if outlook is not None:
@@ -423,9 +425,9 @@ def run_robustness(args) -> int:
           "simulations at most (cached ones are not run again); fewer, and faster, with --eval N and --local N",
           file=sys.stderr)
     bar = args.bar
-    with service.simulations(problem, **_where(args)) as executor:
-        run = service.RobustnessRun(problem, u, settings, args.seed, executor, progress=bar,
-                                    should_stop=args.stop.is_set)
+    where = _where(args)
+    with service.simulations(problem, **where) as executor:
+        run = service.RobustnessRun(problem, u, settings, args.seed, executor, report=where["report"])
         bar.expect(n_evaluation, "valid evaluation layouts")
         plan = run.draw()
         bar.note(f"{plan.cached} of the {plan.layouts} simulations are cached; {plan.new} to run")
@@ -465,7 +467,7 @@ def run_compare(args) -> int:
     budget = default_budget(problem, args.budget)
     bar = args.bar
     comparison = service.compare(
-        problem, methods, args.runs, budget, args.seed, psp_settings(args.settings), robustness, progress=bar,
+        problem, methods, args.runs, budget, args.seed, psp_settings(args.settings), robustness,
         on_run=lambda run: bar.note(f"{run.method} seed {run.seed}: rho_g {run.curve.global_robustness:.3f}, "
                                     f"{run.n_simulations} simulations, {run.seconds:.1f} s"), **_where(args))
     bar.close()

@@ -13,6 +13,7 @@ from station.cli_util import emit_json
 from station.commands.robust import add_command, add_workers, command
 from station.errors import UsageError
 from station.services import tolerances as service
+from station.services.reporting import Reporter
 
 JSON_SHAPE = (
     '--json prints {"scenario", "layout": {source, format, name, defaulted, warnings}, "verify": N, '
@@ -69,8 +70,8 @@ def run_tolerances(args) -> int:
 
     bar = args.bar
     result = service.tolerance_map(args.scenario, args.layout, verify=args.verify, seed=args.seed,
-                                   workers=args.workers, scheduler=args.scheduler, progress=bar,
-                                   should_stop=args.stop.is_set, physics=args.physics)
+                                   workers=args.workers, scheduler=args.scheduler,
+                                   report=Reporter(bar, stop=args.stop.is_set), physics=args.physics)
     bar.close()
     report_layout(result.layout, sys.stderr)
     if args.json:

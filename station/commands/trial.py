@@ -5,11 +5,11 @@ from __future__ import annotations
 import sqlite3
 import sys
 
-from common.progress import Cancelled
 from design.contraption.layout_io import resolve_layout
 from station.cli_util import emit_json
 from station.db import WRITE_PATIENCE_SECONDS
 from station.errors import ServiceError, StationError, UsageError
+from station.services.reporting import Cancelled, Reporter
 from station.services.trials import (
     TrialKept,
     build_trial,
@@ -175,7 +175,7 @@ def _outlook(scenario, record, samples: int):
 
     try:
         with ProgressView(sys.stderr, prefix="predict: ") as view:
-            return predict_trial(scenario, record, samples=samples, progress=view)
+            return predict_trial(scenario, record, samples=samples, report=Reporter(view))
     except (StationError, DesignError) as error:  # the trial is logged: say why there is no prediction, and go on
         print(f"no prediction: {error}", file=sys.stderr)
     except sqlite3.Error as error:  # the simulation cache, kept busy by another process

@@ -27,7 +27,7 @@ from typing import Any
 
 import numpy as np
 
-from common.progress import ProgressCallback
+from common.progress import Reporter
 from station.errors import ServiceError
 from station.services.outlook import success_headline
 
@@ -200,7 +200,7 @@ class Assembly:
         self.stage = "check"
 
     # -- check ------------------------------------------------------------------------------------------------------
-    def check_parts(self, progress: ProgressCallback | None = None, *, seed: int | None = None):
+    def check_parts(self, report: Reporter | None = None, *, seed: int | None = None):
         """Grab a frame from the camera and check the parts as they stand (a simulated camera sees the world's
         parts where the simulated maker put them, or the guide's tags at their designed poses without a world).
         ``seed`` seeds a simulated camera's noise in this frame (without ``station_camera``; None: the camera's
@@ -219,7 +219,7 @@ class Assembly:
         else:
             image, intrinsics = checks.grab_frame(self.camera, self.job.guide, scene=scene, seed=seed)
             name = previous = None
-        result = checks.check_frame(self.job, image, intrinsics, previous=previous, progress=progress)
+        result = checks.check_frame(self.job, image, intrinsics, previous=previous, report=report)
         if name is not None:
             checks.remember_plane(name, result)
         self._camera_name = name
@@ -319,7 +319,7 @@ class Assembly:
         return self.trial_id
 
     # -- forecasts --------------------------------------------------------------------------------------------------
-    def forecast(self, progress: ProgressCallback | None = None, should_stop=None) -> Forecast:
+    def forecast(self, report: Reporter | None = None) -> Forecast:
         """The physical success and expected attempts now: as designed before a check (the default placement
         error), as placed after one (its as-built layout, its residual error), under the physics profile if any."""
         from station.services.predict import as_built_from_check, predict_layout
@@ -335,8 +335,7 @@ class Assembly:
         if self.stage in ("log", "done"):
             when = f"{when}; this run: {'success' if self.success else 'failure'}"
         result = predict_layout(scenario, x, profile=self._profile, samples=self.samples, seed=self.seed,
-                                workers=self.workers, scheduler=self.scheduler, progress=progress,
-                                should_stop=should_stop, **sigma)
+                                workers=self.workers, scheduler=self.scheduler, report=report, **sigma)
         self.forecasts.append(Forecast(when, result, self.record))
         return self.forecasts[-1]
 
@@ -351,7 +350,7 @@ def open_assembly(scenario: str, layout: str | None, *, view: str | None = None,
                   world: str | None = None, projector=None, physics: str | Path | None = None,
                   attempt: int | None = None, jigs: bool = False,
                   samples: int = DEFAULT_SAMPLES, seed: int = 0, workers: int | None = None, store=None,
-                  progress: ProgressCallback | None = None) -> Assembly:
+                  report: Reporter | None = None) -> Assembly:
     """Start an attempt: the guide of ``layout`` for ``scenario`` (with its tolerances), the world opened.
 
     Parameters
@@ -403,7 +402,7 @@ def open_assembly(scenario: str, layout: str | None, *, view: str | None = None,
 
         opened_world = open_world(world)
     try:
-        job = guides.make_guide(scenario, layout, view=view, progress=progress,
+        job = guides.make_guide(scenario, layout, view=view, report=report,
                                 physics=None if physics is None else str(physics), jigs=bool(jigs))
         if opened_world is not None:
             prepare_world(opened_world, job.scenario)
@@ -444,7 +443,7 @@ def _layout_record(scenario, x, trials) -> tuple[int, int]:
 
 # -- after attempts: calibrate, re-optimize ----------------------------------------------------------------------------
 def calibrate_from_log(scenario, store=None, *, settings=None, workers: int | None = None,
-                       progress: ProgressCallback | None = None, should_stop=None, out: str | Path | None = None,
+                       report: Reporter | None = None, out: str | Path | None = None,
                        every_material: bool = False):
     """Fit ``scenario``'s uncertain material values (with ``every_material``, its plain ones too, each within its
     default range, as ``station loop`` does) to its trials in the log (``store``, default the station's) and write the
@@ -456,7 +455,7 @@ def calibrate_from_log(scenario, store=None, *, settings=None, workers: int | No
     ------
     ServiceError
         No trials of the scenario, nothing uncertain to fit (named).
-    RunStopped
+    common.progress.Cancelled
         Stopped; the simulations done are in the cache.
     """
     from station.paths import data_dir
@@ -468,8 +467,8 @@ def calibrate_from_log(scenario, store=None, *, settings=None, workers: int | No
             trials = opened.trials(scenario=scenario.name)
     else:
         trials = store.trials(scenario=scenario.name)
-    result = calibrate_sim([scenario], trials, settings=settings, workers=workers, progress=progress,
-                           should_stop=should_stop, source="the trial log", every_material=every_material)
+    result = calibrate_sim([scenario], trials, settings=settings, workers=workers, report=report,
+                           source="the trial log", every_material=every_material)
     path = Path(out) if out is not None else data_dir() / "physics" / f"{scenario.name.lower()}-calibrated.toml"
     path.parent.mkdir(parents=True, exist_ok=True)
     return save(result, path, name=f"{scenario.name} calibrated on {result.fit.trials + result.fit.held_out} "
@@ -477,7 +476,7 @@ def calibrate_from_log(scenario, store=None, *, settings=None, workers: int | No
 
 
 def reoptimize(scenario_path: str, physics: str | Path | None, *, budget: int = 40, seed: int = 0,
-               workers: int | None = None, progress: ProgressCallback | None = None, should_stop=None,
+               workers: int | None = None, report: Reporter | None = None,
                out: str | Path | None = None, settings=None, current: str | None = None, candidates: int = 4,
                samples: int = 16, trials=None):
     """Optimize the layout again under the physics profile ``physics`` (the calibrated one), choose among the
@@ -498,8 +497,7 @@ def reoptimize(scenario_path: str, physics: str | Path | None, *, budget: int = 
 
     problem = problem_with_physics(robust.load_problem(scenario_path), physics)
     settings = settings or robust.psp_settings(robust.DEFAULT_SETTINGS)
-    result = robust.optimize(problem, budget, seed, settings, workers=workers, progress=progress,
-                             should_stop=should_stop)
+    result = robust.optimize(problem, budget, seed, settings, workers=workers, report=report)
     options = candidate_layouts(result.to_json(problem), candidates)
     if current is not None and Path(current).is_file() and str(current).lower().endswith(".json"):
         try:
@@ -515,7 +513,7 @@ def reoptimize(scenario_path: str, physics: str | Path | None, *, budget: int = 
         with open_store() as store:
             trials = store.trials(scenario=problem.scenario.name)
     chosen = choose_layout(problem.scenario, options, profile, samples=samples, seed=seed, workers=workers,
-                           trials=trials or (), progress=progress, should_stop=should_stop)
+                           trials=trials or (), report=report)
     path = Path(out) if out is not None else data_dir() / "layouts" / f"{result.scenario.lower()}-physics.json"
     path.parent.mkdir(parents=True, exist_ok=True)
     path.write_text(json.dumps(chosen, indent=2) + "\n", encoding="utf-8")

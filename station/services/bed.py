@@ -35,7 +35,7 @@ import cv2
 import numpy as np
 
 from cam.place import Placement, place_lines
-from common.progress import Progress, ProgressCallback
+from common.progress import Progress, Reporter
 from drivers.gcode import GcodeError, interpret
 from station.errors import ServiceError
 
@@ -350,22 +350,24 @@ class BedCalibration:
 def calibrate_bed(*, laser: str | None = None, port: str | None = None, camera: str | None = None,
                   image: str | Path | np.ndarray | None = None, area: Sequence[float] | None = None,
                   engrave: bool = True, power: float = 0.3, feed: float | None = None,
-                  progress: ProgressCallback | None = None, connection=None) -> BedCalibration:
+                  report: Reporter | None = None, connection=None) -> BedCalibration:
     """Engrave the marks (unless ``engrave`` is False: they are there already), grab a frame (or read ``image``),
     register the bed and save it under the laser's name.
 
     ``laser`` is a configured laser's name (default the first), ``port`` another URL for it; ``power`` a fraction
     of the laser's maximum, ``feed`` mm/min (default the profile's engrave feed of its first material, else 3000).
     ``connection``: the laser's open :class:`drivers.grbl.GrblConnection` (the Machines screen's), else one is
-    opened.
+    opened. ``report`` hears of each step and of the marks job's lines; a stop asked for is honoured between the
+    steps (a running laser job stops with the machine's own hold or abort, not half-way through a line).
     """
     from drivers.grbl import GrblConnection, Job, JobRunner
     from station.devices import machine_profile
     from station.services.calibrate import _read_image
 
+    report = Reporter.of(report)
+
     def say(stage: str, message: str, done: float = 0.0, total: float = 1.0) -> None:
-        if progress is not None:
-            progress(Progress(stage, done, total, message))
+        report.emit(Progress(stage, done, total, message))
 
     device = laser_device(laser)
     profile = machine_profile(device)
@@ -387,10 +389,11 @@ def calibrate_bed(*, laser: str | None = None, port: str | None = None, camera: 
             lines = marks_job(marks_work, power=power * max_power, feed=engrave_feed, kerf=kerf)
             say("engrave", f"engraving the four marks on {device.name}")
 
-            def report(job_progress) -> None:
-                say("engrave", "engraving the marks", job_progress.lines_acked, max(job_progress.lines_total, 1))
+            def lines_done(job_progress) -> None:  # on the job's thread: told, never stopped there
+                report.tell(Progress("engrave", job_progress.lines_acked, max(job_progress.lines_total, 1),
+                                     "engraving the marks"))
 
-            result = JobRunner(conn, Job("bed registration marks", lines, laser=True), on_progress=report).run()
+            result = JobRunner(conn, Job("bed registration marks", lines, laser=True), on_progress=lines_done).run()
             if not result.ok:
                 raise ServiceError(f"laser: the marks job did not finish: {result.message}", field="laser",
                                    value=device.name)

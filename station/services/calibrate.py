@@ -22,7 +22,7 @@ from pathlib import Path
 
 import numpy as np
 
-from common.progress import CancelCheck, ProgressCallback, Reporter
+from common.progress import Reporter
 from station.errors import ServiceError, station_errors
 
 __all__ = ["IMAGE_SUFFIXES", "CameraCalibration", "PlaneCheck", "calibrate_camera", "camera_file", "camera_summary",
@@ -131,8 +131,8 @@ def configured_camera_url() -> tuple[str, str]:
 
 
 @station_errors
-def capture_views(url: str, count: int, *, interval_s: float = 1.0, progress: ProgressCallback | None = None,
-                  cancelled: CancelCheck | None = None, sleep: Callable[[float], None] = time.sleep,
+def capture_views(url: str, count: int, *, interval_s: float = 1.0, report: Reporter | None = None,
+                  sleep: Callable[[float], None] = time.sleep,
                   before: Callable[[object, int], None] | None = None) -> list[tuple[str, np.ndarray]]:
     """Grab ``count`` frames from the camera at ``url``, ``interval_s`` apart (time to move the board).
 
@@ -141,7 +141,7 @@ def capture_views(url: str, count: int, *, interval_s: float = 1.0, progress: Pr
     if isinstance(count, bool) or not isinstance(count, int) or count < 1:
         raise ServiceError(f"capture must be a whole number of views >= 1, got {count!r}", field="capture",
                            value=count)
-    report = Reporter.of(progress, cancelled)
+    report = Reporter.of(report)
     camera = open_camera(url)
     views = []
     try:
@@ -177,7 +177,7 @@ class CameraCalibration:
 @station_errors
 def calibrate_camera(*, images: str | Path | None = None, capture: int | None = None, camera: str | None = None,
                      name: str | None = None, out: str | Path | None = None, interval_s: float = 1.0,
-                     progress: ProgressCallback | None = None, cancelled: CancelCheck | None = None,
+                     report: Reporter | None = None,
                      before: Callable[[object, int], None] | None = None) -> CameraCalibration:
     """Calibrate a camera from a folder of board images or ``capture`` frames grabbed from ``camera`` (a URL;
     default the station's camera), and save it to ``out`` (default ``calibration/cameras/<name>.json``).
@@ -195,16 +195,16 @@ def calibrate_camera(*, images: str | Path | None = None, capture: int | None = 
     if (images is None) == (capture is None):
         raise ServiceError("images or capture: give exactly one (a folder of board images, or N views to grab)",
                            field="images")
-    report = Reporter.of(progress, cancelled)
+    report = Reporter.of(report)
     if images is not None:
         views = read_views(images)
         name = check_name(name or DEFAULT_CAMERA)
     else:
         default_name, url = configured_camera_url() if camera is None else (DEFAULT_CAMERA, camera)
         name = check_name(name or default_name)
-        views = capture_views(url, capture, interval_s=interval_s, progress=report, before=before)
+        views = capture_views(url, capture, interval_s=interval_s, report=report, before=before)
     try:
-        result = solve(views, name=name, progress=report)
+        result = solve(views, name=name, report=report)
     except CalibrationError as error:
         raise ServiceError(str(error), field="images" if images is not None else "capture") from None
     path = Path(out) if out is not None else camera_file(name)

@@ -19,7 +19,7 @@ from pathlib import Path
 
 import numpy as np
 
-from common.progress import ProgressCallback, Reporter
+from common.progress import Reporter
 from station.errors import ServiceError, station_errors
 from station.services.check_scene import parse_offset, sim_scene
 from station.services.guide_manifest import read_manifest
@@ -70,7 +70,7 @@ class CheckJob:
 # -- the guide --------------------------------------------------------------------------------------------------------
 @station_errors
 def prepare_check(scenario: str, layout: str, *, guide: str | Path | None = None,
-                  progress: Reporter | ProgressCallback | None = None, jigs: bool = False):
+                  report: Reporter | None = None, jigs: bool = False):
     """The guide to check against: made again from the scenario and the layout with the default options, or the
     manifest ``guide`` (``station guide --json``) applied to it (the tags, reference tags and tolerances printed).
     With ``jigs`` (or a manifest that lists jigs) the guide has the layout's laser-cut jigs, whose tags the check
@@ -87,7 +87,7 @@ def prepare_check(scenario: str, layout: str, *, guide: str | Path | None = None
     manifest = read_manifest(guide) if guide is not None else None
     view = manifest.get("view") if manifest is not None else None
     if manifest is None:
-        return guides.make_guide(scenario, layout, progress=progress, jigs=jigs or None)
+        return guides.make_guide(scenario, layout, report=report, jigs=jigs or None)
     jigs = jigs or bool(manifest.get("jigs"))
     # refused before any work: the scenario is cheap to read, the tolerances are not (and the manifest has them)
     loaded = open_scenario(scenario)
@@ -348,8 +348,8 @@ def _twin_intrinsics(camera, url: str):
 # -- the check --------------------------------------------------------------------------------------------------------
 @station_errors
 def check_frame(job, image: np.ndarray, intrinsics=None, *, simulate: int = 0, seed: int = 0, previous=None,
-                detector=None, physics=None, predict: int = 0, progress: Reporter | ProgressCallback | None = None,
-                should_stop=None, side=None, camera: str = "") -> CheckJob:
+                detector=None, physics=None, predict: int = 0, report: Reporter | None = None, side=None,
+                camera: str = "") -> CheckJob:
     """Check the parts in one camera frame against the guide ``job`` (:func:`prepare_check`).
 
     Parameters
@@ -377,6 +377,9 @@ def check_frame(job, image: np.ndarray, intrinsics=None, *, simulate: int = 0, s
         it measured join the as-built layout, its checks the report (``side_parts``).
     camera : str
         The top camera's name, for the report's ``views``.
+    report : Reporter, optional
+        Progress of the measure and of the simulations; its stop check ends the simulations
+        (:class:`common.progress.Cancelled`).
 
     Raises
     ------
@@ -392,7 +395,7 @@ def check_frame(job, image: np.ndarray, intrinsics=None, *, simulate: int = 0, s
 
     check_count(simulate, "simulate", 0)
     check_seed(seed)
-    report = Reporter.of(progress)
+    report = Reporter.of(report)
     image = np.asarray(image)
     if intrinsics is None:
         intrinsics = CameraIntrinsics.guess((image.shape[1], image.shape[0]))
@@ -402,21 +405,19 @@ def check_frame(job, image: np.ndarray, intrinsics=None, *, simulate: int = 0, s
     measurement = measure(image, intrinsics, reference_tags(guide), part_tags(guide), previous, detector=detector)
     report.emit(_progress("measure", 1, 1))
     return check_measurement(job, measurement, image, intrinsics, simulate=simulate, seed=seed, notes=notes,
-                             physics=physics, predict=predict, progress=report, should_stop=should_stop, side=side,
-                             camera=camera)
+                             physics=physics, predict=predict, report=report, side=side, camera=camera)
 
 
 @station_errors
 def check_measurement(job, measurement, image: np.ndarray, intrinsics, *, simulate: int = 0, seed: int = 0,
                       notes: Sequence[str] = (), physics=None, predict: int = 0,
-                      progress: Reporter | ProgressCallback | None = None, should_stop=None, side=None,
-                      camera: str = "") -> CheckJob:
+                      report: Reporter | None = None, side=None, camera: str = "") -> CheckJob:
     """The check of a :class:`~calibration.measure.Measurement` already made (see :func:`check_frame`)."""
     from calibration.asbuilt import PlanePose, as_built_layout
     from calibration.check import CheckReport, check_parts, residual_error
     from station.services.robust import check_count
 
-    report = Reporter.of(progress)
+    report = Reporter.of(report)
     notes = list(notes)
     guide = job.guide
     checks, by_eye = check_parts(guide, measurement)
@@ -469,7 +470,7 @@ def check_measurement(job, measurement, image: np.ndarray, intrinsics, *, simula
             from station.services.tolerances import contraption_problem
 
             problem = contraption_problem(scenario)
-        simulated = _simulate(problem, built, residual, simulate, seed, report, should_stop)
+        simulated = _simulate(problem, built, residual, simulate, seed, report)
     if predict:
         from station.services.predict import predict_layout
 
@@ -477,8 +478,7 @@ def check_measurement(job, measurement, image: np.ndarray, intrinsics, *, simula
         physical = predict_layout(scenario, built.unclipped, profile=physics,
                                   position_sigma_m=max(residual["position_mm"], 0.1) / 1000.0,
                                   angle_sigma_deg=max(residual["heading_deg"], 0.1), unmeasured=built.not_measured,
-                                  samples=predict, seed=seed,
-                                  progress=report, should_stop=should_stop)
+                                  samples=predict, seed=seed, report=report)
     # a misplaced part no design parameter places: the simulations put it where the guide does, and say so
     from projector.overlay import misplaced
     from station.services.outlook import disagreement
@@ -536,7 +536,7 @@ def _scores(model, problem, x, built, guide) -> tuple[float, float, dict[str, fl
     return designed, as_built, costs
 
 
-def _simulate(problem, built, residual, n: int, seed: int, report: Reporter, should_stop) -> float:
+def _simulate(problem, built, residual, n: int, seed: int, report: Reporter) -> float:
     """The success rate of ``n`` layouts around the as-built one: each measured parameter moved by the residual
     measurement error (mm for positions, degrees for rotations), each one not measured by at least the error of a
     layout placed with no check (:func:`calibration.sim_runs.placement_sigma`), Gaussian; an invalid layout (parts
@@ -554,8 +554,8 @@ def _simulate(problem, built, residual, n: int, seed: int, report: Reporter, sho
     valid = problem.is_valid(U)
     success = np.zeros(n, dtype=bool)
     if valid.any():
-        with simulations(problem, should_stop=should_stop) as executor:
-            oracle = BudgetedOracle(executor, None, report.emit, should_stop, expected=int(valid.sum()))
+        with simulations(problem, report=report) as executor:
+            oracle = BudgetedOracle(executor, None, report=report, expected=int(valid.sum()))
             oracle.phase = "simulation"
             success[valid] = np.asarray(oracle(U[valid])).all(axis=1)
     return float(success.mean())

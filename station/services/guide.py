@@ -13,7 +13,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass, replace
 from pathlib import Path
 
-from common.progress import ProgressCallback, Reporter
+from common.progress import Reporter
 from projector.guide import Guide, ParameterTolerance
 from station.errors import ServiceError, station_errors
 
@@ -85,7 +85,7 @@ def portable_name(path: str | Path) -> str:
 
 @station_errors
 def make_guide(scenario: str, layout: str | None, *, view: str | None = None, verify: int = 0, seed: int = 0,
-               tolerances: bool = True, progress: Reporter | ProgressCallback | None = None,
+               tolerances: bool = True, report: Reporter | None = None,
                physics: str | None = None, set_with: Mapping[str, str] | None = None,
                jigs=None) -> GuideJob:
     """Build the guide of ``layout`` (a LAYOUT.json, any form :mod:`design.contraption.layout_io` reads, a layout
@@ -101,8 +101,9 @@ def make_guide(scenario: str, layout: str | None, *, view: str | None = None, ve
         Seed of the verification's random layouts.
     tolerances : bool
         False skips the tolerance map altogether (a guide with none).
-    progress : callable or Reporter, optional
-        Given :class:`common.progress.Progress` while tolerances are computed or verified.
+    report : Reporter, optional
+        Given :class:`common.progress.Progress` while tolerances are computed or verified; its stop check ends the
+        verifying simulations.
     physics : str, optional
         A physics profile: the tolerances' simulations use its material values (the drawing, and the guide's
         content hash, are the scenario's: materials change no part's place).
@@ -132,7 +133,7 @@ def make_guide(scenario: str, layout: str | None, *, view: str | None = None, ve
         raise ServiceError(f"view must be one of {', '.join(VIEWS)}, got {view!r}", field="view", value=view)
     check_count(verify, "verify", 0)
     check_seed(seed)
-    report = Reporter.of(progress)
+    report = Reporter.of(report)
     loaded_scenario = open_scenario(scenario)
     check_set_with(set_with, tuple(loaded_scenario.design_space.names))  # before the tolerances' simulations
     tolerance_map = None
@@ -143,7 +144,7 @@ def make_guide(scenario: str, layout: str | None, *, view: str | None = None, ve
 
         # the tolerance map reads the layout (and the model its file carries) once, for both
         tolerance_map = tolerances_of(scenario_with_physics(loaded_scenario, physics), layout, verify=verify,
-                                      seed=seed, progress=report.emit)
+                                      seed=seed, report=report)
         loaded_layout = tolerance_map.layout
         by_parameter = _guide_tolerances(tolerance_map)
     else:

@@ -23,7 +23,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from common.progress import Progress, ProgressCallback
+from common.progress import Progress, Reporter
 from drivers.gcode import GcodeError, interpret
 from drivers.grbl import GrblConnection, Job, JobRunner
 from drivers.grbl.planner import MotionBlock, plan_times
@@ -95,7 +95,7 @@ def twin_url(profile: MachineProfile | None, laser: bool, settings: Mapping[int,
 def verify_job(lines: Sequence[str], *, name: str = "job", profile: MachineProfile | None = None,
                laser: bool | None = None, settings: Mapping[int, float] | None = None,
                work_offset: Sequence[float] | None = None,
-               progress: ProgressCallback | None = None) -> JobVerification:
+               report: Reporter | None = None) -> JobVerification:
     """Run ``lines`` on the twin at virtual time and say what it did (module docstring).
 
     ``settings`` (``$N`` -> value) and ``work_offset`` (machine mm) are the real machine's, when known; without
@@ -129,13 +129,14 @@ def verify_job(lines: Sequence[str], *, name: str = "job", profile: MachineProfi
         before = len(machine.snapshot().executed)
         start_time = machine.clock.now()
 
-        def report(job_progress) -> None:
-            if progress is not None:
-                progress(Progress("verify", job_progress.fraction, 1.0,
-                                  f"twin: {job_progress.lines_acked}/{job_progress.lines_total} lines"))
+        reporter = Reporter.of(report)
+
+        def lines_done(job_progress) -> None:  # on the job's thread: told, never stopped there
+            reporter.tell(Progress("verify", job_progress.fraction, 1.0,
+                                   f"twin: {job_progress.lines_acked}/{job_progress.lines_total} lines"))
 
         job = Job(name, lines, laser=laser, pen_up=pen_up)
-        result = JobRunner(conn, job, on_progress=report).run()
+        result = JobRunner(conn, job, on_progress=lines_done).run()
         record = machine.snapshot()
         twin_clock = machine.clock.now() - start_time
         bounds = tuple(np.array(b, dtype=float) for b in conn.machine_bounds())

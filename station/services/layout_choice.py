@@ -30,7 +30,7 @@ from collections.abc import Callable, Iterable, Mapping
 
 import numpy as np
 
-from common.progress import ProgressCallback
+from common.progress import Reporter
 from station.errors import station_errors
 
 __all__ = ["CHOICE_QUANTILE", "PREDICTION_EDGE", "PREDICTION_WEIGHT", "candidate_layouts", "choice_score",
@@ -151,8 +151,7 @@ def choice_score(predicted: float, successes: int = 0, attempts: int = 0, weight
 def choose_layout(scenario, options: list[dict], profile=None, *, samples: int = 16, seed: int = 0,
                   trials: Iterable[Mapping] = (), prediction_weight: float = PREDICTION_WEIGHT,
                   workers: int | None = None, scheduler: str | None = None,
-                  progress: ProgressCallback | None = None, should_stop: Callable[[], bool] | None = None,
-                  on_option: Callable[[int, int], None] | None = None) -> dict:
+                  report: Reporter | None = None, on_option: Callable[[int, int], None] | None = None) -> dict:
     """The option surest to succeed often physically (the highest :func:`choice_score`), with its
     ``"physical_choice"``: which option it was, every option's predicted success, record, expected success and
     score, and the simulations each had.
@@ -176,7 +175,7 @@ def choose_layout(scenario, options: list[dict], profile=None, *, samples: int =
 
     Raises
     ------
-    RunStopped
+    common.progress.Cancelled
         Stopped; the simulations done are in the cache.
     """
     from design.contraption.layout_io import layout_from_data
@@ -194,7 +193,7 @@ def choose_layout(scenario, options: list[dict], profile=None, *, samples: int =
             on_option(i, len(options))
         x = np.asarray(layout_from_data(data, scenario, file="<candidate layout>").x, dtype=float)
         scores.append(predict_layout(scenario, x, profile=profile, samples=samples, seed=seed, workers=workers,
-                                     scheduler=scheduler, progress=progress, should_stop=should_stop).probability)
+                                     scheduler=scheduler, report=report).probability)
     expected = [expected_success(p, s, n, prediction_weight) for p, (s, n) in zip(scores, records)]
     ranks = [choice_score(p, s, n, prediction_weight) for p, (s, n) in zip(scores, records)]
     best = int(np.argmax(ranks))  # the first of equals

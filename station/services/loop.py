@@ -48,13 +48,13 @@ from typing import Any
 
 import numpy as np
 
-from common.progress import Progress, ProgressCallback, Reporter
+from common.progress import Cancelled, Progress, Reporter
 from drivers.sim.world import WORLD_REVISION
 from station.errors import ServiceError
 from station.services.layout_choice import PREDICTION_WEIGHT, describe_choice
-from station.services.robust import RunStopped, simulation_cache_path
+from station.services.robust import simulation_cache_path
 
-__all__ = ["AttemptReport", "Correction", "LoopProgress", "LoopResult", "LoopSettings", "LoopStopped", "LoopSummary",
+__all__ = ["AttemptReport", "Correction", "LoopProgress", "LoopResult", "LoopSettings", "LoopSummary",
            "RunLog", "labelled", "record_forecasts", "run_loop"]
 
 #: The world's attempt numbers: loop k's attempt a is ``k * ATTEMPT_BLOCK + a`` (the baseline is loop 0).
@@ -291,14 +291,12 @@ class RunLog:
         return f"{_attempts_words(self.attempts)} logged ({', '.join(parts)})"
 
 
-class LoopStopped(RunStopped):
-    """A run of the loop stopped on request (Ctrl-C, SIGTERM, a stop check): every attempt logged stays (each with
-    its trial), and the same arguments resume the run (:attr:`log` says what it has)."""
-
-    def __init__(self, log: RunLog, new_simulations: int, cache: Path) -> None:
-        super().__init__(new_simulations, cache)
-        self.log = log
-        self.args = (f"run {log.run_id} stopped: {log.logged_words()}",)
+def loop_stopped(log: RunLog, new_simulations: int) -> Cancelled:
+    """The :class:`~common.progress.Cancelled` of a run of the loop stopped on request (Ctrl-C, SIGTERM, a stop
+    check): every attempt logged stays (each with its trial), and the same arguments resume the run; its
+    ``partial`` is the :class:`RunLog` (what the run has), its ``new_simulations`` what the cache keeps."""
+    return Cancelled(f"run {log.run_id} stopped: {log.logged_words()}", new_simulations=new_simulations,
+                     cache=simulation_cache_path(), partial=log)
 
 
 @dataclass(frozen=True)
@@ -484,18 +482,18 @@ class _Loop:
     """One run of the loop (see :func:`run_loop`)."""
 
     def __init__(self, store, scenario, world, url: str, settings: LoopSettings, report: Reporter,
-                 should_stop: Callable[[], bool] | None, folder: Path) -> None:
+                 folder: Path) -> None:
         from station.loopstore import run_key
 
         self.store, self.scenario, self.world, self.settings = store, scenario, world, settings
-        self.report, self.should_stop, self.folder = report, should_stop, folder
+        self.report, self.folder = report, folder
         self.hidden = world.hidden_physics()
         identity = {"scenario": scenario.content_hash, "scenario_name": scenario.name, "world": url,
                     **settings.identity()}
         self.run_id, made = store.run(run_key(identity), scenario=scenario.name, content_hash=scenario.content_hash,
                                       world=url, settings=identity)
         self.resumed = not made
-        self.where = {"workers": settings.workers, "scheduler": settings.scheduler, "should_stop": should_stop}
+        self.where = {"workers": settings.workers, "scheduler": settings.scheduler}
         self._problem = None
 
     def log(self) -> RunLog:
@@ -510,15 +508,14 @@ class _Loop:
 
     # -- stopping and progress ------------------------------------------------------------------------------------
     def stop_point(self) -> None:
-        if self.should_stop is not None and self.should_stop():
-            raise RunStopped(0, simulation_cache_path())
+        self.report.check()
 
     def emit(self, stage: str, done: int, total: int, message: str = "", unit: str = "attempts") -> None:
         self.report.emit(LoopProgress(stage, done, total, message, unit=unit))
 
-    def under(self, words: str) -> ProgressCallback:
-        """The progress callback of work the loop calls, reporting under ``words`` (:func:`labelled`)."""
-        return lambda progress: self.report.emit(labelled(progress, words))
+    def under(self, words: str) -> Reporter:
+        """The reporter of work the loop calls: the loop's stop, its progress under ``words`` (:func:`labelled`)."""
+        return self.report.mapped(lambda progress: labelled(progress, words))
 
     # -- layouts ------------------------------------------------------------------------------------------------
     def optimized(self, profile_path: Path | None, budget: int | None, words: str) -> dict:
@@ -542,7 +539,7 @@ class _Loop:
         if cached is not None:
             return cached
         result = robust.optimize(problem, budget, OPTIMIZE_SEED, robust.psp_settings(self.settings.settings),
-                                 progress=self.under(words), **self.where)
+                                 report=self.under(words), **self.where)
         payload = result.to_json(problem)
         self.store.cache_layout(key, payload)
         return payload
@@ -592,13 +589,12 @@ class _Loop:
             self.emit(f"loop {k}: choosing the layout to place", i, count, f"candidate layout {i + 1} of {count}",
                       unit="candidate layouts")
 
-        def predicting(progress: Progress) -> None:
-            self.report.emit(labelled(progress, f"loop {k}: predicting candidate layout {scored[0] + 1} of "
-                                                f"{scored[1]}"))
+        predicting = self.report.mapped(lambda progress: labelled(
+            progress, f"loop {k}: predicting candidate layout {scored[0] + 1} of {scored[1]}"))
 
         chosen = choose_layout(self.scenario, options, profile, samples=self.settings.predict_samples,
                                seed=_seed(world_seed, _CHOOSE, k), trials=trials,
-                               prediction_weight=self.settings.prediction_weight, progress=predicting,
+                               prediction_weight=self.settings.prediction_weight, report=predicting,
                                on_option=scoring, **self.where)
         if scored[1]:
             self.emit(f"loop {k}: choosing the layout to place", scored[1], scored[1], "chosen",
@@ -619,7 +615,7 @@ class _Loop:
         fit = FitSettings(draws=s.fit_draws, sobol=s.fit_sobol, rounds=s.fit_rounds, held_out=0.0,
                           prior_width=s.fit_prior_width or None, seed=_seed(self.world.seed, _CALIBRATE, k))
         words = f"loop {k}: calibrating the simulator from {len(trials)} trial{'s' if len(trials) != 1 else ''}"
-        result = calibrate_sim([self.scenario], trials, settings=fit, progress=self.under(words), source="loop",
+        result = calibrate_sim([self.scenario], trials, settings=fit, report=self.under(words), source="loop",
                                every_material=self.settings.every_material, **self.where)
         profile = result.profile(f"loop {k} of run {self.run_id}: calibrated {self.scenario.name}")
         # the creation time is the only thing of a profile that changes between two runs of the same data
@@ -663,7 +659,7 @@ class _Loop:
         predicted = None
         if checked:
             words = f"loop {k}, attempt {a}: predicting its physical success as checked"
-            predicted = float(assembly.forecast(progress=self.under(words), should_stop=self.should_stop).prediction.probability)
+            predicted = float(assembly.forecast(report=self.under(words)).prediction.probability)
         said = AttemptReport(k, a, 0, run.success, checked, _corrections(applied, job.guide.view), len(applied),
                              tuple(left), _failed_at(self.scenario, run.outcomes))
         stored = self.store.add_attempt(self.run_id, k, a, assembly.trial(who=f"simulated maker ({self.world.url})",
@@ -716,7 +712,7 @@ class _Loop:
                     layout_path, profile_path = self.files(row)
                     profile = read_profile(profile_path) if profile_path else self.prior()
                     job = make_guide(self.scenario.source, str(layout_path), physics=profile_path,
-                                     progress=self.under(f"{who}: making the guide"),
+                                     report=self.under(f"{who}: making the guide"),
                                      jigs=bool(k and self.settings.jigs))
                     if job.jigs is not None:
                         self.cut(job, who)
@@ -747,8 +743,7 @@ class _Loop:
 
 
 def run_loop(scenario: str, world: str, settings: LoopSettings | None = None, *, database: str | None = None,
-             progress: ProgressCallback | None = None, should_stop: Callable[[], bool] | None = None,
-             on_start: Callable[[RunLog], None] | None = None,
+             report: Reporter | None = None, on_start: Callable[[RunLog], None] | None = None,
              on_loop: Callable[[LoopSummary], None] | None = None,
              on_attempt: Callable[[AttemptReport], None] | None = None) -> LoopResult:
     """Run (or resume) the station loop of ``scenario`` in the simulated ``world``.
@@ -762,7 +757,7 @@ def run_loop(scenario: str, world: str, settings: LoopSettings | None = None, *,
     settings : LoopSettings, optional
     database : str, optional
         The station database (default :func:`station.db.database_url`).
-    progress, should_stop : callables, optional
+    report : Reporter, optional
         Progress (:class:`common.progress.Progress`) and the stop check.
     on_start : callable, optional
         Called with the run's :class:`RunLog` once it is found or made (``resumed``: an earlier ``station loop``
@@ -775,9 +770,9 @@ def run_loop(scenario: str, world: str, settings: LoopSettings | None = None, *,
 
     Raises
     ------
-    LoopStopped
-        A stop (``should_stop``, or KeyboardInterrupt: a second Ctrl-C): what was logged stays, and the same
-        arguments resume the run; it says what the run has logged.
+    common.progress.Cancelled
+        A stop (``report``'s stop check, or KeyboardInterrupt: a second Ctrl-C): what was logged stays, and the
+        same arguments resume the run; it says what the run has logged (:func:`loop_stopped`).
     ServiceError
         A bad setting or world URL (naming it).
     drivers.errors.SimConfigError
@@ -789,7 +784,7 @@ def run_loop(scenario: str, world: str, settings: LoopSettings | None = None, *,
 
     settings = settings or LoopSettings()
     settings.check()
-    report = Reporter.of(progress)
+    report = Reporter.of(report)
     loaded = load_trial_scenario(scenario)
     if not loaded.design_space.names:
         raise ServiceError(f"scenario: {loaded.name} has no design parameters: there is nothing to optimize or "
@@ -797,14 +792,13 @@ def run_loop(scenario: str, world: str, settings: LoopSettings | None = None, *,
     the_world = worlds.open_world(world)
     worlds.prepare_world(the_world, loaded)
     with LoopStore(database) as store, tempfile.TemporaryDirectory(prefix="station-loop-") as folder:
-        run = _Loop(store, loaded, the_world, world, settings, report, should_stop, Path(folder))
+        run = _Loop(store, loaded, the_world, world, settings, report, Path(folder))
         if on_start is not None:
             on_start(run.log())
         try:
             result = _run(run, settings, on_loop, on_attempt)
-        except (RunStopped, KeyboardInterrupt) as stopped:
-            new = stopped.new_simulations if isinstance(stopped, RunStopped) else 0
-            raise LoopStopped(run.log(), new, simulation_cache_path()) from None
+        except (Cancelled, KeyboardInterrupt) as stopped:
+            raise loop_stopped(run.log(), getattr(stopped, "new_simulations", 0)) from None
         finally:
             the_world.close()
     return result

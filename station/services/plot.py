@@ -29,6 +29,7 @@ import numpy as np
 from cam.layers import PenLayer, write_layers_gcode
 from cam.plot import WriterOptions
 from common.datafiles import parse_data
+from common.progress import Reporter
 from drivers.gcode import interpret
 from drivers.gcode_layers import layer_marks
 from drivers.profiles import MachineProfile
@@ -503,18 +504,20 @@ def compose(composition: Composition, profile: MachineProfile,
 
 
 def optimize(document: PlotDocument, *, merge: bool = True, sort: bool = True, reloop: bool = True,
-             tolerance: float = 0.0, seed: int = 0) -> PlotDocument:
+             tolerance: float = 0.0, seed: int = 0, report: Reporter | None = None) -> PlotDocument:
     """vpype's line optimizations per layer: ``linemerge`` (ends within :data:`MERGE_TOLERANCE`), ``reloop`` (the
     seam of each closed path moved to a random vertex drawn from ``seed``: the pen's mark at the seam does not line
     up across a pattern), ``linesort`` (greedy nearest path end next, paths reversed when that is nearer; the first
     layer starts from the origin, each later one where the previous ended), ``linesimplify`` (within ``tolerance``
-    mm; 0 keeps every point)."""
+    mm; 0 keeps every point). ``report`` hears of each layer (stage ``"optimize"``) and may stop between them."""
     import vpype as vp  # deferred: see the module's notes
 
     rng = np.random.default_rng(seed)
+    report = Reporter.of(report)
     position = 0j
     layers = []
-    for layer in document.layers:
+    for number, layer in enumerate(document.layers):
+        report("optimize", number, len(document.layers), f"optimizing layer {number + 1} of {len(document.layers)}")
         lines = vp.LineCollection([p[:, 0] + 1j * p[:, 1] for p in layer.polylines if len(p) >= 2])
         if merge:
             lines.merge(tolerance=MERGE_TOLERANCE, flip=True)
@@ -628,18 +631,24 @@ def summarize(gcode: str, document: PlotDocument, profile: MachineProfile) -> li
 
 
 def plot(composition: Composition, profile: MachineProfile, *, sample=None, sort: bool = True,
-         tolerance: float | None = None, power: float = 0.3, seed: int = 0) -> PlotResult:
+         tolerance: float | None = None, power: float = 0.3, seed: int = 0,
+         report: Reporter | None = None) -> PlotResult:
     """Compose, optimize (vpype; ``sort=False`` keeps the paths as drawn, merged and sorted neither), write and
-    summarize a plot."""
+    summarize a plot. ``report`` hears of each step (stages ``"compose"``, ``"optimize"``, ``"write"``); a stop
+    asked for ends the work between two (:class:`common.progress.Cancelled`)."""
     tolerance = profile.plot.tolerance if tolerance is None else tolerance
     if not 0 <= tolerance < math.inf:
         raise ServiceError(f"tolerance must be >= 0 mm, got {tolerance}", field="tolerance", value=tolerance)
     if not 0 < power <= 1:
         raise ServiceError(f"power must be a fraction in (0, 1], got {power}", field="power", value=power)
     document = compose(composition, profile, sample)
-    document = optimize(document, merge=sort, sort=sort, reloop=sort, tolerance=tolerance, seed=seed)
+    report = Reporter.of(report)
+    report("compose", 0, 1, "placing the drawings")
+    document = optimize(document, merge=sort, sort=sort, reloop=sort, tolerance=tolerance, seed=seed, report=report)
+    report("write", 0, 1, "writing the G-code")
     gcode, options = layered_gcode(document, profile, power)
     return PlotResult(gcode, document, options, summarize(gcode, document, profile))
+    report("write", 1, 1, "written")
 
 
 # ----------------------------------------------------------------------------------------------------------- preview

@@ -16,7 +16,7 @@ import numpy as np
 
 from calibration.sim_predict import PhysicalPrediction, predict_success
 from calibration.sim_runs import DEFAULT_ANGLE_SIGMA_DEG, DEFAULT_POSITION_SIGMA_M, residual_sigma
-from common.progress import ProgressCallback
+from common.progress import Reporter
 from design.contraption.layout_io import LoadedLayout
 from design.contraption.physics_profile import PhysicsProfile
 from design.contraption.scenario import Scenario
@@ -77,7 +77,7 @@ def not_measured(check: Any, scenario: Scenario, fail=None) -> tuple[str, ...]:
 @station_errors
 def predict(scenario: str | Scenario, layout: str | None, *, physics: str | Path | None = None,
             as_built: str | Path | None = None, samples: int = 200, seed: int = 0, workers: int | None = None,
-            scheduler: str | None = None, progress: ProgressCallback | None = None, should_stop=None) -> Prediction:
+            scheduler: str | None = None, report: Reporter | None = None) -> Prediction:
     """The physical success probability and expected attempts of ``layout`` (as built when ``as_built`` is given).
 
     Parameters
@@ -92,12 +92,14 @@ def predict(scenario: str | Scenario, layout: str | None, *, physics: str | Path
         A CHECK.json of this layout: its ``as_built`` layout and ``residual_error``.
     samples, seed : int
         Simulations, and their seed.
+    report : Reporter, optional
+        Progress of the simulations, and the stop check.
 
     Raises
     ------
     ServiceError
         A bad count or seed, a missing file, a check of another scenario or layout.
-    RunStopped
+    common.progress.Cancelled
         Stopped; the simulations done are in the cache.
     """
     from station.services.contraption import choose_layout, open_scenario
@@ -127,7 +129,7 @@ def predict(scenario: str | Scenario, layout: str | None, *, physics: str | Path
         apply_profile(loaded, profile, str(physics))  # refuses a profile for another contraption, names the file
     result = predict_layout(loaded, x, profile=profile, position_sigma_m=position, angle_sigma_deg=angle,
                             unmeasured=unmeasured, samples=samples, seed=seed, workers=workers, scheduler=scheduler,
-                            progress=progress, should_stop=should_stop)
+                            report=report)
     return Prediction(loaded, chosen, x, as_built is not None, profile.name if profile else None, result)
 
 
@@ -136,13 +138,13 @@ def predict_layout(scenario: Scenario, x: np.ndarray, *, profile: PhysicsProfile
                    position_sigma_m: float = DEFAULT_POSITION_SIGMA_M,
                    angle_sigma_deg: float = DEFAULT_ANGLE_SIGMA_DEG, samples: int = 200, seed: int = 0,
                    workers: int | None = None, scheduler: str | None = None,
-                   progress: ProgressCallback | None = None, should_stop=None,
+                   report: Reporter | None = None,
                    unmeasured: Sequence[str] = ()) -> PhysicalPrediction:
     """The prediction for data already in hand (after a check or a logged trial: the scenario, the layout vector,
     the profile, the placement error), on the station's executors and cache."""
     from station.services.sim_calibration import station_runner
 
-    with station_runner(workers=workers, scheduler=scheduler, progress=progress, should_stop=should_stop) as run:
+    with station_runner(workers=workers, scheduler=scheduler, report=report) as run:
         return predict_success(scenario, x, values=profile.values if profile else None,
                                intervals=profile.intervals if profile else None, position_sigma_m=position_sigma_m,
                                angle_sigma_deg=angle_sigma_deg, samples=samples, seed=seed, run=run,
@@ -152,7 +154,7 @@ def predict_layout(scenario: Scenario, x: np.ndarray, *, profile: PhysicsProfile
 @station_errors
 def layout_outlook(problem, x: np.ndarray, *, physics: str | Path | None = None, samples: int = 48, seed: int = 0,
                    workers: int | None = None, scheduler: str | None = None,
-                   progress: ProgressCallback | None = None, should_stop=None) -> PhysicalPrediction | None:
+                   report: Reporter | None = None) -> PhysicalPrediction | None:
     """The physical success of a layout the maker has not placed yet (after ``station optimize``): simulated
     ``samples`` times placed by the guide with no check (the unchecked error, 1 mm / 1 deg), under the profile at
     ``physics`` when given; None for a problem with no scenario (nothing to place) or ``samples`` 0."""
@@ -165,7 +167,7 @@ def layout_outlook(problem, x: np.ndarray, *, physics: str | Path | None = None,
     check_count(samples, "predict")
     profile = read_profile(physics) if physics is not None else None
     return predict_layout(problem.scenario, np.asarray(x, dtype=float), profile=profile, samples=samples, seed=seed,
-                          workers=workers, scheduler=scheduler, progress=progress, should_stop=should_stop)
+                          workers=workers, scheduler=scheduler, report=report)
 
 
 @station_errors
@@ -178,7 +180,7 @@ def outlook_line(result: PhysicalPrediction) -> str:
 
 @station_errors
 def predict_trial(scenario: Scenario, trial: Mapping[str, Any], *, samples: int = 48, seed: int = 0,
-                  progress: ProgressCallback | None = None, should_stop=None) -> PhysicalPrediction:
+                  report: Reporter | None = None) -> PhysicalPrediction:
     """The physical success of a logged trial's layout (as built when the trial has one), under the trial's physics
     profile and its check's residual error (the defaults without a check): what the maker may expect next time."""
     from design.contraption.physics_profile import apply_profile, profile_from_text
@@ -195,5 +197,4 @@ def predict_trial(scenario: Scenario, trial: Mapping[str, Any], *, samples: int 
     unmeasured = not_measured(trial.get("check"), scenario)
     position, angle = residual_sigma(trial.get("check"))
     return predict_layout(scenario, x, profile=profile, position_sigma_m=position, angle_sigma_deg=angle,
-                          unmeasured=unmeasured, samples=samples, seed=seed, progress=progress,
-                          should_stop=should_stop)
+                          unmeasured=unmeasured, samples=samples, seed=seed, report=report)

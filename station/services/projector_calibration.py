@@ -22,7 +22,7 @@ from pathlib import Path
 
 import numpy as np
 
-from common.progress import CancelCheck, ProgressCallback, Reporter
+from common.progress import Reporter
 from drivers.devices import projector_identity
 from station.errors import ServiceError, station_errors
 from station.services import projectors
@@ -95,13 +95,13 @@ def _configured(kind: str) -> tuple[str, str]:
 
 
 @station_errors
-def run_patterns(camera, projector, patterns, *, settle_s: float = 0.0, progress: Reporter | None = None) -> list:
+def run_patterns(camera, projector, patterns, *, settle_s: float = 0.0, report: Reporter | None = None) -> list:
     """Show each ``(name, image)`` of ``patterns`` on the open ``projector`` and grab it with the open ``camera``.
 
     A real pair waits ``settle_s`` after each pattern and throws the first frame away (it may have been exposed
     before the projector changed). The projector is blanked at the end, also when stopped.
     """
-    report = progress or Reporter()
+    report = Reporter.of(report)
     images = []
     try:
         for number, (name, pattern) in enumerate(patterns, start=1):
@@ -121,8 +121,7 @@ def run_patterns(camera, projector, patterns, *, settle_s: float = 0.0, progress
 def calibrate_projector(*, camera: str | None = None, projector: str | None = None, name: str | None = None,
                         plane: np.ndarray | str | Path | None = None, intrinsics: str | Path | None = None,
                         finest_px: int = 8, settle_s: float | None = None, save: bool = True,
-                        out: str | Path | None = None, progress: ProgressCallback | Reporter | None = None,
-                        cancelled: CancelCheck | None = None) -> ProjectorCalibration:
+                        out: str | Path | None = None, report: Reporter | None = None) -> ProjectorCalibration:
     """Map the projector at ``projector`` (URL; default the station's) with the camera at ``camera`` (default the
     station's), and save it as ``calibration/projectors/<name>.json`` (or ``out``; ``save=False``: not saved),
     recording the projector. ``name`` defaults to the projector's key
@@ -132,8 +131,8 @@ def calibrate_projector(*, camera: str | None = None, projector: str | None = No
     ``plane`` is the camera's 3x3 undistorted-pixel -> plane homography, or a JSON file holding it as
     ``"homography"`` (what ``station calibrate plane`` keeps); ``intrinsics`` a camera file (OpenCV's names). Both
     default as the module docstring says. ``settle_s`` defaults to :data:`DEFAULT_SETTLE_S` for real devices and
-    0 for simulated ones. Progress is reported per pattern; ``cancelled`` stops between patterns
-    (:class:`common.progress.Cancelled`), the projector blanked.
+    0 for simulated ones. Progress goes to ``report`` per pattern; its stop check stops between
+    patterns (:class:`common.progress.Cancelled`), the projector blanked.
 
     Raises
     ------
@@ -146,7 +145,7 @@ def calibrate_projector(*, camera: str | None = None, projector: str | None = No
     from calibration.errors import CalibrationError
     from calibration.projector_map import GrayCodePlan, map_projector, save_projector_map
 
-    report = Reporter.of(progress, cancelled)
+    report = Reporter.of(report)
     camera_name, camera_url = _configured("camera") if camera is None else ("camera", camera)
     projector_url = _configured("projector")[1] if projector is None else str(projector).strip()
     key = projectors.projector_key(projector_url)  # not a projector URL: one line on its field
@@ -168,7 +167,7 @@ def calibrate_projector(*, camera: str | None = None, projector: str | None = No
             matrix, plane_source = _plane(plane, camera_device, camera_name)
             camera_matrix, dist, intrinsics_source = _intrinsics(intrinsics, camera_device, camera_name)
             images = run_patterns(camera_device, projector_device, plan.patterns(), settle_s=settle,
-                                  progress=report)
+                                  report=report)
         finally:
             camera_device.close()
     finally:

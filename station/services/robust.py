@@ -3,10 +3,11 @@ methods.
 
 Used by ``station optimize``, ``station robustness``, ``station compare`` and the Robust layouts screen. Every run
 simulates through one executor on the station's shared simulation cache (:func:`simulations`), reports progress
-through one callback (a :class:`design.robust.Progress`, hence a :class:`common.progress.Progress`) and stops when
-``should_stop()`` turns true: a stopped run raises :class:`RunStopped`, which says how many new simulations the cache
-kept. Refused input is a :class:`~station.errors.ServiceError` naming the value (``budget``, ``seed``,
-``settings``...); design errors (a bad scenario or layout) pass as they are.
+to one :class:`common.progress.Reporter` (a :class:`design.robust.Progress`, hence a :class:`common.progress.Progress`)
+and stops when the reporter's stop check turns true: a stopped run raises :class:`common.progress.Cancelled`, whose
+``new_simulations`` and ``cache`` say how many new simulations the cache kept. Refused input is a
+:class:`~station.errors.ServiceError` naming the value (``budget``, ``seed``, ``settings``...); design errors (a
+bad scenario or layout) pass as they are.
 """
 
 from __future__ import annotations
@@ -18,7 +19,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from common.progress import Cancelled
+from common.progress import Cancelled, Reporter
 from common.signals import HandledSignals
 from design.errors import FileFormatError
 from design.robust.problem import RobustError
@@ -30,7 +31,7 @@ if TYPE_CHECKING:
     import numpy as np
 
     from design.robust.executor import SimulationExecutor
-    from design.robust.pipeline import Comparison, MethodRun, ProgressCallback, RobustLayout
+    from design.robust.pipeline import Comparison, MethodRun, RobustLayout
     from design.robust.problem import LayoutProblem
     from design.robust.robustness import EvaluationSet, RobustnessCurve
 
@@ -57,25 +58,14 @@ SETTINGS_CHOICES = {
 #: (docs/results/2026-12-04-robust-layouts.md).
 DEFAULT_SETTINGS = "recommended"
 
-StopCheck = Callable[[], bool]
-
 
 @station_errors
-class RunStopped(Cancelled):
-    """A run stopped on request (a stop asked for, Ctrl-C); the simulations it finished are kept in the cache.
-
-    Parameters
-    ----------
-    new_simulations : int
-        Simulations this run made (all of them are in the cache).
-    cache : Path
-        The cache file that keeps them.
-    """
-
-    def __init__(self, new_simulations: int, cache: Path) -> None:
-        super().__init__(f"stopped; the {new_simulations} new simulations of this run are kept in the cache ({cache})")
-        self.new_simulations = new_simulations
-        self.cache = cache
+def stopped_run(new_simulations: int) -> Cancelled:
+    """The :class:`~common.progress.Cancelled` of a simulation run stopped on request (a stop asked for, Ctrl-C):
+    it says how many new simulations the shared cache keeps."""
+    cache = simulation_cache_path()
+    return Cancelled(f"stopped; the {new_simulations} new simulations of this run are kept in the cache ({cache})",
+                     new_simulations=new_simulations, cache=cache)
 
 
 @station_errors
@@ -199,15 +189,15 @@ def read_layout(path: str, problem):
 # -- stopping -----------------------------------------------------------------------------------------------------
 @station_errors
 class StopRequest(HandledSignals):
-    """Ctrl-C and SIGTERM during a run, as a request the work polls at safe points (``should_stop=stop.is_set``).
+    """Ctrl-C and SIGTERM during a run, as a request the work polls at safe points (``Reporter(stop=stop.is_set)``).
 
     Python's default raises KeyboardInterrupt wherever the main thread is, and the station's SIGTERM handler does
     the same; inside a C extension's callback that cannot pass it on, it is printed ("Exception ignored in:
     'scipy.stats._sobol._initialize_v' ... KeyboardInterrupt") and lost: scipy's Sobol engine carried on
     half-initialized, drew one layout over and over, and the command ran to its end on it. Here a signal only sets a
     flag; the executor stops between simulation arrivals, the layout draws between chunks, and the run then raises
-    :class:`RunStopped`. A second signal interrupts at once. Off the main thread (a TUI worker) no handler is set:
-    :meth:`set` asks for the stop.
+    :class:`~common.progress.Cancelled`. A second signal interrupts at once. Off the main thread (a TUI worker) no
+    handler is set: :meth:`set` asks for the stop.
     """
 
     def __init__(self) -> None:
@@ -233,11 +223,6 @@ class StopRequest(HandledSignals):
             raise KeyboardInterrupt
 
 
-def _check_stop(should_stop: StopCheck | None) -> None:
-    if should_stop is not None and should_stop():
-        raise Cancelled("stopped on request")
-
-
 @station_errors
 def connected_executor(problem, *, workers: int | None = None, scheduler: str | None = None,
                        chunk_size: int | None = None) -> SimulationExecutor:
@@ -258,46 +243,41 @@ def connected_executor(problem, *, workers: int | None = None, scheduler: str | 
 @contextmanager
 @station_errors
 def simulations(problem, *, workers: int | None = None, scheduler: str | None = None,
-                should_stop: StopCheck | None = None) -> Iterator[SimulationExecutor]:
+                report: Reporter | None = None) -> Iterator[SimulationExecutor]:
     """An executor on the shared simulation cache, its Dask scheduler (if any) already reached.
 
     A wrong scheduler address is a :class:`ServiceError` (``field="scheduler"``) within seconds, before any work. A
-    stop inside the block (``should_stop()`` true at a safe point, KeyboardInterrupt, the executor's
-    SimulationCancelled once a stop was asked for) raises :class:`RunStopped` with the new simulations kept; the
-    workers are stopped first.
+    stop inside the block (``report``'s stop check true at a safe point, KeyboardInterrupt) raises
+    :class:`~common.progress.Cancelled` with the new simulations kept (:func:`stopped_run`); the workers are stopped
+    first.
     """
-    from design.robust.executor import SimulationCancelled
-
+    report = Reporter.of(report)
     check_count(workers, "workers")
     executor: SimulationExecutor | None = None
     try:
         executor = connected_executor(problem, workers=workers, scheduler=scheduler)
         with executor:
-            _check_stop(should_stop)
+            report.check()
             yield executor
-    except (KeyboardInterrupt, SimulationCancelled, Cancelled) as error:
-        if isinstance(error, SimulationCancelled) and not (should_stop is not None and should_stop()):
-            raise
-        new = executor.n_simulated if executor is not None else 0
-        raise RunStopped(new, simulation_cache_path()) from None
+    except (KeyboardInterrupt, Cancelled):
+        raise stopped_run(executor.n_simulated if executor is not None else 0) from None
 
 
 # -- the runs -----------------------------------------------------------------------------------------------------
 @station_errors
 def optimize(problem, budget: int, seed: int, settings: PSPSettings, *, workers: int | None = None,
-             scheduler: str | None = None, progress: ProgressCallback | None = None,
-             should_stop: StopCheck | None = None) -> RobustLayout:
+             scheduler: str | None = None, report: Reporter | None = None) -> RobustLayout:
     """Learn the PSP of ``problem`` from at most ``budget`` simulations and optimize its layout (thesis 4.5-4.7).
 
-    Raises :class:`RunStopped` when stopped, a :class:`ServiceError` for a bad budget, seed or scheduler.
+    Raises :class:`~common.progress.Cancelled` when stopped, a :class:`ServiceError` for a bad budget, seed or
+    scheduler.
     """
     from design.robust.pipeline import optimize_robust_layout
 
     check_seed(seed)
     check_budget(budget)
-    with simulations(problem, workers=workers, scheduler=scheduler, should_stop=should_stop) as executor:
-        return optimize_robust_layout(problem, executor, budget, seed, settings, progress=progress,
-                                      should_stop=should_stop)
+    with simulations(problem, workers=workers, scheduler=scheduler, report=report) as executor:
+        return optimize_robust_layout(problem, executor, budget, seed, settings, report=report)
 
 
 @station_errors
@@ -340,8 +320,8 @@ class RobustnessRun:
         Seed of the local samples.
     executor : SimulationExecutor
         From :func:`simulations`.
-    progress, should_stop : callables, optional
-        The progress callback and the stop check.
+    report : Reporter, optional
+        Progress and the stop check.
     """
 
     problem: LayoutProblem
@@ -349,8 +329,7 @@ class RobustnessRun:
     settings: RobustnessSettings
     seed: int
     executor: SimulationExecutor
-    progress: ProgressCallback | None = None
-    should_stop: StopCheck | None = None
+    report: Reporter | None = None
     _evaluation_layouts: np.ndarray | None = field(default=None, init=False, repr=False)
     _local_layouts: np.ndarray | None = field(default=None, init=False, repr=False)
 
@@ -368,9 +347,8 @@ class RobustnessRun:
         n_evaluation = self.settings.n_evaluation
 
         def checked(n_checked: int, n_valid: int) -> None:
-            _check_stop(self.should_stop)  # the draws are seconds long for a contraption: stop between their chunks
-            if self.progress is not None:
-                self.progress(Progress("evaluation layouts", n_valid, n_evaluation, unit="valid layouts"))
+            # the draws are seconds long for a contraption: a stop is honoured between their chunks
+            Reporter.of(self.report).emit(Progress("evaluation layouts", n_valid, n_evaluation, unit="valid layouts"))
 
         self._evaluation_layouts = evaluation_layouts(self.problem, n_evaluation, on_checked=checked)
         self._local_layouts = local_layouts(self.problem, self.u, self.settings, seed=self.seed)
@@ -386,7 +364,7 @@ class RobustnessRun:
         if self._evaluation_layouts is None:
             self.draw()
         settings = self.settings
-        oracle = BudgetedOracle(self.executor, None, self.progress, should_stop=self.should_stop,
+        oracle = BudgetedOracle(self.executor, None, report=self.report,
                                 expected=settings.n_evaluation + settings.n_local)
         oracle.phase = "evaluation set"
         evaluation = evaluation_set(self.problem, oracle, settings.n_evaluation, layouts=self._evaluation_layouts)
@@ -399,8 +377,7 @@ class RobustnessRun:
 @station_errors
 def compare(problem, methods: Sequence[str], runs: int, budget: int, seed: int, settings: PSPSettings,
             robustness: RobustnessSettings, *, workers: int | None = None, scheduler: str | None = None,
-            progress: ProgressCallback | None = None, should_stop: StopCheck | None = None,
-            on_run: Callable[[MethodRun], None] | None = None) -> Comparison:
+            report: Reporter | None = None, on_run: Callable[[MethodRun], None] | None = None) -> Comparison:
     """Ours and the baselines B1-B3 over ``runs`` seeds at the same budget (thesis Table 4.2); ``on_run`` is called
     with each run as it ends, so a stopped comparison has reported what it finished."""
     from design.robust.pipeline import compare_methods
@@ -408,6 +385,6 @@ def compare(problem, methods: Sequence[str], runs: int, budget: int, seed: int, 
     check_seed(seed)
     check_count(runs, "runs")
     check_budget(budget)
-    with simulations(problem, workers=workers, scheduler=scheduler, should_stop=should_stop) as executor:
+    with simulations(problem, workers=workers, scheduler=scheduler, report=report) as executor:
         return compare_methods(problem, executor, list(methods), runs, budget, seed, settings=settings,
-                               robustness=robustness, progress=progress, should_stop=should_stop, on_run=on_run)
+                               robustness=robustness, report=report, on_run=on_run)

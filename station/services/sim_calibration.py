@@ -18,7 +18,7 @@ from typing import Any
 
 from calibration.sim_fit import FitSettings, Runner, SimFit, fit_simulator
 from calibration.sim_trials import export_trials, fit_trials
-from common.progress import Cancelled, ProgressCallback
+from common.progress import Cancelled, Reporter
 from design.contraption.physics_profile import PhysicsProfile, save_profile
 from design.contraption.scenario import Scenario
 from station.errors import ServiceError, station_errors
@@ -116,11 +116,11 @@ def choose_parameters(scenarios: Sequence[Scenario], params: Sequence[str] | Non
 @contextlib.contextmanager
 @station_errors
 def station_runner(*, workers: int | None = None, scheduler: str | None = None,
-                   progress: ProgressCallback | None = None, should_stop=None) -> Iterator[Runner]:
-    """A :class:`~calibration.sim_fit.Runner` on the optimizer's executors and shared cache; a stop (``should_stop``,
-    Ctrl-C, a cancelled progress) becomes :class:`~station.services.robust.RunStopped` with the work kept."""
-    from design.robust.executor import SimulationCancelled
-    from station.services.robust import RunStopped, check_count, connected_executor, simulation_cache_path
+                   report: Reporter | None = None) -> Iterator[Runner]:
+    """A :class:`~calibration.sim_fit.Runner` on the optimizer's executors and shared cache; a stop (``report``'s
+    stop check, Ctrl-C) becomes the :class:`~common.progress.Cancelled` of
+    :func:`~station.services.robust.stopped_run`, which says how many simulations the cache keeps."""
+    from station.services.robust import check_count, connected_executor, stopped_run
 
     check_count(workers, "workers")
 
@@ -128,21 +128,21 @@ def station_runner(*, workers: int | None = None, scheduler: str | None = None,
         # Runs of a small scenario take milliseconds: several per task keep the workers' overhead down.
         return connected_executor(problem, workers=workers, scheduler=scheduler, chunk_size=4)
 
-    runner = Runner(make, progress, should_stop)
+    runner = Runner(make, report=report)
     try:
         with runner:
             yield runner
-    except RunStopped:
-        raise
-    except (KeyboardInterrupt, SimulationCancelled, Cancelled):
-        raise RunStopped(runner.done, simulation_cache_path()) from None
+    except (KeyboardInterrupt, Cancelled) as stop:
+        if isinstance(stop, Cancelled) and stop.cache is not None:
+            raise  # already says what the cache keeps
+        raise stopped_run(runner.done) from None
 
 
 @station_errors
 def calibrate_sim(scenarios: Sequence[Scenario], trials: Sequence[Mapping[str, Any]], *,
                   params: Sequence[str] | None = None, n_trials: int | None = None,
                   settings: FitSettings | None = None, workers: int | None = None, scheduler: str | None = None,
-                  progress: ProgressCallback | None = None, should_stop=None,
+                  report: Reporter | None = None,
                   source: str = "<trials>", every_material: bool = False) -> SimCalibration:
     """Fit the scenarios' uncertain material values (or ``params``) to their trials among ``trials``.
 
@@ -168,7 +168,7 @@ def calibrate_sim(scenarios: Sequence[Scenario], trials: Sequence[Mapping[str, A
         No trials of these scenarios, a parameter that is not uncertain in them, a bad count.
     calibration.errors.CalibrationError
         A malformed trial (names the trial and the field).
-    RunStopped
+    common.progress.Cancelled
         Stopped; the simulations done are in the cache.
     """
     if n_trials is not None and n_trials < 1:
@@ -181,7 +181,7 @@ def calibrate_sim(scenarios: Sequence[Scenario], trials: Sequence[Mapping[str, A
                            "`station trial log`", field="trials")
     if n_trials is not None:
         usable = usable[-n_trials:]
-    with station_runner(workers=workers, scheduler=scheduler, progress=progress, should_stop=should_stop) as run:
+    with station_runner(workers=workers, scheduler=scheduler, report=report) as run:
         fit = fit_simulator(usable, chosen, run, settings)
     return SimCalibration(fit, list(scenarios), list(chosen))
 

@@ -4,7 +4,7 @@
 does), takes the fitted success model the LAYOUT.json carries (``"model"``, :mod:`design.robust.model_io`) and
 computes each free parameter's tolerance (:mod:`design.robust.tolerance`); ``verify=N`` simulates N layouts at
 ±delta per parameter on the shared simulation cache. A layout without a model gets its tolerances by simulation
-when ``verify > 0``, else none; the result's ``map.source`` says which. Progress goes to one callback (a
+when ``verify > 0``, else none; the result's ``map.source`` says which. Progress goes to one reporter (a
 :class:`design.robust.Progress`, hence a :class:`common.progress.Progress`); refused input is a
 :class:`~station.errors.ServiceError` naming the value (``verify``, ``seed``...).
 """
@@ -15,6 +15,7 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+from common.progress import Reporter
 from station.errors import ServiceError, station_errors
 from station.services import robust
 from station.services.outlook import disagreement
@@ -24,7 +25,6 @@ if TYPE_CHECKING:
 
     from design.contraption.layout_io import LoadedLayout
     from design.robust.model_io import PortablePSP
-    from design.robust.pipeline import ProgressCallback
     from design.robust.tolerance import ToleranceMap
     from projector.guide import ParameterTolerance
 
@@ -131,8 +131,8 @@ def contraption_problem(scenario):
 
 @station_errors
 def tolerance_map(scenario, layout: str, *, verify: int = 0, seed: int = 0, workers: int | None = None,
-                  scheduler: str | None = None, progress: ProgressCallback | None = None,
-                  should_stop: robust.StopCheck | None = None, physics: str | None = None) -> Tolerances:
+                  scheduler: str | None = None, report: Reporter | None = None,
+                  physics: str | None = None) -> Tolerances:
     """The tolerance map of ``layout`` for ``scenario``.
 
     Parameters
@@ -146,10 +146,11 @@ def tolerance_map(scenario, layout: str, *, verify: int = 0, seed: int = 0, work
         the number of layouts per step of the search by simulation.
     seed : int
         Seed of the verification layouts.
-    workers, scheduler, should_stop :
-        Where the simulations run and when they stop (:func:`station.services.robust.simulations`).
-    progress : callable, optional
-        Stage ``"tolerance map"`` (parameters searched), then ``"verification"`` (simulations).
+    workers, scheduler :
+        Where the simulations run (:func:`station.services.robust.simulations`).
+    report : Reporter, optional
+        Stage ``"tolerance map"`` (parameters searched), then ``"verification"`` (simulations); its stop check
+        ends the simulations.
     physics : str, optional
         A physics profile: the simulations use its material values (:mod:`station.services.physics`).
 
@@ -157,8 +158,8 @@ def tolerance_map(scenario, layout: str, *, verify: int = 0, seed: int = 0, work
     ------
     ServiceError
         ``verify`` or ``seed`` negative (``field`` names it).
-    RunStopped
-        Stopped by ``should_stop`` or Ctrl-C; simulations done are kept in the cache.
+    common.progress.Cancelled
+        Stopped on request or by Ctrl-C; simulations done are kept in the cache.
     """
     import numpy as np
 
@@ -175,8 +176,8 @@ def tolerance_map(scenario, layout: str, *, verify: int = 0, seed: int = 0, work
     loaded, model, data = _read_layout(str(layout), problem)
     u = np.clip(problem.to_normalized(loaded.x), 0.0, 1.0)
     d = problem.dim
-    if progress is not None:
-        progress(Progress("tolerance map", 0, d, unit="parameters"))
+    report = Reporter.of(report)
+    report.emit(Progress("tolerance map", 0, d, unit="parameters"))
     note = None
     if model is not None:
         tolerances = model_tolerances(model, problem, u, is_valid=problem.is_valid)
@@ -195,12 +196,11 @@ def tolerance_map(scenario, layout: str, *, verify: int = 0, seed: int = 0, work
         tolerances = no_tolerances(problem)
     else:
         tolerances = None
-    if progress is not None:
-        progress(Progress("tolerance map", d, d, unit="parameters"))
+    report.emit(Progress("tolerance map", d, d, unit="parameters"))
     if tolerances is None or verify > 0:
         expected = 1 + d * verify if tolerances is not None else 1 + d * (SIMULATION_STEPS + 1) * verify
-        with robust.simulations(problem, workers=workers, scheduler=scheduler, should_stop=should_stop) as executor:
-            oracle = BudgetedOracle(executor, None, progress, should_stop, expected=expected)
+        with robust.simulations(problem, workers=workers, scheduler=scheduler, report=report) as executor:
+            oracle = BudgetedOracle(executor, None, report=report, expected=expected)
             oracle.phase = "verification"
 
             def parameter(_index: int, name: str) -> None:

@@ -19,7 +19,7 @@ from calibration.projector_map import (
     load_projector_map,
     save_projector_map,
 )
-from common.progress import Cancelled
+from common.progress import Cancelled, Reporter
 from drivers.sim.camera import sim_camera
 from drivers.sim.camera_scene import Occluder, PlaneScene
 from drivers.sim.projector import sim_projector
@@ -83,7 +83,7 @@ def test_oblique_projector_maps_within_half_a_millimetre(station_home):
     camera.set_scene(PlaneScene(occluders=(box,)))
     seen = []
     done = calibrate_projector(camera=camera_url, projector="sim://projector?name=wall&size=1280x800", name="wall",
-                               plane=table_homography(camera.camera_model), progress=seen.append)
+                               plane=table_homography(camera.camera_model), report=Reporter(seen.append))
     result = done.projector_map
     assert done.path == projector_map_file("wall") and done.path.is_file()
     assert result.landing_error_mm["p95"] <= 0.5 and result.landing_error_mm["check_points"] >= 50
@@ -156,12 +156,12 @@ def test_stopping_between_patterns_blanks_the_projector(station_home):
     projector, camera_url, projector_url = small_devices()
     calls = []
 
-    def cancelled():
+    def stop():
         calls.append(1)
         return len(calls) > 3
 
     with pytest.raises(Cancelled):
-        calibrate_projector(camera=camera_url, projector=projector_url, finest_px=16, cancelled=cancelled)
+        calibrate_projector(camera=camera_url, projector=projector_url, finest_px=16, report=Reporter(stop=stop))
     assert projector.blanked and projector.frames_shown <= 3 and not projector_map_file("projector").exists()
 
 

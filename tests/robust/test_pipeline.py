@@ -5,13 +5,13 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from common.progress import Cancelled, Reporter
 from design.robust import (
     FactorizedPSP,
     PSPSettings,
     RobustError,
     RobustnessSettings,
     SimulationCache,
-    SimulationCancelled,
     SimulationExecutor,
     baseline_b1,
     baseline_b2,
@@ -331,7 +331,7 @@ def test_pipeline_finds_a_robust_valid_layout_within_budget():
     progress = []
     with SimulationExecutor(problem, backend="inline") as executor:
         result = optimize_robust_layout(problem, executor, budget=250, seed=2, settings=SMALL,
-                                        progress=progress.append)
+                                        report=Reporter(progress.append))
     assert result.n_simulations <= 250
     assert problem.is_valid(result.u[None, :])[0]
     assert result.simulated_success
@@ -382,10 +382,10 @@ def test_an_interrupted_run_keeps_its_simulations(tmp_path):
     problem = counting_chain()
     cache = tmp_path / "sims.sqlite3"
     CountingProblem.calls = 0
-    with pytest.raises(SimulationCancelled):
+    with pytest.raises(Cancelled):
         with SimulationExecutor(problem, backend="inline", cache_path=cache) as executor:
             optimize_robust_layout(problem, executor, budget=200, seed=7, settings=SMALL,
-                                   should_stop=lambda: CountingProblem.calls >= 60)
+                                   report=Reporter(stop=lambda: CountingProblem.calls >= 60))
     assert SimulationCache(cache).count(cache_scope(problem)) == 60
     CountingProblem.calls = 0
     with SimulationExecutor(problem, backend="inline", cache_path=cache) as executor:

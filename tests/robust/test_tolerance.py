@@ -8,6 +8,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from common.progress import Reporter
 from design.robust.problem import EllipsoidEvent, SyntheticProblem
 from design.robust.tolerance import (
     RATIO,
@@ -197,7 +198,7 @@ def test_the_service_takes_a_loaded_scenario_and_gives_the_guide_its_tolerances(
 
     scenario = load_scenario(Path(__file__).resolve().parents[2] / "examples" / "scenarios" / "simple.toml")
     seen = []
-    result = tolerance_map(scenario, str(FIXTURE), progress=seen.append)
+    result = tolerance_map(scenario, str(FIXTURE), report=Reporter(seen.append))
     assert result.map.source == "model" and seen[0].stage == "tolerance map" and seen[-1].done == 3
     guide = result.parameter_tolerances()
     assert list(guide) == ["track"] and all(isinstance(t, ParameterTolerance) for t in guide["track"])

@@ -21,6 +21,7 @@ from projector.errors import ProjectorError
 from station.errors import StationError
 from station.services import assemble as flow
 from station.services.layout_choice import describe_choice
+from station.services.reporting import Cancelled, Reporter
 from station.tui.widgets.assemble_flow import NEXT, ForecastStatus
 from station.tui.widgets.outcomes import OutcomeTable
 from station.tui.widgets.progress import ProgressPanel, post_progress
@@ -73,7 +74,7 @@ class AttemptFlow:
         worker = get_current_worker()
         try:
             assembly.samples, assembly.workers = self.forecast_samples, self.simulation_workers
-            forecast = assembly.forecast(should_stop=lambda: worker.is_cancelled)
+            forecast = assembly.forecast(report=Reporter(stop=lambda: worker.is_cancelled))
         except flow.ServiceError as error:
             self.app.call_from_thread(self._forecast_done, None, f"no forecast: {error}")
             return
@@ -114,7 +115,7 @@ class AttemptFlow:
             self.assembly.placed()
         if fix:
             self.assembly.fix()
-        return self.assembly.check_parts(progress=post_progress(self))
+        return self.assembly.check_parts(report=Reporter(post_progress(self)))
 
     def action_fix(self) -> None:
         if not self._need("check"):
@@ -241,16 +242,16 @@ class AttemptFlow:
     @work(thread=True, exclusive=True, group="calibrate")
     def _calibrate_worker(self, scenario) -> None:
         from station.db import database_url
-        from station.services.robust import RunStopped
         from station.services.trials import open_store
 
         try:
             with open_store(database_url()) as store:
                 path, result = flow.calibrate_from_log(scenario, store, settings=self.fit_settings,
                                                        workers=self.simulation_workers,
-                                                       progress=post_progress(self), should_stop=self._stop_work.is_set,
+                                                       report=Reporter(post_progress(self),
+                                                                       stop=self._stop_work.is_set),
                                                        every_material=self.every_material)
-        except RunStopped:
+        except Cancelled:
             self.app.call_from_thread(self._calibrated, None, "calibration stopped; its simulations are cached")
             return
         except FAILURES as error:
@@ -283,15 +284,13 @@ class AttemptFlow:
 
     @work(thread=True, exclusive=True, group="calibrate")
     def _reoptimize_worker(self, scenario: str, physics: str | None) -> None:
-        from station.services.robust import RunStopped
-
         try:
             current = self.query_one("#layout").value.strip() or None
             path, result, chosen = flow.reoptimize(scenario, physics, budget=self.optimize_budget,
-                                                   workers=self.simulation_workers, progress=post_progress(self),
-                                                   should_stop=self._stop_work.is_set,
+                                                   workers=self.simulation_workers,
+                                                   report=Reporter(post_progress(self), stop=self._stop_work.is_set),
                                                    settings=self.optimize_settings, current=current)
-        except RunStopped:
+        except Cancelled:
             self.app.call_from_thread(self._reoptimized, None, "re-optimization stopped; its simulations are cached")
             return
         except (*FAILURES, flow.ServiceError) as error:
