@@ -1,13 +1,16 @@
-"""The simulated physical world as the station uses it (issue 21): what the camera sees of the parts as placed, and
-an attempt's run under the hidden physics.
+"""The world twin, the station's half: what the camera sees of the parts as placed, the moves a check asks for, an
+attempt's run under the hidden physics, and synthetic trials.
 
-The world twin (:mod:`drivers.sim.world`) only knows plain poses. This module turns a guide into the parts the
+The twin is two modules, split by the layering alone: the device (:mod:`drivers.sim.world`, ``sim://world``: the
+hidden material values and the simulated maker's hands; a driver never imports ``design``, so it only knows plain
+poses) and this one, which holds everything that needs the contraption. It turns a guide into the parts the
 simulated maker places (:func:`guide_parts`), the maker's placed poses into the scene the camera twin renders
 (:func:`world_scene`: each part's tags carried rigidly with the part, through
 :func:`station.services.check_scene.sim_scene`, so the check measures them as it would on a real table), a check
 into the moves its instructions ask for (:func:`check_moves`), and runs an attempt (:func:`run_attempt`): the placed
 poses become design parameters (:func:`calibration.asbuilt.as_built_layout`, the *as-placed* layout), and the
-scenario simulates it under the world's hidden material values.
+scenario simulates it under the world's hidden material values (:func:`run_hidden`, which sorts a simulation's
+events into a maker's ticks for every run here, :func:`synthetic_trials`' too).
 
 The simulated maker knows only what the guide says: the world is handed the guide's manifest (each part's drawn
 pose and its ``parameters`` with their ``set_with``, the jigs) and the ranges of the design parameters, never the
@@ -33,7 +36,7 @@ from station.errors import ServiceError
 
 __all__ = ["AttemptRun", "as_placed_layout", "check_moves", "cut_jigs", "design_ranges", "grab_placed",
            "grab_placed_side", "guide_jigs", "guide_parts", "open_world", "place_parts", "prepare_world", "run_attempt",
-           "world_scene"]
+           "run_hidden", "synthetic_trials", "trials_export", "world_scene"]
 
 
 def open_world(url: str):
@@ -281,15 +284,23 @@ def run_attempt(scenario, x, guide, world, hidden: Mapping[str, float] | None = 
     hidden : mapping, optional
         The hidden material values (default the world's, :func:`prepare_world` first).
     """
-    from calibration.sim_runs import widened
-    from design.contraption.simulation import ASLEEP, SUCCESS, simulate
-
     hidden = dict(world.hidden_physics() if hidden is None else hidden)
     if not hidden:
         raise ServiceError("world: no hidden physics drawn yet (prepare_world first)", field="world")
-    truth = widened(scenario.with_physics(hidden))
     layout = as_placed_layout(scenario, guide, world)
-    result = simulate(truth, layout, early_stop="settled")
+    outcomes, times, success = run_hidden(scenario, hidden, layout)
+    names = scenario.design_space.names
+    return AttemptRun(outcomes, times, success, dict(zip(names, map(float, layout))))
+
+
+def run_hidden(scenario, hidden: Mapping[str, float], x) -> tuple[dict[str, str], dict[str, float], bool]:
+    """Simulate the layout ``x`` (real units, as really placed) under the ``hidden`` material values: every event
+    as a maker ticks it (``{event: "yes" | "no" | "not-reached"}``, in the scenario's order), the times of those that
+    happened (seconds, to the millisecond, as a video would give them) and whether the goal was reached."""
+    from calibration.sim_runs import widened
+    from design.contraption.simulation import ASLEEP, SUCCESS, simulate
+
+    result = simulate(widened(scenario.with_physics(dict(hidden))), np.asarray(x, dtype=float), early_stop="settled")
     outcomes, times = {}, {}
     for event in scenario.events:
         outcome = result.events[event]
@@ -298,8 +309,74 @@ def run_attempt(scenario, x, guide, world, hidden: Mapping[str, float] | None = 
             times[event] = round(float(outcome.time), 3)
         else:
             outcomes[event] = "not-reached" if outcome.state == ASLEEP else "no"
+    return outcomes, times, bool(result.success)
+
+
+def synthetic_trials(scenario, layouts, hidden: Mapping[str, float], *, seed: int = 0, times: bool = True,
+                     position_sigma_m: float | None = None, angle_sigma_deg: float | None = None,
+                     content: str | None = None) -> list[dict]:
+    """Trials of the crudest world: each designed layout of ``layouts`` (real units) placed with a Gaussian error on
+    every parameter (default :data:`calibration.sim_runs.DEFAULT_POSITION_SIGMA_M` /
+    :data:`~calibration.sim_runs.DEFAULT_ANGLE_SIGMA_DEG`) and run under ``hidden`` material values
+    (:func:`run_hidden`), in the trial log's export format with the designed layout and no check, as a maker's
+    unchecked runs are logged (so a fit, as for those, simulates the designed layout).
+
+    For checking the simulator calibration against a known answer (tests, ``bench/bench_sim_calibration.py``) and
+    trying the calibration commands without a workshop. It does not go through
+    :class:`calibration.sim_runs.OutcomeProblem`, the fit's own simulation path, so that a mistake there does not
+    also shape its test data.
+
+    Parameters
+    ----------
+    scenario : Scenario
+        As the maker has it (its own material values are not used).
+    layouts : sequence of arrays
+        Designed layouts, one trial each.
+    hidden : mapping
+        The "real" material values, ``{"wood.friction": 0.55}``.
+    seed : int
+        Seed of the placement errors.
+    times : bool
+        Log the times of the events that happened.
+    content : str, optional
+        The scenario file's text for the trials' ``scenario.content`` (default: the file at ``scenario.source``).
+
+    Returns
+    -------
+    list of dict
+        Trials in the export format (``id`` from 1; :func:`trials_export` makes the file's content).
+    """
+    import uuid
+    from pathlib import Path
+
+    from calibration.sim_runs import DEFAULT_ANGLE_SIGMA_DEG, DEFAULT_POSITION_SIGMA_M
+    from design.contraption.schema import ANGLE_KEYS
+
+    position = DEFAULT_POSITION_SIGMA_M if position_sigma_m is None else position_sigma_m
+    angle = DEFAULT_ANGLE_SIGMA_DEG if angle_sigma_deg is None else angle_sigma_deg
+    if content is None:
+        content = Path(scenario.source).read_text(encoding="utf-8")
     names = scenario.design_space.names
-    return AttemptRun(outcomes, times, bool(result.success), dict(zip(names, map(float, layout))))
+    sigma = np.array([angle if n.rsplit(".", 1)[1] in ANGLE_KEYS else position for n in names])
+    rng = np.random.default_rng(seed)
+    trials = []
+    for i, layout in enumerate(layouts):
+        layout = np.asarray(layout, dtype=float)
+        outcomes, logged, success = run_hidden(scenario, hidden, layout + rng.standard_normal(len(names)) * sigma)
+        trials.append({
+            "id": i + 1, "uid": uuid.UUID(int=int(rng.integers(0, 2**63)) << 64 | i).hex,
+            "scenario": {"name": scenario.name, "content_hash": scenario.content_hash, "content": content},
+            "layout": dict(zip(names, layout.tolist())), "as_built": None, "check": None, "physics": None,
+            "outcomes": outcomes, "times": logged if times else {}, "success": success,
+            "who": "simulator", "created_at": "2026-01-01T00:00:00Z",
+            "notes": "synthetic: simulated under hidden material values", "photos": [],
+        })
+    return trials
+
+
+def trials_export(trials: list[dict]) -> dict:
+    """Trials as a whole trial export file's content."""
+    return {"format": "chaos-station trials", "version": 1, "trials": trials}
 
 
 #: The laser the simulated maker cuts the jigs on: the station's laser twin on a virtual clock (a cut of minutes runs
