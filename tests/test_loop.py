@@ -81,6 +81,50 @@ def test_a_world_is_a_sim_world_url(simple_job):
         worlds.open_world("sim://world?place_mm=x")
 
 
+def test_a_loop_attempt_is_the_attempt_an_assembly_walks(tmp_path, station_home):
+    # The loop's attempt and the same attempt walked by hand with station assemble's Assembly, on a world of the same
+    # seed: placed with the highlight, checked, corrected as the check says, run, predicted as checked. The same
+    # trial and the same prediction, so the two cannot drift apart.
+    from common.progress import Reporter
+    from station.loopstore import LoopStore
+    from station.services import world as worlds
+    from station.services.assemble import Assembly
+    from station.services.guide import make_guide
+    from station.services.loop import _CAMERA, _PREDICT, ATTEMPT_BLOCK, LoopSettings, _Loop, _seed
+    from station.services.trials import load_trial_scenario
+
+    url = "sim://world?seed=5&place_mm=4"
+    settings = LoopSettings(rounds=2, predict_samples=4, workers=1)
+    scenario = load_trial_scenario("ballrun")
+    job = make_guide("ballrun", "success", tolerances=False)
+    world = worlds.open_world(url)
+    worlds.prepare_world(world, scenario)
+    with LoopStore(str(tmp_path / "loop.sqlite3")) as store:
+        loop = _Loop(store, scenario, world, url, settings, Reporter.of(None), tmp_path)
+        stored, said = loop.attempt(job, None, None, 1, 2, checked=True)
+        logged = store.trial(stored.trial_id)
+    assert said.rounds >= 1 and said.corrections, "4 mm of placement error leaves parts to move"
+
+    by_hand = worlds.open_world(url)
+    worlds.prepare_world(by_hand, scenario)
+    assembly = Assembly(job, scenario, camera=settings.camera, world=by_hand, attempt=ATTEMPT_BLOCK + 2, samples=4,
+                        seed=_seed(5, _PREDICT, 1, 2), workers=1, highlighted=True, station_camera=False)
+    assembly.placed()
+    for r in range(settings.rounds + 1):
+        assembly.check_parts(seed=_seed(5, _CAMERA, 1, 2, r))
+        if not assembly.moves() or r == settings.rounds:
+            break
+        assembly.fix()
+    assembly.accept()
+    assembly.run()
+    predicted = assembly.forecast().prediction.probability
+    walked = assembly.trial()
+    assert by_hand.placed() == world.placed() and assembly.fixes == said.rounds
+    for key in ("layout", "as_built", "check", "outcomes", "times", "success", "physics"):
+        assert logged[key] == walked[key], key
+    assert stored.predicted == predicted
+
+
 def _loop(env, *extra, check=True):
     result = subprocess.run([sys.executable, "-m", "station", "loop", "simple", "--world", "sim://world?seed=2",
                              *TINY, "--json", *extra], cwd=ROOT, env=env, capture_output=True, text=True, timeout=600)
