@@ -25,25 +25,39 @@ found).
 from __future__ import annotations
 
 import math
+import uuid
 from collections.abc import Mapping
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from calibration.asbuilt import PlanePose, as_built_layout
+from calibration.check import NEGLIGIBLE_DEG, NEGLIGIBLE_MM, jig_views
+from calibration.sim_runs import DEFAULT_ANGLE_SIGMA_DEG, DEFAULT_POSITION_SIGMA_M, widened
+from design.contraption.schema import ANGLE_KEYS
+from design.contraption.simulation import ASLEEP, SUCCESS, simulate
+from design.contraption.validation import with_physics
+from drivers.devices import UnknownDeviceURL, resolve
+from drivers.grbl import GrblConnection, Job, JobRunner
+from projector.board import side_board
 from projector.guide import IN_PLANE_ROLES
-from station.errors import ServiceError
+from station.errors import ServiceError, station_errors
+from station.services.check import grab_frame
+from station.services.check_scene import sim_scene
+from station.services.check_side import side_frame, side_targets
+from station.services.jigs import cut_jigs as laser_job
 
 __all__ = ["AttemptRun", "as_placed_layout", "check_moves", "cut_jigs", "design_ranges", "grab_placed",
            "grab_placed_side", "guide_jigs", "guide_parts", "open_world", "place_parts", "prepare_world", "run_attempt",
            "run_hidden", "synthetic_trials", "trials_export", "world_scene"]
 
 
+@station_errors
 def open_world(url: str):
     """The world at ``url`` (``sim://world?...``): a ServiceError naming ``world`` for any other device; a bad
     option is the driver's one-line SimConfigError."""
-    from drivers.devices import UnknownDeviceURL, resolve
-
     try:
         info = resolve(url)
     except UnknownDeviceURL as error:
@@ -56,6 +70,7 @@ def open_world(url: str):
     return world
 
 
+@station_errors
 def prepare_world(world, scenario) -> dict[str, float]:
     """Draw the world's hidden material values around ``scenario``'s (every material value; an uncertain one kept in
     its range, which the simulator requires) and return them."""
@@ -64,6 +79,7 @@ def prepare_world(world, scenario) -> dict[str, float]:
     return world.hidden_physics()
 
 
+@station_errors
 def guide_parts(guide) -> list[dict]:
     """Every part of ``guide`` as the maker is told it: ``{"name", "center_mm", "heading_deg", "parameters"}``, the
     parameters as the guide manifest states them (``name``, ``value``, ``unit``, ``role``, ``set_with``)."""
@@ -73,16 +89,16 @@ def guide_parts(guide) -> list[dict]:
                              "set_with": q.set_with} for q in p.settings]} for p in guide.parts]
 
 
+@station_errors
 def guide_jigs(guide) -> list[dict]:
     """The jigs the guide's steps use, as the maker is told them: ``{"id", "part", "parameters"}``."""
     return [{"id": j.id, "part": j.part, "parameters": list(j.parameters)} for j in guide.jigs]
 
 
+@station_errors
 def design_ranges(scenario) -> dict[str, list]:
     """Every design parameter's range as a maker sees it on the contraption: ``{name: [lower, upper, unit]}``, in
     mm or degrees (what the maker guesses within when the guide does not state a parameter)."""
-    from design.contraption.schema import ANGLE_KEYS
-
     space = scenario.design_space
     ranges = {}
     for name, lower, upper in zip(space.names, space.lower, space.upper):
@@ -103,33 +119,28 @@ def _offsets(guide, placed: Mapping[str, Mapping]) -> dict[str, tuple[float, flo
     return result
 
 
+@station_errors
 def world_scene(guide, placed: Mapping[str, Mapping]):
     """The :class:`~drivers.sim.camera_scene.PlaneScene` of the parts as placed: reference tags, every tag carried
     with its part's pose, the sheet under them (with the parts' footprints where they are)."""
-    from calibration.check import jig_views
-    from station.services.check_scene import sim_scene
-
     tagged = {p.name for p in guide.parts if p.tag_views() or jig_views(guide, p)}  # a stand's tag moves with its part
     offsets = {k: v for k, v in _offsets(guide, placed).items() if k in tagged}
     return sim_scene(guide, offsets)
 
 
+@station_errors
 def grab_placed(camera_url: str, guide, placed: Mapping[str, Mapping], seed: int):
     """One frame of the parts as placed from the simulated camera at ``camera_url`` (its noise seeded by ``seed``
     unless the URL sets one), and the twin's own intrinsics."""
-    from station.services.check import grab_frame
-
     return grab_frame(camera_url, guide, scene=world_scene(guide, placed), seed=seed)
 
 
+@station_errors
 def grab_placed_side(camera_url: str, job, world, seed: int):
     """One frame of the parts as placed from the simulated side camera at ``camera_url`` (``sim://camera?view=side``,
     facing the board behind them): the board's tags and each jig stand's face tag where the world's maker really set
     its part (:func:`as_placed_layout`: its height and tilt as the guide told them to be set, with that way's error),
     and the twin's own intrinsics; what :func:`station.services.check_side.measure_side` reads."""
-    from projector.board import side_board
-    from station.services.check_side import side_frame, side_targets
-
     board = side_board(job.guide)
     targets = side_targets(job, board)
     layout = as_placed_layout(job.scenario, job.guide, world)
@@ -141,6 +152,7 @@ def grab_placed_side(camera_url: str, job, world, seed: int):
 UNKNOWN_TOLERANCE_MM, UNKNOWN_TOLERANCE_DEG = 1.0, 1.0
 
 
+@station_errors
 def check_moves(check: Mapping[str, Any], guide, *, all_parts: bool = False) -> list[dict]:
     """What a CHECK.json's instructions ask the maker to do: ``[{"name", "du_mm", "dv_mm", "dheading_deg"}]`` per
     part out of its tolerance (or, with no tolerance known, off by more than :data:`UNKNOWN_TOLERANCE_MM` /
@@ -149,8 +161,6 @@ def check_moves(check: Mapping[str, Any], guide, *, all_parts: bool = False) -> 
     origin found from it as :func:`calibration.check.measured_pose` does. A part the side camera found off also
     carries ``"parameters": {name: change}`` (mm or degrees): its height and tilt set again as the side view says.
     """
-    from calibration.check import NEGLIGIBLE_DEG, NEGLIGIBLE_MM
-
     by_name = {p.name: p for p in guide.parts}
     bodies = {(p.name, b.body): b for p in guide.parts for b in p.body_tags}
     moves: dict[str, dict] = {}
@@ -187,9 +197,6 @@ def check_moves(check: Mapping[str, Any], guide, *, all_parts: bool = False) -> 
 def _side_changes(check: Mapping[str, Any], by_name, all_parts: bool) -> dict[str, dict[str, float]]:
     """Per part the side camera found off (``side_parts``, the same rule as :func:`check_moves`), the change of
     each parameter it measured (``measured_by`` "side"): designed minus measured, in mm or degrees."""
-    from calibration.check import NEGLIGIBLE_DEG, NEGLIGIBLE_MM
-    from design.contraption.schema import ANGLE_KEYS
-
     layout, measured, by = check.get("layout", {}), check.get("as_measured", {}), check.get("measured_by", {})
     result = {}
     for entry in check.get("side_parts", []):
@@ -237,6 +244,7 @@ class AttemptRun:
         return {"outcomes": dict(self.outcomes), "times": dict(self.times), "success": self.success}
 
 
+@station_errors
 def as_placed_layout(scenario, guide, world) -> np.ndarray:
     """The layout as the world's parts are really placed: every parameter as the maker set it
     (:meth:`drivers.sim.world.SimulatedWorld.settings`: out of the plane with the error of its ``set_with``, a
@@ -248,9 +256,6 @@ def as_placed_layout(scenario, guide, world) -> np.ndarray:
     ServiceError
         A design parameter the world did not set (placed without the scenario's ranges: :func:`place_parts`).
     """
-    from calibration.asbuilt import PlanePose, as_built_layout
-    from calibration.sim_runs import widened
-
     names = list(scenario.design_space.names)
     settings = world.settings()
     missing = [n for n in names if n not in settings]
@@ -268,6 +273,7 @@ def as_placed_layout(scenario, guide, world) -> np.ndarray:
     return np.clip(np.asarray(built.x, dtype=float), wide.design_space.lower, wide.design_space.upper)
 
 
+@station_errors
 def run_attempt(scenario, x, guide, world, hidden: Mapping[str, float] | None = None) -> AttemptRun:
     """Run the attempt the world's parts are placed for, under its hidden physics.
 
@@ -293,14 +299,12 @@ def run_attempt(scenario, x, guide, world, hidden: Mapping[str, float] | None = 
     return AttemptRun(outcomes, times, success, dict(zip(names, map(float, layout))))
 
 
+@station_errors
 def run_hidden(scenario, hidden: Mapping[str, float], x) -> tuple[dict[str, str], dict[str, float], bool]:
     """Simulate the layout ``x`` (real units, as really placed) under the ``hidden`` material values: every event
     as a maker ticks it (``{event: "yes" | "no" | "not-reached"}``, in the scenario's order), the times of those that
     happened (seconds, to the millisecond, as a video would give them) and whether the goal was reached."""
-    from calibration.sim_runs import widened
-    from design.contraption.simulation import ASLEEP, SUCCESS, simulate
-
-    result = simulate(widened(scenario.with_physics(dict(hidden))), np.asarray(x, dtype=float), early_stop="settled")
+    result = simulate(widened(with_physics(scenario, dict(hidden))), np.asarray(x, dtype=float), early_stop="settled")
     outcomes, times = {}, {}
     for event in scenario.events:
         outcome = result.events[event]
@@ -312,6 +316,7 @@ def run_hidden(scenario, hidden: Mapping[str, float], x) -> tuple[dict[str, str]
     return outcomes, times, bool(result.success)
 
 
+@station_errors
 def synthetic_trials(scenario, layouts, hidden: Mapping[str, float], *, seed: int = 0, times: bool = True,
                      position_sigma_m: float | None = None, angle_sigma_deg: float | None = None,
                      content: str | None = None) -> list[dict]:
@@ -346,12 +351,6 @@ def synthetic_trials(scenario, layouts, hidden: Mapping[str, float], *, seed: in
     list of dict
         Trials in the export format (``id`` from 1; :func:`trials_export` makes the file's content).
     """
-    import uuid
-    from pathlib import Path
-
-    from calibration.sim_runs import DEFAULT_ANGLE_SIGMA_DEG, DEFAULT_POSITION_SIGMA_M
-    from design.contraption.schema import ANGLE_KEYS
-
     position = DEFAULT_POSITION_SIGMA_M if position_sigma_m is None else position_sigma_m
     angle = DEFAULT_ANGLE_SIGMA_DEG if angle_sigma_deg is None else angle_sigma_deg
     if content is None:
@@ -374,6 +373,7 @@ def synthetic_trials(scenario, layouts, hidden: Mapping[str, float], *, seed: in
     return trials
 
 
+@station_errors
 def trials_export(trials: list[dict]) -> dict:
     """Trials as a whole trial export file's content."""
     return {"format": "chaos-station trials", "version": 1, "trials": trials}
@@ -384,6 +384,7 @@ def trials_export(trials: list[dict]) -> dict:
 JIG_LASER = "sim://grbl?profile=laser&clock=virtual"
 
 
+@station_errors
 def cut_jigs(job, laser: str = JIG_LASER) -> list[dict]:
     """The simulated maker cuts a guide job's jigs (``make_guide(..., jigs=True)``): each sheet's laser job, as
     ``station jigs`` writes it (``jigs.gcode``), pre-flighted and run to its end on the laser at ``laser``.
@@ -398,9 +399,6 @@ def cut_jigs(job, laser: str = JIG_LASER) -> list[dict]:
     ServiceError
         The job has no jigs, or a sheet's job did not run to its end with the beam off (naming the sheet).
     """
-    from drivers.grbl import GrblConnection, Job, JobRunner
-    from station.services.jigs import cut_jigs as laser_job
-
     if job.jigs is None:
         raise ServiceError("jigs: the guide has no jigs to cut (make_guide(..., jigs=True))", field="jigs")
     sheets = laser_job(job, job.jigs).sheets
@@ -420,6 +418,7 @@ def cut_jigs(job, laser: str = JIG_LASER) -> list[dict]:
     return done
 
 
+@station_errors
 def place_parts(world, guide, *, attempt: int, highlighted: bool, scenario=None) -> None:
     """The maker places every part of ``guide`` for ``attempt`` (highlighted: the projector shows each), on its jig
     where the guide has one, and sets every parameter as the guide says; with ``scenario``, a parameter the guide
