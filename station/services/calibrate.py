@@ -317,8 +317,8 @@ def _references_seen(frame: np.ndarray, camera_model):
     """A measurement without a plane: which of the reference ids 583-586 are seen (once, twice, not at all)."""
     from calibration.intrinsics import to_gray
     from calibration.measure import Measurement, sort_ids
-    from projector.detection import detect_tags
     from projector.guide import REFERENCE_TAG_IDS
+    from vision.detection import detect_tags
 
     camera_model.check_image(frame)
     _unique, unknown, duplicates, missing = sort_ids(detect_tags(to_gray(frame)), REFERENCE_TAG_IDS, ())

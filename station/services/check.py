@@ -177,7 +177,7 @@ def _same_scenario(manifest: Mapping, name: str, content_hash: str, source: str)
 @station_errors
 def load_image(path: str | Path) -> np.ndarray:
     """A camera frame from a file (PNG, JPEG...) as RGB uint8; a ServiceError naming ``image`` otherwise (also for a
-    frame of a size :func:`projector.detection.frame_size_problem` refuses, found from the header before decoding)."""
+    frame of a size :func:`vision.detection.frame_size_problem` refuses, found from the header before decoding)."""
     from PIL import Image, UnidentifiedImageError
 
     try:
@@ -195,7 +195,7 @@ def load_image(path: str | Path) -> np.ndarray:
 
 @station_errors
 def check_image_file(path: str | Path, field: str) -> None:
-    """Refuse an image file whose header gives a frame size :func:`projector.detection.frame_size_problem` refuses,
+    """Refuse an image file whose header gives a frame size :func:`vision.detection.frame_size_problem` refuses,
     before a reader decodes it; a file Pillow cannot read is left to the caller's reader."""
     from PIL import Image, UnidentifiedImageError
 
@@ -212,7 +212,7 @@ def check_image_file(path: str | Path, field: str) -> None:
 @station_errors
 def check_frame_size(path: str | Path, size: tuple[int, int], field: str) -> None:
     """A ServiceError naming ``field`` and the file when a frame of ``size`` (width, height) cannot be checked."""
-    from projector.detection import frame_size_problem
+    from vision.detection import frame_size_problem
 
     problem = frame_size_problem(*size)
     if problem is not None:
@@ -222,7 +222,7 @@ def check_frame_size(path: str | Path, size: tuple[int, int], field: str) -> Non
 def _too_large(path: str | Path, field: str) -> ServiceError:
     from PIL import Image
 
-    from projector.detection import MAX_FRAME_PIXELS
+    from vision.detection import MAX_FRAME_PIXELS
 
     return ServiceError(f"{field} {path}: over {2 * Image.MAX_IMAGE_PIXELS / 1e6:.0f} MP, too large; expected at most "
                         f"{MAX_FRAME_PIXELS / 1e6:.0f} megapixels (a camera frame or a phone photo)", field=field,
@@ -365,7 +365,7 @@ def check_frame(job, image: np.ndarray, intrinsics=None, *, simulate: int = 0, s
         Seed of those simulations' noise.
     previous : PlaneFix, optional
         The last check's plane (a bumped camera is then said).
-    detector : projector.detection.TagDetector, optional
+    detector : vision.detection.TagDetector, optional
         One to reuse between checks.
     physics : PhysicsProfile, optional
         Simulate (``simulate``, ``predict``) with its material values instead of the scenario's.
@@ -694,4 +694,3 @@ def report_lines(report, physical=None) -> list[str]:
         lines.append(f"note: {report.prediction_note}")
     lines.extend(detail)
     return lines
-

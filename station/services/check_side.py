@@ -168,7 +168,7 @@ def _wrap(angle: float) -> float:
 def view_of_frame(image, board) -> str:
     """``"side"`` when the frame shows at least two of the board's tags, else ``"top"`` (a real camera's view)."""
     from calibration.intrinsics import to_gray
-    from projector.detection import TagDetector
+    from vision.detection import TagDetector
 
     if board is None:
         return "top"
@@ -435,4 +435,3 @@ def side_lines(report) -> list[str]:
     if measured:
         lines.append(f"measured by the side camera: {', '.join(measured)}")
     return lines
-

@@ -93,7 +93,7 @@ def plan_guide_jigs(job, options: JigOptions | None = None) -> PlannedJigs:
     """
     from design.jigs import PartInput, plan_jigs
     from design.robust.tolerance import CARE_RULE
-    from projector.tags import tag_cells
+    from vision.tags import tag_cells
 
     profile, material_name, settings, source = check_options(options)
     guide = job.guide

@@ -36,9 +36,9 @@ from design.fabrication.lasercard import (
 )
 from drivers.profiles import BUILTIN_PROFILES, MachineProfile, ProfileError, profile_from_toml
 from drivers.sim.laser_burn import burn_gcode, line_kerf, photograph, sim_material
-from projector.tags import tag_cells
 from station.errors import ServiceError, station_errors
 from station.services.profiles import load_station_profile, replace_material_table, station_copy_path
+from vision.tags import tag_cells
 
 __all__ = [
     "DEFAULT_DARKNESS",
