@@ -23,6 +23,7 @@ from calibration.errors import CalibrationError
 from calibration.sim_fit import Runner
 from calibration.sim_runs import YES, OutcomeProblem, noisy_layouts, wilson_interval
 from design.contraption.model import Scenario
+from design.contraption.validation import with_physics
 
 
 @dataclass(frozen=True)
@@ -90,7 +91,7 @@ def predict_success(scenario: Scenario, layout: np.ndarray, *, values: Mapping[s
     spread = {k: v for k, v in (intervals or {}).items() if k in centres and v[1] > v[0]}
     names = list(spread)
     ranges = {k: uncertain[k][1] if k in uncertain else (0.0, max(2.0 * centres[k], 1.0)) for k in names}
-    base = scenario.with_physics({k: v for k, v in centres.items() if k not in spread})
+    base = with_physics(scenario, {k: v for k, v in centres.items() if k not in spread})
     rng = np.random.default_rng(seed)
     layouts = noisy_layouts(scenario, np.asarray(layout, dtype=float), samples, position_sigma_m, angle_sigma_deg, rng,
                            unmeasured)

@@ -27,6 +27,7 @@ import numpy as np
 from design.contraption.model import Scenario
 from design.contraption.schema import ANGLE_KEYS
 from design.contraption.simulation import SIMULATOR_CACHE_REVISION
+from design.contraption.validation import scenario_from_data, with_physics
 
 YES, NO, NOT_REACHED = 1.0, 0.0, -1.0
 #: The export format's words for the codes.
@@ -41,8 +42,6 @@ DEFAULT_ANGLE_SIGMA_DEG = 1.0
 def widened(scenario: Scenario, factor: float = WIDEN) -> Scenario:
     """``scenario`` with every design range widened by ``factor`` range widths on each side (same names, same
     order, same physics), so layouts a little outside the designed ranges can be simulated."""
-    from design.contraption.validation import scenario_from_data
-
     if scenario.data is None:  # pragma: no cover - scenarios are loaded from data
         raise ValueError(f"{scenario.source}: the scenario was built without its content")
     data = dict(scenario.data)
@@ -134,9 +133,7 @@ class OutcomeProblem:
 
     def _base(self) -> Scenario:
         if self._scenario is None:
-            from design.contraption.validation import scenario_from_data
-
-            scenario = scenario_from_data(self._data, file=self._file).with_physics(self._base_overrides)
+            scenario = with_physics(scenario_from_data(self._data, file=self._file), self._base_overrides)
             self._scenario = widened(scenario)
         return self._scenario
 
@@ -148,7 +145,7 @@ class OutcomeProblem:
         if scenario is None:
             if len(self._by_values) > 32:
                 self._by_values.clear()
-            scenario = self._base().with_physics(dict(zip(self.physics, key)))
+            scenario = with_physics(self._base(), dict(zip(self.physics, key)))
             self._by_values[key] = scenario
         return scenario
 

@@ -62,7 +62,7 @@ class TrialStore:
     Parameters
     ----------
     url : str, optional
-        The database (see :func:`station.db.parse_url`); default :func:`station.db.database_url`.
+        The database (see :func:`station.db_url.parse_url`); default :func:`station.db.database_url`.
     database : Database, optional
         An open database to use instead (not closed by :meth:`close`).
     """

@@ -6,7 +6,7 @@ from pathlib import Path
 
 import pytest
 
-from design.contraption import ScenarioFormatError, load_scenario, scenario_from_data
+from design.contraption import ScenarioFormatError, load_scenario, scenario_from_data, with_physics
 from design.contraption.validation import parse_text
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -77,19 +77,19 @@ def test_bad_materials_are_one_line_naming_file_and_field(old, new, message):
 
 def test_with_physics_sets_values_keeps_ranges_and_changes_the_hash():
     scenario = load(BASE)
-    other = scenario.with_physics({"wood.friction": 0.42})
+    other = with_physics(scenario, {"wood.friction": 0.42})
     assert other.object("block").physics.friction == 0.42
     assert other.uncertain_parameters() == {"wood.friction": (0.42, (0.3, 0.9))}
     assert other.physics_overrides == {"wood.friction": 0.42}
     assert other.content_hash != scenario.content_hash
-    assert scenario.with_physics({"wood.friction": 0.6}).content_hash == scenario.content_hash
-    assert scenario.with_physics({}) is scenario
+    assert with_physics(scenario, {"wood.friction": 0.6}).content_hash == scenario.content_hash
+    assert with_physics(scenario, {}) is scenario
     for bad, words in [({"wood.friction": 0.95}, 'physics."wood.friction": expected a value inside the scenario'),
                        ({"oak.friction": 0.5}, "no material 'oak' in the scenario; it has: wood"),
                        ({"wood.mass": 0.5}, "expected MATERIAL.PARAM"),
                        ({"wood.damping": 0.5}, "expected MATERIAL.PARAM")]:
         with pytest.raises(ScenarioFormatError, match=words):
-            scenario.with_physics(bad)
+            with_physics(scenario, bad)
 
 
 def test_hash_is_of_what_is_simulated():
