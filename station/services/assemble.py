@@ -28,7 +28,7 @@ from typing import Any
 import numpy as np
 
 from common.progress import Reporter
-from station.errors import ServiceError
+from station.errors import ServiceError, station_errors
 from station.services.outlook import success_headline
 
 __all__ = ["STAGES", "Assembly", "Forecast", "calibrate_from_log", "open_assembly", "reoptimize"]
@@ -84,6 +84,7 @@ class Forecast:
                 "with_record": self.with_record}
 
 
+@station_errors
 @dataclass
 class Assembly:
     """One attempt (see the module notes); made by :func:`open_assembly`.
@@ -322,7 +323,7 @@ class Assembly:
     def forecast(self, report: Reporter | None = None) -> Forecast:
         """The physical success and expected attempts now: as designed before a check (the default placement
         error), as placed after one (its as-built layout, its residual error), under the physics profile if any."""
-        from station.services.predict import as_built_from_check, predict_layout
+        from station.services.predict import PredictionRequest, as_built_from_check, predict_layout
 
         scenario = self.job.scenario
         x = np.asarray(self.job.layout.x, dtype=float)
@@ -330,12 +331,13 @@ class Assembly:
         when = "designed"
         if self.check is not None and self.check.report.plane is not None:
             x, position, angle, unmeasured = as_built_from_check(self.check.to_json(), scenario, x, "the last check")
-            sigma = {"position_sigma_m": position, "angle_sigma_deg": angle, "unmeasured": unmeasured}
+            sigma = {"position_sigma_m": position, "angle_sigma_deg": angle, "unmeasured": tuple(unmeasured)}
             when = "as placed"
         if self.stage in ("log", "done"):
             when = f"{when}; this run: {'success' if self.success else 'failure'}"
-        result = predict_layout(scenario, x, profile=self._profile, samples=self.samples, seed=self.seed,
-                                workers=self.workers, scheduler=self.scheduler, report=report, **sigma)
+        request = PredictionRequest(self._profile, samples=self.samples, seed=self.seed, workers=self.workers,
+                                    scheduler=self.scheduler, **sigma)
+        result = predict_layout(scenario, x, request, report=report)
         self.forecasts.append(Forecast(when, result, self.record))
         return self.forecasts[-1]
 
@@ -346,6 +348,7 @@ class Assembly:
             world.close()
 
 
+@station_errors
 def open_assembly(scenario: str, layout: str | None, *, view: str | None = None, camera: str | None = None,
                   world: str | None = None, projector=None, physics: str | Path | None = None,
                   attempt: int | None = None, jigs: bool = False,
@@ -442,6 +445,7 @@ def _layout_record(scenario, x, trials) -> tuple[int, int]:
 
 
 # -- after attempts: calibrate, re-optimize ----------------------------------------------------------------------------
+@station_errors
 def calibrate_from_log(scenario, store=None, *, settings=None, workers: int | None = None,
                        report: Reporter | None = None, out: str | Path | None = None,
                        every_material: bool = False):
@@ -475,15 +479,53 @@ def calibrate_from_log(scenario, store=None, *, settings=None, workers: int | No
                 "trials"), result
 
 
-def reoptimize(scenario_path: str, physics: str | Path | None, *, budget: int = 40, seed: int = 0,
-               workers: int | None = None, report: Reporter | None = None,
-               out: str | Path | None = None, settings=None, current: str | None = None, candidates: int = 4,
-               samples: int = 16, trials=None):
-    """Optimize the layout again under the physics profile ``physics`` (the calibrated one), choose among the
-    optimizer's verified candidates and the ``current`` layout (a LAYOUT.json) the one surest to succeed often
-    under the profile's values and intervals (:func:`station.services.layout_choice.choose_layout`, ``samples``
-    simulations each) and, for the current layout, given its record in ``trials`` (default: the scenario's trials in
-    the station's log), and write it (``out``, default the data folder's ``layouts/NAME-physics.json``).
+@dataclass(frozen=True)
+class ReoptimizeRequest:
+    """A layout optimized again under a physics profile, and the option surest to work physically chosen.
+
+    Parameters
+    ----------
+    scenario : str
+        A scenario file or example name.
+    physics : path, optional
+        The physics profile (the calibrated one); None: the scenario's own values.
+    budget, seed : int
+        The optimizer's simulations and seed (the seed of the choice's simulations too).
+    settings : PSPSettings, optional
+        The optimizer's settings (None: the station's default).
+    current : path, optional
+        The LAYOUT.json placed so far: one of the options, with its record in ``trials``.
+    candidates : int
+        The optimizer's verified candidates that are options.
+    samples : int
+        Simulations per option.
+    trials : tuple of dict, optional
+        Trial records the options' records come from (None: the scenario's trials in the station's log).
+    workers : int, optional
+        Local simulation processes.
+    out : path, optional
+        Where the chosen LAYOUT.json goes (None: the data folder's ``layouts/NAME-physics.json``).
+    """
+
+    scenario: str
+    physics: str | Path | None = None
+    budget: int = 40
+    seed: int = 0
+    settings: Any = None
+    current: str | None = None
+    candidates: int = 4
+    samples: int = 16
+    trials: tuple[Mapping, ...] | None = None
+    workers: int | None = None
+    out: str | Path | None = None
+
+
+@station_errors
+def reoptimize(request: ReoptimizeRequest, *, report: Reporter | None = None):
+    """Optimize the layout again under the physics profile ``request.physics``, choose among the optimizer's
+    verified candidates and the ``current`` layout (a LAYOUT.json) the one surest to succeed often under the
+    profile's values and intervals (:func:`station.services.layout_choice.choose_layout`, ``samples`` simulations
+    each) and, for the current layout, given its record in ``trials``, and write it (``out``).
 
     Returns ``(path, result, chosen)``: the optimizer's result and the LAYOUT.json data written (its
     ``physical_choice`` says which option won and every option's predicted success, record and expected success).
@@ -492,13 +534,14 @@ def reoptimize(scenario_path: str, physics: str | Path | None, *, budget: int = 
 
     from station.paths import data_dir
     from station.services import robust
-    from station.services.layout_choice import candidate_layouts, choose_layout
+    from station.services.layout_choice import LayoutChoiceRequest, candidate_layouts, choose_layout
     from station.services.physics import problem_with_physics, read_profile
 
-    problem = problem_with_physics(robust.load_problem(scenario_path), physics)
-    settings = settings or robust.psp_settings(robust.DEFAULT_SETTINGS)
-    result = robust.optimize(problem, budget, seed, settings, workers=workers, report=report)
-    options = candidate_layouts(result.to_json(problem), candidates)
+    physics, current, trials = request.physics, request.current, request.trials
+    problem = problem_with_physics(robust.load_problem(request.scenario), physics)
+    settings = request.settings or robust.psp_settings(robust.DEFAULT_SETTINGS)
+    result = robust.optimize(problem, request.budget, request.seed, settings, workers=request.workers, report=report)
+    options = candidate_layouts(result.to_json(problem), request.candidates)
     if current is not None and Path(current).is_file() and str(current).lower().endswith(".json"):
         try:
             placed = json.loads(Path(current).read_text(encoding="utf-8"))
@@ -512,9 +555,11 @@ def reoptimize(scenario_path: str, physics: str | Path | None, *, budget: int = 
 
         with open_store() as store:
             trials = store.trials(scenario=problem.scenario.name)
-    chosen = choose_layout(problem.scenario, options, profile, samples=samples, seed=seed, workers=workers,
-                           trials=trials or (), report=report)
-    path = Path(out) if out is not None else data_dir() / "layouts" / f"{result.scenario.lower()}-physics.json"
+    chosen = choose_layout(problem.scenario, options, LayoutChoiceRequest(
+        profile, samples=request.samples, seed=request.seed, trials=tuple(trials or ()), workers=request.workers),
+        report=report)
+    default = data_dir() / "layouts" / f"{result.scenario.lower()}-physics.json"
+    path = Path(request.out) if request.out is not None else default
     path.parent.mkdir(parents=True, exist_ok=True)
     path.write_text(json.dumps(chosen, indent=2) + "\n", encoding="utf-8")
     return path, result, chosen

@@ -10,18 +10,18 @@ plain numbers within default ranges too), later loops the calibrated values and 
 before its record in the loop's trials (:func:`station.services.layout_choice.choice_score`). The optimizer takes
 the physics as exact; a layout that works across the plausible physics, and has worked on the table, is the one to
 place.
-An attempt: the simulated maker places every part with the projector highlighting it, each parameter set as the guide
-says (on the sheet, with a ruler, on a laser-cut jig the maker cut first with ``jigs``, after a check:
-:meth:`drivers.sim.world.SimulatedWorld.place`), the simulated camera sees the parts as placed and
-:func:`station.services.check.check_frame` checks them, the maker applies the instructions and the camera checks again
-until every part is within its tolerance (at most ``rounds`` corrections), the world runs
-(:func:`station.services.world.run_attempt`), the station predicts the physical success of what the check measured
-(:func:`station.services.predict.predict_layout` with the check's residual error, under the loop's profile and its
-intervals; in loop 1, before any trial, under the scenario's values and uncertain ranges) and logs the trial (with the
-CHECK.json and the profile) and the attempt in one transaction. The attempt's **forecast** is that
-prediction updated by the layout's record before it, as the choice weighs it (:func:`record_forecasts`): what the
-station would tell the maker before the attempt. The **baseline** is the thesis's workflow
-in the same world: the optimizer's own loop-1 layout placed from the printed sheet (no highlight), no check, no
+An attempt is the one ``station assemble`` walks a maker through (:class:`station.services.assemble.Assembly`), on the
+simulated world: the simulated maker places every part with the projector highlighting it, each parameter set as the
+guide says (on the sheet, with a ruler, on a laser-cut jig the maker cut first with ``jigs``, after a check:
+:meth:`drivers.sim.world.SimulatedWorld.place`), the simulated camera sees the parts as placed and the check measures
+them, the maker applies the instructions and the camera checks again until every part is within its tolerance (at most
+``rounds`` corrections), the world runs (:func:`station.services.world.run_attempt`), the station predicts the physical
+success of what the check measured (:func:`station.services.predict.predict_layout` with the check's residual error,
+under the loop's profile and its intervals; in loop 1, before any trial, under the scenario's values and uncertain
+ranges) and logs the trial (with the CHECK.json and the profile) and the attempt in one transaction. The attempt's
+**forecast** is that prediction updated by the layout's record before it, as the choice weighs it
+(:func:`record_forecasts`): what the station would tell the maker before the attempt. The **baseline** is the thesis's
+workflow in the same world: the optimizer's own loop-1 layout placed from the printed sheet (no highlight), no check, no
 calibration.
 
 What it says is for a maker: every progress stage names the loop and what it does in their words ("loop 2:
@@ -50,7 +50,7 @@ import numpy as np
 
 from common.progress import Cancelled, Progress, Reporter
 from drivers.sim.world import WORLD_REVISION
-from station.errors import ServiceError
+from station.errors import ServiceError, station_errors
 from station.services.layout_choice import PREDICTION_WEIGHT, describe_choice
 from station.services.robust import simulation_cache_path
 
@@ -579,7 +579,7 @@ class _Loop:
         """The layout among ``options`` (the preferred first) surest to succeed often physically under
         ``profile`` and given its record in ``trials`` (:func:`station.services.layout_choice.choose_layout`), with
         the default placement error."""
-        from station.services.layout_choice import choose_layout
+        from station.services.layout_choice import LayoutChoiceRequest, choose_layout
 
         scored = [0, 0]  # the option being scored, of how many
 
@@ -592,10 +592,10 @@ class _Loop:
         predicting = self.report.mapped(lambda progress: labelled(
             progress, f"loop {k}: predicting candidate layout {scored[0] + 1} of {scored[1]}"))
 
-        chosen = choose_layout(self.scenario, options, profile, samples=self.settings.predict_samples,
-                               seed=_seed(world_seed, _CHOOSE, k), trials=trials,
-                               prediction_weight=self.settings.prediction_weight, report=predicting,
-                               on_option=scoring, **self.where)
+        request = LayoutChoiceRequest(profile, samples=self.settings.predict_samples,
+                                      seed=_seed(world_seed, _CHOOSE, k), trials=tuple(trials),
+                                      prediction_weight=self.settings.prediction_weight, **self.where)
+        chosen = choose_layout(self.scenario, options, request, report=predicting, on_option=scoring)
         if scored[1]:
             self.emit(f"loop {k}: choosing the layout to place", scored[1], scored[1], "chosen",
                       unit="candidate layouts")
@@ -742,6 +742,7 @@ class _Loop:
                              stored.check_rounds, (), _failed_at(self.scenario, trial.get("outcomes") or {}))
 
 
+@station_errors
 def run_loop(scenario: str, world: str, settings: LoopSettings | None = None, *, database: str | None = None,
              report: Reporter | None = None, on_start: Callable[[RunLog], None] | None = None,
              on_loop: Callable[[LoopSummary], None] | None = None,
