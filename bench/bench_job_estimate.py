@@ -10,8 +10,8 @@ with grbl-sim (:mod:`bench.grbl_firmware`), streamed by the station's driver, bo
 simulated clock, every 5 ms while a block runs, at each block's start and end): the time blocks ran, not the wall
 time (grbl-sim runs slower than the wall clock, and its host-side stalls, see :mod:`bench.grbl_firmware`, add idle
 time no AVR has). Dwells (``G4``) take their programmed time on both and are added to both. It prints, per job, the
-firmware's time, the estimate, the straight-line figure (length over feed) and the ratios; the goal is an estimate
-within 5 % of the firmware.
+firmware's time, the estimate, the same planner on the G-code as read before it runs (the ETA) and the ratios; the
+goal is an estimate within 5 % of the firmware.
 """
 
 from __future__ import annotations
@@ -177,7 +177,7 @@ def main(argv: list[str] | None = None) -> int:
     jobs = {"plot": (plot_lines, "plotter"), "cut": (cut_lines, "laser"), "raster": (raster_lines, "laser"),
             "line": (line_lines, "laser")}
     print(f"{'job':8s} {'lines':>6s} {'blocks':>6s} {'dwell s':>8s} {'firmware s':>10s} {'estimate s':>10s} "
-          f"{'ratio':>6s} {'straight s':>10s} {'ratio':>6s} {'stops':>9s} {'restarts':>8s}")
+          f"{'ratio':>6s} {'G-code s':>10s} {'ratio':>6s} {'stops':>9s} {'restarts':>8s}")
     for key in args.jobs.split(","):
         make, kind = jobs[key]
         lines = make()
@@ -193,8 +193,8 @@ def main(argv: list[str] | None = None) -> int:
         firmware = motion + dwell
         # stops: the firmware's (after the first block) against the twin's blocks from rest after the first
         print(f"{key:8s} {len(lines):6d} {verified.blocks:6d} {dwell:8.2f} {firmware:10.2f} "
-              f"{verified.estimate_s:10.2f} {verified.estimate_s / firmware:6.3f} {verified.straight_s:10.2f} "
-              f"{verified.straight_s / firmware:6.3f} {f'{stops}/{verified.from_rest - 1}':>9s} {restarts:8d}",
+              f"{verified.estimate_s:10.2f} {verified.estimate_s / firmware:6.3f} {verified.preflight_s:10.2f} "
+              f"{verified.preflight_s / firmware:6.3f} {f'{stops}/{verified.from_rest - 1}':>9s} {restarts:8d}",
               flush=True)
         if not ended.startswith("done"):
             print(f"  firmware job: {ended}")

@@ -8,8 +8,8 @@ and work offset when the station is connected to it. What the twin executed (eve
 and ended, the laser's power, whether it started from rest) gives:
 
 - the time estimate of GRBL's planner (:func:`drivers.grbl.planner.plan_times`: acceleration, junction speeds,
-  its 15-block look-ahead) plus the dwells, next to the straight-line figure (length over feed) the job's ETA uses
-  before it runs;
+  its 15-block look-ahead) plus the dwells, next to the same planner on the job's G-code as the streamer reads it
+  before it runs (its ETA: :func:`drivers.grbl.planner.line_seconds`);
 - the travels (rapid blocks) on which the laser was not dark (a machine with ``$32=0`` fires on a ``G0``);
 - the job's machine-space extent against the travel, and any alarm the twin raised.
 """
@@ -26,9 +26,9 @@ import numpy as np
 from common.progress import Progress, Reporter
 from drivers.gcode import GcodeError, interpret
 from drivers.grbl import GrblConnection, Job, JobRunner
-from drivers.grbl.planner import MotionBlock, plan_times
+from drivers.grbl.planner import MotionBlock, line_seconds, plan_times
 from drivers.profiles import MachineProfile
-from station.errors import ServiceError
+from station.errors import ServiceError, station_errors
 
 __all__ = ["JobVerification", "twin_url", "verify_job", "verify_summary"]
 
@@ -43,7 +43,7 @@ class JobVerification:
     state: str  # the twin's job result: done, refused, stopped ...
     message: str
     estimate_s: float  # GRBL's planner on the executed blocks, plus dwells
-    straight_s: float  # length over feed, no acceleration (the job's ETA before it runs)
+    preflight_s: float  # the same planner on the G-code as read before it runs (the streamer's ETA)
     twin_clock_s: float  # the twin's own clock (one speed per block)
     blocks: int
     from_rest: int  # blocks the planner started from rest (syncs: dwells, spindle changes)
@@ -68,7 +68,7 @@ class JobVerification:
     def to_dict(self) -> dict:
         return {
             "job": self.name, "state": self.state, "message": self.message, "ok": self.ok,
-            "estimate_s": self.estimate_s, "straight_s": self.straight_s, "twin_clock_s": self.twin_clock_s,
+            "estimate_s": self.estimate_s, "preflight_s": self.preflight_s, "twin_clock_s": self.twin_clock_s,
             "blocks": self.blocks, "from_rest": self.from_rest, "burn_mm": self.burn_mm,
             "travel_mm": self.travel_mm, "laser": self.laser,
             "lit_travels": [{"line": n, "block": text} for n, text in self.lit_travels],
@@ -92,6 +92,7 @@ def twin_url(profile: MachineProfile | None, laser: bool, settings: Mapping[int,
     return "sim://grbl?" + "&".join(query)
 
 
+@station_errors
 def verify_job(lines: Sequence[str], *, name: str = "job", profile: MachineProfile | None = None,
                laser: bool | None = None, settings: Mapping[int, float] | None = None,
                work_offset: Sequence[float] | None = None,
@@ -149,7 +150,6 @@ def verify_job(lines: Sequence[str], *, name: str = "job", profile: MachineProfi
     executed = [b for b in record.executed[before:] if not b.jog]
     blocks = [MotionBlock(b.start, b.end, b.rapid, b.feed, b.from_rest) for b in executed]
     planned = plan_times(blocks, twin_settings)
-    rapid_rate = min(twin_settings.get(110, 500.0), twin_settings.get(111, 500.0))
     starts = np.array([b.start for b in executed]) if executed else np.zeros((0, 3))
     ends = np.array([b.end for b in executed]) if executed else np.zeros((0, 3))
     lengths = np.linalg.norm(ends - starts, axis=1) if executed else np.zeros(0)
@@ -178,7 +178,8 @@ def verify_job(lines: Sequence[str], *, name: str = "job", profile: MachineProfi
     return JobVerification(
         name=name, state=result.state, message=result.message,
         estimate_s=planned.total + float(toolpath.dwell.sum()),
-        straight_s=float(toolpath.durations(rapid_rate=rapid_rate).sum()), twin_clock_s=float(twin_clock),
+        preflight_s=float(line_seconds(toolpath, lines, twin_settings, laser_mode=bool(twin_settings.get(32))).sum()),
+        twin_clock_s=float(twin_clock),
         blocks=len(executed), from_rest=sum(1 for b in executed if b.from_rest),
         burn_mm=float(lengths[~rapid & (power > 0)].sum()) if executed else 0.0,
         travel_mm=float(lengths[rapid].sum()) if executed else 0.0, lit_travels=lit, laser=laser_machine,
@@ -217,7 +218,8 @@ def verify_summary(done: JobVerification) -> list[str]:
     if done.blocks == 0 and done.state != "done":
         return [f"verify {done.name}: {done.state} on the twin: {done.message}"]
     lines = [f"verify {done.name}: {done.state} on the twin; about {_duration(done.estimate_s)} with acceleration "
-             f"(GRBL's planner; {_duration(done.straight_s)} at the programmed feeds), {done.blocks} blocks, "
+             f"(GRBL's planner on the blocks the twin ran; {_duration(done.preflight_s)} read from the G-code), "
+             f"{done.blocks} blocks, "
              f"{done.from_rest} from rest"]
     what = "laser on" if done.laser else "drawing"
     lines.append(f"  {done.burn_mm:.0f} mm {what}, {done.travel_mm:.0f} mm of travel")

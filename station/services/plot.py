@@ -32,6 +32,7 @@ from common.datafiles import parse_data
 from common.progress import Reporter
 from drivers.gcode import interpret
 from drivers.gcode_layers import layer_marks
+from drivers.grbl.planner import line_seconds
 from drivers.profiles import MachineProfile
 from station.errors import ServiceError
 
@@ -576,10 +577,10 @@ def layered_gcode(document: PlotDocument, profile: MachineProfile, power: float 
     return stream.getvalue(), options
 
 
-def rapid_rate(profile: MachineProfile) -> float:
-    """The rate (mm/min) G0 travels at: the slower of the X and Y max rates ($110, $111), else the profile's max."""
-    rates = [profile.grbl.get(n) for n in (110, 111) if profile.grbl.get(n)]
-    return float(min(rates)) if rates else float(profile.max_feed)
+def line_times(lines: Sequence[str], toolpath, profile: MachineProfile) -> np.ndarray:
+    """Seconds per line of a job on the profile's machine, as GRBL's planner runs it (:mod:`drivers.grbl.planner`:
+    the streamer's ETA is the same figure)."""
+    return line_seconds(toolpath, lines, profile.grbl_settings, laser_mode=profile.is_laser)
 
 
 def job_layers(lines: Sequence[str], profile: MachineProfile) -> list[LayerSummary]:
@@ -591,7 +592,7 @@ def job_layers(lines: Sequence[str], profile: MachineProfile) -> list[LayerSumma
     if not marks:
         return []
     toolpath = interpret(lines, start=(0.0, 0.0, 0.0))
-    per_line = toolpath.durations(rapid_rate=rapid_rate(profile))
+    per_line = line_times(lines, toolpath, profile)
     lengths = np.linalg.norm(toolpath.end - toolpath.start, axis=1)
     result = []
     for k, mark in enumerate(marks):
@@ -623,7 +624,7 @@ def summarize(gcode: str, document: PlotDocument, profile: MachineProfile) -> li
         layer = document.layers[0]
         toolpath = interpret(lines, start=(0.0, 0.0, 0.0))
         lengths = np.linalg.norm(toolpath.end - toolpath.start, axis=1)
-        per_line = toolpath.durations(rapid_rate=rapid_rate(profile))
+        per_line = line_times(lines, toolpath, profile)
         layers = [LayerSummary(1, layer.name, layer.pen, layer.color, 0, 0, float(lengths[~toolpath.rapid].sum()),
                                float(lengths[toolpath.rapid].sum()), float(per_line.sum()), 1, None)]
     return [replace(summary, paths=len(layer.polylines), points=int(sum(len(p) for p in layer.polylines)))
