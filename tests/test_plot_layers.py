@@ -20,8 +20,8 @@ from drivers.gcode import drawn_polylines
 from drivers.gcode_layers import layer_marks, pause_lines
 from drivers.profiles import load_profile
 from station.cli import main
-from station.commands.machines_io import _sample
 from station.services import plot as plot_service
+from station.services.machines import pattern_points as _sample
 
 ROOT = Path(__file__).resolve().parents[1]
 EXAMPLES = ROOT / "examples" / "plots"
@@ -120,7 +120,7 @@ def frame_length(layer) -> float:
 
 
 def _load_design(path, machine):
-    from station.cli_util import load_design
+    from station.services.designs import load_design
 
     return load_design(path, machine)
 

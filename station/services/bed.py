@@ -37,10 +37,11 @@ import numpy as np
 from cam.place import Placement, place_lines
 from common.progress import Progress, Reporter
 from drivers.gcode import GcodeError, interpret
-from station.errors import ServiceError
+from station.errors import ServiceError, station_errors
 
 __all__ = ["MARK_SIZES", "SIM_BED_CAMERA", "BedCalibration", "BedRegistration", "bed_camera", "bed_file",
-           "bed_picture", "calibrate_bed", "default_mark_area", "find_marks", "find_stock", "job_outline",
+           "bed_picture", "calibrate_bed", "default_mark_area", "find_marks", "find_stock", "grab_bed_frame",
+           "job_outline",
            "load_registration", "mark_positions", "marks_job", "placement_on_stock", "register_bed",
            "save_registration", "BedPlacement"]
 
@@ -269,6 +270,7 @@ def save_registration(registration: BedRegistration, laser: str) -> Path:
     return path
 
 
+@station_errors
 def load_registration(laser: str) -> BedRegistration | None:
     """The saved registration of ``laser``, None when there is none."""
     path = bed_file(laser)
@@ -301,6 +303,7 @@ def laser_device(laser: str | None = None):
     return chosen
 
 
+@station_errors
 def bed_camera(laser_name: str, laser_simulated: bool) -> tuple[str, str]:
     """``(name, url)`` of the camera over ``laser_name``'s bed (module docstring)."""
     from station.config import configured_devices
@@ -315,6 +318,7 @@ def bed_camera(laser_name: str, laser_simulated: bool) -> tuple[str, str]:
                        f"options = {{ laser = \"{laser_name}\" }}, or give --camera URL", field="camera")
 
 
+@station_errors
 def open_bed_camera(url: str, laser_connection=None):
     """The camera at ``url``, open; a simulated one sees what the simulated laser behind ``laser_connection``
     burns."""
@@ -347,6 +351,18 @@ class BedCalibration:
                 "work_offset": list(self.work_offset)}
 
 
+@station_errors
+def grab_bed_frame(laser_name: str, laser_simulated: bool, laser_connection=None) -> np.ndarray:
+    """One picture of ``laser_name``'s bed from its camera (:func:`bed_camera`, :func:`open_bed_camera`)."""
+    _, url = bed_camera(laser_name, laser_simulated)
+    camera = open_bed_camera(url, laser_connection)
+    try:
+        return camera.grab()
+    finally:
+        camera.close()
+
+
+@station_errors
 def calibrate_bed(*, laser: str | None = None, port: str | None = None, camera: str | None = None,
                   image: str | Path | np.ndarray | None = None, area: Sequence[float] | None = None,
                   engrave: bool = True, power: float = 0.3, feed: float | None = None,
@@ -563,6 +579,7 @@ def placed_outline_machine(lines: Sequence[str], placement: Placement, work_offs
 # ----------------------------------------------------------------------------------------------------------- session
 
 
+@station_errors
 @dataclass
 class BedPlacement:
     """A job being placed on the bed by camera (the Machines screen's placement): the registration, the last frame,

@@ -5,17 +5,79 @@ Used by ``station plot`` and the Machines screen's "plot the design" action.
 
 from __future__ import annotations
 
+import io
 import math
+from pathlib import Path
+from typing import Any
+
+import numpy as np
 
 from cam.plot import WriterOptions, fit_polylines, simplify_polylines, write_plot_gcode
+from design.datafiles import load_json
+from design.errors import FileFormatError
+from design.machines import get_machine
+from drivers.gcode import interpret
+from drivers.grbl.planner import line_seconds
 from drivers.profiles import MachineProfile
-from station.errors import ServiceError
+from station.errors import ServiceError, station_errors
+
+__all__ = ["job_seconds", "machine_name", "pattern_points", "plot_job", "read_pattern", "sample_pattern"]
 
 
+@station_errors
+def machine_name(name: str) -> str:
+    """The drawing machine's own name (an alias or another case resolved); an unknown one is refused naming the
+    known ones."""
+    return get_machine(name).name
+
+
+@station_errors
+def sample_pattern(machine: str, params: dict[str, Any], points: int = 4096) -> tuple[np.ndarray, dict[str, Any]]:
+    """The pattern of ``machine`` with ``params`` (checked, defaults filled in) as ``points`` samples spaced
+    evenly along it; returns the points and the full parameters."""
+    model = get_machine(machine)
+    values = model.validate(params)
+    return np.asarray(model.sample(values, n=points, spacing="arclength"), dtype=float), values
+
+
+@station_errors
+def read_pattern(path: str | Path) -> tuple[np.ndarray, dict[str, Any]]:
+    """A pattern written by ``station pattern --json``: its points and ``{"machine", "params"}``.
+
+    Raises
+    ------
+    FileFormatError
+        Naming the file first, and what is wrong in it.
+    """
+    path = Path(path)
+    expected = "the JSON of `station pattern --json` with a 'points' list"
+    document = load_json(path, expected)
+    if not isinstance(document, dict) or "points" not in document:
+        raise FileFormatError(f"{path}: expected {expected}")
+    try:
+        points = np.asarray(document["points"], dtype=float)
+    except (TypeError, ValueError):
+        raise FileFormatError(f"{path}: 'points' must be a list of [x, y] numbers") from None
+    if points.ndim != 2 or points.shape[1] != 2 or len(points) < 2 or not np.all(np.isfinite(points)):
+        raise FileFormatError(f"{path}: 'points' must be at least two finite [x, y] pairs, got shape {points.shape}")
+    return points, {"machine": document.get("machine", ""), "params": document.get("params", {})}
+
+
+def pattern_points(source) -> np.ndarray:
+    """The samples of a :class:`station.services.plot.PatternSource` (``plot(..., sample=pattern_points)``)."""
+    return sample_pattern(source.machine, source.params, source.points)[0]
+
+
+@station_errors
+def job_seconds(gcode: str, profile: MachineProfile) -> float:
+    """How long a written job takes on the profile's machine, as GRBL's planner runs it (the streamer's ETA)."""
+    lines = gcode.splitlines()
+    return float(line_seconds(interpret(lines), lines, profile.grbl_settings, laser_mode=profile.is_laser).sum())
+
+
+@station_errors
 def plot_job(polylines, profile: MachineProfile, size: float | None, tolerance: float | None, power: float = 0.3):
     """Fit, simplify and write: returns (gcode_text, fitted polylines, simplified polylines, options)."""
-    import io
-
     if profile.kind == "plotter":
         paper = profile.paper
         box = (paper.margin, paper.margin, paper.width - paper.margin, paper.height - paper.margin)

@@ -13,7 +13,9 @@ from textual.screen import Screen
 
 from station.db import open_database
 from station.devices import DeviceEntry, default_devices
+from station.joblog import JobLog
 from station.paths import database_path
+from station.services.machine_sessions import MachineSessions
 from station.tui.registry import MachineDesign, ScreenEntry, discover_screens
 from station.tui.screens.confirm_quit import ABORT_AND_QUIT, ConfirmQuitScreen
 from station.tui.screens.home import HomeScreen
@@ -48,6 +50,8 @@ class StationApp(App):
         self.devices = devices if devices is not None else default_devices()
         self.database_path = Path(database) if database is not None else database_path()
         self.database = open_database(self.database_path)
+        # the machines and their jobs: one for the app, which the Machines screen and the screens that queue jobs drive
+        self.machine_sessions = MachineSessions(JobLog.open_shared(self.database_path), source="tui")
         self.areas: list[ScreenEntry] = list(areas) if areas is not None else discover_screens()
         self._aborting_to_exit = False
         if all(d.simulated for d in self.devices):
@@ -181,4 +185,6 @@ class StationApp(App):
         self.exit(message=f"chaos-station: {message}")
 
     def on_unmount(self) -> None:
+        self.machine_sessions.close()
+        self.machine_sessions.queue.log.close()
         self.database.close()

@@ -3,7 +3,8 @@ true scale (through the bed's registration, ``station calibrate bed``), moved an
 the stock the camera finds, verified on the twin, then queued at that placement.
 
 Opened from the Machines screen with ``b`` for its next job on the selected laser. The work is
-:class:`station.services.bed.BedPlacement` and :func:`station.services.job_verify.verify_job`.
+:class:`station.services.bed.BedPlacement` and the app's machine sessions
+(:meth:`station.services.machine_sessions.MachineSessions.verify` and ``place``).
 
 Keys: arrows move the job by the step, [ ] change the step, , . turn it by the turn step (< > by 15 degrees),
 s snap it onto the stock, g grab a new frame, k register the bed now (engraves four marks on scrap), v verify on
@@ -23,13 +24,9 @@ from textual.message import Message
 from textual.screen import Screen
 from textual.widgets import Footer, Header, Static
 
-from drivers.errors import DriverError
-from drivers.gcode import GcodeError
-from drivers.grbl import Job
-from station.errors import StationError
+from station.errors import USER_ERRORS, StationError
 from station.services import bed as bed_service
-from station.services.job_queue import JobState
-from station.services.job_verify import verify_job, verify_summary
+from station.services.machine_sessions import verify_summary
 from station.tui.widgets.picture import HalfBlockPicture
 
 __all__ = ["BedPlacementScreen", "MOVE_STEPS"]
@@ -114,7 +111,7 @@ class BedPlacementScreen(Screen):
         try:
             self.session = bed_service.BedPlacement(registration, list(self.entry.job.lines), wco,
                                                     travel=((lo[0], lo[1]), (hi[0], hi[1])))
-        except GcodeError as error:
+        except USER_ERRORS as error:
             self._say(f"this job cannot be placed: {error}", "red")
             return
         self._grab()
@@ -124,13 +121,8 @@ class BedPlacementScreen(Screen):
     @work(thread=True, exclusive=True, group="bed-camera")
     def _grab(self) -> None:
         try:
-            _, url = bed_service.bed_camera(self.device.name, self.device.simulated)
-            camera = bed_service.open_bed_camera(url, self.connection)
-            try:
-                frame = camera.grab()
-            finally:
-                camera.close()
-        except (DriverError, StationError, OSError) as error:
+            frame = bed_service.grab_bed_frame(self.device.name, self.device.simulated, self.connection)
+        except USER_ERRORS as error:
             self.post_message(self.Grabbed(None, str(error)))
             return
         self.post_message(self.Grabbed(frame))
@@ -196,7 +188,7 @@ class BedPlacementScreen(Screen):
         self.post_message(self.Said("engraving four registration marks and registering the bed..."))
         try:
             done = bed_service.calibrate_bed(laser=self.device.name, connection=self.connection)
-        except (DriverError, StationError, OSError) as error:
+        except USER_ERRORS as error:
             self.post_message(self.Said(f"bed registration failed: {error}", "red"))
             return
         self.note = " ".join(bed_service.bed_summary(done)[:1])
@@ -209,10 +201,9 @@ class BedPlacementScreen(Screen):
         self.post_message(self.Said("running the placed job on the twin..."))
         try:
             lines = self.session.placed_lines()
-            settings = {k: float(v) for k, v in self.connection.settings.items() if isinstance(k, int)}
-            done = verify_job(lines, name=self.entry.title, profile=self.profile, laser=True, settings=settings,
-                              work_offset=self.connection.work_offset())
-        except (GcodeError, DriverError, StationError, OSError) as error:
+            done = self.machines.sessions.verify(self.device.name, lines, title=self.entry.title,
+                                                 profile=self.profile, laser=True)
+        except USER_ERRORS as error:
             self.post_message(self.Said(f"cannot verify: {error}", "red"))
             return
         self.note = " · ".join(line.strip() for line in verify_summary(done))
@@ -234,18 +225,15 @@ class BedPlacementScreen(Screen):
         p = self.session.placement
         try:
             lines = self.session.placed_lines()
-        except GcodeError as error:
+        except USER_ERRORS as error:
             self._say(f"cannot place this job: {error}", "red")
             return
         title = f"{self.entry.title.split(' @ ')[0]} @ {p.x:.1f},{p.y:.1f},{p.angle:.1f}"
-        if self.entry.state is JobState.QUEUED:
-            # the job itself moves: the unplaced one must not be sent by the next g
-            self.entry.job = Job(self.entry.job.name, lines, laser=self.entry.job.laser, pen_up=self.entry.job.pen_up)
-            self.entry.title = title
-            self.machines._refresh_queue()
-            self.machines._show_preview(self.entry)
-        else:  # sent before (framed, checked, stopped): the placed one is a new job
-            self.machines.queue_job(self.device.name, "\n".join(lines) + "\n", title, laser=True)
+        # queued: the job itself moves (the unplaced one must not be sent by the next g); sent before (framed,
+        # checked, stopped): the placed one is a new job
+        placed = self.machines.sessions.place(self.entry, lines, title)
+        self.machines._refresh_queue()
+        self.machines._show_preview(placed)
         self.app.pop_screen()
 
     def action_close(self) -> None:
@@ -277,7 +265,6 @@ def verify_next_job(machines) -> None:
     if device is None or entry is None:
         machines._say("no queued job for this device to verify")
         return
-    conn = machines.connection()
     try:
         profile = machines.profile_for(device)
     except StationError as error:
@@ -286,12 +273,10 @@ def verify_next_job(machines) -> None:
     machines._say(f"running {entry.title!r} on the twin of {device.name}...")
 
     def run() -> None:
-        settings = ({k: float(v) for k, v in conn.settings.items() if isinstance(k, int)}
-                    if conn is not None else None)
         try:
-            done = verify_job(entry.job.lines, name=entry.title, profile=profile, laser=entry.job.laser,
-                              settings=settings, work_offset=conn.work_offset() if conn is not None else None)
-        except (DriverError, StationError, OSError) as error:
+            done = machines.sessions.verify(device.name, entry.job.lines, title=entry.title, profile=profile,
+                                            laser=entry.job.laser)
+        except USER_ERRORS as error:
             machines.app.call_from_thread(machines._say, f"cannot verify {entry.title!r}: {error}", "red")
             return
         text = " · ".join(line.strip() for line in verify_summary(done))
