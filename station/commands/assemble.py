@@ -15,7 +15,7 @@ from station.errors import ServiceError, UsageError
 from station.services.reporting import Cancelled, Reporter
 
 FLAGS = {"world": "--world", "camera": "--camera", "physics": "--physics", "samples": "--samples",
-         "attempt": "--attempt", "seed": "--seed"}
+         "attempt": "--attempt", "seed": "--seed", "projector": "--projector"}
 #: What a maker may answer for an event, and the outcome word it stands for.
 ANSWERS = {"y": "yes", "yes": "yes", "n": "no", "no": "no", "u": "not-reached", "not-reached": "not-reached",
            "not reached": "not-reached"}
@@ -127,11 +127,9 @@ def attempt_json(assembly) -> dict:
 
 
 def _open_projector(url: str | None):
-    from station.devices import DeviceEntry
-    from station.services.projectors import configured_projector, open_projector
+    from station.services.projectors import open_projector, projector_device
 
-    device = configured_projector() if url is None else DeviceEntry("projector", "projector", url,
-                                                                     url.startswith("sim://"))
+    device = projector_device(url)  # None: the configured one
     if device is None:
         raise UsageError("--project: no projector configured (add one to station.toml, or give --projector URL)")
     context = open_projector(device)
@@ -176,9 +174,6 @@ def _forecast(assembly, out) -> None:
 
 
 def _walk(assembly, args, out) -> None:
-    from station.paths import data_dir
-    from station.services.guide import export_name
-
     job = assembly.job
     world = f"world {args.world} (a simulated maker places and runs)" if assembly.world is not None else \
         "a real table (you place, run and say)"
@@ -192,9 +187,7 @@ def _walk(assembly, args, out) -> None:
     _forecast(assembly, out)
     # -- guide
     if not args.project:
-        path = args.sheet or str(data_dir() / "guides" / f"{export_name(job)}.pdf")
-        os.makedirs(os.path.dirname(os.path.abspath(path)), exist_ok=True)
-        assembly.write_sheet(path)
+        path = assembly.write_sheet(args.sheet or None)  # --sheet alone: the data folder's guides/
         out.write(f"wrote the guide sheets to {path} (print at 100 %; check the 100 mm bar)\n")
     step = 1
     keys = {"": "next", "n": "next", "p": "previous", "s": "skip"}
@@ -270,13 +263,11 @@ def _check_loop(assembly, args, out) -> None:
 
 def _answers(assembly, out) -> None:
     """Ask each event's outcome in the graph's order, skipping those the answers so far imply."""
-    from station.trialformat import resolve_outcomes
-
     scenario = assembly.scenario
     given: dict[str, str] = {}
     event = None
     while True:
-        outcomes, problems = resolve_outcomes(scenario, given)
+        outcomes, problems = assembly.resolve(given)
         # an answer the graph cannot have (a "yes" after a "no"): said, and the event asked again (an event still
         # to be said is a "problem" too, but not one of the answers)
         wrong = [p for p in problems if p.field.partition(".")[2] in given]

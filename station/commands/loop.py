@@ -162,9 +162,7 @@ def loop_lines(summary) -> list[str]:
 
 def baseline_lines(result) -> list[str]:
     """The baseline's figures in short lines."""
-    from calibration.sim_runs import wilson_interval
-
-    lo, hi = wilson_interval(result.baseline_successes, result.baseline_attempts)
+    lo, hi = result.baseline_interval
     return wrapped([f"baseline: {result.baseline_successes} of {result.baseline_attempts} attempts succeeded: "
                     f"success rate {result.baseline_rate:.2f} (95 % {lo:.2f} to {hi:.2f})",
                     "  the thesis's workflow: the optimized layout placed from the printed sheet, no check, no "

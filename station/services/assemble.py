@@ -182,12 +182,16 @@ class Assembly:
         if self.projector is not None:
             show_step(self.job, self.projector, step)
 
-    def write_sheet(self, pdf: str | Path, paper: str = "a4") -> Path:
-        """Write the 1:1 PDF sheet set with the steps (print at 100 %)."""
-        from station.services.guide import export_guide
+    def write_sheet(self, pdf: str | Path | None = None, paper: str = "a4") -> Path:
+        """Write the 1:1 PDF sheet set with the steps (print at 100 %) to ``pdf`` (default: the data folder's
+        ``guides/``, named by the scenario, the layout and a hash of its values); returns where."""
+        from station.paths import data_dir
+        from station.services.guide import export_guide, export_name
 
-        self.job = export_guide(self.job, pdf=pdf, paper=paper)
-        return Path(pdf)
+        path = Path(pdf) if pdf else data_dir() / "guides" / f"{export_name(self.job)}.pdf"
+        path.parent.mkdir(parents=True, exist_ok=True)
+        self.job = export_guide(self.job, pdf=path, paper=paper)
+        return path
 
     def placed(self) -> None:
         """The maker has placed the parts (a simulated world places them now, each with the maker's error)."""
@@ -276,6 +280,14 @@ class Assembly:
         result = run_attempt(self.job.scenario, self.job.layout.x, self.job.guide, self.world)
         self.answer(result.outcomes, result.times)
         return result
+
+    def resolve(self, given: Mapping[str, str]):
+        """What ``given`` outcomes imply for every event, and the problems left
+        (:func:`station.trialformat.resolve_outcomes`): ``(outcomes, problems)``, an event still to be said is
+        None."""
+        from station.trialformat import resolve_outcomes
+
+        return resolve_outcomes(self.scenario, given)
 
     def answer(self, outcomes: Mapping[str, str], times: Mapping[str, float] | None = None) -> dict[str, str]:
         """What happened to each event (the implied ones may be left out); every event's outcome after that.

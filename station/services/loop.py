@@ -242,6 +242,13 @@ class LoopResult:
     def baseline_rate(self) -> float | None:
         return self.baseline_successes / self.baseline_attempts if self.baseline_attempts else None
 
+    @property
+    def baseline_interval(self) -> tuple[float, float]:
+        """Wilson's 95 % interval of the baseline's success rate."""
+        from calibration.sim_runs import wilson_interval
+
+        return wilson_interval(self.baseline_successes, self.baseline_attempts)
+
     def to_json(self) -> dict[str, Any]:
         """Exactly the contract's ``station loop --json`` (``jigs``: the loop attempts used the laser-cut jigs)."""
         return {"loops": [s.to_json() for s in self.loops],
