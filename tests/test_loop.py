@@ -436,7 +436,7 @@ def test_candidates_are_the_kept_layout_then_working_runners_up_best_first():
 def test_the_layout_placed_is_the_one_predicted_to_succeed_most_often(monkeypatch):
     """choose_layout scores every option by its physical prediction and keeps the best, recording the scores."""
     from station.services import predict as predicting
-    from station.services.layout_choice import candidate_layouts, choose_layout
+    from station.services.layout_choice import LayoutChoiceRequest, candidate_layouts, choose_layout
 
     scores = iter([0.4, 0.9, 0.9])
     seen = []
@@ -446,13 +446,14 @@ def test_the_layout_placed_is_the_one_predicted_to_succeed_most_often(monkeypatc
             seen.append(seed)
             self.probability = next(scores)
 
-    monkeypatch.setattr(predicting, "predict_layout", lambda *a, seed, **k: Result(seed))
+    monkeypatch.setattr(predicting, "predict_layout", lambda scenario, x, request, **k: Result(request.seed))
     monkeypatch.setattr("design.contraption.layout_io.layout_from_data",
                         lambda data, scenario, file: type("L", (), {"x": [0.0, 0.0]})())
     rows = [{"u": [0.1, 0.2], "local_success_rate": 0.4, "kept": False},
             {"u": [0.7, 0.25], "local_success_rate": 0.8, "kept": False}]
     options = candidate_layouts(_payload([0.5, 0.5], rows), 3)
-    chosen = choose_layout(None, options + [options[0]], None, samples=5, seed=7)  # the repeat is dropped
+    # the repeat is dropped
+    chosen = choose_layout(None, options + [options[0]], LayoutChoiceRequest(samples=5, seed=7))
     assert chosen["candidate"] == 1  # 0.9 beats 0.4; of the two 0.9s the first is kept
     assert chosen["physical_choice"] == {"chosen": 1, "predicted_physical_success": [0.4, 0.9, 0.9],
                                          "record": [[0, 0]] * 3, "prediction_weight": 4.0,
@@ -460,7 +461,7 @@ def test_the_layout_placed_is_the_one_predicted_to_succeed_most_often(monkeypatc
                                          "lower_quartile": pytest.approx([0.2234, 0.8587, 0.8587], abs=1e-4),
                                          "samples": 5}
     assert seen == [7, 7, 7]  # every option meets the same draws
-    assert choose_layout(None, [options[0]], None) is options[0]  # nothing to choose: nothing simulated
+    assert choose_layout(None, [options[0]]) is options[0]  # nothing to choose: nothing simulated
 
 
 @pytest.mark.parametrize(("predicted", "record", "weight", "expected"), [
@@ -506,7 +507,7 @@ def test_a_layout_that_worked_on_the_table_is_kept_over_one_only_simulated_bette
     """A placed layout's trials (matched by its values) update its prediction: 5/5 at 0.56 beats a new 0.75, 0/5 at
     0.9 loses to it; the record and the expected successes are in the choice."""
     from station.services import predict as predicting
-    from station.services.layout_choice import candidate_layouts, choose_layout, layout_records
+    from station.services.layout_choice import LayoutChoiceRequest, candidate_layouts, choose_layout, layout_records
 
     monkeypatch.setattr("design.contraption.layout_io.layout_from_data",
                         lambda data, scenario, file: type("L", (), {"x": [0.0, 0.0]})())
@@ -522,13 +523,13 @@ def test_a_layout_that_worked_on_the_table_is_kept_over_one_only_simulated_bette
         scores = iter(predictions)
         monkeypatch.setattr(predicting, "predict_layout",
                             lambda *a, scores=scores, **k: type("R", (), {"probability": next(scores)})())
-        chosen = choose_layout(None, [placed, new], None, samples=5, trials=trials)
+        chosen = choose_layout(None, [placed, new], LayoutChoiceRequest(samples=5, trials=tuple(trials)))
         choice = chosen["physical_choice"]
         assert choice["chosen"] == winner, choice
         assert choice["record"][0][1] == 5 and choice["record"][1] == [0, 0]
         assert choice["expected_success"][1] == pytest.approx(0.75)
     with pytest.raises(ValueError, match="prediction_weight"):
-        choose_layout(None, [placed, new], None, prediction_weight=0)
+        LayoutChoiceRequest(prediction_weight=0)
 
 
 @pytest.mark.parametrize(("predicted", "record", "expected"), [
@@ -553,7 +554,7 @@ def test_a_near_tie_goes_to_the_layout_with_a_record_and_a_clear_win_to_the_high
     """The loop's world-3 case: 4 of 5 at 0.81 (expected 0.804) against a new 0.8125 keeps the placed layout; a new
     0.95 beats it; a placed layout that failed 3 of 5 at 0.6 loses to a new 0.75."""
     from station.services import predict as predicting
-    from station.services.layout_choice import candidate_layouts, choose_layout
+    from station.services.layout_choice import LayoutChoiceRequest, candidate_layouts, choose_layout
 
     monkeypatch.setattr("design.contraption.layout_io.layout_from_data",
                         lambda data, scenario, file: type("L", (), {"x": [0.0, 0.0]})())
@@ -567,7 +568,8 @@ def test_a_near_tie_goes_to_the_layout_with_a_record_and_a_clear_win_to_the_high
         scores = iter(predictions)
         monkeypatch.setattr(predicting, "predict_layout",
                             lambda *a, scores=scores, **k: type("R", (), {"probability": next(scores)})())
-        choice = choose_layout(None, [placed, new], None, samples=16, trials=trials)["physical_choice"]
+        request = LayoutChoiceRequest(samples=16, trials=tuple(trials))
+        choice = choose_layout(None, [placed, new], request)["physical_choice"]
         assert choice["chosen"] == winner, choice
     assert choice["expected_success"][0] == pytest.approx((2.4 + 2) / 9)
 

@@ -75,7 +75,6 @@ def run_calibrate_sim(args) -> int:
 
 
 def _calibrate_sim(args) -> int:
-    from calibration.sim_fit import FitSettings
     from station.services import sim_calibration as service
     from station.services.contraption import open_scenario
     from station.services.robust import check_seed
@@ -96,8 +95,8 @@ def _calibrate_sim(args) -> int:
     else:
         raise UsageError("--trials-json EXPORT.json is required (this station has no trial log wired in)")
     result = service.calibrate_sim(scenarios, trials, params=params, n_trials=args.trials,
-                                   settings=FitSettings(draws=args.draws, seed=args.seed,
-                                                        prior_width=args.prior_width or None),
+                                   settings=service.FitSettings(draws=args.draws, seed=args.seed,
+                                                                prior_width=args.prior_width or None),
                                    source=source, every_material=args.all_materials, **_where(args))
     args.bar.close()
     if args.out is not None:

@@ -5,13 +5,20 @@ from __future__ import annotations
 import argparse
 import sys
 
-from design.contraption.catalog import example_names
-from design.contraption.layout_io import LoadedLayout
-from design.contraption.scenario import Scenario
 from station.cli_util import add_physics_option, check_output_file, emit_json
 from station.errors import UsageError
 from station.progress_view import ProgressView
-from station.services.contraption import choose_layout, open_scenario, render, scenario_summary, simulate
+from station.services.contraption import (
+    LoadedLayout,
+    Scenario,
+    choose_layout,
+    example_names,
+    open_scenario,
+    render,
+    scenario_summary,
+    simulate,
+)
+from station.services.reporting import Reporter
 
 
 def register(subparsers) -> None:
@@ -106,7 +113,7 @@ def run_simulate(args) -> int:
     report_physics(scenario)
     with ProgressView(describe=lambda progress: progress.message) as view:
         outcome = simulate(scenario, layout.x, early_stop=not args.no_early_stop, record=bool(args.render),
-                           progress=view)
+                           report=Reporter(view))
     if not outcome.valid:
         if args.json:
             emit_json(outcome.to_dict(layout))

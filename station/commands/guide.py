@@ -153,11 +153,10 @@ def _print_summary(job, pdf, svg) -> None:
         rows = max((int(p.label[1:]) for p in pages), default=0)
         print(f"wrote {pdf}: {len(pages)} sheets ({columns} x {rows}) of {pages[0].paper if pages else '?'} and a "
               "page of parts, steps and tolerances; check that the scale bar measures 100 mm")
-        from projector.board import side_board
-        from station.services.guide import board_pdf_path, reads_side
+        from station.services.guide import board_pdf_path, board_words
 
-        board = side_board(guide)
-        if board is not None and reads_side(guide):
-            print(f"wrote {board_pdf_path(pdf)}: the side camera's board sheet ({board.words()})")
+        words = board_words(guide)
+        if words is not None:
+            print(f"wrote {board_pdf_path(pdf)}: the side camera's board sheet ({words})")
     if svg is not None:
         print(f"wrote {svg}")

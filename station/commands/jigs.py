@@ -65,16 +65,16 @@ def register(subparsers) -> None:
 
 
 def run_jigs(args) -> int:
-    from drivers.profiles import load_profile
     from station.commands.fabricate import parse_sheet
     from station.progress_view import ProgressView
+    from station.services import jig_plan
     from station.services import jigs as service
 
     sheet = parse_sheet(args.sheet) if args.sheet is not None else None
-    options = service.JigOptions(profile=load_profile(args.profile), material=args.material, kerf=args.kerf,
+    options = jig_plan.JigOptions(profile=args.profile, material=args.material, kerf=args.kerf,
                                  sheet=sheet, gap=args.gap)
     try:
-        service.check_options(options)  # a material the profile lacks, a kerf or gap out of range: before any work
+        jig_plan.check_options(options)  # a material the profile lacks, a kerf or gap out of range: before any work
     except ServiceError as error:
         raise flag_error(error) from None
     out = check_output_folder(args.out, "--out", "jigs.svg, jigs.gcode, jigs.json, sheet.png and a picture of "

@@ -21,7 +21,6 @@ from typing import TextIO
 import numpy as np
 
 from common.progress import Progress as BaseProgress
-from design.robust.settings import METHODS, RobustnessSettings
 from station.cli_util import NON_NEGATIVE, add_physics_option, check_output_file, emit_json
 from station.errors import ServiceError, UsageError
 from station.progress_view import ProgressView
@@ -30,8 +29,11 @@ from station.services.reporting import Cancelled, Reporter
 from station.services.robust import (  # noqa: F401 - re-exported: the work lives in the service
     DEFAULT_BUDGET,
     DEFAULT_SETTINGS,
+    METHODS,
     SETTINGS_CHOICES,
+    RobustnessSettings,
     StopRequest,
+    plot_robustness,
     read_layout,
     simulation_cache_path,
     thesis_budget,
@@ -406,7 +408,6 @@ def _print_verification(result) -> None:
 
 @command
 def run_robustness(args) -> int:
-    from design.robust.plot import plot_robustness
     from station.commands.contraption import report_layout
 
     service.check_seed(args.seed)
@@ -453,8 +454,6 @@ def run_robustness(args) -> int:
 
 @command
 def run_compare(args) -> int:
-    from design.robust.plot import plot_robustness
-
     methods = service.parse_methods(args.methods)
     service.check_seed(args.seed)
     service.check_count(args.runs, "runs")
@@ -466,10 +465,12 @@ def run_compare(args) -> int:
     problem = _problem(args)
     budget = default_budget(problem, args.budget)
     bar = args.bar
+    request = service.ComparisonRequest(budget, psp_settings(args.settings), tuple(methods), args.runs, args.seed,
+                                        robustness, workers=args.workers, scheduler=args.scheduler)
     comparison = service.compare(
-        problem, methods, args.runs, budget, args.seed, psp_settings(args.settings), robustness,
+        problem, request, report=_where(args)["report"],
         on_run=lambda run: bar.note(f"{run.method} seed {run.seed}: rho_g {run.curve.global_robustness:.3f}, "
-                                    f"{run.n_simulations} simulations, {run.seconds:.1f} s"), **_where(args))
+                                    f"{run.n_simulations} simulations, {run.seconds:.1f} s"))
     bar.close()
     rows = comparison.table()
     if args.plot is not None:

@@ -8,12 +8,12 @@ from __future__ import annotations
 
 import sys
 
-from design.robust.tolerance import CARE_RULE, RATIO
 from station.cli_util import emit_json
 from station.commands.robust import add_command, add_workers, command
 from station.errors import UsageError
 from station.services import tolerances as service
 from station.services.reporting import Reporter
+from station.services.tolerances import CARE_RULE, RATIO
 
 JSON_SHAPE = (
     '--json prints {"scenario", "layout": {source, format, name, defaulted, warnings}, "verify": N, '

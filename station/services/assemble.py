@@ -28,10 +28,14 @@ from typing import Any
 import numpy as np
 
 from common.progress import Reporter
+from projector.overlay import misplaced
 from station.errors import ServiceError, station_errors
+from station.paths import data_dir
+from station.services.guide import export_name
 from station.services.outlook import success_headline
 
-__all__ = ["STAGES", "Assembly", "Forecast", "calibrate_from_log", "open_assembly", "reoptimize"]
+__all__ = ["STAGES", "Assembly", "Forecast", "calibrate_from_log", "guide_files", "jigs_folder", "misplaced",
+           "open_assembly", "reoptimize"]
 
 #: The stages of an attempt, in order.
 STAGES = ("guide", "check", "run", "log", "done")
@@ -159,8 +163,6 @@ class Assembly:
     @property
     def within_tolerance(self) -> bool:
         """Whether the last check found every tagged part and none out of its tolerance."""
-        from projector.overlay import misplaced
-
         report = self.check.report if self.check is not None else None
         return (report is not None and report.plane is not None and not report.missing_tags
                 and not any(misplaced(p) for p in report.parts))
@@ -185,10 +187,9 @@ class Assembly:
     def write_sheet(self, pdf: str | Path | None = None, paper: str = "a4") -> Path:
         """Write the 1:1 PDF sheet set with the steps (print at 100 %) to ``pdf`` (default: the data folder's
         ``guides/``, named by the scenario, the layout and a hash of its values); returns where."""
-        from station.paths import data_dir
-        from station.services.guide import export_guide, export_name
+        from station.services.guide import export_guide
 
-        path = Path(pdf) if pdf else data_dir() / "guides" / f"{export_name(self.job)}.pdf"
+        path = Path(pdf) if pdf else guide_files(self.job)[0]
         path.parent.mkdir(parents=True, exist_ok=True)
         self.job = export_guide(self.job, pdf=path, paper=paper)
         return path
@@ -205,6 +206,15 @@ class Assembly:
         self.stage = "check"
 
     # -- check ------------------------------------------------------------------------------------------------------
+    def check_placed(self, *, fix: bool = False, report: Reporter | None = None):
+        """Check the parts as they stand: placed first when they are not yet (:meth:`placed`), and with ``fix``
+        moved first as the last check said (:meth:`fix`). Returns the check (:meth:`check_parts`)."""
+        if self.stage == "guide":
+            self.placed()
+        if fix:
+            self.fix()
+        return self.check_parts(report)
+
     def check_parts(self, report: Reporter | None = None, *, seed: int | None = None):
         """Grab a frame from the camera and check the parts as they stand (a simulated camera sees the world's
         parts where the simulated maker put them, or the guide's tags at their designed poses without a world).
@@ -446,6 +456,21 @@ def open_assembly(scenario: str, layout: str | None, *, view: str | None = None,
     return Assembly(job, trial_scenario, camera=camera, world=opened_world, projector=projector,
                     physics=None if physics is None else str(physics), attempt=attempt, samples=samples, seed=seed,
                     workers=workers, record=record, _profile=profile)
+
+
+@station_errors
+def guide_files(job) -> tuple[Path, Path]:
+    """Where the guide of ``job`` is written unless told: the data folder's ``guides/``, a PDF and an SVG named by the
+    scenario, the layout and a hash of its values (:func:`station.services.guide.export_name`), so that one layout's
+    export never replaces another's."""
+    stem = data_dir() / "guides" / export_name(job)
+    return Path(f"{stem}.pdf"), Path(f"{stem}.svg")
+
+
+@station_errors
+def jigs_folder(job) -> Path:
+    """Where the laser-cut jigs of ``job``'s layout are written: the data folder's ``jigs/``, named as the guide."""
+    return data_dir() / "jigs" / export_name(job)
 
 
 def _layout_record(scenario, x, trials) -> tuple[int, int]:

@@ -21,8 +21,9 @@ import numpy as np
 
 from common.progress import Reporter
 from station.errors import ServiceError, station_errors
-from station.services.check_scene import parse_offset, sim_scene
+from station.services.check_scene import aim_camera, parse_offset, sim_scene, twin_intrinsics
 from station.services.guide_manifest import read_manifest
+from station.services.images import load_image
 
 __all__ = ["CheckJob", "apply_manifest", "camera_frame", "camera_overlay", "check_frame", "check_measurement",
            "grab_frame", "load_image", "overlay_frame", "parse_offset", "prepare_check",
@@ -175,61 +176,6 @@ def _same_scenario(manifest: Mapping, name: str, content_hash: str, source: str)
 
 # -- the frame --------------------------------------------------------------------------------------------------------
 @station_errors
-def load_image(path: str | Path) -> np.ndarray:
-    """A camera frame from a file (PNG, JPEG...) as RGB uint8; a ServiceError naming ``image`` otherwise (also for a
-    frame of a size :func:`vision.detection.frame_size_problem` refuses, found from the header before decoding)."""
-    from PIL import Image, UnidentifiedImageError
-
-    try:
-        with Image.open(path) as picture:
-            check_frame_size(path, picture.size, "image")
-            return np.asarray(picture.convert("RGB"))
-    except FileNotFoundError:
-        raise ServiceError(f"image {path}: no such file", field="image", value=str(path)) from None
-    except Image.DecompressionBombError:
-        raise _too_large(path, "image") from None
-    except (OSError, UnidentifiedImageError) as error:
-        raise ServiceError(f"image {path}: not an image the station can read ({error})", field="image",
-                           value=str(path)) from None
-
-
-@station_errors
-def check_image_file(path: str | Path, field: str) -> None:
-    """Refuse an image file whose header gives a frame size :func:`vision.detection.frame_size_problem` refuses,
-    before a reader decodes it; a file Pillow cannot read is left to the caller's reader."""
-    from PIL import Image, UnidentifiedImageError
-
-    try:
-        with Image.open(path) as picture:
-            size = picture.size
-    except Image.DecompressionBombError:
-        raise _too_large(path, field) from None
-    except (OSError, UnidentifiedImageError):
-        return
-    check_frame_size(path, size, field)
-
-
-@station_errors
-def check_frame_size(path: str | Path, size: tuple[int, int], field: str) -> None:
-    """A ServiceError naming ``field`` and the file when a frame of ``size`` (width, height) cannot be checked."""
-    from vision.detection import frame_size_problem
-
-    problem = frame_size_problem(*size)
-    if problem is not None:
-        raise ServiceError(f"{field} {path}: {problem}", field=field, value=str(path))
-
-
-def _too_large(path: str | Path, field: str) -> ServiceError:
-    from PIL import Image
-
-    from vision.detection import MAX_FRAME_PIXELS
-
-    return ServiceError(f"{field} {path}: over {2 * Image.MAX_IMAGE_PIXELS / 1e6:.0f} MP, too large; expected at most "
-                        f"{MAX_FRAME_PIXELS / 1e6:.0f} megapixels (a camera frame or a phone photo)", field=field,
-                        value=str(path))
-
-
-@station_errors
 def grab_frame(url: str, guide, *, offsets=None, occluded: Sequence[int] = (), scene=None, seed: int | None = None):
     """One frame from the camera at ``url``, and the intrinsics it knows of itself (a simulated camera's own; None
     for a real camera, which needs its calibration). A simulated camera is handed ``scene`` first (a simulated
@@ -257,11 +203,11 @@ def grab_frame(url: str, guide, *, offsets=None, occluded: Sequence[int] = (), s
         if simulated:
             camera.set_scene(scene if scene is not None else sim_scene(guide, offsets, occluded=occluded))
             if "target=" not in url:
-                _aim(camera, guide)
+                aim_camera(camera, guide)
             if seed is not None and "seed=" not in url:
                 camera.options = replace(camera.options, seed=int(seed) % 2**32)
         image = np.asarray(camera.grab())
-        intrinsics = _twin_intrinsics(camera, url) if simulated else None
+        intrinsics = twin_intrinsics(camera, url) if simulated else None
     finally:
         camera.close()
     return image, intrinsics
@@ -318,31 +264,6 @@ def remember_plane(name: str, check: CheckJob) -> None:
             calibrate.save_plane(_plane_name(name, check.guide_job.guide), check.measurement.plane)
         except OSError:
             pass  # the check stands without it; only the next "moved" report is lost
-
-
-def _aim(camera, guide) -> None:
-    """Move a simulated camera told no ``target`` in the plane so that its optical axis meets the guide's middle
-    (as a maker sets the camera up over the sheets): the camera translated by d, ``t' = t - R d``."""
-    import cv2
-
-    model = camera.camera_model
-    u0, v0, u1, v1 = guide.extent_mm
-    rotation = cv2.Rodrigues(np.asarray(model.rvec, dtype=float))[0]
-    axis = rotation.T @ np.array([0.0, 0.0, 1.0])  # the optical axis in plane coordinates
-    centre = np.asarray(model.centre_mm, dtype=float)
-    if abs(axis[2]) < 1e-9:
-        return
-    hit = centre - centre[2] / axis[2] * axis  # where the optical axis meets the plane now
-    shift = np.array([(u0 + u1) / 2 - hit[0], (v0 + v1) / 2 - hit[1], 0.0])
-    camera.place(replace(model, tvec=np.asarray(model.tvec, dtype=float) - rotation @ shift))
-
-
-def _twin_intrinsics(camera, url: str):
-    from calibration.intrinsics import CameraIntrinsics
-
-    model = camera.camera_model
-    return CameraIntrinsics(np.asarray(model.camera_matrix, float), np.asarray(model.dist_coeffs, float),
-                            tuple(int(v) for v in model.image_size), name=f"{url} (the simulated camera's own)")
 
 
 # -- the check --------------------------------------------------------------------------------------------------------
@@ -472,13 +393,13 @@ def check_measurement(job, measurement, image: np.ndarray, intrinsics, *, simula
             problem = contraption_problem(scenario)
         simulated = _simulate(problem, built, residual, simulate, seed, report)
     if predict:
-        from station.services.predict import predict_layout
+        from station.services.predict import PredictionRequest, predict_layout
 
         check_count(predict, "predict")
-        physical = predict_layout(scenario, built.unclipped, profile=physics,
-                                  position_sigma_m=max(residual["position_mm"], 0.1) / 1000.0,
-                                  angle_sigma_deg=max(residual["heading_deg"], 0.1), unmeasured=built.not_measured,
-                                  samples=predict, seed=seed, report=report)
+        request = PredictionRequest(physics, position_sigma_m=max(residual["position_mm"], 0.1) / 1000.0,
+                                    angle_sigma_deg=max(residual["heading_deg"], 0.1),
+                                    unmeasured=tuple(built.not_measured), samples=predict, seed=seed)
+        physical = predict_layout(scenario, built.unclipped, request, report=report)
     # a misplaced part no design parameter places: the simulations put it where the guide does, and say so
     from projector.overlay import misplaced
     from station.services.outlook import disagreement

@@ -14,7 +14,8 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from common.progress import ProgressCallback, Reporter
+from common.progress import Reporter
+from design.contraption.catalog import example_names as catalog_examples
 from design.contraption.catalog import resolve_scenario_path
 from design.contraption.layout_io import LoadedLayout, default_layout, resolve_layout, values_layout
 from design.contraption.scenario import Scenario, load_scenario
@@ -26,6 +27,12 @@ if TYPE_CHECKING:  # pybullet loads only when something is simulated
 
 #: Called after each change of the events' states: simulated time, every event's state, the world (to draw it).
 StateCallback = Callable[[float, dict[str, str], "World"], None]
+
+
+@station_errors
+def example_names() -> list[str]:
+    """The scenarios shipped as examples: a face may name one instead of a file."""
+    return catalog_examples()
 
 
 @station_errors
@@ -108,7 +115,7 @@ class SimulationOutcome:
 
 @station_errors
 def simulate(scenario: Scenario, x: np.ndarray, *, early_stop: bool = True, record: bool = False,
-             on_change: StateCallback | None = None, progress: Reporter | ProgressCallback | None = None,
+             on_change: StateCallback | None = None, report: Reporter | None = None,
              client=None) -> SimulationOutcome:
     """Check a layout's physical validity, then simulate it under the causal graph.
 
@@ -122,14 +129,14 @@ def simulate(scenario: Scenario, x: np.ndarray, *, early_stop: bool = True, reco
         Keep the start and end states (for :func:`render` or a picture of the end).
     on_change : callable, optional
         ``on_change(t, states, world)`` after each change of the events' states (the TUI animates with it).
-    progress : Reporter or callable, optional
+    report : Reporter, optional
         Told once, stage ``"simulate"`` (no total), when a valid layout starts to run.
     client : pybullet client, optional
         One to reuse (the TUI keeps one); a new one by default.
     """
     from design.contraption.simulation import Simulator  # pybullet: loaded only when a layout is simulated
 
-    report = Reporter.of(progress)
+    report = Reporter.of(report)
     with Simulator(scenario, client=client) as sim:
         problems = sim.check_validity(x)
         if problems:

@@ -82,6 +82,14 @@ class Exploration:
 
 
 @station_errors
+def parse_keep(spec: str) -> tuple[str, tuple[int, ...]]:
+    """An invariant to keep, from its words (``position:3``, ``distance:1,2``...): ``(kind, poi ids)``."""
+    from design.explore import parse_keep as parse  # scipy and shapely: loaded only when a design is explored
+
+    return parse(spec)
+
+
+@station_errors
 def explore(machine: str, params: Mapping[str, float], keeps: Sequence[tuple[str, Sequence[int]]] = (),
             moves: Sequence[tuple[int, float]] = (), points: int | None = None) -> Exploration:
     """Find the PoIs of a design, keep the invariants ``keeps`` (``(kind, poi ids)``, from

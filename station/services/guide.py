@@ -16,6 +16,7 @@ from pathlib import Path
 from common.progress import Reporter
 from projector.guide import Guide, ParameterTolerance
 from station.errors import ServiceError, station_errors
+from station.services.jig_plan import JigOptions, attach_jigs, plan_guide_jigs
 
 __all__ = ["PAPERS", "VIEWS", "GuideJob", "check_paper", "export_guide", "make_guide", "portable_name",
            "projected_frames", "show_step"]
@@ -41,7 +42,7 @@ class GuideJob:
         The tolerance map, None when none was asked for (or for the scenario's own layout).
     scenario : design.contraption.Scenario
         The scenario.
-    jigs : station.services.jigs.PlannedJigs or None
+    jigs : station.services.jig_plan.PlannedJigs or None
         The laser-cut jigs the steps use, when asked for (their footprints are on the guide).
     """
 
@@ -110,10 +111,10 @@ def make_guide(scenario: str, layout: str | None, *, view: str | None = None, ve
     set_with : mapping of str to str, optional
         Per layout parameter, how the guide tells the maker to set it (``"jig"`` for one a laser-cut jig sets:
         :data:`projector.guide.SET_WITH`); the others as :mod:`projector.parameters` says.
-    jigs : True or station.services.jigs.JigOptions, optional
+    jigs : True or station.services.jig_plan.JigOptions, optional
         Plan the laser-cut jigs of the layout (for the profile's material, or the options' one): the parameters
         they set are set ``"jig"``, the sheets draw their footprints and the steps say how to use them
-        (:func:`station.services.jigs.attach_jigs`); the plan is the job's ``jigs``.
+        (:func:`station.services.jig_plan.attach_jigs`); the plan is the job's ``jigs``.
 
     Raises
     ------
@@ -154,8 +155,6 @@ def make_guide(scenario: str, layout: str | None, *, view: str | None = None, ve
                     headline=_layout_headline(layout, tolerance_map))
     job = GuideJob(guide, tuple(steps_text(guide)), loaded_layout, tolerance_map, loaded_scenario)
     if jigs:
-        from station.services.jigs import JigOptions, attach_jigs, plan_guide_jigs
-
         job = attach_jigs(job, plan_guide_jigs(job, jigs if isinstance(jigs, JigOptions) else None))
     return job
 
@@ -208,6 +207,16 @@ def export_guide(job: GuideJob, *, pdf: str | Path | None = None, svg: str | Pat
 def reads_side(guide) -> bool:
     """Whether the side camera has something to read in ``guide``: a jig stand with a tag on its plate's face."""
     return any(j.face_tag_id is not None for j in guide.jigs)
+
+
+@station_errors
+def board_words(guide) -> str | None:
+    """What the side camera's board sheet of ``guide`` shows, in words; None when the guide has no board the side
+    camera reads."""
+    from projector.board import side_board  # shapely: loaded when a guide is made, not for the CLI's --help
+
+    board = side_board(guide)
+    return board.words() if board is not None and reads_side(guide) else None
 
 
 @station_errors

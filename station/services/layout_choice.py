@@ -27,11 +27,14 @@ failed 4 times in 5); where they are far apart, the higher mean still wins.
 from __future__ import annotations
 
 from collections.abc import Callable, Iterable, Mapping
+from dataclasses import dataclass
 
 import numpy as np
 
 from common.progress import Reporter
-from station.errors import station_errors
+from design.contraption import layout_io
+from design.contraption.physics_profile import PhysicsProfile
+from station.errors import ServiceError, station_errors
 
 __all__ = ["CHOICE_QUANTILE", "PREDICTION_EDGE", "PREDICTION_WEIGHT", "candidate_layouts", "choice_score",
            "choose_layout", "describe_choice", "distinct_layouts", "expected_success", "layout_record",
@@ -147,10 +150,41 @@ def choice_score(predicted: float, successes: int = 0, attempts: int = 0, weight
     return float(beta.ppf(quantile, weight * p + successes, weight * (1.0 - p) + attempts - successes))
 
 
+@dataclass(frozen=True)
+class LayoutChoiceRequest:
+    """How :func:`choose_layout` weighs the options.
+
+    Parameters
+    ----------
+    profile : PhysicsProfile, optional
+        Values and intervals to draw from (None: the scenario's own values, no draws).
+    samples, seed : int
+        Simulations per option, and their seed (the same for every option).
+    trials : tuple of dict
+        Trial records (the log's form) of layouts placed before: an option's record updates its prediction
+        (:func:`expected_success`).
+    prediction_weight : float
+        What a prediction is worth, in attempts (> 0).
+    workers, scheduler
+        Where the simulations run: local processes, or a Dask scheduler's address.
+    """
+
+    profile: PhysicsProfile | None = None
+    samples: int = 16
+    seed: int = 0
+    trials: tuple[Mapping, ...] = ()
+    prediction_weight: float = PREDICTION_WEIGHT
+    workers: int | None = None
+    scheduler: str | None = None
+
+    def __post_init__(self) -> None:
+        if not self.prediction_weight > 0:
+            raise ServiceError(f"prediction_weight must be > 0, got {self.prediction_weight!r}",
+                               field="prediction_weight", value=self.prediction_weight)
+
+
 @station_errors
-def choose_layout(scenario, options: list[dict], profile=None, *, samples: int = 16, seed: int = 0,
-                  trials: Iterable[Mapping] = (), prediction_weight: float = PREDICTION_WEIGHT,
-                  workers: int | None = None, scheduler: str | None = None,
+def choose_layout(scenario, options: list[dict], request: LayoutChoiceRequest = LayoutChoiceRequest(), *,
                   report: Reporter | None = None, on_option: Callable[[int, int], None] | None = None) -> dict:
     """The option surest to succeed often physically (the highest :func:`choice_score`), with its
     ``"physical_choice"``: which option it was, every option's predicted success, record, expected success and
@@ -161,15 +195,8 @@ def choose_layout(scenario, options: list[dict], profile=None, *, samples: int =
     scenario : Scenario
     options : list of dict
         LAYOUT.json data, the preferred first (repeats are dropped).
-    profile : PhysicsProfile, optional
-        Values and intervals to draw from (None: the scenario's own values, no draws).
-    samples, seed : int
-        Simulations per option, and their seed (the same for every option).
-    trials : iterable of dict, optional
-        Trial records (the log's form) of layouts placed before: an option's record updates its prediction
-        (:func:`expected_success`).
-    prediction_weight : float
-        What a prediction is worth, in attempts (> 0).
+    request : LayoutChoiceRequest
+        The physics, the simulations per option and the record of trials the options are weighed with.
     on_option : callable, optional
         Called with ``(index, count)`` before each option is scored.
 
@@ -178,30 +205,30 @@ def choose_layout(scenario, options: list[dict], profile=None, *, samples: int =
     common.progress.Cancelled
         Stopped; the simulations done are in the cache.
     """
-    from design.contraption.layout_io import layout_from_data
-    from station.services.predict import predict_layout
-
-    if not prediction_weight > 0:
-        raise ValueError(f"prediction_weight must be > 0, got {prediction_weight!r}")
     options = distinct_layouts(options)
     if len(options) == 1:
         return options[0]
-    records = layout_records(options, trials)
+    # the simulations (pybullet, scipy) load when options are weighed: the loop's command imports this for --help
+    from station.services import predict
+
+    records = layout_records(options, request.trials)
+    weight = request.prediction_weight
+    predicting = predict.PredictionRequest(request.profile, samples=request.samples, seed=request.seed,
+                                           workers=request.workers, scheduler=request.scheduler)
     scores = []
     for i, data in enumerate(options):
         if on_option is not None:
             on_option(i, len(options))
-        x = np.asarray(layout_from_data(data, scenario, file="<candidate layout>").x, dtype=float)
-        scores.append(predict_layout(scenario, x, profile=profile, samples=samples, seed=seed, workers=workers,
-                                     scheduler=scheduler, report=report).probability)
-    expected = [expected_success(p, s, n, prediction_weight) for p, (s, n) in zip(scores, records)]
-    ranks = [choice_score(p, s, n, prediction_weight) for p, (s, n) in zip(scores, records)]
+        x = np.asarray(layout_io.layout_from_data(data, scenario, file="<candidate layout>").x, dtype=float)
+        scores.append(predict.predict_layout(scenario, x, predicting, report=report).probability)
+    expected = [expected_success(p, s, n, weight) for p, (s, n) in zip(scores, records)]
+    ranks = [choice_score(p, s, n, weight) for p, (s, n) in zip(scores, records)]
     best = int(np.argmax(ranks))  # the first of equals
     chosen = dict(options[best])
     chosen["physical_choice"] = {"chosen": best, "predicted_physical_success": [float(v) for v in scores],
-                                 "record": [list(r) for r in records], "prediction_weight": float(prediction_weight),
+                                 "record": [list(r) for r in records], "prediction_weight": float(weight),
                                  "expected_success": [float(v) for v in expected],
-                                 "lower_quartile": [round(v, 6) for v in ranks], "samples": samples}
+                                 "lower_quartile": [round(v, 6) for v in ranks], "samples": request.samples}
     return chosen
 
 

@@ -7,7 +7,7 @@ so the calibration's uncertainty is in the probability). See :mod:`calibration.s
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -22,6 +22,7 @@ from design.contraption.physics_profile import PhysicsProfile
 from design.contraption.scenario import Scenario
 from station.errors import ServiceError, station_errors
 from station.services.outlook import success_headline
+from station.services.sim_calibration import station_runner
 
 
 @station_errors
@@ -127,28 +128,52 @@ def predict(scenario: str | Scenario, layout: str | None, *, physics: str | Path
         from design.contraption.physics_profile import apply_profile
 
         apply_profile(loaded, profile, str(physics))  # refuses a profile for another contraption, names the file
-    result = predict_layout(loaded, x, profile=profile, position_sigma_m=position, angle_sigma_deg=angle,
-                            unmeasured=unmeasured, samples=samples, seed=seed, workers=workers, scheduler=scheduler,
-                            report=report)
+    result = predict_layout(loaded, x, PredictionRequest(
+        profile, position, angle, tuple(unmeasured), samples, seed, workers=workers, scheduler=scheduler),
+        report=report)
     return Prediction(loaded, chosen, x, as_built is not None, profile.name if profile else None, result)
 
 
+@dataclass(frozen=True)
+class PredictionRequest:
+    """How a layout's physical success is predicted (:func:`predict_layout`).
+
+    Parameters
+    ----------
+    profile : PhysicsProfile, optional
+        Values and intervals to draw from (None: the scenario's own values, no draws).
+    position_sigma_m, angle_sigma_deg : float
+        The placement error (a check's residual; the unchecked error by default).
+    unmeasured : tuple of str
+        Design parameters a check did not measure: placed with at least the unchecked error.
+    samples, seed : int
+        Simulations, and their seed.
+    workers, scheduler
+        Where the simulations run: local processes, or a Dask scheduler's address.
+    """
+
+    profile: PhysicsProfile | None = None
+    position_sigma_m: float = DEFAULT_POSITION_SIGMA_M
+    angle_sigma_deg: float = DEFAULT_ANGLE_SIGMA_DEG
+    unmeasured: tuple[str, ...] = ()
+    samples: int = 200
+    seed: int = 0
+    workers: int | None = None
+    scheduler: str | None = None
+
+
 @station_errors
-def predict_layout(scenario: Scenario, x: np.ndarray, *, profile: PhysicsProfile | None = None,
-                   position_sigma_m: float = DEFAULT_POSITION_SIGMA_M,
-                   angle_sigma_deg: float = DEFAULT_ANGLE_SIGMA_DEG, samples: int = 200, seed: int = 0,
-                   workers: int | None = None, scheduler: str | None = None,
-                   report: Reporter | None = None,
-                   unmeasured: Sequence[str] = ()) -> PhysicalPrediction:
+def predict_layout(scenario: Scenario, x: np.ndarray, request: PredictionRequest = PredictionRequest(), *,
+                   report: Reporter | None = None) -> PhysicalPrediction:
     """The prediction for data already in hand (after a check or a logged trial: the scenario, the layout vector,
     the profile, the placement error), on the station's executors and cache."""
-    from station.services.sim_calibration import station_runner
-
-    with station_runner(workers=workers, scheduler=scheduler, report=report) as run:
+    profile = request.profile
+    with station_runner(workers=request.workers, scheduler=request.scheduler, report=report) as run:
         return predict_success(scenario, x, values=profile.values if profile else None,
-                               intervals=profile.intervals if profile else None, position_sigma_m=position_sigma_m,
-                               angle_sigma_deg=angle_sigma_deg, samples=samples, seed=seed, run=run,
-                               unmeasured=unmeasured)
+                               intervals=profile.intervals if profile else None,
+                               position_sigma_m=request.position_sigma_m, angle_sigma_deg=request.angle_sigma_deg,
+                               samples=request.samples, seed=request.seed, run=run,
+                               unmeasured=tuple(request.unmeasured))
 
 
 @station_errors
@@ -166,8 +191,9 @@ def layout_outlook(problem, x: np.ndarray, *, physics: str | Path | None = None,
         return None
     check_count(samples, "predict")
     profile = read_profile(physics) if physics is not None else None
-    return predict_layout(problem.scenario, np.asarray(x, dtype=float), profile=profile, samples=samples, seed=seed,
-                          workers=workers, scheduler=scheduler, report=report)
+    return predict_layout(problem.scenario, np.asarray(x, dtype=float),
+                          PredictionRequest(profile, samples=samples, seed=seed, workers=workers, scheduler=scheduler),
+                          report=report)
 
 
 @station_errors
@@ -196,5 +222,5 @@ def predict_trial(scenario: Scenario, trial: Mapping[str, Any], *, samples: int 
         scenario = apply_profile(scenario, profile)
     unmeasured = not_measured(trial.get("check"), scenario)
     position, angle = residual_sigma(trial.get("check"))
-    return predict_layout(scenario, x, profile=profile, position_sigma_m=position, angle_sigma_deg=angle,
-                          unmeasured=unmeasured, samples=samples, seed=seed, report=report)
+    return predict_layout(scenario, x, PredictionRequest(profile, position, angle, unmeasured, samples, seed),
+                          report=report)

@@ -13,7 +13,7 @@ bad scenario or layout) pass as they are.
 from __future__ import annotations
 
 import threading
-from collections.abc import Callable, Iterator, Sequence
+from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -374,17 +374,57 @@ class RobustnessRun:
         return Robustness(curve, evaluation)
 
 
+@dataclass(frozen=True)
+class ComparisonRequest:
+    """A comparison of ours and the baselines B1-B3 (thesis Table 4.2): each method run from ``runs`` seeds.
+
+    Parameters
+    ----------
+    budget : int
+        Simulations per run, the same for every method (:func:`default_budget` gives the thesis's).
+    settings : PSPSettings
+        Our method's settings (:func:`psp_settings`).
+    methods : sequence of str
+        Among :data:`~design.robust.settings.METHODS` (:func:`parse_methods` reads them from words).
+    runs : int
+        Seeds per method, ``seed``, ``seed + 1``...
+    seed : int
+        The first seed.
+    robustness : RobustnessSettings
+        Sizes of the evaluation set and of the local samples each run's layout is measured on.
+    workers, scheduler
+        Where the simulations run: local processes, or a Dask scheduler's address.
+    """
+
+    budget: int
+    settings: PSPSettings
+    methods: tuple[str, ...] = tuple(METHODS)
+    runs: int = 5
+    seed: int = 0
+    robustness: RobustnessSettings = field(default_factory=RobustnessSettings)
+    workers: int | None = None
+    scheduler: str | None = None
+
+
 @station_errors
-def compare(problem, methods: Sequence[str], runs: int, budget: int, seed: int, settings: PSPSettings,
-            robustness: RobustnessSettings, *, workers: int | None = None, scheduler: str | None = None,
-            report: Reporter | None = None, on_run: Callable[[MethodRun], None] | None = None) -> Comparison:
-    """Ours and the baselines B1-B3 over ``runs`` seeds at the same budget (thesis Table 4.2); ``on_run`` is called
-    with each run as it ends, so a stopped comparison has reported what it finished."""
+def compare(problem, request: ComparisonRequest, *, report: Reporter | None = None,
+            on_run: Callable[[MethodRun], None] | None = None) -> Comparison:
+    """Ours and the baselines B1-B3 over ``request.runs`` seeds at the same budget (thesis Table 4.2); ``on_run`` is
+    called with each run as it ends, so a stopped comparison has reported what it finished."""
     from design.robust.pipeline import compare_methods
 
-    check_seed(seed)
-    check_count(runs, "runs")
-    check_budget(budget)
-    with simulations(problem, workers=workers, scheduler=scheduler, report=report) as executor:
-        return compare_methods(problem, executor, list(methods), runs, budget, seed, settings=settings,
-                               robustness=robustness, report=report, on_run=on_run)
+    check_seed(request.seed)
+    check_count(request.runs, "runs")
+    check_budget(request.budget)
+    with simulations(problem, workers=request.workers, scheduler=request.scheduler, report=report) as executor:
+        return compare_methods(problem, executor, list(request.methods), request.runs, request.budget, request.seed,
+                               settings=request.settings, robustness=request.robustness, report=report,
+                               on_run=on_run)
+
+
+@station_errors
+def plot_robustness(curves, path: str | Path, title: str = "") -> Path:
+    """A PNG of robustness curves (Figure 4.18): ``curves`` maps a label to ``(epsilon, mean rho_l, its s.e.)``."""
+    from design.robust.plot import plot_robustness as plot  # Pillow: loaded when a plot is drawn, not for --help
+
+    return plot(curves, path, title)

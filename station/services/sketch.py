@@ -15,7 +15,7 @@ from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from common.progress import CancelCheck, ProgressCallback, Reporter
+from common.progress import Reporter
 from station.errors import ServiceError, station_errors
 
 if TYPE_CHECKING:  # scipy and the spline/FFT machinery load only when a sketch is retrieved
@@ -92,8 +92,8 @@ def _check_integer(field: str, value: int, bounds: tuple[int, int]) -> None:
 
 
 @station_errors
-def make_retriever(options: RetrieveOptions | None = None, *, progress: Reporter | ProgressCallback | None = None,
-                   cancelled: CancelCheck | None = None, cache: str | Path | None = None) -> SketchRetriever:
+def make_retriever(options: RetrieveOptions | None = None, *, report: Reporter | None = None,
+                   cache: str | Path | None = None) -> SketchRetriever:
     """A retriever over the options' machines, its databases cached in ``cache`` (default: the station's cache).
 
     A retriever keeps the databases it loaded: keep it to answer further sketches without reading them again.
@@ -113,13 +113,21 @@ def make_retriever(options: RetrieveOptions | None = None, *, progress: Reporter
                         if default_settings(n).sampling == "grid" else default_settings(n))
                     for n in machines or machine_names()}
     return SketchRetriever(machines, cache_dir=cache_dir() if cache is None else cache, settings=settings,
-                           progress=progress, cancelled=cancelled)
+                           report=report)
+
+
+@station_errors
+def load_sketch(path: str | Path, symmetry: int | None = None, center: object = None) -> Sketch:
+    """A sketch from a ``.json`` or ``.svg`` file of strokes (one symmetric sector with ``symmetry`` K, about
+    ``center``): :func:`design.sketch.load_sketch`."""
+    from design.sketch import load_sketch as load  # scipy and the spline/FFT machinery: loaded when a sketch is read
+
+    return load(path, symmetry=symmetry, center=center)
 
 
 @station_errors
 def retrieve(sketch: Sketch, options: RetrieveOptions | None = None, *, retriever: SketchRetriever | None = None,
-             progress: Reporter | ProgressCallback | None = None,
-             cancelled: CancelCheck | None = None) -> RetrievalResult:
+             report: Reporter | None = None) -> RetrievalResult:
     """Ranked candidates for ``sketch``.
 
     Parameters
@@ -130,7 +138,7 @@ def retrieve(sketch: Sketch, options: RetrieveOptions | None = None, *, retrieve
         Checked first (a :class:`ServiceError` names the option).
     retriever : SketchRetriever, optional
         One kept from :func:`make_retriever` (its databases already loaded); made from ``options`` otherwise,
-        reporting to ``progress`` and asking ``cancelled``.
+        reporting to ``report`` (and stopping when it says so).
 
     Raises
     ------
@@ -139,12 +147,12 @@ def retrieve(sketch: Sketch, options: RetrieveOptions | None = None, *, retrieve
     design.sketch.SketchError
         The sketch gives no usable curve.
     common.progress.Cancelled
-        The cancel check said stop while a database was built.
+        A stop was asked for while a database was built.
     """
     options = options or RetrieveOptions()
     options.check()
     if retriever is None:
-        retriever = make_retriever(options, progress=progress, cancelled=cancelled)
+        retriever = make_retriever(options, report=report)
     return retriever.query(sketch, top=options.top, prune=options.prune, refine=options.refine,
                            smoothing=options.smoothing, mirror=options.mirror, machines=options.machine_list())
 

@@ -16,6 +16,8 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from common.progress import Reporter
+from design.robust.tolerance import CARE_RULE as CARE_RULE  # re-exported (X as X): the faces word the rule
+from design.robust.tolerance import RATIO as RATIO
 from station.errors import ServiceError, station_errors
 from station.services import robust
 from station.services.outlook import disagreement

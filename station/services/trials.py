@@ -19,7 +19,7 @@ from typing import Any, TextIO
 
 from common.datafiles import load_json, parse_toml
 from design.contraption.catalog import resolve_scenario_path
-from design.contraption.layout_io import layout_from_data
+from design.contraption.layout_io import layout_from_data, resolve_layout
 from design.contraption.model import Scenario
 from design.errors import DesignError
 from station.errors import ServiceError, StationError, station_errors
@@ -86,6 +86,14 @@ def scenario_record(scenario: Scenario) -> dict[str, str]:
 def layout_values(scenario: Scenario, x: Sequence[float]) -> dict[str, float]:
     """A layout vector as ``{parameter: value}`` in design-space order."""
     return {name: float(value) for name, value in zip(scenario.design_space.names, x)}
+
+
+@station_errors
+def read_layout_values(scenario: Scenario, layout: str | None) -> dict[str, float]:
+    """The layout ``layout`` names (a LAYOUT.json, or a layout named in the scenario; None or "": the scenario's own
+    transforms) as ``{parameter: value}``."""
+    x = resolve_layout(layout, scenario).x if layout else scenario.default_layout()
+    return layout_values(scenario, x)
 
 
 @station_errors

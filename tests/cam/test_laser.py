@@ -187,11 +187,11 @@ def test_laser_is_dark_on_every_travel_on_the_simulated_machine(laser_mode):
 def test_a_fabricated_job_is_framed_then_run_by_the_grbl_driver():
     """The maker's sequence: set the sheet's corner as work origin, frame the job at low power, then cut."""
     from drivers.grbl import GrblConnection, Job, JobRunner, frame_lines
-    from station.commands.fabricate import fabricate
+    from station.services.fabricate import FabricationRequest, fabricate
 
     profile = builtin_profile("laser")
-    result = fabricate("spirograph", {"r_f": 5, "r_r": 3, "d": 1.0}, 3.0, sheet_size=(120.0, 80.0),
-                       material="cardboard_2mm")
+    result = fabricate(FabricationRequest("spirograph", {"r_f": 5, "r_r": 3, "d": 1.0}, 3.0, sheet_size=(120.0, 80.0),
+                                          material="cardboard_2mm"))
     conn = GrblConnection("sim://grbl?profile=laser&time_scale=0.0005", poll_interval=0.05, lost_ok_timeout=0.3,
                           silence_timeout=0.6).open()
     try:

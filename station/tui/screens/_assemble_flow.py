@@ -286,10 +286,11 @@ class AttemptFlow:
     def _reoptimize_worker(self, scenario: str, physics: str | None) -> None:
         try:
             current = self.query_one("#layout").value.strip() or None
-            path, result, chosen = flow.reoptimize(scenario, physics, budget=self.optimize_budget,
-                                                   workers=self.simulation_workers,
-                                                   report=Reporter(post_progress(self), stop=self._stop_work.is_set),
-                                                   settings=self.optimize_settings, current=current)
+            request = flow.ReoptimizeRequest(scenario, physics, budget=self.optimize_budget,
+                                             settings=self.optimize_settings, current=current,
+                                             workers=self.simulation_workers)
+            path, result, chosen = flow.reoptimize(
+                request, report=Reporter(post_progress(self), stop=self._stop_work.is_set))
         except Cancelled:
             self.app.call_from_thread(self._reoptimized, None, "re-optimization stopped; its simulations are cached")
             return

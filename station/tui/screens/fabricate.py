@@ -31,7 +31,14 @@ from design.machines import get_machine
 from drivers.errors import DriverError
 from station.errors import StationError
 from station.paths import data_dir
-from station.services.fabricate import DEFAULT_GAP, KERF_SOURCES, FabricationResult, fabricate, parse_sheet
+from station.services.fabricate import (
+    DEFAULT_GAP,
+    KERF_SOURCES,
+    FabricationRequest,
+    FabricationResult,
+    fabricate,
+    parse_sheet,
+)
 from station.tui.registry import MachineDesign, ScreenEntry
 from station.tui.widgets.picture import HalfBlockPicture
 from station.tui.widgets.progress import ProgressPanel, ProgressReported, post_progress
@@ -162,8 +169,9 @@ class FabricateScreen(Screen):
         started = time.perf_counter()
         worker = get_current_worker()
         try:
-            result = fabricate(machine, params, options["scale"], kerf=options["kerf"],
-                               sheet_size=options["sheet_size"], gap=DEFAULT_GAP, material=options["material"],
+            result = fabricate(FabricationRequest(machine, params, options["scale"], kerf=options["kerf"],
+                                                  sheet_size=options["sheet_size"], gap=DEFAULT_GAP,
+                                                  material=options["material"]),
                                progress=post_progress(self), cancelled=lambda: worker.is_cancelled)
         except Cancelled:
             return  # a newer generation replaced this one (the worker group is exclusive)
