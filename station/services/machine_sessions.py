@@ -32,8 +32,10 @@ from drivers.grbl import GrblConnection, Job, JobProgress, JobResult, JobRunner,
 from drivers.grbl.job import FINAL_STATES, kind_warning
 from drivers.grbl.protocol import Feedback
 from drivers.profiles import MachineProfile, ProfileError, load_profile
+from station.db import open_database
 from station.errors import ServiceError, StationError, as_station_error, station_errors
-from station.joblog import INTERRUPTED, JobLog
+from station.joblog import INTERRUPTED, JobLog, JobRecord, local_time
+from station.paths import database_path
 from station.services.job_queue import JobMode, JobQueue, JobState, QueuedJob, frame_job
 from station.services.job_verify import JobVerification, verify_job, verify_summary
 
@@ -144,9 +146,6 @@ def load_job(path: str | Path, *, profile: MachineProfile | None = None, laser: 
 @contextlib.contextmanager
 def job_history(warn: Callable[[Exception], None]) -> Iterator[JobLog]:
     """The station database's job history; a broken database is ``warn``-ed about once and nothing is recorded."""
-    from station.db import open_database  # the database module opens the station's data folder: at first use
-    from station.paths import database_path
-
     try:
         connection = open_database(database_path())
     except (StationError, OSError, sqlite3.Error) as error:
@@ -155,6 +154,18 @@ def job_history(warn: Callable[[Exception], None]) -> Iterator[JobLog]:
         return
     try:
         yield JobLog(connection, on_error=warn)
+    finally:
+        connection.close()
+
+
+@station_errors
+def recent_jobs(limit: int = 20) -> tuple[Path, list[JobRecord]]:
+    """The station database's path and its latest ``limit`` jobs, newest first (``station jobs``); a database that
+    cannot be opened is an error naming it."""
+    path = database_path()
+    connection = open_database(path)
+    try:
+        return path, JobLog(connection).recent(limit)
     finally:
         connection.close()
 
@@ -494,4 +505,5 @@ def refused_by_twin(done: JobVerification, *, before_summary: bool = False) -> E
     return as_station_error(JobRefused(f"--verify: job {done.name!r} refused: {why}; not sent"))
 
 
-__all__ += ["ProfileError", "job_layer_marks", "refusal", "refused_by_twin"]
+__all__ += ["GrblConnection", "JobRecord", "ProfileError", "job_layer_marks", "local_time", "recent_jobs", "refusal",
+            "refused_by_twin"]
