@@ -245,14 +245,6 @@ class Toolpath:
         points = np.concatenate([self.start[mask], self.end[mask]])
         return points.min(axis=0), points.max(axis=0)
 
-    def durations(self, rapid_rate: float = 6000.0) -> np.ndarray:
-        """Estimated seconds per line at the commanded feeds (no acceleration), dwells included."""
-        lengths = np.linalg.norm(self.end - self.start, axis=1)
-        feed = np.where(self.rapid | ~np.isfinite(self.feed) | (self.feed <= 0), rapid_rate, self.feed)
-        per_line = np.zeros(len(self.dwell))
-        np.add.at(per_line, self.line, lengths / feed * 60.0)
-        return per_line + self.dwell
-
     def offset_lines(self) -> list[int]:
         """0-based lines that moved the work coordinates (the ``shift`` of the state after them changed)."""
         return [index for index in range(len(self.states) - 1)

@@ -16,6 +16,7 @@ from drivers.grbl.planner import MotionBlock, plan_times
 from drivers.profiles import load_profile
 from station.cli import main
 from station.services.job_verify import verify_job
+from station.services.machines import job_seconds
 
 from .conftest import sim_url
 
@@ -102,6 +103,18 @@ def test_the_look_ahead_holds_fifteen_blocks():
     assert windowed.entry.max() <= math.sqrt(2 * 1000 * 3.5) + 1e-6 < 100.0
     assert unbounded.entry.max() == pytest.approx(100.0)
     assert windowed.total > unbounded.total
+
+
+def test_every_job_time_estimate_is_the_planners(make_connection):
+    # one 100 mm move at the laser's rapid rate: 0.1 s to reach 100 mm/s at 1000 mm/s^2, 0.9 s cruising, 0.1 s to
+    # stop; length over feed would say 1.0 s
+    conn = make_connection(sim_url("laser", time_scale=1, clock="virtual"))
+    runner = JobRunner(conn, Job("one", ["G21", "G91", "G1 X-100 F6000"]))
+    assert runner.preflight()["estimate_s"] == pytest.approx(1.1, rel=1e-9)  # the streamer's ETA
+    # the plot preview's and the job queue's layer times: on the plotter ($120 800 mm/s^2) 80 mm/s is reached in
+    # 0.1 s over 4 mm, and lost as fast: 0.2 s, plus 92 mm at 80 mm/s
+    plotter = load_profile("plotter")
+    assert job_seconds("G21\nG90\nG0 X0 Y0\nG1 X100 Y0 F4800\n", plotter) == pytest.approx(0.2 + 92 / 80, rel=1e-9)
 
 
 def test_the_twin_records_which_blocks_started_from_rest(make_connection):
