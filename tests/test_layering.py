@@ -89,3 +89,113 @@ def test_checker_sees_a_screen_importing_a_command(tmp_path):
     assert imports_of(sample, "station.commands") == [
         "station.commands", "station.commands.fabricate", "station.commands.robust",
         "station.commands.robust.psp_settings"]
+
+
+#: The packages whose modules must not import each other in a circle.
+PACKAGES = ("common", "design", "drivers", "calibration", "projector", "vision", "cam", "station")
+
+
+def module_files(root: Path, packages=PACKAGES) -> dict[str, Path]:
+    """Every module of ``packages`` under ``root`` by its dotted name (a package by its ``__init__.py``)."""
+    files = {}
+    for package in packages:
+        for path in sorted((root / package).rglob("*.py")):
+            parts = path.relative_to(root).with_suffix("").parts
+            files[".".join(parts[:-1] if parts[-1] == "__init__" else parts)] = path
+    return files
+
+
+def import_graph(root: Path, files: dict[str, Path]) -> dict[str, set[str]]:
+    """Which of ``files``' modules each one imports, at any depth (inside a function or an ``if TYPE_CHECKING:`` as
+    well: a cycle that lives only because an import waits inside a function is still a cycle). ``from pkg import
+    name`` points at the module ``pkg.name`` when there is one, else at ``pkg``."""
+
+    def owner(name: str) -> str | None:  # the module a dotted name lives in: its longest prefix that is a module
+        parts = name.split(".")
+        while parts and ".".join(parts) not in files:
+            parts.pop()
+        return ".".join(parts) or None
+
+    graph: dict[str, set[str]] = {}
+    for name, path in files.items():
+        package = list(path.relative_to(root).with_suffix("").parts[:-1])
+        targets: set[str] = set()
+        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"), filename=str(path))):
+            if isinstance(node, ast.Import):
+                targets.update(alias.name for alias in node.names)
+            elif isinstance(node, ast.ImportFrom):
+                base = package[:len(package) - node.level + 1] if node.level else []
+                module = ".".join([*base, *([node.module] if node.module else [])])
+                targets.update(f"{module}.{a.name}" if f"{module}.{a.name}" in files else module for a in node.names)
+        graph[name] = {found for found in map(owner, targets) if found is not None and found != name}
+    return graph
+
+
+def import_cycles(graph: dict[str, set[str]]) -> list[list[str]]:
+    """The modules that import each other in a circle: the graph's strongly connected components of more than one
+    module (Tarjan's algorithm, without recursion), each sorted, in the order found."""
+    index: dict[str, int] = {}
+    low: dict[str, int] = {}
+    stack: list[str] = []
+    on_stack: set[str] = set()
+    cycles = []
+    for start in sorted(graph):
+        if start in index:
+            continue
+        work = [(start, iter(sorted(graph[start])))]
+        index[start] = low[start] = len(index)
+        stack.append(start)
+        on_stack.add(start)
+        while work:
+            node, successors = work[-1]
+            advanced = False
+            for successor in successors:
+                if successor not in index:
+                    index[successor] = low[successor] = len(index)
+                    stack.append(successor)
+                    on_stack.add(successor)
+                    work.append((successor, iter(sorted(graph.get(successor, ())))))
+                    advanced = True
+                    break
+                if successor in on_stack:
+                    low[node] = min(low[node], index[successor])
+            if advanced:
+                continue
+            work.pop()
+            if work:
+                low[work[-1][0]] = min(low[work[-1][0]], low[node])
+            if low[node] == index[node]:
+                component = []
+                while True:
+                    member = stack.pop()
+                    on_stack.discard(member)
+                    component.append(member)
+                    if member == node:
+                        break
+                if len(component) > 1:
+                    cycles.append(sorted(component))
+    return cycles
+
+
+def test_no_import_cycles():
+    # Modules that import each other only work in one import order: the graph the imports draw must have no circle.
+    graph = import_graph(ROOT, module_files(ROOT))
+    cycles = import_cycles(graph)
+    assert not cycles, "\n".join(
+        " <-> ".join(cycle) + ": " + "; ".join(f"{a} imports {sorted(graph[a] & set(cycle))}" for a in cycle)
+        for cycle in cycles)
+
+
+def test_cycle_finder_sees_a_cycle_behind_a_function_and_type_checking(tmp_path):
+    package = tmp_path / "pkg"
+    package.mkdir()
+    (package / "__init__.py").write_text("from pkg.a import f\n")
+    (package / "a.py").write_text("def f():\n    from pkg import b\n    return b\n")
+    (package / "b.py").write_text("from typing import TYPE_CHECKING\nif TYPE_CHECKING:\n    from pkg.c import C\n")
+    (package / "c.py").write_text("from . import a\nclass C: ...\n")
+    (package / "d.py").write_text("import pkg.c\nfrom pkg import a\n")
+    graph = import_graph(tmp_path, module_files(tmp_path, ("pkg",)))
+    assert graph["pkg.a"] == {"pkg.b"} and graph["pkg.d"] == {"pkg.a", "pkg.c"}
+    assert import_cycles(graph) == [["pkg.a", "pkg.b", "pkg.c"]]
+    (package / "c.py").write_text("class C: ...\n")
+    assert import_cycles(import_graph(tmp_path, module_files(tmp_path, ("pkg",)))) == []

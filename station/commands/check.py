@@ -106,7 +106,7 @@ def register(subparsers) -> None:
 def run_check(args) -> int:
     from station.progress_view import ProgressView
     from station.services import check as service
-    from station.services import check_side
+    from station.services import check_cameras, check_side, images
     from station.services.physics import read_profile
 
     out = check_output_file(args.out, {".json"}, "--out") if args.out is not None else None
@@ -114,9 +114,9 @@ def run_check(args) -> int:
     try:
         offsets = dict(service.parse_offset(text) for text in args.sim_offset or [])
         if args.image is not None:  # a frame of the wrong size is refused before the guide is made
-            service.check_image_file(args.image, "image")
+            images.check_image_file(args.image, "image")
         if args.side_image is not None:
-            service.check_image_file(args.side_image, "side_image")
+            images.check_image_file(args.side_image, "side_image")
         elif args.side_intrinsics is not None:
             raise UsageError("--side-intrinsics goes with --side-image")
         side_offsets = {}
@@ -130,7 +130,7 @@ def run_check(args) -> int:
             physics = read_profile(args.physics) if args.physics else None
             if len(cameras) > 1 or side_offsets or args.side_image is not None \
                     or any(check_side.is_side_url(url) for _, url in cameras):
-                check = check_side.check_views(
+                check = check_cameras.check_views(
                     job, cameras, image=args.image, intrinsics=args.intrinsics, offsets=offsets,
                     side_offsets=side_offsets, occluded=tuple(args.sim_cover or ()), side_image=args.side_image,
                     side_intrinsics=args.side_intrinsics, simulate=args.simulate, seed=args.seed, physics=physics,

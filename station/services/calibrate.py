@@ -24,6 +24,7 @@ import numpy as np
 
 from common.progress import Reporter
 from station.errors import ServiceError, station_errors
+from station.services.images import check_frame_size, check_image_file
 
 __all__ = ["IMAGE_SUFFIXES", "CameraCalibration", "PlaneCheck", "calibrate_camera", "camera_file", "camera_summary",
            "capture_views", "check_name", "grab_frame", "intrinsics_for", "plane_check", "plane_summary",
@@ -77,8 +78,6 @@ def write_board(path: str | Path, paper: str = "a4"):
 
 def _read_image(path: Path, field: str = "images") -> np.ndarray:
     import cv2
-
-    from station.services.check import check_frame_size, check_image_file
 
     if not path.is_file():
         raise ServiceError(f"{field}: no such file: {path}", field=field, value=str(path))

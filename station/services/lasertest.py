@@ -37,6 +37,7 @@ from design.fabrication.lasercard import (
 from drivers.profiles import BUILTIN_PROFILES, MachineProfile, ProfileError, profile_from_toml
 from drivers.sim.laser_burn import burn_gcode, line_kerf, photograph, sim_material
 from station.errors import ServiceError, station_errors
+from station.services.images import check_frame_size, check_image_file
 from station.services.profiles import load_station_profile, replace_material_table, station_copy_path
 from vision.tags import tag_cells
 
@@ -385,8 +386,6 @@ def measure_material(card_json: str | Path, *, image: str | Path | np.ndarray | 
 def _read_frame(path: Path) -> np.ndarray:
     """An image file as RGB, refused in one line when it is missing, not an image, or too large."""
     import cv2
-
-    from station.services.check import check_frame_size, check_image_file
 
     if not path.is_file():
         raise ServiceError(f"image: no such file: {path}", field="image", value=str(path))

@@ -487,7 +487,8 @@ class AssembleScreen(AttemptFlow, Screen):
 
     @work(thread=True, exclusive=True, group="jigs")
     def _jigs(self, job, folder: Path) -> None:
-        from station.services.jigs import cut_jigs, plan_guide_jigs, write_jig_outputs
+        from station.services.jig_plan import plan_guide_jigs
+        from station.services.jigs import cut_jigs, write_jig_outputs
 
         try:
             result = cut_jigs(job, plan_guide_jigs(job))
