@@ -90,8 +90,20 @@ def _station_class(cls: type[Exception]) -> type[StationError]:
     if cls not in _STATION_CLASSES:
         _STATION_CLASSES[cls] = type(cls.__name__, (cls, StationError),
                                      {"__module__": cls.__module__, "__qualname__": cls.__qualname__,
-                                      "__doc__": cls.__doc__})
+                                      "__doc__": cls.__doc__, "__reduce__": _reduce})
     return _STATION_CLASSES[cls]
+
+
+def _reduce(error: BaseException):
+    # pickled by way of the package's class (the made class has no importable name), translated again on loading
+    return _translated, (type(error).__mro__[1], error.args, vars(error))
+
+
+def _translated(cls: type[Exception], args: tuple, fields: dict) -> BaseException:
+    original = cls.__new__(cls, *args)
+    original.args = args
+    original.__dict__.update(fields)
+    return as_station_error(original)
 
 
 def as_station_error(error: BaseException) -> BaseException:

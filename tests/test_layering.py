@@ -199,3 +199,178 @@ def test_cycle_finder_sees_a_cycle_behind_a_function_and_type_checking(tmp_path)
     assert import_cycles(graph) == [["pkg.a", "pkg.b", "pkg.c"]]
     (package / "c.py").write_text("class C: ...\n")
     assert import_cycles(import_graph(tmp_path, module_files(tmp_path, ("pkg",)))) == []
+
+
+# -- the faces and the services' boundary ------------------------------------------------------------------------
+#: The packages below the station: a face (a command, the CLI's helpers, a screen or a widget) reaches them only
+#: through station.services, so that one workflow is written once, for both faces.
+BELOW_THE_STATION = {"common", "design", "drivers", "calibration", "projector", "vision", "cam"}
+
+#: Faces still being moved onto the services, each with what it still imports from below. The list only shrinks:
+#: a face cleaned up must leave it (the test says so), and no face joins it.
+FACES_IN_MOVE: dict[str, set[str]] = {
+    "station/commands/machines_io.py": {"common"},
+    "station/tui/registry.py": {"design"},
+    "station/tui/screens/calibrate.py": {"calibration", "drivers"},
+    "station/tui/screens/contraption.py": {"design"},
+    "station/tui/screens/drawing.py": {"design"},
+    "station/tui/screens/explore.py": {"design"},
+    "station/tui/screens/fabricate.py": {"common", "design", "drivers"},
+    "station/tui/screens/robust.py": {"design"},
+    "station/tui/screens/sketch.py": {"common", "design"},
+    "station/tui/screens/trials.py": {"common", "design"},
+    "station/tui/widgets/progress.py": {"common"},
+    "station/tui/widgets/projector_calibration.py": {"calibration", "drivers"},
+    "station/tui/widgets/scenario_select.py": {"design"},
+    "station/tui/widgets/sim_calibration.py": {"design"},
+}
+
+
+def face_files() -> list[Path]:
+    station = ROOT / "station"
+    return sorted([*station.joinpath("commands").glob("*.py"), *station.glob("cli*.py"),
+                   *station.joinpath("tui").rglob("*.py")])
+
+
+def test_faces_import_only_the_station():
+    offenders, cleaned = [], []
+    for path in face_files():
+        name = path.relative_to(ROOT).as_posix()
+        below = imported_top_levels(path) & BELOW_THE_STATION
+        allowed = FACES_IN_MOVE.get(name, set())
+        if below - allowed:
+            offenders.append(f"{name} imports {sorted(below - allowed)}: reach it through station.services")
+        if allowed - below:
+            cleaned.append(f"{name} no longer imports {sorted(allowed - below)}: take it off FACES_IN_MOVE")
+    assert not offenders and not cleaned, "\n".join(offenders + cleaned)
+
+
+def test_faces_in_move_are_faces():
+    assert set(FACES_IN_MOVE) <= {p.relative_to(ROOT).as_posix() for p in face_files()}
+
+
+#: What a service may raise besides the station's errors: a stop (the one Cancelled, or KeyboardInterrupt at a
+#: safe point of a run the user interrupted), never a package's error or a builtin one.
+STOPS = {"Cancelled", "KeyboardInterrupt"}
+STATION_ERROR_BASES = {"StationError", "ServiceError", "UsageError", "ConfigError"}
+
+
+def station_error_classes() -> set[str]:
+    """The names of the classes in ``station`` that are station errors (their bases, followed by name)."""
+    bases: dict[str, set[str]] = {}
+    for path in (ROOT / "station").rglob("*.py"):
+        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+            if isinstance(node, ast.ClassDef):
+                bases.setdefault(node.name, set()).update(ast.unparse(b).split(".")[-1] for b in node.bases)
+    errors = set(STATION_ERROR_BASES)
+    while True:
+        more = {name for name, parents in bases.items() if parents & errors} - errors
+        if not more:
+            return errors
+        errors |= more
+
+
+def raised_classes(path: Path) -> list[tuple[int, str]]:
+    """The classes ``path`` raises by name (``raise Name(...)``, ``raise Name``, ``raise module.Name(...)``), with
+    their lines; a raise of a call to a lowercase name (a factory such as ``fail(...)``) or of a variable is not
+    seen."""
+    found = []
+    for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+        if isinstance(node, ast.Raise) and node.exc is not None:
+            target = node.exc.func if isinstance(node.exc, ast.Call) else node.exc
+            name = target.id if isinstance(target, ast.Name) else target.attr if isinstance(target, ast.Attribute) \
+                else ""
+            if name[:1].isupper():
+                found.append((node.lineno, name))
+    return sorted(found)
+
+
+#: Services still being moved (their owners put them on the services' contract), each with the errors it still
+#: raises and the entry points it has not decorated yet. The list only shrinks, as FACES_IN_MOVE.
+SERVICES_IN_MOVE: dict[str, dict[str, set[str]]] = {
+    "station/services/bed.py": {"raises": {"ValueError"}, "undecorated": {
+        "BedCalibration", "BedRegistration", "bed_file", "bed_picture", "bed_summary", "default_mark_area",
+        "find_marks", "find_stock", "job_outline", "laser_device", "mark_positions", "marks_job",
+        "placed_outline_machine", "placement_on_stock", "register_bed", "save_registration"}},
+    "station/services/job_preview.py": {"undecorated": {"run_pens", "split_at_line", "travel_segments"}},
+    "station/services/job_queue.py": {"undecorated": {"JobQueue", "QueuedJob", "frame_job"}},
+    "station/services/job_verify.py": {"undecorated": {"JobVerification", "twin_url", "verify_summary"}},
+    "station/services/machine_sessions.py": {"undecorated": {
+        "SendPolicy", "feedback_text", "job_history", "job_layer_marks", "parse_placement", "refusal",
+        "refused_by_twin"}},
+    "station/services/machines.py": {"raises": {"FileFormatError"},
+                                     "undecorated": {"describe_machines", "pattern_points"}},
+    "station/services/plot.py": {"undecorated": {
+        "LayerSummary", "PlotResult", "compose", "drawable_box", "format_minutes", "job_layers", "layered_gcode",
+        "line_times", "load_composition", "optimize", "plot", "read_svg_layers", "summarize", "write_preview_png",
+        "writer_options"}},
+}
+
+
+def test_services_raise_only_station_errors():
+    # A face catches station.errors.USER_ERRORS and nothing else: a service that raised a package's or a builtin
+    # error would reach the user as a traceback. (What a service calls is translated at its entry, see below.)
+    allowed = station_error_classes() | STOPS
+    offenders, cleaned = [], []
+    for path in sorted((ROOT / "station" / "services").glob("*.py")):
+        name = path.relative_to(ROOT).as_posix()
+        raised = {error for _, error in raised_classes(path)} - allowed
+        waiving = SERVICES_IN_MOVE.get(name, {}).get("raises", set())
+        offenders += [f"{name}:{line} raises {error}" for line, error in raised_classes(path)
+                      if error in raised - waiving]
+        cleaned += [f"{name} no longer raises {sorted(waiving - raised)}: take it off SERVICES_IN_MOVE"]\
+            if waiving - raised else []
+    assert not offenders and not cleaned, "\n".join(offenders + cleaned)
+
+
+def test_raise_checker_sees_package_and_builtin_errors(tmp_path):
+    sample = tmp_path / "x.py"
+    sample.write_text("def f(x):\n    if x:\n        raise FileFormatError('a')\n    raise errors.DriverError\n"
+                      "def g():\n    raise fail('b')\n    raise ValueError\n")
+    assert raised_classes(sample) == [(3, "FileFormatError"), (4, "DriverError"), (7, "ValueError")]
+    assert {"ServiceError", "DatabaseError", "JobStateError"} <= station_error_classes()
+
+
+ENTRY_DUNDERS = ("__init__", "__post_init__", "__call__", "__iter__", "__next__", "__enter__", "__exit__")
+
+
+def entry_points_without_translation(path: Path) -> list[str]:
+    """The public functions, and the public classes with public methods, of a service module that are not
+    decorated with ``station_errors``."""
+    missing = []
+    for node in ast.parse(path.read_text(encoding="utf-8")).body:
+        if not isinstance(node, (ast.FunctionDef, ast.ClassDef)) or node.name.startswith("_"):
+            continue
+        bases = {ast.unparse(b).split(".")[-1] for b in node.bases} if isinstance(node, ast.ClassDef) else set()
+        if isinstance(node, ast.ClassDef) and (
+                bases & {"Enum", "StrEnum", "IntEnum"} or any(b.endswith(("Error", "Exception")) for b in bases)
+                or not any(isinstance(m, ast.FunctionDef) and (not m.name.startswith("_") or m.name in ENTRY_DUNDERS)
+                           for m in node.body)):
+            continue  # plain data, a choice among names or an error: nothing of it runs the work
+        decorators = {ast.unparse(d.func if isinstance(d, ast.Call) else d).split(".")[-1] for d in node.decorator_list}
+        if "station_errors" not in decorators:
+            missing.append(node.name)
+    return missing
+
+
+def test_service_entry_points_translate_the_packages_errors():
+    # The packages' errors (design, drivers, calibration, projector, vision, data files) become station errors,
+    # message kept, where a service is entered: every public function and class wears @station_errors.
+    offenders, cleaned = [], []
+    for path in sorted((ROOT / "station" / "services").glob("*.py")):
+        name = path.relative_to(ROOT).as_posix()
+        missing = set(entry_points_without_translation(path))
+        waiving = SERVICES_IN_MOVE.get(name, {}).get("undecorated", set())
+        if missing - waiving:
+            offenders.append(f"{name}: {', '.join(sorted(missing - waiving))} not decorated with @station_errors")
+        if waiving - missing:
+            cleaned.append(f"{name}: {', '.join(sorted(waiving - missing))} decorated: take it off SERVICES_IN_MOVE")
+    assert not offenders and not cleaned, "\n".join(offenders + cleaned)
+
+
+def test_entry_point_checker_sees_an_undecorated_function(tmp_path):
+    sample = tmp_path / "x.py"
+    sample.write_text("@station_errors\ndef a(): ...\ndef b(): ...\ndef _c(): ...\n"
+                      "@dataclass\nclass D:\n    x: int\n@dataclass\nclass E:\n    def run(self): ...\n"
+                      "class F(ServiceError):\n    def __init__(self): ...\n")
+    assert entry_points_without_translation(sample) == ["b", "E"]

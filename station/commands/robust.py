@@ -20,12 +20,12 @@ from typing import TextIO
 
 import numpy as np
 
-from common.progress import Progress as BaseProgress
 from station.cli_util import NON_NEGATIVE, add_physics_option, check_output_file, emit_json
 from station.errors import ServiceError, UsageError
 from station.progress_view import ProgressView
 from station.services import robust as service
 from station.services.reporting import Cancelled, Reporter
+from station.services.reporting import Progress as BaseProgress
 from station.services.robust import (  # noqa: F401 - re-exported: the work lives in the service
     DEFAULT_BUDGET,
     DEFAULT_SETTINGS,

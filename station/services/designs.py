@@ -11,9 +11,8 @@ from pathlib import Path
 from typing import Any
 
 from design.datafiles import load_json
-from design.errors import FileFormatError
 from design.machines import declared_machine_names, get_machine
-from station.errors import station_errors
+from station.errors import ServiceError, station_errors
 
 __all__ = ["DESIGN_FILE", "declared_machine_names", "get_machine", "load_design"]
 
@@ -32,10 +31,10 @@ def load_design(path: str | Path, machine_name: str) -> dict[str, Any]:
 
     Raises
     ------
-    FileFormatError
+    StationError
         Not JSON (:func:`design.datafiles.load_json`'s one line: file, line and column, what was expected), not an
         object or list, ``params`` not an object, a ``machine`` other than ``machine_name``, or a
-        list with no design for ``machine_name`` (as a station error).
+        list with no design for ``machine_name``.
     """
     path = Path(path)
     document = load_json(path, DESIGN_FILE)
@@ -43,18 +42,20 @@ def load_design(path: str | Path, machine_name: str) -> dict[str, Any]:
         ranked = [d for d in document if isinstance(d, dict) and d.get("machine") == machine_name]
         if not ranked:
             found = sorted({str(d.get("machine")) for d in document if isinstance(d, dict)})
-            raise FileFormatError(f"{path}: expected a list of designs with one for {machine_name!r}, "
-                                  f"found machines {found}")
+            raise ServiceError(f"{path}: expected a list of designs with one for {machine_name!r}, "
+                               f"found machines {found}", value=str(path))
         document = ranked[0]
     if not isinstance(document, dict):
-        raise FileFormatError(f"{path}: expected a JSON object, got {type(document).__name__}")
+        raise ServiceError(f"{path}: expected a JSON object, got {type(document).__name__}", value=str(path))
     if "params" in document:
         machine = document.get("machine", machine_name)
         if machine != machine_name:
-            raise FileFormatError(f"{path}: field 'machine' is {machine!r}, but the command draws {machine_name!r}")
+            raise ServiceError(f"{path}: field 'machine' is {machine!r}, but the command draws {machine_name!r}",
+                               value=str(path))
         params = document["params"]
         if not isinstance(params, dict):
-            raise FileFormatError(f"{path}: field 'params' must be an object of name: value, got {params!r:.60}")
+            raise ServiceError(f"{path}: field 'params' must be an object of name: value, got {params!r:.60}",
+                               value=str(path))
     else:
         params = document
     return dict(params)

@@ -34,7 +34,7 @@ from design.fabrication.lasercard import (
     linear_steps,
     read_manifest,
 )
-from drivers.profiles import BUILTIN_PROFILES, MachineProfile, ProfileError, profile_from_toml
+from drivers.profiles import BUILTIN_PROFILES, MachineProfile, profile_from_toml
 from drivers.sim.laser_burn import burn_gcode, line_kerf, photograph, sim_material
 from station.errors import ServiceError, station_errors
 from station.services.images import check_frame_size, check_image_file
@@ -76,17 +76,14 @@ def parse_steps(text: str, field: str, low: float, high: float, unit: str) -> tu
     :class:`ServiceError` naming ``field`` otherwise."""
     parts = str(text).split(":")
     example = "0.2:1:5" if unit == "" else "200:3000:5"
+    unreadable = ServiceError(f"{field} {text!r}: expected FIRST:LAST:COUNT, e.g. {example}", field=field, value=text)
+    if len(parts) not in (1, 3):
+        raise unreadable
     try:
-        if len(parts) == 1:
-            first = last = float(parts[0])
-            count = 1
-        elif len(parts) == 3:
-            first, last, count = float(parts[0]), float(parts[1]), int(parts[2])
-        else:
-            raise ValueError
+        first, last, count = (float(parts[0]), float(parts[0]), 1) if len(parts) == 1 else (
+            float(parts[0]), float(parts[1]), int(parts[2]))
     except ValueError:
-        raise ServiceError(f"{field} {text!r}: expected FIRST:LAST:COUNT, e.g. {example}", field=field,
-                           value=text) from None
+        raise unreadable from None
     if not (math.isfinite(first) and math.isfinite(last) and low <= min(first, last) and max(first, last) <= high
             and first > 0):
         raise ServiceError(f"{field} {text!r}: expected values from {low:g} to {high:g}{unit}, e.g. {example}",
@@ -534,12 +531,12 @@ def update_profile(measurement: MaterialMeasurement, profile_name: str | None = 
                    when: datetime | None = None) -> ProfileUpdate:
     """Write the chosen settings into the profile the card was made for (or ``profile_name``): the station's copy of
     a built-in profile (made from it when missing), or the user's file only when ``yes``; otherwise the update is
-    returned unwritten. Raises ProfileError."""
+    returned unwritten. A profile that is not a laser is a ServiceError."""
     name = profile_name or measurement.manifest.profile
     builtin = name in BUILTIN_PROFILES and not Path(name).exists()
     profile = load_station_profile(name)
     if not profile.is_laser:
-        raise ProfileError(f"profile {name!r} is a {profile.kind}, not a laser")
+        raise ServiceError(f"profile {name!r} is a {profile.kind}, not a laser")
     profile.material(measurement.manifest.material)  # the material must be in it
     block = material_block(measurement, profile, when)
     path = station_copy_path(name, create=True) if builtin else Path(name)

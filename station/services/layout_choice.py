@@ -150,6 +150,7 @@ def choice_score(predicted: float, successes: int = 0, attempts: int = 0, weight
     return float(beta.ppf(quantile, weight * p + successes, weight * (1.0 - p) + attempts - successes))
 
 
+@station_errors
 @dataclass(frozen=True)
 class LayoutChoiceRequest:
     """How :func:`choose_layout` weighs the options.

@@ -21,7 +21,6 @@ from typing import TYPE_CHECKING
 
 from common.progress import Cancelled, Reporter
 from common.signals import HandledSignals
-from design.errors import FileFormatError
 from design.robust.problem import RobustError
 from design.robust.settings import METHODS, PSPSettings, RobustnessSettings
 from station.errors import ServiceError, station_errors
@@ -147,7 +146,7 @@ def settings_of_layout(path: str) -> PSPSettings:
     """The PSP settings a LAYOUT.json recorded (``psp_settings``, as planned for its budget).
 
     A missing file is a :class:`ServiceError` (``field="settings"``); a file that is not a LAYOUT.json with settings
-    is a :class:`design.errors.FileFormatError` naming the file and the field.
+    is a :class:`ServiceError` naming the file and the field.
     """
     from design.contraption.layout_io import read_layout_data
 
@@ -156,16 +155,16 @@ def settings_of_layout(path: str) -> PSPSettings:
     except FileNotFoundError:
         raise ServiceError(f"settings: no such file {path}", field="settings", value=path) from None
     except OSError as error:
-        raise FileFormatError(f"{path}: cannot be read ({error})") from None
+        raise ServiceError(f"{path}: cannot be read ({error})", value=path) from None
     if not isinstance(data, dict) or "psp_settings" not in data:
-        raise FileFormatError(f"{path}: field 'psp_settings' is missing (expected a LAYOUT.json written by "
-                              "'station optimize')")
+        raise ServiceError(f"{path}: field 'psp_settings' is missing (expected a LAYOUT.json written by "
+                           "'station optimize')", value=path)
     if data["psp_settings"] is None:
-        raise FileFormatError(f"{path}: field 'psp_settings' is null (the run recorded no settings)")
+        raise ServiceError(f"{path}: field 'psp_settings' is null (the run recorded no settings)", value=path)
     try:
         return PSPSettings.from_mapping(data["psp_settings"], f"{path}: field 'psp_settings'")
     except RobustError as error:
-        raise FileFormatError(str(error)) from None
+        raise ServiceError(str(error), value=path) from None
 
 
 @station_errors
