@@ -1,4 +1,4 @@
-"""Tag measurement accuracy and speed on the camera twin's frames (issue 19's acceptance, full version).
+"""Tag measurement accuracy and speed on the camera twin's frames (the full version of the check's tests).
 
 1080p, f = 1400 px, a mild barrel lens, the camera 1 m above the plane (tilted 0-15 degrees, rolled), the four
 reference tags (40 mm) and 24 part tags of 30 mm at heights 0-50 mm with headings every 15 degrees all round, blur

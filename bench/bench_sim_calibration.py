@@ -1,4 +1,4 @@
-"""Simulator calibration recovers hidden material values (issue 20's acceptance), seeded.
+"""Simulator calibration recovers hidden material values, seeded.
 
 Trials are made by the simulator itself under hidden material values with 1 mm / 1 degree placement errors
 (:func:`station.services.world.synthetic_trials`), written in the trial log's export format, read back and fitted with

@@ -231,7 +231,7 @@ def _apply(homography: np.ndarray, pixels: np.ndarray) -> np.ndarray:
 
 
 def _detect(gray: np.ndarray, wanted: set[int]) -> list:
-    """The tags in a frame: quads searched on a half-size image first (4x faster on 1080p, corners still refined on
+    """The tags in a frame: quads searched on a half-size image first (faster, corners still refined on
     the full image), again at full size only when a wanted tag is not found (a small or far tag, ~20 px or less)."""
     found = _detector(FAST_DECIMATE).detect(gray)
     if wanted <= {tag.tag_id for tag in found}:

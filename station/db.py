@@ -148,7 +148,7 @@ _TRIALS = """
 """
 MIGRATIONS.append(_TRIALS.format(serial="INTEGER PRIMARY KEY AUTOINCREMENT"))
 
-#: The station loop (4, issue 21; :mod:`station.loopstore`): a run of ``station loop`` is keyed by its arguments
+#: The station loop (migration 4; :mod:`station.loopstore`): a run of ``station loop`` is keyed by its arguments
 #: (``run_key``: a second run with the same ones resumes it); each loop keeps the layout it placed (LAYOUT.json text)
 #: and the physics profile it was optimized and predicted with; each attempt its logged trial, its predicted success
 #: and the check rounds it took (loop 0: the baseline), written in the trial's own transaction. Optimized layouts

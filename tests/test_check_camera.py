@@ -1,4 +1,4 @@
-"""The as-built check on synthetic camera frames (issue 19's acceptance): a part moved by a known offset is named
+"""The as-built check on synthetic camera frames: a part moved by a known offset is named
 with that offset and the right instruction, a covered tag is reported missing, the CLI prints CHECK.json.
 
 The frames come from the camera twin's renderer (drivers.sim.camera_render: its own tag bitmaps and ray casting,

@@ -1,4 +1,4 @@
-"""The station loop on the simulated world (issue 21): the world service, and `station loop` stopped and resumed.
+"""The station loop on the simulated world: the world service, and `station loop` stopped and resumed.
 
 The SIMPLE scenario with tiny budgets; nothing here asserts on the acceptance rates (bench/bench_loop.py does)."""
 

@@ -1,4 +1,4 @@
-"""``station assemble``: walk a maker through one physical attempt, prompt by prompt (issue 21).
+"""``station assemble``: walk a maker through one physical attempt, prompt by prompt.
 
 guide (sheet or projector) -> place -> check (-> fix -> check)* -> run -> what happened -> log. The steps are
 :mod:`station.services.assemble`'s (shared with the Assemble screen); this module asks and says. Every answer is

@@ -1,4 +1,4 @@
-"""``station calibrate``: the ChArUco board PDF, a camera's intrinsics, the plane check (issue 19).
+"""``station calibrate``: the ChArUco board PDF, a camera's intrinsics, the plane check.
 
 Argparse in, text or JSON out: the work is :mod:`station.services.calibrate`. ``station calibrate projector``
 and ``station calibrate sim`` live in :mod:`station.commands._calibrate_projector` and

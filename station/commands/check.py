@@ -1,4 +1,4 @@
-"""``station check``: the placed parts seen by the camera against the layout's guide (issue 19).
+"""``station check``: the placed parts seen by the camera against the layout's guide.
 
 Argparse in, text or JSON out: the work is :mod:`station.services.check` (and the camera's calibration,
 :mod:`station.services.calibrate`), whose refusals (naming ``guide``, ``image``, ``camera``, ``sim_offset``,

@@ -1,4 +1,4 @@
-"""``station tolerances``: how far each part of a layout may be off, from its fitted success model (issue 18).
+"""``station tolerances``: how far each part of a layout may be off, from its fitted success model.
 
 Argparse in, text or JSON out: the work is :mod:`station.services.tolerances`. Simulations (``--verify``) go through
 the robust commands' shared cache, progress bar and clean Ctrl-C (:func:`station.commands.robust.command`).

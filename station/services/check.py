@@ -1,4 +1,4 @@
-"""The as-built check as a service: a camera frame of the placed parts against the layout's guide (issue 19).
+"""The as-built check as a service: a camera frame of the placed parts against the layout's guide.
 
 Used by ``station check`` and the Assemble screen (key c). :func:`prepare_check` makes (or reads) the guide once;
 :func:`check_frame` measures one frame (:func:`calibration.measure.measure`), checks every part

@@ -1,7 +1,7 @@
 """Simulator calibration as a service: fit scenarios' uncertain material values to logged trials, save a profile.
 
 Used by ``station calibrate sim`` and the Calibrate > Simulator panel. The trials come as dicts of the trial log's
-JSON export (issue 20's contract): from a file (``--trials-json``) or, wired by the station, from the trial store.
+JSON export (a public format): from a file (``--trials-json``) or, wired by the station, from the trial store.
 The fit itself is :func:`calibration.sim_fit.fit_simulator`; its simulations run where the optimizer's do (local
 processes or a Dask scheduler) on the shared simulation cache, so a repeated or interrupted calibration re-simulates
 nothing it already ran.

@@ -1,4 +1,4 @@
-"""The tolerance map of a layout as a service: ``station tolerances`` and the assembly guide (issue 18).
+"""The tolerance map of a layout as a service: ``station tolerances`` and the assembly guide.
 
 :func:`tolerance_map` reads a scenario and a layout (through the one layout reader, as ``station robustness``
 does), takes the fitted success model the LAYOUT.json carries (``"model"``, :mod:`design.robust.model_io`) and

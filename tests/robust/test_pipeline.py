@@ -264,7 +264,8 @@ def test_recommended_settings_fit_a_small_budget_and_return_a_verified_success()
     kept = next(r for r in verified if r["kept"])
     source = "an optimum of the model" if kept["source"] == "model" else "a success of the uniform start"
     assert result.kept_candidate().startswith(f"{source} (of 6 checked; local success")
-    # Issue 20: the recommended C, gamma search minimizes the calibrated log loss (it was ROC AUC, fold by fold).
+    # The recommended C, gamma search minimizes the calibrated log loss (ROC AUC, fold by fold, ranks but never
+    # checks a probability).
     assert PSPSettings().cv_scoring == "accuracy" and settings.cv_scoring == "calibrated_log_loss"
     assert settings.calibrate_product and not PSPSettings().calibrate_product
 

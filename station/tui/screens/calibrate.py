@@ -1,4 +1,4 @@
-"""Calibrate screen: the camera's intrinsics and the plane check, one panel each, with progress (issue 19).
+"""Calibrate screen: the camera's intrinsics and the plane check, one panel each, with progress.
 
 Camera: type a folder of board images (or a number of frames to grab from the station's camera, moving the board
 between them) and press Calibrate (or f / g); the views are searched and solved in a worker, the result shows the
