@@ -16,6 +16,10 @@ from design.contraption import load_scenario
 from design.robust import PSPSettings, SimulationCache, SimulationExecutor, synthetic_chain
 from design.robust.executor import cache_scope
 from drivers.profiles import load_profile
+from station.services import plot as plot_service
+from station.services import robust
+from station.services.fabricate import FabricationRequest, fabricate
+from station.services.loop import LoopSettings, run_loop
 from station.services.world import synthetic_trials
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -41,8 +45,6 @@ def test_a_simulation_batch_stops_between_arrivals_with_the_finished_ones_cached
 
 
 def test_an_optimization_stops_and_says_how_many_new_simulations_the_cache_keeps():
-    from station.services import robust
-
     problem = synthetic_chain()
     seen, report = stopping_at(lambda seen: bool(seen) and seen[-1].done >= 40)
     with pytest.raises(Cancelled) as stopped:
@@ -66,8 +68,6 @@ def test_a_simulator_calibration_stops_between_its_simulation_batches():
 
 
 def test_a_laser_job_stops_between_its_steps():
-    from station.services.fabricate import FabricationRequest, fabricate
-
     seen, report = stopping_at(lambda seen: bool(seen) and seen[-1].stage == "nesting")
     with pytest.raises(Cancelled):
         fabricate(FabricationRequest("hoot_nanny", {}, 4.0), report=report)
@@ -76,8 +76,6 @@ def test_a_laser_job_stops_between_its_steps():
 
 
 def test_a_pen_plot_stops_between_its_layers_before_any_gcode_is_written(tmp_path):
-    from station.services import plot as plot_service
-
     sources = []
     for number in range(3):  # three drawings, one layer (one pen) each
         svg = tmp_path / f"layer{number}.svg"
@@ -95,8 +93,6 @@ def test_a_pen_plot_stops_between_its_layers_before_any_gcode_is_written(tmp_pat
 
 
 def test_the_loop_stops_in_the_middle_with_what_it_logged(tmp_path):
-    from station.services.loop import LoopSettings, run_loop
-
     settings = LoopSettings(attempts=1, loops=1, budget=20, baseline=0, predict_samples=2, fit_draws=1,
                             fit_sobol=3, fit_rounds=0, workers=1)
     seen, report = stopping_at(lambda seen: len(seen) >= 2)
