@@ -53,7 +53,7 @@ class DatabaseSettings:
         Grid values per continuous parameter.
     points : int
         Points per curve (uniform in arc length) before the spectrum is taken. 512 is plenty for
-        ``harmonics`` <= 255 and samples 5-10 times faster than 1024 (the query curve keeps 1024).
+        ``harmonics`` <= 255 and samples several times faster than 1024 (the query curve keeps 1024).
     harmonics : int
         Harmonics kept per curve.
     seed : int

@@ -40,9 +40,9 @@ __all__ = ["CHOICE_QUANTILE", "PREDICTION_EDGE", "PREDICTION_WEIGHT", "candidate
            "choose_layout", "describe_choice", "distinct_layouts", "expected_success", "layout_record",
            "layout_records", "same_layout"]
 
-#: What a predicted success is worth, in attempts on the table (the strength of the Beta prior it centres). Fitted
-#: by ``bench/bench_prediction_weight.py`` to the bench loops' 103 layouts of five attempts each (4.4; 1: 247 of
-#: negative log-likelihood, 4: 232.5, 16: 236.7, simulations only: 244).
+#: What a predicted success is worth, in attempts on the table (the strength of the Beta prior it centres): the
+#: weight that best explains the bench loops' records (``bench/bench_prediction_weight.py``; the figures are in the
+#: loop's results page).
 PREDICTION_WEIGHT = 4.0
 
 #: The quantile of a layout's success posterior the options are ranked by (:func:`choice_score`).

@@ -192,7 +192,7 @@ class ExploreScreen(Screen):
         self.app.call_from_thread(self._after_change, message, False)
 
     def _remember(self, state: Explorer) -> None:
-        """Keep ``state`` for undo (called by the workers with the lock held); a deep copy costs about 1 ms."""
+        """Keep ``state`` for undo (called by the workers with the lock held; a deep copy is cheap)."""
         self.history.append(state)
         del self.history[:-UNDO_DEPTH]
 
