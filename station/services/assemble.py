@@ -43,6 +43,7 @@ STAGES = ("guide", "check", "run", "log", "done")
 DEFAULT_SAMPLES = 60
 
 
+@station_errors
 @dataclass(frozen=True)
 class Forecast:
     """The physical success and expected attempts at one point of the attempt.

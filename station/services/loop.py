@@ -65,6 +65,7 @@ _CALIBRATE, _PREDICT, _CAMERA, _CHOOSE = 12, 13, 14, 15  # what a derived seed i
 OPTIMIZE_SEED = 0
 
 
+@station_errors
 @dataclass(frozen=True)
 class LoopSettings:
     """The loop's sizes (all part of the run's identity, except ``loops``, ``workers`` and ``scheduler``).
@@ -182,6 +183,7 @@ def _mean_known(values: list) -> float | None:
     return float(np.mean(known)) if known else None
 
 
+@station_errors
 @dataclass(frozen=True)
 class LoopSummary:
     """One loop's figures."""
@@ -223,6 +225,7 @@ class LoopSummary:
                 "forecast_success": self.forecast_success, "physics": dict(self.physics)}
 
 
+@station_errors
 @dataclass(frozen=True)
 class LoopResult:
     """A run's figures: its loops and the baseline, and its id in the database."""
@@ -260,6 +263,7 @@ def _attempts_words(count: int) -> str:
     return f"{count} attempt{'' if count == 1 else 's'}"
 
 
+@station_errors
 @dataclass(frozen=True)
 class RunLog:
     """What a run of the loop has in the station database: its id, whether an earlier ``station loop`` began it,
@@ -298,6 +302,7 @@ class RunLog:
         return f"{_attempts_words(self.attempts)} logged ({', '.join(parts)})"
 
 
+@station_errors
 def loop_stopped(log: RunLog, new_simulations: int) -> Cancelled:
     """The :class:`~common.progress.Cancelled` of a run of the loop stopped on request (Ctrl-C, SIGTERM, a stop
     check): every attempt logged stays (each with its trial), and the same arguments resume the run; its
@@ -318,6 +323,7 @@ class LoopProgress(Progress):
 _OPTIMIZER_PHASES = {"check": "verifying its best layouts"}
 
 
+@station_errors
 def labelled(progress: Progress, words: str) -> Progress:
     """``progress`` of work the loop called (an optimization, a calibration, a prediction) under the loop's
     ``words``: the work's own stage kept in parentheses when it says more than its unit ("exploration"), its type
@@ -330,6 +336,7 @@ def labelled(progress: Progress, words: str) -> Progress:
     return LoopProgress(stage, progress.done, progress.total, progress.message, unit="simulations")
 
 
+@station_errors
 @dataclass(frozen=True)
 class Correction:
     """What the check had the maker do to one part over an attempt's rounds (each round's moves summed).
@@ -360,6 +367,7 @@ class Correction:
         return f"`{self.name}` " + (" and ".join(did) or "nudged")
 
 
+@station_errors
 @dataclass(frozen=True)
 class AttemptReport:
     """One attempt in a line of its own (:meth:`describe`): what the check found and the simulated maker corrected,
@@ -445,6 +453,7 @@ def _corrections(rounds: Sequence[Sequence[Mapping[str, Any]]], view: str) -> tu
                  for name, (du, dv, dh) in total.items())
 
 
+@station_errors
 def record_forecasts(layouts: Mapping[int, dict], attempts: Sequence, weight: float) -> list[float | None]:
     """Each attempt's forecast: its predicted success updated by its layout's record before it.
 

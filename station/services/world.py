@@ -220,6 +220,7 @@ def _side_changes(check: Mapping[str, Any], by_name, all_parts: bool) -> dict[st
     return result
 
 
+@station_errors
 @dataclass(frozen=True)
 class AttemptRun:
     """One attempt's run in the world.
