@@ -210,13 +210,10 @@ BELOW_THE_STATION = {"common", "design", "drivers", "calibration", "projector", 
 #: a face cleaned up must leave it (the test says so), and no face joins it.
 FACES_IN_MOVE: dict[str, set[str]] = {
     "station/commands/machines_io.py": {"common"},
-    "station/tui/registry.py": {"design"},
     "station/tui/screens/calibrate.py": {"calibration", "drivers"},
     "station/tui/screens/contraption.py": {"design"},
     "station/tui/screens/drawing.py": {"design"},
     "station/tui/screens/explore.py": {"design"},
-    "station/tui/screens/fabricate.py": {"common", "design", "drivers"},
-    "station/tui/screens/robust.py": {"design"},
     "station/tui/screens/sketch.py": {"common", "design"},
     "station/tui/screens/trials.py": {"common", "design"},
     "station/tui/widgets/progress.py": {"common"},

@@ -92,6 +92,7 @@ async def test_stop_ends_the_work_at_its_next_check_as_stopped():
             gate.release()
         await wait_until(pilot, lambda: app.ended)
         assert app.ended[0].stopped and app.ended[0].result is None and not app.ended[0].ok
+        assert app.ended[0].error == "stopped on request"  # what the stop said
         assert app.seen[:2] == [("progress", 1), ("progress", 2)]
         assert len(app.ended) == 1
         assert not work.running

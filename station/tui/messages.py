@@ -47,7 +47,8 @@ class WorkEnded(Message):
     result : object, optional
         What the work returned (None when it failed or stopped).
     error : str
-        Why the work could not be done ("" when it was).
+        Why the work has no result, one line for a person: the refusal, or what the stop said it kept ("" when the
+        work ran to its end).
     stopped : bool
         The work was asked to stop and stopped between two units of work.
     """

@@ -16,6 +16,8 @@ from typing import NamedTuple
 
 from textual.screen import Screen
 
+from station.services.designs import get_machine
+
 
 class MachineDesign(NamedTuple):
     """A drawing-machine design: the machine's name and its parameters (what the Drawing screen shows)."""
@@ -26,8 +28,6 @@ class MachineDesign(NamedTuple):
     @classmethod
     def defaults(cls, machine: str) -> MachineDesign:
         """``machine`` with its default parameters (a screen's start when there is no Drawing screen)."""
-        from design.machines import get_machine
-
         model = get_machine(machine)
         return cls(model.name, model.defaults())
 

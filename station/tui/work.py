@@ -109,8 +109,8 @@ def run_work(target: MessagePump, call: Callable[[Reporter], Any], ended: type[W
         report = Reporter(post, stop=lambda: work.stop_asked or worker.is_cancelled)
         try:
             result = call(report)
-        except Cancelled:
-            outcome = ended(stopped=True)
+        except Cancelled as stop:
+            outcome = ended(error=str(stop), stopped=True)
         except errors as error:
             outcome = ended(error=str(error))
         else:
