@@ -289,7 +289,9 @@ def test_a_hold_the_maker_asks_for_is_not_a_pause_of_the_program():
         until(lambda: runner.progress.lines_acked > 4)
         runner.hold()
         until(lambda: conn.status is not None and conn.status.label == "Hold:0")
-        time.sleep(0.3)  # status reports keep coming while held
+        reports: list[object] = []
+        conn.add_listener(lambda event, data: reports.append(data) if event == "status" else None)
+        until(lambda: len(reports) >= 3)  # status reports keep coming while held: none of them is a pause
         assert runner.progress.state == "holding" and runner.pause_line is None
         runner.resume()
         until(lambda: runner.progress.state == "paused")
