@@ -111,7 +111,7 @@ class Reporter:
 
     def __init__(self, callback: ProgressCallback | None = None, *, stop: Callable[[], bool] | None = None) -> None:
         self.callback = callback
-        self.stop = stop if stop is not None else _no_stop
+        self._stop = stop if stop is not None else _no_stop  # private: `report.stop()` would read as an order
 
     @classmethod
     def of(cls, report: Reporter | ProgressCallback | None) -> Reporter:
@@ -126,7 +126,7 @@ class Reporter:
     @property
     def stopping(self) -> bool:
         """Whether a stop was asked for (without raising: for work that must tidy up before it stops)."""
-        return bool(self.stop())
+        return bool(self._stop())
 
     def __call__(self, stage: str, done: float = 0, total: float | None = None, message: str = "") -> None:
         """Report a plain :class:`Progress`, then honour a stop."""
@@ -146,11 +146,11 @@ class Reporter:
 
     def check(self) -> None:
         """Raise :class:`Cancelled` if a stop was asked for."""
-        if self.stop():
+        if self._stop():
             raise Cancelled("stopped on request")
 
     def mapped(self, change: Callable[[Progress], Progress]) -> Reporter:
         """A reporter with this one's stop whose progress reaches this one's callback through ``change`` (work
         called by other work, its progress said in the caller's words)."""
         callback = self.callback
-        return Reporter(None if callback is None else (lambda progress: callback(change(progress))), stop=self.stop)
+        return Reporter(None if callback is None else (lambda progress: callback(change(progress))), stop=self._stop)
