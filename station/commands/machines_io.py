@@ -525,11 +525,8 @@ def run_send(args) -> int:
     policy = TerminalPolicy(path, ask=not args.json, bar=bar)
     with job_history(_warn_history) as history:
         sessions = MachineSessions(history, source="station send")
-        with SendSignals(sessions), sessions.session(url, url, baud) as conn:
-            warning = sessions.kind_warning(job, conn)
+        with SendSignals(sessions), sessions.session(url, url, baud):
             verify_before_send(args, job, profile, sessions, url)
-            if warning:
-                policy.warn(warning)
             entry = sessions.add(url, job, str(path))
             if args.from_layer is not None and not args.frame:
                 mark = marks[args.from_layer - 1]

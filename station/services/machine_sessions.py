@@ -341,16 +341,15 @@ class MachineSessions:
         return verify_job(list(lines), name=title, profile=profile, laser=laser or bool(conn and conn.laser_mode),
                           settings=settings, work_offset=conn.work_offset() if conn is not None else None)
 
-    @staticmethod
-    def kind_warning(job: Job, conn: GrblConnection) -> str:
-        """A warning for a job written for the other kind of machine (a pen plot on a laser), or ``""``."""
-        return kind_warning(job, conn.laser_mode) or ""
-
     def send(self, device: str, entry: QueuedJob, mode: JobMode | str = JobMode.RUN, *,
              from_line: int | None = None, profile: MachineProfile | None = None, policy: SendPolicy | None = None,
              report: Reporter | ProgressCallback | None = None) -> JobResult:
         """Send ``entry`` to ``device`` in ``mode`` (the job, its frame, a dry run) and wait for the end.
 
+        ``from_line`` (1-based) starts a run or a dry run there (by default line 1, or where a stopped run stood:
+        :meth:`JobQueue.start_line`); ``profile`` is the machine's (a laser's frame power).
+
+        ``policy`` is warned of a job written for the other kind of machine (a pen plot's servo commands fire a laser).
         The pre-flight (travel, laser mode, the machine's state) runs before any byte of the job; a laser job from
         its first line on a machine without homing first asks ``policy`` whether to trace its frame. Each send is
         recorded in the job history as it starts, runs and ends. ``report`` hears the job's
@@ -372,6 +371,9 @@ class MachineSessions:
             raise ServiceError(f"{running.describe()} is being sent (one job at a time)", field="state",
                                value=running.state)
         job = entry.job
+        warning = kind_warning(job, conn.laser_mode)
+        if warning:  # a job written for the other kind of machine (a pen plot on a laser)
+            policy.warn(warning)
         if (mode is JobMode.RUN and job.laser and (from_line or self.queue.start_line(entry, mode)) == 1
                 and not conn.homing_enabled and conn.laser_mode):
             # without homing the job burns wherever work zero was set: the frame shows where, at low power
@@ -395,7 +397,8 @@ class MachineSessions:
             job = frame_job(entry.job, entry.title, profile)
             if job is None:
                 raise ServiceError(f"job {entry.title}: no motion to frame", field="job", value=entry.title)
-        start = from_line if from_line is not None and mode is JobMode.RUN else self.queue.start_line(entry, mode)
+        # a frame traces the whole job; a run or a dry run starts where asked (a stopped run: where it stood)
+        start = from_line if from_line is not None and mode is not JobMode.FRAME else self.queue.start_line(entry, mode)
         runner = JobRunner(conn, job, from_line=start, dry_run=mode is JobMode.DRY,
                            on_progress=Reporter.of(report).tell)
         with self._lock:

@@ -200,6 +200,7 @@ class MachinesScreen(Screen):
         self._calls: queue.SimpleQueue = queue.SimpleQueue()
         self._last_preview = 0.0
         self._auto_connected = False
+        self._queue_shown: list = []
         self._after_abort = None  # called with the job's last message once an abort for quitting has ended it
 
     @property
@@ -446,9 +447,14 @@ class MachinesScreen(Screen):
                   + layer_estimates(entry.job.lines, profile))
         return entry
 
-    def _refresh_queue(self) -> None:
+    def _refresh_queue(self, changed_only: bool = False) -> None:
+        """Redraw the queue table (``changed_only``: only if a job's title or state changed since the last time)."""
+        shown = [(entry.title, entry.state) for entry in self.jobs]
+        if changed_only and shown == self._queue_shown:
+            return
         if (table := self._shown("#queue", JobQueueTable)) is not None:
             table.show(self.jobs)
+            self._queue_shown = shown
 
     def _show_preview(self, entry: QueuedJob, current_line: int | None = None) -> None:
         """Draw the job's toolpath; with ``current_line``, what is done in green and the rest in grey."""
@@ -502,7 +508,7 @@ class MachinesScreen(Screen):
     def _show_progress(self, progress: JobProgress) -> None:
         now = time.monotonic()
         entry = self.running_job
-        self._refresh_queue()
+        self._refresh_queue(changed_only=True)  # the send changes the job's state on its own thread
         if entry is not None and entry.state is JobState.RUNNING and (
                 now - self._last_preview > 0.5 or progress.state != "running"):
             self._last_preview = now
