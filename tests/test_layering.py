@@ -215,7 +215,6 @@ FACES_IN_MOVE: dict[str, set[str]] = {
     "station/tui/screens/drawing.py": {"design"},
     "station/tui/screens/explore.py": {"design"},
     "station/tui/screens/sketch.py": {"common", "design"},
-    "station/tui/screens/trials.py": {"common", "design"},
     "station/tui/widgets/progress.py": {"common"},
     "station/tui/widgets/projector_calibration.py": {"calibration", "drivers"},
     "station/tui/widgets/scenario_select.py": {"design"},

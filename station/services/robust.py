@@ -12,6 +12,7 @@ bad scenario or layout) pass as they are.
 
 from __future__ import annotations
 
+import io
 import threading
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
@@ -419,6 +420,17 @@ def compare(problem, request: ComparisonRequest, *, report: Reporter | None = No
         return compare_methods(problem, executor, list(request.methods), request.runs, request.budget, request.seed,
                                settings=request.settings, robustness=request.robustness, report=report,
                                on_run=on_run)
+
+
+@station_errors
+def layouts_picture(problem, optimized) -> bytes:
+    """A PNG of ``problem``'s initial layout beside the ``optimized`` one (normalized), in side view."""
+    from design.robust.contraption import render_layouts  # pybullet: loaded when a picture is drawn
+
+    picture = io.BytesIO()
+    render_layouts(problem, [("initial", problem.initial_layout()), ("optimized", optimized)]).save(picture,
+                                                                                                    format="PNG")
+    return picture.getvalue()
 
 
 @station_errors

@@ -538,6 +538,13 @@ def export_trials(store: TrialStore, path: str | Path, *, scenario: str | None =
 
 
 @station_errors
+def export_logged(path: str | Path, *, ids: Collection[int] | None = None, url: str | None = None) -> int:
+    """:func:`export_trials` from the station's trial log (``url``: another database); how many were written."""
+    with open_store(url) as store:
+        return export_trials(store, path, ids=ids)
+
+
+@station_errors
 def write_atomically(path: str | Path, write: Callable[[TextIO], None], *, field: str = "out") -> None:
     """A text file (UTF-8) whole or not at all: ``write(stream)`` writes it aside, in a hidden file of the same
     folder, which then replaces ``path`` in one rename.
