@@ -126,6 +126,15 @@ def load_sketch(path: str | Path, symmetry: int | None = None, center: object = 
 
 
 @station_errors
+def sketch_from_strokes(strokes: list, symmetry: int = 1, center: object = None, source: str = "") -> Sketch:
+    """A sketch from strokes drawn by hand (lists of (x, y) points; one symmetric sector with ``symmetry`` K, about
+    ``center``): :func:`design.sketch.make_sketch`."""
+    from design.sketch import make_sketch  # scipy and the spline/FFT machinery: loaded when a sketch is made
+
+    return make_sketch(strokes, symmetry=symmetry, center=center, source=source)
+
+
+@station_errors
 def retrieve(sketch: Sketch, options: RetrieveOptions | None = None, *, retriever: SketchRetriever | None = None,
              report: Reporter | None = None) -> RetrievalResult:
     """Ranked candidates for ``sketch``.
