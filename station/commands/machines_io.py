@@ -18,8 +18,6 @@ from typing import Any
 
 import numpy as np
 
-from common.progress import Progress
-from common.signals import HandledSignals
 from station.cli_util import (
     NON_NEGATIVE,
     POSITIVE,
@@ -38,6 +36,7 @@ from station.services.machine_sessions import (
     BAUD_RATES,
     FINAL_STATES,
     INTERRUPTED,
+    HandledSignals,
     JobMode,
     JobProgress,
     JobResult,
@@ -53,6 +52,7 @@ from station.services.machine_sessions import (
 )
 from station.services.machines import job_seconds, machine_name, pattern_points, read_pattern, sample_pattern
 from station.services.machines import plot_job as _plot_job
+from station.services.reporting import Progress
 
 DEFAULT_POINTS = 4096
 

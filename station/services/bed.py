@@ -58,12 +58,14 @@ _NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.-]{0,63}$")
 # ----------------------------------------------------------------------------------------------------------- marks
 
 
+@station_errors
 def default_mark_area(width: float, height: float) -> tuple[float, float, float, float]:
     """The marks' rectangle (work mm) on a ``width`` x ``height`` work area: its middle, 140 x 100 mm."""
     cx, cy = width / 2.0, height / 2.0
     return (cx - 70.0, cy - 50.0, cx + 70.0, cy + 50.0)
 
 
+@station_errors
 def mark_positions(area: Sequence[float]) -> list[tuple[tuple[float, float], float]]:
     """``[(centre, size)]`` of the four marks at the corners of ``area`` ``(x0, y0, x1, y1)`` (work mm)."""
     x0, y0, x1, y1 = (float(v) for v in area)
@@ -74,6 +76,7 @@ def mark_positions(area: Sequence[float]) -> list[tuple[tuple[float, float], flo
     return [(corner, size) for corner, size in zip(corners, MARK_SIZES)]
 
 
+@station_errors
 def marks_job(marks: Sequence[tuple[tuple[float, float], float]], *, power: float, feed: float,
               kerf: float = 0.15) -> list[str]:
     """The G-code that engraves the marks as filled squares: rows ``kerf`` apart both ways, then their outline
@@ -113,6 +116,7 @@ def _gray(frame: np.ndarray) -> np.ndarray:
     return frame.astype(np.uint8)
 
 
+@station_errors
 def find_marks(frame: np.ndarray) -> list[FoundMark]:
     """Dark, square blobs enclosed by light stock (the marks and anything like them), largest first."""
     gray = _gray(frame)
@@ -163,6 +167,7 @@ def _choose_marks(found: list[FoundMark]) -> list[FoundMark] | None:
 # ---------------------------------------------------------------------------------------------------- registration
 
 
+@station_errors
 @dataclass(frozen=True)
 class BedRegistration:
     """The bed's homography (camera pixels -> machine mm) and how well it fits its marks' corners."""
@@ -196,17 +201,20 @@ class BedRegistration:
     def from_dict(cls, data: dict, where: str) -> BedRegistration:
         try:
             homography = np.array(data["homography"], dtype=float)
-            if homography.shape != (3, 3) or not np.isfinite(homography).all():
-                raise ValueError("homography: expected 3x3 finite numbers")
-            return cls(homography, float(data["residual_rms_mm"]), float(data["residual_max_mm"]),
-                       tuple(int(v) for v in data["image_size"]),
-                       tuple((tuple(c), float(s)) for c, s in data.get("marks_mm", [])),
-                       str(data.get("camera", "")), str(data.get("laser", "")), str(data.get("notes", "")))
+            problem = ("" if homography.shape == (3, 3) and np.isfinite(homography).all()
+                       else "homography: expected 3x3 finite numbers")
+            if not problem:
+                return cls(homography, float(data["residual_rms_mm"]), float(data["residual_max_mm"]),
+                           tuple(int(v) for v in data["image_size"]),
+                           tuple((tuple(c), float(s)) for c, s in data.get("marks_mm", [])),
+                           str(data.get("camera", "")), str(data.get("laser", "")), str(data.get("notes", "")))
         except (KeyError, TypeError, ValueError) as error:
-            raise ServiceError(f"{where}: not a bed registration ({error}); run `station calibrate bed` again",
-                               field="bed", value=where) from None
+            problem = str(error)
+        raise ServiceError(f"{where}: not a bed registration ({problem}); run `station calibrate bed` again",
+                           field="bed", value=where)
 
 
+@station_errors
 def register_bed(frame: np.ndarray, marks_mm: Sequence[tuple[tuple[float, float], float]], *,
                  camera: str = "", laser: str = "") -> BedRegistration:
     """The bed's homography from one frame of the engraved marks (their machine centres and sizes).
@@ -255,6 +263,7 @@ def _check_name(name: str) -> str:
     return name
 
 
+@station_errors
 def bed_file(laser: str) -> Path:
     """Where the registration of laser ``laser`` (its ``station.toml`` name) is kept."""
     from station.paths import data_dir
@@ -264,6 +273,7 @@ def bed_file(laser: str) -> Path:
     return folder / f"{_check_name(laser)}.json"
 
 
+@station_errors
 def save_registration(registration: BedRegistration, laser: str) -> Path:
     path = bed_file(laser)
     path.write_text(json.dumps(registration.to_dict(), indent=1), encoding="utf-8")
@@ -287,6 +297,7 @@ def load_registration(laser: str) -> BedRegistration | None:
 # ----------------------------------------------------------------------------------------------------------- devices
 
 
+@station_errors
 def laser_device(laser: str | None = None):
     """The configured laser named ``laser`` (default: the first laser)."""
     from station.config import configured_devices
@@ -334,6 +345,7 @@ def open_bed_camera(url: str, laser_connection=None):
 # ----------------------------------------------------------------------------------------------------------- calibrate
 
 
+@station_errors
 @dataclass(frozen=True)
 class BedCalibration:
     """A finished ``station calibrate bed``."""
@@ -432,6 +444,7 @@ def calibrate_bed(*, laser: str | None = None, port: str | None = None, camera: 
     return BedCalibration(registration, path, device.name, camera_url, engrave, wco, frame)
 
 
+@station_errors
 def bed_summary(done: BedCalibration) -> list[str]:
     registration = done.registration
     return [f"bed of {done.laser}: registered from the four marks' 16 corners"
@@ -445,6 +458,7 @@ def bed_summary(done: BedCalibration) -> list[str]:
 # ----------------------------------------------------------------------------------------------------------- stock
 
 
+@station_errors
 def find_stock(frame: np.ndarray, registration: BedRegistration) -> np.ndarray | None:
     """The stock's corners in machine mm ``(4, 2)`` (lower-left first, counter-clockwise), the largest light
     four-sided sheet in the frame; None when there is none."""
@@ -500,6 +514,7 @@ def _counter_clockwise(corners: np.ndarray) -> np.ndarray:
     return np.roll(ordered, -first, axis=0)
 
 
+@station_errors
 def placement_on_stock(stock_mm: np.ndarray, work_offset: Sequence[float], job_lower_left: Sequence[float],
                        margin: float = 5.0) -> Placement:
     """The placement that puts a job's lower-left corner (``job_lower_left``, its own work mm) ``margin`` mm inside
@@ -518,6 +533,7 @@ def placement_on_stock(stock_mm: np.ndarray, work_offset: Sequence[float], job_l
 # ----------------------------------------------------------------------------------------------------------- picture
 
 
+@station_errors
 def job_outline(lines: Sequence[str], placement: Placement | None = None) -> list[np.ndarray]:
     """The job's laser-on (or drawing) moves as polylines in work mm, placed (a :class:`GcodeError` for a job that
     cannot be placed)."""
@@ -541,6 +557,7 @@ def job_outline(lines: Sequence[str], placement: Placement | None = None) -> lis
     return paths
 
 
+@station_errors
 def bed_picture(frame: np.ndarray, registration: BedRegistration, outline_mm: Sequence[np.ndarray] = (), *,
                 stock_mm: np.ndarray | None = None, travel_mm: tuple | None = None) -> np.ndarray:
     """The camera's frame with, at true scale through the registration: the job's outline (machine mm polylines,
@@ -565,6 +582,7 @@ def bed_picture(frame: np.ndarray, registration: BedRegistration, outline_mm: Se
     return picture
 
 
+@station_errors
 def placed_outline_machine(lines: Sequence[str], placement: Placement, work_offset: Sequence[float]) \
         -> list[np.ndarray]:
     """The placed job's outline in machine mm (for :func:`bed_picture`)."""

@@ -55,6 +55,7 @@ def _lines_of_points(polylines: list[np.ndarray], toolpath: Toolpath) -> list[np
     return result
 
 
+@station_errors
 def split_at_line(runs: list[PreviewRun], current_line: int | None,
                   pens: list[str] | None = None) -> tuple[list[np.ndarray], list[str]]:
     """Polylines and colours to show: all white without ``current_line``; else green up to and including that
@@ -77,6 +78,7 @@ def split_at_line(runs: list[PreviewRun], current_line: int | None,
     return polylines, colors
 
 
+@station_errors
 def travel_segments(job: Job) -> list[np.ndarray]:
     """The pen-up travel of a job: its rapid moves, each a two-point polyline (empty for a job that cannot be read)."""
     try:
@@ -87,6 +89,7 @@ def travel_segments(job: Job) -> list[np.ndarray]:
     return [np.array([toolpath.start[k, :2], toolpath.end[k, :2]]) for k in rapid]
 
 
+@station_errors
 def run_pens(job: Job, runs: list[PreviewRun]) -> list[str] | None:
     """The pen colour of each run of a multi-pen plot (its layer marks), None for a job written without them."""
     marks = layer_marks(job.lines)

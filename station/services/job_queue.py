@@ -26,7 +26,7 @@ from enum import Enum
 
 from drivers.grbl import Job, JobResult, frame_lines
 from drivers.profiles import MachineProfile
-from station.errors import ServiceError
+from station.errors import ServiceError, station_errors
 from station.joblog import JOB_KINDS, JobLog
 
 __all__ = [
@@ -112,6 +112,7 @@ class JobStateError(ServiceError):
         self.action = action
 
 
+@station_errors
 @dataclass
 class QueuedJob:
     """A job waiting on (or done by) one device.
@@ -161,6 +162,7 @@ class QueuedJob:
         return f"job {self.number} {self.title!r} ({self.state})"
 
 
+@station_errors
 def frame_job(job: Job, title: str, profile: MachineProfile | None) -> Job | None:
     """The job that traces ``job``'s bounding box (pen up, or a laser at its frame power); None without motion.
 
@@ -186,6 +188,7 @@ def frame_job(job: Job, title: str, profile: MachineProfile | None) -> Job | Non
     return Job(f"frame of {title}", lines, laser=job.laser, pen_up=job.pen_up)
 
 
+@station_errors
 class JobQueue:
     """Jobs for the station's devices, one sent at a time, each send recorded in the job history.
 

@@ -35,6 +35,7 @@ __all__ = ["JobVerification", "twin_url", "verify_job", "verify_summary"]
 _RUNS = itertools.count(1)
 
 
+@station_errors
 @dataclass(frozen=True)
 class JobVerification:
     """What the twin found. Times in seconds, lengths in mm, extents in machine mm ``[x, y, z]``."""
@@ -78,6 +79,7 @@ class JobVerification:
         }
 
 
+@station_errors
 def twin_url(profile: MachineProfile | None, laser: bool, settings: Mapping[int, float] | None = None,
              name: str | None = None) -> str:
     """The twin of the machine: the built-in profile of its kind, the machine's settings over it."""
@@ -213,6 +215,7 @@ def _duration(seconds: float) -> str:
     return f"{hours}:{minutes:02d}:{secs:02d}" if hours else f"{minutes}:{secs:02d}"
 
 
+@station_errors
 def verify_summary(done: JobVerification) -> list[str]:
     """The verification in a few lines for a person."""
     if done.blocks == 0 and done.state != "done":

@@ -25,6 +25,7 @@ import serial
 
 from cam.place import Placement, place_lines
 from common.progress import ProgressCallback, Reporter
+from common.signals import HandledSignals
 from drivers.errors import DeviceStateError, JobRefused
 from drivers.gcode import GcodeError, clean_line, drawn_polylines
 from drivers.gcode_layers import LayerMark, layer_at, layer_marks
@@ -71,6 +72,7 @@ BAUD_RATES: tuple[int, ...] = tuple(serial.SerialBase.BAUDRATES)
 POLL_INTERVAL = 0.1
 
 
+@station_errors
 class SendPolicy:
     """The questions a send asks the person at the machine; this base answers as nobody is there would: no frame
     first, a pause is not announced (the job waits at it until :meth:`MachineSessions.resume`)."""
@@ -96,6 +98,7 @@ class SendPolicy:
         end first, so that whoever reads the job's state finds the screen saying it)."""
 
 
+@station_errors
 def feedback_text(data) -> str | None:
     """The text of a controller's ``[MSG:...]`` feedback event, else None (what a console shows of listener data)."""
     return data.text if isinstance(data, Feedback) and data.kind == "MSG" else None
@@ -107,6 +110,7 @@ def machine_profile(name: str | None, default: str = "plotter") -> MachineProfil
     return load_profile(name or default)
 
 
+@station_errors
 def parse_placement(text: str) -> Placement:
     """``X,Y,ANGLE`` as a :class:`~cam.place.Placement`; the error names what is wrong."""
     try:
@@ -143,6 +147,7 @@ def load_job(path: str | Path, *, profile: MachineProfile | None = None, laser: 
     return job
 
 
+@station_errors
 @contextlib.contextmanager
 def job_history(warn: Callable[[Exception], None]) -> Iterator[JobLog]:
     """The station database's job history; a broken database is ``warn``-ed about once and nothing is recorded."""
@@ -477,11 +482,13 @@ def _layer_record(runner: JobRunner | None, resume_line: int | None = None) -> d
     return mark.to_dict() if mark is not None else None
 
 
+@station_errors
 def job_layer_marks(lines: Sequence[str]) -> list[LayerMark]:
     """The layers of a multi-pen plot (``station plot``'s marks); empty for a job written without them."""
     return layer_marks(list(lines))
 
 
+@station_errors
 def refusal(result: JobResult) -> Exception | None:
     """The error a face raises for a send that was refused (:class:`JobRefused`) or lost the machine's position
     (:class:`DeviceStateError`), else None."""
@@ -492,6 +499,7 @@ def refusal(result: JobResult) -> Exception | None:
     return None
 
 
+@station_errors
 def refused_by_twin(done: JobVerification, *, before_summary: bool = False) -> Exception | None:
     """The refusal of a job ``--verify`` found wrong (:class:`JobRefused`, naming why), else None. With
     ``before_summary``, only a job refused before it moved (its one line says it all, no summary first)."""
@@ -508,5 +516,5 @@ def refused_by_twin(done: JobVerification, *, before_summary: bool = False) -> E
     return as_station_error(JobRefused(f"--verify: job {done.name!r} refused: {why}; not sent"))
 
 
-__all__ += ["GrblConnection", "JobRecord", "ProfileError", "job_layer_marks", "local_time", "recent_jobs", "refusal",
-            "refused_by_twin"]
+__all__ += ["GrblConnection", "HandledSignals", "JobRecord", "ProfileError", "job_layer_marks", "local_time",
+            "recent_jobs", "refusal", "refused_by_twin"]

@@ -15,7 +15,6 @@ import numpy as np
 
 from cam.plot import WriterOptions, fit_polylines, simplify_polylines, write_plot_gcode
 from design.datafiles import load_json
-from design.errors import FileFormatError
 from design.machines import declared_machine_names, get_machine, machine_names, shapes_to_jsonable
 from design.machines.render import shape_polylines, write_png, write_svg
 from drivers.gcode import interpret
@@ -31,6 +30,7 @@ PATTERN_COLOR = "#1f3b73"
 MECHANISM_COLOR = "#c0392b"
 
 
+@station_errors
 def describe_machines() -> list[dict[str, Any]]:
     """Every drawing machine's description (name, title, parameters with kind, default, bounds and meaning)."""
     return [get_machine(name).describe() for name in machine_names()]
@@ -107,23 +107,26 @@ def read_pattern(path: str | Path) -> tuple[np.ndarray, dict[str, Any]]:
 
     Raises
     ------
-    FileFormatError
+    ServiceError
         Naming the file first, and what is wrong in it.
     """
     path = Path(path)
     expected = "the JSON of `station pattern --json` with a 'points' list"
     document = load_json(path, expected)
     if not isinstance(document, dict) or "points" not in document:
-        raise FileFormatError(f"{path}: expected {expected}")
+        raise ServiceError(f"{path}: expected {expected}", field="pattern", value=str(path))
     try:
         points = np.asarray(document["points"], dtype=float)
     except (TypeError, ValueError):
-        raise FileFormatError(f"{path}: 'points' must be a list of [x, y] numbers") from None
+        raise ServiceError(f"{path}: 'points' must be a list of [x, y] numbers", field="pattern",
+                           value=str(path)) from None
     if points.ndim != 2 or points.shape[1] != 2 or len(points) < 2 or not np.all(np.isfinite(points)):
-        raise FileFormatError(f"{path}: 'points' must be at least two finite [x, y] pairs, got shape {points.shape}")
+        raise ServiceError(f"{path}: 'points' must be at least two finite [x, y] pairs, got shape {points.shape}",
+                           field="pattern", value=str(path))
     return points, {"machine": document.get("machine", ""), "params": document.get("params", {})}
 
 
+@station_errors
 def pattern_points(source) -> np.ndarray:
     """The samples of a :class:`station.services.plot.PatternSource` (``plot(..., sample=pattern_points)``)."""
     return sample_pattern(source.machine, source.params, source.points)[0]

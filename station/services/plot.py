@@ -34,7 +34,7 @@ from drivers.gcode import interpret
 from drivers.gcode_layers import layer_marks
 from drivers.grbl.planner import line_seconds
 from drivers.profiles import MachineProfile
-from station.errors import ServiceError
+from station.errors import ServiceError, station_errors
 
 __all__ = [
     "PALETTE",
@@ -155,6 +155,7 @@ class PlotDocument:
     box: tuple[float, float, float, float]
 
 
+@station_errors
 @dataclass(frozen=True)
 class LayerSummary:
     """A written layer: paths and points, drawing and travel (mm, travel from the previous layer's end included),
@@ -177,6 +178,7 @@ class LayerSummary:
         return dict(self.__dict__)
 
 
+@station_errors
 @dataclass
 class PlotResult:
     """A written plot: the G-code, the document as written (optimized), the writer's options and the layers'
@@ -241,6 +243,7 @@ def _keys(table: dict, allowed: set[str], where: str) -> None:
         raise ServiceError(f"{where}: unknown field {unknown[0]!r}; expected one of {', '.join(sorted(allowed))}")
 
 
+@station_errors
 def load_composition(path: str | Path, load_design: Callable[[Path, str], dict] | None = None) -> Composition:
     """A composition file (TOML, or JSON with the same fields; see :data:`COMPOSITION`). Files it names (designs,
     SVGs) are relative to its folder; ``load_design(path, machine)`` reads a design file (the CLI's reader).
@@ -319,6 +322,7 @@ def load_composition(path: str | Path, load_design: Callable[[Path, str], dict] 
     return composition
 
 
+@station_errors
 def read_svg_layers(path: str | Path, by: str = "layer") -> list[PlotLayer]:
     """The visible layers of an SVG file (vpype's reader): one per SVG layer (a top-level group, its Inkscape label
     its name) or per stroke colour, in mm with y up, each with the colour and width its strokes have there.
@@ -387,6 +391,7 @@ def _bounds(polylines: Sequence[np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
     return stacked.min(axis=0), stacked.max(axis=0)
 
 
+@station_errors
 def drawable_box(profile: MachineProfile) -> tuple[tuple[float, float], tuple[float, float, float, float]]:
     """The paper (width, height) and its drawable box (xmin, ymin, xmax, ymax) in work mm: a plotter's paper less
     its margin; a laser's bed less 5 mm."""
@@ -427,6 +432,7 @@ def _check_inside(polylines: list[np.ndarray], box, what: str, field_name: str) 
             field=field_name, value=over)
 
 
+@station_errors
 def compose(composition: Composition, profile: MachineProfile,
             sample: Callable[[PatternSource], np.ndarray] | None = None) -> PlotDocument:
     """Lay the composition's sources out on the profile's paper as a document of layers.
@@ -504,6 +510,7 @@ def compose(composition: Composition, profile: MachineProfile,
 # ----------------------------------------------------------------------------------------------------------- vpype
 
 
+@station_errors
 def optimize(document: PlotDocument, *, merge: bool = True, sort: bool = True, reloop: bool = True,
              tolerance: float = 0.0, seed: int = 0, report: Reporter | None = None) -> PlotDocument:
     """vpype's line optimizations per layer: ``linemerge`` (ends within :data:`MERGE_TOLERANCE`), ``reloop`` (the
@@ -560,12 +567,14 @@ def _linesort(lines, start: complex):
 # ----------------------------------------------------------------------------------------------------------- G-code
 
 
+@station_errors
 def writer_options(profile: MachineProfile, power: float = 0.3) -> WriterOptions:
     """The G-code writer's options for ``profile`` (pen lines for a plotter, dark travels for a laser)."""
     kind = "pen plot" if profile.kind == "plotter" else "plot"
     return WriterOptions.from_profile(profile, power=power, comment=f"chaos-station {kind} job for {profile.name}")
 
 
+@station_errors
 def layered_gcode(document: PlotDocument, profile: MachineProfile, power: float = 0.3) -> tuple[str, WriterOptions]:
     """The document as one G-code job: a plotter changes pens between layers (the profile's ``[pen] change``
     lines, ``M0`` by default, after a message comment); a laser has no pen and runs its layers one after another."""
@@ -577,12 +586,14 @@ def layered_gcode(document: PlotDocument, profile: MachineProfile, power: float 
     return stream.getvalue(), options
 
 
+@station_errors
 def line_times(lines: Sequence[str], toolpath, profile: MachineProfile) -> np.ndarray:
     """Seconds per line of a job on the profile's machine, as GRBL's planner runs it (:mod:`drivers.grbl.planner`:
     the streamer's ETA is the same figure)."""
     return line_seconds(toolpath, lines, profile.grbl_settings, laser_mode=profile.is_laser)
 
 
+@station_errors
 def job_layers(lines: Sequence[str], profile: MachineProfile) -> list[LayerSummary]:
     """The layers of a written job (its marks) with their drawing, travel and estimated time, read from the G-code
     with the streamer's interpreter (so the figures are those of the job that runs); empty for a job without marks.
@@ -615,6 +626,7 @@ def job_layers(lines: Sequence[str], profile: MachineProfile) -> list[LayerSumma
     return result
 
 
+@station_errors
 def summarize(gcode: str, document: PlotDocument, profile: MachineProfile) -> list[LayerSummary]:
     """Per layer of the written job: :func:`job_layers`, with the paths and points the document has (a job without
     marks is one layer)."""
@@ -631,6 +643,7 @@ def summarize(gcode: str, document: PlotDocument, profile: MachineProfile) -> li
             for summary, layer in zip(layers, document.layers)]
 
 
+@station_errors
 def plot(composition: Composition, profile: MachineProfile, *, sample=None, sort: bool = True,
          tolerance: float | None = None, power: float = 0.3, seed: int = 0,
          report: Reporter | None = None) -> PlotResult:
@@ -655,6 +668,7 @@ def plot(composition: Composition, profile: MachineProfile, *, sample=None, sort
 # ----------------------------------------------------------------------------------------------------------- preview
 
 
+@station_errors
 def format_minutes(seconds: float) -> str:
     """``12:05`` (minutes and seconds), ``1:02:05`` from an hour on."""
     seconds = int(round(seconds))
@@ -663,6 +677,7 @@ def format_minutes(seconds: float) -> str:
     return f"{hours}:{minutes:02d}:{secs:02d}" if hours else f"{minutes}:{secs:02d}"
 
 
+@station_errors
 def write_preview_png(result: PlotResult, target, size: int = 1200) -> None:
     """The plot as a picture: the paper and its drawable area, each layer in its pen's colour, the pen-up travel
     as thin grey lines, and a legend with each layer's pen, paths, drawing, travel and time."""
