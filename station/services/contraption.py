@@ -15,8 +15,9 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from common.progress import Reporter
+from design.contraption.catalog import EXAMPLES_DIR, resolve_scenario_path
 from design.contraption.catalog import example_names as catalog_examples
-from design.contraption.catalog import resolve_scenario_path
+from design.contraption.catalog import shown_path as catalog_shown_path
 from design.contraption.layout_io import LoadedLayout, default_layout, resolve_layout, values_layout
 from design.contraption.scenario import Scenario, load_scenario
 from station.errors import station_errors
@@ -33,6 +34,24 @@ StateCallback = Callable[[float, dict[str, str], "World"], None]
 def example_names() -> list[str]:
     """The scenarios shipped as examples: a face may name one instead of a file."""
     return catalog_examples()
+
+
+@station_errors
+def example_files() -> list[tuple[str, Path]]:
+    """(name, file) of each example scenario, in :func:`example_names`'s order (a face offers them to choose)."""
+    files = []
+    for name in catalog_examples():
+        found = next((EXAMPLES_DIR / f"{name}{suffix}" for suffix in (".toml", ".json")
+                      if (EXAMPLES_DIR / f"{name}{suffix}").exists()), None)
+        if found is not None:
+            files.append((name, found))
+    return files
+
+
+@station_errors
+def shown_path(path: str | Path) -> str:
+    """How a face names a scenario file: an example as ``example simple.toml``, any other file as given."""
+    return catalog_shown_path(path)
 
 
 @station_errors
@@ -155,6 +174,53 @@ def render(outcome: SimulationOutcome, path: str | Path) -> Path:
 
     render_result(outcome.scenario, outcome.result, str(path))
     return Path(path)
+
+
+# -- what a face draws of a world ---------------------------------------------------------------------------------
+@station_errors
+def physics_client():
+    """A pybullet client without a window, for a face to keep across its simulations (they run one at a time)."""
+    from design.contraption.bullet import direct_client  # pybullet: loaded only when something is simulated
+
+    return direct_client()
+
+
+def world_ropes(world: World) -> list[np.ndarray]:
+    """Each rope's path now (end, guides, end) as an (n, 3) array."""
+    return [np.asarray(world.rope_path(rope)[0]) for rope in world.ropes]
+
+
+@station_errors
+def layout_view(scenario: Scenario, x: np.ndarray, client=None) -> tuple[list, list[np.ndarray]]:
+    """The bodies of ``scenario`` built at layout ``x``, before anything moves: the world's snapshot (label, name,
+    pose, spec of each body) and the ropes' paths."""
+    from design.contraption.simulation import Simulator  # pybullet: loaded only when something is simulated
+
+    with Simulator(scenario, client=client) as sim:
+        world = sim.build(x)
+        return world.snapshot(), world_ropes(world)
+
+
+@station_errors
+def side_view(scenario: Scenario, snapshot, ropes=()) -> list[tuple[str, np.ndarray]]:
+    """A side view (x, z) of a world's snapshot: each body part's closed outline with its object's primitive type
+    (``"Ball"``, ``"Track"``...; "" for a body of no object), then each rope's path with the type ``"rope"``."""
+    from scipy.spatial import ConvexHull, QhullError  # scipy: loaded when a view is drawn, not for --help
+
+    kinds = {o.name: o.type for o in scenario.objects}
+    view = []
+    for _label, name, pose, spec in snapshot:
+        for part in spec.parts:
+            if part.kind == "plane":
+                continue
+            points = pose.apply(part.surface_points(16))[:, [0, 2]]
+            try:
+                hull = points[ConvexHull(points).vertices]
+            except QhullError:
+                hull = points[[np.argmin(points[:, 0]), np.argmax(points[:, 0])]]
+            view.append((kinds.get(name, ""), np.vstack([hull, hull[:1]])))
+    view.extend(("rope", np.asarray(path, dtype=float)[:, [0, 2]]) for path in ropes)
+    return view
 
 
 @station_errors
