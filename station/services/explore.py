@@ -171,3 +171,33 @@ def write_picture(exploration: Exploration, path: str | Path) -> Path:
         write_png(stream, [exploration.first_curve, explorer.curve], [exploration.first_pois, explorer.pois],
                   highlight=highlight)
     return path
+
+
+# -- a session a face drives step by step: the explorer's own errors come out as station errors -------------------
+@station_errors
+def keep_invariant(explorer: Explorer, kind: str, poi_ids: Sequence[int]):
+    """Freeze feature ``kind`` of the PoIs ``poi_ids`` (one, two for ``distance``); the invariant kept."""
+    return explorer.add_invariant(kind, list(poi_ids))
+
+
+@station_errors
+def drop_last_invariant(explorer: Explorer) -> str | None:
+    """Unfreeze the invariant kept last; its label (None when there is none)."""
+    if not explorer.invariants:
+        return None
+    label = explorer.invariants[-1].label
+    explorer.remove_invariant(len(explorer.invariants) - 1)
+    return label
+
+
+@station_errors
+def move_slider(explorer: Explorer, index: int, value: float):
+    """Preview slider ``index`` at ``value`` (the design moves; the session keeps its invariants)."""
+    return explorer.move(index, value)
+
+
+@station_errors
+def release_slider(explorer: Explorer, index: int, value: float) -> ReleaseResult:
+    """Move slider ``index`` to ``value`` and re-project the design onto the invariants."""
+    explorer.move(index, value)
+    return explorer.release()

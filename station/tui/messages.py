@@ -21,13 +21,16 @@ from textual.message import Message
 from station.services.reporting import Progress
 
 __all__ = [
-    "CameraCalibrated", "CandidatesFound", "ExplorerChanged", "FabricationEnded", "OptimizationEnded",
+    "CameraCalibrated", "CandidatesFound", "ExplorerBuilt", "ExplorerChanged", "FabricationEnded", "OptimizationEnded",
     "OutlookPredicted", "PatternComputed", "PlaneChecked", "PreviewMoved", "ProgressReported",
     "ProjectorCalibrated", "SimulationEnded", "SimulationStepped", "SimulatorCalibrated", "TestCardMade",
     "TrialLogged", "TrialsExported", "TrialsListed", "WorkEnded",
     # Assemble
     "AttemptForecast", "AttemptLogged", "AttemptRan", "GuideBuilt", "GuideExported", "JigsMade", "LayoutReoptimized",
     "PartsChecked", "PhysicsCalibrated", "StepProjected",
+    # Machines
+    "BedFrameGrabbed", "BedRegistered", "ConsoleReplied", "DesignPlotted", "JobEnding", "JobSent", "JobVerified",
+    "MachineConnected", "MachineSaid", "SendAsked",
 ]
 
 
@@ -68,8 +71,12 @@ class PatternComputed(WorkEnded):
     """A drawing machine's pattern was sampled (Drawing screen)."""
 
 
+class ExplorerBuilt(WorkEnded):
+    """An exploration session was started on a design: its points of interest found (Explore)."""
+
+
 class ExplorerChanged(WorkEnded):
-    """The exploration session changed: built, an invariant kept or dropped, a slider released, undone (Explore)."""
+    """The exploration session changed: an invariant kept or dropped, a slider released, a step undone (Explore)."""
 
 
 class PreviewMoved(WorkEnded):
@@ -176,3 +183,61 @@ class PhysicsCalibrated(WorkEnded):
 class LayoutReoptimized(WorkEnded):
     """The layout was optimized again under the physics and the surest option written (Assemble): ``(path,
     result, chosen)``."""
+
+
+# -- Machines: the GRBL machines and their jobs (MachineSessions) ----------------------------------------------------
+class MachineConnected(WorkEnded):
+    """A machine's connection opened (Machines): ``(device name, connection)``; an error names the device."""
+
+
+class JobSent(WorkEnded):
+    """A send ended and is recorded (Machines): its :class:`~station.services.machine_sessions.JobResult`."""
+
+
+class JobEnding(Message):
+    """A send ended and is about to be recorded (Machines): the screen shows the end, then sets ``shown`` so that the
+    sending thread records it (whoever reads the job's state then finds the screen saying it)."""
+
+    def __init__(self, result: Any, progress: Any, shown: Any) -> None:
+        super().__init__()
+        self.result, self.progress, self.shown = result, progress, shown
+
+
+class SendAsked(Message):
+    """A send asks the person at the machine a yes/no ``question`` (Machines): the screen asks it in a dialog and
+    calls ``answer(bool)``; the sending thread waits for it."""
+
+    def __init__(self, question: str, answer: Any) -> None:
+        super().__init__()
+        self.question, self.answer = question, answer
+
+
+class MachineSaid(Message):
+    """Something to show in the Machines screen's message line and console: a machine's event (an alarm, a
+    ``[MSG:]``, a line of its log) or a send's question answered elsewhere (a pen change); ``status`` asks for the
+    status panel to be drawn again."""
+
+    def __init__(self, text: str = "", style: str = "", *, console_only: bool = False, status: bool = False) -> None:
+        super().__init__()
+        self.text, self.style, self.console_only, self.status = text, style, console_only, status
+
+
+class ConsoleReplied(WorkEnded):
+    """A console line was answered (Machines): the controller's feedback lines."""
+
+
+class DesignPlotted(WorkEnded):
+    """A drawing-machine design became a plot job (Machines): ``(device name, G-code, title)``."""
+
+
+class JobVerified(WorkEnded):
+    """A job was run on its machine's twin (Machines, bed placement): its
+    :class:`~station.services.job_verify.JobVerification`."""
+
+
+class BedFrameGrabbed(WorkEnded):
+    """The bed camera's picture was taken (bed placement): the frame."""
+
+
+class BedRegistered(WorkEnded):
+    """The bed was registered by its engraved marks (bed placement): the calibration."""
