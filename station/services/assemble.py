@@ -157,6 +157,12 @@ class Assembly:
         return self.job.steps
 
     @property
+    def highlight(self) -> bool:
+        """Whether the parts are placed with the projector highlighting each (:attr:`highlighted`, else when there
+        is a projector)."""
+        return self.projector is not None if self.highlighted is None else bool(self.highlighted)
+
+    @property
     def check(self):
         """The last check (None before the first)."""
         return self.checks[-1] if self.checks else None
@@ -201,8 +207,7 @@ class Assembly:
         if self.world is not None:
             from station.services.world import place_parts
 
-            highlighted = self.projector is not None if self.highlighted is None else self.highlighted
-            place_parts(self.world, self.job.guide, attempt=self.attempt, highlighted=highlighted,
+            place_parts(self.world, self.job.guide, attempt=self.attempt, highlighted=self.highlight,
                         scenario=self.job.scenario)
         self.stage = "check"
 
@@ -344,13 +349,17 @@ class Assembly:
 
     # -- forecasts --------------------------------------------------------------------------------------------------
     def forecast(self, report: Reporter | None = None) -> Forecast:
-        """The physical success and expected attempts now: as designed before a check (the default placement
-        error), as placed after one (its as-built layout, its residual error), under the physics profile if any."""
+        """The physical success and expected attempts now: as designed before a check (every parameter with the
+        error of how the guide tells the maker to set it, :func:`station.services.world.guide_sigma`), as placed
+        after one (its as-built layout, its residual error on what it measured, the way each was set on the rest),
+        under the physics profile if any."""
         from station.services.predict import PredictionRequest, as_built_from_check, predict_layout
+        from station.services.world import guide_sigma
 
         scenario = self.job.scenario
         x = np.asarray(self.job.layout.x, dtype=float)
-        sigma = {}
+        set_sigma = guide_sigma(self.job.guide, scenario, highlighted=self.highlight)
+        sigma = {"unmeasured": tuple(scenario.design_space.names)}
         when = "designed"
         if self.check is not None and self.check.report.plane is not None:
             x, position, angle, unmeasured = as_built_from_check(self.check.to_json(), scenario, x, "the last check")
@@ -359,7 +368,7 @@ class Assembly:
         if self.stage in ("log", "done"):
             when = f"{when}; this run: {'success' if self.success else 'failure'}"
         request = PredictionRequest(self._profile, samples=self.samples, seed=self.seed, workers=self.workers,
-                                    scheduler=self.scheduler, **sigma)
+                                    scheduler=self.scheduler, set_sigma=set_sigma, **sigma)
         result = predict_layout(scenario, x, request, report=report)
         self.forecasts.append(Forecast(when, result, self.record))
         return self.forecasts[-1]

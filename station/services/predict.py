@@ -145,11 +145,15 @@ class PredictionRequest:
     position_sigma_m, angle_sigma_deg : float
         The placement error (a check's residual; the unchecked error by default).
     unmeasured : tuple of str
-        Design parameters a check did not measure: placed with at least the unchecked error.
+        Design parameters a check did not measure (before a check: all): placed with the error of how they were set
+        (``set_sigma``), else at least the unchecked error.
     samples, seed : int
         Simulations, and their seed.
     workers, scheduler
         Where the simulations run: local processes, or a Dask scheduler's address.
+    set_sigma : mapping, optional
+        ``{parameter: standard deviation}`` (real units) of how the guide tells the maker to set each
+        (:func:`station.services.world.guide_sigma`).
     """
 
     profile: PhysicsProfile | None = None
@@ -160,6 +164,7 @@ class PredictionRequest:
     seed: int = 0
     workers: int | None = None
     scheduler: str | None = None
+    set_sigma: Mapping[str, float] | None = None
 
 
 @station_errors
@@ -173,7 +178,7 @@ def predict_layout(scenario: Scenario, x: np.ndarray, request: PredictionRequest
                                intervals=profile.intervals if profile else None,
                                position_sigma_m=request.position_sigma_m, angle_sigma_deg=request.angle_sigma_deg,
                                samples=request.samples, seed=request.seed, run=run,
-                               unmeasured=tuple(request.unmeasured))
+                               unmeasured=tuple(request.unmeasured), set_sigma=request.set_sigma)
 
 
 @station_errors

@@ -41,6 +41,7 @@ from design.contraption.simulation import ASLEEP, SUCCESS, simulate
 from design.contraption.validation import with_physics
 from drivers.devices import UnknownDeviceURL, resolve
 from drivers.grbl import GrblConnection, Job, JobRunner
+from drivers.sim.world import maker_sigma
 from projector.board import side_board
 from projector.guide import IN_PLANE_ROLES
 from station.errors import ServiceError, station_errors
@@ -50,8 +51,8 @@ from station.services.check_side import side_frame, side_targets
 from station.services.jigs import cut_jigs as laser_job
 
 __all__ = ["AttemptRun", "as_placed_layout", "check_moves", "cut_jigs", "design_ranges", "grab_placed",
-           "grab_placed_side", "guide_jigs", "guide_parts", "open_world", "place_parts", "prepare_world", "run_attempt",
-           "run_hidden", "synthetic_trials", "trials_export", "world_scene"]
+           "grab_placed_side", "guide_jigs", "guide_parts", "guide_sigma", "open_world", "place_parts", "prepare_world",
+           "run_attempt", "run_hidden", "synthetic_trials", "trials_export", "world_scene"]
 
 
 @station_errors
@@ -105,6 +106,35 @@ def design_ranges(scenario) -> dict[str, list]:
         scale, unit = (1.0, "deg") if name.rsplit(".", 1)[-1] in ANGLE_KEYS else (1000.0, "mm")
         ranges[name] = [float(lower) * scale, float(upper) * scale, unit]
     return ranges
+
+
+@station_errors
+def guide_sigma(guide, scenario, *, highlighted: bool) -> dict[str, float]:
+    """Each design parameter's placement error (one standard deviation in real units, m or deg) as ``guide`` tells
+    the maker to set it, by the world twin's maker (:func:`drivers.sim.world.maker_sigma`, its defaults): a part's
+    in-plane parameters with the error of its pose (on a jig: the jig laid by eye and the part seated on it; with a
+    ruler; else by eye on the sheet, ``highlighted`` or not), every other stated parameter with the error of its
+    ``set_with``, and one the guide does not state guessed over its range (a uniform draw's standard deviation).
+    What the station predicts with (:class:`station.services.predict.PredictionRequest`'s ``set_sigma``), so that a
+    forecast knows a ruler from a jig as the world does."""
+    jigged = {jig.part for jig in guide.jigs}
+    sigma: dict[str, float] = {}
+    for part in guide.parts:
+        in_plane = {q.set_with for q in part.settings if q.role in IN_PLANE_ROLES}
+        if part.name in jigged:  # the jig's own placement by eye, then the seating on it
+            (sheet_mm, sheet_deg), (jig_mm, jig_deg) = maker_sigma("sheet", highlighted), maker_sigma("jig")
+            pose = (math.hypot(sheet_mm, jig_mm), math.hypot(sheet_deg, jig_deg))
+        else:
+            pose = maker_sigma("ruler" if "ruler" in in_plane else "sheet", highlighted)
+        for setting in part.settings:
+            if setting.name not in sigma:  # stated by several parts (an Empty frame's): set once
+                mm, deg = pose if setting.role in IN_PLANE_ROLES else maker_sigma(setting.set_with, highlighted)
+                sigma[setting.name] = float(deg) if setting.unit == "deg" else float(mm) / 1000.0
+    for name, (lower, upper, unit) in design_ranges(scenario).items():
+        if name not in sigma:
+            spread = (upper - lower) / math.sqrt(12.0)
+            sigma[name] = spread if unit == "deg" else spread / 1000.0
+    return sigma
 
 
 def _offsets(guide, placed: Mapping[str, Mapping]) -> dict[str, tuple[float, float, float]]:
