@@ -21,8 +21,8 @@ from textual.message import Message
 from station.services.reporting import Progress
 
 __all__ = [
-    "CameraCalibrated", "CandidatesFound", "ExplorerBuilt", "ExplorerChanged", "FabricationEnded", "OptimizationEnded",
-    "OutlookPredicted", "PatternComputed", "PlaneChecked", "PreviewMoved", "ProgressReported",
+    "CameraCalibrated", "CandidatesFound", "DeviceProbed", "ExplorerBuilt", "ExplorerChanged", "FabricationEnded",
+    "OptimizationEnded", "OutlookPredicted", "PatternComputed", "PlaneChecked", "PreviewMoved", "ProgressReported",
     "ProjectorCalibrated", "SimulationEnded", "SimulationStepped", "SimulatorCalibrated", "TestCardMade",
     "TrialLogged", "TrialsExported", "TrialsListed", "WorkEnded",
     # Assemble
@@ -67,6 +67,10 @@ class WorkEnded(Message):
 
 
 # -- what each screen's work ends with ---------------------------------------------------------------------------
+class DeviceProbed(WorkEnded):
+    """A device was probed: its name and the state the probe found (Home)."""
+
+
 class PatternComputed(WorkEnded):
     """A drawing machine's pattern was sampled (Drawing screen)."""
 
