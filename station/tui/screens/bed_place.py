@@ -16,18 +16,18 @@ from __future__ import annotations
 from pathlib import Path
 
 from PIL import Image
-from textual import work
 from textual.app import ComposeResult
 from textual.binding import Binding
 from textual.containers import Vertical
-from textual.message import Message
 from textual.screen import Screen
 from textual.widgets import Footer, Header, Static
 
 from station.errors import USER_ERRORS, StationError
 from station.services import bed as bed_service
 from station.services.machine_sessions import verify_summary
+from station.tui.messages import BedFrameGrabbed, BedRegistered, JobVerified
 from station.tui.widgets.picture import HalfBlockPicture
+from station.tui.work import run_work
 
 __all__ = ["BedPlacementScreen", "MOVE_STEPS"]
 
@@ -62,18 +62,6 @@ class BedPlacementScreen(Screen):
         Binding("less_than_sign", "turn(15)", "Turn 15", show=False),
         Binding("greater_than_sign", "turn(-15)", "Turn 15", show=False),
     ]
-
-    class Grabbed(Message):
-        """A frame (or the error that stopped grabbing one)."""
-
-        def __init__(self, frame, error: str = "") -> None:
-            super().__init__()
-            self.frame, self.error = frame, error
-
-    class Said(Message):
-        def __init__(self, text: str, style: str = "") -> None:
-            super().__init__()
-            self.text, self.style = text, style
 
     def __init__(self, machines, entry, device, connection, profile) -> None:
         super().__init__(name="bed-placement")
@@ -118,24 +106,18 @@ class BedPlacementScreen(Screen):
 
     # ------------------------------------------------------------------ camera
 
-    @work(thread=True, exclusive=True, group="bed-camera")
     def _grab(self) -> None:
-        try:
-            frame = bed_service.grab_bed_frame(self.device.name, self.device.simulated, self.connection)
-        except USER_ERRORS as error:
-            self.post_message(self.Grabbed(None, str(error)))
-            return
-        self.post_message(self.Grabbed(frame))
+        """A new picture of the bed from its camera, in a worker."""
+        device, connection = self.device, self.connection
+        run_work(self, lambda report: bed_service.grab_bed_frame(device.name, device.simulated, connection),
+                 BedFrameGrabbed, group="bed-camera")
 
-    def on_bed_placement_screen_grabbed(self, message: Grabbed) -> None:
-        if message.frame is None:
+    def on_bed_frame_grabbed(self, message: BedFrameGrabbed) -> None:
+        if not message.ok:
             self._say(f"no picture from the bed's camera: {message.error}", "red")
             return
-        self.session.see(message.frame)
+        self.session.see(message.result)
         self._show()
-
-    def on_bed_placement_screen_said(self, message: Said) -> None:
-        self._say(message.text, message.style)
 
     def _show(self) -> None:
         if self.session is None or self.session.frame is None:
@@ -183,31 +165,38 @@ class BedPlacementScreen(Screen):
         if self.session is not None:
             self._grab()
 
-    @work(thread=True, exclusive=True, group="bed-camera")
     def action_register(self) -> None:
-        self.post_message(self.Said("engraving four registration marks and registering the bed..."))
-        try:
-            done = bed_service.calibrate_bed(laser=self.device.name, connection=self.connection)
-        except USER_ERRORS as error:
-            self.post_message(self.Said(f"bed registration failed: {error}", "red"))
-            return
-        self.note = " ".join(bed_service.bed_summary(done)[:1])
-        self.app.call_from_thread(self._start, done.registration)
+        self._say("engraving four registration marks and registering the bed...")
+        laser, connection = self.device.name, self.connection
+        run_work(self, lambda report: bed_service.calibrate_bed(laser=laser, connection=connection, report=report),
+                 BedRegistered, group="bed-camera")
 
-    @work(thread=True, exclusive=True, group="bed-verify")
+    def on_bed_registered(self, message: BedRegistered) -> None:
+        if not message.ok:
+            self._say(f"bed registration failed: {message.error}", "red")
+            return
+        self.note = " ".join(bed_service.bed_summary(message.result)[:1])
+        self._start(message.result.registration)
+
     def action_verify(self) -> None:
         if self.session is None:
             return
-        self.post_message(self.Said("running the placed job on the twin..."))
+        self._say("running the placed job on the twin...")
         try:
             lines = self.session.placed_lines()
-            done = self.machines.sessions.verify(self.device.name, lines, title=self.entry.title,
-                                                 profile=self.profile, laser=True)
         except USER_ERRORS as error:
-            self.post_message(self.Said(f"cannot verify: {error}", "red"))
+            self._say(f"cannot verify: {error}", "red")
             return
-        self.note = " · ".join(line.strip() for line in verify_summary(done))
-        self.post_message(self.Said(self.note, "green" if done.ok else "red"))
+        sessions, device, title, profile = self.machines.sessions, self.device.name, self.entry.title, self.profile
+        run_work(self, lambda report: sessions.verify(device, lines, title=title, profile=profile, laser=True),
+                 JobVerified, group="bed-verify")
+
+    def on_job_verified(self, message: JobVerified) -> None:
+        if not message.ok:
+            self._say(f"cannot verify: {message.error}", "red")
+            return
+        self.note = " · ".join(line.strip() for line in verify_summary(message.result))
+        self._say(self.note, "green" if message.result.ok else "red")
 
     def action_write(self) -> None:
         if self.session is None or self.session.frame is None:
@@ -271,15 +260,12 @@ def verify_next_job(machines) -> None:
         machines._say(f"cannot verify: {error}", "red")
         return
     machines._say(f"running {entry.title!r} on the twin of {device.name}...")
+    sessions, lines, laser = machines.sessions, entry.job.lines, entry.job.laser
 
-    def run() -> None:
+    def verify(report):
         try:
-            done = machines.sessions.verify(device.name, entry.job.lines, title=entry.title, profile=profile,
-                                            laser=entry.job.laser)
+            return sessions.verify(device.name, lines, title=entry.title, profile=profile, laser=laser)
         except USER_ERRORS as error:
-            machines.app.call_from_thread(machines._say, f"cannot verify {entry.title!r}: {error}", "red")
-            return
-        text = " · ".join(line.strip() for line in verify_summary(done))
-        machines.app.call_from_thread(machines._say, text, "green" if done.ok else "red")
+            raise StationError(f"cannot verify {entry.title!r}: {error}") from None
 
-    machines.run_worker(run, thread=True, group="verify", exclusive=True)
+    run_work(machines, verify, JobVerified, group="verify")

@@ -22,13 +22,12 @@ each layer's time estimate; at a pen change the job pauses, the screen says whic
 
 from __future__ import annotations
 
-import queue
 import threading
 import time
 from pathlib import Path
 
 from rich.text import Text
-from textual import on, work
+from textual import on
 from textual.app import ComposeResult
 from textual.binding import Binding
 from textual.containers import Horizontal, Vertical
@@ -37,24 +36,36 @@ from textual.screen import ModalScreen, Screen
 from textual.widget import Widget
 from textual.widgets import Footer, Header, Input, Static
 
-from station.devices import DeviceEntry, machine_profile
+from station.devices import machine_profile
 from station.errors import USER_ERRORS, StationError
 from station.services.job_queue import JobMode, JobQueue, JobState, QueuedJob
 from station.services.machine_sessions import (
     JobProgress,
-    JobResult,
     MachineSessions,
     ProfileError,
     SendPolicy,
     feedback_text,
+    verify_summary,
 )
 from station.services.machines import plot_job, sample_pattern
 from station.services.plot import format_minutes, job_layers
+from station.tui.messages import (
+    ConsoleReplied,
+    DesignPlotted,
+    JobEnding,
+    JobSent,
+    JobVerified,
+    MachineConnected,
+    MachineSaid,
+    ProgressReported,
+    SendAsked,
+)
 from station.tui.registry import MachineDesign, ScreenEntry
 from station.tui.screens.bed_place import open_bed_placement, verify_next_job
 from station.tui.widgets.machines_console import MachineConsole
 from station.tui.widgets.machines_preview import JobPreview
 from station.tui.widgets.machines_status import JobProgressRow, JobQueueTable, MachineStatus
+from station.tui.work import run_work
 
 __all__ = ["JOG_STEPS", "MachinesScreen", "QueuedJob", "SCREEN"]
 
@@ -119,10 +130,9 @@ class ScreenPolicy(SendPolicy):
             answer.append(bool(value))
             answered.set()
 
-        app = self.screen.app
-        app.call_from_thread(app.push_screen, AskScreen(question), done)
+        self.screen.post_message(SendAsked(question, done))
         while not answered.wait(0.2):
-            if not app.is_running:
+            if not self.screen.app.is_running:
                 return False
         return answer[0]
 
@@ -134,16 +144,18 @@ class ScreenPolicy(SendPolicy):
         return self._ask(f"Frame done. Start the laser job {job.name}?")
 
     def paused(self, message: str, resume, stop) -> None:
-        self.screen._from_thread(self.screen._say, f"{message}: r resumes", "bold yellow")
+        self.screen.post_message(MachineSaid(f"{message}: r resumes", "bold yellow"))
 
     def warn(self, message: str) -> None:
-        self.screen._from_thread(self.screen._say, f"warning: {message}", "yellow")
+        self.screen.post_message(MachineSaid(f"warning: {message}", "yellow"))
 
     def ended(self, result, progress) -> None:
-        app = self.screen.app
-        if app.is_running:
-            # drawn before the queue records the end: whoever reads the job's state finds the screen saying it
-            app.call_from_thread(self.screen._job_done, result, progress)
+        # shown before the queue records the end: whoever reads the job's state finds the screen saying it
+        shown = threading.Event()
+        self.screen.post_message(JobEnding(result, progress, shown))
+        while not shown.wait(0.2):
+            if not self.screen.app.is_running or not self.screen.is_attached:
+                return
 
 
 class MachinesScreen(Screen):
@@ -197,10 +209,11 @@ class MachinesScreen(Screen):
         self.jog_step_index = 2
         self.last_message = ""
         self._connecting: set[str] = set()
-        self._calls: queue.SimpleQueue = queue.SimpleQueue()
+        self._status_posted = False  # a status redraw is on its way (many status reports, one redraw)
         self._last_preview = 0.0
         self._auto_connected = False
         self._queue_shown: list = []
+        self._sending: tuple = (None, JobMode.RUN)  # the entry and mode of the latest send asked for
         self._after_abort = None  # called with the job's last message once an abort for quitting has ended it
 
     @property
@@ -256,7 +269,6 @@ class MachinesScreen(Screen):
     def on_mount(self) -> None:
         self._render_status()
         self._refresh_queue()  # jobs other screens queued before this one was first shown (the Assemble screen's jigs)
-        self.set_interval(0.05, self._drain_calls)
 
     def on_screen_resume(self) -> None:
         # Focus left in the console field when the user went elsewhere would make the keys type there on return
@@ -325,61 +337,59 @@ class MachinesScreen(Screen):
             return
         self._connecting.add(device.name)
         self._say(f"{device.name}: connecting to {device.url} ...")
-        self._connect_worker(device)
 
-    @work(thread=True, exclusive=False, group="connect")
-    def _connect_worker(self, device) -> None:
-        try:
-            conn = self.sessions.connect(device.name, device.url,
-                                         listener=lambda event, data, name=device.name: self._listener(name, event,
-                                                                                                      data))
-        except USER_ERRORS as error:
-            self._from_thread(self._say, f"{device.name}: {error}", "red")
-            self._from_thread(self._connecting.discard, device.name)
+        name = device.name
+
+        def connect(report):
+            listener = lambda event, data: self._listener(name, event, data)  # noqa: E731
+            try:
+                return name, self.sessions.connect(name, device.url, listener=listener)
+            except USER_ERRORS as error:
+                raise StationError(f"{name}: {error}") from None
+            finally:
+                self._connecting.discard(name)  # a set: safe from the worker; read on the UI thread
+
+        run_work(self, connect, MachineConnected, group=f"connect-{name}", exclusive=False)
+
+    def on_machine_connected(self, message: MachineConnected) -> None:
+        if not message.ok:
+            self._say(message.error, "red")
             return
-        self._from_thread(self._connected, device.name, conn)
-
-    def _connected(self, name: str, conn) -> None:
-        self._connecting.discard(name)
+        name, conn = message.result
         self._say(f"{name}: GRBL {conn.version} connected (RX buffer {conn.rx_size} bytes, "
                   f"{'laser mode' if conn.laser_mode else 'spindle mode'})")
         self._render_status()
 
-    def _from_thread(self, callback, *args) -> None:
-        # Never blocks: driver threads call this (sometimes holding the connection's lock), and the UI thread may
-        # be waiting for that lock (abort). A timer on the UI thread runs the queued calls.
-        self._calls.put((callback, args))
-
-    def _drain_calls(self) -> None:
-        status_pending = False
-        for _ in range(500):
-            try:
-                callback, args = self._calls.get_nowait()
-            except queue.Empty:
-                break
-            if callback == self._render_status:
-                status_pending = True  # many status reports, one render
-                continue
-            callback(*args)
-        if status_pending:
-            self._render_status()
-
     def _listener(self, name: str, event: str, data) -> None:
+        # On the connection's thread, sometimes holding its lock: only posts (never waits for the UI thread, which
+        # may be waiting for that lock to abort).
         if event == "status":
-            if self.device is not None and self.device.name == name:
-                self._from_thread(self._render_status)
+            if self.device is not None and self.device.name == name and not self._status_posted:
+                self._status_posted = True
+                self.post_message(MachineSaid(status=True))
         elif event == "log":
             _, direction, text = data
-            # (the runner, not the queue: this runs on the connection's thread)
-            if self.runner is not None and (direction == "out" or (direction == "in" and text == "ok")):
+            if self.sessions.sending and (direction == "out" or (direction == "in" and text == "ok")):
                 return  # thousands of lines and oks during a job drown the console (conn.log keeps them)
-            self._from_thread(self._console, f"{name} {'>' if direction == 'out' else '<'} {text}"
-                              if direction in ("in", "out") else f"{name} ! {text}")
+            self.post_message(MachineSaid(f"{name} {'>' if direction == 'out' else '<'} {text}"
+                                          if direction in ("in", "out") else f"{name} ! {text}", console_only=True))
         elif event in ("alarm", "fault"):
-            self._from_thread(self._say, f"{name}: {data}", "red")
-            self._from_thread(self._render_status)
+            self.post_message(MachineSaid(f"{name}: {data}", "red", status=True))
         elif event == "message" and (text := feedback_text(data)) is not None:
-            self._from_thread(self._say, f"{name}: {text}")
+            self.post_message(MachineSaid(f"{name}: {text}"))
+
+    def on_machine_said(self, message: MachineSaid) -> None:
+        if message.text:
+            if message.console_only:
+                self._console(message.text, message.style)
+            else:
+                self._say(message.text, message.style)
+        if message.status:
+            self._status_posted = False
+            self._render_status()
+
+    def on_send_asked(self, message: SendAsked) -> None:
+        self.app.push_screen(AskScreen(message.question), message.answer)
 
     # ------------------------------------------------------------------ status
 
@@ -500,10 +510,14 @@ class MachinesScreen(Screen):
             self._say(f"cannot {mode.kind}: {error}", "red")
             return
         self._say(f"{mode.kind} {entry.title!r} on {entry.device}")
-        self._job_worker(self.device.name, entry, mode, profile)
+        device, policy = self.device.name, ScreenPolicy(self)
+        self._sending = (entry, mode)
+        run_work(self, lambda report: self.sessions.send(device, entry, mode, profile=profile, policy=policy,
+                                                         report=report), JobSent, group="job", exclusive=False)
 
-    def _progress_cb(self, progress: JobProgress) -> None:
-        self._from_thread(self._show_progress, progress)
+    def on_progress_reported(self, message: ProgressReported) -> None:
+        if isinstance(message.progress, JobProgress):
+            self._show_progress(message.progress)
 
     def _show_progress(self, progress: JobProgress) -> None:
         now = time.monotonic()
@@ -516,36 +530,29 @@ class MachinesScreen(Screen):
         if (row := self._shown("#progress-row", JobProgressRow)) is not None:
             row.show(progress)
 
-    @work(thread=True, exclusive=False, group="job")
-    def _job_worker(self, device: str, entry: QueuedJob, mode: JobMode, profile) -> None:
-        try:
-            result = self.sessions.send(device, entry, mode, profile=profile, policy=ScreenPolicy(self),
-                                        report=self._progress_cb)
-        except USER_ERRORS as error:
-            self._from_thread(self._say, f"cannot {mode.kind} {entry.title!r}: {error}", "red")
-            self._from_thread(self._refresh_queue)
-            return
-        self._from_thread(self._after_job, result)
-
-    def _job_done(self, result: JobResult, progress: JobProgress) -> None:
+    def on_job_ending(self, message: JobEnding) -> None:
         """The send ended (its state is recorded right after): the end shown."""
+        result, progress = message.result, message.progress
         entry = self.running_job
         if entry is not None and entry.state is JobState.RUNNING:
             self._show_preview(entry, len(entry.job.lines) if result.ok else progress.current_line)
-        colour = "green" if result.ok else "red"
-        self._say(result.message, style=colour)
+        self._say(result.message, style="green" if result.ok else "red")
         for _, text in result.errors[:5]:
             self._console(f"  {text}")
         if (row := self._shown("#progress-row", JobProgressRow)) is not None:
             row.show(progress)
+        message.shown.set()
 
-    def _after_job(self, result: JobResult) -> None:
+    def on_job_sent(self, message: JobSent) -> None:
         """The send's end recorded: the queue and the status redrawn; quitting goes on once an abort for it ended."""
+        entry, mode = self._sending
+        if message.error:
+            self._say(f"cannot {mode.kind} {entry.title!r}: {message.error}", "red")
         self._refresh_queue()
         self._render_status()
         if self._after_abort is not None and not self.sessions.sending:
             callback, self._after_abort = self._after_abort, None
-            callback(result.message)
+            callback(message.result.message if message.ok else message.error)
 
     def _device_name(self) -> str | None:
         return self.device.name if self.device is not None else None
@@ -649,17 +656,27 @@ class MachinesScreen(Screen):
         if self._ready_connection() is not None:
             self._send_worker(line)
 
-    @work(thread=True, exclusive=False, group="send")
     def _send_worker(self, line: str) -> None:
+        """Send ``line`` (G-code or a ``$`` command) to the selected machine, in a worker; feedback in the console."""
         name = self._device_name()
         if self.connection(name) is None:
             return
-        try:
-            for text in self.sessions.command(name, line):
-                self._from_thread(self._console, f"  {text}")
-        except USER_ERRORS as error:
-            self._from_thread(self._say, f"{line}: {error}", "red")
-        self._from_thread(self._render_status)
+
+        def command(report):
+            try:
+                return self.sessions.command(name, line)
+            except USER_ERRORS as error:
+                raise StationError(f"{line}: {error}") from None
+
+        run_work(self, command, ConsoleReplied, group="console", exclusive=False)
+
+    def on_console_replied(self, message: ConsoleReplied) -> None:
+        if message.ok:
+            for text in message.result:
+                self._console(f"  {text}")
+        else:
+            self._say(message.error, "red")
+        self._render_status()
 
     def action_verify_job(self) -> None:
         """The next job run on the machine's twin at virtual time (station.tui.screens.bed_place)."""
@@ -675,7 +692,7 @@ class MachinesScreen(Screen):
         self.plot_design(machine, params)
 
     def plot_design(self, machine: str, params: dict, device: str | None = None) -> None:
-        """Turn a drawing-machine design into a plot job and queue it (in a worker: sampling takes a moment).
+        """Turn a drawing-machine design into a plot job and queue it (in a worker).
 
         ``device`` is a device name or kind (``"plotter"``); by default the selected device.
         """
@@ -684,17 +701,30 @@ class MachinesScreen(Screen):
         if target is None:
             self._say(f"no {device or 'plotter or laser'} configured")
             return
-        self._plot_worker(machine, params, target)
+        def plot(report):
+            # sampling takes a moment: in a worker
+            try:
+                points, _ = sample_pattern(machine, params, 4096)
+                text, *_ = plot_job([points], self.profile_for(target), None, None)
+            except USER_ERRORS as error:
+                raise StationError(f"cannot plot {machine}: {error}") from None
+            return target.name, text, f"{machine} plot"
 
-    @work(thread=True, exclusive=False, group="plot")
-    def _plot_worker(self, machine: str, params: dict, device: DeviceEntry) -> None:
-        try:
-            points, _ = sample_pattern(machine, params, 4096)
-            text, *_ = plot_job([points], self.profile_for(device), None, None)
-        except USER_ERRORS as error:
-            self._from_thread(self._say, f"cannot plot {machine}: {error}", "red")
+        run_work(self, plot, DesignPlotted, group="plot", exclusive=False)
+
+    def on_job_verified(self, message: JobVerified) -> None:
+        """The next job's run on the twin (``e``, :func:`station.tui.screens.bed_place.verify_next_job`)."""
+        if not message.ok:
+            self._say(message.error, "red")
             return
-        self._from_thread(self.queue_job, device.name, text, f"{machine} plot")
+        self._say(" · ".join(line.strip() for line in verify_summary(message.result)),
+                  "green" if message.result.ok else "red")
+
+    def on_design_plotted(self, message: DesignPlotted) -> None:
+        if message.ok:
+            self.queue_job(*message.result)
+        else:
+            self._say(message.error, "red")
 
     # ------------------------------------------------------------------ quitting
 
