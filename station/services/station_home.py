@@ -1,8 +1,8 @@
-"""What the app and its home screen show of the station itself: the devices and what a probe finds, the station
-database, the latest machine jobs.
+"""What the faces show of the station itself: the devices and what a probe finds, the station database, the latest
+machine jobs, the data folder where results are written.
 
 The devices come from ``station.toml`` (:mod:`station.devices`), the database and the job history from
-:mod:`station.db` and :mod:`station.joblog`; a face reaches them here.
+:mod:`station.db` and :mod:`station.joblog`, the folders from :mod:`station.paths`; a face reaches them here.
 """
 
 from __future__ import annotations
@@ -14,9 +14,9 @@ from station.db import open_database
 from station.devices import DeviceEntry, default_devices, probe_device
 from station.errors import station_errors
 from station.joblog import JobLog, JobRecord, local_time
-from station.paths import database_path
+from station.paths import data_dir, database_path
 
-__all__ = ["DeviceEntry", "JobLog", "JobRecord", "default_devices", "local_time", "open_station_database",
+__all__ = ["DeviceEntry", "JobLog", "JobRecord", "data_dir", "default_devices", "local_time", "open_station_database",
            "probe", "recent_jobs", "shared_job_log"]
 
 

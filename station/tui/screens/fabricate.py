@@ -24,7 +24,6 @@ from textual.screen import Screen
 from textual.widgets import DataTable, Footer, Header, Input, Label, Static
 
 from station.errors import USER_ERRORS, StationError
-from station.paths import data_dir
 from station.services.designs import get_machine
 from station.services.fabricate import (
     DEFAULT_GAP,
@@ -36,6 +35,7 @@ from station.services.fabricate import (
     write_outputs,
 )
 from station.services.lasertest import make_card, write_card
+from station.services.station_home import data_dir
 from station.tui.messages import FabricationEnded, ProgressReported, TestCardMade
 from station.tui.registry import MachineDesign, ScreenEntry
 from station.tui.widgets.picture import HalfBlockPicture

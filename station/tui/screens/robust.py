@@ -22,12 +22,12 @@ from textual.css.query import NoMatches
 from textual.screen import Screen
 from textual.widgets import Button, DataTable, Footer, Header, Input, Label, Select, Static
 
-from station.paths import data_dir
 from station.services import robust as service
 from station.services.outlook import disagreement, success_headline
 from station.services.predict import layout_outlook
 from station.services.reporting import Progress
 from station.services.robust import DEFAULT_BUDGET, DEFAULT_SETTINGS, SETTINGS_CHOICES, thesis_budget
+from station.services.station_home import data_dir
 from station.tui.messages import OptimizationEnded, ProgressReported
 from station.tui.registry import ScreenEntry
 from station.tui.widgets.picture import HalfBlockPicture

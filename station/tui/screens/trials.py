@@ -25,10 +25,9 @@ from textual.screen import Screen
 from textual.widgets import Button, DataTable, Footer, Header, Input, Label, Select, Static
 
 from station.errors import USER_ERRORS
-from station.paths import data_dir
 from station.services import trials as service
 from station.services.predict import outlook_line, predict_trial
-from station.services.trials import local_time
+from station.services.station_home import data_dir, local_time
 from station.tui.messages import OutlookPredicted, TrialLogged, TrialsExported, TrialsListed
 from station.tui.registry import ScreenEntry
 from station.tui.widgets.outcomes import OutcomeTable

@@ -28,9 +28,9 @@ from textual.containers import Horizontal, Vertical
 from textual.widgets import Button, Checkbox, DataTable, Input, Label, Static
 
 from station.errors import USER_ERRORS
-from station.paths import data_dir
 from station.services import sim_calibration as service
 from station.services.contraption import open_scenario
+from station.services.station_home import data_dir
 from station.tui.messages import ProgressReported, SimulatorCalibrated
 from station.tui.widgets.progress import ProgressPanel
 from station.tui.work import Work, run_work
