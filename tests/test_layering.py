@@ -209,16 +209,6 @@ BELOW_THE_STATION = {"common", "design", "drivers", "calibration", "projector", 
 #: Faces still being moved onto the services, each with what it still imports from below. The list only shrinks:
 #: a face cleaned up must leave it (the test says so), and no face joins it.
 FACES_IN_MOVE: dict[str, set[str]] = {
-    "station/commands/machines_io.py": {"common"},
-    "station/tui/screens/calibrate.py": {"calibration", "drivers"},
-    "station/tui/screens/contraption.py": {"design"},
-    "station/tui/screens/drawing.py": {"design"},
-    "station/tui/screens/explore.py": {"design"},
-    "station/tui/screens/sketch.py": {"common", "design"},
-    "station/tui/widgets/progress.py": {"common"},
-    "station/tui/widgets/projector_calibration.py": {"calibration", "drivers"},
-    "station/tui/widgets/scenario_select.py": {"design"},
-    "station/tui/widgets/sim_calibration.py": {"design"},
 }
 
 
@@ -281,42 +271,14 @@ def raised_classes(path: Path) -> list[tuple[int, str]]:
     return sorted(found)
 
 
-#: Services still being moved (their owners put them on the services' contract), each with the errors it still
-#: raises and the entry points it has not decorated yet. The list only shrinks, as FACES_IN_MOVE.
-SERVICES_IN_MOVE: dict[str, dict[str, set[str]]] = {
-    "station/services/bed.py": {"raises": {"ValueError"}, "undecorated": {
-        "BedCalibration", "BedRegistration", "bed_file", "bed_picture", "bed_summary", "default_mark_area",
-        "find_marks", "find_stock", "job_outline", "laser_device", "mark_positions", "marks_job",
-        "placed_outline_machine", "placement_on_stock", "register_bed", "save_registration"}},
-    "station/services/job_preview.py": {"undecorated": {"run_pens", "split_at_line", "travel_segments"}},
-    "station/services/job_queue.py": {"undecorated": {"JobQueue", "QueuedJob", "frame_job"}},
-    "station/services/job_verify.py": {"undecorated": {"JobVerification", "twin_url", "verify_summary"}},
-    "station/services/machine_sessions.py": {"undecorated": {
-        "SendPolicy", "feedback_text", "job_history", "job_layer_marks", "parse_placement", "refusal",
-        "refused_by_twin"}},
-    "station/services/machines.py": {"raises": {"FileFormatError"},
-                                     "undecorated": {"describe_machines", "pattern_points"}},
-    "station/services/plot.py": {"undecorated": {
-        "LayerSummary", "PlotResult", "compose", "drawable_box", "format_minutes", "job_layers", "layered_gcode",
-        "line_times", "load_composition", "optimize", "plot", "read_svg_layers", "summarize", "write_preview_png",
-        "writer_options"}},
-}
-
-
 def test_services_raise_only_station_errors():
     # A face catches station.errors.USER_ERRORS and nothing else: a service that raised a package's or a builtin
     # error would reach the user as a traceback. (What a service calls is translated at its entry, see below.)
     allowed = station_error_classes() | STOPS
-    offenders, cleaned = [], []
-    for path in sorted((ROOT / "station" / "services").glob("*.py")):
-        name = path.relative_to(ROOT).as_posix()
-        raised = {error for _, error in raised_classes(path)} - allowed
-        waiving = SERVICES_IN_MOVE.get(name, {}).get("raises", set())
-        offenders += [f"{name}:{line} raises {error}" for line, error in raised_classes(path)
-                      if error in raised - waiving]
-        cleaned += [f"{name} no longer raises {sorted(waiving - raised)}: take it off SERVICES_IN_MOVE"]\
-            if waiving - raised else []
-    assert not offenders and not cleaned, "\n".join(offenders + cleaned)
+    offenders = [f"{path.relative_to(ROOT)}:{line} raises {name}"
+                 for path in sorted((ROOT / "station" / "services").glob("*.py"))
+                 for line, name in raised_classes(path) if name not in allowed]
+    assert not offenders, "\n".join(offenders)
 
 
 def test_raise_checker_sees_package_and_builtin_errors(tmp_path):
@@ -352,16 +314,10 @@ def entry_points_without_translation(path: Path) -> list[str]:
 def test_service_entry_points_translate_the_packages_errors():
     # The packages' errors (design, drivers, calibration, projector, vision, data files) become station errors,
     # message kept, where a service is entered: every public function and class wears @station_errors.
-    offenders, cleaned = [], []
-    for path in sorted((ROOT / "station" / "services").glob("*.py")):
-        name = path.relative_to(ROOT).as_posix()
-        missing = set(entry_points_without_translation(path))
-        waiving = SERVICES_IN_MOVE.get(name, {}).get("undecorated", set())
-        if missing - waiving:
-            offenders.append(f"{name}: {', '.join(sorted(missing - waiving))} not decorated with @station_errors")
-        if waiving - missing:
-            cleaned.append(f"{name}: {', '.join(sorted(waiving - missing))} decorated: take it off SERVICES_IN_MOVE")
-    assert not offenders and not cleaned, "\n".join(offenders + cleaned)
+    offenders = [f"{path.relative_to(ROOT)}: {', '.join(names)}"
+                 for path in sorted((ROOT / "station" / "services").glob("*.py"))
+                 if (names := entry_points_without_translation(path))]
+    assert not offenders, "not decorated with @station_errors:\n" + "\n".join(offenders)
 
 
 def test_entry_point_checker_sees_an_undecorated_function(tmp_path):

@@ -22,9 +22,19 @@ from pathlib import Path
 
 import numpy as np
 
+from calibration.charuco import BoardSpec, write_board_pdf
+from calibration.errors import CalibrationError
+from calibration.intrinsics import CameraIntrinsics, load_intrinsics, save_intrinsics, to_gray
+from calibration.intrinsics import calibrate_camera as solve
+from calibration.measure import Measurement, PlaneFix, measure, sort_ids
 from common.progress import Reporter
+from drivers.devices import resolve
+from station.config import configured_devices
 from station.errors import ServiceError, station_errors
+from station.paths import data_dir
+from station.services.guide_manifest import read_manifest, reference_tags
 from station.services.images import check_frame_size, check_image_file
+from vision.detection import detect_tags
 
 __all__ = ["IMAGE_SUFFIXES", "CameraCalibration", "PlaneCheck", "calibrate_camera", "camera_file", "camera_summary",
            "capture_views", "check_name", "grab_frame", "intrinsics_for", "plane_check", "plane_summary",
@@ -45,8 +55,6 @@ def check_name(name: str) -> str:
 
 
 def _folder(kind: str) -> Path:
-    from station.paths import data_dir
-
     folder = data_dir() / "calibration" / kind
     folder.mkdir(parents=True, exist_ok=True)
     return folder
@@ -65,9 +73,6 @@ def _plane_file(name: str) -> Path:
 @station_errors
 def write_board(path: str | Path, paper: str = "a4"):
     """Write the default ChArUco board (:class:`calibration.charuco.BoardSpec`) as a 1:1 PDF; the spec written."""
-    from calibration.charuco import BoardSpec, write_board_pdf
-    from calibration.errors import CalibrationError
-
     spec = BoardSpec()
     try:
         write_board_pdf(path, spec, paper)
@@ -77,7 +82,7 @@ def write_board(path: str | Path, paper: str = "a4"):
 
 
 def _read_image(path: Path, field: str = "images") -> np.ndarray:
-    import cv2
+    import cv2  # heavy: cv2
 
     if not path.is_file():
         raise ServiceError(f"{field}: no such file: {path}", field=field, value=str(path))
@@ -106,8 +111,6 @@ def read_views(folder: str | Path) -> list[tuple[str, np.ndarray]]:
 
 @station_errors
 def open_camera(url: str):
-    from drivers.devices import resolve
-
     info = resolve(url)
     if info.kind != "camera" or not info.available:
         raise ServiceError(f"camera: {url!r} is not a camera the station can drive ({info.kind}"
@@ -120,8 +123,6 @@ def open_camera(url: str):
 @station_errors
 def configured_camera_url() -> tuple[str, str]:
     """(name, url) of the station's first camera (``station devices``; ``sim://camera`` by default)."""
-    from station.config import configured_devices
-
     device = next((d for d in configured_devices() if d.kind == "camera"), None)
     if device is None:
         raise ServiceError("camera: no camera configured (add one to station.toml, or give a camera URL)",
@@ -187,10 +188,6 @@ def calibrate_camera(*, images: str | Path | None = None, capture: int | None = 
     ServiceError
         Neither or both of ``images`` and ``capture``; a bad folder, name or count; too few usable views.
     """
-    from calibration.errors import CalibrationError
-    from calibration.intrinsics import calibrate_camera as solve
-    from calibration.intrinsics import save_intrinsics
-
     if (images is None) == (capture is None):
         raise ServiceError("images or capture: give exactly one (a folder of board images, or N views to grab)",
                            field="images")
@@ -216,8 +213,6 @@ def intrinsics_for(image_size: tuple[int, int], *, intrinsics: str | Path | None
                    name: str = DEFAULT_CAMERA):
     """The camera's intrinsics: ``intrinsics`` (a file), else the saved ``calibration/cameras/<name>.json``, else a
     guess (:meth:`CameraIntrinsics.guess`, whose ``notes`` say so). A file for another image size is refused."""
-    from calibration.intrinsics import CameraIntrinsics, load_intrinsics
-
     path = Path(intrinsics) if intrinsics is not None else camera_file(name)
     if intrinsics is None and not path.exists():
         return CameraIntrinsics.guess(image_size)
@@ -233,8 +228,6 @@ def intrinsics_for(image_size: tuple[int, int], *, intrinsics: str | Path | None
 def reference_tags_from_guide(path: str | Path) -> list[tuple[int, tuple[float, float], float]]:
     """The reference tags of a guide manifest (what ``station guide --json`` prints) as (id, (u, v), size), read by
     :func:`station.services.guide_manifest.read_manifest` (the check's reader too)."""
-    from station.services.guide_manifest import read_manifest, reference_tags
-
     return reference_tags(read_manifest(path, parts=False))
 
 
@@ -281,9 +274,7 @@ def plane_check(*, image: str | Path | np.ndarray | None = None, camera: str | N
 
     The fix is remembered per camera; the next check reports how far the plane moved (``moved_mm``).
     """
-    from calibration.errors import CalibrationError
-    from calibration.measure import measure
-    from projector.guide import REFERENCE_TAG_IDS
+    from projector.guide import REFERENCE_TAG_IDS  # heavy: shapely
 
     if image is not None and camera is not None:
         raise ServiceError("image or camera: give one, not both", field="image")
@@ -314,10 +305,7 @@ def plane_check(*, image: str | Path | np.ndarray | None = None, camera: str | N
 
 def _references_seen(frame: np.ndarray, camera_model):
     """A measurement without a plane: which of the reference ids 583-586 are seen (once, twice, not at all)."""
-    from calibration.intrinsics import to_gray
-    from calibration.measure import Measurement, sort_ids
-    from projector.guide import REFERENCE_TAG_IDS
-    from vision.detection import detect_tags
+    from projector.guide import REFERENCE_TAG_IDS  # heavy: shapely
 
     camera_model.check_image(frame)
     _unique, unknown, duplicates, missing = sort_ids(detect_tags(to_gray(frame)), REFERENCE_TAG_IDS, ())
@@ -336,8 +324,6 @@ def save_plane(name: str, plane) -> None:
 @station_errors
 def load_plane(name: str):
     """The last plane fix of camera ``name``, or None (none yet, or a file that no longer reads: start afresh)."""
-    from calibration.measure import PlaneFix
-
     path = _plane_file(name)
     try:
         data = json.loads(path.read_text())

@@ -12,18 +12,31 @@ explicit simulation offsets (``--sim-offset``, documented as such).
 
 from __future__ import annotations
 
+import hashlib
 import json
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, replace
 from pathlib import Path
 
+import cv2
 import numpy as np
 
-from common.progress import Reporter
+from calibration.intrinsics import CameraIntrinsics
+from calibration.measure import measure
+from common.progress import Progress, Reporter
+from design.contraption.physics_profile import apply_profile
+from design.robust.budget import BudgetedOracle
 from station.errors import ServiceError, station_errors
+from station.services import calibrate
+from station.services.calibrate import open_camera
 from station.services.check_scene import aim_camera, parse_offset, sim_scene, twin_intrinsics
+from station.services.check_side import merge_as_built, plane_json, side_lines
+from station.services.contraption import open_scenario
 from station.services.guide_manifest import read_manifest
 from station.services.images import load_image
+from station.services.outlook import disagreement, left_out_words, model_detail, success_headline
+from station.services.robust import check_count, check_seed, simulations
+from station.services.tolerances import contraption_problem, layout_and_model
 
 __all__ = ["CheckJob", "apply_manifest", "camera_frame", "camera_overlay", "check_frame", "check_measurement",
            "grab_frame", "load_image", "overlay_frame", "parse_offset", "prepare_check",
@@ -82,8 +95,7 @@ def prepare_check(scenario: str, layout: str, *, guide: str | Path | None = None
     ServiceError
         A manifest that is not one of this scenario (``guide``), or of another layout.
     """
-    from station.services import guide as guides
-    from station.services.contraption import open_scenario
+    from station.services import guide as guides  # heavy: scipy, shapely
 
     manifest = read_manifest(guide) if guide is not None else None
     view = manifest.get("view") if manifest is not None else None
@@ -109,8 +121,6 @@ class ScoringModel:
 
 
 def _model_of(scenario, layout: str) -> ScoringModel | None:
-    from station.services.tolerances import contraption_problem, layout_and_model
-
     try:
         problem = contraption_problem(scenario)
     except ValueError:  # no design space: nothing to score
@@ -128,7 +138,7 @@ def apply_manifest(guide, manifest: Mapping, source: str = "<manifest>"):
         The manifest is of another scenario, content hash or view, lacks a part, or puts a part elsewhere (another
         layout): one line naming the file and the field.
     """
-    from projector.guide import BodyTag, ParameterTolerance, ReferenceTag
+    from projector.guide import BodyTag, ParameterTolerance, ReferenceTag  # heavy: shapely
 
     def refuse(what: str) -> ServiceError:
         return ServiceError(f"guide {source}: {what}", field="guide", value=source)
@@ -189,8 +199,6 @@ def grab_frame(url: str, guide, *, offsets=None, occluded: Sequence[int] = (), s
     drivers.errors.DriverError
         The camera cannot be opened or gives no frame (one line).
     """
-    from station.services.calibrate import open_camera
-
     camera = open_camera(url)
     try:
         simulated = hasattr(camera, "set_scene")
@@ -225,8 +233,6 @@ def camera_frame(guide, *, image: str | Path | None = None, camera: str | None =
     :mod:`station.services.world`) go to a simulated camera only. ``name`` names the camera ``camera`` is (its saved
     calibration and plane: a station.toml camera's name); default the station's camera's.
     """
-    from station.services import calibrate
-
     name, twin = name or calibrate.DEFAULT_CAMERA, None
     if image is not None:
         if offsets or occluded:
@@ -248,8 +254,6 @@ def camera_frame(guide, *, image: str | Path | None = None, camera: str | None =
 def _plane_name(name: str, guide) -> str:
     """Where a check keeps camera ``name``'s last plane: per printed sheet (its reference tags), so that "moved since
     the last check" compares checks of the same sheet, never a new sheet with the old one."""
-    import hashlib
-
     sheet = json.dumps([[t.id, *map(float, t.center_mm), float(t.size_mm)] for t in guide.reference_tags])
     return f"{name}-check-{hashlib.sha256(sheet.encode()).hexdigest()[:12]}"
 
@@ -257,8 +261,6 @@ def _plane_name(name: str, guide) -> str:
 @station_errors
 def remember_plane(name: str, check: CheckJob) -> None:
     """Keep the check's plane fix as camera ``name``'s last (the next check says how far the camera moved)."""
-    from station.services import calibrate
-
     if check.measurement.plane is not None:
         try:
             calibrate.save_plane(_plane_name(name, check.guide_job.guide), check.measurement.plane)
@@ -309,10 +311,7 @@ def check_frame(job, image: np.ndarray, intrinsics=None, *, simulate: int = 0, s
     calibration.errors.CalibrationError
         An image of another size than the intrinsics'.
     """
-    from calibration.check import part_tags, reference_tags
-    from calibration.intrinsics import CameraIntrinsics
-    from calibration.measure import measure
-    from station.services.robust import check_count, check_seed
+    from calibration.check import part_tags, reference_tags  # heavy: scipy, shapely
 
     check_count(simulate, "simulate", 0)
     check_seed(seed)
@@ -334,9 +333,8 @@ def check_measurement(job, measurement, image: np.ndarray, intrinsics, *, simula
                       notes: Sequence[str] = (), physics=None, predict: int = 0,
                       report: Reporter | None = None, side=None, camera: str = "") -> CheckJob:
     """The check of a :class:`~calibration.measure.Measurement` already made (see :func:`check_frame`)."""
-    from calibration.asbuilt import PlanePose, as_built_layout
-    from calibration.check import CheckReport, check_parts, residual_error
-    from station.services.robust import check_count
+    from calibration.asbuilt import PlanePose, as_built_layout  # heavy: scipy, shapely
+    from calibration.check import CheckReport, check_parts, residual_error  # heavy: scipy, shapely
 
     report = Reporter.of(report)
     notes = list(notes)
@@ -352,7 +350,6 @@ def check_measurement(job, measurement, image: np.ndarray, intrinsics, *, simula
             poses.setdefault(c.owner, []).append((c.body, PlanePose(c.measured_center_mm, c.measured_heading_deg)))
     built = as_built_layout(scenario, x, guide.plane, poses, {p.name: p.parameters for p in guide.parts})
     measured_by = {n: "top" if guide.view == "top" else guide.view for n in built.measured}
-    from station.services.check_side import merge_as_built, plane_json
 
     views = ({"view": guide.view, "camera": camera, "plane": plane_json(measurement.plane)},)
     if side is not None:
@@ -382,18 +379,14 @@ def check_measurement(job, measurement, image: np.ndarray, intrinsics, *, simula
     residual = residual_error(measurement, [p.tag_size_mm for p in guide.parts if p.tag_id is not None])
     simulated = physical = None
     if physics is not None:
-        from design.contraption.physics_profile import apply_profile
-
         scenario = apply_profile(scenario, physics)
         problem = None  # the layout's model scores; simulations run under the profile's values
     if simulate:
         if problem is None:
-            from station.services.tolerances import contraption_problem
-
             problem = contraption_problem(scenario)
         simulated = _simulate(problem, built, residual, simulate, seed, report)
     if predict:
-        from station.services.predict import PredictionRequest, predict_layout
+        from station.services.predict import PredictionRequest, predict_layout  # heavy: pybullet, scipy, shapely
 
         check_count(predict, "predict")
         request = PredictionRequest(physics, position_sigma_m=max(residual["position_mm"], 0.1) / 1000.0,
@@ -402,7 +395,6 @@ def check_measurement(job, measurement, image: np.ndarray, intrinsics, *, simula
         physical = predict_layout(scenario, built.unclipped, request, report=report)
     # a misplaced part no design parameter places: the simulations put it where the guide does, and say so
     from projector.overlay import misplaced
-    from station.services.outlook import disagreement
 
     owners_placed = {p.name for p in guide.parts if p.parameters}
     not_simulated = tuple(dict.fromkeys(c.owner for c in checks if misplaced(c) and c.owner not in owners_placed))
@@ -428,8 +420,6 @@ def check_measurement(job, measurement, image: np.ndarray, intrinsics, *, simula
 
 
 def _progress(stage: str, done: int, total: int):
-    from common.progress import Progress
-
     return Progress(stage, done, total)
 
 
@@ -462,9 +452,7 @@ def _simulate(problem, built, residual, n: int, seed: int, report: Reporter) -> 
     measurement error (mm for positions, degrees for rotations), each one not measured by at least the error of a
     layout placed with no check (:func:`calibration.sim_runs.placement_sigma`), Gaussian; an invalid layout (parts
     overlapping) counts as a failure."""
-    from calibration.sim_runs import placement_sigma
-    from design.robust.budget import BudgetedOracle
-    from station.services.robust import simulations
+    from calibration.sim_runs import placement_sigma  # heavy: pybullet, scipy
 
     rng = np.random.default_rng(seed)
     names = list(problem.parameter_names)
@@ -486,7 +474,7 @@ def _simulate(problem, built, residual, n: int, seed: int, report: Reporter) -> 
 @station_errors
 def no_zone_words() -> str:
     """What a starred ok (``yes*``, ``NO*``) means, in the check's text and on the Assemble screen."""
-    from projector.drawing import UNTOLERATED_DEG, UNTOLERATED_MM
+    from projector.drawing import UNTOLERATED_DEG, UNTOLERATED_MM  # heavy: scipy, shapely
 
     return f"no zone on the sheet, so off by {UNTOLERATED_MM:g} mm / {UNTOLERATED_DEG:g} deg or more is to move"
 
@@ -496,9 +484,8 @@ def summary_lines(report, physical=None) -> list[str]:
     """The check's headline in words, most important first: the physical success as placed (``physical``, a
     :class:`calibration.sim_predict.PhysicalPrediction`; else the simulated success of ``--simulate``), the parts to
     move, what the predictions leave out, and the success model's own score as a detail."""
-    from projector.drawing import UNTOLERATED_DEG, UNTOLERATED_MM
-    from projector.overlay import misplaced
-    from station.services.outlook import left_out_words, model_detail, success_headline
+    from projector.drawing import UNTOLERATED_DEG, UNTOLERATED_MM  # heavy: scipy, shapely
+    from projector.overlay import misplaced  # heavy: scipy, shapely
 
     to_move = sum(1 for p in report.parts if misplaced(p))
     unknown = sum(1 for p in report.parts if misplaced(p) and p.within_tolerance is None)
@@ -529,7 +516,7 @@ def summary_lines(report, physical=None) -> list[str]:
 def overlay_frame(check: CheckJob, size: tuple[int, int], homography=None) -> np.ndarray:
     """The projector frame after the check (:func:`projector.overlay.render_check`): an arrow per misplaced part
     from where it is to where it must go, a ring at the target, the prediction as placed in the caption."""
-    from projector.overlay import render_check
+    from projector.overlay import render_check  # heavy: scipy, shapely
 
     return render_check(check.guide_job.guide, check.report.parts, tuple(size), homography,
                         caption=summary_lines(check.report, check.physical)[:2])
@@ -539,13 +526,12 @@ def overlay_frame(check: CheckJob, size: tuple[int, int], homography=None) -> np
 def camera_overlay(check: CheckJob) -> np.ndarray:
     """The camera frame with the check drawn over it through the camera's pose from the reference tags (the frame
     as it is when no plane was found)."""
-    from projector.overlay import draw_check
+    from projector.overlay import draw_check  # heavy: scipy, shapely
 
     plane = check.measurement.plane
     image = np.asarray(check.image)
     if plane is None:
         return image if image.ndim == 3 else np.repeat(image[:, :, None], 3, axis=2)
-    import cv2
 
     matrix = np.asarray(check.intrinsics.camera_matrix, dtype=float)
     dist = np.asarray(check.intrinsics.dist_coeffs, dtype=float)
@@ -564,7 +550,7 @@ def camera_overlay(check: CheckJob) -> np.ndarray:
 def report_lines(report, physical=None) -> list[str]:
     """The check as text: the headline (:func:`summary_lines`), one row per tagged part (costliest first) with a
     legend, the instructions, what was not measured and the notes, the success model's score last (a detail)."""
-    from projector.overlay import misplaced
+    from projector.overlay import misplaced  # heavy: scipy, shapely
 
     summary = summary_lines(report, physical)
     detail = [line for line in summary if line.startswith("detail: ")]
@@ -605,7 +591,6 @@ def report_lines(report, physical=None) -> list[str]:
                        ("reference tags not seen", report.missing_reference_tags)):
         if ids:
             lines.append(f"{words}: {', '.join(map(str, ids))}")
-    from station.services.check_side import side_lines
 
     lines.extend(side_lines(report))
     if report.not_measured:
@@ -615,3 +600,4 @@ def report_lines(report, physical=None) -> list[str]:
         lines.append(f"note: {report.prediction_note}")
     lines.extend(detail)
     return lines
+

@@ -18,6 +18,7 @@ import cv2
 import numpy as np
 
 from calibration.intrinsics import CameraIntrinsics
+from drivers.sim.camera_scene import ImageItem, Occluder, PlaneScene, TagItem
 from station.errors import ServiceError, station_errors
 
 __all__ = ["aim_camera", "parse_offset", "sim_scene", "twin_intrinsics"]
@@ -62,8 +63,7 @@ def sim_scene(guide, offsets: Mapping[str, Sequence[float]] | None = None, *, oc
     ServiceError
         An offset of a part the guide has no tag on (``sim_offset``).
     """
-    from calibration.check import jig_views
-    from drivers.sim.camera_scene import ImageItem, Occluder, PlaneScene, TagItem
+    from calibration.check import jig_views  # heavy: scipy, shapely
 
     offsets = dict(offsets or {})
     tagged = {p.name: p for p in guide.parts if p.tag_views() or jig_views(guide, p)}
@@ -92,7 +92,7 @@ def sim_scene(guide, offsets: Mapping[str, Sequence[float]] | None = None, *, oc
 
 
 def _moved_outline(part, offset):
-    from shapely import affinity
+    from shapely import affinity  # heavy: shapely
 
     du, dv, turn = offset
     return affinity.translate(affinity.rotate(part.outline, turn, origin=tuple(part.center_mm)), du, dv)

@@ -18,11 +18,17 @@ import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, replace
 
+import cv2
 import numpy as np
 
+from calibration.intrinsics import to_gray
+from calibration.measure import measure
+from drivers.sim.camera import parse_camera_options
+from drivers.sim.camera_scene import ImageItem, Occluder, PlaneScene, TagItem
 from station.errors import ServiceError, station_errors
 from station.services import calibrate
 from station.services.check_scene import aim_camera, twin_intrinsics
+from vision.detection import TagDetector
 
 __all__ = ["SideView", "measure_side", "merge_as_built", "plane_json", "side_lines", "side_overlay",
            "side_scene", "side_targets", "view_of_frame"]
@@ -52,8 +58,8 @@ def side_targets(job, board) -> list:
     """The tags the side camera reads in ``job`` (a guide job with its jigs): each jig stand's face tag whose face
     looks at the camera (within :data:`calibration.side.FACING_DEG` of the board's normal), as a
     :class:`~calibration.side.SideTarget` of the part it carries."""
-    from calibration.asbuilt import part_plane_pose
-    from calibration.side import FACING_DEG, SideTarget
+    from calibration.asbuilt import part_plane_pose  # heavy: scipy, shapely
+    from calibration.side import FACING_DEG, SideTarget  # heavy: scipy, shapely
 
     planned = getattr(job, "jigs", None)
     if board is None or planned is None:
@@ -97,7 +103,7 @@ def side_targets(job, board) -> list:
 
 
 def _side_guide(job, board, targets):
-    from calibration.side import side_guide
+    from calibration.side import side_guide  # heavy: scipy, shapely
 
     return side_guide(job.guide, board, targets)
 
@@ -115,8 +121,7 @@ def side_scene(job, board, targets, offsets: Mapping[str, Sequence[float]] | Non
     ServiceError
         An offset of a part the side camera reads no tag of (``sim_side_offset``).
     """
-    from calibration.asbuilt import part_plane_pose
-    from drivers.sim.camera_scene import ImageItem, Occluder, PlaneScene, TagItem
+    from calibration.asbuilt import part_plane_pose  # heavy: scipy, shapely
 
     offsets = dict(offsets or {})
     known = {t.part for t in targets}
@@ -169,9 +174,6 @@ def _wrap(angle: float) -> float:
 @station_errors
 def view_of_frame(image, board) -> str:
     """``"side"`` when the frame shows at least two of the board's tags, else ``"top"`` (a real camera's view)."""
-    from calibration.intrinsics import to_gray
-    from vision.detection import TagDetector
-
     if board is None:
         return "top"
     seen = {t.tag_id for t in TagDetector(2.0, 2).detect(to_gray(np.asarray(image)))}
@@ -182,9 +184,8 @@ def view_of_frame(image, board) -> str:
 def measure_side(job, board, targets, image, intrinsics, previous=None, camera: str = "") -> SideView:
     """Measure a side frame: the board's plane from its tags, each target's tag at its depth, the checks in the side
     camera's words (:func:`calibration.side.side_view_checks`)."""
-    from calibration.check import check_parts, part_tags, reference_tags
-    from calibration.measure import measure
-    from calibration.side import side_view_checks
+    from calibration.check import check_parts, part_tags, reference_tags  # heavy: scipy, shapely
+    from calibration.side import side_view_checks  # heavy: scipy, shapely
 
     if not targets:
         raise ServiceError("camera: the side camera has nothing to read: no jig stand of this layout faces it (use "
@@ -201,7 +202,7 @@ def measure_side(job, board, targets, image, intrinsics, previous=None, camera: 
 def merge_as_built(job, top, side: SideView):
     """The top check's as-built layout (:class:`calibration.asbuilt.AsBuilt`) with what the side view measured:
     each part's parameters the top view did not measure fitted to its pose on the board's plane."""
-    from calibration.asbuilt import AsBuilt, PlanePose, as_built_layout
+    from calibration.asbuilt import AsBuilt, PlanePose, as_built_layout  # heavy: scipy, shapely
 
     scenario = job.scenario
     poses = {c.name: PlanePose(c.measured_center_mm, c.measured_heading_deg) for c in side.checks if c.found}
@@ -263,8 +264,6 @@ def side_frame(job, board, targets, url: str, *, offsets=None, occluded: Sequenc
 def is_side_url(url: str) -> bool | None:
     """Whether a camera URL is a simulated side camera (``sim://camera?view=side``); None for a real camera (its
     frame tells: :func:`view_of_frame`)."""
-    from drivers.sim.camera import parse_camera_options
-
     if not str(url).strip().lower().startswith("sim://camera"):
         return None
     return parse_camera_options(url)["view"] == "side"
@@ -281,8 +280,6 @@ def side_overlay(side: SideView) -> np.ndarray:
     """The side camera's frame with its check drawn on it (RGB): each jig plate where the guide wants it (green) and
     where the camera found it (orange, carried by its tag), the instructions written above. Drawn through the board's
     plane found in the frame (the frame as it is when none was found)."""
-    import cv2
-
     out = np.array(side.image, dtype=np.uint8, copy=True)
     if out.ndim == 2:
         out = np.repeat(out[:, :, None], 3, axis=2)

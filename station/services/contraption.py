@@ -21,6 +21,7 @@ from design.contraption.catalog import shown_path as catalog_shown_path
 from design.contraption.layout_io import LoadedLayout, default_layout, resolve_layout, values_layout
 from design.contraption.scenario import Scenario, load_scenario
 from station.errors import station_errors
+from station.services.physics import scenario_with_physics
 
 if TYPE_CHECKING:  # pybullet loads only when something is simulated
     from design.contraption.simulation import SimulationResult, ValidityProblem
@@ -69,7 +70,6 @@ def open_scenario(text: str, physics: str | Path | None = None) -> Scenario:
     scenario = load_scenario(resolve_scenario_path(text))
     if physics is None:
         return scenario
-    from station.services.physics import scenario_with_physics
 
     return scenario_with_physics(scenario, physics)
 
@@ -170,7 +170,7 @@ def simulate(scenario: Scenario, x: np.ndarray, *, early_stop: bool = True, reco
 @station_errors
 def render(outcome: SimulationOutcome, path: str | Path) -> Path:
     """Top and side views at the start and the end of a recorded run (``record=True``), as a PNG."""
-    from design.contraption.render import render_result
+    from design.contraption.render import render_result  # heavy: PIL, scipy
 
     render_result(outcome.scenario, outcome.result, str(path))
     return Path(path)
@@ -185,6 +185,7 @@ def physics_client():
     return direct_client()
 
 
+@station_errors
 def world_ropes(world: World) -> list[np.ndarray]:
     """Each rope's path now (end, guides, end) as an (n, 3) array."""
     return [np.asarray(world.rope_path(rope)[0]) for rope in world.ropes]

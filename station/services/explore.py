@@ -13,6 +13,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from design.machines import get_machine
 from station.errors import ServiceError, station_errors
 
 if TYPE_CHECKING:  # scipy and shapely load only when a design is explored
@@ -42,8 +43,7 @@ def start_session(machine: str, params: Mapping[str, float], points: int | None 
     design.errors.DesignError
         An unknown machine or a bad design.
     """
-    from design.explore import Explorer
-    from design.machines import get_machine
+    from design.explore import Explorer  # heavy: scipy, shapely
 
     check_points(points)
     return Explorer(get_machine(machine), dict(params), n_points=points)
@@ -150,7 +150,7 @@ def _move_document(k: int, requested: float, applied: float, moved: dict[str, fl
 @station_errors
 def invariant_errors(values: Mapping[str, float]) -> list[dict[str, Any]]:
     """``[{"invariant", "error", "unit"}]`` from an invariant-label → error mapping (a lost feature: None)."""
-    from design.explore import ERROR_UNIT
+    from design.explore import ERROR_UNIT  # heavy: scipy, shapely
 
     out = []
     for label, error in values.items():
@@ -162,7 +162,7 @@ def invariant_errors(values: Mapping[str, float]) -> list[dict[str, Any]]:
 @station_errors
 def write_picture(exploration: Exploration, path: str | Path) -> Path:
     """A PNG of the first and the last design with their PoIs, the kept ones highlighted."""
-    from design.explore.render import write_png
+    from design.explore.render import write_png  # heavy: scipy, shapely
 
     path = Path(path)
     explorer = exploration.explorer

@@ -14,9 +14,22 @@ from dataclasses import dataclass, replace
 from pathlib import Path
 
 from common.progress import Reporter
+from design.contraption.layout_io import read_layout_data
+from projector.board import side_board, write_board_pdf
+from projector.build import build_guide, steps_text
+from projector.frames import render_calibrate, render_frames, render_step
 from projector.guide import Guide, ParameterTolerance
+from projector.parameters import check_set_with
+from projector.pdf import write_pdf
+from projector.svg import write_svg
 from station.errors import ServiceError, station_errors
+from station.services.contraption import choose_layout, open_scenario
 from station.services.jig_plan import JigOptions, attach_jigs, plan_guide_jigs
+from station.services.outlook import layout_headline
+from station.services.physics import scenario_with_physics
+from station.services.projectors import projector_homography
+from station.services.robust import check_count, check_seed
+from station.services.tolerances import tolerance_map as tolerances_of
 
 __all__ = ["PAPERS", "VIEWS", "GuideJob", "check_paper", "export_guide", "make_guide", "portable_name",
            "projected_frames", "show_step"]
@@ -62,7 +75,6 @@ class GuideJob:
         data["layout"] = self.layout.to_dict()
         data["layout"]["source"] = portable_name(data["layout"].get("source") or "")
         data["steps"] = list(self.steps)
-        from projector.board import side_board
 
         board = side_board(self.guide)
         data["side_board"] = None if board is None else board.manifest()
@@ -125,11 +137,6 @@ def make_guide(scenario: str, layout: str | None, *, view: str | None = None, ve
     projector.errors.ProjectorError
         The scenario cannot be drawn in that view.
     """
-    from projector.build import build_guide, steps_text
-    from projector.parameters import check_set_with
-    from station.services.contraption import choose_layout, open_scenario
-    from station.services.robust import check_count, check_seed
-
     if view is not None and view not in VIEWS:
         raise ServiceError(f"view must be one of {', '.join(VIEWS)}, got {view!r}", field="view", value=view)
     check_count(verify, "verify", 0)
@@ -140,9 +147,6 @@ def make_guide(scenario: str, layout: str | None, *, view: str | None = None, ve
     tolerance_map = None
     by_parameter: dict[str, ParameterTolerance] | None = None
     if tolerances and layout is not None:
-        from station.services.physics import scenario_with_physics
-        from station.services.tolerances import tolerance_map as tolerances_of
-
         # the tolerance map reads the layout (and the model its file carries) once, for both
         tolerance_map = tolerances_of(scenario_with_physics(loaded_scenario, physics), layout, verify=verify,
                                       seed=seed, report=report)
@@ -162,9 +166,6 @@ def make_guide(scenario: str, layout: str | None, *, view: str | None = None, ve
 def _layout_headline(layout: str | None, tolerance_map=None) -> str | None:
     """The physical success a LAYOUT.json carries (``station optimize`` writes it), in the station's words; from the
     tolerance map's reading of the file when there is one."""
-    from design.contraption.layout_io import read_layout_data
-    from station.services.outlook import layout_headline
-
     if tolerance_map is not None:
         return layout_headline(tolerance_map.layout_data)
     if layout is None or not Path(str(layout)).is_file():
@@ -187,17 +188,12 @@ def export_guide(job: GuideJob, *, pdf: str | Path | None = None, svg: str | Pat
     check_paper(paper)
     guide = job.guide
     if pdf is not None:
-        from projector.pdf import write_pdf
-
         guide = write_pdf(guide, Path(pdf), paper=paper, steps=job.steps, title=_title(job))
-        from projector.board import side_board, write_board_pdf
 
         board = side_board(guide, paper)
         if board is not None and reads_side(guide):
             write_board_pdf(board, board_pdf_path(pdf), title=_title(job))
     if svg is not None:
-        from projector.svg import write_svg
-
         with open(svg, "w", encoding="utf-8") as stream:
             write_svg(guide, stream)
     return replace(job, guide=guide)
@@ -213,8 +209,6 @@ def reads_side(guide) -> bool:
 def board_words(guide) -> str | None:
     """What the side camera's board sheet of ``guide`` shows, in words; None when the guide has no board the side
     camera reads."""
-    from projector.board import side_board  # shapely: loaded when a guide is made, not for the CLI's --help
-
     board = side_board(guide)
     return board.words() if board is not None and reads_side(guide) else None
 
@@ -237,8 +231,6 @@ def check_paper(paper: str) -> None:
 def projected_frames(job: GuideJob, size: tuple[int, int], homography=None):
     """The guide's frames for a screen of ``size`` pixels (:func:`projector.frames.render_frames`): a calibrate
     frame and one per step; without a projector calibration the guide is fitted to the screen, not at true scale."""
-    from projector.frames import render_frames
-
     return render_frames(job.guide, size=size, homography=homography)
 
 
@@ -256,15 +248,11 @@ def show_step(job: GuideJob, projector, step: int | None = None, homography=None
     ServiceError
         A step outside 1..number of parts (``step``).
     """
-    from projector.frames import render_calibrate, render_step
-
     count = len(job.guide.parts)
     if step is not None and not 1 <= step <= count:
         raise ServiceError(f"step must be from 1 to {count}, got {step}", field="step", value=step)
     size = tuple(projector.size)
     if homography is None:
-        from station.services.projectors import projector_homography
-
         homography = projector_homography(projector)
     if step is None:
         frame = render_calibrate(job.guide, size, homography)

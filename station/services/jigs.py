@@ -19,6 +19,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from cam.laser import material_settings
 from common.progress import Reporter
 from station.errors import station_errors
 from station.jsonable import to_jsonable
@@ -80,9 +81,8 @@ def cut_jigs(job, planned: PlannedJigs, report: Reporter | None = None) -> JigsR
     design.errors.ConstraintViolation
         The pieces need more than four sheets.
     """
-    from cam.laser import material_settings
-    from design.fabrication import Part, nest_sheets
-    from design.jigs.render import render_jig
+    from design.fabrication import Part, nest_sheets  # heavy: cv2
+    from design.jigs.render import render_jig  # heavy: PIL
 
     report = Reporter.of(report)
     plan, settings, profile = planned.plan, planned.settings, planned.profile

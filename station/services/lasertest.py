@@ -17,6 +17,7 @@ from datetime import datetime, timezone
 from pathlib import Path
 from typing import Any
 
+import cv2
 import numpy as np
 from PIL import Image, ImageDraw, ImageFont
 
@@ -37,6 +38,7 @@ from design.fabrication.lasercard import (
 from drivers.profiles import BUILTIN_PROFILES, MachineProfile, profile_from_toml
 from drivers.sim.laser_burn import burn_gcode, line_kerf, photograph, sim_material
 from station.errors import ServiceError, station_errors
+from station.services.calibrate import grab_frame
 from station.services.images import check_frame_size, check_image_file
 from station.services.profiles import load_station_profile, replace_material_table, station_copy_path
 from vision.tags import tag_cells
@@ -361,8 +363,6 @@ def measure_material(card_json: str | Path, *, image: str | Path | np.ndarray | 
                      camera: str | None = None, darkness: float = DEFAULT_DARKNESS) -> MaterialMeasurement:
     """Read a burned card from a frame (an image file, an array, or grabbed from ``camera``) and choose the
     settings. Raises CardError, CalibrationError, ServiceError, DriverError."""
-    from station.services.calibrate import grab_frame
-
     if not (math.isfinite(darkness) and 0.0 < darkness < 1.0):
         raise ServiceError(f"darkness {darkness!r}: expected a number between 0 and 1 (0 bare wood, 1 char)",
                            field="darkness", value=darkness)
@@ -382,8 +382,6 @@ def measure_material(card_json: str | Path, *, image: str | Path | np.ndarray | 
 
 def _read_frame(path: Path) -> np.ndarray:
     """An image file as RGB, refused in one line when it is missing, not an image, or too large."""
-    import cv2
-
     if not path.is_file():
         raise ServiceError(f"image: no such file: {path}", field="image", value=str(path))
     check_image_file(path, "image")  # from the header: a huge image is refused before it is decoded
@@ -446,8 +444,6 @@ def _report(reading: CardReading, manifest: CardManifest, choice: Choice) -> byt
 @station_errors
 def png_bytes(rgb: np.ndarray) -> bytes:
     """An RGB picture as PNG (OpenCV's encoder: several times faster than Pillow's on a camera frame)."""
-    import cv2
-
     ok, data = cv2.imencode(".png", cv2.cvtColor(np.ascontiguousarray(rgb), cv2.COLOR_RGB2BGR),
                             [cv2.IMWRITE_PNG_COMPRESSION, 3])
     if not ok:

@@ -34,6 +34,7 @@ import numpy as np
 from common.progress import Reporter
 from design.contraption import layout_io
 from design.contraption.physics_profile import PhysicsProfile
+from design.robust.model_io import layout_model
 from station.errors import ServiceError, station_errors
 
 __all__ = ["CHOICE_QUANTILE", "PREDICTION_EDGE", "PREDICTION_WEIGHT", "candidate_layouts", "choice_score",
@@ -68,8 +69,6 @@ def candidate_layouts(payload: dict, limit: int) -> list[dict]:
 
 
 def _with_normalized(payload: dict, u: np.ndarray, index: int) -> dict:
-    from design.robust.model_io import layout_model
-
     data = {k: v for k, v in payload.items() if k not in ("physical_choice", "candidate")}
     data["parameters"] = [{**p, "value": float(p["lower"] + u[i] * (p["upper"] - p["lower"])),
                            "normalized": float(u[i])} for i, p in enumerate(payload["parameters"])]
@@ -144,7 +143,7 @@ def choice_score(predicted: float, successes: int = 0, attempts: int = 0, weight
                  quantile: float = CHOICE_QUANTILE) -> float:
     """What a layout is ranked by: the ``quantile`` of its success's Beta posterior, the prediction worth ``weight``
     attempts (held 0.01 inside 0 and 1) updated by its record (``successes`` of ``attempts``)."""
-    from scipy.stats import beta
+    from scipy.stats import beta  # heavy: scipy
 
     p = min(max(float(predicted), PREDICTION_EDGE), 1.0 - PREDICTION_EDGE)
     return float(beta.ppf(quantile, weight * p + successes, weight * (1.0 - p) + attempts - successes))

@@ -46,7 +46,7 @@ def problem_with_physics(problem, path: str | Path | None):
     """
     if path is None:
         return problem
-    from design.robust.contraption import ContraptionProblem
+    from design.robust.contraption import ContraptionProblem  # heavy: pybullet, scipy
 
     if not isinstance(problem, ContraptionProblem):
         raise ServiceError(f"{problem.name}: has no materials; a physics profile applies to a scenario file",

@@ -14,15 +14,22 @@ from typing import Any
 
 import numpy as np
 
+from calibration.check import not_measured_names
 from calibration.sim_predict import PhysicalPrediction, predict_success
 from calibration.sim_runs import DEFAULT_ANGLE_SIGMA_DEG, DEFAULT_POSITION_SIGMA_M, residual_sigma
+from common.datafiles import load_json
 from common.progress import Reporter
 from design.contraption.layout_io import LoadedLayout
-from design.contraption.physics_profile import PhysicsProfile
+from design.contraption.physics_profile import PhysicsProfile, apply_profile, profile_from_text
 from design.contraption.scenario import Scenario
+from design.robust.contraption import ContraptionProblem
 from station.errors import ServiceError, station_errors
+from station.services.contraption import choose_layout, open_scenario
 from station.services.outlook import success_headline
+from station.services.physics import read_profile
+from station.services.robust import check_count, check_seed
 from station.services.sim_calibration import station_runner
+from station.services.trials import layout_values, read_check
 
 
 @station_errors
@@ -55,8 +62,6 @@ def as_built_from_check(check: Any, scenario: Scenario, designed: np.ndarray, fi
         Not a check, a check of another scenario or layout, or a field that is not what a check writes
         (``field="as_built"``, the message naming the field).
     """
-    from station.services.trials import layout_values, read_check
-
     def fail(message: str) -> ServiceError:
         return ServiceError(f"as_built {file}: {message}", field="as_built", value=file)
 
@@ -69,8 +74,6 @@ def as_built_from_check(check: Any, scenario: Scenario, designed: np.ndarray, fi
 def not_measured(check: Any, scenario: Scenario, fail=None) -> tuple[str, ...]:
     """A check's ``not_measured`` design parameters (none when it does not say;
     :func:`calibration.check.not_measured_names`)."""
-    from calibration.check import not_measured_names
-
     return not_measured_names(check, scenario.design_space.names,
                               fail or (lambda m: ServiceError(f"check {m}", field="check")))
 
@@ -103,10 +106,6 @@ def predict(scenario: str | Scenario, layout: str | None, *, physics: str | Path
     common.progress.Cancelled
         Stopped; the simulations done are in the cache.
     """
-    from station.services.contraption import choose_layout, open_scenario
-    from station.services.physics import read_profile
-    from station.services.robust import check_count, check_seed
-
     check_count(samples, "samples")
     check_seed(seed)
     loaded = open_scenario(scenario) if isinstance(scenario, str) else scenario
@@ -114,8 +113,6 @@ def predict(scenario: str | Scenario, layout: str | None, *, physics: str | Path
     x = np.asarray(chosen.x, dtype=float)
     position, angle, unmeasured = DEFAULT_POSITION_SIGMA_M, DEFAULT_ANGLE_SIGMA_DEG, ()
     if as_built is not None:
-        from common.datafiles import load_json
-
         path = Path(as_built)
         if not path.is_file():
             raise ServiceError(f"as_built {path}: no such file (expected the CHECK.json of `station check --out`)",
@@ -125,8 +122,6 @@ def predict(scenario: str | Scenario, layout: str | None, *, physics: str | Path
         x, position, angle, unmeasured = as_built_from_check(data, loaded, x, str(path))
     profile = read_profile(physics) if physics is not None else None
     if profile is not None:
-        from design.contraption.physics_profile import apply_profile
-
         apply_profile(loaded, profile, str(physics))  # refuses a profile for another contraption, names the file
     result = predict_layout(loaded, x, PredictionRequest(
         profile, position, angle, tuple(unmeasured), samples, seed, workers=workers, scheduler=scheduler),
@@ -188,10 +183,6 @@ def layout_outlook(problem, x: np.ndarray, *, physics: str | Path | None = None,
     """The physical success of a layout the maker has not placed yet (after ``station optimize``): simulated
     ``samples`` times placed by the guide with no check (the unchecked error, 1 mm / 1 deg), under the profile at
     ``physics`` when given; None for a problem with no scenario (nothing to place) or ``samples`` 0."""
-    from design.robust.contraption import ContraptionProblem
-    from station.services.physics import read_profile
-    from station.services.robust import check_count
-
     if not samples or not isinstance(problem, ContraptionProblem):
         return None
     check_count(samples, "predict")
@@ -214,9 +205,6 @@ def predict_trial(scenario: Scenario, trial: Mapping[str, Any], *, samples: int 
                   report: Reporter | None = None) -> PhysicalPrediction:
     """The physical success of a logged trial's layout (as built when the trial has one), under the trial's physics
     profile and its check's residual error (the defaults without a check): what the maker may expect next time."""
-    from design.contraption.physics_profile import apply_profile, profile_from_text
-    from station.services.robust import check_count
-
     check_count(samples, "predict")
     space = scenario.design_space
     values = trial.get("as_built") or trial["layout"]

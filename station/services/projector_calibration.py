@@ -22,9 +22,14 @@ from pathlib import Path
 
 import numpy as np
 
+from calibration.errors import CalibrationError
+from calibration.projector_map import GrayCodePlan, map_projector, save_projector_map
+from common.datafiles import load_json
 from common.progress import Reporter
-from drivers.devices import projector_identity
+from drivers.devices import projector_identity, resolve
+from station.config import configured_devices
 from station.errors import ServiceError, station_errors
+from station.paths import data_dir
 from station.services import projectors
 
 __all__ = ["DEFAULT_SETTLE_S", "ProjectorCalibration", "calibrate_projector", "projector_map_file",
@@ -74,8 +79,6 @@ def _check_name(name: str) -> str:
 
 
 def _device(url: str, kind: str):
-    from drivers.devices import resolve
-
     info = resolve(url)
     if info.kind != kind or not info.available:
         raise ServiceError(f"{kind}: {url!r} is not a {kind} the station can drive (it names a {info.kind})",
@@ -86,8 +89,6 @@ def _device(url: str, kind: str):
 
 
 def _configured(kind: str) -> tuple[str, str]:
-    from station.config import configured_devices
-
     device = next((d for d in configured_devices() if d.kind == kind), None)
     if device is None:
         raise ServiceError(f"{kind}: no {kind} configured (add one to station.toml, or give its URL)", field=kind)
@@ -142,9 +143,6 @@ def calibrate_projector(*, camera: str | None = None, projector: str | None = No
     drivers.errors.DriverError
         A device that cannot be opened or gives no frame.
     """
-    from calibration.errors import CalibrationError
-    from calibration.projector_map import GrayCodePlan, map_projector, save_projector_map
-
     report = Reporter.of(report)
     camera_name, camera_url = _configured("camera") if camera is None else ("camera", camera)
     projector_url = _configured("projector")[1] if projector is None else str(projector).strip()
@@ -192,8 +190,6 @@ def calibrate_projector(*, camera: str | None = None, projector: str | None = No
 
 
 def _json_file(path: Path, what: str, field: str) -> dict:
-    from common.datafiles import load_json
-
     try:
         data = load_json(path, what, error=lambda detail: ServiceError(f"{field}: {path}: {detail}", field=field))
     except OSError as error:
@@ -204,8 +200,6 @@ def _json_file(path: Path, what: str, field: str) -> dict:
 
 
 def _saved(kind: str, camera_name: str) -> Path | None:
-    from station.paths import data_dir
-
     path = data_dir() / "calibration" / kind / f"{camera_name}.json"
     return path if path.is_file() else None
 

@@ -20,8 +20,12 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+import numpy as np
+
 from common.progress import Cancelled, Reporter
 from common.signals import HandledSignals
+from design.contraption.catalog import resolve_scenario_path
+from design.contraption.layout_io import read_layout_data, resolve_layout
 from design.robust.problem import RobustError
 from design.robust.settings import METHODS, PSPSettings, RobustnessSettings
 from station.errors import ServiceError, station_errors
@@ -149,8 +153,6 @@ def settings_of_layout(path: str) -> PSPSettings:
     A missing file is a :class:`ServiceError` (``field="settings"``); a file that is not a LAYOUT.json with settings
     is a :class:`ServiceError` naming the file and the field.
     """
-    from design.contraption.layout_io import read_layout_data
-
     try:
         data = read_layout_data(path)
     except FileNotFoundError:
@@ -171,8 +173,7 @@ def settings_of_layout(path: str) -> PSPSettings:
 @station_errors
 def load_problem(path: str):
     """A scenario file, or an example by name (``simple``, ``ballrun``...), as a robust-layout problem."""
-    from design.contraption.catalog import resolve_scenario_path
-    from design.robust.contraption import load_problem as load
+    from design.robust.contraption import load_problem as load  # heavy: pybullet, scipy
 
     return load(resolve_scenario_path(path))
 
@@ -181,8 +182,6 @@ def load_problem(path: str):
 def read_layout(path: str, problem):
     """The layout ``path`` names for the problem's scenario (any form of :mod:`design.contraption.layout_io`: a
     LAYOUT.json, ``{"x": [...]}``, ``{"parameters": {...}}``, or a layout named in the scenario file)."""
-    from design.contraption.layout_io import resolve_layout
-
     return resolve_layout(path, problem.scenario)
 
 
@@ -228,6 +227,7 @@ def connected_executor(problem, *, workers: int | None = None, scheduler: str | 
                        chunk_size: int | None = None) -> SimulationExecutor:
     """An executor of ``problem`` on the shared simulation cache, its Dask scheduler (if any) already reached (a
     wrong address is a :class:`ServiceError` naming ``scheduler``)."""
+    # heavy: the process pool and its executor, loaded when simulations run (`station optimize --help` imports this)
     from design.robust.executor import SchedulerUnreachable, SimulationExecutor
 
     executor = SimulationExecutor(problem, workers=workers, scheduler=scheduler, cache_path=simulation_cache_path(),
@@ -272,7 +272,7 @@ def optimize(problem, budget: int, seed: int, settings: PSPSettings, *, workers:
     Raises :class:`~common.progress.Cancelled` when stopped, a :class:`ServiceError` for a bad budget, seed or
     scheduler.
     """
-    from design.robust.pipeline import optimize_robust_layout
+    from design.robust.pipeline import optimize_robust_layout  # heavy: scipy, sklearn
 
     check_seed(seed)
     check_budget(budget)
@@ -339,10 +339,8 @@ class RobustnessRun:
     def draw(self) -> RobustnessPlan:
         """Draw the evaluation layouts (seconds for a contraption; progress "evaluation layouts" counts the valid
         ones) and the local ones, and count those the cache already knows."""
-        import numpy as np
-
-        from design.robust.pipeline import Progress
-        from design.robust.robustness import evaluation_layouts, local_layouts
+        from design.robust.pipeline import Progress  # heavy: scipy, sklearn
+        from design.robust.robustness import evaluation_layouts, local_layouts  # heavy: scipy
 
         n_evaluation = self.settings.n_evaluation
 
@@ -358,8 +356,8 @@ class RobustnessRun:
 
     def simulate(self) -> Robustness:
         """Simulate the evaluation set, then the local samples (phases "evaluation set", "local samples")."""
-        from design.robust.pipeline import BudgetedOracle
-        from design.robust.robustness import evaluation_set, robustness_curve
+        from design.robust.pipeline import BudgetedOracle  # heavy: scipy, sklearn
+        from design.robust.robustness import evaluation_set, robustness_curve  # heavy: scipy
 
         if self._evaluation_layouts is None:
             self.draw()
@@ -411,7 +409,7 @@ def compare(problem, request: ComparisonRequest, *, report: Reporter | None = No
             on_run: Callable[[MethodRun], None] | None = None) -> Comparison:
     """Ours and the baselines B1-B3 over ``request.runs`` seeds at the same budget (thesis Table 4.2); ``on_run`` is
     called with each run as it ends, so a stopped comparison has reported what it finished."""
-    from design.robust.pipeline import compare_methods
+    from design.robust.pipeline import compare_methods  # heavy: scipy, sklearn
 
     check_seed(request.seed)
     check_count(request.runs, "runs")

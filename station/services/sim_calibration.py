@@ -16,12 +16,16 @@ from datetime import datetime, timezone
 from pathlib import Path
 from typing import Any
 
+from calibration.errors import CalibrationError
 from calibration.sim_fit import FitSettings, Runner, SimFit, fit_simulator
 from calibration.sim_trials import export_trials, fit_trials
+from common.datafiles import load_json
 from common.progress import Cancelled, Reporter
+from design.contraption.materials import default_range
 from design.contraption.physics_profile import PhysicsProfile, save_profile
 from design.contraption.scenario import Scenario
 from station.errors import ServiceError, station_errors
+from station.services.robust import check_count, connected_executor, stopped_run
 
 
 @station_errors
@@ -51,13 +55,10 @@ class SimCalibration:
 @station_errors
 def read_trials_json(path: str | Path) -> list[dict]:
     """The trials of a trial export file (``station trial export --out FILE.json``)."""
-    from common.datafiles import load_json
-
     path = Path(path)
     if not path.is_file():
         raise ServiceError(f"trials_json {path}: no such file (expected a trial export, `station trial export "
                            "--out FILE.json`)", field="trials_json", value=str(path))
-    from calibration.errors import CalibrationError
 
     data = load_json(path, "a trial export (\"format\": \"chaos-station trials\")",
                      error=lambda detail: CalibrationError(f"{path}: {detail}"))
@@ -68,8 +69,6 @@ def read_trials_json(path: str | Path) -> list[dict]:
 def material_ranges(scenario: Scenario, every_material: bool = False) -> dict[str, tuple[float, tuple[float, float]]]:
     """``{name: (value, (low, high))}``: the scenario's uncertain material values, and with ``every_material`` its
     other material values too, each in its :func:`~design.contraption.materials.default_range`."""
-    from design.contraption.materials import default_range
-
     ranges = scenario.uncertain_parameters()
     if not every_material:
         return ranges
@@ -120,8 +119,6 @@ def station_runner(*, workers: int | None = None, scheduler: str | None = None,
     """A :class:`~calibration.sim_fit.Runner` on the optimizer's executors and shared cache; a stop (``report``'s
     stop check, Ctrl-C) becomes the :class:`~common.progress.Cancelled` of
     :func:`~station.services.robust.stopped_run`, which says how many simulations the cache keeps."""
-    from station.services.robust import check_count, connected_executor, stopped_run
-
     check_count(workers, "workers")
 
     def make(problem):

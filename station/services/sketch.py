@@ -16,7 +16,9 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from common.progress import Reporter
+from design.machines import get_machine, machine_names
 from station.errors import ServiceError, station_errors
+from station.paths import cache_dir
 
 if TYPE_CHECKING:  # scipy and the spline/FFT machinery load only when a sketch is retrieved
     import numpy as np
@@ -64,8 +66,6 @@ class RetrieveOptions:
 
     def check(self) -> None:
         """Raise :class:`ServiceError` (its ``field`` the option's name) for the first option out of its domain."""
-        from design.machines import machine_names
-
         known = machine_names()
         for name in self.machines:
             if name not in known:
@@ -98,10 +98,8 @@ def make_retriever(options: RetrieveOptions | None = None, *, report: Reporter |
 
     A retriever keeps the databases it loaded: keep it to answer further sketches without reading them again.
     """
-    from design.machines import machine_names
-    from design.sketch import SketchRetriever
-    from design.sketch.candidates import default_settings
-    from station.paths import cache_dir
+    from design.sketch import SketchRetriever  # heavy: scipy
+    from design.sketch.candidates import default_settings  # heavy: scipy
 
     options = options or RetrieveOptions()
     options.check()
@@ -169,15 +167,13 @@ def retrieve(sketch: Sketch, options: RetrieveOptions | None = None, *, retrieve
 @station_errors
 def candidate_curve(candidate: Candidate, points: int = 2048) -> np.ndarray:
     """The pattern of a candidate, ``(points, 2)`` uniform in arc length, for a preview."""
-    from design.machines import get_machine
-
     return get_machine(candidate.machine).sample(candidate.params, n=points, spacing="arclength")
 
 
 @station_errors
 def write_contact_sheet(result: RetrievalResult, path: str | Path, points: int = 2048) -> Path:
     """A PNG of the sketch (strokes and fitted curve) beside each ranked candidate, labelled with its distance."""
-    from design.sketch.contact_sheet import render_contact_sheet
+    from design.sketch.contact_sheet import render_contact_sheet  # heavy: PIL, scipy
 
     path = Path(path)
     labelled = [

@@ -15,12 +15,19 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+import numpy as np
+
 from common.progress import Reporter
+from design.contraption import Scenario
+from design.contraption.layout_io import layout_from_data, read_layout_data
+from design.robust.model_io import layout_model
 from design.robust.tolerance import CARE_RULE as CARE_RULE  # re-exported (X as X): the faces word the rule
 from design.robust.tolerance import RATIO as RATIO
+from design.robust.tolerance import model_tolerances, no_tolerances, simulated_tolerances, verify_tolerances
 from station.errors import ServiceError, station_errors
 from station.services import robust
 from station.services.outlook import disagreement
+from station.services.physics import problem_with_physics
 
 if TYPE_CHECKING:
     import numpy as np
@@ -71,7 +78,7 @@ class Tolerances:
 
     def parameter_tolerances(self) -> dict[str, tuple[ParameterTolerance, ...]]:
         """Per part, its parameters' tolerances as the guide's :class:`projector.guide.ParameterTolerance`."""
-        from projector.guide import ParameterTolerance
+        from projector.guide import ParameterTolerance  # heavy: shapely
 
         return {part: tuple(ParameterTolerance(e.parameter, e.delta, e.unit, e.predicted_ratio, e.measured,
                                                self.map.source, e.bound_limited) for e in entries)
@@ -97,9 +104,6 @@ def layout_and_model(layout: str, problem):
 def _read_layout(layout: str, problem):
     """``(layout, model or None, the file's data or None)``: what :func:`layout_and_model` gives and the data read
     for it (None for a layout named in the scenario)."""
-    from design.contraption.layout_io import layout_from_data, read_layout_data
-    from design.robust.model_io import layout_model
-
     if not Path(layout).is_file():  # a layout named in the scenario, or a missing file: the reader says which
         return robust.read_layout(layout, problem), None, None
     data = read_layout_data(layout)
@@ -123,8 +127,7 @@ def layout_simulated_success(data) -> float | None:
 @station_errors
 def contraption_problem(scenario):
     """A scenario file or example name, or a loaded :class:`design.contraption.Scenario`, as a problem."""
-    from design.contraption import Scenario
-    from design.robust.contraption import ContraptionProblem
+    from design.robust.contraption import ContraptionProblem  # heavy: pybullet, scipy
 
     if isinstance(scenario, Scenario):
         return ContraptionProblem(scenario.source, scenario)
@@ -163,16 +166,12 @@ def tolerance_map(scenario, layout: str, *, verify: int = 0, seed: int = 0, work
     common.progress.Cancelled
         Stopped on request or by Ctrl-C; simulations done are kept in the cache.
     """
-    import numpy as np
-
-    from design.robust.pipeline import BudgetedOracle, Progress
-    from design.robust.tolerance import model_tolerances, no_tolerances, simulated_tolerances, verify_tolerances
+    from design.robust.pipeline import BudgetedOracle, Progress  # heavy: scipy, sklearn
 
     if isinstance(verify, bool) or not isinstance(verify, int) or verify < 0:
         raise ServiceError(f"verify must be an integer >= 0 (layouts simulated per parameter), got {verify!r}",
                            field="verify", value=verify)
     robust.check_seed(seed)
-    from station.services.physics import problem_with_physics
 
     problem = problem_with_physics(contraption_problem(scenario), physics)
     loaded, model, data = _read_layout(str(layout), problem)

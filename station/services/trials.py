@@ -24,6 +24,7 @@ from design.contraption.model import Scenario
 from design.errors import DesignError
 from station.errors import ServiceError, StationError, station_errors
 from station.joblog import local_time
+from station.paths import data_dir
 from station.trialformat import (
     FORMAT,
     OUTCOMES,
@@ -207,8 +208,8 @@ def read_check(data: Any, scenario: Scenario, layout: Mapping[str, float],
 
     ``fail(message)`` makes the error raised; ``message`` starts with the field (``residual_error: expected ...``).
     """
-    from calibration.check import as_built_values, not_measured_names, same_layout_value
-    from calibration.sim_runs import residual_sigma
+    from calibration.check import as_built_values, not_measured_names, same_layout_value  # heavy: scipy, shapely
+    from calibration.sim_runs import residual_sigma  # heavy: pybullet, scipy
 
     if not isinstance(data, dict) or data.get("format") != CHECK_FORMAT:
         got = data.get("format") if isinstance(data, dict) else type(data).__name__
@@ -315,7 +316,7 @@ def _part_value(key: str, value: Any) -> bool:
 def check_values(check: Mapping[str, Any]) -> dict[str, float]:
     """A check's as-built layout for the trial log: its ``as_built``, the measured parameters as measured
     (:func:`calibration.check.as_built_values`)."""
-    from calibration.check import as_built_values
+    from calibration.check import as_built_values  # heavy: scipy, shapely
 
     return as_built_values(check, lambda message: ServiceError(f"check: {message}", field="check"))
 
@@ -411,8 +412,6 @@ class LoggedTrial:
 @station_errors
 def pending_folder() -> Path:
     """Where kept trials wait (:data:`PENDING_FOLDER` in the data folder)."""
-    from station.paths import data_dir
-
     return data_dir() / PENDING_FOLDER
 
 
