@@ -78,6 +78,8 @@ def test_cancelled_is_one_runtime_error_that_says_what_was_kept(tmp_path):
 #: The names the one reporter and the one Cancelled replace: none may come back.
 GONE_NAMES = {"SimulationCancelled", "RunStopped", "LoopStopped", "StopCheck", "CancelCheck"}
 GONE_PARAMETERS = {"should_stop", "cancelled"}
+#: An optional parameter by this name is a progress callback beside the reporter (a Progress value is no option).
+GONE_OPTIONS = {"progress"}
 ROOT = Path(__file__).resolve().parents[1]
 SOURCES = ("common", "design", "calibration", "projector", "vision", "cam", "drivers", "station", "bench", "tests",
            "examples")
@@ -95,6 +97,10 @@ def test_no_other_stop_parameter_or_exception_is_left_in_the_source():
                     for argument in (*arguments.posonlyargs, *arguments.args, *arguments.kwonlyargs):
                         if argument.arg in GONE_PARAMETERS:
                             found.append(f"{where}:{node.lineno}: parameter {argument.arg}")
+                    positional = [*arguments.posonlyargs, *arguments.args]
+                    optional = [a.arg for a in positional[len(positional) - len(arguments.defaults):]]
+                    optional += [a.arg for a, d in zip(arguments.kwonlyargs, arguments.kw_defaults) if d is not None]
+                    found += [f"{where}:{node.lineno}: option {name}=" for name in GONE_OPTIONS & set(optional)]
                 elif isinstance(node, ast.keyword) and node.arg in GONE_PARAMETERS:
                     found.append(f"{where}:{node.value.lineno}: keyword {node.arg}=")
                 elif isinstance(node, ast.Name) and node.id in GONE_NAMES:
