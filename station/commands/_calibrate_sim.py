@@ -94,10 +94,12 @@ def _calibrate_sim(args) -> int:
         trials, source = args.trials_source(), "the trial log"
     else:
         raise UsageError("--trials-json EXPORT.json is required (this station has no trial log wired in)")
-    result = service.calibrate_sim(scenarios, trials, params=params, n_trials=args.trials,
-                                   settings=service.FitSettings(draws=args.draws, seed=args.seed,
-                                                                prior_width=args.prior_width or None),
-                                   source=source, every_material=args.all_materials, **_where(args))
+    where = _where(args)
+    settings = service.FitSettings(draws=args.draws, seed=args.seed, prior_width=args.prior_width or None)
+    request = service.SimCalibrationRequest(tuple(params) if params else None, args.trials, settings, source,
+                                            args.all_materials, workers=where["workers"],
+                                            scheduler=where["scheduler"])
+    result = service.calibrate_sim(scenarios, trials, request, report=where["report"])
     args.bar.close()
     if args.out is not None:
         service.save(result, args.out)

@@ -510,7 +510,7 @@ def calibrate_from_log(scenario, store=None, *, settings=None, workers: int | No
         Stopped; the simulations done are in the cache.
     """
     from station.paths import data_dir
-    from station.services.sim_calibration import calibrate_sim, save
+    from station.services.sim_calibration import SimCalibrationRequest, calibrate_sim, save
     from station.services.trials import open_store
 
     if store is None:
@@ -518,8 +518,9 @@ def calibrate_from_log(scenario, store=None, *, settings=None, workers: int | No
             trials = opened.trials(scenario=scenario.name)
     else:
         trials = store.trials(scenario=scenario.name)
-    result = calibrate_sim([scenario], trials, settings=settings, workers=workers, report=report,
-                           source="the trial log", every_material=every_material)
+    request = SimCalibrationRequest(settings=settings, source="the trial log", every_material=every_material,
+                                    workers=workers)
+    result = calibrate_sim([scenario], trials, request, report=report)
     path = Path(out) if out is not None else data_dir() / "physics" / f"{scenario.name.lower()}-calibrated.toml"
     path.parent.mkdir(parents=True, exist_ok=True)
     return save(result, path, name=f"{scenario.name} calibrated on {result.fit.trials + result.fit.held_out} "

@@ -624,15 +624,16 @@ class _Loop:
     def calibrate(self, k: int):
         """The physics profile fitted to every trial of loops 1 .. k-1."""
         from calibration.sim_fit import FitSettings
-        from station.services.sim_calibration import calibrate_sim
+        from station.services.sim_calibration import SimCalibrationRequest, calibrate_sim
 
         trials = self.trials(k)
         s = self.settings
         fit = FitSettings(draws=s.fit_draws, sobol=s.fit_sobol, rounds=s.fit_rounds, held_out=0.0,
                           prior_width=s.fit_prior_width or None, seed=_seed(self.world.seed, _CALIBRATE, k))
         words = f"loop {k}: calibrating the simulator from {len(trials)} trial{'s' if len(trials) != 1 else ''}"
-        result = calibrate_sim([self.scenario], trials, settings=fit, report=self.under(words), source="loop",
-                               every_material=self.settings.every_material, **self.where)
+        request = SimCalibrationRequest(settings=fit, source="loop", every_material=self.settings.every_material,
+                                        **self.where)
+        result = calibrate_sim([self.scenario], trials, request, report=self.under(words))
         profile = result.profile(f"loop {k} of run {self.run_id}: calibrated {self.scenario.name}")
         # the creation time is the only thing of a profile that changes between two runs of the same data
         return replace(profile, created="", source=f"station loop run {self.run_id}: {len(trials)} trials of loops "

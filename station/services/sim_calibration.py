@@ -135,13 +135,41 @@ def station_runner(*, workers: int | None = None, scheduler: str | None = None,
         raise stopped_run(runner.done) from None
 
 
+@dataclass(frozen=True)
+class SimCalibrationRequest:
+    """What :func:`calibrate_sim` fits, from which trials, and how.
+
+    Parameters
+    ----------
+    params : tuple of str, optional
+        ``"MATERIAL.PARAM"`` names to fit (default: all uncertain values).
+    n_trials : int, optional
+        Use only the last ``n_trials`` trials of these scenarios (the most recent runs).
+    settings : FitSettings, optional
+        The fit's sizes and seed.
+    source : str
+        Where the trials come from, for messages (a file, "the trial log").
+    every_material : bool
+        Fit every material value, not only the uncertain ones (those without a range in their default one, see
+        :func:`material_ranges`): for when the plain numbers of the scenario may be off too.
+    workers, scheduler
+        Where the simulations run: local processes, or a Dask scheduler's address.
+    """
+
+    params: tuple[str, ...] | None = None
+    n_trials: int | None = None
+    settings: FitSettings | None = None
+    source: str = "<trials>"
+    every_material: bool = False
+    workers: int | None = None
+    scheduler: str | None = None
+
+
 @station_errors
-def calibrate_sim(scenarios: Sequence[Scenario], trials: Sequence[Mapping[str, Any]], *,
-                  params: Sequence[str] | None = None, n_trials: int | None = None,
-                  settings: FitSettings | None = None, workers: int | None = None, scheduler: str | None = None,
-                  report: Reporter | None = None,
-                  source: str = "<trials>", every_material: bool = False) -> SimCalibration:
-    """Fit the scenarios' uncertain material values (or ``params``) to their trials among ``trials``.
+def calibrate_sim(scenarios: Sequence[Scenario], trials: Sequence[Mapping[str, Any]],
+                  request: SimCalibrationRequest = SimCalibrationRequest(), *,
+                  report: Reporter | None = None) -> SimCalibration:
+    """Fit the scenarios' uncertain material values (or ``request.params``) to their trials among ``trials``.
 
     Parameters
     ----------
@@ -149,15 +177,8 @@ def calibrate_sim(scenarios: Sequence[Scenario], trials: Sequence[Mapping[str, A
         The scenarios (their trials are those with the same name).
     trials : sequence of dict
         Trials in the export format.
-    params : sequence of str, optional
-        ``"MATERIAL.PARAM"`` names to fit (default: all uncertain values).
-    n_trials : int, optional
-        Use only the last ``n_trials`` trials of these scenarios (the most recent runs).
-    every_material : bool
-        Fit every material value, not only the uncertain ones (those without a range in their default one, see
-        :func:`material_ranges`): for when the plain numbers of the scenario may be off too.
-    settings : FitSettings, optional
-        The fit's sizes and seed.
+    request : SimCalibrationRequest
+        The values to fit, the trials to use, the fit's settings and where its simulations run.
 
     Raises
     ------
@@ -168,18 +189,19 @@ def calibrate_sim(scenarios: Sequence[Scenario], trials: Sequence[Mapping[str, A
     common.progress.Cancelled
         Stopped; the simulations done are in the cache.
     """
+    n_trials = request.n_trials
     if n_trials is not None and n_trials < 1:
         raise ServiceError(f"trials must be an integer >= 1, got {n_trials}", field="trials", value=n_trials)
     names = {s.name: s for s in scenarios}
-    chosen = choose_parameters(scenarios, params, every_material=every_material)
-    usable = fit_trials(trials, names, source)
+    chosen = choose_parameters(scenarios, request.params, every_material=request.every_material)
+    usable = fit_trials(trials, names, request.source)
     if not usable:
         raise ServiceError(f"trials: none of the {len(trials)} trials is of {', '.join(names)}; log runs with "
                            "`station trial log`", field="trials")
     if n_trials is not None:
         usable = usable[-n_trials:]
-    with station_runner(workers=workers, scheduler=scheduler, report=report) as run:
-        fit = fit_simulator(usable, chosen, run, settings)
+    with station_runner(workers=request.workers, scheduler=request.scheduler, report=report) as run:
+        fit = fit_simulator(usable, chosen, run, request.settings)
     return SimCalibration(fit, list(scenarios), list(chosen))
 
 

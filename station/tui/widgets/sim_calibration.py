@@ -203,8 +203,9 @@ class SimCalibrationPanel(Vertical):
                 trials, source = service.read_trials_json(trials_file), trials_file
             else:
                 trials, source = trials_source(), "the trial log"
-            return service.calibrate_sim(loaded, trials, params=params, settings=settings, workers=workers,
-                                         report=report, source=source, every_material=every_material)
+            request = service.SimCalibrationRequest(tuple(params) if params else None, settings=settings,
+                                                    source=source, every_material=every_material, workers=workers)
+            return service.calibrate_sim(loaded, trials, request, report=report)
 
         self._work = run_work(self, calibrate, SimulatorCalibrated, group="sim-calibration",
                               errors=(*USER_ERRORS, ValueError))
