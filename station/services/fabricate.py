@@ -245,7 +245,8 @@ def laser_sheets(sheets, profile, engrave_ops, cut_ops, metadata: dict[str, str]
         paths = sheet_paths(sheet)
         job = plan_laser_job(paths["engrave"], paths["cut"], engrave_ops, cut_ops, profile.laser.max_power,
                              profile.plot.travel_feed, offset=(xmin, ymin), start=(xmin, ymin),
-                             metadata={**metadata, "sheet": f"{index} of {len(sheets)}"})
+                             metadata={**metadata, "sheet": f"{index} of {len(sheets)}"},
+                             machine_settings=profile.grbl_settings)
         check_work_area(job, profile.work_bounds(), profile.name)
         gcode = io.StringIO()
         write_laser_gcode(job, gcode, profile.work_bounds(), profile.laser.laser_mode, profile.name)

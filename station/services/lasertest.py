@@ -136,7 +136,8 @@ def make_card(profile_name: str, material: str, *, power: str | None = None, fee
     job = plan_operations(card.operations, profile.laser.max_power, profile.plot.travel_feed, offset=offset,
                           start=(xmin, ymin), metadata={"test card": f"{material} on {profile.name}",
                                                         "card": f"{card.width:g}x{card.height:g} mm at "
-                                                                f"X{offset[0]:g} Y{offset[1]:g}"})
+                                                                f"X{offset[0]:g} Y{offset[1]:g}"},
+                          machine_settings=profile.grbl_settings)
     check_work_area(job, profile.work_bounds(), profile.name)
     stream = io.StringIO()
     write_laser_gcode(job, stream, profile.work_bounds(), profile.laser.laser_mode, profile.name)

@@ -19,6 +19,7 @@ from cam.laser import (
 )
 from drivers.errors import JobRefused
 from drivers.gcode import clean_line, interpret, tokenize
+from drivers.grbl.planner import line_seconds
 from drivers.profiles import builtin_profile
 
 ENGRAVE = OperationSettings(power=0.3, feed=3000.0, passes=1)
@@ -124,12 +125,19 @@ def test_outside_the_work_area_is_refused_with_the_extent():
         write_laser_gcode(plan_laser_job(strokes, groups, ENGRAVE, CUT), io.StringIO(), laser_mode=False)
 
 
-def test_estimate_adds_up_lengths_over_feeds():
-    job = plan_laser_job([], [([], square(10, 10, 50))], ENGRAVE, CUT, 1000.0, travel_feed=6000.0)
+def test_the_estimate_is_grbls_planner_on_the_job_as_the_streamer_reads_it():
+    settings = builtin_profile("laser").grbl_settings
+    strokes = [np.array([[20.0, 20.0], [60.0, 25.0], [90.0, 20.0]])]
+    job = plan_laser_job(strokes, [([], square(10, 40, 50))], ENGRAVE, CUT, 1000.0, machine_settings=settings)
     estimate = job.estimate_seconds()
-    assert estimate["cut"] == pytest.approx(200.0 * 2 / 600.0 * 60.0)
-    assert estimate["travel"] == pytest.approx(job.travel / 6000.0 * 60.0)
+    lines = gcode_of(job)
+    # the streamer's ETA of the written job: the same planner, the same total
+    eta = line_seconds(interpret(lines), lines, settings, laser_mode=True).sum()
+    assert estimate["total"] == pytest.approx(eta, rel=1e-9)
     assert estimate["total"] == pytest.approx(estimate["cut"] + estimate["travel"] + estimate["engrave"])
+    # each corner and each start is taken slower than the feed: longer than length over feed
+    assert estimate["cut"] > 200.0 * 2 / 600.0 * 60.0
+    assert estimate["travel"] > job.travel / settings[110] * 60.0
 
 
 def stream(port, lines, timeout=60.0):
