@@ -96,6 +96,9 @@ class HomeScreen(Screen):
         table = self.query_one("#devices", DataTable)
         if name in table.rows:
             table.update_cell(name, PROBE_COLUMN, Text(state), update_width=True)
+            # The table measures its columns when it is next idle, and a wider column makes it wider: lay the screen
+            # out again then (else the column keeps its old width on the screen until something else lays it out).
+            table.call_later(table.refresh, layout=True)
 
     def show_jobs(self) -> None:
         """The latest machine jobs from the station database (a job run elsewhere shows when home is shown again)."""
