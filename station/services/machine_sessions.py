@@ -34,6 +34,8 @@ from drivers.grbl.job import FINAL_STATES, kind_warning
 from drivers.grbl.protocol import Feedback
 from drivers.profiles import MachineProfile, ProfileError, load_profile
 from station.db import open_database
+from station.devices import DeviceEntry
+from station.devices import machine_profile as machine_profile_of
 from station.errors import ServiceError, StationError, as_station_error, station_errors
 from station.joblog import INTERRUPTED, JobLog, JobRecord, local_time
 from station.paths import database_path
@@ -108,6 +110,16 @@ def feedback_text(data) -> str | None:
 def machine_profile(name: str | None, default: str = "plotter") -> MachineProfile:
     """A machine profile: a built-in name (``plotter``, ``laser``) or a TOML file."""
     return load_profile(name or default)
+
+
+@station_errors
+def device_profile(device: DeviceEntry) -> MachineProfile:
+    """The machine profile of a configured plotter or laser (its built-in profile, or the file ``station.toml``
+    names); a file gone or turned bad since the configuration was read is a station error naming the device."""
+    try:
+        return machine_profile_of(device)
+    except ProfileError as error:
+        raise ServiceError(f"{device.name}: {error}", field="profile", value=device.name) from None
 
 
 @station_errors
@@ -516,5 +528,5 @@ def refused_by_twin(done: JobVerification, *, before_summary: bool = False) -> E
     return as_station_error(JobRefused(f"--verify: job {done.name!r} refused: {why}; not sent"))
 
 
-__all__ += ["GrblConnection", "HandledSignals", "JobRecord", "ProfileError", "job_layer_marks", "local_time",
-            "recent_jobs", "refusal", "refused_by_twin"]
+__all__ += ["DeviceEntry", "GrblConnection", "HandledSignals", "JobRecord", "device_profile", "job_layer_marks",
+            "local_time", "recent_jobs", "refusal", "refused_by_twin"]

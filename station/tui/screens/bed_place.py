@@ -25,6 +25,7 @@ from textual.widgets import Footer, Header, Static
 from station.errors import USER_ERRORS, StationError
 from station.services import bed as bed_service
 from station.services.machine_sessions import verify_summary
+from station.services.station_home import data_dir
 from station.tui.messages import BedFrameGrabbed, BedRegistered, JobVerified
 from station.tui.widgets.picture import HalfBlockPicture
 from station.tui.work import run_work
@@ -201,8 +202,6 @@ class BedPlacementScreen(Screen):
     def action_write(self) -> None:
         if self.session is None or self.session.frame is None:
             return
-        from station.paths import data_dir
-
         path = Path(data_dir()) / "bed-placement.png"
         Image.fromarray(self.session.picture()).save(path)
         self.note = f"wrote {path}"

@@ -36,14 +36,13 @@ from textual.screen import ModalScreen, Screen
 from textual.widget import Widget
 from textual.widgets import Footer, Header, Input, Static
 
-from station.devices import machine_profile
 from station.errors import USER_ERRORS, StationError
 from station.services.job_queue import JobMode, JobQueue, JobState, QueuedJob
 from station.services.machine_sessions import (
     JobProgress,
     MachineSessions,
-    ProfileError,
     SendPolicy,
+    device_profile,
     feedback_text,
     verify_summary,
 )
@@ -308,10 +307,7 @@ class MachinesScreen(Screen):
         StationError
             The profile file has gone, or turned bad, since the configuration was read; the message names it.
         """
-        try:
-            return machine_profile(device)
-        except ProfileError as error:
-            raise StationError(f"{device.name}: {error}") from None
+        return device_profile(device)
 
     def connection(self, name: str | None = None):
         device = self.device if name is None else next((d for d in self.serial_devices if d.name == name), None)
