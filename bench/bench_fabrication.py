@@ -28,7 +28,8 @@ def _job(sheet, profile):
     engrave, cut, _ = material_settings(profile, None)
     paths = sheet_paths(sheet)
     return plan_laser_job(
-        paths["engrave"], paths["cut"], engrave, cut, profile.laser.max_power, profile.plot.travel_feed
+        paths["engrave"], paths["cut"], engrave, cut, profile.laser.max_power, profile.plot.travel_feed,
+        machine_settings=profile.grbl_settings,
     )
 
 
