@@ -45,9 +45,9 @@ def blank_png(path: Path, width: int, height: int) -> Path:
 
 
 def _manifest() -> dict:
-    from station.services.guide import make_guide
+    from station.services.guide import GuideRequest, make_guide
 
-    return make_guide(str(SIMPLE), "success", tolerances=False).manifest()
+    return make_guide(GuideRequest(str(SIMPLE), "success", tolerances=False)).manifest()
 
 
 def _bad_manifest(path: Path, change) -> Path:

@@ -28,9 +28,10 @@ SIDE_URL = "sim://camera?view=side&height=700&blur=0.8&noise=2&jpeg=90&seed=4"
 
 @functools.cache
 def _simple():
-    from station.services.guide import make_guide
+    from station.services.guide import GuideRequest, make_guide
 
-    return make_guide("simple", "success", tolerances=False, jigs=True)  # the check's guide, without its tolerances
+    # the check's guide, without its tolerances
+    return make_guide(GuideRequest("simple", "success", tolerances=False, jigs=True))
 
 
 def _check(changes: dict[str, float]):
@@ -246,9 +247,9 @@ def test_the_worlds_maker_is_told_the_side_cameras_heights_and_tilts():
 def test_a_stands_face_tag_is_on_its_plate_clear_of_the_slot_and_the_part(scenario):
     from shapely.geometry import box
 
-    from station.services.guide import make_guide
+    from station.services.guide import GuideRequest, make_guide
 
-    job = make_guide(scenario, "success", tolerances=False, jigs=True)
+    job = make_guide(GuideRequest(scenario, "success", tolerances=False, jigs=True))
     (stand,) = [j for j in job.jigs.plan.jigs if j.kind == "stand"]
     ids = {j.tag_id for j in job.jigs.plan.jigs} | {p.tag_id for p in job.guide.parts}
     assert stand.face_tag_id is not None and stand.face_tag_id not in ids and 500 <= stand.face_tag_id < 579

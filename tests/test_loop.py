@@ -28,11 +28,11 @@ TINY = ["--attempts", "2", "--loops", "2", "--budget", "20", "--reoptimize-budge
 
 @pytest.fixture(scope="module")
 def simple_job(tmp_path_factory):
-    from station.services.guide import make_guide
+    from station.services.guide import GuideRequest, make_guide
 
     path = tmp_path_factory.mktemp("layout") / "layout.json"
     path.write_text(json.dumps(LAYOUT))
-    return make_guide("simple", str(path), tolerances=False)
+    return make_guide(GuideRequest("simple", str(path), tolerances=False))
 
 
 def test_the_camera_measures_parts_where_the_maker_put_them(simple_job):
@@ -89,14 +89,14 @@ def test_a_loop_attempt_is_the_attempt_an_assembly_walks(tmp_path, station_home)
     from station.loopstore import LoopStore
     from station.services import world as worlds
     from station.services.assemble import Assembly
-    from station.services.guide import make_guide
+    from station.services.guide import GuideRequest, make_guide
     from station.services.loop import _CAMERA, _PREDICT, ATTEMPT_BLOCK, LoopSettings, _Loop, _seed
     from station.services.trials import load_trial_scenario
 
     url = "sim://world?seed=5&place_mm=4"
     settings = LoopSettings(rounds=2, predict_samples=4, workers=1)
     scenario = load_trial_scenario("ballrun")
-    job = make_guide("ballrun", "success", tolerances=False)
+    job = make_guide(GuideRequest("ballrun", "success", tolerances=False))
     world = worlds.open_world(url)
     worlds.prepare_world(world, scenario)
     with LoopStore(str(tmp_path / "loop.sqlite3")) as store:

@@ -14,11 +14,11 @@ LAYOUT = {"x": [-0.15, 0.06, 68.0]}  # a SIMPLE layout: track.x, track.z (m), tr
 
 @pytest.fixture(scope="module")
 def simple_job(tmp_path_factory):
-    from station.services.guide import make_guide
+    from station.services.guide import GuideRequest, make_guide
 
     path = tmp_path_factory.mktemp("layout") / "layout.json"
     path.write_text(json.dumps(LAYOUT))
-    return make_guide("simple", str(path), tolerances=False)
+    return make_guide(GuideRequest("simple", str(path), tolerances=False))
 
 
 def _without(guide, parameter: str):
@@ -91,9 +91,9 @@ def test_the_station_predicts_each_parameter_with_the_error_the_worlds_maker_mak
     # 0.2 mm out, a part laid by eye 1 mm with the highlight, a parameter no guide states guessed over its range),
     # the same error the world twin's maker makes: measured over 100 placements, within 20 %.
     from station.services import world as worlds
-    from station.services.guide import make_guide
+    from station.services.guide import GuideRequest, make_guide
 
-    job = make_guide("causalityswitch_ball", None, tolerances=False, jigs=True)
+    job = make_guide(GuideRequest("causalityswitch_ball", None, tolerances=False, jigs=True))
     sigma = worlds.guide_sigma(job.guide, job.scenario, highlighted=True)
     assert sigma["track_joint.z"] == pytest.approx(0.0002) and sigma["track_joint.roll"] == pytest.approx(0.2)
     assert sigma["switch.x"] == pytest.approx(0.001)
@@ -141,13 +141,13 @@ def test_a_guide_without_a_parameter_and_no_ranges_is_refused(simple_job):
 def test_the_simulated_maker_cuts_the_jigs_on_the_laser_twin():
     from station.errors import ServiceError
     from station.services import world as worlds
-    from station.services.guide import make_guide
+    from station.services.guide import GuideRequest, make_guide
 
-    job = make_guide("simple", "success", tolerances=False, jigs=True)
+    job = make_guide(GuideRequest("simple", "success", tolerances=False, jigs=True))
     (sheet,) = worlds.cut_jigs(job)
     assert sheet["state"] == "done" and sheet["lines"] > 100
     with pytest.raises(ServiceError, match="no jigs"):
-        worlds.cut_jigs(make_guide("simple", "success", tolerances=False))
+        worlds.cut_jigs(make_guide(GuideRequest("simple", "success", tolerances=False)))
 
 
 def test_the_loop_with_jigs_sets_their_parameters_on_them_and_says_so(tmp_path, station_home, monkeypatch):

@@ -95,9 +95,10 @@ def run_guide(args) -> int:
     try:
         service.check_paper(args.paper)  # before any simulation
         with ProgressView(sys.stderr, prefix="guide: ") as view:
-            job = service.make_guide(args.scenario, args.layout, view=args.view, verify=args.verify, seed=args.seed,
-                                     tolerances=not args.no_tolerances, report=Reporter(view), physics=args.physics,
-                                     jigs=args.jigs is not None)
+            request = service.GuideRequest(args.scenario, args.layout, view=args.view, verify=args.verify,
+                                           seed=args.seed, tolerances=not args.no_tolerances, physics=args.physics,
+                                           jigs=args.jigs is not None)
+            job = service.make_guide(request, report=Reporter(view))
         job = service.export_guide(job, pdf=pdf, svg=svg, paper=args.paper)
         if jigs_dir is not None:
             from station.services.jigs import cut_jigs, write_jig_outputs

@@ -437,8 +437,9 @@ def open_assembly(scenario: str, layout: str | None, *, view: str | None = None,
 
         opened_world = open_world(world)
     try:
-        job = guides.make_guide(scenario, layout, view=view, report=report,
-                                physics=None if physics is None else str(physics), jigs=bool(jigs))
+        request = guides.GuideRequest(scenario, layout, view=view, physics=None if physics is None else str(physics),
+                                      jigs=bool(jigs))
+        job = guides.make_guide(request, report=report)
         if opened_world is not None:
             prepare_world(opened_world, job.scenario)
             if job.jigs is not None and job.jigs.plan.jigs:

@@ -100,13 +100,13 @@ def prepare_check(scenario: str, layout: str, *, guide: str | Path | None = None
     manifest = read_manifest(guide) if guide is not None else None
     view = manifest.get("view") if manifest is not None else None
     if manifest is None:
-        return guides.make_guide(scenario, layout, report=report, jigs=jigs or None)
+        return guides.make_guide(guides.GuideRequest(scenario, layout, jigs=jigs or None), report=report)
     jigs = jigs or bool(manifest.get("jigs"))
     # refused before any work: the scenario is cheap to read, the tolerances are not (and the manifest has them)
     loaded = open_scenario(scenario)
     _same_scenario(manifest, loaded.name, loaded.content_hash, str(guide))
-    job = guides.make_guide(loaded.source, layout, view=view if view in guides.VIEWS else None, tolerances=False,
-                            jigs=jigs or None)
+    job = guides.make_guide(guides.GuideRequest(loaded.source, layout, view=view if view in guides.VIEWS else None,
+                                                tolerances=False, jigs=jigs or None))
     return replace(job, guide=apply_manifest(job.guide, manifest, str(guide)),
                    tolerances=_model_of(loaded, layout))
 

@@ -31,7 +31,7 @@ from station.services.projectors import projector_homography
 from station.services.robust import check_count, check_seed
 from station.services.tolerances import tolerance_map as tolerances_of
 
-__all__ = ["PAPERS", "VIEWS", "GuideJob", "check_paper", "export_guide", "make_guide", "portable_name",
+__all__ = ["PAPERS", "VIEWS", "GuideJob", "GuideRequest", "check_paper", "export_guide", "make_guide", "portable_name",
            "projected_frames", "show_step"]
 
 PAPERS = ("a4", "letter", "a3")
@@ -96,13 +96,11 @@ def portable_name(path: str | Path) -> str:
         return path.name
 
 
-@station_errors
-def make_guide(scenario: str, layout: str | None, *, view: str | None = None, verify: int = 0, seed: int = 0,
-               tolerances: bool = True, report: Reporter | None = None,
-               physics: str | None = None, set_with: Mapping[str, str] | None = None,
-               jigs=None) -> GuideJob:
-    """Build the guide of ``layout`` (a LAYOUT.json, any form :mod:`design.contraption.layout_io` reads, a layout
-    named in the scenario, or None for the scenario's own layout) for ``scenario`` (a file or an example's name).
+@dataclass(frozen=True)
+class GuideRequest:
+    """The guide :func:`make_guide` builds: ``layout`` (a LAYOUT.json, any form :mod:`design.contraption.layout_io`
+    reads, a layout named in the scenario, or None for the scenario's own layout) for ``scenario`` (a file or an
+    example's name).
 
     Parameters
     ----------
@@ -114,9 +112,6 @@ def make_guide(scenario: str, layout: str | None, *, view: str | None = None, ve
         Seed of the verification's random layouts.
     tolerances : bool
         False skips the tolerance map altogether (a guide with none).
-    report : Reporter, optional
-        Given :class:`common.progress.Progress` while tolerances are computed or verified; its stop check ends the
-        verifying simulations.
     physics : str, optional
         A physics profile: the tolerances' simulations use its material values (the drawing, and the guide's
         content hash, are the scenario's: materials change no part's place).
@@ -127,16 +122,34 @@ def make_guide(scenario: str, layout: str | None, *, view: str | None = None, ve
         Plan the laser-cut jigs of the layout (for the profile's material, or the options' one): the parameters
         they set are set ``"jig"``, the sheets draw their footprints and the steps say how to use them
         (:func:`station.services.jig_plan.attach_jigs`); the plan is the job's ``jigs``.
+    """
+
+    scenario: str
+    layout: str | None = None
+    view: str | None = None
+    verify: int = 0
+    seed: int = 0
+    tolerances: bool = True
+    physics: str | None = None
+    set_with: Mapping[str, str] | None = None
+    jigs: bool | JigOptions | None = None
+
+
+@station_errors
+def make_guide(request: GuideRequest, *, report: Reporter | None = None) -> GuideJob:
+    """Build the guide ``request`` describes; ``report`` is given :class:`common.progress.Progress` while
+    tolerances are computed or verified, and its stop check ends the verifying simulations.
 
     Raises
     ------
     ServiceError
         A bad ``view``, ``verify`` or ``seed`` (the message names the value).
-    design.errors.DesignError, OSError
-        The scenario or the layout cannot be read (the message names the file, the field and the expected value).
-    projector.errors.ProjectorError
-        The scenario cannot be drawn in that view.
+    StationError
+        The scenario or the layout cannot be read (the message names the file, the field and the expected value),
+        or the scenario cannot be drawn in that view.
     """
+    scenario, layout, view, verify, seed = request.scenario, request.layout, request.view, request.verify, request.seed
+    tolerances, physics, set_with, jigs = request.tolerances, request.physics, request.set_with, request.jigs
     if view is not None and view not in VIEWS:
         raise ServiceError(f"view must be one of {', '.join(VIEWS)}, got {view!r}", field="view", value=view)
     check_count(verify, "verify", 0)

@@ -24,7 +24,7 @@ from common.progress import Reporter
 from station.errors import station_errors
 from station.jsonable import to_jsonable
 from station.services.fabricate import KERF_SOURCES, SheetOutput, laser_sheets
-from station.services.guide import make_guide, portable_name
+from station.services.guide import GuideRequest, make_guide, portable_name
 from station.services.jig_plan import JigOptions, PlannedJigs, attach_jigs, check_options, plan_guide_jigs
 
 __all__ = ["JigsResult", "cut_jigs", "jigs_manifest", "make_jigs", "write_jig_outputs"]
@@ -64,7 +64,7 @@ def make_jigs(scenario: str, layout: str | None, options: JigOptions | None = No
     report = Reporter.of(report)
     options = options or JigOptions()
     check_options(options)  # a bad sheet, kerf or material before the guide's work
-    job = make_guide(scenario, layout, view=view, tolerances=tolerances, physics=physics, report=report)
+    job = make_guide(GuideRequest(scenario, layout, view=view, tolerances=tolerances, physics=physics), report=report)
     report(PLAN_STAGE, 0, 1, "planning the jigs")
     planned = plan_guide_jigs(job, options)
     job = attach_jigs(job, planned)

@@ -714,7 +714,7 @@ class _Loop:
                      on_attempt: Callable[[AttemptReport], None] | None = None) -> list:
         """Loop ``k``'s attempts (``k`` 0: the baseline, on loop 1's layout), the stored ones kept; ``on_attempt``
         is told each attempt in order (a stored one as logged before this run was resumed)."""
-        from station.services.guide import make_guide
+        from station.services.guide import GuideRequest, make_guide
         from station.services.physics import read_profile
 
         done = {a.attempt: a for a in self.store.attempts(self.run_id, k)}
@@ -728,9 +728,9 @@ class _Loop:
                 if job is None:
                     layout_path, profile_path = self.files(row)
                     profile = read_profile(profile_path) if profile_path else self.prior()
-                    job = make_guide(self.scenario.source, str(layout_path), physics=profile_path,
-                                     report=self.under(f"{who}: making the guide"),
-                                     jigs=bool(k and self.settings.jigs))
+                    request = GuideRequest(self.scenario.source, str(layout_path), physics=profile_path,
+                                           jigs=bool(k and self.settings.jigs))
+                    job = make_guide(request, report=self.under(f"{who}: making the guide"))
                     if job.jigs is not None:
                         self.cut(job, who)
                 self.stop_point()
