@@ -55,6 +55,8 @@ SLOW = {
     "station loop ballrun --world 'sim://world?seed=3&place_mm=3' --attempts 8 --loops 3 --json",
     "station loop causalityswitch_ball --world 'sim://world?seed=2&ruler_mm=1' --jigs",  # CAUSALITYSWITCH's budgets
     "station assemble causalityswitch_ball success --world 'sim://world?seed=2' --jigs",  # its tolerance map: ~40 s
+    # builds every machine's candidate database first; tests/sketch/test_cli_retrieve.py runs the same command on one
+    "station retrieve examples/sketches/trefoil-sector.json --top 5 --out retrieval",
 }
 
 #: What a maker types into an interactive example: skip the guide's steps, Enter once placed, run as placed (a:
