@@ -57,6 +57,10 @@ SLOW = {
     "station assemble causalityswitch_ball success --world 'sim://world?seed=2' --jigs",  # its tolerance map: ~40 s
     # builds every machine's candidate database first; tests/sketch/test_cli_retrieve.py runs the same command on one
     "station retrieve examples/sketches/trefoil-sector.json --top 5 --out retrieval",
+    # the full-size projector's Gray-code patterns; tests/calibration/test_projector_map.py maps a small linked pair
+    # through the same command
+    "station calibrate projector --camera 'sim://camera?projector=wall' "
+    "--projector 'sim://projector?name=wall&area=-300,-190,300,190'",
 }
 
 #: What a maker types into an interactive example: skip the guide's steps, Enter once placed, run as placed (a:
