@@ -167,7 +167,7 @@ def test_the_as_built_layout_is_simulated_with_the_measurement_error(tmp_path):
     layout = Path(__file__).parent / "robust" / "data" / "simple-layout-with-model.json"
     job = service.prepare_check("simple", str(layout))
     image, intrinsics, _ = _frame(job, {"track.x": 0.01})
-    report = service.check_frame(job, image, intrinsics, simulate=4, seed=1).report
+    report = service.check_frame(job, image, intrinsics, service.CheckRequest(simulate=4, seed=1)).report
     assert report.simulated_success_as_built in (0.0, 0.25, 0.5, 0.75, 1.0)
     assert report.residual_error["position_mm"] > 0 and report.to_json()["simulated_success_as_built"] is not None
 

@@ -46,7 +46,7 @@ def _check(changes: dict[str, float]):
     picture, lens = check_side.side_frame(job, board, targets, SIDE_URL, layout=x)
     side = check_side.measure_side(job, board, targets, picture, lens, camera="side")
     frame, top_lens, _, _ = service.camera_frame(job.guide, camera="sim://camera?seed=2")
-    return service.check_frame(job, frame, top_lens, side=side, camera="top").report, x, names
+    return service.check_frame(job, frame, top_lens, service.CheckRequest(camera="top"), side=side).report, x, names
 
 
 def test_the_side_camera_reads_the_jig_stand_and_measures_height_and_tilt():

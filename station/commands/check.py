@@ -128,19 +128,19 @@ def run_check(args) -> int:
             report = Reporter(view)
             job = service.prepare_check(args.scenario, args.layout, guide=args.guide, report=report, jigs=args.jigs)
             physics = read_profile(args.physics) if args.physics else None
+            request = service.CheckRequest(simulate=args.simulate, seed=args.seed, physics=physics,
+                                           predict=args.predict)
             if len(cameras) > 1 or side_offsets or args.side_image is not None \
                     or any(check_side.is_side_url(url) for _, url in cameras):
                 check = check_cameras.check_views(
-                    job, cameras, image=args.image, intrinsics=args.intrinsics, offsets=offsets,
+                    job, cameras, request, image=args.image, intrinsics=args.intrinsics, offsets=offsets,
                     side_offsets=side_offsets, occluded=tuple(args.sim_cover or ()), side_image=args.side_image,
-                    side_intrinsics=args.side_intrinsics, simulate=args.simulate, seed=args.seed, physics=physics,
-                    predict=args.predict, report=report)
+                    side_intrinsics=args.side_intrinsics, report=report)
             else:
                 image, intrinsics, name, previous = service.camera_frame(
                     job.guide, image=args.image, camera=cameras[0][1] if cameras else None,
                     intrinsics=args.intrinsics, offsets=offsets, occluded=tuple(args.sim_cover or ()))
-                check = service.check_frame(job, image, intrinsics, simulate=args.simulate, seed=args.seed,
-                                            previous=previous, physics=physics, predict=args.predict, report=report)
+                check = service.check_frame(job, image, intrinsics, request, previous=previous, report=report)
                 service.remember_plane(name, check)
         if out is not None:
             out.write_text(json.dumps(check.to_json(), indent=1) + "\n", encoding="utf-8")

@@ -17,6 +17,7 @@ import json
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, replace
 from pathlib import Path
+from typing import Any
 
 import cv2
 import numpy as np
@@ -269,11 +270,36 @@ def remember_plane(name: str, check: CheckJob) -> None:
 
 
 # -- the check --------------------------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class CheckRequest:
+    """What a check does beyond measuring the parts (:func:`check_frame`).
+
+    Parameters
+    ----------
+    simulate : int
+        Simulate the as-built layout this many times with the residual measurement error (0: none).
+    seed : int
+        Seed of those simulations' noise.
+    physics : PhysicsProfile, optional
+        Simulate (``simulate``, ``predict``) with its material values instead of the scenario's.
+    predict : int
+        Predict the as-built layout's physical success and expected attempts from this many simulations under the
+        physics and the residual measurement error as placement noise (0: none).
+    camera : str
+        The top camera's name, for the report's ``views``.
+    """
+
+    simulate: int = 0
+    seed: int = 0
+    physics: Any = None
+    predict: int = 0
+    camera: str = ""
+
+
 @station_errors
-def check_frame(job, image: np.ndarray, intrinsics=None, *, simulate: int = 0, seed: int = 0, previous=None,
-                detector=None, physics=None, predict: int = 0, report: Reporter | None = None, side=None,
-                camera: str = "") -> CheckJob:
-    """Check the parts in one camera frame against the guide ``job`` (:func:`prepare_check`).
+def check_frame(job, image: np.ndarray, intrinsics=None, request: CheckRequest = CheckRequest(), *, previous=None,
+                detector=None, side=None, report: Reporter | None = None) -> CheckJob:
+    """Check the parts in one camera frame against the guide ``job`` (:func:`prepare_check`), as ``request`` says.
 
     Parameters
     ----------
@@ -282,24 +308,15 @@ def check_frame(job, image: np.ndarray, intrinsics=None, *, simulate: int = 0, s
         RGB or grey uint8.
     intrinsics : CameraIntrinsics, optional
         The camera's; None guesses them from the image size (said in the prediction note: distances are then rough).
-    simulate : int
-        Simulate the as-built layout this many times with the residual measurement error (0: none).
-    seed : int
-        Seed of those simulations' noise.
+    request : CheckRequest
+        The simulations and the prediction of the as-built layout, and the top camera's name.
     previous : PlaneFix, optional
         The last check's plane (a bumped camera is then said).
     detector : vision.detection.TagDetector, optional
         One to reuse between checks.
-    physics : PhysicsProfile, optional
-        Simulate (``simulate``, ``predict``) with its material values instead of the scenario's.
-    predict : int
-        Predict the as-built layout's physical success and expected attempts from this many simulations under the
-        physics and the residual measurement error as placement noise (0: none).
     side : station.services.check_side.SideView, optional
         The side camera's frame measured (:func:`station.services.check_side.measure_side`): the heights and tilts
         it measured join the as-built layout, its checks the report (``side_parts``).
-    camera : str
-        The top camera's name, for the report's ``views``.
     report : Reporter, optional
         Progress of the measure and of the simulations; its stop check ends the simulations
         (:class:`common.progress.Cancelled`).
@@ -313,8 +330,8 @@ def check_frame(job, image: np.ndarray, intrinsics=None, *, simulate: int = 0, s
     """
     from calibration.check import part_tags, reference_tags  # heavy: scipy, shapely
 
-    check_count(simulate, "simulate", 0)
-    check_seed(seed)
+    check_count(request.simulate, "simulate", 0)
+    check_seed(request.seed)
     report = Reporter.of(report)
     image = np.asarray(image)
     if intrinsics is None:
@@ -324,15 +341,15 @@ def check_frame(job, image: np.ndarray, intrinsics=None, *, simulate: int = 0, s
     report.emit(_progress("measure", 0, 1))
     measurement = measure(image, intrinsics, reference_tags(guide), part_tags(guide), previous, detector=detector)
     report.emit(_progress("measure", 1, 1))
-    return check_measurement(job, measurement, image, intrinsics, simulate=simulate, seed=seed, notes=notes,
-                             physics=physics, predict=predict, report=report, side=side, camera=camera)
+    return check_measurement(job, measurement, image, intrinsics, request, notes=notes, side=side, report=report)
 
 
 @station_errors
-def check_measurement(job, measurement, image: np.ndarray, intrinsics, *, simulate: int = 0, seed: int = 0,
-                      notes: Sequence[str] = (), physics=None, predict: int = 0,
-                      report: Reporter | None = None, side=None, camera: str = "") -> CheckJob:
+def check_measurement(job, measurement, image: np.ndarray, intrinsics, request: CheckRequest = CheckRequest(), *,
+                      notes: Sequence[str] = (), side=None, report: Reporter | None = None) -> CheckJob:
     """The check of a :class:`~calibration.measure.Measurement` already made (see :func:`check_frame`)."""
+    simulate, seed, physics, predict, camera = (request.simulate, request.seed, request.physics, request.predict,
+                                                request.camera)
     from calibration.asbuilt import PlanePose, as_built_layout  # heavy: scipy, shapely
     from calibration.check import CheckReport, check_parts, residual_error  # heavy: scipy, shapely
 

@@ -6,11 +6,13 @@ CHECK.json says which view measured what. Used by ``station check --camera TOP -
 from __future__ import annotations
 
 from collections.abc import Sequence
+from dataclasses import replace
 
+from common.progress import Reporter
 from projector.board import side_board
 from station.errors import ServiceError, station_errors
 from station.services import calibrate
-from station.services.check import camera_frame, check_frame, remember_plane
+from station.services.check import CheckRequest, camera_frame, check_frame, remember_plane
 from station.services.check_side import (
     is_side_url,
     measure_side,
@@ -25,12 +27,13 @@ __all__ = ["check_views"]
 
 
 @station_errors
-def check_views(job, cameras: Sequence[tuple[str, str]], *, image=None, intrinsics=None, offsets=None,
-                side_offsets=None, occluded: Sequence[int] = (), side_image=None, side_intrinsics=None, **check):
+def check_views(job, cameras: Sequence[tuple[str, str]], request: CheckRequest | None = None, *, image=None,
+                intrinsics=None, offsets=None, side_offsets=None, occluded: Sequence[int] = (), side_image=None,
+                side_intrinsics=None, report: Reporter | None = None):
     """The check of ``job`` with every camera in ``cameras`` (``(name, url)``): the top camera's frame (or the file
     ``image``) measures the table's plane, a side camera's the heights and tilts on the board's plane; the
-    parameters combine in the as-built layout and CHECK.json says which view measured what. ``check`` goes to
-    :func:`station.services.check.check_frame` (``simulate``, ``seed``, ``physics``, ``predict``, ``progress``).
+    parameters combine in the as-built layout and CHECK.json says which view measured what. ``request`` and
+    ``report`` go to :func:`station.services.check.check_frame` (the top camera's name added).
     The planes are remembered per camera (the next check says how far each moved). ``side_image`` is the side
     camera's frame from a file (a photo), read with ``side_intrinsics`` (a file; else the side camera's saved
     calibration, else guessed and said).
@@ -87,7 +90,8 @@ def check_views(job, cameras: Sequence[tuple[str, str]], *, image=None, intrinsi
     else:
         frame, lens, _, previous = camera_frame(job.guide, image=image, camera=top_url, intrinsics=intrinsics,
                                                 offsets=offsets, occluded=occluded, name=top_name)
-    result = check_frame(job, frame, lens, previous=previous, side=side_view, camera=top_name, **check)
+    result = check_frame(job, frame, lens, replace(request or CheckRequest(), camera=top_name), previous=previous,
+                         side=side_view, report=report)
     remember_plane(top_name, result)
     if side_view is not None and side_view.measurement.plane is not None:
         try:
