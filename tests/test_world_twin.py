@@ -108,13 +108,13 @@ def test_the_station_predicts_each_parameter_with_the_error_the_worlds_maker_mak
 def test_a_forecast_sets_each_parameter_as_the_guide_says(simple_job, monkeypatch):
     # As designed, every parameter is placed with the error of its way of setting; after a check, the ones it did
     # not measure (here the track's height and tilt, off the plane) keep theirs, the rest take the check's residual.
-    from station.services import predict
     from station.services import world as worlds
     from station.services.assemble import Assembly
     from station.services.trials import load_trial_scenario
 
     asked = []
-    monkeypatch.setattr(predict, "predict_layout", lambda scenario, x, request, report=None: asked.append(request))
+    monkeypatch.setattr("station.services.assemble.predict_layout",
+                        lambda scenario, x, request, report=None: asked.append(request))
     monkeypatch.setattr("station.services.assemble.Forecast", lambda *args: None)
     assembly = Assembly(simple_job, load_trial_scenario("simple"), camera="sim://camera?supersample=1",
                         world=worlds.open_world("sim://world?seed=2"), highlighted=True, station_camera=False)

@@ -20,6 +20,7 @@ The states and what moves between them (anything else is refused with a :class:`
 
 from __future__ import annotations
 
+import json
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -28,11 +29,47 @@ from typing import Any
 import numpy as np
 
 from common.progress import Reporter
+from design.contraption.physics_profile import apply_profile
 from projector.overlay import misplaced
 from station.errors import ServiceError, station_errors
 from station.paths import data_dir
-from station.services.guide import export_name
+from station.services import check as checks
+from station.services import guide as guides
+from station.services import robust
+from station.services.check import overlay_frame
+from station.services.guide import export_guide, export_name, show_step
+from station.services.layout_choice import (
+    LayoutChoiceRequest,
+    candidate_layouts,
+    choose_layout,
+    expected_success,
+    layout_record,
+)
 from station.services.outlook import success_headline
+from station.services.physics import problem_with_physics, read_profile
+from station.services.predict import PredictionRequest, as_built_from_check, predict_layout
+from station.services.projectors import projector_homography
+from station.services.robust import check_count, check_seed
+from station.services.sim_calibration import SimCalibrationRequest, calibrate_sim, save
+from station.services.trials import (
+    build_trial,
+    check_values,
+    layout_values,
+    load_trial_scenario,
+    open_store,
+    read_physics,
+)
+from station.services.world import (
+    check_moves,
+    cut_jigs,
+    guide_sigma,
+    open_world,
+    place_parts,
+    prepare_world,
+    run_attempt,
+    world_scene,
+)
+from station.trialformat import check_times, complete_outcomes, goal_reached, resolve_outcomes
 
 __all__ = ["STAGES", "Assembly", "Forecast", "calibrate_from_log", "guide_files", "jigs_folder", "misplaced",
            "open_assembly", "reoptimize"]
@@ -63,8 +100,6 @@ class Forecast:
     def with_record(self) -> float | None:
         """The prediction updated by the layout's record, as ``station loop`` weighs it
         (:func:`station.services.layout_choice.expected_success`); None without a record."""
-        from station.services.layout_choice import expected_success
-
         return expected_success(self.prediction.probability, *self.record) if self.record[1] else None
 
     def record_words(self) -> str:
@@ -178,15 +213,11 @@ class Assembly:
     def success(self) -> bool | None:
         if not self.outcomes:
             return None
-        from station.trialformat import goal_reached
-
         return goal_reached(self.scenario, self.outcomes)
 
     # -- guide ------------------------------------------------------------------------------------------------------
     def show_step(self, step: int | None) -> None:
         """Show step ``step`` (1-based; None: the calibrate frame) on the projector, if there is one."""
-        from station.services.guide import show_step
-
         self.step = step or 0
         if self.projector is not None:
             show_step(self.job, self.projector, step)
@@ -194,8 +225,6 @@ class Assembly:
     def write_sheet(self, pdf: str | Path | None = None, paper: str = "a4") -> Path:
         """Write the 1:1 PDF sheet set with the steps (print at 100 %) to ``pdf`` (default: the data folder's
         ``guides/``, named by the scenario, the layout and a hash of its values); returns where."""
-        from station.services.guide import export_guide
-
         path = Path(pdf) if pdf else guide_files(self.job)[0]
         path.parent.mkdir(parents=True, exist_ok=True)
         self.job = export_guide(self.job, pdf=path, paper=paper)
@@ -205,8 +234,6 @@ class Assembly:
         """The maker has placed the parts (a simulated world places them now, each with the maker's error)."""
         self._expect("guide")
         if self.world is not None:
-            from station.services.world import place_parts
-
             place_parts(self.world, self.job.guide, attempt=self.attempt, highlighted=self.highlight,
                         scenario=self.job.scenario)
         self.stage = "check"
@@ -226,13 +253,9 @@ class Assembly:
         parts where the simulated maker put them, or the guide's tags at their designed poses without a world).
         ``seed`` seeds a simulated camera's noise in this frame (without ``station_camera``; None: the camera's
         own)."""
-        from station.services import check as checks
-
         self._expect("check")
         scene = None
         if self.world is not None:
-            from station.services.world import world_scene
-
             scene = world_scene(self.job.guide, self.world.placed())
         if self.station_camera:
             image, intrinsics, name, saved = checks.camera_frame(self.job.guide, camera=self.camera, scene=scene)
@@ -250,9 +273,6 @@ class Assembly:
     def project_check(self) -> bool:
         """Show the last check on the projector (an arrow per misplaced part to where it must go, a ring at the
         target); False without a projector or a check."""
-        from station.services.check import overlay_frame
-        from station.services.projectors import projector_homography
-
         if self.projector is None or self.check is None:
             return False
         size = tuple(self.projector.size)
@@ -262,8 +282,6 @@ class Assembly:
     def moves(self) -> list[dict]:
         """What the last check asks the maker to move (:func:`station.services.world.check_moves`); [] before the
         first check."""
-        from station.services.world import check_moves
-
         return [] if self.check is None else check_moves(self.check.to_json(), self.job.guide)
 
     def fix(self) -> list[dict]:
@@ -291,8 +309,6 @@ class Assembly:
         self._expect("run")
         if self.world is None:
             return None
-        from station.services.world import run_attempt
-
         result = run_attempt(self.job.scenario, self.job.layout.x, self.job.guide, self.world)
         self.answer(result.outcomes, result.times)
         return result
@@ -301,8 +317,6 @@ class Assembly:
         """What ``given`` outcomes imply for every event, and the problems left
         (:func:`station.trialformat.resolve_outcomes`): ``(outcomes, problems)``, an event still to be said is
         None."""
-        from station.trialformat import resolve_outcomes
-
         return resolve_outcomes(self.scenario, given)
 
     def answer(self, outcomes: Mapping[str, str], times: Mapping[str, float] | None = None) -> dict[str, str]:
@@ -313,8 +327,6 @@ class Assembly:
         ServiceError
             ``outcome.EVENT`` / ``time.EVENT``: see :func:`station.trialformat.complete_outcomes`.
         """
-        from station.trialformat import check_times, complete_outcomes
-
         self._expect("run")
         full = complete_outcomes(self.scenario, outcomes)
         self.times = check_times(self.scenario, dict(times or {}), full)
@@ -325,8 +337,6 @@ class Assembly:
     # -- log --------------------------------------------------------------------------------------------------------
     def trial(self, *, who: str | None = None, notes: str | None = None) -> dict:
         """The trial record (the trial log's form) of this attempt."""
-        from station.services.trials import build_trial, check_values, layout_values, read_physics
-
         self._expect("log")
         check = self.check.to_json() if self.check is not None else None  # CHECK.json: what the log stores
         return build_trial(self.scenario, layout_values(self.scenario, self.job.layout.x), self.outcomes,
@@ -336,8 +346,6 @@ class Assembly:
 
     def log(self, store=None, *, who: str | None = None, notes: str | None = None) -> int:
         """Log the attempt in the trial log (``store``, default the station's); returns the trial's id."""
-        from station.services.trials import open_store
-
         record = self.trial(who=who, notes=notes)
         if store is None:
             with open_store() as opened:
@@ -353,9 +361,6 @@ class Assembly:
         error of how the guide tells the maker to set it, :func:`station.services.world.guide_sigma`), as placed
         after one (its as-built layout, its residual error on what it measured, the way each was set on the rest),
         under the physics profile if any."""
-        from station.services.predict import PredictionRequest, as_built_from_check, predict_layout
-        from station.services.world import guide_sigma
-
         scenario = self.job.scenario
         x = np.asarray(self.job.layout.x, dtype=float)
         set_sigma = guide_sigma(self.job.guide, scenario, highlighted=self.highlight)
@@ -421,11 +426,6 @@ def open_assembly(scenario: str, layout: str | None, *, view: str | None = None,
     design.errors.DesignError, projector.errors.ProjectorError, OSError
         The scenario or the layout cannot be read or drawn.
     """
-    from station.services import guide as guides
-    from station.services.physics import read_profile
-    from station.services.robust import check_count, check_seed
-    from station.services.trials import load_trial_scenario, open_store
-
     check_count(samples, "samples")
     check_seed(seed)
     check_count(attempt, "attempt")
@@ -433,8 +433,6 @@ def open_assembly(scenario: str, layout: str | None, *, view: str | None = None,
     trial_scenario = load_trial_scenario(scenario)
     opened_world = None
     if world is not None:  # a bad URL refused before the guide's work
-        from station.services.world import open_world, prepare_world
-
         opened_world = open_world(world)
     try:
         request = guides.GuideRequest(scenario, layout, view=view, physics=None if physics is None else str(physics),
@@ -443,12 +441,8 @@ def open_assembly(scenario: str, layout: str | None, *, view: str | None = None,
         if opened_world is not None:
             prepare_world(opened_world, job.scenario)
             if job.jigs is not None and job.jigs.plan.jigs:
-                from station.services.world import cut_jigs
-
                 cut_jigs(job)
         if profile is not None:
-            from design.contraption.physics_profile import apply_profile
-
             apply_profile(job.scenario, profile, str(physics))  # refuses a profile of another contraption, naming it
         if trial_scenario.content_hash != job.scenario.content_hash:
             raise ServiceError(f"scenario: {scenario} changed while it was read; start again", field="scenario")
@@ -486,9 +480,6 @@ def jigs_folder(job) -> Path:
 
 def _layout_record(scenario, x, trials) -> tuple[int, int]:
     """``(successes, attempts)`` of the ``trials`` logged with the layout ``x``'s values."""
-    from station.services.layout_choice import layout_record
-    from station.services.trials import layout_values
-
     return layout_record(layout_values(scenario, x), trials)
 
 
@@ -510,10 +501,6 @@ def calibrate_from_log(scenario, store=None, *, settings=None, workers: int | No
     common.progress.Cancelled
         Stopped; the simulations done are in the cache.
     """
-    from station.paths import data_dir
-    from station.services.sim_calibration import SimCalibrationRequest, calibrate_sim, save
-    from station.services.trials import open_store
-
     if store is None:
         with open_store() as opened:
             trials = opened.trials(scenario=scenario.name)
@@ -579,13 +566,6 @@ def reoptimize(request: ReoptimizeRequest, *, report: Reporter | None = None):
     Returns ``(path, result, chosen)``: the optimizer's result and the LAYOUT.json data written (its
     ``physical_choice`` says which option won and every option's predicted success, record and expected success).
     """
-    import json
-
-    from station.paths import data_dir
-    from station.services import robust
-    from station.services.layout_choice import LayoutChoiceRequest, candidate_layouts, choose_layout
-    from station.services.physics import problem_with_physics, read_profile
-
     physics, current, trials = request.physics, request.current, request.trials
     problem = problem_with_physics(robust.load_problem(request.scenario), physics)
     settings = request.settings or robust.psp_settings(robust.DEFAULT_SETTINGS)
@@ -600,8 +580,6 @@ def reoptimize(request: ReoptimizeRequest, *, report: Reporter | None = None):
             options.append(placed)
     profile = read_profile(physics) if physics is not None else None
     if trials is None and len(options) > 1:
-        from station.services.trials import open_store
-
         with open_store() as store:
             trials = store.trials(scenario=problem.scenario.name)
     chosen = choose_layout(problem.scenario, options, LayoutChoiceRequest(

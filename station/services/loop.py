@@ -48,6 +48,8 @@ from typing import Any
 
 import numpy as np
 
+# The loop's work (optimizer, calibration, guides, the world) is imported inside the functions that do it, on
+# purpose: `station loop --help` reads LoopSettings' defaults from here, and the CLI's --help stays fast.
 from common.progress import Cancelled, Progress, Reporter
 from drivers.sim.world import WORLD_REVISION
 from station.errors import ServiceError, station_errors
