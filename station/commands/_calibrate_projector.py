@@ -62,9 +62,10 @@ def run_projector(args) -> int:
     out = check_output_file(args.out, {".json"}, "--out") if args.out is not None else None
     try:
         with ProgressView(sys.stderr, prefix="calibrate projector: ") as view:
-            done = service.calibrate_projector(camera=args.camera, projector=args.projector, name=args.name,
-                                               plane=args.plane, intrinsics=args.intrinsics, finest_px=args.finest,
-                                               settle_s=args.settle, out=out, report=Reporter(view))
+            request = service.ProjectorCalibrationRequest(camera=args.camera, projector=args.projector, name=args.name,
+                                                          plane=args.plane, intrinsics=args.intrinsics,
+                                                          finest_px=args.finest, settle_s=args.settle, out=out)
+            done = service.calibrate_projector(request, report=Reporter(view))
     except ServiceError as error:
         raise flag_error(error) from None
     if args.json:

@@ -118,31 +118,63 @@ def run_patterns(camera, projector, patterns, *, settle_s: float = 0.0, report: 
     return images
 
 
-@station_errors
-def calibrate_projector(*, camera: str | None = None, projector: str | None = None, name: str | None = None,
-                        plane: np.ndarray | str | Path | None = None, intrinsics: str | Path | None = None,
-                        finest_px: int = 8, settle_s: float | None = None, save: bool = True,
-                        out: str | Path | None = None, report: Reporter | None = None) -> ProjectorCalibration:
-    """Map the projector at ``projector`` (URL; default the station's) with the camera at ``camera`` (default the
-    station's), and save it as ``calibration/projectors/<name>.json`` (or ``out``; ``save=False``: not saved),
-    recording the projector. ``name`` defaults to the projector's key
-    (:func:`station.services.projectors.projector_key`), where the guide and the check look for it; a map kept
-    under another name is still found for that projector, as it records it.
+@dataclass(frozen=True)
+class ProjectorCalibrationRequest:
+    """Which projector :func:`calibrate_projector` maps, with which camera, and where the map goes.
 
-    ``plane`` is the camera's 3x3 undistorted-pixel -> plane homography, or a JSON file holding it as
-    ``"homography"`` (what ``station calibrate plane`` keeps); ``intrinsics`` a camera file (OpenCV's names). Both
-    default as the module docstring says. ``settle_s`` defaults to :data:`DEFAULT_SETTLE_S` for real devices and
-    0 for simulated ones. Progress goes to ``report`` per pattern; its stop check stops between
-    patterns (:class:`common.progress.Cancelled`), the projector blanked.
+    Parameters
+    ----------
+    camera, projector : str, optional
+        URLs; default the station's camera and projector.
+    name : str, optional
+        The map's name; default the projector's key (:func:`station.services.projectors.projector_key`), where the
+        guide and the check look for it (a map kept under another name is still found for that projector, as it
+        records it).
+    plane : ndarray or path, optional
+        The camera's 3x3 undistorted-pixel -> plane homography, or a JSON file holding it as ``"homography"`` (what
+        ``station calibrate plane`` keeps); default as the module docstring says.
+    intrinsics : path, optional
+        A camera file (OpenCV's names); default as the module docstring says.
+    finest_px : int
+        The finest stripe of the Gray code, in projector pixels.
+    settle_s : float, optional
+        Wait after each pattern; default :data:`DEFAULT_SETTLE_S` for real devices, 0 for simulated ones.
+    save : bool
+        Save the map (False: only return it).
+    out : path, optional
+        Where the map goes; default ``calibration/projectors/<name>.json``.
+    """
+
+    camera: str | None = None
+    projector: str | None = None
+    name: str | None = None
+    plane: np.ndarray | str | Path | None = None
+    intrinsics: str | Path | None = None
+    finest_px: int = 8
+    settle_s: float | None = None
+    save: bool = True
+    out: str | Path | None = None
+
+
+@station_errors
+def calibrate_projector(request: ProjectorCalibrationRequest = ProjectorCalibrationRequest(), *,
+                        report: Reporter | None = None) -> ProjectorCalibration:
+    """Map the projector ``request`` names with its camera, and save the map (recording the projector).
+
+    Progress goes to ``report`` per pattern; its stop check stops between patterns
+    (:class:`common.progress.Cancelled`), the projector blanked.
 
     Raises
     ------
     ServiceError
         A bad argument, or no plane known for a real camera (field ``plane``); a mapping that fails (field
         ``camera``: no stripes seen, too few cells ...).
-    drivers.errors.DriverError
+    StationError
         A device that cannot be opened or gives no frame.
     """
+    camera, projector, name, plane, intrinsics = (request.camera, request.projector, request.name, request.plane,
+                                                  request.intrinsics)
+    finest_px, settle_s, save, out = request.finest_px, request.settle_s, request.save, request.out
     report = Reporter.of(report)
     camera_name, camera_url = _configured("camera") if camera is None else ("camera", camera)
     projector_url = _configured("projector")[1] if projector is None else str(projector).strip()

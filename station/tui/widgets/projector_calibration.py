@@ -90,9 +90,9 @@ class ProjectorCalibrationPanel(Vertical):
 
     def calibrate(self, camera: str | None, projector: str | None, plane: str | None) -> None:
         """Map in a worker; progress and the end arrive as messages."""
-        self._work = run_work(self, lambda report: service.calibrate_projector(
-            camera=camera, projector=projector, plane=plane, report=report), ProjectorCalibrated,
-            group="calibrate-projector")
+        request = service.ProjectorCalibrationRequest(camera=camera, projector=projector, plane=plane)
+        self._work = run_work(self, lambda report: service.calibrate_projector(request, report=report),
+                              ProjectorCalibrated, group="calibrate-projector")
 
     def on_progress_reported(self, message: ProgressReported) -> None:
         message.stop()
