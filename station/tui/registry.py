@@ -16,6 +16,7 @@ from typing import NamedTuple
 
 from textual.screen import Screen
 
+import station.tui.screens as screens_package
 from station.services.designs import get_machine
 
 
@@ -62,13 +63,11 @@ class ScreenEntry:
 
 def discover_screens() -> list[ScreenEntry]:
     """Every area screen, in home-screen order. Duplicate names or keys are a programming error."""
-    import station.tui.screens as package
-
     entries: list[ScreenEntry] = []
-    for info in pkgutil.iter_modules(package.__path__):
+    for info in pkgutil.iter_modules(screens_package.__path__):
         if info.name.startswith("_") or info.name == "home":
             continue
-        module = importlib.import_module(f"{package.__name__}.{info.name}")
+        module = importlib.import_module(f"{screens_package.__name__}.{info.name}")
         entry = getattr(module, "SCREEN", None)
         if isinstance(entry, ScreenEntry):
             entries.append(entry)
