@@ -55,7 +55,7 @@ def test_the_tui_reaches_the_station_only_through_its_services():
 
 
 #: Ways a worker thread could talk to the UI other than run_work's messages.
-OTHER_WAYS = {"call_from_thread", "get_current_worker", "SimpleQueue", "Queue"}
+OTHER_WAYS = {"call_from_thread", "get_current_worker", "SimpleQueue", "Queue", "WorkerState"}
 
 
 def other_ways_back(path: Path) -> list[str]:
@@ -68,6 +68,8 @@ def other_ways_back(path: Path) -> list[str]:
             if name in OTHER_WAYS:
                 found.append(f"{node.lineno}: {name}")
         elif isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)):
+            if node.name == "on_worker_state_changed":
+                found.append(f"{node.lineno}: {node.name}")
             for decorator in node.decorator_list:
                 target = decorator.func if isinstance(decorator, ast.Call) else decorator
                 if isinstance(target, ast.Name) and target.id == "work":
@@ -92,7 +94,8 @@ def test_the_checks_see_the_old_ways(tmp_path):
                       "class S:\n    @work(thread=True)\n    def w(self):\n"
                       "        from design.machines import get_machine\n"
                       "        self.app.call_from_thread(print)\n        self.run_worker(f, thread=True)\n"
-                      "    def ok(self):\n        from station.services.trials import logged_trials\n")
+                      "    def ok(self):\n        from station.services.trials import logged_trials\n"
+                      "    def on_worker_state_changed(self, event):\n        pass\n")
     assert outside_the_seam(sample) == {"station.db", "design.machines"}
     assert sorted(where.split(": ")[1] for where in other_ways_back(sample)) == [
-        "@work on w", "call_from_thread", "run_worker(thread=True)"]
+        "@work on w", "call_from_thread", "on_worker_state_changed", "run_worker(thread=True)"]
