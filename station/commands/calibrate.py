@@ -126,8 +126,9 @@ def run_camera(args) -> int:
     out = check_output_file(args.out, {".json"}, "--out") if args.out is not None else None
     try:
         with ProgressView(sys.stderr, prefix="calibrate: ") as view:
-            done = service.calibrate_camera(images=args.images, capture=args.capture, camera=args.camera,
-                                            name=args.name, out=out, interval_s=args.interval, report=Reporter(view))
+            request = service.CameraCalibrationRequest(images=args.images, capture=args.capture, camera=args.camera,
+                                                       name=args.name, out=out, interval_s=args.interval)
+            done = service.calibrate_camera(request, report=Reporter(view))
     except ServiceError as error:
         raise flag_error(error) from None
     if args.json:

@@ -174,13 +174,24 @@ class CameraCalibration:
         return {**self.result.to_dict(), "saved": None if self.path is None else str(self.path)}
 
 
+@dataclass(frozen=True)
+class CameraCalibrationRequest:
+    """Which views :func:`calibrate_camera` solves, and where the calibration goes: a folder of board ``images``,
+    or ``capture`` frames grabbed from ``camera`` (a URL; default the station's camera) every ``interval_s``
+    seconds; saved as ``name`` to ``out`` (default ``calibration/cameras/<name>.json``)."""
+
+    images: str | Path | None = None
+    capture: int | None = None
+    camera: str | None = None
+    name: str | None = None
+    out: str | Path | None = None
+    interval_s: float = 1.0
+
+
 @station_errors
-def calibrate_camera(*, images: str | Path | None = None, capture: int | None = None, camera: str | None = None,
-                     name: str | None = None, out: str | Path | None = None, interval_s: float = 1.0,
-                     report: Reporter | None = None,
+def calibrate_camera(request: CameraCalibrationRequest, *, report: Reporter | None = None,
                      before: Callable[[object, int], None] | None = None) -> CameraCalibration:
-    """Calibrate a camera from a folder of board images or ``capture`` frames grabbed from ``camera`` (a URL;
-    default the station's camera), and save it to ``out`` (default ``calibration/cameras/<name>.json``).
+    """Calibrate a camera from the views ``request`` names, and save it.
     ``before(camera, index)`` runs before each grab (a simulated camera's board may be moved there).
 
     Raises
@@ -188,6 +199,7 @@ def calibrate_camera(*, images: str | Path | None = None, capture: int | None = 
     ServiceError
         Neither or both of ``images`` and ``capture``; a bad folder, name or count; too few usable views.
     """
+    images, capture, camera, name, out = request.images, request.capture, request.camera, request.name, request.out
     if (images is None) == (capture is None):
         raise ServiceError("images or capture: give exactly one (a folder of board images, or N views to grab)",
                            field="images")
@@ -198,7 +210,7 @@ def calibrate_camera(*, images: str | Path | None = None, capture: int | None = 
     else:
         default_name, url = configured_camera_url() if camera is None else (DEFAULT_CAMERA, camera)
         name = check_name(name or default_name)
-        views = capture_views(url, capture, interval_s=interval_s, report=report, before=before)
+        views = capture_views(url, capture, interval_s=request.interval_s, report=report, before=before)
     try:
         result = solve(views, name=name, report=report)
     except CalibrationError as error:

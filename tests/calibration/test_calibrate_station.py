@@ -96,16 +96,16 @@ def test_capture_from_the_simulated_camera_with_progress_and_stop():
         camera.place(cameras[index])
 
     seen = []
-    done = service.calibrate_camera(capture=8, camera=url, name="twin", interval_s=0.0, report=Reporter(seen.append),
-                                    before=move_board)
+    request = service.CameraCalibrationRequest(capture=8, camera=url, name="twin", interval_s=0.0)
+    done = service.calibrate_camera(request, report=Reporter(seen.append), before=move_board)
     assert abs(done.result.intrinsics.focal_px / 520.0 - 1) < 0.005 and done.path.name == "twin.json"
     assert [p.stage for p in seen][:1] == ["capture"] and "solve" in [p.stage for p in seen]
     asked = []
     with pytest.raises(Cancelled):
-        service.calibrate_camera(capture=8, camera=url, interval_s=0.05, before=move_board,
-                                 report=Reporter(stop=lambda: asked.append(1) or len(asked) > 3))
+        service.calibrate_camera(service.CameraCalibrationRequest(capture=8, camera=url, interval_s=0.05),
+                                 before=move_board, report=Reporter(stop=lambda: asked.append(1) or len(asked) > 3))
     with pytest.raises(ServiceError, match="capture must be a whole number of views >= 1"):
-        service.calibrate_camera(capture=0, camera=url)
+        service.calibrate_camera(service.CameraCalibrationRequest(capture=0, camera=url))
 
 
 def plane_frame(tmp_path, name, target=(0.0, 0.0)):

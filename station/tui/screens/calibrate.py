@@ -91,8 +91,8 @@ class CameraPanel(Vertical):
 
     def calibrate(self, folder: str | None, count: int | None) -> None:
         """Calibrate in a worker; progress and the end arrive as messages."""
-        self._work = run_work(self, lambda report: service.calibrate_camera(images=folder, capture=count,
-                                                                           report=report),
+        request = service.CameraCalibrationRequest(images=folder, capture=count)
+        self._work = run_work(self, lambda report: service.calibrate_camera(request, report=report),
                               CameraCalibrated, group="calibrate-camera")
 
     def on_progress_reported(self, message: ProgressReported) -> None:
