@@ -91,6 +91,8 @@ def run_work(target: MessagePump, call: Callable[[Reporter], Any], ended: type[W
     Work
         The handle whose :meth:`Work.stop` asks the work to stop.
     """
+    # The thread asks the handle whether a stop was asked: it waits until run_worker has returned the worker the
+    # handle wraps.
     holder: list[Work] = []
     started = threading.Event()
 
