@@ -206,33 +206,17 @@ def test_cycle_finder_sees_a_cycle_behind_a_function_and_type_checking(tmp_path)
 #: through station.services, so that one workflow is written once, for both faces.
 BELOW_THE_STATION = {"common", "design", "drivers", "calibration", "projector", "vision", "cam"}
 
-#: Faces still being moved onto the services, each with what it still imports from below. The list only shrinks:
-#: a face cleaned up must leave it (the test says so), and no face joins it.
-FACES_IN_MOVE: dict[str, set[str]] = {
-}
-
-
 def face_files() -> list[Path]:
+    """The command line (its commands and helpers), the terminal UI and the browser's server."""
     station = ROOT / "station"
-    return sorted([*station.joinpath("commands").glob("*.py"), *station.glob("cli*.py"),
+    return sorted([*station.joinpath("commands").glob("*.py"), *station.glob("cli*.py"), *station.glob("serve*.py"),
                    *station.joinpath("tui").rglob("*.py")])
 
 
 def test_faces_import_only_the_station():
-    offenders, cleaned = [], []
-    for path in face_files():
-        name = path.relative_to(ROOT).as_posix()
-        below = imported_top_levels(path) & BELOW_THE_STATION
-        allowed = FACES_IN_MOVE.get(name, set())
-        if below - allowed:
-            offenders.append(f"{name} imports {sorted(below - allowed)}: reach it through station.services")
-        if allowed - below:
-            cleaned.append(f"{name} no longer imports {sorted(allowed - below)}: take it off FACES_IN_MOVE")
-    assert not offenders and not cleaned, "\n".join(offenders + cleaned)
-
-
-def test_faces_in_move_are_faces():
-    assert set(FACES_IN_MOVE) <= {p.relative_to(ROOT).as_posix() for p in face_files()}
+    offenders = [f"{path.relative_to(ROOT)} imports {sorted(below)}: reach it through station.services"
+                 for path in face_files() if (below := imported_top_levels(path) & BELOW_THE_STATION)]
+    assert not offenders, "\n".join(offenders)
 
 
 #: What a service may raise besides the station's errors: a stop (the one Cancelled, or KeyboardInterrupt at a
