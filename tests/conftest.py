@@ -155,7 +155,6 @@ def write_ballrun_layout(folder: Path) -> None:
 
 
 def make_workshop(folder: Path) -> None:
-    folder.mkdir(parents=True)
     shutil.copytree(REPO / "examples", folder / "examples")
     prepare(folder, "station optimize examples/scenarios/simple.toml --budget 40 --seed 1 --out layout.json")
     write_ballrun_layout(folder)
@@ -181,7 +180,6 @@ def make_workshop(folder: Path) -> None:
         subprocess.run(["openssl", "req", "-x509", "-newkey", "rsa:2048", "-nodes", "-keyout", "station.key", "-out",
                         "station.pem", "-days", "2", "-subj", "/CN=localhost"], cwd=folder, check=True,
                        capture_output=True)
-    (folder / "ready").write_text("")
 
 
 @contextmanager
@@ -201,14 +199,23 @@ def run_folder(tmp_path_factory) -> Path:
     return base.parent if os.environ.get("PYTEST_XDIST_WORKER") else base
 
 
+def made_once(tmp_path_factory, name: str, make) -> Path:
+    """The folder ``name`` of this test run, made by ``make(folder)`` for every pytest-xdist worker at once: the
+    first worker that asks makes it, the others wait for it under a lock (a module- or session-scoped fixture alone
+    is made once per worker, so twice on two cores). Read-only to its users: a test that writes copies it first."""
+    shared = run_folder(tmp_path_factory)
+    folder = shared / name
+    with locked(shared / f"{name}.lock"):
+        if not (folder / "ready").exists():
+            shutil.rmtree(folder, ignore_errors=True)
+            folder.mkdir(parents=True)
+            make(folder)
+            (folder / "ready").write_text("")
+    return folder
+
+
 @pytest.fixture(scope="session")
 def workshop(tmp_path_factory) -> Path:
     """The prepared workshop, made once for every worker of the run (tests/test_cli_examples.py's examples and
     tests/test_format_schemas.py's outputs start from it). Read-only: a test that writes copies it first."""
-    shared = run_folder(tmp_path_factory)
-    folder = shared / "cli-examples-workshop"
-    with locked(shared / "cli-examples-workshop.lock"):
-        if not (folder / "ready").exists():
-            shutil.rmtree(folder, ignore_errors=True)
-            make_workshop(folder)
-    return folder
+    return made_once(tmp_path_factory, "cli-examples-workshop", make_workshop)

@@ -26,6 +26,8 @@ from referencing import Registry, Resource
 
 from station.schemas import FORMATS, all_schemas, load_schema
 
+from .conftest import made_once
+
 REPO = Path(__file__).resolve().parents[1]
 
 
@@ -42,16 +44,23 @@ def problems(name: str, document) -> list[str]:
 
 @pytest.fixture(scope="module")
 def outputs(workshop, tmp_path_factory):
-    """The outputs of one maker's session, every command as typed: {name: parsed JSON}. The layout (``station
-    optimize simple --budget 40 --seed 1``), the jigs and the laser test card are the prepared workshop's
-    (tests/conftest.py), read from a copy; the rest runs here, with a station home of its own."""
-    folder = tmp_path_factory.mktemp("workshop")
+    """The outputs of one maker's session, every command as typed: {name: parsed JSON}; made once per test run
+    (``made_once``, tests/conftest.py) however the workers share this module's tests."""
+    folder = made_once(tmp_path_factory, "format-outputs", lambda folder: make_outputs(workshop, folder))
+    return json.loads((folder / "outputs.json").read_text())
+
+
+def make_outputs(workshop: Path, folder: Path) -> None:
+    """outputs.json in ``folder``: what :func:`outputs` gives. The layout (``station optimize simple --budget 40
+    --seed 1``), the jigs and the laser test card are the prepared workshop's (tests/conftest.py), read from a
+    copy; the rest runs here, with a station home of its own."""
     shutil.copytree(REPO / "examples", folder / "examples")
     for name in ("layout.json", "switch-jigs", "card"):
         copy_into = shutil.copytree if (workshop / name).is_dir() else shutil.copy2
         copy_into(workshop / name, folder / name)
     env = dict(os.environ)
-    env["CHAOS_STATION_HOME"] = str(tmp_path_factory.mktemp("home"))
+    (folder / "home").mkdir()
+    env["CHAOS_STATION_HOME"] = str(folder / "home")
     env["PATH"] = f"{Path(sys.executable).parent}{os.pathsep}{env.get('PATH', '')}"
 
     def station(command: str) -> str:
@@ -80,7 +89,7 @@ def outputs(workshop, tmp_path_factory):
     out["loop"] = json.loads(station("loop simple --world 'sim://world?seed=1' --attempts 1 --loops 1 --budget 20 "
                                      "--reoptimize-budget 20 --json"))
     out["test card"] = json.loads((folder / "card" / "card.json").read_text())
-    return out
+    (folder / "outputs.json").write_text(json.dumps(out))
 
 
 #: (schema, output of the workshop) pairs: every schema has at least one real output.
