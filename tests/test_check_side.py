@@ -45,7 +45,7 @@ def _check(changes: dict[str, float]):
         x[names.index(name)] += delta
     picture, lens = check_side.side_frame(job, board, targets, SIDE_URL, layout=x)
     side = check_side.measure_side(job, board, targets, picture, lens, camera="side")
-    frame, top_lens, _, _ = service.camera_frame(job.guide, camera="sim://camera?seed=2")
+    frame, top_lens, _, _ = service.camera_frame(job.guide, service.FrameSource(camera="sim://camera?seed=2"))
     return service.check_frame(job, frame, top_lens, service.CheckRequest(camera="top"), side=side).report, x, names
 
 

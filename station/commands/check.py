@@ -137,9 +137,9 @@ def run_check(args) -> int:
                     side_offsets=side_offsets, occluded=tuple(args.sim_cover or ()), side_image=args.side_image,
                     side_intrinsics=args.side_intrinsics, report=report)
             else:
-                image, intrinsics, name, previous = service.camera_frame(
-                    job.guide, image=args.image, camera=cameras[0][1] if cameras else None,
-                    intrinsics=args.intrinsics, offsets=offsets, occluded=tuple(args.sim_cover or ()))
+                image, intrinsics, name, previous = service.camera_frame(job.guide, service.FrameSource(
+                    image=args.image, camera=cameras[0][1] if cameras else None, intrinsics=args.intrinsics,
+                    offsets=offsets, occluded=tuple(args.sim_cover or ())))
                 check = service.check_frame(job, image, intrinsics, request, previous=previous, report=report)
                 service.remember_plane(name, check)
         if out is not None:

@@ -258,7 +258,8 @@ class Assembly:
         if self.world is not None:
             scene = world_scene(self.job.guide, self.world.placed())
         if self.station_camera:
-            image, intrinsics, name, saved = checks.camera_frame(self.job.guide, camera=self.camera, scene=scene)
+            image, intrinsics, name, saved = checks.camera_frame(self.job.guide,
+                                                                 checks.FrameSource(camera=self.camera, scene=scene))
             previous = self.check.measurement.plane if self.check is not None else saved
         else:
             image, intrinsics = checks.grab_frame(self.camera, self.job.guide, scene=scene, seed=seed)

@@ -222,19 +222,31 @@ def grab_frame(url: str, guide, *, offsets=None, occluded: Sequence[int] = (), s
     return image, intrinsics
 
 
-@station_errors
-def camera_frame(guide, *, image: str | Path | None = None, camera: str | None = None,
-                 intrinsics: str | Path | None = None, offsets=None, occluded: Sequence[int] = (), scene=None,
-                 name: str | None = None):
-    """The frame to check and how to read it: ``(image, intrinsics, camera name, its last plane fix)``.
+@dataclass(frozen=True)
+class FrameSource:
+    """Where a check's frame comes from (:func:`camera_frame`): the file ``image``, else grabbed from ``camera`` (a
+    URL; default the station's camera, ``station devices``). The intrinsics: the file ``intrinsics``, else the
+    camera's saved calibration, else a simulated camera's own, else guessed (their ``notes`` say so). ``offsets``
+    (part -> offset), ``occluded`` tags and a ``scene`` (a simulated world's, :mod:`station.services.world`) go to a
+    simulated camera only. ``name`` names the camera ``camera`` is (its saved calibration and plane: a station.toml
+    camera's name); default the station's camera's."""
 
-    From the file ``image``, else grabbed from ``camera`` (a URL; default the station's camera, ``station
-    devices``). The intrinsics: the file ``intrinsics``, else the camera's saved calibration, else a simulated
-    camera's own, else guessed (their ``notes`` say so). Offsets, covered tags and a ``scene`` (a simulated world's,
-    :mod:`station.services.world`) go to a simulated camera only. ``name`` names the camera ``camera`` is (its saved
-    calibration and plane: a station.toml camera's name); default the station's camera's.
-    """
-    name, twin = name or calibrate.DEFAULT_CAMERA, None
+    image: str | Path | None = None
+    camera: str | None = None
+    intrinsics: str | Path | None = None
+    offsets: Any = None
+    occluded: tuple[int, ...] = ()
+    scene: Any = None
+    name: str | None = None
+
+
+@station_errors
+def camera_frame(guide, source: FrameSource = FrameSource()):
+    """The frame to check and how to read it: ``(image, intrinsics, camera name, its last plane fix)``, from
+    ``source``."""
+    image, camera, intrinsics, offsets, occluded = (source.image, source.camera, source.intrinsics, source.offsets,
+                                                    source.occluded)
+    name, twin = source.name or calibrate.DEFAULT_CAMERA, None
     if image is not None:
         if offsets or occluded:
             raise ServiceError("sim_offset: simulation offsets change a simulated camera's scene, not an image file",
@@ -243,7 +255,7 @@ def camera_frame(guide, *, image: str | Path | None = None, camera: str | None =
     else:
         if camera is None:
             name, camera = calibrate.configured_camera_url()
-        frame, twin = grab_frame(camera, guide, offsets=offsets, occluded=occluded, scene=scene)
+        frame, twin = grab_frame(camera, guide, offsets=offsets, occluded=occluded, scene=source.scene)
     size = (int(frame.shape[1]), int(frame.shape[0]))
     if intrinsics is not None or twin is None or calibrate.camera_file(name).exists():
         lens = calibrate.intrinsics_for(size, intrinsics=intrinsics, name=name)

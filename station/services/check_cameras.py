@@ -12,7 +12,7 @@ from common.progress import Reporter
 from projector.board import side_board
 from station.errors import ServiceError, station_errors
 from station.services import calibrate
-from station.services.check import CheckRequest, camera_frame, check_frame, remember_plane
+from station.services.check import CheckRequest, FrameSource, camera_frame, check_frame, remember_plane
 from station.services.check_side import (
     is_side_url,
     measure_side,
@@ -48,7 +48,7 @@ def check_views(job, cameras: Sequence[tuple[str, str]], request: CheckRequest |
     for name, url in cameras:
         side = is_side_url(url)
         if side is None:  # a real camera: its frame says which board it faces
-            frames[url] = camera_frame(job.guide, camera=url, name=name)
+            frames[url] = camera_frame(job.guide, FrameSource(camera=url, name=name))
             side = view_of_frame(frames[url][0], board) == "side"
         (side_cameras if side else top_cameras).append((name, url))
     for view, found in (("top", top_cameras), ("side", side_cameras)):
@@ -88,8 +88,8 @@ def check_views(job, cameras: Sequence[tuple[str, str]], request: CheckRequest |
     if top_url in frames:
         frame, lens, _, previous = frames[top_url]
     else:
-        frame, lens, _, previous = camera_frame(job.guide, image=image, camera=top_url, intrinsics=intrinsics,
-                                                offsets=offsets, occluded=occluded, name=top_name)
+        frame, lens, _, previous = camera_frame(job.guide, FrameSource(image, top_url, intrinsics, offsets,
+                                                                       tuple(occluded), name=top_name))
     result = check_frame(job, frame, lens, replace(request or CheckRequest(), camera=top_name), previous=previous,
                          side=side_view, report=report)
     remember_plane(top_name, result)
