@@ -106,10 +106,27 @@ def run(command: str, folder: Path, *, answers: str | None = None, timeout: floa
     return subprocess.CompletedProcess(process.args, process.returncode, out, err)
 
 
+#: The workshop's record of its own commands (:func:`prepare`), in the workshop folder.
+PREPARED = "prepared.json"
+
+
 def prepare(folder: Path, command: str) -> None:
+    """Run ``command`` in the workshop ``folder``; it must succeed. How it ran is kept in the folder (:data:`PREPARED`):
+    an example of a ``--help`` that is one of these commands is judged on this run (:func:`prepared`)."""
     done = run(command, folder)
     tail = "\n".join(done.stderr.strip().splitlines()[-5:])
     assert done.returncode == 0, f"preparing the workshop: `{command}` exited {done.returncode}:\n{tail}"
+    record = folder / PREPARED
+    ran = json.loads(record.read_text()) if record.exists() else {}
+    ran[command] = {"returncode": done.returncode, "stdout": done.stdout, "stderr": done.stderr}
+    record.write_text(json.dumps(ran))
+
+
+def prepared(workshop: Path) -> dict[str, subprocess.CompletedProcess]:
+    """The commands the workshop ran to prepare itself, and how each ran (see :func:`prepare`)."""
+    ran = json.loads((workshop / PREPARED).read_text())
+    return {command: subprocess.CompletedProcess(command, r["returncode"], r["stdout"], r["stderr"])
+            for command, r in ran.items()}
 
 
 def write_camera_images(folder: Path) -> None:
