@@ -21,14 +21,14 @@ import textwrap
 import threading
 from collections.abc import Sequence
 
+import station.commands as package
 from station import __version__
+from station.config import configured_devices
 from station.errors import USER_ERRORS
 
 
 def command_modules() -> list[str]:
     """Names of the modules in :mod:`station.commands`, sorted for a stable help text."""
-    import station.commands as package
-
     return sorted(
         f"{package.__name__}.{info.name}"
         for info in pkgutil.iter_modules(package.__path__)
@@ -178,8 +178,7 @@ def _stop_cleanly_on_sigterm():
 
 def run_tui() -> int:
     """Start the Textual app on the station's devices (its config file, else all simulated) and local SQLite."""
-    from station.config import configured_devices
-    from station.tui.app import StationApp
+    from station.tui.app import StationApp  # heavy: rich, textual
 
     StationApp(devices=configured_devices()).run()
     return 0

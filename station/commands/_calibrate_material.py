@@ -50,7 +50,7 @@ def add_material_parser(calibrate_subparsers) -> None:
 
 
 def run_material(args) -> int:
-    from station.services import lasertest as service
+    from station.services import lasertest as service  # heavy: PIL, cv2, scipy, shapely
 
     if args.image is None and args.camera is None:
         raise UsageError("give --image FRAME (a photo of the card) or --camera URL (grab one)")

@@ -11,6 +11,8 @@ import sys
 
 from station.cli_util import check_output_file, emit_json, flag_error, number
 from station.errors import ServiceError
+from station.progress_view import ProgressView
+from station.services import projector_calibration as service
 from station.services.reporting import Reporter
 
 __all__ = ["PROJECTOR_JSON", "add_projector_parser", "run_projector"]
@@ -56,9 +58,6 @@ def add_projector_parser(calibrate_subparsers) -> None:
 
 
 def run_projector(args) -> int:
-    from station.progress_view import ProgressView
-    from station.services import projector_calibration as service
-
     out = check_output_file(args.out, {".json"}, "--out") if args.out is not None else None
     try:
         with ProgressView(sys.stderr, prefix="calibrate projector: ") as view:

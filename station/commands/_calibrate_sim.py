@@ -11,6 +11,8 @@ import sys
 from station.cli_util import NON_NEGATIVE, check_output_file, emit_json, flag_error
 from station.commands.robust import _where, add_workers, command
 from station.errors import ServiceError, UsageError
+from station.services.contraption import open_scenario
+from station.services.robust import check_seed
 
 #: The flags of the service's fields where they are not ``--`` + the field.
 FLAGS = {"trials_json": "--trials-json"}
@@ -75,9 +77,8 @@ def run_calibrate_sim(args) -> int:
 
 
 def _calibrate_sim(args) -> int:
+    # heavy: design.contraption.simulation, pybullet, scipy, shapely
     from station.services import sim_calibration as service
-    from station.services.contraption import open_scenario
-    from station.services.robust import check_seed
 
     check_seed(args.seed)
     if args.physics is not None:

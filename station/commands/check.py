@@ -12,7 +12,11 @@ import sys
 from pathlib import Path
 
 from station.cli_util import add_physics_option, check_output_file, emit_json, flag_error
+from station.config import configured_devices
 from station.errors import ServiceError, UsageError
+from station.progress_view import ProgressView
+from station.services.physics import read_profile
+from station.services.projectors import configured_projector, open_projector, projector_mapping
 from station.services.reporting import Reporter
 
 #: The ``--json`` / CHECK.json contract, quoted in the help text; keep its names.
@@ -104,10 +108,9 @@ def register(subparsers) -> None:
 
 
 def run_check(args) -> int:
-    from station.progress_view import ProgressView
+    # heavy: PIL, cv2, scipy, shapely and the simulations' executor, loaded when a check runs
     from station.services import check as service
     from station.services import check_cameras, check_side, images
-    from station.services.physics import read_profile
 
     out = check_output_file(args.out, {".json"}, "--out") if args.out is not None else None
     overlay = check_output_file(args.overlay, {".png"}, "--overlay") if args.overlay is not None else None
@@ -145,7 +148,7 @@ def run_check(args) -> int:
         if out is not None:
             out.write_text(json.dumps(check.to_json(), indent=1) + "\n", encoding="utf-8")
         if overlay is not None:
-            from PIL import Image
+            from PIL import Image  # heavy: PIL
 
             Image.fromarray(service.camera_overlay(check)).save(overlay)
             if check.side is not None:  # the side camera's frame, next to the top one
@@ -164,8 +167,7 @@ def run_check(args) -> int:
 def _cameras(args) -> list[tuple[str, str]]:
     """The cameras to check with, ``(name, url)``: the ``--camera`` URLs (the first named as the station's camera),
     else with no ``--image`` every camera of station.toml (none configured: the default one)."""
-    from station.config import configured_devices
-    from station.services.calibrate import DEFAULT_CAMERA
+    from station.services.calibrate import DEFAULT_CAMERA  # heavy: PIL
 
     if args.camera:
         return [(DEFAULT_CAMERA if i == 0 else f"{DEFAULT_CAMERA}-{i + 1}", url) for i, url in enumerate(args.camera)]
@@ -176,8 +178,7 @@ def _cameras(args) -> list[tuple[str, str]]:
 
 
 def _project(check) -> str:
-    from station.services import check as service
-    from station.services.projectors import configured_projector, open_projector, projector_mapping
+    from station.services import check as service  # heavy: PIL, cv2, design.robust.executor
 
     device = configured_projector()
     if device is None:
@@ -189,7 +190,7 @@ def _project(check) -> str:
 
 
 def _print(check, out: Path | None, overlay: Path | None, projected: str | None) -> None:
-    from station.services import check as service
+    from station.services import check as service  # heavy: PIL, cv2, design.robust.executor
 
     report = check.report
     guide_job = check.guide_job

@@ -18,6 +18,7 @@ from station.services.contraption import (
     scenario_summary,
     simulate,
 )
+from station.services.physics import physics_note
 from station.services.reporting import Reporter
 
 
@@ -135,8 +136,6 @@ def run_simulate(args) -> int:
 
 def report_physics(scenario: Scenario, stream=None) -> None:
     """Say on stderr which material values a physics profile set (nothing for the scenario's own)."""
-    from station.services.physics import physics_note
-
     note = physics_note(scenario)
     if note:
         print(note, file=stream or sys.stderr)

@@ -10,6 +10,8 @@ import sys
 
 from station.cli_util import add_physics_option, check_output_file, check_output_folder, emit_json, flag_error
 from station.errors import ServiceError, UsageError
+from station.progress_view import ProgressView
+from station.services.projectors import open_projector, projector_device, projector_mapping
 from station.services.reporting import Reporter
 
 #: The ``--json`` contract (the guide's manifest), quoted in the help text; keep its names.
@@ -79,8 +81,7 @@ def register(subparsers) -> None:
 
 
 def run_guide(args) -> int:
-    from station.progress_view import ProgressView
-    from station.services import guide as service
+    from station.services import guide as service  # heavy: scipy, shapely
 
     if args.pdf is None and args.svg is None and not (args.project or args.json):
         raise UsageError("nothing to write: give --pdf OUT.pdf, --svg OUT.svg, --project or --json")
@@ -101,7 +102,7 @@ def run_guide(args) -> int:
             job = service.make_guide(request, report=Reporter(view))
         job = service.export_guide(job, pdf=pdf, svg=svg, paper=args.paper)
         if jigs_dir is not None:
-            from station.services.jigs import cut_jigs, write_jig_outputs
+            from station.services.jigs import cut_jigs, write_jig_outputs  # heavy: scipy, shapely
 
             written = write_jig_outputs(cut_jigs(job, job.jigs), jigs_dir)
         if args.project:
@@ -121,8 +122,7 @@ def run_guide(args) -> int:
 
 
 def _project(job, step: int | None, url: str | None) -> None:
-    from station.services import guide as service
-    from station.services.projectors import open_projector, projector_device, projector_mapping
+    from station.services import guide as service  # heavy: scipy, shapely
 
     device = projector_device(url)
     if device is None:
@@ -154,7 +154,7 @@ def _print_summary(job, pdf, svg) -> None:
         rows = max((int(p.label[1:]) for p in pages), default=0)
         print(f"wrote {pdf}: {len(pages)} sheets ({columns} x {rows}) of {pages[0].paper if pages else '?'} and a "
               "page of parts, steps and tolerances; check that the scale bar measures 100 mm")
-        from station.services.guide import board_pdf_path, board_words
+        from station.services.guide import board_pdf_path, board_words  # heavy: scipy, shapely
 
         words = board_words(guide)
         if words is not None:

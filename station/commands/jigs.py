@@ -9,7 +9,10 @@ from __future__ import annotations
 import sys
 
 from station.cli_util import NON_NEGATIVE, add_physics_option, check_output_folder, emit_json, flag_error
+from station.commands.fabricate import parse_sheet
 from station.errors import ServiceError
+from station.progress_view import ProgressView
+from station.services.fabricate import KERF_SOURCES
 from station.services.reporting import Reporter
 
 #: The ``--json`` contract (jigs.json), quoted in the help text; keep its names.
@@ -65,10 +68,8 @@ def register(subparsers) -> None:
 
 
 def run_jigs(args) -> int:
-    from station.commands.fabricate import parse_sheet
-    from station.progress_view import ProgressView
-    from station.services import jig_plan
-    from station.services import jigs as service
+    from station.services import jig_plan  # heavy: scipy, shapely
+    from station.services import jigs as service  # heavy: scipy, shapely
 
     sheet = parse_sheet(args.sheet) if args.sheet is not None else None
     options = jig_plan.JigOptions(profile=args.profile, material=args.material, kerf=args.kerf,
@@ -128,6 +129,4 @@ def _print_summary(summary: dict, files: dict) -> None:
 
 
 def _kerf_words(source: str) -> str:
-    from station.services.fabricate import KERF_SOURCES
-
     return KERF_SOURCES.get(source, source)

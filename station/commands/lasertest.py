@@ -82,7 +82,7 @@ def register(subparsers) -> None:
 
 
 def run_card(args) -> int:
-    from station.services import lasertest as service
+    from station.services import lasertest as service  # heavy: PIL, cv2, scipy, shapely
 
     out = check_output_folder(args.out, "--out", "card.gcode, card.json and card.png")
     try:
@@ -118,7 +118,7 @@ def run_card(args) -> int:
 
 
 def run_render(args) -> int:
-    from station.services import lasertest as service
+    from station.services import lasertest as service  # heavy: PIL, cv2, scipy, shapely
 
     out = check_output_file(args.out, {".png"}, "--out")
     try:

@@ -6,6 +6,7 @@ import math
 import sys
 
 from station.cli_util import emit_json, flag_error
+from station.commands.contraption import report_layout
 from station.commands.robust import _where, add_command, add_scenario_and_layout, add_workers, command
 from station.errors import ServiceError
 
@@ -37,8 +38,7 @@ def _number(value: float) -> str:
 
 @command
 def run_predict(args) -> int:
-    from station.commands.contraption import report_layout
-    from station.services.predict import predict
+    from station.services.predict import predict  # heavy: design.contraption.simulation, pybullet, scipy, shapely
 
     try:
         prediction = predict(args.scenario, args.layout, physics=args.physics, as_built=args.as_built,

@@ -21,9 +21,12 @@ from typing import TextIO
 import numpy as np
 
 from station.cli_util import NON_NEGATIVE, add_physics_option, check_output_file, emit_json
+from station.commands.contraption import report_layout
 from station.errors import ServiceError, UsageError
 from station.progress_view import ProgressView
 from station.services import robust as service
+from station.services.outlook import disagreement, success_headline
+from station.services.physics import problem_with_physics
 from station.services.reporting import Cancelled, Reporter
 from station.services.reporting import Progress as BaseProgress
 from station.services.robust import (  # noqa: F401 - re-exported: the work lives in the service
@@ -85,8 +88,6 @@ def _load_problem(path: str):
 
 def _problem(args):
     """The problem of ``args.scenario`` under ``args.physics`` (a physics profile) when given."""
-    from station.services.physics import problem_with_physics
-
     return problem_with_physics(_load_problem(args.scenario), getattr(args, "physics", None))
 
 
@@ -367,8 +368,6 @@ def run_optimize(args) -> int:
 
 def _print_optimized(problem, result, outlook, out) -> None:
     """The optimized layout as a maker reads it: the physical success on the table first, the model's score last."""
-    from station.services.outlook import disagreement, success_headline
-
     if outlook is not None:
         print(f"{problem.name}: " + success_headline(outlook, when=f"placed by the guide, {outlook.samples} "
                                                      "simulations"))
@@ -408,8 +407,6 @@ def _print_verification(result) -> None:
 
 @command
 def run_robustness(args) -> int:
-    from station.commands.contraption import report_layout
-
     service.check_seed(args.seed)
     service.check_count(args.eval, "n_evaluation")
     if args.plot is not None:

@@ -9,6 +9,7 @@ from __future__ import annotations
 import sys
 
 from station.cli_util import emit_json
+from station.commands.contraption import report_layout
 from station.commands.robust import add_command, add_workers, command
 from station.errors import UsageError
 from station.services import tolerances as service
@@ -66,7 +67,6 @@ def describe_limit(entry) -> str:
 def run_tolerances(args) -> int:
     if args.verify < 0:
         raise UsageError(f"--verify must be an integer >= 0 (layouts simulated per parameter), got {args.verify}")
-    from station.commands.contraption import report_layout
 
     bar = args.bar
     result = service.tolerance_map(args.scenario, args.layout, verify=args.verify, seed=args.seed,

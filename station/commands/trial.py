@@ -8,6 +8,7 @@ import sys
 from station.cli_util import emit_json
 from station.db import WRITE_PATIENCE_SECONDS
 from station.errors import ServiceError, StationError, UsageError
+from station.progress_view import ProgressView
 from station.services.reporting import Cancelled, Reporter
 from station.services.trials import (
     TrialKept,
@@ -158,6 +159,7 @@ def run_log(args) -> int:
     if args.json:
         emit_json({"id": trial_id} if outlook is None else {"id": trial_id, "physical_success": outlook.to_json()})
     elif outlook is not None:
+        # heavy: design.contraption.simulation, pybullet, scipy, shapely
         from station.services.predict import outlook_line
 
         print(f"trial {trial_id}: {outlook_line(outlook)}", file=sys.stderr)
@@ -168,8 +170,7 @@ def _outlook(scenario, record, samples: int):
     """The physical success of the trial's layout, as built (``--predict N`` simulations; None for 0)."""
     if not samples:
         return None
-    from station.progress_view import ProgressView
-    from station.services.predict import predict_trial
+    from station.services.predict import predict_trial  # heavy: design.contraption.simulation, pybullet, scipy, shapely
 
     try:
         with ProgressView(sys.stderr, prefix="predict: ") as view:
