@@ -27,7 +27,8 @@ SIZES = [
 
 
 def boolean_cube(centres, points, values, radii, chunk=256):
-    """The former implementation: a boolean per centre, radius and point."""
+    """The plain way, the reference the others are checked and timed against: a boolean per centre, radius and
+    point."""
     result = np.empty((len(centres), len(radii)))
     for begin in range(0, len(centres), chunk):
         inside = cdist(centres[begin:begin + chunk], points)[:, None, :] <= radii[None, :, None]

@@ -1,4 +1,4 @@
-"""A whole as-built check's time (issue 19's goal: <= 0.5 s per frame) and how well it reads a moved part.
+"""A whole as-built check's time (the goal: <= 0.5 s per frame) and how well it reads a moved part.
 
 For BALLRUN (side view, no model) and SIMPLE (top view, with its fitted model): frames of the camera twin (1080p,
 f = 1400 px, 1 m above the guide's middle, blur 0.8 px, noise 2, JPEG 90) of the parts with one tagged part moved
@@ -26,8 +26,8 @@ def main() -> None:
     from calibration.intrinsics import CameraIntrinsics
     from drivers.sim.camera_render import render
     from drivers.sim.camera_scene import CameraModel, RenderOptions
-    from projector.detection import TagDetector
     from station.services import check as service
+    from vision.detection import TagDetector
 
     rng = np.random.default_rng(SEED)
     options = RenderOptions(blur_px=0.8, noise=2.0, jpeg_quality=90, seed=SEED)

@@ -1,4 +1,4 @@
-"""Tag measurement accuracy and speed on the camera twin's frames (issue 19's acceptance, full version).
+"""Tag measurement accuracy and speed on the camera twin's frames (the full version of the check's tests).
 
 1080p, f = 1400 px, a mild barrel lens, the camera 1 m above the plane (tilted 0-15 degrees, rolled), the four
 reference tags (40 mm) and 24 part tags of 30 mm at heights 0-50 mm with headings every 15 degrees all round, blur
@@ -35,7 +35,7 @@ from calibration.evaluate import (
 from calibration.intrinsics import CameraIntrinsics, calibrate_camera, to_gray
 from calibration.measure import detected_corners, measure
 from drivers.sim.camera_render import render
-from projector.detection import TagDetector
+from vision.detection import TagDetector
 
 FRAMES = 10
 HEADINGS = tuple(range(-180, 180, 15))

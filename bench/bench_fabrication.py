@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import time
 
+from cam.laser import material_settings, plan_laser_job
 from design.fabrication import (
     GearSettings,
     elliptic_gear,
@@ -18,7 +19,6 @@ from design.fabrication import (
     ring_gear,
     sheet_paths,
 )
-from drivers.laser_job import material_settings, plan_laser_job
 from drivers.profiles import builtin_profile
 
 MACHINES = ("spirograph", "elliptic_spirograph", "cycloid_drawing_machine", "hoot_nanny")
@@ -28,7 +28,8 @@ def _job(sheet, profile):
     engrave, cut, _ = material_settings(profile, None)
     paths = sheet_paths(sheet)
     return plan_laser_job(
-        paths["engrave"], paths["cut"], engrave, cut, profile.laser.max_power, profile.plot.travel_feed
+        paths["engrave"], paths["cut"], engrave, cut, profile.laser.max_power, profile.plot.travel_feed,
+        machine_settings=profile.grbl_settings,
     )
 
 

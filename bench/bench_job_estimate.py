@@ -4,14 +4,14 @@ a laser cut and a raster engraving.
     python -m bench.bench_job_estimate --grbl PATH/TO/grbl --grbl-sim PATH/TO/grbl-sim [--cache DIR]
 
 Each job runs twice: on the station's twin at virtual time (:func:`station.services.job_verify.verify_job`: the
-blocks the twin executed, timed by GRBL's planner in :mod:`drivers.sim.grbl_motion`) and on gnea/grbl 1.1h built
+blocks the twin executed, timed by GRBL's planner in :mod:`drivers.grbl.planner`) and on gnea/grbl 1.1h built
 with grbl-sim (:mod:`bench.grbl_firmware`), streamed by the station's driver, both machines with the same settings
 (the profile's ``$11``, ``$100``-``$132``, no homing). The firmware's time is read from grbl-sim's step record (its
 simulated clock, every 5 ms while a block runs, at each block's start and end): the time blocks ran, not the wall
 time (grbl-sim runs slower than the wall clock, and its host-side stalls, see :mod:`bench.grbl_firmware`, add idle
 time no AVR has). Dwells (``G4``) take their programmed time on both and are added to both. It prints, per job, the
-firmware's time, the estimate, the straight-line figure (length over feed) and the ratios; the goal is an estimate
-within 5 % of the firmware.
+firmware's time, the estimate, the same planner on the G-code as read before it runs (the ETA) and the ratios; the
+goal is an estimate within 5 % of the firmware.
 """
 
 from __future__ import annotations
@@ -25,11 +25,11 @@ from pathlib import Path
 import numpy as np
 
 from bench import grbl_firmware
+from cam.laser import OperationSettings, plan_laser_job, write_laser_gcode
 from drivers.gcode import interpret
 from drivers.grbl import GrblConnection, Job, JobRunner
-from drivers.laser_job import OperationSettings, plan_laser_job, write_laser_gcode
 from drivers.profiles import load_profile
-from drivers.sim.grbl_settings import DEFAULT_SETTINGS, SIM_PROFILES
+from drivers.sim.grbl.settings import DEFAULT_SETTINGS, SIM_PROFILES
 from station.services.job_verify import verify_job
 
 #: The settings both machines get: motion from the profile, no homing (grbl-sim's switches read as pressed).
@@ -177,7 +177,7 @@ def main(argv: list[str] | None = None) -> int:
     jobs = {"plot": (plot_lines, "plotter"), "cut": (cut_lines, "laser"), "raster": (raster_lines, "laser"),
             "line": (line_lines, "laser")}
     print(f"{'job':8s} {'lines':>6s} {'blocks':>6s} {'dwell s':>8s} {'firmware s':>10s} {'estimate s':>10s} "
-          f"{'ratio':>6s} {'straight s':>10s} {'ratio':>6s} {'stops':>9s} {'restarts':>8s}")
+          f"{'ratio':>6s} {'G-code s':>10s} {'ratio':>6s} {'stops':>9s} {'restarts':>8s}")
     for key in args.jobs.split(","):
         make, kind = jobs[key]
         lines = make()
@@ -193,8 +193,8 @@ def main(argv: list[str] | None = None) -> int:
         firmware = motion + dwell
         # stops: the firmware's (after the first block) against the twin's blocks from rest after the first
         print(f"{key:8s} {len(lines):6d} {verified.blocks:6d} {dwell:8.2f} {firmware:10.2f} "
-              f"{verified.estimate_s:10.2f} {verified.estimate_s / firmware:6.3f} {verified.straight_s:10.2f} "
-              f"{verified.straight_s / firmware:6.3f} {f'{stops}/{verified.from_rest - 1}':>9s} {restarts:8d}",
+              f"{verified.estimate_s:10.2f} {verified.estimate_s / firmware:6.3f} {verified.preflight_s:10.2f} "
+              f"{verified.preflight_s / firmware:6.3f} {f'{stops}/{verified.from_rest - 1}':>9s} {restarts:8d}",
               flush=True)
         if not ended.startswith("done"):
             print(f"  firmware job: {ended}")

@@ -22,8 +22,8 @@ from dataclasses import replace
 
 import numpy as np
 
+from cam.place import place_lines
 from drivers.devices import resolve
-from drivers.gcode_place import place_lines
 from drivers.grbl import GrblConnection, Job, JobRunner
 from station.services import bed
 

@@ -1,4 +1,4 @@
-"""Acceptance bench of the station loop on the simulated world (issue 21; thesis 5.2.3 and 4.8).
+"""Acceptance bench of the station loop on the simulated world (thesis 5.2.3 and 4.8).
 
 For each example scenario and each world seed: ``station loop``'s service (:func:`station.services.loop.run_loop`)
 with hidden physics (friction x U(0.7, 1.3), restitution +- 0.15, damping x U(0.5, 2)) and a simulated maker who

@@ -1,6 +1,6 @@
 """What a scenario's design space allows in a simulated world: the loop's success with the world's physics known.
 
-An upper bound for ``bench_loop`` (issue 21): for each scenario and world seed, the world's hidden material values
+An upper bound for ``bench_loop``: for each scenario and world seed, the world's hidden material values
 are read (as no station service may) and taken as exact: the layout is optimized under them (``station optimize``'s
 service, the scenario's default budget unless ``--budget``), the optimizer's layout and its verified runners-up
 (``--candidates``) are scored under them with the placement error left after a check (0.5 mm, 0.5 deg; 16

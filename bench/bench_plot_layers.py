@@ -15,9 +15,9 @@ from tempfile import TemporaryDirectory
 import numpy as np
 
 from drivers.profiles import load_profile
-from station.cli_util import load_design
-from station.commands.machines_io import _sample
 from station.services import plot as plot_service
+from station.services.designs import load_design
+from station.services.machines import pattern_points as _sample
 
 ROOT = Path(__file__).resolve().parents[1]
 SEED = 0

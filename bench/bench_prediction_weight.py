@@ -1,4 +1,4 @@
-"""What a predicted physical success is worth against a layout's record on the table (issue 21).
+"""What a predicted physical success is worth against a layout's record on the table.
 
 The loop chooses a layout by its expected success ``(w p + successes) / (w + attempts)``: the prediction ``p`` as a
 Beta prior worth ``w`` attempts, updated by the layout's record (:mod:`station.services.layout_choice`). This bench

@@ -1,9 +1,10 @@
-"""Is the predicted PSP honest? Brier score and reliability on held-out simulations, per scenario, before and after.
+"""Is the predicted PSP honest? Brier score and reliability on held-out simulations, per scenario, with and without
+the probability calibration.
 
 For every example scenario (examples/scenarios/*.toml) and the tilted plank (tests/data/robust/tilted_plank.toml, a
 scenario nobody tuned on), ``station optimize``'s pipeline runs with a simulation budget and seed 0, under the
-settings as they were before the calibration fixes of issue 20 ("before") and under the station's recommended
-settings ("after"). Each fitted model is then scored on held-out simulations it never saw: a Sobol sample of the
+station's recommended settings without their probability calibration ("uncalibrated": :data:`UNCALIBRATED`) and as
+they are ("recommended"). Each fitted model is then scored on held-out simulations it never saw: a Sobol sample of the
 whole design space (its own seed) and layouts in balls of radius 0.02-0.2 around the layout the run returned (where
 a maker builds). Printed per scenario and settings: the predicted PSP of the returned layout beside the success rate
 simulated within 0.05 of it, then the Brier score of the whole success (uniform and near the optimum) against the
@@ -34,7 +35,7 @@ from design.robust.executor import SimulationExecutor
 from design.robust.pipeline import optimize_robust_layout
 from design.robust.plot import plot_reliability
 from design.robust.reliability import held_out_layouts, psp_reliability
-from design.robust.settings import RECOMMENDED_BEFORE_CALIBRATION, PSPSettings
+from design.robust.settings import PSPSettings
 
 ROOT = Path(__file__).resolve().parents[1]
 TILTED_PLANK = ROOT / "tests" / "data" / "robust" / "tilted_plank.toml"
@@ -54,8 +55,12 @@ PLAN = {
 }
 #: CHAOS_BENCH_WORKERS: local simulation processes (default: one per core).
 WORKERS = int(os.environ["CHAOS_BENCH_WORKERS"]) if os.environ.get("CHAOS_BENCH_WORKERS") else None
-#: The settings compared: the station's recommended settings before issue 20 and now.
-VARIANTS = {"before": PSPSettings.recommended(**RECOMMENDED_BEFORE_CALIBRATION), "after": PSPSettings.recommended()}
+#: The recommended settings' probability calibration taken away: cross-validation scored by ROC AUC (which ranks
+#: layouts but never checks a probability), the product of the factors left uncalibrated, no check of the parameter
+#: subspaces an event needs together. What the comparison shows is what these three do.
+UNCALIBRATED = {"cv_scoring": "roc_auc", "calibrate_product": False, "subspace_check": False}
+#: The settings compared.
+VARIANTS = {"uncalibrated": PSPSettings.recommended(**UNCALIBRATED), "recommended": PSPSettings.recommended()}
 
 
 def evaluate(problem, executor, budget: int, n_uniform: int, n_near: int, settings: PSPSettings, seed: int = 0):
@@ -85,7 +90,7 @@ def main() -> None:
     curves: dict[str, dict[str, object]] = {}
     with tempfile.TemporaryDirectory() as scratch:
         cache_path = Path(cache) if cache else Path(scratch) / "sims.sqlite3"
-        print(f"{'scenario file':24} settings  PSP(u*)  sim(u*)  Brier all  ref    ECE    Brier near  ref    "
+        print(f"{'scenario file':24} settings      PSP(u*)  sim(u*)  Brier all  ref    ECE    Brier near  ref    "
               "per-event Brier (held-out rows)")
         for path, budget, n_uniform, n_near in plan:
             problem = load_problem(path)
@@ -97,7 +102,7 @@ def main() -> None:
                     events = "  ".join(f"{s.name}={s.brier:.3f}({s.n})" for s in r["scores"][:-1]
                                        if np.isfinite(s.brier))
                     # The file's stem: both CAUSALITYSWITCH variants are named CAUSALITYSWITCH (...).
-                    print(f"{path.stem[:24]:24} {variant:8}  {r['psp']:.3f}    {r['simulated_near']:.3f}    "
+                    print(f"{path.stem[:24]:24} {variant:12}  {r['psp']:.3f}    {r['simulated_near']:.3f}    "
                           f"{whole.brier:.3f}     {whole.reference_brier:.3f}  {whole.ece:.3f}  {near.brier:.3f}"
                           f"       {near.reference_brier:.3f}  {events}", flush=True)
                     curves.setdefault(path.stem, {})[variant] = whole

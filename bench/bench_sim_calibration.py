@@ -1,12 +1,12 @@
-"""Simulator calibration recovers hidden material values (issue 20's acceptance), seeded.
+"""Simulator calibration recovers hidden material values, seeded.
 
 Trials are made by the simulator itself under hidden material values with 1 mm / 1 degree placement errors
-(:mod:`calibration.sim_synthetic`), written in the trial log's export format, read back and fitted with the default
-settings (:class:`calibration.sim_fit.FitSettings`). Targets: friction within ±5 % from 10 runs with event times
-and from 30 runs with outcomes only; restitution within ±15 %; the held-out Brier score of the success probability
-improves. Scenarios: SLIDE (a block on a tilted plank, friction) and BOUNCE (a ball dropped on a plate, restitution),
-tests/data/calibration. About 2-4 minutes per seed on one core. Draws docs/sim_calibration.png: each fit's
-candidates (the first seed's).
+(:func:`station.services.world.synthetic_trials`), written in the trial log's export format, read back and fitted with
+the default settings (:class:`calibration.sim_fit.FitSettings`). Targets: friction within ±5 % from 10 runs with event
+times and from 30 runs with outcomes only; restitution within ±15 %; the held-out Brier score of the success
+probability improves. Scenarios: SLIDE (a block on a tilted plank, friction) and BOUNCE (a ball dropped on a plate,
+restitution), tests/data/calibration. About 2-4 minutes per seed on one core. Draws docs/sim_calibration.png: each
+fit's candidates (the first seed's).
 
 Run: ``python -m bench.bench_sim_calibration [--seeds 0,1,2] [--prior-width W]`` (0: maximum likelihood) or
 ``python -m bench sim_calibration`` (seed 0, the default prior).
@@ -84,9 +84,10 @@ def draw_fit(fits: list[tuple[str, object, float]], path: Path = FIGURE) -> Path
 def run_case(label, file, hidden, span, runs, times, tolerance, seed: int = 0,
              prior_width: float | None = FitSettings.prior_width, fits: list | None = None) -> bool:
     from calibration.sim_fit import fit_simulator
-    from calibration.sim_synthetic import export, synthetic_trials
     from calibration.sim_trials import export_trials, fit_trials
     from design.contraption import load_scenario
+    from station.services.world import synthetic_trials
+    from station.services.world import trials_export as export
 
     scenario = load_scenario(DATA / file)
     rng = np.random.default_rng(100 + seed)

@@ -13,6 +13,7 @@ import time
 
 import numpy as np
 
+from common.progress import Reporter
 from design.machines import get_machine
 from design.sketch.candidates import radius_roles
 from design.sketch.distance import SpectrumBank, low_spectrum, procrustes_distance_direct
@@ -103,7 +104,8 @@ def main() -> None:
     bench_ordering(rng)
     bench_distance(rng)
 
-    retriever = SketchRetriever(MACHINES, cache_dir=cache_dir(), progress=ProgressView(describe=describe_progress))
+    report = Reporter(ProgressView(describe=describe_progress))
+    retriever = SketchRetriever(MACHINES, cache_dir=cache_dir(), report=report)
     print("candidate databases (Farey radii x feasible grid, 4 values per continuous parameter)")
     for name in MACHINES:
         start = time.perf_counter()

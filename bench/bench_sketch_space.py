@@ -1,4 +1,4 @@
-"""Sketch retrieval over each machine's whole design space (issue 22): hit rates on held-out maker-like sketches.
+"""Sketch retrieval over each machine's whole design space: hit rates on held-out maker-like sketches.
 
 Run with ``.venv/bin/python -m bench sketch_space``. The sets are made by :mod:`bench.sketch_space` (designs uniform
 over each machine's feasible space, radii up to 10; hand-drawn strokes): the tuning set (seed

@@ -1,4 +1,4 @@
-"""The trial log under crashes and concurrency (issue 20's acceptance), and how fast it writes and reads.
+"""The trial log under crashes and concurrency, and how fast it writes and reads.
 
 Prints
 - crash test: a writer process logging trials through the service (the first runs also create and migrate the

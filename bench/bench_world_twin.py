@@ -33,10 +33,10 @@ def measure(scenario: str, layout: str | None, seeds: list[int], attempts: int, 
     """Successes per way of setting (``"ruler"``: the guide as made; ``"jig"``: with its jigs) over the seeds."""
     from calibration.sim_runs import wilson_interval
     from station.services import world as worlds
-    from station.services.guide import make_guide
+    from station.services.guide import GuideRequest, make_guide
 
-    jobs = {"ruler": make_guide(scenario, layout, tolerances=False),
-            "jig": make_guide(scenario, layout, tolerances=False, jigs=True)}
+    jobs = {"ruler": make_guide(GuideRequest(scenario, layout, tolerances=False)),
+            "jig": make_guide(GuideRequest(scenario, layout, tolerances=False, jigs=True))}
     figures: dict = {"scenario": scenario, "layout": layout, "world": world, "attempts_per_seed": attempts,
                      "jigs": [j.id for j in jobs["jig"].guide.jigs]}
     for how, job in jobs.items():

@@ -17,7 +17,7 @@ from PIL import Image, ImageDraw, ImageFilter
 
 from calibration.intrinsics import CameraIntrinsics
 from design.contraption.geometry import world_poses
-from projector.tags import tag_cells
+from vision.tags import tag_cells
 
 __all__ = ["independent_side_frame"]
 

@@ -18,6 +18,8 @@ import sys
 import time
 from pathlib import Path
 
+from common.progress import Reporter
+
 ROOT = Path(__file__).resolve().parents[1]
 
 
@@ -80,9 +82,11 @@ def check_database(path: str | Path, returned: set[int]) -> dict:
             "missing": sorted(returned - stored), "incomplete": incomplete}
 
 
-def crash_test(path: str | Path, kills: int, seed: int = 0, progress=None) -> dict:
+def crash_test(path: str | Path, kills: int, seed: int = 0, report: Reporter | None = None) -> dict:
     """Kill a writer with SIGKILL ``kills`` times, each at a random moment (0-300 ms) after it logged its first
-    trial of that run (the first runs also create and migrate the file); every id it printed must be stored."""
+    trial of that run (the first runs also create and migrate the file); every id it printed must be stored.
+    ``report`` hears of each kill (stage ``"kills"``) and may stop between two."""
+    report = Reporter.of(report)
     rng = random.Random(seed)
     returned: set[int] = set()
     for number in range(kills):
@@ -103,8 +107,7 @@ def crash_test(path: str | Path, kills: int, seed: int = 0, progress=None) -> di
         if b"\n" not in raw:
             raise RuntimeError(f"writer {number} logged nothing: {err.decode()[-500:]}")
         returned.update(_ids(raw))
-        if progress is not None:
-            progress(number + 1, kills)
+        report("kills", number + 1, kills, f"writer {number + 1} of {kills} killed")
     return {"kills": kills, "returned": len(returned), **check_database(path, returned)}
 
 

@@ -26,7 +26,7 @@ import numpy as np
 
 from calibration.errors import CalibrationError
 from common.datafiles import load_json
-from common.progress import CancelCheck, ProgressCallback, Reporter
+from common.progress import Reporter
 
 __all__ = ["CameraIntrinsics", "CalibrationResult", "ViewResult", "calibrate_camera", "load_intrinsics",
            "save_intrinsics", "to_gray", "corner_coverage", "FORMAT"]
@@ -266,8 +266,7 @@ def corner_coverage(points: np.ndarray, image_size: Sequence[int]) -> tuple[floa
 
 
 def calibrate_camera(views: Iterable[tuple[str, np.ndarray]], board=None, *, name: str | None = None,
-                     min_corners: int = MIN_CORNERS, progress: ProgressCallback | Reporter | None = None,
-                     cancelled: CancelCheck | None = None) -> CalibrationResult:
+                     min_corners: int = MIN_CORNERS, report: Reporter | None = None) -> CalibrationResult:
     """Solve a camera's intrinsics from views of a ChArUco board.
 
     Parameters
@@ -280,22 +279,22 @@ def calibrate_camera(views: Iterable[tuple[str, np.ndarray]], board=None, *, nam
         The camera's name, kept in the result.
     min_corners : int
         Views with fewer board corners found are skipped (and said).
-    progress, cancelled
-        Progress per view (stage ``"detect"``), then ``"solve"``; the cancel check is asked between views.
+    report : Reporter, optional
+        Progress per view (stage ``"detect"``), then ``"solve"``; asked between views whether to stop.
 
     Raises
     ------
     CalibrationError
         Views of different sizes, or fewer than :data:`MIN_VIEWS` usable views (naming how many corners each had).
     common.progress.Cancelled
-        When ``cancelled`` says so.
+        When a stop was asked for.
     """
     import cv2
 
     from calibration.charuco import BoardSpec, detect_charuco
 
     board = board or BoardSpec()
-    report = Reporter.of(progress, cancelled)
+    report = Reporter.of(report)
     views = list(views)
     results: list[ViewResult] = []
     object_points, image_points, seen = [], [], []

@@ -30,7 +30,7 @@ import numpy as np
 from calibration.errors import CalibrationError
 from calibration.measure import detected_corners
 from design.fabrication.lasercard import CardManifest
-from projector.detection import detect_tags
+from vision.detection import detect_tags
 
 __all__ = ["CardReading", "CellReading", "SlotReading", "read_card", "MIN_FRAME_PX_PER_MM", "RECTIFIED_PX_PER_MM",
            "SOFT_EDGE_MM"]

@@ -1,6 +1,6 @@
 """Measuring tags on the guide plane from one camera frame: the plane from the reference tags, parts at their height.
 
-:func:`measure` finds the tags (:func:`projector.detection.detect_tags`'s detector, never pupil-apriltags directly),
+:func:`measure` finds the tags (:func:`vision.detection.detect_tags`'s detector, never pupil-apriltags directly),
 moves their corners into OpenCV's pixel convention (pupil-apriltags puts pixel EDGES at integers: a pixel's centre is
 at +0.5; OpenCV puts the centre at the integer, so every corner is 0.5 px less in x and y), removes the lens
 distortion, and then:
@@ -124,7 +124,7 @@ class Measurement:
 
 
 def detected_corners(found) -> np.ndarray:
-    """A :class:`projector.detection.FoundTag`'s corners in OpenCV's pixel convention (see the module notes)."""
+    """A :class:`vision.detection.FoundTag`'s corners in OpenCV's pixel convention (see the module notes)."""
     return np.asarray(found.corners, dtype=float) - APRILTAG_OFFSET_PX
 
 
@@ -231,7 +231,7 @@ def _apply(homography: np.ndarray, pixels: np.ndarray) -> np.ndarray:
 
 
 def _detect(gray: np.ndarray, wanted: set[int]) -> list:
-    """The tags in a frame: quads searched on a half-size image first (4x faster on 1080p, corners still refined on
+    """The tags in a frame: quads searched on a half-size image first (faster, corners still refined on
     the full image), again at full size only when a wanted tag is not found (a small or far tag, ~20 px or less)."""
     found = _detector(FAST_DECIMATE).detect(gray)
     if wanted <= {tag.tag_id for tag in found}:
@@ -245,7 +245,7 @@ _DETECTORS = threading.local()
 def _detector(decimate: float):
     """This thread's detector for ``decimate`` (making one builds the family's decode table: ~0.1 s; a detector is
     not safe to share between threads)."""
-    from projector.detection import TagDetector
+    from vision.detection import TagDetector
 
     detectors = _DETECTORS.__dict__.setdefault("by_decimate", {})
     if decimate not in detectors:
@@ -283,10 +283,10 @@ def measure(image: np.ndarray, intrinsics: CameraIntrinsics,
         The tags on the parts and the height of the face each lies on.
     previous : PlaneFix, optional
         The last fix, to say how far the plane moved since.
-    detector : projector.detection.TagDetector, optional
+    detector : vision.detection.TagDetector, optional
         A detector to use (its ``quad_decimate`` sets speed); default: quads searched at half size, then at full
         size only if a wanted tag was not found.
-    found : list of projector.detection.FoundTag, optional
+    found : list of vision.detection.FoundTag, optional
         Detections already made on this frame (then ``image`` is only checked for its size).
 
     Raises

@@ -47,7 +47,7 @@ from scipy.stats import qmc
 from calibration.errors import CalibrationError
 from calibration.sim_runs import NO, NOT_REACHED, YES, OutcomeProblem, noisy_layouts
 from calibration.sim_trials import FitTrial
-from common.progress import Progress, ProgressCallback, Reporter
+from common.progress import Progress, Reporter
 
 _ALPHA = 0.5
 _LOG_DROP_95 = 1.920729  # half the 95 % quantile of chi-square with 1 degree of freedom
@@ -90,18 +90,15 @@ class Runner:
     ----------
     make_executor : callable, optional
         ``problem -> SimulationExecutor``; default: inline with an in-memory cache.
-    progress : callable or Reporter, optional
-        Given ``Progress("simulations", done, total)``; its cancel check is asked between batches.
-    should_stop : callable, optional
-        Passed to the executors (a stop raises their ``SimulationCancelled``).
+    report : Reporter, optional
+        Given ``Progress("simulations", done, total)``; asked between batches and by the executors between
+        simulations whether to stop (:class:`common.progress.Cancelled`).
     """
 
-    def __init__(self, make_executor: Callable[[OutcomeProblem], Any] | None = None,
-                 progress: Reporter | ProgressCallback | None = None,
-                 should_stop: Callable[[], bool] | None = None) -> None:
+    def __init__(self, make_executor: Callable[[OutcomeProblem], Any] | None = None, *,
+                 report: Reporter | None = None) -> None:
         self.make_executor = make_executor or _inline_executor
-        self.report = Reporter.of(progress)
-        self.should_stop = should_stop
+        self.report = Reporter.of(report)
         self.total = 0
         self.done = 0
         self._executors: dict[str, Any] = {}
@@ -123,7 +120,7 @@ class Runner:
                                       f"{self.done}/{max(self.total, self.done)} simulations"))
 
         before = executor.n_cache_hits
-        out = executor.run(U, on_result=arrived, should_stop=self.should_stop)
+        out = executor.run(U, on_result=arrived, report=self.report)
         hits = executor.n_cache_hits - before
         if hits:
             arrived(hits)

@@ -23,6 +23,7 @@ from calibration.errors import CalibrationError
 from calibration.sim_fit import Runner
 from calibration.sim_runs import YES, OutcomeProblem, noisy_layouts, wilson_interval
 from design.contraption.model import Scenario
+from design.contraption.validation import with_physics
 
 
 @dataclass(frozen=True)
@@ -62,7 +63,8 @@ def attempts_of(probability: float, interval: tuple[float, float]) -> tuple[floa
 def predict_success(scenario: Scenario, layout: np.ndarray, *, values: Mapping[str, float] | None = None,
                     intervals: Mapping[str, tuple[float, float]] | None = None, position_sigma_m: float = 0.001,
                     angle_sigma_deg: float = 1.0, samples: int = 200, seed: int = 0,
-                    run: Runner | None = None, unmeasured: Collection[str] = ()) -> PhysicalPrediction:
+                    run: Runner | None = None, unmeasured: Collection[str] = (),
+                    set_sigma: Mapping[str, float] | None = None) -> PhysicalPrediction:
     """Estimate the physical success probability of ``layout`` (real units) by simulation.
 
     Parameters
@@ -76,7 +78,11 @@ def predict_success(scenario: Scenario, layout: np.ndarray, *, values: Mapping[s
     position_sigma_m, angle_sigma_deg : float
         The placement error (one standard deviation).
     unmeasured : collection of str, optional
-        Design parameters no check measured: their error is at least the unchecked one (1 mm, 1 degree).
+        Design parameters no check measured: their error is how they were set (``set_sigma``), else at least the
+        unchecked one (1 mm, 1 degree).
+    set_sigma : mapping, optional
+        ``{parameter: standard deviation}`` (real units) of the error of how the guide told the maker to set each
+        (:func:`calibration.sim_runs.placement_sigma`).
     samples, seed : int
         Simulations, and the seed of their placement errors and material draws.
     run : Runner, optional
@@ -90,10 +96,10 @@ def predict_success(scenario: Scenario, layout: np.ndarray, *, values: Mapping[s
     spread = {k: v for k, v in (intervals or {}).items() if k in centres and v[1] > v[0]}
     names = list(spread)
     ranges = {k: uncertain[k][1] if k in uncertain else (0.0, max(2.0 * centres[k], 1.0)) for k in names}
-    base = scenario.with_physics({k: v for k, v in centres.items() if k not in spread})
+    base = with_physics(scenario, {k: v for k, v in centres.items() if k not in spread})
     rng = np.random.default_rng(seed)
     layouts = noisy_layouts(scenario, np.asarray(layout, dtype=float), samples, position_sigma_m, angle_sigma_deg, rng,
-                           unmeasured)
+                           unmeasured, set_sigma)
     thetas = np.empty((samples, len(names)))
     for j, name in enumerate(names):
         lo, hi = spread[name]

@@ -27,6 +27,7 @@ import numpy as np
 from design.contraption.model import Scenario
 from design.contraption.schema import ANGLE_KEYS
 from design.contraption.simulation import SIMULATOR_CACHE_REVISION
+from design.contraption.validation import scenario_from_data, with_physics
 
 YES, NO, NOT_REACHED = 1.0, 0.0, -1.0
 #: The export format's words for the codes.
@@ -41,8 +42,6 @@ DEFAULT_ANGLE_SIGMA_DEG = 1.0
 def widened(scenario: Scenario, factor: float = WIDEN) -> Scenario:
     """``scenario`` with every design range widened by ``factor`` range widths on each side (same names, same
     order, same physics), so layouts a little outside the designed ranges can be simulated."""
-    from design.contraption.validation import scenario_from_data
-
     if scenario.data is None:  # pragma: no cover - scenarios are loaded from data
         raise ValueError(f"{scenario.source}: the scenario was built without its content")
     data = dict(scenario.data)
@@ -134,9 +133,7 @@ class OutcomeProblem:
 
     def _base(self) -> Scenario:
         if self._scenario is None:
-            from design.contraption.validation import scenario_from_data
-
-            scenario = scenario_from_data(self._data, file=self._file).with_physics(self._base_overrides)
+            scenario = with_physics(scenario_from_data(self._data, file=self._file), self._base_overrides)
             self._scenario = widened(scenario)
         return self._scenario
 
@@ -148,7 +145,7 @@ class OutcomeProblem:
         if scenario is None:
             if len(self._by_values) > 32:
                 self._by_values.clear()
-            scenario = self._base().with_physics(dict(zip(self.physics, key)))
+            scenario = with_physics(self._base(), dict(zip(self.physics, key)))
             self._by_values[key] = scenario
         return scenario
 
@@ -189,24 +186,28 @@ def residual_sigma(check: Mapping | None) -> tuple[float, float]:
 
 
 def placement_sigma(scenario: Scenario, position_sigma_m: float, angle_sigma_deg: float,
-                    unmeasured: Collection[str] = ()) -> np.ndarray:
+                    unmeasured: Collection[str] = (), set_sigma: Mapping[str, float] | None = None) -> np.ndarray:
     """One standard deviation per design parameter (real units, design order): ``position_sigma_m`` on x, y, z and
-    ``angle_sigma_deg`` on heading, pitch and roll, and at least the unchecked defaults on the ``unmeasured`` ones
-    (a check's residual error says nothing of a parameter it did not measure)."""
+    ``angle_sigma_deg`` on heading, pitch and roll, and on the ``unmeasured`` ones (a check's residual error says
+    nothing of a parameter it did not measure) the error of how each was set, ``set_sigma[name]`` (real units: how
+    the guide told the maker to set it), else at least the unchecked defaults."""
     names = scenario.design_space.names
     angle = np.array([name.rsplit(".", 1)[1] in ANGLE_KEYS for name in names])
     unseen = np.array([name in unmeasured for name in names], dtype=bool)
     measured = np.where(angle, angle_sigma_deg, position_sigma_m)
     unchecked = np.where(angle, max(angle_sigma_deg, DEFAULT_ANGLE_SIGMA_DEG),
                          max(position_sigma_m, DEFAULT_POSITION_SIGMA_M))
+    if set_sigma:
+        unchecked = np.array([float(set_sigma.get(name, default)) for name, default in zip(names, unchecked)])
     return np.where(unseen, unchecked, measured).astype(float)
 
 
 def noisy_layouts(scenario: Scenario, layout: np.ndarray, n: int, position_sigma_m: float, angle_sigma_deg: float,
-                  rng: np.random.Generator, unmeasured: Collection[str] = ()) -> np.ndarray:
+                  rng: np.random.Generator, unmeasured: Collection[str] = (),
+                  set_sigma: Mapping[str, float] | None = None) -> np.ndarray:
     """``n`` placements of ``layout`` (real units) with Gaussian errors (:func:`placement_sigma`). Shape
     ``(n, d)``."""
-    sigma = placement_sigma(scenario, position_sigma_m, angle_sigma_deg, unmeasured)
+    sigma = placement_sigma(scenario, position_sigma_m, angle_sigma_deg, unmeasured, set_sigma)
     return np.asarray(layout, dtype=float)[None, :] + rng.standard_normal((n, len(sigma))) * sigma[None, :]
 
 

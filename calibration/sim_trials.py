@@ -1,4 +1,4 @@
-"""Logged physical trials (the trial log's JSON export, issue 20's contract) as the data of simulator calibration.
+"""Logged physical trials (the trial log's JSON export, a public format) as the data of simulator calibration.
 
 A trial of the export (``{"format": "chaos-station trials", "version": 1, "trials": [...]}``) names its scenario
 with the content that was built (``scenario.content``), the layout as designed and as built (from a check, when one

@@ -1,12 +1,16 @@
-"""One progress type for every long piece of work: design computations, device jobs and station services.
+"""One progress type and one way to report and cancel, for every long piece of work: design computations, device
+jobs and station services.
 
-A long function takes ``progress: ProgressCallback | None`` and calls it with a :class:`Progress` (or a subclass
-that adds typed fields of its own, e.g. a GRBL job's lines or a robust run's CV accuracy). It takes
-``cancelled: CancelCheck | None`` to be asked, between units of work, whether to stop. :class:`Reporter` bundles
-the two so the work itself reads as ``report("grid", i, n, "radii 3/7")``.
+A long function takes one keyword, ``report: Reporter | None = None``, and starts with
+``report = Reporter.of(report)``. It tells how it goes with ``report("grid", i, n, "radii 3/7")`` (or
+``report.emit(...)`` with a subclass of :class:`Progress` that adds typed fields of its own, e.g. a GRBL job's
+lines or a robust run's CV accuracy), and at each safe point between units of work ``report.check()``; both raise
+:class:`Cancelled` once the reporter's stop check says so. Without a reporter the work reports to nobody and runs
+to its end.
 
-Front ends turn it into pictures: the CLI with rich's progress bars (:mod:`station.progress_view`), the TUI with a
-Textual ``ProgressBar``. Nothing here prints: a library that writes to stderr would garble a TUI.
+Front ends make the reporter: the CLI with rich's progress bars (:mod:`station.progress_view`) and a stop on Ctrl-C,
+the TUI with a Textual ``ProgressBar`` and a Stop button. Nothing here prints: a library that writes to stderr would
+garble a TUI.
 
 Examples
 --------
@@ -15,12 +19,20 @@ Examples
 >>> report("build", 1, 4, "machine 1 of 4")
 >>> seen[0].fraction
 0.25
+>>> stopping = Reporter(stop=lambda: True)
+>>> try:
+...     stopping("build", 2, 4)
+... except Cancelled as stop:
+...     print(stop)
+stopped on request
 """
 
 from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
 
 
 @dataclass(frozen=True)
@@ -53,49 +65,92 @@ class Progress:
 
 
 ProgressCallback = Callable[[Progress], None]
-CancelCheck = Callable[[], bool]
 
 
 class Cancelled(RuntimeError):
-    """The work was asked to stop (its cancel check returned True) and stopped between two units of work."""
+    """The work was asked to stop and stopped between two units of work.
+
+    The one stop exception of the whole tree. It is a RuntimeError so that a caller that only guards against
+    failures still sees a stop as the work not finishing.
+
+    Parameters
+    ----------
+    message : str
+        What stopped and what was kept, for a person.
+    new_simulations : int
+        Simulations the stopped work made; they are kept in ``cache`` (0 for work that simulates nothing).
+    cache : Path, optional
+        The simulation cache that keeps them.
+    partial : object, optional
+        What the work had done when it stopped, when it can hand that back (a loop run's log).
+    """
+
+    def __init__(self, message: str = "stopped on request", *, new_simulations: int = 0,
+                 cache: Path | None = None, partial: Any = None) -> None:
+        super().__init__(message)
+        self.new_simulations = new_simulations
+        self.cache = cache
+        self.partial = partial
+
+
+def _no_stop() -> bool:
+    return False
 
 
 class Reporter:
-    """A progress callback and a cancel check in one, both optional.
+    """Where long work says how it goes, and asks whether to stop.
 
     Parameters
     ----------
     callback : ProgressCallback, optional
         Called with each :class:`Progress`; None reports to nobody.
-    cancelled : CancelCheck, optional
-        Asked by :meth:`check` (and after each report); True makes the work raise :class:`Cancelled`.
+    stop : callable, optional
+        ``stop()`` True asks the work to stop: :meth:`check` (and every report) then raises :class:`Cancelled`.
+        None never stops.
     """
 
-    def __init__(self, callback: ProgressCallback | None = None, cancelled: CancelCheck | None = None) -> None:
+    def __init__(self, callback: ProgressCallback | None = None, *, stop: Callable[[], bool] | None = None) -> None:
         self.callback = callback
-        self.cancelled = cancelled
+        self._stop = stop if stop is not None else _no_stop  # private: `report.stop()` would read as an order
 
     @classmethod
-    def of(cls, progress: Reporter | ProgressCallback | None = None,
-           cancelled: CancelCheck | None = None) -> Reporter:
-        """A reporter from whatever a caller passed: a reporter (kept), a callback, or None."""
-        if isinstance(progress, Reporter):
-            if cancelled is not None and progress.cancelled is None:
-                return cls(progress.callback, cancelled)
-            return progress
-        return cls(progress, cancelled)
+    def of(cls, report: Reporter | ProgressCallback | None) -> Reporter:
+        """The reporter a function was given: itself; None: one that reports to nobody and never stops; a bare
+        progress callback: a reporter on it that never stops."""
+        if isinstance(report, Reporter):
+            return report
+        if report is not None and not callable(report):
+            raise TypeError(f"report must be a Reporter, a progress callback or None, got {type(report).__name__}")
+        return cls(report)
+
+    @property
+    def stopping(self) -> bool:
+        """Whether a stop was asked for (without raising: for work that must tidy up before it stops)."""
+        return bool(self._stop())
 
     def __call__(self, stage: str, done: float = 0, total: float | None = None, message: str = "") -> None:
-        """Report a plain :class:`Progress`, then honour the cancel check."""
+        """Report a plain :class:`Progress`, then honour a stop."""
         self.emit(Progress(stage, done, total, message))
 
     def emit(self, progress: Progress) -> None:
-        """Report ``progress`` (any subclass), then honour the cancel check."""
+        """Report ``progress`` (any subclass), then honour a stop."""
         if self.callback is not None:
             self.callback(progress)
         self.check()
 
+    def tell(self, progress: Progress) -> None:
+        """Report ``progress`` without asking to stop: for a callback that runs where raising would lose work (a
+        worker's result arriving) or on a thread that is not the work's."""
+        if self.callback is not None:
+            self.callback(progress)
+
     def check(self) -> None:
-        """Raise :class:`Cancelled` if the cancel check says so."""
-        if self.cancelled is not None and self.cancelled():
+        """Raise :class:`Cancelled` if a stop was asked for."""
+        if self._stop():
             raise Cancelled("stopped on request")
+
+    def mapped(self, change: Callable[[Progress], Progress]) -> Reporter:
+        """A reporter with this one's stop whose progress reaches this one's callback through ``change`` (work
+        called by other work, its progress said in the caller's words)."""
+        callback = self.callback
+        return Reporter(None if callback is None else (lambda progress: callback(change(progress))), stop=self._stop)

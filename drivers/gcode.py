@@ -1,27 +1,17 @@
-"""G-code for GRBL machines: a writer for plot jobs from plain numpy polylines, and a small parser.
+"""The G-code GRBL machines speak, read: a small parser of the programs the station sends.
 
-Writer
-------
-:func:`write_plot_gcode` writes polylines (``(n, 2)`` arrays in work millimetres) to a text stream with pen
-up/down (or laser on/off) commands and feeds from :class:`WriterOptions`. :func:`fit_polylines` scales and centres
-polylines on a box (the paper), :func:`simplify_polylines` reduces the vertex count within a tolerance (Douglas-Peucker,
-by shapely), both plain numpy in, numpy out.
-
-Parser
-------
 :func:`clean_line` strips comments and whitespace the way GRBL does; :func:`tokenize` splits a block into words;
 :func:`interpret` runs the modal state machine over a program and returns a :class:`Toolpath` (segments with their
 line index, rapid or feed, feed rate and spindle power) used for job pre-flight (extent), ETA estimates, resume from
-line N (modal state) and by tests to read a job back.
+line N (modal state), previews (:func:`drawn_polylines`) and by tests to read a job back. Writing programs (tool
+paths) is :mod:`cam`'s.
 """
-
 from __future__ import annotations
 
 import math
 import re
-from collections.abc import Iterable, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass, field, replace
-from typing import TextIO
 
 import numpy as np
 
@@ -42,14 +32,11 @@ __all__ = [
     "ModalState",
     "Toolpath",
     "WorkOffsets",
-    "WriterOptions",
     "clean_line",
     "drawn_polylines",
-    "fit_polylines",
+    "format_number",
     "interpret",
-    "simplify_polylines",
     "tokenize",
-    "write_plot_gcode",
 ]
 
 
@@ -89,162 +76,10 @@ def tokenize(block: str) -> list[tuple[str, float]]:
             from None
 
 
-def _fmt(value: float, precision: int = 3) -> str:
+def format_number(value: float, precision: int = 3) -> str:
+    """``value`` as a G-code number: at most ``precision`` decimals, no trailing zeros, never ``-0``."""
     text = f"{value:.{precision}f}".rstrip("0").rstrip(".")
     return "0" if text in ("-0", "", "-") else text
-
-
-# ----------------------------------------------------------------------------------------------------------- writer
-
-
-@dataclass(frozen=True)
-class WriterOptions:
-    """How :func:`write_plot_gcode` writes a job.
-
-    Parameters
-    ----------
-    draw_feed, travel_feed : float
-        Feeds (mm/min) for drawing moves (``G1``) and travels. Travels use ``G0`` (the machine's rapid rate) unless
-        ``travel_with_g1`` is set, then ``G1`` at ``travel_feed``.
-    pen_up, pen_down : sequence of str
-        Lines that lift / lower the pen (or switch the laser off / on). For a laser in laser mode these are usually
-        empty and ``header`` holds ``M4 S<power>``: ``G0`` travels are dark in laser mode.
-    header, footer : sequence of str
-        Lines before the first / after the last polyline (after the final pen up).
-    precision : int
-        Decimals of coordinates.
-    home_at_end : bool
-        Travel back to X0 Y0 at the end.
-    comment : str
-        A first comment line (``(...)``); empty for none.
-    """
-
-    draw_feed: float = 3000.0
-    travel_feed: float = 6000.0
-    pen_up: Sequence[str] = ("M3 S50", "G4 P0.15")
-    pen_down: Sequence[str] = ("M3 S30", "G4 P0.15")
-    header: Sequence[str] = ("G21", "G90", "G94")
-    footer: Sequence[str] = ()
-    precision: int = 3
-    home_at_end: bool = True
-    travel_with_g1: bool = False
-    comment: str = ""
-
-    @classmethod
-    def from_profile(cls, profile, **overrides) -> WriterOptions:
-        """Options for a :class:`drivers.profiles.MachineProfile`: pen commands for a plotter; for a laser, dark
-        ``G0`` travels in laser mode with ``M4 S<power>`` (``overrides['power']``, a fraction, default 0.3)."""
-        power = overrides.pop("power", 0.3)
-        base = {"draw_feed": profile.plot.draw_feed, "travel_feed": profile.plot.travel_feed}
-        if profile.kind == "laser":
-            s_value = _fmt(power * profile.laser.max_power, 1)
-            base.update(pen_up=(), pen_down=(), header=("G21", "G90", "G94", f"M4 S{s_value}"), footer=("M5 S0",))
-        else:
-            base.update(pen_up=tuple(profile.pen.up_commands()), pen_down=tuple(profile.pen.down_commands()))
-        base.update(overrides)
-        return cls(**base)
-
-
-def write_plot_gcode(polylines: Iterable[np.ndarray], stream: TextIO, options: WriterOptions | None = None) -> int:
-    """Write polylines as a G-code job to ``stream``.
-
-    Parameters
-    ----------
-    polylines : iterable of (n, 2) arrays
-        Work coordinates in mm. Polylines with fewer than 2 points are skipped.
-    stream : text stream
-    options : WriterOptions
-
-    Returns
-    -------
-    int
-        Number of lines written.
-    """
-    options = options or WriterOptions()
-    p = options.precision
-    lines: list[str] = []
-    if options.comment:
-        lines.append(f"({options.comment})")
-    lines.extend(options.header)
-    lines.extend(options.pen_up)
-    travel = "G1" if options.travel_with_g1 else "G0"
-    travel_feed = f" F{_fmt(options.travel_feed, p)}" if options.travel_with_g1 else ""
-    for polyline in polylines:
-        points = np.asarray(polyline, dtype=float)
-        if points.ndim != 2 or points.shape[1] != 2:
-            raise GcodeError(f"polyline must be an (n, 2) array, got shape {points.shape}")
-        if len(points) < 2:
-            continue
-        if not np.all(np.isfinite(points)):
-            raise GcodeError("polyline has non-finite coordinates")
-        x0, y0 = points[0]
-        lines.append(f"{travel} X{_fmt(x0, p)} Y{_fmt(y0, p)}{travel_feed}")
-        lines.extend(options.pen_down)
-        first = True
-        for x, y in points[1:]:
-            feed = f" F{_fmt(options.draw_feed, p)}" if first else ""
-            lines.append(f"G1 X{_fmt(x, p)} Y{_fmt(y, p)}{feed}")
-            first = False
-        lines.extend(options.pen_up)
-    if options.home_at_end:
-        lines.append(f"{travel} X0 Y0{travel_feed}")
-    lines.extend(options.footer)
-    for line in lines:
-        stream.write(line + "\n")
-    return len(lines)
-
-
-def fit_polylines(
-    polylines: Sequence[np.ndarray], box: tuple[float, float, float, float], size: float | None = None
-) -> list[np.ndarray]:
-    """Scale (uniformly) and centre polylines on ``box = (xmin, ymin, xmax, ymax)``.
-
-    ``size`` (mm) is the largest side of the result; by default the largest that fits the box. Raises
-    :class:`GcodeError` if ``size`` does not fit or the drawing has no extent.
-    """
-    if not polylines:
-        raise GcodeError("nothing to fit: no polylines")
-    stacked = np.concatenate([np.asarray(p, dtype=float).reshape(-1, 2) for p in polylines])
-    lo, hi = stacked.min(axis=0), stacked.max(axis=0)
-    extent = hi - lo
-    if not np.all(np.isfinite(extent)) or extent.max() <= 0:
-        raise GcodeError("nothing to fit: the drawing has no extent")
-    box_size = np.array([box[2] - box[0], box[3] - box[1]])
-    fit = float(np.min(box_size / np.maximum(extent, 1e-12)))
-    scale = fit if size is None else size / extent.max()
-    if scale > fit * (1 + 1e-9):
-        raise GcodeError(
-            f"size {size:g} mm does not fit the drawable area {box_size[0]:g} x {box_size[1]:g} mm "
-            f"(largest side at most {fit * extent.max():.1f} mm)"
-        )
-    centre_in = (lo + hi) / 2
-    centre_out = np.array([(box[0] + box[2]) / 2, (box[1] + box[3]) / 2])
-    return [(np.asarray(p, dtype=float).reshape(-1, 2) - centre_in) * scale + centre_out for p in polylines]
-
-
-def simplify_polylines(polylines: Sequence[np.ndarray], tolerance: float) -> list[np.ndarray]:
-    """Douglas-Peucker simplification (shapely) of each polyline: every removed vertex lies within ``tolerance``
-    (mm) of the simplified path; endpoints are kept, so closed polylines stay closed."""
-    from shapely import LineString
-
-    out = []
-    for polyline in polylines:
-        points = np.asarray(polyline, dtype=float).reshape(-1, 2)
-        if len(points) < 3 or tolerance <= 0:
-            out.append(points.copy())
-            continue
-        keep = np.ones(len(points), dtype=bool)
-        keep[1:] = np.any(np.abs(np.diff(points, axis=0)) > 0, axis=1)  # drop repeated points first
-        points = points[keep]
-        if len(points) < 3:
-            out.append(points)
-            continue
-        simplified = LineString(points).simplify(tolerance, preserve_topology=False)
-        coords = np.asarray(simplified.coords)
-        if len(coords) < 2:  # degenerate closed ring: keep a minimal path
-            coords = points[[0, len(points) // 2, -1]]
-        out.append(coords)
-    return out
 
 
 # ----------------------------------------------------------------------------------------------------------- parser
@@ -346,20 +181,20 @@ class ModalState:
         if self.offsets_used:
             lines.append("G92.1")  # start from the offsets a reset leaves, whatever the machine had
             if self.tlo:
-                lines.append(f"G43.1 Z{_fmt(self.tlo / unit)}")
+                lines.append(f"G43.1 Z{format_number(self.tlo / unit)}")
         if self.position_known:
             # with G92 cleared the position reads shifted by it; G92 then makes it read as the program's again
             x, y, z = (self.position + g92) / unit
-            lines.append(f"G0 X{_fmt(x)} Y{_fmt(y)}" + (f" Z{_fmt(z)}" if g92[2] else ""))
+            lines.append(f"G0 X{format_number(x)} Y{format_number(y)}" + (f" Z{format_number(z)}" if g92[2] else ""))
             if np.any(g92):
-                lines.append("G92 " + " ".join(f"{name}{_fmt(self.position[i] / unit)}"
+                lines.append("G92 " + " ".join(f"{name}{format_number(self.position[i] / unit)}"
                                                for i, name in enumerate("XYZ") if g92[i]))
         if self.spindle in (3, 4):
-            lines.append(f"M{self.spindle} S{_fmt(self.power)}")
+            lines.append(f"M{self.spindle} S{format_number(self.power)}")
         else:
-            lines.append(f"M5 S{_fmt(self.power)}")
+            lines.append(f"M5 S{format_number(self.power)}")
         if self.feed > 0:
-            lines.append(f"F{_fmt(self.feed / unit)}")
+            lines.append(f"F{format_number(self.feed / unit)}")
         if not self.absolute:
             lines.append("G91")
         return lines
@@ -409,14 +244,6 @@ class Toolpath:
             return None
         points = np.concatenate([self.start[mask], self.end[mask]])
         return points.min(axis=0), points.max(axis=0)
-
-    def durations(self, rapid_rate: float = 6000.0) -> np.ndarray:
-        """Estimated seconds per line at the commanded feeds (no acceleration), dwells included."""
-        lengths = np.linalg.norm(self.end - self.start, axis=1)
-        feed = np.where(self.rapid | ~np.isfinite(self.feed) | (self.feed <= 0), rapid_rate, self.feed)
-        per_line = np.zeros(len(self.dwell))
-        np.add.at(per_line, self.line, lengths / feed * 60.0)
-        return per_line + self.dwell
 
     def offset_lines(self) -> list[int]:
         """0-based lines that moved the work coordinates (the ``shift`` of the state after them changed)."""

@@ -1,53 +1,36 @@
-"""Plot jobs of several layers, one pen each: the writer, and the reader of the layer marks it leaves in the G-code.
+"""The layer marks of a plot job of several layers, one pen each, read back from its G-code.
 
-A layered job is one G-code program: the header, then per layer a mark comment, for every layer after the first the
-pen change (a message comment and the profile's pen-change lines, ``M0`` by default: GRBL's program pause), and the
-layer's polylines with its own feed. GRBL ignores comments; the station reads them back (:func:`layer_marks`) to say
-which layer a line belongs to, which pen to put in at a pause, and where a layer starts (resume from a layer)::
+A layered job (written by :mod:`cam.layers`) is one G-code program: the header, then per layer a mark comment, for
+every layer after the first the pen change (a message comment and the profile's pen-change lines, ``M0`` by default:
+GRBL's program pause), and the layer's polylines with its own feed. GRBL ignores comments; the station reads them
+back (:func:`layer_marks`) to say which layer a line belongs to, which pen to put in at a pause, and where a layer
+starts (resume from a layer)::
 
     (layer 2/3 "hatch": pen "red 0.5 mm" #d62728)
     (pen change: put in pen "red 0.5 mm" for layer 2/3 "hatch", then resume)
     G0 X0 Y0
     M0
 
-The comments stay short (GRBL counts a line's characters without its comments, but some senders do not).
+The mark's form lives here, beside its reader (:func:`mark_line`). The comments stay short (GRBL counts a line's
+characters without its comments, but some senders do not).
 """
-
 from __future__ import annotations
 
 import re
 from collections.abc import Sequence
-from dataclasses import dataclass, field, replace
-from typing import TextIO
+from dataclasses import dataclass, replace
 
-import numpy as np
+from drivers.gcode import GcodeError, clean_line, tokenize
 
-from drivers.gcode import GcodeError, WriterOptions, clean_line, tokenize, write_plot_gcode
-
-__all__ = ["LayerMark", "PenLayer", "layer_at", "layer_marks", "pause_lines", "write_layers_gcode"]
-
-#: The pen-change lines when a profile names none: GRBL's program pause (cycle start ``~`` resumes).
-DEFAULT_PEN_CHANGE = ("M0",)
+__all__ = ["LayerMark", "layer_at", "layer_marks", "mark_line", "pause_lines", "safe_comment"]
 
 _MARK = re.compile(r'^\(layer (\d+)/(\d+) "([^"]*)": pen "([^"]*)" (#[0-9a-fA-F]{6})\)\s*$')
 _UNSAFE = re.compile(r'[()";\r\n]+')
 
 
-def _safe(text: str, limit: int = 40) -> str:
+def safe_comment(text: str, limit: int = 40) -> str:
     """A name as it can stand in a G-code comment: no parentheses, quotes, semicolons or line breaks."""
     return " ".join(_UNSAFE.sub(" ", str(text)).split())[:limit] or "-"
-
-
-@dataclass(frozen=True)
-class PenLayer:
-    """One layer of a plot: its name, the pen that draws it (what the maker puts in, and its colour for previews),
-    its polylines (``(n, 2)`` work mm) and its drawing feed (mm/min; None: the writer's)."""
-
-    name: str
-    pen: str
-    color: str = "#000000"
-    polylines: Sequence[np.ndarray] = field(default_factory=tuple)
-    draw_feed: float | None = None
 
 
 @dataclass(frozen=True)
@@ -73,52 +56,9 @@ class LayerMark:
                 "color": self.color, "line": self.line + 1}
 
 
-def write_layers_gcode(layers: Sequence[PenLayer], stream: TextIO, options: WriterOptions | None = None,
-                       pen_change: Sequence[str] = DEFAULT_PEN_CHANGE) -> int:
-    """Write ``layers`` as one job: ``options``' header, each layer's mark, a pen change before every layer after the
-    first (a message comment, then ``pen_change``'s lines), the layer's polylines with its feed, the footer.
-
-    ``pen_change`` empty writes no pause (a laser has no pen to change). Returns the number of lines written.
-    """
-    options = options or WriterOptions()
-    count = len(layers)
-    if count == 0:
-        raise GcodeError("nothing to write: no layers")
-    for line in pen_change:
-        tokenize(clean_line(line))  # a bad macro line is refused before any G-code is written
-    written = 0
-    for index, layer in enumerate(layers):
-        name, pen = _safe(layer.name), _safe(layer.pen)
-        mark = f'(layer {index + 1}/{count} "{name}": pen "{pen}" {_color(layer.color)})'
-        head: list[str] = [options.comment and f"({options.comment})", *options.header, *options.pen_up] \
-            if index == 0 else []
-        head = [line for line in head if line]
-        head.append(mark)
-        if index > 0 and pen_change:
-            head.append(f'(pen change: put in pen "{pen}" for layer {index + 1}/{count} "{name}", then resume)')
-            head.extend(pen_change)
-        for line in head:
-            stream.write(line + "\n")
-        written += len(head)
-        last = index == count - 1
-        body = replace(options, comment="", header=(), pen_up=options.pen_up, home_at_end=last and options.home_at_end,
-                       footer=options.footer if last else (),
-                       draw_feed=layer.draw_feed if layer.draw_feed is not None else options.draw_feed)
-        written += _write_body(layer.polylines, stream, body)
-    return written
-
-
-def _write_body(polylines, stream: TextIO, options: WriterOptions) -> int:
-    """The polylines of one layer: :func:`write_plot_gcode` without its opening pen lift (the pen is up already)."""
-    import io
-
-    buffer = io.StringIO()
-    write_plot_gcode(polylines, buffer, options)
-    lines = buffer.getvalue().splitlines()
-    lines = lines[len(options.pen_up):]  # write_plot_gcode lifts the pen first: it is up since the last layer
-    for line in lines:
-        stream.write(line + "\n")
-    return len(lines)
+def mark_line(number: int, count: int, name: str, pen: str, color: str) -> str:
+    """The mark comment of layer ``number`` of ``count``, as :func:`layer_marks` reads it back."""
+    return f'(layer {number}/{count} "{safe_comment(name)}": pen "{safe_comment(pen)}" {_color(color)})'
 
 
 def _color(text: str) -> str:

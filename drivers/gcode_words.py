@@ -1,6 +1,6 @@
 """The words of a G-code block and the geometry of its arcs, shared by the G-code reader and the simulated GRBL.
 
-:mod:`drivers.gcode` (the job writer's reader: pre-flight, ETA, resume) and :mod:`drivers.sim.grbl_gcode` (the
+:mod:`drivers.gcode` (the job writer's reader: pre-flight, ETA, resume) and :mod:`drivers.sim.grbl.gcode` (the
 simulated controller) read the same blocks. What they share lives here: removing comments, splitting a block into
 ``(letter, value)`` words one at a time, and an arc's centre, sweep and chord points. What differs stays with each:
 the reader raises :class:`drivers.gcode.GcodeError` naming the column, the simulated controller answers with GRBL's

@@ -23,6 +23,7 @@ import numpy as np
 
 from projector.errors import ProjectorError
 from projector.guide import REFERENCE_TAG_IDS, Guide, GuidePlane, ReferenceTag
+from projector.pdf_marks import BOLD, FONT, INK, draw_scale_bar, draw_tag
 from projector.tiling import PAPERS, PRINTABLE_MM
 
 __all__ = ["BOARD_GAP_MM", "BOARD_TAG_IDS", "BOARD_TAG_MM", "SideBoard", "side_board", "write_board_pdf"]
@@ -125,8 +126,6 @@ def write_board_pdf(board: SideBoard, path: str | PathLike, title: str = "") -> 
     how to stand it."""
     from reportlab.lib.units import mm
     from reportlab.pdfgen.canvas import Canvas
-
-    from projector.pdf import BOLD, FONT, INK, draw_scale_bar, draw_tag
 
     w, h = board.sheet_mm
     canvas = Canvas(str(path), pagesize=(w * mm, h * mm))

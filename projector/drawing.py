@@ -19,6 +19,7 @@ from shapely.geometry.base import BaseGeometry
 
 from projector.guide import Guide, GuidePlane, ParameterTolerance, PartDrawing
 from projector.parameters import off_plane_text
+from vision.tags import TAG_CELLS, tag_cells
 
 __all__ = ["CARE_COLORS", "Label", "arc_points", "arrow", "care_color", "hatch_segments", "heading_length",
            "must_move", "off_sheet_word", "placement_deltas", "place_labels", "polygons", "tag_black_rects", "tag_box",
@@ -212,8 +213,6 @@ def tag_black_rects(tag_id: int, center: tuple[float, float], size_mm: float) ->
     """The black cells of an unturned tag at ``center`` (its black square ``size_mm`` across), as rectangles
     ``(u0, v0, u1, v1)`` in guide mm, one per run of black cells in a row: neighbouring cells drawn as one shape
     leave no hairline seam between them."""
-    from projector.tags import TAG_CELLS, tag_cells
-
     cells = tag_cells(tag_id)
     cell = size_mm / 8
     left, top = center[0] - cell * TAG_CELLS / 2, center[1] + cell * TAG_CELLS / 2

@@ -13,7 +13,7 @@ Step frame ``k`` (1-based, the guide's assembly order): part ``k`` bright, with 
 swept over +-delta in u and v, and an arc of +-delta about its heading, coloured by its care level), its heading
 arrow, the square where its tag goes, its name and step number; the parts of steps before ``k`` dimmed (static parts
 bluish); the later parts not drawn. The reference tags on request. The calibrate frame shows the four reference tags
-(tag36h11, in the upstream orientation of :mod:`projector.tags`) at their guide-plane positions over a millimetre
+(tag36h11, in the upstream orientation of :mod:`vision.tags`) at their guide-plane positions over a millimetre
 grid, for the camera to find.
 """
 
@@ -28,7 +28,7 @@ from projector.drawing import arc_points, placement_deltas, tolerance_zone
 from projector.errors import ProjectorError
 from projector.guide import Guide, GuidePlane, PartDrawing, PartKind, ReferenceTag, where_text
 from projector.parameters import off_plane_text
-from projector.tags import TAG_CELLS, tag_image
+from vision.tags import TAG_CELLS, tag_image
 
 __all__ = ["Frames", "fit_homography", "render_calibrate", "render_frames", "render_step", "step_caption"]
 

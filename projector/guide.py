@@ -26,7 +26,6 @@ __all__ = [
     "Elevation",
     "FIRST_REFERENCE_TAG",
     "REFERENCE_TAG_IDS",
-    "TAG_FAMILY",
     "Guide",
     "GuidePage",
     "GuidePlane",
@@ -41,8 +40,6 @@ __all__ = [
     "where_word",
 ]
 
-#: The AprilTag family of every tag the station prints (upstream tag36h11, ids 0..586).
-TAG_FAMILY = "tag36h11"
 #: The reference tags take the top of the family, so they never clash with part tags (numbered from 0).
 REFERENCE_TAG_IDS = (583, 584, 585, 586)
 FIRST_REFERENCE_TAG = REFERENCE_TAG_IDS[0]

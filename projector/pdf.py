@@ -29,20 +29,18 @@ from projector.drawing import (
     place_labels,
     placement_deltas,
     polygons,
-    tag_black_rects,
     tag_box,
     tolerance_zone,
 )
 from projector.guide import Guide, GuidePage, PartDrawing, PartKind
-from projector.tags import tag_cells
+from projector.pdf_lists import draw_lists
+from projector.pdf_marks import BOLD, FONT, INK, SCALE_BAR_MM, draw_scale_bar, draw_tag
 from projector.tiling import OVERLAP_MM, SheetFormat, grid_shape, page_format, tile
+from vision.tags import tag_cells
 
-__all__ = ["write_pdf", "SCALE_BAR_MM"]
+__all__ = ["write_pdf"]
 
-SCALE_BAR_MM = 100.0
-FONT, BOLD = "Helvetica", "Helvetica-Bold"
 GRID_LIGHT, GRID_DARK = 0.86, 0.68  # grey levels of the 10 mm and 50 mm lines
-INK = (0.0, 0.0, 0.0)
 ARROW_COLOR = (0.1, 0.25, 0.65)
 STATIC_FILL = 0.86
 JIG_FILL, JIG_EDGE = (0.96, 0.91, 0.82), (0.55, 0.35, 0.15)  # a laser-cut jig's footprint: light wood, brown edge
@@ -76,8 +74,6 @@ def write_pdf(guide: Guide, stream_or_path: BinaryIO | str | PathLike, *, paper:
         ``guide`` with its ``pages`` (the sheets, in the PDF's order; the lists follow them).
     """
     from reportlab.pdfgen import canvas as pdfcanvas
-
-    from projector.pdf_lists import draw_lists
 
     guide = tile(guide, paper, orientation=orientation, overlap_mm=overlap_mm)
     title = title if title is not None else f"{guide.scenario} \u2013 {guide.view} view"
@@ -332,16 +328,6 @@ def _heading(canvas, guide: Guide, part: PartDrawing) -> None:
             _polyline(canvas, [centre + (end - centre) * 0.85, end + (end - centre) * 0.08])
 
 
-def draw_tag(canvas, tag_id: int, center, size_mm: float) -> None:
-    """A decodable tag from :func:`~projector.tags.tag_cells`: black square ``size_mm`` on a white border."""
-    half = size_mm * 10 / 8 / 2
-    canvas.setFillColorRGB(1.0, 1.0, 1.0)
-    canvas.rect(center[0] - half, center[1] - half, 2 * half, 2 * half, stroke=0, fill=1)
-    canvas.setFillColorRGB(*INK)
-    for u0, v0, u1, v1 in tag_black_rects(tag_id, center, size_mm):
-        canvas.rect(u0, v0, u1 - u0, v1 - v0, stroke=0, fill=1)
-
-
 def _part_tag(canvas, part: PartDrawing) -> None:
     """Where the part's tag goes: its square's outline, its data cells in light grey, its id and first corner.
 
@@ -487,21 +473,6 @@ def _footer(canvas, guide: Guide, page: GuidePage, fmt: SheetFormat, title: str)
     canvas.drawString(fx0 + 33.0, fy1 - 12.5, "print at actual size (100 %),")
     canvas.drawString(fx0 + 33.0, fy1 - 15.5, "not \u201cfit to page\u201d; units: mm")
     draw_scale_bar(canvas, fx1 - SCALE_BAR_MM, fy0 + 3.0)
-
-
-def draw_scale_bar(canvas, x: float, y: float) -> None:
-    """The 100 mm bar (solid black, 2.5 mm tall) from ``(x, y)``, ticks every 10 mm, and what to check."""
-    canvas.setFillColorRGB(*INK)
-    canvas.rect(x, y, SCALE_BAR_MM, 2.5, stroke=0, fill=1)
-    for k in range(11):  # ticks inside the bar's length, so they never lengthen it
-        tx = min(max(x + 10.0 * k - 0.15, x), x + SCALE_BAR_MM - 0.3)
-        canvas.rect(tx, y + 2.5, 0.3, 1.8 if k % 5 == 0 else 1.0, stroke=0, fill=1)
-    canvas.setFont(FONT, 2.2)
-    canvas.drawString(x, y - 2.6, "0")
-    canvas.drawCentredString(x + 50.0, y - 2.6, "50")
-    canvas.drawRightString(x + SCALE_BAR_MM, y - 2.6, "100 mm")
-    canvas.setFont(BOLD, 2.8)
-    canvas.drawString(x, y + 6.0, "check: this bar must measure 100 mm")
 
 
 def _page_map(canvas, guide: Guide, page: GuidePage, area, columns: int, rows: int) -> None:

@@ -11,6 +11,7 @@ from xml.sax.saxutils import escape
 
 from projector.drawing import CARE_COLORS, tolerance_axes
 from projector.guide import Guide, where_text
+from projector.pdf_marks import draw_scale_bar
 from projector.tiling import FOOTER_MM, PRINTABLE_MM, grid_shape, sheet_format
 
 __all__ = ["SOURCE_TEXT", "draw_lists", "tolerance_source_text"]
@@ -187,8 +188,6 @@ def draw_lists(canvas, guide: Guide, steps: list[str], title: str) -> int:
     """Draw the parts list, the steps and the tolerances on as many portrait pages as they take; their count."""
     from reportlab.lib.units import mm
     from reportlab.platypus import Frame
-
-    from projector.pdf import draw_scale_bar
 
     fmt = sheet_format(guide.pages[0].paper if guide.pages else "a4", "portrait")
     width, height = fmt.size_mm

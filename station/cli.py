@@ -21,21 +21,14 @@ import textwrap
 import threading
 from collections.abc import Sequence
 
-from calibration.errors import CalibrationError
-from design.errors import DesignError
-from drivers.errors import DriverError
-from projector.errors import ProjectorError
+import station.commands as package
 from station import __version__
-from station.errors import StationError
-
-#: Errors that are the user's input or the world's state, not a bug: one line on stderr, exit 2.
-USER_ERRORS = (DesignError, DriverError, CalibrationError, ProjectorError, StationError)
+from station.config import configured_devices
+from station.errors import USER_ERRORS
 
 
 def command_modules() -> list[str]:
     """Names of the modules in :mod:`station.commands`, sorted for a stable help text."""
-    import station.commands as package
-
     return sorted(
         f"{package.__name__}.{info.name}"
         for info in pkgutil.iter_modules(package.__path__)
@@ -149,20 +142,20 @@ def main(argv: Sequence[str] | None = None) -> int:
     previous = _stop_cleanly_on_sigterm()
     try:
         return int(args.func(args) or 0)
-    except USER_ERRORS as error:
-        print(f"station: error: {error}", file=sys.stderr)
-        return 2
+    except BrokenPipeError:
+        return 0
     except FileNotFoundError as error:
         print(f"station: error: no such file: {error.filename}", file=sys.stderr)
         return 2
     except (IsADirectoryError, PermissionError) as error:
         print(f"station: error: cannot use {error.filename}: {error.strerror}", file=sys.stderr)
         return 2
+    except USER_ERRORS as error:
+        print(f"station: error: {error}", file=sys.stderr)
+        return 2
     except KeyboardInterrupt:
         print("station: interrupted", file=sys.stderr)
         return 130
-    except BrokenPipeError:
-        return 0
     finally:
         if previous is not None:
             signal.signal(signal.SIGTERM, previous)
@@ -185,8 +178,7 @@ def _stop_cleanly_on_sigterm():
 
 def run_tui() -> int:
     """Start the Textual app on the station's devices (its config file, else all simulated) and local SQLite."""
-    from station.config import configured_devices
-    from station.tui.app import StationApp
+    from station.tui.app import StationApp  # heavy: rich, textual
 
     StationApp(devices=configured_devices()).run()
     return 0

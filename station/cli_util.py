@@ -12,10 +12,9 @@ from collections.abc import Callable, Iterable
 from pathlib import Path
 from typing import Any, TextIO
 
-from design.datafiles import load_json
-from design.errors import FileFormatError
-from station.errors import UsageError
-from station.services.errors import ServiceError
+from station.errors import ServiceError, UsageError
+from station.jsonable import to_jsonable
+from station.services.designs import load_design
 
 
 def parse_assignments(items: Iterable[str] | None, option: str = "--set") -> dict[str, float]:
@@ -99,26 +98,6 @@ def flag_error(error: ServiceError, flags: dict[str, str] | None = None) -> Usag
     return UsageError(message)
 
 
-def to_jsonable(value: Any) -> Any:
-    """Convert numpy scalars and arrays, tuples, paths and dataclass-like objects to plain JSON values."""
-    try:
-        import numpy as np
-    except ImportError:  # pragma: no cover
-        np = None
-    if np is not None:
-        if isinstance(value, np.ndarray):
-            return value.tolist()
-        if isinstance(value, np.generic):
-            return value.item()
-    if isinstance(value, dict):
-        return {str(k): to_jsonable(v) for k, v in value.items()}
-    if isinstance(value, (list, tuple)):
-        return [to_jsonable(v) for v in value]
-    if isinstance(value, Path):
-        return str(value)
-    return value
-
-
 def emit_json(obj: Any, stream: TextIO | None = None) -> None:
     """Print ``obj`` as JSON on one line (stdout by default)."""
     stream = stream or sys.stdout
@@ -133,11 +112,6 @@ def output_suffix(path: str | Path, allowed: Iterable[str]) -> str:
     if suffix not in allowed:
         raise UsageError(f"output file {str(path)!r}: expected one of {', '.join(allowed)}, got {suffix or 'none'!r}")
     return suffix
-
-
-#: What a ``--design`` file should be, the end of the message for a file that is not JSON.
-DESIGN_FILE = ('a design: what `station pattern --json` prints, {"params": {...}}, {name: value} or the list of '
-               '`station retrieve --json`')
 
 
 def add_design_options(parser) -> None:
@@ -157,41 +131,6 @@ def design_parameters(args, machine_name: str) -> dict[str, Any]:
     params = load_design(args.design, machine_name) if args.design else {}
     params.update(parse_assignments(args.set))
     return params
-
-
-def load_design(path: str | Path, machine_name: str) -> dict[str, Any]:
-    """Parameters from a design file: ``{"machine": ..., "params": {...}}`` (what ``--json`` prints), a flat
-    ``{name: value}`` mapping, or a ranked list of designs (what ``station retrieve --json`` prints), from which the
-    first one for ``machine_name`` is taken.
-
-    Raises
-    ------
-    FileFormatError
-        Not JSON (:func:`design.datafiles.load_json`'s one line: file, line and column, what was expected), not an
-        object or list, ``params`` not an object, a ``machine`` other than ``machine_name``, or a
-        list with no design for ``machine_name``.
-    """
-    path = Path(path)
-    document = load_json(path, DESIGN_FILE)
-    if isinstance(document, list):
-        ranked = [d for d in document if isinstance(d, dict) and d.get("machine") == machine_name]
-        if not ranked:
-            found = sorted({str(d.get("machine")) for d in document if isinstance(d, dict)})
-            raise FileFormatError(f"{path}: expected a list of designs with one for {machine_name!r}, "
-                                  f"found machines {found}")
-        document = ranked[0]
-    if not isinstance(document, dict):
-        raise FileFormatError(f"{path}: expected a JSON object, got {type(document).__name__}")
-    if "params" in document:
-        machine = document.get("machine", machine_name)
-        if machine != machine_name:
-            raise FileFormatError(f"{path}: field 'machine' is {machine!r}, but the command draws {machine_name!r}")
-        params = document["params"]
-        if not isinstance(params, dict):
-            raise FileFormatError(f"{path}: field 'params' must be an object of name: value, got {params!r:.60}")
-    else:
-        params = document
-    return dict(params)
 
 
 def check_output_folder(path: str | Path, option: str = "--out", contents: str = "the output files") -> Path:

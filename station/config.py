@@ -44,8 +44,9 @@ from urllib.parse import parse_qs, urlsplit
 
 from common.datafiles import parse_toml
 from design.contraption.fields import Checker, describe, join_path
+from station.db_url import parse_url
 from station.devices import GRBL_KINDS, REGISTRY_KIND, DeviceEntry, default_devices
-from station.errors import ConfigError
+from station.errors import ConfigError, StationError
 from station.paths import data_dir
 
 CONFIG_VARIABLE = "CHAOS_STATION_CONFIG"
@@ -194,9 +195,6 @@ def database_from_text(text: str, file: str = "<text>", folder: Path | None = No
 
     ``url`` is a PostgreSQL URL (``postgresql://USER:PASSWORD@HOST/DB``), ``sqlite:///PATH`` or a file path.
     """
-    from station.db import parse_url
-    from station.errors import StationError
-
     data = parse_toml(text.encode("utf-8"), file, "a station config ([[devices]] tables)",
                       error=lambda detail: ConfigError(detail, file))
     check = _ConfigChecker(file)

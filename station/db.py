@@ -37,9 +37,11 @@ from collections.abc import Callable, Iterator, Sequence
 from contextlib import contextmanager
 from pathlib import Path
 from typing import Any, TypeVar
-from urllib.parse import urlsplit, urlunsplit
 
+from station.config import load_config
+from station.db_url import parse_url, redact
 from station.errors import StationError
+from station.paths import database_path
 
 #: The environment variable that names the station database (a URL or a SQLite file path).
 DATABASE_VARIABLE = "CHAOS_STATION_DATABASE"
@@ -146,7 +148,7 @@ _TRIALS = """
 """
 MIGRATIONS.append(_TRIALS.format(serial="INTEGER PRIMARY KEY AUTOINCREMENT"))
 
-#: The station loop (4, issue 21; :mod:`station.loopstore`): a run of ``station loop`` is keyed by its arguments
+#: The station loop (migration 4; :mod:`station.loopstore`): a run of ``station loop`` is keyed by its arguments
 #: (``run_key``: a second run with the same ones resumes it); each loop keeps the layout it placed (LAYOUT.json text)
 #: and the physics profile it was optimized and predicted with; each attempt its logged trial, its predicted success
 #: and the check rounds it took (loop 0: the baseline), written in the trial's own transaction. Optimized layouts
@@ -309,8 +311,6 @@ def _migrate_sqlite(connection: sqlite3.Connection, where: str) -> None:
 
 # -- URLs ----------------------------------------------------------------------------------------------------------
 def default_database_path() -> Path:
-    from station.paths import database_path
-
     return database_path()
 
 
@@ -320,44 +320,8 @@ def database_url() -> str:
     chosen = os.environ.get(DATABASE_VARIABLE, "").strip()
     if chosen:
         return chosen
-    from station.config import load_config
-
     configured = load_config().database
     return configured or f"sqlite:///{default_database_path()}"
-
-
-def redact(url: str) -> str:
-    """``url`` without its password, for messages and listings."""
-    parts = urlsplit(url)
-    if parts.password is None:
-        return url
-    host = parts.hostname or ""
-    if parts.port is not None:
-        host += f":{parts.port}"
-    return urlunsplit(parts._replace(netloc=f"{parts.username or ''}:***@{host}"))
-
-
-def parse_url(url: str) -> tuple[str, str]:
-    """``(dialect, target)``: ``("sqlite", file path)`` or ``("postgresql", a libpq URI)``.
-
-    Raises
-    ------
-    StationError
-        A URL of another database (``mysql://``), naming what is accepted.
-    """
-    text = url.strip()
-    scheme, sep, rest = text.partition("://")
-    if not sep or len(scheme) < 2:  # a plain path (C:\\... has a one-letter "scheme")
-        return "sqlite", str(Path(text).expanduser())
-    scheme = scheme.lower()
-    if scheme == "sqlite":
-        if not rest.startswith("/") or rest == "/":
-            raise StationError(f"database URL {text!r}: expected sqlite:///PATH (three slashes, then the file)")
-        return "sqlite", str(Path(rest[1:]).expanduser())
-    if scheme.split("+")[0] in ("postgresql", "postgres"):
-        return "postgresql", "postgresql://" + rest
-    raise StationError(f"database URL {redact(text)!r}: expected postgresql://USER:PASSWORD@HOST/DB, "
-                       "sqlite:///PATH or a file path")
 
 
 # -- connections ---------------------------------------------------------------------------------------------------

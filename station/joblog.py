@@ -10,10 +10,14 @@ from __future__ import annotations
 import json
 import os
 import sqlite3
+import threading
 from collections.abc import Callable
 from dataclasses import dataclass
 from datetime import datetime, timezone
+from pathlib import Path
 from typing import Any
+
+from station.db import BUSY_SECONDS, open_database
 
 #: The ``kind`` column by job mode: the job itself, its frame (bounding box traced), a dry run in check mode.
 JOB_KINDS = {"run": "run", "frame": "frame", "dry": "dry run"}
@@ -100,7 +104,8 @@ class JobLog:
     """Start and finish job rows in an open station database (see :func:`station.db.open_database`).
 
     The history never stops a job: with ``connection=None`` every call does nothing, and a database error (locked,
-    read-only, disk full) is passed to ``on_error`` once and the record is skipped.
+    read-only, disk full) is passed to ``on_error`` once and the record is skipped. The calls are serialized, so a
+    log opened with :meth:`open_shared` may be written from any thread (a job is sent from a worker thread).
     """
 
     def __init__(self, connection: sqlite3.Connection | None,
@@ -108,12 +113,29 @@ class JobLog:
         self.connection = connection
         self.on_error = on_error
         self._warned = False
+        self._lock = threading.RLock()
+
+    @classmethod
+    def open_shared(cls, path: str | Path, on_error: Callable[[Exception], None] | None = None) -> JobLog:
+        """The job history of the station database at ``path`` on a connection of its own that every thread may use
+        (the database made or migrated first, as :func:`station.db.open_database` does); :meth:`close` it."""
+        open_database(path).close()
+        connection = sqlite3.connect(path, timeout=BUSY_SECONDS, check_same_thread=False)
+        connection.execute("PRAGMA foreign_keys = ON")
+        return cls(connection, on_error)
+
+    def close(self) -> None:
+        """Close the connection (a log from :meth:`open_shared`)."""
+        with self._lock:
+            if self.connection is not None:
+                self.connection.close()
+                self.connection = None
 
     def _write(self, statement: str, values: tuple) -> int:
         if self.connection is None:
             return 0
         try:
-            with self.connection:
+            with self._lock, self.connection:
                 return int(self.connection.execute(statement, values).lastrowid or 0)
         except sqlite3.Error as error:
             if self.on_error is not None and not self._warned:
@@ -125,7 +147,8 @@ class JobLog:
         if self.connection is None or not job_id:
             return {}
         try:
-            row = self.connection.execute("SELECT detail FROM jobs WHERE id = ?", (job_id,)).fetchone()
+            with self._lock:
+                row = self.connection.execute("SELECT detail FROM jobs WHERE id = ?", (job_id,)).fetchone()
             return json.loads(row[0]) if row and row[0] else {}
         except (sqlite3.Error, json.JSONDecodeError):
             return {}
@@ -144,6 +167,10 @@ class JobLog:
         a multi-pen plot it stands on (:meth:`drivers.gcode_layers.LayerMark.to_dict`)."""
         if not job_id:
             return
+        with self._lock:  # read and written back whole
+            self._record_progress(job_id, lines_acked, resume_line, layer)
+
+    def _record_progress(self, job_id: int, lines_acked: int, resume_line: int | None, layer: dict | None) -> None:
         detail = self._detail(job_id)
         detail["lines_acked"] = int(lines_acked)
         if resume_line is not None:
@@ -178,10 +205,8 @@ class JobLog:
         """The latest ``limit`` jobs, newest first."""
         if self.connection is None:
             return []
-        rows = self.connection.execute(
-            "SELECT id, kind, device, status, created_at, finished_at, detail FROM jobs ORDER BY id DESC LIMIT ?",
-            (int(limit),),
-        ).fetchall()
+        with self._lock:
+            rows = self._rows(limit)
         records = []
         for job_id, kind, device, status, created, finished, text in rows:
             try:
@@ -198,3 +223,9 @@ class JobLog:
                 layer=detail.get("layer") if isinstance(detail.get("layer"), dict) else None,
             ))
         return records
+
+    def _rows(self, limit: int) -> list[tuple]:
+        return self.connection.execute(
+            "SELECT id, kind, device, status, created_at, finished_at, detail FROM jobs ORDER BY id DESC LIMIT ?",
+            (int(limit),),
+        ).fetchall()

@@ -57,7 +57,7 @@ class LoopStore:
     Parameters
     ----------
     url : str, optional
-        The database (:func:`station.db.parse_url`); default :func:`station.db.database_url`.
+        The database (:func:`station.db_url.parse_url`); default :func:`station.db.database_url`.
     """
 
     def __init__(self, url: str | None = None) -> None:

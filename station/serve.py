@@ -32,11 +32,9 @@ import shlex
 import socket
 import stat
 import sys
-from collections.abc import Callable
 from pathlib import Path
-from typing import Any
 
-from station.errors import ConfigError
+from station.errors import ConfigError, StationError
 
 #: Hosts served without a token: the loopback addresses the issue names (127.0.0.2 is loopback too, but a station
 #: bound there is treated as exposed: only these two are "local").
@@ -173,8 +171,6 @@ def tls_context(cert: str, key: str):
     """
     import ssl
 
-    from station.errors import StationError
-
     context = ssl.SSLContext(ssl.PROTOCOL_TLS_SERVER)
     context.minimum_version = ssl.TLSVersion.TLSv1_2
     try:
@@ -210,14 +206,3 @@ def _outward_address() -> str:
             return probe.getsockname()[0]
     except OSError:
         return ""
-
-
-def make_server(host: str, port: int, token: str | None, *, command: str | None = None,
-                say: Callable[[str], Any] = print, ssl_context=None):
-    """A :class:`textual_serve.server.Server` for the station with the guard described in this module.
-
-    Imported lazily: ``textual_serve`` and ``aiohttp`` are only needed by ``station serve``.
-    """
-    from station.serve_http import StationServer
-
-    return StationServer(command or app_command(), host, port, token, say=say, ssl_context=ssl_context)

@@ -1,7 +1,8 @@
 """The web server of ``station serve``: textual-serve's :class:`~textual_serve.server.Server` with a guard in front
 of every route (see :mod:`station.serve` for what it lets through and why).
 
-Kept apart from :mod:`station.serve` so that the token and its file can be used and tested without aiohttp.
+Kept apart from :mod:`station.serve` (the guard's rules, the token and its file) so that those can be used and tested
+without aiohttp; ``station serve`` imports this module only when it starts a server.
 """
 
 from __future__ import annotations
@@ -23,6 +24,7 @@ from station.serve import (
     SESSION_STOP_WAIT,
     TOKEN_COOKIE,
     TOKEN_PARAMETER,
+    app_command,
     bare_host,
     log,
     origin_matches,
@@ -243,3 +245,9 @@ class StationServer(Server):
             logger.addHandler(handler)
         web.run_app(self._make_app(), host=self.host, port=self.port, access_log=None, print=self.listening,
                     handle_signals=True, shutdown_timeout=SESSION_STOP_WAIT + 5, ssl_context=self.ssl_context)
+
+
+def make_server(host: str, port: int, token: str | None, *, command: str | None = None,
+                say: Callable[[str], Any] = print, ssl_context=None):
+    """A :class:`textual_serve.server.Server` for the station with the guard described in :mod:`station.serve`."""
+    return StationServer(command or app_command(), host, port, token, say=say, ssl_context=ssl_context)

@@ -28,7 +28,7 @@ from typing import Any, TextIO
 
 from design.contraption.model import Scenario
 from design.errors import DesignError
-from station.services.errors import ServiceError
+from station.errors import ServiceError
 
 #: The export's ``format`` and ``version`` (CONTRACT20: h20fit's calibration reads it).
 FORMAT, VERSION = "chaos-station trials", 1

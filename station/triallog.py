@@ -23,7 +23,7 @@ from datetime import datetime, timezone
 from typing import Any
 
 from station.db import Database, Transaction, database_url
-from station.services.errors import ServiceError
+from station.errors import ServiceError
 from station.trialformat import text_hash
 
 #: Trial ids are 64-bit integers in both databases (SQLite's INTEGER, PostgreSQL's BIGINT).
@@ -62,7 +62,7 @@ class TrialStore:
     Parameters
     ----------
     url : str, optional
-        The database (see :func:`station.db.parse_url`); default :func:`station.db.database_url`.
+        The database (see :func:`station.db_url.parse_url`); default :func:`station.db.database_url`.
     database : Database, optional
         An open database to use instead (not closed by :meth:`close`).
     """

@@ -8,7 +8,7 @@ Public API (used by the robust-layout helper and the station)::
     scenario.content_hash                  # sha256 of the canonical content (cache key)
     scenario.events                        # event names, file order
     scenario.uncertain_parameters()        # {"wood.friction": (0.6, (0.3, 0.9))}: what simulator calibration fits
-    scenario.with_physics({"wood.friction": 0.42})   # other material values (validated; another content hash)
+    with_physics(scenario, {"wood.friction": 0.42})  # other material values (validated; another content hash)
     problems = check_validity(scenario, x) # [] means physically valid
     clearances(scenario, x)                # signed margins per close pair / rope (>= 0: valid), for optimizers
     layout = resolve_layout("success", scenario)   # or a file: LAYOUT.json, {"x": [...]}, {"parameters": {...}}
@@ -27,7 +27,7 @@ _SOURCES = {
     "layout_io": ("LoadedLayout", "layout_from_data", "load_layout", "read_layout", "resolve_layout"),
     "scenario": (
         "EVENTS", "PRIMITIVES", "DesignSpace", "EventSpec", "ObjectSpec", "Scenario", "Settings", "Transform",
-        "load_scenario", "scenario_from_data",
+        "load_scenario", "scenario_from_data", "with_physics",
     ),
     "simulation": (
         "ASLEEP", "AWAKE", "FAILURE", "SUCCESS", "Clearance", "EventOutcome", "SimulationResult", "Simulator",
@@ -68,4 +68,5 @@ __all__ = [
     "resolve_layout",
     "scenario_from_data",
     "simulate",
+    "with_physics",
 ]

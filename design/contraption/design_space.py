@@ -6,16 +6,11 @@ heading, pitch, roll, whatever the order of the file's ``ranges`` table.
 
 from __future__ import annotations
 
-from collections.abc import Iterable, Mapping
-from typing import TYPE_CHECKING
+from collections.abc import Mapping
 
 import numpy as np
 
 from design.contraption.errors import LayoutError
-from design.contraption.schema import TRANSFORM_KEYS
-
-if TYPE_CHECKING:
-    from design.contraption.model import ObjectSpec
 
 
 class DesignSpace:
@@ -95,17 +90,3 @@ class DesignSpace:
             if not lo - slack <= value <= hi + slack:
                 raise LayoutError(f"{what}: {name} = {value:g} is outside its range [{lo:g}, {hi:g}]")
         return x
-
-
-def design_space_of(objects: Iterable[ObjectSpec]) -> DesignSpace:
-    """The design space of validated objects: each ranged component, its bounds and the transform's value."""
-    names, lower, upper, default = [], [], [], []
-    for obj in objects:
-        for key in TRANSFORM_KEYS:
-            if key in obj.ranges:
-                lo, hi = obj.ranges[key]
-                names.append(f"{obj.name}.{key}")
-                lower.append(lo)
-                upper.append(hi)
-                default.append(getattr(obj.transform, key))
-    return DesignSpace(names, lower, upper, default)

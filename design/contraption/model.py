@@ -189,9 +189,11 @@ class Scenario:
     source: str = "<data>"
     #: Material name -> {parameter -> MaterialValue}, file order (see :mod:`design.contraption.materials`).
     materials: Mapping[str, Mapping[str, MaterialValue]] = field(default_factory=dict)
-    #: The parsed file content it was built from (what :meth:`with_physics` rewrites); None if not kept.
+    #: The parsed file content it was built from (what :func:`~design.contraption.validation.with_physics`
+    #: rewrites); None if not kept.
     data: Mapping[str, Any] | None = field(default=None, repr=False)
-    #: The material values :meth:`with_physics` set, ``{"wood.friction": 0.42}`` (empty: the file's own).
+    #: The material values :func:`~design.contraption.validation.with_physics` set, ``{"wood.friction": 0.42}``
+    #: (empty: the file's own).
     physics_overrides: Mapping[str, float] = field(default_factory=dict)
 
     def physics_parameters(self) -> dict[str, float]:
@@ -203,32 +205,6 @@ class Scenario:
         simulator calibration fits."""
         return {f"{m}.{k}": (v.value, v.range) for m, values in self.materials.items()
                 for k, v in values.items() if v.range is not None}
-
-    def with_physics(self, values: Mapping[str, float]) -> Scenario:
-        """The same scenario with other material values (``{"wood.friction": 0.42}``), validated again.
-
-        Uncertain values keep their range and must lie in it. The result's :attr:`content_hash` is that of the new
-        values (its simulations are other simulations); an empty ``values`` returns this scenario. The values set
-        are kept in :attr:`physics_overrides` (added to any set before), so a worker process that loads the file
-        again can apply them again.
-
-        Raises
-        ------
-        ScenarioFormatError
-            Naming ``physics."NAME"``: an unknown material or parameter, or a value outside its range.
-        """
-        if not values:
-            return self
-        from design.contraption.materials import data_with_physics
-        from design.contraption.validation import scenario_from_data
-
-        if self.data is None:
-            raise LayoutError(f"{self.source}: this scenario was built without its content; load it from its file")
-        data = data_with_physics(self.data, values, self.source)
-        scenario = scenario_from_data(data, file=self.source)
-        overrides = {**self.physics_overrides, **{k: float(v) for k, v in values.items()}}
-        object.__setattr__(scenario, "physics_overrides", overrides)
-        return scenario
 
     @property
     def events(self) -> tuple[str, ...]:

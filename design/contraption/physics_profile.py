@@ -36,6 +36,7 @@ from design.contraption.fields import Checker, describe
 from design.contraption.materials import split_name
 from design.contraption.model import Scenario
 from design.contraption.schema import MATERIAL_KEYS
+from design.contraption.validation import with_physics
 from design.datafiles import parse_toml
 
 FORMAT = "chaos-station physics"
@@ -215,6 +216,6 @@ def apply_profile(scenario: Scenario, profile: PhysicsProfile, file: str = "") -
         raise PhysicsProfileError(file, "values", f"none of its values ({', '.join(profile.values)}) is a material "
                                   f"value of {scenario.name!r}, which has: {have}")
     try:
-        return scenario.with_physics(values)
+        return with_physics(scenario, values)
     except ScenarioFormatError as error:
         raise PhysicsProfileError(file, error.field, str(error).split(": ", 2)[-1]) from None

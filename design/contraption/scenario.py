@@ -48,7 +48,8 @@ The code is split by topic; this module is the format's description and re-expor
 - :mod:`~design.contraption.schema`: the tables of primitives and events and the kinds of their fields;
 - :mod:`~design.contraption.model`: the frozen data (:class:`Scenario`, :class:`ObjectSpec`, ...) and the hash;
 - :mod:`~design.contraption.design_space`: :class:`DesignSpace`;
-- :mod:`~design.contraption.validation`: :func:`load_scenario`, :func:`scenario_from_data` (parsing and fields);
+- :mod:`~design.contraption.validation`: :func:`load_scenario`, :func:`scenario_from_data` (parsing and fields),
+  :func:`with_physics`;
 - :mod:`~design.contraption.graph`: references between objects and the causal graph's checks.
 
 Layout files are read by :mod:`design.contraption.layout_io`.
@@ -56,7 +57,7 @@ Layout files are read by :mod:`design.contraption.layout_io`.
 
 from __future__ import annotations
 
-from design.contraption.design_space import DesignSpace, design_space_of
+from design.contraption.design_space import DesignSpace
 from design.contraption.errors import LayoutError, ScenarioFormatError
 from design.contraption.graph import resolve_body_ref
 from design.contraption.model import (
@@ -85,7 +86,7 @@ from design.contraption.schema import (
     Param,
     Primitive,
 )
-from design.contraption.validation import load_scenario, parse_text, scenario_from_data
+from design.contraption.validation import design_space_of, load_scenario, parse_text, scenario_from_data, with_physics
 
 __all__ = [
     "ANGLE_KEYS",
@@ -118,4 +119,5 @@ __all__ = [
     "parse_text",
     "resolve_body_ref",
     "scenario_from_data",
+    "with_physics",
 ]

@@ -1,6 +1,7 @@
 """Reading a scenario file: parsing TOML or JSON, then every table and field against the schema.
 
-:func:`load_scenario` and :func:`scenario_from_data` are the only ways in. The fields are read in file order with
+:func:`load_scenario` and :func:`scenario_from_data` are the only ways in (:func:`with_physics` reads a scenario's
+content again with other material values). The fields are read in file order with
 :class:`~design.contraption.fields.Checker`, so the first bad value stops the load with one line naming the file,
 the field's path and what was expected (``t.toml: objects[3].transform.heading: expected a number, got text
 ('north')``); what needs the whole file (references, parents, the causal graph) is checked by
@@ -11,17 +12,17 @@ body references and the graph), and pydantic's messages need rewriting into this
 
 from __future__ import annotations
 
-from collections.abc import Iterator, Mapping
+from collections.abc import Iterable, Iterator, Mapping
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from design.contraption.design_space import DesignSpace, design_space_of
-from design.contraption.errors import ScenarioFormatError
+from design.contraption.design_space import DesignSpace
+from design.contraption.errors import LayoutError, ScenarioFormatError
 from design.contraption.fields import Checker
 from design.contraption.graph import check_event_graph, check_references, resolve_body_ref
-from design.contraption.materials import MaterialValue, parse_materials
+from design.contraption.materials import MaterialValue, data_with_physics, parse_materials
 from design.contraption.model import (
     EventSpec,
     ObjectSpec,
@@ -82,6 +83,46 @@ def load_scenario(path: str | Path) -> Scenario:
     raw = path.read_bytes()
     data = parse_text(raw, file, suffix)
     return scenario_from_data(data, file=file)
+
+
+def with_physics(scenario: Scenario, values: Mapping[str, float]) -> Scenario:
+    """The same scenario with other material values (``{"wood.friction": 0.42}``), read and validated again.
+
+    Uncertain values keep their range and must lie in it. The result's :attr:`~Scenario.content_hash` is that of the
+    new values (its simulations are other simulations); an empty ``values`` returns ``scenario``. The values set are
+    kept in :attr:`~Scenario.physics_overrides` (added to any set before), so a worker process that loads the file
+    again can apply them again.
+
+    Raises
+    ------
+    ScenarioFormatError
+        Naming ``physics."NAME"``: an unknown material or parameter, or a value outside its range.
+    LayoutError
+        A scenario built without its content (:attr:`~Scenario.data` None).
+    """
+    if not values:
+        return scenario
+    if scenario.data is None:
+        raise LayoutError(f"{scenario.source}: this scenario was built without its content; load it from its file")
+    data = data_with_physics(scenario.data, values, scenario.source)
+    result = scenario_from_data(data, file=scenario.source)
+    overrides = {**scenario.physics_overrides, **{k: float(v) for k, v in values.items()}}
+    object.__setattr__(result, "physics_overrides", overrides)
+    return result
+
+
+def design_space_of(objects: Iterable[ObjectSpec]) -> DesignSpace:
+    """The design space of validated objects: each ranged component, its bounds and the transform's value."""
+    names, lower, upper, default = [], [], [], []
+    for obj in objects:
+        for key in TRANSFORM_KEYS:
+            if key in obj.ranges:
+                lo, hi = obj.ranges[key]
+                names.append(f"{obj.name}.{key}")
+                lower.append(lo)
+                upper.append(hi)
+                default.append(getattr(obj.transform, key))
+    return DesignSpace(names, lower, upper, default)
 
 
 def parse_text(raw: bytes, file: str, suffix: str) -> Any:

@@ -35,7 +35,7 @@ import numpy as np
 import shapely.affinity as affinity
 from shapely.geometry import LineString, MultiPoint, Point, Polygon, box
 
-from common.progress import CancelCheck, ProgressCallback, Reporter
+from common.progress import Reporter
 from design.errors import ConstraintViolation
 from design.fabrication.catalog import FABRICABLE_MACHINES
 from design.fabrication.gears import (
@@ -381,8 +381,7 @@ _BUILDERS = {
 
 def machine_parts(machine: str, params: Mapping[str, float], scale: float,
                   settings: GearSettings | None = None, hardware: Hardware | None = None,
-                  progress: Reporter | ProgressCallback | None = None,
-                  cancelled: CancelCheck | None = None) -> list[Part]:
+                  report: Reporter | None = None) -> list[Part]:
     """The flat parts of one drawing machine at ``scale`` mm per model unit.
 
     Parameters
@@ -398,13 +397,12 @@ def machine_parts(machine: str, params: Mapping[str, float], scale: float,
         Tooth system (module, pressure angle, ...).
     hardware : Hardware, optional
         Hole and arm sizes.
-    progress : ProgressCallback or Reporter, optional
+    report : Reporter, optional
         Given a :class:`common.progress.Progress` of stage :data:`GEARS_STAGE` before each gear is generated
         (``done`` and ``total`` count teeth, the message is ``"generating <part> (<teeth> teeth)"``), and once
         more when every part is made (``done == total``). Generation takes time in proportion to the teeth
-        (seconds for a few hundred), so the teeth over :func:`part_sizes` measure the whole work.
-    cancelled : CancelCheck, optional
-        Asked after each report; True stops the work with :class:`common.progress.Cancelled` before the next gear.
+        (seconds for a few hundred), so the teeth over :func:`part_sizes` measure the whole work. A stop asked for
+        ends the work with :class:`common.progress.Cancelled` before the next gear.
 
     Raises
     ------
@@ -414,7 +412,7 @@ def machine_parts(machine: str, params: Mapping[str, float], scale: float,
         The design is infeasible, or a hole does not fit in its part at this scale.
     """
     validated, settings, hardware = checked_design(machine, params, scale, settings, hardware)
-    report = Reporter.of(progress, cancelled)
+    report = Reporter.of(report)
     total = sum(size.teeth for size in part_sizes(machine, validated, scale, settings, hardware))
     done = 0
 

@@ -3,7 +3,7 @@
 Wood and card darken where the beam passes at engraving power, and stay light elsewhere: the black cells are filled
 by straight strokes :data:`HATCH_PITCH_MM` apart (about the width a diode laser's spot darkens), each stroke one run
 of black cells along a row, so that the laser is dark between runs (a run is a separate stroke of the job). The
-white border cells stay unburnt. The cells come from the caller (``projector.tags.tag_cells``: 10 x 10, True white,
+white border cells stay unburnt. The cells come from the caller (``vision.tags.tag_cells``: 10 x 10, True white,
 row 0 the top as printed), so this module holds no tag family of its own.
 """
 

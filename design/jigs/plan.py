@@ -235,7 +235,7 @@ def plan_jigs(scenario: Scenario, x, plane, parts: Sequence[PartInput], settings
     tag_ids : iterator of int, optional
         Free AprilTag ids for the jigs, in the order to use them (none: no tags).
     tag_cells : callable, optional
-        ``tag_cells(id)``: the tag's 10 x 10 cells, True white (``projector.tags.tag_cells``).
+        ``tag_cells(id)``: the tag's 10 x 10 cells, True white (``vision.tags.tag_cells``).
     """
     transforms = scenario.transforms(x)
     frames = world_poses(scenario.objects, transforms)

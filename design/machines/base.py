@@ -13,8 +13,8 @@ Everything else (validation, violations, exact period, sampling uniform in time 
 slider bounds) is implemented once, vectorized with numpy, so a new machine is mostly its equations. The code is
 split by topic: parameters and constraints (:mod:`design.machines.parameters`), preview shapes
 (:mod:`design.machines.shapes`), arc-length sampling (:mod:`design.machines.sampling`) and slider bounds
-(:mod:`design.machines.bounds`); this module holds the class that ties them together and re-exports their names,
-so ``from design.machines.base import X`` keeps working for all of them.
+(:mod:`design.machines.bounds`); this module holds the class that ties them together and re-exports their names
+(``from design.machines.base import X`` for any of them).
 
 Conventions: lengths are in gear-radius units (the physical scale is chosen at fabrication); angles are radians;
 time ``t`` is the rotation angle of the machine's driving part, and one pattern spans ``[0, period(params)]``.
@@ -54,9 +54,6 @@ from design.machines.parameters import (
 )
 from design.machines.sampling import arclength_times
 from design.machines.shapes import Circle, Ellipse, Point, Segment, Shape, shapes_to_jsonable, xy
-
-#: The former private name of :func:`design.machines.shapes.xy`, kept for imports from this module.
-_xy = xy
 
 Spacing = Literal["time", "arclength"]
 

@@ -9,19 +9,33 @@ root where the constraints closing it are affine in the parameter.
 from __future__ import annotations
 
 from collections.abc import Callable, Mapping, Sequence
-from typing import TYPE_CHECKING, Any
+from typing import Any, Protocol
 
 import numpy as np
 
 from design.errors import ConstraintViolation, parameter_error
 from design.machines.constraints import Constraint
+from design.machines.parameters import Parameter
 
-if TYPE_CHECKING:
-    from design.machines.base import DrawingMachine
+
+class BoundedMachine(Protocol):
+    """What the interval search reads of a machine (a :class:`~design.machines.base.DrawingMachine` has it all):
+    its parameters and its constraints, nothing of how it draws."""
+
+    name: str
+
+    @property
+    def continuous_names(self) -> tuple[str, ...]: ...
+
+    def parameter(self, name: str) -> Parameter: ...
+
+    def all_constraints(self) -> tuple[Constraint, ...]: ...
+
+    def complete(self, params: Mapping[str, Any] | None) -> dict[str, float]: ...
 
 
 def feasible_interval(
-    machine: DrawingMachine, params: Mapping[str, Any] | None, name: str, *, grid: int = 257, tolerance: float = 1e-11
+    machine: BoundedMachine, params: Mapping[str, Any] | None, name: str, *, grid: int = 257, tolerance: float = 1e-11
 ) -> tuple[float, float]:
     """:meth:`DrawingMachine.feasible_interval <design.machines.base.DrawingMachine.feasible_interval>` of
     ``machine``: the method's documentation describes the algorithm, its guarantees and its errors."""

@@ -13,7 +13,7 @@ from design.lazy import lazy_exports
 _SOURCES = {
     "baselines": ("BaselineResult", "baseline_b1", "baseline_b2", "baseline_b3"),
     "budget": ("Progress",),
-    "executor": ("SimulationCache", "SimulationCancelled", "SimulationExecutor"),
+    "executor": ("SimulationCache", "SimulationExecutor"),
     "optimize": ("optimize_layout", "smooth_minimum"),
     "pipeline": ("Comparison", "RobustLayout", "compare_methods", "optimize_robust_layout"),
     "problem": ("LayoutProblem", "RobustError", "SyntheticProblem", "synthetic_branching", "synthetic_chain"),
@@ -26,7 +26,7 @@ __getattr__, __dir__, _MODULE_OF = lazy_exports(__name__, _SOURCES)
 __all__ = [
     "METHODS", "BaselineResult", "CalibratedSVM", "Comparison", "FactorizedPSP", "LayoutProblem", "PSPSettings",
     "Progress", "RobustError", "RobustLayout", "RobustnessCurve", "RobustnessSettings", "SimulationCache",
-    "SimulationCancelled", "SimulationExecutor", "SyntheticProblem", "baseline_b1", "baseline_b2", "baseline_b3",
-    "compare_methods", "evaluation_layouts", "evaluation_set", "explore", "optimize_layout", "optimize_robust_layout",
-    "robustness_curve", "smooth_minimum", "synthetic_branching", "synthetic_chain",
+    "SimulationExecutor", "SyntheticProblem", "baseline_b1", "baseline_b2", "baseline_b3", "compare_methods",
+    "evaluation_layouts", "evaluation_set", "explore", "optimize_layout", "optimize_robust_layout", "robustness_curve",
+    "smooth_minimum", "synthetic_branching", "synthetic_chain",
 ]

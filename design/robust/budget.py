@@ -7,12 +7,12 @@ learning (:mod:`design.robust.pipeline` runs the method itself).
 
 from __future__ import annotations
 
-from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
 
 from common.progress import Progress as BaseProgress
+from common.progress import Reporter
 from design.robust.executor import SimulationExecutor
 from design.robust.problem import RobustError
 from design.robust.settings import PSPSettings
@@ -59,24 +59,24 @@ class Progress(BaseProgress):
         return self.total
 
 
-ProgressCallback = Callable[[Progress], None]
-
-
 class BudgetExhausted(RobustError):
     """More simulations were requested than the budget allows (a programming error in a method)."""
 
 
 class BudgetedOracle:
-    """Counts simulations against a budget, reports progress, and runs them through an executor."""
+    """Counts simulations against a budget, reports progress, and runs them through an executor.
 
-    def __init__(self, executor: SimulationExecutor, budget: int | None, progress: ProgressCallback | None = None,
-                 should_stop: Callable[[], bool] | None = None, expected: int | None = None) -> None:
+    ``report`` receives a :class:`Progress` after every simulation and phase change, and is asked between
+    simulations whether to stop (:class:`common.progress.Cancelled`).
+    """
+
+    def __init__(self, executor: SimulationExecutor, budget: int | None, *, report: Reporter | None = None,
+                 expected: int | None = None) -> None:
         self.executor = executor
         self.budget = budget
         self.expected = expected  # shown as the total when there is no budget (e.g. an evaluation set)
         self.used = 0
-        self.progress = progress
-        self.should_stop = should_stop
+        self.reporter = Reporter.of(report)
         self.phase = "start"
         self.cv_accuracy: float | None = None
         self.best_psp: float | None = None
@@ -85,10 +85,9 @@ class BudgetedOracle:
         return self.budget - self.used if self.budget is not None else 10**9
 
     def report(self, detail: str = "") -> None:
-        if self.progress is not None:
-            total = self.budget or max(self.expected or 0, self.used)
-            self.progress(Progress(stage=self.phase, done=self.used, total=total, cv_accuracy=self.cv_accuracy,
-                                   best_psp=self.best_psp, detail=detail))
+        total = self.budget or max(self.expected or 0, self.used)
+        self.reporter.emit(Progress(stage=self.phase, done=self.used, total=total, cv_accuracy=self.cv_accuracy,
+                                    best_psp=self.best_psp, detail=detail))
 
     def __call__(self, U: np.ndarray) -> np.ndarray:
         U = np.atleast_2d(U)
@@ -100,7 +99,7 @@ class BudgetedOracle:
             self.report()
 
         start = self.used
-        events = self.executor.run(U, on_result=one_done, should_stop=self.should_stop)
+        events = self.executor.run(U, on_result=one_done, report=self.reporter)
         self.used = start + len(U)  # cache hits count too: the budget is the method's, not the machine's
         self.report()
         return events

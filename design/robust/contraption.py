@@ -12,7 +12,15 @@ from pathlib import Path
 
 import numpy as np
 
-from design.contraption import SUCCESS, Scenario, Simulator, check_validity, clearances, load_scenario
+from design.contraption import (
+    SUCCESS,
+    Scenario,
+    Simulator,
+    check_validity,
+    clearances,
+    load_scenario,
+    with_physics,
+)
 from design.contraption.simulation import SIMULATOR_CACHE_REVISION
 from design.robust.problem import RobustError
 
@@ -114,7 +122,7 @@ class ContraptionProblem:
         A scenario file (``examples/scenarios/*.toml``).
     scenario : Scenario, optional
         The already loaded scenario (saves loading it twice in the main process). Its material values set by
-        :meth:`~design.contraption.model.Scenario.with_physics` (a physics profile) are kept: workers load the file
+        :func:`~design.contraption.validation.with_physics` (a physics profile) are kept: workers load the file
         again and apply them again, and the content hash (the cache key) is that of those values.
     """
 
@@ -145,7 +153,7 @@ class ContraptionProblem:
     @property
     def scenario(self) -> Scenario:
         if self._scenario is None:
-            self._scenario = load_scenario(self.path).with_physics(self.physics)
+            self._scenario = with_physics(load_scenario(self.path), self.physics)
         return self._scenario
 
     @property
@@ -234,4 +242,4 @@ def render_layouts(problem: ContraptionProblem, layouts: list[tuple[str, np.ndar
 def load_problem(path: str | Path, physics: dict[str, float] | None = None) -> ContraptionProblem:
     """A scenario file as a robust-layout problem (errors of the file are the core's, naming file and field), with
     the material values ``physics`` (``{"wood.friction": 0.42}``) instead of the file's when given."""
-    return ContraptionProblem(path, load_scenario(path).with_physics(physics or {}))
+    return ContraptionProblem(path, with_physics(load_scenario(path), physics or {}))

@@ -10,8 +10,9 @@
   or client); each worker prepares the problem once (``prepare_worker``: a contraption's pybullet client and world)
   and keeps it for every task, and a batch goes out in a few tasks per worker (see ``chunk_size``);
 - stores each task's results as soon as they arrive (an interruption loses at most the tasks still running);
-- calls ``on_result(n_new)`` after each arrival (progress), and ``should_stop()`` between arrivals (a TUI's cancel
-  button): a stop raises :class:`SimulationCancelled`, Ctrl-C raises ``KeyboardInterrupt``; both keep the cache.
+- calls ``on_result(n_new)`` after each arrival (progress), and asks its reporter between arrivals whether to stop
+  (a TUI's Stop button): a stop raises :class:`common.progress.Cancelled`, Ctrl-C raises ``KeyboardInterrupt``;
+  both keep the cache.
 
 A problem may return numbers instead of booleans (simulator calibration wants event times): it says so with an
 ``outcome_dtype = float`` attribute and ``n_outputs`` (the length of what ``simulate`` returns); the cache stores
@@ -36,11 +37,8 @@ from pathlib import Path
 
 import numpy as np
 
+from common.progress import Reporter
 from design.robust.problem import LayoutProblem, RobustError, as_layout_batch
-
-
-class SimulationCancelled(RobustError):
-    """A run was stopped on request (``should_stop`` returned True); the cache keeps every finished simulation."""
 
 
 class SchedulerUnreachable(RobustError):
@@ -396,10 +394,15 @@ class SimulationExecutor:
         self,
         U: np.ndarray,
         on_result: Callable[[int], None] | None = None,
-        should_stop: Callable[[], bool] | None = None,
+        report: Reporter | None = None,
     ) -> np.ndarray:
         """Per-event success ``(n, n_events)`` of each normalized layout of ``U`` (all must be valid); for a problem
-        of numbers (``outcome_dtype = float``), its ``(n, n_outputs)`` numbers."""
+        of numbers (``outcome_dtype = float``), its ``(n, n_outputs)`` numbers.
+
+        ``report`` is asked between arrivals whether to stop: a stop raises :class:`common.progress.Cancelled`,
+        every finished simulation cached.
+        """
+        report = Reporter.of(report)
         U = as_layout_batch(self.problem, U)
         n_outputs = getattr(self.problem, "n_outputs", len(self.problem.event_names))
         out = np.zeros((len(U), n_outputs), dtype=outcome_dtype(self.problem))
@@ -415,7 +418,7 @@ class SimulationExecutor:
                 todo.setdefault(key, []).append(i)
         self.n_cache_hits += len(U) - sum(len(v) for v in todo.values())
         if todo:
-            for _key, rows, events in self._simulate(U, todo, should_stop, on_result):
+            for _key, rows, events in self._simulate(U, todo, report, on_result):
                 out[rows] = events
         return out
 
@@ -430,7 +433,7 @@ class SimulationExecutor:
             slots = sum(self._ensure_client().nthreads().values()) or 1
         return max(1, min(MAX_CHUNK, math.ceil(n / (slots * TASKS_PER_WORKER))))
 
-    def _simulate(self, U, todo, should_stop, on_result):
+    def _simulate(self, U, todo, report: Reporter, on_result):
         """Yield ``(key, rows, events)`` for every new layout, storing each in the cache first."""
         items = list(todo.items())
         size = self._chunk_size(len(items))
@@ -449,8 +452,7 @@ class SimulationExecutor:
                 self.problem.prepare_worker()
                 self._inline_prepared = True
             for chunk in chunks:
-                if should_stop is not None and should_stop():
-                    raise SimulationCancelled("simulations stopped on request; finished ones are cached")
+                report.check()
                 results = _outcomes(self.problem, U[[rows[0] for _, rows in chunk]])
                 yield from finish(chunk, results)
             return
@@ -478,8 +480,7 @@ class SimulationExecutor:
         pending = set(futures)
         try:
             while pending:
-                if should_stop is not None and should_stop():
-                    raise SimulationCancelled("simulations stopped on request; finished ones are cached")
+                report.check()
                 if self.backend == "processes":
                     done, pending = wait(pending, timeout=0.2, return_when=FIRST_COMPLETED)
                 else:
@@ -488,7 +489,7 @@ class SimulationExecutor:
                     try:
                         result = dask_wait(list(pending), timeout=0.5, return_when="FIRST_COMPLETED")
                     except TimeoutError:
-                        continue  # poll should_stop again
+                        continue  # ask about a stop again
                     done, pending = set(result.done), set(result.not_done)
                 for future in done:
                     try:

@@ -15,13 +15,13 @@ from dataclasses import asdict, dataclass, field
 
 import numpy as np
 
+from common.progress import Reporter
 from design.robust.baselines import baseline_b1, baseline_b2, baseline_b3
 from design.robust.budget import (  # noqa: F401 - Progress, BudgetExhausted, ... re-exported from here
     BudgetedOracle,
     BudgetExhausted,
     BudgetPlan,
     Progress,
-    ProgressCallback,
     plan_budget,
 )
 from design.robust.executor import SimulationExecutor
@@ -318,8 +318,7 @@ def optimize_robust_layout(
     budget: int | None = None,
     seed: int = 0,
     settings: PSPSettings | None = None,
-    progress: ProgressCallback | None = None,
-    should_stop: Callable[[], bool] | None = None,
+    report: Reporter | None = None,
 ) -> RobustLayout:
     """Ours: exploration, PSP (factorized by default), optimization, re-simulation, within ``budget`` simulations.
 
@@ -329,10 +328,9 @@ def optimize_robust_layout(
         Hard cap on simulations (``None``: the thesis's stopping rules only). At least 20.
     seed : int
         Seeds every random process.
-    progress : callable, optional
-        Receives :class:`Progress` after every simulation and phase change.
-    should_stop : callable, optional
-        Polled between simulations; True stops with :class:`~design.robust.executor.SimulationCancelled`.
+    report : Reporter, optional
+        Receives a :class:`Progress` after every simulation and phase change; asked between simulations whether to
+        stop (:class:`common.progress.Cancelled`).
     """
     settings = settings or PSPSettings()
     if budget is not None and (isinstance(budget, bool) or int(budget) != budget or budget < 20):
@@ -340,7 +338,7 @@ def optimize_robust_layout(
     seed = check_seed(seed)
     started = time.perf_counter()
     new_before = executor.n_simulated
-    oracle = BudgetedOracle(executor, budget, progress, should_stop)
+    oracle = BudgetedOracle(executor, budget, report=report)
     plan = plan_budget(settings, budget)
     settings, reserve = plan.settings, plan.reserve
 
@@ -475,8 +473,7 @@ def compare_methods(
     seed: int = 0,
     settings: PSPSettings | None = None,
     robustness: RobustnessSettings | None = None,
-    progress: ProgressCallback | None = None,
-    should_stop: Callable[[], bool] | None = None,
+    report: Reporter | None = None,
     on_run: Callable[[MethodRun], None] | None = None,
 ) -> Comparison:
     """Ours and the baselines at the same simulation budget over ``runs`` seeds, scored by ρ_g (thesis 4.8.3).
@@ -495,7 +492,7 @@ def compare_methods(
         raise RobustError("compare: without 'ours', give the baselines' simulation budget")
     seed = check_seed(seed)
     robustness = robustness or RobustnessSettings()
-    unbounded = BudgetedOracle(executor, None, progress, should_stop, expected=robustness.n_evaluation)
+    unbounded = BudgetedOracle(executor, None, report=report, expected=robustness.n_evaluation)
     unbounded.phase = "evaluation set"
     evaluation: EvaluationSet = evaluation_set(problem, unbounded, robustness.n_evaluation)
     results: list[MethodRun] = []
@@ -506,10 +503,10 @@ def compare_methods(
             run_seed = seed + run
             started = time.perf_counter()
             if method == "ours":
-                layout = optimize_robust_layout(problem, executor, budget, run_seed, settings, progress, should_stop)
+                layout = optimize_robust_layout(problem, executor, budget, run_seed, settings, report)
                 u, used = layout.u, layout.n_simulations
             else:
-                oracle = BudgetedOracle(executor, None, progress, should_stop)
+                oracle = BudgetedOracle(executor, None, report=report)
                 oracle.phase = f"{method} run {run + 1}/{runs}"
                 function = {"b1": baseline_b1, "b2": baseline_b2, "b3": baseline_b3}[method]
                 kwargs = {} if method == "b1" else {"settings": robustness}

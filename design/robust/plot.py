@@ -85,7 +85,7 @@ def plot_robustness(
 #: Bins of fewer layouts are drawn hollow and left off the reliability curve's line.
 MIN_BIN_COUNT = 5
 #: Colours of the compared settings in reliability plots.
-VARIANT_COLOURS = {"before": (150, 150, 150), "after": (214, 39, 40)}
+VARIANT_COLOURS = {"uncalibrated": (150, 150, 150), "recommended": (214, 39, 40)}
 
 
 def plot_reliability(panels: dict, path: str | Path, title: str = "", columns: int = 4,

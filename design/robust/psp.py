@@ -161,7 +161,7 @@ class CalibratedSVM:
         pooled out-of-fold values of all folds with one sigmoid. A weak setting (small C and γ: every point a
         support vector, a nearly flat decision function whose offset is the fold's intercept) ranks each fold
         perfectly (AUC 1) while the folds' values do not compare: pooled, they carry almost nothing and Platt
-        answers the base rate everywhere (issue 20: P = 0.5 at a tilted plank's steep end, where the block always
+        answers the base rate everywhere (P = 0.5 at a tilted plank's steep end, where the block always
         slides). The pooled log loss sees exactly that; ties keep the grid's first (most regularized) setting.
         """
         folds = self._folds()

@@ -292,11 +292,6 @@ RECOMMENDED_CHANGES = {
 }
 
 
-#: The values issue 20's calibration fixes replaced in :data:`RECOMMENDED_CHANGES`: ``PSPSettings.recommended(
-#: **RECOMMENDED_BEFORE_CALIBRATION)`` is the station's default as it was (bench/bench_psp_calibration.py's "before").
-RECOMMENDED_BEFORE_CALIBRATION = {"cv_scoring": "roc_auc", "calibrate_product": False, "subspace_check": False}
-
-
 @dataclass(frozen=True)
 class RobustnessSettings:
     """Settings of the robustness measures and baselines (thesis 4.8.3, Appendix C.3).

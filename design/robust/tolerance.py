@@ -1,4 +1,4 @@
-"""The tolerance map of a layout: how far each free parameter may be off on its own (issue 18).
+"""The tolerance map of a layout: how far each free parameter may be off on its own.
 
 For each parameter of the design space, the largest error ±delta the layout tolerates with every other parameter
 fixed while the predicted success stays at least :data:`RATIO` (90 %) of the layout's own, from the layout's fitted

@@ -28,7 +28,7 @@ from pathlib import Path
 
 import numpy as np
 
-from common.progress import CancelCheck, ProgressCallback, Reporter
+from common.progress import Reporter
 from design.errors import DesignError
 from design.sketch.distance import DEFAULT_HARMONICS, SpectrumBank, low_spectrum
 from design.sketch.errors import CandidateDatabaseError, RetrievalSettingError
@@ -53,7 +53,7 @@ class DatabaseSettings:
         Grid values per continuous parameter.
     points : int
         Points per curve (uniform in arc length) before the spectrum is taken. 512 is plenty for
-        ``harmonics`` <= 255 and samples 5-10 times faster than 1024 (the query curve keeps 1024).
+        ``harmonics`` <= 255 and samples several times faster than 1024 (the query curve keeps 1024).
     harmonics : int
         Harmonics kept per curve.
     seed : int
@@ -370,8 +370,7 @@ def curve_spectra(machine, rows: np.ndarray, points: int, harmonics: int) -> np.
 
 
 def build_database(machine, settings: DatabaseSettings | None = None,
-                   progress: Reporter | ProgressCallback | None = None,
-                   cancelled: CancelCheck | None = None) -> CandidateDatabase:
+                   report: Reporter | None = None) -> CandidateDatabase:
     """Sample a machine's candidate designs and their curves (see the module docstring).
 
     Parameters
@@ -380,13 +379,11 @@ def build_database(machine, settings: DatabaseSettings | None = None,
         The model (from :func:`design.machines.get_machine`).
     settings : DatabaseSettings, optional
         Sampling settings (:func:`default_settings` of the machine by default).
-    progress : Reporter or callable, optional
+    report : Reporter, optional
         Called with a :class:`common.progress.Progress` per radii combination (stage ``"grid"``) and per chunk of
-        curves (stage ``"curves"``).
-    cancelled : callable, optional
-        Asked between those units of work; True stops the build with :class:`common.progress.Cancelled`.
+        curves (stage ``"curves"``); a stop asked for ends the build there with :class:`common.progress.Cancelled`.
     """
-    report = Reporter.of(progress, cancelled)
+    report = Reporter.of(report)
     settings = settings or default_settings(machine.name)
     start = time.perf_counter()
     roles = radius_roles(machine)
@@ -470,8 +467,7 @@ def load_database(
     machine,
     cache_dir: str | Path | None,
     settings: DatabaseSettings | None = None,
-    progress: Reporter | ProgressCallback | None = None,
-    cancelled: CancelCheck | None = None,
+    report: Reporter | None = None,
 ) -> CandidateDatabase:
     """A machine's candidate database from the cache, built and cached first if missing or stale.
 
@@ -483,13 +479,12 @@ def load_database(
         Cache directory (the station passes ``station.paths.cache_dir()``); ``None`` builds without caching.
     settings : DatabaseSettings, optional
         Sampling settings.
-    progress : Reporter or callable, optional
+    report : Reporter, optional
         Called with a :class:`common.progress.Progress`: stage ``"build"`` when a database is to be built (no
-        total), then the stages of :func:`build_database`. A database read from the cache reports nothing.
-    cancelled : callable, optional
-        Asked while a database is built (see :func:`build_database`).
+        total), then the stages of :func:`build_database` (which stops there when asked). A database read from the
+        cache reports nothing.
     """
-    report = Reporter.of(progress, cancelled)
+    report = Reporter.of(report)
     settings = settings or default_settings(machine.name)
     if cache_dir is None:
         return build_database(machine, settings, report)

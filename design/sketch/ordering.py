@@ -23,9 +23,9 @@ from scipy.sparse.csgraph import connected_components
 
 from design.sketch.errors import SketchError
 
-#: Largest number of strokes solved exactly. Measured by ``bench_sketch`` on a 2-core machine (random strokes, the
-#: hard case): the MILP with lazy subtour cuts takes ~0.03 s up to 16 strokes, 0.1-0.4 s at 24-32, 0.8-2.5 s at
-#: 48-64; the heuristic takes 0.1-0.2 s there and its tours are 1-5 % longer.
+#: Largest number of strokes solved exactly: beyond it the MILP's time outgrows the heuristic's by far while the
+#: heuristic's tours stay within a few per cent (``bench_sketch`` measures both; the figures are in the sketch
+#: retrieval results page).
 EXACT_MAX_STROKES = 32
 #: Most strokes (symmetry copies included) a tour is computed for.
 MAX_TOUR_STROKES = 400

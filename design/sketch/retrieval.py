@@ -17,7 +17,7 @@ from typing import Any
 import numpy as np
 from scipy.optimize import minimize
 
-from common.progress import CancelCheck, ProgressCallback, Reporter
+from common.progress import Reporter
 from design.errors import DesignError
 from design.sketch.candidates import (
     CandidateDatabase,
@@ -200,12 +200,10 @@ class SketchRetriever:
         Where databases are cached (the station passes ``station.paths.cache_dir()``); ``None``: not cached.
     settings : mapping of machine name -> DatabaseSettings, optional
         Database settings per machine (defaults from :func:`default_settings`).
-    progress : Reporter or callable, optional
+    report : Reporter, optional
         Called with a :class:`common.progress.Progress` while databases are built (see
-        :func:`~design.sketch.candidates.load_database`).
-    cancelled : callable, optional
-        Asked while a database is built; True stops it with :class:`common.progress.Cancelled` (nothing is cached,
-        the next query builds it again).
+        :func:`~design.sketch.candidates.load_database`); a stop asked for ends a build with
+        :class:`common.progress.Cancelled` (nothing is cached, the next query builds it again).
     """
 
     def __init__(
@@ -213,8 +211,7 @@ class SketchRetriever:
         machines: Sequence[str] | None = None,
         cache_dir: str | Path | None = None,
         settings: Mapping[str, DatabaseSettings] | None = None,
-        progress: Reporter | ProgressCallback | None = None,
-        cancelled: CancelCheck | None = None,
+        report: Reporter | None = None,
     ) -> None:
         from design.machines import get_machine, machine_names
 
@@ -235,14 +232,14 @@ class SketchRetriever:
                 f"retrieve: every database must keep the same number of harmonics, got {harmonics}"
             )
         self.harmonics = harmonics.pop()
-        self.progress = Reporter.of(progress, cancelled)
+        self.report = Reporter.of(report)
         self._databases: dict[str, CandidateDatabase] = {}
 
     def database(self, name: str) -> CandidateDatabase:
         """The candidate database of one machine (loaded or built on first use)."""
         if name not in self._databases:
             self._databases[name] = load_database(
-                self.machines[name], self.cache_dir, self.settings[name], self.progress
+                self.machines[name], self.cache_dir, self.settings[name], self.report
             )
         return self._databases[name]
 

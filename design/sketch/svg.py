@@ -125,7 +125,7 @@ def _local(tag: str) -> str:
 def load_svg(path: Path, symmetry: int | None, center: object) -> Sketch:
     """A sketch from an SVG file: every visible shape (see the module's notes) is a stroke, in mm when the drawing's
     size has physical units, flipped to y up; the centre defaults to the drawing's page centre (see
-    :func:`design.sketch.strokes.load_sketch`)."""
+    :func:`design.sketch.files.load_sketch`)."""
     text = _read_text(path, "SVG")
     if "<!ENTITY" in text:
         raise SketchFileError(f"{path}: SVG with entity declarations is not accepted; expected a plain SVG drawing")

@@ -34,6 +34,7 @@ from drivers.gcode import GcodeError, Toolpath, WorkOffsets, interpret
 from drivers.gcode_layers import LayerMark, layer_at, layer_marks, pause_lines
 from drivers.grbl.connection import GrblConnection, StreamStopped
 from drivers.grbl.job_types import FINAL_STATES, Job, JobProgress, JobResult, frame_lines
+from drivers.grbl.planner import line_seconds
 from drivers.grbl.preflight import (
     LINE_BUFFER_SIZE,
     SPAN_WORDS,
@@ -171,8 +172,7 @@ class JobRunner:
                              offsets=WorkOffsets.from_report(conn.offsets, conn.parser_state))
         self._toolpath, self._wco = toolpath, wco
         check_placed(self.job.name, toolpath, self._origin)
-        rapid = min(conn.settings.get(110, 500.0), conn.settings.get(111, 500.0))
-        durations = toolpath.durations(rapid_rate=rapid)
+        durations = line_seconds(toolpath, self._lines, conn.settings, laser_mode=conn.laser_mode)
         self._durations = durations
         self._cumulative = np.cumsum(durations)
         checked = {"lines": len(self._lines), "estimate_s": float(durations.sum()),

@@ -63,7 +63,7 @@ import numpy as np
 from drivers.errors import SimConfigError
 from drivers.sim.shared import SharedTwins, bounded_number
 
-__all__ = ["SimulatedWorld", "forget_worlds", "parse_world_options", "sim_world", "world_named"]
+__all__ = ["SimulatedWorld", "forget_worlds", "maker_sigma", "parse_world_options", "sim_world", "world_named"]
 
 #: Sane bounds of hidden material values, by parameter (after the draw): a friction above 2 or a restitution of 1
 #: is no material on a makerspace table.
@@ -100,6 +100,21 @@ WORLD_REVISION = 2
 _PHYSICS, _PLACE, _FIX, _RUN, _SET, _GUESS, _JIG = 1, 2, 3, 4, 5, 6, 7
 
 _SHARED: SharedTwins[SimulatedWorld] = SharedTwins("world")
+
+
+def maker_sigma(how: str, highlighted: bool = False, options: Mapping[str, Any] | None = None) -> tuple[float, float]:
+    """The maker's error (standard deviations in mm and degrees) when setting something ``how`` (a guide manifest's
+    ``set_with``): with a ruler, seated on a jig, else by eye on the sheet (a ``check`` parameter too, before the
+    check's first instruction), scaled by ``highlight`` when the projector highlights the part. ``options``: a
+    world's URL options (:func:`parse_world_options`); default the defaults, the maker the station assumes when it
+    predicts."""
+    o = _DEFAULTS if options is None else options
+    if how == "ruler":
+        return o["ruler_mm"], o["ruler_deg"]
+    if how == "jig":
+        return o["jig_mm"], o["jig_deg"]
+    factor = o["highlight"] if highlighted else 1.0
+    return o["place_mm"] * factor, o["place_deg"] * factor
 
 
 def _key(text: str) -> int:
@@ -210,14 +225,9 @@ class SimulatedWorld:
 
     # -- the maker's hands --------------------------------------------------------------------------------------
 
-    def _sigma(self, how: str, factor: float) -> tuple[float, float]:
-        """The maker's error (mm, deg) when setting something ``how`` (``factor``: the highlight on by-eye work)."""
-        o = self.options
-        if how == "ruler":
-            return o["ruler_mm"], o["ruler_deg"]
-        if how == "jig":
-            return o["jig_mm"], o["jig_deg"]
-        return o["place_mm"] * factor, o["place_deg"] * factor  # sheet, and check before its first instruction
+    def _sigma(self, how: str, highlighted: bool) -> tuple[float, float]:
+        """The maker's error (mm, deg) when setting something ``how`` in this world (:func:`maker_sigma`)."""
+        return maker_sigma(how, highlighted, self.options)
 
     def place(self, parts: Sequence[Mapping], *, attempt: int, highlighted: bool = False,
               jigs: Sequence[Mapping] = (), ranges: Mapping[str, Sequence] | None = None) -> None:
@@ -249,7 +259,6 @@ class SimulatedWorld:
         instructions). Every parameter stated is also set on its own, with the error of its ``set_with``
         (:meth:`settings`): the station takes the out-of-plane ones from there, the in-plane ones from the pose.
         """
-        factor = self.options["highlight"] if highlighted else 1.0
         by_part: dict[str, Mapping] = {}
         for jig in jigs:
             by_part.setdefault(str(_field(jig, "part", self.url, "jig")), jig)
@@ -262,21 +271,21 @@ class SimulatedWorld:
             jig = by_part.get(name)
             if jig is not None:  # laid by eye over its footprint; the part seated on it
                 jig_rng = self._rng(_JIG, int(attempt), _key(str(jig.get("id", name))))
-                mm, deg = self._sigma("sheet", factor)
+                mm, deg = self._sigma("sheet", highlighted)
                 du, dv = jig_rng.normal(0.0, mm, 2)
                 dh = jig_rng.normal(0.0, deg)
-                mm, deg = self._sigma("jig", factor)
+                mm, deg = self._sigma("jig", highlighted)
                 du, dv = np.add([du, dv], rng.normal(0.0, mm, 2))
                 dh = dh + rng.normal(0.0, deg)
             else:
-                mm, deg = self._sigma("ruler" if "ruler" in in_plane else "sheet", factor)
+                mm, deg = self._sigma("ruler" if "ruler" in in_plane else "sheet", highlighted)
                 du, dv = rng.normal(0.0, mm, 2)
                 dh = rng.normal(0.0, deg)
             placed[name] = {"center_mm": [u + float(du), v + float(dv)], "heading_deg": heading + float(dh)}
             for parameter in stated:
                 if parameter["name"] in settings:
                     continue  # stated by several parts (an Empty frame's): set once
-                mm, deg = self._sigma(parameter["set_with"], factor)
+                mm, deg = self._sigma(parameter["set_with"], highlighted)
                 sigma = deg if parameter["unit"] == "deg" else mm
                 error = self._rng(_SET, int(attempt), _key(parameter["name"])).normal(0.0, sigma)
                 settings[parameter["name"]] = {"value": parameter["value"] + float(error), "unit": parameter["unit"],

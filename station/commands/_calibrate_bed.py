@@ -10,8 +10,8 @@ from pathlib import Path
 import numpy as np
 
 from station.cli_util import check_output_file, emit_json, flag_error, number
-from station.errors import UsageError
-from station.services.errors import ServiceError
+from station.errors import ServiceError, UsageError
+from station.services.reporting import Reporter
 
 BED_JSON = ('{"homography" (pixels -> machine mm), "residual_rms_mm", "residual_max_mm", "image_size", "marks_mm": '
             '[[[x, y], size]], "camera", "laser", "path", "engraved", "work_offset"}')
@@ -72,7 +72,7 @@ def run_bed(args) -> int:
         with ProgressView(sys.stderr, prefix="calibrate bed: ") as view:
             done = service.calibrate_bed(laser=args.laser, port=args.port, camera=args.camera, image=args.image,
                                          area=args.area, engrave=args.image is None and not args.no_engrave,
-                                         power=args.power, feed=args.feed, progress=view)
+                                         power=args.power, feed=args.feed, report=Reporter(view))
     except ServiceError as error:
         raise flag_error(error) from None
     if out is not None:

@@ -9,8 +9,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from station.cli_util import check_output_file, emit_json, flag_error, number
-from station.errors import UsageError
-from station.services.errors import ServiceError
+from station.errors import ServiceError, UsageError
 
 MATERIAL_JSON = ('{"card", "frame", "material", "profile", "tags_found", "tag_fit_mm", "levels", "kerf_mm", '
                  '"kerf_uncertainty_mm", "kerf_settings", "slots": [...], "cells": [{"name", "power", '
@@ -51,7 +50,7 @@ def add_material_parser(calibrate_subparsers) -> None:
 
 
 def run_material(args) -> int:
-    from station.services import lasertest as service
+    from station.services import lasertest as service  # heavy: PIL, cv2, scipy, shapely
 
     if args.image is None and args.camera is None:
         raise UsageError("give --image FRAME (a photo of the card) or --camera URL (grab one)")

@@ -10,7 +10,10 @@ from __future__ import annotations
 import sys
 
 from station.cli_util import check_output_file, emit_json, flag_error, number
-from station.services.errors import ServiceError
+from station.errors import ServiceError
+from station.progress_view import ProgressView
+from station.services import projector_calibration as service
+from station.services.reporting import Reporter
 
 __all__ = ["PROJECTOR_JSON", "add_projector_parser", "run_projector"]
 
@@ -55,15 +58,13 @@ def add_projector_parser(calibrate_subparsers) -> None:
 
 
 def run_projector(args) -> int:
-    from station.progress_view import ProgressView
-    from station.services import projector_calibration as service
-
     out = check_output_file(args.out, {".json"}, "--out") if args.out is not None else None
     try:
         with ProgressView(sys.stderr, prefix="calibrate projector: ") as view:
-            done = service.calibrate_projector(camera=args.camera, projector=args.projector, name=args.name,
-                                               plane=args.plane, intrinsics=args.intrinsics, finest_px=args.finest,
-                                               settle_s=args.settle, out=out, progress=view)
+            request = service.ProjectorCalibrationRequest(camera=args.camera, projector=args.projector, name=args.name,
+                                                          plane=args.plane, intrinsics=args.intrinsics,
+                                                          finest_px=args.finest, settle_s=args.settle, out=out)
+            done = service.calibrate_projector(request, report=Reporter(view))
     except ServiceError as error:
         raise flag_error(error) from None
     if args.json:

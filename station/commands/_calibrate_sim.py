@@ -10,8 +10,9 @@ import sys
 
 from station.cli_util import NON_NEGATIVE, check_output_file, emit_json, flag_error
 from station.commands.robust import _where, add_workers, command
-from station.errors import UsageError
-from station.services.errors import ServiceError
+from station.errors import ServiceError, UsageError
+from station.services.contraption import open_scenario
+from station.services.robust import check_seed
 
 #: The flags of the service's fields where they are not ``--`` + the field.
 FLAGS = {"trials_json": "--trials-json"}
@@ -76,10 +77,8 @@ def run_calibrate_sim(args) -> int:
 
 
 def _calibrate_sim(args) -> int:
-    from calibration.sim_fit import FitSettings
+    # heavy: design.contraption.simulation, pybullet, scipy, shapely
     from station.services import sim_calibration as service
-    from station.services.contraption import open_scenario
-    from station.services.robust import check_seed
 
     check_seed(args.seed)
     if args.physics is not None:
@@ -96,10 +95,12 @@ def _calibrate_sim(args) -> int:
         trials, source = args.trials_source(), "the trial log"
     else:
         raise UsageError("--trials-json EXPORT.json is required (this station has no trial log wired in)")
-    result = service.calibrate_sim(scenarios, trials, params=params, n_trials=args.trials,
-                                   settings=FitSettings(draws=args.draws, seed=args.seed,
-                                                        prior_width=args.prior_width or None), progress=args.bar,
-                                   source=source, every_material=args.all_materials, **_where(args))
+    where = _where(args)
+    settings = service.FitSettings(draws=args.draws, seed=args.seed, prior_width=args.prior_width or None)
+    request = service.SimCalibrationRequest(tuple(params) if params else None, args.trials, settings, source,
+                                            args.all_materials, workers=where["workers"],
+                                            scheduler=where["scheduler"])
+    result = service.calibrate_sim(scenarios, trials, request, report=where["report"])
     args.bar.close()
     if args.out is not None:
         service.save(result, args.out)

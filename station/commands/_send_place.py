@@ -1,29 +1,25 @@
 """``station send --place X,Y,ANGLE`` and ``--verify``: the job placed on the stock, and run on the GRBL twin at
-virtual time before it is sent. The work is :mod:`drivers.gcode_place` and :mod:`station.services.job_verify`;
-this module adds the options to ``station send``'s parser and applies them (the underscore keeps it from being
-discovered as a command of its own)."""
+virtual time before it is sent. The work is :func:`station.services.machine_sessions.load_job` (its placement) and
+:meth:`~station.services.machine_sessions.MachineSessions.verify`; this module adds the options to ``station send``'s
+parser and applies them (the underscore keeps it from being discovered as a command of its own)."""
 
 from __future__ import annotations
 
 import argparse
 import sys
 
-from drivers.errors import JobRefused
-from drivers.gcode import GcodeError
-from drivers.gcode_place import Placement, place_lines
-from drivers.grbl import Job
-from station.errors import UsageError
-from station.services.errors import ServiceError
+from station.errors import ServiceError, UsageError
+from station.services.machine_sessions import parse_placement, refused_by_twin, verify_summary
 
-__all__ = ["add_place_options", "placed_job", "verify_before_send"]
+__all__ = ["add_place_options", "verify_before_send"]
 
 
-def placement(text: str) -> Placement:
+def placement(text: str):
     """argparse type of ``--place``."""
     try:
-        return Placement.parse(text)
-    except GcodeError as error:
-        raise argparse.ArgumentTypeError(str(error).replace("placement: ", "")) from None
+        return parse_placement(text)
+    except ServiceError as error:
+        raise argparse.ArgumentTypeError(str(error)) from None
 
 
 def add_place_options(send) -> None:
@@ -37,42 +33,23 @@ def add_place_options(send) -> None:
                       "a job that fails is not sent")
 
 
-def placed_job(args, job: Job) -> Job:
-    """``job`` at ``--place`` (itself without it); a job that cannot be placed is one line naming its line."""
-    if getattr(args, "place", None) is None:
-        return job
-    try:
-        lines = place_lines(job.lines, args.place)
-    except GcodeError as error:
-        raise UsageError(f"--place: job {job.name!r}: {error}") from None
-    return Job(job.name, lines, laser=job.laser, pen_up=job.pen_up)
-
-
-def verify_before_send(args, job: Job, profile, conn) -> None:
-    """With ``--verify``: the job on the twin of the machine behind ``conn`` (its settings and work offset), the
-    summary on stderr, the result kept as ``args.verified`` for ``--json``; a job the twin finds wrong is refused
-    (:class:`JobRefused`, exit 2) before anything is sent."""
-    from station.services.job_verify import verify_job, verify_summary
-
+def verify_before_send(args, job, profile, sessions, device: str) -> None:
+    """With ``--verify``: the job on the twin of the machine ``device`` of ``sessions`` (its settings and work
+    offset), the summary on stderr, the result kept as ``args.verified`` for ``--json``; a job the twin finds wrong
+    is refused (exit 2) before anything is sent."""
     args.verified = None
     if not getattr(args, "verify", False):
         return
-    settings = {key: float(value) for key, value in conn.settings.items() if isinstance(key, int)}
     try:
-        done = verify_job(job.lines, name=job.name, profile=profile, laser=job.laser or conn.laser_mode,
-                          settings=settings, work_offset=conn.work_offset())
+        done = sessions.verify(device, job.lines, title=job.name, profile=profile, laser=job.laser)
     except ServiceError as error:
         raise UsageError(f"--verify: {error}") from None
     args.verified = done
-    if done.state != "done" and done.blocks == 0:  # refused before it moved: the refusal's one line says why
-        raise JobRefused(f"--verify: job {job.name!r} fails on the twin: {done.message}")
+    refused = refused_by_twin(done, before_summary=True)
+    if refused is not None:
+        raise refused
     for line in verify_summary(done):
         print(f"station: {line}", file=sys.stderr)
-    if not done.ok:
-        if done.state not in ("done",):
-            raise JobRefused(f"--verify: job {job.name!r} fails on the twin: {done.message}")
-        why = (f"the laser is on during {len(done.lit_travels)} travel(s), the first at line "
-               f"{done.lit_travels[0][0]} ({done.lit_travels[0][1]})" if done.lit_travels
-               else "it leaves the machine's travel" if not done.within_travel
-               else f"the twin raised ALARM:{done.alarms[0]}")
-        raise JobRefused(f"--verify: job {job.name!r} refused: {why}; not sent")
+    refused = refused_by_twin(done)
+    if refused is not None:
+        raise refused

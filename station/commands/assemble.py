@@ -1,4 +1,4 @@
-"""``station assemble``: walk a maker through one physical attempt, prompt by prompt (issue 21).
+"""``station assemble``: walk a maker through one physical attempt, prompt by prompt.
 
 guide (sheet or projector) -> place -> check (-> fix -> check)* -> run -> what happened -> log. The steps are
 :mod:`station.services.assemble`'s (shared with the Assemble screen); this module asks and says. Every answer is
@@ -10,13 +10,12 @@ from __future__ import annotations
 import os
 import sys
 
-from common.progress import Cancelled
 from station.cli_util import check_output_file, flag_error
-from station.errors import UsageError
-from station.services.errors import ServiceError
+from station.errors import ServiceError, UsageError
+from station.services.reporting import Cancelled, Reporter
 
 FLAGS = {"world": "--world", "camera": "--camera", "physics": "--physics", "samples": "--samples",
-         "attempt": "--attempt", "seed": "--seed"}
+         "attempt": "--attempt", "seed": "--seed", "projector": "--projector"}
 #: What a maker may answer for an event, and the outcome word it stands for.
 ANSWERS = {"y": "yes", "yes": "yes", "n": "no", "no": "no", "u": "not-reached", "not-reached": "not-reached",
            "not reached": "not-reached"}
@@ -96,7 +95,7 @@ def run_assemble(args) -> int:
             assembly = service.open_assembly(args.scenario, args.layout, camera=args.camera, world=args.world,
                                              projector=projector, physics=args.physics, attempt=args.attempt,
                                              samples=args.samples, seed=args.seed, workers=args.workers,
-                                             jigs=args.jigs, progress=view)
+                                             jigs=args.jigs, report=Reporter(view))
         _walk(assembly, args, out)
         if args.json:
             from station.cli_util import emit_json
@@ -105,7 +104,7 @@ def run_assemble(args) -> int:
     except ServiceError as error:
         raise flag_error(error, FLAGS) from None
     except (Quit, KeyboardInterrupt, Cancelled) as stop:
-        # Ctrl-C (or kill) while a forecast simulates comes back as the runner's RunStopped (a Cancelled)
+        # Ctrl-C (or kill) while a forecast simulates comes back as the runner's Cancelled
         interrupted = not isinstance(stop, Quit)
         out.write(f"\n{'stopped' if interrupted else str(stop) or 'left'}: nothing logged\n")
         return 130 if interrupted else 1
@@ -128,11 +127,9 @@ def attempt_json(assembly) -> dict:
 
 
 def _open_projector(url: str | None):
-    from station.devices import DeviceEntry
-    from station.services.projectors import configured_projector, open_projector
+    from station.services.projectors import open_projector, projector_device
 
-    device = configured_projector() if url is None else DeviceEntry("projector", "projector", url,
-                                                                     url.startswith("sim://"))
+    device = projector_device(url)  # None: the configured one
     if device is None:
         raise UsageError("--project: no projector configured (add one to station.toml, or give --projector URL)")
     context = open_projector(device)
@@ -177,9 +174,6 @@ def _forecast(assembly, out) -> None:
 
 
 def _walk(assembly, args, out) -> None:
-    from station.paths import data_dir
-    from station.services.guide import export_name
-
     job = assembly.job
     world = f"world {args.world} (a simulated maker places and runs)" if assembly.world is not None else \
         "a real table (you place, run and say)"
@@ -193,9 +187,7 @@ def _walk(assembly, args, out) -> None:
     _forecast(assembly, out)
     # -- guide
     if not args.project:
-        path = args.sheet or str(data_dir() / "guides" / f"{export_name(job)}.pdf")
-        os.makedirs(os.path.dirname(os.path.abspath(path)), exist_ok=True)
-        assembly.write_sheet(path)
+        path = assembly.write_sheet(args.sheet or None)  # --sheet alone: the data folder's guides/
         out.write(f"wrote the guide sheets to {path} (print at 100 %; check the 100 mm bar)\n")
     step = 1
     keys = {"": "next", "n": "next", "p": "previous", "s": "skip"}
@@ -271,13 +263,11 @@ def _check_loop(assembly, args, out) -> None:
 
 def _answers(assembly, out) -> None:
     """Ask each event's outcome in the graph's order, skipping those the answers so far imply."""
-    from station.trialformat import resolve_outcomes
-
     scenario = assembly.scenario
     given: dict[str, str] = {}
     event = None
     while True:
-        outcomes, problems = resolve_outcomes(scenario, given)
+        outcomes, problems = assembly.resolve(given)
         # an answer the graph cannot have (a "yes" after a "no"): said, and the event asked again (an event still
         # to be said is a "problem" too, but not one of the answers)
         wrong = [p for p in problems if p.field.partition(".")[2] in given]

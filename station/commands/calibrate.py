@@ -1,4 +1,4 @@
-"""``station calibrate``: the ChArUco board PDF, a camera's intrinsics, the plane check (issue 19).
+"""``station calibrate``: the ChArUco board PDF, a camera's intrinsics, the plane check.
 
 Argparse in, text or JSON out: the work is :mod:`station.services.calibrate`. ``station calibrate projector``
 and ``station calibrate sim`` live in :mod:`station.commands._calibrate_projector` and
@@ -11,8 +11,14 @@ from __future__ import annotations
 import sys
 
 from station.cli_util import check_output_file, emit_json, flag_error, number
-from station.errors import UsageError
-from station.services.errors import ServiceError
+from station.commands._calibrate_bed import add_bed_parser
+from station.commands._calibrate_material import add_material_parser
+from station.commands._calibrate_projector import add_projector_parser
+from station.commands._calibrate_sim import add_sim_parser
+from station.errors import ServiceError, UsageError
+from station.progress_view import ProgressView
+from station.services.reporting import Reporter
+from station.services.trials import logged_trials
 
 CAMERA_JSON = ('{"camera": {camera file: "camera_matrix", "dist_coeffs", "image_size", "rms_px", "name", "notes"}, '
                '"rms_px", "views": [{"name", "corners", "rms_px", "skipped"}], "coverage", "uncovered_corners", '
@@ -91,12 +97,6 @@ def register(subparsers) -> None:
     plane.add_argument("--json", action="store_true", help="print the result as JSON")
     plane.set_defaults(func=run_plane)
 
-    from station.commands._calibrate_bed import add_bed_parser
-    from station.commands._calibrate_material import add_material_parser
-    from station.commands._calibrate_projector import add_projector_parser
-    from station.commands._calibrate_sim import add_sim_parser
-    from station.services.trials import logged_trials
-
     add_projector_parser(sub)
     add_bed_parser(sub)
     add_sim_parser(sub, trials_source=logged_trials)
@@ -104,7 +104,7 @@ def register(subparsers) -> None:
 
 
 def run_board(args) -> int:
-    from station.services import calibrate as service
+    from station.services import calibrate as service  # heavy: PIL
 
     path = check_output_file(args.pdf, {".pdf"}, "--pdf")
     try:
@@ -116,8 +116,7 @@ def run_board(args) -> int:
 
 
 def run_camera(args) -> int:
-    from station.progress_view import ProgressView
-    from station.services import calibrate as service
+    from station.services import calibrate as service  # heavy: PIL
 
     if args.images is None and args.capture is None:
         raise UsageError("give --images DIR (a folder of board images) or --capture N (frames to grab)")
@@ -126,8 +125,9 @@ def run_camera(args) -> int:
     out = check_output_file(args.out, {".json"}, "--out") if args.out is not None else None
     try:
         with ProgressView(sys.stderr, prefix="calibrate: ") as view:
-            done = service.calibrate_camera(images=args.images, capture=args.capture, camera=args.camera,
-                                            name=args.name, out=out, interval_s=args.interval, progress=view)
+            request = service.CameraCalibrationRequest(images=args.images, capture=args.capture, camera=args.camera,
+                                                       name=args.name, out=out, interval_s=args.interval)
+            done = service.calibrate_camera(request, report=Reporter(view))
     except ServiceError as error:
         raise flag_error(error) from None
     if args.json:
@@ -140,7 +140,7 @@ def run_camera(args) -> int:
 
 
 def run_plane(args) -> int:
-    from station.services import calibrate as service
+    from station.services import calibrate as service  # heavy: PIL
 
     try:
         check = service.plane_check(image=args.image, camera=args.camera, guide=args.guide,

@@ -1,4 +1,4 @@
-"""``station check``: the placed parts seen by the camera against the layout's guide (issue 19).
+"""``station check``: the placed parts seen by the camera against the layout's guide.
 
 Argparse in, text or JSON out: the work is :mod:`station.services.check` (and the camera's calibration,
 :mod:`station.services.calibrate`), whose refusals (naming ``guide``, ``image``, ``camera``, ``sim_offset``,
@@ -12,8 +12,12 @@ import sys
 from pathlib import Path
 
 from station.cli_util import add_physics_option, check_output_file, emit_json, flag_error
-from station.errors import UsageError
-from station.services.errors import ServiceError
+from station.config import configured_devices
+from station.errors import ServiceError, UsageError
+from station.progress_view import ProgressView
+from station.services.physics import read_profile
+from station.services.projectors import configured_projector, open_projector, projector_mapping
+from station.services.reporting import Reporter
 
 #: The ``--json`` / CHECK.json contract, quoted in the help text; keep its names.
 JSON_SHAPE = ('{"format": "chaos-station check", "version", "scenario", "content_hash", "layout", "view", "plane": '
@@ -104,19 +108,18 @@ def register(subparsers) -> None:
 
 
 def run_check(args) -> int:
-    from station.progress_view import ProgressView
+    # heavy: PIL, cv2, scipy, shapely and the simulations' executor, loaded when a check runs
     from station.services import check as service
-    from station.services import check_side
-    from station.services.physics import read_profile
+    from station.services import check_cameras, check_side, images
 
     out = check_output_file(args.out, {".json"}, "--out") if args.out is not None else None
     overlay = check_output_file(args.overlay, {".png"}, "--overlay") if args.overlay is not None else None
     try:
         offsets = dict(service.parse_offset(text) for text in args.sim_offset or [])
         if args.image is not None:  # a frame of the wrong size is refused before the guide is made
-            service.check_image_file(args.image, "image")
+            images.check_image_file(args.image, "image")
         if args.side_image is not None:
-            service.check_image_file(args.side_image, "side_image")
+            images.check_image_file(args.side_image, "side_image")
         elif args.side_intrinsics is not None:
             raise UsageError("--side-intrinsics goes with --side-image")
         side_offsets = {}
@@ -125,26 +128,27 @@ def run_check(args) -> int:
             side_offsets[part] = offset
         cameras = _cameras(args)
         with ProgressView(sys.stderr, prefix="check: ") as view:
-            job = service.prepare_check(args.scenario, args.layout, guide=args.guide, progress=view, jigs=args.jigs)
+            report = Reporter(view)
+            job = service.prepare_check(args.scenario, args.layout, guide=args.guide, report=report, jigs=args.jigs)
             physics = read_profile(args.physics) if args.physics else None
+            request = service.CheckRequest(simulate=args.simulate, seed=args.seed, physics=physics,
+                                           predict=args.predict)
             if len(cameras) > 1 or side_offsets or args.side_image is not None \
                     or any(check_side.is_side_url(url) for _, url in cameras):
-                check = check_side.check_views(
-                    job, cameras, image=args.image, intrinsics=args.intrinsics, offsets=offsets,
+                check = check_cameras.check_views(
+                    job, cameras, request, image=args.image, intrinsics=args.intrinsics, offsets=offsets,
                     side_offsets=side_offsets, occluded=tuple(args.sim_cover or ()), side_image=args.side_image,
-                    side_intrinsics=args.side_intrinsics, simulate=args.simulate, seed=args.seed, physics=physics,
-                    predict=args.predict, progress=view)
+                    side_intrinsics=args.side_intrinsics, report=report)
             else:
-                image, intrinsics, name, previous = service.camera_frame(
-                    job.guide, image=args.image, camera=cameras[0][1] if cameras else None,
-                    intrinsics=args.intrinsics, offsets=offsets, occluded=tuple(args.sim_cover or ()))
-                check = service.check_frame(job, image, intrinsics, simulate=args.simulate, seed=args.seed,
-                                            previous=previous, physics=physics, predict=args.predict, progress=view)
+                image, intrinsics, name, previous = service.camera_frame(job.guide, service.FrameSource(
+                    image=args.image, camera=cameras[0][1] if cameras else None, intrinsics=args.intrinsics,
+                    offsets=offsets, occluded=tuple(args.sim_cover or ())))
+                check = service.check_frame(job, image, intrinsics, request, previous=previous, report=report)
                 service.remember_plane(name, check)
         if out is not None:
             out.write_text(json.dumps(check.to_json(), indent=1) + "\n", encoding="utf-8")
         if overlay is not None:
-            from PIL import Image
+            from PIL import Image  # heavy: PIL
 
             Image.fromarray(service.camera_overlay(check)).save(overlay)
             if check.side is not None:  # the side camera's frame, next to the top one
@@ -163,8 +167,7 @@ def run_check(args) -> int:
 def _cameras(args) -> list[tuple[str, str]]:
     """The cameras to check with, ``(name, url)``: the ``--camera`` URLs (the first named as the station's camera),
     else with no ``--image`` every camera of station.toml (none configured: the default one)."""
-    from station.config import configured_devices
-    from station.services.calibrate import DEFAULT_CAMERA
+    from station.services.calibrate import DEFAULT_CAMERA  # heavy: PIL
 
     if args.camera:
         return [(DEFAULT_CAMERA if i == 0 else f"{DEFAULT_CAMERA}-{i + 1}", url) for i, url in enumerate(args.camera)]
@@ -175,8 +178,7 @@ def _cameras(args) -> list[tuple[str, str]]:
 
 
 def _project(check) -> str:
-    from station.services import check as service
-    from station.services.projectors import configured_projector, open_projector, projector_mapping
+    from station.services import check as service  # heavy: PIL, cv2, design.robust.executor
 
     device = configured_projector()
     if device is None:
@@ -188,7 +190,7 @@ def _project(check) -> str:
 
 
 def _print(check, out: Path | None, overlay: Path | None, projected: str | None) -> None:
-    from station.services import check as service
+    from station.services import check as service  # heavy: PIL, cv2, design.robust.executor
 
     report = check.report
     guide_job = check.guide_job

@@ -5,13 +5,21 @@ from __future__ import annotations
 import argparse
 import sys
 
-from design.contraption.catalog import example_names
-from design.contraption.layout_io import LoadedLayout
-from design.contraption.scenario import Scenario
 from station.cli_util import add_physics_option, check_output_file, emit_json
 from station.errors import UsageError
 from station.progress_view import ProgressView
-from station.services.contraption import choose_layout, open_scenario, render, scenario_summary, simulate
+from station.services.contraption import (
+    LoadedLayout,
+    Scenario,
+    choose_layout,
+    example_names,
+    open_scenario,
+    render,
+    scenario_summary,
+    simulate,
+)
+from station.services.physics import physics_note
+from station.services.reporting import Reporter
 
 
 def register(subparsers) -> None:
@@ -106,7 +114,7 @@ def run_simulate(args) -> int:
     report_physics(scenario)
     with ProgressView(describe=lambda progress: progress.message) as view:
         outcome = simulate(scenario, layout.x, early_stop=not args.no_early_stop, record=bool(args.render),
-                           progress=view)
+                           report=Reporter(view))
     if not outcome.valid:
         if args.json:
             emit_json(outcome.to_dict(layout))
@@ -128,8 +136,6 @@ def run_simulate(args) -> int:
 
 def report_physics(scenario: Scenario, stream=None) -> None:
     """Say on stderr which material values a physics profile set (nothing for the scenario's own)."""
-    from station.services.physics import physics_note
-
     note = physics_note(scenario)
     if note:
         print(note, file=stream or sys.stderr)

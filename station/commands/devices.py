@@ -2,7 +2,11 @@
 
 from __future__ import annotations
 
+import sys
+
 from station.cli_util import emit_json
+from station.config import config_location, load_config, write_default_config
+from station.devices import driver_name, probe_devices
 
 #: The ``--json`` contract, quoted in the help text; keep it stable (add keys, never rename or drop one).
 JSON_SHAPE = ('{"config": PATH or null, "devices": [{"name": ..., "kind": ..., "url": ..., "simulated": true|false, '
@@ -39,11 +43,6 @@ def register(subparsers) -> None:
 
 
 def run_devices(args) -> int:
-    import sys
-
-    from station.config import config_location, load_config, write_default_config
-    from station.devices import driver_name, probe_devices
-
     if args.init:
         written = write_default_config()
         print(f"wrote {written} (every device simulated; edit it to name your devices)",

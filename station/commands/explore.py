@@ -10,11 +10,10 @@ import math
 import sys
 from typing import Any
 
-from design.machines import declared_machine_names, get_machine
 from station.cli_util import add_design_options, check_output_file, design_parameters, emit_json, flag_error
-from station.errors import UsageError
-from station.services.errors import ServiceError
-from station.services.explore import check_points, explore, write_picture
+from station.errors import ServiceError, UsageError
+from station.services.designs import declared_machine_names, get_machine
+from station.services.explore import check_points, explore, parse_keep, write_picture
 
 
 def register(subparsers) -> None:
@@ -61,8 +60,6 @@ def parse_move(text: str) -> tuple[int, float]:
 
 
 def run_explore(args) -> int:
-    from design.explore import parse_keep  # scipy and shapely: loaded only when exploring
-
     model = get_machine(args.machine)
     try:
         check_points(args.points)

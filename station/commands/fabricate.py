@@ -20,19 +20,21 @@ from station.cli_util import (
     design_parameters,
     emit_json,
 )
-from station.errors import UsageError
+from station.errors import ServiceError, UsageError
 from station.progress_view import ProgressView
-from station.services.errors import ServiceError
-from station.services.fabricate import (  # noqa: F401 - re-exported: the work lives in the service
+from station.services.fabricate import (
     DEFAULT_GAP,
     DEFAULT_KERF,
+    FABRICABLE_MACHINES,
     KERF_SOURCES,
-    FabricationResult,
-    SheetOutput,
+    FabricationRequest,
+    GearSettings,
+    Hardware,
     fabricate,
     write_outputs,
 )
 from station.services.fabricate import parse_sheet as _parse_sheet
+from station.services.reporting import Reporter
 
 
 def parse_sheet(text: str) -> tuple[float, float]:
@@ -44,8 +46,6 @@ def parse_sheet(text: str) -> tuple[float, float]:
 
 
 def register(subparsers) -> None:
-    from design.fabrication.catalog import FABRICABLE_MACHINES
-
     parser = subparsers.add_parser(
         "fabricate",
         help="laser-cut parts of a drawing machine: gears, arms, plates; SVG, G-code, preview",
@@ -91,22 +91,19 @@ def register(subparsers) -> None:
 
 
 def run_fabricate(args) -> int:
-    from design.fabrication import GearSettings, Hardware
-    from station.services.profiles import load_station_profile
-
     params = design_parameters(args, args.machine)
     if args.max_sheets < 1:
         raise UsageError(f"--max-sheets must be at least 1, got {args.max_sheets}")
     sheet_size = parse_sheet(args.sheet) if args.sheet is not None else None
-    profile = load_station_profile(args.profile)
     settings = GearSettings(module=args.module, pressure_angle=args.pressure_angle, backlash=args.backlash)
     hardware = Hardware(pen_hole=args.pen_hole, axle_hole=args.axle_hole, pin_hole=args.pin_hole)
     out = check_output_folder(args.out, "--out", "parts.svg, laser.gcode, parts.json and sheet.png")
     # The steps on stderr: bars on a terminal, a "fabricate: ..." line per stage and tenth otherwise.
     with ProgressView(sys.stderr, prefix="fabricate: ") as progress:
-        result = fabricate(args.machine, params, args.scale, kerf=args.kerf, sheet_size=sheet_size, gap=args.gap,
-                           profile=profile, material=args.material, gear_settings=settings, hardware=hardware,
-                           progress=progress, max_sheets=args.max_sheets)
+        result = fabricate(FabricationRequest(
+            args.machine, params, args.scale, kerf=args.kerf, sheet_size=sheet_size, gap=args.gap, profile=args.profile,
+            material=args.material, gear_settings=settings, hardware=hardware, max_sheets=args.max_sheets),
+            report=Reporter(progress))
     files = write_outputs(result, out)
     summary = result.summary
     if args.json:

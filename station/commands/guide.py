@@ -9,8 +9,10 @@ from __future__ import annotations
 import sys
 
 from station.cli_util import add_physics_option, check_output_file, check_output_folder, emit_json, flag_error
-from station.errors import UsageError
-from station.services.errors import ServiceError
+from station.errors import ServiceError, UsageError
+from station.progress_view import ProgressView
+from station.services.projectors import open_projector, projector_device, projector_mapping
+from station.services.reporting import Reporter
 
 #: The ``--json`` contract (the guide's manifest), quoted in the help text; keep its names.
 JSON_SHAPE = ('{"scenario", "content_hash", "view", "units": "mm", "tolerance_source", "pages": [{"index", "label", '
@@ -79,8 +81,7 @@ def register(subparsers) -> None:
 
 
 def run_guide(args) -> int:
-    from station.progress_view import ProgressView
-    from station.services import guide as service
+    from station.services import guide as service  # heavy: scipy, shapely
 
     if args.pdf is None and args.svg is None and not (args.project or args.json):
         raise UsageError("nothing to write: give --pdf OUT.pdf, --svg OUT.svg, --project or --json")
@@ -95,12 +96,13 @@ def run_guide(args) -> int:
     try:
         service.check_paper(args.paper)  # before any simulation
         with ProgressView(sys.stderr, prefix="guide: ") as view:
-            job = service.make_guide(args.scenario, args.layout, view=args.view, verify=args.verify, seed=args.seed,
-                                     tolerances=not args.no_tolerances, progress=view, physics=args.physics,
-                                     jigs=args.jigs is not None)
+            request = service.GuideRequest(args.scenario, args.layout, view=args.view, verify=args.verify,
+                                           seed=args.seed, tolerances=not args.no_tolerances, physics=args.physics,
+                                           jigs=args.jigs is not None)
+            job = service.make_guide(request, report=Reporter(view))
         job = service.export_guide(job, pdf=pdf, svg=svg, paper=args.paper)
         if jigs_dir is not None:
-            from station.services.jigs import cut_jigs, write_jig_outputs
+            from station.services.jigs import cut_jigs, write_jig_outputs  # heavy: scipy, shapely
 
             written = write_jig_outputs(cut_jigs(job, job.jigs), jigs_dir)
         if args.project:
@@ -120,8 +122,7 @@ def run_guide(args) -> int:
 
 
 def _project(job, step: int | None, url: str | None) -> None:
-    from station.services import guide as service
-    from station.services.projectors import open_projector, projector_device, projector_mapping
+    from station.services import guide as service  # heavy: scipy, shapely
 
     device = projector_device(url)
     if device is None:
@@ -153,11 +154,10 @@ def _print_summary(job, pdf, svg) -> None:
         rows = max((int(p.label[1:]) for p in pages), default=0)
         print(f"wrote {pdf}: {len(pages)} sheets ({columns} x {rows}) of {pages[0].paper if pages else '?'} and a "
               "page of parts, steps and tolerances; check that the scale bar measures 100 mm")
-        from projector.board import side_board
-        from station.services.guide import board_pdf_path, reads_side
+        from station.services.guide import board_pdf_path, board_words  # heavy: scipy, shapely
 
-        board = side_board(guide)
-        if board is not None and reads_side(guide):
-            print(f"wrote {board_pdf_path(pdf)}: the side camera's board sheet ({board.words()})")
+        words = board_words(guide)
+        if words is not None:
+            print(f"wrote {board_pdf_path(pdf)}: the side camera's board sheet ({words})")
     if svg is not None:
         print(f"wrote {svg}")

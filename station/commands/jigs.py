@@ -9,7 +9,11 @@ from __future__ import annotations
 import sys
 
 from station.cli_util import NON_NEGATIVE, add_physics_option, check_output_folder, emit_json, flag_error
-from station.services.errors import ServiceError
+from station.commands.fabricate import parse_sheet
+from station.errors import ServiceError
+from station.progress_view import ProgressView
+from station.services.fabricate import KERF_SOURCES
+from station.services.reporting import Reporter
 
 #: The ``--json`` contract (jigs.json), quoted in the help text; keep its names.
 JSON_SHAPE = ('{"scenario", "view", "units": "mm", "material", "thickness_mm", "kerf_mm", "sheet_mm", "jigs": [{"id", '
@@ -64,16 +68,14 @@ def register(subparsers) -> None:
 
 
 def run_jigs(args) -> int:
-    from drivers.profiles import load_profile
-    from station.commands.fabricate import parse_sheet
-    from station.progress_view import ProgressView
-    from station.services import jigs as service
+    from station.services import jig_plan  # heavy: scipy, shapely
+    from station.services import jigs as service  # heavy: scipy, shapely
 
     sheet = parse_sheet(args.sheet) if args.sheet is not None else None
-    options = service.JigOptions(profile=load_profile(args.profile), material=args.material, kerf=args.kerf,
+    options = jig_plan.JigOptions(profile=args.profile, material=args.material, kerf=args.kerf,
                                  sheet=sheet, gap=args.gap)
     try:
-        service.check_options(options)  # a material the profile lacks, a kerf or gap out of range: before any work
+        jig_plan.check_options(options)  # a material the profile lacks, a kerf or gap out of range: before any work
     except ServiceError as error:
         raise flag_error(error) from None
     out = check_output_folder(args.out, "--out", "jigs.svg, jigs.gcode, jigs.json, sheet.png and a picture of "
@@ -81,7 +83,7 @@ def run_jigs(args) -> int:
     try:
         with ProgressView(sys.stderr, prefix="jigs: ") as view:
             result = service.make_jigs(args.scenario, args.layout, options, view=args.view,
-                                       tolerances=not args.no_tolerances, physics=args.physics, progress=view)
+                                       tolerances=not args.no_tolerances, physics=args.physics, report=Reporter(view))
     except ServiceError as error:
         raise flag_error(error) from None
     files = service.write_jig_outputs(result, out)
@@ -127,6 +129,4 @@ def _print_summary(summary: dict, files: dict) -> None:
 
 
 def _kerf_words(source: str) -> str:
-    from station.services.fabricate import KERF_SOURCES
-
     return KERF_SOURCES.get(source, source)

@@ -3,10 +3,8 @@
 from __future__ import annotations
 
 from station.cli_util import emit_json
-from station.db import open_database
 from station.errors import UsageError
-from station.joblog import JobLog, JobRecord, local_time
-from station.paths import database_path
+from station.services.machine_sessions import JobRecord, local_time, recent_jobs
 
 
 def register(subparsers) -> None:
@@ -42,16 +40,12 @@ def describe(record: JobRecord, device_width: int = 24, title_width: int = 32) -
 def run_jobs(args) -> int:
     if not 1 <= args.limit <= 10_000:
         raise UsageError(f"--limit must be an integer in [1, 10000], got {args.limit}")
-    connection = open_database(database_path())
-    try:
-        records = JobLog(connection).recent(args.limit)
-    finally:
-        connection.close()
+    database, records = recent_jobs(args.limit)
     if args.json:
-        emit_json({"database": str(database_path()), "jobs": [r.to_dict() for r in records]})
+        emit_json({"database": str(database), "jobs": [r.to_dict() for r in records]})
         return 0
     if not records:
-        print(f"no jobs yet (database {database_path()})")
+        print(f"no jobs yet (database {database})")
         return 0
     # columns as wide as the longest port URL and title listed, so that none is cut
     device_width = max(len(r.device) for r in records)

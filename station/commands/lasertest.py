@@ -13,7 +13,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from station.cli_util import check_output_file, check_output_folder, emit_json, flag_error, number
-from station.services.errors import ServiceError
+from station.errors import ServiceError
 
 CARD_JSON = '{"files": {"gcode", "json", "png"}, "card_mm", "cells", "estimate_seconds", "profile", "material"}'
 RENDER_JSON = '{"frame", "truth": {"material", "kerf_mm", "kerf_settings", "cells": [{"name", "cut_kerf_mm", ' \
@@ -82,7 +82,7 @@ def register(subparsers) -> None:
 
 
 def run_card(args) -> int:
-    from station.services import lasertest as service
+    from station.services import lasertest as service  # heavy: PIL, cv2, scipy, shapely
 
     out = check_output_folder(args.out, "--out", "card.gcode, card.json and card.png")
     try:
@@ -118,7 +118,7 @@ def run_card(args) -> int:
 
 
 def run_render(args) -> int:
-    from station.services import lasertest as service
+    from station.services import lasertest as service  # heavy: PIL, cv2, scipy, shapely
 
     out = check_output_file(args.out, {".png"}, "--out")
     try:

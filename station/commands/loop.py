@@ -12,7 +12,8 @@ import textwrap
 
 from station.cli_util import NON_NEGATIVE, POSITIVE, emit_json, flag_error
 from station.commands.robust import ProgressBar, add_command, command
-from station.services.errors import ServiceError
+from station.errors import ServiceError
+from station.services.reporting import Cancelled, Reporter
 
 #: The longest line the loop prints (a 120-column terminal; a longer line is wrapped, its rest indented).
 WIDTH = 118
@@ -161,9 +162,7 @@ def loop_lines(summary) -> list[str]:
 
 def baseline_lines(result) -> list[str]:
     """The baseline's figures in short lines."""
-    from calibration.sim_runs import wilson_interval
-
-    lo, hi = wilson_interval(result.baseline_successes, result.baseline_attempts)
+    lo, hi = result.baseline_interval
     return wrapped([f"baseline: {result.baseline_successes} of {result.baseline_attempts} attempts succeeded: "
                     f"success rate {result.baseline_rate:.2f} (95 % {lo:.2f} to {hi:.2f})",
                     "  the thesis's workflow: the optimized layout placed from the printed sheet, no check, no "
@@ -186,8 +185,10 @@ def resume_command(args) -> str:
 
 
 def stopped_lines(stopped, args) -> list[str]:
-    """What a stopped run says (on stderr): what it logged, what the cache keeps, and the command that resumes it."""
-    lines = wrapped([f"station: stopped run {stopped.log.run_id}: {stopped.log.logged_words()}, each with its trial "
+    """What a stopped run says (on stderr): what it logged (the stop's ``partial``, the run's log), what the cache
+    keeps, and the command that resumes it."""
+    log = stopped.partial
+    lines = wrapped([f"station: stopped run {log.run_id}: {log.logged_words()}, each with its trial "
                      "in the trial log"])
     if stopped.new_simulations:
         lines += wrapped([f"station: the {stopped.new_simulations} new simulations of this run are kept in the cache "
@@ -197,7 +198,7 @@ def stopped_lines(stopped, args) -> list[str]:
 
 @command
 def run_loop(args) -> int:
-    from station.services.loop import LoopSettings, LoopStopped
+    from station.services.loop import LoopSettings
     from station.services.loop import run_loop as run
 
     settings = LoopSettings(attempts=args.attempts, loops=args.loops, budget=args.budget,
@@ -222,12 +223,14 @@ def run_loop(args) -> int:
             say([log.resuming()])
 
     try:
-        result = run(args.scenario, args.world, settings, progress=args.bar, should_stop=args.stop.is_set,
+        result = run(args.scenario, args.world, settings, report=Reporter(args.bar, stop=args.stop.is_set),
                      on_start=started, on_loop=lambda summary: say(loop_lines(summary)),
                      on_attempt=lambda attempt: say(wrapped([attempt.describe()])))
     except ServiceError as error:
         raise flag_error(error, _FLAGS) from None
-    except LoopStopped as stopped:
+    except Cancelled as stopped:
+        if stopped.partial is None:
+            raise
         args.bar.close(clear=True)
         print("\n".join(stopped_lines(stopped, args)), file=sys.stderr, flush=True)
         raise KeyboardInterrupt from None  # exit 130, as every interrupted command

@@ -1,22 +1,23 @@
-"""``station machines`` and ``station pattern``: the drawing machines of :mod:`design.machines` from the CLI."""
+"""``station machines`` and ``station pattern``: the drawing machines from the CLI (the work is
+:mod:`station.services.machines`)."""
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
-from typing import Any
 
-import numpy as np
-
-from design.machines import declared_machine_names, get_machine, machine_names, shapes_to_jsonable
-from design.machines.render import shape_polylines, write_png, write_svg
 from station.cli_util import FINITE, add_design_options, check_output_file, design_parameters, emit_json, to_jsonable
 from station.errors import UsageError
+from station.services.machines import (
+    declared_machine_names,
+    describe_machines,
+    machine_name,
+    pattern_document,
+    pattern_mechanism,
+    write_pattern,
+)
 
 OUTPUT_SUFFIXES = {".svg", ".png", ".json"}
 MAX_POINTS = 200_000  # arc-length spacing evaluates 8x as many points densely
-PATTERN_COLOR = "#1f3b73"
-MECHANISM_COLOR = "#c0392b"
 
 
 def register(subparsers) -> None:
@@ -60,82 +61,46 @@ def register(subparsers) -> None:
 
 
 def run_machines(args) -> int:
-    models = [get_machine(name) for name in machine_names()]
+    machines = describe_machines()
     if args.json:
-        emit_json({"machines": [model.describe() for model in models]})
+        emit_json({"machines": machines})
         return 0
-    for model in models:
-        print(f"{model.name}  ({model.title}): {model.description}")
-        for p in model.parameters:
-            if p.kind == "discrete":
-                bounds = f"integer {p.lower:g}..{p.upper:g}"
+    for machine in machines:
+        print(f"{machine['name']}  ({machine['title']}): {machine['description']}")
+        for p in machine["parameters"]:
+            if p["kind"] == "discrete":
+                bounds = f"integer {p['lower']:g}..{p['upper']:g}"
             else:
-                bounds = f"{p.lower:g}..{p.upper:g} {p.unit}".rstrip()
-            print(f"  {p.name:<9} {p.kind:<10} default {p.default:<6g} {bounds:<24} {p.description}")
+                bounds = f"{p['lower']:g}..{p['upper']:g} {p['unit']}".rstrip()
+            print(f"  {p['name']:<9} {p['kind']:<10} default {p['default']:<6g} {bounds:<24} {p['description']}")
         print()
     return 0
 
 
-def pattern_document(machine_name: str, params: dict[str, float], points: int, spacing: str) -> dict[str, Any]:
-    """The JSON document of ``station pattern --json`` (also what ``--out FILE.json`` writes)."""
-    model = get_machine(machine_name)
-    values = model.validate(params)
-    curve = model.sample(values, n=points, spacing=spacing)
-    return {
-        "machine": model.name,
-        "params": values,
-        "period": model.period(values),
-        "turns": model.turns(values),
-        "symmetry_order": model.symmetry_order(values),
-        "spacing": spacing,
-        "points": curve.tolist(),
-    }
-
-
 def run_pattern(args) -> int:
-    model = get_machine(args.machine)
+    name = machine_name(args.machine)
     if not 3 <= args.points <= MAX_POINTS:
         raise UsageError(f"--points must be an integer in [3, {MAX_POINTS}], got {args.points}")
     if not 16 <= args.size <= 8000:
         raise UsageError(f"--size must be in [16, 8000] pixels, got {args.size}")
     suffix = check_output_file(args.out, OUTPUT_SUFFIXES, "--out").suffix.lower() if args.out is not None else None
-    params = design_parameters(args, model.name)
-    document = pattern_document(model.name, params, args.points, args.spacing)
-    shapes = model.mechanism(document["params"], args.mechanism) if args.mechanism is not None else None
-    if shapes is not None:
-        document["mechanism"] = {"t": args.mechanism, "shapes": shapes_to_jsonable(shapes)}
+    params = design_parameters(args, name)
+    document = pattern_document(name, params, args.points, args.spacing)
+    shapes = None
+    if args.mechanism is not None:
+        shapes, jsonable = pattern_mechanism(name, document["params"], args.mechanism)
+        document["mechanism"] = {"t": args.mechanism, "shapes": jsonable}
 
     if suffix is not None:
-        write_output(Path(args.out), suffix, document, shapes, args.size)
+        write_pattern(Path(args.out), suffix, document, shapes, args.size, to_jsonable=to_jsonable)
     if args.json:
         emit_json(document)
     else:
         values = ", ".join(f"{k}={v:g}" for k, v in document["params"].items())
         print(
-            f"{model.name}: {values}; period {document['period']:.6g} ({document['turns']} turns), "
+            f"{name}: {values}; period {document['period']:.6g} ({document['turns']} turns), "
             f"{document['symmetry_order']}-fold symmetry, {len(document['points'])} points ({args.spacing})"
         )
         if args.out is not None:
             print(f"wrote {args.out}")
     return 0
-
-
-def write_output(path: Path, suffix: str, document: dict[str, Any], shapes, size: int) -> None:
-    """Write the pattern (and the mechanism, if any) as SVG, PNG or JSON."""
-    if suffix == ".json":
-        with path.open("w", encoding="utf-8") as stream:
-            json.dump(to_jsonable(document), stream, allow_nan=False)
-            stream.write("\n")
-        return
-    polylines = [np.asarray(document["points"], dtype=float)]
-    colors = [PATTERN_COLOR]
-    if shapes:
-        parts = shape_polylines(shapes)
-        polylines += parts
-        colors += [MECHANISM_COLOR] * len(parts)
-    if suffix == ".svg":
-        with path.open("w", encoding="utf-8") as stream:
-            write_svg(stream, polylines, size=size, colors=colors, title=f"{document['machine']} pattern")
-    else:
-        with path.open("wb") as stream:
-            write_png(stream, polylines, size=size, colors=colors)

@@ -9,27 +9,15 @@ dry run (check mode), frame, resume from a line, and a progress bar.
 from __future__ import annotations
 
 import argparse
-import contextlib
 import dataclasses
 import signal
 import sys
 import threading
-import time
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from common.progress import Progress
-from common.signals import HandledSignals
-from design.datafiles import load_json
-from design.errors import FileFormatError
-from drivers.errors import DeviceStateError, JobRefused
-from drivers.gcode import clean_line
-from drivers.gcode_layers import layer_at, layer_marks
-from drivers.grbl import GrblConnection, Job, JobProgress, JobResult, JobRunner, frame_lines, list_ports
-from drivers.grbl.job import FINAL_STATES, kind_warning
-from drivers.profiles import MachineProfile, load_profile
 from station.cli_util import (
     NON_NEGATIVE,
     POSITIVE,
@@ -40,13 +28,31 @@ from station.cli_util import (
     number,
     parse_assignments,
 )
-from station.commands._send_place import add_place_options, placed_job, verify_before_send
-from station.errors import StationError, UsageError
-from station.joblog import INTERRUPTED, JOB_KINDS, JobLog
+from station.commands._send_place import add_place_options, verify_before_send
+from station.errors import ServiceError, UsageError
 from station.progress_view import ProgressView
 from station.services import plot as plot_service
-from station.services.errors import ServiceError
+from station.services.machine_sessions import (
+    BAUD_RATES,
+    FINAL_STATES,
+    INTERRUPTED,
+    HandledSignals,
+    JobMode,
+    JobProgress,
+    JobResult,
+    MachineSessions,
+    SendPolicy,
+    job_history,
+    job_layer_marks,
+    layer_at,
+    list_ports,
+    load_job,
+    machine_profile,
+    refusal,
+)
+from station.services.machines import job_seconds, machine_name, pattern_points, read_pattern, sample_pattern
 from station.services.machines import plot_job as _plot_job
+from station.services.reporting import Progress
 
 DEFAULT_POINTS = 4096
 
@@ -151,15 +157,11 @@ def register(subparsers) -> None:
 
 def baud_rate(text: str) -> int:
     """A standard serial baud rate (argparse type of ``--baud``)."""
-    import argparse
-
-    import serial
-
     try:
         value = int(text)
     except ValueError:
         value = None
-    if value not in serial.SerialBase.BAUDRATES:
+    if value not in BAUD_RATES:
         raise argparse.ArgumentTypeError(
             f"expected a standard baud rate such as 115200 (GRBL 1.1) or 9600, got {text!r}")
     return value
@@ -168,8 +170,8 @@ def baud_rate(text: str) -> int:
 # ----------------------------------------------------------------------------------------------------------- plot
 
 
-def _profile(name: str | None, default: str = "plotter") -> MachineProfile:
-    return load_profile(name or default)
+def _profile(name: str | None, default: str = "plotter"):
+    return machine_profile(name, default)
 
 
 def pattern_polylines(args) -> tuple[list[np.ndarray], dict[str, Any]]:
@@ -179,33 +181,19 @@ def pattern_polylines(args) -> tuple[list[np.ndarray], dict[str, Any]]:
     if args.pattern:
         if args.set or args.design:
             raise UsageError("--set and --design apply to MACHINE, not to --pattern FILE.json")
-        path = Path(args.pattern)
-        # A bad file is a FileFormatError naming the file first, as for --design (not a usage error).
-        expected = "the JSON of `station pattern --json` with a 'points' list"
-        document = load_json(path, expected)
-        if not isinstance(document, dict) or "points" not in document:
-            raise FileFormatError(f"{path}: expected {expected}")
-        try:
-            points = np.asarray(document["points"], dtype=float)
-        except (TypeError, ValueError):
-            raise FileFormatError(f"{path}: 'points' must be a list of [x, y] numbers") from None
-        if points.ndim != 2 or points.shape[1] != 2 or len(points) < 2 or not np.all(np.isfinite(points)):
-            raise FileFormatError(f"{path}: 'points' must be at least two finite [x, y] pairs, "
-                                  f"got shape {points.shape}")
-        return [points], {"machine": document.get("machine", ""), "params": document.get("params", {})}
+        # a bad file is a FileFormatError naming the file first, as for --design (not a usage error)
+        points, description = read_pattern(args.pattern)
+        return [points], description
     if not args.machine:
         raise UsageError("give a drawing MACHINE (see `station machines`) or --pattern FILE.json")
     if args.points < 16:
         raise UsageError(f"--points must be at least 16, got {args.points}")
-    from design.machines import get_machine
-
-    model = get_machine(args.machine)
-    params = model.validate(design_parameters(args, model.name))
-    points = model.sample(params, n=args.points, spacing="arclength")
-    return [np.asarray(points, dtype=float)], {"machine": model.name, "params": params}
+    name = machine_name(args.machine)
+    points, params = sample_pattern(name, design_parameters(args, name), args.points)
+    return [points], {"machine": name, "params": params}
 
 
-def plot_job(polylines, profile: MachineProfile, size: float | None, tolerance: float | None, power: float = 0.3):
+def plot_job(polylines, profile, size: float | None, tolerance: float | None, power: float = 0.3):
     """:func:`station.services.machines.plot_job`, its refusals naming the CLI's flags (``--tolerance``...)."""
     try:
         return _plot_job(polylines, profile, size, tolerance, power)
@@ -256,27 +244,20 @@ def run_plot(args) -> int:
         "tolerance_mm": profile.plot.tolerance if args.tolerance is None else args.tolerance,
         "extent_mm": [float(v) for v in (*stacked.min(axis=0), *stacked.max(axis=0))],
         "draw_length_mm": length,
-        "draw_time_s": length / options.draw_feed * 60.0,
+        "draw_time_s": job_seconds(text, profile),
         "lines": text.count("\n"),
     }
     if args.json:
         emit_json(summary)
     print(
         f"plot: {summary['points_in']} -> {summary['points_out']} points (tolerance {summary['tolerance_mm']:g} mm), "
-        f"{length:.0f} mm of drawing, about {summary['draw_time_s'] / 60:.1f} min at F{options.draw_feed:g}"
+        f"{length:.0f} mm of drawing at F{options.draw_feed:g}, about {summary['draw_time_s'] / 60:.1f} min (GRBL's "
+        "planner)"
         + (f"; wrote {args.out}" if args.out is not None else "")
         + (f" and {args.preview}" if args.preview is not None else ""),
         file=sys.stderr,
     )
     return 0
-
-
-def _sample(source: plot_service.PatternSource) -> np.ndarray:
-    from design.machines import get_machine
-
-    model = get_machine(source.machine)
-    values = model.validate(source.params)
-    return np.asarray(model.sample(values, n=source.points, spacing="arclength"), dtype=float)
 
 
 def plot_composition(args) -> plot_service.Composition:
@@ -291,9 +272,7 @@ def plot_composition(args) -> plot_service.Composition:
     if args.points < 16:
         raise UsageError(f"--points must be at least 16, got {args.points}")
     if args.machine:
-        from design.machines import get_machine
-
-        name = get_machine(args.machine).name
+        name = machine_name(args.machine)
         for design in args.design or [None]:
             params = load_design(design, name) if design else {}
             params.update(parse_assignments(args.set))
@@ -313,10 +292,10 @@ def plot_composition(args) -> plot_service.Composition:
     return composition
 
 
-def _run_layered_plot(args, profile: MachineProfile) -> int:
+def _run_layered_plot(args, profile) -> int:
     composition = plot_composition(args)
     try:
-        result = plot_service.plot(composition, profile, sample=_sample, sort=not args.no_sort,
+        result = plot_service.plot(composition, profile, sample=pattern_points, sort=not args.no_sort,
                                    tolerance=args.tolerance, power=args.power, seed=args.seed)
     except ServiceError as error:
         if error.field in ("tolerance", "power"):
@@ -412,43 +391,6 @@ class SendProgress:
         self.view.close(clear=clear)
 
 
-@contextlib.contextmanager
-def _job_history():
-    """The station database's job history for ``station send``; a broken database warns once and is skipped."""
-    import sqlite3
-
-    from station.db import open_database
-    from station.paths import database_path
-
-    def warn(error: Exception) -> None:
-        print(f"station: warning: job history not written ({error})", file=sys.stderr)
-
-    try:
-        connection = open_database(database_path())
-    except (StationError, OSError, sqlite3.Error) as error:
-        warn(error)
-        yield JobLog(None)
-        return
-    try:
-        yield JobLog(connection, on_error=warn)
-    finally:
-        connection.close()
-
-
-def _frame_job(job: Job, name: str, laser: bool, profile: MachineProfile | None, pen_up) -> Job:
-    """The job that traces ``job``'s bounding box: the laser at the profile's frame power, or the pen up."""
-    extent = job.extent()
-    if extent is None:
-        raise UsageError(f"job {name}: no motion to frame")
-    lo, hi = extent
-    if laser:
-        power = (profile.laser.frame_power * profile.laser.max_power) if profile and profile.laser else 10.0
-        lines = frame_lines(lo, hi, laser_power=power, feed=min(3000.0, profile.max_feed if profile else 3000.0))
-    else:
-        lines = frame_lines(lo, hi, pen_up=pen_up)
-    return Job(f"frame of {name}", lines, laser=laser, pen_up=pen_up)
-
-
 def _interactive() -> bool:
     """Someone at a terminal can answer a question (stdin and stderr are terminals)."""
     return bool(sys.stdin and sys.stdin.isatty() and sys.stderr.isatty())
@@ -471,156 +413,72 @@ class SendSignals(HandledSignals):
 
     Installed even when the process started with SIGINT ignored: a background job of a script gets SIGINT ignored
     from its shell, Python then keeps it so, and ``kill -INT`` would let a laser job burn to its end. While a job
-    streams a signal only asks for the stop (the job loop aborts the job: soft reset, laser off, the history
-    written, the result printed); at any other time it raises KeyboardInterrupt, as Python's own handler does.
-    Off the main thread (where no handler can be set) nothing is installed.
+    streams a signal only asks the send to stop (:meth:`MachineSessions.interrupt`: soft reset, laser off, the
+    history written, the result printed); at any other time it raises KeyboardInterrupt, as Python's own handler
+    does. Off the main thread (where no handler can be set) nothing is installed.
     """
 
-    def __init__(self) -> None:
+    def __init__(self, sessions: MachineSessions) -> None:
         super().__init__()
-        self.stop = threading.Event()
-        self.streaming = False
-        self.signum: int | None = None
+        self.sessions = sessions
 
     def _handle(self, signum, frame) -> None:
-        self.signum = signum
-        self.stop.set()
-        if not self.streaming:
+        if not self.sessions.sending:
             raise KeyboardInterrupt
-
-    @property
-    def cause(self) -> str:
-        """``SIGINT (Ctrl-C)`` or ``SIGTERM``: what stopped the job."""
-        if self.signum == signal.SIGINT:
-            return "SIGINT (Ctrl-C)"
-        return signal.Signals(self.signum).name if self.signum is not None else "Ctrl-C"
+        self.sessions.interrupt("SIGINT (Ctrl-C)" if signum == signal.SIGINT else signal.Signals(signum).name)
 
 
-#: How often ``station send`` records a running job's progress in the history (seconds).
-HISTORY_INTERVAL = 2.0
+class TerminalPolicy(SendPolicy):
+    """``station send``'s answers: the frame of a laser job on a machine without homing offered at a terminal (a tip
+    elsewhere; never with ``--json``), a pen change announced on stderr and resumed by a line on standard input (at
+    its end nobody is there to change the pen: the job is stopped there)."""
 
-
-class PenChangePrompt:
-    """A job's program pause (a multi-pen plot's pen change) while ``station send`` streams it: says on stderr which
-    pen to put in and resumes the job when a line comes on standard input (Enter at a terminal). Standard input at
-    its end means nobody is there to change the pen: :attr:`closed` is set, and the caller stops the job."""
-
-    def __init__(self, runner: JobRunner, stream=None) -> None:
-        self.runner = runner
+    def __init__(self, path: Path, *, ask: bool, bar: SendProgress | None, stream=None) -> None:
+        self.path = path
+        self.ask = ask
+        self.bar = bar
         self.stream = stream
-        self.asked: int | None = None
-        self.closed = False
-        self.pauses = 0
+        self.framing = False  # the frame was asked for and has not ended well yet
+        self.declined = False  # the job was not started after its frame
 
-    def poll(self) -> None:
-        """Call often while the job runs: asks once per pause."""
-        progress = self.runner.progress
-        line = self.runner.pause_line
-        if progress.state != "paused" or line is None:
-            self.asked = None
-            return
-        if self.asked == line:
-            return
-        self.asked = line
-        self.pauses += 1
-        print(f"station: {progress.message}: press Enter to resume (Ctrl-C aborts)", file=sys.stderr, flush=True)
-        threading.Thread(target=self._wait_for_enter, name="pen-change", daemon=True).start()
+    def progress(self, progress) -> None:
+        if self.bar is not None:
+            self.bar(progress)
 
-    def _wait_for_enter(self) -> None:
-        stream = self.stream if self.stream is not None else sys.stdin
-        answer = stream.readline() if stream is not None else ""
-        if answer:
-            self.runner.resume()
-        else:
-            self.closed = True
+    def frame_first(self, job) -> bool:
+        if not self.ask:
+            return False
+        if not _interactive():
+            print(f"station: tip: this machine has no homing ($22=0): the job runs where work zero is set; "
+                  f"`station send {self.path} --frame` traces its bounding box at frame power first", file=sys.stderr)
+            return False
+        self.framing = _ask("No homing ($22=0): trace the job's frame first (laser at frame power)?", default=True)
+        return self.framing
 
+    def start_after_frame(self, job) -> bool:
+        if self.bar is not None:
+            self.bar.close()
+            self.bar = SendProgress()
+        self.framing = False
+        self.declined = not _ask(f"Frame done. Start the laser job {self.path.name}?", default=False)
+        return not self.declined
 
-def _layer_record(runner: JobRunner, resume_line: int | None = None) -> dict | None:
-    """The layer of a multi-pen plot the machine stands on (or of ``resume_line``), for the job history."""
-    if not runner.layers:
-        return None
-    mark = runner.layer(resume_line - 1 if resume_line else None)
-    return mark.to_dict() if mark is not None else None
+    def paused(self, message: str, resume, stop) -> None:
+        print(f"station: {message}: press Enter to resume (Ctrl-C aborts)", file=sys.stderr, flush=True)
 
-
-def _stream(conn, history, job: Job, kind: str, url: str, title: str, *, from_line: int = 1, dry_run: bool = False,
-            bar: SendProgress | None = None, signals: SendSignals | None = None) -> JobResult:
-    """Run ``job`` on ``conn`` with a progress bar and a row in the job history. A signal (``signals``), or Ctrl-C
-    without them, aborts it (soft reset, laser off) and ends it as ``interrupted``, with the line to resume from."""
-    runner = JobRunner(conn, job, from_line=from_line, dry_run=dry_run, on_progress=bar)
-    job_id = history.start(kind, url, title, len(job.lines), "station send")
-    stop = signals.stop if signals is not None else threading.Event()
-    prompt = PenChangePrompt(runner)
-    if signals is not None:
-        signals.streaming = True
-    try:
-        runner.start()
-        recorded = time.monotonic()
-        while runner.wait(0) is None and runner.running:
-            if stop.wait(0.1):
-                break
-            prompt.poll()
-            if prompt.closed and runner.result is None:
+        def wait_for_enter() -> None:
+            stream = self.stream if self.stream is not None else sys.stdin
+            if stream is not None and stream.readline():
+                resume()
+            else:
                 print("station: standard input closed at the pen change: nobody to put the pen in; job stopped",
                       file=sys.stderr)
-                prompt.closed = False
-                runner.abort()
-            if time.monotonic() - recorded >= HISTORY_INTERVAL:
-                recorded = time.monotonic()
-                # the line being executed, so that a station killed now still says where to resume
-                resume = runner.progress.current_line + 1 if runner.progress.lines_acked and not dry_run else None
-                history.progress(job_id, runner.progress.lines_acked, resume, _layer_record(runner))
-        if stop.is_set() and runner.result is None:
-            # a second signal meanwhile only asks again: the clean-up (at most ~13 s) confirms the laser is off
-            return _interrupted(conn, history, runner, job_id, signals.cause if signals is not None else "Ctrl-C",
-                                bar)
-    except KeyboardInterrupt:  # without signals: Python's own Ctrl-C
-        stop.set()
-        return _interrupted(conn, history, runner, job_id, "Ctrl-C", bar)
-    finally:
-        if signals is not None:
-            signals.streaming = False
-    result = runner.wait(None)
-    history.finish(job_id, result.state, result.lines_acked, result.message, result.resume_line,
-                   _layer_record(runner, result.resume_line))
-    if bar:
-        if result.state in ("refused", "position_lost"):
-            bar.close(clear=True)  # the error's one line says it all
-        else:
-            bar(runner.progress)  # the end, whatever the last report was
-            bar.close()
-    return result
+                stop()
 
+        threading.Thread(target=wait_for_enter, name="pen-change", daemon=True).start()
 
-def _interrupted(conn, history, runner: JobRunner, job_id: int, cause: str, bar: SendProgress | None) -> JobResult:
-    """Abort ``runner``'s job after a signal and end it as ``interrupted``: the laser switched off as the driver
-    does it (soft reset, then ``M5 S0``; once more from here if the job thread does not end in time), the line the
-    machine stood on kept, the history written."""
-    runner.abort()
-    done = runner.wait(10.0)
-    progress = runner.progress
-    if done is not None:
-        laser_off, resume = done.laser_off, done.resume_line
-    else:  # the job thread did not end: reset from here (GRBL's reset switches the spindle and laser off)
-        try:
-            laser_off = conn.soft_reset(wait=True, timeout=3.0)
-        except Exception:  # noqa: BLE001 - a vanished port: nothing more can be done from here
-            laser_off = False
-        resume = progress.current_line + 1 if progress.lines_acked and not runner.dry_run else None
-    if bar:
-        bar.close()
-    tool = "laser" if runner.is_laser else "spindle"
-    parts = [f"interrupted by {cause}: job aborted, soft reset sent",
-             f"{tool} off" if laser_off else f"{tool} not confirmed off: check the machine"]
-    if conn.alarm is not None:
-        parts.append(f"{conn.alarm}; {conn.alarm.recovery}")
-    if resume is not None:
-        parts.append(f"resume from line {resume}")
-    message = "; ".join(parts)
-    history.finish(job_id, INTERRUPTED, progress.lines_acked, message, resume, _layer_record(runner, resume))
-    return JobResult(state=INTERRUPTED, message=message, lines_total=len(runner.job.lines),
-                     lines_acked=progress.lines_acked, elapsed=progress.elapsed, resume_line=resume,
-                     laser_off=laser_off)
+    def warn(self, message: str) -> None:
+        print(f"station: warning: {message}", file=sys.stderr)
 
 
 def _layer_tip(marks, result: JobResult) -> str:
@@ -633,20 +491,21 @@ def _layer_tip(marks, result: JobResult) -> str:
     return f', or --from-layer {mark.number} to start layer {mark.number}/{mark.count} "{mark.name}" again'
 
 
+def _warn_history(error: Exception) -> None:
+    print(f"station: warning: job history not written ({error})", file=sys.stderr)
+
+
 def run_send(args) -> int:
-    profile = _profile(args.profile) if args.profile else None
+    profile = machine_profile(args.profile) if args.profile else None
     path = Path(args.job)
-    if not path.is_file():
-        raise UsageError(f"job {str(path)!r}: no such file")
-    laser = args.laser or (profile is not None and profile.is_laser)
-    pen_up = tuple(profile.pen.up_commands()) if profile is not None and profile.pen else ("M5",)
-    job = placed_job(args, Job.from_file(path, laser=laser, pen_up=pen_up))
-    if not any(clean_line(line) for line in job.lines):
-        raise UsageError(f"job {str(path)!r}: the file has no G-code lines (it is empty or only comments)")
+    try:
+        job = load_job(path, profile=profile, laser=args.laser, place=getattr(args, "place", None))
+    except ServiceError as error:
+        raise UsageError(f"--place: {error}" if error.field == "place" else str(error)) from None
     if args.from_line < 1 or args.from_line > len(job.lines):
         raise UsageError(f"--from-line must be between 1 and {len(job.lines)} (lines in {path.name}), "
                          f"got {args.from_line}")
-    marks = layer_marks(job.lines)
+    marks = job_layer_marks(job.lines)
     if args.from_layer is not None:
         if args.from_line != 1:
             raise UsageError("give --from-line or --from-layer, not both")
@@ -661,50 +520,41 @@ def run_send(args) -> int:
     if not url:
         raise UsageError("give --port URL (e.g. /dev/ttyUSB0 or sim://grbl?profile=plotter) or --profile")
     baud = args.baud or (profile.baud if profile else 115200)
-    original = job
-    if args.frame:
-        job = _frame_job(job, path.name, laser, profile, pen_up)
+    mode = JobMode.FRAME if args.frame else JobMode.DRY if args.dry_run else JobMode.RUN
     bar = None if args.json else SendProgress()
-    kind = JOB_KINDS["frame" if args.frame else "dry" if args.dry_run else "run"]
-    title = str(path) if kind == "run" else f"{kind} of {path}"
-    with SendSignals() as signals, GrblConnection(url, baud) as conn, _job_history() as history:
-        warning = kind_warning(original, conn.laser_mode)
-        verify_before_send(args, original, profile, conn)
-        if warning:
-            print(f"station: warning: {warning}", file=sys.stderr)
-        if (laser and kind == "run" and args.from_line == 1 and not args.json and not conn.homing_enabled
-                and conn.laser_mode):
-            # without homing the job burns wherever work zero was set: the frame shows where, at low power
-            refused = JobRunner(conn, job).check()  # a job that cannot run is refused before anything is offered
-            if refused is not None:
-                history.finish(history.start(kind, url, title, len(job.lines), "station send"), refused.state, 0,
-                               refused.message)
-                raise (JobRefused if refused.state == "refused" else DeviceStateError)(refused.message)
-            if not _interactive():
-                print(f"station: tip: this machine has no homing ($22=0): the job runs where work zero is set; "
-                      f"`station send {path} --frame` traces its bounding box at frame power first",
-                      file=sys.stderr)
-            elif _ask("No homing ($22=0): trace the job's frame first (laser at frame power)?", default=True):
-                frame = _frame_job(original, path.name, laser, profile, pen_up)
-                framed = _stream(conn, history, frame, JOB_KINDS["frame"], url, f"frame of {path}",
-                                 bar=SendProgress(), signals=signals)
-                if framed.state == INTERRUPTED:
-                    print(f"station: frame {framed.message}; {path.name} not started", file=sys.stderr)
-                    return 130
-                if not framed.ok:
-                    print(framed.message, file=sys.stderr)
-                    if framed.state == "refused":
-                        raise JobRefused(framed.message)
-                    return 1
-                if not _ask(f"Frame done. Start the laser job {path.name}?", default=False):
-                    print(f"station: {path.name} not started", file=sys.stderr)
-                    return 0
-        if args.from_layer is not None and not args.frame:
-            mark = marks[args.from_layer - 1]
-            print(f"station: starting at {mark.label}" + (": the machine pauses for its pen first"
-                  if mark.pause is not None else f': pen "{mark.pen}" must be in'), file=sys.stderr)
-        result = _stream(conn, history, job, kind, url, title, from_line=1 if args.frame else args.from_line,
-                         dry_run=args.dry_run, bar=bar, signals=signals)
+    policy = TerminalPolicy(path, ask=not args.json, bar=bar)
+    with job_history(_warn_history) as history:
+        sessions = MachineSessions(history, source="station send")
+        with SendSignals(sessions), sessions.session(url, url, baud):
+            verify_before_send(args, job, profile, sessions, url)
+            entry = sessions.add(url, job, str(path))
+            if args.from_layer is not None and not args.frame:
+                mark = marks[args.from_layer - 1]
+                print(f"station: starting at {mark.label}" + (": the machine pauses for its pen first"
+                      if mark.pause is not None else f': pen "{mark.pen}" must be in'), file=sys.stderr)
+            try:
+                result = sessions.send(url, entry, mode, from_line=args.from_line, profile=profile, policy=policy,
+                                       report=policy.progress)
+            except ServiceError as error:
+                if error.field == "job":  # nothing to frame
+                    raise UsageError(str(error)) from None
+                raise
+        if policy.bar is not None:
+            if result.state in ("refused", "position_lost"):
+                policy.bar.close(clear=True)  # the error's one line says it all
+            else:
+                policy.bar.close()
+    if policy.declined:
+        print(f"station: {path.name} not started", file=sys.stderr)
+        return 0
+    if policy.framing:  # the frame ended badly: the result is the frame's, the job was not started
+        if result.state == INTERRUPTED:
+            print(f"station: frame {result.message}; {path.name} not started", file=sys.stderr)
+            return 130
+        print(result.message, file=sys.stderr)
+        if result.state == "refused":
+            raise refusal(result)
+        return 1
     document = {
         "job": str(path), "port": url, "state": result.state, "message": result.message,
         "lines_total": result.lines_total, "lines_acked": result.lines_acked, "elapsed_s": result.elapsed,
@@ -721,16 +571,15 @@ def run_send(args) -> int:
     if result.state == INTERRUPTED:
         # on stderr with --json too: whoever pressed Ctrl-C reads there whether the laser is off
         go_on = (f" (the same command with --from-line {result.resume_line}{_layer_tip(marks, result)})"
-                 if result.resume_line is not None and kind == "run" else "")
+                 if result.resume_line is not None and mode is JobMode.RUN else "")
         print(f"station: {result.message}{go_on}", file=sys.stderr)
         return 130
     if not args.json and result.state not in ("refused", "position_lost"):  # those are raised: one line
         tip = _layer_tip(marks, result)
-        print(result.message + (f" ({tip.lstrip(', ')})" if tip and kind == "run" else ""), file=sys.stderr)
+        print(result.message + (f" ({tip.lstrip(', ')})" if tip and mode is JobMode.RUN else ""), file=sys.stderr)
         for _, text in result.errors:
             print(f"  {text}", file=sys.stderr)
-    if result.state == "refused":
-        raise JobRefused(result.message)
-    if result.state == "position_lost":
-        raise DeviceStateError(result.message)
+    error = refusal(result)
+    if error is not None:
+        raise error
     return 0 if result.state == "done" else 1

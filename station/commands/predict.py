@@ -6,8 +6,9 @@ import math
 import sys
 
 from station.cli_util import emit_json, flag_error
+from station.commands.contraption import report_layout
 from station.commands.robust import _where, add_command, add_scenario_and_layout, add_workers, command
-from station.services.errors import ServiceError
+from station.errors import ServiceError
 
 
 def register(subparsers) -> None:
@@ -37,12 +38,11 @@ def _number(value: float) -> str:
 
 @command
 def run_predict(args) -> int:
-    from station.commands.contraption import report_layout
-    from station.services.predict import predict
+    from station.services.predict import predict  # heavy: design.contraption.simulation, pybullet, scipy, shapely
 
     try:
         prediction = predict(args.scenario, args.layout, physics=args.physics, as_built=args.as_built,
-                             samples=args.samples, seed=args.seed, progress=args.bar, **_where(args))
+                             samples=args.samples, seed=args.seed, **_where(args))
     except ServiceError as error:
         raise flag_error(error, {"as_built": "--as-built"}) from None
     args.bar.close()

@@ -20,19 +20,23 @@ from typing import TextIO
 
 import numpy as np
 
-from common.progress import Progress as BaseProgress
-from design.robust.settings import METHODS, RobustnessSettings
 from station.cli_util import NON_NEGATIVE, add_physics_option, check_output_file, emit_json
-from station.errors import UsageError
+from station.commands.contraption import report_layout
+from station.errors import ServiceError, UsageError
 from station.progress_view import ProgressView
 from station.services import robust as service
-from station.services.errors import ServiceError
+from station.services.outlook import disagreement, success_headline
+from station.services.physics import problem_with_physics
+from station.services.reporting import Cancelled, Reporter
+from station.services.reporting import Progress as BaseProgress
 from station.services.robust import (  # noqa: F401 - re-exported: the work lives in the service
     DEFAULT_BUDGET,
     DEFAULT_SETTINGS,
+    METHODS,
     SETTINGS_CHOICES,
-    RunStopped,
+    RobustnessSettings,
     StopRequest,
+    plot_robustness,
     read_layout,
     simulation_cache_path,
     thesis_budget,
@@ -84,8 +88,6 @@ def _load_problem(path: str):
 
 def _problem(args):
     """The problem of ``args.scenario`` under ``args.physics`` (a physics profile) when given."""
-    from station.services.physics import problem_with_physics
-
     return problem_with_physics(_load_problem(args.scenario), getattr(args, "physics", None))
 
 
@@ -202,10 +204,11 @@ def command(run: Callable[..., int]) -> Callable[..., int]:
             try:
                 with flag_words():
                     return run(args)
-            except RunStopped as stopped:
+            except Cancelled as stopped:
                 args.bar.close()
-                print(f"\nstation: stopping; the {stopped.new_simulations} new simulations of this run are kept in "
-                      f"the cache ({stopped.cache})", file=sys.stderr)
+                kept = (f"; the {stopped.new_simulations} new simulations of this run are kept in the cache "
+                        f"({stopped.cache})" if stopped.cache is not None else "")
+                print(f"\nstation: stopping{kept}", file=sys.stderr)
                 raise KeyboardInterrupt from None
             finally:
                 args.bar.close()
@@ -214,8 +217,9 @@ def command(run: Callable[..., int]) -> Callable[..., int]:
 
 
 def _where(args) -> dict:
-    """Where the simulations run and when they stop: the keyword arguments every run of the service takes."""
-    return {"workers": args.workers, "scheduler": args.scheduler, "should_stop": args.stop.is_set}
+    """Where the simulations run, and their reporter (the command's bar, its stop request): the keyword arguments
+    every run of the service takes."""
+    return {"workers": args.workers, "scheduler": args.scheduler, "report": Reporter(args.bar, stop=args.stop.is_set)}
 
 
 def add_common(parser, budget: bool = True) -> None:
@@ -347,9 +351,9 @@ def run_optimize(args) -> int:
     from station.services.predict import layout_outlook  # simulation code: deferred so that --help stays quick
 
     service.check_count(args.predict, "predict", 0)
-    result = service.optimize(problem, budget, args.seed, settings, progress=args.bar, **_where(args))
+    result = service.optimize(problem, budget, args.seed, settings, **_where(args))
     outlook = layout_outlook(problem, problem.to_real(result.u), physics=getattr(args, "physics", None),
-                             samples=args.predict, seed=args.seed, progress=args.bar, **_where(args))
+                             samples=args.predict, seed=args.seed, **_where(args))
     args.bar.close()
     payload = result.to_json(problem)
     if outlook is not None:
@@ -364,8 +368,6 @@ def run_optimize(args) -> int:
 
 def _print_optimized(problem, result, outlook, out) -> None:
     """The optimized layout as a maker reads it: the physical success on the table first, the model's score last."""
-    from station.services.outlook import disagreement, success_headline
-
     if outlook is not None:
         print(f"{problem.name}: " + success_headline(outlook, when=f"placed by the guide, {outlook.samples} "
                                                      "simulations"))
@@ -405,9 +407,6 @@ def _print_verification(result) -> None:
 
 @command
 def run_robustness(args) -> int:
-    from design.robust.plot import plot_robustness
-    from station.commands.contraption import report_layout
-
     service.check_seed(args.seed)
     service.check_count(args.eval, "n_evaluation")
     if args.plot is not None:
@@ -424,9 +423,9 @@ def run_robustness(args) -> int:
           "simulations at most (cached ones are not run again); fewer, and faster, with --eval N and --local N",
           file=sys.stderr)
     bar = args.bar
-    with service.simulations(problem, **_where(args)) as executor:
-        run = service.RobustnessRun(problem, u, settings, args.seed, executor, progress=bar,
-                                    should_stop=args.stop.is_set)
+    where = _where(args)
+    with service.simulations(problem, **where) as executor:
+        run = service.RobustnessRun(problem, u, settings, args.seed, executor, report=where["report"])
         bar.expect(n_evaluation, "valid evaluation layouts")
         plan = run.draw()
         bar.note(f"{plan.cached} of the {plan.layouts} simulations are cached; {plan.new} to run")
@@ -452,8 +451,6 @@ def run_robustness(args) -> int:
 
 @command
 def run_compare(args) -> int:
-    from design.robust.plot import plot_robustness
-
     methods = service.parse_methods(args.methods)
     service.check_seed(args.seed)
     service.check_count(args.runs, "runs")
@@ -465,10 +462,12 @@ def run_compare(args) -> int:
     problem = _problem(args)
     budget = default_budget(problem, args.budget)
     bar = args.bar
+    request = service.ComparisonRequest(budget, psp_settings(args.settings), tuple(methods), args.runs, args.seed,
+                                        robustness, workers=args.workers, scheduler=args.scheduler)
     comparison = service.compare(
-        problem, methods, args.runs, budget, args.seed, psp_settings(args.settings), robustness, progress=bar,
+        problem, request, report=_where(args)["report"],
         on_run=lambda run: bar.note(f"{run.method} seed {run.seed}: rho_g {run.curve.global_robustness:.3f}, "
-                                    f"{run.n_simulations} simulations, {run.seconds:.1f} s"), **_where(args))
+                                    f"{run.n_simulations} simulations, {run.seconds:.1f} s"))
     bar.close()
     rows = comparison.table()
     if args.plot is not None:

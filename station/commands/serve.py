@@ -6,6 +6,7 @@ import socket
 
 from station.errors import StationError, UsageError
 from station.paths import data_dir
+from station.serve import load_or_create_token, needs_token, tls_context, token_path
 
 
 def register(subparsers) -> None:
@@ -37,7 +38,7 @@ def register(subparsers) -> None:
 
 
 def run_serve(args) -> int:
-    from station.serve import load_or_create_token, make_server, needs_token, tls_context, token_path
+    from station.serve_http import make_server  # deferred: aiohttp and textual-serve, for this command alone
 
     if not 1 <= args.port <= 65535:
         raise UsageError(f"--port must be an integer in [1, 65535], got {args.port}")

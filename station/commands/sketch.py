@@ -11,18 +11,18 @@ import math
 import sys
 from pathlib import Path
 
-from common.progress import Progress
-from design.machines import declared_machine_names
 from station.cli_util import NON_NEGATIVE, check_output_folder, emit_json, flag_error
-from station.errors import UsageError
+from station.errors import ServiceError, UsageError
 from station.progress_view import ProgressView
-from station.services.errors import ServiceError
+from station.services.designs import declared_machine_names
+from station.services.reporting import Progress, Reporter
 from station.services.sketch import (
     GRID_RANGE,
     REFINE_RANGE,
     SMOOTHING_RANGE,
     TOP_RANGE,
     RetrieveOptions,
+    load_sketch,
     retrieve,
     write_contact_sheet,
 )
@@ -97,9 +97,6 @@ def describe_progress(progress: Progress) -> str:
 
 
 def run_retrieve(args) -> int:
-    # scipy and the spline/FFT machinery: loaded only when a sketch is retrieved, not for --help
-    from design.sketch import load_sketch
-
     options = RetrieveOptions(machines=tuple(args.machine), top=args.top, refine=args.refine,
                               smoothing=args.smoothing, prune=not args.no_prune, mirror=args.mirror, grid=args.grid)
     try:
@@ -109,7 +106,7 @@ def run_retrieve(args) -> int:
     out_dir = check_output_folder(args.out, "--out", "the contact sheet PNG") if args.out is not None else None
     sketch = load_sketch(args.sketch, symmetry=args.symmetry, center=_parse_center(args.center))
     with ProgressView(describe=describe_progress) as view:
-        result = retrieve(sketch, options, progress=view)
+        result = retrieve(sketch, options, report=Reporter(view))
     if out_dir is not None:
         sheet = write_contact_sheet(result, out_dir / f"{Path(args.sketch).stem}-candidates.png")
         print(f"contact sheet: {sheet}", file=sys.stderr)

@@ -1,4 +1,4 @@
-"""``station tolerances``: how far each part of a layout may be off, from its fitted success model (issue 18).
+"""``station tolerances``: how far each part of a layout may be off, from its fitted success model.
 
 Argparse in, text or JSON out: the work is :mod:`station.services.tolerances`. Simulations (``--verify``) go through
 the robust commands' shared cache, progress bar and clean Ctrl-C (:func:`station.commands.robust.command`).
@@ -8,11 +8,13 @@ from __future__ import annotations
 
 import sys
 
-from design.robust.tolerance import CARE_RULE, RATIO
 from station.cli_util import emit_json
+from station.commands.contraption import report_layout
 from station.commands.robust import add_command, add_workers, command
 from station.errors import UsageError
 from station.services import tolerances as service
+from station.services.reporting import Reporter
+from station.services.tolerances import CARE_RULE, RATIO
 
 JSON_SHAPE = (
     '--json prints {"scenario", "layout": {source, format, name, defaulted, warnings}, "verify": N, '
@@ -65,12 +67,11 @@ def describe_limit(entry) -> str:
 def run_tolerances(args) -> int:
     if args.verify < 0:
         raise UsageError(f"--verify must be an integer >= 0 (layouts simulated per parameter), got {args.verify}")
-    from station.commands.contraption import report_layout
 
     bar = args.bar
     result = service.tolerance_map(args.scenario, args.layout, verify=args.verify, seed=args.seed,
-                                   workers=args.workers, scheduler=args.scheduler, progress=bar,
-                                   should_stop=args.stop.is_set, physics=args.physics)
+                                   workers=args.workers, scheduler=args.scheduler,
+                                   report=Reporter(bar, stop=args.stop.is_set), physics=args.physics)
     bar.close()
     report_layout(result.layout, sys.stderr)
     if args.json:

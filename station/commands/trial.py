@@ -5,12 +5,11 @@ from __future__ import annotations
 import sqlite3
 import sys
 
-from common.progress import Cancelled
-from design.contraption.layout_io import resolve_layout
 from station.cli_util import emit_json
 from station.db import WRITE_PATIENCE_SECONDS
-from station.errors import StationError, UsageError
-from station.services.errors import ServiceError
+from station.errors import ServiceError, StationError, UsageError
+from station.progress_view import ProgressView
+from station.services.reporting import Cancelled, Reporter
 from station.services.trials import (
     TrialKept,
     build_trial,
@@ -18,7 +17,6 @@ from station.services.trials import (
     describe_trial,
     export_trials,
     import_trials,
-    layout_values,
     load_trial_scenario,
     log_trial,
     open_store,
@@ -26,6 +24,7 @@ from station.services.trials import (
     parse_times,
     pending_files,
     read_as_built,
+    read_layout_values,
     read_physics,
     trial_line,
 )
@@ -132,7 +131,7 @@ def run_log(args) -> int:
         outcomes = parse_outcomes(args.outcome)
         times = parse_times(args.time)
         scenario = load_trial_scenario(args.scenario)
-        layout = layout_values(scenario, resolve_layout(args.layout, scenario).x)
+        layout = read_layout_values(scenario, args.layout)
         as_built, check = read_as_built(args.as_built, scenario, layout) if args.as_built else (None, None)
         physics = read_physics(args.physics) if args.physics else None
         record = build_trial(scenario, layout, outcomes, times=times, as_built=as_built, check=check,
@@ -160,6 +159,7 @@ def run_log(args) -> int:
     if args.json:
         emit_json({"id": trial_id} if outlook is None else {"id": trial_id, "physical_success": outlook.to_json()})
     elif outlook is not None:
+        # heavy: design.contraption.simulation, pybullet, scipy, shapely
         from station.services.predict import outlook_line
 
         print(f"trial {trial_id}: {outlook_line(outlook)}", file=sys.stderr)
@@ -170,14 +170,12 @@ def _outlook(scenario, record, samples: int):
     """The physical success of the trial's layout, as built (``--predict N`` simulations; None for 0)."""
     if not samples:
         return None
-    from design.errors import DesignError
-    from station.progress_view import ProgressView
-    from station.services.predict import predict_trial
+    from station.services.predict import predict_trial  # heavy: design.contraption.simulation, pybullet, scipy, shapely
 
     try:
         with ProgressView(sys.stderr, prefix="predict: ") as view:
-            return predict_trial(scenario, record, samples=samples, progress=view)
-    except (StationError, DesignError) as error:  # the trial is logged: say why there is no prediction, and go on
+            return predict_trial(scenario, record, samples=samples, report=Reporter(view))
+    except StationError as error:  # the trial is logged: say why there is no prediction, and go on
         print(f"no prediction: {error}", file=sys.stderr)
     except sqlite3.Error as error:  # the simulation cache, kept busy by another process
         print(f"no prediction: the simulation cache: {error}", file=sys.stderr)

@@ -20,6 +20,7 @@ The states and what moves between them (anything else is refused with a :class:`
 
 from __future__ import annotations
 
+import json
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -27,11 +28,51 @@ from typing import Any
 
 import numpy as np
 
-from common.progress import ProgressCallback
-from station.services.errors import ServiceError
+from common.progress import Reporter
+from design.contraption.physics_profile import apply_profile
+from projector.overlay import misplaced
+from station.errors import ServiceError, station_errors
+from station.paths import data_dir
+from station.services import check as checks
+from station.services import guide as guides
+from station.services import robust
+from station.services.check import overlay_frame
+from station.services.guide import export_guide, export_name, show_step
+from station.services.layout_choice import (
+    LayoutChoiceRequest,
+    candidate_layouts,
+    choose_layout,
+    expected_success,
+    layout_record,
+)
 from station.services.outlook import success_headline
+from station.services.physics import problem_with_physics, read_profile
+from station.services.predict import PredictionRequest, as_built_from_check, predict_layout
+from station.services.projectors import projector_homography
+from station.services.robust import check_count, check_seed
+from station.services.sim_calibration import SimCalibrationRequest, calibrate_sim, save
+from station.services.trials import (
+    build_trial,
+    check_values,
+    layout_values,
+    load_trial_scenario,
+    open_store,
+    read_physics,
+)
+from station.services.world import (
+    check_moves,
+    cut_jigs,
+    guide_sigma,
+    open_world,
+    place_parts,
+    prepare_world,
+    run_attempt,
+    world_scene,
+)
+from station.trialformat import check_times, complete_outcomes, goal_reached, resolve_outcomes
 
-__all__ = ["STAGES", "Assembly", "Forecast", "calibrate_from_log", "open_assembly", "reoptimize"]
+__all__ = ["STAGES", "Assembly", "Forecast", "calibrate_from_log", "guide_files", "jigs_folder", "misplaced",
+           "open_assembly", "reoptimize"]
 
 #: The stages of an attempt, in order.
 STAGES = ("guide", "check", "run", "log", "done")
@@ -39,6 +80,7 @@ STAGES = ("guide", "check", "run", "log", "done")
 DEFAULT_SAMPLES = 60
 
 
+@station_errors
 @dataclass(frozen=True)
 class Forecast:
     """The physical success and expected attempts at one point of the attempt.
@@ -58,8 +100,6 @@ class Forecast:
     def with_record(self) -> float | None:
         """The prediction updated by the layout's record, as ``station loop`` weighs it
         (:func:`station.services.layout_choice.expected_success`); None without a record."""
-        from station.services.layout_choice import expected_success
-
         return expected_success(self.prediction.probability, *self.record) if self.record[1] else None
 
     def record_words(self) -> str:
@@ -84,6 +124,7 @@ class Forecast:
                 "with_record": self.with_record}
 
 
+@station_errors
 @dataclass
 class Assembly:
     """One attempt (see the module notes); made by :func:`open_assembly`.
@@ -103,6 +144,12 @@ class Assembly:
         What happened (every event, after :meth:`answer` or :meth:`run`), and when.
     trial_id : int or None
         The trial logged.
+    highlighted : bool or None
+        The projector highlights each part as the simulated maker places it (None: when there is a projector).
+    station_camera : bool
+        The camera is the station's own: its saved calibration read, and its plane kept between checks (and in the
+        data folder) so that a check says whether the camera was bumped since the last. False: a simulated camera
+        seen through its own lens and nothing kept (``station loop``'s unattended attempts).
     """
 
     job: Any
@@ -115,6 +162,9 @@ class Assembly:
     samples: int = DEFAULT_SAMPLES
     seed: int = 0
     workers: int | None = None
+    scheduler: str | None = None
+    highlighted: bool | None = None
+    station_camera: bool = True
     stage: str = "guide"
     step: int = 0
     checks: list = field(default_factory=list)
@@ -142,6 +192,12 @@ class Assembly:
         return self.job.steps
 
     @property
+    def highlight(self) -> bool:
+        """Whether the parts are placed with the projector highlighting each (:attr:`highlighted`, else when there
+        is a projector)."""
+        return self.projector is not None if self.highlighted is None else bool(self.highlighted)
+
+    @property
     def check(self):
         """The last check (None before the first)."""
         return self.checks[-1] if self.checks else None
@@ -149,8 +205,6 @@ class Assembly:
     @property
     def within_tolerance(self) -> bool:
         """Whether the last check found every tagged part and none out of its tolerance."""
-        from projector.overlay import misplaced
-
         report = self.check.report if self.check is not None else None
         return (report is not None and report.plane is not None and not report.missing_tags
                 and not any(misplaced(p) for p in report.parts))
@@ -159,52 +213,60 @@ class Assembly:
     def success(self) -> bool | None:
         if not self.outcomes:
             return None
-        from station.trialformat import goal_reached
-
         return goal_reached(self.scenario, self.outcomes)
 
     # -- guide ------------------------------------------------------------------------------------------------------
     def show_step(self, step: int | None) -> None:
         """Show step ``step`` (1-based; None: the calibrate frame) on the projector, if there is one."""
-        from station.services.guide import show_step
-
         self.step = step or 0
         if self.projector is not None:
             show_step(self.job, self.projector, step)
 
-    def write_sheet(self, pdf: str | Path, paper: str = "a4") -> Path:
-        """Write the 1:1 PDF sheet set with the steps (print at 100 %)."""
-        from station.services.guide import export_guide
-
-        self.job = export_guide(self.job, pdf=pdf, paper=paper)
-        return Path(pdf)
+    def write_sheet(self, pdf: str | Path | None = None, paper: str = "a4") -> Path:
+        """Write the 1:1 PDF sheet set with the steps (print at 100 %) to ``pdf`` (default: the data folder's
+        ``guides/``, named by the scenario, the layout and a hash of its values); returns where."""
+        path = Path(pdf) if pdf else guide_files(self.job)[0]
+        path.parent.mkdir(parents=True, exist_ok=True)
+        self.job = export_guide(self.job, pdf=path, paper=paper)
+        return path
 
     def placed(self) -> None:
         """The maker has placed the parts (a simulated world places them now, each with the maker's error)."""
         self._expect("guide")
         if self.world is not None:
-            from station.services.world import place_parts
-
-            place_parts(self.world, self.job.guide, attempt=self.attempt, highlighted=self.projector is not None,
+            place_parts(self.world, self.job.guide, attempt=self.attempt, highlighted=self.highlight,
                         scenario=self.job.scenario)
         self.stage = "check"
 
     # -- check ------------------------------------------------------------------------------------------------------
-    def check_parts(self, progress: ProgressCallback | None = None):
-        """Grab a frame from the camera and check the parts as they stand (a simulated camera sees the world's
-        parts where the simulated maker put them, or the guide's tags at their designed poses without a world)."""
-        from station.services import check as checks
+    def check_placed(self, *, fix: bool = False, report: Reporter | None = None):
+        """Check the parts as they stand: placed first when they are not yet (:meth:`placed`), and with ``fix``
+        moved first as the last check said (:meth:`fix`). Returns the check (:meth:`check_parts`)."""
+        if self.stage == "guide":
+            self.placed()
+        if fix:
+            self.fix()
+        return self.check_parts(report)
 
+    def check_parts(self, report: Reporter | None = None, *, seed: int | None = None):
+        """Grab a frame from the camera and check the parts as they stand (a simulated camera sees the world's
+        parts where the simulated maker put them, or the guide's tags at their designed poses without a world).
+        ``seed`` seeds a simulated camera's noise in this frame (without ``station_camera``; None: the camera's
+        own)."""
         self._expect("check")
         scene = None
         if self.world is not None:
-            from station.services.world import world_scene
-
             scene = world_scene(self.job.guide, self.world.placed())
-        image, intrinsics, name, saved = checks.camera_frame(self.job.guide, camera=self.camera, scene=scene)
-        previous = self.check.measurement.plane if self.check is not None else saved
-        result = checks.check_frame(self.job, image, intrinsics, previous=previous, progress=progress)
-        checks.remember_plane(name, result)
+        if self.station_camera:
+            image, intrinsics, name, saved = checks.camera_frame(self.job.guide,
+                                                                 checks.FrameSource(camera=self.camera, scene=scene))
+            previous = self.check.measurement.plane if self.check is not None else saved
+        else:
+            image, intrinsics = checks.grab_frame(self.camera, self.job.guide, scene=scene, seed=seed)
+            name = previous = None
+        result = checks.check_frame(self.job, image, intrinsics, previous=previous, report=report)
+        if name is not None:
+            checks.remember_plane(name, result)
         self._camera_name = name
         self.checks.append(result)
         return result
@@ -212,24 +274,24 @@ class Assembly:
     def project_check(self) -> bool:
         """Show the last check on the projector (an arrow per misplaced part to where it must go, a ring at the
         target); False without a projector or a check."""
-        from station.services.check import overlay_frame
-        from station.services.projectors import projector_homography
-
         if self.projector is None or self.check is None:
             return False
         size = tuple(self.projector.size)
         self.projector.show(overlay_frame(self.check, size, projector_homography(self.projector)))
         return True
 
+    def moves(self) -> list[dict]:
+        """What the last check asks the maker to move (:func:`station.services.world.check_moves`); [] before the
+        first check."""
+        return [] if self.check is None else check_moves(self.check.to_json(), self.job.guide)
+
     def fix(self) -> list[dict]:
         """The maker moved the parts as the last check said (a simulated world applies the moves now, with the
-        maker's smaller error; :func:`station.services.world.check_moves`); check again next. Returns the moves."""
+        maker's smaller error); check again next. Returns the moves (:meth:`moves`)."""
         self._expect("check")
         if self.check is None:
             raise ServiceError("stage: no check yet; check the parts first", field="stage", value=self.stage)
-        from station.services.world import check_moves
-
-        moves = check_moves(self.check.to_json(), self.job.guide)
+        moves = self.moves()
         self.fixes += 1
         if self.world is not None and moves:
             self.world.apply(moves, round=self.fixes)
@@ -248,11 +310,15 @@ class Assembly:
         self._expect("run")
         if self.world is None:
             return None
-        from station.services.world import run_attempt
-
         result = run_attempt(self.job.scenario, self.job.layout.x, self.job.guide, self.world)
         self.answer(result.outcomes, result.times)
         return result
+
+    def resolve(self, given: Mapping[str, str]):
+        """What ``given`` outcomes imply for every event, and the problems left
+        (:func:`station.trialformat.resolve_outcomes`): ``(outcomes, problems)``, an event still to be said is
+        None."""
+        return resolve_outcomes(self.scenario, given)
 
     def answer(self, outcomes: Mapping[str, str], times: Mapping[str, float] | None = None) -> dict[str, str]:
         """What happened to each event (the implied ones may be left out); every event's outcome after that.
@@ -262,8 +328,6 @@ class Assembly:
         ServiceError
             ``outcome.EVENT`` / ``time.EVENT``: see :func:`station.trialformat.complete_outcomes`.
         """
-        from station.trialformat import check_times, complete_outcomes
-
         self._expect("run")
         full = complete_outcomes(self.scenario, outcomes)
         self.times = check_times(self.scenario, dict(times or {}), full)
@@ -274,8 +338,6 @@ class Assembly:
     # -- log --------------------------------------------------------------------------------------------------------
     def trial(self, *, who: str | None = None, notes: str | None = None) -> dict:
         """The trial record (the trial log's form) of this attempt."""
-        from station.services.trials import build_trial, check_values, layout_values, read_physics
-
         self._expect("log")
         check = self.check.to_json() if self.check is not None else None  # CHECK.json: what the log stores
         return build_trial(self.scenario, layout_values(self.scenario, self.job.layout.x), self.outcomes,
@@ -285,8 +347,6 @@ class Assembly:
 
     def log(self, store=None, *, who: str | None = None, notes: str | None = None) -> int:
         """Log the attempt in the trial log (``store``, default the station's); returns the trial's id."""
-        from station.services.trials import open_store
-
         record = self.trial(who=who, notes=notes)
         if store is None:
             with open_store() as opened:
@@ -297,23 +357,25 @@ class Assembly:
         return self.trial_id
 
     # -- forecasts --------------------------------------------------------------------------------------------------
-    def forecast(self, progress: ProgressCallback | None = None, should_stop=None) -> Forecast:
-        """The physical success and expected attempts now: as designed before a check (the default placement
-        error), as placed after one (its as-built layout, its residual error), under the physics profile if any."""
-        from station.services.predict import as_built_from_check, predict_layout
-
+    def forecast(self, report: Reporter | None = None) -> Forecast:
+        """The physical success and expected attempts now: as designed before a check (every parameter with the
+        error of how the guide tells the maker to set it, :func:`station.services.world.guide_sigma`), as placed
+        after one (its as-built layout, its residual error on what it measured, the way each was set on the rest),
+        under the physics profile if any."""
         scenario = self.job.scenario
         x = np.asarray(self.job.layout.x, dtype=float)
-        sigma = {}
+        set_sigma = guide_sigma(self.job.guide, scenario, highlighted=self.highlight)
+        sigma = {"unmeasured": tuple(scenario.design_space.names)}
         when = "designed"
         if self.check is not None and self.check.report.plane is not None:
             x, position, angle, unmeasured = as_built_from_check(self.check.to_json(), scenario, x, "the last check")
-            sigma = {"position_sigma_m": position, "angle_sigma_deg": angle, "unmeasured": unmeasured}
+            sigma = {"position_sigma_m": position, "angle_sigma_deg": angle, "unmeasured": tuple(unmeasured)}
             when = "as placed"
         if self.stage in ("log", "done"):
             when = f"{when}; this run: {'success' if self.success else 'failure'}"
-        result = predict_layout(scenario, x, profile=self._profile, samples=self.samples, seed=self.seed,
-                                workers=self.workers, progress=progress, should_stop=should_stop, **sigma)
+        request = PredictionRequest(self._profile, samples=self.samples, seed=self.seed, workers=self.workers,
+                                    scheduler=self.scheduler, set_sigma=set_sigma, **sigma)
+        result = predict_layout(scenario, x, request, report=report)
         self.forecasts.append(Forecast(when, result, self.record))
         return self.forecasts[-1]
 
@@ -324,11 +386,12 @@ class Assembly:
             world.close()
 
 
+@station_errors
 def open_assembly(scenario: str, layout: str | None, *, view: str | None = None, camera: str | None = None,
                   world: str | None = None, projector=None, physics: str | Path | None = None,
                   attempt: int | None = None, jigs: bool = False,
                   samples: int = DEFAULT_SAMPLES, seed: int = 0, workers: int | None = None, store=None,
-                  progress: ProgressCallback | None = None) -> Assembly:
+                  report: Reporter | None = None) -> Assembly:
     """Start an attempt: the guide of ``layout`` for ``scenario`` (with its tolerances), the world opened.
 
     Parameters
@@ -364,11 +427,6 @@ def open_assembly(scenario: str, layout: str | None, *, view: str | None = None,
     design.errors.DesignError, projector.errors.ProjectorError, OSError
         The scenario or the layout cannot be read or drawn.
     """
-    from station.services import guide as guides
-    from station.services.physics import read_profile
-    from station.services.robust import check_count, check_seed
-    from station.services.trials import load_trial_scenario, open_store
-
     check_count(samples, "samples")
     check_seed(seed)
     check_count(attempt, "attempt")
@@ -376,21 +434,16 @@ def open_assembly(scenario: str, layout: str | None, *, view: str | None = None,
     trial_scenario = load_trial_scenario(scenario)
     opened_world = None
     if world is not None:  # a bad URL refused before the guide's work
-        from station.services.world import open_world, prepare_world
-
         opened_world = open_world(world)
     try:
-        job = guides.make_guide(scenario, layout, view=view, progress=progress,
-                                physics=None if physics is None else str(physics), jigs=bool(jigs))
+        request = guides.GuideRequest(scenario, layout, view=view, physics=None if physics is None else str(physics),
+                                      jigs=bool(jigs))
+        job = guides.make_guide(request, report=report)
         if opened_world is not None:
             prepare_world(opened_world, job.scenario)
             if job.jigs is not None and job.jigs.plan.jigs:
-                from station.services.world import cut_jigs
-
                 cut_jigs(job)
         if profile is not None:
-            from design.contraption.physics_profile import apply_profile
-
             apply_profile(job.scenario, profile, str(physics))  # refuses a profile of another contraption, naming it
         if trial_scenario.content_hash != job.scenario.content_hash:
             raise ServiceError(f"scenario: {scenario} changed while it was read; start again", field="scenario")
@@ -411,17 +464,30 @@ def open_assembly(scenario: str, layout: str | None, *, view: str | None = None,
                     workers=workers, record=record, _profile=profile)
 
 
+@station_errors
+def guide_files(job) -> tuple[Path, Path]:
+    """Where the guide of ``job`` is written unless told: the data folder's ``guides/``, a PDF and an SVG named by the
+    scenario, the layout and a hash of its values (:func:`station.services.guide.export_name`), so that one layout's
+    export never replaces another's."""
+    stem = data_dir() / "guides" / export_name(job)
+    return Path(f"{stem}.pdf"), Path(f"{stem}.svg")
+
+
+@station_errors
+def jigs_folder(job) -> Path:
+    """Where the laser-cut jigs of ``job``'s layout are written: the data folder's ``jigs/``, named as the guide."""
+    return data_dir() / "jigs" / export_name(job)
+
+
 def _layout_record(scenario, x, trials) -> tuple[int, int]:
     """``(successes, attempts)`` of the ``trials`` logged with the layout ``x``'s values."""
-    from station.services.layout_choice import layout_record
-    from station.services.trials import layout_values
-
     return layout_record(layout_values(scenario, x), trials)
 
 
 # -- after attempts: calibrate, re-optimize ----------------------------------------------------------------------------
+@station_errors
 def calibrate_from_log(scenario, store=None, *, settings=None, workers: int | None = None,
-                       progress: ProgressCallback | None = None, should_stop=None, out: str | Path | None = None,
+                       report: Reporter | None = None, out: str | Path | None = None,
                        every_material: bool = False):
     """Fit ``scenario``'s uncertain material values (with ``every_material``, its plain ones too, each within its
     default range, as ``station loop`` does) to its trials in the log (``store``, default the station's) and write the
@@ -433,51 +499,79 @@ def calibrate_from_log(scenario, store=None, *, settings=None, workers: int | No
     ------
     ServiceError
         No trials of the scenario, nothing uncertain to fit (named).
-    RunStopped
+    common.progress.Cancelled
         Stopped; the simulations done are in the cache.
     """
-    from station.paths import data_dir
-    from station.services.sim_calibration import calibrate_sim, save
-    from station.services.trials import open_store
-
     if store is None:
         with open_store() as opened:
             trials = opened.trials(scenario=scenario.name)
     else:
         trials = store.trials(scenario=scenario.name)
-    result = calibrate_sim([scenario], trials, settings=settings, workers=workers, progress=progress,
-                           should_stop=should_stop, source="the trial log", every_material=every_material)
+    request = SimCalibrationRequest(settings=settings, source="the trial log", every_material=every_material,
+                                    workers=workers)
+    result = calibrate_sim([scenario], trials, request, report=report)
     path = Path(out) if out is not None else data_dir() / "physics" / f"{scenario.name.lower()}-calibrated.toml"
     path.parent.mkdir(parents=True, exist_ok=True)
     return save(result, path, name=f"{scenario.name} calibrated on {result.fit.trials + result.fit.held_out} "
                 "trials"), result
 
 
-def reoptimize(scenario_path: str, physics: str | Path | None, *, budget: int = 40, seed: int = 0,
-               workers: int | None = None, progress: ProgressCallback | None = None, should_stop=None,
-               out: str | Path | None = None, settings=None, current: str | None = None, candidates: int = 4,
-               samples: int = 16, trials=None):
-    """Optimize the layout again under the physics profile ``physics`` (the calibrated one), choose among the
-    optimizer's verified candidates and the ``current`` layout (a LAYOUT.json) the one surest to succeed often
-    under the profile's values and intervals (:func:`station.services.layout_choice.choose_layout`, ``samples``
-    simulations each) and, for the current layout, given its record in ``trials`` (default: the scenario's trials in
-    the station's log), and write it (``out``, default the data folder's ``layouts/NAME-physics.json``).
+@dataclass(frozen=True)
+class ReoptimizeRequest:
+    """A layout optimized again under a physics profile, and the option surest to work physically chosen.
+
+    Parameters
+    ----------
+    scenario : str
+        A scenario file or example name.
+    physics : path, optional
+        The physics profile (the calibrated one); None: the scenario's own values.
+    budget, seed : int
+        The optimizer's simulations and seed (the seed of the choice's simulations too).
+    settings : PSPSettings, optional
+        The optimizer's settings (None: the station's default).
+    current : path, optional
+        The LAYOUT.json placed so far: one of the options, with its record in ``trials``.
+    candidates : int
+        The optimizer's verified candidates that are options.
+    samples : int
+        Simulations per option.
+    trials : tuple of dict, optional
+        Trial records the options' records come from (None: the scenario's trials in the station's log).
+    workers : int, optional
+        Local simulation processes.
+    out : path, optional
+        Where the chosen LAYOUT.json goes (None: the data folder's ``layouts/NAME-physics.json``).
+    """
+
+    scenario: str
+    physics: str | Path | None = None
+    budget: int = 40
+    seed: int = 0
+    settings: Any = None
+    current: str | None = None
+    candidates: int = 4
+    samples: int = 16
+    trials: tuple[Mapping, ...] | None = None
+    workers: int | None = None
+    out: str | Path | None = None
+
+
+@station_errors
+def reoptimize(request: ReoptimizeRequest, *, report: Reporter | None = None):
+    """Optimize the layout again under the physics profile ``request.physics``, choose among the optimizer's
+    verified candidates and the ``current`` layout (a LAYOUT.json) the one surest to succeed often under the
+    profile's values and intervals (:func:`station.services.layout_choice.choose_layout`, ``samples`` simulations
+    each) and, for the current layout, given its record in ``trials``, and write it (``out``).
 
     Returns ``(path, result, chosen)``: the optimizer's result and the LAYOUT.json data written (its
     ``physical_choice`` says which option won and every option's predicted success, record and expected success).
     """
-    import json
-
-    from station.paths import data_dir
-    from station.services import robust
-    from station.services.layout_choice import candidate_layouts, choose_layout
-    from station.services.physics import problem_with_physics, read_profile
-
-    problem = problem_with_physics(robust.load_problem(scenario_path), physics)
-    settings = settings or robust.psp_settings(robust.DEFAULT_SETTINGS)
-    result = robust.optimize(problem, budget, seed, settings, workers=workers, progress=progress,
-                             should_stop=should_stop)
-    options = candidate_layouts(result.to_json(problem), candidates)
+    physics, current, trials = request.physics, request.current, request.trials
+    problem = problem_with_physics(robust.load_problem(request.scenario), physics)
+    settings = request.settings or robust.psp_settings(robust.DEFAULT_SETTINGS)
+    result = robust.optimize(problem, request.budget, request.seed, settings, workers=request.workers, report=report)
+    options = candidate_layouts(result.to_json(problem), request.candidates)
     if current is not None and Path(current).is_file() and str(current).lower().endswith(".json"):
         try:
             placed = json.loads(Path(current).read_text(encoding="utf-8"))
@@ -487,13 +581,13 @@ def reoptimize(scenario_path: str, physics: str | Path | None, *, budget: int = 
             options.append(placed)
     profile = read_profile(physics) if physics is not None else None
     if trials is None and len(options) > 1:
-        from station.services.trials import open_store
-
         with open_store() as store:
             trials = store.trials(scenario=problem.scenario.name)
-    chosen = choose_layout(problem.scenario, options, profile, samples=samples, seed=seed, workers=workers,
-                           trials=trials or (), progress=progress, should_stop=should_stop)
-    path = Path(out) if out is not None else data_dir() / "layouts" / f"{result.scenario.lower()}-physics.json"
+    chosen = choose_layout(problem.scenario, options, LayoutChoiceRequest(
+        profile, samples=request.samples, seed=request.seed, trials=tuple(trials or ()), workers=request.workers),
+        report=report)
+    default = data_dir() / "layouts" / f"{result.scenario.lower()}-physics.json"
+    path = Path(request.out) if request.out is not None else default
     path.parent.mkdir(parents=True, exist_ok=True)
     path.write_text(json.dumps(chosen, indent=2) + "\n", encoding="utf-8")
     return path, result, chosen

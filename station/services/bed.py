@@ -12,7 +12,7 @@ residual, which the registration reports.
 
 Placement: the stock (the largest light sheet on the dark bed) is found in a frame and mapped to machine mm; a
 job's outline (its laser-on moves) is drawn on the camera's picture at true scale, wherever a
-:class:`drivers.gcode_place.Placement` puts it; :func:`placement_on_stock` puts the job's lower-left corner a
+:class:`cam.place.Placement` puts it; :func:`placement_on_stock` puts the job's lower-left corner a
 margin inside the stock's lower-left corner, along the stock's edge.
 
 The camera over the bed: the configured camera whose ``options = { laser = "NAME" }`` names the laser; a
@@ -34,13 +34,14 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from common.progress import Progress, ProgressCallback
+from cam.place import Placement, place_lines
+from common.progress import Progress, Reporter
 from drivers.gcode import GcodeError, interpret
-from drivers.gcode_place import Placement, place_lines
-from station.services.errors import ServiceError
+from station.errors import ServiceError, station_errors
 
 __all__ = ["MARK_SIZES", "SIM_BED_CAMERA", "BedCalibration", "BedRegistration", "bed_camera", "bed_file",
-           "bed_picture", "calibrate_bed", "default_mark_area", "find_marks", "find_stock", "job_outline",
+           "bed_picture", "calibrate_bed", "default_mark_area", "find_marks", "find_stock", "grab_bed_frame",
+           "job_outline",
            "load_registration", "mark_positions", "marks_job", "placement_on_stock", "register_bed",
            "save_registration", "BedPlacement"]
 
@@ -57,12 +58,14 @@ _NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.-]{0,63}$")
 # ----------------------------------------------------------------------------------------------------------- marks
 
 
+@station_errors
 def default_mark_area(width: float, height: float) -> tuple[float, float, float, float]:
     """The marks' rectangle (work mm) on a ``width`` x ``height`` work area: its middle, 140 x 100 mm."""
     cx, cy = width / 2.0, height / 2.0
     return (cx - 70.0, cy - 50.0, cx + 70.0, cy + 50.0)
 
 
+@station_errors
 def mark_positions(area: Sequence[float]) -> list[tuple[tuple[float, float], float]]:
     """``[(centre, size)]`` of the four marks at the corners of ``area`` ``(x0, y0, x1, y1)`` (work mm)."""
     x0, y0, x1, y1 = (float(v) for v in area)
@@ -73,6 +76,7 @@ def mark_positions(area: Sequence[float]) -> list[tuple[tuple[float, float], flo
     return [(corner, size) for corner, size in zip(corners, MARK_SIZES)]
 
 
+@station_errors
 def marks_job(marks: Sequence[tuple[tuple[float, float], float]], *, power: float, feed: float,
               kerf: float = 0.15) -> list[str]:
     """The G-code that engraves the marks as filled squares: rows ``kerf`` apart both ways, then their outline
@@ -112,6 +116,7 @@ def _gray(frame: np.ndarray) -> np.ndarray:
     return frame.astype(np.uint8)
 
 
+@station_errors
 def find_marks(frame: np.ndarray) -> list[FoundMark]:
     """Dark, square blobs enclosed by light stock (the marks and anything like them), largest first."""
     gray = _gray(frame)
@@ -162,6 +167,7 @@ def _choose_marks(found: list[FoundMark]) -> list[FoundMark] | None:
 # ---------------------------------------------------------------------------------------------------- registration
 
 
+@station_errors
 @dataclass(frozen=True)
 class BedRegistration:
     """The bed's homography (camera pixels -> machine mm) and how well it fits its marks' corners."""
@@ -195,17 +201,20 @@ class BedRegistration:
     def from_dict(cls, data: dict, where: str) -> BedRegistration:
         try:
             homography = np.array(data["homography"], dtype=float)
-            if homography.shape != (3, 3) or not np.isfinite(homography).all():
-                raise ValueError("homography: expected 3x3 finite numbers")
-            return cls(homography, float(data["residual_rms_mm"]), float(data["residual_max_mm"]),
-                       tuple(int(v) for v in data["image_size"]),
-                       tuple((tuple(c), float(s)) for c, s in data.get("marks_mm", [])),
-                       str(data.get("camera", "")), str(data.get("laser", "")), str(data.get("notes", "")))
+            problem = ("" if homography.shape == (3, 3) and np.isfinite(homography).all()
+                       else "homography: expected 3x3 finite numbers")
+            if not problem:
+                return cls(homography, float(data["residual_rms_mm"]), float(data["residual_max_mm"]),
+                           tuple(int(v) for v in data["image_size"]),
+                           tuple((tuple(c), float(s)) for c, s in data.get("marks_mm", [])),
+                           str(data.get("camera", "")), str(data.get("laser", "")), str(data.get("notes", "")))
         except (KeyError, TypeError, ValueError) as error:
-            raise ServiceError(f"{where}: not a bed registration ({error}); run `station calibrate bed` again",
-                               field="bed", value=where) from None
+            problem = str(error)
+        raise ServiceError(f"{where}: not a bed registration ({problem}); run `station calibrate bed` again",
+                           field="bed", value=where)
 
 
+@station_errors
 def register_bed(frame: np.ndarray, marks_mm: Sequence[tuple[tuple[float, float], float]], *,
                  camera: str = "", laser: str = "") -> BedRegistration:
     """The bed's homography from one frame of the engraved marks (their machine centres and sizes).
@@ -254,6 +263,7 @@ def _check_name(name: str) -> str:
     return name
 
 
+@station_errors
 def bed_file(laser: str) -> Path:
     """Where the registration of laser ``laser`` (its ``station.toml`` name) is kept."""
     from station.paths import data_dir
@@ -263,12 +273,14 @@ def bed_file(laser: str) -> Path:
     return folder / f"{_check_name(laser)}.json"
 
 
+@station_errors
 def save_registration(registration: BedRegistration, laser: str) -> Path:
     path = bed_file(laser)
     path.write_text(json.dumps(registration.to_dict(), indent=1), encoding="utf-8")
     return path
 
 
+@station_errors
 def load_registration(laser: str) -> BedRegistration | None:
     """The saved registration of ``laser``, None when there is none."""
     path = bed_file(laser)
@@ -285,6 +297,7 @@ def load_registration(laser: str) -> BedRegistration | None:
 # ----------------------------------------------------------------------------------------------------------- devices
 
 
+@station_errors
 def laser_device(laser: str | None = None):
     """The configured laser named ``laser`` (default: the first laser)."""
     from station.config import configured_devices
@@ -301,6 +314,7 @@ def laser_device(laser: str | None = None):
     return chosen
 
 
+@station_errors
 def bed_camera(laser_name: str, laser_simulated: bool) -> tuple[str, str]:
     """``(name, url)`` of the camera over ``laser_name``'s bed (module docstring)."""
     from station.config import configured_devices
@@ -315,6 +329,7 @@ def bed_camera(laser_name: str, laser_simulated: bool) -> tuple[str, str]:
                        f"options = {{ laser = \"{laser_name}\" }}, or give --camera URL", field="camera")
 
 
+@station_errors
 def open_bed_camera(url: str, laser_connection=None):
     """The camera at ``url``, open; a simulated one sees what the simulated laser behind ``laser_connection``
     burns."""
@@ -330,6 +345,7 @@ def open_bed_camera(url: str, laser_connection=None):
 # ----------------------------------------------------------------------------------------------------------- calibrate
 
 
+@station_errors
 @dataclass(frozen=True)
 class BedCalibration:
     """A finished ``station calibrate bed``."""
@@ -347,25 +363,39 @@ class BedCalibration:
                 "work_offset": list(self.work_offset)}
 
 
+@station_errors
+def grab_bed_frame(laser_name: str, laser_simulated: bool, laser_connection=None) -> np.ndarray:
+    """One picture of ``laser_name``'s bed from its camera (:func:`bed_camera`, :func:`open_bed_camera`)."""
+    _, url = bed_camera(laser_name, laser_simulated)
+    camera = open_bed_camera(url, laser_connection)
+    try:
+        return camera.grab()
+    finally:
+        camera.close()
+
+
+@station_errors
 def calibrate_bed(*, laser: str | None = None, port: str | None = None, camera: str | None = None,
                   image: str | Path | np.ndarray | None = None, area: Sequence[float] | None = None,
                   engrave: bool = True, power: float = 0.3, feed: float | None = None,
-                  progress: ProgressCallback | None = None, connection=None) -> BedCalibration:
+                  report: Reporter | None = None, connection=None) -> BedCalibration:
     """Engrave the marks (unless ``engrave`` is False: they are there already), grab a frame (or read ``image``),
     register the bed and save it under the laser's name.
 
     ``laser`` is a configured laser's name (default the first), ``port`` another URL for it; ``power`` a fraction
     of the laser's maximum, ``feed`` mm/min (default the profile's engrave feed of its first material, else 3000).
     ``connection``: the laser's open :class:`drivers.grbl.GrblConnection` (the Machines screen's), else one is
-    opened.
+    opened. ``report`` hears of each step and of the marks job's lines; a stop asked for is honoured between the
+    steps (a running laser job stops with the machine's own hold or abort, not half-way through a line).
     """
     from drivers.grbl import GrblConnection, Job, JobRunner
     from station.devices import machine_profile
     from station.services.calibrate import _read_image
 
+    report = Reporter.of(report)
+
     def say(stage: str, message: str, done: float = 0.0, total: float = 1.0) -> None:
-        if progress is not None:
-            progress(Progress(stage, done, total, message))
+        report.emit(Progress(stage, done, total, message))
 
     device = laser_device(laser)
     profile = machine_profile(device)
@@ -387,10 +417,11 @@ def calibrate_bed(*, laser: str | None = None, port: str | None = None, camera: 
             lines = marks_job(marks_work, power=power * max_power, feed=engrave_feed, kerf=kerf)
             say("engrave", f"engraving the four marks on {device.name}")
 
-            def report(job_progress) -> None:
-                say("engrave", "engraving the marks", job_progress.lines_acked, max(job_progress.lines_total, 1))
+            def lines_done(job_progress) -> None:  # on the job's thread: told, never stopped there
+                report.tell(Progress("engrave", job_progress.lines_acked, max(job_progress.lines_total, 1),
+                                     "engraving the marks"))
 
-            result = JobRunner(conn, Job("bed registration marks", lines, laser=True), on_progress=report).run()
+            result = JobRunner(conn, Job("bed registration marks", lines, laser=True), on_progress=lines_done).run()
             if not result.ok:
                 raise ServiceError(f"laser: the marks job did not finish: {result.message}", field="laser",
                                    value=device.name)
@@ -413,6 +444,7 @@ def calibrate_bed(*, laser: str | None = None, port: str | None = None, camera: 
     return BedCalibration(registration, path, device.name, camera_url, engrave, wco, frame)
 
 
+@station_errors
 def bed_summary(done: BedCalibration) -> list[str]:
     registration = done.registration
     return [f"bed of {done.laser}: registered from the four marks' 16 corners"
@@ -426,6 +458,7 @@ def bed_summary(done: BedCalibration) -> list[str]:
 # ----------------------------------------------------------------------------------------------------------- stock
 
 
+@station_errors
 def find_stock(frame: np.ndarray, registration: BedRegistration) -> np.ndarray | None:
     """The stock's corners in machine mm ``(4, 2)`` (lower-left first, counter-clockwise), the largest light
     four-sided sheet in the frame; None when there is none."""
@@ -481,6 +514,7 @@ def _counter_clockwise(corners: np.ndarray) -> np.ndarray:
     return np.roll(ordered, -first, axis=0)
 
 
+@station_errors
 def placement_on_stock(stock_mm: np.ndarray, work_offset: Sequence[float], job_lower_left: Sequence[float],
                        margin: float = 5.0) -> Placement:
     """The placement that puts a job's lower-left corner (``job_lower_left``, its own work mm) ``margin`` mm inside
@@ -499,6 +533,7 @@ def placement_on_stock(stock_mm: np.ndarray, work_offset: Sequence[float], job_l
 # ----------------------------------------------------------------------------------------------------------- picture
 
 
+@station_errors
 def job_outline(lines: Sequence[str], placement: Placement | None = None) -> list[np.ndarray]:
     """The job's laser-on (or drawing) moves as polylines in work mm, placed (a :class:`GcodeError` for a job that
     cannot be placed)."""
@@ -522,6 +557,7 @@ def job_outline(lines: Sequence[str], placement: Placement | None = None) -> lis
     return paths
 
 
+@station_errors
 def bed_picture(frame: np.ndarray, registration: BedRegistration, outline_mm: Sequence[np.ndarray] = (), *,
                 stock_mm: np.ndarray | None = None, travel_mm: tuple | None = None) -> np.ndarray:
     """The camera's frame with, at true scale through the registration: the job's outline (machine mm polylines,
@@ -546,6 +582,7 @@ def bed_picture(frame: np.ndarray, registration: BedRegistration, outline_mm: Se
     return picture
 
 
+@station_errors
 def placed_outline_machine(lines: Sequence[str], placement: Placement, work_offset: Sequence[float]) \
         -> list[np.ndarray]:
     """The placed job's outline in machine mm (for :func:`bed_picture`)."""
@@ -560,6 +597,7 @@ def placed_outline_machine(lines: Sequence[str], placement: Placement, work_offs
 # ----------------------------------------------------------------------------------------------------------- session
 
 
+@station_errors
 @dataclass
 class BedPlacement:
     """A job being placed on the bed by camera (the Machines screen's placement): the registration, the last frame,

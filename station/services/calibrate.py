@@ -22,8 +22,19 @@ from pathlib import Path
 
 import numpy as np
 
-from common.progress import CancelCheck, ProgressCallback, Reporter
-from station.services.errors import ServiceError
+from calibration.charuco import BoardSpec, write_board_pdf
+from calibration.errors import CalibrationError
+from calibration.intrinsics import CameraIntrinsics, load_intrinsics, save_intrinsics, to_gray
+from calibration.intrinsics import calibrate_camera as solve
+from calibration.measure import Measurement, PlaneFix, measure, sort_ids
+from common.progress import Reporter
+from drivers.devices import resolve
+from station.config import configured_devices
+from station.errors import ServiceError, station_errors
+from station.paths import data_dir
+from station.services.guide_manifest import read_manifest, reference_tags
+from station.services.images import check_frame_size, check_image_file
+from vision.detection import detect_tags
 
 __all__ = ["IMAGE_SUFFIXES", "CameraCalibration", "PlaneCheck", "calibrate_camera", "camera_file", "camera_summary",
            "capture_views", "check_name", "grab_frame", "intrinsics_for", "plane_check", "plane_summary",
@@ -34,6 +45,7 @@ DEFAULT_CAMERA = "camera"
 _NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.-]{0,63}$")
 
 
+@station_errors
 def check_name(name: str) -> str:
     """A camera name usable as a file name (letters, digits, ``_ . -``), or a :class:`ServiceError`."""
     if not isinstance(name, str) or not _NAME.match(name):
@@ -43,13 +55,12 @@ def check_name(name: str) -> str:
 
 
 def _folder(kind: str) -> Path:
-    from station.paths import data_dir
-
     folder = data_dir() / "calibration" / kind
     folder.mkdir(parents=True, exist_ok=True)
     return folder
 
 
+@station_errors
 def camera_file(name: str = DEFAULT_CAMERA) -> Path:
     """Where the intrinsics of camera ``name`` are kept."""
     return _folder("cameras") / f"{check_name(name)}.json"
@@ -59,11 +70,9 @@ def _plane_file(name: str) -> Path:
     return _folder("planes") / f"{check_name(name)}.json"
 
 
+@station_errors
 def write_board(path: str | Path, paper: str = "a4"):
     """Write the default ChArUco board (:class:`calibration.charuco.BoardSpec`) as a 1:1 PDF; the spec written."""
-    from calibration.charuco import BoardSpec, write_board_pdf
-    from calibration.errors import CalibrationError
-
     spec = BoardSpec()
     try:
         write_board_pdf(path, spec, paper)
@@ -73,9 +82,7 @@ def write_board(path: str | Path, paper: str = "a4"):
 
 
 def _read_image(path: Path, field: str = "images") -> np.ndarray:
-    import cv2
-
-    from station.services.check import check_frame_size, check_image_file
+    import cv2  # heavy: cv2
 
     if not path.is_file():
         raise ServiceError(f"{field}: no such file: {path}", field=field, value=str(path))
@@ -88,6 +95,7 @@ def _read_image(path: Path, field: str = "images") -> np.ndarray:
     return image
 
 
+@station_errors
 def read_views(folder: str | Path) -> list[tuple[str, np.ndarray]]:
     """The images in ``folder`` (by name), grey, as (file name, image) pairs."""
     folder = Path(folder)
@@ -101,9 +109,8 @@ def read_views(folder: str | Path) -> list[tuple[str, np.ndarray]]:
     return [(p.name, _read_image(p)) for p in files]
 
 
+@station_errors
 def open_camera(url: str):
-    from drivers.devices import resolve
-
     info = resolve(url)
     if info.kind != "camera" or not info.available:
         raise ServiceError(f"camera: {url!r} is not a camera the station can drive ({info.kind}"
@@ -113,10 +120,9 @@ def open_camera(url: str):
     return camera
 
 
+@station_errors
 def configured_camera_url() -> tuple[str, str]:
     """(name, url) of the station's first camera (``station devices``; ``sim://camera`` by default)."""
-    from station.config import configured_devices
-
     device = next((d for d in configured_devices() if d.kind == "camera"), None)
     if device is None:
         raise ServiceError("camera: no camera configured (add one to station.toml, or give a camera URL)",
@@ -124,8 +130,9 @@ def configured_camera_url() -> tuple[str, str]:
     return device.name, device.url
 
 
-def capture_views(url: str, count: int, *, interval_s: float = 1.0, progress: ProgressCallback | None = None,
-                  cancelled: CancelCheck | None = None, sleep: Callable[[float], None] = time.sleep,
+@station_errors
+def capture_views(url: str, count: int, *, interval_s: float = 1.0, report: Reporter | None = None,
+                  sleep: Callable[[float], None] = time.sleep,
                   before: Callable[[object, int], None] | None = None) -> list[tuple[str, np.ndarray]]:
     """Grab ``count`` frames from the camera at ``url``, ``interval_s`` apart (time to move the board).
 
@@ -134,7 +141,7 @@ def capture_views(url: str, count: int, *, interval_s: float = 1.0, progress: Pr
     if isinstance(count, bool) or not isinstance(count, int) or count < 1:
         raise ServiceError(f"capture must be a whole number of views >= 1, got {count!r}", field="capture",
                            value=count)
-    report = Reporter.of(progress, cancelled)
+    report = Reporter.of(report)
     camera = open_camera(url)
     views = []
     try:
@@ -155,6 +162,7 @@ def capture_views(url: str, count: int, *, interval_s: float = 1.0, progress: Pr
     return views
 
 
+@station_errors
 @dataclass(frozen=True)
 class CameraCalibration:
     """A camera calibrated: the result (:class:`calibration.intrinsics.CalibrationResult`) and where it was saved."""
@@ -166,12 +174,24 @@ class CameraCalibration:
         return {**self.result.to_dict(), "saved": None if self.path is None else str(self.path)}
 
 
-def calibrate_camera(*, images: str | Path | None = None, capture: int | None = None, camera: str | None = None,
-                     name: str | None = None, out: str | Path | None = None, interval_s: float = 1.0,
-                     progress: ProgressCallback | None = None, cancelled: CancelCheck | None = None,
+@dataclass(frozen=True)
+class CameraCalibrationRequest:
+    """Which views :func:`calibrate_camera` solves, and where the calibration goes: a folder of board ``images``,
+    or ``capture`` frames grabbed from ``camera`` (a URL; default the station's camera) every ``interval_s``
+    seconds; saved as ``name`` to ``out`` (default ``calibration/cameras/<name>.json``)."""
+
+    images: str | Path | None = None
+    capture: int | None = None
+    camera: str | None = None
+    name: str | None = None
+    out: str | Path | None = None
+    interval_s: float = 1.0
+
+
+@station_errors
+def calibrate_camera(request: CameraCalibrationRequest, *, report: Reporter | None = None,
                      before: Callable[[object, int], None] | None = None) -> CameraCalibration:
-    """Calibrate a camera from a folder of board images or ``capture`` frames grabbed from ``camera`` (a URL;
-    default the station's camera), and save it to ``out`` (default ``calibration/cameras/<name>.json``).
+    """Calibrate a camera from the views ``request`` names, and save it.
     ``before(camera, index)`` runs before each grab (a simulated camera's board may be moved there).
 
     Raises
@@ -179,23 +199,20 @@ def calibrate_camera(*, images: str | Path | None = None, capture: int | None = 
     ServiceError
         Neither or both of ``images`` and ``capture``; a bad folder, name or count; too few usable views.
     """
-    from calibration.errors import CalibrationError
-    from calibration.intrinsics import calibrate_camera as solve
-    from calibration.intrinsics import save_intrinsics
-
+    images, capture, camera, name, out = request.images, request.capture, request.camera, request.name, request.out
     if (images is None) == (capture is None):
         raise ServiceError("images or capture: give exactly one (a folder of board images, or N views to grab)",
                            field="images")
-    report = Reporter.of(progress, cancelled)
+    report = Reporter.of(report)
     if images is not None:
         views = read_views(images)
         name = check_name(name or DEFAULT_CAMERA)
     else:
         default_name, url = configured_camera_url() if camera is None else (DEFAULT_CAMERA, camera)
         name = check_name(name or default_name)
-        views = capture_views(url, capture, interval_s=interval_s, progress=report, before=before)
+        views = capture_views(url, capture, interval_s=request.interval_s, report=report, before=before)
     try:
-        result = solve(views, name=name, progress=report)
+        result = solve(views, name=name, report=report)
     except CalibrationError as error:
         raise ServiceError(str(error), field="images" if images is not None else "capture") from None
     path = Path(out) if out is not None else camera_file(name)
@@ -203,12 +220,11 @@ def calibrate_camera(*, images: str | Path | None = None, capture: int | None = 
     return CameraCalibration(result, path)
 
 
+@station_errors
 def intrinsics_for(image_size: tuple[int, int], *, intrinsics: str | Path | None = None,
                    name: str = DEFAULT_CAMERA):
     """The camera's intrinsics: ``intrinsics`` (a file), else the saved ``calibration/cameras/<name>.json``, else a
     guess (:meth:`CameraIntrinsics.guess`, whose ``notes`` say so). A file for another image size is refused."""
-    from calibration.intrinsics import CameraIntrinsics, load_intrinsics
-
     path = Path(intrinsics) if intrinsics is not None else camera_file(name)
     if intrinsics is None and not path.exists():
         return CameraIntrinsics.guess(image_size)
@@ -220,14 +236,14 @@ def intrinsics_for(image_size: tuple[int, int], *, intrinsics: str | Path | None
     return loaded
 
 
+@station_errors
 def reference_tags_from_guide(path: str | Path) -> list[tuple[int, tuple[float, float], float]]:
     """The reference tags of a guide manifest (what ``station guide --json`` prints) as (id, (u, v), size), read by
     :func:`station.services.guide_manifest.read_manifest` (the check's reader too)."""
-    from station.services.guide_manifest import read_manifest, reference_tags
-
     return reference_tags(read_manifest(path, parts=False))
 
 
+@station_errors
 @dataclass(frozen=True)
 class PlaneCheck:
     """One frame's plane check: the measurement, the intrinsics used, where the frame came from."""
@@ -250,6 +266,7 @@ class PlaneCheck:
                 "duplicate_ids": list(m.duplicate_ids)}
 
 
+@station_errors
 def grab_frame(url: str) -> np.ndarray:
     """One frame from the camera at ``url``."""
     camera = open_camera(url)
@@ -259,6 +276,7 @@ def grab_frame(url: str) -> np.ndarray:
         camera.close()
 
 
+@station_errors
 def plane_check(*, image: str | Path | np.ndarray | None = None, camera: str | None = None,
                 guide: str | Path | None = None, intrinsics: str | Path | None = None, name: str | None = None,
                 remember: bool = True) -> PlaneCheck:
@@ -268,9 +286,7 @@ def plane_check(*, image: str | Path | np.ndarray | None = None, camera: str | N
 
     The fix is remembered per camera; the next check reports how far the plane moved (``moved_mm``).
     """
-    from calibration.errors import CalibrationError
-    from calibration.measure import measure
-    from projector.guide import REFERENCE_TAG_IDS
+    from projector.guide import REFERENCE_TAG_IDS  # heavy: shapely
 
     if image is not None and camera is not None:
         raise ServiceError("image or camera: give one, not both", field="image")
@@ -301,16 +317,14 @@ def plane_check(*, image: str | Path | np.ndarray | None = None, camera: str | N
 
 def _references_seen(frame: np.ndarray, camera_model):
     """A measurement without a plane: which of the reference ids 583-586 are seen (once, twice, not at all)."""
-    from calibration.intrinsics import to_gray
-    from calibration.measure import Measurement, sort_ids
-    from projector.detection import detect_tags
-    from projector.guide import REFERENCE_TAG_IDS
+    from projector.guide import REFERENCE_TAG_IDS  # heavy: shapely
 
     camera_model.check_image(frame)
     _unique, unknown, duplicates, missing = sort_ids(detect_tags(to_gray(frame)), REFERENCE_TAG_IDS, ())
     return Measurement(None, (), unknown, duplicates, missing)
 
 
+@station_errors
 def save_plane(name: str, plane) -> None:
     data = {**plane.to_dict(), "homography": np.asarray(plane.homography, dtype=float).tolist()}
     path = _plane_file(name)
@@ -319,10 +333,9 @@ def save_plane(name: str, plane) -> None:
     partial.replace(path)
 
 
+@station_errors
 def load_plane(name: str):
     """The last plane fix of camera ``name``, or None (none yet, or a file that no longer reads: start afresh)."""
-    from calibration.measure import PlaneFix
-
     path = _plane_file(name)
     try:
         data = json.loads(path.read_text())
@@ -333,6 +346,7 @@ def load_plane(name: str):
         return None
 
 
+@station_errors
 def camera_summary(result, views: bool = True) -> list[str]:
     """A calibration result in lines: the camera, each view (unless ``views`` is False), the coverage and the
     warnings."""
@@ -351,6 +365,7 @@ def camera_summary(result, views: bool = True) -> list[str]:
     return lines
 
 
+@station_errors
 def plane_summary(check) -> list[str]:
     """A plane check in lines."""
     m = check.measurement

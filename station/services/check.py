@@ -1,4 +1,4 @@
-"""The as-built check as a service: a camera frame of the placed parts against the layout's guide (issue 19).
+"""The as-built check as a service: a camera frame of the placed parts against the layout's guide.
 
 Used by ``station check`` and the Assemble screen (key c). :func:`prepare_check` makes (or reads) the guide once;
 :func:`check_frame` measures one frame (:func:`calibration.measure.measure`), checks every part
@@ -12,17 +12,32 @@ explicit simulation offsets (``--sim-offset``, documented as such).
 
 from __future__ import annotations
 
+import hashlib
 import json
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, replace
 from pathlib import Path
+from typing import Any
 
+import cv2
 import numpy as np
 
-from common.progress import ProgressCallback, Reporter
-from station.services.check_scene import parse_offset, sim_scene
-from station.services.errors import ServiceError
+from calibration.intrinsics import CameraIntrinsics
+from calibration.measure import measure
+from common.progress import Progress, Reporter
+from design.contraption.physics_profile import apply_profile
+from design.robust.budget import BudgetedOracle
+from station.errors import ServiceError, station_errors
+from station.services import calibrate
+from station.services.calibrate import open_camera
+from station.services.check_scene import aim_camera, parse_offset, sim_scene, twin_intrinsics
+from station.services.check_side import merge_as_built, plane_json, side_lines
+from station.services.contraption import open_scenario
 from station.services.guide_manifest import read_manifest
+from station.services.images import load_image
+from station.services.outlook import disagreement, left_out_words, model_detail, success_headline
+from station.services.robust import check_count, check_seed, simulations
+from station.services.tolerances import contraption_problem, layout_and_model
 
 __all__ = ["CheckJob", "apply_manifest", "camera_frame", "camera_overlay", "check_frame", "check_measurement",
            "grab_frame", "load_image", "overlay_frame", "parse_offset", "prepare_check",
@@ -32,6 +47,7 @@ __all__ = ["CheckJob", "apply_manifest", "camera_frame", "camera_overlay", "chec
 STAGES = ("measure", "as-built", "simulation")
 
 
+@station_errors
 @dataclass(frozen=True)
 class CheckJob:
     """One check's result and what it was made from.
@@ -67,8 +83,9 @@ class CheckJob:
 
 
 # -- the guide --------------------------------------------------------------------------------------------------------
+@station_errors
 def prepare_check(scenario: str, layout: str, *, guide: str | Path | None = None,
-                  progress: Reporter | ProgressCallback | None = None, jigs: bool = False):
+                  report: Reporter | None = None, jigs: bool = False):
     """The guide to check against: made again from the scenario and the layout with the default options, or the
     manifest ``guide`` (``station guide --json``) applied to it (the tags, reference tags and tolerances printed).
     With ``jigs`` (or a manifest that lists jigs) the guide has the layout's laser-cut jigs, whose tags the check
@@ -79,19 +96,18 @@ def prepare_check(scenario: str, layout: str, *, guide: str | Path | None = None
     ServiceError
         A manifest that is not one of this scenario (``guide``), or of another layout.
     """
-    from station.services import guide as guides
-    from station.services.contraption import open_scenario
+    from station.services import guide as guides  # heavy: scipy, shapely
 
     manifest = read_manifest(guide) if guide is not None else None
     view = manifest.get("view") if manifest is not None else None
     if manifest is None:
-        return guides.make_guide(scenario, layout, progress=progress, jigs=jigs or None)
+        return guides.make_guide(guides.GuideRequest(scenario, layout, jigs=jigs or None), report=report)
     jigs = jigs or bool(manifest.get("jigs"))
     # refused before any work: the scenario is cheap to read, the tolerances are not (and the manifest has them)
     loaded = open_scenario(scenario)
     _same_scenario(manifest, loaded.name, loaded.content_hash, str(guide))
-    job = guides.make_guide(loaded.source, layout, view=view if view in guides.VIEWS else None, tolerances=False,
-                            jigs=jigs or None)
+    job = guides.make_guide(guides.GuideRequest(loaded.source, layout, view=view if view in guides.VIEWS else None,
+                                                tolerances=False, jigs=jigs or None))
     return replace(job, guide=apply_manifest(job.guide, manifest, str(guide)),
                    tolerances=_model_of(loaded, layout))
 
@@ -106,8 +122,6 @@ class ScoringModel:
 
 
 def _model_of(scenario, layout: str) -> ScoringModel | None:
-    from station.services.tolerances import contraption_problem, layout_and_model
-
     try:
         problem = contraption_problem(scenario)
     except ValueError:  # no design space: nothing to score
@@ -115,6 +129,7 @@ def _model_of(scenario, layout: str) -> ScoringModel | None:
     return ScoringModel(problem, layout_and_model(str(layout), problem)[1])
 
 
+@station_errors
 def apply_manifest(guide, manifest: Mapping, source: str = "<manifest>"):
     """``guide`` with the manifest's reference tags, part tags and tolerances (what was printed and stuck on).
 
@@ -124,7 +139,7 @@ def apply_manifest(guide, manifest: Mapping, source: str = "<manifest>"):
         The manifest is of another scenario, content hash or view, lacks a part, or puts a part elsewhere (another
         layout): one line naming the file and the field.
     """
-    from projector.guide import BodyTag, ParameterTolerance, ReferenceTag
+    from projector.guide import BodyTag, ParameterTolerance, ReferenceTag  # heavy: shapely
 
     def refuse(what: str) -> ServiceError:
         return ServiceError(f"guide {source}: {what}", field="guide", value=source)
@@ -171,58 +186,7 @@ def _same_scenario(manifest: Mapping, name: str, content_hash: str, source: str)
 
 
 # -- the frame --------------------------------------------------------------------------------------------------------
-def load_image(path: str | Path) -> np.ndarray:
-    """A camera frame from a file (PNG, JPEG...) as RGB uint8; a ServiceError naming ``image`` otherwise (also for a
-    frame of a size :func:`projector.detection.frame_size_problem` refuses, found from the header before decoding)."""
-    from PIL import Image, UnidentifiedImageError
-
-    try:
-        with Image.open(path) as picture:
-            check_frame_size(path, picture.size, "image")
-            return np.asarray(picture.convert("RGB"))
-    except FileNotFoundError:
-        raise ServiceError(f"image {path}: no such file", field="image", value=str(path)) from None
-    except Image.DecompressionBombError:
-        raise _too_large(path, "image") from None
-    except (OSError, UnidentifiedImageError) as error:
-        raise ServiceError(f"image {path}: not an image the station can read ({error})", field="image",
-                           value=str(path)) from None
-
-
-def check_image_file(path: str | Path, field: str) -> None:
-    """Refuse an image file whose header gives a frame size :func:`projector.detection.frame_size_problem` refuses,
-    before a reader decodes it; a file Pillow cannot read is left to the caller's reader."""
-    from PIL import Image, UnidentifiedImageError
-
-    try:
-        with Image.open(path) as picture:
-            size = picture.size
-    except Image.DecompressionBombError:
-        raise _too_large(path, field) from None
-    except (OSError, UnidentifiedImageError):
-        return
-    check_frame_size(path, size, field)
-
-
-def check_frame_size(path: str | Path, size: tuple[int, int], field: str) -> None:
-    """A ServiceError naming ``field`` and the file when a frame of ``size`` (width, height) cannot be checked."""
-    from projector.detection import frame_size_problem
-
-    problem = frame_size_problem(*size)
-    if problem is not None:
-        raise ServiceError(f"{field} {path}: {problem}", field=field, value=str(path))
-
-
-def _too_large(path: str | Path, field: str) -> ServiceError:
-    from PIL import Image
-
-    from projector.detection import MAX_FRAME_PIXELS
-
-    return ServiceError(f"{field} {path}: over {2 * Image.MAX_IMAGE_PIXELS / 1e6:.0f} MP, too large; expected at most "
-                        f"{MAX_FRAME_PIXELS / 1e6:.0f} megapixels (a camera frame or a phone photo)", field=field,
-                        value=str(path))
-
-
+@station_errors
 def grab_frame(url: str, guide, *, offsets=None, occluded: Sequence[int] = (), scene=None, seed: int | None = None):
     """One frame from the camera at ``url``, and the intrinsics it knows of itself (a simulated camera's own; None
     for a real camera, which needs its calibration). A simulated camera is handed ``scene`` first (a simulated
@@ -236,8 +200,6 @@ def grab_frame(url: str, guide, *, offsets=None, occluded: Sequence[int] = (), s
     drivers.errors.DriverError
         The camera cannot be opened or gives no frame (one line).
     """
-    from station.services.calibrate import open_camera
-
     camera = open_camera(url)
     try:
         simulated = hasattr(camera, "set_scene")
@@ -250,30 +212,41 @@ def grab_frame(url: str, guide, *, offsets=None, occluded: Sequence[int] = (), s
         if simulated:
             camera.set_scene(scene if scene is not None else sim_scene(guide, offsets, occluded=occluded))
             if "target=" not in url:
-                _aim(camera, guide)
+                aim_camera(camera, guide)
             if seed is not None and "seed=" not in url:
                 camera.options = replace(camera.options, seed=int(seed) % 2**32)
         image = np.asarray(camera.grab())
-        intrinsics = _twin_intrinsics(camera, url) if simulated else None
+        intrinsics = twin_intrinsics(camera, url) if simulated else None
     finally:
         camera.close()
     return image, intrinsics
 
 
-def camera_frame(guide, *, image: str | Path | None = None, camera: str | None = None,
-                 intrinsics: str | Path | None = None, offsets=None, occluded: Sequence[int] = (), scene=None,
-                 name: str | None = None):
-    """The frame to check and how to read it: ``(image, intrinsics, camera name, its last plane fix)``.
+@dataclass(frozen=True)
+class FrameSource:
+    """Where a check's frame comes from (:func:`camera_frame`): the file ``image``, else grabbed from ``camera`` (a
+    URL; default the station's camera, ``station devices``). The intrinsics: the file ``intrinsics``, else the
+    camera's saved calibration, else a simulated camera's own, else guessed (their ``notes`` say so). ``offsets``
+    (part -> offset), ``occluded`` tags and a ``scene`` (a simulated world's, :mod:`station.services.world`) go to a
+    simulated camera only. ``name`` names the camera ``camera`` is (its saved calibration and plane: a station.toml
+    camera's name); default the station's camera's."""
 
-    From the file ``image``, else grabbed from ``camera`` (a URL; default the station's camera, ``station
-    devices``). The intrinsics: the file ``intrinsics``, else the camera's saved calibration, else a simulated
-    camera's own, else guessed (their ``notes`` say so). Offsets, covered tags and a ``scene`` (a simulated world's,
-    :mod:`station.services.world`) go to a simulated camera only. ``name`` names the camera ``camera`` is (its saved
-    calibration and plane: a station.toml camera's name); default the station's camera's.
-    """
-    from station.services import calibrate
+    image: str | Path | None = None
+    camera: str | None = None
+    intrinsics: str | Path | None = None
+    offsets: Any = None
+    occluded: tuple[int, ...] = ()
+    scene: Any = None
+    name: str | None = None
 
-    name, twin = name or calibrate.DEFAULT_CAMERA, None
+
+@station_errors
+def camera_frame(guide, source: FrameSource = FrameSource()):
+    """The frame to check and how to read it: ``(image, intrinsics, camera name, its last plane fix)``, from
+    ``source``."""
+    image, camera, intrinsics, offsets, occluded = (source.image, source.camera, source.intrinsics, source.offsets,
+                                                    source.occluded)
+    name, twin = source.name or calibrate.DEFAULT_CAMERA, None
     if image is not None:
         if offsets or occluded:
             raise ServiceError("sim_offset: simulation offsets change a simulated camera's scene, not an image file",
@@ -282,7 +255,7 @@ def camera_frame(guide, *, image: str | Path | None = None, camera: str | None =
     else:
         if camera is None:
             name, camera = calibrate.configured_camera_url()
-        frame, twin = grab_frame(camera, guide, offsets=offsets, occluded=occluded, scene=scene)
+        frame, twin = grab_frame(camera, guide, offsets=offsets, occluded=occluded, scene=source.scene)
     size = (int(frame.shape[1]), int(frame.shape[0]))
     if intrinsics is not None or twin is None or calibrate.camera_file(name).exists():
         lens = calibrate.intrinsics_for(size, intrinsics=intrinsics, name=name)
@@ -294,16 +267,13 @@ def camera_frame(guide, *, image: str | Path | None = None, camera: str | None =
 def _plane_name(name: str, guide) -> str:
     """Where a check keeps camera ``name``'s last plane: per printed sheet (its reference tags), so that "moved since
     the last check" compares checks of the same sheet, never a new sheet with the old one."""
-    import hashlib
-
     sheet = json.dumps([[t.id, *map(float, t.center_mm), float(t.size_mm)] for t in guide.reference_tags])
     return f"{name}-check-{hashlib.sha256(sheet.encode()).hexdigest()[:12]}"
 
 
+@station_errors
 def remember_plane(name: str, check: CheckJob) -> None:
     """Keep the check's plane fix as camera ``name``'s last (the next check says how far the camera moved)."""
-    from station.services import calibrate
-
     if check.measurement.plane is not None:
         try:
             calibrate.save_plane(_plane_name(name, check.guide_job.guide), check.measurement.plane)
@@ -311,36 +281,37 @@ def remember_plane(name: str, check: CheckJob) -> None:
             pass  # the check stands without it; only the next "moved" report is lost
 
 
-def _aim(camera, guide) -> None:
-    """Move a simulated camera told no ``target`` in the plane so that its optical axis meets the guide's middle
-    (as a maker sets the camera up over the sheets): the camera translated by d, ``t' = t - R d``."""
-    import cv2
-
-    model = camera.camera_model
-    u0, v0, u1, v1 = guide.extent_mm
-    rotation = cv2.Rodrigues(np.asarray(model.rvec, dtype=float))[0]
-    axis = rotation.T @ np.array([0.0, 0.0, 1.0])  # the optical axis in plane coordinates
-    centre = np.asarray(model.centre_mm, dtype=float)
-    if abs(axis[2]) < 1e-9:
-        return
-    hit = centre - centre[2] / axis[2] * axis  # where the optical axis meets the plane now
-    shift = np.array([(u0 + u1) / 2 - hit[0], (v0 + v1) / 2 - hit[1], 0.0])
-    camera.place(replace(model, tvec=np.asarray(model.tvec, dtype=float) - rotation @ shift))
-
-
-def _twin_intrinsics(camera, url: str):
-    from calibration.intrinsics import CameraIntrinsics
-
-    model = camera.camera_model
-    return CameraIntrinsics(np.asarray(model.camera_matrix, float), np.asarray(model.dist_coeffs, float),
-                            tuple(int(v) for v in model.image_size), name=f"{url} (the simulated camera's own)")
-
-
 # -- the check --------------------------------------------------------------------------------------------------------
-def check_frame(job, image: np.ndarray, intrinsics=None, *, simulate: int = 0, seed: int = 0, previous=None,
-                detector=None, physics=None, predict: int = 0, progress: Reporter | ProgressCallback | None = None,
-                should_stop=None, side=None, camera: str = "") -> CheckJob:
-    """Check the parts in one camera frame against the guide ``job`` (:func:`prepare_check`).
+@dataclass(frozen=True)
+class CheckRequest:
+    """What a check does beyond measuring the parts (:func:`check_frame`).
+
+    Parameters
+    ----------
+    simulate : int
+        Simulate the as-built layout this many times with the residual measurement error (0: none).
+    seed : int
+        Seed of those simulations' noise.
+    physics : PhysicsProfile, optional
+        Simulate (``simulate``, ``predict``) with its material values instead of the scenario's.
+    predict : int
+        Predict the as-built layout's physical success and expected attempts from this many simulations under the
+        physics and the residual measurement error as placement noise (0: none).
+    camera : str
+        The top camera's name, for the report's ``views``.
+    """
+
+    simulate: int = 0
+    seed: int = 0
+    physics: Any = None
+    predict: int = 0
+    camera: str = ""
+
+
+@station_errors
+def check_frame(job, image: np.ndarray, intrinsics=None, request: CheckRequest = CheckRequest(), *, previous=None,
+                detector=None, side=None, report: Reporter | None = None) -> CheckJob:
+    """Check the parts in one camera frame against the guide ``job`` (:func:`prepare_check`), as ``request`` says.
 
     Parameters
     ----------
@@ -349,24 +320,18 @@ def check_frame(job, image: np.ndarray, intrinsics=None, *, simulate: int = 0, s
         RGB or grey uint8.
     intrinsics : CameraIntrinsics, optional
         The camera's; None guesses them from the image size (said in the prediction note: distances are then rough).
-    simulate : int
-        Simulate the as-built layout this many times with the residual measurement error (0: none).
-    seed : int
-        Seed of those simulations' noise.
+    request : CheckRequest
+        The simulations and the prediction of the as-built layout, and the top camera's name.
     previous : PlaneFix, optional
         The last check's plane (a bumped camera is then said).
-    detector : projector.detection.TagDetector, optional
+    detector : vision.detection.TagDetector, optional
         One to reuse between checks.
-    physics : PhysicsProfile, optional
-        Simulate (``simulate``, ``predict``) with its material values instead of the scenario's.
-    predict : int
-        Predict the as-built layout's physical success and expected attempts from this many simulations under the
-        physics and the residual measurement error as placement noise (0: none).
     side : station.services.check_side.SideView, optional
         The side camera's frame measured (:func:`station.services.check_side.measure_side`): the heights and tilts
         it measured join the as-built layout, its checks the report (``side_parts``).
-    camera : str
-        The top camera's name, for the report's ``views``.
+    report : Reporter, optional
+        Progress of the measure and of the simulations; its stop check ends the simulations
+        (:class:`common.progress.Cancelled`).
 
     Raises
     ------
@@ -375,14 +340,11 @@ def check_frame(job, image: np.ndarray, intrinsics=None, *, simulate: int = 0, s
     calibration.errors.CalibrationError
         An image of another size than the intrinsics'.
     """
-    from calibration.check import part_tags, reference_tags
-    from calibration.intrinsics import CameraIntrinsics
-    from calibration.measure import measure
-    from station.services.robust import check_count, check_seed
+    from calibration.check import part_tags, reference_tags  # heavy: scipy, shapely
 
-    check_count(simulate, "simulate", 0)
-    check_seed(seed)
-    report = Reporter.of(progress)
+    check_count(request.simulate, "simulate", 0)
+    check_seed(request.seed)
+    report = Reporter.of(report)
     image = np.asarray(image)
     if intrinsics is None:
         intrinsics = CameraIntrinsics.guess((image.shape[1], image.shape[0]))
@@ -391,21 +353,19 @@ def check_frame(job, image: np.ndarray, intrinsics=None, *, simulate: int = 0, s
     report.emit(_progress("measure", 0, 1))
     measurement = measure(image, intrinsics, reference_tags(guide), part_tags(guide), previous, detector=detector)
     report.emit(_progress("measure", 1, 1))
-    return check_measurement(job, measurement, image, intrinsics, simulate=simulate, seed=seed, notes=notes,
-                             physics=physics, predict=predict, progress=report, should_stop=should_stop, side=side,
-                             camera=camera)
+    return check_measurement(job, measurement, image, intrinsics, request, notes=notes, side=side, report=report)
 
 
-def check_measurement(job, measurement, image: np.ndarray, intrinsics, *, simulate: int = 0, seed: int = 0,
-                      notes: Sequence[str] = (), physics=None, predict: int = 0,
-                      progress: Reporter | ProgressCallback | None = None, should_stop=None, side=None,
-                      camera: str = "") -> CheckJob:
+@station_errors
+def check_measurement(job, measurement, image: np.ndarray, intrinsics, request: CheckRequest = CheckRequest(), *,
+                      notes: Sequence[str] = (), side=None, report: Reporter | None = None) -> CheckJob:
     """The check of a :class:`~calibration.measure.Measurement` already made (see :func:`check_frame`)."""
-    from calibration.asbuilt import PlanePose, as_built_layout
-    from calibration.check import CheckReport, check_parts, residual_error
-    from station.services.robust import check_count
+    simulate, seed, physics, predict, camera = (request.simulate, request.seed, request.physics, request.predict,
+                                                request.camera)
+    from calibration.asbuilt import PlanePose, as_built_layout  # heavy: scipy, shapely
+    from calibration.check import CheckReport, check_parts, residual_error  # heavy: scipy, shapely
 
-    report = Reporter.of(progress)
+    report = Reporter.of(report)
     notes = list(notes)
     guide = job.guide
     checks, by_eye = check_parts(guide, measurement)
@@ -419,7 +379,6 @@ def check_measurement(job, measurement, image: np.ndarray, intrinsics, *, simula
             poses.setdefault(c.owner, []).append((c.body, PlanePose(c.measured_center_mm, c.measured_heading_deg)))
     built = as_built_layout(scenario, x, guide.plane, poses, {p.name: p.parameters for p in guide.parts})
     measured_by = {n: "top" if guide.view == "top" else guide.view for n in built.measured}
-    from station.services.check_side import merge_as_built, plane_json
 
     views = ({"view": guide.view, "camera": camera, "plane": plane_json(measurement.plane)},)
     if side is not None:
@@ -449,28 +408,22 @@ def check_measurement(job, measurement, image: np.ndarray, intrinsics, *, simula
     residual = residual_error(measurement, [p.tag_size_mm for p in guide.parts if p.tag_id is not None])
     simulated = physical = None
     if physics is not None:
-        from design.contraption.physics_profile import apply_profile
-
         scenario = apply_profile(scenario, physics)
         problem = None  # the layout's model scores; simulations run under the profile's values
     if simulate:
         if problem is None:
-            from station.services.tolerances import contraption_problem
-
             problem = contraption_problem(scenario)
-        simulated = _simulate(problem, built, residual, simulate, seed, report, should_stop)
+        simulated = _simulate(problem, built, residual, simulate, seed, report)
     if predict:
-        from station.services.predict import predict_layout
+        from station.services.predict import PredictionRequest, predict_layout  # heavy: pybullet, scipy, shapely
 
         check_count(predict, "predict")
-        physical = predict_layout(scenario, built.unclipped, profile=physics,
-                                  position_sigma_m=max(residual["position_mm"], 0.1) / 1000.0,
-                                  angle_sigma_deg=max(residual["heading_deg"], 0.1), unmeasured=built.not_measured,
-                                  samples=predict, seed=seed,
-                                  progress=report, should_stop=should_stop)
+        request = PredictionRequest(physics, position_sigma_m=max(residual["position_mm"], 0.1) / 1000.0,
+                                    angle_sigma_deg=max(residual["heading_deg"], 0.1),
+                                    unmeasured=tuple(built.not_measured), samples=predict, seed=seed)
+        physical = predict_layout(scenario, built.unclipped, request, report=report)
     # a misplaced part no design parameter places: the simulations put it where the guide does, and say so
     from projector.overlay import misplaced
-    from station.services.outlook import disagreement
 
     owners_placed = {p.name for p in guide.parts if p.parameters}
     not_simulated = tuple(dict.fromkeys(c.owner for c in checks if misplaced(c) and c.owner not in owners_placed))
@@ -496,8 +449,6 @@ def check_measurement(job, measurement, image: np.ndarray, intrinsics, *, simula
 
 
 def _progress(stage: str, done: int, total: int):
-    from common.progress import Progress
-
     return Progress(stage, done, total)
 
 
@@ -525,14 +476,12 @@ def _scores(model, problem, x, built, guide) -> tuple[float, float, dict[str, fl
     return designed, as_built, costs
 
 
-def _simulate(problem, built, residual, n: int, seed: int, report: Reporter, should_stop) -> float:
+def _simulate(problem, built, residual, n: int, seed: int, report: Reporter) -> float:
     """The success rate of ``n`` layouts around the as-built one: each measured parameter moved by the residual
     measurement error (mm for positions, degrees for rotations), each one not measured by at least the error of a
     layout placed with no check (:func:`calibration.sim_runs.placement_sigma`), Gaussian; an invalid layout (parts
     overlapping) counts as a failure."""
-    from calibration.sim_runs import placement_sigma
-    from design.robust.budget import BudgetedOracle
-    from station.services.robust import simulations
+    from calibration.sim_runs import placement_sigma  # heavy: pybullet, scipy
 
     rng = np.random.default_rng(seed)
     names = list(problem.parameter_names)
@@ -543,28 +492,29 @@ def _simulate(problem, built, residual, n: int, seed: int, report: Reporter, sho
     valid = problem.is_valid(U)
     success = np.zeros(n, dtype=bool)
     if valid.any():
-        with simulations(problem, should_stop=should_stop) as executor:
-            oracle = BudgetedOracle(executor, None, report.emit, should_stop, expected=int(valid.sum()))
+        with simulations(problem, report=report) as executor:
+            oracle = BudgetedOracle(executor, None, report=report, expected=int(valid.sum()))
             oracle.phase = "simulation"
             success[valid] = np.asarray(oracle(U[valid])).all(axis=1)
     return float(success.mean())
 
 
 # -- what the check shows ---------------------------------------------------------------------------------------------
+@station_errors
 def no_zone_words() -> str:
     """What a starred ok (``yes*``, ``NO*``) means, in the check's text and on the Assemble screen."""
-    from projector.drawing import UNTOLERATED_DEG, UNTOLERATED_MM
+    from projector.drawing import UNTOLERATED_DEG, UNTOLERATED_MM  # heavy: scipy, shapely
 
     return f"no zone on the sheet, so off by {UNTOLERATED_MM:g} mm / {UNTOLERATED_DEG:g} deg or more is to move"
 
 
+@station_errors
 def summary_lines(report, physical=None) -> list[str]:
     """The check's headline in words, most important first: the physical success as placed (``physical``, a
     :class:`calibration.sim_predict.PhysicalPrediction`; else the simulated success of ``--simulate``), the parts to
     move, what the predictions leave out, and the success model's own score as a detail."""
-    from projector.drawing import UNTOLERATED_DEG, UNTOLERATED_MM
-    from projector.overlay import misplaced
-    from station.services.outlook import left_out_words, model_detail, success_headline
+    from projector.drawing import UNTOLERATED_DEG, UNTOLERATED_MM  # heavy: scipy, shapely
+    from projector.overlay import misplaced  # heavy: scipy, shapely
 
     to_move = sum(1 for p in report.parts if misplaced(p))
     unknown = sum(1 for p in report.parts if misplaced(p) and p.within_tolerance is None)
@@ -591,25 +541,26 @@ def summary_lines(report, physical=None) -> list[str]:
     return lines
 
 
+@station_errors
 def overlay_frame(check: CheckJob, size: tuple[int, int], homography=None) -> np.ndarray:
     """The projector frame after the check (:func:`projector.overlay.render_check`): an arrow per misplaced part
     from where it is to where it must go, a ring at the target, the prediction as placed in the caption."""
-    from projector.overlay import render_check
+    from projector.overlay import render_check  # heavy: scipy, shapely
 
     return render_check(check.guide_job.guide, check.report.parts, tuple(size), homography,
                         caption=summary_lines(check.report, check.physical)[:2])
 
 
+@station_errors
 def camera_overlay(check: CheckJob) -> np.ndarray:
     """The camera frame with the check drawn over it through the camera's pose from the reference tags (the frame
     as it is when no plane was found)."""
-    from projector.overlay import draw_check
+    from projector.overlay import draw_check  # heavy: scipy, shapely
 
     plane = check.measurement.plane
     image = np.asarray(check.image)
     if plane is None:
         return image if image.ndim == 3 else np.repeat(image[:, :, None], 3, axis=2)
-    import cv2
 
     matrix = np.asarray(check.intrinsics.camera_matrix, dtype=float)
     dist = np.asarray(check.intrinsics.dist_coeffs, dtype=float)
@@ -624,10 +575,11 @@ def camera_overlay(check: CheckJob) -> np.ndarray:
                       caption=summary_lines(check.report, check.physical)[:2])
 
 
+@station_errors
 def report_lines(report, physical=None) -> list[str]:
     """The check as text: the headline (:func:`summary_lines`), one row per tagged part (costliest first) with a
     legend, the instructions, what was not measured and the notes, the success model's score last (a detail)."""
-    from projector.overlay import misplaced
+    from projector.overlay import misplaced  # heavy: scipy, shapely
 
     summary = summary_lines(report, physical)
     detail = [line for line in summary if line.startswith("detail: ")]
@@ -668,7 +620,6 @@ def report_lines(report, physical=None) -> list[str]:
                        ("reference tags not seen", report.missing_reference_tags)):
         if ids:
             lines.append(f"{words}: {', '.join(map(str, ids))}")
-    from station.services.check_side import side_lines
 
     lines.extend(side_lines(report))
     if report.not_measured:

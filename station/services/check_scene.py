@@ -1,4 +1,5 @@
-"""The simulated camera's scene for the as-built check: what ``sim://camera`` is shown (simulation only).
+"""The simulated camera of the as-built check: what ``sim://camera`` is shown, where it is aimed and the lens
+it knows of itself (simulation only).
 
 A real camera sees the real parts. The simulated one (``sim://camera``) is handed a plain description of the plane
 (:mod:`drivers.sim.camera_scene`): the guide's reference tags, every part tag at its part's designed pose and face
@@ -11,12 +12,16 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping, Sequence
+from dataclasses import replace
 
+import cv2
 import numpy as np
 
-from station.services.errors import ServiceError
+from calibration.intrinsics import CameraIntrinsics
+from drivers.sim.camera_scene import ImageItem, Occluder, PlaneScene, TagItem
+from station.errors import ServiceError, station_errors
 
-__all__ = ["parse_offset", "sim_scene"]
+__all__ = ["aim_camera", "parse_offset", "sim_scene", "twin_intrinsics"]
 
 
 #: The largest simulated offset: a metre moves a part off any table the camera sees (and 1e308 mm overflows the
@@ -25,6 +30,7 @@ MAX_OFFSET_MM = 1000.0
 MAX_OFFSET_DEG = 360.0
 
 
+@station_errors
 def parse_offset(text: str) -> tuple[str, tuple[float, float, float]]:
     """``PART=DU,DV[,DEG]`` (mm, mm, degrees) as ``(part, (du, dv, deg))``; a ServiceError naming ``sim_offset``."""
     name, _, values = str(text).partition("=")
@@ -42,6 +48,7 @@ def parse_offset(text: str) -> tuple[str, tuple[float, float, float]]:
     return name, (du, dv, deg)
 
 
+@station_errors
 def sim_scene(guide, offsets: Mapping[str, Sequence[float]] | None = None, *, occluded: Sequence[int] = (),
               sheet: bool = True):
     """What a simulated camera sees: the guide's reference tags on the plane and every part tag at its part's
@@ -56,8 +63,7 @@ def sim_scene(guide, offsets: Mapping[str, Sequence[float]] | None = None, *, oc
     ServiceError
         An offset of a part the guide has no tag on (``sim_offset``).
     """
-    from calibration.check import jig_views
-    from drivers.sim.camera_scene import ImageItem, Occluder, PlaneScene, TagItem
+    from calibration.check import jig_views  # heavy: scipy, shapely
 
     offsets = dict(offsets or {})
     tagged = {p.name: p for p in guide.parts if p.tag_views() or jig_views(guide, p)}
@@ -86,7 +92,7 @@ def sim_scene(guide, offsets: Mapping[str, Sequence[float]] | None = None, *, oc
 
 
 def _moved_outline(part, offset):
-    from shapely import affinity
+    from shapely import affinity  # heavy: shapely
 
     du, dv, turn = offset
     return affinity.translate(affinity.rotate(part.outline, turn, origin=tuple(part.center_mm)), du, dv)
@@ -94,8 +100,6 @@ def _moved_outline(part, offset):
 
 def _sheet_picture(guide, offsets, px_per_mm: float = 2.0) -> tuple[np.ndarray, np.ndarray]:
     """The picture under the parts (see :func:`sim_scene`) and its corners on the plane (top-left first)."""
-    import cv2
-
     u0, v0, u1, v1 = guide.extent_mm
     width, height = int(np.ceil((u1 - u0) * px_per_mm)), int(np.ceil((v1 - v0) * px_per_mm))
     picture = np.full((height, width, 3), 245, dtype=np.uint8)
@@ -115,3 +119,27 @@ def _sheet_picture(guide, offsets, px_per_mm: float = 2.0) -> tuple[np.ndarray, 
                 cv2.polylines(picture, [pixels(polygon.exterior.coords)], True, (110, 110, 110), 1, cv2.LINE_AA, 4)
     corners = np.array([[u0, v1], [u1, v1], [u1, v0], [u0, v0]], dtype=float)
     return picture, corners
+
+
+@station_errors
+def aim_camera(camera, guide) -> None:
+    """Move a simulated camera told no ``target`` in the plane so that its optical axis meets the guide's middle
+    (as a maker sets the camera up over the sheets): the camera translated by d, ``t' = t - R d``."""
+    model = camera.camera_model
+    u0, v0, u1, v1 = guide.extent_mm
+    rotation = cv2.Rodrigues(np.asarray(model.rvec, dtype=float))[0]
+    axis = rotation.T @ np.array([0.0, 0.0, 1.0])  # the optical axis in plane coordinates
+    centre = np.asarray(model.centre_mm, dtype=float)
+    if abs(axis[2]) < 1e-9:
+        return
+    hit = centre - centre[2] / axis[2] * axis  # where the optical axis meets the plane now
+    shift = np.array([(u0 + u1) / 2 - hit[0], (v0 + v1) / 2 - hit[1], 0.0])
+    camera.place(replace(model, tvec=np.asarray(model.tvec, dtype=float) - rotation @ shift))
+
+
+@station_errors
+def twin_intrinsics(camera, url: str) -> CameraIntrinsics:
+    """A simulated camera's own lens, as a calibration would give it."""
+    model = camera.camera_model
+    return CameraIntrinsics(np.asarray(model.camera_matrix, float), np.asarray(model.dist_coeffs, float),
+                            tuple(int(v) for v in model.image_size), name=f"{url} (the simulated camera's own)")

@@ -1,12 +1,12 @@
 """The side camera of a table check: the board it faces, the tags it reads, what it measures.
 
-Used by :mod:`station.services.check` (``station check --camera TOP --camera SIDE``) and the simulated world. The
-geometry is :mod:`projector.board` (where the reference board stands) and :mod:`calibration.side` (a tag on the
-board's plane carries a part's height and tilt); this module finds the tags the side camera can read in a guide
-job (each jig stand's face tag: a track or a plank is too thin for a tag of its own), measures a side frame, and
-refines the top check's as-built layout with what the side view measured (the parameters the top view could not:
-heights, tilts). It also hands the simulated camera its side scene: the board's tags and the jigs' face tags where
-the parts stand (moved by ``--sim-side-offset`` or by the simulated world's placement).
+Used by :mod:`station.services.check_cameras` (``station check --camera TOP --camera SIDE``) and the simulated world.
+The geometry is :mod:`projector.board` (where the reference board stands) and :mod:`calibration.side` (a tag on the
+board's plane carries a part's height and tilt); this module finds the tags the side camera can read in a guide job
+(each jig stand's face tag: a track or a plank is too thin for a tag of its own), measures a side frame, and refines the
+top check's as-built layout with what the side view measured (the parameters the top view could not: heights, tilts). It
+also hands the simulated camera its side scene: the board's tags and the jigs' face tags where the parts stand (moved by
+``--sim-side-offset`` or by the simulated world's placement).
 
 A view's camera is told apart by what it sees: a simulated camera by its ``view=`` option, a real one by the
 reference tags in its frame (the board's 579-582 make it the side camera).
@@ -18,14 +18,23 @@ import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, replace
 
+import cv2
 import numpy as np
 
-from station.services.errors import ServiceError
+from calibration.intrinsics import to_gray
+from calibration.measure import measure
+from drivers.sim.camera import parse_camera_options
+from drivers.sim.camera_scene import ImageItem, Occluder, PlaneScene, TagItem
+from station.errors import ServiceError, station_errors
+from station.services import calibrate
+from station.services.check_scene import aim_camera, twin_intrinsics
+from vision.detection import TagDetector
 
-__all__ = ["SideView", "check_views", "measure_side", "merge_as_built", "plane_json", "side_lines", "side_overlay",
+__all__ = ["SideView", "measure_side", "merge_as_built", "plane_json", "side_lines", "side_overlay",
            "side_scene", "side_targets", "view_of_frame"]
 
 
+@station_errors
 @dataclass(frozen=True)
 class SideView:
     """A side frame measured: the board, the targets, the side guide, the measurement and its checks."""
@@ -44,12 +53,13 @@ class SideView:
         return plane_json(self.measurement.plane)
 
 
+@station_errors
 def side_targets(job, board) -> list:
     """The tags the side camera reads in ``job`` (a guide job with its jigs): each jig stand's face tag whose face
     looks at the camera (within :data:`calibration.side.FACING_DEG` of the board's normal), as a
     :class:`~calibration.side.SideTarget` of the part it carries."""
-    from calibration.asbuilt import part_plane_pose
-    from calibration.side import FACING_DEG, SideTarget
+    from calibration.asbuilt import part_plane_pose  # heavy: scipy, shapely
+    from calibration.side import FACING_DEG, SideTarget  # heavy: scipy, shapely
 
     planned = getattr(job, "jigs", None)
     if board is None or planned is None:
@@ -93,11 +103,12 @@ def side_targets(job, board) -> list:
 
 
 def _side_guide(job, board, targets):
-    from calibration.side import side_guide
+    from calibration.side import side_guide  # heavy: scipy, shapely
 
     return side_guide(job.guide, board, targets)
 
 
+@station_errors
 def side_scene(job, board, targets, offsets: Mapping[str, Sequence[float]] | None = None, *,
                layout=None, occluded: Sequence[int] = ()):
     """What the simulated side camera sees: the board's tags and every target's tag on the board's plane, a part
@@ -110,8 +121,7 @@ def side_scene(job, board, targets, offsets: Mapping[str, Sequence[float]] | Non
     ServiceError
         An offset of a part the side camera reads no tag of (``sim_side_offset``).
     """
-    from calibration.asbuilt import part_plane_pose
-    from drivers.sim.camera_scene import ImageItem, Occluder, PlaneScene, TagItem
+    from calibration.asbuilt import part_plane_pose  # heavy: scipy, shapely
 
     offsets = dict(offsets or {})
     known = {t.part for t in targets}
@@ -161,23 +171,21 @@ def _wrap(angle: float) -> float:
     return 180.0 if angle == -180.0 else angle
 
 
+@station_errors
 def view_of_frame(image, board) -> str:
     """``"side"`` when the frame shows at least two of the board's tags, else ``"top"`` (a real camera's view)."""
-    from calibration.intrinsics import to_gray
-    from projector.detection import TagDetector
-
     if board is None:
         return "top"
     seen = {t.tag_id for t in TagDetector(2.0, 2).detect(to_gray(np.asarray(image)))}
     return "side" if len(seen & {t.id for t in board.reference_tags}) >= 2 else "top"
 
 
+@station_errors
 def measure_side(job, board, targets, image, intrinsics, previous=None, camera: str = "") -> SideView:
     """Measure a side frame: the board's plane from its tags, each target's tag at its depth, the checks in the side
     camera's words (:func:`calibration.side.side_view_checks`)."""
-    from calibration.check import check_parts, part_tags, reference_tags
-    from calibration.measure import measure
-    from calibration.side import side_view_checks
+    from calibration.check import check_parts, part_tags, reference_tags  # heavy: scipy, shapely
+    from calibration.side import side_view_checks  # heavy: scipy, shapely
 
     if not targets:
         raise ServiceError("camera: the side camera has nothing to read: no jig stand of this layout faces it (use "
@@ -190,10 +198,11 @@ def measure_side(job, board, targets, image, intrinsics, previous=None, camera: 
     return SideView(board, tuple(targets), guide, measurement, tuple(checks), camera, np.asarray(image), intrinsics)
 
 
+@station_errors
 def merge_as_built(job, top, side: SideView):
     """The top check's as-built layout (:class:`calibration.asbuilt.AsBuilt`) with what the side view measured:
     each part's parameters the top view did not measure fitted to its pose on the board's plane."""
-    from calibration.asbuilt import AsBuilt, PlanePose, as_built_layout
+    from calibration.asbuilt import AsBuilt, PlanePose, as_built_layout  # heavy: scipy, shapely
 
     scenario = job.scenario
     poses = {c.name: PlanePose(c.measured_center_mm, c.measured_heading_deg) for c in side.checks if c.found}
@@ -216,6 +225,7 @@ def merge_as_built(job, top, side: SideView):
     return merged, {n: by[n] for n in names if n in by}
 
 
+@station_errors
 def side_frame(job, board, targets, url: str, *, offsets=None, occluded: Sequence[int] = (), layout=None,
                seed: int | None = None, intrinsics=None, name: str = "camera-side"):
     """A frame from the side camera at ``url`` and how to read it: ``(image, intrinsics)``. A simulated camera is
@@ -228,9 +238,6 @@ def side_frame(job, board, targets, url: str, *, offsets=None, occluded: Sequenc
     ServiceError
         Simulation offsets (or a simulated world's layout) for a real camera (``sim_side_offset``).
     """
-    from station.services import calibrate
-    from station.services.check import _aim, _twin_intrinsics
-
     camera = calibrate.open_camera(url)
     try:
         simulated = hasattr(camera, "set_scene")
@@ -240,11 +247,11 @@ def side_frame(job, board, targets, url: str, *, offsets=None, occluded: Sequenc
         if simulated:
             camera.set_scene(side_scene(job, board, targets, offsets, layout=layout, occluded=occluded))
             if "target=" not in url:
-                _aim(camera, _side_guide(job, board, targets))
+                aim_camera(camera, _side_guide(job, board, targets))
             if seed is not None and "seed=" not in url:
                 camera.options = replace(camera.options, seed=int(seed) % 2**32)
         image = np.asarray(camera.grab())
-        twin = _twin_intrinsics(camera, url) if simulated else None
+        twin = twin_intrinsics(camera, url) if simulated else None
     finally:
         camera.close()
     size = (int(image.shape[1]), int(image.shape[0]))
@@ -253,105 +260,26 @@ def side_frame(job, board, targets, url: str, *, offsets=None, occluded: Sequenc
     return image, twin
 
 
+@station_errors
 def is_side_url(url: str) -> bool | None:
     """Whether a camera URL is a simulated side camera (``sim://camera?view=side``); None for a real camera (its
     frame tells: :func:`view_of_frame`)."""
-    from drivers.sim.camera import parse_camera_options
-
     if not str(url).strip().lower().startswith("sim://camera"):
         return None
     return parse_camera_options(url)["view"] == "side"
 
 
+@station_errors
 def plane_name(name: str) -> str:
     """Where the side camera ``name`` keeps its last plane (the board's): apart from any table plane."""
     return f"{name}-board"
 
 
-def check_views(job, cameras: Sequence[tuple[str, str]], *, image=None, intrinsics=None, offsets=None,
-                side_offsets=None, occluded: Sequence[int] = (), side_image=None, side_intrinsics=None, **check):
-    """The check of ``job`` with every camera in ``cameras`` (``(name, url)``): the top camera's frame (or the file
-    ``image``) measures the table's plane, a side camera's the heights and tilts on the board's plane; the
-    parameters combine in the as-built layout and CHECK.json says which view measured what. ``check`` goes to
-    :func:`station.services.check.check_frame` (``simulate``, ``seed``, ``physics``, ``predict``, ``progress``).
-    The planes are remembered per camera (the next check says how far each moved). ``side_image`` is the side
-    camera's frame from a file (a photo), read with ``side_intrinsics`` (a file; else the side camera's saved
-    calibration, else guessed and said).
-
-    Raises
-    ------
-    ServiceError
-        No top camera, or two cameras of one view (``camera``); a side camera with nothing to read (``camera``).
-    """
-    from projector.board import side_board
-    from station.services import calibrate
-    from station.services.check import camera_frame, check_frame, remember_plane
-
-    board = side_board(job.guide)
-    top_cameras, side_cameras, frames = [], [], {}
-    for name, url in cameras:
-        side = is_side_url(url)
-        if side is None:  # a real camera: its frame says which board it faces
-            frames[url] = camera_frame(job.guide, camera=url, name=name)
-            side = view_of_frame(frames[url][0], board) == "side"
-        (side_cameras if side else top_cameras).append((name, url))
-    for view, found in (("top", top_cameras), ("side", side_cameras)):
-        if len(found) > 1:
-            raise ServiceError(f"camera: {len(found)} cameras see the {view} view ({', '.join(u for _, u in found)});"
-                               " expected one per view", field="camera", value=found[1][1])
-    if side_image is not None:
-        side_cameras.append(("camera-side", None))
-        if len(side_cameras) > 1:
-            raise ServiceError(f"side_image: {side_image} and the camera {side_cameras[0][1]} both see the side view;"
-                               " expected one", field="side_image", value=str(side_image))
-    if side_cameras and board is None:
-        raise ServiceError(f"camera: a side camera checks a table guide; this one is drawn on the {job.guide.view} "
-                           "view, its own camera sees the heights already", field="camera", value=side_cameras[0][1])
-    if not top_cameras and image is None:
-        raise ServiceError("camera: no top camera (the table's plane); give one --camera for the table and one "
-                           "with view=side for the board", field="camera")
-    side_view = None
-    if side_cameras:
-        name, url = side_cameras[0]
-        targets = side_targets(job, board)
-        if url is None:  # a file
-            from station.services.check import load_image
-
-            picture = load_image(side_image)
-            lens = calibrate.intrinsics_for((picture.shape[1], picture.shape[0]), intrinsics=side_intrinsics,
-                                            name=name)
-        elif url in frames:
-            picture = frames[url][0]
-            lens = calibrate.intrinsics_for((picture.shape[1], picture.shape[0]), name=name)
-        else:
-            picture, lens = side_frame(job, board, targets, url, offsets=side_offsets, occluded=occluded, name=name)
-        side_view = measure_side(job, board, targets, picture, lens, calibrate.load_plane(plane_name(name)),
-                                 camera=name)
-    elif side_offsets:
-        raise ServiceError("sim_side_offset: no side camera to show it (add --camera 'sim://camera?view=side')",
-                           field="sim_side_offset")
-    top_name, top_url = top_cameras[0] if top_cameras else (calibrate.DEFAULT_CAMERA, None)
-    if top_url in frames:
-        frame, lens, _, previous = frames[top_url]
-    else:
-        frame, lens, _, previous = camera_frame(job.guide, image=image, camera=top_url, intrinsics=intrinsics,
-                                                offsets=offsets, occluded=occluded, name=top_name)
-    result = check_frame(job, frame, lens, previous=previous, side=side_view, camera=top_name, **check)
-    remember_plane(top_name, result)
-    if side_view is not None and side_view.measurement.plane is not None:
-        try:
-            calibrate.save_plane(plane_name(side_view.camera), side_view.measurement.plane)
-        except OSError:
-            pass  # the check stands without it; only the next "moved" report is lost
-    return result
-
-
+@station_errors
 def side_overlay(side: SideView) -> np.ndarray:
     """The side camera's frame with its check drawn on it (RGB): each jig plate where the guide wants it (green) and
     where the camera found it (orange, carried by its tag), the instructions written above. Drawn through the board's
     plane found in the frame (the frame as it is when none was found)."""
-    import cv2
-
     out = np.array(side.image, dtype=np.uint8, copy=True)
     if out.ndim == 2:
         out = np.repeat(out[:, :, None], 3, axis=2)
@@ -391,6 +319,7 @@ def side_overlay(side: SideView) -> np.ndarray:
     return out
 
 
+@station_errors
 def plane_json(plane) -> dict | None:
     """A plane fix as CHECK.json gives it: ``{"residual_mm", "reference_ids", "moved_mm"}`` (None: no plane)."""
     if plane is None:
@@ -399,6 +328,7 @@ def plane_json(plane) -> dict | None:
             "moved_mm": None if plane.moved_mm is None else round(float(plane.moved_mm), 3)}
 
 
+@station_errors
 def side_lines(report) -> list[str]:
     """The side camera's part of the check in words: its plane, each part's height and tilt and what to do, the
     parameters it measured (none without a side camera)."""
@@ -422,4 +352,3 @@ def side_lines(report) -> list[str]:
     if measured:
         lines.append(f"measured by the side camera: {', '.join(measured)}")
     return lines
-

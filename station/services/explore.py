@@ -13,7 +13,8 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from station.services.errors import ServiceError
+from design.machines import get_machine
+from station.errors import ServiceError, station_errors
 
 if TYPE_CHECKING:  # scipy and shapely load only when a design is explored
     from design.explore import Explorer, PointOfInterest, ReleaseResult
@@ -22,6 +23,7 @@ if TYPE_CHECKING:  # scipy and shapely load only when a design is explored
 POINTS_RANGE = (256, 200_000)
 
 
+@station_errors
 def start_session(machine: str, params: Mapping[str, float], points: int | None = None) -> Explorer:
     """An exploration session on a design: its Points of Interest found, no invariant yet.
 
@@ -41,13 +43,13 @@ def start_session(machine: str, params: Mapping[str, float], points: int | None 
     design.errors.DesignError
         An unknown machine or a bad design.
     """
-    from design.explore import Explorer
-    from design.machines import get_machine
+    from design.explore import Explorer  # heavy: scipy, shapely
 
     check_points(points)
     return Explorer(get_machine(machine), dict(params), n_points=points)
 
 
+@station_errors
 def check_points(points: int | None) -> None:
     """Refuse a number of curve samples out of :data:`POINTS_RANGE` (:class:`ServiceError`, ``field="points"``)."""
     low, high = POINTS_RANGE
@@ -79,6 +81,15 @@ class Exploration:
     first_pois: list[PointOfInterest] = field(default_factory=list)
 
 
+@station_errors
+def parse_keep(spec: str) -> tuple[str, tuple[int, ...]]:
+    """An invariant to keep, from its words (``position:3``, ``distance:1,2``...): ``(kind, poi ids)``."""
+    from design.explore import parse_keep as parse  # scipy and shapely: loaded only when a design is explored
+
+    return parse(spec)
+
+
+@station_errors
 def explore(machine: str, params: Mapping[str, float], keeps: Sequence[tuple[str, Sequence[int]]] = (),
             moves: Sequence[tuple[int, float]] = (), points: int | None = None) -> Exploration:
     """Find the PoIs of a design, keep the invariants ``keeps`` (``(kind, poi ids)``, from
@@ -136,9 +147,10 @@ def _move_document(k: int, requested: float, applied: float, moved: dict[str, fl
     }
 
 
+@station_errors
 def invariant_errors(values: Mapping[str, float]) -> list[dict[str, Any]]:
     """``[{"invariant", "error", "unit"}]`` from an invariant-label → error mapping (a lost feature: None)."""
-    from design.explore import ERROR_UNIT
+    from design.explore import ERROR_UNIT  # heavy: scipy, shapely
 
     out = []
     for label, error in values.items():
@@ -147,9 +159,10 @@ def invariant_errors(values: Mapping[str, float]) -> list[dict[str, Any]]:
     return out
 
 
+@station_errors
 def write_picture(exploration: Exploration, path: str | Path) -> Path:
     """A PNG of the first and the last design with their PoIs, the kept ones highlighted."""
-    from design.explore.render import write_png
+    from design.explore.render import write_png  # heavy: scipy, shapely
 
     path = Path(path)
     explorer = exploration.explorer
@@ -158,3 +171,33 @@ def write_picture(exploration: Exploration, path: str | Path) -> Path:
         write_png(stream, [exploration.first_curve, explorer.curve], [exploration.first_pois, explorer.pois],
                   highlight=highlight)
     return path
+
+
+# -- a session a face drives step by step: the explorer's own errors come out as station errors -------------------
+@station_errors
+def keep_invariant(explorer: Explorer, kind: str, poi_ids: Sequence[int]):
+    """Freeze feature ``kind`` of the PoIs ``poi_ids`` (one, two for ``distance``); the invariant kept."""
+    return explorer.add_invariant(kind, list(poi_ids))
+
+
+@station_errors
+def drop_last_invariant(explorer: Explorer) -> str | None:
+    """Unfreeze the invariant kept last; its label (None when there is none)."""
+    if not explorer.invariants:
+        return None
+    label = explorer.invariants[-1].label
+    explorer.remove_invariant(len(explorer.invariants) - 1)
+    return label
+
+
+@station_errors
+def move_slider(explorer: Explorer, index: int, value: float):
+    """Preview slider ``index`` at ``value`` (the design moves; the session keeps its invariants)."""
+    return explorer.move(index, value)
+
+
+@station_errors
+def release_slider(explorer: Explorer, index: int, value: float) -> ReleaseResult:
+    """Move slider ``index`` to ``value`` and re-project the design onto the invariants."""
+    explorer.move(index, value)
+    return explorer.release()

@@ -9,13 +9,19 @@ import io
 import json
 import re
 import time
+from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from common.progress import CancelCheck, ProgressCallback, Reporter
-from station.cli_util import to_jsonable
-from station.services.errors import ServiceError
+from cam.laser import check_work_area, material_settings, plan_laser_job, travel_moves, write_laser_gcode
+from common.progress import Reporter
+from design.fabrication import FABRICABLE_MACHINES, GearSettings, Hardware
+from design.machines import get_machine
+from drivers.profiles import MachineProfile
+from station.errors import ServiceError, station_errors
+from station.jsonable import to_jsonable
+from station.services.profiles import load_station_profile
 
 DEFAULT_KERF = 0.15
 #: Where the kerf came from, in words (``kerf_source`` in parts.json).
@@ -27,6 +33,7 @@ DEFAULT_GAP = 3.0
 SIZES_STAGE, NESTING_STAGE, SHEETS_STAGE = "sizes", "nesting", "sheets"
 
 
+@station_errors
 @dataclass
 class SheetOutput:
     """One nested sheet with its files' contents: the laser job, SVG, G-code and preview."""
@@ -44,6 +51,7 @@ class SheetOutput:
         return "" if self.index == 1 else f"-{self.index}"
 
 
+@station_errors
 @dataclass
 class FabricationResult:
     """Everything one fabrication run produced (kept in memory for the TUI, written to files by the CLI).
@@ -78,6 +86,7 @@ class FabricationResult:
         return self.sheets[0].png
 
 
+@station_errors
 def parse_sheet(text: str) -> tuple[float, float]:
     """``"300x200"`` → ``(300.0, 200.0)`` mm; a :class:`ServiceError` (``field="sheet"``) otherwise."""
     match = re.fullmatch(r"\s*(\d+(?:\.\d*)?)\s*[xX×]\s*(\d+(?:\.\d*)?)\s*(?:mm)?\s*", text or "")
@@ -86,48 +95,81 @@ def parse_sheet(text: str) -> tuple[float, float]:
     return float(match.group(1)), float(match.group(2))
 
 
-def fabricate(machine: str, params: dict[str, float], scale: float, *, kerf: float | None = None,
-              sheet_size: tuple[float, float] | None = None, gap: float = DEFAULT_GAP, profile=None,
-              material: str | None = None, gear_settings=None, hardware=None,
-              progress: Reporter | ProgressCallback | None = None, max_sheets: int = 4,
-              cancelled: CancelCheck | None = None) -> FabricationResult:
-    """Parts → kerf → nesting → SVG, PNG, laser job. Raises the design/driver errors for bad input.
+@dataclass(frozen=True)
+class FabricationRequest:
+    """What :func:`fabricate` makes: a drawing-machine design's parts at a scale, nested on a laser's sheets.
 
-    ``progress``, optional: given a :class:`common.progress.Progress` at each step: the parts' sizes checked (stage
+    Parameters
+    ----------
+    machine : str
+        A drawing machine's name (:data:`FABRICABLE_MACHINES` have parts).
+    params : mapping
+        The design (missing parameters take the machine's defaults).
+    scale : float
+        Millimetres per model unit.
+    kerf : float, optional
+        The laser's kerf (mm); None: the material's in the profile, else :data:`DEFAULT_KERF`.
+    sheet_size : (float, float), optional
+        The sheet (mm); None: the profile's bed.
+    gap : float
+        Between two parts on a sheet (mm).
+    profile : MachineProfile or str
+        The laser's profile, or what names one (a TOML file or a built-in profile's name, which means the station's
+        copy of it once a test card's measurement wrote one: :func:`~station.services.profiles.load_station_profile`).
+    material : str, optional
+        A material of the profile; None: its first.
+    gear_settings : GearSettings, optional
+        The gears' module, pressure angle and backlash (None: the defaults).
+    hardware : Hardware, optional
+        The pen, axle and pin holes (None: the defaults).
+    max_sheets : int
+        The most sheets the parts may take.
+    """
+
+    machine: str
+    params: Mapping[str, float]
+    scale: float
+    kerf: float | None = None
+    sheet_size: tuple[float, float] | None = None
+    gap: float = DEFAULT_GAP
+    profile: MachineProfile | str = "laser"
+    material: str | None = None
+    gear_settings: GearSettings | None = None
+    hardware: Hardware | None = None
+    max_sheets: int = 4
+
+
+@station_errors
+def fabricate(request: FabricationRequest, *, report: Reporter | None = None) -> FabricationResult:
+    """Parts → kerf → nesting → SVG, PNG, laser job, as ``request`` says. Bad input raises a station error.
+
+    ``report``, optional: given a :class:`common.progress.Progress` at each step: the parts' sizes checked (stage
     ``"sizes"``), each gear and the end of the gears (``"gears"``, in teeth), the nesting (``"nesting"``), each
-    sheet (``"sheets"``), and a last ``"sheets"`` report with ``done == total`` when the work is done. ``cancelled``
-    is asked after each report (:class:`common.progress.Cancelled` stops the work between two steps).
+    sheet (``"sheets"``), and a last ``"sheets"`` report with ``done == total`` when the work is done. Its stop
+    check is asked after each report (:class:`common.progress.Cancelled` stops the work between two steps).
 
     Parts that do not fit one sheet go on further sheets (at most ``max_sheets``), each with its own job.
-    ``kerf=None`` takes the material's kerf from the profile, else :data:`DEFAULT_KERF`.
 
     A part too large for the sheet is refused before any gear is generated (which takes minutes at large scales),
     with the largest scale that fits.
     """
-    from design.fabrication import (
-        FABRICABLE_MACHINES,
-        check_sizes_fit,
-        machine_parts,
-        nest_sheets,
-        part_sizes,
-    )
-    from design.machines import get_machine
-    from drivers.laser_job import material_settings
-    from station.services.profiles import load_station_profile
+    # the parts' geometry (shapely, scipy, OpenCV) loads when parts are made: `station fabricate --help` imports this
+    from design.fabrication import check_sizes_fit, machine_parts, nest_sheets, part_sizes
 
-    report = Reporter.of(progress, cancelled)
+    machine, params, scale, gap, kerf = request.machine, dict(request.params), request.scale, request.gap, request.kerf
+    gear_settings, hardware = request.gear_settings, request.hardware
+    report = Reporter.of(report)
     if machine in FABRICABLE_MACHINES:
         # The summary records the complete design (defaults filled in), as the parts were made from it.
         params = dict(get_machine(machine).validate(params))
-    # The station's copy of the built-in laser profile when a test card's measurement wrote one.
-    profile = profile if profile is not None else load_station_profile("laser")
-    engrave_ops, cut_ops, material_name = material_settings(profile, material)
+    profile = load_station_profile(request.profile) if isinstance(request.profile, str) else request.profile
+    engrave_ops, cut_ops, material_name = material_settings(profile, request.material)
     if kerf is None:
         material_kerf = profile.material(material_name).kerf
         kerf, kerf_source = (DEFAULT_KERF, "default") if material_kerf is None else (material_kerf, "material")
     else:
         kerf_source = "given"
-    width, height = sheet_size if sheet_size is not None else (profile.width, profile.height)
+    width, height = request.sheet_size if request.sheet_size is not None else (profile.width, profile.height)
     # Sizes first (milliseconds): a part too large for the sheet is refused before the gears are generated.
     sizes = part_sizes(machine, params, scale, gear_settings, hardware)
     check_sizes_fit(sizes, width, height, gap, kerf, scale=scale,
@@ -137,11 +179,11 @@ def fabricate(machine: str, params: dict[str, float], scale: float, *, kerf: flo
     started = time.perf_counter()
     report(SIZES_STAGE, len(sizes), len(sizes), f"the {len(sizes)} parts of {machine} at {scale:g} mm per unit fit "
            f"{width:g}x{height:g} mm sheets; generating their {total_teeth} teeth")
-    parts = machine_parts(machine, params, scale, gear_settings, hardware, progress=report)
+    parts = machine_parts(machine, params, scale, gear_settings, hardware, report=report)
     generated = time.perf_counter() - started
     report(NESTING_STAGE, 0, None,
            f"nesting {len(parts)} parts on {width:g}x{height:g} mm sheets (kerf {kerf:g} mm, gap {gap:g} mm)")
-    sheets = nest_sheets(parts, width, height, gap=gap, kerf=kerf, max_sheets=max_sheets)
+    sheets = nest_sheets(parts, width, height, gap=gap, kerf=kerf, max_sheets=request.max_sheets)
     outputs = laser_sheets(sheets, profile, engrave_ops, cut_ops,
                            {"machine": machine, "scale": f"{scale:g} mm per unit", "material": material_name,
                             "profile": profile.name},
@@ -187,13 +229,13 @@ def fabricate(machine: str, params: dict[str, float], scale: float, *, kerf: flo
     return FabricationResult(machine, dict(params), scale, outputs, summary)
 
 
+@station_errors
 def laser_sheets(sheets, profile, engrave_ops, cut_ops, metadata: dict[str, str], title: str,
                  report: Reporter | None = None) -> list[SheetOutput]:
     """Each nested sheet's laser job (engraving, then each part's holes before its outline; dark travels), checked
     against the profile's work area, with its G-code, SVG and PNG preview (the travel drawn grey). ``metadata`` goes
     in the G-code's header (the sheet's number is added); ``title`` names the SVG (", sheet i of n" is added)."""
-    from design.fabrication import render_png, sheet_paths, write_svg
-    from drivers.laser_job import check_work_area, plan_laser_job, travel_moves, write_laser_gcode
+    from design.fabrication import render_png, sheet_paths, write_svg  # shapely and OpenCV, as in fabricate()
 
     report = report if report is not None else Reporter.of(None)
     xmin, ymin, _, _ = profile.work_bounds()
@@ -203,7 +245,8 @@ def laser_sheets(sheets, profile, engrave_ops, cut_ops, metadata: dict[str, str]
         paths = sheet_paths(sheet)
         job = plan_laser_job(paths["engrave"], paths["cut"], engrave_ops, cut_ops, profile.laser.max_power,
                              profile.plot.travel_feed, offset=(xmin, ymin), start=(xmin, ymin),
-                             metadata={**metadata, "sheet": f"{index} of {len(sheets)}"})
+                             metadata={**metadata, "sheet": f"{index} of {len(sheets)}"},
+                             machine_settings=profile.grbl_settings)
         check_work_area(job, profile.work_bounds(), profile.name)
         gcode = io.StringIO()
         write_laser_gcode(job, gcode, profile.work_bounds(), profile.laser.laser_mode, profile.name)
@@ -242,6 +285,7 @@ def _part_summary(part, cut_shape, placement, sheet_index: int) -> dict[str, Any
     }
 
 
+@station_errors
 def write_outputs(result: FabricationResult, out: Path) -> dict[str, Path]:
     """Write parts.svg, laser.gcode, sheet.png (``-2``, ``-3``... for further sheets) and parts.json into ``out``."""
     out.mkdir(parents=True, exist_ok=True)

@@ -13,17 +13,32 @@ from collections.abc import Mapping
 from dataclasses import dataclass, replace
 from pathlib import Path
 
-from common.progress import ProgressCallback, Reporter
+from common.progress import Reporter
+from design.contraption.layout_io import read_layout_data
+from projector.board import side_board, write_board_pdf
+from projector.build import build_guide, steps_text
+from projector.frames import render_calibrate, render_frames, render_step
 from projector.guide import Guide, ParameterTolerance
-from station.services.errors import ServiceError
+from projector.parameters import check_set_with
+from projector.pdf import write_pdf
+from projector.svg import write_svg
+from station.errors import ServiceError, station_errors
+from station.services.contraption import choose_layout, open_scenario
+from station.services.jig_plan import JigOptions, attach_jigs, plan_guide_jigs
+from station.services.outlook import layout_headline
+from station.services.physics import scenario_with_physics
+from station.services.projectors import projector_homography
+from station.services.robust import check_count, check_seed
+from station.services.tolerances import tolerance_map as tolerances_of
 
-__all__ = ["PAPERS", "VIEWS", "GuideJob", "check_paper", "export_guide", "make_guide", "portable_name",
+__all__ = ["PAPERS", "VIEWS", "GuideJob", "GuideRequest", "check_paper", "export_guide", "make_guide", "portable_name",
            "projected_frames", "show_step"]
 
 PAPERS = ("a4", "letter", "a3")
 VIEWS = ("top", "side")
 
 
+@station_errors
 @dataclass(frozen=True)
 class GuideJob:
     """A guide ready to export or project.
@@ -40,7 +55,7 @@ class GuideJob:
         The tolerance map, None when none was asked for (or for the scenario's own layout).
     scenario : design.contraption.Scenario
         The scenario.
-    jigs : station.services.jigs.PlannedJigs or None
+    jigs : station.services.jig_plan.PlannedJigs or None
         The laser-cut jigs the steps use, when asked for (their footprints are on the guide).
     """
 
@@ -60,13 +75,13 @@ class GuideJob:
         data["layout"] = self.layout.to_dict()
         data["layout"]["source"] = portable_name(data["layout"].get("source") or "")
         data["steps"] = list(self.steps)
-        from projector.board import side_board
 
         board = side_board(self.guide)
         data["side_board"] = None if board is None else board.manifest()
         return data
 
 
+@station_errors
 def portable_name(path: str | Path) -> str:
     """``path`` as a manifest or a sheet may name it: relative to the working folder when it lies under it, else its
     file's name (never an absolute path of this machine); empty stays empty."""
@@ -81,12 +96,11 @@ def portable_name(path: str | Path) -> str:
         return path.name
 
 
-def make_guide(scenario: str, layout: str | None, *, view: str | None = None, verify: int = 0, seed: int = 0,
-               tolerances: bool = True, progress: Reporter | ProgressCallback | None = None,
-               physics: str | None = None, set_with: Mapping[str, str] | None = None,
-               jigs=None) -> GuideJob:
-    """Build the guide of ``layout`` (a LAYOUT.json, any form :mod:`design.contraption.layout_io` reads, a layout
-    named in the scenario, or None for the scenario's own layout) for ``scenario`` (a file or an example's name).
+@dataclass(frozen=True)
+class GuideRequest:
+    """The guide :func:`make_guide` builds: ``layout`` (a LAYOUT.json, any form :mod:`design.contraption.layout_io`
+    reads, a layout named in the scenario, or None for the scenario's own layout) for ``scenario`` (a file or an
+    example's name).
 
     Parameters
     ----------
@@ -98,49 +112,57 @@ def make_guide(scenario: str, layout: str | None, *, view: str | None = None, ve
         Seed of the verification's random layouts.
     tolerances : bool
         False skips the tolerance map altogether (a guide with none).
-    progress : callable or Reporter, optional
-        Given :class:`common.progress.Progress` while tolerances are computed or verified.
     physics : str, optional
         A physics profile: the tolerances' simulations use its material values (the drawing, and the guide's
         content hash, are the scenario's: materials change no part's place).
     set_with : mapping of str to str, optional
         Per layout parameter, how the guide tells the maker to set it (``"jig"`` for one a laser-cut jig sets:
         :data:`projector.guide.SET_WITH`); the others as :mod:`projector.parameters` says.
-    jigs : True or station.services.jigs.JigOptions, optional
+    jigs : True or station.services.jig_plan.JigOptions, optional
         Plan the laser-cut jigs of the layout (for the profile's material, or the options' one): the parameters
         they set are set ``"jig"``, the sheets draw their footprints and the steps say how to use them
-        (:func:`station.services.jigs.attach_jigs`); the plan is the job's ``jigs``.
+        (:func:`station.services.jig_plan.attach_jigs`); the plan is the job's ``jigs``.
+    """
+
+    scenario: str
+    layout: str | None = None
+    view: str | None = None
+    verify: int = 0
+    seed: int = 0
+    tolerances: bool = True
+    physics: str | None = None
+    set_with: Mapping[str, str] | None = None
+    jigs: bool | JigOptions | None = None
+
+
+@station_errors
+def make_guide(request: GuideRequest, *, report: Reporter | None = None) -> GuideJob:
+    """Build the guide ``request`` describes; ``report`` is given :class:`common.progress.Progress` while
+    tolerances are computed or verified, and its stop check ends the verifying simulations.
 
     Raises
     ------
     ServiceError
         A bad ``view``, ``verify`` or ``seed`` (the message names the value).
-    design.errors.DesignError, OSError
-        The scenario or the layout cannot be read (the message names the file, the field and the expected value).
-    projector.errors.ProjectorError
-        The scenario cannot be drawn in that view.
+    StationError
+        The scenario or the layout cannot be read (the message names the file, the field and the expected value),
+        or the scenario cannot be drawn in that view.
     """
-    from projector.build import build_guide, steps_text
-    from projector.parameters import check_set_with
-    from station.services.contraption import choose_layout, open_scenario
-    from station.services.robust import check_count, check_seed
-
+    scenario, layout, view, verify, seed = request.scenario, request.layout, request.view, request.verify, request.seed
+    tolerances, physics, set_with, jigs = request.tolerances, request.physics, request.set_with, request.jigs
     if view is not None and view not in VIEWS:
         raise ServiceError(f"view must be one of {', '.join(VIEWS)}, got {view!r}", field="view", value=view)
     check_count(verify, "verify", 0)
     check_seed(seed)
-    report = Reporter.of(progress)
+    report = Reporter.of(report)
     loaded_scenario = open_scenario(scenario)
     check_set_with(set_with, tuple(loaded_scenario.design_space.names))  # before the tolerances' simulations
     tolerance_map = None
     by_parameter: dict[str, ParameterTolerance] | None = None
     if tolerances and layout is not None:
-        from station.services.physics import scenario_with_physics
-        from station.services.tolerances import tolerance_map as tolerances_of
-
         # the tolerance map reads the layout (and the model its file carries) once, for both
         tolerance_map = tolerances_of(scenario_with_physics(loaded_scenario, physics), layout, verify=verify,
-                                      seed=seed, progress=report.emit)
+                                      seed=seed, report=report)
         loaded_layout = tolerance_map.layout
         by_parameter = _guide_tolerances(tolerance_map)
     else:
@@ -150,8 +172,6 @@ def make_guide(scenario: str, layout: str | None, *, view: str | None = None, ve
                     headline=_layout_headline(layout, tolerance_map))
     job = GuideJob(guide, tuple(steps_text(guide)), loaded_layout, tolerance_map, loaded_scenario)
     if jigs:
-        from station.services.jigs import JigOptions, attach_jigs, plan_guide_jigs
-
         job = attach_jigs(job, plan_guide_jigs(job, jigs if isinstance(jigs, JigOptions) else None))
     return job
 
@@ -159,9 +179,6 @@ def make_guide(scenario: str, layout: str | None, *, view: str | None = None, ve
 def _layout_headline(layout: str | None, tolerance_map=None) -> str | None:
     """The physical success a LAYOUT.json carries (``station optimize`` writes it), in the station's words; from the
     tolerance map's reading of the file when there is one."""
-    from design.contraption.layout_io import read_layout_data
-    from station.services.outlook import layout_headline
-
     if tolerance_map is not None:
         return layout_headline(tolerance_map.layout_data)
     if layout is None or not Path(str(layout)).is_file():
@@ -169,6 +186,7 @@ def _layout_headline(layout: str | None, tolerance_map=None) -> str | None:
     return layout_headline(read_layout_data(str(layout)))
 
 
+@station_errors
 def export_guide(job: GuideJob, *, pdf: str | Path | None = None, svg: str | Path | None = None,
                  paper: str = "a4") -> GuideJob:
     """Write the PDF sheet set and/or the SVG; returns the job with the guide's pages (after a PDF). A table guide
@@ -183,47 +201,53 @@ def export_guide(job: GuideJob, *, pdf: str | Path | None = None, svg: str | Pat
     check_paper(paper)
     guide = job.guide
     if pdf is not None:
-        from projector.pdf import write_pdf
-
         guide = write_pdf(guide, Path(pdf), paper=paper, steps=job.steps, title=_title(job))
-        from projector.board import side_board, write_board_pdf
 
         board = side_board(guide, paper)
         if board is not None and reads_side(guide):
             write_board_pdf(board, board_pdf_path(pdf), title=_title(job))
     if svg is not None:
-        from projector.svg import write_svg
-
         with open(svg, "w", encoding="utf-8") as stream:
             write_svg(guide, stream)
     return replace(job, guide=guide)
 
 
+@station_errors
 def reads_side(guide) -> bool:
     """Whether the side camera has something to read in ``guide``: a jig stand with a tag on its plate's face."""
     return any(j.face_tag_id is not None for j in guide.jigs)
 
 
+@station_errors
+def board_words(guide) -> str | None:
+    """What the side camera's board sheet of ``guide`` shows, in words; None when the guide has no board the side
+    camera reads."""
+    board = side_board(guide)
+    return board.words() if board is not None and reads_side(guide) else None
+
+
+@station_errors
 def board_pdf_path(pdf: str | Path) -> Path:
     """Where the board sheet of the guide PDF ``pdf`` goes: next to it, ``NAME-board.pdf``."""
     pdf = Path(pdf)
     return pdf.with_name(f"{pdf.stem}-board.pdf")
 
 
+@station_errors
 def check_paper(paper: str) -> None:
     """Refuse a paper size the station does not know (``paper``), before any work."""
     if paper not in PAPERS:
         raise ServiceError(f"paper must be one of {', '.join(PAPERS)}, got {paper!r}", field="paper", value=paper)
 
 
+@station_errors
 def projected_frames(job: GuideJob, size: tuple[int, int], homography=None):
     """The guide's frames for a screen of ``size`` pixels (:func:`projector.frames.render_frames`): a calibrate
     frame and one per step; without a projector calibration the guide is fitted to the screen, not at true scale."""
-    from projector.frames import render_frames
-
     return render_frames(job.guide, size=size, homography=homography)
 
 
+@station_errors
 def show_step(job: GuideJob, projector, step: int | None = None, homography=None) -> bool:
     """Show step ``step`` (1-based; None: the calibrate frame) of the guide on an open ``projector`` device, drawn
     at the projector's own size (a frame of another size would be letterboxed, and no longer true to scale).
@@ -237,15 +261,11 @@ def show_step(job: GuideJob, projector, step: int | None = None, homography=None
     ServiceError
         A step outside 1..number of parts (``step``).
     """
-    from projector.frames import render_calibrate, render_step
-
     count = len(job.guide.parts)
     if step is not None and not 1 <= step <= count:
         raise ServiceError(f"step must be from 1 to {count}, got {step}", field="step", value=step)
     size = tuple(projector.size)
     if homography is None:
-        from station.services.projectors import projector_homography
-
         homography = projector_homography(projector)
     if step is None:
         frame = render_calibrate(job.guide, size, homography)
@@ -272,6 +292,7 @@ def _guide_tolerances(tolerances) -> dict[str, ParameterTolerance]:
     return {t.parameter: t for per_part in tolerances.parameter_tolerances().values() for t in per_part}
 
 
+@station_errors
 def export_name(job) -> str:
     """The file name (no suffix) of ``job``'s export: the scenario, the layout (its name, its file's name, or "own"
     for the scenario's own), a hash of the layout's values and the view, e.g. ``simple-success-1f0c2a-top``. The

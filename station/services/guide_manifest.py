@@ -17,7 +17,7 @@ from pathlib import Path
 from typing import Any
 
 from common.datafiles import load_json
-from station.services.errors import ServiceError
+from station.errors import ServiceError, station_errors
 
 __all__ = ["MANIFEST", "MAX_COORDINATE_MM", "MAX_TAG_MM", "read_manifest", "reference_tags"]
 
@@ -31,6 +31,7 @@ MAX_TAG_MM = 1_000.0
 _REFERENCE = '{"id": int, "center_mm": [u, v], "size_mm": number}'
 
 
+@station_errors
 def read_manifest(path: str | Path, *, parts: bool = True) -> dict:
     """The manifest in the file ``path``, its reference tags and parts checked (``parts``: a parts list is required,
     as the check needs; the plane fix needs only the reference tags).
@@ -73,6 +74,7 @@ def read_manifest(path: str | Path, *, parts: bool = True) -> dict:
     return data
 
 
+@station_errors
 def reference_tags(manifest: dict) -> list[tuple[int, tuple[float, float], float]]:
     """The reference tags of a manifest :func:`read_manifest` read, as (id, (u, v) mm, size mm)."""
     return [(int(t["id"]), (float(t["center_mm"][0]), float(t["center_mm"][1])), float(t["size_mm"]))

@@ -11,8 +11,9 @@ States
 A job is ``queued``; sending it makes it ``running`` (the job itself), ``framing`` (its bounding box traced) or
 ``checking`` (a dry run in GRBL's check mode). A frame or a dry run ends ``framed`` / ``checked`` when it went well,
 else the job is ``queued`` again. A run ends in the runner's own states (:data:`drivers.grbl.job.FINAL_STATES`):
-``done``, ``stopped``, ``aborted``, ``refused``, ``position_lost`` or ``error``. A job can be sent again while it is
-queued, framed, checked or stopped; a stopped run keeps the line to resume from (:attr:`QueuedJob.resume_line`),
+``done``, ``stopped``, ``aborted``, ``refused``, ``position_lost`` or ``error``; a stop from outside the station (a
+signal to ``station send``) ends it ``interrupted``. A job can be sent again while it is queued, framed, checked,
+stopped or interrupted; a stopped or interrupted run keeps the line to resume from (:attr:`QueuedJob.resume_line`),
 and its next run starts there.
 """
 
@@ -25,8 +26,8 @@ from enum import Enum
 
 from drivers.grbl import Job, JobResult, frame_lines
 from drivers.profiles import MachineProfile
+from station.errors import ServiceError, station_errors
 from station.joblog import JOB_KINDS, JobLog
-from station.services.errors import ServiceError
 
 __all__ = [
     "ACTIVE_STATES",
@@ -55,6 +56,7 @@ class JobState(str, Enum):
     REFUSED = "refused"
     POSITION_LOST = "position_lost"
     ERROR = "error"
+    INTERRUPTED = "interrupted"  # stopped from outside the station (a signal to ``station send``)
 
     def __str__(self) -> str:  # "running", not "JobState.RUNNING", in f-strings on every Python version
         return self.value
@@ -77,7 +79,11 @@ class JobMode(str, Enum):
 
 
 #: States a job can be sent from.
-READY_STATES = frozenset({JobState.QUEUED, JobState.STOPPED, JobState.FRAMED, JobState.CHECKED})
+READY_STATES = frozenset({JobState.QUEUED, JobState.STOPPED, JobState.FRAMED, JobState.CHECKED,
+                          JobState.INTERRUPTED})
+
+#: Run states that keep the line the next run resumes from.
+RESUMED_STATES = frozenset({JobState.STOPPED, JobState.INTERRUPTED})
 
 #: The state of a job while it is sent, by mode.
 ACTIVE_STATES = {JobMode.RUN: JobState.RUNNING, JobMode.FRAME: JobState.FRAMING, JobMode.DRY: JobState.CHECKING}
@@ -106,6 +112,7 @@ class JobStateError(ServiceError):
         self.action = action
 
 
+@station_errors
 @dataclass
 class QueuedJob:
     """A job waiting on (or done by) one device.
@@ -155,7 +162,8 @@ class QueuedJob:
         return f"job {self.number} {self.title!r} ({self.state})"
 
 
-def frame_job(job: Job, title: str, profile: MachineProfile) -> Job | None:
+@station_errors
+def frame_job(job: Job, title: str, profile: MachineProfile | None) -> Job | None:
     """The job that traces ``job``'s bounding box (pen up, or a laser at its frame power); None without motion.
 
     Parameters
@@ -164,21 +172,23 @@ def frame_job(job: Job, title: str, profile: MachineProfile) -> Job | None:
         The job to frame.
     title : str
         Its title (the frame is called ``frame of <title>``).
-    profile : drivers.profiles.MachineProfile
-        The machine's profile: the laser's frame power and the machine's feed limit.
+    profile : drivers.profiles.MachineProfile or None
+        The machine's profile: the laser's frame power and the machine's feed limit (without it a laser frames at
+        S10 and 3000 mm/min).
     """
     extent = job.extent()
     if extent is None:
         return None
     lo, hi = extent
-    if job.laser and profile.laser:
-        lines = frame_lines(lo, hi, laser_power=profile.laser.frame_power * profile.laser.max_power,
-                            feed=min(3000.0, profile.max_feed))
+    if job.laser and (profile is None or profile.laser):
+        power = profile.laser.frame_power * profile.laser.max_power if profile is not None else 10.0
+        lines = frame_lines(lo, hi, laser_power=power, feed=min(3000.0, profile.max_feed if profile else 3000.0))
     else:
         lines = frame_lines(lo, hi, pen_up=job.pen_up)
     return Job(f"frame of {title}", lines, laser=job.laser, pen_up=job.pen_up)
 
 
+@station_errors
 class JobQueue:
     """Jobs for the station's devices, one sent at a time, each send recorded in the job history.
 
@@ -234,7 +244,7 @@ class JobQueue:
     def start_line(entry: QueuedJob, mode: JobMode | str) -> int:
         """The 1-based line a send of ``entry`` in ``mode`` starts from: a run of a stopped job resumes at its
         :attr:`~QueuedJob.resume_line` (when the runner suggested one), everything else starts at line 1."""
-        if JobMode(mode) is JobMode.RUN and entry.state is JobState.STOPPED and entry.resume_line:
+        if JobMode(mode) is JobMode.RUN and entry.state in RESUMED_STATES and entry.resume_line:
             return entry.resume_line
         return 1
 
@@ -266,15 +276,16 @@ class JobQueue:
         self._last_logged = -float("inf")
         return from_line
 
-    def progress(self, entry: QueuedJob, lines_acked: int, layer: dict | None = None) -> None:
+    def progress(self, entry: QueuedJob, lines_acked: int, layer: dict | None = None,
+                 resume_line: int | None = None) -> None:
         """Record how far the job being sent has got (at most once per ``progress_interval``), with the layer of
-        a multi-pen plot it stands on."""
+        a multi-pen plot it stands on and the line being executed (where a station killed now resumes)."""
         if not entry.active:
             return
         now = self.clock()
         if now - self._last_logged >= self.progress_interval:
             self._last_logged = now
-            self.log.progress(entry.log_id, lines_acked, layer=layer)
+            self.log.progress(entry.log_id, lines_acked, resume_line, layer=layer)
 
     def finish(self, entry: QueuedJob, result: JobResult, layer: dict | None = None) -> JobState:
         """Record how the send of ``entry`` ended (with the layer of a multi-pen plot it stood on) and move the job
@@ -293,7 +304,7 @@ class JobQueue:
         entry.message = result.message
         if mode is JobMode.RUN:
             entry.state = JobState(result.state)
-            entry.resume_line = result.resume_line if entry.state is JobState.STOPPED else None
+            entry.resume_line = result.resume_line if entry.state in RESUMED_STATES else None
         else:
             entry.state = _CHECKED_STATES[mode] if result.ok else JobState.QUEUED
             entry.resume_line = None

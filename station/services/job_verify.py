@@ -7,9 +7,9 @@ wire time), set up as the machine it is meant for: the profile's twin, with the 
 and work offset when the station is connected to it. What the twin executed (every planner block, where it started
 and ended, the laser's power, whether it started from rest) gives:
 
-- the time estimate of GRBL's planner (:func:`drivers.sim.grbl_motion.plan_times`: acceleration, junction speeds,
-  its 15-block look-ahead) plus the dwells, next to the straight-line figure (length over feed) the job's ETA uses
-  before it runs;
+- the time estimate of GRBL's planner (:func:`drivers.grbl.planner.plan_times`: acceleration, junction speeds,
+  its 15-block look-ahead) plus the dwells, next to the same planner on the job's G-code as the streamer reads it
+  before it runs (its ETA: :func:`drivers.grbl.planner.line_seconds`);
 - the travels (rapid blocks) on which the laser was not dark (a machine with ``$32=0`` fires on a ``G0``);
 - the job's machine-space extent against the travel, and any alarm the twin raised.
 """
@@ -23,18 +23,19 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from common.progress import Progress, ProgressCallback
+from common.progress import Progress, Reporter
 from drivers.gcode import GcodeError, interpret
 from drivers.grbl import GrblConnection, Job, JobRunner
+from drivers.grbl.planner import MotionBlock, line_seconds, plan_times
 from drivers.profiles import MachineProfile
-from drivers.sim.grbl_motion import MotionBlock, plan_times
-from station.services.errors import ServiceError
+from station.errors import ServiceError, station_errors
 
 __all__ = ["JobVerification", "twin_url", "verify_job", "verify_summary"]
 
 _RUNS = itertools.count(1)
 
 
+@station_errors
 @dataclass(frozen=True)
 class JobVerification:
     """What the twin found. Times in seconds, lengths in mm, extents in machine mm ``[x, y, z]``."""
@@ -43,7 +44,7 @@ class JobVerification:
     state: str  # the twin's job result: done, refused, stopped ...
     message: str
     estimate_s: float  # GRBL's planner on the executed blocks, plus dwells
-    straight_s: float  # length over feed, no acceleration (the job's ETA before it runs)
+    preflight_s: float  # the same planner on the G-code as read before it runs (the streamer's ETA)
     twin_clock_s: float  # the twin's own clock (one speed per block)
     blocks: int
     from_rest: int  # blocks the planner started from rest (syncs: dwells, spindle changes)
@@ -68,7 +69,7 @@ class JobVerification:
     def to_dict(self) -> dict:
         return {
             "job": self.name, "state": self.state, "message": self.message, "ok": self.ok,
-            "estimate_s": self.estimate_s, "straight_s": self.straight_s, "twin_clock_s": self.twin_clock_s,
+            "estimate_s": self.estimate_s, "preflight_s": self.preflight_s, "twin_clock_s": self.twin_clock_s,
             "blocks": self.blocks, "from_rest": self.from_rest, "burn_mm": self.burn_mm,
             "travel_mm": self.travel_mm, "laser": self.laser,
             "lit_travels": [{"line": n, "block": text} for n, text in self.lit_travels],
@@ -78,6 +79,7 @@ class JobVerification:
         }
 
 
+@station_errors
 def twin_url(profile: MachineProfile | None, laser: bool, settings: Mapping[int, float] | None = None,
              name: str | None = None) -> str:
     """The twin of the machine: the built-in profile of its kind, the machine's settings over it."""
@@ -92,10 +94,11 @@ def twin_url(profile: MachineProfile | None, laser: bool, settings: Mapping[int,
     return "sim://grbl?" + "&".join(query)
 
 
+@station_errors
 def verify_job(lines: Sequence[str], *, name: str = "job", profile: MachineProfile | None = None,
                laser: bool | None = None, settings: Mapping[int, float] | None = None,
                work_offset: Sequence[float] | None = None,
-               progress: ProgressCallback | None = None) -> JobVerification:
+               report: Reporter | None = None) -> JobVerification:
     """Run ``lines`` on the twin at virtual time and say what it did (module docstring).
 
     ``settings`` (``$N`` -> value) and ``work_offset`` (machine mm) are the real machine's, when known; without
@@ -129,13 +132,14 @@ def verify_job(lines: Sequence[str], *, name: str = "job", profile: MachineProfi
         before = len(machine.snapshot().executed)
         start_time = machine.clock.now()
 
-        def report(job_progress) -> None:
-            if progress is not None:
-                progress(Progress("verify", job_progress.fraction, 1.0,
-                                  f"twin: {job_progress.lines_acked}/{job_progress.lines_total} lines"))
+        reporter = Reporter.of(report)
+
+        def lines_done(job_progress) -> None:  # on the job's thread: told, never stopped there
+            reporter.tell(Progress("verify", job_progress.fraction, 1.0,
+                                   f"twin: {job_progress.lines_acked}/{job_progress.lines_total} lines"))
 
         job = Job(name, lines, laser=laser, pen_up=pen_up)
-        result = JobRunner(conn, job, on_progress=report).run()
+        result = JobRunner(conn, job, on_progress=lines_done).run()
         record = machine.snapshot()
         twin_clock = machine.clock.now() - start_time
         bounds = tuple(np.array(b, dtype=float) for b in conn.machine_bounds())
@@ -148,7 +152,6 @@ def verify_job(lines: Sequence[str], *, name: str = "job", profile: MachineProfi
     executed = [b for b in record.executed[before:] if not b.jog]
     blocks = [MotionBlock(b.start, b.end, b.rapid, b.feed, b.from_rest) for b in executed]
     planned = plan_times(blocks, twin_settings)
-    rapid_rate = min(twin_settings.get(110, 500.0), twin_settings.get(111, 500.0))
     starts = np.array([b.start for b in executed]) if executed else np.zeros((0, 3))
     ends = np.array([b.end for b in executed]) if executed else np.zeros((0, 3))
     lengths = np.linalg.norm(ends - starts, axis=1) if executed else np.zeros(0)
@@ -177,7 +180,8 @@ def verify_job(lines: Sequence[str], *, name: str = "job", profile: MachineProfi
     return JobVerification(
         name=name, state=result.state, message=result.message,
         estimate_s=planned.total + float(toolpath.dwell.sum()),
-        straight_s=float(toolpath.durations(rapid_rate=rapid_rate).sum()), twin_clock_s=float(twin_clock),
+        preflight_s=float(line_seconds(toolpath, lines, twin_settings, laser_mode=bool(twin_settings.get(32))).sum()),
+        twin_clock_s=float(twin_clock),
         blocks=len(executed), from_rest=sum(1 for b in executed if b.from_rest),
         burn_mm=float(lengths[~rapid & (power > 0)].sum()) if executed else 0.0,
         travel_mm=float(lengths[rapid].sum()) if executed else 0.0, lit_travels=lit, laser=laser_machine,
@@ -211,12 +215,14 @@ def _duration(seconds: float) -> str:
     return f"{hours}:{minutes:02d}:{secs:02d}" if hours else f"{minutes}:{secs:02d}"
 
 
+@station_errors
 def verify_summary(done: JobVerification) -> list[str]:
     """The verification in a few lines for a person."""
     if done.blocks == 0 and done.state != "done":
         return [f"verify {done.name}: {done.state} on the twin: {done.message}"]
     lines = [f"verify {done.name}: {done.state} on the twin; about {_duration(done.estimate_s)} with acceleration "
-             f"(GRBL's planner; {_duration(done.straight_s)} at the programmed feeds), {done.blocks} blocks, "
+             f"(GRBL's planner on the blocks the twin ran; {_duration(done.preflight_s)} read from the G-code), "
+             f"{done.blocks} blocks, "
              f"{done.from_rest} from rest"]
     what = "laser on" if done.laser else "drawing"
     lines.append(f"  {done.burn_mm:.0f} mm {what}, {done.travel_mm:.0f} mm of travel")

@@ -2,7 +2,7 @@
 burned card and write the material's measured settings into the profile.
 
 Used by ``station lasertest`` and ``station calibrate material``. The card's geometry is
-:mod:`design.fabrication.lasercard`, the laser job :func:`drivers.laser_job.plan_operations`, the twin's burn and
+:mod:`design.fabrication.lasercard`, the laser job :func:`cam.laser.plan_operations`, the twin's burn and
 photo :mod:`drivers.sim.laser_burn`, the reading :mod:`calibration.lasercard`.
 """
 
@@ -17,10 +17,12 @@ from datetime import datetime, timezone
 from pathlib import Path
 from typing import Any
 
+import cv2
 import numpy as np
 from PIL import Image, ImageDraw, ImageFont
 
 from calibration.lasercard import MIN_FRAME_PX_PER_MM, SOFT_EDGE_MM, CardReading, read_card
+from cam.laser import check_work_area, material_settings, plan_operations, travel_moves, write_laser_gcode
 from common.datafiles import load_json
 from design.fabrication.lasercard import (
     Card,
@@ -33,12 +35,13 @@ from design.fabrication.lasercard import (
     linear_steps,
     read_manifest,
 )
-from drivers.laser_job import check_work_area, material_settings, plan_operations, travel_moves, write_laser_gcode
-from drivers.profiles import BUILTIN_PROFILES, MachineProfile, ProfileError, profile_from_toml
+from drivers.profiles import BUILTIN_PROFILES, MachineProfile, profile_from_toml
 from drivers.sim.laser_burn import burn_gcode, line_kerf, photograph, sim_material
-from projector.tags import tag_cells
-from station.services.errors import ServiceError
+from station.errors import ServiceError, station_errors
+from station.services.calibrate import grab_frame
+from station.services.images import check_frame_size, check_image_file
 from station.services.profiles import load_station_profile, replace_material_table, station_copy_path
+from vision.tags import tag_cells
 
 __all__ = [
     "DEFAULT_DARKNESS",
@@ -69,22 +72,20 @@ CARD_OFFSET = 5.0
 GCODE_FILE, MANIFEST_FILE, PREVIEW_FILE = "card.gcode", "card.json", "card.png"
 
 
+@station_errors
 def parse_steps(text: str, field: str, low: float, high: float, unit: str) -> tuple[float, float, int]:
     """``"a:b:n"`` → ``(a, b, n)``: ``n`` values from ``a`` to ``b`` (``"a"`` alone is one value); a
     :class:`ServiceError` naming ``field`` otherwise."""
     parts = str(text).split(":")
     example = "0.2:1:5" if unit == "" else "200:3000:5"
+    unreadable = ServiceError(f"{field} {text!r}: expected FIRST:LAST:COUNT, e.g. {example}", field=field, value=text)
+    if len(parts) not in (1, 3):
+        raise unreadable
     try:
-        if len(parts) == 1:
-            first = last = float(parts[0])
-            count = 1
-        elif len(parts) == 3:
-            first, last, count = float(parts[0]), float(parts[1]), int(parts[2])
-        else:
-            raise ValueError
+        first, last, count = (float(parts[0]), float(parts[0]), 1) if len(parts) == 1 else (
+            float(parts[0]), float(parts[1]), int(parts[2]))
     except ValueError:
-        raise ServiceError(f"{field} {text!r}: expected FIRST:LAST:COUNT, e.g. {example}", field=field,
-                           value=text) from None
+        raise unreadable from None
     if not (math.isfinite(first) and math.isfinite(last) and low <= min(first, last) and max(first, last) <= high
             and first > 0):
         raise ServiceError(f"{field} {text!r}: expected values from {low:g} to {high:g}{unit}, e.g. {example}",
@@ -107,6 +108,7 @@ class CardOutput:
     profile: MachineProfile
 
 
+@station_errors
 def make_card(profile_name: str, material: str, *, power: str | None = None, feed: str | None = None,
               passes: int | None = None) -> CardOutput:
     """The test card for ``material`` of the profile ``profile_name`` (a built-in name, the station's copy of it, or a
@@ -134,7 +136,8 @@ def make_card(profile_name: str, material: str, *, power: str | None = None, fee
     job = plan_operations(card.operations, profile.laser.max_power, profile.plot.travel_feed, offset=offset,
                           start=(xmin, ymin), metadata={"test card": f"{material} on {profile.name}",
                                                         "card": f"{card.width:g}x{card.height:g} mm at "
-                                                                f"X{offset[0]:g} Y{offset[1]:g}"})
+                                                                f"X{offset[0]:g} Y{offset[1]:g}"},
+                          machine_settings=profile.grbl_settings)
     check_work_area(job, profile.work_bounds(), profile.name)
     stream = io.StringIO()
     write_laser_gcode(job, stream, profile.work_bounds(), profile.laser.laser_mode, profile.name)
@@ -144,6 +147,7 @@ def make_card(profile_name: str, material: str, *, power: str | None = None, fee
     return CardOutput(card, job, stream.getvalue(), manifest, _preview(card, job, offset), profile)
 
 
+@station_errors
 def write_card(output: CardOutput, folder: Path) -> dict[str, Path]:
     """card.gcode, card.json and card.png into ``folder``."""
     folder.mkdir(parents=True, exist_ok=True)
@@ -200,6 +204,7 @@ class TwinPhoto:
     truth: dict[str, Any]
 
 
+@station_errors
 def read_card_manifest(path: str | Path) -> CardManifest:
     """``card.json`` read and checked (one-line errors naming the file and the field)."""
     path = Path(path)
@@ -213,6 +218,7 @@ def read_card_manifest(path: str | Path) -> CardManifest:
     return read_manifest(data, str(path))
 
 
+@station_errors
 def photograph_card(card_json: str | Path, *, gcode: str | Path | None = None, seed: int = 0,
                     noise: float = 2.0, angle_deg: float = 7.0, px_per_mm: float = 20.0) -> TwinPhoto:
     """Burn the card's G-code (``gcode``, default the file card.json names beside it) into the twin's material of
@@ -266,6 +272,7 @@ class Choice:
     darkness: float | None = None
 
 
+@station_errors
 def choose_settings(reading: CardReading, manifest: CardManifest, darkness: float = DEFAULT_DARKNESS) -> Choice:
     """Cut: the fastest feed whose line went through, one power step above the lowest power that did (the lowest
     when it is the only one; the card's passes). Engrave:
@@ -298,6 +305,7 @@ def choose_settings(reading: CardReading, manifest: CardManifest, darkness: floa
     return Choice(cut, cut_cell, cut_why, None, None, "every square burned through: the profile's engrave is kept")
 
 
+@station_errors
 @dataclass
 class MaterialMeasurement:
     """A card read from a frame: the reading, the chosen settings, the report PNG, and where they came from."""
@@ -351,12 +359,11 @@ class MaterialMeasurement:
         }
 
 
+@station_errors
 def measure_material(card_json: str | Path, *, image: str | Path | np.ndarray | None = None,
                      camera: str | None = None, darkness: float = DEFAULT_DARKNESS) -> MaterialMeasurement:
     """Read a burned card from a frame (an image file, an array, or grabbed from ``camera``) and choose the
     settings. Raises CardError, CalibrationError, ServiceError, DriverError."""
-    from station.services.calibrate import grab_frame
-
     if not (math.isfinite(darkness) and 0.0 < darkness < 1.0):
         raise ServiceError(f"darkness {darkness!r}: expected a number between 0 and 1 (0 bare wood, 1 char)",
                            field="darkness", value=darkness)
@@ -376,10 +383,6 @@ def measure_material(card_json: str | Path, *, image: str | Path | np.ndarray | 
 
 def _read_frame(path: Path) -> np.ndarray:
     """An image file as RGB, refused in one line when it is missing, not an image, or too large."""
-    import cv2
-
-    from station.services.check import check_frame_size, check_image_file
-
     if not path.is_file():
         raise ServiceError(f"image: no such file: {path}", field="image", value=str(path))
     check_image_file(path, "image")  # from the header: a huge image is refused before it is decoded
@@ -439,10 +442,9 @@ def _report(reading: CardReading, manifest: CardManifest, choice: Choice) -> byt
     return png_bytes(np.asarray(result))
 
 
+@station_errors
 def png_bytes(rgb: np.ndarray) -> bytes:
     """An RGB picture as PNG (OpenCV's encoder: several times faster than Pillow's on a camera frame)."""
-    import cv2
-
     ok, data = cv2.imencode(".png", cv2.cvtColor(np.ascontiguousarray(rgb), cv2.COLOR_RGB2BGR),
                             [cv2.IMWRITE_PNG_COMPRESSION, 3])
     if not ok:
@@ -474,6 +476,7 @@ def _toml_string(text: str) -> str:
     return json.dumps(str(text), ensure_ascii=False)
 
 
+@station_errors
 def material_block(measurement: MaterialMeasurement, profile: MachineProfile, when: datetime | None = None) -> str:
     """The ``[materials.NAME]`` table with the chosen settings and its ``measured`` record."""
     name = measurement.manifest.material
@@ -520,16 +523,17 @@ def material_block(measurement: MaterialMeasurement, profile: MachineProfile, wh
     return "\n".join(lines) + "\n"
 
 
+@station_errors
 def update_profile(measurement: MaterialMeasurement, profile_name: str | None = None, *, yes: bool = False,
                    when: datetime | None = None) -> ProfileUpdate:
     """Write the chosen settings into the profile the card was made for (or ``profile_name``): the station's copy of
     a built-in profile (made from it when missing), or the user's file only when ``yes``; otherwise the update is
-    returned unwritten. Raises ProfileError."""
+    returned unwritten. A profile that is not a laser is a ServiceError."""
     name = profile_name or measurement.manifest.profile
     builtin = name in BUILTIN_PROFILES and not Path(name).exists()
     profile = load_station_profile(name)
     if not profile.is_laser:
-        raise ProfileError(f"profile {name!r} is a {profile.kind}, not a laser")
+        raise ServiceError(f"profile {name!r} is a {profile.kind}, not a laser")
     profile.material(measurement.manifest.material)  # the material must be in it
     block = material_block(measurement, profile, when)
     path = station_copy_path(name, create=True) if builtin else Path(name)

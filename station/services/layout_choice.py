@@ -27,18 +27,23 @@ failed 4 times in 5); where they are far apart, the higher mean still wins.
 from __future__ import annotations
 
 from collections.abc import Callable, Iterable, Mapping
+from dataclasses import dataclass
 
 import numpy as np
 
-from common.progress import ProgressCallback
+from common.progress import Reporter
+from design.contraption import layout_io
+from design.contraption.physics_profile import PhysicsProfile
+from design.robust.model_io import layout_model
+from station.errors import ServiceError, station_errors
 
 __all__ = ["CHOICE_QUANTILE", "PREDICTION_EDGE", "PREDICTION_WEIGHT", "candidate_layouts", "choice_score",
            "choose_layout", "describe_choice", "distinct_layouts", "expected_success", "layout_record",
            "layout_records", "same_layout"]
 
-#: What a predicted success is worth, in attempts on the table (the strength of the Beta prior it centres). Fitted
-#: by ``bench/bench_prediction_weight.py`` to the bench loops' 103 layouts of five attempts each (4.4; 1: 247 of
-#: negative log-likelihood, 4: 232.5, 16: 236.7, simulations only: 244).
+#: What a predicted success is worth, in attempts on the table (the strength of the Beta prior it centres): the
+#: weight that best explains the bench loops' records (``bench/bench_prediction_weight.py``; the figures are in the
+#: loop's results page).
 PREDICTION_WEIGHT = 4.0
 
 #: The quantile of a layout's success posterior the options are ranked by (:func:`choice_score`).
@@ -48,6 +53,7 @@ CHOICE_QUANTILE = 0.25
 PREDICTION_EDGE = 0.01
 
 
+@station_errors
 def candidate_layouts(payload: dict, limit: int) -> list[dict]:
     """An optimizer's LAYOUT.json data and its verified runners-up that worked in simulation (best local success
     first), as LAYOUT.json data each, at most ``limit`` in all.
@@ -63,8 +69,6 @@ def candidate_layouts(payload: dict, limit: int) -> list[dict]:
 
 
 def _with_normalized(payload: dict, u: np.ndarray, index: int) -> dict:
-    from design.robust.model_io import layout_model
-
     data = {k: v for k, v in payload.items() if k not in ("physical_choice", "candidate")}
     data["parameters"] = [{**p, "value": float(p["lower"] + u[i] * (p["upper"] - p["lower"])),
                            "normalized": float(u[i])} for i, p in enumerate(payload["parameters"])]
@@ -83,11 +87,13 @@ def _same(a: dict[str, float], b: dict[str, float], tolerance: float) -> bool:
     return a.keys() == b.keys() and all(abs(a[k] - b[k]) <= tolerance for k in a)
 
 
+@station_errors
 def same_layout(a: dict, b: dict, tolerance: float = 1e-6) -> bool:
     """Whether two LAYOUT.json data have the same parameter values (within ``tolerance``)."""
     return _same(_values(a), _values(b), tolerance)
 
 
+@station_errors
 def distinct_layouts(options: list[dict], tolerance: float = 1e-6) -> list[dict]:
     """``options`` without repeats (the same parameter values), the first kept."""
     seen: list[dict[str, float]] = []
@@ -110,18 +116,21 @@ def _record(values: dict[str, float], logged, tolerance: float) -> tuple[int, in
     return sum(outcomes), len(outcomes)
 
 
+@station_errors
 def layout_record(values: Mapping[str, float], trials: Iterable[Mapping], tolerance: float = 1e-6) -> tuple[int, int]:
     """A layout's record on the table: ``(successes, attempts)`` of the ``trials`` (trial records, the log's form)
     logged with its ``values`` (``{parameter: value}``)."""
     return _record({str(k): float(v) for k, v in values.items()}, _logged(trials), tolerance)
 
 
+@station_errors
 def layout_records(options: list[dict], trials: Iterable[Mapping], tolerance: float = 1e-6) -> list[tuple[int, int]]:
     """Each option's record (:func:`layout_record`; the trials read once)."""
     logged = _logged(trials)
     return [_record(_values(data), logged, tolerance) for data in options]
 
 
+@station_errors
 def expected_success(predicted: float, successes: int = 0, attempts: int = 0,
                      weight: float = PREDICTION_WEIGHT) -> float:
     """The expected success of a layout's next attempt: its prediction as a Beta prior worth ``weight`` attempts,
@@ -129,21 +138,54 @@ def expected_success(predicted: float, successes: int = 0, attempts: int = 0,
     return (weight * float(predicted) + successes) / (weight + attempts)
 
 
+@station_errors
 def choice_score(predicted: float, successes: int = 0, attempts: int = 0, weight: float = PREDICTION_WEIGHT,
                  quantile: float = CHOICE_QUANTILE) -> float:
     """What a layout is ranked by: the ``quantile`` of its success's Beta posterior, the prediction worth ``weight``
     attempts (held 0.01 inside 0 and 1) updated by its record (``successes`` of ``attempts``)."""
-    from scipy.stats import beta
+    from scipy.stats import beta  # heavy: scipy
 
     p = min(max(float(predicted), PREDICTION_EDGE), 1.0 - PREDICTION_EDGE)
     return float(beta.ppf(quantile, weight * p + successes, weight * (1.0 - p) + attempts - successes))
 
 
-def choose_layout(scenario, options: list[dict], profile=None, *, samples: int = 16, seed: int = 0,
-                  trials: Iterable[Mapping] = (), prediction_weight: float = PREDICTION_WEIGHT,
-                  workers: int | None = None, scheduler: str | None = None,
-                  progress: ProgressCallback | None = None, should_stop: Callable[[], bool] | None = None,
-                  on_option: Callable[[int, int], None] | None = None) -> dict:
+@station_errors
+@dataclass(frozen=True)
+class LayoutChoiceRequest:
+    """How :func:`choose_layout` weighs the options.
+
+    Parameters
+    ----------
+    profile : PhysicsProfile, optional
+        Values and intervals to draw from (None: the scenario's own values, no draws).
+    samples, seed : int
+        Simulations per option, and their seed (the same for every option).
+    trials : tuple of dict
+        Trial records (the log's form) of layouts placed before: an option's record updates its prediction
+        (:func:`expected_success`).
+    prediction_weight : float
+        What a prediction is worth, in attempts (> 0).
+    workers, scheduler
+        Where the simulations run: local processes, or a Dask scheduler's address.
+    """
+
+    profile: PhysicsProfile | None = None
+    samples: int = 16
+    seed: int = 0
+    trials: tuple[Mapping, ...] = ()
+    prediction_weight: float = PREDICTION_WEIGHT
+    workers: int | None = None
+    scheduler: str | None = None
+
+    def __post_init__(self) -> None:
+        if not self.prediction_weight > 0:
+            raise ServiceError(f"prediction_weight must be > 0, got {self.prediction_weight!r}",
+                               field="prediction_weight", value=self.prediction_weight)
+
+
+@station_errors
+def choose_layout(scenario, options: list[dict], request: LayoutChoiceRequest = LayoutChoiceRequest(), *,
+                  report: Reporter | None = None, on_option: Callable[[int, int], None] | None = None) -> dict:
     """The option surest to succeed often physically (the highest :func:`choice_score`), with its
     ``"physical_choice"``: which option it was, every option's predicted success, record, expected success and
     score, and the simulations each had.
@@ -153,50 +195,44 @@ def choose_layout(scenario, options: list[dict], profile=None, *, samples: int =
     scenario : Scenario
     options : list of dict
         LAYOUT.json data, the preferred first (repeats are dropped).
-    profile : PhysicsProfile, optional
-        Values and intervals to draw from (None: the scenario's own values, no draws).
-    samples, seed : int
-        Simulations per option, and their seed (the same for every option).
-    trials : iterable of dict, optional
-        Trial records (the log's form) of layouts placed before: an option's record updates its prediction
-        (:func:`expected_success`).
-    prediction_weight : float
-        What a prediction is worth, in attempts (> 0).
+    request : LayoutChoiceRequest
+        The physics, the simulations per option and the record of trials the options are weighed with.
     on_option : callable, optional
         Called with ``(index, count)`` before each option is scored.
 
     Raises
     ------
-    RunStopped
+    common.progress.Cancelled
         Stopped; the simulations done are in the cache.
     """
-    from design.contraption.layout_io import layout_from_data
-    from station.services.predict import predict_layout
-
-    if not prediction_weight > 0:
-        raise ValueError(f"prediction_weight must be > 0, got {prediction_weight!r}")
     options = distinct_layouts(options)
     if len(options) == 1:
         return options[0]
-    records = layout_records(options, trials)
+    # the simulations (pybullet, scipy) load when options are weighed: the loop's command imports this for --help
+    from station.services import predict
+
+    records = layout_records(options, request.trials)
+    weight = request.prediction_weight
+    predicting = predict.PredictionRequest(request.profile, samples=request.samples, seed=request.seed,
+                                           workers=request.workers, scheduler=request.scheduler)
     scores = []
     for i, data in enumerate(options):
         if on_option is not None:
             on_option(i, len(options))
-        x = np.asarray(layout_from_data(data, scenario, file="<candidate layout>").x, dtype=float)
-        scores.append(predict_layout(scenario, x, profile=profile, samples=samples, seed=seed, workers=workers,
-                                     scheduler=scheduler, progress=progress, should_stop=should_stop).probability)
-    expected = [expected_success(p, s, n, prediction_weight) for p, (s, n) in zip(scores, records)]
-    ranks = [choice_score(p, s, n, prediction_weight) for p, (s, n) in zip(scores, records)]
+        x = np.asarray(layout_io.layout_from_data(data, scenario, file="<candidate layout>").x, dtype=float)
+        scores.append(predict.predict_layout(scenario, x, predicting, report=report).probability)
+    expected = [expected_success(p, s, n, weight) for p, (s, n) in zip(scores, records)]
+    ranks = [choice_score(p, s, n, weight) for p, (s, n) in zip(scores, records)]
     best = int(np.argmax(ranks))  # the first of equals
     chosen = dict(options[best])
     chosen["physical_choice"] = {"chosen": best, "predicted_physical_success": [float(v) for v in scores],
-                                 "record": [list(r) for r in records], "prediction_weight": float(prediction_weight),
+                                 "record": [list(r) for r in records], "prediction_weight": float(weight),
                                  "expected_success": [float(v) for v in expected],
-                                 "lower_quartile": [round(v, 6) for v in ranks], "samples": samples}
+                                 "lower_quartile": [round(v, 6) for v in ranks], "samples": request.samples}
     return chosen
 
 
+@station_errors
 def describe_choice(chosen: dict) -> str:
     """A few words on why ``chosen`` (:func:`choose_layout`'s answer) won, for a status line ("" if there was no
     choice)."""

@@ -10,18 +10,18 @@ plain numbers within default ranges too), later loops the calibrated values and 
 before its record in the loop's trials (:func:`station.services.layout_choice.choice_score`). The optimizer takes
 the physics as exact; a layout that works across the plausible physics, and has worked on the table, is the one to
 place.
-An attempt: the simulated maker places every part with the projector highlighting it, each parameter set as the guide
-says (on the sheet, with a ruler, on a laser-cut jig the maker cut first with ``jigs``, after a check:
-:meth:`drivers.sim.world.SimulatedWorld.place`), the simulated camera sees the parts as placed and
-:func:`station.services.check.check_frame` checks them, the maker applies the instructions and the camera checks again
-until every part is within its tolerance (at most ``rounds`` corrections), the world runs
-(:func:`station.services.world.run_attempt`), the station predicts the physical success of what the check measured
-(:func:`station.services.predict.predict_layout` with the check's residual error, under the loop's profile and its
-intervals; in loop 1, before any trial, under the scenario's values and uncertain ranges) and logs the trial (with the
-CHECK.json and the profile) and the attempt in one transaction. The attempt's **forecast** is that
-prediction updated by the layout's record before it, as the choice weighs it (:func:`record_forecasts`): what the
-station would tell the maker before the attempt. The **baseline** is the thesis's workflow
-in the same world: the optimizer's own loop-1 layout placed from the printed sheet (no highlight), no check, no
+An attempt is the one ``station assemble`` walks a maker through (:class:`station.services.assemble.Assembly`), on the
+simulated world: the simulated maker places every part with the projector highlighting it, each parameter set as the
+guide says (on the sheet, with a ruler, on a laser-cut jig the maker cut first with ``jigs``, after a check:
+:meth:`drivers.sim.world.SimulatedWorld.place`), the simulated camera sees the parts as placed and the check measures
+them, the maker applies the instructions and the camera checks again until every part is within its tolerance (at most
+``rounds`` corrections), the world runs (:func:`station.services.world.run_attempt`), the station predicts the physical
+success of what the check measured (:func:`station.services.predict.predict_layout` with the check's residual error,
+under the loop's profile and its intervals; in loop 1, before any trial, under the scenario's values and uncertain
+ranges) and logs the trial (with the CHECK.json and the profile) and the attempt in one transaction. The attempt's
+**forecast** is that prediction updated by the layout's record before it, as the choice weighs it
+(:func:`record_forecasts`): what the station would tell the maker before the attempt. The **baseline** is the thesis's
+workflow in the same world: the optimizer's own loop-1 layout placed from the printed sheet (no highlight), no check, no
 calibration.
 
 What it says is for a maker: every progress stage names the loop and what it does in their words ("loop 2:
@@ -48,13 +48,15 @@ from typing import Any
 
 import numpy as np
 
-from common.progress import Progress, ProgressCallback, Reporter
+# The loop's work (optimizer, calibration, guides, the world) is imported inside the functions that do it, on
+# purpose: `station loop --help` reads LoopSettings' defaults from here, and the CLI's --help stays fast.
+from common.progress import Cancelled, Progress, Reporter
 from drivers.sim.world import WORLD_REVISION
-from station.services.errors import ServiceError
+from station.errors import ServiceError, station_errors
 from station.services.layout_choice import PREDICTION_WEIGHT, describe_choice
-from station.services.robust import RunStopped, simulation_cache_path
+from station.services.robust import simulation_cache_path
 
-__all__ = ["AttemptReport", "Correction", "LoopProgress", "LoopResult", "LoopSettings", "LoopStopped", "LoopSummary",
+__all__ = ["AttemptReport", "Correction", "LoopProgress", "LoopResult", "LoopSettings", "LoopSummary",
            "RunLog", "labelled", "record_forecasts", "run_loop"]
 
 #: The world's attempt numbers: loop k's attempt a is ``k * ATTEMPT_BLOCK + a`` (the baseline is loop 0).
@@ -65,6 +67,7 @@ _CALIBRATE, _PREDICT, _CAMERA, _CHOOSE = 12, 13, 14, 15  # what a derived seed i
 OPTIMIZE_SEED = 0
 
 
+@station_errors
 @dataclass(frozen=True)
 class LoopSettings:
     """The loop's sizes (all part of the run's identity, except ``loops``, ``workers`` and ``scheduler``).
@@ -182,6 +185,7 @@ def _mean_known(values: list) -> float | None:
     return float(np.mean(known)) if known else None
 
 
+@station_errors
 @dataclass(frozen=True)
 class LoopSummary:
     """One loop's figures."""
@@ -223,6 +227,7 @@ class LoopSummary:
                 "forecast_success": self.forecast_success, "physics": dict(self.physics)}
 
 
+@station_errors
 @dataclass(frozen=True)
 class LoopResult:
     """A run's figures: its loops and the baseline, and its id in the database."""
@@ -242,6 +247,13 @@ class LoopResult:
     def baseline_rate(self) -> float | None:
         return self.baseline_successes / self.baseline_attempts if self.baseline_attempts else None
 
+    @property
+    def baseline_interval(self) -> tuple[float, float]:
+        """Wilson's 95 % interval of the baseline's success rate."""
+        from calibration.sim_runs import wilson_interval
+
+        return wilson_interval(self.baseline_successes, self.baseline_attempts)
+
     def to_json(self) -> dict[str, Any]:
         """Exactly the contract's ``station loop --json`` (``jigs``: the loop attempts used the laser-cut jigs)."""
         return {"loops": [s.to_json() for s in self.loops],
@@ -253,6 +265,7 @@ def _attempts_words(count: int) -> str:
     return f"{count} attempt{'' if count == 1 else 's'}"
 
 
+@station_errors
 @dataclass(frozen=True)
 class RunLog:
     """What a run of the loop has in the station database: its id, whether an earlier ``station loop`` began it,
@@ -291,14 +304,13 @@ class RunLog:
         return f"{_attempts_words(self.attempts)} logged ({', '.join(parts)})"
 
 
-class LoopStopped(RunStopped):
-    """A run of the loop stopped on request (Ctrl-C, SIGTERM, a stop check): every attempt logged stays (each with
-    its trial), and the same arguments resume the run (:attr:`log` says what it has)."""
-
-    def __init__(self, log: RunLog, new_simulations: int, cache: Path) -> None:
-        super().__init__(new_simulations, cache)
-        self.log = log
-        self.args = (f"run {log.run_id} stopped: {log.logged_words()}",)
+@station_errors
+def loop_stopped(log: RunLog, new_simulations: int) -> Cancelled:
+    """The :class:`~common.progress.Cancelled` of a run of the loop stopped on request (Ctrl-C, SIGTERM, a stop
+    check): every attempt logged stays (each with its trial), and the same arguments resume the run; its
+    ``partial`` is the :class:`RunLog` (what the run has), its ``new_simulations`` what the cache keeps."""
+    return Cancelled(f"run {log.run_id} stopped: {log.logged_words()}", new_simulations=new_simulations,
+                     cache=simulation_cache_path(), partial=log)
 
 
 @dataclass(frozen=True)
@@ -313,6 +325,7 @@ class LoopProgress(Progress):
 _OPTIMIZER_PHASES = {"check": "verifying its best layouts"}
 
 
+@station_errors
 def labelled(progress: Progress, words: str) -> Progress:
     """``progress`` of work the loop called (an optimization, a calibration, a prediction) under the loop's
     ``words``: the work's own stage kept in parentheses when it says more than its unit ("exploration"), its type
@@ -325,6 +338,7 @@ def labelled(progress: Progress, words: str) -> Progress:
     return LoopProgress(stage, progress.done, progress.total, progress.message, unit="simulations")
 
 
+@station_errors
 @dataclass(frozen=True)
 class Correction:
     """What the check had the maker do to one part over an attempt's rounds (each round's moves summed).
@@ -355,6 +369,7 @@ class Correction:
         return f"`{self.name}` " + (" and ".join(did) or "nudged")
 
 
+@station_errors
 @dataclass(frozen=True)
 class AttemptReport:
     """One attempt in a line of its own (:meth:`describe`): what the check found and the simulated maker corrected,
@@ -440,6 +455,7 @@ def _corrections(rounds: Sequence[Sequence[Mapping[str, Any]]], view: str) -> tu
                  for name, (du, dv, dh) in total.items())
 
 
+@station_errors
 def record_forecasts(layouts: Mapping[int, dict], attempts: Sequence, weight: float) -> list[float | None]:
     """Each attempt's forecast: its predicted success updated by its layout's record before it.
 
@@ -484,18 +500,18 @@ class _Loop:
     """One run of the loop (see :func:`run_loop`)."""
 
     def __init__(self, store, scenario, world, url: str, settings: LoopSettings, report: Reporter,
-                 should_stop: Callable[[], bool] | None, folder: Path) -> None:
+                 folder: Path) -> None:
         from station.loopstore import run_key
 
         self.store, self.scenario, self.world, self.settings = store, scenario, world, settings
-        self.report, self.should_stop, self.folder = report, should_stop, folder
+        self.report, self.folder = report, folder
         self.hidden = world.hidden_physics()
         identity = {"scenario": scenario.content_hash, "scenario_name": scenario.name, "world": url,
                     **settings.identity()}
         self.run_id, made = store.run(run_key(identity), scenario=scenario.name, content_hash=scenario.content_hash,
                                       world=url, settings=identity)
         self.resumed = not made
-        self.where = {"workers": settings.workers, "scheduler": settings.scheduler, "should_stop": should_stop}
+        self.where = {"workers": settings.workers, "scheduler": settings.scheduler}
         self._problem = None
 
     def log(self) -> RunLog:
@@ -510,15 +526,14 @@ class _Loop:
 
     # -- stopping and progress ------------------------------------------------------------------------------------
     def stop_point(self) -> None:
-        if self.should_stop is not None and self.should_stop():
-            raise RunStopped(0, simulation_cache_path())
+        self.report.check()
 
     def emit(self, stage: str, done: int, total: int, message: str = "", unit: str = "attempts") -> None:
         self.report.emit(LoopProgress(stage, done, total, message, unit=unit))
 
-    def under(self, words: str) -> ProgressCallback:
-        """The progress callback of work the loop calls, reporting under ``words`` (:func:`labelled`)."""
-        return lambda progress: self.report.emit(labelled(progress, words))
+    def under(self, words: str) -> Reporter:
+        """The reporter of work the loop calls: the loop's stop, its progress under ``words`` (:func:`labelled`)."""
+        return self.report.mapped(lambda progress: labelled(progress, words))
 
     # -- layouts ------------------------------------------------------------------------------------------------
     def optimized(self, profile_path: Path | None, budget: int | None, words: str) -> dict:
@@ -542,7 +557,7 @@ class _Loop:
         if cached is not None:
             return cached
         result = robust.optimize(problem, budget, OPTIMIZE_SEED, robust.psp_settings(self.settings.settings),
-                                 progress=self.under(words), **self.where)
+                                 report=self.under(words), **self.where)
         payload = result.to_json(problem)
         self.store.cache_layout(key, payload)
         return payload
@@ -582,7 +597,7 @@ class _Loop:
         """The layout among ``options`` (the preferred first) surest to succeed often physically under
         ``profile`` and given its record in ``trials`` (:func:`station.services.layout_choice.choose_layout`), with
         the default placement error."""
-        from station.services.layout_choice import choose_layout
+        from station.services.layout_choice import LayoutChoiceRequest, choose_layout
 
         scored = [0, 0]  # the option being scored, of how many
 
@@ -592,14 +607,13 @@ class _Loop:
             self.emit(f"loop {k}: choosing the layout to place", i, count, f"candidate layout {i + 1} of {count}",
                       unit="candidate layouts")
 
-        def predicting(progress: Progress) -> None:
-            self.report.emit(labelled(progress, f"loop {k}: predicting candidate layout {scored[0] + 1} of "
-                                                f"{scored[1]}"))
+        predicting = self.report.mapped(lambda progress: labelled(
+            progress, f"loop {k}: predicting candidate layout {scored[0] + 1} of {scored[1]}"))
 
-        chosen = choose_layout(self.scenario, options, profile, samples=self.settings.predict_samples,
-                               seed=_seed(world_seed, _CHOOSE, k), trials=trials,
-                               prediction_weight=self.settings.prediction_weight, progress=predicting,
-                               on_option=scoring, **self.where)
+        request = LayoutChoiceRequest(profile, samples=self.settings.predict_samples,
+                                      seed=_seed(world_seed, _CHOOSE, k), trials=tuple(trials),
+                                      prediction_weight=self.settings.prediction_weight, **self.where)
+        chosen = choose_layout(self.scenario, options, request, report=predicting, on_option=scoring)
         if scored[1]:
             self.emit(f"loop {k}: choosing the layout to place", scored[1], scored[1], "chosen",
                       unit="candidate layouts")
@@ -612,15 +626,16 @@ class _Loop:
     def calibrate(self, k: int):
         """The physics profile fitted to every trial of loops 1 .. k-1."""
         from calibration.sim_fit import FitSettings
-        from station.services.sim_calibration import calibrate_sim
+        from station.services.sim_calibration import SimCalibrationRequest, calibrate_sim
 
         trials = self.trials(k)
         s = self.settings
         fit = FitSettings(draws=s.fit_draws, sobol=s.fit_sobol, rounds=s.fit_rounds, held_out=0.0,
                           prior_width=s.fit_prior_width or None, seed=_seed(self.world.seed, _CALIBRATE, k))
         words = f"loop {k}: calibrating the simulator from {len(trials)} trial{'s' if len(trials) != 1 else ''}"
-        result = calibrate_sim([self.scenario], trials, settings=fit, progress=self.under(words), source="loop",
-                               every_material=self.settings.every_material, **self.where)
+        request = SimCalibrationRequest(settings=fit, source="loop", every_material=self.settings.every_material,
+                                        **self.where)
+        result = calibrate_sim([self.scenario], trials, request, report=self.under(words))
         profile = result.profile(f"loop {k} of run {self.run_id}: calibrated {self.scenario.name}")
         # the creation time is the only thing of a profile that changes between two runs of the same data
         return replace(profile, created="", source=f"station loop run {self.run_id}: {len(trials)} trials of loops "
@@ -636,46 +651,52 @@ class _Loop:
             profile.write_text(row.physics_content, encoding="utf-8")
         return layout, profile
 
-    def attempt(self, job, row, profile, k: int, a: int, *, checked: bool):
-        """One attempt: place, check and correct (when ``checked``), run, predict, log. Returns the stored attempt
-        and its :class:`AttemptReport`."""
-        from station.services import world as worlds
-        from station.services.check import check_frame
-        from station.services.trials import build_trial, check_values, layout_values
+    def attempt(self, job, physics: Path | None, profile, k: int, a: int, *, checked: bool):
+        """One attempt, an :class:`~station.services.assemble.Assembly` on the simulated world (the attempt
+        ``station assemble`` walks a maker through): placed, checked and corrected until no part is to move (when
+        ``checked``: highlighted, at most ``rounds`` corrections), run, predicted as checked, logged with the
+        attempt in one transaction. Returns the stored attempt and its :class:`AttemptReport`."""
+        from station.services.assemble import Assembly
 
-        guide, scenario = job.guide, self.scenario
-        number = k * ATTEMPT_BLOCK + a
-        worlds.place_parts(self.world, guide, attempt=number, highlighted=checked, scenario=scenario)
-        report, applied, left = None, [], []
+        s, seed = self.settings, self.world.seed
+        assembly = Assembly(job, self.scenario, camera=s.camera, world=self.world,
+                            physics=None if physics is None else str(physics), attempt=k * ATTEMPT_BLOCK + a,
+                            samples=s.predict_samples, seed=_seed(seed, _PREDICT, k, a), workers=s.workers,
+                            scheduler=s.scheduler, highlighted=checked, station_camera=False, _profile=profile)
+        assembly.placed()
+        applied, left = [], []
         if checked:
-            for r in range(self.settings.rounds + 1):
-                image, lens = worlds.grab_placed(self.settings.camera, guide, self.world.placed(),
-                                                 _seed(self.world.seed, _CAMERA, k, a, r))
-                report = check_frame(job, image, lens).to_json()
-                moves = worlds.check_moves(report, guide)
-                if not moves or r == self.settings.rounds:
+            for r in range(s.rounds + 1):
+                assembly.check_parts(seed=_seed(seed, _CAMERA, k, a, r))
+                moves = assembly.moves()
+                if not moves or r == s.rounds:
                     left = [move["name"] for move in moves]
                     break
-                self.world.apply(moves, round=r + 1)
-                applied.append(moves)
-        run = worlds.run_attempt(scenario, job.layout.x, guide, self.world, self.hidden)
-        predicted = self.predict(job, report, profile, k, a) if checked else None
-        physics = None if row.physics_content is None else {"name": row.physics_name, "content": row.physics_content}
-        said = AttemptReport(k, a, 0, run.success, checked, _corrections(applied, guide.view), len(applied),
-                             tuple(left), _failed_at(scenario, run.outcomes))
+                applied.append(assembly.fix())
+        assembly.accept()
+        run = assembly.run()
+        predicted = None
+        if checked:
+            words = f"loop {k}, attempt {a}: predicting its physical success as checked"
+            predicted = float(assembly.forecast(report=self.under(words)).prediction.probability)
+        said = AttemptReport(k, a, 0, run.success, checked, _corrections(applied, job.guide.view), len(applied),
+                             tuple(left), _failed_at(self.scenario, run.outcomes))
+        stored = self.store.add_attempt(self.run_id, k, a, assembly.trial(who=f"simulated maker ({self.world.url})",
+                                                                          notes=self.note(job, said, predicted)),
+                                        predicted=predicted, check_rounds=len(applied))
+        return stored, replace(said, trial_id=stored.trial_id)
+
+    def note(self, job, said: AttemptReport, predicted: float | None) -> str:
+        """An attempt's trial notes: the run, the jigs, the prediction and the check's corrections."""
+        k, a = said.loop, said.attempt
         note = f"station loop run {self.run_id}: " + (f"loop {k} attempt {a}" if k else f"baseline attempt {a}")
-        if guide.jigs:
-            note += f"; set on laser-cut jigs {', '.join(j.id for j in guide.jigs)}"
+        if job.guide.jigs:
+            note += f"; set on laser-cut jigs {', '.join(j.id for j in job.guide.jigs)}"
         if job.jigs is not None and job.jigs.plan.by_hand:
             note += "; no jig for " + ", ".join(f"`{b.part}` ({b.reason})" for b in job.jigs.plan.by_hand)
         if predicted is not None:
             note += f"; predicted physical success {predicted:.3f}"
-        note += f"; {said.correction_words()}"
-        trial = build_trial(scenario, layout_values(scenario, job.layout.x), run.outcomes, times=run.times,
-                            as_built=check_values(report) if report else None, check=report, physics=physics,
-                            who=f"simulated maker ({self.world.url})", notes=note)
-        stored = self.store.add_attempt(self.run_id, k, a, trial, predicted=predicted, check_rounds=len(applied))
-        return stored, replace(said, trial_id=stored.trial_id)
+        return note + f"; {said.correction_words()}"
 
     def prior(self):
         """What the station knows of the physics before any trial: the scenario's values and their ranges (the
@@ -691,29 +712,17 @@ class _Loop:
                               values={k: v for k, (v, _) in ranges.items()},
                               intervals={k: bounds for k, (_, bounds) in ranges.items()})
 
-    def predict(self, job, report, profile, k: int, a: int) -> float:
-        from station.services.predict import as_built_from_check, predict_layout
-
-        x, position, angle, unmeasured = as_built_from_check(report, self.scenario, np.asarray(job.layout.x, float),
-                                                             "<check>")
-        result = predict_layout(self.scenario, x, profile=profile, position_sigma_m=position, angle_sigma_deg=angle,
-                                unmeasured=unmeasured, samples=self.settings.predict_samples,
-                                seed=_seed(self.world.seed, _PREDICT, k, a),
-                                progress=self.under(f"loop {k}, attempt {a}: predicting its physical success as "
-                                                    "checked"), **self.where)
-        return float(result.probability)
-
     def run_attempts(self, row, k: int, count: int, *, checked: bool,
                      on_attempt: Callable[[AttemptReport], None] | None = None) -> list:
         """Loop ``k``'s attempts (``k`` 0: the baseline, on loop 1's layout), the stored ones kept; ``on_attempt``
         is told each attempt in order (a stored one as logged before this run was resumed)."""
-        from station.services.guide import make_guide
+        from station.services.guide import GuideRequest, make_guide
         from station.services.physics import read_profile
 
         done = {a.attempt: a for a in self.store.attempts(self.run_id, k)}
         who = f"loop {k}" if k else "baseline"
         stage = f"{who}: placing, checking and running" if k else f"{who}: placing from the printed sheet and running"
-        job = profile = None
+        job = profile = profile_path = None
         for a in range(1, count + 1):
             if a in done:
                 said = self.stored_report(done[a], checked)
@@ -721,14 +730,14 @@ class _Loop:
                 if job is None:
                     layout_path, profile_path = self.files(row)
                     profile = read_profile(profile_path) if profile_path else self.prior()
-                    job = make_guide(self.scenario.source, str(layout_path), physics=profile_path,
-                                     progress=self.under(f"{who}: making the guide"),
-                                     jigs=bool(k and self.settings.jigs))
+                    request = GuideRequest(self.scenario.source, str(layout_path), physics=profile_path,
+                                           jigs=bool(k and self.settings.jigs))
+                    job = make_guide(request, report=self.under(f"{who}: making the guide"))
                     if job.jigs is not None:
                         self.cut(job, who)
                 self.stop_point()
                 self.emit(stage, len(done), count, f"attempt {a} of {count}")
-                done[a], said = self.attempt(job, row, profile, k, a, checked=checked)
+                done[a], said = self.attempt(job, profile_path, profile, k, a, checked=checked)
             if on_attempt is not None:
                 on_attempt(said)
         self.emit(stage, count, count, "done")
@@ -752,9 +761,9 @@ class _Loop:
                              stored.check_rounds, (), _failed_at(self.scenario, trial.get("outcomes") or {}))
 
 
+@station_errors
 def run_loop(scenario: str, world: str, settings: LoopSettings | None = None, *, database: str | None = None,
-             progress: ProgressCallback | None = None, should_stop: Callable[[], bool] | None = None,
-             on_start: Callable[[RunLog], None] | None = None,
+             report: Reporter | None = None, on_start: Callable[[RunLog], None] | None = None,
              on_loop: Callable[[LoopSummary], None] | None = None,
              on_attempt: Callable[[AttemptReport], None] | None = None) -> LoopResult:
     """Run (or resume) the station loop of ``scenario`` in the simulated ``world``.
@@ -768,7 +777,7 @@ def run_loop(scenario: str, world: str, settings: LoopSettings | None = None, *,
     settings : LoopSettings, optional
     database : str, optional
         The station database (default :func:`station.db.database_url`).
-    progress, should_stop : callables, optional
+    report : Reporter, optional
         Progress (:class:`common.progress.Progress`) and the stop check.
     on_start : callable, optional
         Called with the run's :class:`RunLog` once it is found or made (``resumed``: an earlier ``station loop``
@@ -781,9 +790,9 @@ def run_loop(scenario: str, world: str, settings: LoopSettings | None = None, *,
 
     Raises
     ------
-    LoopStopped
-        A stop (``should_stop``, or KeyboardInterrupt: a second Ctrl-C): what was logged stays, and the same
-        arguments resume the run; it says what the run has logged.
+    common.progress.Cancelled
+        A stop (``report``'s stop check, or KeyboardInterrupt: a second Ctrl-C): what was logged stays, and the
+        same arguments resume the run; it says what the run has logged (:func:`loop_stopped`).
     ServiceError
         A bad setting or world URL (naming it).
     drivers.errors.SimConfigError
@@ -795,7 +804,7 @@ def run_loop(scenario: str, world: str, settings: LoopSettings | None = None, *,
 
     settings = settings or LoopSettings()
     settings.check()
-    report = Reporter.of(progress)
+    report = Reporter.of(report)
     loaded = load_trial_scenario(scenario)
     if not loaded.design_space.names:
         raise ServiceError(f"scenario: {loaded.name} has no design parameters: there is nothing to optimize or "
@@ -803,14 +812,13 @@ def run_loop(scenario: str, world: str, settings: LoopSettings | None = None, *,
     the_world = worlds.open_world(world)
     worlds.prepare_world(the_world, loaded)
     with LoopStore(database) as store, tempfile.TemporaryDirectory(prefix="station-loop-") as folder:
-        run = _Loop(store, loaded, the_world, world, settings, report, should_stop, Path(folder))
+        run = _Loop(store, loaded, the_world, world, settings, report, Path(folder))
         if on_start is not None:
             on_start(run.log())
         try:
             result = _run(run, settings, on_loop, on_attempt)
-        except (RunStopped, KeyboardInterrupt) as stopped:
-            new = stopped.new_simulations if isinstance(stopped, RunStopped) else 0
-            raise LoopStopped(run.log(), new, simulation_cache_path()) from None
+        except (Cancelled, KeyboardInterrupt) as stopped:
+            raise loop_stopped(run.log(), getattr(stopped, "new_simulations", 0)) from None
         finally:
             the_world.close()
     return result

@@ -14,6 +14,8 @@ import math
 from collections.abc import Mapping, Sequence
 from types import SimpleNamespace
 
+from station.errors import station_errors
+
 __all__ = ["DISAGREE_HIGH", "DISAGREE_LOW", "attempts_words", "disagreement", "layout_headline",
            "left_out_words", "model_detail", "prediction_from_json", "success_headline"]
 
@@ -22,6 +24,7 @@ __all__ = ["DISAGREE_HIGH", "DISAGREE_LOW", "attempts_words", "disagreement", "l
 DISAGREE_LOW, DISAGREE_HIGH = 0.2, 0.8
 
 
+@station_errors
 def attempts_words(attempts: float, interval: tuple[float, float]) -> str:
     """``expect 1.5 attempts (1.2-1.8)``; ``expect 3.0 attempts (2.1 or more)`` when the interval reaches a zero
     success; ``no success expected (at best 1 in 13.5 attempts)`` when none succeeded."""
@@ -32,6 +35,7 @@ def attempts_words(attempts: float, interval: tuple[float, float]) -> str:
     return f"expect {attempts:.1f} attempts ({spread})"
 
 
+@station_errors
 def success_headline(prediction, *, when: str = "") -> str:
     """``physical success on the table 0.69 (95 %: 0.55-0.80): expect 1.5 attempts (1.2-1.8)``, then ``when``
     (``"as placed, 48 simulations"``) in brackets when given.
@@ -44,6 +48,7 @@ def success_headline(prediction, *, when: str = "") -> str:
     return f"{text} ({when})" if when else text
 
 
+@station_errors
 def model_detail(as_built: float | None, as_designed: float | None = None, *, placed: bool = True) -> str | None:
     """``detail: the success model's own score 0.02 as placed (0.02 as designed)``; None without a model score."""
     if as_built is None:
@@ -54,6 +59,7 @@ def model_detail(as_built: float | None, as_designed: float | None = None, *, pl
     return f"detail: the success model's own score {as_built:.2f}{where}{designed}"
 
 
+@station_errors
 def disagreement(model: float | None, simulated: float | None, samples: int | None = None) -> str | None:
     """The plain words when the success model and the simulations disagree about a layout (one under
     :data:`DISAGREE_LOW`, the other over :data:`DISAGREE_HIGH`), with what to do; None when they agree or either is
@@ -70,6 +76,7 @@ def disagreement(model: float | None, simulated: float | None, samples: int | No
             "--budget fits a better model")
 
 
+@station_errors
 def left_out_words(parts: Sequence[str]) -> str | None:
     """What the predictions leave out: parts the check found misplaced that no design parameter places (the
     simulations put them where the design does); None when there are none."""
@@ -80,6 +87,7 @@ def left_out_words(parts: Sequence[str]) -> str | None:
             "places it: simulated where the guide puts it): move it as the check says before you run")
 
 
+@station_errors
 def prediction_from_json(data) -> SimpleNamespace | None:
     """A ``physical_success`` table (LAYOUT.json's, CHECK.json's: ``probability``, ``interval``,
     ``expected_attempts``, ``attempts_interval``, ``samples``) as the object :func:`success_headline` reads; None
@@ -104,6 +112,7 @@ def _infinite(value) -> float:
     return math.inf if value is None else float(value)
 
 
+@station_errors
 def layout_headline(data, when: str = "placed by the guide") -> str | None:
     """The headline of a LAYOUT.json's ``physical_success`` (written by ``station optimize``), None without one."""
     prediction = prediction_from_json(data.get("physical_success") if isinstance(data, Mapping) else None)

@@ -12,9 +12,10 @@ from pathlib import Path
 
 from design.contraption.physics_profile import PhysicsProfile, apply_profile, load_profile
 from design.contraption.scenario import Scenario
-from station.services.errors import ServiceError
+from station.errors import ServiceError, station_errors
 
 
+@station_errors
 def read_profile(path: str | Path) -> PhysicsProfile:
     """The physics profile at ``path``; a missing file is a :class:`ServiceError` naming ``physics``.
 
@@ -28,6 +29,7 @@ def read_profile(path: str | Path) -> PhysicsProfile:
     return load_profile(path)
 
 
+@station_errors
 def scenario_with_physics(scenario: Scenario, path: str | Path | None) -> Scenario:
     """``scenario`` under the profile at ``path`` (``scenario`` itself when ``path`` is None)."""
     if path is None:
@@ -35,6 +37,7 @@ def scenario_with_physics(scenario: Scenario, path: str | Path | None) -> Scenar
     return apply_profile(scenario, read_profile(path), str(path))
 
 
+@station_errors
 def problem_with_physics(problem, path: str | Path | None):
     """A robust-layout problem of a scenario file under the profile at ``path`` (``problem`` itself when None).
 
@@ -43,7 +46,7 @@ def problem_with_physics(problem, path: str | Path | None):
     """
     if path is None:
         return problem
-    from design.robust.contraption import ContraptionProblem
+    from design.robust.contraption import ContraptionProblem  # heavy: pybullet, scipy
 
     if not isinstance(problem, ContraptionProblem):
         raise ServiceError(f"{problem.name}: has no materials; a physics profile applies to a scenario file",
@@ -51,6 +54,7 @@ def problem_with_physics(problem, path: str | Path | None):
     return ContraptionProblem(problem.path, scenario_with_physics(problem.scenario, path))
 
 
+@station_errors
 def physics_note(scenario: Scenario) -> str | None:
     """What a command says about the physics it simulated: None for the scenario's own values."""
     if not scenario.physics_overrides:

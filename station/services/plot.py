@@ -26,11 +26,15 @@ from typing import Any
 
 import numpy as np
 
+from cam.layers import PenLayer, write_layers_gcode
+from cam.plot import WriterOptions
 from common.datafiles import parse_data
-from drivers.gcode import WriterOptions, interpret
-from drivers.gcode_layers import PenLayer, layer_marks, write_layers_gcode
+from common.progress import Reporter
+from drivers.gcode import interpret
+from drivers.gcode_layers import layer_marks
+from drivers.grbl.planner import line_seconds
 from drivers.profiles import MachineProfile
-from station.services.errors import ServiceError
+from station.errors import ServiceError, station_errors
 
 __all__ = [
     "PALETTE",
@@ -151,6 +155,7 @@ class PlotDocument:
     box: tuple[float, float, float, float]
 
 
+@station_errors
 @dataclass(frozen=True)
 class LayerSummary:
     """A written layer: paths and points, drawing and travel (mm, travel from the previous layer's end included),
@@ -173,6 +178,7 @@ class LayerSummary:
         return dict(self.__dict__)
 
 
+@station_errors
 @dataclass
 class PlotResult:
     """A written plot: the G-code, the document as written (optimized), the writer's options and the layers'
@@ -237,6 +243,7 @@ def _keys(table: dict, allowed: set[str], where: str) -> None:
         raise ServiceError(f"{where}: unknown field {unknown[0]!r}; expected one of {', '.join(sorted(allowed))}")
 
 
+@station_errors
 def load_composition(path: str | Path, load_design: Callable[[Path, str], dict] | None = None) -> Composition:
     """A composition file (TOML, or JSON with the same fields; see :data:`COMPOSITION`). Files it names (designs,
     SVGs) are relative to its folder; ``load_design(path, machine)`` reads a design file (the CLI's reader).
@@ -315,6 +322,7 @@ def load_composition(path: str | Path, load_design: Callable[[Path, str], dict] 
     return composition
 
 
+@station_errors
 def read_svg_layers(path: str | Path, by: str = "layer") -> list[PlotLayer]:
     """The visible layers of an SVG file (vpype's reader): one per SVG layer (a top-level group, its Inkscape label
     its name) or per stroke colour, in mm with y up, each with the colour and width its strokes have there.
@@ -383,6 +391,7 @@ def _bounds(polylines: Sequence[np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
     return stacked.min(axis=0), stacked.max(axis=0)
 
 
+@station_errors
 def drawable_box(profile: MachineProfile) -> tuple[tuple[float, float], tuple[float, float, float, float]]:
     """The paper (width, height) and its drawable box (xmin, ymin, xmax, ymax) in work mm: a plotter's paper less
     its margin; a laser's bed less 5 mm."""
@@ -423,6 +432,7 @@ def _check_inside(polylines: list[np.ndarray], box, what: str, field_name: str) 
             field=field_name, value=over)
 
 
+@station_errors
 def compose(composition: Composition, profile: MachineProfile,
             sample: Callable[[PatternSource], np.ndarray] | None = None) -> PlotDocument:
     """Lay the composition's sources out on the profile's paper as a document of layers.
@@ -500,19 +510,22 @@ def compose(composition: Composition, profile: MachineProfile,
 # ----------------------------------------------------------------------------------------------------------- vpype
 
 
+@station_errors
 def optimize(document: PlotDocument, *, merge: bool = True, sort: bool = True, reloop: bool = True,
-             tolerance: float = 0.0, seed: int = 0) -> PlotDocument:
+             tolerance: float = 0.0, seed: int = 0, report: Reporter | None = None) -> PlotDocument:
     """vpype's line optimizations per layer: ``linemerge`` (ends within :data:`MERGE_TOLERANCE`), ``reloop`` (the
     seam of each closed path moved to a random vertex drawn from ``seed``: the pen's mark at the seam does not line
     up across a pattern), ``linesort`` (greedy nearest path end next, paths reversed when that is nearer; the first
     layer starts from the origin, each later one where the previous ended), ``linesimplify`` (within ``tolerance``
-    mm; 0 keeps every point)."""
+    mm; 0 keeps every point). ``report`` hears of each layer (stage ``"optimize"``) and may stop between them."""
     import vpype as vp  # deferred: see the module's notes
 
     rng = np.random.default_rng(seed)
+    report = Reporter.of(report)
     position = 0j
     layers = []
-    for layer in document.layers:
+    for number, layer in enumerate(document.layers):
+        report("optimize", number, len(document.layers), f"optimizing layer {number + 1} of {len(document.layers)}")
         lines = vp.LineCollection([p[:, 0] + 1j * p[:, 1] for p in layer.polylines if len(p) >= 2])
         if merge:
             lines.merge(tolerance=MERGE_TOLERANCE, flip=True)
@@ -554,12 +567,14 @@ def _linesort(lines, start: complex):
 # ----------------------------------------------------------------------------------------------------------- G-code
 
 
+@station_errors
 def writer_options(profile: MachineProfile, power: float = 0.3) -> WriterOptions:
     """The G-code writer's options for ``profile`` (pen lines for a plotter, dark travels for a laser)."""
     kind = "pen plot" if profile.kind == "plotter" else "plot"
     return WriterOptions.from_profile(profile, power=power, comment=f"chaos-station {kind} job for {profile.name}")
 
 
+@station_errors
 def layered_gcode(document: PlotDocument, profile: MachineProfile, power: float = 0.3) -> tuple[str, WriterOptions]:
     """The document as one G-code job: a plotter changes pens between layers (the profile's ``[pen] change``
     lines, ``M0`` by default, after a message comment); a laser has no pen and runs its layers one after another."""
@@ -571,12 +586,14 @@ def layered_gcode(document: PlotDocument, profile: MachineProfile, power: float 
     return stream.getvalue(), options
 
 
-def rapid_rate(profile: MachineProfile) -> float:
-    """The rate (mm/min) G0 travels at: the slower of the X and Y max rates ($110, $111), else the profile's max."""
-    rates = [profile.grbl.get(n) for n in (110, 111) if profile.grbl.get(n)]
-    return float(min(rates)) if rates else float(profile.max_feed)
+@station_errors
+def line_times(lines: Sequence[str], toolpath, profile: MachineProfile) -> np.ndarray:
+    """Seconds per line of a job on the profile's machine, as GRBL's planner runs it (:mod:`drivers.grbl.planner`:
+    the streamer's ETA is the same figure)."""
+    return line_seconds(toolpath, lines, profile.grbl_settings, laser_mode=profile.is_laser)
 
 
+@station_errors
 def job_layers(lines: Sequence[str], profile: MachineProfile) -> list[LayerSummary]:
     """The layers of a written job (its marks) with their drawing, travel and estimated time, read from the G-code
     with the streamer's interpreter (so the figures are those of the job that runs); empty for a job without marks.
@@ -586,7 +603,7 @@ def job_layers(lines: Sequence[str], profile: MachineProfile) -> list[LayerSumma
     if not marks:
         return []
     toolpath = interpret(lines, start=(0.0, 0.0, 0.0))
-    per_line = toolpath.durations(rapid_rate=rapid_rate(profile))
+    per_line = line_times(lines, toolpath, profile)
     lengths = np.linalg.norm(toolpath.end - toolpath.start, axis=1)
     result = []
     for k, mark in enumerate(marks):
@@ -609,6 +626,7 @@ def job_layers(lines: Sequence[str], profile: MachineProfile) -> list[LayerSumma
     return result
 
 
+@station_errors
 def summarize(gcode: str, document: PlotDocument, profile: MachineProfile) -> list[LayerSummary]:
     """Per layer of the written job: :func:`job_layers`, with the paths and points the document has (a job without
     marks is one layer)."""
@@ -618,31 +636,39 @@ def summarize(gcode: str, document: PlotDocument, profile: MachineProfile) -> li
         layer = document.layers[0]
         toolpath = interpret(lines, start=(0.0, 0.0, 0.0))
         lengths = np.linalg.norm(toolpath.end - toolpath.start, axis=1)
-        per_line = toolpath.durations(rapid_rate=rapid_rate(profile))
+        per_line = line_times(lines, toolpath, profile)
         layers = [LayerSummary(1, layer.name, layer.pen, layer.color, 0, 0, float(lengths[~toolpath.rapid].sum()),
                                float(lengths[toolpath.rapid].sum()), float(per_line.sum()), 1, None)]
     return [replace(summary, paths=len(layer.polylines), points=int(sum(len(p) for p in layer.polylines)))
             for summary, layer in zip(layers, document.layers)]
 
 
+@station_errors
 def plot(composition: Composition, profile: MachineProfile, *, sample=None, sort: bool = True,
-         tolerance: float | None = None, power: float = 0.3, seed: int = 0) -> PlotResult:
+         tolerance: float | None = None, power: float = 0.3, seed: int = 0,
+         report: Reporter | None = None) -> PlotResult:
     """Compose, optimize (vpype; ``sort=False`` keeps the paths as drawn, merged and sorted neither), write and
-    summarize a plot."""
+    summarize a plot. ``report`` hears of each step (stages ``"compose"``, ``"optimize"``, ``"write"``); a stop
+    asked for ends the work between two (:class:`common.progress.Cancelled`)."""
     tolerance = profile.plot.tolerance if tolerance is None else tolerance
     if not 0 <= tolerance < math.inf:
         raise ServiceError(f"tolerance must be >= 0 mm, got {tolerance}", field="tolerance", value=tolerance)
     if not 0 < power <= 1:
         raise ServiceError(f"power must be a fraction in (0, 1], got {power}", field="power", value=power)
     document = compose(composition, profile, sample)
-    document = optimize(document, merge=sort, sort=sort, reloop=sort, tolerance=tolerance, seed=seed)
+    report = Reporter.of(report)
+    report("compose", 0, 1, "placing the drawings")
+    document = optimize(document, merge=sort, sort=sort, reloop=sort, tolerance=tolerance, seed=seed, report=report)
+    report("write", 0, 1, "writing the G-code")
     gcode, options = layered_gcode(document, profile, power)
     return PlotResult(gcode, document, options, summarize(gcode, document, profile))
+    report("write", 1, 1, "written")
 
 
 # ----------------------------------------------------------------------------------------------------------- preview
 
 
+@station_errors
 def format_minutes(seconds: float) -> str:
     """``12:05`` (minutes and seconds), ``1:02:05`` from an hour on."""
     seconds = int(round(seconds))
@@ -651,6 +677,7 @@ def format_minutes(seconds: float) -> str:
     return f"{hours}:{minutes:02d}:{secs:02d}" if hours else f"{minutes}:{secs:02d}"
 
 
+@station_errors
 def write_preview_png(result: PlotResult, target, size: int = 1200) -> None:
     """The plot as a picture: the paper and its drawable area, each layer in its pen's colour, the pen-up travel
     as thin grey lines, and a legend with each layer's pen, paths, drawing, travel and time."""

@@ -15,11 +15,13 @@ from pathlib import Path
 import platformdirs
 
 from drivers.profiles import BUILTIN_PROFILES, MachineProfile, load_profile, profile_from_toml
+from station.errors import station_errors
 from station.paths import APP_NAME, HOME_VARIABLE, data_dir
 
 __all__ = ["load_station_profile", "replace_material_table", "station_copy_path"]
 
 
+@station_errors
 def station_copy_path(name: str, *, create: bool = False) -> Path:
     """Where the station keeps its copy of the built-in profile ``name`` (it may not exist). Only ``create`` makes
     the data folder (and reports a folder that cannot be made): reading a profile never does."""
@@ -31,6 +33,7 @@ def station_copy_path(name: str, *, create: bool = False) -> Path:
     return folder / "profiles" / f"{name}.toml"
 
 
+@station_errors
 def load_station_profile(name_or_path: str) -> MachineProfile:
     """What ``--profile`` names: a file (a file of that name in the working directory wins, as for
     :func:`drivers.profiles.load_profile`), else the station's copy of a built-in profile when it has one, else the
@@ -51,6 +54,7 @@ def _header(line: str) -> str | None:
     return ".".join(part.strip().strip('"').strip("'") for part in match.group(1).split("."))
 
 
+@station_errors
 def replace_material_table(text: str, material: str, block: str, source: str) -> str:
     """``text`` (a laser profile's TOML) with the table ``[materials.MATERIAL]`` and its sub-tables replaced by
     ``block`` (appended when the profile has no such table); the result is checked by loading it.

@@ -22,10 +22,15 @@ from pathlib import Path
 
 import numpy as np
 
-from common.progress import CancelCheck, ProgressCallback, Reporter
-from drivers.devices import projector_identity
+from calibration.errors import CalibrationError
+from calibration.projector_map import GrayCodePlan, map_projector, save_projector_map
+from common.datafiles import load_json
+from common.progress import Reporter
+from drivers.devices import projector_identity, resolve
+from station.config import configured_devices
+from station.errors import ServiceError, station_errors
+from station.paths import data_dir
 from station.services import projectors
-from station.services.errors import ServiceError
 
 __all__ = ["DEFAULT_SETTLE_S", "ProjectorCalibration", "calibrate_projector", "projector_map_file",
            "projector_summary", "run_patterns"]
@@ -35,6 +40,7 @@ DEFAULT_SETTLE_S = 0.3
 _NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.-]{0,63}$")
 
 
+@station_errors
 @dataclass(frozen=True)
 class ProjectorCalibration:
     """A finished mapping: the map, where it was saved (None: not saved), the key it is kept under, which devices
@@ -59,6 +65,7 @@ class ProjectorCalibration:
                 "intrinsics_source": self.intrinsics_source}
 
 
+@station_errors
 def projector_map_file(name: str) -> Path:
     """Where the map kept under ``name`` is (a projector's key: :func:`station.services.projectors.projector_key`)."""
     return projectors.maps_folder() / f"{_check_name(name)}.json"
@@ -72,8 +79,6 @@ def _check_name(name: str) -> str:
 
 
 def _device(url: str, kind: str):
-    from drivers.devices import resolve
-
     info = resolve(url)
     if info.kind != kind or not info.available:
         raise ServiceError(f"{kind}: {url!r} is not a {kind} the station can drive (it names a {info.kind})",
@@ -84,21 +89,20 @@ def _device(url: str, kind: str):
 
 
 def _configured(kind: str) -> tuple[str, str]:
-    from station.config import configured_devices
-
     device = next((d for d in configured_devices() if d.kind == kind), None)
     if device is None:
         raise ServiceError(f"{kind}: no {kind} configured (add one to station.toml, or give its URL)", field=kind)
     return device.name, device.url
 
 
-def run_patterns(camera, projector, patterns, *, settle_s: float = 0.0, progress: Reporter | None = None) -> list:
+@station_errors
+def run_patterns(camera, projector, patterns, *, settle_s: float = 0.0, report: Reporter | None = None) -> list:
     """Show each ``(name, image)`` of ``patterns`` on the open ``projector`` and grab it with the open ``camera``.
 
     A real pair waits ``settle_s`` after each pattern and throws the first frame away (it may have been exposed
     before the projector changed). The projector is blanked at the end, also when stopped.
     """
-    report = progress or Reporter()
+    report = Reporter.of(report)
     images = []
     try:
         for number, (name, pattern) in enumerate(patterns, start=1):
@@ -114,21 +118,50 @@ def run_patterns(camera, projector, patterns, *, settle_s: float = 0.0, progress
     return images
 
 
-def calibrate_projector(*, camera: str | None = None, projector: str | None = None, name: str | None = None,
-                        plane: np.ndarray | str | Path | None = None, intrinsics: str | Path | None = None,
-                        finest_px: int = 8, settle_s: float | None = None, save: bool = True,
-                        out: str | Path | None = None, progress: ProgressCallback | Reporter | None = None,
-                        cancelled: CancelCheck | None = None) -> ProjectorCalibration:
-    """Map the projector at ``projector`` (URL; default the station's) with the camera at ``camera`` (default the
-    station's), and save it as ``calibration/projectors/<name>.json`` (or ``out``; ``save=False``: not saved),
-    recording the projector. ``name`` defaults to the projector's key
-    (:func:`station.services.projectors.projector_key`), where the guide and the check look for it; a map kept
-    under another name is still found for that projector, as it records it.
+@dataclass(frozen=True)
+class ProjectorCalibrationRequest:
+    """Which projector :func:`calibrate_projector` maps, with which camera, and where the map goes.
 
-    ``plane`` is the camera's 3x3 undistorted-pixel -> plane homography, or a JSON file holding it as
-    ``"homography"`` (what ``station calibrate plane`` keeps); ``intrinsics`` a camera file (OpenCV's names). Both
-    default as the module docstring says. ``settle_s`` defaults to :data:`DEFAULT_SETTLE_S` for real devices and
-    0 for simulated ones. Progress is reported per pattern; ``cancelled`` stops between patterns
+    Parameters
+    ----------
+    camera, projector : str, optional
+        URLs; default the station's camera and projector.
+    name : str, optional
+        The map's name; default the projector's key (:func:`station.services.projectors.projector_key`), where the
+        guide and the check look for it (a map kept under another name is still found for that projector, as it
+        records it).
+    plane : ndarray or path, optional
+        The camera's 3x3 undistorted-pixel -> plane homography, or a JSON file holding it as ``"homography"`` (what
+        ``station calibrate plane`` keeps); default as the module docstring says.
+    intrinsics : path, optional
+        A camera file (OpenCV's names); default as the module docstring says.
+    finest_px : int
+        The finest stripe of the Gray code, in projector pixels.
+    settle_s : float, optional
+        Wait after each pattern; default :data:`DEFAULT_SETTLE_S` for real devices, 0 for simulated ones.
+    save : bool
+        Save the map (False: only return it).
+    out : path, optional
+        Where the map goes; default ``calibration/projectors/<name>.json``.
+    """
+
+    camera: str | None = None
+    projector: str | None = None
+    name: str | None = None
+    plane: np.ndarray | str | Path | None = None
+    intrinsics: str | Path | None = None
+    finest_px: int = 8
+    settle_s: float | None = None
+    save: bool = True
+    out: str | Path | None = None
+
+
+@station_errors
+def calibrate_projector(request: ProjectorCalibrationRequest = ProjectorCalibrationRequest(), *,
+                        report: Reporter | None = None) -> ProjectorCalibration:
+    """Map the projector ``request`` names with its camera, and save the map (recording the projector).
+
+    Progress goes to ``report`` per pattern; its stop check stops between patterns
     (:class:`common.progress.Cancelled`), the projector blanked.
 
     Raises
@@ -136,13 +169,13 @@ def calibrate_projector(*, camera: str | None = None, projector: str | None = No
     ServiceError
         A bad argument, or no plane known for a real camera (field ``plane``); a mapping that fails (field
         ``camera``: no stripes seen, too few cells ...).
-    drivers.errors.DriverError
+    StationError
         A device that cannot be opened or gives no frame.
     """
-    from calibration.errors import CalibrationError
-    from calibration.projector_map import GrayCodePlan, map_projector, save_projector_map
-
-    report = Reporter.of(progress, cancelled)
+    camera, projector, name, plane, intrinsics = (request.camera, request.projector, request.name, request.plane,
+                                                  request.intrinsics)
+    finest_px, settle_s, save, out = request.finest_px, request.settle_s, request.save, request.out
+    report = Reporter.of(report)
     camera_name, camera_url = _configured("camera") if camera is None else ("camera", camera)
     projector_url = _configured("projector")[1] if projector is None else str(projector).strip()
     key = projectors.projector_key(projector_url)  # not a projector URL: one line on its field
@@ -164,7 +197,7 @@ def calibrate_projector(*, camera: str | None = None, projector: str | None = No
             matrix, plane_source = _plane(plane, camera_device, camera_name)
             camera_matrix, dist, intrinsics_source = _intrinsics(intrinsics, camera_device, camera_name)
             images = run_patterns(camera_device, projector_device, plan.patterns(), settle_s=settle,
-                                  progress=report)
+                                  report=report)
         finally:
             camera_device.close()
     finally:
@@ -189,8 +222,6 @@ def calibrate_projector(*, camera: str | None = None, projector: str | None = No
 
 
 def _json_file(path: Path, what: str, field: str) -> dict:
-    from common.datafiles import load_json
-
     try:
         data = load_json(path, what, error=lambda detail: ServiceError(f"{field}: {path}: {detail}", field=field))
     except OSError as error:
@@ -201,8 +232,6 @@ def _json_file(path: Path, what: str, field: str) -> dict:
 
 
 def _saved(kind: str, camera_name: str) -> Path | None:
-    from station.paths import data_dir
-
     path = data_dir() / "calibration" / kind / f"{camera_name}.json"
     return path if path.is_file() else None
 
@@ -256,6 +285,7 @@ def _intrinsics(intrinsics, camera_device, camera_name: str) -> tuple[np.ndarray
     return guess, np.zeros(5), f"guessed (f = {focal:g} px, no distortion: run `station calibrate camera`)"
 
 
+@station_errors
 def projector_summary(done: ProjectorCalibration) -> list[str]:
     """The lines the CLI prints and the Calibrate screen shows: how true the map lands and where it is kept first
     (a panel may show only the first few)."""

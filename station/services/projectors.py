@@ -27,9 +27,8 @@ from drivers.errors import DriverError
 from drivers.sim.projector import parse_options
 from station.config import configured_devices
 from station.devices import DeviceEntry
-from station.errors import StationError
+from station.errors import ServiceError, StationError, station_errors
 from station.paths import data_dir
-from station.services.errors import ServiceError
 
 __all__ = ["ProjectorMapping", "configured_projector", "mapping_of", "maps_folder", "open_projector",
            "projector_device", "projector_homography", "projector_key", "projector_mapping"]
@@ -37,6 +36,7 @@ __all__ = ["ProjectorMapping", "configured_projector", "mapping_of", "maps_folde
 _KEY = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.-]{0,63}$")
 
 
+@station_errors
 def configured_projector() -> DeviceEntry | None:
     """The first projector of the station's devices (``station.toml``, or the simulated default), or None."""
     return next((device for device in configured_devices() if device.kind == "projector"), None)
@@ -61,6 +61,7 @@ def _identity(url: str) -> str:
         raise ServiceError(f"projector: {error}", field="projector", value=url) from None
 
 
+@station_errors
 def projector_key(url: str) -> str:
     """The name the calibration of the projector at ``url`` is kept under (``calibration/projectors/KEY.json``).
 
@@ -88,6 +89,7 @@ def projector_key(url: str) -> str:
     return slug
 
 
+@station_errors
 def projector_device(url: str | None = None) -> DeviceEntry | None:
     """The projector at ``url`` (opened as given) as a device named by its :func:`projector_key` (the name of the
     configured entry of the same projector); None: the configured projector (None without one).
@@ -104,6 +106,7 @@ def projector_device(url: str | None = None) -> DeviceEntry | None:
 
 
 @contextmanager
+@station_errors
 def open_projector(device: DeviceEntry) -> Iterator:
     """The projector ``device`` opened (its driver from :func:`drivers.devices.resolve`), closed (blank) on exit.
 
@@ -125,6 +128,7 @@ def open_projector(device: DeviceEntry) -> Iterator:
         projector.close()
 
 
+@station_errors
 @dataclass(frozen=True)
 class ProjectorMapping:
     """How the guide lands through one projector at one screen size: its calibration, if one measured on it fits.
@@ -155,6 +159,7 @@ class ProjectorMapping:
         return f"fitted to the screen, NOT at true scale: {self.reason}"
 
 
+@station_errors
 def projector_mapping(url: str, size) -> ProjectorMapping:
     """The calibration of the projector at ``url`` for frames of ``size`` ``(width, height)`` (see the module
     docstring for which maps count as its own).
@@ -189,6 +194,7 @@ def projector_mapping(url: str, size) -> ProjectorMapping:
     return ProjectorMapping(key, url, identity, path, mapping, homography)
 
 
+@station_errors
 def mapping_of(projector) -> ProjectorMapping | None:
     """:func:`projector_mapping` of the open ``projector`` (a driver: its ``url`` and ``size``); a driver without a
     ``url`` is taken for the configured projector (None without one)."""
@@ -201,6 +207,7 @@ def mapping_of(projector) -> ProjectorMapping | None:
     return projector_mapping(url, tuple(projector.size))
 
 
+@station_errors
 def projector_homography(projector) -> np.ndarray | None:
     """Guide-plane mm -> pixels of the open ``projector`` from the calibration measured on it (:func:`mapping_of`);
     None without one of its size (the frames are then fitted to the screen, and say so)."""
@@ -208,6 +215,7 @@ def projector_homography(projector) -> np.ndarray | None:
     return None if mapping is None else mapping.homography
 
 
+@station_errors
 def maps_folder() -> Path:
     """Where the projectors' maps are kept: ``calibration/projectors`` in the station's data folder."""
     return data_dir() / "calibration" / "projectors"

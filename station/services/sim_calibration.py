@@ -1,7 +1,7 @@
 """Simulator calibration as a service: fit scenarios' uncertain material values to logged trials, save a profile.
 
 Used by ``station calibrate sim`` and the Calibrate > Simulator panel. The trials come as dicts of the trial log's
-JSON export (issue 20's contract): from a file (``--trials-json``) or, wired by the station, from the trial store.
+JSON export (a public format): from a file (``--trials-json``) or, wired by the station, from the trial store.
 The fit itself is :func:`calibration.sim_fit.fit_simulator`; its simulations run where the optimizer's do (local
 processes or a Dask scheduler) on the shared simulation cache, so a repeated or interrupted calibration re-simulates
 nothing it already ran.
@@ -16,14 +16,19 @@ from datetime import datetime, timezone
 from pathlib import Path
 from typing import Any
 
+from calibration.errors import CalibrationError
 from calibration.sim_fit import FitSettings, Runner, SimFit, fit_simulator
 from calibration.sim_trials import export_trials, fit_trials
-from common.progress import Cancelled, ProgressCallback
+from common.datafiles import load_json
+from common.progress import Cancelled, Reporter
+from design.contraption.materials import default_range
 from design.contraption.physics_profile import PhysicsProfile, save_profile
 from design.contraption.scenario import Scenario
-from station.services.errors import ServiceError
+from station.errors import ServiceError, station_errors
+from station.services.robust import check_count, connected_executor, stopped_run
 
 
+@station_errors
 @dataclass
 class SimCalibration:
     """A finished calibration: the fit, the scenarios it was for, and the profile it makes."""
@@ -47,26 +52,23 @@ class SimCalibration:
         return self.fit.to_json()
 
 
+@station_errors
 def read_trials_json(path: str | Path) -> list[dict]:
     """The trials of a trial export file (``station trial export --out FILE.json``)."""
-    from common.datafiles import load_json
-
     path = Path(path)
     if not path.is_file():
         raise ServiceError(f"trials_json {path}: no such file (expected a trial export, `station trial export "
                            "--out FILE.json`)", field="trials_json", value=str(path))
-    from calibration.errors import CalibrationError
 
     data = load_json(path, "a trial export (\"format\": \"chaos-station trials\")",
                      error=lambda detail: CalibrationError(f"{path}: {detail}"))
     return export_trials(data, str(path))
 
 
+@station_errors
 def material_ranges(scenario: Scenario, every_material: bool = False) -> dict[str, tuple[float, tuple[float, float]]]:
     """``{name: (value, (low, high))}``: the scenario's uncertain material values, and with ``every_material`` its
     other material values too, each in its :func:`~design.contraption.materials.default_range`."""
-    from design.contraption.materials import default_range
-
     ranges = scenario.uncertain_parameters()
     if not every_material:
         return ranges
@@ -74,6 +76,7 @@ def material_ranges(scenario: Scenario, every_material: bool = False) -> dict[st
             for name, value in scenario.physics_parameters().items()}
 
 
+@station_errors
 def choose_parameters(scenarios: Sequence[Scenario], params: Sequence[str] | None, *,
                       every_material: bool = False) -> dict[str, tuple[float, tuple[float, float]]]:
     """What to fit: ``params`` (default: every uncertain value of the scenarios; with ``every_material``, every
@@ -110,35 +113,63 @@ def choose_parameters(scenarios: Sequence[Scenario], params: Sequence[str] | Non
 
 
 @contextlib.contextmanager
+@station_errors
 def station_runner(*, workers: int | None = None, scheduler: str | None = None,
-                   progress: ProgressCallback | None = None, should_stop=None) -> Iterator[Runner]:
-    """A :class:`~calibration.sim_fit.Runner` on the optimizer's executors and shared cache; a stop (``should_stop``,
-    Ctrl-C, a cancelled progress) becomes :class:`~station.services.robust.RunStopped` with the work kept."""
-    from design.robust.executor import SimulationCancelled
-    from station.services.robust import RunStopped, check_count, connected_executor, simulation_cache_path
-
+                   report: Reporter | None = None) -> Iterator[Runner]:
+    """A :class:`~calibration.sim_fit.Runner` on the optimizer's executors and shared cache; a stop (``report``'s
+    stop check, Ctrl-C) becomes the :class:`~common.progress.Cancelled` of
+    :func:`~station.services.robust.stopped_run`, which says how many simulations the cache keeps."""
     check_count(workers, "workers")
 
     def make(problem):
         # Runs of a small scenario take milliseconds: several per task keep the workers' overhead down.
         return connected_executor(problem, workers=workers, scheduler=scheduler, chunk_size=4)
 
-    runner = Runner(make, progress, should_stop)
+    runner = Runner(make, report=report)
     try:
         with runner:
             yield runner
-    except RunStopped:
-        raise
-    except (KeyboardInterrupt, SimulationCancelled, Cancelled):
-        raise RunStopped(runner.done, simulation_cache_path()) from None
+    except (KeyboardInterrupt, Cancelled) as stop:
+        if isinstance(stop, Cancelled) and stop.cache is not None:
+            raise  # already says what the cache keeps
+        raise stopped_run(runner.done) from None
 
 
-def calibrate_sim(scenarios: Sequence[Scenario], trials: Sequence[Mapping[str, Any]], *,
-                  params: Sequence[str] | None = None, n_trials: int | None = None,
-                  settings: FitSettings | None = None, workers: int | None = None, scheduler: str | None = None,
-                  progress: ProgressCallback | None = None, should_stop=None,
-                  source: str = "<trials>", every_material: bool = False) -> SimCalibration:
-    """Fit the scenarios' uncertain material values (or ``params``) to their trials among ``trials``.
+@dataclass(frozen=True)
+class SimCalibrationRequest:
+    """What :func:`calibrate_sim` fits, from which trials, and how.
+
+    Parameters
+    ----------
+    params : tuple of str, optional
+        ``"MATERIAL.PARAM"`` names to fit (default: all uncertain values).
+    n_trials : int, optional
+        Use only the last ``n_trials`` trials of these scenarios (the most recent runs).
+    settings : FitSettings, optional
+        The fit's sizes and seed.
+    source : str
+        Where the trials come from, for messages (a file, "the trial log").
+    every_material : bool
+        Fit every material value, not only the uncertain ones (those without a range in their default one, see
+        :func:`material_ranges`): for when the plain numbers of the scenario may be off too.
+    workers, scheduler
+        Where the simulations run: local processes, or a Dask scheduler's address.
+    """
+
+    params: tuple[str, ...] | None = None
+    n_trials: int | None = None
+    settings: FitSettings | None = None
+    source: str = "<trials>"
+    every_material: bool = False
+    workers: int | None = None
+    scheduler: str | None = None
+
+
+@station_errors
+def calibrate_sim(scenarios: Sequence[Scenario], trials: Sequence[Mapping[str, Any]],
+                  request: SimCalibrationRequest = SimCalibrationRequest(), *,
+                  report: Reporter | None = None) -> SimCalibration:
+    """Fit the scenarios' uncertain material values (or ``request.params``) to their trials among ``trials``.
 
     Parameters
     ----------
@@ -146,15 +177,8 @@ def calibrate_sim(scenarios: Sequence[Scenario], trials: Sequence[Mapping[str, A
         The scenarios (their trials are those with the same name).
     trials : sequence of dict
         Trials in the export format.
-    params : sequence of str, optional
-        ``"MATERIAL.PARAM"`` names to fit (default: all uncertain values).
-    n_trials : int, optional
-        Use only the last ``n_trials`` trials of these scenarios (the most recent runs).
-    every_material : bool
-        Fit every material value, not only the uncertain ones (those without a range in their default one, see
-        :func:`material_ranges`): for when the plain numbers of the scenario may be off too.
-    settings : FitSettings, optional
-        The fit's sizes and seed.
+    request : SimCalibrationRequest
+        The values to fit, the trials to use, the fit's settings and where its simulations run.
 
     Raises
     ------
@@ -162,24 +186,26 @@ def calibrate_sim(scenarios: Sequence[Scenario], trials: Sequence[Mapping[str, A
         No trials of these scenarios, a parameter that is not uncertain in them, a bad count.
     calibration.errors.CalibrationError
         A malformed trial (names the trial and the field).
-    RunStopped
+    common.progress.Cancelled
         Stopped; the simulations done are in the cache.
     """
+    n_trials = request.n_trials
     if n_trials is not None and n_trials < 1:
         raise ServiceError(f"trials must be an integer >= 1, got {n_trials}", field="trials", value=n_trials)
     names = {s.name: s for s in scenarios}
-    chosen = choose_parameters(scenarios, params, every_material=every_material)
-    usable = fit_trials(trials, names, source)
+    chosen = choose_parameters(scenarios, request.params, every_material=request.every_material)
+    usable = fit_trials(trials, names, request.source)
     if not usable:
         raise ServiceError(f"trials: none of the {len(trials)} trials is of {', '.join(names)}; log runs with "
                            "`station trial log`", field="trials")
     if n_trials is not None:
         usable = usable[-n_trials:]
-    with station_runner(workers=workers, scheduler=scheduler, progress=progress, should_stop=should_stop) as run:
-        fit = fit_simulator(usable, chosen, run, settings)
+    with station_runner(workers=request.workers, scheduler=request.scheduler, report=report) as run:
+        fit = fit_simulator(usable, chosen, run, request.settings)
     return SimCalibration(fit, list(scenarios), list(chosen))
 
 
+@station_errors
 def save(result: SimCalibration, path: str | Path, name: str | None = None) -> Path:
     """Write the calibration's physics profile."""
     return save_profile(result.profile(name), path)

@@ -15,8 +15,10 @@ from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from common.progress import CancelCheck, ProgressCallback, Reporter
-from station.services.errors import ServiceError
+from common.progress import Reporter
+from design.machines import get_machine, machine_names
+from station.errors import ServiceError, station_errors
+from station.paths import cache_dir
 
 if TYPE_CHECKING:  # scipy and the spline/FFT machinery load only when a sketch is retrieved
     import numpy as np
@@ -30,6 +32,7 @@ SMOOTHING_RANGE = (0.0, 0.5)
 GRID_RANGE = (1, 8)
 
 
+@station_errors
 @dataclass(frozen=True)
 class RetrieveOptions:
     """What to search and how.
@@ -63,8 +66,6 @@ class RetrieveOptions:
 
     def check(self) -> None:
         """Raise :class:`ServiceError` (its ``field`` the option's name) for the first option out of its domain."""
-        from design.machines import machine_names
-
         known = machine_names()
         for name in self.machines:
             if name not in known:
@@ -90,16 +91,15 @@ def _check_integer(field: str, value: int, bounds: tuple[int, int]) -> None:
         raise ServiceError(f"{field} must be an integer in [{low}, {high}], got {value}", field=field, value=value)
 
 
-def make_retriever(options: RetrieveOptions | None = None, *, progress: Reporter | ProgressCallback | None = None,
-                   cancelled: CancelCheck | None = None, cache: str | Path | None = None) -> SketchRetriever:
+@station_errors
+def make_retriever(options: RetrieveOptions | None = None, *, report: Reporter | None = None,
+                   cache: str | Path | None = None) -> SketchRetriever:
     """A retriever over the options' machines, its databases cached in ``cache`` (default: the station's cache).
 
     A retriever keeps the databases it loaded: keep it to answer further sketches without reading them again.
     """
-    from design.machines import machine_names
-    from design.sketch import SketchRetriever
-    from design.sketch.candidates import default_settings
-    from station.paths import cache_dir
+    from design.sketch import SketchRetriever  # heavy: scipy
+    from design.sketch.candidates import default_settings  # heavy: scipy
 
     options = options or RetrieveOptions()
     options.check()
@@ -111,12 +111,30 @@ def make_retriever(options: RetrieveOptions | None = None, *, progress: Reporter
                         if default_settings(n).sampling == "grid" else default_settings(n))
                     for n in machines or machine_names()}
     return SketchRetriever(machines, cache_dir=cache_dir() if cache is None else cache, settings=settings,
-                           progress=progress, cancelled=cancelled)
+                           report=report)
 
 
+@station_errors
+def load_sketch(path: str | Path, symmetry: int | None = None, center: object = None) -> Sketch:
+    """A sketch from a ``.json`` or ``.svg`` file of strokes (one symmetric sector with ``symmetry`` K, about
+    ``center``): :func:`design.sketch.load_sketch`."""
+    from design.sketch import load_sketch as load  # scipy and the spline/FFT machinery: loaded when a sketch is read
+
+    return load(path, symmetry=symmetry, center=center)
+
+
+@station_errors
+def sketch_from_strokes(strokes: list, symmetry: int = 1, center: object = None, source: str = "") -> Sketch:
+    """A sketch from strokes drawn by hand (lists of (x, y) points; one symmetric sector with ``symmetry`` K, about
+    ``center``): :func:`design.sketch.make_sketch`."""
+    from design.sketch import make_sketch  # scipy and the spline/FFT machinery: loaded when a sketch is made
+
+    return make_sketch(strokes, symmetry=symmetry, center=center, source=source)
+
+
+@station_errors
 def retrieve(sketch: Sketch, options: RetrieveOptions | None = None, *, retriever: SketchRetriever | None = None,
-             progress: Reporter | ProgressCallback | None = None,
-             cancelled: CancelCheck | None = None) -> RetrievalResult:
+             report: Reporter | None = None) -> RetrievalResult:
     """Ranked candidates for ``sketch``.
 
     Parameters
@@ -127,7 +145,7 @@ def retrieve(sketch: Sketch, options: RetrieveOptions | None = None, *, retrieve
         Checked first (a :class:`ServiceError` names the option).
     retriever : SketchRetriever, optional
         One kept from :func:`make_retriever` (its databases already loaded); made from ``options`` otherwise,
-        reporting to ``progress`` and asking ``cancelled``.
+        reporting to ``report`` (and stopping when it says so).
 
     Raises
     ------
@@ -136,26 +154,26 @@ def retrieve(sketch: Sketch, options: RetrieveOptions | None = None, *, retrieve
     design.sketch.SketchError
         The sketch gives no usable curve.
     common.progress.Cancelled
-        The cancel check said stop while a database was built.
+        A stop was asked for while a database was built.
     """
     options = options or RetrieveOptions()
     options.check()
     if retriever is None:
-        retriever = make_retriever(options, progress=progress, cancelled=cancelled)
+        retriever = make_retriever(options, report=report)
     return retriever.query(sketch, top=options.top, prune=options.prune, refine=options.refine,
                            smoothing=options.smoothing, mirror=options.mirror, machines=options.machine_list())
 
 
+@station_errors
 def candidate_curve(candidate: Candidate, points: int = 2048) -> np.ndarray:
     """The pattern of a candidate, ``(points, 2)`` uniform in arc length, for a preview."""
-    from design.machines import get_machine
-
     return get_machine(candidate.machine).sample(candidate.params, n=points, spacing="arclength")
 
 
+@station_errors
 def write_contact_sheet(result: RetrievalResult, path: str | Path, points: int = 2048) -> Path:
     """A PNG of the sketch (strokes and fitted curve) beside each ranked candidate, labelled with its distance."""
-    from design.sketch.contact_sheet import render_contact_sheet
+    from design.sketch.contact_sheet import render_contact_sheet  # heavy: PIL, scipy
 
     path = Path(path)
     labelled = [

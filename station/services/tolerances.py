@@ -1,12 +1,12 @@
-"""The tolerance map of a layout as a service: ``station tolerances`` and the assembly guide (issue 18).
+"""The tolerance map of a layout as a service: ``station tolerances`` and the assembly guide.
 
 :func:`tolerance_map` reads a scenario and a layout (through the one layout reader, as ``station robustness``
 does), takes the fitted success model the LAYOUT.json carries (``"model"``, :mod:`design.robust.model_io`) and
 computes each free parameter's tolerance (:mod:`design.robust.tolerance`); ``verify=N`` simulates N layouts at
 ±delta per parameter on the shared simulation cache. A layout without a model gets its tolerances by simulation
-when ``verify > 0``, else none; the result's ``map.source`` says which. Progress goes to one callback (a
+when ``verify > 0``, else none; the result's ``map.source`` says which. Progress goes to one reporter (a
 :class:`design.robust.Progress`, hence a :class:`common.progress.Progress`); refused input is a
-:class:`~station.services.errors.ServiceError` naming the value (``verify``, ``seed``...).
+:class:`~station.errors.ServiceError` naming the value (``verify``, ``seed``...).
 """
 
 from __future__ import annotations
@@ -15,16 +15,25 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+import numpy as np
+
+from common.progress import Reporter
+from design.contraption import Scenario
+from design.contraption.layout_io import layout_from_data, read_layout_data
+from design.robust.model_io import layout_model
+from design.robust.tolerance import CARE_RULE as CARE_RULE  # re-exported (X as X): the faces word the rule
+from design.robust.tolerance import RATIO as RATIO
+from design.robust.tolerance import model_tolerances, no_tolerances, simulated_tolerances, verify_tolerances
+from station.errors import ServiceError, station_errors
 from station.services import robust
-from station.services.errors import ServiceError
 from station.services.outlook import disagreement
+from station.services.physics import problem_with_physics
 
 if TYPE_CHECKING:
     import numpy as np
 
     from design.contraption.layout_io import LoadedLayout
     from design.robust.model_io import PortablePSP
-    from design.robust.pipeline import ProgressCallback
     from design.robust.tolerance import ToleranceMap
     from projector.guide import ParameterTolerance
 
@@ -35,6 +44,7 @@ SIMULATION_STEPS = 4
 WEAK_MODEL_VERIFY = 8
 
 
+@station_errors
 @dataclass(frozen=True)
 class Tolerances:
     """A layout's tolerance map and what it was computed from.
@@ -68,7 +78,7 @@ class Tolerances:
 
     def parameter_tolerances(self) -> dict[str, tuple[ParameterTolerance, ...]]:
         """Per part, its parameters' tolerances as the guide's :class:`projector.guide.ParameterTolerance`."""
-        from projector.guide import ParameterTolerance
+        from projector.guide import ParameterTolerance  # heavy: shapely
 
         return {part: tuple(ParameterTolerance(e.parameter, e.delta, e.unit, e.predicted_ratio, e.measured,
                                                self.map.source, e.bound_limited) for e in entries)
@@ -84,6 +94,7 @@ class Tolerances:
                 **self.map.to_dict()}
 
 
+@station_errors
 def layout_and_model(layout: str, problem):
     """The layout ``layout`` names and the fitted model its file carries (None for a layout without one), from one
     reading of the file."""
@@ -93,15 +104,13 @@ def layout_and_model(layout: str, problem):
 def _read_layout(layout: str, problem):
     """``(layout, model or None, the file's data or None)``: what :func:`layout_and_model` gives and the data read
     for it (None for a layout named in the scenario)."""
-    from design.contraption.layout_io import layout_from_data, read_layout_data
-    from design.robust.model_io import layout_model
-
     if not Path(layout).is_file():  # a layout named in the scenario, or a missing file: the reader says which
         return robust.read_layout(layout, problem), None, None
     data = read_layout_data(layout)
     return layout_from_data(data, problem.scenario, file=layout), layout_model(data, problem, file=layout), data
 
 
+@station_errors
 def layout_simulated_success(data) -> float | None:
     """What simulation says of a layout file's success, from its data: its ``physical_success`` probability
     (``station optimize`` writes it), else its ``simulated_success`` (one simulation at the point) as 0 or 1; None
@@ -115,19 +124,20 @@ def layout_simulated_success(data) -> float | None:
     return float(simulated) if isinstance(simulated, bool) else None
 
 
+@station_errors
 def contraption_problem(scenario):
     """A scenario file or example name, or a loaded :class:`design.contraption.Scenario`, as a problem."""
-    from design.contraption import Scenario
-    from design.robust.contraption import ContraptionProblem
+    from design.robust.contraption import ContraptionProblem  # heavy: pybullet, scipy
 
     if isinstance(scenario, Scenario):
         return ContraptionProblem(scenario.source, scenario)
     return robust.load_problem(str(scenario))
 
 
+@station_errors
 def tolerance_map(scenario, layout: str, *, verify: int = 0, seed: int = 0, workers: int | None = None,
-                  scheduler: str | None = None, progress: ProgressCallback | None = None,
-                  should_stop: robust.StopCheck | None = None, physics: str | None = None) -> Tolerances:
+                  scheduler: str | None = None, report: Reporter | None = None,
+                  physics: str | None = None) -> Tolerances:
     """The tolerance map of ``layout`` for ``scenario``.
 
     Parameters
@@ -141,10 +151,11 @@ def tolerance_map(scenario, layout: str, *, verify: int = 0, seed: int = 0, work
         the number of layouts per step of the search by simulation.
     seed : int
         Seed of the verification layouts.
-    workers, scheduler, should_stop :
-        Where the simulations run and when they stop (:func:`station.services.robust.simulations`).
-    progress : callable, optional
-        Stage ``"tolerance map"`` (parameters searched), then ``"verification"`` (simulations).
+    workers, scheduler :
+        Where the simulations run (:func:`station.services.robust.simulations`).
+    report : Reporter, optional
+        Stage ``"tolerance map"`` (parameters searched), then ``"verification"`` (simulations); its stop check
+        ends the simulations.
     physics : str, optional
         A physics profile: the simulations use its material values (:mod:`station.services.physics`).
 
@@ -152,26 +163,22 @@ def tolerance_map(scenario, layout: str, *, verify: int = 0, seed: int = 0, work
     ------
     ServiceError
         ``verify`` or ``seed`` negative (``field`` names it).
-    RunStopped
-        Stopped by ``should_stop`` or Ctrl-C; simulations done are kept in the cache.
+    common.progress.Cancelled
+        Stopped on request or by Ctrl-C; simulations done are kept in the cache.
     """
-    import numpy as np
-
-    from design.robust.pipeline import BudgetedOracle, Progress
-    from design.robust.tolerance import model_tolerances, no_tolerances, simulated_tolerances, verify_tolerances
+    from design.robust.pipeline import BudgetedOracle, Progress  # heavy: scipy, sklearn
 
     if isinstance(verify, bool) or not isinstance(verify, int) or verify < 0:
         raise ServiceError(f"verify must be an integer >= 0 (layouts simulated per parameter), got {verify!r}",
                            field="verify", value=verify)
     robust.check_seed(seed)
-    from station.services.physics import problem_with_physics
 
     problem = problem_with_physics(contraption_problem(scenario), physics)
     loaded, model, data = _read_layout(str(layout), problem)
     u = np.clip(problem.to_normalized(loaded.x), 0.0, 1.0)
     d = problem.dim
-    if progress is not None:
-        progress(Progress("tolerance map", 0, d, unit="parameters"))
+    report = Reporter.of(report)
+    report.emit(Progress("tolerance map", 0, d, unit="parameters"))
     note = None
     if model is not None:
         tolerances = model_tolerances(model, problem, u, is_valid=problem.is_valid)
@@ -190,12 +197,11 @@ def tolerance_map(scenario, layout: str, *, verify: int = 0, seed: int = 0, work
         tolerances = no_tolerances(problem)
     else:
         tolerances = None
-    if progress is not None:
-        progress(Progress("tolerance map", d, d, unit="parameters"))
+    report.emit(Progress("tolerance map", d, d, unit="parameters"))
     if tolerances is None or verify > 0:
         expected = 1 + d * verify if tolerances is not None else 1 + d * (SIMULATION_STEPS + 1) * verify
-        with robust.simulations(problem, workers=workers, scheduler=scheduler, should_stop=should_stop) as executor:
-            oracle = BudgetedOracle(executor, None, progress, should_stop, expected=expected)
+        with robust.simulations(problem, workers=workers, scheduler=scheduler, report=report) as executor:
+            oracle = BudgetedOracle(executor, None, report=report, expected=expected)
             oracle.phase = "verification"
 
             def parameter(_index: int, name: str) -> None:

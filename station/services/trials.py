@@ -19,12 +19,12 @@ from typing import Any, TextIO
 
 from common.datafiles import load_json, parse_toml
 from design.contraption.catalog import resolve_scenario_path
-from design.contraption.layout_io import layout_from_data
+from design.contraption.layout_io import layout_from_data, resolve_layout
 from design.contraption.model import Scenario
 from design.errors import DesignError
-from station.errors import StationError
+from station.errors import ServiceError, StationError, station_errors
 from station.joblog import local_time
-from station.services.errors import ServiceError
+from station.paths import data_dir
 from station.trialformat import (
     FORMAT,
     OUTCOMES,
@@ -47,11 +47,13 @@ CHECK_FORMAT, CHECK_VERSION = "chaos-station check", 1
 #: A physics profile (CONTRACT20), as simulator calibration writes it.
 PHYSICS_FORMAT, PHYSICS_VERSION = "chaos-station physics", 1
 
+@station_errors
 def open_store(url: str | None = None) -> TrialStore:
     """The station's trial log (:func:`station.db.database_url` unless ``url`` is given)."""
     return TrialStore(url)
 
 
+@station_errors
 def logged_trials(url: str | None = None) -> list[dict]:
     """Every trial in the station's trial log (the export format, oldest first): what ``station calibrate sim`` and
     the Calibrate screen's simulator panel fit to."""
@@ -59,6 +61,7 @@ def logged_trials(url: str | None = None) -> list[dict]:
         return store.trials()
 
 
+@station_errors
 def load_trial_scenario(text: str) -> Scenario:
     """A scenario by example name or path, read once: its text is what a trial stores, and the scenario is parsed
     from that same text (a file edited meanwhile cannot give a trial another scenario's hash)."""
@@ -70,6 +73,7 @@ def load_trial_scenario(text: str) -> Scenario:
     return scenario_from_content(content, str(path))
 
 
+@station_errors
 def scenario_record(scenario: Scenario) -> dict[str, str]:
     """``{"name", "content_hash", "content"}`` of a scenario loaded by :func:`load_trial_scenario`."""
     content = Path(scenario.source).read_text(encoding="utf-8")
@@ -79,11 +83,21 @@ def scenario_record(scenario: Scenario) -> dict[str, str]:
     return {"name": scenario.name, "content_hash": scenario.content_hash, "content": content}
 
 
+@station_errors
 def layout_values(scenario: Scenario, x: Sequence[float]) -> dict[str, float]:
     """A layout vector as ``{parameter: value}`` in design-space order."""
     return {name: float(value) for name, value in zip(scenario.design_space.names, x)}
 
 
+@station_errors
+def read_layout_values(scenario: Scenario, layout: str | None) -> dict[str, float]:
+    """The layout ``layout`` names (a LAYOUT.json, or a layout named in the scenario; None or "": the scenario's own
+    transforms) as ``{parameter: value}``."""
+    x = resolve_layout(layout, scenario).x if layout else scenario.default_layout()
+    return layout_values(scenario, x)
+
+
+@station_errors
 def parse_pairs(items: Iterable[str], field: str, expected: str) -> dict[str, str]:
     """``EVENT=VALUE`` strings as a dict; a missing ``=`` or an event given twice is refused naming ``field``."""
     pairs: dict[str, str] = {}
@@ -98,6 +112,7 @@ def parse_pairs(items: Iterable[str], field: str, expected: str) -> dict[str, st
     return pairs
 
 
+@station_errors
 def parse_outcomes(items: Iterable[str]) -> dict[str, str]:
     """``--outcome EVENT=yes|no|not-reached`` strings (the words checked later, against the graph)."""
     pairs = parse_pairs(items, "outcome", "|".join(OUTCOMES))
@@ -108,6 +123,7 @@ def parse_outcomes(items: Iterable[str]) -> dict[str, str]:
     return pairs
 
 
+@station_errors
 def parse_times(items: Iterable[str]) -> dict[str, float]:
     """``--time EVENT=SECONDS`` strings."""
     times: dict[str, float] = {}
@@ -122,6 +138,7 @@ def parse_times(items: Iterable[str]) -> dict[str, float]:
     return times
 
 
+@station_errors
 def read_as_built(path: str | Path, scenario: Scenario, layout: Mapping[str, float]) -> tuple[dict, dict | None]:
     """``(as_built values, check or None)`` from a CHECK.json (of this scenario and this layout, checked by
     :func:`read_check`) or a layout file.
@@ -179,6 +196,7 @@ _PART_FIELDS = {"name": "text", "tag_id": "a tag id (a whole number)", "found": 
                 "within_tolerance": "true, false or null", "instruction": "text", "cost": "a number or null"}
 
 
+@station_errors
 def read_check(data: Any, scenario: Scenario, layout: Mapping[str, float],
                fail: Callable[[str], Exception]) -> CheckedBuild:
     """The as-built layout a CHECK.json's content (``data``) says, after checking every field the trial log and the
@@ -190,8 +208,8 @@ def read_check(data: Any, scenario: Scenario, layout: Mapping[str, float],
 
     ``fail(message)`` makes the error raised; ``message`` starts with the field (``residual_error: expected ...``).
     """
-    from calibration.check import as_built_values, not_measured_names, same_layout_value
-    from calibration.sim_runs import residual_sigma
+    from calibration.check import as_built_values, not_measured_names, same_layout_value  # heavy: scipy, shapely
+    from calibration.sim_runs import residual_sigma  # heavy: pybullet, scipy
 
     if not isinstance(data, dict) or data.get("format") != CHECK_FORMAT:
         got = data.get("format") if isinstance(data, dict) else type(data).__name__
@@ -294,14 +312,16 @@ def _part_value(key: str, value: Any) -> bool:
     return all(_number(value.get(k)) for k in ("du_mm", "dv_mm", "distance_mm", "heading_deg"))
 
 
+@station_errors
 def check_values(check: Mapping[str, Any]) -> dict[str, float]:
     """A check's as-built layout for the trial log: its ``as_built``, the measured parameters as measured
     (:func:`calibration.check.as_built_values`)."""
-    from calibration.check import as_built_values
+    from calibration.check import as_built_values  # heavy: scipy, shapely
 
     return as_built_values(check, lambda message: ServiceError(f"check: {message}", field="check"))
 
 
+@station_errors
 def read_physics(path: str | Path) -> dict[str, str]:
     """``{"name", "content"}`` of a physics profile (TOML: ``[profile]`` with format, version and name)."""
     file = str(path)
@@ -327,6 +347,7 @@ def read_physics(path: str | Path) -> dict[str, str]:
     return {"name": name.strip(), "content": raw.decode("utf-8")}
 
 
+@station_errors
 def check_photos(paths: Iterable[str | Path]) -> list[str]:
     """Photo paths, absolute; each must be a file."""
     result = []
@@ -338,6 +359,7 @@ def check_photos(paths: Iterable[str | Path]) -> list[str]:
     return result
 
 
+@station_errors
 def build_trial(scenario: Scenario, layout: Mapping[str, float], outcomes: Mapping[str, str], *,
                 times: Mapping[str, float] | None = None, as_built: Mapping[str, float] | None = None,
                 check: Mapping[str, Any] | None = None, physics: Mapping[str, str] | None = None,
@@ -363,6 +385,7 @@ def build_trial(scenario: Scenario, layout: Mapping[str, float], outcomes: Mappi
 PENDING_FOLDER = "pending-trials"
 
 
+@station_errors
 class TrialKept(ServiceError):
     """The database could not take the trial (still busy, unreachable, interrupted); it is kept in :attr:`path`, a
     trial export of that one trial, which the next :func:`log_trial` to the same database logs first (as ``station
@@ -386,13 +409,13 @@ class LoggedTrial:
     problems: tuple[str, ...] = ()
 
 
+@station_errors
 def pending_folder() -> Path:
     """Where kept trials wait (:data:`PENDING_FOLDER` in the data folder)."""
-    from station.paths import data_dir
-
     return data_dir() / PENDING_FOLDER
 
 
+@station_errors
 def pending_files() -> list[Path]:
     """The kept trials' files, oldest first."""
     folder = pending_folder()
@@ -407,6 +430,7 @@ def pending_files() -> list[Path]:
     return [file for _, _, file in sorted(files)]
 
 
+@station_errors
 def log_trial(record: Mapping[str, Any], *, url: str | None = None,
               on_wait: Callable[[str], None] | None = None) -> LoggedTrial:
     """Log a trial made by :func:`build_trial` in the station's database (``url``: another one), after the trials
@@ -452,6 +476,7 @@ def _kept(record: Mapping[str, Any], where: str | None, why: str, *, interrupted
                      f"`station trial import {path}`)", path, document, interrupted=interrupted)
 
 
+@station_errors
 def deliver_pending(store: TrialStore, *, on_wait: Callable[[str], None] | None = None
                     ) -> tuple[list[int], list[str]]:
     """Log the kept trials (:func:`pending_files`) meant for ``store``'s database and remove their files:
@@ -484,6 +509,7 @@ def deliver_pending(store: TrialStore, *, on_wait: Callable[[str], None] | None 
 
 
 # -- export and import -------------------------------------------------------------------------------------------
+@station_errors
 def export_trials(store: TrialStore, path: str | Path, *, scenario: str | None = None,
                   ids: Collection[int] | None = None) -> int:
     """Write the log (or one scenario's trials, or those with the ``ids`` given) to ``path`` (``.json``: the
@@ -510,6 +536,14 @@ def export_trials(store: TrialStore, path: str | Path, *, scenario: str | None =
     return len(trials)
 
 
+@station_errors
+def export_logged(path: str | Path, *, ids: Collection[int] | None = None, url: str | None = None) -> int:
+    """:func:`export_trials` from the station's trial log (``url``: another database); how many were written."""
+    with open_store(url) as store:
+        return export_trials(store, path, ids=ids)
+
+
+@station_errors
 def write_atomically(path: str | Path, write: Callable[[TextIO], None], *, field: str = "out") -> None:
     """A text file (UTF-8) whole or not at all: ``write(stream)`` writes it aside, in a hidden file of the same
     folder, which then replaces ``path`` in one rename.
@@ -546,6 +580,7 @@ def write_atomically(path: str | Path, write: Callable[[TextIO], None], *, field
         raise
 
 
+@station_errors
 def import_trials(store: TrialStore, path: str | Path) -> tuple[list[int], list[str]]:
     """Add the trials of a JSON export: ``(new ids, uids refused as already in the log)``. The whole file is
     checked first (format, version, every trial against its scenario's graph): a bad one adds nothing."""
@@ -563,11 +598,13 @@ def import_trials(store: TrialStore, path: str | Path) -> tuple[list[int], list[
 
 
 # -- words -------------------------------------------------------------------------------------------------------
+@station_errors
 def happened_count(trial: Mapping[str, Any]) -> str:
     outcomes = trial["outcomes"]
     return f"{sum(v == YES for v in outcomes.values())}/{len(outcomes)} events"
 
 
+@station_errors
 def trial_line(trial: Mapping[str, Any]) -> str:
     """One line: ``#12  2026-12-03 13:05  SIMPLE  success  5/5 events  as built (check)  physics fit-1  ann``."""
     built = "as built (check)" if trial["check"] else ("as built" if trial["as_built"] else "as designed")
@@ -580,6 +617,7 @@ def trial_line(trial: Mapping[str, Any]) -> str:
     return "  ".join(parts)
 
 
+@station_errors
 def describe_trial(trial: Mapping[str, Any]) -> list[str]:
     """Lines for ``station trial show``: the summary, every event's outcome in the graph's order, the layouts.
     Text from the log is shown with its control and bidirectional characters escaped

@@ -11,9 +11,8 @@ from textual.app import App
 from textual.binding import Binding
 from textual.screen import Screen
 
-from station.db import open_database
-from station.devices import DeviceEntry, default_devices
-from station.paths import database_path
+from station.services.machine_sessions import MachineSessions
+from station.services.station_home import DeviceEntry, default_devices, open_station_database, shared_job_log
 from station.tui.registry import MachineDesign, ScreenEntry, discover_screens
 from station.tui.screens.confirm_quit import ABORT_AND_QUIT, ConfirmQuitScreen
 from station.tui.screens.home import HomeScreen
@@ -46,8 +45,9 @@ class StationApp(App):
                  areas: Sequence[ScreenEntry] | None = None) -> None:
         super().__init__()
         self.devices = devices if devices is not None else default_devices()
-        self.database_path = Path(database) if database is not None else database_path()
-        self.database = open_database(self.database_path)
+        self.database_path, self.database = open_station_database(database)
+        # the machines and their jobs: one for the app, which the Machines screen and the screens that queue jobs drive
+        self.machine_sessions = MachineSessions(shared_job_log(self.database_path), source="tui")
         self.areas: list[ScreenEntry] = list(areas) if areas is not None else discover_screens()
         self._aborting_to_exit = False
         if all(d.simulated for d in self.devices):
@@ -181,4 +181,6 @@ class StationApp(App):
         self.exit(message=f"chaos-station: {message}")
 
     def on_unmount(self) -> None:
+        self.machine_sessions.close()
+        self.machine_sessions.queue.log.close()
         self.database.close()

@@ -16,6 +16,9 @@ from typing import NamedTuple
 
 from textual.screen import Screen
 
+import station.tui.screens as screens_package
+from station.services.designs import get_machine
+
 
 class MachineDesign(NamedTuple):
     """A drawing-machine design: the machine's name and its parameters (what the Drawing screen shows)."""
@@ -26,8 +29,6 @@ class MachineDesign(NamedTuple):
     @classmethod
     def defaults(cls, machine: str) -> MachineDesign:
         """``machine`` with its default parameters (a screen's start when there is no Drawing screen)."""
-        from design.machines import get_machine
-
         model = get_machine(machine)
         return cls(model.name, model.defaults())
 
@@ -62,13 +63,11 @@ class ScreenEntry:
 
 def discover_screens() -> list[ScreenEntry]:
     """Every area screen, in home-screen order. Duplicate names or keys are a programming error."""
-    import station.tui.screens as package
-
     entries: list[ScreenEntry] = []
-    for info in pkgutil.iter_modules(package.__path__):
+    for info in pkgutil.iter_modules(screens_package.__path__):
         if info.name.startswith("_") or info.name == "home":
             continue
-        module = importlib.import_module(f"{package.__name__}.{info.name}")
+        module = importlib.import_module(f"{screens_package.__name__}.{info.name}")
         entry = getattr(module, "SCREEN", None)
         if isinstance(entry, ScreenEntry):
             entries.append(entry)

@@ -15,7 +15,7 @@ import pytest
 from calibration.errors import CalibrationError
 from calibration.intrinsics import CameraIntrinsics
 from calibration.measure import fit_square, measure, square_corners
-from projector.detection import FoundTag
+from vision.detection import FoundTag
 
 SIZE = (1920, 1080)
 MATRIX = np.array([[1400.0, 0, 959.5], [0, 1400.0, 539.5], [0, 0, 1]])

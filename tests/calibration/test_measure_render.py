@@ -25,7 +25,7 @@ from calibration.intrinsics import CameraIntrinsics, to_gray
 from calibration.measure import detected_corners, measure
 from drivers.sim.camera_render import render
 from drivers.sim.camera_scene import ImageItem, Occluder, PlaneScene, TagItem
-from projector.detection import detect_tags
+from vision.detection import detect_tags
 
 HEADINGS = tuple(range(-180, 180, 15))
 

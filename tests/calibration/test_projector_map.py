@@ -19,12 +19,17 @@ from calibration.projector_map import (
     load_projector_map,
     save_projector_map,
 )
-from common.progress import Cancelled
+from common.progress import Cancelled, Reporter
 from drivers.sim.camera import sim_camera
 from drivers.sim.camera_scene import Occluder, PlaneScene
 from drivers.sim.projector import sim_projector
-from station.services.errors import ServiceError
-from station.services.projector_calibration import calibrate_projector, projector_map_file, projector_summary
+from station.errors import ServiceError
+from station.services.projector_calibration import (
+    ProjectorCalibrationRequest,
+    calibrate_projector,
+    projector_map_file,
+    projector_summary,
+)
 
 PROJECTOR = (1280, 800)
 #: An oblique placement: the image lands as a skewed quadrilateral (a projector off to one side and tilted).
@@ -82,8 +87,9 @@ def test_oblique_projector_maps_within_half_a_millimetre(station_home):
                    color=(180, 170, 160))
     camera.set_scene(PlaneScene(occluders=(box,)))
     seen = []
-    done = calibrate_projector(camera=camera_url, projector="sim://projector?name=wall&size=1280x800", name="wall",
-                               plane=table_homography(camera.camera_model), progress=seen.append)
+    request = ProjectorCalibrationRequest(camera=camera_url, projector="sim://projector?name=wall&size=1280x800",
+                                          name="wall", plane=table_homography(camera.camera_model))
+    done = calibrate_projector(request, report=Reporter(seen.append))
     result = done.projector_map
     assert done.path == projector_map_file("wall") and done.path.is_file()
     assert result.landing_error_mm["p95"] <= 0.5 and result.landing_error_mm["check_points"] >= 50
@@ -136,7 +142,7 @@ def test_the_default_camera_sees_what_the_default_projector_throws(station_home)
 
 @pytest.mark.slow  # the full-size pair: 32 frames of 1920x1080 rendered at 3x3 samples (10-30 s on two cores)
 def test_the_default_devices_calibrate_the_projector_with_no_options(station_home):
-    done = calibrate_projector()
+    done = calibrate_projector(ProjectorCalibrationRequest())
     assert done.name == "projector" and done.path == projector_map_file("projector") and done.path.is_file()
     assert done.projector_map.landing_error_mm["p95"] <= 0.5
     # the map is the default projector's own placement (640 x 400 mm centred on the origin: 0.5 mm a pixel)
@@ -156,22 +162,24 @@ def test_stopping_between_patterns_blanks_the_projector(station_home):
     projector, camera_url, projector_url = small_devices()
     calls = []
 
-    def cancelled():
+    def stop():
         calls.append(1)
         return len(calls) > 3
 
     with pytest.raises(Cancelled):
-        calibrate_projector(camera=camera_url, projector=projector_url, finest_px=16, cancelled=cancelled)
+        calibrate_projector(ProjectorCalibrationRequest(camera=camera_url, projector=projector_url, finest_px=16),
+                            report=Reporter(stop=stop))
     assert projector.blanked and projector.frames_shown <= 3 and not projector_map_file("projector").exists()
 
 
 def test_a_camera_that_does_not_see_the_light_is_one_line(station_home):
     _projector, camera_url, projector_url = small_devices(target="3000,0")
     with pytest.raises(ServiceError, match=r"^camera: projector mapping: the camera saw no projected stripes") as e:
-        calibrate_projector(camera=camera_url, projector=projector_url, finest_px=16)
+        calibrate_projector(ProjectorCalibrationRequest(camera=camera_url, projector=projector_url, finest_px=16))
     assert e.value.field == "camera"
     with pytest.raises(ServiceError, match="^plane: expected an invertible 3x3 matrix"):
-        calibrate_projector(camera=camera_url, projector=projector_url, plane=np.zeros((3, 3)))
+        calibrate_projector(ProjectorCalibrationRequest(camera=camera_url, projector=projector_url,
+                                                        plane=np.zeros((3, 3))))
 
 
 def test_the_cli_hook_maps_and_prints_json(station_home, tmp_path, capsys):

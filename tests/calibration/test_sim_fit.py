@@ -13,9 +13,10 @@ from calibration.errors import CalibrationError
 from calibration.sim_fit import FitSettings, fit_simulator
 from calibration.sim_predict import attempts_of, predict_success
 from calibration.sim_runs import NOT_REACHED, YES, OutcomeProblem, noisy_layouts, placement_sigma, wilson_interval
-from calibration.sim_synthetic import export, synthetic_trials
 from calibration.sim_trials import export_trials, fit_trials
 from design.contraption import load_scenario
+from station.services.world import synthetic_trials
+from station.services.world import trials_export as export
 
 DATA = Path(__file__).resolve().parents[1] / "data" / "calibration"
 EXAMPLES = Path(__file__).parents[2] / "examples" / "scenarios"

@@ -75,7 +75,7 @@ def test_design_file_nested_too_deeply_is_one_line(tmp_path, capsys):
 
 
 def test_sketch_file_nested_too_deeply_is_a_file_format_error(tmp_path):
-    from design.sketch.strokes import load_sketch
+    from design.sketch.files import load_sketch
 
     path = tmp_path / "deep.json"
     path.write_bytes(b"[" * 100_000)

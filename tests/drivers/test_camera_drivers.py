@@ -19,7 +19,7 @@ from drivers.errors import DriverError, SimConfigError
 from drivers.sim.camera import SimulatedCamera, camera_named, sim_camera
 from drivers.sim.camera_scene import PlaneScene, TagItem
 from drivers.sim.projector import sim_projector
-from projector.detection import detect_tags
+from vision.detection import detect_tags
 
 pytestmark = pytest.mark.usefixtures("fresh_twins")
 
@@ -157,6 +157,7 @@ class _MJPEGServer:
     def __init__(self, frames):
         self.jpegs = [cv2.imencode(".jpg", frame)[1].tobytes() for frame in frames]
         self.stall = threading.Event()
+        self.stalled = threading.Event()  # the stream has seen the stall: no frame is sent after this
         server = self
 
         class Handler(http.server.BaseHTTPRequestHandler):
@@ -168,6 +169,7 @@ class _MJPEGServer:
                 try:
                     while True:
                         if server.stall.is_set():
+                            server.stalled.set()
                             time.sleep(0.05)
                             continue
                         jpeg = server.jpegs[n % len(server.jpegs)]
@@ -202,7 +204,7 @@ def test_an_mjpeg_stream_gives_the_newest_frames_and_a_stall_is_one_line():
         assert len(levels) >= 3 and levels <= {30 + 35 * n for n in range(6)} | {29, 31, 64, 66}
         assert camera.state().startswith("open: 160x120 (refused: size (gives 160x120), exposure)")
         server.stall.set()
-        time.sleep(0.2)
+        assert server.stalled.wait(5.0)
         started = time.monotonic()
         with pytest.raises(DriverError, match=r"^camera http://127\.0\.0\.1:\d+/stream\.mjpg: no frame within 1 s"):
             for _ in range(20):  # frames already in the socket's buffer may still come first

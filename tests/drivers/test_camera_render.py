@@ -2,7 +2,7 @@
 
 Independent checks: the tag cells are compared with the station's own drawing (projector/tags.py), the rendered
 geometry with cv2.projectPoints and with the darkness centroid of the picture (no detector), and the tags are decoded
-by pupil-apriltags through projector.detection (a detector the renderer shares nothing with).
+by pupil-apriltags through vision.detection (a detector the renderer shares nothing with).
 """
 
 from __future__ import annotations
@@ -23,8 +23,8 @@ from drivers.sim.camera_scene import (
     tag_corners_mm,
 )
 from drivers.sim.projector import SimulatedProjector, area_homography
-from projector.detection import detect_tags
-from projector.tags import tag_cells
+from vision.detection import detect_tags
+from vision.tags import tag_cells
 
 CAMERA = CameraModel.looking_down(target_mm=(0, 0), height_mm=1000.0)
 

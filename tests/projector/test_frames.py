@@ -9,7 +9,6 @@ import numpy as np
 import pytest
 from shapely.geometry import Polygon, box
 
-from projector.detection import TagDetector
 from projector.errors import ProjectorError
 from projector.frames import (
     CURRENT_FILL,
@@ -31,6 +30,7 @@ from projector.guide import (
     ReferenceTag,
 )
 from projector.samples import sample_guide, side_plane, top_plane
+from vision.detection import TagDetector
 
 SIZE = (1280, 800)
 SIDE, TOP = side_plane(), top_plane()

@@ -12,8 +12,8 @@ import pytest
 from design.contraption import load_scenario
 from design.contraption.catalog import resolve_scenario_path
 from projector.build import build_guide, steps_text
-from projector.detection import detect_tags
 from projector.pdf import write_pdf
+from vision.detection import detect_tags
 
 from .test_pdf import raster, scale_bar_mm, text, to_guide_mm
 

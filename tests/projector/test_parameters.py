@@ -22,7 +22,7 @@ from projector.guide import SET_WITH, ParameterTolerance
 from projector.parameters import layout_from_manifest
 from projector.pdf import write_pdf
 from projector.pdf_elevation import ElevationDrawing
-from station.services.guide import make_guide
+from station.services.guide import GuideRequest, make_guide
 
 EXAMPLES = Path(__file__).resolve().parents[2] / "examples" / "scenarios"
 ALL = sorted(p.name for p in EXAMPLES.glob("*.toml"))
@@ -50,7 +50,7 @@ def _reads_back(scenario, x, manifest) -> None:
 @pytest.mark.parametrize("layout", [None, "success"])
 def test_the_manifest_reads_back_every_design_parameter_of_every_example(name, layout):
     scenario = _scenario(name)
-    job = make_guide(str(EXAMPLES / name), layout, tolerances=False)
+    job = make_guide(GuideRequest(str(EXAMPLES / name), layout, tolerances=False))
     x = scenario.default_layout() if layout is None else scenario.layout(layout)
     _reads_back(scenario, x, job.manifest())
     for part in job.manifest()["parts"]:
@@ -68,7 +68,7 @@ def test_a_hand_written_layout_reads_back_from_its_manifest(name, values, tmp_pa
     scenario = _scenario(name)
     path = tmp_path / "mine.json"
     path.write_text(json.dumps({"parameters": values}))
-    job = make_guide(str(EXAMPLES / name), str(path), tolerances=False)
+    job = make_guide(GuideRequest(str(EXAMPLES / name), str(path), tolerances=False))
     _reads_back(scenario, [values[n] for n in scenario.design_space.names], job.manifest())
 
 
@@ -152,7 +152,7 @@ def test_set_with_overrides_say_how_and_bad_ones_are_refused():
     with pytest.raises(ProjectorError, match=r"set_with\['track\.z'\]: expected one of sheet, ruler, jig, check, "
                                              r"got 'tape'"):
         build_guide(scenario, set_with={"track.z": "tape"})
-    job = make_guide(str(EXAMPLES / "simple.toml"), None, set_with={"track.roll": "jig"})
+    job = make_guide(GuideRequest(str(EXAMPLES / "simple.toml"), None, set_with={"track.roll": "jig"}))
     assert [p["set_with"] for p in job.manifest()["parts"][0]["parameters"]] == ["check", "ruler", "jig"]
 
 
@@ -212,13 +212,13 @@ def test_no_manifest_names_a_path_of_the_machine_that_made_it(tmp_path, monkeypa
     layout = tmp_path / "mine.json"
     layout.write_text(json.dumps({"parameters": {"track.x": -0.05, "track.z": 0.07, "track.roll": 35.0}}))
     monkeypatch.chdir(tmp_path)
-    inside = make_guide(str(EXAMPLES / "simple.toml"), str(layout), tolerances=False).manifest()
+    inside = make_guide(GuideRequest(str(EXAMPLES / "simple.toml"), str(layout), tolerances=False)).manifest()
     assert inside["layout"]["source"] == "mine.json"
     elsewhere = tmp_path / "elsewhere"
     elsewhere.mkdir()
     monkeypatch.chdir(elsewhere)
-    outside = make_guide(str(EXAMPLES / "simple.toml"), str(layout), tolerances=False).manifest()
-    named = make_guide(str(EXAMPLES / "simple.toml"), "success", tolerances=False).manifest()
+    outside = make_guide(GuideRequest(str(EXAMPLES / "simple.toml"), str(layout), tolerances=False)).manifest()
+    named = make_guide(GuideRequest(str(EXAMPLES / "simple.toml"), "success", tolerances=False)).manifest()
     assert outside["layout"]["source"] == "mine.json" and named["layout"]["source"] == "simple.toml"
     for manifest in (inside, outside, named):
         absolute = [s for s in _strings(manifest) if s.startswith("/") or str(tmp_path) in s or str(EXAMPLES) in s]

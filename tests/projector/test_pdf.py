@@ -1,6 +1,6 @@
 """The printed guide, measured on its raster (pypdfium2) and read by a tag detector, not from the drawing code.
 
-Acceptance of issue 18: every page's scale bar measures 100 mm +-0.5 %; the reference tags decode at their manifest
+What a guide must meet: every page's scale bar measures 100 mm +-0.5 %; the reference tags decode at their manifest
 positions +-0.5 mm; overlapping sheets show the same drawing at the same guide-plane point; the last page lists
 every part, step and tolerance.
 """
@@ -14,12 +14,12 @@ import pypdfium2 as pdfium
 import pytest
 from scipy import ndimage
 
-from projector.detection import detect_tags
 from projector.errors import ProjectorError
 from projector.guide import REFERENCE_TAG_IDS
 from projector.pdf import write_pdf
 from projector.samples import sample_guide, tiny_guide
 from projector.tiling import page_format
+from vision.detection import detect_tags
 
 DPI = 200
 PX_PER_MM = DPI / 25.4

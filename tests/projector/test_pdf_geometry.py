@@ -25,7 +25,7 @@ from projector.guide import ParameterTolerance, PartDrawing, PartKind
 from projector.pdf import write_pdf
 from projector.samples import sample_guide, side_plane, tiny_guide, top_plane
 from projector.svg import write_svg
-from projector.tags import tag_cells
+from vision.tags import tag_cells
 
 U_SHAPE = box(0, 0, 40, 30).difference(box(5, 5, 35, 31))
 

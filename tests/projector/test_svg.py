@@ -10,12 +10,12 @@ import numpy as np
 import pytest
 from shapely.geometry import MultiPoint, Polygon
 
-from projector.detection import detect_tags
 from projector.drawing import CARE_COLORS
 from projector.errors import ProjectorError
 from projector.guide import REFERENCE_TAG_IDS
 from projector.samples import sample_guide, tiny_guide
 from projector.svg import LAYERS, write_svg
+from vision.detection import detect_tags
 
 SVG = "{http://www.w3.org/2000/svg}"
 INKSCAPE = "{http://www.inkscape.org/namespaces/inkscape}"

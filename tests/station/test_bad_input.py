@@ -45,9 +45,9 @@ def blank_png(path: Path, width: int, height: int) -> Path:
 
 
 def _manifest() -> dict:
-    from station.services.guide import make_guide
+    from station.services.guide import GuideRequest, make_guide
 
-    return make_guide(str(SIMPLE), "success", tolerances=False).manifest()
+    return make_guide(GuideRequest(str(SIMPLE), "success", tolerances=False)).manifest()
 
 
 def _bad_manifest(path: Path, change) -> Path:
@@ -196,15 +196,15 @@ def test_the_check_and_the_plane_fix_refuse_a_manifest_in_the_same_words(tmp_pat
 
 
 def test_the_detector_refuses_what_would_kill_the_process():
-    from projector.detection import TagDetector
-    from projector.errors import ProjectorError
+    from vision.detection import TagDetector
+    from vision.errors import VisionError
 
     detector = TagDetector(2.0)
     for shape in [(1, 1), (4, 100), (100, 4), (19, 640)]:
-        with pytest.raises(ProjectorError, match=r"too small; expected at least 20x20"):
+        with pytest.raises(VisionError, match=r"too small; expected at least 20x20"):
             detector.detect(np.zeros(shape, np.uint8))
     assert detector.detect(np.zeros((20, 20), np.uint8)) == []
-    with pytest.raises(ProjectorError, match="at least 32x32"):  # 4 rows of quads at an eighth of the size
+    with pytest.raises(VisionError, match="at least 32x32"):  # 4 rows of quads at an eighth of the size
         TagDetector(8.0).detect(np.zeros((31, 640), np.uint8))
 
 

@@ -3,43 +3,38 @@
 Each example runs in a shell (its quotes, pipes and redirections as a reader types them) with this checkout's
 ``station`` on the PATH, in its own copy of a prepared workshop: a working folder and a station home
 (``CHAOS_STATION_HOME``) holding what the examples name and what the station's earlier commands leave behind.
-The workshop is made once by those commands (``station optimize`` writes layout.json, ``station calibrate sim``
-the physics profile, ``station trial log`` the trials, ...), on the station's simulated devices; only what a maker
-brings from outside the station is made here: the camera's images (rendered by the camera twin), a photo, the
-TLS certificate, and BALLRUN's layout file from the layout its scenario names (an optimization that finds one
-takes minutes; ``station optimize ballrun`` is itself an example, marked slow).
+The workshop (``workshop`` in tests/conftest.py, shared with the formats' tests) is made once per test run by
+those commands (``station optimize`` writes layout.json, ``station calibrate sim`` the physics profile, ``station
+trial log`` the trials, ...), on the station's simulated devices; only what a maker brings from outside the station
+is made there by the tests: the camera's images (rendered by the camera twin), a photo, the TLS certificate, and
+BALLRUN's layout file from the layout its scenario names (an optimization that finds one takes minutes; ``station
+optimize ballrun`` is itself an example, marked slow).
 
-An example runs when it exits 0, prints no traceback and writes the files it names (``--out``, ``--pdf``,
-``> FILE``...); ``station assemble`` logs its trial. Interactive ones get the answers a maker types (:data:`ANSWERS`);
-``station serve`` runs until it says where to open it, then is stopped as Ctrl+C stops it. An example that needs
-hardware a fresh machine lacks is skipped with its reason (:data:`HARDWARE`); the long ones are marked slow
-(:data:`SLOW`, ``pytest -m slow``).
+An example that is one of the workshop's own commands (``station optimize ... --out layout.json``, ``station
+lasertest render ...``) is judged on the run that prepared the workshop, not run a second time. An example runs
+when it exits 0, prints no traceback and writes the files it names (``--out``, ``--pdf``, ``> FILE``...);
+``station assemble`` logs its trial. Interactive ones get the answers a maker types (:data:`ANSWERS`); ``station
+serve`` runs until it says where to open it, then is stopped as Ctrl+C stops it. An example that needs hardware a
+fresh machine lacks is skipped with its reason (:data:`HARDWARE`); the long ones are marked slow (:data:`SLOW`,
+``pytest -m slow``).
 """
 
 from __future__ import annotations
 
-import fcntl
-import json
-import os
 import shlex
 import shutil
 import signal
 import socket
 import subprocess
-import sys
 import threading
 import time
-from contextlib import contextmanager
-from pathlib import Path
 
 import pytest
-from PIL import Image
 
 from station.cli import build_parser
 
+from .conftest import environment, locked, prepared, run, run_folder
 from .test_cli_help import examples_of
-
-REPO = Path(__file__).resolve().parents[2]
 
 #: Examples that cannot run on a fresh machine, and why.
 HARDWARE = {
@@ -62,6 +57,12 @@ SLOW = {
     "station loop ballrun --world 'sim://world?seed=3&place_mm=3' --attempts 8 --loops 3 --json",
     "station loop causalityswitch_ball --world 'sim://world?seed=2&ruler_mm=1' --jigs",  # CAUSALITYSWITCH's budgets
     "station assemble causalityswitch_ball success --world 'sim://world?seed=2' --jigs",  # its tolerance map: ~40 s
+    # builds every machine's candidate database first; tests/station/commands/test_sketch.py runs the same command on one
+    "station retrieve examples/sketches/trefoil-sector.json --top 5 --out retrieval",
+    # the full-size projector's Gray-code patterns; tests/calibration/test_projector_map.py maps a small linked pair
+    # through the same command
+    "station calibrate projector --camera 'sim://camera?projector=wall' "
+    "--projector 'sim://projector?name=wall&area=-300,-190,300,190'",
 }
 
 #: What a maker types into an interactive example: skip the guide's steps, Enter once placed, run as placed (a:
@@ -115,138 +116,6 @@ def marks(example: str):
     return [pytest.mark.slow] if example in SLOW else []
 
 
-# -- the workshop ---------------------------------------------------------------------------------------------------
-
-def environment(home: Path) -> dict[str, str]:
-    env = dict(os.environ, CHAOS_STATION_HOME=str(home), TERM="dumb")
-    env.pop("CHAOS_STATION_CONFIG", None)
-    env.pop("CHAOS_STATION_DATABASE", None)
-    env["PATH"] = f"{Path(sys.executable).parent}{os.pathsep}{env.get('PATH', '')}"
-    return env
-
-
-def run(command: str, folder: Path, *, answers: str | None = None, timeout: float = 600):
-    """``command`` in a shell in ``folder`` with the station home ``folder/home``; one that outlives ``timeout``
-    seconds is stopped as ``kill`` stops it (SIGTERM: the station shuts its simulation pools down) and fails."""
-    process = subprocess.Popen(["bash", "-c", command], cwd=folder, env=environment(folder / "home"),
-                               stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-                               start_new_session=True)
-    try:
-        out, err = process.communicate(answers or "", timeout=timeout)
-    except subprocess.TimeoutExpired:
-        os.killpg(process.pid, signal.SIGTERM)
-        try:
-            out, err = process.communicate(timeout=60)
-        except subprocess.TimeoutExpired:
-            os.killpg(process.pid, signal.SIGKILL)
-            out, err = process.communicate()
-        pytest.fail(f"`{command}` did not finish within {timeout:g} s; it said:\n{err[-2000:]}")
-    return subprocess.CompletedProcess(process.args, process.returncode, out, err)
-
-
-def prepare(folder: Path, command: str) -> None:
-    done = run(command, folder)
-    tail = "\n".join(done.stderr.strip().splitlines()[-5:])
-    assert done.returncode == 0, f"preparing the workshop: `{command}` exited {done.returncode}:\n{tail}"
-
-
-def write_camera_images(folder: Path) -> None:
-    """What a maker's camera gives: views of the printed ChArUco board (shots/), a frame of SIMPLE's layout.json
-    placed as its guide draws it (frame.png) and a photo of the run (run3.jpg); rendered by the camera twin for a
-    camera 1 m above the table."""
-    from calibration.evaluate import board_views
-    from design.contraption import load_scenario
-    from design.contraption.layout_io import read_layout
-    from drivers.sim.camera_render import render
-    from drivers.sim.camera_scene import CameraModel, PlaneScene, RenderOptions, TagItem
-    from projector.build import build_guide
-
-    scenario = load_scenario(folder / "examples" / "scenarios" / "simple.toml")
-    guide = build_guide(scenario, read_layout(folder / "layout.json", scenario).x)
-    u0, v0, u1, v1 = guide.extent_mm
-    camera = CameraModel.looking_down(target_mm=((u0 + u1) / 2, (v0 + v1) / 2), height_mm=1000.0)
-    tags = [TagItem(t.id, t.center_mm, t.size_mm) for t in guide.reference_tags]
-    tags += [TagItem(view.tag_id, view.tag_center_mm, view.tag_size_mm, view.tag_heading_deg, view.tag_height_mm)
-             for part in guide.parts for view in part.tag_views()]
-    frame, _ = render(PlaneScene(tags=tuple(tags)), camera,
-                      RenderOptions(blur_px=0.8, noise=2.0, jpeg_quality=90, supersample=2, seed=3))
-    Image.fromarray(frame).save(folder / "frame.png")
-    Image.fromarray(frame).save(folder / "run3.jpg", quality=85)
-    (folder / "shots").mkdir()
-    views = board_views(8, camera.camera_matrix, camera.dist_coeffs, camera.image_size, seed=21,
-                        options=RenderOptions(blur_px=0.7, noise=2.0, supersample=1, seed=21))
-    for name, image in views:
-        Image.fromarray(image).save(folder / "shots" / f"{name}.jpg", quality=92)
-
-
-def write_ballrun_layout(folder: Path) -> None:
-    """ballrun-layout.json: the layout BALLRUN's scenario names ``success``, as a layout file."""
-    from design.contraption import load_scenario
-
-    scenario = load_scenario(folder / "examples" / "scenarios" / "ballrun.toml")
-    values = dict(zip(scenario.design_space.names, map(float, scenario.layout("success"))))
-    (folder / "ballrun-layout.json").write_text(json.dumps({"parameters": values}, indent=2) + "\n")
-
-
-def make_workshop(folder: Path) -> None:
-    folder.mkdir(parents=True)
-    shutil.copytree(REPO / "examples", folder / "examples")
-    prepare(folder, "station optimize examples/scenarios/simple.toml --budget 40 --seed 1 --out layout.json")
-    write_ballrun_layout(folder)
-    prepare(folder, "station guide simple layout.json --json > guide.json")
-    write_camera_images(folder)
-    prepare(folder, "station calibrate camera --images shots/ --out desk.json")
-    prepare(folder, "station calibrate camera --images shots/ --name desk")
-    for trial in ("simple success --outcome last_stops=yes --time last_topples=1.4",
-                  "simple success --outcome first_topples=no",
-                  "simple failure --outcome ball_hits_domino=no",
-                  "ballrun success --outcome ball_stops=yes",
-                  "ballrun failure --outcome ball_in_goblet=no"):
-        prepare(folder, f"station trial log {trial} --predict 0")
-    prepare(folder, "station calibrate sim simple --out simple-physics.toml")
-    prepare(folder, "station check simple layout.json --guide guide.json --out check.json --predict 0")
-    prepare(folder, "station trial export --out trials.json")
-    prepare(folder, "station plot spirograph --set d=2.5 --size 150 --out spiro.gcode")
-    prepare(folder, "station jigs causalityswitch_ball success --out switch-jigs --material mdf_3mm --sheet 300x200")
-    # a laser test card, burned and photographed on the twins (what a maker's laser and phone give)
-    prepare(folder, "station lasertest card --profile laser --material plywood_3mm --out card")
-    prepare(folder, "station lasertest render --card card/card.json --out card/frame.png")
-    if shutil.which("openssl"):
-        subprocess.run(["openssl", "req", "-x509", "-newkey", "rsa:2048", "-nodes", "-keyout", "station.key", "-out",
-                        "station.pem", "-days", "2", "-subj", "/CN=localhost"], cwd=folder, check=True,
-                       capture_output=True)
-    (folder / "ready").write_text("")
-
-
-@contextmanager
-def locked(path: Path):
-    """An exclusive lock on ``path`` across processes (pytest-xdist's workers share the base temporary folder)."""
-    with open(path, "w") as handle:
-        fcntl.flock(handle, fcntl.LOCK_EX)
-        try:
-            yield
-        finally:
-            fcntl.flock(handle, fcntl.LOCK_UN)
-
-
-def run_folder(tmp_path_factory) -> Path:
-    """This test run's base temporary folder, shared by its pytest-xdist workers (each has a folder in it)."""
-    base = tmp_path_factory.getbasetemp()
-    return base.parent if os.environ.get("PYTEST_XDIST_WORKER") else base
-
-
-@pytest.fixture(scope="session")
-def workshop(tmp_path_factory) -> Path:
-    """The prepared workshop, made once for every worker of the run."""
-    shared = run_folder(tmp_path_factory)
-    folder = shared / "cli-examples-workshop"
-    with locked(shared / "cli-examples-workshop.lock"):
-        if not (folder / "ready").exists():
-            shutil.rmtree(folder, ignore_errors=True)
-            make_workshop(folder)
-    return folder
-
-
 # -- the examples ---------------------------------------------------------------------------------------------------
 
 def test_the_examples_are_found():
@@ -264,9 +133,13 @@ def test_every_table_names_an_example():
 @pytest.mark.parametrize("example", [pytest.param(e, marks=marks(e), id=e) for e in EXAMPLES
                                      if not e.startswith(SERVE)])
 def test_the_example_runs_as_written(example, workshop, tmp_path):
-    folder = tmp_path / "workshop"
-    shutil.copytree(workshop, folder, symlinks=True)
-    done = run(example, folder, answers=ANSWERS.get(example), timeout=4 * 3600 if example in SLOW else 900)
+    done = prepared(workshop).get(example)
+    if done is not None:  # the workshop ran this very command to prepare itself: that run is the example's
+        folder = workshop
+    else:
+        folder = tmp_path / "workshop"
+        shutil.copytree(workshop, folder, symlinks=True)
+        done = run(example, folder, answers=ANSWERS.get(example), timeout=4 * 3600 if example in SLOW else 900)
     tail = "\n".join((done.stderr.strip() or done.stdout.strip()).splitlines()[-8:])
     assert done.returncode == 0, f"`{example}` exited {done.returncode}:\n{tail}"
     assert "Traceback" not in done.stderr + done.stdout, f"`{example}` printed a traceback:\n{done.stderr}"

@@ -12,7 +12,7 @@ from station.db import MIGRATIONS, Database, DatabaseBusy, DatabaseError, open_d
 
 #: The trial log's tables (migration 3; sqlite_sequence is SQLite's own, for AUTOINCREMENT ids).
 TRIAL_TABLES = {"scenarios", "trials", "trial_events", "sqlite_sequence"}
-#: The station loop's tables (migration 4, issue 21).
+#: The station loop's tables (migration 4).
 LOOP_TABLES = {"loop_runs", "loop_loops", "loop_attempts", "optimized_layouts"}
 
 

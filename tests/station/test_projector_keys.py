@@ -14,8 +14,8 @@ from drivers.devices import projector_identity
 from drivers.sim.projector import SimulatedProjector
 from station.cli import main
 from station.devices import default_devices
-from station.services.errors import ServiceError
-from station.services.guide import make_guide, show_step
+from station.errors import ServiceError
+from station.services.guide import GuideRequest, make_guide, show_step
 from station.services.projector_calibration import projector_map_file
 from station.services.projectors import projector_device, projector_homography, projector_key, projector_mapping
 
@@ -63,7 +63,7 @@ def test_a_map_measured_on_one_projector_is_kept_and_used_for_that_projector_onl
 
 def test_the_steps_on_an_open_projector_go_through_its_own_map(capsys):
     calibrate(capsys)
-    job = make_guide("simple", "success", tolerances=False)
+    job = make_guide(GuideRequest("simple", "success", tolerances=False))
     with SimulatedProjector("sim://projector?size=320x200") as unnamed:
         assert show_step(job, unnamed, 1) is False and projector_homography(unnamed) is None
     with SimulatedProjector("sim://projector?name=wall&size=320x200") as wall:

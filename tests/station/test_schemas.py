@@ -26,6 +26,8 @@ from referencing import Registry, Resource
 
 from station.schemas import FORMATS, all_schemas, load_schema
 
+from ..conftest import made_once
+
 REPO = Path(__file__).resolve().parents[2]
 
 
@@ -41,12 +43,24 @@ def problems(name: str, document) -> list[str]:
 
 
 @pytest.fixture(scope="module")
-def workshop(tmp_path_factory):
-    """The outputs of one maker's session, every command as typed: {name: parsed JSON}."""
-    folder = tmp_path_factory.mktemp("workshop")
+def outputs(workshop, tmp_path_factory):
+    """The outputs of one maker's session, every command as typed: {name: parsed JSON}; made once per test run
+    (``made_once``, tests/conftest.py) however the workers share this module's tests."""
+    folder = made_once(tmp_path_factory, "format-outputs", lambda folder: make_outputs(workshop, folder))
+    return json.loads((folder / "outputs.json").read_text())
+
+
+def make_outputs(workshop: Path, folder: Path) -> None:
+    """outputs.json in ``folder``: what :func:`outputs` gives. The layout (``station optimize simple --budget 40
+    --seed 1``), the jigs and the laser test card are the prepared workshop's (tests/conftest.py), read from a
+    copy; the rest runs here, with a station home of its own."""
     shutil.copytree(REPO / "examples", folder / "examples")
+    for name in ("layout.json", "switch-jigs", "card"):
+        copy_into = shutil.copytree if (workshop / name).is_dir() else shutil.copy2
+        copy_into(workshop / name, folder / name)
     env = dict(os.environ)
-    env["CHAOS_STATION_HOME"] = str(tmp_path_factory.mktemp("home"))
+    (folder / "home").mkdir()
+    env["CHAOS_STATION_HOME"] = str(folder / "home")
     env["PATH"] = f"{Path(sys.executable).parent}{os.pathsep}{env.get('PATH', '')}"
 
     def station(command: str) -> str:
@@ -58,10 +72,8 @@ def workshop(tmp_path_factory):
     out: dict[str, object] = {}
     out["devices"] = json.loads(station("devices --json"))
     out["devices --no-probe"] = json.loads(station("devices --json --no-probe"))
-    station("optimize simple --budget 40 --seed 1 --predict 16 --out layout.json")
     out["layout"] = json.loads((folder / "layout.json").read_text())
     out["manifest"] = json.loads(station("guide simple layout.json --json"))
-    station("jigs causalityswitch_ball success --out switch-jigs")
     out["jigs"] = json.loads((folder / "switch-jigs" / "jigs.json").read_text())
     out["manifest with jigs"] = json.loads(station("guide causalityswitch_ball success --jigs switch-jigs --json"))
     out["check"] = json.loads(station("check simple layout.json --camera sim://camera --predict 8 --json"))
@@ -76,9 +88,8 @@ def workshop(tmp_path_factory):
     out["trials"] = json.loads((folder / "trials.json").read_text())
     out["loop"] = json.loads(station("loop simple --world 'sim://world?seed=1' --attempts 1 --loops 1 --budget 20 "
                                      "--reoptimize-budget 20 --json"))
-    station("lasertest card --profile laser --material plywood_3mm --power 0.4:1:2 --feed 300:3000:2 --out card")
     out["test card"] = json.loads((folder / "card" / "card.json").read_text())
-    return out
+    (folder / "outputs.json").write_text(json.dumps(out))
 
 
 #: (schema, output of the workshop) pairs: every schema has at least one real output.
@@ -104,8 +115,8 @@ def test_the_schemas_are_package_data():
 
 
 @pytest.mark.parametrize(("schema", "output"), CASES)
-def test_the_real_output_matches_its_schema(workshop, schema, output):
-    assert problems(schema, workshop[output]) == []
+def test_the_real_output_matches_its_schema(outputs, schema, output):
+    assert problems(schema, outputs[output]) == []
 
 
 def undescribed(document, schema: dict, path: str = "") -> list[str]:
@@ -133,19 +144,19 @@ def undescribed(document, schema: dict, path: str = "") -> list[str]:
 
 
 @pytest.mark.parametrize(("schema", "output"), CASES)
-def test_every_field_of_the_real_output_is_in_its_schema(workshop, schema, output):
-    assert sorted(set(undescribed(workshop[output], load_schema(schema)))) == []
+def test_every_field_of_the_real_output_is_in_its_schema(outputs, schema, output):
+    assert sorted(set(undescribed(outputs[output], load_schema(schema)))) == []
 
 
-def test_the_outputs_exercise_what_the_schemas_constrain(workshop):
+def test_the_outputs_exercise_what_the_schemas_constrain(outputs):
     """The cases are not empty shells: the optional and nullable parts the schemas describe are really there."""
-    assert workshop["manifest with jigs"]["jigs"] and workshop["jigs"]["jigs"]
-    assert "model" in workshop["layout"] and "physical_success" in workshop["layout"]
-    misplaced = next(p for p in workshop["check misplaced"]["parts"] if p["name"] == "track")
+    assert outputs["manifest with jigs"]["jigs"] and outputs["jigs"]["jigs"]
+    assert "model" in outputs["layout"] and "physical_success" in outputs["layout"]
+    misplaced = next(p for p in outputs["check misplaced"]["parts"] if p["name"] == "track")
     assert misplaced["error"]["distance_mm"] > 5
-    trials = workshop["trials"]["trials"]
+    trials = outputs["trials"]["trials"]
     assert len(trials) == 2 and trials[0]["check"] is not None and trials[1]["check"] is None
-    assert workshop["loop"]["loops"] and workshop["loop"]["baseline"]["attempts"] >= 1
+    assert outputs["loop"]["loops"] and outputs["loop"]["baseline"]["attempts"] >= 1
 
 
 @pytest.mark.parametrize(("schema", "output", "breaking"), [
@@ -163,7 +174,7 @@ def test_the_outputs_exercise_what_the_schemas_constrain(workshop):
     ("test-card", "test card", lambda d: d["cells"][0].pop("cut_line_mm")),
     ("test-card", "test card", lambda d: d["comb"].update(power=1.5)),
 ])
-def test_a_broken_output_fails_its_schema(workshop, schema, output, breaking):
-    document = copy.deepcopy(workshop[output])
+def test_a_broken_output_fails_its_schema(outputs, schema, output, breaking):
+    document = copy.deepcopy(outputs[output])
     breaking(document)
     assert problems(schema, document), f"{schema}.schema.json accepted a broken {output}"

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import pytest
 
-from station.services.errors import ServiceError
+from station.errors import ServiceError
 from station.services.trials import load_trial_scenario, parse_outcomes, parse_times
 from station.trialformat import check_times, complete_outcomes, goal_reached, scenario_from_content
 

@@ -1,4 +1,5 @@
-"""Assemble screen: a contraption layout as a step-by-step assembly guide (thesis 4.8.1, 5.2.3).
+"""Assemble screen: one physical attempt of a contraption layout, from its step-by-step guide to the logged trial
+(thesis 4.8.1, 5.2.3), and what the log then teaches.
 
 Pick a scenario and a layout (a LAYOUT.json path, a layout named in the scenario, or nothing for the scenario's own
 layout) and press Enter (or the button): the guide is built in a worker, drawn here with the current step highlighted,
@@ -8,25 +9,28 @@ the table, e.g. its underside's height above the table and its tilt), t shows th
 must be placed), e writes the 1:1 PDF sheets and the SVG to the station's data folder (``guides/``, named by the
 scenario, the layout and a hash of its values, so that one layout's export never replaces another's), j writes the
 layout's laser-cut jigs there (``jigs/``, named the same: ``station jigs``'s files) and queues their laser job on the
-Machines screen, 0 shows the calibrate frame. c checks the placed parts with the station's camera (``sim://camera`` by
-default, shown the guide's tags at their designed poses): the camera frame with the check drawn on it, a table of every
-tagged part (how far it is off, within its tolerance or not, what to do), the predicted success as placed, and the
-projector shows an arrow per misplaced part to where it must go; press c again after moving them. The jigs
-switch builds the guide on the layout's laser-cut jigs (its steps set the parts they carry on them; a simulated world's
-maker cuts them on the laser twin first). The Robust layouts screen opens its result here with a.
+Machines screen, 0 shows the calibrate frame. The jigs switch builds the guide on the layout's laser-cut jigs (its
+steps set the parts they carry on them; a simulated world's maker cuts them on the laser twin first). The Robust
+layouts screen opens its result here with a.
 
-The whole attempt (:mod:`station.services.assemble`, as ``station assemble``): c after placing the parts checks them
-(with a simulated world, ``sim://world?seed=S`` in the World field, the simulated maker places them first and the
-camera sees them where they are), f says they were moved as the check said and checks again, a accepts them as
-placed, r runs the contraption (the world runs it and reports; on a real table tick what happened: y / n / u per
-event), l logs the trial with the check and the physics profile, g starts another attempt. k calibrates the
-physics on the scenario's logged trials (the Calibrate > Simulator fit, of every material value as ``station loop``
-fits them) and puts the profile in the Physics field; o
-re-optimizes the layout with it and puts the new LAYOUT.json in the Layout field. The box at the top left always
-shows the attempt's stage, its predicted physical success and expected attempts (made again after the guide, every
-check and every logged trial); the progress of a check, a calibration or a re-optimization is right under it, above
-the fields, where no status text can push it out of view. The footer's labels are short so that every key shows
-in 160 columns.
+The attempt is :class:`station.services.assemble.Assembly`'s, the one ``station assemble`` walks through: c after
+placing the parts checks them with the station's camera (``sim://camera`` by default; with a simulated world,
+``sim://world?seed=S`` in the World field, the simulated maker places them first and the camera sees them where they
+are): the camera frame with the check drawn on it, a table of every tagged part (how far it is off, within its
+tolerance or not, what to do), and the projector shows an arrow per misplaced part to where it must go. f says they
+were moved as the check said and checks again, a accepts them as placed, r runs the contraption (the world runs it
+and reports; on a real table tick what happened: y / n / u per event), l logs the trial with the check and the
+physics profile, g starts another attempt. k calibrates the physics on the scenario's logged trials (the Calibrate >
+Simulator fit, of every material value as ``station loop`` fits them) and puts the profile in the Physics field; o
+re-optimizes the layout with it and puts the new LAYOUT.json in the Layout field; s stops either.
+
+The box at the top left always shows the attempt's stage, its predicted physical success and expected attempts (made
+again after the guide, every check and every logged trial); the progress of a check, a calibration or a
+re-optimization is right under it, above the fields, where no status text can push it out of view. The footer's
+labels are short so that every key shows in 160 columns. Every slow step is one service call in a worker
+(:func:`station.tui.work.run_work`) that ends with its own message (:mod:`station.tui.messages`); the guide, the check
+and the forecast are drawn by their widgets (:mod:`station.tui.widgets.assemble_guide`,
+:mod:`station.tui.widgets.assemble_check`, :mod:`station.tui.widgets.assemble_flow`).
 """
 
 from __future__ import annotations
@@ -35,59 +39,52 @@ from pathlib import Path
 
 from PIL import Image
 from rich.text import Text
-from textual import on, work
+from textual import on
 from textual.app import ComposeResult
 from textual.binding import Binding
 from textual.containers import Horizontal, Vertical
 from textual.css.query import NoMatches
-from textual.message import Message
 from textual.screen import Screen
 from textual.widgets import Button, DataTable, Footer, Header, Input, Label, Select, Static, Switch
 
-from design.errors import DesignError
-from drivers.errors import DriverError
-from projector.errors import ProjectorError
-from projector.overlay import misplaced
-from station.errors import StationError
-from station.paths import data_dir
+from station.errors import USER_ERRORS
 from station.services import assemble as flow
 from station.services import check as checks
 from station.services import guide as service
+from station.services.jig_plan import plan_guide_jigs
+from station.services.jigs import cut_jigs, write_jig_outputs
+from station.services.layout_choice import describe_choice
 from station.services.projectors import configured_projector, mapping_of, open_projector
+from station.services.reporting import Reporter
+from station.tui.messages import (
+    AttemptForecast,
+    AttemptLogged,
+    AttemptRan,
+    GuideBuilt,
+    GuideExported,
+    JigsMade,
+    LayoutReoptimized,
+    PartsChecked,
+    PhysicsCalibrated,
+    ProgressReported,
+    StepProjected,
+)
 from station.tui.registry import ScreenEntry
-from station.tui.screens._assemble_flow import AttemptFlow
-from station.tui.widgets.assemble_flow import ForecastStatus
+from station.tui.widgets.assemble_check import CheckTable, check_lines
+from station.tui.widgets.assemble_flow import NEXT, ForecastStatus
+from station.tui.widgets.assemble_guide import PartParameters, StepsTable, ToleranceTable
 from station.tui.widgets.outcomes import OutcomeTable
 from station.tui.widgets.picture import HalfBlockPicture
-from station.tui.widgets.progress import ProgressPanel, ProgressReported
+from station.tui.widgets.progress import ProgressPanel
 from station.tui.widgets.scenario_select import scenario_choices, select_scenario
+from station.tui.work import run_work
 
 #: The frames drawn here (and sent to a projector of another size, which letterboxes them).
 FRAME_SIZE = (960, 600)
-CARE_STYLE = {"tight": "red", "normal": "dark_orange", "loose": "green"}
-#: How the parameters table says each is set (projector.guide.SET_WITH).
-HOW_TEXT = {"sheet": "on the sheet", "ruler": "ruler", "jig": "jig", "check": "sheet + camera check"}
 
 
-class GuideLoaded(Message):
-    """A guide was built (``job`` and its ``frames``, the attempt ``assembly``), or could not be (``error``)."""
-
-    def __init__(self, job=None, frames=None, error: str = "", projector: str = "", assembly=None) -> None:
-        super().__init__()
-        self.job, self.frames, self.error, self.projector = job, frames, error, projector
-        self.assembly = assembly
-
-
-class CheckDone(Message):
-    """A check ended: its result (``check``, and the camera frame with the check drawn, ``picture``) or ``error``."""
-
-    def __init__(self, check=None, picture=None, error: str = "") -> None:
-        super().__init__()
-        self.check, self.picture, self.error = check, picture, error
-
-
-class AssembleScreen(AttemptFlow, Screen):
-    """Step through a layout's assembly guide; the projector follows."""
+class AssembleScreen(Screen):
+    """One attempt: the guide (the projector follows), the check, the run, the log; then calibrate, re-optimize."""
 
     CSS = """
     AssembleScreen #controls { width: 38; padding: 0 1; overflow-y: auto; }
@@ -126,6 +123,17 @@ class AssembleScreen(AttemptFlow, Screen):
         Binding("s", "stop", "Stop", show=False),
     ]
 
+    #: Simulations per forecast, and the processes they run in (None: all cores); tests shrink both.
+    forecast_samples = flow.DEFAULT_SAMPLES
+    simulation_workers: int | None = None
+    #: The calibration's sizes (None: the defaults) and the re-optimization's budget; tests shrink them.
+    fit_settings = None
+    #: k fits every material value, the plain ones within their default ranges (as ``station loop`` does): on a
+    #: table the plain numbers are as unknown as the marked ones.
+    every_material = True
+    optimize_budget = 40
+    optimize_settings = None
+
     def __init__(self) -> None:
         super().__init__(name="assemble")
         self.job = None
@@ -135,10 +143,13 @@ class AssembleScreen(AttemptFlow, Screen):
         self.projector = None
         self._projector_context = None
         self._pending: tuple[str, str] | None = None
-        #: The last check (a station.services.check.CheckJob), and the guide job it was made against.
+        #: The attempt (a station.services.assemble.Assembly), its last check and its last forecast.
+        self.assembly = None
         self.check = None
-        self._check_job = None
-        self._init_flow()
+        self.forecast = None
+        self.physics: str | None = None
+        self._busy = ""
+        self._learning = None  # the calibration or re-optimization running (s stops it)
 
     def compose(self) -> ComposeResult:
         yield Header()
@@ -167,25 +178,18 @@ class AssembleScreen(AttemptFlow, Screen):
             with Vertical(id="main"):
                 yield HalfBlockPicture(id="frame", empty="(no guide yet: pick a scenario and a layout, press Enter)")
                 yield Static("", id="caption")
-                yield DataTable(id="steps", cursor_type="row", zebra_stripes=True)
-                yield Static("", id="parameters")
-                yield DataTable(id="tolerances", cursor_type="row", zebra_stripes=True)
-                yield DataTable(id="check", cursor_type="row", zebra_stripes=True)
+                yield StepsTable(id="steps", cursor_type="row", zebra_stripes=True)
+                yield PartParameters("", id="parameters")
+                yield ToleranceTable(id="tolerances", cursor_type="row", zebra_stripes=True)
+                yield CheckTable(id="check", cursor_type="row", zebra_stripes=True)
                 yield OutcomeTable(id="outcomes", on_change=self.outcomes_changed)
         # compact, without the palette's key (ctrl+p still opens it): every key fits in 160 columns, the outcome
         # table's y / n / u included
         yield Footer(compact=True, show_command_palette=False)
 
     def on_mount(self) -> None:
-        self.query_one("#steps", DataTable).add_columns("step", "part", "kind", "tag", "centre mm", "care")
-        self.query_one("#parameters", Static).display = False
-        table = self.query_one("#tolerances", DataTable)
-        table.add_columns("part", "parameter", "± delta", "predicted", "measured")
-        table.display = False
-        check = self.query_one("#check", DataTable)
-        check.add_columns("part", "tag", "du mm", "dv mm", "dist mm", "turn deg", "ok", "cost", "what to do")
-        check.display = False
-        self.query_one("#outcomes", OutcomeTable).display = False
+        for name in ("#parameters", "#tolerances", "#check", "#outcomes"):
+            self.query_one(name).display = False
         self._show_forecast()
         if self._pending is not None:
             scenario, layout = self._pending
@@ -195,10 +199,27 @@ class AssembleScreen(AttemptFlow, Screen):
     def on_unmount(self) -> None:
         self._close_projector()
 
-    # -- controls -------------------------------------------------------------------------------------------------
+    # -- what is shown ------------------------------------------------------------------------------------------
     def _set_status(self, text: str | Text, style: str = "") -> None:
         self.query_one("#status", Static).update(text if isinstance(text, Text) else Text(text, style=style))
 
+    def _show_forecast(self, extra: str = "") -> None:
+        a = self.assembly
+        self.query_one("#forecast", ForecastStatus).show(None if a is None else a.stage,
+                                                         None if a is None else a.attempt, self.forecast,
+                                                         self._busy, extra)
+
+    def _set_busy(self, text: str) -> None:
+        self._busy = text
+        self._show_forecast()
+
+    def _panel(self) -> ProgressPanel:
+        return self.query_one("#check-progress", ProgressPanel)
+
+    def on_progress_reported(self, message: ProgressReported) -> None:
+        self._panel().show(message.progress)
+
+    # -- the guide ----------------------------------------------------------------------------------------------
     @on(Button.Pressed, "#build")
     @on(Input.Submitted, "#layout")
     @on(Input.Submitted, "#world")
@@ -237,34 +258,25 @@ class AssembleScreen(AttemptFlow, Screen):
         if scenario is Select.BLANK:
             self._set_status("pick a scenario first", "red")
             return
-        layout = self.query_one("#layout", Input).value.strip()
+        layout = self.query_one("#layout", Input).value.strip() or None
         view = self.query_one("#view", Select).value
-        self._set_status("building the guide (outlines, order, tolerances)…")
-        self.query_one("#steps", DataTable).focus()
+        view = None if view == "auto" else str(view)
         world = self.query_one("#world", Input).value.strip() or None
         physics = self.query_one("#physics", Input).value.strip() or None
         jigs = self.query_one("#jigs", Switch).value
+        self._set_status("building the guide (outlines, order, tolerances)…")
+        self.query_one("#steps", StepsTable).focus()
         if self.assembly is not None:
             self.assembly.close()
-        self._build(str(scenario), layout or None, None if view == "auto" else str(view), world, physics, jigs)
+        samples, workers = self.forecast_samples, self.simulation_workers
 
-    @work(thread=True, exclusive=True, group="assemble")
-    def _build(self, scenario: str, layout: str | None, view: str | None, world: str | None = None,
-               physics: str | None = None, jigs: bool = False) -> None:
-        from station.db import database_url
-        from station.services.trials import open_store
+        def build(report: Reporter):
+            said = self._ensure_projector()
+            assembly = flow.open_assembly(str(scenario), layout, view=view, world=world, physics=physics, jigs=jigs,
+                                          projector=self.projector, samples=samples, workers=workers)
+            return assembly, service.projected_frames(assembly.job, FRAME_SIZE), said
 
-        said = self._ensure_projector()
-        try:
-            with open_store(database_url()) as store:
-                assembly = flow.open_assembly(scenario, layout, view=view, world=world, physics=physics, jigs=jigs,
-                                              projector=self.projector, store=store, samples=self.forecast_samples,
-                                              workers=self.simulation_workers)
-            frames = service.projected_frames(assembly.job, FRAME_SIZE)
-        except (DesignError, ProjectorError, StationError, DriverError, OSError) as error:
-            self.post_message(GuideLoaded(error=f"cannot build the guide: {error}"))
-            return
-        self.post_message(GuideLoaded(assembly.job, frames, projector=said, assembly=assembly))
+        run_work(self, build, GuideBuilt, group="assemble")
 
     def _ensure_projector(self) -> str:
         """Open the configured projector once (in the worker: a display takes a moment); what to say about it."""
@@ -279,7 +291,7 @@ class AssembleScreen(AttemptFlow, Screen):
             context = open_projector(device)
             self.projector = context.__enter__()
             self._projector_context = context
-        except (DriverError, StationError) as error:
+        except USER_ERRORS as error:
             return f"{said}: {error}"
         return f"{said} ({device.url}) follows the steps"
 
@@ -288,44 +300,29 @@ class AssembleScreen(AttemptFlow, Screen):
         if context is not None:
             try:
                 context.__exit__(None, None, None)
-            except DriverError:
+            except USER_ERRORS:
                 pass  # closing a projector that has gone: nothing left to blank
 
-    def on_guide_loaded(self, message: GuideLoaded) -> None:
-        if message.job is None:
-            self._set_status(message.error, "red")
+    def on_guide_built(self, message: GuideBuilt) -> None:
+        if not message.ok:
+            self._set_status(f"cannot build the guide: {message.error}", "red")
             return
-        self.job, self.frames = message.job, message.frames
+        assembly, self.frames, said = message.result
+        self.job = assembly.job
         self.physics = self.query_one("#physics", Input).value.strip() or None
-        self._attempt_started(message.assembly)
+        self.assembly, self.forecast, self.check = assembly, None, None
+        self.query_one("#outcomes", OutcomeTable).display = False
+        self._refresh_forecast()
         guide = self.job.guide
-        steps = self.query_one("#steps", DataTable)
-        steps.clear()
-        for part in guide.parts:
-            care = Text(part.care or "-", style=CARE_STYLE.get(part.care or "", ""))
-            steps.add_row(str(part.step), Text(part.name), str(part.kind),
-                          "-" if part.tag_id is None else str(part.tag_id),
-                          f"({part.center_mm[0]:.1f}, {part.center_mm[1]:.1f})", care, key=part.name)
-        self._fill_tolerances()
+        self.query_one("#steps", StepsTable).load(guide)
+        self.query_one("#tolerances", ToleranceTable).load(guide)
         mapping = None if self.projector is None else mapping_of(self.projector)  # the one the steps go through
         scale = "" if mapping is None else f"; {mapping.scale_text()}"
         source = {"none": "no tolerances (the layout carries no success model)"}.get(
             guide.tolerance_source, f"tolerances from {guide.tolerance_source}")
         self._set_status(f"{guide.scenario}: {self.job.layout.describe()}, {guide.view} view, {len(guide.parts)} "
-                         f"parts, {source}. {message.projector}{scale}. n/p: steps, t: tolerances, e: export")
+                         f"parts, {source}. {said}{scale}. n/p: steps, t: tolerances, e: export")
         self.show_step(1 if guide.parts else 0)
-
-    def _fill_tolerances(self) -> None:
-        table = self.query_one("#tolerances", DataTable)
-        table.clear()
-        for part in self.job.guide.parts:
-            for tolerance in part.tolerances:
-                delta = "-" if tolerance.delta is None else f"{tolerance.delta:.1f} {tolerance.unit}"
-                if tolerance.bound_limited:  # only a lower bound: the layout sits at its range's end
-                    delta = f">= {delta} (range end)"
-                table.add_row(Text(part.name), Text(tolerance.parameter), delta,
-                              "-" if tolerance.predicted is None else f"{tolerance.predicted:.2f}",
-                              "-" if tolerance.measured is None else f"{tolerance.measured:.2f}")
 
     # -- steps ----------------------------------------------------------------------------------------------------
     def show_step(self, step: int) -> None:
@@ -340,35 +337,22 @@ class AssembleScreen(AttemptFlow, Screen):
                    else self.job.steps[self.step - 1])
         self.query_one("#caption", Static).update(Text(caption))
         if self.step:
-            self.query_one("#steps", DataTable).move_cursor(row=self.step - 1)
-        self._fill_parameters()
+            self.query_one("#steps", StepsTable).move_cursor(row=self.step - 1)
+        part = self.job.guide.parts[self.step - 1] if self.step else None
+        self.query_one("#parameters", PartParameters).show(part)
         if self.projector is not None:
-            self._project(self.step)
+            # drawn at the projector's own size (the terminal's frames are smaller; one scaled up would be
+            # letterboxed, and no longer true to scale once calibrated)
+            job, projector, shown = self.job, self.projector, self.step or None
+            run_work(self, lambda report: service.show_step(job, projector, shown), StepProjected, group="projector")
 
-    def _fill_parameters(self) -> None:
-        """The current step's part: a line per design parameter that moves it, with its value, tolerance, how to set
-        it and what it means at the table (hidden on the calibrate frame and for a part no parameter moves)."""
-        lines = self.query_one("#parameters", Static)
-        part = self.job.guide.parts[self.step - 1] if self.step and self.job is not None else None
-        settings = () if part is None else part.settings
-        text = Text()
-        for setting in settings:  # the meaning carries the tolerance: "... 58.7 mm (+-5.3 mm)"
-            if text:
-                text.append("\n")
-            text.append(f"{setting.name} = {setting.value:.1f} {setting.unit}", style="bold")
-            text.append(f"  [{HOW_TEXT.get(setting.set_with, setting.set_with)}]  ", style="cyan")
-            text.append(setting.meaning)
-        lines.update(text)
-        lines.display = bool(settings)
+    def on_step_projected(self, message: StepProjected) -> None:
+        if message.error:
+            self._set_status(f"projector: {message.error}", "red")
 
-    @work(thread=True, exclusive=True, group="projector")
-    def _project(self, step: int) -> None:
-        """Show ``step`` (0: the calibrate frame) on the projector, drawn at the projector's own size (the terminal's
-        frames are smaller; one scaled up would be letterboxed, and no longer true to scale once calibrated)."""
-        try:
-            service.show_step(self.job, self.projector, step or None)
-        except DriverError as error:
-            self.app.call_from_thread(self._set_status, f"projector: {error}", "red")
+    @on(DataTable.RowSelected, "#steps")
+    def _row_selected(self, event: DataTable.RowSelected) -> None:
+        self.show_step(event.cursor_row + 1)
 
     def action_next_step(self) -> None:
         self.show_step(self.step + 1)
@@ -380,126 +364,56 @@ class AssembleScreen(AttemptFlow, Screen):
         self.show_step(0)
 
     def action_tolerances(self) -> None:
-        table = self.query_one("#tolerances", DataTable)
+        table = self.query_one("#tolerances", ToleranceTable)
         table.display = not table.display
         if table.display and self.job is not None and not table.row_count:
             self._set_status("no tolerances: the layout carries no success model (station tolerances --verify N "
                              "estimates them by simulation)")
 
-    # -- the camera check -----------------------------------------------------------------------------------------
-    def action_check(self) -> None:
-        if self.job is None:
-            self._set_status("no guide yet: build one, place the parts, then press c", "red")
-            return
-        if not self._need("guide", "check"):
-            return
-        self.query_one("#check-progress", ProgressPanel).start(None, "grabbing a frame from the camera…")
-        self._check(self.job)
-
-    @work(thread=True, exclusive=True, group="check")
-    def _check(self, job, fix: bool = False) -> None:
-        """Grab a frame from the station's camera (the parts placed, or moved as the last check said with ``fix``),
-        check it, draw it; the projector then shows the check."""
-        try:
-            check = self._check_attempt(fix)
-            picture = checks.camera_overlay(check)
-        except (DesignError, ProjectorError, StationError, DriverError, ValueError, OSError) as error:
-            self.post_message(CheckDone(error=f"cannot check: {error}"))
-            return
-        self.post_message(CheckDone(check, picture))
-        if self.projector is not None and self.job is job:
-            try:
-                self.assembly.project_check()
-            except DriverError as error:
-                self.app.call_from_thread(self._set_status, f"projector: {error}", "red")
-
-    def on_progress_reported(self, message: ProgressReported) -> None:
-        self.query_one("#check-progress", ProgressPanel).show(message.progress)
-
-    def on_check_done(self, message: CheckDone) -> None:
-        panel = self.query_one("#check-progress", ProgressPanel)
-        if message.check is None:
-            panel.say(message.error)
-            self._set_status(message.error, "red")
-            return
-        self.check = message.check
-        report = message.check.report
-        table = self.query_one("#check", DataTable)
-        table.clear()
-        for part in report.parts:
-            error = part.error
-            numbers = (["-"] * 4 if error is None else
-                       [f"{error[0]:+.1f}", f"{error[1]:+.1f}", f"{error[2]:.1f}", f"{error[3]:+.1f}"])
-            # the check's one rule: no zone on the sheet (*) and off by 1 mm / 1 deg or more is to move
-            star = "*" if part.within_tolerance is None and error is not None else ""
-            ok = (Text("-", style="dim") if error is None else Text("NO" + star, style="bold red")
-                  if misplaced(part) else Text("yes" + star, style="green"))
-            table.add_row(Text(part.name), str(part.tag_id), *numbers, ok,
-                          "-" if part.cost is None else f"{part.cost:.2f}", Text(part.instruction), key=part.name)
-        for name in report.by_eye:
-            table.add_row(Text(name), "-", "", "", "", "", Text("by eye", style="dim"), "-",
-                          Text("check by eye against the sheet"), key=f"eye:{name}")
-        table.display = True
-        self.query_one("#frame", HalfBlockPicture).set_image(Image.fromarray(message.picture))
-        lines = checks.summary_lines(report, message.check.physical)
-        if any(part.found and part.within_tolerance is None for part in report.parts):
-            lines.append(f"yes*/NO*: {checks.no_zone_words()}")
-        if report.prediction_note:
-            lines.append(report.prediction_note)
-        self.query_one("#caption", Static).update(Text("\n".join(lines)))
-        panel.say(lines[0])
-        self._set_status("checked: " + "; ".join(lines[:2]) + ". Move the parts as the table says and press f to "
-                         "check again (a: accept as placed); n/p go back to the steps")
-        self._refresh_forecast()
-
-    @on(DataTable.RowSelected, "#steps")
-    def _row_selected(self, event: DataTable.RowSelected) -> None:
-        self.show_step(event.cursor_row + 1)
-
+    # -- export and jigs ------------------------------------------------------------------------------------------
     def action_export(self) -> None:
         if self.job is None:
             self._set_status("no guide yet: build one first", "red")
             return
-        folder = data_dir() / "guides"
-        folder.mkdir(parents=True, exist_ok=True)
-        stem = folder / service.export_name(self.job)
         self._set_status("writing the PDF and the SVG…")
-        self._export(stem.with_suffix(".pdf"), stem.with_suffix(".svg"))
+        job = self.job
 
-    @work(thread=True, exclusive=True, group="export")
-    def _export(self, pdf: Path, svg: Path) -> None:
-        try:
-            job = service.export_guide(self.job, pdf=pdf, svg=svg)
-        except (ProjectorError, StationError, OSError) as error:
-            self.app.call_from_thread(self._set_status, f"cannot export: {error}", "red")
+        def export(report: Reporter):
+            pdf, svg = flow.guide_files(job)
+            pdf.parent.mkdir(parents=True, exist_ok=True)
+            return pdf, svg, len(service.export_guide(job, pdf=pdf, svg=svg).guide.pages)
+
+        run_work(self, export, GuideExported, group="export")
+
+    def on_guide_exported(self, message: GuideExported) -> None:
+        if not message.ok:
+            self._set_status(f"cannot export: {message.error}", "red")
             return
-        pages = len(job.guide.pages)
-        self.app.call_from_thread(self._set_status, f"wrote {pdf} ({pages} sheets and the steps; print at 100 %, "
-                                  f"check the 100 mm bar) and {svg}")
+        pdf, svg, pages = message.result
+        self._set_status(f"wrote {pdf} ({pages} sheets and the steps; print at 100 %, check the 100 mm bar) and {svg}")
 
     def action_jigs(self) -> None:
         if self.job is None:
             self._set_status("no guide yet: build one first", "red")
             return
-        folder = data_dir() / "jigs" / service.export_name(self.job)
         self._set_status("planning the jigs and their laser job…")
-        self._jigs(self.job, folder)
+        job = self.job
 
-    @work(thread=True, exclusive=True, group="jigs")
-    def _jigs(self, job, folder: Path) -> None:
-        from station.services.jigs import cut_jigs, plan_guide_jigs, write_jig_outputs
-
-        try:
+        def jigs(report: Reporter):
+            folder = flow.jigs_folder(job)
             result = cut_jigs(job, plan_guide_jigs(job))
             write_jig_outputs(result, folder)
-        except (DesignError, ProjectorError, StationError, DriverError, OSError) as error:
-            self.app.call_from_thread(self._set_status, f"cannot make the jigs: {error}", "red")
-            return
-        self.app.call_from_thread(self._jigs_written, result, folder)
+            return result, folder
 
-    def _jigs_written(self, result, folder: Path) -> None:
+        run_work(self, jigs, JigsMade, group="jigs")
+
+    def on_jigs_made(self, message: JigsMade) -> None:
         """Say what was written, and queue each sheet's laser job on the Machines screen (nothing moves until the
         maker frames and starts it there)."""
+        if not message.ok:
+            self._set_status(f"cannot make the jigs: {message.error}", "red")
+            return
+        result, folder = message.result
         plan = result.plan
         words = f"wrote {len(plan.jigs)} jig{'' if len(plan.jigs) == 1 else 's'} to {folder}"
         if plan.by_hand:
@@ -516,10 +430,248 @@ class AssembleScreen(AttemptFlow, Screen):
             for output in result.sheets:
                 queue("laser", output.gcode, title=f"jigs of {self.job.guide.scenario}"
                       + (f", sheet {output.index}/{count}" if count > 1 else ""), laser=True)
-        except (DriverError, StationError, ValueError) as error:
+        except (*USER_ERRORS, ValueError) as error:
             self._set_status(f"{words}; the laser refused the job: {error}", "red")
             return
         self._set_status(f"{words}; their laser job is queued on the Machines screen (m: f frames it, g cuts)")
+
+    # -- the attempt: check, fix, accept ------------------------------------------------------------------------
+    def _need(self, *stages: str) -> bool:
+        """Whether the attempt is at one of ``stages``; says what to do otherwise."""
+        if self.assembly is None:
+            self._set_status("no guide yet: pick a scenario and a layout, press Enter", "red")
+            return False
+        if self.assembly.stage not in stages:
+            self._set_status(f"the attempt is at {self.assembly.stage!r}: {NEXT[self.assembly.stage]}", "yellow")
+            return False
+        return True
+
+    def action_check(self) -> None:
+        if self.job is None:
+            self._set_status("no guide yet: build one, place the parts, then press c", "red")
+            return
+        if self._need("guide", "check"):
+            self._panel().start(None, "grabbing a frame from the camera…")
+            self._check(fix=False)
+
+    def action_fix(self) -> None:
+        if not self._need("check"):
+            return
+        if self.assembly.check is None:
+            self._set_status("no check yet: c checks the placed parts", "yellow")
+            return
+        self._panel().start(None, "moved as the check said; checking again…")
+        self._check(fix=True)
+
+    def _check(self, *, fix: bool) -> None:
+        """Check the parts as they stand (placed first, moved as the last check said with ``fix``), draw the
+        check on the camera frame; the projector then shows the check."""
+        assembly = self.assembly
+
+        def check(report: Reporter):
+            result = assembly.check_placed(fix=fix, report=report)
+            picture = checks.camera_overlay(result)
+            try:
+                assembly.project_check()
+            except USER_ERRORS as error:  # the check stands without the projector
+                return result, picture, f"projector: {error}"
+            return result, picture, ""
+
+        run_work(self, check, PartsChecked, group="check")
+
+    def on_parts_checked(self, message: PartsChecked) -> None:
+        panel = self._panel()
+        if not message.ok:
+            error = f"cannot check: {message.error}"
+            panel.say(error)
+            self._set_status(error, "red")
+            return
+        self.check, picture, projector = message.result
+        table = self.query_one("#check", CheckTable)
+        table.load(self.check.report)
+        table.display = True
+        self.query_one("#frame", HalfBlockPicture).set_image(Image.fromarray(picture))
+        lines = check_lines(self.check)
+        self.query_one("#caption", Static).update(Text("\n".join(lines)))
+        panel.say(lines[0])
+        if projector:
+            self._set_status(projector, "red")
+        else:
+            self._set_status("checked: " + "; ".join(lines[:2]) + ". Move the parts as the table says and press f "
+                             "to check again (a: accept as placed); n/p go back to the steps")
+        self._refresh_forecast()
+
+    def action_accept(self) -> None:
+        if not self._need("check"):
+            return
+        self.assembly.accept()
+        self._set_status("accepted as placed: r runs the contraption")
+        self._show_forecast()
+
+    # -- the forecast ---------------------------------------------------------------------------------------------
+    def _refresh_forecast(self) -> None:
+        if self.assembly is None:
+            return
+        self._set_busy("forecasting the physical success…")
+        assembly, samples, workers = self.assembly, self.forecast_samples, self.simulation_workers
+
+        def forecast(report: Reporter):
+            assembly.samples, assembly.workers = samples, workers
+            # its progress is not shown (the panel keeps the check's); a newer forecast stops it
+            return assembly.forecast(report=Reporter(stop=lambda: report.stopping))
+
+        # any failure leaves the last forecast in view, said in one line
+        run_work(self, forecast, AttemptForecast, group="forecast", errors=(Exception,))
+
+    def on_attempt_forecast(self, message: AttemptForecast) -> None:
+        self._busy = ""
+        if message.ok:
+            self.forecast = message.result
+        self._show_forecast(f"no forecast: {message.error}" if message.error else "")
+
+    # -- run and outcomes -----------------------------------------------------------------------------------------
+    def action_run(self) -> None:
+        if self.assembly is not None and self.assembly.stage == "check":
+            self.assembly.accept()  # r after a check: the maker accepts the parts as they stand
+        if not self._need("run"):
+            return
+        table = self.query_one("#outcomes", OutcomeTable)
+        if self.assembly.world is None:
+            table.load(self.assembly.scenario)
+            table.display = True
+            table.focus()
+            self._set_status("run the contraption, then say what happened to each event: y, n, u (not reached); "
+                             "l logs")
+            self._show_forecast()
+            return
+        self._set_busy("the world runs the contraption…")
+        assembly = self.assembly
+        run_work(self, lambda report: assembly.run(), AttemptRan, group="run")
+
+    def on_attempt_ran(self, message: AttemptRan) -> None:
+        self._busy = ""
+        if not message.ok:
+            self._set_status(f"cannot run: {message.error}", "red")
+            self._show_forecast()
+            return
+        table = self.query_one("#outcomes", OutcomeTable)
+        table.load(self.assembly.scenario, self.assembly.outcomes, self.assembly.times)
+        table.display = True
+        verdict = "a SUCCESS" if self.assembly.success else "a failure"
+        self._set_status(f"the world ran it: {verdict}; l logs the trial", "green" if self.assembly.success else "")
+        self._show_forecast()
+
+    def outcomes_changed(self, event: OutcomeTable.Changed) -> None:
+        """The outcome table's callback: the first problem, or the verdict once every event is said."""
+        if self.assembly is None or self.assembly.stage != "run":
+            return
+        if event.problem:
+            self._set_status(event.problem, "yellow")
+        elif event.complete:
+            self._set_status(f"every event said: {'a success' if event.success else 'a failure'}; l logs it",
+                             "green")
+
+    # -- log ------------------------------------------------------------------------------------------------------
+    def action_log(self) -> None:
+        if self.assembly is not None and self.assembly.stage == "run" and self.assembly.world is None:
+            try:
+                self.assembly.answer(self.query_one("#outcomes", OutcomeTable).given)
+            except USER_ERRORS as error:
+                self._set_status(str(error).replace("outcome.", "", 1), "red")
+                return
+        if not self._need("log"):
+            return
+        self._set_busy("logging the trial…")
+        assembly = self.assembly
+        run_work(self, lambda report: assembly.log(), AttemptLogged, group="assemble-db")
+
+    def on_attempt_logged(self, message: AttemptLogged) -> None:
+        self._busy = ""
+        if not message.ok:
+            self._set_status(f"cannot log: {message.error}", "red")
+            self._show_forecast()
+            return
+        verdict = "success" if self.assembly.success else "failure"
+        self._set_status(f"logged trial #{message.result} ({self.assembly.scenario.name}, {verdict}); g: another "
+                         "attempt, k: calibrate the physics on the log, o: re-optimize", "green")
+        self._refresh_forecast()
+
+    def action_again(self) -> None:
+        """Another attempt of the same layout (or of the re-optimized one, now in the layout field)."""
+        if self.assembly is not None and self.assembly.stage not in ("done", "guide"):
+            self._set_status(f"this attempt is at {self.assembly.stage!r}; log it first (l), or build again "
+                             "(Enter) to drop it", "yellow")
+            return
+        self.action_build()
+
+    # -- what the log teaches: calibrate, re-optimize ----------------------------------------------------------------
+    def action_calibrate(self) -> None:
+        if self.assembly is None:
+            self._set_status("no scenario yet: build a guide, log trials, then k", "red")
+            return
+        self._panel().start(None, "calibrating the physics on the log…")
+        self._set_busy("calibrating the simulator on the logged trials (s stops)…")
+        scenario, settings, workers = self.assembly.job.scenario, self.fit_settings, self.simulation_workers
+        every = self.every_material
+        self._learning = run_work(self, lambda report: flow.calibrate_from_log(
+            scenario, settings=settings, workers=workers, report=report, every_material=every),
+            PhysicsCalibrated, group="calibrate")
+
+    def on_physics_calibrated(self, message: PhysicsCalibrated) -> None:
+        path = None
+        if message.stopped:
+            text = "calibration stopped; its simulations are cached"
+        elif message.error:
+            text = f"cannot calibrate: {message.error}"
+        else:
+            path, result = message.result
+            path = str(path)
+            values = ", ".join(f"{k} = {v:.3g}" for k, v in result.fit.values().items())
+            text = f"calibrated: {values}; wrote {path}; o re-optimizes with it, g builds the next attempt with it"
+        self._busy = ""
+        self._panel().say(text)
+        if path is not None:
+            self.physics = path
+            self.query_one("#physics", Input).value = path
+        self._set_status(text, "green" if path else "red")
+        self._show_forecast()
+
+    def action_reoptimize(self) -> None:
+        if self.assembly is None:
+            self._set_status("no scenario yet: build a guide first", "red")
+            return
+        physics = self.query_one("#physics", Input).value.strip() or None
+        current = self.query_one("#layout", Input).value.strip() or None
+        self._panel().start(self.optimize_budget, "re-optimizing…")
+        self._set_busy(f"re-optimizing the layout{' with ' + Path(physics).name if physics else ''} (s stops)…")
+        request = flow.ReoptimizeRequest(self.assembly.job.scenario.source, physics, budget=self.optimize_budget,
+                                         settings=self.optimize_settings, current=current,
+                                         workers=self.simulation_workers)
+        self._learning = run_work(self, lambda report: flow.reoptimize(request, report=report), LayoutReoptimized,
+                                  group="calibrate")
+
+    def on_layout_reoptimized(self, message: LayoutReoptimized) -> None:
+        path = None
+        if message.stopped:
+            text = "re-optimization stopped; its simulations are cached"
+        elif message.error:
+            text = f"cannot re-optimize: {message.error}"
+        else:
+            path, result, chosen = message.result
+            path = str(path)
+            text = (f"re-optimized: PSP {result.psp:.3f}{describe_choice(chosen)}; wrote {path}; g builds its guide "
+                    "for the next attempt")
+        self._busy = ""
+        self._panel().say(text)
+        if path is not None:
+            self.query_one("#layout", Input).value = path
+        self._set_status(text, "green" if path else "red")
+        self._show_forecast()
+
+    def action_stop(self) -> None:
+        if self._learning is not None:
+            self._learning.stop()
+        self._set_status("stopping (finished simulations stay cached)…")
 
 
 SCREEN = ScreenEntry(

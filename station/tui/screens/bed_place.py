@@ -3,7 +3,8 @@ true scale (through the bed's registration, ``station calibrate bed``), moved an
 the stock the camera finds, verified on the twin, then queued at that placement.
 
 Opened from the Machines screen with ``b`` for its next job on the selected laser. The work is
-:class:`station.services.bed.BedPlacement` and :func:`station.services.job_verify.verify_job`.
+:class:`station.services.bed.BedPlacement` and the app's machine sessions
+(:meth:`station.services.machine_sessions.MachineSessions.verify` and ``place``).
 
 Keys: arrows move the job by the step, [ ] change the step, , . turn it by the turn step (< > by 15 degrees),
 s snap it onto the stock, g grab a new frame, k register the bed now (engraves four marks on scrap), v verify on
@@ -15,22 +16,19 @@ from __future__ import annotations
 from pathlib import Path
 
 from PIL import Image
-from textual import work
 from textual.app import ComposeResult
 from textual.binding import Binding
 from textual.containers import Vertical
-from textual.message import Message
 from textual.screen import Screen
 from textual.widgets import Footer, Header, Static
 
-from drivers.errors import DriverError
-from drivers.gcode import GcodeError
-from drivers.grbl import Job
-from station.errors import StationError
+from station.errors import USER_ERRORS, StationError
 from station.services import bed as bed_service
-from station.services.job_queue import JobState
-from station.services.job_verify import verify_job, verify_summary
+from station.services.machine_sessions import verify_summary
+from station.services.station_home import data_dir
+from station.tui.messages import BedFrameGrabbed, BedRegistered, JobVerified
 from station.tui.widgets.picture import HalfBlockPicture
+from station.tui.work import run_work
 
 __all__ = ["BedPlacementScreen", "MOVE_STEPS"]
 
@@ -65,18 +63,6 @@ class BedPlacementScreen(Screen):
         Binding("less_than_sign", "turn(15)", "Turn 15", show=False),
         Binding("greater_than_sign", "turn(-15)", "Turn 15", show=False),
     ]
-
-    class Grabbed(Message):
-        """A frame (or the error that stopped grabbing one)."""
-
-        def __init__(self, frame, error: str = "") -> None:
-            super().__init__()
-            self.frame, self.error = frame, error
-
-    class Said(Message):
-        def __init__(self, text: str, style: str = "") -> None:
-            super().__init__()
-            self.text, self.style = text, style
 
     def __init__(self, machines, entry, device, connection, profile) -> None:
         super().__init__(name="bed-placement")
@@ -114,36 +100,25 @@ class BedPlacementScreen(Screen):
         try:
             self.session = bed_service.BedPlacement(registration, list(self.entry.job.lines), wco,
                                                     travel=((lo[0], lo[1]), (hi[0], hi[1])))
-        except GcodeError as error:
+        except USER_ERRORS as error:
             self._say(f"this job cannot be placed: {error}", "red")
             return
         self._grab()
 
     # ------------------------------------------------------------------ camera
 
-    @work(thread=True, exclusive=True, group="bed-camera")
     def _grab(self) -> None:
-        try:
-            _, url = bed_service.bed_camera(self.device.name, self.device.simulated)
-            camera = bed_service.open_bed_camera(url, self.connection)
-            try:
-                frame = camera.grab()
-            finally:
-                camera.close()
-        except (DriverError, StationError, OSError) as error:
-            self.post_message(self.Grabbed(None, str(error)))
-            return
-        self.post_message(self.Grabbed(frame))
+        """A new picture of the bed from its camera, in a worker."""
+        device, connection = self.device, self.connection
+        run_work(self, lambda report: bed_service.grab_bed_frame(device.name, device.simulated, connection),
+                 BedFrameGrabbed, group="bed-camera")
 
-    def on_bed_placement_screen_grabbed(self, message: Grabbed) -> None:
-        if message.frame is None:
+    def on_bed_frame_grabbed(self, message: BedFrameGrabbed) -> None:
+        if not message.ok:
             self._say(f"no picture from the bed's camera: {message.error}", "red")
             return
-        self.session.see(message.frame)
+        self.session.see(message.result)
         self._show()
-
-    def on_bed_placement_screen_said(self, message: Said) -> None:
-        self._say(message.text, message.style)
 
     def _show(self) -> None:
         if self.session is None or self.session.frame is None:
@@ -191,38 +166,42 @@ class BedPlacementScreen(Screen):
         if self.session is not None:
             self._grab()
 
-    @work(thread=True, exclusive=True, group="bed-camera")
     def action_register(self) -> None:
-        self.post_message(self.Said("engraving four registration marks and registering the bed..."))
-        try:
-            done = bed_service.calibrate_bed(laser=self.device.name, connection=self.connection)
-        except (DriverError, StationError, OSError) as error:
-            self.post_message(self.Said(f"bed registration failed: {error}", "red"))
-            return
-        self.note = " ".join(bed_service.bed_summary(done)[:1])
-        self.app.call_from_thread(self._start, done.registration)
+        self._say("engraving four registration marks and registering the bed...")
+        laser, connection = self.device.name, self.connection
+        run_work(self, lambda report: bed_service.calibrate_bed(laser=laser, connection=connection, report=report),
+                 BedRegistered, group="bed-camera")
 
-    @work(thread=True, exclusive=True, group="bed-verify")
+    def on_bed_registered(self, message: BedRegistered) -> None:
+        if not message.ok:
+            self._say(f"bed registration failed: {message.error}", "red")
+            return
+        self.note = " ".join(bed_service.bed_summary(message.result)[:1])
+        self._start(message.result.registration)
+
     def action_verify(self) -> None:
         if self.session is None:
             return
-        self.post_message(self.Said("running the placed job on the twin..."))
+        self._say("running the placed job on the twin...")
         try:
             lines = self.session.placed_lines()
-            settings = {k: float(v) for k, v in self.connection.settings.items() if isinstance(k, int)}
-            done = verify_job(lines, name=self.entry.title, profile=self.profile, laser=True, settings=settings,
-                              work_offset=self.connection.work_offset())
-        except (GcodeError, DriverError, StationError, OSError) as error:
-            self.post_message(self.Said(f"cannot verify: {error}", "red"))
+        except USER_ERRORS as error:
+            self._say(f"cannot verify: {error}", "red")
             return
-        self.note = " · ".join(line.strip() for line in verify_summary(done))
-        self.post_message(self.Said(self.note, "green" if done.ok else "red"))
+        sessions, device, title, profile = self.machines.sessions, self.device.name, self.entry.title, self.profile
+        run_work(self, lambda report: sessions.verify(device, lines, title=title, profile=profile, laser=True),
+                 JobVerified, group="bed-verify")
+
+    def on_job_verified(self, message: JobVerified) -> None:
+        if not message.ok:
+            self._say(f"cannot verify: {message.error}", "red")
+            return
+        self.note = " · ".join(line.strip() for line in verify_summary(message.result))
+        self._say(self.note, "green" if message.result.ok else "red")
 
     def action_write(self) -> None:
         if self.session is None or self.session.frame is None:
             return
-        from station.paths import data_dir
-
         path = Path(data_dir()) / "bed-placement.png"
         Image.fromarray(self.session.picture()).save(path)
         self.note = f"wrote {path}"
@@ -234,18 +213,15 @@ class BedPlacementScreen(Screen):
         p = self.session.placement
         try:
             lines = self.session.placed_lines()
-        except GcodeError as error:
+        except USER_ERRORS as error:
             self._say(f"cannot place this job: {error}", "red")
             return
         title = f"{self.entry.title.split(' @ ')[0]} @ {p.x:.1f},{p.y:.1f},{p.angle:.1f}"
-        if self.entry.state is JobState.QUEUED:
-            # the job itself moves: the unplaced one must not be sent by the next g
-            self.entry.job = Job(self.entry.job.name, lines, laser=self.entry.job.laser, pen_up=self.entry.job.pen_up)
-            self.entry.title = title
-            self.machines._refresh_queue()
-            self.machines._show_preview(self.entry)
-        else:  # sent before (framed, checked, stopped): the placed one is a new job
-            self.machines.queue_job(self.device.name, "\n".join(lines) + "\n", title, laser=True)
+        # queued: the job itself moves (the unplaced one must not be sent by the next g); sent before (framed,
+        # checked, stopped): the placed one is a new job
+        placed = self.machines.sessions.place(self.entry, lines, title)
+        self.machines._refresh_queue()
+        self.machines._show_preview(placed)
         self.app.pop_screen()
 
     def action_close(self) -> None:
@@ -277,24 +253,18 @@ def verify_next_job(machines) -> None:
     if device is None or entry is None:
         machines._say("no queued job for this device to verify")
         return
-    conn = machines.connection()
     try:
         profile = machines.profile_for(device)
     except StationError as error:
         machines._say(f"cannot verify: {error}", "red")
         return
     machines._say(f"running {entry.title!r} on the twin of {device.name}...")
+    sessions, lines, laser = machines.sessions, entry.job.lines, entry.job.laser
 
-    def run() -> None:
-        settings = ({k: float(v) for k, v in conn.settings.items() if isinstance(k, int)}
-                    if conn is not None else None)
+    def verify(report):
         try:
-            done = verify_job(entry.job.lines, name=entry.title, profile=profile, laser=entry.job.laser,
-                              settings=settings, work_offset=conn.work_offset() if conn is not None else None)
-        except (DriverError, StationError, OSError) as error:
-            machines.app.call_from_thread(machines._say, f"cannot verify {entry.title!r}: {error}", "red")
-            return
-        text = " · ".join(line.strip() for line in verify_summary(done))
-        machines.app.call_from_thread(machines._say, text, "green" if done.ok else "red")
+            return sessions.verify(device.name, lines, title=entry.title, profile=profile, laser=laser)
+        except USER_ERRORS as error:
+            raise StationError(f"cannot verify {entry.title!r}: {error}") from None
 
-    machines.run_worker(run, thread=True, group="verify", exclusive=True)
+    run_work(machines, verify, JobVerified, group="verify")

@@ -1,4 +1,4 @@
-"""Calibrate screen: the camera's intrinsics and the plane check, one panel each, with progress (issue 19).
+"""Calibrate screen: the camera's intrinsics and the plane check, one panel each, with progress.
 
 Camera: type a folder of board images (or a number of frames to grab from the station's camera, moving the board
 between them) and press Calibrate (or f / g); the views are searched and solved in a worker, the result shows the
@@ -14,25 +14,21 @@ stand beside them.
 from __future__ import annotations
 
 from rich.text import Text
-from textual import on, work
+from textual import on
 from textual.app import ComposeResult
 from textual.binding import Binding
 from textual.containers import Horizontal, Vertical
 from textual.screen import Screen
 from textual.widgets import Button, DataTable, Footer, Header, Input, Label, Static
 
-from calibration.errors import CalibrationError
-from drivers.errors import DriverError
-from station.errors import StationError
 from station.services import calibrate as service
 from station.services.trials import logged_trials
+from station.tui.messages import CameraCalibrated, PlaneChecked, ProgressReported
 from station.tui.registry import ScreenEntry
-from station.tui.widgets.progress import ProgressPanel, ProgressReported, post_progress, run_in_worker
+from station.tui.widgets.progress import ProgressPanel
 from station.tui.widgets.projector_calibration import ProjectorCalibrationPanel
 from station.tui.widgets.sim_calibration import SimCalibrationPanel
-
-#: What a worker may fail with, said in the panel in one line.
-_USER_ERRORS = (StationError, CalibrationError, DriverError)
+from station.tui.work import Work, run_work
 
 
 class CameraPanel(Vertical):
@@ -46,6 +42,9 @@ class CameraPanel(Vertical):
     CameraPanel #camera-views { height: auto; max-height: 16; }
     CameraPanel #camera-result { height: auto; }
     """
+
+    #: The running calibration, which Stop asks to stop (None before the first).
+    _work: Work | None = None
 
     def compose(self) -> ComposeResult:
         yield Label("[b]Camera intrinsics[/b] (ChArUco board: `station calibrate board --pdf`)")
@@ -71,7 +70,8 @@ class CameraPanel(Vertical):
 
     @on(Button.Pressed, "#camera-stop")
     def stop(self) -> None:
-        self.workers.cancel_group(self, "calibrate-camera")
+        if self._work is not None:
+            self._work.stop()
         self.say("stopping…")
 
     def start(self, folder: str | None = None, count_text: str | None = None) -> None:
@@ -89,22 +89,25 @@ class CameraPanel(Vertical):
         self.say("")
         self.calibrate(folder or None, count)
 
-    @work(thread=True, exclusive=True, group="calibrate-camera")
     def calibrate(self, folder: str | None, count: int | None) -> None:
-        run_in_worker(self, lambda cancelled: service.calibrate_camera(
-            images=folder, capture=count, progress=post_progress(self), cancelled=cancelled),
-            "stopped; nothing saved", _USER_ERRORS)
+        """Calibrate in a worker; progress and the end arrive as messages."""
+        request = service.CameraCalibrationRequest(images=folder, capture=count)
+        self._work = run_work(self, lambda report: service.calibrate_camera(request, report=report),
+                              CameraCalibrated, group="calibrate-camera")
 
     def on_progress_reported(self, message: ProgressReported) -> None:
         message.stop()
         self.query_one("#camera-progress", ProgressPanel).show(message.progress)
 
-    def finished(self, done, error: str) -> None:
+    def on_camera_calibrated(self, message: CameraCalibrated) -> None:
+        message.stop()
         self.query_one("#camera-stop", Button).disabled = True
-        if done is None:
-            self.query_one("#camera-progress", ProgressPanel).say(error)
-            self.say(error)
+        if not message.ok:
+            said = "stopped; nothing saved" if message.stopped else message.error
+            self.query_one("#camera-progress", ProgressPanel).say(said)
+            self.say(said)
             return
+        done = message.result
         result = done.result
         table = self.query_one("#camera-views", DataTable)
         for view in result.views:
@@ -141,14 +144,14 @@ class PlanePanel(Vertical):
         self.say("checking…")
         self.check(guide, image)
 
-    @work(thread=True, exclusive=True, group="calibrate-plane")
     def check(self, guide: str | None, image: str | None) -> None:
-        try:
-            checked = service.plane_check(image=image, guide=guide)
-        except _USER_ERRORS as error:
-            self.app.call_from_thread(self.say, str(error))
-            return
-        self.app.call_from_thread(self.say, "\n".join(service.plane_summary(checked)))
+        """Check the plane in a worker; the end arrives as a message."""
+        run_work(self, lambda _report: service.plane_check(image=image, guide=guide), PlaneChecked,
+                 group="calibrate-plane")
+
+    def on_plane_checked(self, message: PlaneChecked) -> None:
+        message.stop()
+        self.say("\n".join(service.plane_summary(message.result)) if message.ok else message.error)
 
 
 class CalibrateScreen(Screen):

@@ -1,7 +1,7 @@
 """The question ctrl+q asks while a machine job runs: abort it (laser off) and quit, or keep it running.
 
-Quitting used to close the connection under the job: the machine stopped wherever it was and the job history
-showed it ``interrupted``. Not an area (no ``SCREEN``): the app pushes it over whatever screen is shown.
+Quitting without asking would close the connection under the job: the machine would stop wherever it was and the
+job history show it ``interrupted``. Not an area (no ``SCREEN``): the app pushes it over whatever screen is shown.
 """
 
 from __future__ import annotations

@@ -15,21 +15,28 @@ from pathlib import Path
 import numpy as np
 from rich.markup import escape
 from rich.text import Text
-from scipy.spatial import ConvexHull, QhullError
-from textual import on, work
+from textual import on
 from textual.app import ComposeResult
 from textual.binding import Binding
 from textual.containers import Horizontal, Vertical
 from textual.screen import Screen
 from textual.widgets import DataTable, Footer, Header, Input, Static
 
-from design.contraption import Scenario, Simulator
-from design.contraption.bullet import direct_client
-from design.contraption.catalog import example_names, shown_path
-from design.errors import DesignError
-from station.services.contraption import open_scenario, simulate
+from station.errors import USER_ERRORS
+from station.services.contraption import (
+    example_names,
+    layout_view,
+    open_scenario,
+    physics_client,
+    shown_path,
+    side_view,
+    simulate,
+    world_ropes,
+)
+from station.tui.messages import SimulationEnded, SimulationStepped
 from station.tui.registry import ScreenEntry
 from station.tui.widgets.canvas import PatternCanvas
+from station.tui.work import run_work
 
 STATE_STYLE = {"asleep": "dim", "awake": "bold yellow", "success": "bold green", "failure": "bold red"}
 TYPE_COLOURS = {
@@ -46,30 +53,12 @@ TYPE_COLOURS = {
 ROPE_COLOUR = "yellow"
 
 
-def world_ropes(world) -> list[np.ndarray]:
-    """Each rope's path now (end, guides, end) as an (n, 3) array."""
-    return [np.asarray(world.rope_path(rope)[0]) for rope in world.ropes]
-
-
-def side_view_polylines(scenario: Scenario, snapshot, ropes=()) -> tuple[list[np.ndarray], list[str]]:
-    """Closed outlines (x, z) of every body's parts, with a colour per primitive type, and the ropes' paths."""
-    kinds = {o.name: o.type for o in scenario.objects}
-    lines, colours = [], []
-    for _label, name, pose, spec in snapshot:
-        for part in spec.parts:
-            if part.kind == "plane":
-                continue
-            points = pose.apply(part.surface_points(16))[:, [0, 2]]
-            try:
-                hull = points[ConvexHull(points).vertices]
-            except QhullError:
-                hull = points[[np.argmin(points[:, 0]), np.argmax(points[:, 0])]]
-            lines.append(np.vstack([hull, hull[:1]]))
-            colours.append(TYPE_COLOURS.get(kinds.get(name, ""), "white"))
-    for path in ropes:
-        lines.append(np.asarray(path, dtype=float)[:, [0, 2]])
-        colours.append(ROPE_COLOUR)
-    return lines, colours
+def side_view_polylines(scenario, snapshot, ropes=()) -> tuple[list[np.ndarray], list[str]]:
+    """The side view's outlines and ropes (:func:`station.services.contraption.side_view`), with a colour per
+    primitive type."""
+    view = side_view(scenario, snapshot, ropes)
+    colours = [ROPE_COLOUR if kind == "rope" else TYPE_COLOURS.get(kind, "white") for kind, _ in view]
+    return [line for _, line in view], colours
 
 
 class ContraptionScreen(Screen):
@@ -92,7 +81,8 @@ class ContraptionScreen(Screen):
 
     def __init__(self) -> None:
         super().__init__(name="contraption")
-        self.scenario: Scenario | None = None
+        #: The scenario loaded (from station.services.contraption.open_scenario).
+        self.scenario = None
         self.layout_names: list[str] = ["file default"]
         self.layout_index = 0
         self.realtime = True
@@ -135,7 +125,7 @@ class ContraptionScreen(Screen):
             return False
         try:
             scenario = open_scenario(text)
-        except (DesignError, OSError) as error:
+        except USER_ERRORS as error:
             self.set_status(str(error), style="red")
             return False
         self.scenario = scenario
@@ -191,12 +181,9 @@ class ContraptionScreen(Screen):
     def _draw_layout(self) -> None:
         try:
             if self._client is None:
-                self._client = direct_client()
-            with Simulator(self.scenario, client=self._client) as sim:
-                world = sim.build(self.current_layout())
-                snapshot = world.snapshot()
-                ropes = world_ropes(world)
-        except DesignError as error:  # pragma: no cover - a validated scenario builds
+                self._client = physics_client()
+            snapshot, ropes = layout_view(self.scenario, self.current_layout(), client=self._client)
+        except USER_ERRORS as error:  # pragma: no cover - a validated scenario builds
             self.set_status(str(error), style="red")
             return
         lines, _ = side_view_polylines(self.scenario, snapshot, ropes)
@@ -239,24 +226,39 @@ class ContraptionScreen(Screen):
         self.set_status("simulating…")
         self.simulate_worker(self.scenario, self.current_layout(), self.realtime)
 
-    @work(thread=True, exclusive=True, group="contraption")
-    def simulate_worker(self, scenario: Scenario, x: np.ndarray, realtime: bool) -> None:
-        started = time.perf_counter()
+    def simulate_worker(self, scenario, x: np.ndarray, realtime: bool) -> None:
+        """Simulate in a worker: each change of the events' states arrives as a :class:`SimulationStepped`, the
+        verdict as a :class:`SimulationEnded`."""
         if self._client is None:
-            self._client = direct_client()
+            self._client = physics_client()
+        client = self._client
 
-        def on_change(t: float, states: dict[str, str], world) -> None:
-            if realtime:
-                # Pace the run so that a person can follow the events (simulated time = wall time).
-                delay = started + t - time.perf_counter()
-                if delay > 0:
-                    time.sleep(delay)
-            self.app.call_from_thread(self._update_states, t, states, world.snapshot(), world_ropes(world))
+        def run(_report):
+            started = time.perf_counter()
 
-        outcome = simulate(scenario, x, record=True, on_change=on_change, client=self._client)
+            def on_change(t: float, states: dict[str, str], world) -> None:
+                if realtime:
+                    # Pace the run so that a person can follow the events (simulated time = wall time).
+                    delay = started + t - time.perf_counter()
+                    if delay > 0:
+                        time.sleep(delay)
+                self.post_message(SimulationStepped(t, dict(states), world.snapshot(), world_ropes(world)))
+
+            return simulate(scenario, x, record=True, on_change=on_change, client=client)
+
+        run_work(self, run, SimulationEnded, group="contraption")
+
+    def on_simulation_stepped(self, message: SimulationStepped) -> None:
+        self._update_states(message.t, message.states, message.snapshot, message.ropes)
+
+    def on_simulation_ended(self, message: SimulationEnded) -> None:
+        if not message.ok:
+            self._finished(None, Text(f"cannot simulate: {message.error}", "red"))
+            return
+        outcome = message.result
         if not outcome.valid:
-            message = "; ".join(p.message for p in outcome.problems)
-            self.app.call_from_thread(self._finished, None, Text.assemble(("impossible layout: ", "red"), message))
+            problems = "; ".join(p.message for p in outcome.problems)
+            self._finished(None, Text.assemble(("impossible layout: ", "red"), problems))
             return
         result = outcome.result
         verdict = ("SUCCESS", "bold green") if result.success else ("FAILURE", "bold red")
@@ -264,7 +266,7 @@ class ContraptionScreen(Screen):
             verdict, f": {result.n_successful_events}/{len(result.events)} events, "
             f"{result.duration:.2f} s simulated in {result.steps} steps"
         )
-        self.app.call_from_thread(self._finished, result, summary)
+        self._finished(result, summary)
 
     def _update_states(self, t: float, states: dict[str, str], snapshot, ropes=()) -> None:
         table = self.query_one("#events", DataTable)

@@ -8,18 +8,21 @@ from typing import Any
 
 import numpy as np
 from rich.text import Text
-from textual import on, work
+from textual import on
 from textual.app import ComposeResult
 from textual.binding import Binding
 from textual.containers import Horizontal, Vertical, VerticalScroll
 from textual.screen import Screen
 from textual.widgets import Footer, Header, Select, Static
 
-from design.errors import DesignError
-from design.machines import get_machine, machine_names
+from station.errors import USER_ERRORS
+from station.services.designs import get_machine
+from station.services.drawing import feasible_interval, machine_choices, mechanism_at, pattern, validate_design
+from station.tui.messages import PatternComputed
 from station.tui.registry import MachineDesign, ScreenEntry
 from station.tui.widgets.canvas import Marker, PatternCanvas
 from station.tui.widgets.parameter import ParameterControl, ParameterState
+from station.tui.work import run_work
 
 HISTORY_LIMIT = 200
 FRAMES_PER_SECOND = 12
@@ -83,7 +86,8 @@ class DrawingScreen(Screen):
 
     def __init__(self) -> None:
         super().__init__(name="drawing")
-        self.machine = get_machine(machine_names()[0])
+        self._choices = machine_choices()
+        self.machine = get_machine(self._choices[0][1])
         self.params: dict[str, float] = self.machine.defaults()
         self.history: list[tuple[str, dict[str, float]]] = []
         self.pattern: np.ndarray | None = None
@@ -98,7 +102,7 @@ class DrawingScreen(Screen):
         with Horizontal():
             with Vertical(id="sidebar"):
                 yield Select(
-                    [(get_machine(name).title, name) for name in machine_names()],
+                    self._choices,
                     value=self.machine.name,
                     allow_blank=False,
                     id="machine",
@@ -145,8 +149,8 @@ class DrawingScreen(Screen):
         """Show ``machine`` with ``params`` (validated; a bad design is reported and nothing changes)."""
         try:
             model = get_machine(machine)
-            validated = model.validate(params)
-        except DesignError as error:
+            validated = validate_design(model, params)
+        except USER_ERRORS as error:
             self.notify(str(error), severity="error", title="Cannot open design", markup=False)
             return
         self._remember()
@@ -190,8 +194,8 @@ class DrawingScreen(Screen):
                 lower, upper = float(parameter.lower), float(parameter.upper)
             else:
                 try:
-                    lower, upper = self.machine.feasible_interval(self.params, parameter.name)
-                except DesignError:
+                    lower, upper = feasible_interval(self.machine, self.params, parameter.name)
+                except USER_ERRORS:
                     lower = upper = value
             control.set_state(ParameterState(value, float(lower), float(upper)))
 
@@ -254,8 +258,8 @@ class DrawingScreen(Screen):
         for _ in range(2):
             for name in continuous:
                 try:
-                    lower, upper = self.machine.feasible_interval(repaired, name)
-                except DesignError:
+                    lower, upper = feasible_interval(self.machine, repaired, name)
+                except USER_ERRORS:
                     continue
                 if lower <= upper:
                     repaired[name] = min(max(repaired[name], lower), upper)
@@ -264,16 +268,20 @@ class DrawingScreen(Screen):
         return None
 
     # --- pattern -------------------------------------------------------------------------------------------------
-    @work(exclusive=True, thread=True, group="pattern")
     def recompute_pattern(self) -> None:
+        """Sample the pattern in a worker (a newer design replaces a running one)."""
         machine, params = self.machine, dict(self.params)
-        try:
-            period = float(machine.period(params))
-            pattern = machine.sample(params, n=points_for_period(period))
-        except DesignError as error:
-            self.app.call_from_thread(self._set_status, f"cannot draw: {error}")
-            return
-        self.app.call_from_thread(self._show_pattern, machine.name, params, period, pattern)
+
+        def sample(_report):
+            return (machine.name, params, *pattern(machine, params, points_for_period))
+
+        run_work(self, sample, PatternComputed, group="pattern")
+
+    def on_pattern_computed(self, message: PatternComputed) -> None:
+        if message.ok:
+            self._show_pattern(*message.result)
+        elif message.error:
+            self._set_status(f"cannot draw: {message.error}")
 
     def _show_pattern(self, machine: str, params: dict[str, float], period: float, pattern: np.ndarray) -> None:
         if machine != self.machine.name or params != self.params:
@@ -301,8 +309,8 @@ class DrawingScreen(Screen):
             polylines.append(traced)
             colors.append("cyan")
         try:
-            parts, markers = mechanism_to_drawing(self.machine.mechanism(self.params, self.time))
-        except DesignError:
+            parts, markers = mechanism_to_drawing(mechanism_at(self.machine, self.params, self.time))
+        except USER_ERRORS:
             parts = []
         polylines.extend(parts)
         colors.extend(["magenta"] * len(parts))

@@ -16,19 +16,19 @@ import threading
 
 import numpy as np
 from rich.text import Text
-from textual import on, work
+from textual import on
 from textual.app import ComposeResult
 from textual.binding import Binding
 from textual.containers import Horizontal, Vertical, VerticalScroll
 from textual.screen import Screen
 from textual.widgets import DataTable, Footer, Header, Static
 
-from design.errors import DesignError
-from design.explore import Explorer, OverConstrainedError
-from station.services.explore import start_session
+from station.services.explore import drop_last_invariant, keep_invariant, move_slider, release_slider, start_session
+from station.tui.messages import ExplorerBuilt, ExplorerChanged, PreviewMoved
 from station.tui.registry import MachineDesign, ScreenEntry
 from station.tui.widgets.explore_canvas import ExploreCanvas, nearest_poi, poi_markers
 from station.tui.widgets.explore_slider import InvariantSlider
+from station.tui.work import run_work
 
 DEFAULT_MACHINE = "cycloid_drawing_machine"
 INVARIANT_KEYS = {"1": "position", "2": "curvature", "3": "angle", "4": "radial", "5": "distance"}
@@ -74,7 +74,8 @@ class ExploreScreen(Screen):
 
     def __init__(self) -> None:
         super().__init__(name="explore")
-        self.explorer: Explorer | None = None
+        #: The exploration session (station.services.explore.start_session), None until one is built.
+        self.explorer = None
         self.lock = threading.Lock()
         self.highlighted: int | None = None
         self.selected: list[int] = []
@@ -82,7 +83,7 @@ class ExploreScreen(Screen):
         self.loaded_design: tuple[str, dict] | None = None
         self.last_message = ""
         #: Explorer states before each release or invariant change (newest last), for ctrl+z.
-        self.history: list[Explorer] = []
+        self.history: list = []
 
     def compose(self) -> ComposeResult:
         yield Header()
@@ -118,94 +119,117 @@ class ExploreScreen(Screen):
         self._set_status(f"finding the points of interest of {machine}…")
         self._build(machine, dict(params))
 
-    @work(thread=True, exclusive=True, group="explore-build")
     def _build(self, machine: str, params: dict) -> None:
-        try:
+        def build(_report):
             explorer = start_session(machine, params)
-        except DesignError as error:
-            self.app.call_from_thread(self._set_status, f"cannot explore this design: {error}")
-            return
-        with self.lock:
-            self.explorer = explorer
-            self.history.clear()  # a new design: the old states belong to another session
-        self.app.call_from_thread(self._after_change, f"{len(explorer.pois)} points of interest found", True)
+            with self.lock:
+                self.explorer = explorer
+                self.history.clear()  # a new design: the old states belong to another session
+            return f"{len(explorer.pois)} points of interest found", True
 
-    @work(thread=True, group="explore-ops")
+        run_work(self, build, ExplorerBuilt, group="explore-build")
+
+    def _edit(self, change) -> None:
+        """Run ``change()`` on the session in a worker, under the lock; it returns the status line and whether the
+        selection resets, or (a line, None) when nothing changed. Edits run one after the other, in order."""
+
+        def edit(_report):
+            with self.lock:
+                return change()
+
+        run_work(self, edit, ExplorerChanged, group="explore-ops", exclusive=False)
+
     def _keep(self, kind: str, ids: list[int]) -> None:
-        with self.lock:
+        def keep():
             explorer = self.explorer
             if explorer is None:
-                return
+                return "", None
             before = copy.deepcopy(explorer)
-            try:
-                invariant = explorer.add_invariant(kind, ids)
-            except OverConstrainedError as error:
-                self.app.call_from_thread(self._warn, str(error))
-                return
-            except DesignError as error:
-                self.app.call_from_thread(self._warn, str(error))
-                return
+            invariant = keep_invariant(explorer, kind, ids)
             self._remember(before)
-            redundant = explorer.subspace.redundant
             message = f"kept {invariant.label}: {len(explorer.sliders)} slider(s)"
-            if redundant:
+            if explorer.subspace.redundant:
                 message += " (redundant with the machine: base parameters kept)"
-        self.app.call_from_thread(self._after_change, message, True)
+            return message, True
 
-    @work(thread=True, group="explore-ops")
+        self._edit(keep)
+
     def _drop(self) -> None:
-        with self.lock:
+        def drop():
             explorer = self.explorer
             if explorer is None or not explorer.invariants:
-                return
-            label = explorer.invariants[-1].label
+                return "", None
             self._remember(copy.deepcopy(explorer))
-            explorer.remove_invariant(len(explorer.invariants) - 1)
-        self.app.call_from_thread(self._after_change, f"dropped {label}", True)
+            return f"dropped {drop_last_invariant(explorer)}", True
 
-    @work(thread=True, exclusive=True, group="explore-preview")
+        self._edit(drop)
+
     def _preview(self, index: int, value: float) -> None:
-        with self.lock:
-            explorer = self.explorer
-            if explorer is None or index >= len(explorer.values):
-                return
-            moved = explorer.move(index, value)
-        self.app.call_from_thread(self._show_preview, moved.curve, moved.sliders)
+        def preview(_report):
+            with self.lock:
+                explorer = self.explorer
+                if explorer is None or index >= len(explorer.values):
+                    return None
+                moved = move_slider(explorer, index, value)
+            return moved.curve, moved.sliders
 
-    @work(thread=True, group="explore-ops")
+        run_work(self, preview, PreviewMoved, group="explore-preview")
+
     def _release(self, index: int, value: float) -> None:
-        with self.lock:
+        def release():
             explorer = self.explorer
             if explorer is None or index >= len(explorer.values):
-                return
+                return "", None
             self._remember(copy.deepcopy(explorer))
-            explorer.move(index, value)
-            result = explorer.release()
-        errors = ", ".join(
-            f"{label} {'lost' if not np.isfinite(e) else f'{e:.2g}'}" for label, e in result.errors_after.items()
-        )
-        message = f"released: drawing changed by {result.shape_change:.2%}" + (f"; errors {errors}" if errors else "")
-        if result.lost:
-            message += f"; lost {', '.join(result.lost)}"
-        if result.warning:
-            message += f"; {result.warning}"
-        self.app.call_from_thread(self._after_change, message, False)
+            result = release_slider(explorer, index, value)
+            errors = ", ".join(f"{label} {'lost' if not np.isfinite(e) else f'{e:.2g}'}"
+                               for label, e in result.errors_after.items())
+            message = f"released: drawing changed by {result.shape_change:.2%}" + (f"; errors {errors}" if errors
+                                                                                    else "")
+            if result.lost:
+                message += f"; lost {', '.join(result.lost)}"
+            if result.warning:
+                message += f"; {result.warning}"
+            return message, False
 
-    def _remember(self, state: Explorer) -> None:
+        self._edit(release)
+
+    def _remember(self, state) -> None:
         """Keep ``state`` for undo (called by the workers with the lock held); a deep copy costs about 1 ms."""
         self.history.append(state)
         del self.history[:-UNDO_DEPTH]
 
-    @work(thread=True, group="explore-ops")
     def _undo(self) -> None:
-        with self.lock:
+        def undo():
             if not self.history:
-                self.app.call_from_thread(self._set_status, "nothing to undo")
-                return
+                return "nothing to undo", None
             self.explorer = self.history.pop()
             left = len(self.history)
-        self.app.call_from_thread(self._after_change, f"undone ({left} more step{'s' if left != 1 else ''} to undo)",
-                                  True)
+            return f"undone ({left} more step{'s' if left != 1 else ''} to undo)", True
+
+        self._edit(undo)
+
+    async def on_explorer_built(self, message: ExplorerBuilt) -> None:
+        if message.ok:
+            await self._after_change(*message.result)
+        elif message.error:
+            self._set_status(f"cannot explore this design: {message.error}")
+
+    async def on_explorer_changed(self, message: ExplorerChanged) -> None:
+        if message.error:
+            self._warn(message.error)
+            return
+        if not message.ok:
+            return
+        text, reset_selection = message.result
+        if reset_selection is not None:
+            await self._after_change(text, reset_selection)
+        elif text:
+            self._set_status(text)
+
+    def on_preview_moved(self, message: PreviewMoved) -> None:
+        if message.ok and message.result is not None:
+            self._show_preview(*message.result)
 
     # --- UI updates (main thread) -------------------------------------------------------------------------------
     async def _after_change(self, message: str, reset_selection: bool) -> None:

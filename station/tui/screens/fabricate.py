@@ -16,25 +16,31 @@ import time
 from pathlib import Path
 
 from rich.text import Text
-from textual import on, work
+from textual import on
 from textual.app import ComposeResult
 from textual.binding import Binding
 from textual.containers import Horizontal, Vertical
-from textual.message import Message
 from textual.screen import Screen
 from textual.widgets import DataTable, Footer, Header, Input, Label, Static
-from textual.worker import get_current_worker
 
-from common.progress import Cancelled
-from design.errors import DesignError
-from design.machines import get_machine
-from drivers.errors import DriverError
-from station.errors import StationError
-from station.paths import data_dir
-from station.services.fabricate import DEFAULT_GAP, KERF_SOURCES, FabricationResult, fabricate, parse_sheet
+from station.errors import USER_ERRORS, StationError
+from station.services.designs import get_machine
+from station.services.fabricate import (
+    DEFAULT_GAP,
+    KERF_SOURCES,
+    FabricationRequest,
+    FabricationResult,
+    fabricate,
+    parse_sheet,
+    write_outputs,
+)
+from station.services.lasertest import make_card, write_card
+from station.services.station_home import data_dir
+from station.tui.messages import FabricationEnded, ProgressReported, TestCardMade
 from station.tui.registry import MachineDesign, ScreenEntry
 from station.tui.widgets.picture import HalfBlockPicture
-from station.tui.widgets.progress import ProgressPanel, ProgressReported, post_progress
+from station.tui.widgets.progress import ProgressPanel
+from station.tui.work import run_work
 
 DEFAULT_MACHINE = "spirograph"
 DEFAULT_SCALE = 8.0
@@ -157,39 +163,28 @@ class FabricateScreen(Screen):
         return {"scale": number("scale", "scale"), "kerf": number("kerf", "kerf") if kerf_text else None,
                 "sheet_size": parse_sheet(sheet_text) if sheet_text else None, "material": material}
 
-    @work(thread=True, exclusive=True, group="fabricate")
     def _generate(self, machine: str, params: dict, options: dict) -> None:
-        started = time.perf_counter()
-        worker = get_current_worker()
-        try:
-            result = fabricate(machine, params, options["scale"], kerf=options["kerf"],
-                               sheet_size=options["sheet_size"], gap=DEFAULT_GAP, material=options["material"],
-                               progress=post_progress(self), cancelled=lambda: worker.is_cancelled)
-        except Cancelled:
-            return  # a newer generation replaced this one (the worker group is exclusive)
-        except (DesignError, DriverError, StationError) as error:
-            self.post_message(self.Generated(None, str(error)))
-            return
-        # posted, not called, so that it lands after every progress message of this run
-        self.post_message(self.Generated(result, "", time.perf_counter() - started))
+        """Generate in a worker (a newer generation replaces a running one); the end arrives as a
+        :class:`FabricationEnded` whose result is the fabrication and the seconds it took."""
+        request = FabricationRequest(machine, params, options["scale"], kerf=options["kerf"],
+                                     sheet_size=options["sheet_size"], gap=DEFAULT_GAP, material=options["material"])
 
-    class Generated(Message):
-        """A generation has ended: its result, or the error that stopped it."""
+        def generate(report):
+            started = time.perf_counter()
+            return fabricate(request, report=report), time.perf_counter() - started
 
-        def __init__(self, result: FabricationResult | None, error: str, seconds: float = 0.0) -> None:
-            super().__init__()
-            self.result, self.error, self.seconds = result, error, seconds
+        run_work(self, generate, FabricationEnded, group="fabricate")
 
     def on_progress_reported(self, message: ProgressReported) -> None:
         """A step of the generation: the bar and, as before, the step in the status line."""
         self.query_one(ProgressPanel).show(message.progress)
         self._set_status(f"{message.progress.message}…")
 
-    def on_fabricate_screen_generated(self, message: Generated) -> None:
-        if message.result is None:
+    def on_fabrication_ended(self, message: FabricationEnded) -> None:
+        if message.ok:
+            self._show(*message.result)
+        elif message.error:
             self._failed(message.error)
-        else:
-            self._show(message.result, message.seconds)
 
     def _failed(self, message: str) -> None:
         self.result = None
@@ -274,8 +269,6 @@ class FabricateScreen(Screen):
         picture.set_crop((0.0, top, right, 1.0))
 
     def action_write(self) -> Path | None:
-        from station.services.fabricate import write_outputs
-
         if self.result is None:
             self._set_status("nothing to write yet")
             return None
@@ -308,55 +301,43 @@ class FabricateScreen(Screen):
         """A test card for the material field's material: written, shown, and queued for the laser."""
         material = self.query_one("#material", Input).value.strip() or "plywood_3mm"
         self._set_status(f"making a test card for {material}…")
-        self._make_test_card(material)
-
-    @work(thread=True, exclusive=True, group="test-card")
-    def _make_test_card(self, material: str) -> None:
-        from station.services.lasertest import make_card, write_card
-
-        try:
-            output = make_card("laser", material)
-        except (DesignError, DriverError, StationError) as error:
-            self.post_message(self.TestCardMade(None, None, str(error)))
-            return
         folder = data_dir() / "lasertest" / f"{material}-{time.strftime('%Y%m%d-%H%M%S')}"
-        self.post_message(self.TestCardMade(output, write_card(output, folder), ""))
 
-    class TestCardMade(Message):
-        """A test card was made (its output and files), or the error that stopped it."""
+        def make(_report):
+            output = make_card("laser", material)
+            return output, write_card(output, folder)
 
-        def __init__(self, output, files: dict | None, error: str) -> None:
-            super().__init__()
-            self.output, self.files, self.error = output, files, error
+        run_work(self, make, TestCardMade, group="test-card")
 
-    def on_fabricate_screen_test_card_made(self, message: TestCardMade) -> None:
-        if message.output is None:
+    def on_test_card_made(self, message: TestCardMade) -> None:
+        if not message.ok:
             self._set_status(f"cannot make a test card: {message.error}", style="red")
             return
-        manifest = message.output.manifest
+        output, files = message.result
+        manifest = output.manifest
         picture = self.query_one(HalfBlockPicture)
         picture.crop = None
-        picture.set_png(message.output.png)
+        picture.set_png(output.png)
         self.query_one("#job", Static).update(
             f"test card: {manifest['material']}, {manifest['card_mm'][0]:g}×{manifest['card_mm'][1]:g} mm, "
             f"{len(manifest['powers'])} powers × {len(manifest['feeds_mm_min'])} feeds, about "
             f"{manifest['estimate_seconds'] / 60:.0f} min\nthen: station calibrate material --image PHOTO "
-            f"--card {message.files['json']}")
+            f"--card {files['json']}")
         self.notify(f"burn it, photograph it on a light surface, then: station calibrate material --image PHOTO "
-                    f"--card {message.files['json']}", title="Test card", timeout=20)
+                    f"--card {files['json']}", title="Test card", timeout=20)
         queue = getattr(self.app.machines_screen(), "queue_job", None)
         if queue is None:
-            self._set_status(f"test card written to {message.files['json'].parent}")
+            self._set_status(f"test card written to {files['json'].parent}")
             return
         self.app.action_open_area("machines")
         self.app.call_after_refresh(self._queue_on_machines, queue,
-                                    [(f"test card ({manifest['material']})", message.output.gcode)])
+                                    [(f"test card ({manifest['material']})", output.gcode)])
 
     def _queue_on_machines(self, queue, jobs: list[tuple[str, str]]) -> None:
         for title, gcode in jobs:
             try:
                 queue("laser", gcode, title=title, laser=True)
-            except (DriverError, StationError, ValueError) as error:
+            except (*USER_ERRORS, ValueError) as error:
                 self._set_status(f"the laser refused the job: {error}", style="red")
                 self.notify(str(error), severity="error", title="Job not queued")
                 return

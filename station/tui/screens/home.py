@@ -1,25 +1,24 @@
 """The home screen: the areas of the station, the devices and their state, the database.
 
-Each device's line shows the state a brief probe finds (:func:`station.devices.probe_device`, the same as
+Each device's line shows the state a brief probe finds (:func:`station.services.station_home.probe`, the same as
 ``station devices``), probed once when the screen is made, each in its own thread worker so that the screen never
 waits for a port. Probing again on return would open a real machine's port while the Machines screen may be
-streaming to it (see :class:`drivers.devices.GrblSerialDevice`), so it is not repeated.
+streaming to it, so it is not repeated.
 """
 
 from __future__ import annotations
 
 from rich.text import Text
-from textual import work
 from textual.app import ComposeResult
 from textual.binding import Binding
 from textual.containers import Vertical
 from textual.screen import Screen
 from textual.widgets import DataTable, Footer, Header, Static
-from textual.worker import Worker, WorkerState
 
-from station.devices import DeviceEntry, probe_device
-from station.joblog import JobLog, local_time
+from station.services.station_home import DeviceEntry, local_time, probe, recent_jobs
+from station.tui.messages import DeviceProbed
 from station.tui.registry import ScreenEntry
+from station.tui.work import run_work
 
 #: Jobs shown on the home screen (``station jobs`` lists more).
 RECENT_JOBS = 5
@@ -44,7 +43,6 @@ class HomeScreen(Screen):
         self.areas = areas
         self.devices = devices
         self.database = database
-        self._probes: dict[Worker, str] = {}  # probe worker -> device name
         self.bindings_for_areas = [
             Binding(entry.key, f"app.open_area('{entry.name}')", entry.title) for entry in areas
         ]
@@ -78,37 +76,35 @@ class HomeScreen(Screen):
                 Text(PROBING),
                 key=device.name,
             )
-            self._probes[self.probe(device)] = device.name
+            self.probe(device)
         self.query_one("#jobs", DataTable).add_columns("#", "started", "kind", "device", "job", "state", "lines")
         self.show_jobs()
 
     def on_screen_resume(self) -> None:
         self.show_jobs()
 
-    @work(thread=True, group="probe", exit_on_error=False)
-    def probe(self, device: DeviceEntry) -> str:
-        """The probed state of ``device``, off the UI thread (a GRBL probe waits up to its timeout)."""
-        return probe_device(device)
+    def probe(self, device: DeviceEntry) -> None:
+        """Probe ``device`` off the UI thread (a GRBL probe waits up to its timeout); the state arrives as a
+        :class:`DeviceProbed`."""
+        run_work(self, lambda _report: (device.name, probe(device)), DeviceProbed, group=f"probe-{device.name}")
 
-    def on_worker_state_changed(self, event: Worker.StateChanged) -> None:
+    def on_device_probed(self, message: DeviceProbed) -> None:
         """Show a probe's answer as plain text (it quotes URLs and device replies, which are not markup)."""
-        worker = event.worker
-        if worker not in self._probes or event.state not in (WorkerState.SUCCESS, WorkerState.ERROR):
+        if not message.ok:
             return
-        name = self._probes.pop(worker)
-        if event.state is WorkerState.SUCCESS:
-            state = worker.result
-        else:  # a device URL no driver accepts, a bug in a driver: said on the device's line, the station goes on
-            state = f"probe failed: {worker.error}"
+        name, state = message.result
         table = self.query_one("#devices", DataTable)
         if name in table.rows:
             table.update_cell(name, PROBE_COLUMN, Text(state), update_width=True)
+            # The table measures its columns when it is next idle, and a wider column makes it wider: lay the screen
+            # out again then (else the column keeps its old width on the screen until something else lays it out).
+            table.call_later(table.refresh, layout=True)
 
     def show_jobs(self) -> None:
         """The latest machine jobs from the station database (a job run elsewhere shows when home is shown again)."""
         table = self.query_one("#jobs", DataTable)
         table.clear()
-        records = JobLog(getattr(self.app, "database", None)).recent(RECENT_JOBS)
+        records = recent_jobs(getattr(self.app, "database", None), RECENT_JOBS)
         for record in records:
             state = record.status
             if record.resume_line and state != "done":

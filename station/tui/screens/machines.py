@@ -5,9 +5,11 @@ planner and RX buffer), a console, jog, home/unlock, and a job queue with frame,
 abort, with progress and ETA. Other screens hand jobs over with :meth:`MachinesScreen.queue_job`; ``n`` plots the
 Drawing screen's current design as a job for the selected device.
 
-The screen holds the device sessions (connections, their listeners, the workers that send); the jobs and their
-states are a :class:`station.services.job_queue.JobQueue`, and the panels are widgets of their own
-(``station.tui.widgets.machines_status``, ``machines_console``, ``machines_preview``).
+The machines, their connections, the job queue and every send are the app's
+:class:`station.services.machine_sessions.MachineSessions` (``station send`` drives the same service): the screen
+asks its questions (a dialog: trace the frame of a laser job first on a machine without homing?) and shows progress;
+the panels are widgets of their own (``station.tui.widgets.machines_status``, ``machines_console``,
+``machines_preview``).
 
 Keys: c connect/disconnect · v switch device · h home · u unlock · arrows jog X/Y, PgUp/PgDn jog Z, [ ] step ·
 f frame · y dry run · g start · p hold · r resume · ctrl+x abort (always works, even in the console) · a abort ·
@@ -20,34 +22,49 @@ each layer's time estimate; at a pen change the job pauses, the screen says whic
 
 from __future__ import annotations
 
-import queue
+import threading
 import time
 from pathlib import Path
 
 from rich.text import Text
-from textual import on, work
+from textual import on
 from textual.app import ComposeResult
 from textual.binding import Binding
 from textual.containers import Horizontal, Vertical
 from textual.css.query import NoMatches
-from textual.screen import Screen
+from textual.screen import ModalScreen, Screen
 from textual.widget import Widget
 from textual.widgets import Footer, Header, Input, Static
 
-from drivers.errors import DriverError
-from drivers.grbl import GrblConnection, JobProgress, JobResult, JobRunner
-from drivers.grbl.protocol import Feedback
-from drivers.profiles import MachineProfile, ProfileError
-from station.devices import DeviceEntry, machine_profile
-from station.errors import StationError
-from station.joblog import JobLog
-from station.services.job_queue import JobMode, JobQueue, JobState, QueuedJob, frame_job
+from station.errors import USER_ERRORS, StationError
+from station.services.job_queue import JobMode, JobQueue, JobState, QueuedJob
+from station.services.machine_sessions import (
+    JobProgress,
+    MachineSessions,
+    SendPolicy,
+    device_profile,
+    feedback_text,
+    verify_summary,
+)
+from station.services.machines import plot_job, sample_pattern
 from station.services.plot import format_minutes, job_layers
+from station.tui.messages import (
+    ConsoleReplied,
+    DesignPlotted,
+    JobEnding,
+    JobSent,
+    JobVerified,
+    MachineConnected,
+    MachineSaid,
+    ProgressReported,
+    SendAsked,
+)
 from station.tui.registry import MachineDesign, ScreenEntry
 from station.tui.screens.bed_place import open_bed_placement, verify_next_job
 from station.tui.widgets.machines_console import MachineConsole
 from station.tui.widgets.machines_preview import JobPreview
 from station.tui.widgets.machines_status import JobProgressRow, JobQueueTable, MachineStatus
+from station.tui.work import run_work
 
 __all__ = ["JOG_STEPS", "MachinesScreen", "QueuedJob", "SCREEN"]
 
@@ -67,13 +84,77 @@ FEED_OVERRIDE_KEYS = (("plus", "+10", "Feed +10%"), ("minus", "-10", "Feed -10%"
 OPEN_PREFIX = "open "
 
 
-def layer_estimates(lines: list[str], profile: MachineProfile) -> str:
+def layer_estimates(lines: list[str], profile) -> str:
     """``; 3 pens: 1 rosette (blue 0.3 mm) 0:24, 2 star (red 0.5 mm) 0:34, ...`` for a multi-pen plot, else ``""``."""
     layers = job_layers(lines, profile)
     if not layers:
         return ""
     return f"; {len(layers)} pens: " + ", ".join(
         f"{layer.number} {layer.name} ({layer.pen}) {format_minutes(layer.time_s)}" for layer in layers)
+
+
+class AskScreen(ModalScreen[bool]):
+    """A yes/no question of a send (y or Enter: the default answer's opposite is n or Escape)."""
+
+    DEFAULT_CSS = """
+    AskScreen { align: center middle; }
+    AskScreen > Static { width: 70; height: auto; padding: 1 2; border: thick $warning; background: $surface; }
+    """
+    BINDINGS = [Binding("y", "answer(True)", "Yes"), Binding("n", "answer(False)", "No"),
+                Binding("escape", "answer(False)", "No")]
+
+    def __init__(self, question: str) -> None:
+        super().__init__()
+        self.question = question
+
+    def compose(self) -> ComposeResult:
+        yield Static(Text(f"{self.question}\n\ny yes · n no"))
+
+    def action_answer(self, answer: bool) -> None:
+        self.dismiss(answer)
+
+
+class ScreenPolicy(SendPolicy):
+    """The Machines screen's answers to a send's questions: a dialog (asked from the worker that sends, which waits
+    for the answer), a program pause said in the message line (r resumes)."""
+
+    def __init__(self, screen: MachinesScreen) -> None:
+        self.screen = screen
+
+    def _ask(self, question: str) -> bool:
+        answered = threading.Event()
+        answer: list[bool] = []
+
+        def done(value: bool | None) -> None:
+            answer.append(bool(value))
+            answered.set()
+
+        self.screen.post_message(SendAsked(question, done))
+        while not answered.wait(0.2):
+            if not self.screen.app.is_running:
+                return False
+        return answer[0]
+
+    def frame_first(self, job) -> bool:
+        return self._ask(f"{job.name}: this laser has no homing ($22=0), so the job burns wherever work zero is set. "
+                         "Trace its frame first (laser at frame power)?")
+
+    def start_after_frame(self, job) -> bool:
+        return self._ask(f"Frame done. Start the laser job {job.name}?")
+
+    def paused(self, message: str, resume, stop) -> None:
+        self.screen.post_message(MachineSaid(f"{message}: r resumes", "bold yellow"))
+
+    def warn(self, message: str) -> None:
+        self.screen.post_message(MachineSaid(f"warning: {message}", "yellow"))
+
+    def ended(self, result, progress) -> None:
+        # shown before the queue records the end: whoever reads the job's state finds the screen saying it
+        shown = threading.Event()
+        self.screen.post_message(JobEnding(result, progress, shown))
+        while not shown.wait(0.2):
+            if not self.screen.app.is_running or not self.screen.is_attached:
+                return
 
 
 class MachinesScreen(Screen):
@@ -122,28 +203,41 @@ class MachinesScreen(Screen):
 
     def __init__(self) -> None:
         super().__init__(name="machines")
-        self.connections: dict[str, GrblConnection] = {}
-        self.runner: JobRunner | None = None
+        self._sessions: MachineSessions | None = None
         self.device_index = 0
         self.jog_step_index = 2
         self.last_message = ""
         self._connecting: set[str] = set()
-        self._calls: queue.SimpleQueue = queue.SimpleQueue()
+        self._status_posted = False  # a status redraw is on its way (many status reports, one redraw)
         self._last_preview = 0.0
         self._auto_connected = False
-        self._job_queue: JobQueue | None = None
+        self._queue_shown: list = []
+        self._sending: tuple = (None, JobMode.RUN)  # the entry and mode of the latest send asked for
         self._after_abort = None  # called with the job's last message once an abort for quitting has ended it
-        self._asked_pause: int | None = None  # the pen change the screen has asked for
+
+    @property
+    def sessions(self) -> MachineSessions:
+        """The app's machines and jobs (an app without them gets one of the screen's own, recording nothing)."""
+        if self._sessions is None:
+            self._sessions = getattr(self.app, "machine_sessions", None) or MachineSessions(source="tui")
+            self._sessions.queue.log.on_error = lambda error: self._console(f"job history not written: {error}")
+        return self._sessions
+
+    @property
+    def connections(self) -> dict:
+        """The open connections by device name."""
+        return self.sessions.connections
+
+    @property
+    def runner(self):
+        """The runner of the job being sent (its progress, its program pause), or None."""
+        return self.sessions.runner
 
     @property
     def job_queue(self) -> JobQueue:
         """The jobs and their states; each send is recorded in the station database's job history (nothing is
         recorded in an app without a database)."""
-        if self._job_queue is None:
-            log = JobLog(getattr(self.app, "database", None),
-                         on_error=lambda error: self._console(f"job history not written: {error}"))
-            self._job_queue = JobQueue(log, source="tui")
-        return self._job_queue
+        return self.sessions.queue
 
     @property
     def jobs(self) -> list[QueuedJob]:
@@ -174,7 +268,6 @@ class MachinesScreen(Screen):
     def on_mount(self) -> None:
         self._render_status()
         self._refresh_queue()  # jobs other screens queued before this one was first shown (the Assemble screen's jigs)
-        self.set_interval(0.05, self._drain_calls)
 
     def on_screen_resume(self) -> None:
         # Focus left in the console field when the user went elsewhere would make the keys type there on return
@@ -193,11 +286,7 @@ class MachinesScreen(Screen):
 
     def shutdown(self) -> None:
         """Stop the job and close every connection (the app is closing)."""
-        if self.runner is not None and self.runner.result is None:
-            self.runner.abort()
-        for conn in list(self.connections.values()):
-            conn.close()
-        self.connections.clear()
+        self.sessions.close()
 
     # ------------------------------------------------------------------ devices
 
@@ -210,7 +299,7 @@ class MachinesScreen(Screen):
         devices = self.serial_devices
         return devices[self.device_index % len(devices)] if devices else None
 
-    def profile_for(self, device) -> MachineProfile:
+    def profile_for(self, device):
         """The device's machine profile (a built-in name or the file named in ``station.toml``).
 
         Raises
@@ -218,12 +307,9 @@ class MachinesScreen(Screen):
         StationError
             The profile file has gone, or turned bad, since the configuration was read; the message names it.
         """
-        try:
-            return machine_profile(device)
-        except ProfileError as error:
-            raise StationError(f"{device.name}: {error}") from None
+        return device_profile(device)
 
-    def connection(self, name: str | None = None) -> GrblConnection | None:
+    def connection(self, name: str | None = None):
         device = self.device if name is None else next((d for d in self.serial_devices if d.name == name), None)
         return self.connections.get(device.name) if device is not None else None
 
@@ -239,10 +325,7 @@ class MachinesScreen(Screen):
             self._say("no plotter or laser configured")
             return
         if device.name in self.connections:
-            conn = self.connections.pop(device.name)
-            if self.running_job is not None and self.running_job.device == device.name and self.runner:
-                self.runner.abort()
-            conn.close()
+            self.sessions.disconnect(device.name)  # a job running on it is aborted first
             self._say(f"{device.name}: disconnected")
             self._render_status()
             return
@@ -250,62 +333,59 @@ class MachinesScreen(Screen):
             return
         self._connecting.add(device.name)
         self._say(f"{device.name}: connecting to {device.url} ...")
-        self._connect_worker(device)
 
-    @work(thread=True, exclusive=False, group="connect")
-    def _connect_worker(self, device) -> None:
-        try:
-            conn = GrblConnection(device.url)
-            conn.add_listener(lambda event, data, name=device.name: self._listener(name, event, data))
-            conn.open()
-        except (DriverError, OSError) as error:
-            self._from_thread(self._say, f"{device.name}: {error}", "red")
-            self._from_thread(self._connecting.discard, device.name)
+        name = device.name
+
+        def connect(report):
+            listener = lambda event, data: self._listener(name, event, data)  # noqa: E731
+            try:
+                return name, self.sessions.connect(name, device.url, listener=listener)
+            except USER_ERRORS as error:
+                raise StationError(f"{name}: {error}") from None
+            finally:
+                self._connecting.discard(name)  # a set: safe from the worker; read on the UI thread
+
+        run_work(self, connect, MachineConnected, group=f"connect-{name}", exclusive=False)
+
+    def on_machine_connected(self, message: MachineConnected) -> None:
+        if not message.ok:
+            self._say(message.error, "red")
             return
-        self._from_thread(self._connected, device.name, conn)
-
-    def _connected(self, name: str, conn: GrblConnection) -> None:
-        self._connecting.discard(name)
-        self.connections[name] = conn
+        name, conn = message.result
         self._say(f"{name}: GRBL {conn.version} connected (RX buffer {conn.rx_size} bytes, "
                   f"{'laser mode' if conn.laser_mode else 'spindle mode'})")
         self._render_status()
 
-    def _from_thread(self, callback, *args) -> None:
-        # Never blocks: driver threads call this (sometimes holding the connection's lock), and the UI thread may
-        # be waiting for that lock (abort). A timer on the UI thread runs the queued calls.
-        self._calls.put((callback, args))
-
-    def _drain_calls(self) -> None:
-        status_pending = False
-        for _ in range(500):
-            try:
-                callback, args = self._calls.get_nowait()
-            except queue.Empty:
-                break
-            if callback == self._render_status:
-                status_pending = True  # many status reports, one render
-                continue
-            callback(*args)
-        if status_pending:
-            self._render_status()
-
     def _listener(self, name: str, event: str, data) -> None:
+        # On the connection's thread, sometimes holding its lock: only posts (never waits for the UI thread, which
+        # may be waiting for that lock to abort).
         if event == "status":
-            if self.device is not None and self.device.name == name:
-                self._from_thread(self._render_status)
+            if self.device is not None and self.device.name == name and not self._status_posted:
+                self._status_posted = True
+                self.post_message(MachineSaid(status=True))
         elif event == "log":
             _, direction, text = data
-            # (the runner, not the queue: this runs on the connection's thread)
-            if self.runner is not None and (direction == "out" or (direction == "in" and text == "ok")):
+            if self.sessions.sending and (direction == "out" or (direction == "in" and text == "ok")):
                 return  # thousands of lines and oks during a job drown the console (conn.log keeps them)
-            self._from_thread(self._console, f"{name} {'>' if direction == 'out' else '<'} {text}"
-                              if direction in ("in", "out") else f"{name} ! {text}")
+            self.post_message(MachineSaid(f"{name} {'>' if direction == 'out' else '<'} {text}"
+                                          if direction in ("in", "out") else f"{name} ! {text}", console_only=True))
         elif event in ("alarm", "fault"):
-            self._from_thread(self._say, f"{name}: {data}", "red")
-            self._from_thread(self._render_status)
-        elif event == "message" and isinstance(data, Feedback) and data.kind == "MSG":
-            self._from_thread(self._say, f"{name}: {data.text}")
+            self.post_message(MachineSaid(f"{name}: {data}", "red", status=True))
+        elif event == "message" and (text := feedback_text(data)) is not None:
+            self.post_message(MachineSaid(f"{name}: {text}"))
+
+    def on_machine_said(self, message: MachineSaid) -> None:
+        if message.text:
+            if message.console_only:
+                self._console(message.text, message.style)
+            else:
+                self._say(message.text, message.style)
+        if message.status:
+            self._status_posted = False
+            self._render_status()
+
+    def on_send_asked(self, message: SendAsked) -> None:
+        self.app.push_screen(AskScreen(message.question), message.answer)
 
     # ------------------------------------------------------------------ status
 
@@ -373,9 +453,14 @@ class MachinesScreen(Screen):
                   + layer_estimates(entry.job.lines, profile))
         return entry
 
-    def _refresh_queue(self) -> None:
+    def _refresh_queue(self, changed_only: bool = False) -> None:
+        """Redraw the queue table (``changed_only``: only if a job's title or state changed since the last time)."""
+        shown = [(entry.title, entry.state) for entry in self.jobs]
+        if changed_only and shown == self._queue_shown:
+            return
         if (table := self._shown("#queue", JobQueueTable)) is not None:
             table.show(self.jobs)
+            self._queue_shown = shown
 
     def _show_preview(self, entry: QueuedJob, current_line: int | None = None) -> None:
         """Draw the job's toolpath; with ``current_line``, what is done in green and the rest in grey."""
@@ -389,12 +474,12 @@ class MachinesScreen(Screen):
 
     # ------------------------------------------------------------------ job control
 
-    def _ready_connection(self) -> GrblConnection | None:
+    def _ready_connection(self):
         conn = self.connection()
         if conn is None:
             self._say("not connected: press c")
             return None
-        if self.runner is not None and self.runner.result is None:
+        if self.sessions.sending or self.running_job is not None:
             self._say("a job is running: p holds, r resumes, ctrl+x aborts")
             return None
         return conn
@@ -409,105 +494,80 @@ class MachinesScreen(Screen):
         self._run_next(JobMode.DRY)
 
     def _run_next(self, mode: JobMode) -> None:
-        conn = self._ready_connection()
-        if conn is None:
+        if self._ready_connection() is None:
             return
         entry = self.next_job()
         if entry is None:
             self._say("no queued job for this device (n plots the current design)")
             return
-        job = entry.job
-        if mode is JobMode.FRAME:
-            try:
-                profile = self.profile_for(self.device)
-            except StationError as error:
-                self._say(f"cannot frame: {error}", "red")
-                return
-            job = frame_job(entry.job, entry.title, profile)
-            if job is None:
-                self._say("nothing to frame")
-                return
-        runner = JobRunner(conn, job, from_line=self.job_queue.start_line(entry, mode), dry_run=mode is JobMode.DRY,
-                           on_progress=self._progress_cb)
-        self.job_queue.start(entry, mode, len(job.lines))
-        self.runner = runner
-        self._refresh_queue()
-        self._say(f"{entry.state} {entry.title!r} on {entry.device}")
-        self._job_worker(runner, entry)
+        try:
+            profile = self.profile_for(self.device)
+        except StationError as error:
+            self._say(f"cannot {mode.kind}: {error}", "red")
+            return
+        self._say(f"{mode.kind} {entry.title!r} on {entry.device}")
+        device, policy = self.device.name, ScreenPolicy(self)
+        self._sending = (entry, mode)
+        run_work(self, lambda report: self.sessions.send(device, entry, mode, profile=profile, policy=policy,
+                                                         report=report), JobSent, group="job", exclusive=False)
 
-    def _progress_cb(self, progress: JobProgress) -> None:
-        self._from_thread(self._show_progress, progress)
+    def on_progress_reported(self, message: ProgressReported) -> None:
+        if isinstance(message.progress, JobProgress):
+            self._show_progress(message.progress)
 
     def _show_progress(self, progress: JobProgress) -> None:
         now = time.monotonic()
         entry = self.running_job
-        runner = self.runner
-        if progress.state == "paused" and runner is not None and runner.pause_line != self._asked_pause:
-            self._asked_pause = runner.pause_line
-            self._say(f"{progress.message}: r resumes", "bold yellow")
-        elif progress.state != "paused":
-            self._asked_pause = None
-        if entry is not None:
-            self.job_queue.progress(entry, progress.lines_acked, self._layer_record(runner))
-            if entry.state is JobState.RUNNING and (now - self._last_preview > 0.5 or progress.state != "running"):
-                self._last_preview = now
-                self._show_preview(entry, progress.current_line)
+        self._refresh_queue(changed_only=True)  # the send changes the job's state on its own thread
+        if entry is not None and entry.state is JobState.RUNNING and (
+                now - self._last_preview > 0.5 or progress.state != "running"):
+            self._last_preview = now
+            self._show_preview(entry, progress.current_line)
         if (row := self._shown("#progress-row", JobProgressRow)) is not None:
             row.show(progress)
 
-    @work(thread=True, exclusive=False, group="job")
-    def _job_worker(self, runner: JobRunner, entry: QueuedJob) -> None:
-        result = runner.run_safely()
-        self._from_thread(self._job_done, runner, entry, result)
-
-    def _job_done(self, runner: JobRunner, entry: QueuedJob, result: JobResult) -> None:
-        if entry.state is JobState.RUNNING:
-            self._show_preview(entry, len(entry.job.lines) if result.ok else runner.progress.current_line)
-        self.job_queue.finish(entry, result, self._layer_record(runner, result.resume_line))
-        if self.runner is runner:
-            self.runner = None
-        self._refresh_queue()
-        colour = "green" if result.ok else "red"
-        self._say(result.message, style=colour)
+    def on_job_ending(self, message: JobEnding) -> None:
+        """The send ended (its state is recorded right after): the end shown."""
+        result, progress = message.result, message.progress
+        entry = self.running_job
+        if entry is not None and entry.state is JobState.RUNNING:
+            self._show_preview(entry, len(entry.job.lines) if result.ok else progress.current_line)
+        self._say(result.message, style="green" if result.ok else "red")
         for _, text in result.errors[:5]:
             self._console(f"  {text}")
-        self._show_progress(runner.progress)
-        self._render_status()
-        if self._after_abort is not None and self.runner is None:
-            callback, self._after_abort = self._after_abort, None
-            callback(result.message)
+        if (row := self._shown("#progress-row", JobProgressRow)) is not None:
+            row.show(progress)
+        message.shown.set()
 
-    @staticmethod
-    def _layer_record(runner: JobRunner | None, resume_line: int | None = None) -> dict | None:
-        """The layer of a multi-pen plot the machine stands on (or of ``resume_line``), for the job history."""
-        if runner is None or not runner.layers:
-            return None
-        mark = runner.layer(resume_line - 1 if resume_line else None)
-        return mark.to_dict() if mark is not None else None
+    def on_job_sent(self, message: JobSent) -> None:
+        """The send's end recorded: the queue and the status redrawn; quitting goes on once an abort for it ended."""
+        entry, mode = self._sending
+        if message.error:
+            self._say(f"cannot {mode.kind} {entry.title!r}: {message.error}", "red")
+        self._refresh_queue()
+        self._render_status()
+        if self._after_abort is not None and not self.sessions.sending:
+            callback, self._after_abort = self._after_abort, None
+            callback(message.result.message if message.ok else message.error)
+
+    def _device_name(self) -> str | None:
+        return self.device.name if self.device is not None else None
 
     def action_hold(self) -> None:
-        if self.runner is not None and self.runner.result is None:
-            self.runner.hold()
-        elif (conn := self.connection()) is not None:
-            self._safe(conn.feed_hold)
+        self._safe(self.sessions.hold, self._device_name())
         self._say("feed hold (r resumes)")
 
     def action_resume(self) -> None:
-        if self.runner is not None and self.runner.result is None:
-            self.runner.resume()
-        elif (conn := self.connection()) is not None:
-            self._safe(conn.cycle_start)
+        self._safe(self.sessions.resume, self._device_name())
         self._say("resume")
 
     def action_abort(self) -> None:
         """Soft reset now (motion stops, laser off); a running job then sends M5 S0. Always available."""
-        if self.runner is not None and self.runner.result is None:
-            self.runner.abort()
+        if self.sessions.sending:
+            self._safe(self.sessions.abort)
             self._say("abort: soft reset sent", style="red")
-            return
-        conn = self.connection()
-        if conn is not None:
-            self._safe(conn.soft_reset, False)
+        elif self.connection() is not None:
+            self._safe(self.sessions.abort, self._device_name())
             self._say("abort: soft reset sent (no job was running)", style="red")
         else:
             self._say("abort: not connected")
@@ -515,15 +575,14 @@ class MachinesScreen(Screen):
     def _safe(self, callback, *args) -> None:
         try:
             callback(*args)
-        except (DriverError, OSError) as error:
+        except USER_ERRORS as error:
             self._say(str(error), style="red")
 
     # ------------------------------------------------------------------ manual control
 
     def action_override(self, kind: str, action: str) -> None:
-        conn = self.connection()
-        if conn is not None:
-            self._safe(conn.override, kind, action)
+        if self.connection() is not None:
+            self._safe(self.sessions.override, self._device_name(), kind, action)
             self._say(f"{kind} override {action}")
 
     def action_step(self, direction: int) -> None:
@@ -537,7 +596,7 @@ class MachinesScreen(Screen):
         step = JOG_STEPS[self.jog_step_index]
         feed = 1000.0 if dz else 3000.0
         words = " ".join(f"{axis}{d * step:g}" for axis, d in zip("XYZ", (dx, dy, dz)) if d)
-        self._send_worker(f"$J=G91 G21 {words} F{feed:g}")
+        self._send_worker(f"$J=G91 G21 {words} F{feed:g}")  # the line MachineSessions.jog sends, shown as typed
 
     def action_home(self) -> None:
         if self._ready_connection() is not None:
@@ -593,19 +652,27 @@ class MachinesScreen(Screen):
         if self._ready_connection() is not None:
             self._send_worker(line)
 
-    @work(thread=True, exclusive=False, group="send")
     def _send_worker(self, line: str) -> None:
-        conn = self.connection()
-        if conn is None:
+        """Send ``line`` (G-code or a ``$`` command) to the selected machine, in a worker; feedback in the console."""
+        name = self._device_name()
+        if self.connection(name) is None:
             return
-        try:
-            replies = conn.command(line, timeout=90.0)
-            for reply in replies:
-                if isinstance(reply, Feedback):
-                    self._from_thread(self._console, f"  [{reply.kind}:{reply.text}]")
-        except (DriverError, OSError) as error:
-            self._from_thread(self._say, f"{line}: {error}", "red")
-        self._from_thread(self._render_status)
+
+        def command(report):
+            try:
+                return self.sessions.command(name, line)
+            except USER_ERRORS as error:
+                raise StationError(f"{line}: {error}") from None
+
+        run_work(self, command, ConsoleReplied, group="console", exclusive=False)
+
+    def on_console_replied(self, message: ConsoleReplied) -> None:
+        if message.ok:
+            for text in message.result:
+                self._console(f"  {text}")
+        else:
+            self._say(message.error, "red")
+        self._render_status()
 
     def action_verify_job(self) -> None:
         """The next job run on the machine's twin at virtual time (station.tui.screens.bed_place)."""
@@ -621,7 +688,7 @@ class MachinesScreen(Screen):
         self.plot_design(machine, params)
 
     def plot_design(self, machine: str, params: dict, device: str | None = None) -> None:
-        """Turn a drawing-machine design into a plot job and queue it (in a worker: sampling takes a moment).
+        """Turn a drawing-machine design into a plot job and queue it (in a worker).
 
         ``device`` is a device name or kind (``"plotter"``); by default the selected device.
         """
@@ -630,31 +697,36 @@ class MachinesScreen(Screen):
         if target is None:
             self._say(f"no {device or 'plotter or laser'} configured")
             return
-        self._plot_worker(machine, params, target)
+        def plot(report):
+            # sampling takes a moment: in a worker
+            try:
+                points, _ = sample_pattern(machine, params, 4096)
+                text, *_ = plot_job([points], self.profile_for(target), None, None)
+            except USER_ERRORS as error:
+                raise StationError(f"cannot plot {machine}: {error}") from None
+            return target.name, text, f"{machine} plot"
 
-    @work(thread=True, exclusive=False, group="plot")
-    def _plot_worker(self, machine: str, params: dict, device: DeviceEntry) -> None:
-        from design.errors import DesignError
-        from design.machines import get_machine
-        from station.services.machines import plot_job
+        run_work(self, plot, DesignPlotted, group="plot", exclusive=False)
 
-        try:
-            model = get_machine(machine)
-            values = model.validate(params)
-            points = model.sample(values, n=4096, spacing="arclength")
-            text, *_ = plot_job([points], self.profile_for(device), None, None)
-        except (DesignError, DriverError, StationError) as error:
-            self._from_thread(self._say, f"cannot plot {machine}: {error}", "red")
+    def on_job_verified(self, message: JobVerified) -> None:
+        """The next job's run on the twin (``e``, :func:`station.tui.screens.bed_place.verify_next_job`)."""
+        if not message.ok:
+            self._say(message.error, "red")
             return
-        self._from_thread(self.queue_job, device.name, text, f"{machine} plot")
+        self._say(" · ".join(line.strip() for line in verify_summary(message.result)),
+                  "green" if message.result.ok else "red")
+
+    def on_design_plotted(self, message: DesignPlotted) -> None:
+        if message.ok:
+            self.queue_job(*message.result)
+        else:
+            self._say(message.error, "red")
 
     # ------------------------------------------------------------------ quitting
 
     def active_job(self) -> QueuedJob | None:
         """The job being sent now (a run, a frame or a dry run), or None."""
-        if self.runner is not None and self.runner.result is None:
-            return self.running_job
-        return None
+        return self.running_job if self.sessions.sending else None
 
     def abort_then(self, callback, timeout: float = 20.0) -> None:
         """Abort the running job and call ``callback(message)`` once it has ended (the app quits then).

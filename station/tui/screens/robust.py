@@ -9,40 +9,43 @@ a run cleanly (finished simulations stay in the cache); w writes the layout JSON
 
 from __future__ import annotations
 
-import io
 import json
-import threading
 from pathlib import Path
 
 import numpy as np
 from rich.text import Text
-from textual import on, work
+from textual import on
 from textual.app import ComposeResult
 from textual.binding import Binding
 from textual.containers import Horizontal, Vertical
 from textual.css.query import NoMatches
-from textual.message import Message
 from textual.screen import Screen
 from textual.widgets import Button, DataTable, Footer, Header, Input, Label, Select, Static
 
-from design.errors import DesignError
-from design.robust import Progress, PSPSettings, RobustLayout
-from station.paths import data_dir
 from station.services import robust as service
-from station.services.errors import ServiceError
 from station.services.outlook import disagreement, success_headline
 from station.services.predict import layout_outlook
-from station.services.robust import DEFAULT_BUDGET, DEFAULT_SETTINGS, SETTINGS_CHOICES, RunStopped, thesis_budget
+from station.services.reporting import Progress
+from station.services.robust import DEFAULT_BUDGET, DEFAULT_SETTINGS, SETTINGS_CHOICES, thesis_budget
+from station.services.station_home import data_dir
+from station.tui.messages import OptimizationEnded, ProgressReported
 from station.tui.registry import ScreenEntry
 from station.tui.widgets.picture import HalfBlockPicture
-from station.tui.widgets.progress import ProgressPanel, ProgressReported, post_progress
+from station.tui.widgets.progress import ProgressPanel
 from station.tui.widgets.scenario_select import scenario_choices, select_scenario
+from station.tui.work import Work, run_work
+
+
+def is_run_progress(progress: Progress) -> bool:
+    """Whether ``progress`` is the optimization's own (it counts simulations of the budget), not the plain progress
+    of the prediction that follows it."""
+    return getattr(progress, "simulations", None) is not None
 
 
 def describe_progress(progress: Progress) -> str:
     """A robust run's progress line: simulations of the budget, the CV accuracy and best PSP once known; the
     prediction of the optimized layout's physical success after it (a plain progress) in its own words."""
-    if not isinstance(progress, Progress):
+    if not is_run_progress(progress):
         total = "" if progress.total is None else f"/{progress.total:g}"
         return f"predicting its physical success on the table: {progress.stage} {progress.done:g}{total}"
     parts = [f"simulations {progress.simulations}/{progress.budget}"]
@@ -53,16 +56,6 @@ def describe_progress(progress: Progress) -> str:
     if progress.detail:
         parts.append(progress.detail)
     return "   ".join(parts)
-
-
-class OptimizationEnded(Message):
-    """An optimization ended: with its problem, result and side-view picture, or stopped or refused (``message``)."""
-
-    def __init__(self, problem=None, result: RobustLayout | None = None, png: bytes | None = None,
-                 message: str | Text = "", outlook=None) -> None:
-        super().__init__()
-        self.problem, self.result, self.png, self.message = problem, result, png, message
-        self.outlook = outlook  #: the layout's physical success (calibration.sim_predict.PhysicalPrediction)
 
 
 class RobustScreen(Screen):
@@ -93,12 +86,13 @@ class RobustScreen(Screen):
         #: Local worker processes (None: all cores); tests set 1 to simulate in the worker thread.
         self.simulation_workers: int | None = None
         #: PSP settings that override the "Settings" choice (tests shrink them); None: the choice decides.
-        self.psp_settings: PSPSettings | None = None
-        self.result: RobustLayout | None = None
+        self.psp_settings = None
+        #: The optimized layout (design.robust.RobustLayout) once a run has ended.
+        self.result = None
         self.outlook = None
         self._optimized_progress: Progress | None = None
         self.problem = None
-        self._stop = threading.Event()
+        self._work: Work | None = None
         self._optimizing = False
         self._pending_scenario: str | None = None
 
@@ -198,7 +192,6 @@ class RobustScreen(Screen):
         seed = self._read_int("seed", "seed", 0)
         if budget is None or seed is None:
             return
-        self._stop.clear()
         self._optimizing = True
         self.query_one("#optimize", Button).disabled = True
         self.query_one("#stop", Button).disabled = False
@@ -208,8 +201,8 @@ class RobustScreen(Screen):
         self.run_optimization(str(scenario), budget, seed, settings)
 
     def action_stop(self) -> None:
-        if self._optimizing:
-            self._stop.set()
+        if self._optimizing and self._work is not None:
+            self._work.stop()
             self._set_status("stopping (finished simulations stay cached) ...")
 
     def action_write(self) -> Path | None:
@@ -237,47 +230,38 @@ class RobustScreen(Screen):
             assemble.open_layout(str(self.problem.scenario.source), str(path))
 
     # -- the work (a thread) -----------------------------------------------------------------------------------
-    @work(thread=True, exclusive=True, group="robust")
-    def run_optimization(self, scenario_path: str, budget: int, seed: int, settings: PSPSettings) -> None:
-        """Optimize in this thread; progress and the end reach the screen as messages, in the order they happened."""
-        from design.robust.contraption import render_layouts
+    def run_optimization(self, scenario_path: str, budget: int, seed: int, settings) -> None:
+        """Optimize in a worker; progress and the end reach the screen as messages, in the order they happened."""
+        workers = self.simulation_workers
 
-        try:
+        def optimize(report):
             problem = service.load_problem(scenario_path)
-            result = service.optimize(problem, budget, seed, settings, workers=self.simulation_workers,
-                                      progress=post_progress(self), should_stop=self._stop.is_set)
-            outlook = layout_outlook(problem, problem.to_real(result.u), seed=seed, workers=self.simulation_workers,
-                                     progress=post_progress(self), should_stop=self._stop.is_set)
-            picture = io.BytesIO()
-            render_layouts(problem, [("initial", problem.initial_layout()), ("optimized", result.u)]).save(
-                picture, format="PNG")
-        except RunStopped:
-            self.post_message(OptimizationEnded(message="stopped; finished simulations are cached"))
-            return
-        except (DesignError, ServiceError, OSError) as error:
-            self.post_message(OptimizationEnded(message=Text(f"cannot optimize: {error}", "red")))
-            return
-        self.post_message(OptimizationEnded(problem, result, picture.getvalue(), outlook=outlook))
+            result = service.optimize(problem, budget, seed, settings, workers=workers, report=report)
+            outlook = layout_outlook(problem, problem.to_real(result.u), seed=seed, workers=workers, report=report)
+            return problem, result, service.layouts_picture(problem, result.u), outlook
+
+        self._work = run_work(self, optimize, OptimizationEnded, group="robust")
 
     def on_progress_reported(self, message: ProgressReported) -> None:
         self._show_progress(message.progress)
 
     def _show_progress(self, progress: Progress) -> None:
-        if isinstance(progress, Progress):
+        if is_run_progress(progress):
             self._optimized_progress = progress  # the panel ends on the optimization's figures, not the prediction's
         self.query_one(ProgressPanel).show(progress)
 
     def on_optimization_ended(self, message: OptimizationEnded) -> None:
-        self._finished(message.problem, message.result, message.png, message.message, message.outlook)
-
-    def _finished(self, problem, result: RobustLayout | None, png: bytes | None, message: str,
-                  outlook=None) -> None:
         self._optimizing = False
         self.query_one("#optimize", Button).disabled = False
         self.query_one("#stop", Button).disabled = True
-        if result is None:
-            self._set_status(message)
-            return
+        if message.stopped:
+            self._set_status(message.error)
+        elif message.error:
+            self._set_status(Text(f"cannot optimize: {message.error}", "red"))
+        else:
+            self._finished(*message.result)
+
+    def _finished(self, problem, result, png: bytes, outlook) -> None:
         self.problem, self.result, self.outlook = problem, result, outlook
         events = self.query_one("#events", DataTable)
         events.clear()

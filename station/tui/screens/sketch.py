@@ -11,35 +11,33 @@ from __future__ import annotations
 
 import numpy as np
 from rich.text import Text
-from textual import on, work
+from textual import on
 from textual.app import ComposeResult
 from textual.binding import Binding
 from textual.containers import Horizontal, Vertical, VerticalScroll
 from textual.screen import Screen
 from textual.widgets import Button, Footer, Header, Input, Label, ProgressBar, Static
-from textual.worker import get_current_worker
 
-from common.progress import Cancelled, Progress
-from design.errors import DesignError
-from design.sketch import SketchRetriever, make_sketch
-from design.sketch.retrieval import Candidate
-from station.services.sketch import RetrieveOptions, candidate_curve, retrieve
+from station.errors import USER_ERRORS
+from station.services.reporting import Progress, Reporter
+from station.services.sketch import RetrieveOptions, candidate_curve, retrieve, sketch_from_strokes
 from station.services.sketch import make_retriever as retriever_service
+from station.tui.messages import CandidatesFound, ProgressReported
 from station.tui.registry import ScreenEntry
 from station.tui.widgets.canvas import PatternCanvas
 from station.tui.widgets.sketch_pad import SketchPad
+from station.tui.work import run_work
 
 #: Candidates shown.
 TOP = 5
 
 
-def make_retriever(progress, cancelled=None) -> SketchRetriever:
+def make_retriever(report: Reporter):
     """The retriever the screen uses (every machine, databases cached in the station's cache directory).
 
-    ``progress`` gets a :class:`common.progress.Progress` while a database is built; ``cancelled`` is asked
-    between its steps.
+    ``report`` is told how a database build goes, and stops it between its steps.
     """
-    return retriever_service(progress=progress, cancelled=cancelled)
+    return retriever_service(report=report)
 
 
 class CandidatePreview(Vertical):
@@ -52,7 +50,7 @@ class CandidatePreview(Vertical):
     CandidatePreview Label { height: 1; }
     """
 
-    def __init__(self, rank: int, candidate: Candidate, curve: np.ndarray) -> None:
+    def __init__(self, rank: int, candidate, curve: np.ndarray) -> None:
         super().__init__(id=f"candidate-{rank}")
         self.rank = rank
         self.candidate = candidate
@@ -93,8 +91,10 @@ class SketchScreen(Screen):
 
     def __init__(self) -> None:
         super().__init__(name="sketch")
-        self.retriever: SketchRetriever | None = None
-        self.candidates: list[Candidate] = []
+        #: The retriever, once its databases are built or loaded (kept for the next searches).
+        self.retriever = None
+        #: The ranked candidates shown (station.services.sketch's retrieval candidates).
+        self.candidates: list = []
 
     def compose(self) -> ComposeResult:
         yield Header()
@@ -175,8 +175,8 @@ class SketchScreen(Screen):
             return
         strokes = [list(s) for s in self.pad.strokes]
         try:
-            sketch = make_sketch(strokes, symmetry=k, center=self.pad.center(), source="sketch pad")
-        except DesignError as error:
+            sketch = sketch_from_strokes(strokes, symmetry=k, center=self.pad.center(), source="sketch pad")
+        except USER_ERRORS as error:
             self.set_status(f"cannot use this sketch: {error}")
             return
         self.set_status("searching…")
@@ -188,28 +188,30 @@ class SketchScreen(Screen):
         self.set_status(progress.message if fraction is None else f"{progress.message} ({100 * fraction:.0f}%)")
         self.query_one("#progress", ProgressBar).update(total=progress.total, progress=progress.done)
 
-    @work(thread=True, exclusive=True, group="sketch-search")
     def search(self, sketch) -> None:
-        def progress(update: Progress) -> None:
-            self.app.call_from_thread(self.show_progress, update)
+        """Rank the candidates in a worker (building the databases first, once); a newer search replaces it."""
+        retriever = self.retriever
 
-        def cancelled() -> bool:
-            # Asked in the worker that builds: a newer search (exclusive) or leaving the app cancels it.
-            return get_current_worker().is_cancelled
+        def find(report):
+            found = retriever if retriever is not None else make_retriever(report)
+            result = retrieve(sketch, RetrieveOptions(top=TOP), retriever=found)
+            return found, result, [candidate_curve(c, 512) for c in result.candidates]
 
-        try:
-            if self.retriever is None:
-                self.retriever = make_retriever(progress, cancelled)
-            result = retrieve(sketch, RetrieveOptions(top=TOP), retriever=self.retriever)
-            curves = [candidate_curve(c, 512) for c in result.candidates]
-        except Cancelled:
+        run_work(self, find, CandidatesFound, group="sketch-search")
+
+    def on_progress_reported(self, message: ProgressReported) -> None:
+        self.show_progress(message.progress)
+
+    def on_candidates_found(self, message: CandidatesFound) -> None:
+        if message.stopped:
             return
-        except DesignError as error:
-            self.app.call_from_thread(self.set_status, f"cannot use this sketch: {error}")
+        if message.error:
+            self.set_status(f"cannot use this sketch: {message.error}")
             return
-        self.app.call_from_thread(self.show_candidates, result.candidates, curves, result.timings["total"])
+        self.retriever, result, curves = message.result
+        self.show_candidates(result.candidates, curves, result.timings["total"])
 
-    def show_candidates(self, candidates: list[Candidate], curves: list[np.ndarray], seconds: float) -> None:
+    def show_candidates(self, candidates: list, curves: list[np.ndarray], seconds: float) -> None:
         self.candidates = list(candidates)
         self.query_one("#progress", ProgressBar).update(total=100, progress=100)
         box = self.query_one("#candidates", VerticalScroll)

@@ -17,25 +17,22 @@ from pathlib import Path
 from typing import Any
 
 from rich.text import Text
-from textual import on, work
+from textual import on
 from textual.app import ComposeResult
 from textual.binding import Binding
 from textual.containers import Horizontal, Vertical
 from textual.screen import Screen
 from textual.widgets import Button, DataTable, Footer, Header, Input, Label, Select, Static
-from textual.worker import get_current_worker
 
-from design.contraption.layout_io import resolve_layout
-from design.contraption.model import Scenario
-from design.errors import DesignError
-from station.db import database_url
-from station.errors import StationError
-from station.joblog import local_time
-from station.paths import data_dir
+from station.errors import USER_ERRORS
 from station.services import trials as service
+from station.services.predict import outlook_line, predict_trial
+from station.services.station_home import data_dir, local_time
+from station.tui.messages import OutlookPredicted, TrialLogged, TrialsExported, TrialsListed
 from station.tui.registry import ScreenEntry
 from station.tui.widgets.outcomes import OutcomeTable
 from station.tui.widgets.scenario_select import scenario_select, select_scenario
+from station.tui.work import run_work
 
 
 def matches(trial: dict[str, Any], text: str) -> bool:
@@ -75,7 +72,8 @@ class TrialsScreen(Screen):
 
     def __init__(self) -> None:
         super().__init__(name="trials")
-        self.scenario: Scenario | None = None
+        #: The scenario whose events are ticked (a design.contraption Scenario, from the trials service).
+        self.scenario = None
         #: The trials listed (after the filter), oldest first.
         self.trials: list[dict[str, Any]] = []
         self._all: list[dict[str, Any]] = []
@@ -135,7 +133,7 @@ class TrialsScreen(Screen):
         layout if it has one; "" the scenario's defaults). Used by c (the Contraptions screen's scenario)."""
         try:
             scenario = service.load_trial_scenario(path)
-        except (DesignError, StationError, OSError) as error:
+        except USER_ERRORS as error:
             self.set_status(str(error), "red")
             return False
         self.scenario = scenario
@@ -204,26 +202,25 @@ class TrialsScreen(Screen):
         self.set_status("logging…")
         self._log_worker(self.scenario, dict(self.given), fields)
 
-    @work(thread=True, exclusive=True, group="trials-db")
-    def _log_worker(self, scenario: Scenario, given: dict[str, str], fields: dict[str, str]) -> None:
-        try:
-            # an empty field: the scenario file's own transforms
-            x = resolve_layout(fields["layout"], scenario).x if fields["layout"] else scenario.default_layout()
-            layout = service.layout_values(scenario, x)
+    def _log_worker(self, scenario, given: dict[str, str], fields: dict[str, str]) -> None:
+        def log(_report):
+            # an empty layout field: the scenario file's own transforms
+            layout = service.read_layout_values(scenario, fields["layout"])
             as_built, check = (service.read_as_built(fields["as-built"], scenario, layout) if fields["as-built"]
                                else (None, None))
             record = service.build_trial(scenario, layout, given, as_built=as_built, check=check,
                                          who=fields["who"], notes=fields["notes"])
             # the service's log: a busy database is waited for, and a trial it cannot take is kept in a file
-            trial_id = service.log_trial(record, url=database_url()).id
-            with service.open_store(database_url()) as store:
-                trials = store.trials()
-        except (DesignError, StationError, OSError) as error:
-            self.app.call_from_thread(self.set_status, str(error).replace("outcome.", "", 1), "red")
-            return
-        self.app.call_from_thread(self._logged, trial_id, record, trials)
+            trial_id = service.log_trial(record).id
+            return trial_id, record, service.logged_trials()
 
-    def _logged(self, trial_id: int, record: dict, trials: list[dict]) -> None:
+        run_work(self, log, TrialLogged, group="trials-log")
+
+    def on_trial_logged(self, message: TrialLogged) -> None:
+        if not message.ok:
+            self.set_status(message.error.replace("outcome.", "", 1), "red")
+            return
+        trial_id, record, trials = message.result
         self.last_logged = trial_id
         self.query_one("#notes", Input).value = ""
         self.query_one("#events", OutcomeTable).load(self.scenario)
@@ -234,37 +231,37 @@ class TrialsScreen(Screen):
             self.query_one("#outlook", Static).update(Text("predicting the physical success…", style="dim"))
             self._outlook_worker(trial_id, self.scenario, record)
 
-    @work(thread=True, exclusive=True, group="trials-predict")
-    def _outlook_worker(self, trial_id: int, scenario: Scenario, record: dict) -> None:
+    def _outlook_worker(self, trial_id: int, scenario, record: dict) -> None:
         """The physical success of the trial's layout (as built) and the attempts to expect, after every log."""
-        from common.progress import Cancelled
-        from station.services.predict import outlook_line, predict_trial
+        samples = self.prediction_samples
 
-        worker = get_current_worker()
-        try:
-            result = predict_trial(scenario, record, samples=self.prediction_samples,
-                                   should_stop=lambda: worker.is_cancelled)
-            text = Text(f"after trial #{trial_id}: {outlook_line(result)}")
-        except Cancelled:
+        def predict(report):
+            return trial_id, predict_trial(scenario, record, samples=samples, report=report)
+
+        run_work(self, predict, OutlookPredicted, group="trials-predict")
+
+    def on_outlook_predicted(self, message: OutlookPredicted) -> None:
+        if message.stopped:
             return
-        except (DesignError, StationError, OSError) as error:
-            text = Text(f"no prediction: {error}", style="yellow")
-        if not worker.is_cancelled:
-            self.app.call_from_thread(self.query_one("#outlook", Static).update, text)
+        if message.error:
+            text = Text(f"no prediction: {message.error}", style="yellow")
+        else:
+            trial_id, result = message.result
+            text = Text(f"after trial #{trial_id}: {outlook_line(result)}")
+        self.query_one("#outlook", Static).update(text)
 
     # -- the list, filter and export -----------------------------------------------------------------------------
     def refresh_trials(self) -> None:
         self._list_worker()
 
-    @work(thread=True, exclusive=True, group="trials-list")
     def _list_worker(self) -> None:
-        try:
-            with service.open_store(database_url()) as store:
-                trials = store.trials()
-        except StationError as error:
-            self.app.call_from_thread(self.set_status, str(error), "red")
-            return
-        self.app.call_from_thread(self._show_trials, trials)
+        run_work(self, lambda _report: service.logged_trials(), TrialsListed, group="trials-list")
+
+    def on_trials_listed(self, message: TrialsListed) -> None:
+        if message.ok:
+            self._show_trials(message.result)
+        else:
+            self.set_status(message.error, "red")
 
     def _show_trials(self, trials: list[dict[str, Any]]) -> None:
         self._all = trials
@@ -292,16 +289,18 @@ class TrialsScreen(Screen):
         target = Path(path).expanduser() if path else data_dir() / "trials.json"
         self._export_worker(target, [t["id"] for t in self.trials])
 
-    @work(thread=True, exclusive=True, group="trials-db")
     def _export_worker(self, path: Path, ids: list[int]) -> None:
-        try:
-            with service.open_store(database_url()) as store:
-                count = service.export_trials(store, path, ids=ids)
-        except (StationError, OSError) as error:
-            self.app.call_from_thread(self.set_status, str(error), "red")
-            return
-        self.app.call_from_thread(self.set_status, f"{count} trial(s) exported to {path}", "green")
+        def export(_report):
+            return path, service.export_logged(path, ids=ids)
 
+        run_work(self, export, TrialsExported, group="trials-export")
+
+    def on_trials_exported(self, message: TrialsExported) -> None:
+        if message.ok:
+            path, count = message.result
+            self.set_status(f"{count} trial(s) exported to {path}", "green")
+        else:
+            self.set_status(message.error, "red")
 
 SCREEN = ScreenEntry(
     name="trials",

@@ -14,9 +14,8 @@ from textual.app import ComposeResult
 from textual.containers import Vertical
 from textual.widgets import DataTable, Label, ProgressBar, Static
 
-from drivers.grbl import GrblConnection, JobProgress
-from station.devices import DeviceEntry
 from station.services.job_queue import QueuedJob
+from station.services.machine_sessions import DeviceEntry, GrblConnection, JobProgress
 
 
 def status_lines(device: DeviceEntry | None, conn: GrblConnection | None, jog_step: float) -> list[str]:

@@ -20,7 +20,7 @@ from textual.binding import Binding
 from textual.message import Message
 from textual.widgets import DataTable
 
-from station.trialformat import NO, NOT_REACHED, OUTCOMES, YES, goal_reached, resolve_outcomes
+from station.services.trial_outcomes import NO, NOT_REACHED, OUTCOMES, YES, goal_reached, resolve_outcomes
 
 #: How each outcome looks.
 OUTCOME_STYLE = {YES: "bold green", NO: "bold red", NOT_REACHED: "yellow"}

@@ -1,12 +1,7 @@
-"""The TUI's picture of :class:`common.progress.Progress`: the stage, a Textual ``ProgressBar``, a message.
+"""The TUI's picture of :class:`~station.services.reporting.Progress`: the stage, a Textual ``ProgressBar``, a message.
 
-Long work runs in a thread worker and reports through a progress callback; :func:`post_progress` makes that callback
-post a :class:`ProgressReported` message to a screen (``post_message`` is safe from any thread), whose handler gives
-the progress to a :class:`ProgressPanel`::
-
-    @work(thread=True)
-    def run(self) -> None:
-        some_service(..., progress=post_progress(self))
+Long work runs through :func:`station.tui.work.run_work`, whose reporter posts each progress to the screen as a
+:class:`~station.tui.messages.ProgressReported`; the screen's handler gives it to its :class:`ProgressPanel`::
 
     def on_progress_reported(self, message: ProgressReported) -> None:
         self.query_one(ProgressPanel).show(message.progress)
@@ -19,49 +14,9 @@ from collections.abc import Callable
 from rich.text import Text
 from textual.app import ComposeResult
 from textual.containers import Vertical
-from textual.message import Message
-from textual.message_pump import MessagePump
 from textual.widgets import ProgressBar, Static
 
-from common.progress import Progress, ProgressCallback
-
-
-class ProgressReported(Message):
-    """Long work reported ``progress`` (posted from a worker thread by :func:`post_progress`)."""
-
-    def __init__(self, progress: Progress) -> None:
-        super().__init__()
-        self.progress = progress
-
-
-def post_progress(target: MessagePump) -> ProgressCallback:
-    """A progress callback that posts each :class:`Progress` to ``target`` as a :class:`ProgressReported`."""
-
-    def report(progress: Progress) -> None:
-        target.post_message(ProgressReported(progress))
-
-    return report
-
-
-def run_in_worker(widget, work: Callable[[Callable[[], bool]], object], stopped: str,
-                  errors: tuple[type[BaseException], ...]) -> None:
-    """Run ``work(cancelled)`` in the current thread worker, then hand its outcome to ``widget.finished`` on the UI
-    thread: ``finished(result, "")``, or ``finished(None, why)`` when it was stopped (``stopped``) or refused (one of
-    ``errors``, said in one line). Call it from a ``@work(thread=True)`` method."""
-    from textual.worker import get_current_worker
-
-    from common.progress import Cancelled
-
-    worker = get_current_worker()
-    try:
-        result = work(lambda: worker.is_cancelled)
-    except Cancelled:
-        widget.app.call_from_thread(widget.finished, None, stopped)
-        return
-    except errors as error:
-        widget.app.call_from_thread(widget.finished, None, str(error))
-        return
-    widget.app.call_from_thread(widget.finished, result, "")
+from station.services.reporting import Progress
 
 
 class ProgressPanel(Vertical):

@@ -11,21 +11,21 @@ and :meth:`ProjectorCalibrationPanel.stop`.
 from __future__ import annotations
 
 from rich.text import Text
-from textual import on, work
+from textual import on
 from textual.app import ComposeResult
 from textual.binding import Binding
 from textual.containers import Horizontal, Vertical
 from textual.widgets import Button, Input, Label, Static
 
-from calibration.errors import CalibrationError
-from drivers.errors import DriverError
-from station.errors import StationError
-from station.tui.widgets.progress import ProgressPanel, ProgressReported, post_progress, run_in_worker
+from station.services import projector_calibration as service
+from station.tui.messages import ProgressReported, ProjectorCalibrated
+from station.tui.widgets.progress import ProgressPanel
+from station.tui.work import Work, run_work
 
 __all__ = ["ProjectorCalibrationPanel"]
 
-#: What a mapping may fail with, said in the panel in one line.
-_USER_ERRORS = (StationError, CalibrationError, DriverError)
+#: What the panel says when a mapping was stopped.
+STOPPED = "stopped; the projector is blank, nothing saved"
 
 
 class ProjectorCalibrationPanel(Vertical):
@@ -43,6 +43,9 @@ class ProjectorCalibrationPanel(Vertical):
         Binding("m", "start", "Map projector"),
         Binding("x", "stop", "Stop mapping"),
     ]
+
+    #: The running mapping, which Stop asks to stop (None before the first).
+    _work: Work | None = None
 
     def compose(self) -> ComposeResult:
         yield Label("[b]Projector[/b] (Gray code stripes seen by the camera; darken the room)")
@@ -78,32 +81,32 @@ class ProjectorCalibrationPanel(Vertical):
     @on(Button.Pressed, "#projector-stop")
     def stop(self) -> None:
         """Stop between two patterns (the projector is blanked; nothing is saved)."""
-        self.workers.cancel_group(self, "calibrate-projector")
+        if self._work is not None:
+            self._work.stop()
         self.say("stopping…")
 
     def action_stop(self) -> None:
         self.stop()
 
-    @work(thread=True, exclusive=True, group="calibrate-projector")
     def calibrate(self, camera: str | None, projector: str | None, plane: str | None) -> None:
-        from station.services import projector_calibration as service
-
-        run_in_worker(self, lambda cancelled: service.calibrate_projector(
-            camera=camera, projector=projector, plane=plane, progress=post_progress(self), cancelled=cancelled),
-            "stopped; the projector is blank, nothing saved", _USER_ERRORS)
+        """Map in a worker; progress and the end arrive as messages."""
+        request = service.ProjectorCalibrationRequest(camera=camera, projector=projector, plane=plane)
+        self._work = run_work(self, lambda report: service.calibrate_projector(request, report=report),
+                              ProjectorCalibrated, group="calibrate-projector")
 
     def on_progress_reported(self, message: ProgressReported) -> None:
         message.stop()
         self.query_one("#projector-progress", ProgressPanel).show(message.progress)
 
-    def finished(self, done, error: str) -> None:
-        from station.services.projector_calibration import projector_summary
-
+    def on_projector_calibrated(self, message: ProjectorCalibrated) -> None:
+        message.stop()
         self.query_one("#projector-stop", Button).disabled = True
         progress = self.query_one("#projector-progress", ProgressPanel)
-        if done is None:
-            progress.say(error)
-            self.say(error)
+        if not message.ok:
+            said = STOPPED if message.stopped else message.error
+            progress.say(said)
+            self.say(said)
             return
-        self.say("\n".join(projector_summary(done)))
+        done = message.result
+        self.say("\n".join(service.projector_summary(done)))
         progress.say(f"done: landing error p95 {done.projector_map.landing_error_mm['p95']:.2f} mm")

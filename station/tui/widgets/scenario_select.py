@@ -6,19 +6,12 @@ from pathlib import Path
 
 from textual.widgets import Select
 
-from design.contraption.catalog import EXAMPLES_DIR, example_names
+from station.services.contraption import example_files
 
 
 def scenario_choices() -> list[tuple[str, str]]:
     """(label, path) of the example scenarios."""
-    choices = []
-    for name in example_names():
-        for suffix in (".toml", ".json"):
-            path = EXAMPLES_DIR / f"{name}{suffix}"
-            if path.exists():
-                choices.append((name, str(path)))
-                break
-    return choices
+    return [(name, str(path)) for name, path in example_files()]
 
 
 def select_scenario(select: Select, path: str) -> str:

@@ -17,28 +17,23 @@ optimizer's executors and shared cache, so a stopped calibration keeps what it s
 
 from __future__ import annotations
 
-import threading
 from collections.abc import Callable
 from pathlib import Path
 
 from rich.text import Text
-from textual import on, work
+from textual import on
 from textual.app import ComposeResult
 from textual.binding import Binding
 from textual.containers import Horizontal, Vertical
-from textual.message import Message
 from textual.widgets import Button, Checkbox, DataTable, Input, Label, Static
 
-from station.tui.widgets.progress import ProgressPanel, ProgressReported, post_progress
-
-
-class CalibrationEnded(Message):
-    """A calibration ended: with its result, or stopped or refused (``message``)."""
-
-    def __init__(self, result=None, message: str | Text = "") -> None:
-        super().__init__()
-        self.result = result
-        self.message = message
+from station.errors import USER_ERRORS
+from station.services import sim_calibration as service
+from station.services.contraption import open_scenario
+from station.services.station_home import data_dir
+from station.tui.messages import ProgressReported, SimulatorCalibrated
+from station.tui.widgets.progress import ProgressPanel
+from station.tui.work import Work, run_work
 
 
 class SimCalibrationPanel(Vertical):
@@ -82,7 +77,7 @@ class SimCalibrationPanel(Vertical):
         self.fit_settings = None
         self.result = None
         self.calibrating = False
-        self._stop = threading.Event()
+        self._work: Work | None = None
 
     def compose(self) -> ComposeResult:
         yield Label("[b]Simulator[/b] (material values fitted to the trial log)")
@@ -134,9 +129,6 @@ class SimCalibrationPanel(Vertical):
         self._list_uncertain(self.query_one("#sim-scenarios", Input).value)
 
     def _list_uncertain(self, text: str) -> None:
-        from station.services.contraption import open_scenario
-        from station.services.sim_calibration import material_ranges
-
         words = []
         for name in _split(text):
             try:
@@ -144,7 +136,7 @@ class SimCalibrationPanel(Vertical):
             except (ValueError, OSError):
                 continue  # still being typed
             values = ", ".join(f"{k} {v:g} in [{lo:g}, {hi:g}]" for k, (v, (lo, hi)) in
-                               material_ranges(scenario, self.every_material).items()) or "none"
+                               service.material_ranges(scenario, self.every_material).items()) or "none"
             words.append(f"{scenario.name}: {values}")
         self.query_one("#sim-uncertain", Static).update(Text("\n".join(words)))
 
@@ -174,7 +166,6 @@ class SimCalibrationPanel(Vertical):
         if trials_file is None and self.trials_source is None:
             self.status("give a trial export file (station trial export --out FILE.json)", style="red")
             return
-        self._stop.clear()
         self.calibrating = True
         self.query_one("#sim-start", Button).disabled = True
         self.query_one("#sim-stop", Button).disabled = False
@@ -184,8 +175,8 @@ class SimCalibrationPanel(Vertical):
         self.run_calibration(scenarios, params, trials_file, self.every_material)
 
     def action_stop(self) -> None:
-        if self.calibrating:
-            self._stop.set()
+        if self.calibrating and self._work is not None:
+            self._work.stop()
             self.status("stopping (finished simulations stay cached) ...")
 
     def action_write(self) -> Path | None:
@@ -193,55 +184,44 @@ class SimCalibrationPanel(Vertical):
         if self.result is None:
             self.status("nothing to write yet")
             return None
-        from station.paths import data_dir
-        from station.services.sim_calibration import save
-
         folder = data_dir() / "physics"
         folder.mkdir(parents=True, exist_ok=True)
         stem = "-".join(s.name.lower() for s in self.result.scenarios)
-        path = save(self.result, folder / f"{stem}.toml")
+        path = service.save(self.result, folder / f"{stem}.toml")
         self.status(f"wrote {path}")
         return path
 
     # -- the work (a thread) -----------------------------------------------------------------------------------
-    @work(thread=True, exclusive=True, group="sim-calibration")
     def run_calibration(self, scenarios: list[str], params: list[str] | None, trials_file: str | None,
                         every_material: bool = False) -> None:
-        from design.errors import DesignError
-        from station.errors import StationError
-        from station.services import sim_calibration as service
-        from station.services.contraption import open_scenario
-        from station.services.robust import RunStopped
+        """Calibrate in a worker; progress and the end arrive as messages."""
+        trials_source, settings, workers = self.trials_source, self.fit_settings, self.simulation_workers
 
-        try:
+        def calibrate(report):
             loaded = [open_scenario(name) for name in scenarios]
             if trials_file is not None:
                 trials, source = service.read_trials_json(trials_file), trials_file
             else:
-                trials, source = self.trials_source(), "the trial log"
-            result = service.calibrate_sim(loaded, trials, params=params, settings=self.fit_settings,
-                                           workers=self.simulation_workers, progress=post_progress(self),
-                                           should_stop=self._stop.is_set, source=source,
-                                           every_material=every_material)
-        except RunStopped:
-            self.post_message(CalibrationEnded(message="stopped; finished simulations are cached"))
-            return
-        except (DesignError, StationError, ValueError, OSError) as error:
-            self.post_message(CalibrationEnded(message=Text(f"cannot calibrate: {error}", "red")))
-            return
-        self.post_message(CalibrationEnded(result))
+                trials, source = trials_source(), "the trial log"
+            request = service.SimCalibrationRequest(tuple(params) if params else None, settings=settings,
+                                                    source=source, every_material=every_material, workers=workers)
+            return service.calibrate_sim(loaded, trials, request, report=report)
+
+        self._work = run_work(self, calibrate, SimulatorCalibrated, group="sim-calibration",
+                              errors=(*USER_ERRORS, ValueError))
 
     def on_progress_reported(self, message: ProgressReported) -> None:
         message.stop()
         self.query_one(ProgressPanel).show(message.progress)
 
-    def on_calibration_ended(self, message: CalibrationEnded) -> None:
+    def on_simulator_calibrated(self, message: SimulatorCalibrated) -> None:
         message.stop()
         self.calibrating = False
         self.query_one("#sim-start", Button).disabled = False
         self.query_one("#sim-stop", Button).disabled = True
-        if message.result is None:
-            self.status(message.message)
+        if not message.ok:
+            self.status("stopped; finished simulations are cached" if message.stopped
+                        else Text(f"cannot calibrate: {message.error}", "red"))
             self.query_one(ProgressPanel).say("")
             return
         self.result = fit_result = message.result

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import pytest
 
-from design.contraption import check_validity, load_scenario, simulate
+from design.contraption import check_validity, load_scenario, simulate, with_physics
 from design.contraption.catalog import EXAMPLES_DIR, example_names
 
 EXAMPLES = example_names()
@@ -74,4 +74,4 @@ def test_a_ball_resting_in_branchings_goblet_stops_spinning():
     # about the vertical for ever, and "ball stops" failed runs no maker would call failed.
     branching = load_scenario(EXAMPLES_DIR / "branching.toml")
     assert _spin_left(branching) < 0.2  # the Stopping event's default max_angular_speed
-    assert _spin_left(branching.with_physics({"felt.spinning_friction": 0.0})) > 4.0
+    assert _spin_left(with_physics(branching, {"felt.spinning_friction": 0.0})) > 4.0

@@ -6,7 +6,7 @@ from pathlib import Path
 
 import pytest
 
-from design.contraption import ScenarioFormatError, load_scenario, scenario_from_data
+from design.contraption import ScenarioFormatError, load_scenario, scenario_from_data, with_physics
 from design.contraption.validation import parse_text
 
 ROOT = Path(__file__).resolve().parents[3]
@@ -77,19 +77,19 @@ def test_bad_materials_are_one_line_naming_file_and_field(old, new, message):
 
 def test_with_physics_sets_values_keeps_ranges_and_changes_the_hash():
     scenario = load(BASE)
-    other = scenario.with_physics({"wood.friction": 0.42})
+    other = with_physics(scenario, {"wood.friction": 0.42})
     assert other.object("block").physics.friction == 0.42
     assert other.uncertain_parameters() == {"wood.friction": (0.42, (0.3, 0.9))}
     assert other.physics_overrides == {"wood.friction": 0.42}
     assert other.content_hash != scenario.content_hash
-    assert scenario.with_physics({"wood.friction": 0.6}).content_hash == scenario.content_hash
-    assert scenario.with_physics({}) is scenario
+    assert with_physics(scenario, {"wood.friction": 0.6}).content_hash == scenario.content_hash
+    assert with_physics(scenario, {}) is scenario
     for bad, words in [({"wood.friction": 0.95}, 'physics."wood.friction": expected a value inside the scenario'),
                        ({"oak.friction": 0.5}, "no material 'oak' in the scenario; it has: wood"),
                        ({"wood.mass": 0.5}, "expected MATERIAL.PARAM"),
                        ({"wood.damping": 0.5}, "expected MATERIAL.PARAM")]:
         with pytest.raises(ScenarioFormatError, match=words):
-            scenario.with_physics(bad)
+            with_physics(scenario, bad)
 
 
 def test_hash_is_of_what_is_simulated():
@@ -157,8 +157,8 @@ def test_every_material_adds_the_plain_values_in_their_default_ranges():
 def test_ranges_that_do_not_overlap_refuse_only_the_value_that_is_fitted():
     # SIMPLE's steel.restitution ranges over [0.05, 0.5], BALLRUN's over [0.5, 0.95]: fitting both scenarios' wood
     # alone (`station calibrate sim simple ballrun --params wood.friction`) never looks at the steel.
+    from station.errors import ServiceError
     from station.services.contraption import open_scenario
-    from station.services.errors import ServiceError
     from station.services.sim_calibration import choose_parameters
 
     both = [open_scenario("simple"), open_scenario("ballrun")]

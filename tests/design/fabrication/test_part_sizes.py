@@ -7,7 +7,7 @@ import re
 
 import pytest
 
-from common.progress import Cancelled
+from common.progress import Cancelled, Reporter
 from design.errors import ConstraintViolation, DesignError
 from design.fabrication import (
     FABRICABLE_MACHINES,
@@ -53,7 +53,7 @@ def test_sizes_bound_the_built_parts(machine):
 
 def test_machine_parts_reports_each_gear_before_generating_it():
     steps = []
-    parts = machine_parts("hoot_nanny", {}, 4.0, progress=steps.append)
+    parts = machine_parts("hoot_nanny", {}, 4.0, report=Reporter(steps.append))
     gears = {p.name: p.info["teeth"] for p in parts if "teeth" in p.info}
     *before_each, last = steps
     reported = [re.fullmatch(r"generating (.+) \((\d+) teeth\)", step.message) for step in before_each]
@@ -69,10 +69,10 @@ def test_machine_parts_reports_each_gear_before_generating_it():
     assert (last.stage, last.done, last.total) == (GEARS_STAGE, total, total) and last.fraction == 1.0
 
 
-def test_machine_parts_stops_between_gears_when_cancelled():
+def test_machine_parts_stops_between_gears_when_asked():
     steps = []
     with pytest.raises(Cancelled):
-        machine_parts("hoot_nanny", {}, 4.0, progress=steps.append, cancelled=lambda: len(steps) >= 2)
+        machine_parts("hoot_nanny", {}, 4.0, report=Reporter(steps.append, stop=lambda: len(steps) >= 2))
     assert len(steps) == 2  # the second gear was announced, then the work stopped before generating it
 
 

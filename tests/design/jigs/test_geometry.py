@@ -11,9 +11,10 @@ from shapely.geometry import Point
 
 from design.jigs import JigSettings, PartInput, plan_jigs
 from projector.build import build_guide
-from projector.tags import tag_cells
 from station.services.contraption import open_scenario
-from station.services.jigs import JIG_TAG_IDS, JigOptions, make_jigs
+from station.services.jig_plan import JIG_TAG_IDS, JigOptions
+from station.services.jigs import make_jigs
+from vision.tags import tag_cells
 
 SETTINGS = JigSettings(thickness=3.0, sheet=(400.0, 400.0))
 

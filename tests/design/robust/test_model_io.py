@@ -44,7 +44,7 @@ def simple_fit():
 def test_the_portable_model_predicts_as_the_fitted_one_on_simple(simple_fit):
     problem, result = simple_fit
     payload = round_trip(result.to_json(problem))
-    # The recommended settings calibrate the product of the factors (issue 20): version 2, its sigmoid saved.
+    # The recommended settings calibrate the product of the factors: version 2, its sigmoid saved.
     assert payload["model"]["format"] == MODEL_FORMAT_2
     assert payload["model"]["combine"] == "calibrated_product"
     assert payload["model"]["calibration"]["a"] < 0

@@ -5,13 +5,13 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from common.progress import Cancelled, Reporter
 from design.robust import (
     FactorizedPSP,
     PSPSettings,
     RobustError,
     RobustnessSettings,
     SimulationCache,
-    SimulationCancelled,
     SimulationExecutor,
     baseline_b1,
     baseline_b2,
@@ -264,7 +264,8 @@ def test_recommended_settings_fit_a_small_budget_and_return_a_verified_success()
     kept = next(r for r in verified if r["kept"])
     source = "an optimum of the model" if kept["source"] == "model" else "a success of the uniform start"
     assert result.kept_candidate().startswith(f"{source} (of 6 checked; local success")
-    # Issue 20: the recommended C, gamma search minimizes the calibrated log loss (it was ROC AUC, fold by fold).
+    # The recommended C, gamma search minimizes the calibrated log loss (ROC AUC, fold by fold, ranks but never
+    # checks a probability).
     assert PSPSettings().cv_scoring == "accuracy" and settings.cv_scoring == "calibrated_log_loss"
     assert settings.calibrate_product and not PSPSettings().calibrate_product
 
@@ -331,7 +332,7 @@ def test_pipeline_finds_a_robust_valid_layout_within_budget():
     progress = []
     with SimulationExecutor(problem, backend="inline") as executor:
         result = optimize_robust_layout(problem, executor, budget=250, seed=2, settings=SMALL,
-                                        progress=progress.append)
+                                        report=Reporter(progress.append))
     assert result.n_simulations <= 250
     assert problem.is_valid(result.u[None, :])[0]
     assert result.simulated_success
@@ -382,10 +383,10 @@ def test_an_interrupted_run_keeps_its_simulations(tmp_path):
     problem = counting_chain()
     cache = tmp_path / "sims.sqlite3"
     CountingProblem.calls = 0
-    with pytest.raises(SimulationCancelled):
+    with pytest.raises(Cancelled):
         with SimulationExecutor(problem, backend="inline", cache_path=cache) as executor:
             optimize_robust_layout(problem, executor, budget=200, seed=7, settings=SMALL,
-                                   should_stop=lambda: CountingProblem.calls >= 60)
+                                   report=Reporter(stop=lambda: CountingProblem.calls >= 60))
     assert SimulationCache(cache).count(cache_scope(problem)) == 60
     CountingProblem.calls = 0
     with SimulationExecutor(problem, backend="inline", cache_path=cache) as executor:

@@ -8,6 +8,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from common.progress import Reporter
 from design.robust.problem import EllipsoidEvent, SyntheticProblem
 from design.robust.tolerance import (
     RATIO,
@@ -197,7 +198,7 @@ def test_the_service_takes_a_loaded_scenario_and_gives_the_guide_its_tolerances(
 
     scenario = load_scenario(Path(__file__).resolve().parents[3] / "examples" / "scenarios" / "simple.toml")
     seen = []
-    result = tolerance_map(scenario, str(FIXTURE), progress=seen.append)
+    result = tolerance_map(scenario, str(FIXTURE), report=Reporter(seen.append))
     assert result.map.source == "model" and seen[0].stage == "tolerance map" and seen[-1].done == 3
     guide = result.parameter_tolerances()
     assert list(guide) == ["track"] and all(isinstance(t, ParameterTolerance) for t in guide["track"])
@@ -209,7 +210,7 @@ def test_a_model_the_simulations_contradict_gives_no_tolerances_searched_by_simu
     # The fixture's model scores its layout 0.87; a LAYOUT.json whose own simulations say 0.05 has a model too weak
     # there to trust: the guide's tolerances are then searched by simulation, and the guide and sheet say why.
     from projector.pdf_lists import tolerance_source_text
-    from station.services.guide import make_guide
+    from station.services.guide import GuideRequest, make_guide
     from station.services.tolerances import WEAK_MODEL_VERIFY
 
     data = json.loads(FIXTURE.read_text())
@@ -217,7 +218,7 @@ def test_a_model_the_simulations_contradict_gives_no_tolerances_searched_by_simu
                                 "attempts_interval": [5.0, 100.0], "samples": 48}
     weak = tmp_path / "weak.json"
     weak.write_text(json.dumps(data))
-    job = make_guide("simple", str(weak))
+    job = make_guide(GuideRequest("simple", str(weak)))
     guide = job.guide
     assert job.tolerances.map.source == "simulation" and job.tolerances.verify == WEAK_MODEL_VERIFY
     assert guide.tolerance_source == "simulation" and "the success model is weak at this layout" in guide.tolerance_note
@@ -229,6 +230,6 @@ def test_a_model_the_simulations_contradict_gives_no_tolerances_searched_by_simu
     # the same file as its own simulations agree with it: the model's tolerances, no note
     data["physical_success"]["probability"] = 0.9
     weak.write_text(json.dumps(data))
-    agreed = make_guide("simple", str(weak)).guide
+    agreed = make_guide(GuideRequest("simple", str(weak))).guide
     assert agreed.tolerance_source == "model" and agreed.tolerance_note is None
     assert agreed.headline.startswith("physical success on the table 0.90")

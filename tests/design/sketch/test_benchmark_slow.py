@@ -22,7 +22,7 @@ def test_true_design_in_top_five_on_a_small_seeded_set(tmp_path):
     for case in cases:
         candidates = retriever.query(case.sketch, top=5).candidates
         radii = (case.machine, case.radii) in [(c.machine, c.radii) for c in candidates]
-        # issue 22's hit: the true radii, or a candidate that draws the pattern (several Hoot-Nanny radii draw
+        # a hit: the true radii, or a candidate that draws the pattern (several Hoot-Nanny radii draw
         # near-identical patterns when a gear's pivot is near its centre)
         source = space.pattern(get_machine(case.machine), case.params)
         drawn = any(space.shape_distance(source, space.pattern(get_machine(c.machine), c.params))

@@ -1,4 +1,4 @@
-"""Retrieval over the machines' whole design space (issue 22): maker-like sketches of designs drawn uniformly from
+"""Retrieval over the machines' whole design space: maker-like sketches of designs drawn uniformly from
 the feasible space (bench.sketch_space), uniform feasible sampling, sector chaining, refinement, the cache format."""
 
 from __future__ import annotations

@@ -9,7 +9,8 @@ import pytest
 
 from design.errors import DesignError
 from design.sketch.errors import RetrievalSettingError, SketchError, SketchFileError
-from design.sketch.strokes import MAX_FILE_BYTES, load_sketch, make_sketch, symmetrize
+from design.sketch.files import load_sketch
+from design.sketch.strokes import MAX_FILE_BYTES, make_sketch, symmetrize
 from design.sketch.svg import parse_path_data
 
 

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import pytest
 
-from common.progress import Cancelled, Progress
+from common.progress import Cancelled, Progress, Reporter
 from design.machines import get_machine
 from design.sketch import SketchRetriever, make_sketch
 from design.sketch.candidates import DatabaseSettings, build_database, cache_path, load_database, version_key
@@ -40,12 +40,12 @@ def test_cancel_stops_the_build_and_caches_nothing(tmp_path):
     machine = get_machine("spirograph")
     seen: list[Progress] = []
     with pytest.raises(Cancelled):
-        load_database(machine, tmp_path, TINY, seen.append, cancelled=lambda: len(seen) >= 3)
+        load_database(machine, tmp_path, TINY, Reporter(seen.append, stop=lambda: len(seen) >= 3))
     assert len(seen) == 3
     assert not cache_path(tmp_path, "spirograph", version_key(machine, TINY)).exists()
-    # the retriever passes its cancel check down to the build
+    # the retriever passes its reporter's stop down to the build
     retriever = SketchRetriever(["spirograph"], cache_dir=tmp_path, settings={"spirograph": TINY},
-                                cancelled=lambda: True)
+                                report=Reporter(stop=lambda: True))
     sketch = make_sketch([[(0, 0), (1, 0), (1, 1), (0, 1)]], symmetry=1, source="square")
     with pytest.raises(Cancelled):
         retriever.query(sketch)

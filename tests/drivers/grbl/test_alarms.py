@@ -196,10 +196,12 @@ def test_a_late_banner_after_two_resets_is_not_a_restart(limit_grbl):
     # the second reset went out while the first one's banner was on its way: two banners, both expected
     grbl, conn = limit_grbl(banner_delay=1.3)
     before = grbl.banners
+    read: list[object] = []
+    conn.add_listener(lambda event, data: read.append(data) if event == "banner" else None)
     with pytest.raises(DeviceStateError, match="ALARM:2"):
         conn.command("G0 X999")
     assert conn.wait_for(lambda: not conn.alarm_locked, 5.0)
-    time.sleep(1.5)
+    assert conn.wait_for(lambda: len(read) == 2, 10.0), read  # the connection has read both banners
     assert grbl.banners - before == 2 and not conn.position_lost, conn.fault
 
 
@@ -215,8 +217,10 @@ def test_a_hard_limit_stops_the_job_and_grbl_stays_locked_for_homing(limit_grbl)
 
 def test_a_failed_homing_cycle_resets_grbl_and_that_is_no_restart(limit_grbl):
     grbl, conn = limit_grbl()
+    read: list[object] = []
+    conn.add_listener(lambda event, data: read.append(data) if event == "banner" else None)
     with pytest.raises(DeviceStateError, match="ALARM:9"):
         conn.command("$H")
     assert conn.wait_for(lambda: conn.status is not None and conn.status.state == "Alarm", 5.0)
-    time.sleep(0.3)
+    assert conn.wait_for(lambda: len(read) == 1, 5.0), read  # the connection has read the banner of GRBL's reset
     assert not conn.position_lost, conn.fault

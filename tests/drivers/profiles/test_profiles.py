@@ -73,7 +73,7 @@ def test_no_example_profile_repeats_a_builtin():
             assert (example.name, example.port) != (builtin.name, builtin.port), path.name
 
 
-#: The EEPROM of the simulated GRBL machines as drivers/sim/grbl.py held it (SIM_PROFILES) before the built-in
+#: The EEPROM of the simulated GRBL machines as drivers/sim/grbl/machine.py held it (SIM_PROFILES) before the built-in
 #: profiles became its one source: the values must not change on the way.
 SIM_PROFILES_BEFORE = {
     "plotter": {

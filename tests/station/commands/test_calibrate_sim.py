@@ -11,9 +11,10 @@ import numpy as np
 import pytest
 
 import station.cli as cli
-from calibration.sim_synthetic import export, synthetic_trials
 from design.contraption import load_scenario
 from design.contraption.physics_profile import load_profile
+from station.services.world import synthetic_trials
+from station.services.world import trials_export as export
 
 SLIDE = Path(__file__).resolve().parents[2] / "data" / "calibration" / "slide.toml"
 

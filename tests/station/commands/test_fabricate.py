@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 from PIL import Image
 
-from common.progress import Progress
+from common.progress import Progress, Reporter
 from drivers.gcode import interpret
 from station.cli import main
 
@@ -170,10 +170,10 @@ def test_out_that_is_a_file_is_one_line_before_any_work(tmp_path, capsys, monkey
 
 
 def test_progress_steps_cover_each_gear_and_end_at_one(tmp_path):
-    from station.commands.fabricate import fabricate
+    from station.services.fabricate import FabricationRequest, fabricate
 
     steps = []
-    result = fabricate("hoot_nanny", {}, 4.0, progress=steps.append)
+    result = fabricate(FabricationRequest("hoot_nanny", {}, 4.0), report=Reporter(steps.append))
     assert all(isinstance(step, Progress) for step in steps)  # the one progress type, for the CLI and the TUI
     # The stages come in order, each once, and within a stage the work done never goes back.
     stages = [step.stage for step in steps]

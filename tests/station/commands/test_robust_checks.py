@@ -9,6 +9,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from common.progress import Cancelled, Reporter
 from design.robust import (
     RobustError,
     RobustnessSettings,
@@ -151,9 +152,8 @@ def test_the_executor_reaches_its_scheduler_when_asked():
 def test_the_service_names_the_value_and_the_command_names_the_flag(tmp_path):
     # The Robust screen calls the service: its refusals must not speak of command-line flags.
     from station.commands.robust import usage_error
-    from station.errors import UsageError
+    from station.errors import ServiceError, UsageError
     from station.services import robust as service
-    from station.services.errors import ServiceError
 
     refusals = [
         (lambda: service.psp_settings("bogus"), "settings", "--settings must be one of recommended, thesis or a "
@@ -172,7 +172,7 @@ def test_the_service_names_the_value_and_the_command_names_the_flag(tmp_path):
         assert caught.value.field == field and "--" not in str(caught.value)
         reworded = usage_error(caught.value)
         assert isinstance(reworded, UsageError) and str(reworded) == cli_message
-    with pytest.raises(service.RunStopped) as stopped:
-        with service.simulations(synthetic_chain(), workers=1, should_stop=lambda: True):
+    with pytest.raises(Cancelled) as stopped:
+        with service.simulations(synthetic_chain(), workers=1, report=Reporter(stop=lambda: True)):
             pass  # stopped before any work: nothing new in the cache
     assert stopped.value.new_simulations == 0 and stopped.value.cache == service.simulation_cache_path()

@@ -12,6 +12,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from common.progress import Cancelled, Reporter
 from design.robust import SimulationExecutor, synthetic_chain
 
 ROOT = Path(__file__).resolve().parents[3]
@@ -47,15 +48,13 @@ def test_an_interrupt_with_simulations_queued_leaves_no_thread_error(monkeypatch
 
 
 def test_a_stopped_executor_runs_again():
-    from design.robust import SimulationCancelled
-
     problem = slow_chain(0.02)
     U = np.random.default_rng(1).random((40, problem.dim)) * 0.5
     executor = SimulationExecutor(problem, backend="processes", workers=1)
     try:
         done = []
-        with pytest.raises(SimulationCancelled):
-            executor.run(U, on_result=done.append, should_stop=lambda: len(done) >= 2)
+        with pytest.raises(Cancelled):
+            executor.run(U, on_result=done.append, report=Reporter(stop=lambda: len(done) >= 2))
         assert executor._pool is None  # the queued simulations of the stopped run were dropped with their pool
         out = executor.run(U[:6])
         np.testing.assert_array_equal(out, problem.simulate_batch(U[:6]))

@@ -13,8 +13,8 @@ import numpy as np
 import pytest
 
 from station.cli import main
+from station.errors import ServiceError
 from station.services import assemble as service
-from station.services.errors import ServiceError
 from station.services.trials import load_trial_scenario, open_store
 
 from .test_trial_cli import PROFILE  # a physics profile for SIMPLE (wood.friction)
@@ -109,10 +109,10 @@ def test_leaving_before_the_end_logs_nothing(capsys, monkeypatch, answers, word)
 
 
 def test_ctrl_c_while_forecasting_leaves_cleanly_with_nothing_logged(capsys, monkeypatch):
-    from station.services.robust import RunStopped
+    from station.services.robust import stopped_run
 
     def interrupted(self, *args, **kwargs):
-        raise RunStopped(3, "cache")  # what the simulation runner makes of a Ctrl-C
+        raise stopped_run(3)  # what the simulation runner makes of a Ctrl-C
 
     monkeypatch.setattr(service.Assembly, "forecast", interrupted)
     code, out, _ = run(capsys, monkeypatch, "s\n\n", "simple", "success", *FAST)

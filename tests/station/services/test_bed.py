@@ -9,8 +9,8 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
+from cam.place import place_lines
 from drivers.devices import resolve
-from drivers.gcode_place import place_lines
 from drivers.grbl import GrblConnection, Job, JobRunner
 from drivers.sim.protocol_sim import machine_named
 from station.cli import main

@@ -21,11 +21,11 @@ from calibration.evaluate import (
     reference_layout,
 )
 from calibration.intrinsics import CameraIntrinsics, load_intrinsics, save_intrinsics
-from common.progress import Cancelled
+from common.progress import Cancelled, Reporter
 from drivers.sim.camera_render import render
 from station.cli import build_parser, main
+from station.errors import ServiceError
 from station.services import calibrate as service
-from station.services.errors import ServiceError
 
 SIZE = (640, 480)
 MATRIX = np.array([[520.0, 0.0, 319.5], [0.0, 520.0, 239.5], [0.0, 0.0, 1.0]])
@@ -96,16 +96,16 @@ def test_capture_from_the_simulated_camera_with_progress_and_stop():
         camera.place(cameras[index])
 
     seen = []
-    done = service.calibrate_camera(capture=8, camera=url, name="twin", interval_s=0.0, progress=seen.append,
-                                    before=move_board)
+    request = service.CameraCalibrationRequest(capture=8, camera=url, name="twin", interval_s=0.0)
+    done = service.calibrate_camera(request, report=Reporter(seen.append), before=move_board)
     assert abs(done.result.intrinsics.focal_px / 520.0 - 1) < 0.005 and done.path.name == "twin.json"
     assert [p.stage for p in seen][:1] == ["capture"] and "solve" in [p.stage for p in seen]
     asked = []
     with pytest.raises(Cancelled):
-        service.calibrate_camera(capture=8, camera=url, interval_s=0.05, before=move_board,
-                                 cancelled=lambda: asked.append(1) or len(asked) > 3)
+        service.calibrate_camera(service.CameraCalibrationRequest(capture=8, camera=url, interval_s=0.05),
+                                 before=move_board, report=Reporter(stop=lambda: asked.append(1) or len(asked) > 3))
     with pytest.raises(ServiceError, match="capture must be a whole number of views >= 1"):
-        service.calibrate_camera(capture=0, camera=url)
+        service.calibrate_camera(service.CameraCalibrationRequest(capture=0, camera=url))
 
 
 def plane_frame(tmp_path, name, target=(0.0, 0.0)):

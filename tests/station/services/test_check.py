@@ -1,4 +1,4 @@
-"""The as-built check on synthetic camera frames (issue 19's acceptance): a part moved by a known offset is named
+"""The as-built check on synthetic camera frames: a part moved by a known offset is named
 with that offset and the right instruction, a covered tag is reported missing, the CLI prints CHECK.json.
 
 The frames come from the camera twin's renderer (drivers.sim.camera_render: its own tag bitmaps and ray casting,
@@ -142,10 +142,10 @@ def test_the_cli_prints_and_writes_check_json(tmp_path, capsys):
     physical = printed["physical_success"]  # the as-built layout's physical success and the attempts to expect
     assert physical["samples"] == 4 and physical["interval"][0] <= physical["probability"] <= physical["interval"][1]
 
-    from station.services.guide import make_guide
+    from station.services.guide import GuideRequest, make_guide
 
     manifest = tmp_path / "ballrun-guide.json"  # what `station guide ballrun success --json` prints
-    manifest.write_text(json.dumps(make_guide("ballrun", "success", tolerances=False).manifest()))
+    manifest.write_text(json.dumps(make_guide(GuideRequest("ballrun", "success", tolerances=False)).manifest()))
     code = main(["check", "ballrun", "success", "--image", str(frame), "--intrinsics", str(lens), "--predict", "0",
                  "--guide",
                  str(manifest), "--json"])
@@ -154,7 +154,7 @@ def test_the_cli_prints_and_writes_check_json(tmp_path, capsys):
     assert again["parts"][0]["error"] == pytest.approx(printed["parts"][0]["error"], abs=0.01)  # manifest: 3 decimals
     assert again["as_built"] == pytest.approx(printed["as_built"], abs=0.01)
     other = tmp_path / "guide.json"
-    other.write_text(json.dumps(make_guide("simple", None, tolerances=False).manifest()))
+    other.write_text(json.dumps(make_guide(GuideRequest("simple", None, tolerances=False)).manifest()))
     code = main(["check", "ballrun", "success", "--image", str(frame), "--guide", str(other), "--predict", "0"])
     error = capsys.readouterr().err.strip().splitlines()
     assert code == 2 and len(error) == 1 and error[0].startswith("station: error: --guide ") and "SIMPLE" in error[0]
@@ -167,7 +167,7 @@ def test_the_as_built_layout_is_simulated_with_the_measurement_error(tmp_path):
     layout = Path(__file__).resolve().parents[2] / "data" / "robust" / "simple-layout-with-model.json"
     job = service.prepare_check("simple", str(layout))
     image, intrinsics, _ = _frame(job, {"track.x": 0.01})
-    report = service.check_frame(job, image, intrinsics, simulate=4, seed=1).report
+    report = service.check_frame(job, image, intrinsics, service.CheckRequest(simulate=4, seed=1)).report
     assert report.simulated_success_as_built in (0.0, 0.25, 0.5, 0.75, 1.0)
     assert report.residual_error["position_mm"] > 0 and report.to_json()["simulated_success_as_built"] is not None
 
@@ -225,11 +225,11 @@ def test_the_projected_check_uses_the_projectors_saved_map():
     # the guide's steps go through the same map: the configured projector (simulated, named "projector") at its
     # own size shows them at true scale
     from drivers.sim.projector import SimulatedProjector
-    from station.services.guide import make_guide, show_step
+    from station.services.guide import GuideRequest, make_guide, show_step
     from station.services.projectors import configured_projector
 
     assert configured_projector().name == "projector"
-    job = make_guide("simple", "success", tolerances=False)
+    job = make_guide(GuideRequest("simple", "success", tolerances=False))
     with SimulatedProjector("sim://projector?name=projector&size=1280x800") as shown:
         assert show_step(job, shown, 1) is True
     with SimulatedProjector("sim://projector?name=projector&size=1024x768") as shown:

@@ -18,19 +18,20 @@ import pytest
 
 from calibration.side import side_instruction
 from projector.board import BOARD_TAG_IDS, side_board
-from projector.detection import TagDetector
 from station.cli import main
 from station.services import check as service
 from station.services import check_side
+from vision.detection import TagDetector
 
 SIDE_URL = "sim://camera?view=side&height=700&blur=0.8&noise=2&jpeg=90&seed=4"
 
 
 @functools.cache
 def _simple():
-    from station.services.guide import make_guide
+    from station.services.guide import GuideRequest, make_guide
 
-    return make_guide("simple", "success", tolerances=False, jigs=True)  # the check's guide, without its tolerances
+    # the check's guide, without its tolerances
+    return make_guide(GuideRequest("simple", "success", tolerances=False, jigs=True))
 
 
 def _check(changes: dict[str, float]):
@@ -44,8 +45,8 @@ def _check(changes: dict[str, float]):
         x[names.index(name)] += delta
     picture, lens = check_side.side_frame(job, board, targets, SIDE_URL, layout=x)
     side = check_side.measure_side(job, board, targets, picture, lens, camera="side")
-    frame, top_lens, _, _ = service.camera_frame(job.guide, camera="sim://camera?seed=2")
-    return service.check_frame(job, frame, top_lens, side=side, camera="top").report, x, names
+    frame, top_lens, _, _ = service.camera_frame(job.guide, service.FrameSource(camera="sim://camera?seed=2"))
+    return service.check_frame(job, frame, top_lens, service.CheckRequest(camera="top"), side=side).report, x, names
 
 
 def test_the_side_camera_reads_the_jig_stand_and_measures_height_and_tilt():
@@ -246,9 +247,9 @@ def test_the_worlds_maker_is_told_the_side_cameras_heights_and_tilts():
 def test_a_stands_face_tag_is_on_its_plate_clear_of_the_slot_and_the_part(scenario):
     from shapely.geometry import box
 
-    from station.services.guide import make_guide
+    from station.services.guide import GuideRequest, make_guide
 
-    job = make_guide(scenario, "success", tolerances=False, jigs=True)
+    job = make_guide(GuideRequest(scenario, "success", tolerances=False, jigs=True))
     (stand,) = [j for j in job.jigs.plan.jigs if j.kind == "stand"]
     ids = {j.tag_id for j in job.jigs.plan.jigs} | {p.tag_id for p in job.guide.parts}
     assert stand.face_tag_id is not None and stand.face_tag_id not in ids and 500 <= stand.face_tag_id < 579

@@ -11,11 +11,11 @@ from shapely.geometry import Polygon, box
 
 from projector.frames import JIG_EDGE, render_step
 from station.cli import main
-from station.services.guide import make_guide
+from station.services.guide import GuideRequest, make_guide
 
 
 def test_the_guide_with_jigs_says_how_to_use_them_and_marks_what_they_set():
-    job = make_guide("simple", "success", tolerances=False, jigs=True)
+    job = make_guide(GuideRequest("simple", "success", tolerances=False, jigs=True))
     data = job.manifest()
     (jig,) = data["jigs"]
     assert jig["id"] == "J1" and jig["part"] == "track" and jig["kind"] == "stand"
@@ -37,7 +37,7 @@ def test_the_guide_with_jigs_says_how_to_use_them_and_marks_what_they_set():
 
 
 def test_without_jigs_the_guide_is_as_before():
-    job = make_guide("simple", "success", tolerances=False)
+    job = make_guide(GuideRequest("simple", "success", tolerances=False))
     data = job.manifest()
     assert data["jigs"] == [] and job.jigs is None
     track = next(p for p in data["parts"] if p["name"] == "track")
@@ -46,14 +46,14 @@ def test_without_jigs_the_guide_is_as_before():
 
 
 def test_a_stand_whose_lower_end_is_taken_holds_the_upper_end_in_the_steps():
-    job = make_guide("branching", "success", tolerances=False, jigs=True)
+    job = make_guide(GuideRequest("branching", "success", tolerances=False, jigs=True))
     step = next(line for line in job.steps if "`track`" in line and line.startswith("2."))
     assert "rest `track` on it, upper end against the stop" in step
 
 
 def test_the_projected_step_draws_its_jig():
-    with_jigs = make_guide("simple", "success", tolerances=False, jigs=True).guide
-    without = make_guide("simple", "success", tolerances=False).guide
+    with_jigs = make_guide(GuideRequest("simple", "success", tolerances=False, jigs=True)).guide
+    without = make_guide(GuideRequest("simple", "success", tolerances=False)).guide
     for guide, expected in ((with_jigs, True), (without, False)):
         frame = render_step(guide, 1, (1280, 800))[150:]  # below the caption (its warning line is orange too)
         near = np.all(np.abs(frame.astype(int) - np.array(JIG_EDGE)) < 30, axis=-1)

@@ -13,7 +13,8 @@ from shapely.geometry import Polygon
 
 from drivers.grbl import GrblConnection, Job, JobRunner, frame_lines
 from drivers.profiles import builtin_profile
-from station.services.jigs import JigOptions, make_jigs
+from station.services.jig_plan import JigOptions
+from station.services.jigs import make_jigs
 
 WORD = re.compile(r"([GXYSF])(-?\d+(?:\.\d*)?)")
 

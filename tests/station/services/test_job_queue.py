@@ -50,7 +50,7 @@ def entry_in(state: JobState, queue: JobQueue | None = None):
     for mode, outcome in path:
         queue.start(entry, mode)
         if outcome is not None:
-            queue.finish(entry, result(outcome, resume_line=5 if outcome == "stopped" else None))
+            queue.finish(entry, result(outcome, resume_line=5 if outcome in ("stopped", "interrupted") else None))
     assert entry.state is state
     return queue, entry
 
@@ -77,6 +77,10 @@ running        finish:aborted         aborted
 running        finish:refused         refused
 running        finish:position_lost   position_lost
 running        finish:error           error
+running        finish:interrupted     interrupted
+interrupted    run                    running
+interrupted    frame                  framing
+interrupted    finish:done            -
 framing        finish:done            framed
 framing        finish:aborted         queued
 framing        finish:refused         queued

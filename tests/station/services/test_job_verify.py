@@ -1,5 +1,5 @@
-"""A job placed on the bed (drivers.gcode_place, station send --place) and verified on the twin at virtual time
-(drivers.sim.grbl_motion, station.services.job_verify, station send --verify)."""
+"""A job placed on the bed (cam.place, station send --place) and verified on the twin at virtual time
+(drivers.grbl.planner, station.services.job_verify, station send --verify)."""
 
 from __future__ import annotations
 
@@ -9,13 +9,14 @@ import math
 import numpy as np
 import pytest
 
+from cam.place import Placement, place_lines
 from drivers.gcode import GcodeError, interpret
-from drivers.gcode_place import Placement, place_lines
 from drivers.grbl import Job, JobRunner
+from drivers.grbl.planner import MotionBlock, plan_times
 from drivers.profiles import load_profile
-from drivers.sim.grbl_motion import MotionBlock, plan_times
 from station.cli import main
 from station.services.job_verify import verify_job
+from station.services.machines import job_seconds
 
 from ...drivers.conftest import sim_url
 
@@ -104,6 +105,18 @@ def test_the_look_ahead_holds_fifteen_blocks():
     assert windowed.total > unbounded.total
 
 
+def test_every_job_time_estimate_is_the_planners(make_connection):
+    # one 100 mm move at the laser's rapid rate: 0.1 s to reach 100 mm/s at 1000 mm/s^2, 0.9 s cruising, 0.1 s to
+    # stop; length over feed would say 1.0 s
+    conn = make_connection(sim_url("laser", time_scale=1, clock="virtual"))
+    runner = JobRunner(conn, Job("one", ["G21", "G91", "G1 X-100 F6000"]))
+    assert runner.preflight()["estimate_s"] == pytest.approx(1.1, rel=1e-9)  # the streamer's ETA
+    # the plot preview's and the job queue's layer times: on the plotter ($120 800 mm/s^2) 80 mm/s is reached in
+    # 0.1 s over 4 mm, and lost as fast: 0.2 s, plus 92 mm at 80 mm/s
+    plotter = load_profile("plotter")
+    assert job_seconds("G21\nG90\nG0 X0 Y0\nG1 X100 Y0 F4800\n", plotter) == pytest.approx(0.2 + 92 / 80, rel=1e-9)
+
+
 def test_the_twin_records_which_blocks_started_from_rest(make_connection):
     conn = make_connection(sim_url("plotter", time_scale=1, clock="virtual"))
     lines = ["G21", "G90", "G1 X10 Y0 F3000", "G1 X20 Y0", "G4 P0.2", "G1 X30 Y0", "G1 X30 Y10"]
@@ -124,7 +137,10 @@ def test_verify_times_a_job_with_acceleration_and_checks_travels_and_travel():
     assert done.ok and done.state == "done"
     assert done.burn_mm == pytest.approx(140.0)
     # the planner's time is longer than length over feed: each corner and the start are taken from slower speeds
-    assert done.estimate_s > done.straight_s
+    assert done.estimate_s > 140.0 / 1000.0 * 60.0
+    # and the ETA read from the G-code before it runs is that same planner: the blocks the twin ran after its first
+    # travel (from wherever the head stood, which the G-code alone cannot know) take the same time
+    assert done.preflight_s == pytest.approx(sum(done.block_seconds[1:]), rel=0.01)
     assert not done.lit_travels and done.within_travel
     placed = verify_job(place_lines(SQUARE, Placement(390, 0, 0)), name="off the bed", profile=load_profile("laser"))
     assert not placed.ok and not placed.within_travel and "leaves the machine's travel" in placed.message
@@ -146,7 +162,7 @@ def test_station_send_place_and_verify_run_the_job_where_it_was_placed(tmp_path,
                  "--json"])
     assert code == 0
     document = json.loads(capsys.readouterr().out)
-    assert document["verify"]["ok"] and document["verify"]["estimate_s"] > document["verify"]["straight_s"]
+    assert document["verify"]["ok"] and document["verify"]["estimate_s"] >= document["verify"]["preflight_s"] > 0
     executed = json.loads(record.read_text())["executed"]
     burned = np.array([row[2][:2] for row in executed if row[3] > 0]) + 400.0  # the twin's G54: machine - 400
     expected = _turn(np.array([[40.0, 0], [40, 30], [0, 30], [0, 0]]), Placement(100, 80, 30))

@@ -16,8 +16,8 @@ from drivers.gcode import interpret
 from drivers.profiles import ProfileError, builtin_profile, load_profile, profile_from_toml
 from drivers.profiles.loading import BUILTIN_PROFILES
 from drivers.sim.laser_burn import line_kerf, sim_material
-from projector.tags import tag_cells
 from station.cli import main
+from vision.tags import tag_cells
 
 SMALL = ["--power", "0.4:1:3", "--feed", "250:3000:3"]
 

@@ -1,4 +1,4 @@
-"""The station loop on the simulated world (issue 21): the world service, and `station loop` stopped and resumed.
+"""The station loop on the simulated world: the world service, and `station loop` stopped and resumed.
 
 The SIMPLE scenario with tiny budgets; nothing here asserts on the acceptance rates (bench/bench_loop.py does)."""
 
@@ -17,6 +17,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from common.progress import Cancelled, Reporter
+
 ROOT = Path(__file__).resolve().parents[3]
 LAYOUT = {"x": [-0.15, 0.06, 68.0]}  # a SIMPLE layout (track.x, track.z, track.roll) that succeeds as designed
 TINY = ["--attempts", "2", "--loops", "2", "--budget", "20", "--reoptimize-budget", "20", "--candidates", "2",
@@ -26,11 +28,11 @@ TINY = ["--attempts", "2", "--loops", "2", "--budget", "20", "--reoptimize-budge
 
 @pytest.fixture(scope="module")
 def simple_job(tmp_path_factory):
-    from station.services.guide import make_guide
+    from station.services.guide import GuideRequest, make_guide
 
     path = tmp_path_factory.mktemp("layout") / "layout.json"
     path.write_text(json.dumps(LAYOUT))
-    return make_guide("simple", str(path), tolerances=False)
+    return make_guide(GuideRequest("simple", str(path), tolerances=False))
 
 
 def test_the_camera_measures_parts_where_the_maker_put_them(simple_job):
@@ -70,13 +72,57 @@ def test_the_camera_measures_parts_where_the_maker_put_them(simple_job):
 
 def test_a_world_is_a_sim_world_url(simple_job):
     from drivers.errors import SimConfigError
+    from station.errors import ServiceError
     from station.services import world as worlds
-    from station.services.errors import ServiceError
 
     with pytest.raises(ServiceError, match="not a world"):
         worlds.open_world("sim://camera")
     with pytest.raises(SimConfigError, match="place_mm"):
         worlds.open_world("sim://world?place_mm=x")
+
+
+def test_a_loop_attempt_is_the_attempt_an_assembly_walks(tmp_path, station_home):
+    # The loop's attempt and the same attempt walked by hand with station assemble's Assembly, on a world of the same
+    # seed: placed with the highlight, checked, corrected as the check says, run, predicted as checked. The same
+    # trial and the same prediction, so the two cannot drift apart.
+    from common.progress import Reporter
+    from station.loopstore import LoopStore
+    from station.services import world as worlds
+    from station.services.assemble import Assembly
+    from station.services.guide import GuideRequest, make_guide
+    from station.services.loop import _CAMERA, _PREDICT, ATTEMPT_BLOCK, LoopSettings, _Loop, _seed
+    from station.services.trials import load_trial_scenario
+
+    url = "sim://world?seed=5&place_mm=4"
+    settings = LoopSettings(rounds=2, predict_samples=4, workers=1)
+    scenario = load_trial_scenario("ballrun")
+    job = make_guide(GuideRequest("ballrun", "success", tolerances=False))
+    world = worlds.open_world(url)
+    worlds.prepare_world(world, scenario)
+    with LoopStore(str(tmp_path / "loop.sqlite3")) as store:
+        loop = _Loop(store, scenario, world, url, settings, Reporter.of(None), tmp_path)
+        stored, said = loop.attempt(job, None, None, 1, 2, checked=True)
+        logged = store.trial(stored.trial_id)
+    assert said.rounds >= 1 and said.corrections, "4 mm of placement error leaves parts to move"
+
+    by_hand = worlds.open_world(url)
+    worlds.prepare_world(by_hand, scenario)
+    assembly = Assembly(job, scenario, camera=settings.camera, world=by_hand, attempt=ATTEMPT_BLOCK + 2, samples=4,
+                        seed=_seed(5, _PREDICT, 1, 2), workers=1, highlighted=True, station_camera=False)
+    assembly.placed()
+    for r in range(settings.rounds + 1):
+        assembly.check_parts(seed=_seed(5, _CAMERA, 1, 2, r))
+        if not assembly.moves() or r == settings.rounds:
+            break
+        assembly.fix()
+    assembly.accept()
+    assembly.run()
+    predicted = assembly.forecast().prediction.probability
+    walked = assembly.trial()
+    assert by_hand.placed() == world.placed() and assembly.fixes == said.rounds
+    for key in ("layout", "as_built", "check", "outcomes", "times", "success", "physics"):
+        assert logged[key] == walked[key], key
+    assert stored.predicted == predicted
 
 
 def _loop(env, *extra, check=True):
@@ -148,18 +194,19 @@ def _tiny_settings():
 def test_a_stopped_run_keeps_its_id_when_resumed_and_says_so(tmp_path, station_home):
     # stopped before its first layout is made (nothing simulated): each resume finds the same run, and the next
     # run's id is the next number (an insert that found the run used one up)
-    from station.services.loop import LoopSettings, LoopStopped, run_loop
+    from station.services.loop import LoopSettings, run_loop
 
     database = str(tmp_path / "ids.sqlite3")
     settings = LoopSettings(attempts=2, loops=2, baseline=1)
     started, stops = [], []
     for world in ("sim://world?seed=2", "sim://world?seed=2", "sim://world?seed=2", "sim://world?seed=3"):
-        with pytest.raises(LoopStopped) as stopped:
-            run_loop("simple", world, settings, database=database, should_stop=lambda: True, on_start=started.append)
+        with pytest.raises(Cancelled) as stopped:
+            run_loop("simple", world, settings, database=database, report=Reporter(stop=lambda: True),
+                     on_start=started.append)
         stops.append(stopped.value)
     assert [(log.run_id, log.resumed) for log in started] == [(1, False), (1, True), (1, True), (2, False)]
     assert started[1].resuming() == "resuming run 1: 0 attempts already logged"
-    assert [(stop.log.run_id, stop.log.attempts) for stop in stops] == [(1, 0), (1, 0), (1, 0), (2, 0)]
+    assert [(stop.partial.run_id, stop.partial.attempts) for stop in stops] == [(1, 0), (1, 0), (1, 0), (2, 0)]
     assert str(stops[0]) == "run 1 stopped: 0 attempts logged (loop 1: 0 of 2)"
     connection = sqlite3.connect(database)
     try:
@@ -389,7 +436,7 @@ def test_candidates_are_the_kept_layout_then_working_runners_up_best_first():
 def test_the_layout_placed_is_the_one_predicted_to_succeed_most_often(monkeypatch):
     """choose_layout scores every option by its physical prediction and keeps the best, recording the scores."""
     from station.services import predict as predicting
-    from station.services.layout_choice import candidate_layouts, choose_layout
+    from station.services.layout_choice import LayoutChoiceRequest, candidate_layouts, choose_layout
 
     scores = iter([0.4, 0.9, 0.9])
     seen = []
@@ -399,13 +446,14 @@ def test_the_layout_placed_is_the_one_predicted_to_succeed_most_often(monkeypatc
             seen.append(seed)
             self.probability = next(scores)
 
-    monkeypatch.setattr(predicting, "predict_layout", lambda *a, seed, **k: Result(seed))
+    monkeypatch.setattr(predicting, "predict_layout", lambda scenario, x, request, **k: Result(request.seed))
     monkeypatch.setattr("design.contraption.layout_io.layout_from_data",
                         lambda data, scenario, file: type("L", (), {"x": [0.0, 0.0]})())
     rows = [{"u": [0.1, 0.2], "local_success_rate": 0.4, "kept": False},
             {"u": [0.7, 0.25], "local_success_rate": 0.8, "kept": False}]
     options = candidate_layouts(_payload([0.5, 0.5], rows), 3)
-    chosen = choose_layout(None, options + [options[0]], None, samples=5, seed=7)  # the repeat is dropped
+    # the repeat is dropped
+    chosen = choose_layout(None, options + [options[0]], LayoutChoiceRequest(samples=5, seed=7))
     assert chosen["candidate"] == 1  # 0.9 beats 0.4; of the two 0.9s the first is kept
     assert chosen["physical_choice"] == {"chosen": 1, "predicted_physical_success": [0.4, 0.9, 0.9],
                                          "record": [[0, 0]] * 3, "prediction_weight": 4.0,
@@ -413,7 +461,7 @@ def test_the_layout_placed_is_the_one_predicted_to_succeed_most_often(monkeypatc
                                          "lower_quartile": pytest.approx([0.2234, 0.8587, 0.8587], abs=1e-4),
                                          "samples": 5}
     assert seen == [7, 7, 7]  # every option meets the same draws
-    assert choose_layout(None, [options[0]], None) is options[0]  # nothing to choose: nothing simulated
+    assert choose_layout(None, [options[0]]) is options[0]  # nothing to choose: nothing simulated
 
 
 @pytest.mark.parametrize(("predicted", "record", "weight", "expected"), [
@@ -459,7 +507,7 @@ def test_a_layout_that_worked_on_the_table_is_kept_over_one_only_simulated_bette
     """A placed layout's trials (matched by its values) update its prediction: 5/5 at 0.56 beats a new 0.75, 0/5 at
     0.9 loses to it; the record and the expected successes are in the choice."""
     from station.services import predict as predicting
-    from station.services.layout_choice import candidate_layouts, choose_layout, layout_records
+    from station.services.layout_choice import LayoutChoiceRequest, candidate_layouts, choose_layout, layout_records
 
     monkeypatch.setattr("design.contraption.layout_io.layout_from_data",
                         lambda data, scenario, file: type("L", (), {"x": [0.0, 0.0]})())
@@ -475,13 +523,13 @@ def test_a_layout_that_worked_on_the_table_is_kept_over_one_only_simulated_bette
         scores = iter(predictions)
         monkeypatch.setattr(predicting, "predict_layout",
                             lambda *a, scores=scores, **k: type("R", (), {"probability": next(scores)})())
-        chosen = choose_layout(None, [placed, new], None, samples=5, trials=trials)
+        chosen = choose_layout(None, [placed, new], LayoutChoiceRequest(samples=5, trials=tuple(trials)))
         choice = chosen["physical_choice"]
         assert choice["chosen"] == winner, choice
         assert choice["record"][0][1] == 5 and choice["record"][1] == [0, 0]
         assert choice["expected_success"][1] == pytest.approx(0.75)
     with pytest.raises(ValueError, match="prediction_weight"):
-        choose_layout(None, [placed, new], None, prediction_weight=0)
+        LayoutChoiceRequest(prediction_weight=0)
 
 
 @pytest.mark.parametrize(("predicted", "record", "expected"), [
@@ -506,7 +554,7 @@ def test_a_near_tie_goes_to_the_layout_with_a_record_and_a_clear_win_to_the_high
     """The loop's world-3 case: 4 of 5 at 0.81 (expected 0.804) against a new 0.8125 keeps the placed layout; a new
     0.95 beats it; a placed layout that failed 3 of 5 at 0.6 loses to a new 0.75."""
     from station.services import predict as predicting
-    from station.services.layout_choice import candidate_layouts, choose_layout
+    from station.services.layout_choice import LayoutChoiceRequest, candidate_layouts, choose_layout
 
     monkeypatch.setattr("design.contraption.layout_io.layout_from_data",
                         lambda data, scenario, file: type("L", (), {"x": [0.0, 0.0]})())
@@ -520,7 +568,8 @@ def test_a_near_tie_goes_to_the_layout_with_a_record_and_a_clear_win_to_the_high
         scores = iter(predictions)
         monkeypatch.setattr(predicting, "predict_layout",
                             lambda *a, scores=scores, **k: type("R", (), {"probability": next(scores)})())
-        choice = choose_layout(None, [placed, new], None, samples=16, trials=trials)["physical_choice"]
+        request = LayoutChoiceRequest(samples=16, trials=tuple(trials))
+        choice = choose_layout(None, [placed, new], request)["physical_choice"]
         assert choice["chosen"] == winner, choice
     assert choice["expected_success"][0] == pytest.approx((2.4 + 2) / 9)
 

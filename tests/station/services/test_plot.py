@@ -14,12 +14,14 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from drivers.gcode import WriterOptions, drawn_polylines
-from drivers.gcode_layers import PenLayer, layer_marks, pause_lines, write_layers_gcode
+from cam.layers import PenLayer, write_layers_gcode
+from cam.plot import WriterOptions
+from drivers.gcode import drawn_polylines
+from drivers.gcode_layers import layer_marks, pause_lines
 from drivers.profiles import load_profile
 from station.cli import main
-from station.commands.machines_io import _sample
 from station.services import plot as plot_service
+from station.services.machines import pattern_points as _sample
 
 ROOT = Path(__file__).resolve().parents[3]
 EXAMPLES = ROOT / "examples" / "plots"
@@ -118,7 +120,7 @@ def frame_length(layer) -> float:
 
 
 def _load_design(path, machine):
-    from station.cli_util import load_design
+    from station.services.designs import load_design
 
     return load_design(path, machine)
 
@@ -287,7 +289,9 @@ def test_a_hold_the_maker_asks_for_is_not_a_pause_of_the_program():
         until(lambda: runner.progress.lines_acked > 4)
         runner.hold()
         until(lambda: conn.status is not None and conn.status.label == "Hold:0")
-        time.sleep(0.3)  # status reports keep coming while held
+        reports: list[object] = []
+        conn.add_listener(lambda event, data: reports.append(data) if event == "status" else None)
+        until(lambda: len(reports) >= 3)  # status reports keep coming while held: none of them is a pause
         assert runner.progress.state == "holding" and runner.pause_line is None
         runner.resume()
         until(lambda: runner.progress.state == "paused")

@@ -10,9 +10,9 @@ from pathlib import Path
 import pytest
 
 from station.config import load_config
-from station.db import DATABASE_VARIABLE, MIGRATIONS, database_url, open_database, parse_url, redact, statements
-from station.errors import ConfigError, StationError
-from station.services.errors import ServiceError
+from station.db import DATABASE_VARIABLE, MIGRATIONS, database_url, open_database, statements
+from station.db_url import parse_url, redact
+from station.errors import ConfigError, ServiceError, StationError
 from station.services.trials import build_trial, layout_values, load_trial_scenario
 from station.triallog import TrialStore
 

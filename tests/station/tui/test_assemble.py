@@ -22,10 +22,8 @@ SIMPLE = Path(__file__).resolve().parents[3] / "examples" / "scenarios" / "simpl
 def small_forecasts(monkeypatch):
     """The forecast the screen keeps in view: a few simulations in the worker thread (a pool's start-up and 60
     simulations per forecast are the real screen's, not what these tests are about)."""
-    from station.tui.screens._assemble_flow import AttemptFlow
-
-    monkeypatch.setattr(AttemptFlow, "forecast_samples", 6)
-    monkeypatch.setattr(AttemptFlow, "simulation_workers", 1)
+    monkeypatch.setattr(AssembleScreen, "forecast_samples", 6)
+    monkeypatch.setattr(AssembleScreen, "simulation_workers", 1)
 
 
 async def test_a_layout_is_stepped_through_and_the_projector_follows(tmp_path):

@@ -4,6 +4,8 @@ import numpy as np
 from textual.widgets import Select
 
 from design.machines import get_machine, machine_names
+from station.errors import StationError
+from station.services.drawing import feasible_interval, machine_choices, pattern, validate_design
 from station.tui.screens.drawing import mechanism_to_drawing
 from station.tui.widgets.canvas import PatternCanvas
 from station.tui.widgets.parameter import ParameterControl
@@ -162,3 +164,19 @@ def test_bounds_are_rounded_to_the_span_and_strict_ends_shown_open():
     assert format_bounds(2.0, 2.0) == "[2…2]"
     assert format_value(2.0, 5e-324, 3.0) == "2.000"
     assert format_value(-1e-9, 0.0, 3.0) == "0.000"
+
+
+def test_the_live_design_is_asked_through_the_service_and_refused_as_a_station_error():
+    # The screen catches only the station's errors: the model's own refusals must come out as one of them, with the
+    # model's message, and the answers must be the model's.
+    model = get_machine("spirograph")
+    try:
+        validate_design(model, {"r_f": 2, "r_r": 5, "d": 1})
+    except StationError as error:
+        assert "r_r must be smaller than r_f" in str(error)
+    else:
+        raise AssertionError("an infeasible design was accepted")
+    assert feasible_interval(model, model.defaults(), "d") == model.feasible_interval(model.defaults(), "d")
+    period, points = pattern(model, model.defaults(), lambda period: 300)
+    assert period == model.period(model.defaults()) and points.shape == (300, 2)
+    assert [name for _, name in machine_choices()] == machine_names()

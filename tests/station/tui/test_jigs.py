@@ -18,10 +18,10 @@ SIMPLE = Path(__file__).resolve().parents[3] / "examples" / "scenarios" / "simpl
 
 @pytest.fixture(autouse=True)
 def small_forecasts(monkeypatch):
-    from station.tui.screens._assemble_flow import AttemptFlow
+    from station.tui.screens.assemble import AssembleScreen
 
-    monkeypatch.setattr(AttemptFlow, "forecast_samples", 6)
-    monkeypatch.setattr(AttemptFlow, "simulation_workers", 1)
+    monkeypatch.setattr(AssembleScreen, "forecast_samples", 6)
+    monkeypatch.setattr(AssembleScreen, "simulation_workers", 1)
 
 
 async def test_j_writes_the_jigs_and_queues_their_laser_job(tmp_path):

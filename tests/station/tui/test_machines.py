@@ -6,12 +6,13 @@ import asyncio
 from contextlib import asynccontextmanager
 
 import pytest
-from textual.widgets import DataTable
+from textual.widgets import DataTable, Static
 
 from drivers.gcode import clean_line
 from station.devices import DeviceEntry
 from station.errors import StationError
 from station.joblog import JobLog
+from station.services.job_queue import JobState
 from station.tui.app import StationApp
 
 
@@ -264,3 +265,29 @@ async def test_connected_message_names_the_version_without_the_build_suffix(tmp_
         await pilot.pause(0.2)
         said = [line for line in _console_text(screen).splitlines() if "connected" in line and "GRBL" in line]
         assert said and "GRBL 1.1h" in said[0] and "20190825:" not in said[0], said
+
+
+@pytest.mark.parametrize("start", [True, False])
+async def test_a_laser_without_homing_asks_for_its_frame_in_a_dialog(tmp_path, start):
+    # the question station send asks at a terminal, answered here in a dialog: the one send of MachineSessions
+    devices = (DeviceEntry("laser", "laser", sim_url("laser") + "&homing=0", True),)
+    app = StationApp(devices=devices, database=tmp_path / "t.sqlite3")
+    async with app.run_test(size=(160, 48)) as pilot:
+        await pilot.press("m")
+        screen = app.get_screen("machines")
+        await _until(pilot, lambda: "laser" in screen.connections)
+        conn = screen.connections["laser"]
+        entry = screen.queue_job("laser", _square(n=1, laser=True), title="burn")
+        await pilot.press("g")
+        await _until(pilot, lambda: "Trace its frame first" in str(app.screen.query_one(Static).render()))
+        await pilot.press("y")  # the frame at frame power
+        await _until(pilot, lambda: "Start the laser job" in str(app.screen.query_one(Static).render()))
+        assert entry.state is JobState.FRAMED
+        await pilot.press("y" if start else "n")
+        await _until(pilot, lambda: entry.state is (JobState.DONE if start else JobState.FRAMED)
+                     and not screen.sessions.sending)
+        await _until(pilot, lambda: app.screen is screen)
+        rows = [(row.kind, row.status) for row in reversed(JobLog(app.database).recent())]
+        assert rows == [("frame", "done"), ("run", "done")] if start else [("frame", "done")]
+        burned = {b.power for b in conn.port.machine.snapshot().executed if not b.rapid}
+        assert (500.0 in burned) is start

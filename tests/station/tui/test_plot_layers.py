@@ -8,7 +8,8 @@ import io
 
 import numpy as np
 
-from drivers.gcode_layers import PenLayer, layer_marks, write_layers_gcode
+from cam.layers import PenLayer, write_layers_gcode
+from drivers.gcode_layers import layer_marks
 from drivers.profiles import load_profile
 from station.devices import DeviceEntry
 from station.joblog import JobLog

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import asyncio
 import json
 from pathlib import Path
 
@@ -26,6 +25,15 @@ async def wait_until_idle(app, pilot, seconds=120):
         if not app.screen._optimizing:
             return
     raise AssertionError("the optimization did not finish")
+
+
+async def wait_until_reporting(screen, pilot, seconds=120):
+    """Until the run has reported its first progress (it is under way: a stop now stops a running optimization)."""
+    for _ in range(int(seconds * 10)):
+        await pilot.pause(0.1)
+        if screen.query_one(ProgressPanel).stage:
+            return
+    raise AssertionError("the optimization reported no progress")
 
 
 def open_screen(app) -> RobustScreen:
@@ -88,7 +96,7 @@ async def test_stop_ends_a_run_cleanly_and_bad_budget_is_refused(tmp_path):
         assert not screen._optimizing
         screen.query_one("#budget", Input).value = "200"
         screen.action_optimize()
-        await asyncio.sleep(0.5)
+        await wait_until_reporting(screen, pilot)
         screen.action_stop()
         await wait_until_idle(app, pilot)
         assert "stopped" in str(screen.query_one("#status", Static).render())
@@ -106,7 +114,7 @@ async def test_enter_in_the_budget_field_starts_a_run_that_s_stops(tmp_path):
         await pilot.press("enter")
         await pilot.pause()
         assert screen._optimizing and not isinstance(app.focused, Input)
-        await asyncio.sleep(0.5)
+        await wait_until_reporting(screen, pilot)
         await pilot.press("s")
         await wait_until_idle(app, pilot)
         assert "stopped" in str(screen.query_one("#status", Static).render())

@@ -11,9 +11,10 @@ from textual.app import App, ComposeResult
 from textual.widgets import Button, DataTable, Input, Static
 
 from calibration.sim_fit import FitSettings
-from calibration.sim_synthetic import export, synthetic_trials
 from design.contraption import load_scenario
 from design.contraption.physics_profile import load_profile
+from station.services.world import synthetic_trials
+from station.services.world import trials_export as export
 from station.tui.widgets.progress import ProgressPanel
 from station.tui.widgets.sim_calibration import SimCalibrationPanel
 

@@ -8,7 +8,7 @@ import pytest
 from textual.widgets import ProgressBar
 
 import station.tui.screens.sketch as sketch_screen
-from common.progress import Progress
+from common.progress import Progress, Reporter
 from design.sketch import SketchRetriever
 from design.sketch.candidates import DatabaseSettings
 from station.tui.app import StationApp
@@ -22,12 +22,12 @@ def small_retriever(monkeypatch, tmp_path):
     """A small database built in ``tmp_path``; returns the list of the screen's progress reports."""
     seen: list[Progress] = []
 
-    def make(progress, cancelled=None):
-        def spy(update: Progress) -> None:
+    def make(report: Reporter):
+        def spy(update: Progress) -> Progress:
             seen.append(update)
-            progress(update)
+            return update
 
-        return SketchRetriever(["spirograph"], cache_dir=tmp_path, settings=SMALL, progress=spy, cancelled=cancelled)
+        return SketchRetriever(["spirograph"], cache_dir=tmp_path, settings=SMALL, report=report.mapped(spy))
 
     monkeypatch.setattr(sketch_screen, "make_retriever", make)
     return seen

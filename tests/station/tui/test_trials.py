@@ -170,10 +170,10 @@ async def test_y_n_u_stay_shown_and_working_while_the_past_trials_have_the_focus
 
 
 async def test_the_screen_opens_on_the_scenario_and_layout_chosen_on_the_assemble_screen(tmp_path, monkeypatch):
-    from station.tui.screens._assemble_flow import AttemptFlow
+    from station.tui.screens.assemble import AssembleScreen
 
-    monkeypatch.setattr(AttemptFlow, "forecast_samples", 4)
-    monkeypatch.setattr(AttemptFlow, "simulation_workers", 1)
+    monkeypatch.setattr(AssembleScreen, "forecast_samples", 4)
+    monkeypatch.setattr(AssembleScreen, "simulation_workers", 1)
     monkeypatch.setenv(DATABASE_VARIABLE, str(tmp_path / "trials.sqlite3"))
     others = tuple(a for a in OTHER_AREAS if a != "assemble")
     async with opened(tmp_path, "a", without=others) as (app, pilot):

@@ -104,7 +104,7 @@ def test_soft_limit_alarm_answers_nothing_but_a_reset(raw):
     port.port.write(b"G0 X500\n")  # machine X = 500 - 400 = 100 > 0: outside the travel
     assert port.read_until(b"Reset to continue]\r\n") == b"ALARM:2\r\n[MSG:Reset to continue]\r\n"
     port.port.write(b"?$#\n!~\x91?")
-    time.sleep(0.3)
+    assert port.machine.settled()  # every byte taken in: none of them is answered
     assert port.port.read(4096) == b""
     port.port.write(b"\x18")
     assert port.read_until(UNLOCK) == b"ok\r\n" + BANNER + UNLOCK
@@ -147,7 +147,7 @@ def test_planner_and_rx_buffer_in_bf(raw):
     for line in lines[:15]:
         assert port.ask(line) == b"ok\r\n"
     port.port.write((lines[15] + "\n" + lines[16] + "\n").encode())
-    time.sleep(0.1)
+    assert port.machine.settled()
     # 15 blocks planned; line 16 is out of the RX buffer but blocked in the parser; line 17 waits in the buffer
     report = port.status()
     assert report.startswith("<Run|") and f"|Bf:0,{128 - len(lines[16]) - 1}|" in report
@@ -160,9 +160,9 @@ def test_rx_ring_buffer_holds_127_of_128_bytes(raw):
     for i in range(15):
         port.ask(f"G1X{10 + i}F60")  # the planner is full
     port.port.write(b"G1X30F60\n")  # taken out of the buffer, blocked in the parser
-    time.sleep(0.05)
+    assert port.machine.settled()
     port.port.write(b"G1X31F60;" + b"x" * 119)  # 128 bytes of one unfinished line
-    time.sleep(0.1)
+    assert port.machine.settled()
     assert "|Bf:0,1|" in port.status()  # 127 bytes in: GRBL reports 128 - 127
     assert port.machine.snapshot().overflow_bytes == 1
     port.port.write(b"\x18")
@@ -172,7 +172,7 @@ def test_rx_overflow_is_recorded(raw):
     port = raw("profile=laser&time_scale=1")
     port.port.write(b"G1X10F60\n")
     port.port.write(b"G1X11F60\n" * 30)  # 270 bytes at once: a correct streamer never does this
-    time.sleep(0.3)
+    assert port.machine.settled()
     assert port.machine.snapshot().overflow_bytes > 0
 
 

@@ -11,8 +11,9 @@ import pytest
 import serial
 
 import drivers.sim  # noqa: F401 - registers sim://
+from cam.plot import WriterOptions, write_plot_gcode
 from drivers.errors import DriverError, SimConfigError
-from drivers.gcode import WriterOptions, clean_line, write_plot_gcode
+from drivers.gcode import clean_line
 from drivers.grbl import Job, JobRunner
 from drivers.sim.clock import VirtualClock, WallClock
 from drivers.sim.grbl import SimConfig, SimRecord, SimulatedGrbl

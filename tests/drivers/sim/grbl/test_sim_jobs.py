@@ -8,9 +8,10 @@ import io
 import numpy as np
 import pytest
 
-from drivers.gcode import WriterOptions, clean_line, drawn_polylines, interpret, write_plot_gcode
+from cam.laser import OperationSettings, plan_laser_job, write_laser_gcode
+from cam.plot import WriterOptions, write_plot_gcode
+from drivers.gcode import clean_line, drawn_polylines, interpret
 from drivers.grbl import Job, JobRunner
-from drivers.laser_job import OperationSettings, plan_laser_job, write_laser_gcode
 
 from ...conftest import sim_url
 

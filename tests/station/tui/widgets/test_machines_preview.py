@@ -8,7 +8,8 @@ import pytest
 
 from drivers.gcode import drawn_polylines
 from drivers.grbl import Job
-from station.tui.widgets.machines_preview import JobPreview, preview_runs, split_at_line
+from station.services.job_preview import preview_runs, split_at_line
+from station.tui.widgets.machines_preview import JobPreview
 
 # Two squares (pen down M3 S30, pen up M3 S50), then a laser-style run with the spindle off (M5) that draws nothing.
 LINES = [

@@ -4,15 +4,16 @@ from __future__ import annotations
 
 import threading
 
-from textual import work
 from textual.app import App, ComposeResult
 
-from common.progress import Progress, Reporter
-from station.tui.widgets.progress import ProgressPanel, ProgressReported, post_progress
+from common.progress import Progress
+from station.tui.messages import ProgressReported
+from station.tui.widgets.progress import ProgressPanel
+from station.tui.work import run_work
 
 
 class Host(App):
-    """A panel and a thread worker that reports through :func:`post_progress`, one step each time it is let go."""
+    """A panel and work in a thread worker (:func:`run_work`) that reports one step each time it is let go."""
 
     def __init__(self) -> None:
         super().__init__()
@@ -26,14 +27,15 @@ class Host(App):
         self.shown.append(message.progress)
         self.query_one(ProgressPanel).show(message.progress)
 
-    @work(thread=True)
-    def run_work(self) -> None:
-        report = Reporter(post_progress(self))
-        for i in range(1, 4):
+    def start(self) -> None:
+        def steps(report) -> None:
+            for i in range(1, 4):
+                self.step.acquire()
+                report("grid", i, 4, f"radius {i}")
             self.step.acquire()
-            report("grid", i, 4, f"radius {i}")
-        self.step.acquire()
-        report("nesting", 0, None, "placing parts")
+            report("nesting", 0, None, "placing parts")
+
+        run_work(self, steps, group="steps")
 
 
 async def wait_until(pilot, condition) -> None:
@@ -54,7 +56,7 @@ async def test_the_bar_advances_and_the_stage_shows():
     async with app.run_test(size=(80, 10)) as pilot:
         panel = app.query_one(ProgressPanel)
         assert "press go" in panel.message
-        app.run_work()
+        app.start()
         seen = []
         for i in range(1, 4):
             app.step.release()

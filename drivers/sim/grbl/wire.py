@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import time
 
-from drivers.sim.grbl_settings import BANNER, RX_BUFFER_SIZE
+from drivers.sim.grbl.settings import BANNER, RX_BUFFER_SIZE
 
 REALTIME_STATUS = 0x3F  # '?'
 REALTIME_HOLD = 0x21  # '!'
@@ -72,6 +72,25 @@ class Wire:
                         return b""
                     waits.append(deadline - wall)
                 self._out_cond.wait(min(waits) if waits else 0.5)
+
+    def settled(self, timeout: float = 5.0) -> bool:
+        """Wait (at most ``timeout`` wall seconds) until every byte the host wrote has arrived and the machine has
+        acted on it: its real-time bytes served, its lines in the RX buffer or taken out by the parser. False if
+        bytes were still on the wire at the timeout.
+
+        The machine's thread holds the lock for a whole turn (take in bytes, move, parse) and lets go only while it
+        waits, so an empty input wire seen under the lock means the turn that took the last bytes in is over. A
+        test asserts what the machine did (or did not) answer after this, not after a pause of guessed length.
+        """
+        deadline = time.monotonic() + timeout
+        with self._cond:
+            while self._in_wire:
+                remaining = deadline - time.monotonic()
+                if remaining <= 0:
+                    return False
+                self._cond.notify_all()
+                self._cond.wait(min(remaining, 0.005))
+            return True
 
     def bytes_waiting(self) -> int:
         """How many bytes the host can read now."""

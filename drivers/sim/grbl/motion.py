@@ -13,8 +13,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from drivers.sim.grbl_record import ExecutedBlock, Sample
-from drivers.sim.grbl_settings import PLANNER_BLOCKS
+from drivers.sim.grbl.record import ExecutedBlock, Sample
+from drivers.sim.grbl.settings import PLANNER_BLOCKS
 
 
 @dataclass
@@ -32,7 +32,7 @@ class Block:
     line_no: int
     text: str
     jog: bool = False
-    from_rest: bool = False  # planned with the planner empty: GRBL enters it at speed 0 (drivers.sim.grbl_motion)
+    from_rest: bool = False  # planned with the planner empty: GRBL enters it at speed 0 (drivers.grbl.planner)
     t0: float = 0.0
     duration: float = 0.0
     seg_start: np.ndarray | None = None

@@ -14,10 +14,12 @@ from __future__ import annotations
 
 import numpy as np
 
-from projector.errors import ProjectorError
+from vision.errors import VisionError
 
-__all__ = ["TAG_CELLS", "TAG_COUNT", "BLACK_CELLS", "check_tag_id", "tag_cells", "tag_image"]
+__all__ = ["TAG_CELLS", "TAG_COUNT", "TAG_FAMILY", "BLACK_CELLS", "check_tag_id", "tag_cells", "tag_image"]
 
+#: The AprilTag family of every tag the station prints (upstream tag36h11, ids 0..586).
+TAG_FAMILY = "tag36h11"
 #: Cells across a tag with its white border, and across its black square (whose edge is the tag's size).
 TAG_CELLS = 10
 BLACK_CELLS = 8
@@ -26,15 +28,15 @@ TAG_COUNT = 587
 
 
 def check_tag_id(tag_id: object, what: str = "tag id") -> int:
-    """``tag_id`` as an int in 0..586, or a :class:`ProjectorError` naming ``what``."""
+    """``tag_id`` as an int in 0..586, or a :class:`VisionError` naming ``what``."""
     if isinstance(tag_id, bool) or not isinstance(tag_id, (int, np.integer)) or not 0 <= int(tag_id) < TAG_COUNT:
-        raise ProjectorError(f"{what}: expected an integer from 0 to {TAG_COUNT - 1} (tag36h11), got {tag_id!r}")
+        raise VisionError(f"{what}: expected an integer from 0 to {TAG_COUNT - 1} (tag36h11), got {tag_id!r}")
     return int(tag_id)
 
 
 def tag_cells(tag_id: int) -> np.ndarray:
     """The tag's 10 x 10 cells (True = white), row 0 at the top as printed, in the upstream orientation."""
-    import cv2
+    import cv2  # deferred: OpenCV is heavy, and a guide without tags never needs it
 
     tag_id = check_tag_id(tag_id)
     dictionary = cv2.aruco.getPredefinedDictionary(cv2.aruco.DICT_APRILTAG_36h11)
@@ -47,6 +49,6 @@ def tag_cells(tag_id: int) -> np.ndarray:
 def tag_image(tag_id: int, pixels_per_cell: int = 10) -> np.ndarray:
     """The tag as a grey image (uint8, 255 white), with its white border, ``10 * pixels_per_cell`` pixels across."""
     if not isinstance(pixels_per_cell, (int, np.integer)) or pixels_per_cell < 1:
-        raise ProjectorError(f"pixels_per_cell: expected a whole number >= 1, got {pixels_per_cell!r}")
+        raise VisionError(f"pixels_per_cell: expected a whole number >= 1, got {pixels_per_cell!r}")
     cells = tag_cells(tag_id).astype(np.uint8) * 255
     return np.kron(cells, np.ones((pixels_per_cell, pixels_per_cell), dtype=np.uint8))

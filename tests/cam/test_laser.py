@@ -9,9 +9,7 @@ import numpy as np
 import pytest
 import serial
 
-from drivers.errors import JobRefused
-from drivers.gcode import clean_line, interpret, tokenize
-from drivers.laser_job import (
+from cam.laser import (
     OperationSettings,
     check_work_area,
     order_paths,
@@ -19,6 +17,9 @@ from drivers.laser_job import (
     plan_laser_job,
     write_laser_gcode,
 )
+from drivers.errors import JobRefused
+from drivers.gcode import clean_line, interpret, tokenize
+from drivers.grbl.planner import line_seconds
 from drivers.profiles import builtin_profile
 
 ENGRAVE = OperationSettings(power=0.3, feed=3000.0, passes=1)
@@ -124,12 +125,19 @@ def test_outside_the_work_area_is_refused_with_the_extent():
         write_laser_gcode(plan_laser_job(strokes, groups, ENGRAVE, CUT), io.StringIO(), laser_mode=False)
 
 
-def test_estimate_adds_up_lengths_over_feeds():
-    job = plan_laser_job([], [([], square(10, 10, 50))], ENGRAVE, CUT, 1000.0, travel_feed=6000.0)
+def test_the_estimate_is_grbls_planner_on_the_job_as_the_streamer_reads_it():
+    settings = builtin_profile("laser").grbl_settings
+    strokes = [np.array([[20.0, 20.0], [60.0, 25.0], [90.0, 20.0]])]
+    job = plan_laser_job(strokes, [([], square(10, 40, 50))], ENGRAVE, CUT, 1000.0, machine_settings=settings)
     estimate = job.estimate_seconds()
-    assert estimate["cut"] == pytest.approx(200.0 * 2 / 600.0 * 60.0)
-    assert estimate["travel"] == pytest.approx(job.travel / 6000.0 * 60.0)
+    lines = gcode_of(job)
+    # the streamer's ETA of the written job: the same planner, the same total
+    eta = line_seconds(interpret(lines), lines, settings, laser_mode=True).sum()
+    assert estimate["total"] == pytest.approx(eta, rel=1e-9)
     assert estimate["total"] == pytest.approx(estimate["cut"] + estimate["travel"] + estimate["engrave"])
+    # each corner and each start is taken slower than the feed: longer than length over feed
+    assert estimate["cut"] > 200.0 * 2 / 600.0 * 60.0
+    assert estimate["travel"] > job.travel / settings[110] * 60.0
 
 
 def stream(port, lines, timeout=60.0):
@@ -187,11 +195,11 @@ def test_laser_is_dark_on_every_travel_on_the_simulated_machine(laser_mode):
 def test_a_fabricated_job_is_framed_then_run_by_the_grbl_driver():
     """The maker's sequence: set the sheet's corner as work origin, frame the job at low power, then cut."""
     from drivers.grbl import GrblConnection, Job, JobRunner, frame_lines
-    from station.commands.fabricate import fabricate
+    from station.services.fabricate import FabricationRequest, fabricate
 
     profile = builtin_profile("laser")
-    result = fabricate("spirograph", {"r_f": 5, "r_r": 3, "d": 1.0}, 3.0, sheet_size=(120.0, 80.0),
-                       material="cardboard_2mm")
+    result = fabricate(FabricationRequest("spirograph", {"r_f": 5, "r_r": 3, "d": 1.0}, 3.0, sheet_size=(120.0, 80.0),
+                                          material="cardboard_2mm"))
     conn = GrblConnection("sim://grbl?profile=laser&time_scale=0.0005", poll_interval=0.05, lost_ok_timeout=0.3,
                           silence_timeout=0.6).open()
     try:

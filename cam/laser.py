@@ -21,6 +21,8 @@ from typing import TextIO
 import numpy as np
 
 from drivers.errors import JobRefused
+from drivers.gcode import format_number
+from drivers.grbl.planner import plan_segments
 
 __all__ = [
     "LaserPath",
@@ -73,9 +75,12 @@ class LaserJob:
     max_power : float
         GRBL ``$30``: the ``S`` of full power.
     travel_feed : float
-        Rapid rate used for estimates (mm/min).
+        Rapid rate (mm/min) for the estimate of a machine whose settings do not say it.
     travel_unordered : float
         Travel (mm) had the paths been run in the order given, each from its first point.
+    machine_settings : mapping
+        The machine's GRBL settings (``$N`` -> value: rates, accelerations, junction deviation) the run-time
+        estimate plans with; GRBL's defaults for those missing.
     """
 
     paths: tuple[LaserPath, ...]
@@ -85,6 +90,7 @@ class LaserJob:
     travel_unordered: float = 0.0
     start: tuple[float, float] = (0.0, 0.0)
     metadata: Mapping[str, str] = field(default_factory=dict)
+    machine_settings: Mapping[int, float] = field(default_factory=dict)
 
     @property
     def travel(self) -> float:
@@ -112,10 +118,41 @@ class LaserJob:
         return total * int(self.operations[operation].passes) if operation in self.operations else 0.0
 
     def estimate_seconds(self) -> dict[str, float]:
-        """Run-time estimate per operation and for travel, from path lengths and feeds (no acceleration)."""
-        estimate = {name: self.burn_length(name) / max(ops.feed, 1e-9) * 60.0
-                    for name, ops in self.operations.items()}
-        estimate["travel"] = self.travel / max(self.travel_feed, 1e-9) * 60.0
+        """Run-time estimate per operation and for travel, as GRBL's planner runs the job written from it
+        (:mod:`drivers.grbl.planner`: acceleration, corner speeds, look-ahead) on the machine of
+        :attr:`machine_settings`."""
+        starts, ends, rapid, feed, owner = [], [], [], [], []
+
+        def move(start, end, operation: str | None = None) -> None:
+            starts.append(start)
+            ends.append(end)
+            rapid.append(operation is None)
+            feed.append(np.nan if operation is None else self.operations[operation].feed)
+            owner.append(operation or "travel")
+
+        position = np.asarray(self.start, dtype=float)
+        for path in self.paths:
+            for index in range(int(self.operations[path.operation].passes)):
+                points = path.points[::-1] if (not path.closed and index % 2 == 1) else path.points
+                if not np.allclose(position, points[0], atol=5e-4):
+                    move(position, points[0])
+                for a, b in zip(points[:-1], points[1:]):
+                    move(a, b, path.operation)
+                position = points[-1]
+        move(position, np.asarray(self.start, dtype=float))
+
+        def xyz(points) -> np.ndarray:
+            flat = np.asarray(points, dtype=float).reshape(-1, 2)
+            return np.column_stack([flat, np.zeros(len(flat))])
+
+        machine = {110: self.travel_feed, 111: self.travel_feed, **dict(self.machine_settings)}
+        from_rest = np.zeros(len(starts), dtype=bool)
+        from_rest[0] = True  # the job's start: the laser switched on (M4) empties the planner
+        seconds = plan_segments(xyz(starts), xyz(ends), np.array(rapid), np.array(feed, dtype=float), from_rest,
+                                machine).seconds
+        owner = np.array(owner)
+        estimate = {name: float(seconds[owner == name].sum()) for name in self.operations}
+        estimate["travel"] = float(seconds[owner == "travel"].sum())
         estimate["total"] = sum(estimate.values())
         return estimate
 
@@ -267,7 +304,8 @@ def _inside(point: np.ndarray, polygon: np.ndarray) -> bool:
 def plan_laser_job(engrave: Sequence[np.ndarray], cut: Sequence[tuple[Sequence[np.ndarray], np.ndarray]],
                    engrave_settings, cut_settings, max_power: float = 1000.0, travel_feed: float = 6000.0,
                    offset=(0.0, 0.0), start=(0.0, 0.0), optimize: bool = True,
-                   metadata: Mapping[str, str] | None = None) -> LaserJob:
+                   metadata: Mapping[str, str] | None = None,
+                   machine_settings: Mapping[int, float] | None = None) -> LaserJob:
     """Order the engraving strokes and the parts' contours into a :class:`LaserJob`.
 
     Parameters
@@ -281,13 +319,15 @@ def plan_laser_job(engrave: Sequence[np.ndarray], cut: Sequence[tuple[Sequence[n
     max_power : float
         GRBL ``$30``.
     travel_feed : float
-        Rapid rate for estimates (mm/min).
+        Rapid rate for estimates (mm/min) when ``machine_settings`` do not say it.
     offset : (float, float)
         Added to every point: where the sheet's front-left corner sits in work coordinates.
     start : (float, float)
         Where the laser head starts and returns (work coordinates).
     optimize : bool
         False keeps the given order (for comparisons).
+    machine_settings : mapping, optional
+        The machine's GRBL settings (a profile's ``grbl_settings``) the run-time estimate plans with.
     """
     offset = np.asarray(offset, dtype=float)
     start_xy = np.asarray(start, dtype=float)
@@ -311,7 +351,7 @@ def plan_laser_job(engrave: Sequence[np.ndarray], cut: Sequence[tuple[Sequence[n
         for index, (inner, outer) in enumerate(groups):
             paths += [LaserPath("cut", h, True, index) for h in inner] + [LaserPath("cut", outer, True, index)]
         return LaserJob(tuple(paths), operations, max_power, travel_feed, travel_unordered, tuple(start_xy),
-                        dict(metadata or {}))
+                        dict(metadata or {}), dict(machine_settings or {}))
 
     ordered, _ = order_paths(strokes, [False] * len(strokes), start_xy)
     paths += [LaserPath("engrave", s, False) for s in ordered]
@@ -334,17 +374,20 @@ def plan_laser_job(engrave: Sequence[np.ndarray], cut: Sequence[tuple[Sequence[n
             paths.append(LaserPath("cut", outline[0], True, index))
             position = outline[0][-1]
     return LaserJob(tuple(paths), operations, max_power, travel_feed, travel_unordered, tuple(start_xy),
-                    dict(metadata or {}))
+                    dict(metadata or {}), dict(machine_settings or {}))
 
 
 def plan_operations(groups: Sequence[tuple[str, object, Sequence[np.ndarray], bool]], max_power: float = 1000.0,
                     travel_feed: float = 6000.0, offset=(0.0, 0.0), start=(0.0, 0.0),
-                    metadata: Mapping[str, str] | None = None) -> LaserJob:
+                    metadata: Mapping[str, str] | None = None,
+                   machine_settings: Mapping[int, float] | None = None) -> LaserJob:
     """A job of named operations burned one after the other, each with its own settings (a test card's cells).
 
     ``groups`` holds ``(name, settings, paths, closed)``: ``settings`` has ``power``, ``feed`` and ``passes`` (or is
     a ``(power, feed, passes)`` tuple); the paths of one group are ordered for travel from where the laser stands.
     A name may come back in a later group with the same settings (one tag's fill, then the next one's).
+    ``machine_settings`` are the machine's GRBL settings the run-time estimate plans with (as
+    :func:`plan_laser_job`'s).
     """
     offset = np.asarray(offset, dtype=float)
     position = np.asarray(start, dtype=float)
@@ -370,7 +413,7 @@ def plan_operations(groups: Sequence[tuple[str, object, Sequence[np.ndarray], bo
             position = ordered[-1][-1]
     return LaserJob(tuple(paths), operations, max_power, travel_feed,
                     path_travel(unordered, np.asarray(start, dtype=float)), tuple(np.asarray(start, dtype=float)),
-                    dict(metadata or {}))
+                    dict(metadata or {}), dict(machine_settings or {}))
 
 
 # ---------------------------------------------------------------------------------------------------------------
@@ -394,11 +437,6 @@ def check_work_area(job: LaserJob, bounds: tuple[float, float, float, float], ma
             f"{machine} (X {xmin:g}..{xmax:g} mm, Y {ymin:g}..{ymax:g} mm); use a smaller sheet or scale")
 
 
-def _fmt(value: float) -> str:
-    text = f"{value:.3f}".rstrip("0").rstrip(".")
-    return "0" if text in ("-0", "") else text
-
-
 def write_laser_gcode(job: LaserJob, stream: TextIO, bounds: tuple[float, float, float, float] | None = None,
                       laser_mode: bool = True, machine: str = "the laser") -> int:
     """Write the job as GRBL 1.1 G-code; returns the number of lines.
@@ -413,26 +451,27 @@ def write_laser_gcode(job: LaserJob, stream: TextIO, bounds: tuple[float, float,
     lines = [f"; chaos-station laser job: {k}: {v}" for k, v in job.metadata.items()]
     estimate = job.estimate_seconds()
     for name, settings in job.operations.items():
-        lines.append(f"; {name}: S{_fmt(settings.power * job.max_power)} (power {settings.power:g}) "
-                     f"F{_fmt(settings.feed)} passes {settings.passes}")
+        lines.append(f"; {name}: S{format_number(settings.power * job.max_power)} (power {settings.power:g}) "
+                     f"F{format_number(settings.feed)} passes {settings.passes}")
     lines.append(f"; estimated run time {estimate['total'] / 60.0:.1f} min, travel {job.travel:.0f} mm")
     lines += ["G21 G90 G94 G17", "M5 S0", "M4 S0"]
     x, y = job.start
-    lines.append(f"G0 X{_fmt(x)} Y{_fmt(y)} S0")
+    lines.append(f"G0 X{format_number(x)} Y{format_number(y)} S0")
     # Where the head is after the last burn: a path that starts there continues without a travel.
     lines_at = None
     for path in job.paths:
         settings = job.operations[path.operation]
-        s_word = _fmt(settings.power * job.max_power)
+        s_word = format_number(settings.power * job.max_power)
         points = path.points
         for index in range(int(settings.passes)):
             run = points[::-1] if (not path.closed and index % 2 == 1) else points
             if not (lines_at is not None and np.allclose(lines_at, run[0], atol=5e-4)):
-                lines.append(f"G0 X{_fmt(run[0, 0])} Y{_fmt(run[0, 1])} S0")
+                lines.append(f"G0 X{format_number(run[0, 0])} Y{format_number(run[0, 1])} S0")
             lines_at = run[-1]
-            lines.append(f"G1 X{_fmt(run[1, 0])} Y{_fmt(run[1, 1])} S{s_word} F{_fmt(settings.feed)}")
-            lines.extend(f"G1 X{_fmt(px)} Y{_fmt(py)}" for px, py in run[2:])
-    lines.append(f"G0 X{_fmt(x)} Y{_fmt(y)} S0")
+            lines.append(f"G1 X{format_number(run[1, 0])} Y{format_number(run[1, 1])} S{s_word} "
+                         f"F{format_number(settings.feed)}")
+            lines.extend(f"G1 X{format_number(px)} Y{format_number(py)}" for px, py in run[2:])
+    lines.append(f"G0 X{format_number(x)} Y{format_number(y)} S0")
     lines.append("M5 S0")
     stream.write("\n".join(lines) + "\n")
     return len(lines)

@@ -5,9 +5,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from projector.detection import detect_tags
-from projector.errors import ProjectorError
-from projector.tags import tag_cells, tag_image
+from vision.detection import detect_tags
+from vision.errors import VisionError
+from vision.tags import tag_cells, tag_image
 
 # tag36h11 as the upstream library lays it out (tag36h11.c): the codes of two ids and where each of the 36 bits goes
 # (x, y in cells of the 8 x 8 black square), most significant bit first. Written down from the upstream source,
@@ -42,11 +42,11 @@ def test_a_detector_reads_the_id_and_the_first_corner_is_the_lower_left(tag_id):
 
 @pytest.mark.parametrize("bad", [-1, 587, 3.0, "7", True, None])
 def test_a_bad_id_is_one_line(bad):
-    with pytest.raises(ProjectorError, match="expected an integer from 0 to 586"):
+    with pytest.raises(VisionError, match="expected an integer from 0 to 586"):
         tag_cells(bad)
 
 
 def test_image_size_and_bad_scale():
     assert tag_image(5, 3).shape == (30, 30)
-    with pytest.raises(ProjectorError, match="pixels_per_cell"):
+    with pytest.raises(VisionError, match="pixels_per_cell"):
         tag_image(5, 0)

@@ -16,7 +16,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from drivers import gcode_words
-from drivers.sim.grbl_settings import Halt, xyz
+from drivers.sim.grbl.settings import Halt, xyz
 
 #: G38.2-G38.5: probe towards the work (alarm if nothing is touched / no alarm), away from it (the same).
 PROBE_MODES = (38.2, 38.3, 38.4, 38.5)

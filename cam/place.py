@@ -21,7 +21,7 @@ import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 
-from drivers.gcode import GcodeError, clean_line, tokenize
+from drivers.gcode import GcodeError, clean_line, format_number, tokenize
 
 __all__ = ["Placement", "place_lines"]
 
@@ -76,13 +76,8 @@ class Placement:
         return cls(*values)
 
 
-def _fmt(value: float, decimals: int) -> str:
-    text = f"{value:.{decimals}f}".rstrip("0").rstrip(".")
-    return "0" if text in ("-0", "", "-") else text
-
-
 def _word_text(letter: str, value: float) -> str:
-    return letter + _fmt(value, 4)
+    return letter + format_number(value, 4)
 
 
 def place_lines(lines: Sequence[str], placement: Placement) -> list[str]:
@@ -160,14 +155,14 @@ def place_lines(lines: Sequence[str], placement: Placement) -> list[str]:
             rebuilt.append(_word_text(letter, value))
         coordinates = []
         if write_x:
-            coordinates.append("X" + _fmt(new_xy[0] / unit, decimals))
+            coordinates.append("X" + format_number(new_xy[0] / unit, decimals))
         if write_y:
-            coordinates.append("Y" + _fmt(new_xy[1] / unit, decimals))
+            coordinates.append("Y" + format_number(new_xy[1] / unit, decimals))
         if write_ij:
             if turning or "I" in given:
-                coordinates.append("I" + _fmt(new_ij[0] / unit, decimals))
+                coordinates.append("I" + format_number(new_ij[0] / unit, decimals))
             if turning or "J" in given:
-                coordinates.append("J" + _fmt(new_ij[1] / unit, decimals))
+                coordinates.append("J" + format_number(new_ij[1] / unit, decimals))
         # the coordinates go after the G/M words of the line and before F/S, as writers put them
         head = [w for w in rebuilt if w[0] in "GMN"]
         tail = [w for w in rebuilt if w[0] not in "GMN"]

@@ -14,8 +14,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from projector.errors import ProjectorError
-from projector.guide import TAG_FAMILY
+from vision.errors import VisionError
+from vision.tags import TAG_FAMILY
 
 __all__ = ["MAX_FRAME_PIXELS", "MIN_FRAME_SIDE", "FoundTag", "TagDetector", "detect_tags", "frame_size_problem"]
 
@@ -42,7 +42,7 @@ class FoundTag:
 
 
 def _detector_class():
-    from pupil_apriltags import Detector
+    from pupil_apriltags import Detector  # deferred: a native library, loaded only where a frame is searched
 
     class SafeDetector(Detector):
         def __del__(self) -> None:
@@ -81,17 +81,17 @@ class TagDetector:
 
         Raises
         ------
-        ProjectorError
+        VisionError
             Not a 2-D uint8 array, or of a size :func:`frame_size_problem` refuses (checked here, before the
             detector: a frame too small for it kills the process).
         """
         image = np.asarray(gray)
         if image.ndim != 2 or image.dtype != np.uint8:
-            raise ProjectorError(f"tag detection: expected a grey image (2-D uint8 array), got {image.dtype} "
+            raise VisionError(f"tag detection: expected a grey image (2-D uint8 array), got {image.dtype} "
                                  f"{image.shape}")
         problem = frame_size_problem(image.shape[1], image.shape[0], self._decimate)
         if problem is not None:
-            raise ProjectorError(f"tag detection: {problem}")
+            raise VisionError(f"tag detection: {problem}")
         return [FoundTag(int(d.tag_id), np.array(d.center, dtype=float), np.array(d.corners, dtype=float),
                          int(d.hamming))
                 for d in self._detector.detect(np.ascontiguousarray(image))]

@@ -5,9 +5,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from projector.detection import TagDetector, detect_tags
-from projector.errors import ProjectorError
-from projector.tags import tag_image
+from vision.detection import TagDetector, detect_tags
+from vision.errors import VisionError
+from vision.tags import tag_image
 
 
 def test_found_tags_and_their_corners():
@@ -29,5 +29,5 @@ def test_many_detectors_made_and_freed():
 
 @pytest.mark.parametrize("image", [np.zeros((4, 4, 3), np.uint8), np.zeros((4, 4), float)])
 def test_a_bad_image_is_one_line(image):
-    with pytest.raises(ProjectorError, match="expected a grey image"):
+    with pytest.raises(VisionError, match="expected a grey image"):
         detect_tags(image)

@@ -1,0 +1,48 @@
+"""The Assemble screen's camera check: :class:`CheckTable`, a row per tagged part (how far it is off, within its
+tolerance or not, what to do) and one per part checked by eye, and :func:`check_lines`, what the check says under the
+camera frame.
+"""
+
+from __future__ import annotations
+
+from rich.text import Text
+from textual.widgets import DataTable
+
+from station.services.assemble import misplaced
+from station.services.check import no_zone_words, summary_lines
+
+
+class CheckTable(DataTable):
+    """A check's parts, keyed by name (``eye:NAME`` for a part checked by eye)."""
+
+    def on_mount(self) -> None:
+        self.add_columns("part", "tag", "du mm", "dv mm", "dist mm", "turn deg", "ok", "cost", "what to do")
+
+    def load(self, report) -> None:
+        """Fill the table from a check's report (:class:`station.services.check.CheckJob`'s ``report``)."""
+        self.clear()
+        for part in report.parts:
+            error = part.error
+            numbers = (["-"] * 4 if error is None else
+                       [f"{error[0]:+.1f}", f"{error[1]:+.1f}", f"{error[2]:.1f}", f"{error[3]:+.1f}"])
+            # the check's one rule: no zone on the sheet (*) and off by 1 mm / 1 deg or more is to move
+            star = "*" if part.within_tolerance is None and error is not None else ""
+            ok = (Text("-", style="dim") if error is None else Text("NO" + star, style="bold red")
+                  if misplaced(part) else Text("yes" + star, style="green"))
+            self.add_row(Text(part.name), str(part.tag_id), *numbers, ok,
+                         "-" if part.cost is None else f"{part.cost:.2f}", Text(part.instruction), key=part.name)
+        for name in report.by_eye:
+            self.add_row(Text(name), "-", "", "", "", "", Text("by eye", style="dim"), "-",
+                         Text("check by eye against the sheet"), key=f"eye:{name}")
+
+
+def check_lines(check) -> list[str]:
+    """What a check says in short lines: its summary, what a star means when a part has no zone, the prediction's
+    note."""
+    report = check.report
+    lines = summary_lines(report, check.physical)
+    if any(part.found and part.within_tolerance is None for part in report.parts):
+        lines.append(f"yes*/NO*: {no_zone_words()}")
+    if report.prediction_note:
+        lines.append(report.prediction_note)
+    return lines
