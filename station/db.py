@@ -4,8 +4,8 @@ Schema migrations are a numbered list; opening a database applies the missing on
 database made by an older station is upgraded and never thrown away, and two processes opening a new database at
 once (the TUI and a CLI command) do not both migrate it: the first takes the write lock, the second waits, finds the
 schema current and applies nothing. The schema version is ``PRAGMA user_version`` in SQLite and the one row of
-``station_schema`` in PostgreSQL; version N means the same tables and columns in both (tests/station/test_trial_postgres.py
-compares them).
+``station_schema`` in PostgreSQL; version N means the same tables and columns in both
+(tests/station/test_trial_postgres.py compares them).
 
 SQLite is opened in WAL mode (readers never wait for a writer), with foreign keys on, a busy timeout of
 :data:`BUSY_SECONDS` (a writer waits for another instead of failing with "database is locked") and

@@ -520,8 +520,8 @@ def optimize(document: PlotDocument, *, merge: bool = True, sort: bool = True, r
     mm; 0 keeps every point). ``report`` hears of each layer (stage ``"optimize"``) and may stop between them."""
     import vpype as vp  # deferred: see the module's notes
 
-    rng = np.random.default_rng(seed)
     report = Reporter.of(report)
+    rng = np.random.default_rng(seed)
     position = 0j
     layers = []
     for number, layer in enumerate(document.layers):
@@ -655,14 +655,14 @@ def plot(composition: Composition, profile: MachineProfile, *, sample=None, sort
         raise ServiceError(f"tolerance must be >= 0 mm, got {tolerance}", field="tolerance", value=tolerance)
     if not 0 < power <= 1:
         raise ServiceError(f"power must be a fraction in (0, 1], got {power}", field="power", value=power)
-    document = compose(composition, profile, sample)
     report = Reporter.of(report)
     report("compose", 0, 1, "placing the drawings")
+    document = compose(composition, profile, sample)
     document = optimize(document, merge=sort, sort=sort, reloop=sort, tolerance=tolerance, seed=seed, report=report)
     report("write", 0, 1, "writing the G-code")
     gcode, options = layered_gcode(document, profile, power)
-    return PlotResult(gcode, document, options, summarize(gcode, document, profile))
     report("write", 1, 1, "written")
+    return PlotResult(gcode, document, options, summarize(gcode, document, profile))
 
 
 # ----------------------------------------------------------------------------------------------------------- preview

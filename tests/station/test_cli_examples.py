@@ -57,7 +57,8 @@ SLOW = {
     "station loop ballrun --world 'sim://world?seed=3&place_mm=3' --attempts 8 --loops 3 --json",
     "station loop causalityswitch_ball --world 'sim://world?seed=2&ruler_mm=1' --jigs",  # CAUSALITYSWITCH's budgets
     "station assemble causalityswitch_ball success --world 'sim://world?seed=2' --jigs",  # its tolerance map: ~40 s
-    # builds every machine's candidate database first; tests/station/commands/test_sketch.py runs the same command on one
+    # builds every machine's candidate database first; tests/station/commands/test_sketch.py runs the same command
+    # on one machine
     "station retrieve examples/sketches/trefoil-sector.json --top 5 --out retrieval",
     # the full-size projector's Gray-code patterns; tests/calibration/test_projector_map.py maps a small linked pair
     # through the same command
