@@ -13,7 +13,6 @@ from dataclasses import dataclass
 from typing import TextIO
 
 import numpy as np
-from shapely import LineString
 
 from drivers.gcode import GcodeError, format_number
 
@@ -148,6 +147,10 @@ def fit_polylines(
 def simplify_polylines(polylines: Sequence[np.ndarray], tolerance: float) -> list[np.ndarray]:
     """Douglas-Peucker simplification (shapely) of each polyline: every removed vertex lies within ``tolerance``
     (mm) of the simplified path; endpoints are kept, so closed polylines stay closed."""
+    # heavy: shapely (GEOS), deferred to the first simplification: `station --help` imports every command, and the
+    # machine commands import this module
+    from shapely import LineString
+
     out = []
     for polyline in polylines:
         points = np.asarray(polyline, dtype=float).reshape(-1, 2)
