@@ -30,9 +30,11 @@ PROBE_COLUMN, PROBING = "probe", "probing..."
 class HomeScreen(Screen):
     """Start page: where to go, what is connected, where the data lives."""
 
+    # The devices table spans the screen: a probe's answer widens its column after the table is laid out, and a table
+    # as wide as its columns would keep the old width on screen until something else lays the screen out again.
     CSS = """
     HomeScreen #areas { height: auto; padding: 1 2; }
-    HomeScreen #devices { height: auto; margin: 0 2; }
+    HomeScreen #devices { height: auto; width: 1fr; margin: 0 2; }
     HomeScreen #jobs { height: auto; max-height: 8; margin: 0 2; }
     HomeScreen #database { padding: 1 2; color: $text-muted; }
     HomeScreen .heading { text-style: bold; padding: 0 2; margin-top: 1; }
@@ -96,9 +98,6 @@ class HomeScreen(Screen):
         table = self.query_one("#devices", DataTable)
         if name in table.rows:
             table.update_cell(name, PROBE_COLUMN, Text(state), update_width=True)
-            # The table measures its columns when it is next idle, and a wider column makes it wider: lay the screen
-            # out again then (else the column keeps its old width on the screen until something else lays it out).
-            table.call_later(table.refresh, layout=True)
 
     def show_jobs(self) -> None:
         """The latest machine jobs from the station database (a job run elsewhere shows when home is shown again)."""
