@@ -19,12 +19,13 @@ else:
 
 ROOT = Path(__file__).resolve().parents[1]
 
-OWN = {"common", "design", "drivers", "calibration", "projector", "station", "bench", "tests", "conftest"}
+OWN = {"common", "design", "drivers", "calibration", "projector", "vision", "cam", "station", "bench", "tests",
+       "conftest"}
 
 #: The packages and what they may use: the station's code its dependencies and the optional extras it defers
 #: (PostgreSQL, the real projector); the tests and benchmarks the dev extra too.
 AREAS = {
-    "common design drivers calibration projector station": ("postgres", "projector"),
+    "common design drivers calibration projector vision cam station": ("postgres", "projector"),
     "tests bench": ("postgres", "projector", "dev"),
 }
 

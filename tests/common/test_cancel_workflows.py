@@ -56,7 +56,7 @@ def test_an_optimization_stops_and_says_how_many_new_simulations_the_cache_keeps
 
 
 def test_a_simulator_calibration_stops_between_its_simulation_batches():
-    slide = load_scenario(ROOT / "tests" / "calibration" / "data" / "slide.toml")
+    slide = load_scenario(ROOT / "tests" / "data" / "calibration" / "slide.toml")
     rng = np.random.default_rng(1)
     trials = fit_trials(synthetic_trials(slide, [[a] for a in rng.uniform(30, 40, 4)], {"wood.friction": 0.55},
                                          seed=2), {"SLIDE": slide})

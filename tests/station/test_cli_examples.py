@@ -33,7 +33,7 @@ import pytest
 
 from station.cli import build_parser
 
-from .conftest import environment, locked, prepared, run, run_folder
+from ..conftest import environment, locked, prepared, run, run_folder
 from .test_cli_help import examples_of
 
 #: Examples that cannot run on a fresh machine, and why.
