@@ -52,7 +52,7 @@ def run(args) -> int:
     laser_url = f"sim://grbl?profile=laser&clock=virtual&wire=0&name={name}"
     camera_url = f"{bed.SIM_BED_CAMERA}&laser={name}&noise={args.noise:g}&blur={args.blur:g}&seed={args.seed}"
     camera = resolve(camera_url).factory(camera_url)
-    done = bed.calibrate_bed(port=laser_url, camera=camera_url)
+    done = bed.calibrate_bed(bed.BedCalibrationRequest(port=laser_url, camera=camera_url))
     registration = done.registration
     print(f"bed registration: residual {registration.residual_rms_mm:.3f} mm RMS, {registration.residual_max_mm:.3f} "
           f"mm at most (16 corners; camera {camera_url})")

@@ -70,9 +70,11 @@ def run_bed(args) -> int:
 
     try:
         with ProgressView(sys.stderr, prefix="calibrate bed: ") as view:
-            done = service.calibrate_bed(laser=args.laser, port=args.port, camera=args.camera, image=args.image,
-                                         area=args.area, engrave=args.image is None and not args.no_engrave,
-                                         power=args.power, feed=args.feed, report=Reporter(view))
+            request = service.BedCalibrationRequest(laser=args.laser, port=args.port, camera=args.camera,
+                                                    image=args.image, area=args.area,
+                                                    engrave=args.image is None and not args.no_engrave,
+                                                    power=args.power, feed=args.feed)
+            done = service.calibrate_bed(request, report=Reporter(view))
     except ServiceError as error:
         raise flag_error(error) from None
     if out is not None:

@@ -92,10 +92,10 @@ def run_assemble(args) -> int:
         if args.project:
             projector_context, projector = _open_projector(args.projector)
         with ProgressView(sys.stderr, prefix="guide: ") as view:  # the tolerance map may take a while
-            assembly = service.open_assembly(args.scenario, args.layout, camera=args.camera, world=args.world,
-                                             projector=projector, physics=args.physics, attempt=args.attempt,
-                                             samples=args.samples, seed=args.seed, workers=args.workers,
-                                             jigs=args.jigs, report=Reporter(view))
+            request = service.AssemblyRequest(args.scenario, args.layout, camera=args.camera, world=args.world,
+                                              physics=args.physics, attempt=args.attempt, samples=args.samples,
+                                              seed=args.seed, workers=args.workers, jigs=args.jigs)
+            assembly = service.open_assembly(request, projector=projector, report=Reporter(view))
         _walk(assembly, args, out)
         if args.json:
             from station.cli_util import emit_json

@@ -71,8 +71,8 @@ from station.services.world import (
 )
 from station.trialformat import check_times, complete_outcomes, goal_reached, resolve_outcomes
 
-__all__ = ["STAGES", "Assembly", "Forecast", "calibrate_from_log", "guide_files", "jigs_folder", "misplaced",
-           "open_assembly", "reoptimize"]
+__all__ = ["STAGES", "Assembly", "AssemblyRequest", "Forecast", "calibrate_from_log", "guide_files", "jigs_folder",
+           "misplaced", "open_assembly", "reoptimize"]
 
 #: The stages of an attempt, in order.
 STAGES = ("guide", "check", "run", "log", "done")
@@ -386,13 +386,13 @@ class Assembly:
             world.close()
 
 
-@station_errors
-def open_assembly(scenario: str, layout: str | None, *, view: str | None = None, camera: str | None = None,
-                  world: str | None = None, projector=None, physics: str | Path | None = None,
-                  attempt: int | None = None, jigs: bool = False,
-                  samples: int = DEFAULT_SAMPLES, seed: int = 0, workers: int | None = None, store=None,
-                  report: Reporter | None = None) -> Assembly:
-    """Start an attempt: the guide of ``layout`` for ``scenario`` (with its tolerances), the world opened.
+@dataclass(frozen=True)
+class AssemblyRequest:
+    """The attempt :func:`open_assembly` starts: the guide of ``layout`` for ``scenario`` and how its forecasts run.
+
+    What the attempt is lies here; the live objects it works with (an open projector, the open store) are handed
+    beside it to :func:`open_assembly`, as ``report=`` is: they are opened and closed by the caller, are not values
+    to compare or keep, and a request stays a plain description that can be built before any device is opened.
 
     Parameters
     ----------
@@ -406,19 +406,49 @@ def open_assembly(scenario: str, layout: str | None, *, view: str | None = None,
         The camera's URL (default: the station's camera, ``station devices``).
     world : str, optional
         A simulated world (``sim://world?seed=S``); None: a real table, the maker does and says.
-    projector : device, optional
-        An open projector: the steps are shown on it (and a simulated maker places better).
     physics : path, optional
         A physics profile: the tolerances and forecasts use it, the trial stores it.
     attempt : int, optional
         This attempt's number (the simulated maker's errors are seeded by it); default one more than the trials
-        of the scenario in ``store`` (the station's log).
+        of the scenario in the store (the station's log).
     jigs : bool
         The guide's steps use the layout's laser-cut jigs (``station jigs`` writes them): the parameters they set
         are set on them. With a simulated world the simulated maker cuts them first, their laser job run to its end
         on the laser twin (:func:`station.services.world.cut_jigs`), and sets the parts on them.
     samples, seed, workers :
         The forecasts' simulations, their seed and worker processes.
+    """
+
+    scenario: str
+    layout: str | None
+    view: str | None = None
+    camera: str | None = None
+    world: str | None = None
+    physics: str | Path | None = None
+    attempt: int | None = None
+    jigs: bool = False
+    samples: int = DEFAULT_SAMPLES
+    seed: int = 0
+    workers: int | None = None
+
+
+@station_errors
+def open_assembly(request: AssemblyRequest, *, projector=None, store=None,
+                  report: Reporter | None = None) -> Assembly:
+    """Start the attempt ``request`` describes: the guide (with its tolerances), the world opened.
+
+    Parameters
+    ----------
+    request : AssemblyRequest
+        The scenario, layout, world, physics and forecasts.
+    projector : device, optional
+        An open projector: the steps are shown on it (and a simulated maker places better). Beside the request:
+        a live device, its opener's to close.
+    store : TrialStore, optional
+        An open trial store the default ``attempt`` counts the scenario's trials in (None: the station's log,
+        opened and closed here). Beside the request: a live connection, its opener's to close.
+    report : Reporter, optional
+        Hears the guide's progress (the tolerance map) and can stop it.
 
     Raises
     ------
@@ -427,6 +457,10 @@ def open_assembly(scenario: str, layout: str | None, *, view: str | None = None,
     design.errors.DesignError, projector.errors.ProjectorError, OSError
         The scenario or the layout cannot be read or drawn.
     """
+    scenario, layout, view, camera, world, physics = (request.scenario, request.layout, request.view, request.camera,
+                                                      request.world, request.physics)
+    attempt, jigs, samples, seed, workers = (request.attempt, request.jigs, request.samples, request.seed,
+                                             request.workers)
     check_count(samples, "samples")
     check_seed(seed)
     check_count(attempt, "attempt")

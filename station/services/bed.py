@@ -39,9 +39,9 @@ from common.progress import Progress, Reporter
 from drivers.gcode import GcodeError, interpret
 from station.errors import ServiceError, station_errors
 
-__all__ = ["MARK_SIZES", "SIM_BED_CAMERA", "BedCalibration", "BedRegistration", "bed_camera", "bed_file",
-           "bed_picture", "calibrate_bed", "default_mark_area", "find_marks", "find_stock", "grab_bed_frame",
-           "job_outline",
+__all__ = ["MARK_SIZES", "SIM_BED_CAMERA", "BedCalibration", "BedCalibrationRequest", "BedRegistration", "bed_camera",
+           "bed_file", "bed_picture", "calibrate_bed", "default_mark_area", "find_marks", "find_stock",
+           "grab_bed_frame", "job_outline",
            "load_registration", "mark_positions", "marks_job", "placement_on_stock", "register_bed",
            "save_registration", "BedPlacement"]
 
@@ -374,24 +374,65 @@ def grab_bed_frame(laser_name: str, laser_simulated: bool, laser_connection=None
         camera.close()
 
 
-@station_errors
-def calibrate_bed(*, laser: str | None = None, port: str | None = None, camera: str | None = None,
-                  image: str | Path | np.ndarray | None = None, area: Sequence[float] | None = None,
-                  engrave: bool = True, power: float = 0.3, feed: float | None = None,
-                  report: Reporter | None = None, connection=None) -> BedCalibration:
-    """Engrave the marks (unless ``engrave`` is False: they are there already), grab a frame (or read ``image``),
-    register the bed and save it under the laser's name.
+@dataclass(frozen=True)
+class BedCalibrationRequest:
+    """The bed registration :func:`calibrate_bed` makes: which laser, which picture, and how the marks are engraved.
 
-    ``laser`` is a configured laser's name (default the first), ``port`` another URL for it; ``power`` a fraction
-    of the laser's maximum, ``feed`` mm/min (default the profile's engrave feed of its first material, else 3000).
+    The laser's open connection, when there is one, is handed beside it to :func:`calibrate_bed`, as ``report=`` is:
+    a live object its opener closes, not part of what the calibration is.
+
+    Parameters
+    ----------
+    laser : str, optional
+        A configured laser's name (default the first).
+    port : str, optional
+        Another URL for the laser.
+    camera : str, optional
+        The camera's URL (default the laser's bed camera).
+    image : path or ndarray, optional
+        A frame of the engraved marks (a file, or the frame itself) instead of grabbing one.
+    area : sequence of float, optional
+        Where the marks go (default :func:`default_mark_area` of the laser's bed).
+    engrave : bool
+        Engrave the marks (False: they are there already).
+    power : float
+        A fraction of the laser's maximum, in (0, 1].
+    feed : float, optional
+        mm/min (default the profile's engrave feed of its first material, else 3000).
+    """
+
+    laser: str | None = None
+    port: str | None = None
+    camera: str | None = None
+    image: str | Path | np.ndarray | None = None
+    area: Sequence[float] | None = None
+    engrave: bool = True
+    power: float = 0.3
+    feed: float | None = None
+
+
+@station_errors
+def calibrate_bed(request: BedCalibrationRequest = BedCalibrationRequest(), *, report: Reporter | None = None,
+                  connection=None) -> BedCalibration:
+    """Engrave the marks (unless ``request.engrave`` is False: they are there already), grab a frame (or read
+    ``request.image``), register the bed and save it under the laser's name.
+
     ``connection``: the laser's open :class:`drivers.grbl.GrblConnection` (the Machines screen's), else one is
-    opened. ``report`` hears of each step and of the marks job's lines; a stop asked for is honoured between the
-    steps (a running laser job stops with the machine's own hold or abort, not half-way through a line).
+    opened; beside the request, as a live object its opener closes. ``report`` hears of each step and of the marks
+    job's lines; a stop asked for is honoured between the steps (a running laser job stops with the machine's own
+    hold or abort, not half-way through a line).
+
+    Raises
+    ------
+    ServiceError
+        A ``power`` outside (0, 1] (named), a marks job that does not finish (``laser``).
     """
     from drivers.grbl import GrblConnection, Job, JobRunner
     from station.devices import machine_profile
     from station.services.calibrate import _read_image
 
+    laser, port, camera, image, area = request.laser, request.port, request.camera, request.image, request.area
+    engrave, power, feed = request.engrave, request.power, request.feed
     report = Reporter.of(report)
 
     def say(stage: str, message: str, done: float = 0.0, total: float = 1.0) -> None:

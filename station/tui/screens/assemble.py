@@ -272,8 +272,9 @@ class AssembleScreen(Screen):
 
         def build(report: Reporter):
             said = self._ensure_projector()
-            assembly = flow.open_assembly(str(scenario), layout, view=view, world=world, physics=physics, jigs=jigs,
-                                          projector=self.projector, samples=samples, workers=workers)
+            request = flow.AssemblyRequest(str(scenario), layout, view=view, world=world, physics=physics, jigs=jigs,
+                                           samples=samples, workers=workers)
+            assembly = flow.open_assembly(request, projector=self.projector)
             return assembly, service.projected_frames(assembly.job, FRAME_SIZE), said
 
         run_work(self, build, GuideBuilt, group="assemble")

@@ -169,7 +169,8 @@ class BedPlacementScreen(Screen):
     def action_register(self) -> None:
         self._say("engraving four registration marks and registering the bed...")
         laser, connection = self.device.name, self.connection
-        run_work(self, lambda report: bed_service.calibrate_bed(laser=laser, connection=connection, report=report),
+        request = bed_service.BedCalibrationRequest(laser=laser)
+        run_work(self, lambda report: bed_service.calibrate_bed(request, connection=connection, report=report),
                  BedRegistered, group="bed-camera")
 
     def on_bed_registered(self, message: BedRegistered) -> None:

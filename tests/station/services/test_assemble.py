@@ -6,6 +6,7 @@ camera check measured is compared with where the world really put the parts (the
 
 from __future__ import annotations
 
+import dataclasses
 import io
 import math
 
@@ -144,9 +145,20 @@ def test_bad_options_are_one_line(capsys, monkeypatch, argv, expected):
     assert trials() == []
 
 
+def test_the_request_is_frozen_and_a_bad_count_in_it_is_refused_in_one_line_naming_it():
+    request = service.AssemblyRequest("simple", "success", samples=0)
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        request.samples = 4  # type: ignore[misc]
+    with pytest.raises(ServiceError) as refused:
+        service.open_assembly(request)
+    assert refused.value.field == "samples" and len(str(refused.value).splitlines()) == 1
+    assert "samples" in str(refused.value)
+
+
 def test_the_service_walks_the_stages_in_order_and_a_fix_brings_the_parts_closer():
-    assembly = service.open_assembly("ballrun", "success", world="sim://world?seed=5&place_mm=4", samples=4,
-                                     workers=1)
+    request = service.AssemblyRequest("ballrun", "success", world="sim://world?seed=5&place_mm=4", samples=4,
+                                      workers=1)
+    assembly = service.open_assembly(request)
     try:
         with pytest.raises(ServiceError, match="stage"):
             assembly.accept()  # nothing placed yet

@@ -3,6 +3,7 @@ the twins, the cut lands on the stock where it was meant to."""
 
 from __future__ import annotations
 
+import dataclasses
 import json
 from dataclasses import replace
 
@@ -36,7 +37,7 @@ def twins(request):
 
 def test_a_job_placed_on_the_stock_by_camera_lands_on_it_within_half_a_millimetre(twins):
     laser, camera = twins
-    done = bed.calibrate_bed(port=laser, camera=camera.url)
+    done = bed.calibrate_bed(bed.BedCalibrationRequest(port=laser, camera=camera.url))
     registration = done.registration
     assert registration.residual_max_mm < 0.3
     assert bed.load_registration("laser").homography == pytest.approx(registration.homography)
@@ -72,8 +73,18 @@ def test_a_job_placed_on_the_stock_by_camera_lands_on_it_within_half_a_millimetr
 def test_the_marks_are_told_apart_by_size_however_the_camera_is_turned(twins):
     laser, camera = twins
     camera.bed_view = replace(camera.bed_view, bed=(200.0, 200.0, 90.0))
-    done = bed.calibrate_bed(port=laser, camera=camera.url)
+    done = bed.calibrate_bed(bed.BedCalibrationRequest(port=laser, camera=camera.url))
     assert done.registration.residual_max_mm < 0.3
+
+
+def test_the_request_is_frozen_and_a_bad_power_in_it_is_refused_in_one_line_naming_it():
+    request = bed.BedCalibrationRequest(port="sim://grbl?profile=laser&clock=virtual&wire=0", power=1.5)
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        request.power = 0.3  # type: ignore[misc]
+    with pytest.raises(bed.ServiceError) as refused:
+        bed.calibrate_bed(request)  # refused before the laser is opened
+    assert refused.value.field == "power" and len(str(refused.value).splitlines()) == 1
+    assert "power" in str(refused.value)
 
 
 def test_station_calibrate_bed_reports_the_residual_and_refuses_bad_input(tmp_path, capsys, twins):

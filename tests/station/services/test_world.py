@@ -215,7 +215,8 @@ def test_an_assembly_with_jigs_sets_their_parameters_on_them(station_home, monke
     cut = []
     monkeypatch.setattr(worlds, "cut_jigs", lambda job, *args: cut.append([j.id for j in job.jigs.plan.jigs]))
     for jigs, expected in ((True, "jig"), (False, "ruler")):
-        assembly = assemble.open_assembly("simple", "success", world="sim://world?seed=1", samples=1, jigs=jigs)
+        request = assemble.AssemblyRequest("simple", "success", world="sim://world?seed=1", samples=1, jigs=jigs)
+        assembly = assemble.open_assembly(request)
         try:
             assembly.placed()
             assert {n: s["set_with"] for n, s in assembly.world.settings().items()}["track.z"] == expected

@@ -18,7 +18,7 @@ RECTANGLE = "G21\nG90\nM4 S0\nG0 X0 Y0\nG1 X50 Y0 S1000 F900\nG1 X50 Y30\nG1 X0 
 
 async def test_a_job_is_placed_on_the_stock_and_queued_where_it_lies(tmp_path):
     # the bed registered on a twin of the same bed (machine coordinates: any twin of it will do)
-    bed.calibrate_bed(port="sim://grbl?profile=laser&clock=virtual&wire=0")
+    bed.calibrate_bed(bed.BedCalibrationRequest(port="sim://grbl?profile=laser&clock=virtual&wire=0"))
     async with machines_screen(tmp_path) as (app, pilot, screen):
         conn = await _connect_laser(pilot, screen)
         await pilot.press("b")
