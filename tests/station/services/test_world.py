@@ -210,10 +210,10 @@ def test_the_loops_resume_command_keeps_jigs():
 @pytest.mark.slow  # two guides with their tolerance maps: about 20 s
 def test_an_assembly_with_jigs_sets_their_parameters_on_them(station_home, monkeypatch):
     from station.services import assemble
-    from station.services import world as worlds
 
     cut = []
-    monkeypatch.setattr(worlds, "cut_jigs", lambda job, *args: cut.append([j.id for j in job.jigs.plan.jigs]))
+    # the attempt cuts through the name it imported, so that is the one to replace
+    monkeypatch.setattr(assemble, "cut_jigs", lambda job, *args: cut.append([j.id for j in job.jigs.plan.jigs]))
     for jigs, expected in ((True, "jig"), (False, "ruler")):
         request = assemble.AssemblyRequest("simple", "success", world="sim://world?seed=1", samples=1, jigs=jigs)
         assembly = assemble.open_assembly(request)
