@@ -51,6 +51,24 @@ class OperationSettings:
     feed: float
     passes: int = 1
 
+    @classmethod
+    def checked(cls, name: str, settings) -> OperationSettings:
+        """Operation ``name``'s settings from an object with ``power``, ``feed`` and ``passes`` (or such a tuple).
+
+        Raises
+        ------
+        JobRefused
+            A power outside [0, 1], a feed not positive or fewer than one pass.
+        """
+        power, feed, passes = settings if isinstance(settings, tuple) else (settings.power, settings.feed,
+                                                                            settings.passes)
+        power, feed, passes = float(power), float(feed), int(passes)
+        if not 0.0 <= power <= 1.0:
+            raise JobRefused(f"{name}: power must be a fraction of max power in [0, 1], got {power}")
+        if not feed > 0 or passes < 1:
+            raise JobRefused(f"{name}: feed must be positive and passes at least 1, got feed {feed}, passes {passes}")
+        return cls(power, feed, passes)
+
 
 @dataclass(frozen=True)
 class LaserPath:
@@ -333,12 +351,7 @@ def plan_laser_job(engrave: Sequence[np.ndarray], cut: Sequence[tuple[Sequence[n
     start_xy = np.asarray(start, dtype=float)
     operations = {}
     for name, settings in (("engrave", engrave_settings), ("cut", cut_settings)):
-        power, feed, passes = float(settings.power), float(settings.feed), int(settings.passes)
-        if not 0.0 <= power <= 1.0:
-            raise JobRefused(f"{name}: power must be a fraction of max power in [0, 1], got {power}")
-        if not feed > 0 or passes < 1:
-            raise JobRefused(f"{name}: feed must be positive and passes at least 1, got feed {feed}, passes {passes}")
-        operations[name] = OperationSettings(power, feed, passes)
+        operations[name] = OperationSettings.checked(name, settings)
     strokes = [np.asarray(s, dtype=float) + offset for s in engrave if len(s) >= 2]
     groups = [([np.asarray(h, dtype=float) + offset for h in inner], np.asarray(outer, dtype=float) + offset)
               for inner, outer in cut]
@@ -395,16 +408,10 @@ def plan_operations(groups: Sequence[tuple[str, object, Sequence[np.ndarray], bo
     paths: list[LaserPath] = []
     unordered: list[np.ndarray] = []
     for name, settings, group, closed in groups:
-        power, feed, passes = (settings if isinstance(settings, tuple)
-                               else (settings.power, settings.feed, settings.passes))
-        power, feed, passes = float(power), float(feed), int(passes)
-        if name in operations and operations[name] != OperationSettings(power, feed, passes):
+        checked = OperationSettings.checked(name, settings)
+        if name in operations and operations[name] != checked:
             raise JobRefused(f"operation {name!r} is given two different settings")
-        if not 0.0 <= power <= 1.0:
-            raise JobRefused(f"{name}: power must be a fraction of max power in [0, 1], got {power}")
-        if not feed > 0 or passes < 1:
-            raise JobRefused(f"{name}: feed must be positive and passes at least 1, got feed {feed}, passes {passes}")
-        operations[name] = OperationSettings(power, feed, passes)
+        operations[name] = checked
         shifted = [np.asarray(p, dtype=float) + offset for p in group if len(p) >= 2]
         unordered += shifted
         ordered, _ = order_paths(shifted, [closed] * len(shifted), position)

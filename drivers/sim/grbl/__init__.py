@@ -71,35 +71,31 @@ The package beside the driver it mirrors (:mod:`drivers.grbl`); it re-exports th
 :mod:`~drivers.sim.clock`.
 """
 
-from drivers.sim.grbl.machine import (
+from drivers.sim.clock import Clock, VirtualClock, WallClock
+from drivers.sim.grbl.gcode import GrblError, clean_block, grbl_words
+from drivers.sim.grbl.machine import SimulatedGrbl
+from drivers.sim.grbl.motion import Block
+from drivers.sim.grbl.record import ExecutedBlock, Sample, SimRecord
+from drivers.sim.grbl.settings import (
     BANNER,
     BUILD_DATE,
     DEFAULT_SETTINGS,
     INTEGER_SETTINGS,
     LINE_BUFFER_SIZE,
     PLANNER_BLOCKS,
+    RX_BUFFER_SIZE,
+    SIM_PROFILES,
+    VERSION,
+    ZERO_DECIMAL_SETTINGS,
+    SimConfig,
+)
+from drivers.sim.grbl.wire import (
     REALTIME_HOLD,
     REALTIME_JOG_CANCEL,
     REALTIME_RESET,
     REALTIME_SAFETY_DOOR,
     REALTIME_START,
     REALTIME_STATUS,
-    RX_BUFFER_SIZE,
-    SIM_PROFILES,
-    VERSION,
-    ZERO_DECIMAL_SETTINGS,
-    Block,
-    Clock,
-    ExecutedBlock,
-    GrblError,
-    Sample,
-    SimConfig,
-    SimRecord,
-    SimulatedGrbl,
-    VirtualClock,
-    WallClock,
-    clean_block,
-    grbl_words,
 )
 
 __all__ = [

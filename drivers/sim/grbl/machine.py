@@ -10,43 +10,24 @@ from collections import deque
 
 import numpy as np
 
-from drivers.sim.clock import Clock, VirtualClock, WallClock, clock_named
-from drivers.sim.grbl.gcode import GcodeInterpreter, GrblError, clean_block, grbl_words
+from drivers.sim.clock import Clock, clock_named
+from drivers.sim.grbl.gcode import GcodeInterpreter, clean_block
 from drivers.sim.grbl.motion import Block, Planner
-from drivers.sim.grbl.record import ExecutedBlock, Sample, SimRecord
+from drivers.sim.grbl.record import SimRecord
 from drivers.sim.grbl.settings import (
-    BANNER,
-    BUILD_DATE,
-    DEFAULT_SETTINGS,
-    INTEGER_SETTINGS,
     LINE_BUFFER_SIZE,
     PLANNER_BLOCKS,
     RX_BUFFER_SIZE,
-    SIM_PROFILES,
-    VERSION,
-    ZERO_DECIMAL_SETTINGS,
     Halt,
     SimConfig,
     SystemCommands,
     xyz,
 )
 from drivers.sim.grbl.wire import (
-    REALTIME_HOLD,
-    REALTIME_JOG_CANCEL,
-    REALTIME_RESET,
-    REALTIME_SAFETY_DOOR,
-    REALTIME_START,
-    REALTIME_STATUS,
     Wire,
 )
 
-__all__ = [
-    "BANNER", "BUILD_DATE", "DEFAULT_SETTINGS", "INTEGER_SETTINGS", "LINE_BUFFER_SIZE", "PLANNER_BLOCKS",
-    "REALTIME_HOLD", "REALTIME_JOG_CANCEL", "REALTIME_RESET", "REALTIME_SAFETY_DOOR", "REALTIME_START",
-    "REALTIME_STATUS", "RX_BUFFER_SIZE", "SIM_PROFILES", "VERSION", "ZERO_DECIMAL_SETTINGS", "Block", "Clock",
-    "ExecutedBlock", "GrblError", "Sample", "SimConfig", "SimRecord", "SimulatedGrbl", "VirtualClock", "WallClock",
-    "clean_block", "grbl_words",
-]
+__all__ = ["SimulatedGrbl"]
 
 
 class SimulatedGrbl(Wire, SystemCommands, GcodeInterpreter, Planner):
