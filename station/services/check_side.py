@@ -227,11 +227,11 @@ def merge_as_built(job, top, side: SideView):
 
 @station_errors
 def side_frame(job, board, targets, url: str, *, offsets=None, occluded: Sequence[int] = (), layout=None,
-               seed: int | None = None, intrinsics=None, name: str = "camera-side"):
+               seed: int | None = None, intrinsics=None, name: str | None = "camera-side"):
     """A frame from the side camera at ``url`` and how to read it: ``(image, intrinsics)``. A simulated camera is
     handed :func:`side_scene` first (aimed over the board and the tags it reads unless its URL sets a ``target``);
     the intrinsics: the file ``intrinsics``, else camera ``name``'s saved calibration, else a simulated camera's
-    own, else guessed.
+    own, else guessed (``name`` None: a simulated camera's own lens, no saved calibration read).
 
     Raises
     ------
@@ -255,8 +255,8 @@ def side_frame(job, board, targets, url: str, *, offsets=None, occluded: Sequenc
     finally:
         camera.close()
     size = (int(image.shape[1]), int(image.shape[0]))
-    if intrinsics is not None or twin is None or calibrate.camera_file(name).exists():
-        return image, calibrate.intrinsics_for(size, intrinsics=intrinsics, name=name)
+    if intrinsics is not None or twin is None or name is not None and calibrate.camera_file(name).exists():
+        return image, calibrate.intrinsics_for(size, intrinsics=intrinsics, name=name or "camera-side")
     return image, twin
 
 
