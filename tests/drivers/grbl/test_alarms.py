@@ -6,8 +6,6 @@ for homing."""
 
 from __future__ import annotations
 
-import os
-import select
 import threading
 import time
 
@@ -17,6 +15,7 @@ from drivers.errors import DeviceStateError
 from drivers.grbl import GrblConnection, Job, JobRunner
 
 from ..conftest import sim_url
+from .pty_peer import PtyPeer
 
 WALK = ["G21", "G90", "M4 S400", "G0 X30 Y30", "G1 X60 Y30 F3000", "G1 X60 Y60", "G1 X5 Y60", "G0 X30 Y30"]
 
@@ -60,7 +59,7 @@ def test_the_connection_resets_a_limit_alarm_by_itself_and_is_not_lost(make_conn
 # ------------------------------------------------------------------ a GRBL on a pty with the firmware's timing
 
 
-class _LimitGrbl:
+class _LimitGrbl(PtyPeer):
     """GRBL 1.1 on the master side of a pty, as far as these tests need it: the banner, ``?``, ``$I``, ``$$``,
     ``$#``, ``$G``, ``$X``, ``ok`` to other lines; the line ``trigger`` raises ALARM:``alarm`` with GRBL's critical
     event: ``[MSG:Reset to continue]`` follows after ``msg_delay`` s, a reset before it (or within ``clear_delay``
@@ -78,42 +77,34 @@ class _LimitGrbl:
                  banner_delay: float = 0.0, trigger: bytes = b"G0X999") -> None:
         self.alarm, self.msg_delay, self.clear_delay, self.banner_delay = alarm, msg_delay, clear_delay, banner_delay
         self.trigger = trigger
-        self.master, self.slave = os.openpty()
-        self.path = os.ttyname(self.slave)
         self.state = "Idle"
         self.critical = False
         self.listening_since: float | None = None  # when a reset starts counting (critical loop entered)
         self.resets = 0  # resets received while critical
         self.banners = 0
         self.lines: list[bytes] = []
+        self._line = b""
         self._later: list[tuple[float, bytes]] = []
         self._lock = threading.Lock()
-        self._stop = threading.Event()
+        super().__init__()
+        self.poll = 0.01
         self._send(b"\r\nGrbl 1.1h ['$' for help]\r\n")  # power-up
-        self._thread = threading.Thread(target=self._serve, daemon=True)
-        self._thread.start()
+        self.start()
 
     def _send(self, data: bytes, delay: float = 0.0) -> None:
         with self._lock:
             self._later.append((time.monotonic() + delay, data))
 
-    def _serve(self) -> None:
-        line = b""
-        while not self._stop.is_set():
-            with self._lock:
-                due = [item for item in self._later if item[0] <= time.monotonic()]
-                self._later = [item for item in self._later if item[0] > time.monotonic()]
-            for _, data in due:
-                os.write(self.master, data)
-            ready, _, _ = select.select([self.master], [], [], 0.01)
-            if not ready:
-                continue
-            try:
-                data = os.read(self.master, 1024)
-            except OSError:
-                return
-            for byte in data:
-                line = self._byte(byte, line)
+    def tick(self) -> None:
+        with self._lock:
+            due = [item for item in self._later if item[0] <= time.monotonic()]
+            self._later = [item for item in self._later if item[0] > time.monotonic()]
+        for _, data in due:
+            self.write(data)
+
+    def received(self, data: bytes) -> None:
+        for byte in data:
+            self._line = self._byte(byte, self._line)
 
     def _byte(self, byte: int, line: bytes) -> bytes:
         char = bytes([byte])
@@ -155,20 +146,9 @@ class _LimitGrbl:
             self._send(self.REPLIES.get(block, b"ok\r\n"))
         return b""
 
-    def close(self) -> None:
-        self._stop.set()
-        self._thread.join(2.0)
-        for fd in (self.master, self.slave):
-            try:
-                os.close(fd)
-            except OSError:
-                pass
-
 
 @pytest.fixture
 def limit_grbl():
-    if not hasattr(os, "openpty"):
-        pytest.skip("needs a pty")
     made = []
 
     def make(**options) -> tuple[_LimitGrbl, GrblConnection]:

@@ -7,8 +7,6 @@ silence from the last byte received, declared the simulated port vanished ("posi
 
 from __future__ import annotations
 
-import os
-import select
 import sys
 import threading
 import time
@@ -18,6 +16,7 @@ import pytest
 from drivers.grbl import GrblConnection
 
 from ..conftest import sim_url
+from .pty_peer import PtyPeer
 
 
 def _hold_the_interpreter(seconds: float) -> None:
@@ -113,61 +112,33 @@ _REPLIES = {
 _STATUS = b"<Idle|MPos:0.000,0.000,0.000|Bf:15,128|FS:0,0>\r\n"
 
 
-class _PtyGrbl:
+class _PtyGrbl(PtyPeer):
     """A minimal GRBL 1.1 on the master side of a pty: the banner after a soft reset, ``?``, ``$I`` (the
     firmware's exact bytes), ``$$``, ``$#``, ``$G``, ``ok`` to anything else."""
 
     def __init__(self) -> None:
-        self.master, self.slave = os.openpty()
-        self.path = os.ttyname(self.slave)
-        self._stop = threading.Event()
-        self._thread = threading.Thread(target=self._serve, daemon=True)
-        self._thread.start()
+        super().__init__()
+        self._line = b""
+        self.start()
 
-    def _serve(self) -> None:
-        line = b""
-        while not self._stop.is_set():
-            ready, _, _ = select.select([self.master], [], [], 0.05)
-            if not ready:
-                continue
-            try:
-                data = os.read(self.master, 1024)
-            except OSError:
-                return
-            for byte in data:
-                char = bytes([byte])
-                if char == b"\x18":
-                    line = b""
-                    os.write(self.master, _BANNER)
-                elif char == b"?":
-                    os.write(self.master, _STATUS)
-                elif char == b"\n":
-                    if line.strip():
-                        os.write(self.master, _REPLIES.get(line.strip(), b"ok\r\n"))
-                    line = b""
-                elif byte < 0x80:
-                    line += char
-
-    def hang_up(self) -> None:
-        """Close the master side, as a USB-serial adapter that disappears does."""
-        self._stop.set()
-        self._thread.join(2.0)
-        os.close(self.master)
-
-    def close(self) -> None:
-        self._stop.set()
-        self._thread.join(2.0)
-        for fd in (self.master, self.slave):
-            try:
-                os.close(fd)
-            except OSError:
-                pass
+    def received(self, data: bytes) -> None:
+        for byte in data:
+            char = bytes([byte])
+            if char == b"\x18":
+                self._line = b""
+                self.write(_BANNER)
+            elif char == b"?":
+                self.write(_STATUS)
+            elif char == b"\n":
+                if self._line.strip():
+                    self.write(_REPLIES.get(self._line.strip(), b"ok\r\n"))
+                self._line = b""
+            elif byte < 0x80:
+                self._line += char
 
 
 @pytest.fixture
 def pty_grbl():
-    if not hasattr(os, "openpty"):
-        pytest.skip("needs a pty")
     grbl = _PtyGrbl()
     yield grbl
     grbl.close()
