@@ -36,19 +36,28 @@ def register(subparsers) -> None:
         "sim://world?seed=S, the world places the parts with a maker's error, applies the check's moves, runs "
         "the contraption and reports), and logs the trial with its CHECK.json and physics profile. Before and "
         "after the check and after the run it prints the predicted physical success and the expected attempts. "
+        "With --jigs a side camera facing the board sheet behind the parts (`station guide --jigs` prints it) checks "
+        "the heights and tilts of the parts on jig stands, as `station check` does with two cameras: give it as a "
+        "second --camera, or name both cameras in station.toml; with a simulated world and no side camera named, "
+        "the world's own side camera (sim://camera?view=side&height=700) does. "
         "q, Ctrl-C or the end of the input leave having logged nothing.",
         epilog="examples:\n"
         "  station assemble ballrun ballrun-layout.json --project\n"
         "  station assemble simple success --world 'sim://world?seed=3' --physics simple-physics.toml "
         "--sheet guide.pdf\n"
         "  station assemble causalityswitch_ball success --world 'sim://world?seed=2' --jigs\n"
+        "  station assemble simple success --world 'sim://world?seed=3' --jigs --camera sim://camera "
+        "--camera 'sim://camera?view=side&height=700'\n"
         "  printf 's\\n\\na\\n\\ny\\n' | station assemble simple success --world sim://world\n"
         "    (the answers piped: s skips the guide's steps, Enter: placed, a: run as placed, Enter: run, y: log it)",
         formatter_class=__import__("argparse").RawDescriptionHelpFormatter,
     )
     parser.add_argument("scenario", help="scenario file, or an example's name (simple, ballrun, ...)")
     parser.add_argument("layout", help="the layout to build (LAYOUT.json, or a layout named in the scenario)")
-    parser.add_argument("--camera", metavar="URL", help="the camera (default: the station's, `station devices`)")
+    parser.add_argument("--camera", metavar="URL", action="append", help="the camera (default: the station's, "
+                        "`station devices`); give it twice for a side camera facing the board (sim://camera?view=side"
+                        ", or a real camera whose frame shows the board's tags), as `station check --camera` takes "
+                        "them: it measures the heights and tilts of the parts on jig stands (--jigs)")
     parser.add_argument("--projector", metavar="URL", help="the projector (default: the station's) for --project")
     parser.add_argument("--world", metavar="URL", help="a simulated world (sim://world?seed=S): it places, runs and "
                         "reports; default none (a real table: the maker does and says)")
@@ -84,6 +93,10 @@ def run_assemble(args) -> int:
         raise UsageError(f"--max-checks must be an integer >= 1, got {args.max_checks}")
     if args.sheet:  # "" (--sheet alone): the data folder's guides/
         check_output_file(args.sheet, {".pdf"}, "--sheet")
+    cameras = args.camera or []
+    if len(cameras) > 2:
+        raise UsageError(f"--camera: at most two cameras (the table's, and a side camera facing the board), got "
+                         f"{len(cameras)}")
     out = sys.stderr if args.json else sys.stdout
     projector_context = None
     assembly = None
@@ -92,7 +105,8 @@ def run_assemble(args) -> int:
         if args.project:
             projector_context, projector = _open_projector(args.projector)
         with ProgressView(sys.stderr, prefix="guide: ") as view:  # the tolerance map may take a while
-            request = service.AssemblyRequest(args.scenario, args.layout, camera=args.camera, world=args.world,
+            request = service.AssemblyRequest(args.scenario, args.layout, camera=cameras[0] if cameras else None,
+                                              side_camera=cameras[1] if len(cameras) > 1 else None, world=args.world,
                                               physics=args.physics, attempt=args.attempt, samples=args.samples,
                                               seed=args.seed, workers=args.workers, jigs=args.jigs)
             assembly = service.open_assembly(request, projector=projector, report=Reporter(view))
@@ -184,6 +198,10 @@ def _walk(assembly, args, out) -> None:
         cut = " (the simulated maker cut them on the laser)" if assembly.world is not None and job.jigs.plan.jigs \
             else ""
         out.write(f"laser-cut jigs: {made}{cut}\n")
+    cameras = assembly.cameras()
+    if len(cameras) > 1:
+        out.write(f"cameras: {', '.join(f'{name} ({url})' for name, url in cameras)}: the checks read the table from "
+                  "above and the heights and tilts of the parts on jig stands from the side\n")
     _forecast(assembly, out)
     # -- guide
     if not args.project:
@@ -237,7 +255,8 @@ def _check_loop(assembly, args, out) -> None:
     while True:
         checks += 1
         _clear(out, assembly)
-        out.write(f"check {checks}: grabbing a frame from the camera...\n")
+        out.write(f"check {checks}: grabbing a frame from the camera{'s' if len(assembly.cameras()) > 1 else ''}..."
+                  "\n")
         result = assembly.check_parts()
         out.writelines(f"  {line}\n" for line in report_lines(result.report))
         if assembly.project_check():

@@ -12,7 +12,6 @@ import sys
 from pathlib import Path
 
 from station.cli_util import add_physics_option, check_output_file, emit_json, flag_error
-from station.config import configured_devices
 from station.errors import ServiceError, UsageError
 from station.progress_view import ProgressView
 from station.services.physics import read_profile
@@ -167,13 +166,13 @@ def run_check(args) -> int:
 def _cameras(args) -> list[tuple[str, str]]:
     """The cameras to check with, ``(name, url)``: the ``--camera`` URLs (the first named as the station's camera),
     else with no ``--image`` every camera of station.toml (none configured: the default one)."""
-    from station.services.calibrate import DEFAULT_CAMERA  # heavy: PIL
+    from station.services.check_cameras import camera_names, configured_cameras  # heavy: PIL, cv2
 
     if args.camera:
-        return [(DEFAULT_CAMERA if i == 0 else f"{DEFAULT_CAMERA}-{i + 1}", url) for i, url in enumerate(args.camera)]
+        return camera_names(args.camera)
     if args.image is not None:
         return []
-    configured = [(d.name, d.url) for d in configured_devices() if d.kind == "camera"]
+    configured = configured_cameras()
     return configured if len(configured) > 1 else []
 
 

@@ -12,6 +12,14 @@ highlights each part), applies the check's instructions (with its smaller error)
 where they are, and the world runs the as-placed layout under its hidden physics. Without one, the maker does all of
 that and says what happened.
 
+A side camera facing the board behind the parts (``side_camera``; else the station's cameras of station.toml when it
+names more than one, as ``station check`` takes them; else, with a simulated world, the world's own side camera,
+:data:`station.services.check_cameras.SIDE_CAMERA`) checks the heights and tilts of the parts carried by jig stands
+whose face tag looks at it: the check then combines both views (:func:`station.services.check_cameras.check_views`),
+its instructions say to raise, lower or tilt a part, and a simulated maker sets those parameters again with its
+correcting error. A guide with nothing for the side camera to read (no jigs, or no stand facing the board) is checked
+by the top camera alone.
+
 The states and what moves between them (anything else is refused with a :class:`ServiceError` naming ``stage``)::
 
     guide --placed()--> check --check()--> check --fix()--> check ... --accept()--> run --run()/answer()--> log
@@ -36,7 +44,9 @@ from station.paths import data_dir
 from station.services import check as checks
 from station.services import guide as guides
 from station.services import robust
+from station.services.calibrate import configured_camera_url
 from station.services.check import overlay_frame
+from station.services.check_cameras import SIDE_CAMERA, camera_names, check_views, configured_cameras, reads_side
 from station.services.guide import export_guide, export_name, show_step
 from station.services.layout_choice import (
     LayoutChoiceRequest,
@@ -60,6 +70,7 @@ from station.services.trials import (
     read_physics,
 )
 from station.services.world import (
+    as_placed_layout,
     check_moves,
     cut_jigs,
     guide_sigma,
@@ -150,11 +161,14 @@ class Assembly:
         The camera is the station's own: its saved calibration read, and its plane kept between checks (and in the
         data folder) so that a check says whether the camera was bumped since the last. False: a simulated camera
         seen through its own lens and nothing kept (``station loop``'s unattended attempts).
+    side_camera : str or None
+        The side camera's URL (see the module notes for the side camera used without one).
     """
 
     job: Any
     scenario: Any
     camera: str | None = None
+    side_camera: str | None = None
     world: Any = None
     projector: Any = None
     physics: str | None = None
@@ -176,6 +190,7 @@ class Assembly:
     record: tuple[int, int] = (0, 0)  #: (successes, attempts) of this layout's trials in the log before this attempt
     _profile: Any = None
     _camera_name: str | None = None
+    _views: list | None = None
 
     # -- stages -------------------------------------------------------------------------------------------------
     def _expect(self, *stages: str) -> None:
@@ -204,10 +219,32 @@ class Assembly:
 
     @property
     def within_tolerance(self) -> bool:
-        """Whether the last check found every tagged part and none out of its tolerance."""
+        """Whether the last check found every tagged part and none out of its tolerance (with a side camera: every
+        part it reads found on the board's plane, none off in height or tilt)."""
         report = self.check.report if self.check is not None else None
         return (report is not None and report.plane is not None and not report.missing_tags
-                and not any(misplaced(p) for p in report.parts))
+                and not any(misplaced(p) for p in report.parts)
+                and all(p.found and not misplaced(p) for p in report.side_parts))
+
+    def cameras(self) -> list[tuple[str, str]]:
+        """The cameras the checks use, ``(name, url)``: the top camera, then the side camera when there is one and
+        the guide gives it something to read (see the module notes). Cameras given by URL are named as ``station
+        check`` names its ``--camera`` URLs (``camera``, ``camera-2``); station.toml's keep their names."""
+        if self._views is None:
+            top = camera_names([self.camera])[0] if self.camera is not None else configured_camera_url()
+            views = [top]
+            if reads_side(self.job):
+                configured = []
+                if self.side_camera is None and self.camera is None and self.station_camera:
+                    configured = configured_cameras()
+                if self.side_camera is not None:
+                    views = [top, (camera_names([top[1], self.side_camera])[1][0], self.side_camera)]
+                elif len(configured) > 1:
+                    views = configured
+                elif self.world is not None:  # the simulated world serves both cameras
+                    views = [top, (camera_names([top[1], SIDE_CAMERA])[1][0], SIDE_CAMERA)]
+            self._views = views
+        return list(self._views)
 
     @property
     def success(self) -> bool | None:
@@ -250,13 +287,24 @@ class Assembly:
 
     def check_parts(self, report: Reporter | None = None, *, seed: int | None = None):
         """Grab a frame from the camera and check the parts as they stand (a simulated camera sees the world's
-        parts where the simulated maker put them, or the guide's tags at their designed poses without a world).
-        ``seed`` seeds a simulated camera's noise in this frame (without ``station_camera``; None: the camera's
-        own)."""
+        parts where the simulated maker put them, or the guide's tags at their designed poses without a world);
+        with a side camera (:meth:`cameras`) its frame too, both views combined as ``station check`` combines them
+        (:func:`station.services.check_cameras.check_views`). ``seed`` seeds a simulated camera's noise in this
+        frame (without ``station_camera``; None: the camera's own)."""
         self._expect("check")
         scene = None
         if self.world is not None:
             scene = world_scene(self.job.guide, self.world.placed())
+        views = self.cameras()
+        if len(views) > 1:
+            # the side twin shows each part where the world's maker really set it (its height and tilt included)
+            layout = None if self.world is None else as_placed_layout(self.job.scenario, self.job.guide, self.world)
+            result = check_views(self.job, views, scene=scene, side_layout=layout,
+                                 seed=None if self.station_camera else seed, station_cameras=self.station_camera,
+                                 report=report)
+            self._camera_name = views[0][0] if self.station_camera else None
+            self.checks.append(result)
+            return result
         if self.station_camera:
             image, intrinsics, name, saved = checks.camera_frame(self.job.guide,
                                                                  checks.FrameSource(camera=self.camera, scene=scene))
@@ -404,6 +452,11 @@ class AssemblyRequest:
         The guide plane (None: chosen from the scenario).
     camera : str, optional
         The camera's URL (default: the station's camera, ``station devices``).
+    side_camera : str, optional
+        A side camera's URL, facing the board behind the parts: the checks measure the heights and tilts of the parts
+        on jig stands with it (default: the station's, when station.toml names more than one camera, as ``station
+        check`` takes them; with a simulated world, the world's own side camera; none when the guide gives it
+        nothing to read).
     world : str, optional
         A simulated world (``sim://world?seed=S``); None: a real table, the maker does and says.
     physics : path, optional
@@ -427,6 +480,7 @@ class AssemblyRequest:
     physics: str | Path | None = None
     attempt: int | None = None
     jigs: bool = False
+    side_camera: str | None = None
     samples: int = DEFAULT_SAMPLES
     seed: int = 0
     workers: int | None = None
@@ -453,14 +507,15 @@ def open_assembly(request: AssemblyRequest, *, projector=None, store=None,
     Raises
     ------
     ServiceError
-        A bad count, seed, world or physics file (named).
+        A bad count, seed, world or physics file (named); a side camera with nothing to read (``camera``: no jig
+        stand of the layout faces the board).
     design.errors.DesignError, projector.errors.ProjectorError, OSError
         The scenario or the layout cannot be read or drawn.
     """
     scenario, layout, view, camera, world, physics = (request.scenario, request.layout, request.view, request.camera,
                                                       request.world, request.physics)
-    attempt, jigs, samples, seed, workers = (request.attempt, request.jigs, request.samples, request.seed,
-                                             request.workers)
+    attempt, jigs, samples, seed, workers, side_camera = (request.attempt, request.jigs, request.samples,
+                                                          request.seed, request.workers, request.side_camera)
     check_count(samples, "samples")
     check_seed(seed)
     check_count(attempt, "attempt")
@@ -489,11 +544,16 @@ def open_assembly(request: AssemblyRequest, *, projector=None, store=None,
         if attempt is None:
             attempt = 1 + len(logged)
         record = _layout_record(trial_scenario, job.layout.x, logged)
+        if side_camera is not None and not reads_side(job):
+            raise ServiceError(f"camera: the side camera {side_camera} has nothing to read: no jig stand of "
+                               "this layout faces the board (use the guide's jigs: --jigs)", field="camera",
+                               value=side_camera)
     except BaseException:
         if opened_world is not None:
             opened_world.close()
         raise
-    return Assembly(job, trial_scenario, camera=camera, world=opened_world, projector=projector,
+    return Assembly(job, trial_scenario, camera=camera, side_camera=side_camera, world=opened_world,
+                    projector=projector,
                     physics=None if physics is None else str(physics), attempt=attempt, samples=samples, seed=seed,
                     workers=workers, record=record, _profile=profile)
 

@@ -114,7 +114,12 @@ class LoopSettings:
         Loop attempts use the layout's laser-cut jigs (:mod:`station.services.jigs`): per loop the simulated maker
         cuts them (their laser job run to its end on the laser twin, :func:`station.services.world.cut_jigs`),
         lays each over its footprint and sets its part on it; the parameters they set are ``set_with: "jig"``.
-        The baseline (the thesis's workflow) never does.
+        Their checks also use the side camera (``side_camera``): it reads the face tag of each jig stand facing the
+        board, the check measures the heights and tilts of the parts on them, and the maker sets those again as
+        it says. The baseline (the thesis's workflow) never does.
+    side_camera : str
+        The simulated side camera of the attempts with jigs (``sim://camera?view=side...``, facing the board behind
+        the parts; part of a run's identity only with ``jigs``).
     """
 
     attempts: int = 5
@@ -134,6 +139,9 @@ class LoopSettings:
     camera: str = "sim://camera?supersample=1"
     settings: str = "recommended"
     jigs: bool = False
+    #: the side camera's figures were measured 700 mm from the board (docs/results/2026-12-05-side-camera.md); one
+    #: sample per pixel as the top camera's here, for the loop's speed
+    side_camera: str = "sim://camera?view=side&height=700&supersample=1"
     workers: int | None = field(default=None, compare=False)
     scheduler: str | None = field(default=None, compare=False)
 
@@ -165,6 +173,10 @@ class LoopSettings:
         if not str(self.camera).startswith("sim://camera"):
             raise ServiceError(f"camera: the loop's world is simulated, so its camera must be too (sim://camera?...), "
                                f"got {self.camera!r}", field="camera", value=self.camera)
+        if not str(self.side_camera).startswith("sim://camera"):
+            raise ServiceError(f"side_camera: the loop's world is simulated, so its side camera must be too "
+                               f"(sim://camera?view=side...), got {self.side_camera!r}", field="side_camera",
+                               value=self.side_camera)
 
     @property
     def baseline_attempts(self) -> int:
@@ -175,6 +187,8 @@ class LoopSettings:
         data = asdict(self)
         for name in ("loops", "workers", "scheduler", "baseline"):
             data.pop(name)
+        if not self.jigs:  # only the attempts on jigs have anything for the side camera to read
+            data.pop("side_camera")
         data["baseline"] = self.baseline_attempts
         data["world_revision"] = WORLD_REVISION  # a run made in another world is not carried on in this one
         return data
@@ -349,16 +363,22 @@ class Correction:
     distance_mm, turn_deg : float
         How far it was moved on the sheet and turned (the turn signed, counter-clockwise positive).
     instruction : str
-        The same in the check's own words (:func:`calibration.check.instruction`: which way to move and turn).
+        The same in the check's own words (:func:`calibration.check.instruction`: which way to move and turn), and
+        the parameters the side camera had set again.
+    parameters : tuple of (str, float, str)
+        ``(parameter, change, unit)`` of each parameter the side camera measured off (a height, a tilt) and the
+        maker set again, in mm or degrees, summed over the rounds.
     """
 
     name: str
     distance_mm: float
     turn_deg: float
     instruction: str
+    parameters: tuple[tuple[str, float, str], ...] = ()
 
     def short(self) -> str:
-        """``"`track` moved 2.1 mm and turned 4.0 deg"`` (a negligible move or turn left out)."""
+        """``"`track` moved 2.1 mm and turned 4.0 deg"``, ``"`track` with track.z set 2.3 mm lower"`` (a negligible
+        move or turn left out)."""
         from calibration.check import NEGLIGIBLE_DEG, NEGLIGIBLE_MM
 
         did = []
@@ -366,7 +386,15 @@ class Correction:
             did.append(f"moved {self.distance_mm:.1f} mm")
         if abs(self.turn_deg) >= NEGLIGIBLE_DEG:
             did.append(f"turned {abs(self.turn_deg):.1f} deg")
+        if self.parameters:
+            did.append("with " + _parameter_words(self.parameters))
         return f"`{self.name}` " + (" and ".join(did) or "nudged")
+
+
+def _parameter_words(parameters: Sequence[tuple[str, float, str]]) -> str:
+    """``"track.z set 2.3 mm lower, track.roll 3.3 deg higher"``: the side camera's changes."""
+    return ", ".join(f"{name} {'set ' if i == 0 else ''}{abs(change):.1f} {unit} {'higher' if change > 0 else 'lower'}"
+                     for i, (name, change, unit) in enumerate(parameters))
 
 
 @station_errors
@@ -443,16 +471,28 @@ def _corrections(rounds: Sequence[Sequence[Mapping[str, Any]]], view: str) -> tu
     """What the check had the maker do over ``rounds`` (each round's :func:`station.services.world.check_moves`),
     per part in the order first asked: its moves summed."""
     from calibration.check import instruction
+    from design.contraption.schema import ANGLE_KEYS
 
     total: dict[str, list[float]] = {}
+    changed: dict[str, dict[str, float]] = {}  # per part, the side camera's parameter changes summed
     for moves in rounds:
         for move in moves:
             summed = total.setdefault(str(move["name"]), [0.0, 0.0, 0.0])
             for i, key in enumerate(("du_mm", "dv_mm", "dheading_deg")):
                 summed[i] += float(move[key])
-    # a move is designed minus measured; the check's words undo an error, measured minus designed
-    return tuple(Correction(name, math.hypot(du, dv), dh, instruction(name, (-du, -dv, math.hypot(du, dv), -dh), view))
-                 for name, (du, dv, dh) in total.items())
+            for parameter, change in (move.get("parameters") or {}).items():
+                part = changed.setdefault(str(move["name"]), {})
+                part[parameter] = part.get(parameter, 0.0) + float(change)
+    result = []
+    for name, (du, dv, dh) in total.items():
+        # a move is designed minus measured; the check's words undo an error, measured minus designed
+        words = instruction(name, (-du, -dv, math.hypot(du, dv), -dh), view)
+        parameters = tuple((p, c, "deg" if p.rsplit(".", 1)[-1] in ANGLE_KEYS else "mm")
+                           for p, c in changed.get(name, {}).items())
+        if parameters:
+            words += f"; the side camera had {_parameter_words(parameters)}"
+        result.append(Correction(name, math.hypot(du, dv), dh, words, parameters))
+    return tuple(result)
 
 
 @station_errors
@@ -659,7 +699,9 @@ class _Loop:
         from station.services.assemble import Assembly
 
         s, seed = self.settings, self.world.seed
-        assembly = Assembly(job, self.scenario, camera=s.camera, world=self.world,
+        # with jigs the side camera reads the stands facing the board (none facing it: the top camera alone)
+        side = s.side_camera if job.jigs is not None else None
+        assembly = Assembly(job, self.scenario, camera=s.camera, side_camera=side, world=self.world,
                             physics=None if physics is None else str(physics), attempt=k * ATTEMPT_BLOCK + a,
                             samples=s.predict_samples, seed=_seed(seed, _PREDICT, k, a), workers=s.workers,
                             scheduler=s.scheduler, highlighted=checked, station_camera=False, _profile=profile)
@@ -681,19 +723,25 @@ class _Loop:
             predicted = float(assembly.forecast(report=self.under(words)).prediction.probability)
         said = AttemptReport(k, a, 0, run.success, checked, _corrections(applied, job.guide.view), len(applied),
                              tuple(left), _failed_at(self.scenario, run.outcomes))
+        by = assembly.check.report.measured_by if assembly.check is not None else {}
+        side = tuple(name for name, view in by.items() if view == "side")
+        notes = self.note(job, said, predicted, side)
         stored = self.store.add_attempt(self.run_id, k, a, assembly.trial(who=f"simulated maker ({self.world.url})",
-                                                                          notes=self.note(job, said, predicted)),
+                                                                          notes=notes),
                                         predicted=predicted, check_rounds=len(applied))
         return stored, replace(said, trial_id=stored.trial_id)
 
-    def note(self, job, said: AttemptReport, predicted: float | None) -> str:
-        """An attempt's trial notes: the run, the jigs, the prediction and the check's corrections."""
+    def note(self, job, said: AttemptReport, predicted: float | None, side: Sequence[str] = ()) -> str:
+        """An attempt's trial notes: the run, the jigs, the parameters the side camera measured (``side``), the
+        prediction and the check's corrections."""
         k, a = said.loop, said.attempt
         note = f"station loop run {self.run_id}: " + (f"loop {k} attempt {a}" if k else f"baseline attempt {a}")
         if job.guide.jigs:
             note += f"; set on laser-cut jigs {', '.join(j.id for j in job.guide.jigs)}"
         if job.jigs is not None and job.jigs.plan.by_hand:
             note += "; no jig for " + ", ".join(f"`{b.part}` ({b.reason})" for b in job.jigs.plan.by_hand)
+        if side:
+            note += f"; the side camera measured {', '.join(side)}"
         if predicted is not None:
             note += f"; predicted physical success {predicted:.3f}"
         return note + f"; {said.correction_words()}"
