@@ -23,7 +23,7 @@ _FLAGS = {"attempts": "--attempts", "loops": "--loops", "budget": "--budget",
           "prediction_weight": "--prediction-weight", "rounds": "--rounds",
           "baseline": "--baseline", "predict_samples": "--predict-samples", "fit_draws": "--fit-draws",
           "fit_sobol": "--fit-sobol", "fit_rounds": "--fit-rounds", "fit_prior_width": "--fit-prior-width",
-          "camera": "--camera", "world": "--world",
+          "camera": "--camera", "side_camera": "--side-camera", "world": "--world",
           "settings": "--settings", "workers": "--workers", "scheduler": "--scheduler"}
 
 
@@ -95,6 +95,9 @@ def register(subparsers) -> None:
                         "%(default)s; 0: none, maximum likelihood)")
     parser.add_argument("--camera", default=defaults.camera, metavar="URL",
                         help="the simulated camera (default %(default)s)")
+    parser.add_argument("--side-camera", default=defaults.side_camera, metavar="URL",
+                        help="the simulated side camera facing the board behind the parts, used with --jigs "
+                        "(default %(default)s)")
     parser.add_argument("--settings", default=defaults.settings, choices=("recommended", "thesis"),
                         help="the optimizer's PSP settings (default %(default)s)")
     parser.add_argument("--workers", type=int, default=None, help="local worker processes (default: all cores)")
@@ -103,7 +106,9 @@ def register(subparsers) -> None:
     parser.add_argument("--jigs", action="store_true",
                         help="the loop's attempts use the layout's laser-cut jigs: per loop the simulated maker cuts "
                         "them on the laser twin (their laser job run to its end), lays each on its outline and sets "
-                        "its part on it (the baseline never does)")
+                        "its part on it, and every check also uses the side camera (--side-camera): it reads the "
+                        "face tag of each jig stand facing the board, measures the heights and tilts of the parts on "
+                        "them, and the maker sets those again as it says (the baseline never does)")
     parser.add_argument("--json", action="store_true", help="print the figures as JSON")
 
 
@@ -153,8 +158,9 @@ def loop_lines(summary) -> list[str]:
     lines.append(f"  layout placed: {choice}")
     lines.append(f"  corrections: {summary.check_rounds:.1f} per attempt after the first check")
     if summary.jigs:
-        lines.append("  jigs: cut on the laser, each part one can carry set on it (each trial's notes name them, "
-                     "and the parts no jig can carry)")
+        lines.append("  jigs: cut on the laser, each part one can carry set on it, its height and tilt checked by "
+                     "the side camera (each trial's notes name the jigs, the parts no jig can carry and what the side "
+                     "camera measured)")
     physics = summary.physics_name or "the scenario's values and ranges (before any trial)"
     lines.append(f"  physics: {physics}")
     return wrapped(lines) + physics_table(summary.physics)
@@ -207,7 +213,7 @@ def run_loop(args) -> int:
                             every_material=not args.uncertain_only, rounds=args.rounds,
                             baseline=args.baseline, predict_samples=args.predict_samples, fit_draws=args.fit_draws,
                             fit_sobol=args.fit_sobol, fit_rounds=args.fit_rounds,
-                            fit_prior_width=args.fit_prior_width, camera=args.camera,
+                            fit_prior_width=args.fit_prior_width, camera=args.camera, side_camera=args.side_camera,
                             settings=args.settings, jigs=args.jigs, workers=args.workers, scheduler=args.scheduler)
     out = sys.stderr if args.json else sys.stdout
     # the command's own bar (the wrapper closes whichever args.bar holds)

@@ -377,8 +377,8 @@ class Correction:
     parameters: tuple[tuple[str, float, str], ...] = ()
 
     def short(self) -> str:
-        """``"`track` moved 2.1 mm and turned 4.0 deg"``, ``"`track` with track.z set 2.3 mm lower"`` (a negligible
-        move or turn left out)."""
+        """``"`track` moved 2.1 mm and turned 4.0 deg"``, ``"`track` moved 2.1 mm, track.z set 2.3 mm lower"``,
+        ``"`track`: track.z set 2.3 mm lower"`` (a negligible move or turn left out)."""
         from calibration.check import NEGLIGIBLE_DEG, NEGLIGIBLE_MM
 
         did = []
@@ -386,8 +386,9 @@ class Correction:
             did.append(f"moved {self.distance_mm:.1f} mm")
         if abs(self.turn_deg) >= NEGLIGIBLE_DEG:
             did.append(f"turned {abs(self.turn_deg):.1f} deg")
-        if self.parameters:
-            did.append("with " + _parameter_words(self.parameters))
+        if self.parameters:  # the side camera's: after the move, or alone
+            words = _parameter_words(self.parameters)
+            return f"`{self.name}` {' and '.join(did)}, {words}" if did else f"`{self.name}`: {words}"
         return f"`{self.name}` " + (" and ".join(did) or "nudged")
 
 

@@ -1,6 +1,7 @@
 """The Assemble screen's camera check: :class:`CheckTable`, a row per tagged part (how far it is off, within its
-tolerance or not, what to do) and one per part checked by eye, and :func:`check_lines`, what the check says under the
-camera frame.
+tolerance or not, what to do), one per part the side camera read (its height and tilt on the board's plane: ``du``
+along the board, ``dv`` up, the turn its tilt) and one per part checked by eye, and :func:`check_lines`, what the check
+says under the camera frame.
 """
 
 from __future__ import annotations
@@ -31,6 +32,15 @@ class CheckTable(DataTable):
                   if misplaced(part) else Text("yes" + star, style="green"))
             self.add_row(Text(part.name), str(part.tag_id), *numbers, ok,
                          "-" if part.cost is None else f"{part.cost:.2f}", Text(part.instruction), key=part.name)
+        for part in report.side_parts:  # the side camera's: along the board, up, the tilt
+            error = part.error
+            numbers = (["-"] * 4 if error is None else
+                       [f"{error[0]:+.1f}", f"{error[1]:+.1f}", f"{error[2]:.1f}", f"{error[3]:+.1f}"])
+            ok = (Text("not seen", style="bold red") if not part.found else Text("NO", style="bold red")
+                  if misplaced(part) else Text("yes", style="green"))
+            via = f", jig {part.via}" if part.via else ""
+            self.add_row(Text(f"{part.name} (side{via})"), str(part.tag_id), *numbers, ok, "-",
+                         Text(part.instruction or ""), key=f"side:{part.name}")
         for name in report.by_eye:
             self.add_row(Text(name), "-", "", "", "", "", Text("by eye", style="dim"), "-",
                          Text("check by eye against the sheet"), key=f"eye:{name}")
@@ -41,8 +51,17 @@ def check_lines(check) -> list[str]:
     note."""
     report = check.report
     lines = summary_lines(report, check.physical)
+    if report.side_parts:  # next to the top camera's count: what the side camera read
+        seen = sum(1 for p in report.side_parts if p.found)
+        off = sum(1 for p in report.side_parts if misplaced(p))
+        at = next((i + 1 for i, line in enumerate(lines) if "tagged parts measured" in line), len(lines))
+        lines.insert(at, f"side camera: {seen} of {len(report.side_parts)} jig stands read, {off} to raise, lower or "
+                         "tilt")
     if any(part.found and part.within_tolerance is None for part in report.parts):
         lines.append(f"yes*/NO*: {no_zone_words()}")
+    measured = [name for name, view in report.measured_by.items() if view == "side"]
+    if measured:
+        lines.append(f"measured by the side camera: {', '.join(measured)}")
     if report.prediction_note:
         lines.append(report.prediction_note)
     return lines

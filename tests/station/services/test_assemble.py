@@ -137,6 +137,8 @@ def test_ctrl_c_leaves_cleanly_with_nothing_logged(capsys, monkeypatch):
     (["--world", "sim://world?seed=x"], "seed"),
     (["--samples", "0"], "--samples"),
     (["--physics", "missing.toml"], "missing.toml"),
+    (["--camera", "sim://camera", "--camera", "sim://camera?view=side"], "--camera: the side camera"),  # no jigs
+    (["--camera", "sim://camera", "--camera", "sim://camera", "--camera", "sim://camera"], "at most two cameras"),
 ])
 def test_bad_options_are_one_line(capsys, monkeypatch, argv, expected):
     code, out, err = run(capsys, monkeypatch, "", "simple", "success", *argv)
@@ -187,6 +189,70 @@ def test_the_service_walks_the_stages_in_order_and_a_fix_brings_the_parts_closer
         assembly.close()
 
 
+
+
+def test_with_jigs_the_side_camera_finds_a_height_the_maker_sets_it_again_and_the_recheck_is_within():
+    # The world's maker sets SIMPLE's track on its stand J1 with a loose jig (3 mm, 3 deg): the world serves the
+    # side camera, whose check measures the height and tilt where the maker really set them (the world's truth,
+    # not the check's numbers), says to raise or lower it, and the maker's correction brings it back.
+    import re
+
+    from station.services.check_cameras import SIDE_CAMERA
+    from station.services.world import as_placed_layout
+
+    request = service.AssemblyRequest("simple", "success", world="sim://world?seed=3&jig_mm=3&jig_deg=3", jigs=True,
+                                      samples=4, workers=1, attempt=1)
+    assembly = service.open_assembly(request)
+    try:
+        assert assembly.cameras()[1] == ("camera-2", SIDE_CAMERA)  # the simulated world serves both cameras
+        names = list(assembly.job.scenario.design_space.names)
+        designed = dict(zip(names, assembly.job.layout.x))
+        assembly.placed()
+
+        def truth(name: str) -> float:
+            return dict(zip(names, as_placed_layout(assembly.job.scenario, assembly.job.guide, assembly.world)))[name]
+
+        off = truth("track.z") - designed["track.z"]
+        assert abs(off) > 0.001, "a 3 mm jig sets the track more than 1 mm off"
+        check = assembly.check_parts().to_json()
+        assert check["measured_by"]["track.z"] == "side" and check["measured_by"]["track.roll"] == "side"
+        assert "track.z" not in check["not_measured"] and "track.roll" not in check["not_measured"]
+        assert [v["view"] for v in check["views"]] == ["top", "side"]
+        assert check["as_measured"]["track.z"] == pytest.approx(truth("track.z"), abs=0.0005)
+        assert check["as_measured"]["track.roll"] == pytest.approx(truth("track.roll"), abs=0.5)
+        (side,) = check["side_parts"]
+        word = "lower" if off > 0 else "raise"
+        assert re.match(rf"{word} `track`'s lower end \d+\.\d mm, tilt it", side["instruction"]), side["instruction"]
+        assert not assembly.within_tolerance
+        (move,) = assembly.moves()
+        assert move["parameters"]["track.z"] == pytest.approx(-off * 1000.0, abs=0.5)
+        assembly.fix()
+        assert abs(truth("track.z") - designed["track.z"]) < min(abs(off), 0.001)  # the maker set it again
+        again = assembly.check_parts().to_json()
+        assert again["as_measured"]["track.z"] == pytest.approx(truth("track.z"), abs=0.0005)
+        assert not any("parameters" in m for m in assembly.moves()), "height and tilt within their limits"
+        assert again["side_parts"][0]["instruction"] == "`track` is at its height and tilt"
+        assembly.accept()
+        assembly.run()
+        assert assembly.trial()["check"]["measured_by"]["track.z"] == "side"
+    finally:
+        assembly.close()
+
+
+def test_station_assemble_takes_the_side_camera_as_a_second_camera(capsys, monkeypatch):
+    import json
+
+    code, out, err = run(capsys, monkeypatch, "s\n\na\n\ny\n", "simple", "success", "--world",
+                         "sim://world?seed=3", "--jigs", "--camera", "sim://camera",
+                         "--camera", "sim://camera?view=side&height=700&seed=1", "--json", *FAST)
+    assert code == 0, err
+    attempt = json.loads(out)
+    assert "cameras: camera (sim://camera), camera-2 (sim://camera?view=side&height=700&seed=1)" in err
+    (check,) = attempt["checks"]
+    assert [(v["view"], v["camera"]) for v in check["views"]] == [("top", "camera"), ("side", "camera-2")]
+    assert check["measured_by"]["track.z"] == "side" and check["side_parts"][0]["found"] is True
+    (trial,) = trials()
+    assert trial["check"]["measured_by"] == check["measured_by"]
 
 
 def test_a_layout_logged_before_is_forecast_with_its_record():

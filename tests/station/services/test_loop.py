@@ -125,6 +125,48 @@ def test_a_loop_attempt_is_the_attempt_an_assembly_walks(tmp_path, station_home)
     assert stored.predicted == predicted
 
 
+def test_a_loop_attempt_on_jigs_has_the_side_camera_correct_the_height_and_tilt(tmp_path, station_home):
+    # A loose jig (3 mm, 3 deg) sets SIMPLE's track off in height and tilt: the attempt's check reads the stand's
+    # face tag with the side camera, the maker sets the height and tilt again as it says (the world's parameters
+    # really change), and the attempt's record says so: the trial's notes and its CHECK.json.
+    from common.progress import Reporter
+    from station.loopstore import LoopStore
+    from station.services import world as worlds
+    from station.services.guide import GuideRequest, make_guide
+    from station.services.loop import LoopSettings, _Loop
+    from station.services.trials import load_trial_scenario
+
+    url = "sim://world?seed=3&jig_mm=3&jig_deg=3"
+    settings = LoopSettings(rounds=2, predict_samples=2, workers=1, jigs=True)
+    scenario = load_trial_scenario("simple")
+    job = make_guide(GuideRequest("simple", "success", tolerances=False, jigs=True))
+    world = worlds.open_world(url)
+    worlds.prepare_world(world, scenario)
+    names = list(scenario.design_space.names)
+    designed = dict(zip(names, job.layout.x))
+    with LoopStore(str(tmp_path / "loop.sqlite3")) as store:
+        loop = _Loop(store, scenario, world, url, settings, Reporter.of(None), tmp_path)
+        stored, said = loop.attempt(job, None, None, 1, 1, checked=True)
+        trial = store.trial(stored.trial_id)
+    (track,) = said.corrections
+    changed = dict((name, change) for name, change, _ in track.parameters)
+    assert set(changed) == {"track.z", "track.roll"} and abs(changed["track.z"]) > 1.0, track
+    assert "the side camera had track.z set" in trial["notes"] and "the side camera measured track.z" in trial["notes"]
+    assert trial["check"]["measured_by"]["track.z"] == "side"
+    placed = dict(zip(names, worlds.as_placed_layout(scenario, job.guide, world)))
+    assert abs(placed["track.z"] - designed["track.z"]) < 0.001  # set again within a millimetre
+    assert trial["check"]["as_measured"]["track.z"] == pytest.approx(placed["track.z"], abs=0.0005)
+
+
+def test_the_side_camera_is_part_of_a_run_only_with_jigs():
+    from station.services.loop import LoopSettings
+
+    assert "side_camera" not in LoopSettings().identity()  # runs without jigs carry on as they were
+    assert LoopSettings(jigs=True).identity()["side_camera"].startswith("sim://camera?view=side")
+    assert LoopSettings(jigs=True, side_camera="sim://camera?view=side&height=500").identity() != \
+        LoopSettings(jigs=True).identity()
+
+
 def _loop(env, *extra, check=True):
     result = subprocess.run([sys.executable, "-m", "station", "loop", "simple", "--world", "sim://world?seed=2",
                              *TINY, "--json", *extra], cwd=ROOT, env=env, capture_output=True, text=True, timeout=600)

@@ -127,6 +127,37 @@ def test_a_forecast_sets_each_parameter_as_the_guide_says(simple_job, monkeypatc
     assert asked[-1].set_sigma == sigma and set(asked[-1].unmeasured) == {"track.z", "track.roll"}
 
 
+def test_a_forecast_takes_the_checks_error_for_what_the_side_camera_measured(monkeypatch):
+    # On its jig stand the track's height and tilt are measured by the side camera: the forecast after that check
+    # places them with the check's residual error, not with the jig's (how the guide told the maker to set them).
+    from calibration.sim_runs import placement_sigma
+    from station.services import world as worlds
+    from station.services.assemble import Assembly
+    from station.services.guide import GuideRequest, make_guide
+    from station.services.trials import load_trial_scenario
+
+    asked = []
+    monkeypatch.setattr("station.services.assemble.predict_layout",
+                        lambda scenario, x, request, report=None: asked.append(request))
+    monkeypatch.setattr("station.services.assemble.Forecast", lambda *args: None)
+    job = make_guide(GuideRequest("simple", "success", tolerances=False, jigs=True))
+    assembly = Assembly(job, load_trial_scenario("simple"), camera="sim://camera?supersample=1",
+                        side_camera="sim://camera?view=side&height=700&supersample=1",
+                        world=worlds.open_world("sim://world?seed=2"), highlighted=True, station_camera=False)
+    assembly.placed()
+    assembly.check_parts(seed=1)
+    assembly.forecast()
+    request = asked[-1]
+    assert request.unmeasured == ()
+    names = list(job.scenario.design_space.names)
+    sigma = dict(zip(names, placement_sigma(job.scenario, request.position_sigma_m, request.angle_sigma_deg,
+                                            request.unmeasured, request.set_sigma)))
+    residual = assembly.check.to_json()["residual_error"]  # as CHECK.json gives it
+    assert sigma["track.z"] == pytest.approx(residual["position_mm"] / 1000.0)
+    assert sigma["track.roll"] == pytest.approx(residual["heading_deg"])
+    assert request.set_sigma["track.z"] == pytest.approx(0.0002) != pytest.approx(sigma["track.z"])
+
+
 def test_a_guide_without_a_parameter_and_no_ranges_is_refused(simple_job):
     from station.errors import ServiceError
     from station.services import world as worlds
@@ -187,8 +218,14 @@ def test_the_loop_with_jigs_sets_their_parameters_on_them_and_says_so(tmp_path, 
     with LoopStore(database) as store:
         (loop_attempt,) = store.attempts(result.run_id, 1)
         (baseline,) = store.attempts(result.run_id, 0)
-        assert "set on laser-cut jigs J1" in store.trial(loop_attempt.trial_id)["notes"]
+        trial = store.trial(loop_attempt.trial_id)
+        assert "set on laser-cut jigs J1" in trial["notes"]
         assert "jigs" not in store.trial(baseline.trial_id)["notes"]
+        # its check read the stand's face tag with the side camera: the height and tilt measured, not placed blind
+        assert "the side camera measured track.z, track.roll" in trial["notes"]
+        assert [v["view"] for v in trial["check"]["views"]] == ["top", "side"]
+        assert trial["check"]["measured_by"] == {"track.x": "top", "track.z": "side", "track.roll": "side"}
+        assert store.trial(baseline.trial_id)["check"] is None
     # another run: with jigs or without is part of what a run is
     plain = run_loop("simple", "sim://world?seed=3", LoopSettings(**{**settings.__dict__, "jigs": False}),
                      database=database)

@@ -162,6 +162,36 @@ async def test_the_whole_attempt_on_a_simulated_world_with_the_forecast_in_view(
         assert screen.assembly is not assembly and screen.assembly.attempt == 2
 
 
+async def test_with_jigs_on_a_simulated_world_the_check_reads_the_side_camera_too(tmp_path):
+    """The jigs switch on and a simulated world: c checks with both cameras (the world serves the side one), the
+    table has the side camera's row for the track on its stand J1, saying how high it stands and what to do."""
+    from textual.widgets import Switch
+
+    from station.services.world import as_placed_layout
+
+    async with opened(tmp_path, "a") as (app, pilot):
+        screen = app.screen
+        screen.query_one("#world", Input).value = "sim://world?seed=3&jig_mm=3&jig_deg=3"
+        screen.query_one("#jigs", Switch).value = True
+        screen.open_layout(str(SIMPLE), "success")
+        await settle(app, pilot)
+        assembly = screen.assembly
+        assert assembly is not None and assembly.job.jigs is not None, str(screen.query_one("#status", Static).render())
+        await pilot.press("c")
+        await settle(app, pilot)
+        assert screen.check is assembly.check and screen.check.report.measured_by["track.z"] == "side"
+        table = screen.query_one("#check", DataTable)
+        rows = {str(table.get_row_at(i)[0]): table.get_row_at(i) for i in range(table.row_count)}
+        side = rows["track (side, jig J1)"]
+        names = list(assembly.job.scenario.design_space.names)
+        truth = dict(zip(names, as_placed_layout(assembly.job.scenario, assembly.job.guide, assembly.world)))
+        off = truth["track.z"] - dict(zip(names, assembly.job.layout.x))["track.z"]
+        assert str(side[6]) == "NO" and f"{'lower' if off > 0 else 'raise'} `track`'s lower end" in str(side[8])
+        caption = str(screen.query_one("#caption", Static).render())
+        assert "side camera: 1 of 1 jig stands read, 1 to raise, lower or tilt" in caption
+        assert "measured by the side camera: track.z, track.roll" in caption
+
+
 async def test_a_real_table_is_ticked_and_logged_and_keys_out_of_turn_are_said(tmp_path):
     from station.tui.widgets.outcomes import OutcomeTable
 
