@@ -1,0 +1,73 @@
+"""The loop's ceiling (bench/bench_loop_bound.py) places each parameter as the loop's maker does at best: what the
+camera check measures at the check's move error, the rest as the guide tells the maker to set them."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from bench import bench_loop_bound as bound
+from calibration.sim_runs import placement_sigma
+from drivers.sim.world import parse_world_options
+from station.services.trials import load_trial_scenario
+from station.services.world import guide_sigma
+
+DEFAULTS = parse_world_options("sim://world")
+
+
+@pytest.fixture(scope="module")
+def simple():
+    return load_trial_scenario("simple")
+
+
+def test_simple_without_jigs_checks_the_place_and_rules_the_height(simple):
+    precision = bound.loop_precision(simple, None, jigs=False)
+    set_sigma = guide_sigma(bound.guide_job(simple, None, jigs=False).guide, simple, highlighted=True)
+    assert precision.how == {"track.x": "check (top)", "track.z": "ruler", "track.roll": "ruler"}
+    assert precision.sigma["track.x"] == pytest.approx(DEFAULTS["fix_mm"] / 1000.0)
+    assert precision.sigma["track.z"] == pytest.approx(set_sigma["track.z"])  # the ruler's 1.5 mm
+    assert precision.sigma["track.roll"] == pytest.approx(set_sigma["track.roll"])  # the protractor's 2 deg
+    assert precision.sigma["track.z"] > bound.POSITION_SIGMA_M and precision.sigma["track.roll"] > bound.ANGLE_SIGMA_DEG
+
+
+def test_simple_with_jigs_keeps_the_jigs_finer_setting_the_side_camera_measures(simple):
+    precision = bound.loop_precision(simple, None, jigs=True)
+    set_sigma = guide_sigma(bound.guide_job(simple, None, jigs=True).guide, simple, highlighted=True)
+    assert precision.jigs
+    assert precision.how == {"track.x": "check (top)", "track.z": "jig", "track.roll": "jig"}
+    assert precision.sigma["track.x"] == pytest.approx(DEFAULTS["fix_mm"] / 1000.0)  # the jig laid by eye is coarser
+    assert precision.sigma["track.z"] == pytest.approx(set_sigma["track.z"])
+    assert precision.sigma["track.roll"] == pytest.approx(set_sigma["track.roll"])
+    assert set_sigma["track.z"] < DEFAULTS["fix_mm"] / 1000.0 and set_sigma["track.roll"] < DEFAULTS["fix_deg"]
+    # a check finer than the jig: the side camera's measure is what the maker corrects the tilt and height by
+    fine = bound.loop_precision(simple, None, jigs=True, world="sim://world?fix_mm=0.1&fix_deg=0.1")
+    assert fine.how == {"track.x": "check (top)", "track.z": "check (side)", "track.roll": "check (side)"}
+    assert fine.sigma == pytest.approx({"track.x": 0.0001, "track.z": 0.0001, "track.roll": 0.1})
+
+
+def test_causalityswitch_without_jigs_has_nothing_the_check_measures():
+    scenario = load_trial_scenario("causalityswitch_ball")
+    precision = bound.loop_precision(scenario, None, jigs=False)
+    set_sigma = guide_sigma(bound.guide_job(scenario, None, jigs=False).guide, scenario, highlighted=True)
+    assert not any(how.startswith("check") for how in precision.how.values())
+    assert precision.sigma == pytest.approx(set_sigma)
+
+
+def test_the_simulations_place_each_parameter_with_its_own_error(simple, monkeypatch):
+    import calibration.sim_predict
+
+    seen = {}
+    monkeypatch.setattr(calibration.sim_predict, "predict_success", lambda scenario, x, **kw: seen.update(kw))
+    precision = bound.Precision({"track.x": 0.0005, "track.z": 0.0015, "track.roll": 2.0}, {})
+    bound._success(simple, {}, None, np.zeros(3), 4, 1, precision.exact("track.z"))
+    sigma = placement_sigma(simple, 0.0005, 0.5, seen["unmeasured"], seen["set_sigma"])
+    assert sigma.tolist() == pytest.approx([0.0005, 0.0, 2.0])
+
+
+def test_the_limits_are_the_parameters_whose_exact_placement_gains_most():
+    rows = [{"limits": {"a.z": {"exact": 0.9, "gain": 0.2, "sigma": 0.0015, "how": "ruler"},
+                        "b.x": {"exact": 0.71, "gain": 0.01, "sigma": 0.001, "how": "sheet"}}},
+            {"limits": {"a.z": {"exact": 0.8, "gain": 0.1, "sigma": 0.0015, "how": "ruler"},
+                        "b.x": {"exact": 0.7, "gain": 0.0, "sigma": 0.001, "how": "sheet"}}}]
+    assert bound.limiting(rows) == [("a.z", pytest.approx(0.15), "1.5 mm", "ruler")]
+    assert bound.pooled([{"successes": 30, "samples": 40}, {"successes": 10, "samples": 40}])[0] == 0.5
