@@ -28,7 +28,11 @@ arithmetic meets.
 ``--workers`` worker processes (a fresh pool, its start-up counted: "cold"), then a second batch on the warm pool;
 efficiency is the serial time over workers x the pooled time, for the reference tree and this one.
 
-Run: ``python -m bench.bench_simulation [--scenarios simple,longchain] [--layouts 6] [--seed 0]
+``--early`` measures early termination instead, on the recorded layouts of tests/data/simulation: steps with no
+early stop, with the stop at the verdict and with the reach stop, their ratios and identical labels
+(``bench/simulation_early.py``).
+
+Run: ``python -m bench.bench_simulation [--early [--limit N]] [--scenarios simple,longchain] [--layouts 6] [--seed 0]
 [--reference 599036c] [--equivalence 500 [--against current] [--moved 1e-9]] [--engine K=V ...] [--dynamics K=V ...]
 [--parallel N [--workers 2]] [--json OUT.json]`` or ``python -m bench simulation`` (every example scenario, 6
 random layouts each).
@@ -45,6 +49,7 @@ from pathlib import Path
 
 import numpy as np
 
+from bench import simulation_early
 from design.contraption import Simulator, load_scenario
 from design.contraption.catalog import EXAMPLES_DIR, example_names
 
@@ -277,8 +282,15 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--parallel", type=int, default=0, metavar="N",
                         help="measure the executor's efficiency on batches of N layouts instead")
     parser.add_argument("--workers", type=int, default=2, help="worker processes for --parallel")
+    parser.add_argument("--early", action="store_true",
+                        help="measure early termination on the recorded layouts instead (bench/simulation_early.py)")
+    parser.add_argument("--limit", type=int, help="with --early: the first N recorded layouts of each scenario")
     parser.add_argument("--json", type=Path, help="write the figures here")
     args = parser.parse_args(argv if argv is not None else sys.argv[1:] if __name__ == "__main__" else [])
+    if args.early:
+        early = ["--scenarios", args.scenarios] + (["--limit", str(args.limit)] if args.limit else [])
+        simulation_early.main(early + (["--json", str(args.json)] if args.json else []))
+        return
     args.engine_params = _pairs(args.engine, "--engine")
     args.dynamics_params = _pairs(args.dynamics, "--dynamics")
     known = example_names()

@@ -26,6 +26,8 @@ from design.contraption.world import World, world_label
 
 #: Contact points farther apart than this (m) do not count as touching (Bullet keeps near-contacts in its cache).
 CONTACT_DISTANCE = 2e-4
+#: A body at rest counts as possibly toppling when its angle is within this of the threshold (radians).
+TOPPLE_MARGIN = math.radians(1.0)
 
 
 def bound(client, name: str):
@@ -82,6 +84,15 @@ class Condition:
     def __call__(self) -> bool:  # pragma: no cover - abstract
         raise NotImplementedError
 
+    #: Whether :meth:`may_hold` can ever answer False (the early stop reads the world only when every awake
+    #: event's can).
+    bounded = False
+
+    def may_hold(self, bounds) -> bool:
+        """Whether the condition can still hold over ``bounds.horizon`` (a
+        :class:`~design.contraption.reach.Bounds`); False only when it certainly cannot. By default it can."""
+        return True
+
 
 def touching(client, a: int, b: int) -> bool:
     return any(point[8] <= CONTACT_DISTANCE for point in client.getContactPoints(bodyA=a, bodyB=b))
@@ -92,6 +103,8 @@ def _touching(contacts, a: int, b: int) -> bool:
 
 
 class Contact(Condition):
+    bounded = True
+
     def __init__(self, world, spec):
         super().__init__(world, spec)
         self.a, self.b = self.uid("a"), self.uid("b")
@@ -99,13 +112,23 @@ class Contact(Condition):
     def __call__(self) -> bool:
         return _touching(self._contacts, self.a, self.b)
 
+    def may_hold(self, bounds) -> bool:
+        return not bounds.apart(self.a, self.b)
+
 
 class NoContact(Contact):
+    bounded = False
+
     def __call__(self) -> bool:
         return not _touching(self._contacts, self.a, self.b)
 
+    def may_hold(self, bounds) -> bool:
+        return True
+
 
 class RollingOn(Condition):
+    bounded = True
+
     def __init__(self, world, spec):
         super().__init__(world, spec)
         self.body, self.on = self.uid("body"), self.uid("on")
@@ -115,8 +138,13 @@ class RollingOn(Condition):
         _, angular = self._velocity(self.body)
         return math.hypot(*angular) > self.threshold and _touching(self._contacts, self.body, self.on)
 
+    def may_hold(self, bounds) -> bool:
+        return bounds.angular(self.body) > self.threshold and not bounds.apart(self.body, self.on)
+
 
 class Falling(Condition):
+    bounded = True
+
     sign = -1.0
 
     def __init__(self, world, spec):
@@ -128,12 +156,17 @@ class Falling(Condition):
         linear, _ = self._velocity(self.body)
         return self.sign * linear[2] > self.threshold
 
+    def may_hold(self, bounds) -> bool:
+        return bounds.speed(self.body) > self.threshold
+
 
 class Rising(Falling):
     sign = 1.0
 
 
 class Pivoting(Condition):
+    bounded = True
+
     def __init__(self, world, spec):
         super().__init__(world, spec)
         self.body = self.uid("body")
@@ -147,6 +180,9 @@ class Pivoting(Condition):
             return math.hypot(*angular) > self.threshold
         a = self.axis
         return abs(angular[0] * a[0] + angular[1] * a[1] + angular[2] * a[2]) > self.threshold
+
+    def may_hold(self, bounds) -> bool:
+        return bounds.angular(self.body) > self.threshold
 
 
 class Stopping(Condition):
@@ -162,6 +198,8 @@ class Stopping(Condition):
 
 
 class NotMoving(Condition):
+    bounded = True
+
     def __init__(self, world, spec):
         super().__init__(world, spec)
         label = world_label(world, self.params["body"])
@@ -174,8 +212,18 @@ class NotMoving(Condition):
         x, y, z = (p - i for p, i in zip(position, self.initial))
         return math.sqrt(x * x + y * y + z * z) <= self.tolerance
 
+    def may_hold(self, bounds) -> bool:
+        # The body's box holds its whole hull, so its centre too: the initial position must be within reach.
+        box = bounds.box(self.body)
+        if box is None:
+            return True
+        nearest = np.clip(self.initial, box[0], box[1])
+        return float(np.linalg.norm(nearest - self.initial)) <= self.tolerance
+
 
 class Toppling(Condition):
+    bounded = True
+
     def __init__(self, world, spec):
         super().__init__(world, spec)
         label = world_label(world, self.params["body"])
@@ -184,13 +232,25 @@ class Toppling(Condition):
         self.initial_inverse = (-x, -y, -z, w)
         self.threshold = math.radians(self.params["angle"])
 
-    def __call__(self) -> bool:
+    def angle(self) -> float:
+        """The rotation from the initial orientation now (radians)."""
         _, quaternion = self._pose(self.body)
         x, y, z, w = _unit(_compose(self.initial_inverse, _unit(quaternion)))
-        return 2.0 * math.atan2(math.sqrt(x * x + y * y + z * z), abs(w)) > self.threshold
+        return 2.0 * math.atan2(math.sqrt(x * x + y * y + z * z), abs(w))
+
+    def __call__(self) -> bool:
+        return self.angle() > self.threshold
+
+    def may_hold(self, bounds) -> bool:
+        # A body that turns no faster than its bound cannot add more than that times the horizon to its angle; one
+        # at rest out of reach keeps its angle (with a margin for its creep).
+        turn = bounds.angular(self.body) * bounds.horizon
+        return self.angle() + turn + TOPPLE_MARGIN > self.threshold
 
 
 class Inclusion(Condition):
+    bounded = True
+
     def __init__(self, world, spec):
         super().__init__(world, spec)
         self.body = self.uid("body")
@@ -220,6 +280,10 @@ class Inclusion(Condition):
         c_position, c_quaternion = self._pose(self.container)
         offset = tuple(p - c for p, c in zip(position, c_position))
         return self.inside_local(np.array(_rotate_inverse(_unit(c_quaternion), offset)))
+
+    def may_hold(self, bounds) -> bool:
+        # The inner volume lies inside the container's hull and the body's centre inside its own.
+        return not bounds.apart(self.body, self.container)
 
 
 CONDITIONS: dict[str, type[Condition]] = {

@@ -12,10 +12,19 @@ one leaf can no longer succeed (it failed, or an AND-parent / every OR-parent of
 only of AND-joins this is 4.3's rule "one event timed out → failure". With ``early_stop=True`` (default) the
 simulation stops at termination; with ``early_stop=False`` it runs to ``max_duration`` and the label is read at the
 end (the same label, by construction: events only change state while awake and the run is deterministic).
+
+The reach stop (with ``early_stop``, not when recording): a failure is known at an event's timeout, but often
+long before it the world can no longer make any awake event happen (a ball rolling away from the domino it had to
+hit). Every few checks the bodies' reach over the rest of the run is bounded (design/contraption/reach.py: energy,
+rest, a lone ball's rolling) and every awake event asked whether its condition can still hold; when none can, the
+physics stops and the supervisor goes on alone, each awake event failing at its timeout, to the verdict it would
+have reached. The outcomes are those of the full run; ``steps`` counts the physics steps made, ``duration`` the time
+the verdict was reached.
 """
 
 from __future__ import annotations
 
+import math
 import threading
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -26,6 +35,7 @@ from design.contraption.bullet import direct_client, pybullet
 from design.contraption.errors import SimulationError
 from design.contraption.events import make_condition
 from design.contraption.model import Scenario
+from design.contraption.reach import Reach
 from design.contraption.world import World, build_world
 
 ASLEEP, AWAKE, SUCCESS, FAILURE = "asleep", "awake", "success", "failure"
@@ -36,6 +46,12 @@ ASLEEP, AWAKE, SUCCESS, FAILURE = "asleep", "awake", "success", "failure"
 SIMULATOR_REVISION = 1
 #: The revision as problems name it for the executor's cache (``cache_revision``).
 SIMULATOR_CACHE_REVISION = f"simulator-{SIMULATOR_REVISION}"
+#: How often (s of simulated time) the early stop asks whether an awake event can still happen: first this soon
+#: after an event changed state, then REACH_BACKOFF times longer after each check that found one still possible, up
+#: to REACH_LONGEST (a check costs a few hundred pybullet queries and a fixed point over the bodies).
+REACH_INTERVAL = 0.04
+REACH_BACKOFF = 1.5
+REACH_LONGEST = 0.16
 
 
 @dataclass(frozen=True)
@@ -122,15 +138,16 @@ class Supervisor:
         self.state[name] = state
         self.timeline.append((t, name, state))
 
-    def update(self, t: float) -> bool:
-        """Evaluate the awake events at time ``t``; return True when some state changed."""
+    def update(self, t: float, idle: bool = False) -> bool:
+        """Evaluate the awake events at time ``t``; return True when some state changed. ``idle``: every condition
+        is known not to hold (not read from the world)."""
         changed = False
         woken: list[str] = []
         still_awake: list[str] = []
         for name in self._awake:
             spec = self.spec_of[name]
             deadline = self.woke[name] + spec.timeout
-            holds = self.conditions[name]()
+            holds = False if idle else self.conditions[name]()
             if spec.duration > 0.0:
                 if holds:
                     if self.hold_start[name] is None:
@@ -164,6 +181,33 @@ class Supervisor:
             self.woke[name] = t
         self._awake = still_awake + woken
         return changed
+
+    def bounded(self) -> bool:
+        """Every awake event can tell from reach bounds that its condition cannot hold."""
+        return all(self.conditions[name].bounded for name in self._awake)
+
+    def last_deadline(self) -> float:
+        """The latest timeout among the awake events."""
+        return max(self.woke[name] + self.spec_of[name].timeout for name in self._awake)
+
+    def may_change(self, bounds) -> bool:
+        """Whether some awake event can still succeed (or its hold go on) within ``bounds``' horizon."""
+        for name in self._awake:
+            if self.hold_start[name] is not None or self.conditions[name].may_hold(bounds):
+                return True
+        return False
+
+    def next_deadline_step(self, step: int, dt: float) -> int | None:
+        """The first step after ``step`` at which an awake event's timeout has passed (``step * dt``, as the run
+        computes its times)."""
+        best = None
+        for name in self._awake:
+            deadline = self.woke[name] + self.spec_of[name].timeout
+            k = max(step + 1, math.floor(deadline / dt) - 1)
+            while k * dt < deadline:
+                k += 1
+            best = k if best is None else min(best, k)
+        return best
 
     def awake_events(self) -> list[str]:
         """The events still awake (waiting for their condition or their timeout)."""
@@ -263,6 +307,28 @@ class Simulator:
     def check_validity(self, x=None) -> list[ValidityProblem]:
         return validity_problems(self.build(x))
 
+    @staticmethod
+    def _fast_forward(supervisor: Supervisor, step: int, n_steps: int, dt: float, settled: bool,
+                      on_change) -> tuple[int, bool | None]:
+        """Go on with the supervisor alone, every awake event's condition false, from ``step`` to the verdict (or
+        to no awake event when ``settled``, or to the last step); return the step reached and the verdict."""
+        verdict = None
+        while True:
+            following = supervisor.next_deadline_step(step, dt)
+            if following is None or following > n_steps:
+                return n_steps, verdict
+            step = following
+            t = step * dt
+            if supervisor.update(t, idle=True):
+                if on_change is not None:
+                    on_change(t, dict(supervisor.state))
+                verdict = supervisor.verdict()
+                if settled:
+                    if not supervisor.awake_events():
+                        return step, verdict
+                elif verdict is not None:
+                    return step, verdict
+
     def run(
         self,
         x=None,
@@ -279,9 +345,11 @@ class Simulator:
         early_stop : bool or "settled"
             Stop at termination (4.3). False runs to ``max_duration`` (for comparison). ``"settled"`` stops once no
             event is awake (none can change any more), so every event reached has its own outcome, as a maker sees
-            them in a physical run (the termination rule stops at the first decided leaf).
+            them in a physical run (the termination rule stops at the first decided leaf). Both stop the physics
+            sooner once no awake event can still happen (the reach stop, see the module notes).
         record : bool
-            Keep start and end snapshots of the bodies (for rendering).
+            Keep start and end snapshots of the bodies (for rendering); the physics then runs to the verdict, so
+            the end snapshot is the world at that time.
         on_change : callable, optional
             Called with ``(t, states)`` whenever an event changes state (e.g. a UI's progress).
         max_duration : float, optional
@@ -300,13 +368,23 @@ class Simulator:
         ropes = bool(world.ropes)
         settled = early_stop == "settled"
         verdict = None
-        steps = 0
+        steps = reached = 0
         step_physics = world._bound("stepSimulation")
+        # The reach stop: once no awake event can happen before its timeout, the rest of the run is known without
+        # the physics (each awake event fails at its timeout). Not when recording: the end snapshot is the world at
+        # the verdict.
+        first_gap = max(1, int(round(REACH_INTERVAL / dt)))
+        longest_gap = max(first_gap, int(round(REACH_LONGEST / dt)))
+        reaching = bool(early_stop) and not record
+        reach = None
+        gap = first_gap
+        next_check = first_gap
+        last_check = None
         for step in range(1, n_steps + 1):
             step_physics()
             if ropes:
                 world.enforce_ropes(dt)
-            steps = step
+            steps = reached = step
             t = step * dt
             if supervisor.update(t):
                 if on_change is not None:
@@ -317,6 +395,21 @@ class Simulator:
                         break
                 elif verdict is not None and early_stop:
                     break
+                gap = first_gap
+                next_check = min(next_check, step + gap)
+            if reaching and step >= next_check:
+                if supervisor.bounded():
+                    if reach is None:
+                        reach = Reach(world)
+                    horizon = min(supervisor.last_deadline(), limit) - t
+                    since = None if last_check is None else (step - last_check) * dt
+                    bounds = reach.bounds(t, horizon, since)
+                    last_check = step
+                    if bounds is not None and not supervisor.may_change(bounds):
+                        reached, verdict = self._fast_forward(supervisor, step, n_steps, dt, settled, on_change)
+                        break
+                    gap = min(longest_gap, max(gap + 1, int(gap * REACH_BACKOFF)))
+                next_check = step + gap
         if verdict is None or not early_stop or settled:
             verdict = supervisor.verdict()
         end = world.snapshot() if record else None
@@ -324,7 +417,7 @@ class Simulator:
         return SimulationResult(
             success=bool(verdict),
             events=supervisor.outcomes(),
-            duration=steps * dt,
+            duration=reached * dt,
             steps=steps,
             early_stopped=steps < n_steps,
             start=start,

@@ -88,6 +88,8 @@ class World:
     bodies: dict[str, Body] = field(default_factory=dict)
     ropes: list[Rope] = field(default_factory=list)
     joined_pairs: set[frozenset[str]] = field(default_factory=set)
+    #: Bodies hinged to the world: the hinge's centre (its frame origin turns about it at a fixed distance).
+    hinged: dict[str, np.ndarray] = field(default_factory=dict)
     _inertia: dict[int, tuple[float, np.ndarray, Rotation]] = field(default_factory=dict)
 
     def uid(self, label: str) -> int:
@@ -401,6 +403,8 @@ def _hinge(world: World, frame: Pose, axis, body_label: str, other_label: str | 
     if other is not None:
         client.setCollisionFilterPair(body.uid, other.uid, -1, -1, 0)
         world.joined_pairs.add(frozenset((body.label, other.label)))
+    else:
+        world.hinged[body.label] = np.array(frame.position, dtype=float)
 
 
 def _anchor(client, position, quaternion=(0.0, 0.0, 0.0, 1.0)) -> int:

@@ -1,0 +1,324 @@
+"""What the moving bodies can still reach before the awake events' timeouts: the bound behind the early stop that
+does not wait for a timeout once no awake event can still happen.
+
+The bodies are read in one pass (poses, velocities, bounding boxes) and each gets a box that holds it over the
+rest of the run (``horizon`` seconds):
+
+- **Fixed**: a static body, or a body at rest (slower than :data:`REST_SPEED` and :data:`REST_ANGULAR` at two
+  checks in a row, and moved less than :data:`REST_MOVE` between them) that no moving body can reach. A body at rest
+  is in equilibrium and stays there until something touches it; its box is its bounding box now.
+- **Moving**: the others, in groups that share energy. Bodies joined by a hinge, a fastener or a rope start in
+  one group; any body (moving, or at rest) whose box overlaps a moving group's box joins that group, until nothing
+  changes. With no energy coming in, a group's kinetic energy plus the potential energy its bodies can still lose
+  (down to the lowest horizontal plane under them, where their frame origin stands at least its distance to the
+  body's hull above the plane) bounds what any of its bodies can have: ``m v^2 / 2 <= K`` bounds its speed,
+  ``I_min w^2 / 2 <= K`` its angular speed, and its box is a sphere around its centre, the body's radius plus
+  ``v_max * horizon`` (so it holds whatever the body's turning).
+- **A ball alone on a horizontal plane** (a single sphere, equal linear and angular damping, in a group of its own
+  whose box touches no other body nor a plane that is not horizontal): its horizontal velocity stays in the
+  triangle of zero, its velocity now and the velocity it rolls at once its slip has gone (``v - 2/7 u``, ``u`` the
+  slip at the contact). The contact's friction moves the velocity straight towards that rolling velocity (it keeps
+  the angular momentum about the contact point), damping and rolling friction pull both towards zero. So over
+  ``horizon`` its centre stays in its position plus ``horizon`` times that triangle, and it rises at most by the
+  height its vertical speed gives: a ball rolling away from every body is known not to come back.
+
+The energy is a bound of continuous mechanics; the solver's position corrections and rope impulses are not
+exactly energy-conserving, so the energy is taken with a margin (:data:`ENERGY_MARGIN`); the recorded outcomes of
+tests/data/simulation check it. An event decides from these boxes whether its condition can still hold
+(:meth:`design.contraption.events.Condition.may_hold`).
+"""
+
+from __future__ import annotations
+
+import functools
+import math
+
+import numpy as np
+from scipy.spatial import ConvexHull, QhullError
+
+from design.contraption.primitives import BodySpec
+from design.contraption.world import World
+
+#: A body is at rest below these speeds (m/s, rad/s) at two checks in a row, having moved less than REST_MOVE (m)
+#: (a pile of fallen dominoes jitters at about 0.02 rad/s).
+REST_SPEED = 5e-3
+REST_ANGULAR = 5e-2
+REST_MOVE = 2e-4
+#: How fast a body at rest may creep (m/s): its box grows by that over the horizon.
+REST_CREEP = 1e-3
+#: Extra room around every box (m): Bullet's contact threshold, penetrations, a resting body's creep.
+BOX_MARGIN = 2e-3
+#: How far a body may sink into the floor (m): the potential energy that releases is counted.
+SINK = 1e-4
+#: A group's energy is taken this many times over, plus ENERGY_FLOOR (J): numerical energy gains of the solver.
+ENERGY_MARGIN = 1.5
+ENERGY_FLOOR = 1e-6
+
+
+class Bounds:
+    """Each body's box over the horizon, and the speed bounds of moving bodies (see the module notes)."""
+
+    def __init__(self, horizon: float, index: dict[int, int], lower: np.ndarray, upper: np.ndarray,
+                 fixed: np.ndarray, speed: np.ndarray, angular: np.ndarray) -> None:
+        self.horizon = horizon
+        self._index = index
+        self.lower, self.upper = lower, upper
+        self._fixed, self._speed, self._angular = fixed, speed, angular
+
+    def box(self, uid: int) -> tuple[np.ndarray, np.ndarray] | None:
+        """The box that holds the body over the horizon (None: unknown, e.g. a plane)."""
+        i = self._index.get(uid)
+        return None if i is None else (self.lower[i], self.upper[i])
+
+    def fixed(self, uid: int) -> bool:
+        """The body does not move over the horizon (static, or at rest and out of every moving body's reach)."""
+        i = self._index.get(uid)
+        return i is not None and bool(self._fixed[i])
+
+    def speed(self, uid: int) -> float:
+        i = self._index.get(uid)
+        return math.inf if i is None else float(self._speed[i])
+
+    def angular(self, uid: int) -> float:
+        i = self._index.get(uid)
+        return math.inf if i is None else float(self._angular[i])
+
+    def apart(self, a: int, b: int, margin: float = 0.0) -> bool:
+        """The two bodies' boxes do not overlap (with ``margin``): they cannot touch over the horizon."""
+        box_a, box_b = self.box(a), self.box(b)
+        if box_a is None or box_b is None:
+            return False
+        return bool(np.any(box_a[0] > box_b[1] + margin) or np.any(box_b[0] > box_a[1] + margin))
+
+
+def _hull_depth(points: np.ndarray) -> float:
+    """The least distance from the origin to the hull's boundary along any direction (negative when the origin is
+    outside it): how far the origin stays above a plane the body rests on."""
+    try:
+        hull = ConvexHull(points)
+    except (QhullError, ValueError):
+        return -float(np.max(np.linalg.norm(points, axis=1)))
+    return float(np.min(-hull.equations[:, 3]))
+
+
+@functools.lru_cache(maxsize=4096)
+def _geometry(spec: BodySpec) -> tuple[float, float, bool]:
+    """A body's radius around its frame origin, its hull depth (:func:`_hull_depth`), whether it is a centred
+    sphere; made once per body spec (a scenario's specs are made once)."""
+    points = np.concatenate([p.surface_points(12) for p in spec.parts if p.kind != "plane"])
+    parts = spec.parts
+    sphere = len(parts) == 1 and parts[0].kind == "sphere" and not parts[0].pose.position.any()
+    if sphere:
+        # The sampled circles' hull lies inside the sphere: its depth would undercut the radius by a few percent.
+        return parts[0].dims[0], parts[0].dims[0], True
+    return float(np.max(np.linalg.norm(points, axis=1))), _hull_depth(points), False
+
+
+class Reach:
+    """The reach bounds of one built world (made once per run; :meth:`bounds` at each check)."""
+
+    def __init__(self, world: World) -> None:
+        self.world = world
+        client = world.client
+        settings = world.scenario.settings
+        self.g = abs(float(settings.gravity))
+        self._pose = world._bound("getBasePositionAndOrientation")
+        self._velocity = world._bound("getBaseVelocity")
+        self._aabb = world._bound("getAABB")
+        planes, statics, dynamic = [], [], []
+        for body in world.bodies.values():
+            parts = body.spec.parts
+            if len(parts) == 1 and parts[0].kind == "plane":
+                normal = body.initial.rotation.apply((0.0, 0.0, 1.0))
+                planes.append((normal, body.initial.position.copy()))
+            elif body.static or body.mass <= 0.0:
+                statics.append(body)
+            else:
+                dynamic.append(body)
+        self.dynamic = dynamic
+        horizontal = [p for n, p in planes if n[2] > 1.0 - 1e-9]
+        #: The lowest horizontal plane: no body's hull goes below it (None: nothing holds the bodies up).
+        self.floor = min(float(p[2]) for p in horizontal) if horizontal else None
+        self.planes = planes
+        self.uids = np.array([b.uid for b in dynamic], dtype=int)
+        self.mass = np.array([b.mass for b in dynamic], dtype=float)
+        radius, depth, ball = [], [], []
+        for body in dynamic:
+            r, d, sphere = _geometry(body.spec)
+            radius.append(r)
+            depth.append(d)
+            physics = world.scenario.object(body.object_name).physics
+            ball.append(sphere and physics.linear_damping == physics.angular_damping)
+        self.radius = np.array(radius)
+        self.depth = np.array(depth)
+        self.ball = np.array(ball, dtype=bool)
+        inertia = np.array([client.getDynamicsInfo(int(uid), -1)[2] for uid in self.uids], dtype=float)
+        inertia = inertia.reshape(len(dynamic), 3)
+        self.inertia_max = inertia.max(axis=1) if len(dynamic) else np.zeros(0)
+        self.inertia_min = inertia.min(axis=1) if len(dynamic) else np.zeros(0)
+        index = {b.uid: i for i, b in enumerate(dynamic)}
+        links: list[tuple[int, int]] = []
+        for pair in world.joined_pairs:
+            a, b = (world.bodies[label].uid for label in pair)
+            if a in index and b in index:
+                links.append((index[a], index[b]))
+        for rope in world.ropes:
+            carriers = [index[u] for u in (*rope.ends, *(uid for uid, _ in rope.pulley_guides)) if u in index]
+            links += [(carriers[0], c) for c in carriers[1:]]
+        self.links = links
+        # Bodies hinged to the world: their frame origin stays on a sphere about the hinge (radius: the arm now).
+        self.is_hinged = np.zeros(len(dynamic), dtype=bool)
+        self.hinge_lowest = np.full(len(dynamic), -np.inf)
+        self.hinge_lower = np.full((len(dynamic), 3), -np.inf)
+        self.hinge_upper = np.full((len(dynamic), 3), np.inf)
+        for i, body in enumerate(dynamic):
+            centre = world.hinged.get(body.label)
+            if centre is None:
+                continue
+            arm = float(np.linalg.norm(body.initial.position - centre))
+            self.is_hinged[i] = True
+            self.hinge_lowest[i] = centre[2] - arm - SINK
+            self.hinge_lower[i] = centre - arm - self.radius[i] - BOX_MARGIN
+            self.hinge_upper[i] = centre + arm + self.radius[i] + BOX_MARGIN
+        n_static = len(statics)
+        self.static_uids = np.array([b.uid for b in statics], dtype=int)
+        boxes = np.array([np.concatenate(self._aabb(int(uid))) for uid in self.static_uids], dtype=float)
+        boxes = boxes.reshape(n_static, 6)
+        self.static_lower = boxes[:, :3] - BOX_MARGIN
+        self.static_upper = boxes[:, 3:] + BOX_MARGIN
+        self._previous: np.ndarray | None = None
+        self._previous_slow: np.ndarray | None = None
+        self._previous_time: float | None = None
+
+    def bounds(self, t: float, horizon: float, since: float | None) -> Bounds | None:
+        """Every body's box over the ``horizon`` seconds after ``t`` (None when no bound holds: no floor). A body
+        is at rest when it was slow at the previous check too, ``since`` seconds before (None: no previous check;
+        a check further apart, or a gap other than ``since``, does not count)."""
+        n = len(self.dynamic)
+        state = np.array([(*p, *v, *w) for p, v, w in self._states()], dtype=float).reshape(n, 9)
+        position, velocity, angular = state[:, :3], state[:, 3:6], state[:, 6:]
+        speed = np.linalg.norm(velocity, axis=1)
+        spin = np.linalg.norm(angular, axis=1)
+        slow = (speed < REST_SPEED) & (spin < REST_ANGULAR)
+        if self._previous is None or since is None or abs(t - self._previous_time - since) > 1e-9:
+            resting = np.zeros(n, dtype=bool)
+        else:
+            moved = np.linalg.norm(position - self._previous, axis=1)
+            resting = slow & self._previous_slow & (moved < REST_MOVE)
+        self._previous, self._previous_slow, self._previous_time = position, slow, t
+        if self.floor is None:
+            return None
+        boxes = np.array([np.concatenate(self._aabb(int(uid))) for uid in self.uids], dtype=float).reshape(n, 6)
+        rest_lower = boxes[:, :3] - BOX_MARGIN - REST_CREEP * horizon
+        rest_upper = boxes[:, 3:] + BOX_MARGIN + REST_CREEP * horizon
+        kinetic = 0.5 * self.mass * speed ** 2 + 0.5 * self.inertia_max * spin ** 2
+        lowest = np.maximum(self.floor + self.depth, self.hinge_lowest)
+        drop = position[:, 2] - lowest + SINK
+        energy = kinetic + self.mass * self.g * np.maximum(drop, 0.0)
+        ball_lower, ball_upper = self._ball_boxes(position, velocity, angular, horizon)
+
+        group = np.arange(n)
+
+        def find(i: int) -> int:
+            while group[i] != i:
+                group[i] = group[group[i]]
+                i = group[i]
+            return i
+
+        for a, b in self.links:
+            group[find(a)] = find(b)
+        ball = self.ball & ~resting
+        while True:
+            roots = np.array([find(i) for i in range(n)], dtype=int)
+            active_root = np.zeros(n, dtype=bool)
+            active_root[roots[~resting]] = True
+            active = active_root[roots]
+            group_energy = np.bincount(roots, weights=energy, minlength=n)[roots] * ENERGY_MARGIN + ENERGY_FLOOR
+            vmax = np.sqrt(2.0 * group_energy / self.mass)
+            reach = self.radius + BOX_MARGIN + vmax * horizon
+            lower = np.where(active[:, None], position - reach[:, None], rest_lower)
+            upper = np.where(active[:, None], position + reach[:, None], rest_upper)
+            lower[:, 2] = np.where(active, np.maximum(lower[:, 2], self.floor - BOX_MARGIN), lower[:, 2])
+            # A hinged body stays within its arm (and its own radius) of the hinge.
+            lower = np.where(self.is_hinged[:, None], np.maximum(lower, self.hinge_lower), lower)
+            upper = np.where(self.is_hinged[:, None], np.minimum(upper, self.hinge_upper), upper)
+            single = np.bincount(roots, minlength=n)[roots] == 1
+            use_ball = ball & single & active
+            lower = np.where(use_ball[:, None], ball_lower, lower)
+            upper = np.where(use_ball[:, None], ball_upper, upper)
+            overlap = np.all((lower[:, None, :] <= upper[None, :, :]) & (lower[None, :, :] <= upper[:, None, :]),
+                             axis=2)
+            changed = False
+            first, second = np.nonzero(overlap & (active[:, None] | active[None, :]))
+            keep = first < second
+            for i, j in zip(first[keep], second[keep]):
+                ri, rj = find(int(i)), find(int(j))
+                if ri != rj:
+                    group[ri] = rj
+                    changed = True
+            # A ball's triangle holds only while nothing but a horizontal plane is in its way.
+            blocked = use_ball & (self._hits_static(lower, upper) | self._hits_tilted_plane(lower, upper))
+            if np.any(blocked):
+                ball &= ~blocked
+                changed = True
+            if not changed:
+                break
+        fixed = ~active
+        angular_max = np.where(active, np.sqrt(2.0 * group_energy / np.maximum(self.inertia_min, 1e-12)),
+                               REST_ANGULAR)
+        speed_max = np.where(active, vmax, REST_SPEED)
+        index = {int(uid): i for i, uid in enumerate(self.uids)}
+        offset = n
+        for k, uid in enumerate(self.static_uids):
+            index[int(uid)] = offset + k
+        return Bounds(
+            horizon, index,
+            np.concatenate([lower, self.static_lower]), np.concatenate([upper, self.static_upper]),
+            np.concatenate([fixed, np.ones(len(self.static_uids), dtype=bool)]),
+            np.concatenate([speed_max, np.zeros(len(self.static_uids))]),
+            np.concatenate([angular_max, np.zeros(len(self.static_uids))]),
+        )
+
+    def _states(self):
+        pose, velocity = self._pose, self._velocity
+        for uid in self.uids:
+            position, _ = pose(int(uid))
+            linear, angular = velocity(int(uid))
+            yield position, linear, angular
+
+    def _ball_boxes(self, position, velocity, angular, horizon):
+        """The box a lone ball on a horizontal plane stays in (see the module notes); for every body, used only for
+        the balls."""
+        r = self.radius
+        slip_x = velocity[:, 0] - r * angular[:, 1]
+        slip_y = velocity[:, 1] + r * angular[:, 0]
+        roll_x = velocity[:, 0] - 2.0 / 7.0 * slip_x
+        roll_y = velocity[:, 1] - 2.0 / 7.0 * slip_y
+        zero = np.zeros(len(r))
+        vx = np.stack([zero, velocity[:, 0], roll_x])
+        vy = np.stack([zero, velocity[:, 1], roll_y])
+        rise = velocity[:, 2] ** 2 / (2.0 * self.g)
+        lower = np.stack([position[:, 0] + horizon * vx.min(axis=0), position[:, 1] + horizon * vy.min(axis=0),
+                          np.full(len(r), self.floor)], axis=1)
+        upper = np.stack([position[:, 0] + horizon * vx.max(axis=0), position[:, 1] + horizon * vy.max(axis=0),
+                          position[:, 2] + rise], axis=1)
+        lower[:, :2] -= (r + BOX_MARGIN)[:, None]
+        upper += (r + BOX_MARGIN)[:, None]
+        lower[:, 2] -= BOX_MARGIN
+        return lower, upper
+
+    def _hits_static(self, lower, upper) -> np.ndarray:
+        if not len(self.static_uids):
+            return np.zeros(len(lower), dtype=bool)
+        return np.any(np.all((lower[:, None, :] <= self.static_upper[None, :, :])
+                             & (self.static_lower[None, :, :] <= upper[:, None, :]), axis=2), axis=1)
+
+    def _hits_tilted_plane(self, lower, upper) -> np.ndarray:
+        hit = np.zeros(len(lower), dtype=bool)
+        for normal, point in self.planes:
+            if normal[2] > 1.0 - 1e-9:
+                continue
+            # The box corner deepest along -normal: the box reaches the plane when it is within the margin.
+            corner = np.where(normal[None, :] >= 0.0, lower, upper)
+            hit |= (corner - point[None, :]) @ normal <= BOX_MARGIN
+        return hit
