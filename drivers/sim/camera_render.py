@@ -8,6 +8,13 @@ and interpolated between pixel centres) into a ray direction, which is intersect
 item's height. The item's picture (a tag's cells, an image, an occluder's outline) is sampled there (``cv2.remap``),
 the items drawn from the lowest up (at one height: pictures, then occluders, then tags, which are printed on
 them; else in the scene's order).
+
+A solid (:class:`~drivers.sim.camera_scene.Solid`: a part's body, a jig's plate) is drawn as flat occluders: each
+convex piece is cut into slabs at the heights of the flat items inside it (so none of them lies inside a slab), and
+each slab is drawn at its middle height as its silhouette seen from the camera's centre, which is the slab's points
+projected along the rays through that centre onto that height. Every ray that meets the slab crosses that polygon
+and no other ray does, so what the slab hides and what hides it are exact in perspective; between two solids'
+slabs the nearer middle is drawn last (exact for convex pieces that do not interpenetrate along the ray).
 The samples are averaged into the pixel (``cv2.resize`` INTER_AREA), then exposure, vignetting, blur, noise and JPEG
 are applied in that order.
 
@@ -55,6 +62,7 @@ from drivers.sim.camera_scene import (
     Occluder,
     PlaneScene,
     RenderOptions,
+    Solid,
     TagItem,
     TagTruth,
     tag_corners_mm,
@@ -231,11 +239,63 @@ def _layers(scene: PlaneScene, camera: CameraModel, samples: int) -> list[_Layer
     items = [(float(item.height_mm), 0, n, item) for n, item in enumerate(scene.images)]
     items += [(float(item.height_mm), 1, n, item) for n, item in enumerate(scene.occluders)]
     items += [(float(item.height_mm), 2, n, item) for n, item in enumerate(scene.tags)]
+    flat = sorted({height for height, *_ in items})
+    slabs = [slab for solid in scene.solids for slab in _solid_slabs(solid, flat, camera)]
+    items += [(float(item.height_mm), 1, len(scene.occluders) + n, item) for n, item in enumerate(slabs)]
     layers = []
     for _, kind, index, item in sorted(items, key=lambda entry: entry[:3]):
         maker = (_image_layer, _occluder_layer, _tag_layer)[kind]
         layers.append(replace(maker(item, camera, samples), kind=kind, index=index))
     return layers
+
+
+def _solid_slabs(solid: Solid, flat: list[float], camera: CameraModel) -> list[Occluder]:
+    """A solid's convex pieces as flat occluders (module notes): each piece cut at the heights ``flat`` inside it,
+    at 0 (what lies behind the plane is hidden by it) and 1 mm short of the camera's centre, each slab its silhouette
+    from the camera's centre at its middle height."""
+    centre = camera.centre_mm
+    nearest = float(centre[2]) - 1.0
+    if not isinstance(solid, Solid):
+        raise SimConfigError(f"scene solids: expected Solid items, got {type(solid).__name__}")
+    occluders = []
+    for number, piece in enumerate(solid.pieces):
+        points = np.asarray(piece, dtype=float)
+        if points.ndim != 2 or points.shape[1] != 3 or len(points) < 3 or not np.isfinite(points).all():
+            raise SimConfigError(f"solid piece {number}: expected (n, 3) finite (u, v, h) points with n >= 3, got "
+                                 f"{points.shape}")
+        low, high = max(0.0, float(points[:, 2].min())), min(nearest, float(points[:, 2].max()))
+        if not high > low:
+            continue  # behind the plane, or reaching the camera (it would fill the view)
+        cuts = [low, *(h for h in flat if low < h < high), high]
+        for a, b in zip(cuts[:-1], cuts[1:]):
+            slab = _clip_slab(points, a, b)
+            if len(slab) < 3:
+                continue
+            middle = 0.5 * (a + b)
+            scale = (middle - centre[2]) / (slab[:, 2] - centre[2])
+            seen = centre[:2] + scale[:, None] * (slab[:, :2] - centre[:2])
+            hull = cv2.convexHull(seen.astype(np.float32), returnPoints=False).ravel()
+            polygon = seen[hull]
+            if len(polygon) >= 3 and abs(_area(polygon)) > 1e-6:
+                occluders.append(Occluder(polygon, middle, solid.color))
+    return occluders
+
+
+def _clip_slab(points: np.ndarray, low: float, high: float) -> np.ndarray:
+    """Points whose hull is the hull of ``points`` cut to ``low <= h <= high``: the points inside, and where every
+    segment between two of them crosses either cut (each edge of the hull crossing a cut is one of them)."""
+    h = points[:, 2]
+    below, above = points[h < low], points[h > high]
+    inside = points[(h >= low) & (h <= high)]
+    found = [inside]
+    for level, near, far in ((low, below, points[h >= low]), (high, above, points[h <= high])):
+        if len(near) and len(far):
+            t = (level - near[:, 2])[:, None] / (far[None, :, 2] - near[:, None, 2])
+            crossing = near[:, None, :] + t[..., None] * (far[None, :, :] - near[:, None, :])
+            found.append(crossing.reshape(-1, 3))
+    clipped = np.concatenate(found)
+    clipped[:, 2] = np.clip(clipped[:, 2], low, high)
+    return clipped
 
 
 def _tag_layer(tag: TagItem, camera: CameraModel, samples: int) -> _Layer:

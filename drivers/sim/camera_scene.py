@@ -22,7 +22,7 @@ import numpy as np
 
 from drivers.errors import SimConfigError
 
-__all__ = ["CameraModel", "ImageItem", "Occluder", "PlaneScene", "RenderOptions", "TagItem", "TagTruth",
+__all__ = ["CameraModel", "ImageItem", "Occluder", "PlaneScene", "RenderOptions", "Solid", "TagItem", "TagTruth",
            "tag_corners_mm"]
 
 
@@ -176,6 +176,18 @@ class Occluder:
 
 
 @dataclass(frozen=True)
+class Solid:
+    """Something opaque with depth (a part's body, a jig's plate): convex ``pieces``, each the hull of its points
+    ``(n, 3)`` in (u, v, h) mm. The renderer draws what it hides as the camera's own centre sees it, in perspective
+    (a body standing 100 mm in front of the plane hides another patch of it than its footprint): a flat item at a
+    height inside a piece is hidden by the piece's part nearer the camera and hides the part behind it. What lies
+    below the plane (h < 0) is behind it and not drawn."""
+
+    pieces: tuple[np.ndarray, ...]
+    color: tuple[int, int, int] = (120, 124, 132)
+
+
+@dataclass(frozen=True)
 class PlaneScene:
     """Everything on the plane. ``light`` is :meth:`drivers.sim.projector.SimulatedProjector.light` (with its
     ``plane_from_pixel`` set) or None; ``background`` the plane's own colour (RGB)."""
@@ -185,6 +197,7 @@ class PlaneScene:
     occluders: tuple[Occluder, ...] = ()
     light: dict | None = field(default=None, compare=False)
     background: tuple[int, int, int] = (200, 200, 195)
+    solids: tuple[Solid, ...] = ()
 
 
 @dataclass(frozen=True)

@@ -385,11 +385,9 @@ def check_measurement(job, measurement, image: np.ndarray, intrinsics, request: 
         built, measured_by = merge_as_built(job, built, side)
         views += ({"view": "side", "camera": side.camera, "plane": side.plane_json(),
                    "missing_reference_tags": list(side.measurement.missing_reference_ids),
-                   "unknown_tags": list(side.measurement.unknown_ids)},)
+                   "unknown_tags": list(side.measurement.unknown_ids),
+                   "hidden_tags": {str(k): list(v) for k, v in getattr(side, "hidden", {}).items() if v}},)
         notes.extend(f"side camera: {note}" for note in getattr(side.intrinsics, "notes", ()))
-        if side.measurement.plane is None:
-            notes.append("side view: too few board tags seen (missing "
-                         f"{', '.join(map(str, side.measurement.missing_reference_ids))}): no height measured")
     model = getattr(job.tolerances, "model", None)
     problem = getattr(job.tolerances, "problem", None)
     predicted_built = predicted_designed = None

@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 
 import cv2
 import numpy as np
@@ -24,7 +24,7 @@ import numpy as np
 from calibration.intrinsics import to_gray
 from calibration.measure import measure
 from drivers.sim.camera import parse_camera_options
-from drivers.sim.camera_scene import ImageItem, Occluder, PlaneScene, TagItem
+from drivers.sim.camera_scene import ImageItem, Occluder, PlaneScene, Solid, TagItem
 from station.errors import ServiceError, station_errors
 from station.services import calibrate
 from station.services.check_scene import aim_camera, twin_intrinsics
@@ -32,6 +32,11 @@ from vision.detection import TagDetector
 
 __all__ = ["SideView", "measure_side", "merge_as_built", "plane_json", "side_lines", "side_overlay",
            "side_scene", "side_targets", "view_of_frame"]
+
+
+#: The fewest board tags the side camera finds the board's plane from: two side by side leave the board's tilt
+#: about their line loosely held (heights off by up to 0.75 mm on the twin: docs/results/2026-12-05-side-camera.md).
+SIDE_MIN_REFERENCE_TAGS = 3
 
 
 @station_errors
@@ -47,6 +52,9 @@ class SideView:
     camera: str = ""
     image: object = None
     intrinsics: object = None
+    #: Each tag the camera should have read and did not: what stands between it and the camera (part names, "jig
+    #: J1"), as the design places them; empty when nothing known does (covered, out of the frame).
+    hidden: Mapping[int, tuple[str, ...]] = field(default_factory=dict)
 
     def plane_json(self) -> dict | None:
         """The board's plane as CHECK.json's ``views`` give a plane (None when none was found)."""
@@ -114,7 +122,9 @@ def side_scene(job, board, targets, offsets: Mapping[str, Sequence[float]] | Non
     """What the simulated side camera sees: the board's tags and every target's tag on the board's plane, a part
     moved by ``offsets[part] = (du, up, deg)`` on that plane (rigidly about its origin: ``--sim-side-offset``) or
     placed as the design parameters ``layout`` put it (a simulated world's parts as placed); the tags ``occluded``
-    covered by a hand. Simulation only.
+    covered by a hand. In front of the board, every part's collision bodies and every jig stand's plate and base as
+    solids (:func:`_scene_solids`): what stands between the camera and a tag hides it, as in a real photo. Simulation
+    only.
 
     Raises
     ------
@@ -137,33 +147,112 @@ def side_scene(job, board, targets, offsets: Mapping[str, Sequence[float]] | Non
             offsets[target.part] = (pose.center_mm[0] - target.center_mm[0], pose.center_mm[1] - target.center_mm[1],
                                     _wrap(pose.heading_deg - target.heading_deg))
     tags = [TagItem(t.id, tuple(t.center_mm), t.size_mm) for t in board.reference_tags]
-    occluders = []
+    occluders = [Occluder(_hand(t.center_mm, t.size_mm), 5.0) for t in board.reference_tags if t.id in occluded]
     for target in targets:
         du, dv, turn = offsets.get(target.part, (0.0, 0.0, 0.0))
         c, s = math.cos(math.radians(turn)), math.sin(math.radians(turn))
-
-        def moved(points, c=c, s=s, du=du, dv=dv, target=target) -> np.ndarray:
-            offset = np.asarray(points, float).reshape(-1, 2) - target.center_mm
-            return np.asarray(target.center_mm) + [du, dv] + offset @ np.array([[c, s], [-s, c]])
-
-        # the plate the tag is engraved on, and the part resting on it just in front (pictures: the tag is clear)
-        if target.plate_mm:
-            occluders.append(Occluder(moved(target.plate_mm), target.tag_depth_mm, color=(214, 180, 132)))
-        occluders.extend(Occluder(moved(ring), target.tag_depth_mm + 1.0, color=(120, 124, 132))
-                         for ring in target.silhouette_mm)
         offset = np.subtract(target.tag_center_mm, target.center_mm)
         centre = np.asarray(target.center_mm) + [du, dv] + [c * offset[0] - s * offset[1],
                                                             s * offset[0] + c * offset[1]]
         tags.append(TagItem(target.tag_id, (float(centre[0]), float(centre[1])), target.tag_size_mm,
                             target.tag_heading_deg + turn, target.tag_depth_mm))
         if target.tag_id in occluded:
-            half = 0.8 * target.tag_size_mm
-            square = np.array([[-half, -half], [half, -half], [half, half], [-half, half]]) + centre
-            occluders.append(Occluder(square, target.tag_depth_mm + 5.0))
+            occluders.append(Occluder(_hand(centre, target.tag_size_mm), target.tag_depth_mm + 5.0))
     u0, v0, u1, v1 = board.extent_mm
     sheet = np.full((8, 8, 3), 246, dtype=np.uint8)  # the white sheet on the board, under its tags
     images = (ImageItem(sheet, np.array([[u0, v1], [u1, v1], [u1, v0], [u0, v0]], float)),)
-    return PlaneScene(tags=tuple(tags), images=images, occluders=tuple(occluders), background=(176, 150, 118))
+    x = np.asarray(job.layout.x if layout is None else layout, float)
+    solids = _scene_solids(job, board, targets, offsets if layout is None else {}, offsets, x)
+    return PlaneScene(tags=tuple(tags), images=images, occluders=tuple(occluders), background=(176, 150, 118),
+                      solids=tuple(solid for _, solid in solids))
+
+
+#: The solids' colours in the side scene: jig plates and bases (birch plywood), parts by kind (else grey).
+PLATE_COLOR = (214, 180, 132)
+BASE_COLOR = (196, 160, 112)
+PART_COLORS = {"Ball": (168, 170, 178), "DominoRun": (178, 62, 52), "Box": (150, 116, 84), "Track": (112, 118, 128)}
+
+
+def _scene_solids(job, board, targets, part_moves: Mapping, stand_moves: Mapping, x) -> list[tuple[str, Solid]]:
+    """The side scene's solids, each with the name of what it is (a part's, ``"jig J1"``), on the board's frame
+    ((u, v) on it, h its depth in front of it, mm): every part's collision bodies at layout ``x`` (the scene
+    graph's, each piece convex), a target's part also moved on the board's plane by ``part_moves[part]``; every jig
+    stand's plate (its outline, as thick as the sheet it is cut from) and its base lying on the table. A plate whose
+    face tag the camera reads is moved with its tag by ``stand_moves[part]`` (on the board's plane, its face where
+    the tag is drawn: its own plate never hides it; its base follows along the table); any other stand is carried
+    with its part as the scene graph moves it."""
+    import shapely  # heavy: shapely (with the design modules below)
+
+    from design.contraption.geometry import world_poses
+    from design.contraption.primitives import body_specs
+    from design.jigs.section import part_solids
+
+    plane = board.plane
+    origin, normal = np.asarray(plane.origin, float), np.asarray(plane.normal, float)
+
+    def on_board(world_m) -> np.ndarray:
+        world_m = np.asarray(world_m, float).reshape(-1, 3)
+        return np.column_stack([plane.to_plane(world_m), 1000.0 * (world_m - origin) @ normal])
+
+    def move(points, target, moves) -> np.ndarray:
+        du, dv, turn = moves.get(target.part, (0.0, 0.0, 0.0))
+        c, s = math.cos(math.radians(turn)), math.sin(math.radians(turn))
+        moved = np.array(points, float)
+        offset = moved[:, :2] - target.center_mm
+        moved[:, :2] = np.asarray(target.center_mm) + [du, dv] + offset @ np.array([[c, s], [-s, c]])
+        return moved
+
+    def triangles(polygon) -> list[np.ndarray]:
+        """A flat outline's convex pieces: its triangles' corners (3, 2)."""
+        return [np.asarray(t.exterior.coords)[:3] for t in shapely.constrained_delaunay_triangles(polygon).geoms]
+
+    scenario = job.scenario
+    frames = world_poses(scenario.objects, scenario.transforms(x, checked=False))
+    by_part = {t.part: t for t in targets}
+    solids = []
+    for obj in scenario.objects:
+        specs = body_specs(obj) if obj.type != "Plane" else ()
+        if not specs:
+            continue
+        pieces = [on_board(solid.points) for solid in part_solids((frames[obj.name] * spec.pose, spec)
+                                                                    for spec in specs)]
+        if obj.name in by_part and obj.name in part_moves:
+            pieces = [move(piece, by_part[obj.name], part_moves) for piece in pieces]
+        solids.append((obj.name, Solid(tuple(pieces), PART_COLORS.get(obj.type, (120, 124, 132)))))
+    planned = getattr(job, "jigs", None)
+    designed = world_poses(scenario.objects, scenario.transforms(np.asarray(job.layout.x, float), checked=False))
+    top = job.guide.plane
+    for jig in planned.plan.jigs if planned is not None else ():
+        if jig.kind != "stand" or jig.face_frame is None:
+            continue
+        t = float(jig.thickness_mm)
+        target = next((candidate for candidate in targets if candidate.via == jig.id), None)
+        base = [np.vstack([top.to_world(corners, 0.0), top.to_world(corners, t)])  # world metres
+                for corners in triangles(jig.footprint)]
+        if target is not None and target.plate_mm:
+            face = target.tag_depth_mm
+            plate = [move(np.vstack([np.column_stack([corners, np.full(3, face - t)]),
+                                     np.column_stack([corners, np.full(3, face)])]), target, stand_moves)
+                     for corners in triangles(shapely.Polygon(target.plate_mm))]
+            along = stand_moves.get(target.part, (0.0, 0.0, 0.0))[0]
+            base = [on_board(piece) + [along, 0.0, 0.0] for piece in base]
+        else:
+            corner, x_axis, y_axis, facing = (np.asarray(v, float) for v in jig.face_frame)
+            carry = frames[jig.part] * designed[jig.part].inverse()
+            plate = []
+            for corners in triangles(jig.outline):  # jig frame (x, y) mm; the plate lies behind its engraved face
+                face = corner + (corners[:, :1] * x_axis + corners[:, 1:2] * y_axis) / 1000.0
+                plate.append(on_board(carry.apply(np.vstack([face, face - t / 1000.0 * facing]))))
+            base = [on_board(carry.apply(piece)) for piece in base]
+        solids.append((f"jig {jig.id}", Solid(tuple(plate), PLATE_COLOR)))
+        solids.append((f"jig {jig.id}", Solid(tuple(base), BASE_COLOR)))
+    return solids
+
+
+def _hand(centre, size_mm: float) -> np.ndarray:
+    """A hand over a tag: a square a little larger than the tag with its border."""
+    half = 0.8 * float(size_mm)
+    return np.array([[-half, -half], [half, -half], [half, half], [-half, half]]) + np.asarray(centre, float)
 
 
 def _wrap(angle: float) -> float:
@@ -192,10 +281,110 @@ def measure_side(job, board, targets, image, intrinsics, previous=None, camera: 
                            "the guide's jigs: --jigs)", field="camera", value=camera)
     guide = _side_guide(job, board, targets)
     measurement = measure(np.asarray(image), intrinsics, reference_tags(guide), part_tags(guide), previous)
+    pose = measurement.plane  # the camera's pose even from too few tags: it tells what stands in front of a tag
+    missing = set(measurement.missing_reference_ids)
+    if pose is not None:
+        missing |= {t.tag_id for t in targets} - {tag.tag_id for tag in measurement.tags}
+    if pose is not None and len(pose.reference_ids) < SIDE_MIN_REFERENCE_TAGS:
+        measurement = replace(measurement, plane=None, tags=())
     checks, _ = check_parts(guide, measurement)
     via = {t.part: t.via for t in targets}
     checks = [replace(c, view="side", via=via.get(c.name, "")) for c in side_view_checks(checks, targets)]
-    return SideView(board, tuple(targets), guide, measurement, tuple(checks), camera, np.asarray(image), intrinsics)
+    hidden = _hidden_tags(job, board, targets, pose, missing)
+    checks = [c if c.found else replace(c, instruction=_unread(c, measurement, hidden, via)) for c in checks]
+    return SideView(board, tuple(targets), guide, measurement, tuple(checks), camera, np.asarray(image), intrinsics,
+                    hidden)
+
+
+def _unread(check, measurement, hidden, via) -> str:
+    """Why a part's face tag gave no number, and what to do, in one line naming the tag."""
+    jig = f" (jig {via[check.name]})" if via.get(check.name) else ""
+    if measurement.plane is None:
+        also = f"; it is hidden too: {_names(hidden[check.tag_id], 'stands')} in front" if hidden.get(check.tag_id) \
+            else ""
+        return (f"`{check.name}`: tag {check.tag_id}{jig} not measured: the side camera found too few board tags "
+                f"(missing {', '.join(map(str, measurement.missing_reference_ids))}){also}")
+    if hidden.get(check.tag_id):
+        who = _names(hidden[check.tag_id], "stands")
+        return (f"`{check.name}`: tag {check.tag_id}{jig} hidden: {who} between the side camera and it; raise the side "
+                "camera to look over it")
+    return check.instruction
+
+
+def _board_lines(missing: Sequence[int], hidden: Mapping[int, Sequence[str]], no_plane: bool) -> list[str]:
+    """One line per board tag not seen (what hides it, if the design says), and one when they leave no plane."""
+    notes = []
+    for tag_id in missing:
+        if hidden.get(tag_id):
+            who = _names(hidden[tag_id], "stands")
+            notes.append(f"side view: board tag {tag_id} hidden: {who} between the side camera and it")
+        else:
+            notes.append(f"side view: board tag {tag_id} not seen (covered, or outside the frame?)")
+    if no_plane:
+        what = sorted({name for tag_id in missing for name in hidden.get(tag_id, ())})
+        move = (f"raise the side camera to look over {_names(what)} (it measures from any height)" if what
+                else "uncover them and aim the side camera at the whole board")
+        notes.append(f"side view: no plane: {SIDE_MIN_REFERENCE_TAGS} of the board's 4 tags are needed (missing "
+                     f"{', '.join(map(str, missing))}); no height measured: {move}")
+    return notes
+
+
+def _names(names, verb: str = "") -> str:
+    """```a```, ```a`` and ``b``` and the verb, if any, agreeing with them (``stands``/``stand``)."""
+    words = [n if n.startswith("jig ") else f"`{n}`" for n in names]
+    text = words[0] if len(words) == 1 else ", ".join(words[:-1]) + " and " + words[-1]
+    if not verb:
+        return text
+    plural = {"stands": "stand"}
+    return f"{text} {plural.get(verb, verb) if len(words) > 1 else verb}"
+
+
+def _hidden_tags(job, board, targets, pose, missing) -> dict[int, tuple[str, ...]]:
+    """For each tag id in ``missing``: the parts and jigs of the design that stand between the side camera (at
+    ``pose``, the board's plane as found, even from too few tags) and the tag, seen from the camera's centre; empty
+    without a pose (the camera's place is then unknown)."""
+    from shapely.geometry import MultiPoint, Polygon  # heavy: shapely
+
+    if pose is None or not missing:
+        return {}
+    rotation = cv2.Rodrigues(np.asarray(pose.rvec, float))[0]
+    camera = -rotation.T @ np.asarray(pose.tvec, float)  # its centre on the board's frame (u, v, depth) mm
+    squares = {t.id: (t.center_mm, t.size_mm, 0.0, 0.0) for t in board.reference_tags}
+    squares.update({t.tag_id: (t.tag_center_mm, t.tag_size_mm, t.tag_heading_deg, t.tag_depth_mm) for t in targets})
+    solids = _scene_solids(job, board, targets, {}, {}, np.asarray(job.layout.x, float))
+    hidden = {}
+    for tag_id in sorted(missing):
+        if tag_id not in squares or camera[2] <= 0:
+            continue
+        centre, size, heading, depth = squares[tag_id]
+        turn = math.radians(heading)
+        half = 0.625 * size  # with its white border
+        corners = [(c * math.cos(turn) - r * math.sin(turn), c * math.sin(turn) + r * math.cos(turn))
+                   for c, r in ((-half, -half), (half, -half), (half, half), (-half, half))]
+        square = Polygon(np.asarray(centre, float) + corners)
+        names = []
+        for name, solid in solids:
+            for piece in solid.pieces:
+                seen = _in_front(np.asarray(piece, float), depth, camera)
+                if len(seen) >= 3 and MultiPoint(seen).convex_hull.intersects(square):
+                    names.append(name)
+                    break
+        hidden[tag_id] = tuple(dict.fromkeys(names))
+    return hidden
+
+
+def _in_front(points: np.ndarray, depth: float, camera: np.ndarray) -> np.ndarray:
+    """The part of a convex piece (its hull points, board frame mm) between the depth ``depth`` and the camera, seen
+    from the camera's centre on the plane at that depth ((u, v) mm: what of that plane it hides)."""
+    h = points[:, 2]
+    near, far = points[(h > depth) & (h < camera[2])], points[h <= depth]
+    if not len(near):
+        return np.zeros((0, 2))
+    t = (depth - far[:, 2])[None, :] / (near[:, None, 2] - far[None, :, 2])
+    cut = (far[None, :, :] + t[..., None] * (near[:, None, :] - far[None, :, :])).reshape(-1, 3)
+    every = np.vstack([near, cut]) if len(far) else near
+    scale = (camera[2] - depth) / (camera[2] - every[:, 2])
+    return camera[:2] + scale[:, None] * (every[:, :2] - camera[:2])
 
 
 @station_errors
@@ -336,11 +525,12 @@ def side_lines(report) -> list[str]:
     if side is None:
         return []
     plane = side.get("plane")
+    hidden = {int(k): tuple(v) for k, v in (side.get("hidden_tags") or {}).items()}
+    problems = _board_lines(side.get("missing_reference_tags", ()), hidden, plane is None)
     if plane is None:
-        missing = ", ".join(map(str, side.get("missing_reference_tags", ())))
-        return [f"side view: no plane: too few board tags seen (missing {missing}); no height measured"]
+        return problems + [f"  {part.name} (tag {part.tag_id}): {part.instruction}" for part in report.side_parts]
     lines = [f"side view (heights and tilts): plane from board tags {', '.join(map(str, plane['reference_ids']))} "
-             f"(residual {plane['residual_mm']:.2f} mm)"]
+             f"(residual {plane['residual_mm']:.2f} mm)", *problems]
     for part in report.side_parts:
         via = f", on jig {part.via}" if part.via else ""
         if part.error is None:

@@ -19,6 +19,7 @@ from drivers.sim.camera_scene import (
     Occluder,
     PlaneScene,
     RenderOptions,
+    Solid,
     TagItem,
     tag_corners_mm,
 )
@@ -142,6 +143,40 @@ def test_occluders_and_higher_items_hide_tags_and_truth_says_so():
     assert [f.tag_id for f in detect_tags(grey(image))] == [1]
     u, v = CAMERA.project(np.array([[105.0, 0.0, 60.0]]))[0].round().astype(int)
     assert np.allclose(image[v, u], (90, 70, 60), atol=2)
+
+
+def box(u0, u1, v0, v1, h0, h1):
+    return np.array([[u, v, h] for u in (u0, u1) for v in (v0, v1) for h in (h0, h1)], float)
+
+
+def test_a_solid_hides_what_the_camera_sees_behind_it_in_perspective():
+    # a block 100 mm tall over u 200..260: seen from 1000 mm up, its top hides the plane out to u = 260 * 1000 / 900
+    block = Solid((box(200.0, 260.0, -30.0, 30.0, 0.0, 100.0),), color=(40, 160, 90))
+    beyond = TagItem(5, (284.0, 0.0), 8.0)   # its white border reaches u = 279..289: clear of the block's footprint
+    before = TagItem(6, (190.0, 0.0), 8.0)   # on the camera's side of the block: its walls lean away from it
+    on_top = TagItem(7, (230.0, 0.0), 30.0, heading_deg=30.0, height_mm=100.0)  # printed on the block's top face
+    image, truth = render(PlaneScene(tags=(beyond, before, on_top), solids=(block,)), CAMERA)
+    assert [t.visible for t in truth] == [False, True, True]
+    assert sorted(f.tag_id for f in detect_tags(grey(image))) == [6, 7]
+    far_edge = CAMERA.project(np.array([[260.0, 0.0, 100.0]]))[0]  # where the top face's far edge shows
+    inside, outside = (np.round(far_edge + [dx, 0.0]).astype(int) for dx in (-1.5, 1.5))
+    assert np.allclose(image[inside[1], inside[0]], (40, 160, 90), atol=2)
+    assert np.allclose(image[outside[1], outside[0]], (200, 200, 195), atol=2)  # the plane's own colour
+    # the same block as a flat occluder on the plane hides only its footprint: the tag beyond shows
+    flat = Occluder(box(200.0, 260.0, -30.0, 30.0, 0.0, 0.0)[::2][[0, 1, 3, 2], :2], height_mm=0.0)
+    _, flat_truth = render(PlaneScene(tags=(beyond,), occluders=(flat,)), CAMERA)
+    assert flat_truth[0].visible
+
+
+def test_a_tag_between_a_solids_depths_is_hidden_only_by_its_nearer_part():
+    # a shelf at 50 mm beside a block 0..100 mm: the block's upper half stands between the camera and the shelf's
+    # tag, seen from the camera's centre; a lower block (0..40 mm) would be behind the shelf's plane and hide nothing
+    tag = TagItem(9, (279.0, 0.0), 10.0, height_mm=50.0)  # border u 272.75..285.25: the upper half reaches 274.4
+    tall = Solid((box(200.0, 260.0, -30.0, 30.0, 0.0, 100.0),))
+    low = Solid((box(200.0, 272.0, -30.0, 30.0, 0.0, 40.0),))
+    _, (hidden,) = render(PlaneScene(tags=(tag,), solids=(tall,)), CAMERA)
+    _, (seen,) = render(PlaneScene(tags=(tag,), solids=(low,)), CAMERA)
+    assert not hidden.visible and seen.visible
 
 
 def test_projector_light_lands_where_plane_from_pixel_says():
