@@ -220,11 +220,20 @@ class Assembly:
     @property
     def within_tolerance(self) -> bool:
         """Whether the last check found every tagged part and none out of its tolerance (with a side camera: every
-        part it reads found on the board's plane, none off in height or tilt)."""
+        part it reads found on the board's plane, none to set again in height or tilt: :attr:`side_off`)."""
         report = self.check.report if self.check is not None else None
         return (report is not None and report.plane is not None and not report.missing_tags
                 and not any(misplaced(p) for p in report.parts)
-                and all(p.found and not misplaced(p) for p in report.side_parts))
+                and all(p.found for p in report.side_parts) and not self.side_off)
+
+    @property
+    def side_off(self) -> tuple[str, ...]:
+        """The parts whose height or tilt the last check's side camera asks to set again (the parameters of their
+        moves, :func:`station.services.world.check_moves`: where a part stands along the table is the top
+        camera's); () without a side view."""
+        if self.check is None or not self.check.report.side_parts:
+            return ()
+        return tuple(move["name"] for move in self.moves() if move.get("parameters"))
 
     def cameras(self) -> list[tuple[str, str]]:
         """The cameras the checks use, ``(name, url)``: the top camera, then the side camera when there is one and

@@ -489,10 +489,11 @@ class AssembleScreen(Screen):
             return
         self.check, picture, projector = message.result
         table = self.query_one("#check", CheckTable)
-        table.load(self.check.report)
+        side_off = self.assembly.side_off if self.assembly is not None else ()
+        table.load(self.check.report, side_off)
         table.display = True
         self.query_one("#frame", HalfBlockPicture).set_image(Image.fromarray(picture))
-        lines = check_lines(self.check)
+        lines = check_lines(self.check, side_off)
         self.query_one("#caption", Static).update(Text("\n".join(lines)))
         panel.say(lines[0])
         if projector:

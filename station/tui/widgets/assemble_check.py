@@ -6,6 +6,8 @@ says under the camera frame.
 
 from __future__ import annotations
 
+from collections.abc import Collection
+
 from rich.text import Text
 from textual.widgets import DataTable
 
@@ -19,8 +21,10 @@ class CheckTable(DataTable):
     def on_mount(self) -> None:
         self.add_columns("part", "tag", "du mm", "dv mm", "dist mm", "turn deg", "ok", "cost", "what to do")
 
-    def load(self, report) -> None:
-        """Fill the table from a check's report (:class:`station.services.check.CheckJob`'s ``report``)."""
+    def load(self, report, side_off: Collection[str] = ()) -> None:
+        """Fill the table from a check's report (:class:`station.services.check.CheckJob`'s ``report``);
+        ``side_off``: the parts whose height or tilt is to set again
+        (:attr:`station.services.assemble.Assembly.side_off`)."""
         self.clear()
         for part in report.parts:
             error = part.error
@@ -37,7 +41,7 @@ class CheckTable(DataTable):
             numbers = (["-"] * 4 if error is None else
                        [f"{error[0]:+.1f}", f"{error[1]:+.1f}", f"{error[2]:.1f}", f"{error[3]:+.1f}"])
             ok = (Text("not seen", style="bold red") if not part.found else Text("NO", style="bold red")
-                  if misplaced(part) else Text("yes", style="green"))
+                  if part.name in side_off else Text("yes", style="green"))
             via = f", jig {part.via}" if part.via else ""
             self.add_row(Text(f"{part.name} (side{via})"), str(part.tag_id), *numbers, ok, "-",
                          Text(part.instruction or ""), key=f"side:{part.name}")
@@ -46,14 +50,14 @@ class CheckTable(DataTable):
                          Text("check by eye against the sheet"), key=f"eye:{name}")
 
 
-def check_lines(check) -> list[str]:
-    """What a check says in short lines: its summary, what a star means when a part has no zone, the prediction's
-    note."""
+def check_lines(check, side_off: Collection[str] = ()) -> list[str]:
+    """What a check says in short lines: its summary (with a side camera, how many parts to set again in height or
+    tilt: ``side_off``), what a star means when a part has no zone, the prediction's note."""
     report = check.report
     lines = summary_lines(report, check.physical)
     if report.side_parts:  # next to the top camera's count: what the side camera read
         seen = sum(1 for p in report.side_parts if p.found)
-        off = sum(1 for p in report.side_parts if misplaced(p))
+        off = sum(1 for p in report.side_parts if p.name in side_off)
         at = next((i + 1 for i, line in enumerate(lines) if "tagged parts measured" in line), len(lines))
         lines.insert(at, f"side camera: {seen} of {len(report.side_parts)} jig stands read, {off} to raise, lower or "
                          "tilt")

@@ -223,7 +223,7 @@ def test_with_jigs_the_side_camera_finds_a_height_the_maker_sets_it_again_and_th
         (side,) = check["side_parts"]
         word = "lower" if off > 0 else "raise"
         assert re.match(rf"{word} `track`'s lower end \d+\.\d mm, tilt it", side["instruction"]), side["instruction"]
-        assert not assembly.within_tolerance
+        assert not assembly.within_tolerance and assembly.side_off == ("track",)
         (move,) = assembly.moves()
         assert move["parameters"]["track.z"] == pytest.approx(-off * 1000.0, abs=0.5)
         assembly.fix()
@@ -231,6 +231,7 @@ def test_with_jigs_the_side_camera_finds_a_height_the_maker_sets_it_again_and_th
         again = assembly.check_parts().to_json()
         assert again["as_measured"]["track.z"] == pytest.approx(truth("track.z"), abs=0.0005)
         assert not any("parameters" in m for m in assembly.moves()), "height and tilt within their limits"
+        assert assembly.side_off == ()
         assert again["side_parts"][0]["instruction"] == "`track` is at its height and tilt"
         assembly.accept()
         assembly.run()

@@ -190,6 +190,13 @@ async def test_with_jigs_on_a_simulated_world_the_check_reads_the_side_camera_to
         caption = str(screen.query_one("#caption", Static).render())
         assert "side camera: 1 of 1 jig stands read, 1 to raise, lower or tilt" in caption
         assert "measured by the side camera: track.z, track.roll" in caption
+        await pilot.press("f")  # the maker set them again as it said: the side camera finds them where they go
+        await settle(app, pilot)
+        rows = {str(table.get_row_at(i)[0]): table.get_row_at(i) for i in range(table.row_count)}
+        side = rows["track (side, jig J1)"]
+        assert (str(side[6]), str(side[8])) == ("yes", "`track` is at its height and tilt")
+        assert "side camera: 1 of 1 jig stands read, 0 to raise, lower or tilt" in str(
+            screen.query_one("#caption", Static).render())
 
 
 async def test_a_real_table_is_ticked_and_logged_and_keys_out_of_turn_are_said(tmp_path):
