@@ -168,7 +168,6 @@ class Assembly:
     job: Any
     scenario: Any
     camera: str | None = None
-    side_camera: str | None = None
     world: Any = None
     projector: Any = None
     physics: str | None = None
@@ -179,6 +178,7 @@ class Assembly:
     scheduler: str | None = None
     highlighted: bool | None = None
     station_camera: bool = True
+    side_camera: str | None = None
     stage: str = "guide"
     step: int = 0
     checks: list = field(default_factory=list)
@@ -489,10 +489,10 @@ class AssemblyRequest:
     physics: str | Path | None = None
     attempt: int | None = None
     jigs: bool = False
-    side_camera: str | None = None
     samples: int = DEFAULT_SAMPLES
     seed: int = 0
     workers: int | None = None
+    side_camera: str | None = None
 
 
 @station_errors
