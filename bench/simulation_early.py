@@ -4,9 +4,11 @@ awake event can still happen before its timeout; design/contraption/reach.py), w
 
 Per scenario: the layouts, the three step totals and their ratios, identical labels and identical outcomes (labels,
 event states, times within a step: bench.simulation_fixtures.compare), the share of wall time the reach checks
-take, and what is left: among failures, the steps simulated after the deciding event woke (a stop could not come
-earlier than that without knowing the physics), by the deciding event's type. The "no early stop" total is the
-scenario's ``max_duration`` in steps per layout, which is what such a run steps (no need to run it).
+take, the wall time per simulation with the stop at the verdict only (the same code with the reach checks
+switched off) and with the reach stop, and what is left: among failures, the steps simulated after the deciding
+event woke (a stop could not come earlier than that without knowing the physics), by the deciding event's type.
+The "no early stop" total is the scenario's ``max_duration`` in steps per layout, which is what such a run steps
+(no need to run it).
 
 Run: ``python -m bench.simulation_early [--scenarios simple,ballrun] [--limit N] [--json OUT.json]`` or
 ``python -m bench.bench_simulation --early``.
@@ -72,6 +74,17 @@ def measure(stem: str, limit: int | None = None) -> dict:
     timer.wrap(reach_module.Reach, "bounds")
     timer.wrap(simulation_module.Supervisor, "may_change")
     verdict_steps = reach_steps = 0
+    # The same layouts with the reach checks off (no awake event counts as bounded): the stop at the verdict only.
+    original_bounded = simulation_module.Supervisor.bounded
+    simulation_module.Supervisor.bounded = lambda self: False
+    verdict_wall = 0.0
+    try:
+        for row in rows:
+            start = time.perf_counter()
+            simulation_module.simulate(scenario, np.array(row["x"]), early_stop=True)
+            verdict_wall += time.perf_counter() - start
+    finally:
+        simulation_module.Supervisor.bounded = original_bounded
     same_label = same_outcome = 0
     left: Counter = Counter()
     left_runs: Counter = Counter()
@@ -101,7 +114,8 @@ def measure(stem: str, limit: int | None = None) -> dict:
     return {
         "scenario": data["name"], "file": stem, "n": n, "no_stop": n * n_steps, "verdict": verdict_steps,
         "reach": reach_steps, "same_label": same_label / n, "same_outcome": same_outcome / n,
-        "check_share": timer.seconds / wall if wall else 0.0, "left": dict(left.most_common()),
+        "check_share": timer.seconds / wall if wall else 0.0, "wall_verdict": verdict_wall / n, "wall_reach": wall / n,
+        "left": dict(left.most_common()),
         "left_runs": dict(left_runs),
     }
 
@@ -118,7 +132,8 @@ def main(argv: list[str] | None = None) -> list[dict]:
     if unknown:
         raise SystemExit(f"simulation_early: --scenarios: unknown {unknown}; expected some of {', '.join(known)}")
     header = (f"{'scenario':<26} {'n':>3} {'no stop':>8} {'at verdict':>10} {'reach':>8} {'no/verdict':>10} "
-              f"{'no/reach':>8} {'verdict/reach':>13} {'same label':>10} {'same outcome':>12} {'checks':>6}")
+              f"{'no/reach':>8} {'verdict/reach':>13} {'same label':>10} {'same outcome':>12} {'checks':>6} "
+              f"{'s/sim verdict':>13} {'s/sim reach':>11}")
     print(header)
     print("-" * len(header))
     rows = []
@@ -128,7 +143,7 @@ def main(argv: list[str] | None = None) -> list[dict]:
         print(f"{stem[:26]:<26} {row['n']:>3} {row['no_stop']:>8} {row['verdict']:>10} {row['reach']:>8} "
               f"{row['no_stop'] / row['verdict']:>9.2f}x {row['no_stop'] / row['reach']:>7.2f}x "
               f"{row['verdict'] / row['reach']:>12.2f}x {row['same_label']:>10.0%} {row['same_outcome']:>12.0%} "
-              f"{row['check_share']:>6.1%}", flush=True)
+              f"{row['check_share']:>6.1%} {row['wall_verdict']:>13.3f} {row['wall_reach']:>11.3f}", flush=True)
         top = ", ".join(f"{k}: {v} steps in {row['left_runs'][k]} runs" for k, v in list(row["left"].items())[:3])
         print(f"{'':<26} failures' steps after the deciding event woke: {top or '-'}", flush=True)
     print("-" * len(header))

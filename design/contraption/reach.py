@@ -101,6 +101,18 @@ def _hull_depth(points: np.ndarray) -> float:
     return float(np.min(-hull.equations[:, 3]))
 
 
+def _components(joined: np.ndarray) -> np.ndarray:
+    """Each body's group: the lowest index it is joined to through any chain (``joined`` symmetric), by squaring
+    the reachability matrix (a few small matrix products; scipy's graph routines cost more in checks alone)."""
+    n = len(joined)
+    reach = (joined | np.eye(n, dtype=bool)).astype(np.float32)
+    while True:
+        wider = (reach @ reach > 0.0).astype(np.float32)
+        if np.array_equal(wider, reach):
+            return np.argmax(reach > 0.0, axis=1)
+        reach = wider
+
+
 @functools.lru_cache(maxsize=4096)
 def _geometry(spec: BodySpec) -> tuple[float, float, bool]:
     """A body's radius around its frame origin, its hull depth (:func:`_hull_depth`), whether it is a centred
@@ -180,12 +192,18 @@ class Reach:
             self.hinge_lowest[i] = centre[2] - arm - SINK
             self.hinge_lower[i] = centre - arm - self.radius[i] - BOX_MARGIN
             self.hinge_upper[i] = centre + arm + self.radius[i] + BOX_MARGIN
+        self.linked = np.zeros((len(dynamic), len(dynamic)), dtype=bool)
+        for a, b in links:
+            self.linked[a, b] = self.linked[b, a] = True
         n_static = len(statics)
         self.static_uids = np.array([b.uid for b in statics], dtype=int)
         boxes = np.array([np.concatenate(self._aabb(int(uid))) for uid in self.static_uids], dtype=float)
         boxes = boxes.reshape(n_static, 6)
         self.static_lower = boxes[:, :3] - BOX_MARGIN
         self.static_upper = boxes[:, 3:] + BOX_MARGIN
+        #: Row of each body (dynamic, then static) in the bounds' arrays.
+        self.index = {int(uid): i for i, uid in enumerate(self.uids)}
+        self.index.update({int(uid): len(dynamic) + k for k, uid in enumerate(self.static_uids)})
         self._previous: np.ndarray | None = None
         self._previous_slow: np.ndarray | None = None
         self._previous_time: float | None = None
@@ -217,28 +235,23 @@ class Reach:
         energy = kinetic + self.mass * self.g * np.maximum(drop, 0.0)
         ball_lower, ball_upper = self._ball_boxes(position, velocity, angular, horizon)
 
-        group = np.arange(n)
-
-        def find(i: int) -> int:
-            while group[i] != i:
-                group[i] = group[group[i]]
-                i = group[i]
-            return i
-
-        for a, b in self.links:
-            group[find(a)] = find(b)
+        # Which bodies share energy: the links, and every overlap of a moving group's box with another box.
+        joined = self.linked.copy()
         ball = self.ball & ~resting
         while True:
-            roots = np.array([find(i) for i in range(n)], dtype=int)
-            active_root = np.zeros(n, dtype=bool)
-            active_root[roots[~resting]] = True
-            active = active_root[roots]
+            roots = _components(joined)
+            moving_root = np.zeros(n, dtype=bool)
+            moving_root[roots[~resting]] = True
+            active = moving_root[roots]
             group_energy = np.bincount(roots, weights=energy, minlength=n)[roots] * ENERGY_MARGIN + ENERGY_FLOOR
             vmax = np.sqrt(2.0 * group_energy / self.mass)
             reach = self.radius + BOX_MARGIN + vmax * horizon
             lower = np.where(active[:, None], position - reach[:, None], rest_lower)
             upper = np.where(active[:, None], position + reach[:, None], rest_upper)
             lower[:, 2] = np.where(active, np.maximum(lower[:, 2], self.floor - BOX_MARGIN), lower[:, 2])
+            # The frame origin rises at most by what the group's energy can lift the body.
+            rise = position[:, 2] + group_energy / (self.mass * self.g) + self.radius + BOX_MARGIN
+            upper[:, 2] = np.where(active, np.minimum(upper[:, 2], rise), upper[:, 2])
             # A hinged body stays within its arm (and its own radius) of the hinge.
             lower = np.where(self.is_hinged[:, None], np.maximum(lower, self.hinge_lower), lower)
             upper = np.where(self.is_hinged[:, None], np.minimum(upper, self.hinge_upper), upper)
@@ -248,14 +261,9 @@ class Reach:
             upper = np.where(use_ball[:, None], ball_upper, upper)
             overlap = np.all((lower[:, None, :] <= upper[None, :, :]) & (lower[None, :, :] <= upper[:, None, :]),
                              axis=2)
-            changed = False
-            first, second = np.nonzero(overlap & (active[:, None] | active[None, :]))
-            keep = first < second
-            for i, j in zip(first[keep], second[keep]):
-                ri, rj = find(int(i)), find(int(j))
-                if ri != rj:
-                    group[ri] = rj
-                    changed = True
+            new = overlap & (active[:, None] | active[None, :]) & (roots[:, None] != roots[None, :])
+            changed = bool(new.any())
+            joined |= new
             # A ball's triangle holds only while nothing but a horizontal plane is in its way.
             blocked = use_ball & (self._hits_static(lower, upper) | self._hits_tilted_plane(lower, upper))
             if np.any(blocked):
@@ -267,12 +275,8 @@ class Reach:
         angular_max = np.where(active, np.sqrt(2.0 * group_energy / np.maximum(self.inertia_min, 1e-12)),
                                REST_ANGULAR)
         speed_max = np.where(active, vmax, REST_SPEED)
-        index = {int(uid): i for i, uid in enumerate(self.uids)}
-        offset = n
-        for k, uid in enumerate(self.static_uids):
-            index[int(uid)] = offset + k
         return Bounds(
-            horizon, index,
+            horizon, self.index,
             np.concatenate([lower, self.static_lower]), np.concatenate([upper, self.static_upper]),
             np.concatenate([fixed, np.ones(len(self.static_uids), dtype=bool)]),
             np.concatenate([speed_max, np.zeros(len(self.static_uids))]),
