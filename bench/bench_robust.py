@@ -17,6 +17,7 @@ the same command run again skips the stored runs and prints the table from them,
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import hashlib
 import json
@@ -30,6 +31,7 @@ from datetime import datetime, timezone
 from pathlib import Path
 
 import numpy as np
+import psutil
 
 from design.contraption.catalog import EXAMPLES_DIR
 from design.robust import PSPSettings, RobustnessSettings, SimulationCache, SimulationExecutor, compare_methods
@@ -213,11 +215,11 @@ class RunStore:
     def get(self, method: str, seed: int, budget: int) -> dict | None:
         return self.runs.get(self.key(method, seed, budget))
 
-    def put(self, run: MethodRun, budget: int, evaluation_size: int) -> dict:
+    def put(self, run: MethodRun, budget: int, evaluation_size: int, cpu: float | None = None) -> dict:
         record = {
             "method": run.method, "seed": run.seed, "budget": int(budget), "u": np.asarray(run.u).tolist(),
             "rho_g": float(run.curve.global_robustness), "simulations": int(run.n_simulations),
-            "seconds": float(run.seconds), "epsilon": np.asarray(run.curve.epsilon).tolist(),
+            "seconds": float(run.seconds), "cpu_seconds": cpu, "epsilon": np.asarray(run.curve.epsilon).tolist(),
             "local": np.asarray(run.curve.local).tolist(), "valid": bool(run.curve.valid),
             "evaluation_size": int(evaluation_size),
             "finished": datetime.now(timezone.utc).strftime("%Y-%m-%dT%H:%M:%SZ"),
@@ -238,21 +240,39 @@ class RunStore:
                          record["seconds"], curve)
 
 
+def cpu_seconds() -> float:
+    """CPU seconds (user + system) used so far by this process and its living descendants (the executor's worker
+    processes and their forkserver): on a machine shared with other work, what a run costs apart from waiting."""
+    me = psutil.Process()
+    total = sum(me.cpu_times()[:2])
+    for child in me.children(recursive=True):
+        with contextlib.suppress(psutil.Error):
+            total += sum(child.cpu_times()[:2])
+    return total
+
+
 def _run_alone(problem, executor: SimulationExecutor, evaluation_cache: Path, method: str, seed: int, budget: int,
-               settings: PSPSettings, robustness: RobustnessSettings) -> tuple[MethodRun, int]:
+               settings: PSPSettings, robustness: RobustnessSettings) -> tuple[MethodRun, int, float]:
     """One method's run on one seed, paying for all its own simulations: the executor's cache is swapped for a
-    copy of the evaluation set's (what a fresh cache holds in :func:`run_scenario` when the methods start)."""
+    copy of the evaluation set's (what a fresh cache holds in :func:`run_scenario` when the methods start).
+    Returns the run, the evaluation set's size and the CPU seconds of the run's timed part."""
+    marks: dict[bool, float] = {}
+
+    def mark(_method: str, _seed: int, running: bool) -> None:
+        marks[running] = cpu_seconds()
+
     with tempfile.TemporaryDirectory() as scratch:
         fresh = Path(scratch) / "run.sqlite3"
         executor.cache.close()
         shutil.copyfile(evaluation_cache, fresh)
         executor.cache = SimulationCache(fresh)
         try:
-            comparison = compare_methods(problem, executor, [method], 1, budget, seed, settings, robustness)
+            comparison = compare_methods(problem, executor, [method], 1, budget, seed, settings, robustness,
+                                         on_timed=mark)
         finally:
             executor.cache.close()
             executor.cache = SimulationCache(evaluation_cache)
-    return comparison.runs[0], comparison.evaluation_size
+    return comparison.runs[0], comparison.evaluation_size, marks[False] - marks[True]
 
 
 def run_resumable(problem, stem: str, budget: int, runs: int, n_eval: int, n_local: int,
@@ -307,11 +327,12 @@ def run_resumable(problem, stem: str, budget: int, runs: int, n_eval: int, n_loc
                 for seed in range(runs):
                     if store.get(method, seed, method_budget) is not None:
                         continue
-                    run, size = _run_alone(problem, executor, store.evaluation_cache, method, seed, method_budget,
-                                           settings, robustness)
-                    record = store.put(run, method_budget, size)
+                    run, size, cpu = _run_alone(problem, executor, store.evaluation_cache, method, seed,
+                                                method_budget, settings, robustness)
+                    record = store.put(run, method_budget, size, cpu)
                     log(f"{stem}: {method} seed {seed} (B = {method_budget}): rho_g {record['rho_g']:.3f}, "
-                        f"{record['simulations']} simulations, {record['seconds']:.0f} s; stored in {store.path}")
+                        f"{record['simulations']} simulations, {record['seconds']:.0f} s, CPU {cpu:.0f} s; stored in "
+                        f"{store.path}")
     records = [r for m in ordered if budget_of(m) is not None for s in range(runs)
                if (r := store.get(m, s, budget_of(m))) is not None]
     baseline = next((budget_of(m) for m in ordered if m != "ours"), budget)
@@ -340,9 +361,10 @@ def run_stored_scenario(thesis_name, stem, budget, runs, n_eval, n_local, out_di
                      out_dir)
     for run in comparison.runs:
         record = store.get(run.method, run.seed, budget if run.method == "ours" else comparison.budget)
+        cpu = "?" if record.get("cpu_seconds") is None else f"{record['cpu_seconds']:.0f}"
         print(f"    {run.method} seed {run.seed}: rho_g {run.curve.global_robustness:.3f}, {run.n_simulations} "
-              f"simulations, {run.seconds:.0f} s (finished {record['finished']}, load {record['load_average']}, "
-              f"code {record.get('code', 'unknown')})")
+              f"simulations, {run.seconds:.0f} s, CPU {cpu} s (finished {record['finished']}, load "
+              f"{record['load_average']}, code {record.get('code', 'unknown')})")
 
 
 def main() -> None:

@@ -475,13 +475,16 @@ def compare_methods(
     robustness: RobustnessSettings | None = None,
     report: Reporter | None = None,
     on_run: Callable[[MethodRun], None] | None = None,
+    on_timed: Callable[[str, int, bool], None] | None = None,
 ) -> Comparison:
     """Ours and the baselines at the same simulation budget over ``runs`` seeds, scored by ρ_g (thesis 4.8.3).
 
     As in the thesis, when "ours" is among the methods its runs come first and the baselines get B = the mean number
     of simulations ours used; ``budget`` caps ours (and is B when ours is not compared). Seeds are ``seed`` to
     ``seed + runs - 1``, so a comparison can be extended by more seeds later; ``on_run`` receives each run as it
-    ends (a long comparison that is stopped keeps what it reported).
+    ends (a long comparison that is stopped keeps what it reported). ``on_timed(method, seed, running)`` is called as
+    the timed part of each run starts (``True``) and ends (``False``), so a caller can measure more than its wall
+    time there (e.g. the CPU time of the worker processes).
     """
     unknown = sorted(set(methods) - set(METHODS))
     if unknown or not methods:
@@ -501,6 +504,8 @@ def compare_methods(
     for method in ordered:
         for run in range(runs):
             run_seed = seed + run
+            if on_timed is not None:
+                on_timed(method, run_seed, True)
             started = time.perf_counter()
             if method == "ours":
                 layout = optimize_robust_layout(problem, executor, budget, run_seed, settings, report)
@@ -513,6 +518,8 @@ def compare_methods(
                 result = function(problem, oracle, int(baseline_budget), run_seed, **kwargs)
                 u, used = result.u, result.n_simulations
             seconds = time.perf_counter() - started
+            if on_timed is not None:
+                on_timed(method, run_seed, False)
             unbounded.phase = f"robustness of {method}"
             curve = robustness_curve(problem, unbounded, evaluation, u, robustness, seed=run_seed)
             results.append(MethodRun(method, run_seed, u, used, seconds, curve))

@@ -53,6 +53,8 @@ def test_an_interrupted_comparison_resumes_where_it_stopped_and_reads_its_runs_b
     # only the missing run ran, at the baselines' budget: what ours used
     assert calls == [("b1", 0, ours["simulations"])] and missing == []
     assert comparison.budget == ours["simulations"]
+    # the CPU seconds of each run's timed part are stored beside its wall time (compare_methods's on_timed)
+    assert all(isinstance(r["cpu_seconds"], float) for r in store.runs.values())
     # the evaluation set is all the shared cache holds: each run paid for its own simulations
     assert SimulationCache(store.evaluation_cache).count() == N_EVALUATION
 
