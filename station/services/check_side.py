@@ -416,11 +416,12 @@ def merge_as_built(job, top, side: SideView):
 
 @station_errors
 def side_frame(job, board, targets, url: str, *, offsets=None, occluded: Sequence[int] = (), layout=None,
-               seed: int | None = None, intrinsics=None, name: str | None = "camera-side"):
+               seed: int | None = None, intrinsics=None, name: str | None = "camera-side", truth: list | None = None):
     """A frame from the side camera at ``url`` and how to read it: ``(image, intrinsics)``. A simulated camera is
     handed :func:`side_scene` first (aimed over the board and the tags it reads unless its URL sets a ``target``);
     the intrinsics: the file ``intrinsics``, else camera ``name``'s saved calibration, else a simulated camera's
-    own, else guessed (``name`` None: a simulated camera's own lens, no saved calibration read).
+    own, else guessed (``name`` None: a simulated camera's own lens, no saved calibration read). A list ``truth``
+    is given a simulated camera's truth of every tag in the frame (benches).
 
     Raises
     ------
@@ -441,6 +442,8 @@ def side_frame(job, board, targets, url: str, *, offsets=None, occluded: Sequenc
                 camera.options = replace(camera.options, seed=int(seed) % 2**32)
         image = np.asarray(camera.grab())
         twin = twin_intrinsics(camera, url) if simulated else None
+        if truth is not None and simulated:
+            truth.extend(camera.truth())
     finally:
         camera.close()
     size = (int(image.shape[1]), int(image.shape[0]))

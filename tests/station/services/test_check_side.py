@@ -370,3 +370,30 @@ def test_a_board_hidden_behind_dominoes_measures_nothing_and_says_what_hides_it_
     assert "3 of the board's 4 tags are needed (missing 579, 580); no height measured: raise the side camera to " \
            "look over" in no_plane
     assert "`ball_track`: tag 501 (jig J1) not measured" in lines[-1] and "`wave` stands in front" in lines[-1]
+
+
+@pytest.mark.parametrize("scenario, tilt", [("simple", 0.0), ("simple", -20.0),
+                                            pytest.param("causalityswitch_ball", 0.0, marks=pytest.mark.slow)])
+def test_the_twin_and_the_independent_renderer_hide_the_same_tags(scenario, tilt):
+    # bench/side_render.py ray casts the scene graph's own shapes (boxes, spheres, cylinders, the jigs' prisms) in the
+    # world; the twin clips the shapes' hulls into slabs on the board's frame: each says which tags it hid
+    import math
+
+    from bench.side_render import independent_side_frame
+    from station.services.guide import GuideRequest, make_guide
+
+    job = _simple() if scenario == "simple" else make_guide(GuideRequest(scenario, "success", tolerances=False,
+                                                                         jigs=True))
+    board = side_board(job.guide)
+    targets = check_side.side_targets(job, board)
+    u0, v0, u1, v1 = board.extent_mm
+    aim = ((u0 + u1) / 2 + 15.0, (v0 + v1) / 2 - 10.0)
+    truth = []
+    check_side.side_frame(job, board, targets, f"sim://camera?view=side&height=700&tilt={tilt:g}&target={aim[0]},"
+                          f"{aim[1]}", truth=truth)
+    twin = {t.tag_id: t.visible for t in truth}
+    independent = {}
+    independent_side_frame(job, board, job.layout.x, aim_mm=aim, rise_mm=700.0 * math.tan(math.radians(-tilt)),
+                           visibility=independent)
+    assert twin == independent
+    assert (not all(twin.values())) == (tilt == 0.0)  # at the board's mid-height the parts hide some
