@@ -39,7 +39,7 @@ def register(subparsers) -> None:
         "With --jigs a side camera facing the board sheet behind the parts (`station guide --jigs` prints it) checks "
         "the heights and tilts of the parts on jig stands, as `station check` does with two cameras: give it as a "
         "second --camera, or name both cameras in station.toml; with a simulated world and no side camera named, "
-        "the world's own side camera (sim://camera?view=side&height=700) does. "
+        "the world's own side camera (sim://camera?view=side&height=700&tilt=-20) does. "
         "q, Ctrl-C or the end of the input leave having logged nothing.",
         epilog="examples:\n"
         "  station assemble ballrun ballrun-layout.json --project\n"
@@ -47,7 +47,7 @@ def register(subparsers) -> None:
         "--sheet guide.pdf\n"
         "  station assemble causalityswitch_ball success --world 'sim://world?seed=2' --jigs\n"
         "  station assemble simple success --world 'sim://world?seed=3' --jigs --camera sim://camera "
-        "--camera 'sim://camera?view=side&height=700'\n"
+        "--camera 'sim://camera?view=side&height=700&tilt=-20'\n"
         "  printf 's\\n\\na\\n\\ny\\n' | station assemble simple success --world sim://world\n"
         "    (the answers piped: s skips the guide's steps, Enter: placed, a: run as placed, Enter: run, y: log it)",
         formatter_class=__import__("argparse").RawDescriptionHelpFormatter,

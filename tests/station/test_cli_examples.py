@@ -75,7 +75,7 @@ ANSWERS = {
         "s\n\na\n\ny\n",
     "station assemble causalityswitch_ball success --world 'sim://world?seed=2' --jigs": "s\n\na\n\ny\n",
     "station assemble simple success --world 'sim://world?seed=3' --jigs --camera sim://camera "
-    "--camera 'sim://camera?view=side&height=700'": "s\n\na\n\ny\n",
+    "--camera 'sim://camera?view=side&height=700&tilt=-20'": "s\n\na\n\ny\n",
 }
 
 #: Options whose value is a file (or folder) the example writes (``--sheet`` too, when it names a PDF).

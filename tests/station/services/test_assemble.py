@@ -245,10 +245,10 @@ def test_station_assemble_takes_the_side_camera_as_a_second_camera(capsys, monke
 
     code, out, err = run(capsys, monkeypatch, "s\n\na\n\ny\n", "simple", "success", "--world",
                          "sim://world?seed=3", "--jigs", "--camera", "sim://camera",
-                         "--camera", "sim://camera?view=side&height=700&seed=1", "--json", *FAST)
+                         "--camera", "sim://camera?view=side&height=700&tilt=-20&seed=1", "--json", *FAST)
     assert code == 0, err
     attempt = json.loads(out)
-    assert "cameras: camera (sim://camera), camera-2 (sim://camera?view=side&height=700&seed=1)" in err
+    assert "cameras: camera (sim://camera), camera-2 (sim://camera?view=side&height=700&tilt=-20&seed=1)" in err
     (check,) = attempt["checks"]
     assert [(v["view"], v["camera"]) for v in check["views"]] == [("top", "camera"), ("side", "camera-2")]
     assert check["measured_by"]["track.z"] == "side" and check["side_parts"][0]["found"] is True

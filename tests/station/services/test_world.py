@@ -142,7 +142,7 @@ def test_a_forecast_takes_the_checks_error_for_what_the_side_camera_measured(mon
     monkeypatch.setattr("station.services.assemble.Forecast", lambda *args: None)
     job = make_guide(GuideRequest("simple", "success", tolerances=False, jigs=True))
     assembly = Assembly(job, load_trial_scenario("simple"), camera="sim://camera?supersample=1",
-                        side_camera="sim://camera?view=side&height=700&supersample=1",
+                        side_camera="sim://camera?view=side&height=700&tilt=-20&supersample=1",
                         world=worlds.open_world("sim://world?seed=2"), highlighted=True, station_camera=False)
     assembly.placed()
     assembly.check_parts(seed=1)
