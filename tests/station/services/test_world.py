@@ -158,6 +158,30 @@ def test_a_forecast_takes_the_checks_error_for_what_the_side_camera_measured(mon
     assert request.set_sigma["track.z"] == pytest.approx(0.0002) != pytest.approx(sigma["track.z"])
 
 
+def test_the_loops_side_camera_sees_over_causalityswitchs_parts_to_the_ball_track_on_its_stand():
+    # The parts before the board hide its lower tags from a camera at the board's mid-height; the loop's side camera,
+    # raised and looking down, finds the board's plane and measures the ball track's height and tilt through J1.
+    from station.services import world as worlds
+    from station.services.assemble import Assembly
+    from station.services.guide import GuideRequest, make_guide
+    from station.services.loop import LoopSettings
+    from station.services.trials import load_trial_scenario
+
+    settings = LoopSettings(jigs=True)
+    job = make_guide(GuideRequest("causalityswitch_ball", "success", tolerances=False, jigs=True))
+    assembly = Assembly(job, load_trial_scenario("causalityswitch_ball"), camera=settings.camera,
+                        side_camera=settings.side_camera, world=worlds.open_world("sim://world?seed=1"),
+                        highlighted=True, station_camera=False)
+    assembly.placed()
+    check = assembly.check_parts(seed=1).to_json()
+    (side,) = [view for view in check["views"] if view["view"] == "side"]
+    assert side["plane"] is not None and side["missing_reference_tags"] == []
+    assert check["measured_by"]["track_joint.z"] == "side" and check["measured_by"]["track_joint.roll"] == "side"
+    truth = dict(zip(job.scenario.design_space.names, worlds.as_placed_layout(job.scenario, job.guide,
+                                                                             assembly.world)))
+    assert check["as_measured"]["track_joint.z"] == pytest.approx(truth["track_joint.z"], abs=0.0005)
+
+
 def test_a_guide_without_a_parameter_and_no_ranges_is_refused(simple_job):
     from station.errors import ServiceError
     from station.services import world as worlds
