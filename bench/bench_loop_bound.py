@@ -24,8 +24,9 @@ The layouts: by default ``station optimize``'s service (the scenario's default b
 known physics, its layout and verified runners-up (``--candidates``) scored with 16 simulations each, the best
 measured again with ``--samples`` fresh simulations (default 64; a fresh measurement, so the choice's luck is not
 counted). ``--scan N`` leaves the optimizer out (so its search is not what limits the bound): N layouts of a
-scrambled Sobol design over the whole design space (seeded), with the scenario's own layouts and (``--loop-database``)
-every layout ``bench_loop`` placed in the same world, each scored with ``--scan-samples`` simulations at the
+scrambled Sobol design over the whole design space (seeded), with the scenario's own layouts (not with ``--precision
+flat``, which measures as the 2026-12-04 results did) and (``--loop-database``) every layout ``bench_loop`` placed in
+the same world, each scored with ``--scan-samples`` simulations at the
 precision of the scenario's own layout's guide, and the best ``--scan-top`` whose guide the station can make measured
 again with ``--samples`` simulations at the precision of their own guides; the bound is the best of those (a little
 generous: the best of a few noisy measurements).
@@ -35,7 +36,8 @@ reuses every simulation it made. ``--out FILE`` appends each world's row as a JS
 
 Run: ``python -m bench.bench_loop_bound [--scenarios branching,longchain] [--seeds 1-5] [--budget N]
 [--workers 2] [--scan 96] [--jigs both|yes|no] [--precision loop|flat] [--out rows.jsonl]`` or
-``python -m bench loop_bound`` (BRANCHING, seeds 1-2, budget 200).
+``python -m bench loop_bound`` (BRANCHING, seeds 1-2, budget 200); ``--table rows.jsonl`` prints the table of the
+rows stored there (no simulation).
 """
 
 from __future__ import annotations
@@ -258,7 +260,7 @@ def world_scan(name: str, seed: int, *, layouts: int, scan_samples: int, top: in
     space = known.design_space
     lower, upper = np.asarray(space.lower, dtype=float), np.asarray(space.upper, dtype=float)
     xs = lower + qmc.Sobol(d=len(lower), scramble=True, seed=seed).random(layouts) * (upper - lower)
-    given = [np.asarray(x, dtype=float) for x in scenario.layouts.values()]
+    given = [] if precision == "flat" else [np.asarray(x, dtype=float) for x in scenario.layouts.values()]
     given += loop_layouts(loop_database, known, seed) if loop_database else []
     xs = np.vstack([xs, *given]) if given else xs
     screening = _precision_of(precision, scenario, None, jigs)
@@ -332,6 +334,37 @@ def _world_lines(name: str, row: dict, scan: bool, seconds: float) -> list[str]:
     return lines
 
 
+def print_table(table: list[tuple[str, bool | None, list[dict]]]) -> None:
+    """The markdown table of ``(scenario, jigs (None: flat precision), rows)``."""
+    print("| scenario | jigs | success with the physics known, per world | pooled (95 % interval) | worlds >= 0.90 "
+          "| held down by (mean gain placed exactly) |")
+    print("|---|---|---|---|---|---|")
+    for name, jigs, rows in table:
+        bound, (low, high) = pooled(rows)
+        held = "; ".join(f"{n} {g:+.2f} ({amount}, {how})" for n, g, amount, how in limiting(rows)) or "-"
+        per_world = " / ".join(f"{r['seed']}: {r['success']:.2f}" for r in rows)
+        print(f"| {name} | {'flat' if jigs is None else 'yes' if jigs else 'no'} | {per_world} | {bound:.2f} "
+              f"[{low:.2f}, {high:.2f}] | {sum(r['success'] >= 0.9 for r in rows)}/{len(rows)} | {held} |")
+        if rows and "by_eye" in rows[0]:
+            by_eye = [r["by_eye"] for r in rows]
+            print(f"| {name}, placed by eye | flat | {' / '.join(f'{b:.2f}' for b in by_eye)} | "
+                  f"{np.mean(by_eye):.2f} | {sum(b >= 0.9 for b in by_eye)}/{len(by_eye)} | - |")
+
+
+def stored_table(path: str) -> list[tuple[str, bool | None, list[dict]]]:
+    """The rows ``--out`` appended to ``path``, per scenario and precision (a world measured again: its last row)."""
+    rows: dict[tuple, dict] = {}
+    for line in Path(path).read_text(encoding="utf-8").splitlines():
+        if line.strip():
+            row = json.loads(line)
+            jigs = None if row["precision"] == "flat" else bool(row["jigs"])
+            rows[(row["scenario"], jigs, row["seed"])] = row
+    table: dict[tuple, list[dict]] = {}
+    for (name, jigs, _), row in sorted(rows.items(), key=lambda item: (item[0][0], item[0][1] is True, item[0][2])):
+        table.setdefault((name, jigs), []).append(row)
+    return [(name, jigs, found) for (name, jigs), found in table.items()]
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--scenarios", default="branching,causalityswitch_ball,longchain")
@@ -353,7 +386,16 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--loop-database", default=None,
                         help="also measure the layouts bench_loop placed in the same worlds (its database; --scan)")
     parser.add_argument("--out", default=None, help="append each world's row to this file (JSON lines)")
+    parser.add_argument("--table", default=None, help="only print the table of the rows --out wrote to this file")
     args = parser.parse_args([] if argv is None else argv)
+    if args.table:
+        try:
+            table = stored_table(args.table)
+        except (OSError, ValueError, KeyError) as error:
+            print(f"bench_loop_bound: --table {args.table}: expected the JSON lines --out writes ({error})")
+            return 2
+        print_table(table)
+        return 0
     if argv is None:  # python -m bench: a small version
         args.scenarios, args.seeds, args.budget, args.jigs = "branching", "1-2", 200, "no"
     names = [s.strip() for s in args.scenarios.split(",") if s.strip()]
@@ -388,20 +430,7 @@ def main(argv: list[str] | None = None) -> int:
                                               **row}) + "\n")
                 rows.append(row)
             table.append((name, jigs, rows))
-    print("| scenario | jigs | success with the physics known, per world | pooled (95 % interval) | worlds >= 0.90 "
-          "| held down by (mean gain placed exactly) |")
-    print("|---|---|---|---|---|---|")
-    for name, jigs, rows in table:
-        bound, (low, high) = pooled(rows)
-        held = "; ".join(f"{n} {g:+.2f} ({amount}, {how})" for n, g, amount, how in limiting(rows)) or "-"
-        jig_words = "flat" if args.precision == "flat" else ("yes" if jigs else "no")
-        per_world = " / ".join(f"{r['success']:.2f}" for r in rows)
-        print(f"| {name} | {jig_words} | {per_world} | {bound:.2f} "
-              f"[{low:.2f}, {high:.2f}] | {sum(r['success'] >= 0.9 for r in rows)}/{len(rows)} | {held} |")
-        if args.precision == "flat" and args.scan:
-            by_eye = [r["by_eye"] for r in rows]
-            print(f"| {name}, placed by eye | flat | {' / '.join(f'{b:.2f}' for b in by_eye)} | "
-                  f"{np.mean(by_eye):.2f} | {sum(b >= 0.9 for b in by_eye)}/{len(by_eye)} | - |")
+    print_table([(name, None if args.precision == "flat" else jigs, rows) for name, jigs, rows in table])
     return 0
 
 

@@ -3,6 +3,8 @@ camera check measures at the check's move error, the rest as the guide tells the
 
 from __future__ import annotations
 
+import json
+
 import numpy as np
 import pytest
 
@@ -71,3 +73,21 @@ def test_the_limits_are_the_parameters_whose_exact_placement_gains_most():
                         "b.x": {"exact": 0.7, "gain": 0.0, "sigma": 0.001, "how": "sheet"}}}]
     assert bound.limiting(rows) == [("a.z", pytest.approx(0.15), "1.5 mm", "ruler")]
     assert bound.pooled([{"successes": 30, "samples": 40}, {"successes": 10, "samples": 40}])[0] == 0.5
+
+
+def test_the_table_of_stored_rows_keeps_a_worlds_last_row(tmp_path, capsys):
+    def row(seed, successes, jigs=True):
+        return {"scenario": "simple", "precision": "loop", "jigs": jigs, "seed": seed, "success": successes / 32,
+                "successes": successes, "samples": 32,
+                "limits": {"track.x": {"exact": 1.0, "gain": 0.1, "sigma": 0.0005, "how": "check (top)"}}}
+
+    rows = tmp_path / "rows.jsonl"
+    rows.write_text("\n".join(json.dumps(r) for r in (row(1, 8), row(1, 32), row(2, 16), row(1, 0, False))) + "\n")
+    assert bound.main(["--table", str(rows)]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    assert lines[2].startswith("| simple | no | 1: 0.00 |")
+    assert lines[3] == ("| simple | yes | 1: 1.00 / 2: 0.50 | 0.75 [0.63, 0.84] | 1/2 | track.x +0.10 (0.5 mm, "
+                        "check (top)) |")
+    rows.write_text("not json\n")
+    assert bound.main(["--table", str(rows)]) == 2
+    assert capsys.readouterr().out.startswith(f"bench_loop_bound: --table {rows}: expected the JSON lines")
