@@ -60,12 +60,12 @@ from calibration.sim_runs import wilson_interval
 from design.contraption.schema import ANGLE_KEYS
 from drivers.sim.world import parse_world_options
 from station.errors import ServiceError
+from station.services.loop import LoopSettings
 
 POSITION_SIGMA_M, ANGLE_SIGMA_DEG = 0.0005, 0.5  # --precision flat: a checked and corrected placement
 BY_EYE_SIGMA_M, BY_EYE_SIGMA_DEG = 0.001, 1.0  # --precision flat: a part the check does not measure, highlighted
-#: The loop's cameras (:class:`station.services.loop.LoopSettings`' camera; the side one faces the board).
-TOP_CAMERA = "sim://camera?supersample=1"
-SIDE_CAMERA = "sim://camera?supersample=1&view=side"
+#: The loop's cameras, as its attempts check with them (the side one, with jigs, faces the board).
+LOOP_CAMERAS = LoopSettings()
 PRECISIONS = ("loop", "flat")
 JIGS = {"both": (False, True), "yes": (True,), "no": (False,)}
 
@@ -123,12 +123,12 @@ def checked_by(job, *, jigs: bool, seed: int = 0) -> dict[str, str]:
     from station.services.check import CheckRequest, check_frame, grab_frame
     from station.services.check_side import measure_side, side_frame, side_targets
 
-    image, lens = grab_frame(TOP_CAMERA, job.guide, seed=seed)
+    image, lens = grab_frame(LOOP_CAMERAS.camera, job.guide, seed=seed)
     side = None
     board = side_board(job.guide) if jigs else None
     targets = side_targets(job, board) if board is not None else []
     if targets:
-        picture, side_lens = side_frame(job, board, targets, SIDE_CAMERA, seed=seed)
+        picture, side_lens = side_frame(job, board, targets, LOOP_CAMERAS.side_camera, seed=seed)
         side = measure_side(job, board, targets, picture, side_lens)
     return dict(check_frame(job, image, lens, CheckRequest(), side=side).report.measured_by)
 
