@@ -3,12 +3,12 @@ the verdict (what the recordings hold: their runs stopped there), and with the r
 awake event can still happen before its timeout; design/contraption/reach.py), with identical outcomes.
 
 Per scenario: the layouts, the three step totals and their ratios, identical labels and identical outcomes (labels,
-event states, times within a step: bench.simulation_fixtures.compare), the share of wall time the reach checks
-take, the wall time per simulation with the stop at the verdict only (the same code with the reach checks
-switched off) and with the reach stop, and what is left: among failures, the steps simulated after the deciding
-event woke (a stop could not come earlier than that without knowing the physics), by the deciding event's type.
-The "no early stop" total is the scenario's ``max_duration`` in steps per layout, which is what such a run steps
-(no need to run it).
+event states, times within a step: bench.simulation_fixtures.compare), the share of CPU time the reach checks
+take, the CPU time per simulation (this process's: the machine is shared) with the stop at the verdict only (the
+same code with the reach checks switched off) and with the reach stop, and what is left: among failures, the steps
+simulated after the deciding event woke (a stop could not come earlier than that without knowing the physics), by
+the deciding event's type. The "no early stop" total is the scenario's ``max_duration`` in steps per layout, which
+is what such a run steps (no need to run it).
 
 Run: ``python -m bench.simulation_early [--scenarios simple,ballrun] [--limit N] [--json OUT.json]`` or
 ``python -m bench.bench_simulation --early``.
@@ -35,7 +35,7 @@ FIXTURES = ROOT / "tests" / "data" / "simulation"
 
 
 class _Timer:
-    """Time spent in the reach checks (the bounds and the events' tests), by wrapping them."""
+    """CPU time spent in the reach checks (the bounds and the events' tests), by wrapping them."""
 
     def __init__(self) -> None:
         self.seconds = 0.0
@@ -47,11 +47,11 @@ class _Timer:
         self._saved.append((owner, name, original))
 
         def timed(*args, **kwargs):
-            start = time.perf_counter()
+            start = time.process_time()
             try:
                 return original(*args, **kwargs)
             finally:
-                self.seconds += time.perf_counter() - start
+                self.seconds += time.process_time() - start
                 self.calls += 1
 
         setattr(owner, name, timed)
@@ -73,27 +73,25 @@ def measure(stem: str, limit: int | None = None) -> dict:
     timer.wrap(reach_module.Reach, "__init__")
     timer.wrap(reach_module.Reach, "bounds")
     timer.wrap(simulation_module.Supervisor, "may_change")
+    timer.wrap(simulation_module.Supervisor, "surely_may_change")
     verdict_steps = reach_steps = 0
-    # The same layouts with the reach checks off (no awake event counts as bounded): the stop at the verdict only.
-    original_bounded = simulation_module.Supervisor.bounded
-    simulation_module.Supervisor.bounded = lambda self: False
-    verdict_wall = 0.0
-    try:
-        for row in rows:
-            start = time.perf_counter()
-            simulation_module.simulate(scenario, np.array(row["x"]), early_stop=True)
-            verdict_wall += time.perf_counter() - start
-    finally:
-        simulation_module.Supervisor.bounded = original_bounded
+    # Each layout twice, one run after the other (the machine's load drifts): with the reach checks off (no awake
+    # event counts as bounded, so the run stops at the verdict only), then on.
+    bounded = simulation_module.Supervisor.bounded
     same_label = same_outcome = 0
     left: Counter = Counter()
     left_runs: Counter = Counter()
-    wall = 0.0
+    wall = verdict_wall = 0.0
     try:
         for row in rows:
-            start = time.perf_counter()
+            simulation_module.Supervisor.bounded = lambda self: False
+            start = time.process_time()
+            simulation_module.simulate(scenario, np.array(row["x"]), early_stop=True)
+            verdict_wall += time.process_time() - start
+            simulation_module.Supervisor.bounded = bounded
+            start = time.process_time()
             result = simulation_module.simulate(scenario, np.array(row["x"]), early_stop=True)
-            wall += time.perf_counter() - start
+            wall += time.process_time() - start
             new = outcome(result)
             verdict_steps += row["steps"]
             reach_steps += new["steps"]
@@ -109,6 +107,7 @@ def measure(stem: str, limit: int | None = None) -> dict:
                     left[f"{name} ({types[name]})"] += extra
                     left_runs[f"{name} ({types[name]})"] += extra > 0
     finally:
+        simulation_module.Supervisor.bounded = bounded
         timer.restore()
     n = len(rows)
     return {

@@ -93,6 +93,11 @@ class Condition:
         :class:`~design.contraption.reach.Bounds`); False only when it certainly cannot. By default it can."""
         return True
 
+    def surely_may_hold(self, reach, horizon: float) -> bool:
+        """A cheap look before the bounds (:meth:`~design.contraption.reach.Reach.alone`): True when a moving body
+        can make the condition hold with its own energy, so :meth:`may_hold` would say so too. False: look closer."""
+        return False
+
 
 def touching(client, a: int, b: int) -> bool:
     return any(point[8] <= CONTACT_DISTANCE for point in client.getContactPoints(bodyA=a, bodyB=b))
@@ -115,6 +120,13 @@ class Contact(Condition):
     def may_hold(self, bounds) -> bool:
         return not bounds.apart(self.a, self.b)
 
+    def surely_may_hold(self, reach, horizon: float) -> bool:
+        for mover, other in ((self.a, self.b), (self.b, self.a)):
+            alone = reach.alone(mover, horizon)
+            if alone is not None and alone.meets(reach.core(other)):
+                return True
+        return False
+
 
 class NoContact(Contact):
     bounded = False
@@ -124,6 +136,9 @@ class NoContact(Contact):
 
     def may_hold(self, bounds) -> bool:
         return True
+
+    def surely_may_hold(self, reach, horizon: float) -> bool:
+        return False
 
 
 class RollingOn(Condition):
@@ -140,6 +155,10 @@ class RollingOn(Condition):
 
     def may_hold(self, bounds) -> bool:
         return bounds.angular(self.body) > self.threshold and not bounds.apart(self.body, self.on)
+
+    def surely_may_hold(self, reach, horizon: float) -> bool:
+        alone = reach.alone(self.body, horizon)
+        return alone is not None and alone.angular > self.threshold and alone.meets(reach.core(self.on))
 
 
 class Falling(Condition):
@@ -158,6 +177,10 @@ class Falling(Condition):
 
     def may_hold(self, bounds) -> bool:
         return bounds.speed(self.body) > self.threshold
+
+    def surely_may_hold(self, reach, horizon: float) -> bool:
+        alone = reach.alone(self.body, horizon)
+        return alone is not None and alone.speed > self.threshold
 
 
 class Rising(Falling):
@@ -183,6 +206,10 @@ class Pivoting(Condition):
 
     def may_hold(self, bounds) -> bool:
         return bounds.angular(self.body) > self.threshold
+
+    def surely_may_hold(self, reach, horizon: float) -> bool:
+        alone = reach.alone(self.body, horizon)
+        return alone is not None and alone.angular > self.threshold
 
 
 class Stopping(Condition):
@@ -213,12 +240,21 @@ class NotMoving(Condition):
         return math.sqrt(x * x + y * y + z * z) <= self.tolerance
 
     def may_hold(self, bounds) -> bool:
-        # The body's box holds its whole hull, so its centre too: the initial position must be within reach.
+        if bounds.fixed(self.body):
+            # At rest out of reach: it stays where it is, give or take its creep.
+            position, _ = self._pose(self.body)
+            away = math.dist(position, self.initial)
+            return away - bounds.creep() <= self.tolerance
+        # A moving body's box is a sphere about its centre: the initial position must be within reach.
         box = bounds.box(self.body)
         if box is None:
             return True
         nearest = np.clip(self.initial, box[0], box[1])
         return float(np.linalg.norm(nearest - self.initial)) <= self.tolerance
+
+    def surely_may_hold(self, reach, horizon: float) -> bool:
+        alone = reach.alone(self.body, horizon)
+        return alone is not None and alone.reaches(self.initial)
 
 
 class Toppling(Condition):
@@ -244,8 +280,11 @@ class Toppling(Condition):
     def may_hold(self, bounds) -> bool:
         # A body that turns no faster than its bound cannot add more than that times the horizon to its angle; one
         # at rest out of reach keeps its angle (with a margin for its creep).
-        turn = bounds.angular(self.body) * bounds.horizon
-        return self.angle() + turn + TOPPLE_MARGIN > self.threshold
+        return self.angle() + bounds.turn(self.body) + TOPPLE_MARGIN > self.threshold
+
+    def surely_may_hold(self, reach, horizon: float) -> bool:
+        alone = reach.alone(self.body, horizon)
+        return alone is not None and self.angle() + alone.angular * horizon + TOPPLE_MARGIN > self.threshold
 
 
 class Inclusion(Condition):
@@ -284,6 +323,10 @@ class Inclusion(Condition):
     def may_hold(self, bounds) -> bool:
         # The inner volume lies inside the container's hull and the body's centre inside its own.
         return not bounds.apart(self.body, self.container)
+
+    def surely_may_hold(self, reach, horizon: float) -> bool:
+        alone = reach.alone(self.body, horizon)
+        return alone is not None and alone.meets(reach.core(self.container))
 
 
 CONDITIONS: dict[str, type[Condition]] = {

@@ -44,8 +44,9 @@ from design.contraption.world import World
 REST_SPEED = 5e-3
 REST_ANGULAR = 5e-2
 REST_MOVE = 2e-4
-#: How fast a body at rest may creep (m/s): its box grows by that over the horizon.
+#: How fast a body at rest may creep (m/s, rad/s): its box grows by that over the horizon, its angle turns by that.
 REST_CREEP = 1e-3
+REST_TURN = 5e-3
 #: Extra room around every box (m): Bullet's contact threshold, penetrations, a resting body's creep.
 BOX_MARGIN = 2e-3
 #: How far a body may sink into the floor (m): the potential energy that releases is counted.
@@ -83,6 +84,16 @@ class Bounds:
         i = self._index.get(uid)
         return math.inf if i is None else float(self._angular[i])
 
+    def turn(self, uid: int) -> float:
+        """How far the body may turn over the horizon (radians): a body at rest only creeps."""
+        if self.fixed(uid):
+            return REST_TURN * self.horizon
+        return self.angular(uid) * self.horizon
+
+    def creep(self) -> float:
+        """How far a body at rest may move over the horizon (m)."""
+        return BOX_MARGIN + REST_CREEP * self.horizon
+
     def apart(self, a: int, b: int, margin: float = 0.0) -> bool:
         """The two bodies' boxes do not overlap (with ``margin``): they cannot touch over the horizon."""
         box_a, box_b = self.box(a), self.box(b)
@@ -91,14 +102,38 @@ class Bounds:
         return bool(np.any(box_a[0] > box_b[1] + margin) or np.any(box_b[0] > box_a[1] + margin))
 
 
+class Alone:
+    """What one moving body can reach with its own energy (see :meth:`Reach.alone`): a box its centre may reach,
+    its speed and angular speed bounds."""
+
+    __slots__ = ("position", "lower", "upper", "speed", "angular", "horizon")
+
+    def __init__(self, position, lower, upper, speed, angular, horizon) -> None:
+        self.position, self.lower, self.upper = position, lower, upper
+        self.speed, self.angular, self.horizon = speed, angular, horizon
+
+    def reaches(self, point) -> bool:
+        """The centre may come to ``point``."""
+        return all(lo <= p <= hi for lo, p, hi in zip(self.lower, point, self.upper))
+
+    def meets(self, box) -> bool:
+        """The centre may come into ``box`` (lower, upper)."""
+        return box is not None and all(lo <= b_hi and b_lo <= hi
+                                       for lo, hi, b_lo, b_hi in zip(self.lower, self.upper, *box))
+
+
 def _hull_depth(points: np.ndarray) -> float:
     """The least distance from the origin to the hull's boundary along any direction (negative when the origin is
     outside it): how far the origin stays above a plane the body rests on."""
+    farthest = -float(np.max(np.linalg.norm(points, axis=1)))
     try:
         hull = ConvexHull(points)
     except (QhullError, ValueError):
-        return -float(np.max(np.linalg.norm(points, axis=1)))
-    return float(np.min(-hull.equations[:, 3]))
+        return farthest
+    depth = float(np.min(-hull.equations[:, 3]))
+    # Outside the hull the facets' planes can underrate the distance (an edge or corner may be nearer): take the
+    # farthest point instead, a bound that holds in every orientation.
+    return depth if depth >= 0.0 else farthest
 
 
 def _components(joined: np.ndarray) -> np.ndarray:
@@ -208,10 +243,14 @@ class Reach:
         self._previous_slow: np.ndarray | None = None
         self._previous_time: float | None = None
 
-    def bounds(self, t: float, horizon: float, since: float | None) -> Bounds | None:
+    def bounds(self, t: float, horizon: float, since: float | None, give_up=None) -> Bounds | None:
         """Every body's box over the ``horizon`` seconds after ``t`` (None when no bound holds: no floor). A body
         is at rest when it was slow at the previous check too, ``since`` seconds before (None: no previous check;
-        a check further apart, or a gap other than ``since``, does not count)."""
+        a check further apart, or a gap other than ``since``, does not count).
+
+        ``give_up(bounds)``, when given, is asked at every round of the groups' growth and ends the work (None)
+        when it says True: the boxes only grow from round to round, so an event that can still happen with the
+        smaller boxes can with the final ones (most checks end there, after one round)."""
         n = len(self.dynamic)
         state = np.array([(*p, *v, *w) for p, v, w in self._states()], dtype=float).reshape(n, 9)
         position, velocity, angular = state[:, :3], state[:, 3:6], state[:, 6:]
@@ -233,11 +272,11 @@ class Reach:
         lowest = np.maximum(self.floor + self.depth, self.hinge_lowest)
         drop = position[:, 2] - lowest + SINK
         energy = kinetic + self.mass * self.g * np.maximum(drop, 0.0)
-        ball_lower, ball_upper = self._ball_boxes(position, velocity, angular, horizon)
-
         # Which bodies share energy: the links, and every overlap of a moving group's box with another box.
         joined = self.linked.copy()
         ball = self.ball & ~resting
+        if ball.any():
+            ball_lower, ball_upper = self._ball_boxes(position, velocity, angular, horizon)
         while True:
             roots = _components(joined)
             moving_root = np.zeros(n, dtype=bool)
@@ -255,33 +294,96 @@ class Reach:
             # A hinged body stays within its arm (and its own radius) of the hinge.
             lower = np.where(self.is_hinged[:, None], np.maximum(lower, self.hinge_lower), lower)
             upper = np.where(self.is_hinged[:, None], np.minimum(upper, self.hinge_upper), upper)
-            single = np.bincount(roots, minlength=n)[roots] == 1
-            use_ball = ball & single & active
-            lower = np.where(use_ball[:, None], ball_lower, lower)
-            upper = np.where(use_ball[:, None], ball_upper, upper)
+            use_ball = ball & active & (np.bincount(roots, minlength=n)[roots] == 1)
+            if use_ball.any():
+                lower = np.where(use_ball[:, None], ball_lower, lower)
+                upper = np.where(use_ball[:, None], ball_upper, upper)
             overlap = np.all((lower[:, None, :] <= upper[None, :, :]) & (lower[None, :, :] <= upper[:, None, :]),
                              axis=2)
             new = overlap & (active[:, None] | active[None, :]) & (roots[:, None] != roots[None, :])
             changed = bool(new.any())
             joined |= new
             # A ball's triangle holds only while nothing but a horizontal plane is in its way.
-            blocked = use_ball & (self._hits_static(lower, upper) | self._hits_tilted_plane(lower, upper))
-            if np.any(blocked):
-                ball &= ~blocked
-                changed = True
+            if use_ball.any():
+                blocked = use_ball & (self._hits_static(lower, upper) | self._hits_tilted_plane(lower, upper))
+                if blocked.any():
+                    ball &= ~blocked
+                    changed = True
+            bounds = self._bounds(horizon, lower, upper, active, group_energy, vmax)
             if not changed:
-                break
-        fixed = ~active
+                return bounds
+            if give_up is not None and give_up(bounds):
+                return None
+
+    def _bounds(self, horizon, lower, upper, active, group_energy, vmax) -> Bounds:
         angular_max = np.where(active, np.sqrt(2.0 * group_energy / np.maximum(self.inertia_min, 1e-12)),
                                REST_ANGULAR)
         speed_max = np.where(active, vmax, REST_SPEED)
+        n_static = len(self.static_uids)
         return Bounds(
             horizon, self.index,
             np.concatenate([lower, self.static_lower]), np.concatenate([upper, self.static_upper]),
-            np.concatenate([fixed, np.ones(len(self.static_uids), dtype=bool)]),
-            np.concatenate([speed_max, np.zeros(len(self.static_uids))]),
-            np.concatenate([angular_max, np.zeros(len(self.static_uids))]),
+            np.concatenate([~active, np.ones(n_static, dtype=bool)]),
+            np.concatenate([speed_max, np.zeros(n_static)]),
+            np.concatenate([angular_max, np.zeros(n_static)]),
         )
+
+    def alone(self, uid: int, horizon: float) -> Alone | None:
+        """A cheap look at one moving body (two pybullet queries, plain floats): what its own energy alone lets it
+        reach over ``horizon``. The full bounds give it at least that (a moving body stays moving in them, its
+        group's energy is at least its own), so an event that can happen with this can happen with them: the check
+        is not worth making. None for a body at rest now (the full bounds may hold it fixed) or not a moving one."""
+        i = self.index.get(uid)
+        if i is None or i >= len(self.dynamic) or self.floor is None:
+            return None
+        position, _ = self._pose(uid)
+        velocity, angular = self._velocity(uid)
+        v2 = velocity[0] ** 2 + velocity[1] ** 2 + velocity[2] ** 2
+        w2 = angular[0] ** 2 + angular[1] ** 2 + angular[2] ** 2
+        if v2 < REST_SPEED ** 2 and w2 < REST_ANGULAR ** 2:
+            return None
+        mass = float(self.mass[i])
+        lowest = max(self.floor + float(self.depth[i]), float(self.hinge_lowest[i]))
+        drop = max(position[2] - lowest + SINK, 0.0)
+        kinetic = 0.5 * mass * v2 + 0.5 * float(self.inertia_max[i]) * w2
+        energy = (kinetic + mass * self.g * drop) * ENERGY_MARGIN + ENERGY_FLOOR
+        vmax = math.sqrt(2.0 * energy / mass)
+        # The box its centre may reach with its own energy: inside the full bounds' box (which adds the body's
+        # radius, and a group's energy at least its own).
+        reach = vmax * horizon
+        lower = [position[k] - reach for k in range(3)]
+        upper = [position[k] + reach for k in range(3)]
+        lower[2] = max(lower[2], self.floor)
+        upper[2] = min(upper[2], position[2] + energy / (mass * self.g))
+        if self.is_hinged[i]:
+            lower = [max(a, float(b)) for a, b in zip(lower, self.hinge_lower[i])]
+            upper = [min(a, float(b)) for a, b in zip(upper, self.hinge_upper[i])]
+        if self.ball[i]:
+            # The full bounds may hold a ball to its triangle instead: keep only what both allow.
+            r = float(self.radius[i])
+            roll_x = velocity[0] - 2.0 / 7.0 * (velocity[0] - r * angular[1])
+            roll_y = velocity[1] - 2.0 / 7.0 * (velocity[1] + r * angular[0])
+            lower[0] = max(lower[0], position[0] + horizon * min(0.0, velocity[0], roll_x))
+            upper[0] = min(upper[0], position[0] + horizon * max(0.0, velocity[0], roll_x))
+            lower[1] = max(lower[1], position[1] + horizon * min(0.0, velocity[1], roll_y))
+            upper[1] = min(upper[1], position[1] + horizon * max(0.0, velocity[1], roll_y))
+            upper[2] = min(upper[2], position[2] + velocity[2] ** 2 / (2.0 * self.g))
+        omega = math.sqrt(2.0 * energy / max(float(self.inertia_min[i]), 1e-12))
+        return Alone(tuple(position), lower, upper, vmax, omega, horizon)
+
+    def core(self, uid: int) -> tuple[list, list] | None:
+        """A box surely inside the body's box in any bounds: a static body's bounding box, a moving body's centre
+        (when its hull holds it); None when there is none (a plane)."""
+        i = self.index.get(uid)
+        if i is None:
+            return None
+        if i >= len(self.dynamic):
+            k = i - len(self.dynamic)
+            return list(self.static_lower[k] + BOX_MARGIN), list(self.static_upper[k] - BOX_MARGIN)
+        if self.depth[i] < 0.0:
+            return None
+        position, _ = self._pose(uid)
+        return list(position), list(position)
 
     def _states(self):
         pose, velocity = self._pose, self._velocity
@@ -294,21 +396,17 @@ class Reach:
         """The box a lone ball on a horizontal plane stays in (see the module notes); for every body, used only for
         the balls."""
         r = self.radius
-        slip_x = velocity[:, 0] - r * angular[:, 1]
-        slip_y = velocity[:, 1] + r * angular[:, 0]
-        roll_x = velocity[:, 0] - 2.0 / 7.0 * slip_x
-        roll_y = velocity[:, 1] - 2.0 / 7.0 * slip_y
-        zero = np.zeros(len(r))
-        vx = np.stack([zero, velocity[:, 0], roll_x])
-        vy = np.stack([zero, velocity[:, 1], roll_y])
-        rise = velocity[:, 2] ** 2 / (2.0 * self.g)
-        lower = np.stack([position[:, 0] + horizon * vx.min(axis=0), position[:, 1] + horizon * vy.min(axis=0),
-                          np.full(len(r), self.floor)], axis=1)
-        upper = np.stack([position[:, 0] + horizon * vx.max(axis=0), position[:, 1] + horizon * vy.max(axis=0),
-                          position[:, 2] + rise], axis=1)
-        lower[:, :2] -= (r + BOX_MARGIN)[:, None]
-        upper += (r + BOX_MARGIN)[:, None]
-        lower[:, 2] -= BOX_MARGIN
+        v = velocity[:, :2]
+        # The slip at the contact (v + w x (-r z)) and the velocity the ball rolls at once it has gone.
+        slip = np.stack([v[:, 0] - r * angular[:, 1], v[:, 1] + r * angular[:, 0]], axis=1)
+        roll = v - 2.0 / 7.0 * slip
+        size = (r + BOX_MARGIN)[:, None]
+        lower = np.empty_like(position)
+        upper = np.empty_like(position)
+        lower[:, :2] = position[:, :2] + horizon * np.minimum(np.minimum(v, roll), 0.0) - size
+        upper[:, :2] = position[:, :2] + horizon * np.maximum(np.maximum(v, roll), 0.0) + size
+        lower[:, 2] = self.floor - BOX_MARGIN
+        upper[:, 2] = position[:, 2] + velocity[:, 2] ** 2 / (2.0 * self.g) + size[:, 0]
         return lower, upper
 
     def _hits_static(self, lower, upper) -> np.ndarray:

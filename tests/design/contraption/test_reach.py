@@ -12,6 +12,7 @@ import pytest
 
 from bench.simulation_fixtures import compare, outcome
 from design.contraption import Simulator, load_scenario
+from design.contraption import reach as reach_module
 from design.contraption.reach import Reach
 from design.contraption.simulation import simulate
 
@@ -74,3 +75,18 @@ def test_a_ball_rolling_towards_the_dominoes_may_reach_them(simple):
     bounds, ball, first, last, _ = _rolling_ball_bounds(simple, -0.3)
     assert not bounds.apart(ball, last)
     assert not bounds.fixed(last)
+
+
+def test_groups_are_the_chains_of_joined_bodies():
+    joined = np.zeros((6, 6), dtype=bool)
+    for a, b in ((0, 3), (3, 5), (1, 2)):
+        joined[a, b] = joined[b, a] = True
+    assert reach_module._components(joined).tolist() == [0, 1, 1, 0, 4, 0]
+
+
+def test_a_box_stands_its_least_half_extent_above_the_floor_and_a_sphere_its_radius():
+    points = np.array([[sx * 0.01, sy * 0.02, sz * 0.03] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)])
+    assert reach_module._hull_depth(points) == pytest.approx(0.01)
+    # An origin outside the hull may go below the floor: by no more than its distance to the farthest point.
+    shifted = points + [0.05, 0.0, 0.0]
+    assert reach_module._hull_depth(shifted) == pytest.approx(-np.max(np.linalg.norm(shifted, axis=1)))
