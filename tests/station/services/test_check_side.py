@@ -372,8 +372,7 @@ def test_a_board_hidden_behind_dominoes_measures_nothing_and_says_what_hides_it_
     assert "`ball_track`: tag 501 (jig J1) not measured" in lines[-1] and "`wave` stands in front" in lines[-1]
 
 
-@pytest.mark.parametrize("scenario, tilt", [("simple", 0.0), ("simple", -20.0),
-                                            pytest.param("causalityswitch_ball", 0.0, marks=pytest.mark.slow)])
+@pytest.mark.parametrize("scenario, tilt", [("simple", 0.0), ("simple", -20.0), ("causalityswitch_ball", 0.0)])
 def test_the_twin_and_the_independent_renderer_hide_the_same_tags(scenario, tilt):
     # bench/side_render.py ray casts the scene graph's own shapes (boxes, spheres, cylinders, the jigs' prisms) in the
     # world; the twin clips the shapes' hulls into slabs on the board's frame: each says which tags it hid
