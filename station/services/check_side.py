@@ -15,6 +15,7 @@ reference tags in its frame (the board's 579-582 make it the side camera).
 from __future__ import annotations
 
 import math
+import textwrap
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field, replace
 
@@ -470,16 +471,17 @@ def plane_name(name: str) -> str:
 @station_errors
 def side_overlay(side: SideView) -> np.ndarray:
     """The side camera's frame with its check drawn on it (RGB): each jig plate where the guide wants it (green) and
-    where the camera found it (orange, carried by its tag), the instructions written above. Drawn through the board's
-    plane found in the frame (the frame as it is when none was found)."""
+    where the camera found it (orange, carried by its tag), each tag it did not read where it should be (red), the
+    lines about them and the instructions written above. Drawn through the board's plane found in the frame (the
+    frame as it is when none was found)."""
     out = np.array(side.image, dtype=np.uint8, copy=True)
     if out.ndim == 2:
         out = np.repeat(out[:, :, None], 3, axis=2)
     plane = side.measurement.plane
-    lines = [c.instruction for c in side.checks] or ["the side camera reads no tag"]
-    if plane is None:
-        lines = ["side view: too few board tags seen: no plane"]
-    else:
+    missing = side.measurement.missing_reference_ids
+    lines = _board_lines(missing, side.hidden, plane is None)
+    lines += [c.instruction for c in side.checks] or ["the side camera reads no tag"]
+    if plane is not None:
         matrix = np.asarray(side.intrinsics.camera_matrix, float)
         dist = np.asarray(side.intrinsics.dist_coeffs, float)
 
@@ -502,8 +504,18 @@ def side_overlay(side: SideView) -> np.ndarray:
                 offset = np.asarray(target.plate_mm, float) - target.center_mm
                 moved = np.asarray(check.measured_center_mm) + offset @ np.array([[c, s], [-s, c]])
                 cv2.polylines(out, [pixels(moved, target.tag_depth_mm)], True, (255, 140, 0), 3, cv2.LINE_AA, 4)
+        unread = [(t.center_mm, t.size_mm, 0.0, 0.0) for t in side.board.reference_tags if t.id in missing]
+        unread += [(t.tag_center_mm, t.tag_size_mm, t.tag_heading_deg, t.tag_depth_mm) for t in side.targets
+                   if t.part in checks and not checks[t.part].found]
+        for centre, size, heading, depth in unread:  # where a tag should show, with its border
+            turn, half = math.radians(heading), 0.625 * size
+            square = [(float(centre[0]) + a * math.cos(turn) - b * math.sin(turn),
+                       float(centre[1]) + a * math.sin(turn) + b * math.cos(turn))
+                      for a, b in ((-half, -half), (half, -half), (half, half), (-half, half))]
+            cv2.polylines(out, [pixels(square, depth)], True, (230, 30, 30), 3, cv2.LINE_AA, 4)
     scale = max(out.shape[1] / 1920.0, 0.4)
-    for i, line in enumerate(lines[:6]):
+    lines = [part for line in lines for part in textwrap.wrap(line, 110)]
+    for i, line in enumerate(lines[:10]):
         y = int((40 + 34 * i) * scale)
         cv2.putText(out, line, (int(20 * scale), y), cv2.FONT_HERSHEY_SIMPLEX, 0.75 * scale, (0, 0, 0), 4, cv2.LINE_AA)
         cv2.putText(out, line, (int(20 * scale), y), cv2.FONT_HERSHEY_SIMPLEX, 0.75 * scale, (255, 255, 255), 1,

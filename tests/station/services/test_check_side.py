@@ -12,6 +12,7 @@ import functools
 import json
 import re
 
+import cv2
 import numpy as np
 import pypdfium2 as pdfium
 import pytest
@@ -323,6 +324,16 @@ def test_a_part_in_front_of_a_board_tag_hides_it_and_the_plane_comes_from_the_ot
     truth = part_plane_pose(job.scenario, job.layout.x, side.board.plane, ["track"])["track"]
     assert check.found and abs(check.measured_center_mm[1] - truth.center_mm[1]) < 0.3
     assert abs(check.measured_heading_deg - truth.heading_deg) < 0.3
+    # the overlay marks where the hidden tag should show (red), through the plane of the other three
+    overlay = check_side.side_overlay(side)
+    red = np.all(np.abs(overlay.astype(int) - (230, 30, 30)) < 30, axis=2)
+    tag = side.board.reference_tags[1]
+    assert tag.id == 580
+    u, v = np.argwhere(red)[:, 1], np.argwhere(red)[:, 0]
+    matrix, plane = side.intrinsics.camera_matrix, side.measurement.plane
+    corner = cv2.projectPoints(np.array([[tag.center_mm[0] - 25.0, tag.center_mm[1] + 25.0, 0.0]]),  # with border
+                               plane.rvec, plane.tvec, matrix, side.intrinsics.dist_coeffs)[0].reshape(2)
+    assert red.sum() > 200 and np.min(np.hypot(u - corner[0], v - corner[1])) < 3.0
 
 
 def test_the_parts_drawn_where_they_hide_nothing_change_no_measurement(monkeypatch):
