@@ -28,8 +28,9 @@ scrambled Sobol design over the whole design space (seeded), with the scenario's
 flat``, which measures as the 2026-12-04 results did) and (``--loop-database``) every layout ``bench_loop`` placed in
 the same world, each scored with ``--scan-samples`` simulations at the
 precision of the scenario's own layout's guide, and the best ``--scan-top`` whose guide the station can make measured
-again with ``--samples`` simulations at the precision of their own guides; the bound is the best of those (a little
-generous: the best of a few noisy measurements).
+again with ``--samples`` simulations at the precision of their own guides, with every layout the loop placed and
+(``--jigs both``) the best layout without jigs measured with jigs whatever their screening; the bound is the best of
+those (a little generous: the best of a few noisy measurements).
 
 Simulations go through the station's cache (``CHAOS_STATION_HOME`` moves it): a run stopped and started again
 reuses every simulation it made. ``--out FILE`` appends each world's row as a JSON line.
@@ -48,6 +49,7 @@ import math
 import sqlite3
 import tempfile
 import time
+from collections.abc import Sequence
 from contextlib import closing
 from dataclasses import dataclass
 from pathlib import Path
@@ -143,6 +145,11 @@ def loop_precision(scenario, x: np.ndarray | None, *, jigs: bool, world: str = "
     job = guide_job(scenario, x, jigs=jigs)
     set_sigma = guide_sigma(job.guide, scenario, highlighted=True)
     set_with = {q.name: q.set_with for part in job.guide.parts for q in part.settings}
+    for by_hand in job.jigs.plan.by_hand if job.jigs is not None else ():  # the plan says why it made no jig
+        for part in job.guide.parts:
+            if part.name == by_hand.part:
+                set_with.update({q.name: f"{q.set_with}, no jig: {by_hand.reason}" for q in part.settings
+                                 if q.set_with != "jig"})
     measured = checked_by(job, jigs=jigs)
     options = parse_world_options(world)
     sigma, how = {}, {}
@@ -248,10 +255,12 @@ def loop_layouts(database: str, scenario, seed: int) -> list[np.ndarray]:
 
 def world_scan(name: str, seed: int, *, layouts: int, scan_samples: int, top: int, samples: int, workers: int,
                precision: str = "loop", jigs: bool = False, limits: bool = True,
-               loop_database: str | None = None) -> dict:
-    """The best of a Sobol design's ``layouts``, the scenario's own layouts and (``loop_database``) those the loop
-    placed in world ``seed``, with its physics known (:func:`world_bound`'s keys; ``"budget"`` is the simulations
-    spent, ``"candidates"`` the top layouts' fresh measurements, ``"by_eye"`` with ``precision`` flat)."""
+               loop_database: str | None = None, carried: Sequence[np.ndarray] = ()) -> dict:
+    """The best of a Sobol design's ``layouts``, the scenario's own layouts, (``loop_database``) those the loop
+    placed in world ``seed`` and the ``carried`` ones (another precision's best in this world), with its physics
+    known (:func:`world_bound`'s keys; ``"budget"`` is the simulations spent, ``"candidates"`` the measured layouts'
+    fresh measurements, ``"by_eye"`` with ``precision`` flat). The loop's and the carried layouts are measured
+    whatever their screening: the bound is never under what a layout the loop placed allows."""
     from scipy.stats import qmc
 
     from station.services.sim_calibration import station_runner
@@ -259,20 +268,27 @@ def world_scan(name: str, seed: int, *, layouts: int, scan_samples: int, top: in
     scenario, hidden, known = _known_world(name, seed)
     space = known.design_space
     lower, upper = np.asarray(space.lower, dtype=float), np.asarray(space.upper, dtype=float)
-    xs = lower + qmc.Sobol(d=len(lower), scramble=True, seed=seed).random(layouts) * (upper - lower)
-    given = [] if precision == "flat" else [np.asarray(x, dtype=float) for x in scenario.layouts.values()]
-    given += loop_layouts(loop_database, known, seed) if loop_database else []
-    xs = np.vstack([xs, *given]) if given else xs
+    scanned = lower + qmc.Sobol(d=len(lower), scramble=True, seed=seed).random(layouts) * (upper - lower)
+    own = [] if precision == "flat" else [np.asarray(x, dtype=float) for x in scenario.layouts.values()]
+    kept: list[np.ndarray] = []
+    for x in [*(loop_layouts(loop_database, known, seed) if loop_database else []), *carried]:
+        if not any(np.allclose(x, y) for y in kept):
+            kept.append(np.asarray(x, dtype=float))
+    sources = ["scanned"] * layouts + ["the scenario's"] * len(own) + ["the loop's or carried"] * len(kept)
+    xs = np.vstack([scanned, *own, *kept])
+    must = list(range(layouts + len(own), len(xs)))
     screening = _precision_of(precision, scenario, None, jigs)
     with station_runner(workers=workers) as run:
         screened = np.array([_success(known, hidden, run, x, scan_samples, 1, screening).probability for x in xs])
-        order, precisions, unguided = [], [], []
-        for i in np.argsort(-screened, kind="stable"):  # the best screened whose guide the station can make
-            if len(order) == top:
+        ranked = [int(i) for i in np.argsort(-screened, kind="stable") if i not in must]
+        order, precisions, unguided, best_screened = [], [], [], 0
+        for i in [*must, *ranked]:  # the must-measure ones, then the best screened whose guide the station can make
+            if i not in must and best_screened == top:
                 break
             try:
                 precisions.append(_precision_of(precision, scenario, xs[i], jigs))
-                order.append(int(i))
+                order.append(i)
+                best_screened += i not in must
             except (GEOSException, ServiceError) as error:  # no guide, no jigs: the loop cannot place it either
                 unguided.append({"layout": dict(zip(space.names, map(float, xs[i]))), "error": str(error)})
         measured = [_success(known, hidden, run, xs[i], samples, 7, p) for i, p in zip(order, precisions)]
@@ -281,8 +297,7 @@ def world_scan(name: str, seed: int, *, layouts: int, scan_samples: int, top: in
                             limits=limits)
         best = order[row["best"]]
         row.update(budget=len(xs) * scan_samples + len(order) * samples, candidates=scores, unguided=unguided,
-                   given=len(given), screened=float(screened[best]), best=best,
-                   chosen="the scenario's or the loop's" if best >= layouts else "scanned")
+                   given=len(own) + len(kept), screened=float(screened[best]), best=best, chosen=sources[best])
         if precision == "flat":
             by_eye = _success(known, hidden, run, xs[row["best"]], samples, 11,
                               flat_precision(scenario, BY_EYE_SIGMA_M, BY_EYE_SIGMA_DEG))
@@ -315,7 +330,7 @@ def _world_lines(name: str, row: dict, scan: bool, seconds: float) -> list[str]:
     weakest = sorted(row["events"].items(), key=lambda item: item[1])[:2]
     jigs = "with jigs" if row["jigs"] else "without jigs"
     lines = [f"  {name} world {row['seed']} {jigs}: best of {len(row['candidates'])} "
-             f"{'scanned layouts' if scan else 'candidates'} {row['success']:.2f} "
+             f"{'measured layouts' if scan else 'candidates'} {row['success']:.2f} "
              f"[{row['interval'][0]:.2f}, {row['interval'][1]:.2f}] (budget {row['budget']}; weakest events "
              f"{', '.join(f'{e} {p:.2f}' for e, p in weakest)}; {seconds:.0f} s)",
              f"    its layout {', '.join(f'{k} {v:.4g}' for k, v in row['layout'].items())}"
@@ -410,6 +425,7 @@ def main(argv: list[str] | None = None) -> int:
           f"simulations for the best, {placement}", flush=True)
     table = []
     for name in names:
+        best_without: dict[int, np.ndarray] = {}  # per world: the best layout without jigs, measured with them too
         for jigs in modes:
             rows = []
             for seed in _seeds(args.seeds):
@@ -418,7 +434,11 @@ def main(argv: list[str] | None = None) -> int:
                           "jigs": jigs, "limits": not args.no_limits}
                 if args.scan:
                     row = world_scan(name, seed, layouts=args.scan, scan_samples=args.scan_samples,
-                                     top=args.scan_top, loop_database=args.loop_database, **common)
+                                     top=args.scan_top, loop_database=args.loop_database,
+                                     carried=[best_without[seed]] if jigs and seed in best_without else [],
+                                     **common)
+                    if not jigs:
+                        best_without[seed] = np.array(list(row["layout"].values()), dtype=float)
                 else:
                     row = world_bound(name, seed, budget=args.budget, candidates=args.candidates, **common)
                 print("\n".join(_world_lines(name, row, bool(args.scan), time.perf_counter() - started)),

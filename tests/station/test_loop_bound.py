@@ -91,3 +91,28 @@ def test_the_table_of_stored_rows_keeps_a_worlds_last_row(tmp_path, capsys):
     rows.write_text("not json\n")
     assert bound.main(["--table", str(rows)]) == 2
     assert capsys.readouterr().out.startswith(f"bench_loop_bound: --table {rows}: expected the JSON lines")
+
+
+def test_a_part_the_jig_plan_leaves_by_hand_keeps_its_ruler_and_says_why(simple):
+    steep = np.array([-0.1418, 0.06082, 68.41])  # a track too steep to rest on a jig's edge
+    precision = bound.loop_precision(simple, steep, jigs=True)
+    set_sigma = guide_sigma(bound.guide_job(simple, steep, jigs=True).guide, simple, highlighted=True)
+    assert precision.how["track.z"].startswith("ruler, no jig: ")
+    assert precision.sigma["track.z"] == pytest.approx(set_sigma["track.z"]) == DEFAULTS["ruler_mm"] / 1000.0
+
+
+def test_the_loops_layouts_are_read_from_its_database(simple, tmp_path):
+    import sqlite3
+
+    database = tmp_path / "loop.sqlite3"
+    with sqlite3.connect(database) as connection:
+        connection.executescript("CREATE TABLE loop_runs (id INTEGER PRIMARY KEY, scenario_name TEXT, world TEXT);"
+                                 "CREATE TABLE loop_loops (run_id INTEGER, loop_number INTEGER, layout TEXT);")
+        connection.executemany("INSERT INTO loop_runs VALUES (?, ?, ?)",
+                               [(1, simple.name, "sim://world?seed=2"), (2, simple.name, "sim://world?seed=3")])
+        layout = lambda x: json.dumps({"x": x})  # noqa: E731
+        connection.executemany("INSERT INTO loop_loops VALUES (?, ?, ?)",
+                               [(1, 1, layout([-0.1, 0.05, 40.0])), (1, 2, layout([-0.1, 0.05, 40.0])),
+                                (1, 3, layout([-0.12, 0.04, 45.0])), (2, 1, layout([-0.05, 0.02, 30.0]))])
+    found = bound.loop_layouts(str(database), simple, 2)
+    assert [x.tolist() for x in found] == [[-0.1, 0.05, 40.0], [-0.12, 0.04, 45.0]]
