@@ -52,6 +52,9 @@ SIMULATOR_CACHE_REVISION = f"simulator-{SIMULATOR_REVISION}"
 REACH_INTERVAL = 0.08
 REACH_BACKOFF = 2.0
 REACH_LONGEST = 0.32
+#: A check that finds no event possible is made again this much later before the run stops: a body counted at rest
+#: must be slow then too (a rocking body is slow only at the ends of its swing).
+REACH_CONFIRM = 0.02
 
 
 @dataclass(frozen=True)
@@ -381,9 +384,11 @@ class Simulator:
         longest_gap = max(first_gap, int(round(REACH_LONGEST / dt)))
         reaching = bool(early_stop) and not record
         reach = None
+        confirm_gap = max(1, int(round(REACH_CONFIRM / dt)))
         gap = first_gap
         next_check = first_gap
         last_check = None
+        confirming = False
         for step in range(1, n_steps + 1):
             step_physics()
             if ropes:
@@ -401,6 +406,7 @@ class Simulator:
                     break
                 gap = first_gap
                 next_check = min(next_check, step + gap)
+                confirming = False
             if reaching and step >= next_check:
                 if supervisor.bounded():
                     if reach is None:
@@ -409,15 +415,22 @@ class Simulator:
                     if supervisor.surely_may_change(reach, horizon):
                         gap = min(longest_gap, max(gap + 1, int(gap * REACH_BACKOFF)))
                         next_check = step + gap
+                        confirming = False
                         continue
                     since = None if last_check is None else (step - last_check) * dt
                     bounds = reach.bounds(t, horizon, since, give_up=supervisor.may_change)
                     last_check = step
                     if bounds is not None and not supervisor.may_change(bounds):
-                        reached, verdict = self._fast_forward(supervisor, step, n_steps, dt, settled, on_change)
-                        break
+                        if confirming:
+                            reached, verdict = self._fast_forward(supervisor, step, n_steps, dt, settled,
+                                                                  on_change)
+                            break
+                        confirming = True
+                        next_check = step + confirm_gap
+                        continue
                     gap = min(longest_gap, max(gap + 1, int(gap * REACH_BACKOFF)))
                 next_check = step + gap
+                confirming = False
         if verdict is None or not early_stop or settled:
             verdict = supervisor.verdict()
         end = world.snapshot() if record else None
