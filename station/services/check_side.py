@@ -396,8 +396,8 @@ def merge_as_built(job, top, side: SideView):
 
     scenario = job.scenario
     poses = {c.name: PlanePose(c.measured_center_mm, c.measured_heading_deg) for c in side.checks if c.found}
-    if not poses:
-        return top, {}
+    if not poses:  # the side view measured nothing: what the top view measured stands
+        return top, {n: "top" for n in top.measured}
     free = {p.name: tuple(n for n in p.parameters if n not in top.measured) for p in job.guide.parts}
     fitted = as_built_layout(scenario, top.unclipped, side.board.plane, poses, free)
     names = list(scenario.design_space.names)

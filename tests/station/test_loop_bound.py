@@ -116,3 +116,14 @@ def test_the_loops_layouts_are_read_from_its_database(simple, tmp_path):
                                 (1, 3, layout([-0.12, 0.04, 45.0])), (2, 1, layout([-0.05, 0.02, 30.0]))])
     found = bound.loop_layouts(str(database), simple, 2)
     assert [x.tolist() for x in found] == [[-0.1, 0.05, 40.0], [-0.12, 0.04, 45.0]]
+
+
+def test_what_the_top_camera_measured_stands_when_the_side_camera_reads_nothing():
+    # the loop's side camera sees no jig face of this BRANCHING layout (its parts stand before it): the top view's
+    # lever and goblet places are still measured, and the ceiling places them at the check's move error
+    scenario = load_trial_scenario("branching")
+    x = np.array([-0.010385388315079366, 1.356849279552506, 0.11142502250155722, 0.17753690163154934])
+    job = bound.guide_job(scenario, x, jigs=True)
+    assert bound.checked_by(job, jigs=True) == {"lever.x": "top", "goblet.x": "top"}
+    precision = bound.loop_precision(scenario, x, jigs=True)
+    assert precision.how["lever.x"] == precision.how["goblet.x"] == "check (top)"
