@@ -158,6 +158,8 @@ def loop_precision(scenario, x: np.ndarray | None, *, jigs: bool, world: str = "
         fix = options["fix_deg"] if _is_angle(name) else options["fix_mm"] / 1000.0
         if name in measured and fix < sigma[name]:
             sigma[name], how[name] = float(fix), f"check ({measured[name]})"
+        elif how[name] == "check" and name not in measured:  # the guide counts on a check that sees nothing of it
+            how[name] = "check, not measured: by eye"
     return Precision(sigma, how, jigs)
 
 
