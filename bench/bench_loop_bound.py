@@ -282,7 +282,8 @@ def world_scan(name: str, seed: int, *, layouts: int, scan_samples: int, top: in
     screening = _precision_of(precision, scenario, None, jigs)
     with station_runner(workers=workers) as run:
         screened = np.array([_success(known, hidden, run, x, scan_samples, 1, screening).probability for x in xs])
-        ranked = [int(i) for i in np.argsort(-screened, kind="stable") if i not in must]
+        # best screened first; among equal scores the scenario's own layouts before the scanned ones
+        ranked = sorted((i for i in range(len(xs)) if i not in must), key=lambda i: (-screened[i], i < layouts, i))
         order, precisions, unguided, best_screened = [], [], [], 0
         for i in [*must, *ranked]:  # the must-measure ones, then the best screened whose guide the station can make
             if i not in must and best_screened == top:
