@@ -433,6 +433,9 @@ class _Context:
         support's ends.
         """
         a, b = self._support(name, cut, frame)
+        if band is None and min(a[1], b[1]) < 0.0:  # no plate stands between the table and a part under its top
+            raise _NoJig(f"its underside reaches {-min(a[1], b[1]):.1f} mm below the table top: the layout puts "
+                         "it through the table")
 
         def ground(x: float) -> float:
             if band is None:

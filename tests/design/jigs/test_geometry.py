@@ -126,6 +126,15 @@ def test_a_height_beyond_the_sheet_is_set_by_hand(tmp_path):
     assert "no jig: its stand would be" in step
 
 
+def test_a_part_the_layout_puts_through_the_table_gets_no_stand_and_a_reason(tmp_path):
+    # its lower end 21 mm under the table top: a plate there would cross itself (shapely refused to union it)
+    layout = write_layout(tmp_path, "l", {"track.x": -0.0817, "track.z": 0.0169, "track.roll": 47.5})
+    result = make_jigs("simple", layout, JigOptions(), tolerances=False)
+    assert not result.plan.jigs
+    (entry,) = result.plan.by_hand
+    assert entry.part == "track" and "21.0 mm below the table top" in entry.reason
+
+
 def test_a_part_hanging_from_a_rope_is_set_by_hand(tmp_path):
     scenario = tmp_path / "hanging.toml"
     scenario.write_text('''
