@@ -62,6 +62,7 @@ from calibration.sim_runs import wilson_interval
 from design.contraption.schema import ANGLE_KEYS
 from drivers.sim.world import parse_world_options
 from station.errors import ServiceError
+from station.services.check_cameras import camera_names, check_views, reads_side
 from station.services.loop import LoopSettings
 
 POSITION_SIGMA_M, ANGLE_SIGMA_DEG = 0.0005, 0.5  # --precision flat: a checked and corrected placement
@@ -119,20 +120,12 @@ def guide_job(scenario, x: np.ndarray | None, *, jigs: bool):
 
 def checked_by(job, *, jigs: bool, seed: int = 0) -> dict[str, str]:
     """``{parameter: "top" | "side"}``: what the loop's camera check measures of ``job``'s parts, placed as
-    designed: the top camera's frame, and with jigs the side camera's (the jigs' face tags), through the check itself
-    (:func:`station.services.check.check_frame`'s ``measured_by``)."""
-    from projector.board import side_board
-    from station.services.check import CheckRequest, check_frame, grab_frame
-    from station.services.check_side import measure_side, side_frame, side_targets
-
-    image, lens = grab_frame(LOOP_CAMERAS.camera, job.guide, seed=seed)
-    side = None
-    board = side_board(job.guide) if jigs else None
-    targets = side_targets(job, board) if board is not None else []
-    if targets:
-        picture, side_lens = side_frame(job, board, targets, LOOP_CAMERAS.side_camera, seed=seed)
-        side = measure_side(job, board, targets, picture, side_lens)
-    return dict(check_frame(job, image, lens, CheckRequest(), side=side).report.measured_by)
+    designed: the top camera's frame, and with jigs the side camera's (the jigs' face tags), through the loop's own
+    check (:func:`station.services.check_cameras.check_views`'s ``measured_by``)."""
+    cameras = camera_names([LOOP_CAMERAS.camera])
+    if jigs and reads_side(job):
+        cameras = camera_names([LOOP_CAMERAS.camera, LOOP_CAMERAS.side_camera])
+    return dict(check_views(job, cameras, seed=seed, station_cameras=False).report.measured_by)
 
 
 def loop_precision(scenario, x: np.ndarray | None, *, jigs: bool, world: str = "sim://world") -> Precision:
