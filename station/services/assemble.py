@@ -241,18 +241,14 @@ class Assembly:
         check`` names its ``--camera`` URLs (``camera``, ``camera-2``); station.toml's keep their names."""
         if self._views is None:
             top = camera_names([self.camera])[0] if self.camera is not None else configured_camera_url()
-            views = [top]
+            self._views = [top]
             if reads_side(self.job):
-                configured = []
-                if self.side_camera is None and self.camera is None and self.station_camera:
-                    configured = configured_cameras()
-                if self.side_camera is not None:
-                    views = [top, (camera_names([top[1], self.side_camera])[1][0], self.side_camera)]
-                elif len(configured) > 1:
-                    views = configured
-                elif self.world is not None:  # the simulated world serves both cameras
-                    views = [top, (camera_names([top[1], SIDE_CAMERA])[1][0], SIDE_CAMERA)]
-            self._views = views
+                station = self.side_camera is None and self.camera is None and self.station_camera
+                configured = configured_cameras() if station else []
+                if len(configured) > 1:
+                    self._views = configured
+                elif self.side_camera is not None or self.world is not None:  # a world serves its own side camera
+                    self._views = [top, camera_names([top[1], self.side_camera or SIDE_CAMERA])[1]]
         return list(self._views)
 
     @property
