@@ -39,7 +39,6 @@ class _Timer:
 
     def __init__(self) -> None:
         self.seconds = 0.0
-        self.calls = 0
         self._saved = []
 
     def wrap(self, owner, name: str) -> None:
@@ -52,7 +51,6 @@ class _Timer:
                 return original(*args, **kwargs)
             finally:
                 self.seconds += time.process_time() - start
-                self.calls += 1
 
         setattr(owner, name, timed)
 

@@ -106,11 +106,10 @@ class Alone:
     """What one moving body can reach with its own energy (see :meth:`Reach.alone`): a box its centre may reach,
     its speed and angular speed bounds."""
 
-    __slots__ = ("position", "lower", "upper", "speed", "angular", "horizon")
+    __slots__ = ("lower", "upper", "speed", "angular")
 
-    def __init__(self, position, lower, upper, speed, angular, horizon) -> None:
-        self.position, self.lower, self.upper = position, lower, upper
-        self.speed, self.angular, self.horizon = speed, angular, horizon
+    def __init__(self, lower, upper, speed, angular) -> None:
+        self.lower, self.upper, self.speed, self.angular = lower, upper, speed, angular
 
     def reaches(self, point) -> bool:
         """The centre may come to ``point``."""
@@ -152,12 +151,11 @@ def _components(joined: np.ndarray) -> np.ndarray:
 def _geometry(spec: BodySpec) -> tuple[float, float, bool]:
     """A body's radius around its frame origin, its hull depth (:func:`_hull_depth`), whether it is a centred
     sphere; made once per body spec (a scenario's specs are made once)."""
-    points = np.concatenate([p.surface_points(12) for p in spec.parts if p.kind != "plane"])
     parts = spec.parts
-    sphere = len(parts) == 1 and parts[0].kind == "sphere" and not parts[0].pose.position.any()
-    if sphere:
+    if len(parts) == 1 and parts[0].kind == "sphere" and not parts[0].pose.position.any():
         # The sampled circles' hull lies inside the sphere: its depth would undercut the radius by a few percent.
         return parts[0].dims[0], parts[0].dims[0], True
+    points = np.concatenate([p.surface_points(12) for p in parts if p.kind != "plane"])
     return float(np.max(np.linalg.norm(points, axis=1))), _hull_depth(points), False
 
 
@@ -184,9 +182,9 @@ class Reach:
                 dynamic.append(body)
         self.dynamic = dynamic
         horizontal = [p for n, p in planes if n[2] > 1.0 - 1e-9]
+        self.tilted = [(n, p) for n, p in planes if n[2] <= 1.0 - 1e-9]
         #: The lowest horizontal plane: no body's hull goes below it (None: nothing holds the bodies up).
         self.floor = min(float(p[2]) for p in horizontal) if horizontal else None
-        self.planes = planes
         self.uids = np.array([b.uid for b in dynamic], dtype=int)
         self.mass = np.array([b.mass for b in dynamic], dtype=float)
         radius, depth, ball = [], [], []
@@ -227,6 +225,8 @@ class Reach:
             self.hinge_lowest[i] = centre[2] - arm - SINK
             self.hinge_lower[i] = centre - arm - self.radius[i] - BOX_MARGIN
             self.hinge_upper[i] = centre + arm + self.radius[i] + BOX_MARGIN
+        #: How low each body's frame origin can go: its hull depth above the floor, or its arm below its hinge.
+        self.lowest = None if self.floor is None else np.maximum(self.floor + self.depth, self.hinge_lowest)
         self.linked = np.zeros((len(dynamic), len(dynamic)), dtype=bool)
         for a, b in links:
             self.linked[a, b] = self.linked[b, a] = True
@@ -269,8 +269,7 @@ class Reach:
         rest_lower = boxes[:, :3] - BOX_MARGIN - REST_CREEP * horizon
         rest_upper = boxes[:, 3:] + BOX_MARGIN + REST_CREEP * horizon
         kinetic = 0.5 * self.mass * speed ** 2 + 0.5 * self.inertia_max * spin ** 2
-        lowest = np.maximum(self.floor + self.depth, self.hinge_lowest)
-        drop = position[:, 2] - lowest + SINK
+        drop = position[:, 2] - self.lowest + SINK
         energy = kinetic + self.mass * self.g * np.maximum(drop, 0.0)
         # Which bodies share energy: the links, and every overlap of a moving group's box with another box.
         joined = self.linked.copy()
@@ -343,8 +342,7 @@ class Reach:
         if v2 < REST_SPEED ** 2 and w2 < REST_ANGULAR ** 2:
             return None
         mass = float(self.mass[i])
-        lowest = max(self.floor + float(self.depth[i]), float(self.hinge_lowest[i]))
-        drop = max(position[2] - lowest + SINK, 0.0)
+        drop = max(position[2] - float(self.lowest[i]) + SINK, 0.0)
         kinetic = 0.5 * mass * v2 + 0.5 * float(self.inertia_max[i]) * w2
         energy = (kinetic + mass * self.g * drop) * ENERGY_MARGIN + ENERGY_FLOOR
         vmax = math.sqrt(2.0 * energy / mass)
@@ -369,7 +367,7 @@ class Reach:
             upper[1] = min(upper[1], position[1] + horizon * max(0.0, velocity[1], roll_y))
             upper[2] = min(upper[2], position[2] + velocity[2] ** 2 / (2.0 * self.g))
         omega = math.sqrt(2.0 * energy / max(float(self.inertia_min[i]), 1e-12))
-        return Alone(tuple(position), lower, upper, vmax, omega, horizon)
+        return Alone(lower, upper, vmax, omega)
 
     def core(self, uid: int) -> tuple[list, list] | None:
         """A box surely inside the body's box in any bounds: a static body's bounding box, a moving body's centre
@@ -417,9 +415,7 @@ class Reach:
 
     def _hits_tilted_plane(self, lower, upper) -> np.ndarray:
         hit = np.zeros(len(lower), dtype=bool)
-        for normal, point in self.planes:
-            if normal[2] > 1.0 - 1e-9:
-                continue
+        for normal, point in self.tilted:
             # The box corner deepest along -normal: the box reaches the plane when it is within the margin.
             corner = np.where(normal[None, :] >= 0.0, lower, upper)
             hit |= (corner - point[None, :]) @ normal <= BOX_MARGIN
