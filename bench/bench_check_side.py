@@ -60,7 +60,6 @@ def run(scenario: str, placements: int, seed: int, independent: bool = False, ti
     rng = np.random.default_rng(seed)
     heights, tilts, params, missed = [], [], {}, 0
     board_hidden, no_plane, said, visible = 0, 0, Counter(), []
-    board_ids = {t.id for t in board.reference_tags}
     u0, v0, u1, v1 = board.extent_mm
     for i in range(placements):
         x = np.array(job.layout.x, dtype=float)
@@ -111,7 +110,7 @@ def run(scenario: str, placements: int, seed: int, independent: bool = False, ti
             params.setdefault(name, []).append(error)
     return {"scenario": scenario + (" independent" if independent else ""), "targets": len(targets),
             "frames": placements, "missed": missed, "board_hidden": board_hidden, "no_plane": no_plane,
-            "said": said, "visible": visible, "board_ids": board_ids,
+            "said": said, "visible": visible,
             "height_p95": _p95(heights), "height_max": float(np.max(np.abs(heights))) if heights else math.nan,
             "tilt_p95": _p95(tilts), "tilt_max": float(np.max(np.abs(tilts))) if tilts else math.nan,
             "params": {n: (_p95(v), float(np.max(np.abs(v)))) for n, v in params.items()}}

@@ -61,11 +61,11 @@ def _tag_quads(tag_id: int, centre, right, up, size_mm: float):
 
 
 class _Shapes:
-    """The scene's solids for ray casting (world mm): ``nearest(origin, directions)`` is each ray's distance to the
-    first solid it meets (inf: none), the rays unit vectors from ``origin``."""
+    """The scene's solids for ray casting (world mm): ``distance(item, origin, directions)`` is each ray's distance
+    to the solid ``item`` (inf: it misses), the rays unit vectors from ``origin``."""
 
     def __init__(self) -> None:
-        self.items = []  # (kind, data)
+        self.items = []  # (kind, its shape's data, points whose hull holds it)
 
     def add_part(self, kind: str, dims, pose) -> None:
         rotation = pose.rotation.as_matrix()
@@ -89,11 +89,9 @@ class _Shapes:
         face = face_origin + outline[:, :1] * x_axis + outline[:, 1:2] * y_axis
         self.items.append(("prism", (outline, face_origin, x_axis, y_axis, back), np.vstack([face, face + back])))
 
-    def nearest(self, origin: np.ndarray, rays: np.ndarray, items=None) -> np.ndarray:
-        best = np.full(len(rays), np.inf)
-        for kind, data, _ in self.items if items is None else items:
-            best = np.minimum(best, getattr(self, f"_{kind}")(origin, rays, *data))
-        return best
+    def distance(self, item, origin: np.ndarray, rays: np.ndarray) -> np.ndarray:
+        kind, data, _ = item
+        return getattr(self, f"_{kind}")(origin, rays, *data)
 
     @staticmethod
     def _local(origin, rays, rotation, position):
@@ -285,7 +283,7 @@ def independent_side_frame(job, board, x_moved, *, distance_mm: float = 700.0, a
                 continue
             window = (slice((b0 - y0) * scale, (b1 - y0) * scale), slice((a0 - x0) * scale, (a1 - x0) * scale))
             directions = rays(a0, b0, a1, b1, scale)
-            found = shapes.nearest(centre, directions, [item])
+            found = shapes.distance(item, centre, directions)
             found[found >= to_plane(directions, origin, normal)] = np.inf  # behind the board: hidden by it
             nearest[window] = np.minimum(nearest[window], found.reshape(nearest[window].shape))
         return nearest
