@@ -248,7 +248,8 @@ class Assembly:
                 if len(configured) > 1:
                     self._views = configured
                 elif self.side_camera is not None or self.world is not None:  # a world serves its own side camera
-                    self._views = [top, camera_names([top[1], self.side_camera or SIDE_CAMERA])[1]]
+                    side = SIDE_CAMERA if self.side_camera is None else self.side_camera
+                    self._views = [top, camera_names([top[1], side])[1]]
         return list(self._views)
 
     @property
