@@ -131,6 +131,11 @@ class CheckReport:
     #: per measured design parameter, the view that measured it
     measured_by: dict[str, str] = field(default_factory=dict)
 
+    @property
+    def measured_by_side(self) -> tuple[str, ...]:
+        """The design parameters the side camera measured."""
+        return tuple(name for name, view in self.measured_by.items() if view == "side")
+
     def to_json(self) -> dict:
         plane = None if self.plane is None else {
             "residual_mm": _r(self.plane.residual_mm), "reference_ids": [int(i) for i in self.plane.reference_ids],

@@ -553,7 +553,7 @@ def side_lines(report) -> list[str]:
         else:
             lines.append(f"  {part.name} (tag {part.tag_id}{via}): up {part.error[1]:+.1f} mm, turn "
                          f"{part.error[3]:+.1f} deg: {part.instruction}")
-    measured = [name for name, view in report.measured_by.items() if view == "side"]
+    measured = report.measured_by_side
     if measured:
         lines.append(f"measured by the side camera: {', '.join(measured)}")
     return lines

@@ -725,8 +725,7 @@ class _Loop:
             predicted = float(assembly.forecast(report=self.under(words)).prediction.probability)
         said = AttemptReport(k, a, 0, run.success, checked, _corrections(applied, job.guide.view), len(applied),
                              tuple(left), _failed_at(self.scenario, run.outcomes))
-        by = assembly.check.report.measured_by if assembly.check is not None else {}
-        side = tuple(name for name, view in by.items() if view == "side")
+        side = assembly.check.report.measured_by_side if assembly.check is not None else ()
         notes = self.note(job, said, predicted, side)
         stored = self.store.add_attempt(self.run_id, k, a, assembly.trial(who=f"simulated maker ({self.world.url})",
                                                                           notes=notes),

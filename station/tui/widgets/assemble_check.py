@@ -63,7 +63,7 @@ def check_lines(check, side_off: Collection[str] = ()) -> list[str]:
                          "tilt")
     if any(part.found and part.within_tolerance is None for part in report.parts):
         lines.append(f"yes*/NO*: {no_zone_words()}")
-    measured = [name for name, view in report.measured_by.items() if view == "side"]
+    measured = report.measured_by_side
     if measured:
         lines.append(f"measured by the side camera: {', '.join(measured)}")
     if report.prediction_note:
