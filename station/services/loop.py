@@ -141,7 +141,8 @@ class LoopSettings:
     jigs: bool = False
     #: the side camera's figures were measured 700 mm from the board (docs/results/2026-12-05-side-camera.md); raised
     #: to look down 20 degrees, it sees every board tag over the parts of the examples (docs/guide/side-camera.md);
-    #: one sample per pixel as the top camera's here, for the loop's speed
+    #: one sample per pixel as the top camera's here, for the loop's speed. It is check_cameras.SIDE_CAMERA written
+    #: out, not derived: a run's identity holds it, and must not change when that default does
     side_camera: str = "sim://camera?view=side&height=700&tilt=-20&supersample=1"
     workers: int | None = field(default=None, compare=False)
     scheduler: str | None = field(default=None, compare=False)
