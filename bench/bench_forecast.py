@@ -1,0 +1,213 @@
+"""Where the loop's per-attempt predictions go wrong: each prediction re-made with one ingredient replaced by the
+world's truth.
+
+The loop predicts each checked attempt (:meth:`station.services.assemble.Assembly.forecast`) from the check's
+as-built layout, the check's residual error on what it measured, the error of how the guide told the maker to set
+what it did not measure (:func:`station.services.world.guide_sigma`) and physics drawn from the loop's profile (loop 1:
+the scenario's values and ranges; later loops: the calibrated values and intervals), with ``predict_samples``
+simulations. This bench runs the loop (``bench_loop``'s service and sizes) with every attempt's prediction request,
+the layout as the world's maker really placed it and the world's hidden physics written to a capture file (``run``;
+only a bench may read those), then re-predicts every captured attempt (``decompose``) with:
+
+- ``station``: the same request with ``--samples`` simulations (the station's own model without the sampling noise
+  of its few simulations; ``as made`` repeats the loop's own count and seed, and must give the loop's figure);
+- ``hidden physics``: the world's hidden material values, no draws (what the physics draws cost);
+- ``profile centre``: the profile's values, no draws (what the width of the draws costs, apart from their centre);
+- ``true unmeasured``: the parameters the check did not measure at their really placed values, no error;
+- ``true measured``: the parameters the check measured at their really placed values, no error (what the check's
+  measurement error and residual cost);
+- ``true placement``: every parameter as really placed (physics still the profile's draws);
+- ``truth``: as placed under the hidden physics: one simulation, which must repeat the attempt's outcome.
+
+Every variant of an attempt draws the same placement noise and material draws (one seed), so their differences are
+not sampling noise. For each variant: the mean probability and the Brier score against the attempts' outcomes, per
+loop and overall.
+
+Run: ``python -m bench.bench_forecast run --scenario causalityswitch_ball --seeds 11-13 --jigs --database DB
+--capture rows.jsonl [--workers 2] [--predict-samples 16]`` then ``python -m bench.bench_forecast decompose --capture
+rows.jsonl [--samples 48] [--json out.json]``; ``--predictor new`` re-predicts with the station's current
+:func:`station.services.assemble.prediction_request` (the same captured attempts, the code's own request).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+
+import numpy as np
+
+from bench.bench_loop import FULL, _seeds, run_bench
+
+
+def capture(path: Path):
+    """Write every loop attempt's prediction request, as-placed layout, hidden physics and outcome to ``path``
+    (JSON lines) by wrapping the two calls of :class:`station.services.assemble.Assembly` that see them."""
+    import station.services.assemble as assemble
+
+    original_run, original_predict = assemble.run_attempt, assemble.predict_layout
+    state: dict = {}
+
+    def run_attempt(scenario, x, guide, world, hidden=None):
+        result = original_run(scenario, x, guide, world, hidden)
+        state["run"] = {"world": world.url, "world_seed": world.seed, "attempt": world.attempt,
+                        "success": bool(result.success), "as_placed": dict(result.as_placed),
+                        "hidden": world.hidden_physics(), "settings": world.settings(),
+                        "set_with": {p.name: {q.name: q.set_with for q in p.settings} for p in guide.parts}}
+        return result
+
+    def predict_layout(scenario, x, request, *, report=None):
+        result = original_predict(scenario, x, request, report=report)
+        run = state.pop("run", None)
+        if run is not None:
+            profile = request.profile
+            row = {"scenario": str(scenario.source), "content_hash": scenario.content_hash,
+                   "names": list(scenario.design_space.names), "x": [float(v) for v in x],
+                   "values": dict(profile.values) if profile else None,
+                   "intervals": {k: list(v) for k, v in profile.intervals.items()} if profile else None,
+                   "position_sigma_m": request.position_sigma_m, "angle_sigma_deg": request.angle_sigma_deg,
+                   "unmeasured": list(request.unmeasured), "set_sigma": dict(request.set_sigma or {}),
+                   "samples": request.samples, "seed": request.seed, "probability": result.probability, **run}
+            with path.open("a", encoding="utf-8") as out:
+                out.write(json.dumps(row) + "\n")
+        return result
+
+    assemble.run_attempt, assemble.predict_layout = run_attempt, predict_layout
+
+
+def read_rows(path: Path) -> list[dict]:
+    """The captured attempts, the last capture of each (world, attempt) kept, in order."""
+    rows: dict = {}
+    for line in path.read_text(encoding="utf-8").splitlines():
+        if line.strip():
+            row = json.loads(line)
+            rows[(row["world"], row["attempt"])] = row
+    return [rows[k] for k in sorted(rows, key=lambda k: (k[0], k[1]))]
+
+
+def variants(row: dict, samples: int) -> dict[str, dict]:
+    """The predictions to re-make for one captured attempt: ``{name: predict_success keyword arguments}``."""
+    names = row["names"]
+    x = np.array(row["x"], dtype=float)
+    placed = np.array([row["as_placed"][n] for n in names], dtype=float)
+    unmeasured = tuple(row["unmeasured"])
+    seen = np.array([n not in unmeasured for n in names])
+    station = dict(layout=x, values=row["values"], intervals=row["intervals"],
+                   position_sigma_m=row["position_sigma_m"], angle_sigma_deg=row["angle_sigma_deg"],
+                   unmeasured=unmeasured, set_sigma=row["set_sigma"], samples=samples, seed=row["seed"])
+    exact_unmeasured = {**row["set_sigma"], **{n: 0.0 for n in unmeasured}}
+    hidden = row["hidden"]
+    return {
+        "as made": {**station, "samples": row["samples"]},
+        "station": station,
+        "hidden physics": {**station, "values": hidden, "intervals": None},
+        "profile centre": {**station, "intervals": None},
+        "true unmeasured": {**station, "layout": np.where(seen, x, placed), "set_sigma": exact_unmeasured},
+        "true measured": {**station, "layout": np.where(seen, placed, x), "position_sigma_m": 0.0,
+                          "angle_sigma_deg": 0.0},
+        "true placement": {**station, "layout": placed, "position_sigma_m": 0.0, "angle_sigma_deg": 0.0,
+                           "unmeasured": (), "set_sigma": None},
+        "truth": {**station, "layout": placed, "position_sigma_m": 0.0, "angle_sigma_deg": 0.0, "unmeasured": (),
+                  "set_sigma": None, "values": hidden, "intervals": None, "samples": 1},
+    }
+
+
+def new_request(row: dict, samples: int) -> dict:
+    """The station's current request for a captured attempt (:func:`station.services.assemble.prediction_request`,
+    when the code has one): what the prediction would be with the code as it stands, on the same attempt."""
+    from design.contraption.physics_profile import PhysicsProfile
+    from station.services.assemble import prediction_sigma
+
+    profile = None
+    if row["values"] is not None:
+        profile = PhysicsProfile(name="captured", values=row["values"],
+                                 intervals={k: tuple(v) for k, v in (row["intervals"] or {}).items()})
+    request = prediction_sigma(row, profile)
+    return dict(layout=np.array(row["x"], dtype=float), samples=samples, seed=row["seed"], **request)
+
+
+def decompose(rows: list[dict], samples: int, workers: int | None, predictor: str = "old", log=print) -> dict:
+    """Every variant of every captured attempt; per variant the mean probability and Brier score, per loop and in
+    all."""
+    from calibration.sim_predict import predict_success
+    from station.services.contraption import open_scenario
+    from station.services.loop import ATTEMPT_BLOCK
+    from station.services.sim_calibration import station_runner
+
+    scenarios: dict = {}
+    table: list[dict] = []
+    with station_runner(workers=workers) as run:
+        for row in rows:
+            scenario = scenarios.get(row["scenario"]) or open_scenario(row["scenario"])
+            scenarios[row["scenario"]] = scenario
+            if scenario.content_hash != row["content_hash"]:
+                raise SystemExit(f"{row['scenario']}: the scenario changed since the capture")
+            made = variants(row, samples)
+            if predictor == "new":
+                made = {"as made": made["as made"], "station": made["station"],
+                        "new": new_request(row, samples), "truth": made["truth"]}
+            probabilities = {name: predict_success(scenario, run=run, **kwargs).probability
+                             for name, kwargs in made.items()}
+            entry = {"world": row["world"], "loop": row["attempt"] // ATTEMPT_BLOCK,
+                     "attempt": row["attempt"] % ATTEMPT_BLOCK, "success": row["success"],
+                     "captured": row["probability"], **probabilities}
+            table.append(entry)
+            log(json.dumps(entry))
+    return {"samples": samples, "attempts": table, "summary": summarize(table)}
+
+
+def summarize(table: list[dict]) -> dict:
+    """Per variant and per loop (and ``all``): the mean probability, the success rate, the Brier score."""
+    skip = {"world", "loop", "attempt", "success"}
+    names = [k for k in table[0] if k not in skip] if table else []
+    groups = {"all": table}
+    for entry in table:
+        groups.setdefault(f"loop {entry['loop']}", []).append(entry)
+    summary = {}
+    for group, entries in groups.items():
+        outcomes = np.array([float(e["success"]) for e in entries])
+        summary[group] = {"attempts": len(entries), "success_rate": float(outcomes.mean()),
+                          **{name: {"mean": float(np.mean([e[name] for e in entries])),
+                                    "brier": float(np.mean([(e[name] - s) ** 2 for e, s in zip(entries, outcomes)]))}
+                             for name in names}}
+    return summary
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    sub = parser.add_subparsers(dest="command", required=True)
+    run = sub.add_parser("run", help="run the loop with every attempt captured")
+    run.add_argument("--scenario", default="causalityswitch_ball")
+    run.add_argument("--seeds", default="11")
+    run.add_argument("--jigs", action="store_true")
+    run.add_argument("--workers", type=int, default=2)
+    run.add_argument("--database", required=True)
+    run.add_argument("--capture", required=True)
+    run.add_argument("--json", default=None)
+    again = sub.add_parser("decompose", help="re-predict every captured attempt with one ingredient made true")
+    again.add_argument("--capture", required=True)
+    again.add_argument("--samples", type=int, default=48)
+    again.add_argument("--workers", type=int, default=2)
+    again.add_argument("--predictor", choices=("old", "new"), default="old")
+    again.add_argument("--json", default=None)
+    args = parser.parse_args(argv)
+    if args.command == "run":
+        capture(Path(args.capture))
+        figures = run_bench([args.scenario], _seeds(args.seeds), dict(FULL), workers=args.workers,
+                            database=args.database, jigs=args.jigs, log=lambda line: print(line, flush=True))
+        print(json.dumps({k: {"brier": v["brier"], "brier_forecast": v["brier_forecast"]}
+                          for k, v in figures.items()}))
+        if args.json:
+            Path(args.json).write_text(json.dumps(figures, indent=2, default=str) + "\n", encoding="utf-8")
+        return 0
+    result = decompose(read_rows(Path(args.capture)), args.samples, args.workers, args.predictor,
+                       log=lambda line: print(line, flush=True))
+    print(json.dumps(result["summary"], indent=2))
+    if args.json:
+        Path(args.json).write_text(json.dumps(result, indent=2) + "\n", encoding="utf-8")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main(sys.argv[1:]))
