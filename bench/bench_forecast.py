@@ -157,6 +157,53 @@ def decompose(rows: list[dict], samples: int, workers: int | None, predictor: st
     return {"samples": samples, "attempts": table, "summary": summarize(table)}
 
 
+def sensitivity(rows: list[dict], samples: int, workers: int | None, log=print) -> dict:
+    """Which drawn material value the station's predicted failures come from: for each captured attempt, ``samples``
+    simulations drawn as :func:`calibration.sim_predict.predict_success` draws them (the station's placement noise,
+    the profile's material draws), each simulation's draws and outcome; per material value, the success rate of the
+    simulations in each third of its draws, beside where the world's hidden value lies."""
+    from calibration.sim_runs import OutcomeProblem, noisy_layouts
+    from design.contraption.validation import with_physics
+    from station.services.contraption import open_scenario
+    from station.services.sim_calibration import station_runner
+
+    draws: list[np.ndarray] = []
+    outcomes: list[np.ndarray] = []
+    names: list[str] = []
+    with station_runner(workers=workers) as run:
+        for row in rows:
+            scenario = open_scenario(row["scenario"])
+            known = scenario.physics_parameters()
+            uncertain = scenario.uncertain_parameters()
+            centres = {k: float(v) for k, v in (row["values"] or {}).items() if k in known}
+            spread = {k: v for k, v in (row["intervals"] or {}).items() if k in centres and v[1] > v[0]}
+            names = list(spread)
+            ranges = {k: uncertain[k][1] if k in uncertain else (0.0, max(2.0 * centres[k], 1.0)) for k in names}
+            rng = np.random.default_rng(row["seed"])
+            layouts = noisy_layouts(scenario, np.array(row["x"]), samples, row["position_sigma_m"],
+                                    row["angle_sigma_deg"], rng, tuple(row["unmeasured"]), row["set_sigma"])
+            thetas = np.column_stack([np.clip(rng.normal(centres[n], (spread[n][1] - spread[n][0]) / 3.919928,
+                                                         samples), *ranges[n]) for n in names])
+            problem = OutcomeProblem(with_physics(scenario, {k: v for k, v in centres.items() if k not in spread}),
+                                     names, ranges)
+            run.expect(samples)
+            success, _, _ = problem.split(run(problem, problem.rows(thetas, layouts)))
+            draws.append(thetas)
+            outcomes.append(success > 0.5)
+            log(f"{row['world']} attempt {row['attempt']}: {int(np.sum(success > 0.5))}/{samples}")
+    thetas, success = np.vstack(draws), np.concatenate(outcomes)
+    result = {"samples": int(len(success)), "success_rate": float(success.mean()), "parameters": {}}
+    hidden = [row["hidden"] for row in rows]
+    for j, name in enumerate(names):
+        cuts = np.quantile(thetas[:, j], [1 / 3, 2 / 3])
+        third = np.digitize(thetas[:, j], cuts)
+        result["parameters"][name] = {
+            "thirds": [[float(thetas[third == t, j].min()), float(thetas[third == t, j].max()),
+                        float(success[third == t].mean())] for t in range(3)],
+            "hidden": sorted({round(float(h[name]), 4) for h in hidden if name in h})}
+    return result
+
+
 def summarize(table: list[dict]) -> dict:
     """Per variant and per loop (and ``all``): the mean probability, the success rate, the Brier score."""
     skip = {"world", "loop", "attempt", "success"}
@@ -191,7 +238,23 @@ def main(argv: list[str] | None = None) -> int:
     again.add_argument("--workers", type=int, default=2)
     again.add_argument("--predictor", choices=("old", "new"), default="old")
     again.add_argument("--json", default=None)
+    shape = sub.add_parser("sensitivity", help="which drawn material value the predicted failures come from")
+    shape.add_argument("--capture", required=True)
+    shape.add_argument("--samples", type=int, default=64)
+    shape.add_argument("--workers", type=int, default=2)
+    shape.add_argument("--loop", type=int, default=None, help="only this loop's attempts")
+    shape.add_argument("--json", default=None)
     args = parser.parse_args(argv)
+    if args.command == "sensitivity":
+        from station.services.loop import ATTEMPT_BLOCK
+
+        rows = [r for r in read_rows(Path(args.capture))
+                if args.loop is None or r["attempt"] // ATTEMPT_BLOCK == args.loop]
+        result = sensitivity(rows, args.samples, args.workers, log=lambda line: print(line, flush=True))
+        print(json.dumps(result, indent=2))
+        if args.json:
+            Path(args.json).write_text(json.dumps(result, indent=2) + "\n", encoding="utf-8")
+        return 0
     if args.command == "run":
         capture(Path(args.capture))
         figures = run_bench([args.scenario], _seeds(args.seeds), dict(FULL), workers=args.workers,
