@@ -183,6 +183,7 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args([] if argv is None else argv)
     if argv is None:  # python -m bench: the quick version
         args.quick = True
+    from station.loopstore import station_commit
     from station.paths import cache_dir
 
     names = ALL if args.scenarios == "all" else tuple(s.strip() for s in args.scenarios.split(",") if s.strip())
@@ -197,15 +198,18 @@ def main(argv: list[str] | None = None) -> int:
         sizes["prediction_weight"] = args.prediction_weight
     database = args.database or str(cache_dir() / f"bench_loop{'_quick' if args.quick else ''}.sqlite3")
     world = args.world if not args.world or args.world.startswith("&") else f"&{args.world}"
+    commit = station_commit()
     print(f"bench_loop: {', '.join(names)} over world seeds {args.seeds}{' with jigs' if args.jigs else ''}"
-          f"{f' (world {world})' if world else ''}; sizes {sizes}; database {database}", flush=True)
+          f"{f' (world {world})' if world else ''}; sizes {sizes}; database {database}; station "
+          f"{commit or 'not a git checkout'}", flush=True)
     figures = run_bench(names, _seeds(args.seeds), sizes, workers=args.workers, database=database, world=world,
                         jigs=args.jigs, log=lambda line: print(line, flush=True))
     for line in table(figures):
         print(line)
     if args.json:
         Path(args.json).write_text(json.dumps({"sizes": sizes, "seeds": args.seeds, "jigs": args.jigs, "world": world,
-                                               "figures": figures}, indent=2, default=str) + "\n", encoding="utf-8")
+                                               "station_commit": commit, "figures": figures}, indent=2,
+                                              default=str) + "\n", encoding="utf-8")
     return 0
 
 

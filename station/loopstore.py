@@ -6,20 +6,53 @@ same id: one per run, not per invocation) and carries on from the last attempt s
 written in one transaction (:meth:`LoopStore.add_attempt`): a loop killed at any moment has either logged the
 attempt whole or not at all, so the resumed run replays exactly the attempts that were lost (their seeds depend on
 the run, the loop and the attempt only). The tables are migration 4 of :mod:`station.db` (SQLite and PostgreSQL).
+
+A run's stored settings are the ones its key is made of plus ``station_commits``: the commit of every station
+code that made or carried on the run (:func:`station_commit`, in order; "+changes" when that code differed from its
+commit), so that a table of results can say which code each figure came from. They are not part of the key: a run
+carried on by newer code is still the same run, and says so there.
 """
 
 from __future__ import annotations
 
+import functools
 import hashlib
 import json
+import subprocess
 from collections.abc import Mapping
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Any
 
 from station.db import Database, database_url
 from station.triallog import TrialStore, now_utc
 
-__all__ = ["AttemptRow", "LoopRow", "LoopStore", "run_key"]
+__all__ = ["AttemptRow", "LoopRow", "LoopStore", "run_key", "station_commit"]
+
+
+#: The folders of the station's code whose changes make a run's figures differ from its commit's.
+CODE_FOLDERS = ("station", "design", "calibration", "drivers", "common", "vision", "projector", "cam")
+
+
+@functools.cache
+def station_commit() -> str | None:
+    """The short commit of the station code running (``"a12fa16"``), with ``"+changes"`` when its code differs
+    from that commit; None when the code is not a git checkout of its own (an installed copy)."""
+    root = Path(__file__).resolve().parent.parent
+    try:
+        # an installed copy inside some other repository (a venv in a checkout) must not take that one's commit
+        if Path(_git(root, "rev-parse", "--show-toplevel")).resolve() != root:
+            return None
+        commit = _git(root, "rev-parse", "--short", "HEAD")
+        changed = _git(root, "status", "--porcelain", "--", *CODE_FOLDERS)
+    except (OSError, subprocess.SubprocessError):
+        return None
+    return f"{commit}{'+changes' if changed else ''}" if commit else None
+
+
+def _git(root: Path, *words: str) -> str:
+    return subprocess.run(["git", "-C", str(root), *words], capture_output=True, text=True, timeout=10,
+                          check=True).stdout.strip()
 
 
 def run_key(settings: Mapping[str, Any]) -> str:
@@ -75,22 +108,37 @@ class LoopStore:
 
     # -- runs ---------------------------------------------------------------------------------------------------
     def run(self, key: str, *, scenario: str, content_hash: str, world: str,
-            settings: Mapping[str, Any]) -> tuple[int, bool]:
+            settings: Mapping[str, Any], commit: str | None = None) -> tuple[int, bool]:
         """The id of the run with ``key``, made if new, and whether it was made now (False: an earlier ``station
-        loop`` began it).
+        loop`` began it). ``commit`` (default: :func:`station_commit`) joins the run's ``station_commits`` when it
+        is not there yet.
 
         Looked up before any insert: an insert that finds the run there uses up an id all the same (SQLite's
         AUTOINCREMENT and PostgreSQL's identity both count it), so the next run's id would skip one per resume.
         """
+        commit = commit or station_commit()
         with self.database.transaction() as tx:
-            row = tx.one("SELECT id FROM loop_runs WHERE run_key = ?", (key,))
+            row = tx.one("SELECT id, settings FROM loop_runs WHERE run_key = ?", (key,))
             if row is not None:
+                stored = json.loads(row[1])
+                commits = list(stored.get("station_commits", []))
+                if commit and commit not in commits:
+                    stored["station_commits"] = [*commits, commit]
+                    tx.execute("UPDATE loop_runs SET settings = ? WHERE id = ?",
+                               (json.dumps(stored, sort_keys=True, default=str), row[0]))
                 return int(row[0]), False
+            kept = {**dict(settings), "station_commits": [commit] if commit else []}
             tx.execute("INSERT INTO loop_runs (run_key, scenario_name, content_hash, world, settings, created_at) "
                        "VALUES (?, ?, ?, ?, ?, ?) ON CONFLICT (run_key) DO NOTHING",
-                       (key, scenario, content_hash, world, json.dumps(dict(settings), sort_keys=True, default=str),
+                       (key, scenario, content_hash, world, json.dumps(kept, sort_keys=True, default=str),
                         now_utc()))
             return int(tx.one("SELECT id FROM loop_runs WHERE run_key = ?", (key,))[0]), True
+
+    def commits(self, run_id: int) -> list[str]:
+        """The station commits that made and carried on run ``run_id`` (empty: none was stored)."""
+        with self.database.transaction(write=False) as tx:
+            row = tx.one("SELECT settings FROM loop_runs WHERE id = ?", (run_id,))
+        return [] if row is None else list(json.loads(row[0]).get("station_commits", []))
 
     # -- loops --------------------------------------------------------------------------------------------------
     def loop(self, run_id: int, loop: int) -> LoopRow | None:
