@@ -204,6 +204,35 @@ def sensitivity(rows: list[dict], samples: int, workers: int | None, log=print) 
     return result
 
 
+def worlds(row: dict, seeds: list[int], samples: int, station_samples: int, workers: int | None, log=print) -> dict:
+    """One captured attempt's layout and placement error under the hidden physics of many worlds (``seeds``: each
+    world's material values drawn as the loop's worlds draw them, ``samples`` simulations each), beside the
+    station's prediction of it (its profile's draws, ``station_samples`` simulations): whether the station's physics
+    draws are as wide as the worlds' and how the layout's success spreads over worlds (what a record of attempts in
+    one world tells)."""
+    from calibration.sim_predict import predict_success
+    from drivers.sim.world import SimulatedWorld
+    from station.services.contraption import open_scenario
+    from station.services.sim_calibration import station_runner
+    from station.services.world import prepare_world
+
+    scenario = open_scenario(row["scenario"])
+    station = variants(row, station_samples)["station"]
+    per_world = {}
+    with station_runner(workers=workers) as run:
+        predicted = predict_success(scenario, run=run, **station).probability
+        log(f"station: {predicted:.3f} ({station_samples} simulations)")
+        for seed in seeds:
+            hidden = prepare_world(SimulatedWorld(f"sim://world?seed={seed}"), scenario)
+            kwargs = {**station, "values": hidden, "intervals": None, "samples": samples}
+            per_world[seed] = predict_success(scenario, run=run, **kwargs).probability
+            log(f"world {seed}: {per_world[seed]:.3f}")
+    rates = np.array(list(per_world.values()))
+    return {"station": predicted, "station_samples": station_samples, "samples": samples,
+            "worlds": per_world, "mean": float(rates.mean()), "sd": float(rates.std()),
+            "share_at_least_0.8": float(np.mean(rates >= 0.8)), "share_at_most_0.2": float(np.mean(rates <= 0.2))}
+
+
 def summarize(table: list[dict]) -> dict:
     """Per variant and per loop (and ``all``): the mean probability, the success rate, the Brier score."""
     skip = {"world", "loop", "attempt", "success"}
@@ -244,7 +273,22 @@ def main(argv: list[str] | None = None) -> int:
     shape.add_argument("--workers", type=int, default=2)
     shape.add_argument("--loop", type=int, default=None, help="only this loop's attempts")
     shape.add_argument("--json", default=None)
+    spread = sub.add_parser("worlds", help="one captured attempt under many worlds' hidden physics")
+    spread.add_argument("--capture", required=True)
+    spread.add_argument("--row", type=int, default=0, help="which captured attempt (0: the first)")
+    spread.add_argument("--seeds", default="100-129")
+    spread.add_argument("--samples", type=int, default=8)
+    spread.add_argument("--station-samples", type=int, default=128)
+    spread.add_argument("--workers", type=int, default=2)
+    spread.add_argument("--json", default=None)
     args = parser.parse_args(argv)
+    if args.command == "worlds":
+        result = worlds(read_rows(Path(args.capture))[args.row], _seeds(args.seeds), args.samples,
+                        args.station_samples, args.workers, log=lambda line: print(line, flush=True))
+        print(json.dumps(result, indent=2))
+        if args.json:
+            Path(args.json).write_text(json.dumps(result, indent=2) + "\n", encoding="utf-8")
+        return 0
     if args.command == "sensitivity":
         from station.services.loop import ATTEMPT_BLOCK
 
