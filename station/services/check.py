@@ -31,7 +31,7 @@ from station.errors import ServiceError, station_errors
 from station.services import calibrate
 from station.services.calibrate import open_camera
 from station.services.check_scene import aim_camera, parse_offset, sim_scene, twin_intrinsics
-from station.services.check_side import merge_as_built, plane_json, side_lines
+from station.services.check_side import hidden_as_built, merge_as_built, plane_json, side_lines
 from station.services.contraption import open_scenario
 from station.services.guide_manifest import read_manifest
 from station.services.images import load_image
@@ -383,10 +383,12 @@ def check_measurement(job, measurement, image: np.ndarray, intrinsics, request: 
     views = ({"view": guide.view, "camera": camera, "plane": plane_json(measurement.plane)},)
     if side is not None:
         built, measured_by = merge_as_built(job, built, side)
+        side = hidden_as_built(job, side, built.unclipped, built.measured)  # where the parts are, as far as known
         views += ({"view": "side", "camera": side.camera, "plane": side.plane_json(),
                    "missing_reference_tags": list(side.measurement.missing_reference_ids),
                    "unknown_tags": list(side.measurement.unknown_ids),
-                   "hidden_tags": {str(k): list(v) for k, v in getattr(side, "hidden", {}).items() if v}},)
+                   "hidden_tags": {str(k): list(v) for k, v in side.hidden.items() if v},
+                   "hidden_tags_as_built": list(side.as_built)},)
         notes.extend(f"side camera: {note}" for note in getattr(side.intrinsics, "notes", ()))
     model = getattr(job.tolerances, "model", None)
     problem = getattr(job.tolerances, "problem", None)

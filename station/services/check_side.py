@@ -31,7 +31,7 @@ from station.services import calibrate
 from station.services.check_scene import aim_camera, twin_intrinsics
 from vision.detection import TagDetector
 
-__all__ = ["SideView", "measure_side", "merge_as_built", "plane_json", "side_lines", "side_overlay",
+__all__ = ["SideView", "hidden_as_built", "measure_side", "merge_as_built", "plane_json", "side_lines", "side_overlay",
            "side_scene", "side_targets", "view_of_frame"]
 
 
@@ -54,8 +54,15 @@ class SideView:
     image: object = None
     intrinsics: object = None
     #: Each tag the camera should have read and did not: what stands between it and the camera (part names, "jig
-    #: J1"), as the design places them; empty when nothing known does (covered, out of the frame).
+    #: J1"), the parts of :attr:`as_built` where a camera measured them, every other one as designed; empty when
+    #: nothing known does (covered, out of the frame).
     hidden: Mapping[int, tuple[str, ...]] = field(default_factory=dict)
+    #: The camera's pose on the board's frame, found even from too few board tags for a plane (None: not found).
+    pose: object = None
+    #: The tags it should have read and did not (board tags, face tags), what :attr:`hidden` is worked out for.
+    unread: tuple[int, ...] = ()
+    #: The parts :attr:`hidden` places where the check measured them (:func:`hidden_as_built`); none: the design's.
+    as_built: tuple[str, ...] = ()
 
     def plane_json(self) -> dict | None:
         """The board's plane as CHECK.json's ``views`` give a plane (None when none was found)."""
@@ -132,8 +139,6 @@ def side_scene(job, board, targets, offsets: Mapping[str, Sequence[float]] | Non
     ServiceError
         An offset of a part the side camera reads no tag of (``sim_side_offset``).
     """
-    from calibration.asbuilt import part_plane_pose  # heavy: scipy, shapely
-
     offsets = dict(offsets or {})
     known = {t.part for t in targets}
     unknown = sorted(set(offsets) - known)
@@ -142,11 +147,7 @@ def side_scene(job, board, targets, offsets: Mapping[str, Sequence[float]] | Non
                            f"{', '.join(sorted(known)) or 'none (no jig stand faces it)'}", field="sim_side_offset",
                            value=unknown[0])
     if layout is not None:
-        placed = part_plane_pose(job.scenario, np.asarray(layout, float), board.plane, sorted(known))
-        for target in targets:
-            pose = placed[target.part]
-            offsets[target.part] = (pose.center_mm[0] - target.center_mm[0], pose.center_mm[1] - target.center_mm[1],
-                                    _wrap(pose.heading_deg - target.heading_deg))
+        offsets.update(_layout_moves(job, board, targets, layout))
     tags = [TagItem(t.id, tuple(t.center_mm), t.size_mm) for t in board.reference_tags]
     occluders = [Occluder(_hand(t.center_mm, t.size_mm), 5.0) for t in board.reference_tags if t.id in occluded]
     for target in targets:
@@ -166,6 +167,16 @@ def side_scene(job, board, targets, offsets: Mapping[str, Sequence[float]] | Non
     solids = _scene_solids(job, board, targets, offsets if layout is None else {}, offsets, x)
     return PlaneScene(tags=tuple(tags), images=images, occluders=tuple(occluders), background=(176, 150, 118),
                       solids=tuple(solid for _, solid in solids))
+
+
+def _layout_moves(job, board, targets, layout) -> dict[str, tuple[float, float, float]]:
+    """Each target's part as the design parameters ``layout`` put it, as a move on the board's plane from where the
+    guide puts it: ``{part: (du, dv, deg)}``."""
+    from calibration.asbuilt import part_plane_pose  # heavy: scipy, shapely
+
+    placed = part_plane_pose(job.scenario, np.asarray(layout, float), board.plane, sorted({t.part for t in targets}))
+    return {t.part: (placed[t.part].center_mm[0] - t.center_mm[0], placed[t.part].center_mm[1] - t.center_mm[1],
+                     _wrap(placed[t.part].heading_deg - t.heading_deg)) for t in targets}
 
 
 #: The solids' colours in the side scene: jig plates and bases (birch plywood), parts by kind (else grey).
@@ -274,8 +285,7 @@ def view_of_frame(image, board) -> str:
 def measure_side(job, board, targets, image, intrinsics, previous=None, camera: str = "") -> SideView:
     """Measure a side frame: the board's plane from its tags, each target's tag at its depth, the checks in the side
     camera's words (:func:`calibration.side.side_view_checks`)."""
-    from calibration.check import check_parts, part_tags, reference_tags  # heavy: scipy, shapely
-    from calibration.side import side_view_checks  # heavy: scipy, shapely
+    from calibration.check import part_tags, reference_tags  # heavy: scipy, shapely
 
     if not targets:
         raise ServiceError("camera: the side camera has nothing to read: no jig stand of this layout faces it (use "
@@ -288,13 +298,35 @@ def measure_side(job, board, targets, image, intrinsics, previous=None, camera: 
         missing |= {t.tag_id for t in targets} - {tag.tag_id for tag in measurement.tags}
     if pose is not None and len(pose.reference_ids) < SIDE_MIN_REFERENCE_TAGS:
         measurement = replace(measurement, plane=None, tags=())
+    hidden = _hidden_tags(job, board, targets, pose, missing, job.layout.x)
+    return SideView(board, tuple(targets), guide, measurement, _side_checks(guide, measurement, targets, hidden),
+                    camera, np.asarray(image), intrinsics, hidden, pose, tuple(sorted(missing)))
+
+
+@station_errors
+def hidden_as_built(job, side: SideView, layout, measured: Sequence[str]) -> SideView:
+    """``side`` with what hides each tag it did not read worked out again from where the check found the parts:
+    ``layout`` (the as-built layout, unclipped) for the parts a camera measured (a parameter of theirs in
+    ``measured``), the design for every other part; its unread tags' instructions say so."""
+    x = np.asarray(job.layout.x, float).copy()
+    names = list(job.scenario.design_space.names)
+    for name in measured:
+        x[names.index(name)] = float(np.asarray(layout, float)[names.index(name)])
+    placed = tuple(p.name for p in job.guide.parts if set(p.parameters) & set(measured))
+    hidden = _hidden_tags(job, side.board, side.targets, side.pose, side.unread, x)
+    return replace(side, hidden=hidden, checks=_side_checks(side.guide, side.measurement, side.targets, hidden),
+                   as_built=placed)
+
+
+def _side_checks(guide, measurement, targets, hidden) -> tuple:
+    """The side view's checks in the side camera's words, a tag it did not read saying why (what hides it)."""
+    from calibration.check import check_parts  # heavy: scipy, shapely
+    from calibration.side import side_view_checks  # heavy: scipy, shapely
+
     checks, _ = check_parts(guide, measurement)
     via = {t.part: t.via for t in targets}
     checks = [replace(c, view="side", via=via.get(c.name, "")) for c in side_view_checks(checks, targets)]
-    hidden = _hidden_tags(job, board, targets, pose, missing)
-    checks = [c if c.found else replace(c, instruction=_unread(c, measurement, hidden, via)) for c in checks]
-    return SideView(board, tuple(targets), guide, measurement, tuple(checks), camera, np.asarray(image), intrinsics,
-                    hidden)
+    return tuple(c if c.found else replace(c, instruction=_unread(c, measurement, hidden, via)) for c in checks)
 
 
 def _unread(check, measurement, hidden, via) -> str:
@@ -340,10 +372,11 @@ def _names(names, verb: str = "") -> str:
     return f"{text} {plural.get(verb, verb) if len(words) > 1 else verb}"
 
 
-def _hidden_tags(job, board, targets, pose, missing) -> dict[int, tuple[str, ...]]:
-    """For each tag id in ``missing``: the parts and jigs of the design that stand between the side camera (at
-    ``pose``, the board's plane as found, even from too few tags) and the tag, seen from the camera's centre; empty
-    without a pose (the camera's place is then unknown)."""
+def _hidden_tags(job, board, targets, pose, missing, layout) -> dict[int, tuple[str, ...]]:
+    """For each tag id in ``missing``: the parts and jigs that stand between the side camera (at ``pose``, the
+    board's plane as found, even from too few tags) and the tag, seen from the camera's centre, the parts where the
+    design parameters ``layout`` put them (a jig stand the side camera reads moved with its part, as
+    :func:`side_scene` draws it); empty without a pose (the camera's place is then unknown)."""
     from shapely.geometry import MultiPoint, Polygon  # heavy: shapely
 
     if pose is None or not missing:
@@ -352,7 +385,8 @@ def _hidden_tags(job, board, targets, pose, missing) -> dict[int, tuple[str, ...
     camera = -rotation.T @ np.asarray(pose.tvec, float)  # its centre on the board's frame (u, v, depth) mm
     squares = {t.id: (t.center_mm, t.size_mm, 0.0, 0.0) for t in board.reference_tags}
     squares.update({t.tag_id: (t.tag_center_mm, t.tag_size_mm, t.tag_heading_deg, t.tag_depth_mm) for t in targets})
-    solids = _scene_solids(job, board, targets, {}, {}, np.asarray(job.layout.x, float))
+    layout = np.asarray(layout, float)
+    solids = _scene_solids(job, board, targets, {}, _layout_moves(job, board, targets, layout), layout)
     hidden = {}
     for tag_id in sorted(missing):
         if tag_id not in squares or camera[2] <= 0:
