@@ -9,9 +9,18 @@ The board's plane (:class:`SideBoard`'s ``plane``, a :class:`~projector.guide.Gu
 ``u`` is the table guide's ``u`` (so the board's millimetres along it are the guide's), ``v`` is the height above
 the table, the normal points from the board towards the parts and the maker. The sheet stands on the table with its
 lower edge on it (so its ``v`` is the height above the table), its face along the guide-plane line
-``v = line_v_mm``, its centre mark at ``u = center_u_mm`` (chosen so that its lower tags are not hidden behind a jig
-stand). Its four tags take the ids under the table's reference
+``v = line_v_mm``, its centre mark at ``u = center_u_mm``. Its four tags take the ids under the table's reference
 tags (:data:`BOARD_TAG_IDS`), so neither camera mistakes one board for the other.
+
+**Where along u.** The side camera sees a board tag only where nothing stands between them. The guide assumes the
+camera :data:`SIDE_CAMERA_MM` in front of the board, level with its middle, facing the middle of the board and the
+jig stands whose face tags it reads (as the simulated camera aims itself), the lowest a side camera stands: raised,
+it looks over more. The centre is the whole millimetre nearest the middle of the guide's extent, within that extent
+(the board stays behind the parts), where both columns of tags stand clear, as that camera sees them, of every
+part's and jig stand's footprint (:data:`CLEAR_MM` of room): nothing in front of them, whatever its height. Where no
+such place is, the one that leaves the fewest board tags hidden behind the parts themselves (their solids, a part on
+a stand carried down to the table by its plate; every :data:`HIDDEN_STEP_MM`, the nearest to the middle of the best),
+and :attr:`SideBoard.hidden` names what hides which tag, which the guide's words say.
 """
 
 from __future__ import annotations
@@ -20,13 +29,16 @@ from dataclasses import dataclass
 from os import PathLike
 
 import numpy as np
+import shapely
+from shapely.geometry import box
 
 from projector.errors import ProjectorError
 from projector.guide import REFERENCE_TAG_IDS, Guide, GuidePlane, ReferenceTag
 from projector.pdf_marks import BOLD, FONT, INK, draw_scale_bar, draw_tag
 from projector.tiling import PAPERS, PRINTABLE_MM
 
-__all__ = ["BOARD_GAP_MM", "BOARD_TAG_IDS", "BOARD_TAG_MM", "SideBoard", "side_board", "write_board_pdf"]
+__all__ = ["BOARD_GAP_MM", "BOARD_TAG_IDS", "BOARD_TAG_MM", "CLEAR_MM", "SIDE_CAMERA_MM", "SideBoard", "side_board",
+           "write_board_pdf"]
 
 #: The board's reference tags: the four ids just under the table's (583-586), out of the jigs' range.
 BOARD_TAG_IDS = tuple(range(REFERENCE_TAG_IDS[0] - 4, REFERENCE_TAG_IDS[0]))
@@ -35,6 +47,14 @@ BOARD_TAG_IDS = tuple(range(REFERENCE_TAG_IDS[0] - 4, REFERENCE_TAG_IDS[0]))
 BOARD_TAG_MM = 40.0
 #: How far behind the far edge of everything the guide draws the board's face stands (mm): room for a hand.
 BOARD_GAP_MM = 30.0
+#: How far in front of the board the guide assumes the side camera (mm): where its figures were measured
+#: (docs/results/2026-12-05-side-camera.md).
+SIDE_CAMERA_MM = 700.0
+#: Room between a board tag's column (its white border) and a footprint in front of it, as the camera sees them
+#: (mm): the camera set up a little off the board's centre, a part set a little off its outline.
+CLEAR_MM = 10.0
+#: The step of the places tried when none is clear (mm).
+HIDDEN_STEP_MM = 5.0
 
 
 @dataclass(frozen=True)
@@ -54,6 +74,9 @@ class SideBoard:
     paper : str
     reference_tags : tuple of ReferenceTag
         The four tags, centres in the board's (u, height) mm.
+    hidden : tuple of (int, tuple of str)
+        Where no place leaves every tag clear (module notes): each board tag the parts hide from a side camera level
+        with the board's middle, and the parts that do; empty when none.
     """
 
     plane: GuidePlane
@@ -62,6 +85,7 @@ class SideBoard:
     sheet_mm: tuple[float, float]
     paper: str
     reference_tags: tuple[ReferenceTag, ...]
+    hidden: tuple[tuple[int, tuple[str, ...]], ...] = ()
 
     @property
     def extent_mm(self) -> tuple[float, float, float, float]:
@@ -70,10 +94,18 @@ class SideBoard:
         return (self.center_u_mm - w / 2.0, 0.0, self.center_u_mm + w / 2.0, h)
 
     def words(self) -> str:
-        """How to stand it, in the maker's words."""
-        return (f"stand the board sheet upright behind the parts, its lower edge on the table, its printed face "
-                f"towards you along the line v = {self.line_v_mm:.0f} mm of the guide, its centre mark at "
-                f"u = {self.center_u_mm:.0f} mm; the side camera faces it from in front of the table")
+        """How to stand it, in the maker's words (and, where the parts hide some of its tags, which and what to do)."""
+        words = (f"stand the board sheet upright behind the parts, its lower edge on the table, its printed face "
+                 f"towards you along the line v = {self.line_v_mm:.0f} mm of the guide, its centre mark at "
+                 f"u = {self.center_u_mm:.0f} mm; the side camera faces it from in front of the table")
+        if not self.hidden:
+            return words
+        hiders = list(dict.fromkeys(name for _, names in self.hidden for name in names))
+        tags = [str(tag_id) for tag_id, _ in self.hidden]
+        return (f"{words}; no place along the table leaves all its tags clear of the parts: seen level with the "
+                f"board's middle, {_listed([f'`{n}`' for n in hiders])} hide{'s' if len(hiders) == 1 else ''} board "
+                f"tag{'s' if len(tags) > 1 else ''} {_listed(tags)}, so raise the side camera to look over "
+                f"{'it' if len(hiders) == 1 else 'them'} (it measures from any height)")
 
     def manifest(self) -> dict:
         """The board in the guide's manifest (``side_board``)."""
@@ -81,6 +113,7 @@ class SideBoard:
                 "paper": self.paper, "sheet_mm": [round(s, 3) for s in self.sheet_mm],
                 "reference_tags": [{"id": t.id, "center_mm": [round(c, 3) for c in t.center_mm],
                                     "size_mm": round(t.size_mm, 3)} for t in self.reference_tags],
+                "hidden_tags": {str(tag_id): list(names) for tag_id, names in self.hidden},
                 "words": self.words()}
 
 
@@ -93,32 +126,115 @@ def side_board(guide: Guide, paper: str = "a4") -> SideBoard | None:
     short, long = PAPERS[paper]
     u0, _, u1, v1 = guide.extent_mm
     line_v = float(v1) + BOARD_GAP_MM
-    inset = PRINTABLE_MM + BOARD_TAG_MM * 10.0 / 8.0 / 2.0  # the tag's white border inside the printable area
-    centre_u = _clear_centre((float(u0) + float(u1)) / 2.0, long / 2.0 - inset, BOARD_TAG_MM * 10.0 / 8.0 / 2.0,
-                             [j.footprint.bounds for j in guide.jigs if j.kind == "stand"], long)
+    half = BOARD_TAG_MM * 10.0 / 8.0 / 2.0  # the tag with its white border
+    inset = PRINTABLE_MM + half  # inside the printable area
+    reach = long / 2.0 - inset
+    heights = (inset, short - inset)
+    stands = [j for j in guide.jigs if j.kind == "stand"]
+    footprints = [p.outline for p in guide.parts] + [j.footprint for j in stands]
+    middle = round((float(u0) + float(u1)) / 2.0)
+    read = [j.footprint.bounds for j in stands if j.face_tag_id is not None and not j.footprint.is_empty]
+
+    def camera_u(centre: float) -> float:  # the middle of the board and the stands whose face tags it reads
+        return (min([centre - long / 2.0, *(b[0] for b in read)])
+                + max([centre + long / 2.0, *(b[2] for b in read)])) / 2.0
+
+    span = (float(u1) - float(u0)) / 2.0
+    centre_u = _clear_centre(middle, reach, half, footprints, line_v, span, camera_u)
+    hidden: tuple = ()
+    if centre_u is None:
+        carried = {j.part for j in stands}
+        solids = [(p.name, np.asarray(solid, float), p.name in carried) for p in guide.parts for solid in p.solids_mm]
+        centre_u, hidden = _least_hidden(middle, reach, half, heights, solids, line_v, span, short, camera_u)
     plane = guide.plane
     origin = plane.to_world(np.array([[0.0, line_v]]))[0]
     board_plane = GuidePlane("side", origin, np.asarray(plane.u_axis, float), np.asarray(plane.normal, float),
                              -np.asarray(plane.v_axis, float))
-    tags = tuple(ReferenceTag(tag_id, (centre_u + su * (long / 2.0 - inset), h), BOARD_TAG_MM)
-                 for tag_id, (su, h) in zip(BOARD_TAG_IDS, ((-1, inset), (1, inset), (1, short - inset),
-                                                            (-1, short - inset))))
-    return SideBoard(board_plane, line_v, float(centre_u), (long, short), paper, tags)
+    corners = ((-1, heights[0]), (1, heights[0]), (1, heights[1]), (-1, heights[1]))
+    tags = tuple(ReferenceTag(tag_id, (centre_u + su * reach, h), BOARD_TAG_MM)
+                 for tag_id, (su, h) in zip(BOARD_TAG_IDS, corners))
+    return SideBoard(board_plane, line_v, float(centre_u), (long, short), paper, tags, hidden)
 
 
-def _clear_centre(middle: float, reach: float, half: float, stands, span: float) -> float:
-    """Where along u to centre the board so that its lower tags (at ``middle +- reach``, ``half`` wide each side)
-    stand clear of every jig stand's plate as the side camera sees it (the plate nearer the camera looks larger: its
-    extent along u widened by a quarter, and 10 mm): the nearest whole millimetre to ``middle`` within ``span``,
-    else ``middle`` (the check then finds the plane from the tags it sees: two are enough)."""
-    shadows = [((a + b) / 2.0 - 0.625 * (b - a) - 10.0, (a + b) / 2.0 + 0.625 * (b - a) + 10.0)
-               for a, _, b, _ in stands]
+def _clear_centre(middle: float, reach: float, half: float, footprints, line_v: float, span: float,
+                  camera_u) -> float | None:
+    """The whole millimetre nearest ``middle`` (within ``span``) where both columns of tags (at ``centre +- reach``,
+    ``half`` wide each side) stand clear of every footprint as a camera at ``camera_u(centre)`` sees it (module
+    notes); None when there is none."""
+    corners = [np.asarray(g.exterior.coords, float) for f in footprints if not f.is_empty
+               for g in getattr(f, "geoms", [f]) if hasattr(g, "exterior")]
+    if not corners:
+        return float(middle)
+    starts = np.cumsum([0] + [len(c) for c in corners[:-1]])
+    points = np.concatenate(corners)
+    scale = SIDE_CAMERA_MM / np.maximum(SIDE_CAMERA_MM - (line_v - points[:, 1]), 1.0)
     for step in range(int(span) + 1):
-        for centre in (round(middle) + step, round(middle) - step):
-            tags = [(centre + side * reach - half, centre + side * reach + half) for side in (-1, 1)]
-            if not any(lo < t1 and t0 < hi for t0, t1 in tags for lo, hi in shadows):
+        for centre in dict.fromkeys((middle + step, middle - step)):
+            eye = camera_u(centre)
+            seen = eye + (points[:, 0] - eye) * scale
+            low, high = np.minimum.reduceat(seen, starts) - CLEAR_MM, np.maximum.reduceat(seen, starts) + CLEAR_MM
+            columns = [(centre + side * reach - half, centre + side * reach + half) for side in (-1, 1)]
+            if not any(np.any((low < t1) & (t0 < high)) for t0, t1 in columns):
                 return float(centre)
-    return float(round(middle))
+    return None
+
+
+def _least_hidden(middle: float, reach: float, half: float, heights, solids, line_v: float, span: float,
+                  board_height: float, camera_u) -> tuple[float, tuple]:
+    """The centre (every :data:`HIDDEN_STEP_MM` within ``span`` of ``middle``) that leaves the fewest board tags
+    behind the parts' ``solids`` (``(name, points (u, v, h) mm, on a stand)``) from a camera at ``camera_u(centre)``
+    level with the board's middle, then the fewest with a part within :data:`CLEAR_MM` of them (a camera set up a
+    little elsewhere), the nearest to ``middle`` of the best; and which tags they hide there: ``(centre, ((tag id,
+    names), ...))``."""
+    camera_h = board_height / 2.0
+    names, us, scales, seen_hs, starts = [], [], [], [], [0]
+    for name, points, on_stand in solids:
+        if on_stand:  # its stand's plate fills the space under it down to the table
+            points = np.vstack([points, points * [1.0, 1.0, 0.0]])
+        scale = SIDE_CAMERA_MM / np.maximum(SIDE_CAMERA_MM - (line_v - points[:, 1]), 1.0)
+        names.append(name)
+        us.append(points[:, 0])
+        scales.append(scale)
+        seen_hs.append(camera_h + (points[:, 2] - camera_h) * scale)  # level with the camera: the same at every u
+        starts.append(starts[-1] + len(points))
+    if not names:
+        return float(middle), ()
+    u, scale, seen_h, starts = np.concatenate(us), np.concatenate(scales), np.concatenate(seen_hs), starts[:-1]
+    ends = [*starts[1:], len(u)]
+    low_h, high_h = np.minimum.reduceat(seen_h, starts), np.maximum.reduceat(seen_h, starts)
+    tags = list(zip(BOARD_TAG_IDS, (-1, 1, 1, -1), (heights[0], heights[0], heights[1], heights[1])))
+    room = half + CLEAR_MM
+    in_band = {tag_id: (high_h >= h - room) & (low_h <= h + room) for tag_id, _, h in tags}
+    best = None
+    for step in range(0, int(span / HIDDEN_STEP_MM) + 1):
+        for centre in dict.fromkeys((middle + step * HIDDEN_STEP_MM, middle - step * HIDDEN_STEP_MM)):
+            eye = camera_u(centre)
+            seen_u = eye + (u - eye) * scale
+            low_u, high_u = np.minimum.reduceat(seen_u, starts), np.maximum.reduceat(seen_u, starts)
+            hidden, near = [], 0
+            for tag_id, side, h in tags:
+                middle_u = centre + side * reach
+                square = box(middle_u - half, h - half, middle_u + half, h + half)
+                before, close = [], False
+                for k in np.flatnonzero(in_band[tag_id] & (high_u >= middle_u - room) & (low_u <= middle_u + room)):
+                    hull = shapely.MultiPoint(np.column_stack([seen_u[starts[k]:ends[k]],
+                                                               seen_h[starts[k]:ends[k]]])).convex_hull
+                    if names[k] not in before and hull.intersects(square):
+                        before.append(names[k])
+                    close = close or hull.distance(square) < CLEAR_MM
+                if before:
+                    hidden.append((tag_id, tuple(before)))
+                near += close
+            if best is None or (len(hidden), near) < best[0]:
+                best = ((len(hidden), near), float(centre), tuple(hidden))
+                if best[0] == (0, 0):
+                    return best[1], best[2]
+    return best[1], best[2]
+
+
+def _listed(words) -> str:
+    words = list(words)
+    return words[0] if len(words) == 1 else ", ".join(words[:-1]) + " and " + words[-1]
 
 
 def write_board_pdf(board: SideBoard, path: str | PathLike, title: str = "") -> None:
@@ -151,6 +267,10 @@ def write_board_pdf(board: SideBoard, path: str | PathLike, title: str = "") -> 
     lines = [f"centre mark at u = {board.center_u_mm:.0f} mm; face along v = {board.line_v_mm:.0f} mm of the guide",
              "lower edge of this sheet ON THE TABLE (heights are measured from it); the sheet upright and flat",
              "print at actual size (100 %), not \u201cfit to page\u201d; units: mm"]
+    if board.hidden:  # what the guide could not place it clear of
+        tags = _listed([str(tag_id) for tag_id, _ in board.hidden])
+        lines.append(f"the parts hide board tag{'s' if len(board.hidden) > 1 else ''} {tags} from a camera level with "
+                     "this sheet's middle: raise the side camera to look over them")
     for i, line in enumerate(lines):
         canvas.drawCentredString(w / 2.0, h - 28.0 - 4.0 * i, line)
     draw_scale_bar(canvas, w / 2.0 - 50.0, 20.0)

@@ -141,7 +141,7 @@ def build_guide(scenario: Scenario, x=None, *, view: str | None = None,
             name=name, kind=facts[name].kind, step=step, outline=part_outline(bodies[name], plane),
             center_mm=_pair(plane.to_plane(frames[name].position)[0]),
             heading_deg=heading_in_plane(frames[name].rotation, plane), parameters=own, tolerances=known,
-            care=care_level(known)))
+            care=care_level(known), solids_mm=_solids(bodies[name], plane)))
     drawings = _with_tags(scenario, frames, bodies, plane, drawings, tag_size_mm)
     drawings = describe_parts(scenario, x, frames, bodies, plane, drawings, set_with)
     references = _reference_tags(drawings, reference_tag_size_mm)
@@ -271,6 +271,20 @@ def _facts(scenario: Scenario, bodies, frames) -> dict[str, PartFacts]:
                                 footprint=part_outline(group, _FLOOR), z_min=float(world[:, 2].min()),
                                 z_max=float(world[:, 2].max()), axes_up=axes_up)
     return facts
+
+
+def _solids(group, plane: GuidePlane) -> tuple[tuple[tuple[float, float, float], ...], ...]:
+    """A part's convex collision parts as hull points on the plane's frame, ``(u, v, h)`` mm, to a tenth of a mm (a
+    circle sampled at 12 points: enough for what it hides from a camera)."""
+    solids = []
+    for body in group:
+        for part in body.solid_parts:
+            world = body.pose.apply(part.surface_points(12))
+            uv = plane.to_plane(world)
+            h = 1000.0 * (world - np.asarray(plane.origin, float)) @ np.asarray(plane.normal, float)
+            solids.append(tuple((round(float(u), 1), round(float(v), 1), round(float(z), 1))
+                                for (u, v), z in zip(uv, h)))
+    return tuple(solids)
 
 
 def _parameters(scenario: Scenario, name: str):

@@ -296,6 +296,9 @@ class PartDrawing:
         Every parameter of :attr:`parameters` as the maker sets it (value, meaning, tolerance, how).
     elevation : Elevation or None
         The part seen from the side, when a parameter moves it off the plane (a height, a tilt).
+    solids_mm : tuple of tuples of (u, v, h)
+        Its convex collision parts, each as points on its hull in mm: ``(u, v)`` on the plane, ``h`` off it (above the
+        table): what of it stands in front of the side camera's board (:mod:`projector.board`).
     """
 
     name: str
@@ -315,6 +318,7 @@ class PartDrawing:
     body_tags: tuple[BodyTag, ...] = ()
     settings: tuple[PartParameter, ...] = ()
     elevation: Elevation | None = None
+    solids_mm: tuple[tuple[tuple[float, float, float], ...], ...] = ()
 
     def tag_views(self) -> tuple[PartDrawing, ...]:
         """Every tag the part carries, each as the part with that tag (its own, then those on its bodies): what the

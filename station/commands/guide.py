@@ -20,8 +20,8 @@ JSON_SHAPE = ('{"scenario", "content_hash", "view", "units": "mm", "tolerance_so
               '[{"name", "kind", "step", "tag_id", "center_mm", "heading_deg", "outline_mm", "care", "tolerances", '
               '"parameters": [{"name", "value", "unit", "meaning", "set_with", "role", "tolerance"}]}], "jigs": '
               '[{"id", "part", "kind", "parameters", "words", "footprint_mm", "tag_id", "face_tag_id"}], "layout", '
-              '"steps", "side_board": {"line_v_mm", "center_u_mm", "paper", "sheet_mm", "reference_tags", "words"} '
-              'or null}')
+              '"steps", "side_board": {"line_v_mm", "center_u_mm", "paper", "sheet_mm", "reference_tags", '
+              '"hidden_tags", "words"} or null}')
 
 
 def register(subparsers) -> None:

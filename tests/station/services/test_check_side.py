@@ -147,6 +147,52 @@ def test_the_guide_writes_the_board_sheet_and_says_where_it_stands(tmp_path, cap
     assert "lower edge on the table" in manifest["side_board"]["words"]
 
 
+def _hidden_board_tags(job, board, tilt: float = 0.0) -> set[int]:
+    """The board tags the camera twin hides behind the parts, from the side camera 700 mm away at ``tilt`` (its
+    field of view at a quarter of the pixels: what stands before what does not change)."""
+    truth = []
+    check_side.side_frame(job, board, check_side.side_targets(job, board),
+                          f"sim://camera?view=side&height=700&tilt={tilt:g}&size=960x540&f=700", truth=truth)
+    return {t.tag_id for t in truth if t.tag_id in BOARD_TAG_IDS and not t.visible}
+
+
+def test_the_board_stands_where_no_part_hides_its_tags(tmp_path):
+    # SIMPLE with its track 50 mm left of the middle: behind the middle the dominoes hide the lower right tag from a
+    # camera at the board's mid-height; a little to the right the parts stand between the two columns of tags
+    from station.services.guide import GuideRequest, make_guide
+
+    layout = tmp_path / "left.json"
+    layout.write_text(json.dumps({"parameters": {"track.x": -0.05, "track.z": 0.06, "track.roll": 30.0}}))
+    job = make_guide(GuideRequest("simple", str(layout), tolerances=False, jigs=True))
+    board = side_board(job.guide)
+    assert _hidden_board_tags(job, board) == set()
+    assert board.hidden == () and "raise the side camera" not in board.words()
+    assert job.manifest()["side_board"]["hidden_tags"] == {}
+
+
+def test_where_no_place_is_clear_the_board_hides_the_fewest_tags_and_the_guide_says_which():
+    from dataclasses import replace
+
+    from station.services.guide import GuideRequest, make_guide
+
+    job = make_guide(GuideRequest("causalityswitch_ball", "success", tolerances=False, jigs=True))
+    board = side_board(job.guide)
+    (tag_id,) = _hidden_board_tags(job, board)  # the dominoes run along the whole table: one is behind them anywhere
+    ((said, hiders),) = board.hidden
+    assert said == tag_id  # the twin hides what the guide says
+    words = board.words()
+    assert f"{' and '.join(f'`{n}`' for n in hiders)} hide board tag {tag_id}, so raise the side camera" in words
+    assert job.manifest()["side_board"]["hidden_tags"] == {str(tag_id): list(hiders)}
+    assert _hidden_board_tags(job, board, -20.0) == set()  # the raised camera looks over them
+    # nowhere else behind the parts does the twin hide fewer
+    u0, _, u1, _ = job.guide.extent_mm
+    for centre in np.linspace(u0, u1, 5):
+        moved = replace(board, center_u_mm=float(centre), reference_tags=tuple(
+            replace(t, center_mm=(t.center_mm[0] + centre - board.center_u_mm, t.center_mm[1]))
+            for t in board.reference_tags))
+        assert len(_hidden_board_tags(job, moved)) >= 1, centre
+
+
 def test_the_simulated_world_serves_the_side_camera_where_its_maker_set_the_part():
     from calibration.asbuilt import part_plane_pose
     from station.services.world import as_placed_layout, grab_placed_side, open_world, place_parts
@@ -336,6 +382,30 @@ def test_a_part_in_front_of_a_board_tag_hides_it_and_the_plane_comes_from_the_ot
     assert red.sum() > 200 and np.min(np.hypot(u - corner[0], v - corner[1])) < 3.0
 
 
+def test_what_hides_a_tag_is_named_from_where_the_top_camera_found_the_parts():
+    # the track set 40 mm to the left of its place: it and its stand now stand before the board's lower left tag (579)
+    # as the side camera at the board's mid-height sees them. The top camera measured the track there, so the check
+    # names the track, not the empty place the design leaves before that tag
+    job = _simple()
+    board = side_board(job.guide)
+    targets = check_side.side_targets(job, board)
+    names = list(job.scenario.design_space.names)
+    moved = np.array(job.layout.x, dtype=float)
+    moved[names.index("track.x")] -= 0.040
+    picture, lens = check_side.side_frame(job, board, targets, SIDE_URL, layout=moved)
+    side = check_side.measure_side(job, board, targets, picture, lens, camera="side")
+    assert not side.hidden.get(579)  # the design has nothing before it
+    frame, top_lens = service.grab_frame("sim://camera?seed=2", job.guide, offsets={"track": (-40.0, 0.0, 0.0)})
+    report = service.check_frame(job, frame, top_lens, service.CheckRequest(camera="top"), side=side).report
+    assert report.measured_by["track.x"] == "top"
+    assert abs(report.as_measured["track.x"] - moved[names.index("track.x")]) < 0.001
+    view = report.to_json()["views"][1]
+    assert view["hidden_tags"] == {"579": ["track", "jig J1"], "580": ["dominoes"]}
+    assert view["hidden_tags_as_built"] == ["track"]
+    lines = check_side.side_lines(report)
+    assert "side view: board tag 579 hidden: `track` and jig J1 stand between the side camera and it" in lines
+
+
 def test_the_parts_drawn_where_they_hide_nothing_change_no_measurement(monkeypatch):
     # the side camera raised 255 mm (tilt -20 deg) looks over every part: the same frame with and without the
     # parts' solids reads the same numbers, and the parts are in it
@@ -364,24 +434,34 @@ def test_two_board_tags_are_no_plane_and_the_check_says_which_are_missing():
     assert "not measured: the side camera found too few board tags (missing 579, 580)" in check.instruction
 
 
-def test_a_board_hidden_behind_dominoes_measures_nothing_and_says_what_hides_it_and_what_to_do():
+def test_tags_hidden_behind_the_parts_say_what_hides_them_and_too_few_measure_nothing():
+    # CAUSALITYSWITCH from the board's mid-height: its dominoes hide a board tag wherever the board stands (the guide
+    # says which) and `wave` the jig's face tag; with a hand over a second board tag, no plane and no height
     from station.services.guide import GuideRequest, make_guide
 
     job = make_guide(GuideRequest("causalityswitch_ball", "success", tolerances=False, jigs=True))
-    _, side = _side_view(job, SIDE_URL)
+    board = side_board(job.guide)
+    ((tag_id, hiders),) = board.hidden
     frame, top_lens, _, _ = service.camera_frame(job.guide, service.FrameSource(camera="sim://camera?seed=2"))
+    _, side = _side_view(job, SIDE_URL)
+    assert side.measurement.plane is not None and tag_id not in side.measurement.plane.reference_ids
+    assert side.hidden[tag_id] == hiders and side.hidden[501] == ("wave",)
     report = service.check_frame(job, frame, top_lens, service.CheckRequest(camera="top"), side=side).report
-    assert side.measurement.plane is None
-    assert side.hidden[579] and side.hidden[580] and side.hidden[501] == ("wave",)
     assert "track_joint.z" in report.not_measured and "track_joint.roll" in report.not_measured
+    assert "`ball_track`: tag 501 (jig J1) hidden: `wave` stands between the side camera and it; raise the side " \
+           "camera to look over it" in check_side.side_lines(report)[-1]
+    _, side = _side_view(job, SIDE_URL, occluded=(579,))
+    report = service.check_frame(job, frame, top_lens, service.CheckRequest(camera="top"), side=side).report
+    assert side.measurement.plane is None and side.measurement.missing_reference_ids == (579, tag_id)
     assert not any(view == "side" for view in report.measured_by.values())
     lines = check_side.side_lines(report)
-    names = " and ".join(f"`{n}`" for n in side.hidden[579])
-    assert f"side view: board tag 579 hidden: {names} stand{'s' if len(side.hidden[579]) == 1 else ''} between " \
+    names = " and ".join(f"`{n}`" for n in hiders)
+    assert f"side view: board tag {tag_id} hidden: {names} stand{'s' if len(hiders) == 1 else ''} between " \
            "the side camera and it" in lines
+    assert "side view: board tag 579 not seen (covered, or outside the frame?)" in lines
     (no_plane,) = [line for line in lines if "no plane" in line]
-    assert "3 of the board's 4 tags are needed (missing 579, 580); no height measured: raise the side camera to " \
-           "look over" in no_plane
+    assert f"3 of the board's 4 tags are needed (missing 579, {tag_id}); no height measured: raise the side camera " \
+           f"to look over {names}" in no_plane
     assert "`ball_track`: tag 501 (jig J1) not measured" in lines[-1] and "`wave` stands in front" in lines[-1]
 
 
