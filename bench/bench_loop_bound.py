@@ -55,7 +55,6 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-from shapely.errors import GEOSException
 
 from bench.bench_loop import _seeds
 from calibration.sim_runs import wilson_interval
@@ -285,7 +284,7 @@ def world_scan(name: str, seed: int, *, layouts: int, scan_samples: int, top: in
                 precisions.append(_precision_of(precision, scenario, xs[i], jigs))
                 order.append(i)
                 best_screened += i not in must
-            except (GEOSException, ServiceError) as error:  # no guide, no jigs: the loop cannot place it either
+            except ServiceError as error:  # no guide: the loop cannot place it either
                 unguided.append({"layout": dict(zip(space.names, map(float, xs[i]))), "error": str(error)})
         measured = [_success(known, hidden, run, xs[i], samples, 7, p) for i, p in zip(order, precisions)]
         scores = [m.probability for m in measured]

@@ -29,7 +29,10 @@ the table. A board stand's: x along the board (the guide's u), y up, y = 0 its l
 the guide's u, v, from its lower-left corner. ``footprint`` is where the jig lies on the guide plane, in (u, v) mm.
 
 What cannot get a jig gets a :class:`ByHand` entry saying why and how to set the value: a part hanging from a rope,
-a plate larger than the sheet, a part too low for a base under it, a stand that would pass through another part.
+a plate larger than the sheet, a part too low for a base under it, a stand that would pass through another part, a
+piece that would come out empty, in several pieces or with an outline crossing itself (checked before it is cut or
+combined), and any other shape shapely cannot compute for that part's jig (its message in the reason): one part's
+jig never stops the plan.
 """
 
 from __future__ import annotations
@@ -41,6 +44,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 import shapely
 import shapely.affinity as affinity
+from shapely.errors import GEOSException
 from shapely.geometry import Polygon, box
 from shapely.geometry.base import BaseGeometry
 from shapely.geometry.polygon import orient
@@ -256,8 +260,7 @@ def plan_jigs(scenario: Scenario, x, plane, parts: Sequence[PartInput], settings
         out_of_plane = tuple(name for name, key in keys.items() if key in OUT_OF_PLANE[view])
         if shaping:
             try:
-                jig = context.stand(part, f"J{len(jigs) + 1}") if view == "top" else \
-                    context.board_stand(part, f"J{len(jigs) + 1}")
+                jig = _made(context.stand if view == "top" else context.board_stand, part, f"J{len(jigs) + 1}")
             except _NoJig as reason:
                 if out_of_plane:
                     by_hand.append(ByHand(part.name, part.step, out_of_plane, str(reason),
@@ -274,10 +277,31 @@ def plan_jigs(scenario: Scenario, x, plane, parts: Sequence[PartInput], settings
         wanted = tuple(name for name in part.parameters if name in tight and keys[name] in IN_PLANE[view])
         if wanted and view == "top":
             try:
-                jigs.append(_after(context.template(part, f"J{len(jigs) + 1}"), jigs))
+                jigs.append(_after(_made(context.template, part, f"J{len(jigs) + 1}"), jigs))
             except _NoJig as reason:
                 skipped.append(f"{part.name}: {reason}")
     return JigPlan(view, tuple(jigs), tuple(by_hand), tuple(skipped))
+
+
+def _made(make: Callable[[PartInput, str], Jig], part: PartInput, jig_id: str) -> Jig:
+    """``make(part, jig_id)``; a shape shapely cannot compute for it refused as any other reason, with its message."""
+    try:
+        return make(part, jig_id)
+    except GEOSException as error:
+        raise _NoJig(f"its jig's shape cannot be computed at this layout (shapely: {str(error).split('. ')[0]})") \
+            from error
+
+
+def _piece(shape: BaseGeometry, what: str) -> Polygon:
+    """``shape`` as one piece to cut, or the reason it cannot be: empty, in several pieces, or an outline that
+    crosses itself (which shapely refuses to combine with anything)."""
+    if shape.is_empty or shape.area <= 0.0:
+        raise _NoJig(f"its {what} would be empty")
+    if not isinstance(shape, Polygon):
+        raise _NoJig(f"its {what} would come out in {len(getattr(shape, 'geoms', [shape]))} pieces")
+    if not shape.is_valid:
+        raise _NoJig(f"its {what}'s outline would cross itself ({shapely.is_valid_reason(shape)})")
+    return shape
 
 
 def _after(jig: Jig, earlier: Sequence[Jig]) -> Jig:
@@ -445,7 +469,7 @@ class _Context:
         tilt = math.degrees(math.atan2(b[1] - a[1], b[0] - a[0]))
         # the stop holds the lower end; a level part's right end (as seen from the engraved face)
         lower = ("b" if b[1] < a[1] else "a") if abs(tilt) >= LEVEL_DEG else "b"
-        full = Polygon([(a[0], ground(a[0])), (b[0], ground(b[0])), tuple(b), tuple(a)])
+        full = _piece(Polygon([(a[0], ground(a[0])), (b[0], ground(b[0])), tuple(b), tuple(a)]), "plate")
         blocked = self._blocked(name, full, frame)
         notes = []
         start, end = float(a[0]), float(b[0])
@@ -476,7 +500,7 @@ class _Context:
                 stop = None
             else:
                 plate = with_stop
-        return orient(shapely.simplify(plate, 0.005), 1.0), a2, b2, stop, lower, tilt, notes
+        return _piece(orient(shapely.simplify(plate, 0.005), 1.0), "plate"), a2, b2, stop, lower, tilt, notes
 
     @staticmethod
     def _with_stop(plate: Polygon, cut: BaseGeometry, end: np.ndarray, outward: np.ndarray,
@@ -572,7 +596,7 @@ class _Context:
                 raise _NoJig("no room on the table for the stand's base beside the other parts")
             notes.append("its base is cut back where other parts stand")
         tag_id = self._next_tag() if shape.contains(tag_box) else None
-        base_shape = orient(shape.difference(slot), 1.0)
+        base_shape = _piece(orient(shape.difference(slot), 1.0), "base")
         free = base_shape.difference(tag_box) if tag_id is not None else base_shape
         engrave = tag_strokes(self.tag_cells(tag_id), size, tag_centre) if tag_id is not None else []
         label = place_label(free, f"{jig_id} {name}", LABEL_MM, near=(length / 2.0, -side * (half + 4.0)))
@@ -747,9 +771,7 @@ class _Context:
         if not self._fits_sheet(shape):
             raise self._too_large(shape, "template")
         tag_id = self._next_tag() if shape.contains(tag_box) else None
-        plate = orient(shape.difference(pocket), 1.0)
-        if not isinstance(plate, Polygon):
-            raise _NoJig("its pocket splits the template")
+        plate = _piece(orient(shape.difference(pocket), 1.0), "template")
         u0, v0 = plate.bounds[0], plate.bounds[1]
         outline = affinity.translate(plate, -u0, -v0)
         engrave = []
