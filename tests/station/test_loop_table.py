@@ -163,9 +163,11 @@ def test_a_database_that_stores_no_commit_says_so(campaign):
     assert "a12fa16 for 3 runs (as given" in loop_table.markdown(table, unstored_commit="a12fa16")[0]
 
 
-def test_a_run_stores_the_commit_of_every_station_code_that_worked_on_it(tmp_path):
+@pytest.mark.parametrize("where", ["sqlite", "postgresql"])
+def test_a_run_stores_the_commit_of_every_station_code_that_worked_on_it(where, request, tmp_path):
+    url = request.getfixturevalue("pg_url") if where == "postgresql" else str(tmp_path / "s.sqlite3")
     key = run_key({"scenario": "SIMPLE"})
-    with LoopStore(str(tmp_path / "s.sqlite3")) as store:
+    with LoopStore(url) as store:
         run, made = store.run(key, scenario="SIMPLE", content_hash="h", world="w", settings={"a": 1}, commit="c1")
         assert made and store.commits(run) == ["c1"]
         assert store.run(key, scenario="SIMPLE", content_hash="h", world="w", settings={"a": 1},
