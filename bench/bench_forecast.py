@@ -278,6 +278,44 @@ def worlds(row: dict, seeds: list[int], samples: int, station_samples: int, work
             "share_at_least_0.8": float(np.mean(rates >= 0.8)), "share_at_most_0.2": float(np.mean(rates <= 0.2))}
 
 
+def replay(row: dict, per_world: dict, attempts: int, samples: int, pool: int, repeats: int, workers: int | None,
+           seed: int = 0, log=print) -> dict:
+    """Forecasts of ``attempts`` attempts in each world of ``per_world`` (``{seed: the layout's success there}``,
+    from :func:`worlds`), the old way and the new: the outcomes drawn from each world's success (``repeats`` times,
+    seeded), each attempt's prediction ``samples`` simulations drawn from a pool of ``pool`` material draws of the
+    station's profile simulated twice each (as the loop simulates them with a record), its forecast the Beta of the
+    layout choice's weight over the plain mean (old) or the draws weighted by the record before it (new,
+    :func:`calibration.sim_predict.given_record`). The Brier scores of the plain prediction, the old and the new
+    forecast over every attempt."""
+    from calibration.sim_predict import PER_PHYSICS, given_record, predict_success
+    from station.services.contraption import open_scenario
+    from station.services.layout_choice import expected_success
+    from station.services.sim_calibration import station_runner
+
+    scenario = open_scenario(row["scenario"])
+    kwargs = {**variants(row, pool * PER_PHYSICS)["station"], "per_physics": PER_PHYSICS}
+    with station_runner(workers=workers) as run:
+        runs = np.array(predict_success(scenario, run=run, **kwargs).physics_runs, dtype=float)
+    log(f"pool: {len(runs)} material draws, success {runs[:, 0].sum() / runs[:, 1].sum():.3f}")
+    rng = np.random.default_rng(seed)
+    squares: dict[str, list[float]] = {"predicted": [], "old forecast": [], "new forecast": []}
+    for rate in per_world.values():
+        for _ in range(repeats):
+            successes = 0
+            for a in range(attempts):
+                drawn = runs[rng.choice(len(runs), samples // PER_PHYSICS, replace=False)]
+                plain = drawn[:, 0].sum() / drawn[:, 1].sum()
+                outcome = float(rng.random() < rate)
+                for name, forecast in (("predicted", plain), ("old forecast", expected_success(plain, successes, a)),
+                                       ("new forecast", given_record(plain, drawn, successes, a))):
+                    squares[name].append((forecast - outcome) ** 2)
+                successes += int(outcome)
+    return {"worlds": len(per_world), "attempts": attempts, "repeats": repeats, "samples": samples, "pool": pool,
+            "world_mean": float(np.mean(list(per_world.values()))),
+            "pool_success": float(runs[:, 0].sum() / runs[:, 1].sum()),
+            "brier": {name: float(np.mean(v)) for name, v in squares.items()}}
+
+
 def summarize(table: list[dict]) -> dict:
     """Per variant and per loop (and ``all``): the mean probability, the success rate, the Brier score."""
     skip = {"world", "loop", "attempt", "success", "record"}
@@ -328,7 +366,25 @@ def main(argv: list[str] | None = None) -> int:
     spread.add_argument("--station-samples", type=int, default=128)
     spread.add_argument("--workers", type=int, default=2)
     spread.add_argument("--json", default=None)
+    again_worlds = sub.add_parser("replay", help="old and new forecasts of attempts in worlds scored by `worlds`")
+    again_worlds.add_argument("--capture", required=True)
+    again_worlds.add_argument("--row", type=int, default=0)
+    again_worlds.add_argument("--worlds", required=True, help="the JSON `worlds --json` wrote")
+    again_worlds.add_argument("--attempts", type=int, default=10)
+    again_worlds.add_argument("--samples", type=int, default=16)
+    again_worlds.add_argument("--pool", type=int, default=64)
+    again_worlds.add_argument("--repeats", type=int, default=200)
+    again_worlds.add_argument("--workers", type=int, default=2)
+    again_worlds.add_argument("--json", default=None)
     args = parser.parse_args(argv)
+    if args.command == "replay":
+        per_world = json.loads(Path(args.worlds).read_text(encoding="utf-8"))["worlds"]
+        result = replay(read_rows(Path(args.capture))[args.row], per_world, args.attempts, args.samples, args.pool,
+                        args.repeats, args.workers, log=lambda line: print(line, flush=True))
+        print(json.dumps(result, indent=2))
+        if args.json:
+            Path(args.json).write_text(json.dumps(result, indent=2) + "\n", encoding="utf-8")
+        return 0
     if args.command == "worlds":
         result = worlds(read_rows(Path(args.capture))[args.row], _seeds(args.seeds), args.samples,
                         args.station_samples, args.workers, log=lambda line: print(line, flush=True))
