@@ -13,18 +13,23 @@ lower edge on it (so its ``v`` is the height above the table), its face along th
 tags (:data:`BOARD_TAG_IDS`), so neither camera mistakes one board for the other.
 
 **Where along u.** The side camera sees a board tag only where nothing stands between them. The guide assumes the
-camera :data:`SIDE_CAMERA_MM` in front of the board, level with its middle, facing the middle of the board and the
-jig stands whose face tags it reads (as the simulated camera aims itself), the lowest a side camera stands: raised,
-it looks over more. The centre is the whole millimetre nearest the middle of the guide's extent, within that extent
-(the board stays behind the parts), where both columns of tags stand clear, as that camera sees them, of every
-part's and jig stand's footprint (:data:`CLEAR_MM` of room): nothing in front of them, whatever its height. Where no
-such place is, the one that leaves the fewest board tags hidden behind the parts themselves (their solids, a part on
-a stand carried down to the table by its plate; every :data:`HIDDEN_STEP_MM`, the nearest to the middle of the best),
-and :attr:`SideBoard.hidden` names what hides which tag, which the guide's words say.
+camera :data:`SIDE_CAMERA_MM` in front of the board facing the middle of the board and of the jig stands whose face
+tags it reads (as the simulated camera aims itself), level with the board's middle (the lowest a side camera
+stands) or raised :data:`SIDE_CAMERA_RISE_MM` over it (the station's own, looking down 20 deg). The centre is the
+whole millimetre nearest the middle of the guide's extent, within that extent (the board stays behind the parts) and
+within a sheet's width of every jig stand whose face tag the side camera reads (the heights are carried from the
+board's plane to the tag: far off, a small error of the plane's tilt grows into millimetres), where both columns of
+tags stand clear, as the camera sees them, of every part's and jig stand's footprint (:data:`CLEAR_MM` of room):
+nothing in front of them, whatever its height. Where no such place is, the one (every :data:`HIDDEN_STEP_MM`) that
+leaves the fewest board tags behind the parts themselves (their solids, a part on a stand carried down to the table
+by its plate) from the raised camera, then from the level one, then with the fewest parts within :data:`CLEAR_MM` of
+a tag, the nearest to the middle of the best; :attr:`SideBoard.hidden` and :attr:`SideBoard.hidden_raised` name
+what hides which tag, which the guide's words say.
 """
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from os import PathLike
 
@@ -55,6 +60,9 @@ SIDE_CAMERA_MM = 700.0
 CLEAR_MM = 10.0
 #: The step of the places tried when none is clear (mm).
 HIDDEN_STEP_MM = 5.0
+#: How far above the board's middle the station's side camera stands by default (mm): 700 mm away looking down 20
+#: degrees (station.services.check_cameras.SIDE_CAMERA), 700 tan 20 deg.
+SIDE_CAMERA_RISE_MM = 255.0
 
 
 @dataclass(frozen=True)
@@ -77,6 +85,8 @@ class SideBoard:
     hidden : tuple of (int, tuple of str)
         Where no place leaves every tag clear (module notes): each board tag the parts hide from a side camera level
         with the board's middle, and the parts that do; empty when none.
+    hidden_raised : tuple of (int, tuple of str)
+        The same from the side camera raised :data:`SIDE_CAMERA_RISE_MM` (the station's own, looking down 20 deg).
     """
 
     plane: GuidePlane
@@ -86,6 +96,7 @@ class SideBoard:
     paper: str
     reference_tags: tuple[ReferenceTag, ...]
     hidden: tuple[tuple[int, tuple[str, ...]], ...] = ()
+    hidden_raised: tuple[tuple[int, tuple[str, ...]], ...] = ()
 
     @property
     def extent_mm(self) -> tuple[float, float, float, float]:
@@ -98,14 +109,16 @@ class SideBoard:
         words = (f"stand the board sheet upright behind the parts, its lower edge on the table, its printed face "
                  f"towards you along the line v = {self.line_v_mm:.0f} mm of the guide, its centre mark at "
                  f"u = {self.center_u_mm:.0f} mm; the side camera faces it from in front of the table")
-        if not self.hidden:
+        if not self.hidden and not self.hidden_raised:
             return words
-        hiders = list(dict.fromkeys(name for _, names in self.hidden for name in names))
-        tags = [str(tag_id) for tag_id, _ in self.hidden]
-        return (f"{words}; no place along the table leaves all its tags clear of the parts: seen level with the "
-                f"board's middle, {_listed([f'`{n}`' for n in hiders])} hide{'s' if len(hiders) == 1 else ''} board "
-                f"tag{'s' if len(tags) > 1 else ''} {_listed(tags)}, so raise the side camera to look over "
-                f"{'it' if len(hiders) == 1 else 'them'} (it measures from any height)")
+        seen = [f"seen level with the board's middle, {_hiding(self.hidden)}"] if self.hidden else []
+        if self.hidden_raised:
+            seen.append(f"even raised {SIDE_CAMERA_RISE_MM:.0f} mm (looking down 20 deg), {_hiding(self.hidden_raised)}"
+                        ": the side camera finds the board's plane from three of its tags")
+        else:
+            seen.append(f"so raise the side camera to look over them ({SIDE_CAMERA_RISE_MM:.0f} mm over the board's "
+                        "middle, looking down 20 deg, it sees every tag; it measures from any height)")
+        return f"{words}; no place along the table leaves all its tags clear of the parts: {', '.join(seen)}"
 
     def manifest(self) -> dict:
         """The board in the guide's manifest (``side_board``)."""
@@ -114,6 +127,7 @@ class SideBoard:
                 "reference_tags": [{"id": t.id, "center_mm": [round(c, 3) for c in t.center_mm],
                                     "size_mm": round(t.size_mm, 3)} for t in self.reference_tags],
                 "hidden_tags": {str(tag_id): list(names) for tag_id, names in self.hidden},
+                "hidden_tags_raised": {str(tag_id): list(names) for tag_id, names in self.hidden_raised},
                 "words": self.words()}
 
 
@@ -139,13 +153,26 @@ def side_board(guide: Guide, paper: str = "a4") -> SideBoard | None:
         return (min([centre - long / 2.0, *(b[0] for b in read)])
                 + max([centre + long / 2.0, *(b[2] for b in read)])) / 2.0
 
-    span = (float(u1) - float(u0)) / 2.0
-    centre_u = _clear_centre(middle, reach, half, footprints, line_v, span, camera_u)
+    # behind the parts, and within a sheet's width of every face tag it carries the heights of (further off, the
+    # board's plane carried out to the tag turns a small error of its tilt into millimetres)
+    low, high = float(u0), float(u1)
+    if read:
+        low, high = max(low, max(b[2] for b in read) - long), min(high, min(b[0] for b in read) + long)
+        if low > high:
+            low, high = float(u0), float(u1)
+
+    def centres(step: float) -> list[float]:  # the places tried, nearest the middle first
+        places = np.arange(math.ceil(low / step) * step, high + 1e-9, step)
+        return sorted((float(c) for c in places), key=lambda c: (abs(c - middle), c)) or [float(middle)]
+
+    centre_u = _clear_centre(centres(1.0), reach, half, footprints, line_v, camera_u)
     hidden: tuple = ()
+    raised: tuple = ()
     if centre_u is None:
         carried = {j.part for j in stands}
         solids = [(p.name, np.asarray(solid, float), p.name in carried) for p in guide.parts for solid in p.solids_mm]
-        centre_u, hidden = _least_hidden(middle, reach, half, heights, solids, line_v, span, short, camera_u)
+        centre_u, hidden, raised = _least_hidden(centres(HIDDEN_STEP_MM), reach, half, heights, solids, line_v,
+                                                 short, camera_u)
     plane = guide.plane
     origin = plane.to_world(np.array([[0.0, line_v]]))[0]
     board_plane = GuidePlane("side", origin, np.asarray(plane.u_axis, float), np.asarray(plane.normal, float),
@@ -153,83 +180,94 @@ def side_board(guide: Guide, paper: str = "a4") -> SideBoard | None:
     corners = ((-1, heights[0]), (1, heights[0]), (1, heights[1]), (-1, heights[1]))
     tags = tuple(ReferenceTag(tag_id, (centre_u + su * reach, h), BOARD_TAG_MM)
                  for tag_id, (su, h) in zip(BOARD_TAG_IDS, corners))
-    return SideBoard(board_plane, line_v, float(centre_u), (long, short), paper, tags, hidden)
+    return SideBoard(board_plane, line_v, float(centre_u), (long, short), paper, tags, hidden, raised)
 
 
-def _clear_centre(middle: float, reach: float, half: float, footprints, line_v: float, span: float,
-                  camera_u) -> float | None:
-    """The whole millimetre nearest ``middle`` (within ``span``) where both columns of tags (at ``centre +- reach``,
-    ``half`` wide each side) stand clear of every footprint as a camera at ``camera_u(centre)`` sees it (module
-    notes); None when there is none."""
+def _clear_centre(centres, reach: float, half: float, footprints, line_v: float, camera_u) -> float | None:
+    """The first of ``centres`` where both columns of tags (at ``centre +- reach``, ``half`` wide each side) stand
+    clear of every footprint as a camera at ``camera_u(centre)`` sees it (module notes); None when there is none."""
     corners = [np.asarray(g.exterior.coords, float) for f in footprints if not f.is_empty
                for g in getattr(f, "geoms", [f]) if hasattr(g, "exterior")]
     if not corners:
-        return float(middle)
+        return centres[0] if centres else None
     starts = np.cumsum([0] + [len(c) for c in corners[:-1]])
     points = np.concatenate(corners)
     scale = SIDE_CAMERA_MM / np.maximum(SIDE_CAMERA_MM - (line_v - points[:, 1]), 1.0)
-    for step in range(int(span) + 1):
-        for centre in dict.fromkeys((middle + step, middle - step)):
-            eye = camera_u(centre)
-            seen = eye + (points[:, 0] - eye) * scale
-            low, high = np.minimum.reduceat(seen, starts) - CLEAR_MM, np.maximum.reduceat(seen, starts) + CLEAR_MM
-            columns = [(centre + side * reach - half, centre + side * reach + half) for side in (-1, 1)]
-            if not any(np.any((low < t1) & (t0 < high)) for t0, t1 in columns):
-                return float(centre)
+    for centre in centres:
+        eye = camera_u(centre)
+        seen = eye + (points[:, 0] - eye) * scale
+        low, high = np.minimum.reduceat(seen, starts) - CLEAR_MM, np.maximum.reduceat(seen, starts) + CLEAR_MM
+        columns = [(centre + side * reach - half, centre + side * reach + half) for side in (-1, 1)]
+        if not any(np.any((low < t1) & (t0 < high)) for t0, t1 in columns):
+            return float(centre)
     return None
 
 
-def _least_hidden(middle: float, reach: float, half: float, heights, solids, line_v: float, span: float,
-                  board_height: float, camera_u) -> tuple[float, tuple]:
-    """The centre (every :data:`HIDDEN_STEP_MM` within ``span`` of ``middle``) that leaves the fewest board tags
-    behind the parts' ``solids`` (``(name, points (u, v, h) mm, on a stand)``) from a camera at ``camera_u(centre)``
-    level with the board's middle, then the fewest with a part within :data:`CLEAR_MM` of them (a camera set up a
-    little elsewhere), the nearest to ``middle`` of the best; and which tags they hide there: ``(centre, ((tag id,
-    names), ...))``."""
-    camera_h = board_height / 2.0
-    names, us, scales, seen_hs, starts = [], [], [], [], [0]
-    for name, points, on_stand in solids:
+def _least_hidden(centres, reach: float, half: float, heights, solids, line_v: float, board_height: float,
+                  camera_u) -> tuple[float, tuple, tuple]:
+    """The one of ``centres`` that leaves the fewest board tags behind the parts' ``solids`` (``(name, points (u, v,
+    h) mm, on a stand)``) from a camera at ``camera_u(centre)`` raised :data:`SIDE_CAMERA_RISE_MM` over the board's
+    middle (the station's own), then from one level with it, then the fewest with a part within :data:`CLEAR_MM` of
+    them seen level (a camera set up a little elsewhere), the first of the best; and which tags they hide there
+    from each: ``(centre, level, raised)``, each ``((tag id, names), ...)``."""
+    points, names, starts = [], [], [0]
+    for name, solid, on_stand in solids:
         if on_stand:  # its stand's plate fills the space under it down to the table
-            points = np.vstack([points, points * [1.0, 1.0, 0.0]])
-        scale = SIDE_CAMERA_MM / np.maximum(SIDE_CAMERA_MM - (line_v - points[:, 1]), 1.0)
+            solid = np.vstack([solid, solid * [1.0, 1.0, 0.0]])
+        points.append(solid)
         names.append(name)
-        us.append(points[:, 0])
-        scales.append(scale)
-        seen_hs.append(camera_h + (points[:, 2] - camera_h) * scale)  # level with the camera: the same at every u
-        starts.append(starts[-1] + len(points))
+        starts.append(starts[-1] + len(solid))
     if not names:
-        return float(middle), ()
-    u, scale, seen_h, starts = np.concatenate(us), np.concatenate(scales), np.concatenate(seen_hs), starts[:-1]
-    ends = [*starts[1:], len(u)]
-    low_h, high_h = np.minimum.reduceat(seen_h, starts), np.maximum.reduceat(seen_h, starts)
+        return centres[0], (), ()
+    points, starts = np.concatenate(points), starts[:-1]
+    ends = [*starts[1:], len(points)]
+    u = points[:, 0]
+    scale = SIDE_CAMERA_MM / np.maximum(SIDE_CAMERA_MM - (line_v - points[:, 1]), 1.0)
     tags = list(zip(BOARD_TAG_IDS, (-1, 1, 1, -1), (heights[0], heights[0], heights[1], heights[1])))
     room = half + CLEAR_MM
-    in_band = {tag_id: (high_h >= h - room) & (low_h <= h + room) for tag_id, _, h in tags}
+    views = []
+    for camera_h in (board_height / 2.0 + SIDE_CAMERA_RISE_MM, board_height / 2.0):
+        seen_h = camera_h + (points[:, 2] - camera_h) * scale  # the same at every u: the camera's height is
+        low_h, high_h = np.minimum.reduceat(seen_h, starts), np.maximum.reduceat(seen_h, starts)
+        views.append((seen_h, {tag_id: (high_h >= h - room) & (low_h <= h + room) for tag_id, _, h in tags}))
+
+    def hidden_from(centre: float, seen_u, low_u, high_u, seen_h, in_band) -> tuple[tuple, int]:
+        hidden, near = [], 0
+        for tag_id, side, h in tags:
+            middle_u = centre + side * reach
+            square = box(middle_u - half, h - half, middle_u + half, h + half)
+            before, close = [], False
+            for k in np.flatnonzero(in_band[tag_id] & (high_u >= middle_u - room) & (low_u <= middle_u + room)):
+                hull = shapely.MultiPoint(np.column_stack([seen_u[starts[k]:ends[k]],
+                                                           seen_h[starts[k]:ends[k]]])).convex_hull
+                if names[k] not in before and hull.intersects(square):
+                    before.append(names[k])
+                close = close or hull.distance(square) < CLEAR_MM
+            if before:
+                hidden.append((tag_id, tuple(before)))
+            near += close
+        return tuple(hidden), near
+
     best = None
-    for step in range(0, int(span / HIDDEN_STEP_MM) + 1):
-        for centre in dict.fromkeys((middle + step * HIDDEN_STEP_MM, middle - step * HIDDEN_STEP_MM)):
-            eye = camera_u(centre)
-            seen_u = eye + (u - eye) * scale
-            low_u, high_u = np.minimum.reduceat(seen_u, starts), np.maximum.reduceat(seen_u, starts)
-            hidden, near = [], 0
-            for tag_id, side, h in tags:
-                middle_u = centre + side * reach
-                square = box(middle_u - half, h - half, middle_u + half, h + half)
-                before, close = [], False
-                for k in np.flatnonzero(in_band[tag_id] & (high_u >= middle_u - room) & (low_u <= middle_u + room)):
-                    hull = shapely.MultiPoint(np.column_stack([seen_u[starts[k]:ends[k]],
-                                                               seen_h[starts[k]:ends[k]]])).convex_hull
-                    if names[k] not in before and hull.intersects(square):
-                        before.append(names[k])
-                    close = close or hull.distance(square) < CLEAR_MM
-                if before:
-                    hidden.append((tag_id, tuple(before)))
-                near += close
-            if best is None or (len(hidden), near) < best[0]:
-                best = ((len(hidden), near), float(centre), tuple(hidden))
-                if best[0] == (0, 0):
-                    return best[1], best[2]
-    return best[1], best[2]
+    for centre in centres:
+        eye = camera_u(centre)
+        seen_u = eye + (u - eye) * scale
+        low_u, high_u = np.minimum.reduceat(seen_u, starts), np.maximum.reduceat(seen_u, starts)
+        (raised, _), (level, near) = (hidden_from(centre, seen_u, low_u, high_u, *view) for view in views)
+        score = (len(raised), len(level), near)
+        if best is None or score < best[0]:
+            best = (score, float(centre), level, raised)
+            if score == (0, 0, 0):
+                break
+    return best[1], best[2], best[3]
+
+
+def _hiding(hidden) -> str:
+    """``"`a` and `b` hide board tag 580"``: what hides which tags, in words."""
+    hiders = list(dict.fromkeys(name for _, names in hidden for name in names))
+    tags = [str(tag_id) for tag_id, _ in hidden]
+    return (f"{_listed([f'`{n}`' for n in hiders])} hide{'s' if len(hiders) == 1 else ''} board "
+            f"tag{'s' if len(tags) > 1 else ''} {_listed(tags)}")
 
 
 def _listed(words) -> str:
@@ -271,6 +309,10 @@ def write_board_pdf(board: SideBoard, path: str | PathLike, title: str = "") -> 
         tags = _listed([str(tag_id) for tag_id, _ in board.hidden])
         lines.append(f"the parts hide board tag{'s' if len(board.hidden) > 1 else ''} {tags} from a camera level with "
                      "this sheet's middle: raise the side camera to look over them")
+    if board.hidden_raised:
+        tags = _listed([str(tag_id) for tag_id, _ in board.hidden_raised])
+        lines.append(f"even from the side camera raised {SIDE_CAMERA_RISE_MM:.0f} mm the parts hide board "
+                     f"tag{'s' if len(board.hidden_raised) > 1 else ''} {tags}")
     for i, line in enumerate(lines):
         canvas.drawCentredString(w / 2.0, h - 28.0 - 4.0 * i, line)
     draw_scale_bar(canvas, w / 2.0 - 50.0, 20.0)

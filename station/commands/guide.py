@@ -21,7 +21,7 @@ JSON_SHAPE = ('{"scenario", "content_hash", "view", "units": "mm", "tolerance_so
               '"parameters": [{"name", "value", "unit", "meaning", "set_with", "role", "tolerance"}]}], "jigs": '
               '[{"id", "part", "kind", "parameters", "words", "footprint_mm", "tag_id", "face_tag_id"}], "layout", '
               '"steps", "side_board": {"line_v_mm", "center_u_mm", "paper", "sheet_mm", "reference_tags", '
-              '"hidden_tags", "words"} or null}')
+              '"hidden_tags", "hidden_tags_raised", "words"} or null}')
 
 
 def register(subparsers) -> None:
