@@ -23,16 +23,10 @@ Every variant of an attempt draws the same placement noise and material draws (o
 not sampling noise. For each variant: the mean probability and the Brier score against the attempts' outcomes, per
 loop and overall.
 
-``decompose --predictor new --database DB`` re-makes instead each captured attempt's prediction as the code
-stands (the same request with the layout's record before it: the plain prediction and the forecast given the
-record), beside the Beta forecast of the captured prediction: the same attempts, forecast the old and the new way.
-``worlds`` scores one captured attempt under many worlds' hidden physics; ``sensitivity`` splits the station's
-predicted successes by the thirds of each drawn material value.
-
 Run: ``python -m bench.bench_forecast run --scenario causalityswitch_ball --seeds 11-13 --jigs --database DB
---capture rows.jsonl [--workers 2]`` then ``python -m bench.bench_forecast decompose --capture rows.jsonl
-[--samples 48] [--json out.json]``, ``... decompose --predictor new --samples 16 --database DB``, ``... worlds
---capture rows.jsonl --row 0 --seeds 100-129``.
+--capture rows.jsonl [--workers 2] [--predict-samples 16]`` then ``python -m bench.bench_forecast decompose --capture
+rows.jsonl [--samples 48] [--json out.json]``; ``--predictor new`` re-predicts with the station's current
+:func:`station.services.assemble.prediction_request` (the same captured attempts, the code's own request).
 """
 
 from __future__ import annotations
@@ -58,7 +52,6 @@ def capture(path: Path):
     def run_attempt(scenario, x, guide, world, hidden=None):
         result = original_run(scenario, x, guide, world, hidden)
         state["run"] = {"world": world.url, "world_seed": world.seed, "attempt": world.attempt,
-                        "designed": [float(v) for v in x],
                         "success": bool(result.success), "as_placed": dict(result.as_placed),
                         "hidden": world.hidden_physics(), "settings": world.settings(),
                         "set_with": {p.name: {q.name: q.set_with for q in p.settings} for p in guide.parts}}
@@ -120,56 +113,21 @@ def variants(row: dict, samples: int) -> dict[str, dict]:
     }
 
 
-def records(rows: list[dict], database: str | None) -> dict[tuple[str, int], tuple[int, int]]:
-    """Each captured attempt's layout record before it, ``{(world, attempt): (successes, attempts)}``: the earlier
-    attempts of loops >= 1 in the same world with the same designed layout (the capture's ``designed``, else the
-    trial's layout in the loop ``database``), as :meth:`station.services.loop._Loop.record_before` counts it."""
-    import sqlite3
+def new_request(row: dict, samples: int) -> dict:
+    """The station's current request for a captured attempt (:func:`station.services.assemble.prediction_request`,
+    when the code has one): what the prediction would be with the code as it stands, on the same attempt."""
+    from design.contraption.physics_profile import PhysicsProfile
+    from station.services.assemble import prediction_sigma
 
-    from station.services.loop import ATTEMPT_BLOCK
-
-    designed: dict[tuple[str, int], tuple] = {}
-    for row in rows:
-        if "designed" in row:
-            designed[(row["world"], row["attempt"])] = tuple(round(v, 9) for v in row["designed"])
-    if len(designed) < len(rows):
-        if database is None:
-            raise SystemExit("decompose --predictor new: the capture has no designed layouts; give --database")
-        with sqlite3.connect(f"file:{database}?mode=ro", uri=True) as db:
-            for row in rows:
-                k, a = divmod(row["attempt"], ATTEMPT_BLOCK)
-                found = db.execute("SELECT t.layout FROM loop_attempts x JOIN loop_runs r ON r.id = x.run_id "
-                                   "JOIN trials t ON t.id = x.trial_id WHERE r.world = ? AND x.loop_number = ? "
-                                   "AND x.attempt = ? AND r.settings LIKE '%\"jigs\": true%' ORDER BY r.id DESC",
-                                   (row["world"], k, a)).fetchone()
-                layout = json.loads(found[0])
-                designed[(row["world"], row["attempt"])] = tuple(round(layout[n], 9) for n in row["names"])
-    out = {}
-    for row in rows:
-        key = (row["world"], row["attempt"])
-        earlier = [r for r in rows if r["world"] == row["world"] and r["attempt"] < row["attempt"]
-                   and designed[(r["world"], r["attempt"])] == designed[key]]
-        out[key] = (sum(bool(r["success"]) for r in earlier), len(earlier))
-    return out
+    profile = None
+    if row["values"] is not None:
+        profile = PhysicsProfile(name="captured", values=row["values"],
+                                 intervals={k: tuple(v) for k, v in (row["intervals"] or {}).items()})
+    request = prediction_sigma(row, profile)
+    return dict(layout=np.array(row["x"], dtype=float), samples=samples, seed=row["seed"], **request)
 
 
-def new_predictions(row: dict, record: tuple[int, int], samples: int, run, scenario) -> dict[str, float]:
-    """The code's own prediction and forecast of a captured attempt (the loop's request: the same layout, error
-    and profile, its record, :data:`calibration.sim_predict.PER_PHYSICS` simulations per material draw when it
-    has one), beside the Beta forecast of the captured prediction (the weight of
-    :data:`station.services.layout_choice.PREDICTION_WEIGHT`)."""
-    from calibration.sim_predict import PER_PHYSICS, predict_success
-    from station.services.layout_choice import expected_success
-
-    kwargs = {**variants(row, samples)["station"], "record": record,
-              "per_physics": PER_PHYSICS if record[1] else 1}
-    result = predict_success(scenario, run=run, **kwargs)
-    return {"record": list(record), "beta forecast": expected_success(row["probability"], *record),
-            "new predicted": result.probability, "new forecast": result.given_record}
-
-
-def decompose(rows: list[dict], samples: int, workers: int | None, predictor: str = "old", log=print,
-              database: str | None = None) -> dict:
+def decompose(rows: list[dict], samples: int, workers: int | None, predictor: str = "old", log=print) -> dict:
     """Every variant of every captured attempt; per variant the mean probability and Brier score, per loop and in
     all."""
     from calibration.sim_predict import predict_success
@@ -179,7 +137,6 @@ def decompose(rows: list[dict], samples: int, workers: int | None, predictor: st
 
     scenarios: dict = {}
     table: list[dict] = []
-    known = records(rows, database) if predictor == "new" else {}
     with station_runner(workers=workers) as run:
         for row in rows:
             scenario = scenarios.get(row["scenario"]) or open_scenario(row["scenario"])
@@ -188,12 +145,10 @@ def decompose(rows: list[dict], samples: int, workers: int | None, predictor: st
                 raise SystemExit(f"{row['scenario']}: the scenario changed since the capture")
             made = variants(row, samples)
             if predictor == "new":
-                made = {"as made": made["as made"], "truth": made["truth"]}
+                made = {"as made": made["as made"], "station": made["station"],
+                        "new": new_request(row, samples), "truth": made["truth"]}
             probabilities = {name: predict_success(scenario, run=run, **kwargs).probability
                              for name, kwargs in made.items()}
-            if predictor == "new":
-                probabilities.update(new_predictions(row, known[(row["world"], row["attempt"])], samples, run,
-                                                     scenario))
             entry = {"world": row["world"], "loop": row["attempt"] // ATTEMPT_BLOCK,
                      "attempt": row["attempt"] % ATTEMPT_BLOCK, "success": row["success"],
                      "captured": row["probability"], **probabilities}
@@ -318,7 +273,7 @@ def replay(row: dict, per_world: dict, attempts: int, samples: int, pool: int, r
 
 def summarize(table: list[dict]) -> dict:
     """Per variant and per loop (and ``all``): the mean probability, the success rate, the Brier score."""
-    skip = {"world", "loop", "attempt", "success", "record"}
+    skip = {"world", "loop", "attempt", "success"}
     names = [k for k in table[0] if k not in skip] if table else []
     groups = {"all": table}
     for entry in table:
@@ -348,9 +303,7 @@ def main(argv: list[str] | None = None) -> int:
     again.add_argument("--capture", required=True)
     again.add_argument("--samples", type=int, default=48)
     again.add_argument("--workers", type=int, default=2)
-    again.add_argument("--predictor", choices=("old", "new"), default="old",
-                       help="old: the variants; new: the code's own prediction and forecast with each attempt's record")
-    again.add_argument("--database", default=None, help="the run's loop database (designed layouts for the records)")
+    again.add_argument("--predictor", choices=("old", "new"), default="old")
     again.add_argument("--json", default=None)
     shape = sub.add_parser("sensitivity", help="which drawn material value the predicted failures come from")
     shape.add_argument("--capture", required=True)
@@ -412,7 +365,7 @@ def main(argv: list[str] | None = None) -> int:
             Path(args.json).write_text(json.dumps(figures, indent=2, default=str) + "\n", encoding="utf-8")
         return 0
     result = decompose(read_rows(Path(args.capture)), args.samples, args.workers, args.predictor,
-                       log=lambda line: print(line, flush=True), database=args.database)
+                       log=lambda line: print(line, flush=True))
     print(json.dumps(result["summary"], indent=2))
     if args.json:
         Path(args.json).write_text(json.dumps(result, indent=2) + "\n", encoding="utf-8")

@@ -82,8 +82,6 @@ class AttemptRow:
     success: bool
     predicted: float | None
     check_rounds: int
-    #: the prediction given the layout's record before the attempt (None: stored before forecasts were)
-    forecast: float | None = None
 
 
 class LoopStore:
@@ -162,7 +160,7 @@ class LoopStore:
     # -- attempts -----------------------------------------------------------------------------------------------
     def attempts(self, run_id: int, loop: int | None = None) -> list[AttemptRow]:
         """The run's attempts (of one loop), in order."""
-        sql = ("SELECT loop_number, attempt, trial_id, success, predicted, check_rounds, forecast FROM loop_attempts "
+        sql = ("SELECT loop_number, attempt, trial_id, success, predicted, check_rounds FROM loop_attempts "
                "WHERE run_id = ?")
         params: tuple = (run_id,)
         if loop is not None:
@@ -171,10 +169,10 @@ class LoopStore:
         with self.database.transaction(write=False) as tx:
             rows = tx.all(sql + " ORDER BY loop_number, attempt", params)
         return [AttemptRow(int(r[0]), int(r[1]), int(r[2]), bool(r[3]), None if r[4] is None else float(r[4]),
-                           int(r[5]), None if r[6] is None else float(r[6])) for r in rows]
+                           int(r[5])) for r in rows]
 
     def add_attempt(self, run_id: int, loop: int, attempt: int, trial: Mapping[str, Any], *,
-                    predicted: float | None, check_rounds: int, forecast: float | None = None) -> AttemptRow:
+                    predicted: float | None, check_rounds: int) -> AttemptRow:
         """Log ``trial`` (the export's form) and the attempt in one transaction. An attempt already stored (another
         process resumed the same run meanwhile) keeps the stored one and logs nothing."""
         with self.database.transaction() as tx:
@@ -183,9 +181,8 @@ class LoopStore:
             if row is None:
                 trial_id = self.trials._insert(tx, trial)
                 tx.execute("INSERT INTO loop_attempts (run_id, loop_number, attempt, trial_id, success, predicted, "
-                           "check_rounds, forecast) VALUES (?, ?, ?, ?, ?, ?, ?, ?)",
-                           (run_id, loop, attempt, trial_id, int(bool(trial["success"])), predicted, check_rounds,
-                            forecast))
+                           "check_rounds) VALUES (?, ?, ?, ?, ?, ?, ?)",
+                           (run_id, loop, attempt, trial_id, int(bool(trial["success"])), predicted, check_rounds))
         return next(a for a in self.attempts(run_id, loop) if a.attempt == attempt)
 
     def trial(self, trial_id: int) -> dict[str, Any]:

@@ -36,7 +36,6 @@ from typing import Any
 
 import numpy as np
 
-from calibration.sim_predict import PER_PHYSICS
 from common.progress import Reporter
 from design.contraption.physics_profile import apply_profile
 from projector.overlay import misplaced
@@ -110,15 +109,9 @@ class Forecast:
 
     @property
     def with_record(self) -> float | None:
-        """The prediction given the layout's record: its material draws weighted by the record's likelihood
-        (:attr:`calibration.sim_predict.PhysicalPrediction.given_record`), or, for a prediction with no material
-        draws, the record weighed against it as a layout's choice weighs it
+        """The prediction updated by the layout's record, as ``station loop`` weighs it
         (:func:`station.services.layout_choice.expected_success`); None without a record."""
-        if not self.record[1]:
-            return None
-        if getattr(self.prediction, "physics_runs", ()):
-            return self.prediction.given_record
-        return expected_success(self.prediction.probability, *self.record)
+        return expected_success(self.prediction.probability, *self.record) if self.record[1] else None
 
     def record_words(self) -> str:
         """``"0.78 with its record here (3 of 4 worked; expected attempts 1.3)"``, or "" without a record."""
@@ -434,11 +427,8 @@ class Assembly:
             when = "as placed"
         if self.stage in ("log", "done"):
             when = f"{when}; this run: {'success' if self.success else 'failure'}"
-        # with a record the material draws are simulated in pairs, so that the record can weigh them (its
-        # attempts shared this workshop's physics): what Forecast.with_record says
         request = PredictionRequest(self._profile, samples=self.samples, seed=self.seed, workers=self.workers,
-                                    scheduler=self.scheduler, set_sigma=set_sigma, record=tuple(self.record),
-                                    per_physics=PER_PHYSICS if self.record[1] else 1, **sigma)
+                                    scheduler=self.scheduler, set_sigma=set_sigma, **sigma)
         result = predict_layout(scenario, x, request, report=report)
         self.forecasts.append(Forecast(when, result, self.record))
         return self.forecasts[-1]

@@ -59,9 +59,6 @@ from station.services.robust import simulation_cache_path
 __all__ = ["AttemptReport", "Correction", "LoopProgress", "LoopResult", "LoopSettings", "LoopSummary",
            "RunLog", "labelled", "record_forecasts", "run_loop"]
 
-#: How the loop predicts and forecasts its attempts: 2, a layout's record weighs the prediction's material draws
-#: (simulated in pairs), and the forecast is stored with the attempt.
-PREDICTION_REVISION = 2
 #: The world's attempt numbers: loop k's attempt a is ``k * ATTEMPT_BLOCK + a`` (the baseline is loop 0).
 ATTEMPT_BLOCK = 1000
 _CALIBRATE, _PREDICT, _CAMERA, _CHOOSE = 12, 13, 14, 15  # what a derived seed is for
@@ -196,8 +193,6 @@ class LoopSettings:
             data.pop("side_camera")
         data["baseline"] = self.baseline_attempts
         data["world_revision"] = WORLD_REVISION  # a run made in another world is not carried on in this one
-        # nor one whose attempts were predicted another way (its figures would mix)
-        data["prediction_revision"] = PREDICTION_REVISION
         return data
 
 
@@ -508,11 +503,9 @@ def record_forecasts(layouts: Mapping[int, dict], attempts: Sequence, weight: fl
     """Each attempt's forecast: its predicted success updated by its layout's record before it.
 
     The record of attempt ``a`` of loop ``k`` is every earlier attempt (of loops >= 1: the baseline places another
-    way) whose loop placed the same layout: in the loops before and earlier in loop ``k``. The forecast is the one
-    stored with the attempt (its prediction's material draws weighted by that record,
-    :func:`calibration.sim_predict.given_record`: a layout that worked here says where this workshop's physics lies);
-    for an attempt stored without one, :func:`station.services.layout_choice.expected_success` of the prediction and
-    that record. Either is what the station could say before the attempt, knowing what it knew then.
+    way) whose loop placed the same layout: in the loops before and earlier in loop ``k``. The forecast is
+    :func:`station.services.layout_choice.expected_success` of the prediction and that record, so it is what the
+    station could say before the attempt, knowing what it knew then.
 
     Parameters
     ----------
@@ -535,11 +528,7 @@ def record_forecasts(layouts: Mapping[int, dict], attempts: Sequence, weight: fl
             out.append(None)
             continue
         record = records.setdefault(first[attempt.loop], [0, 0])
-        stored = getattr(attempt, "forecast", None)
-        if stored is not None:
-            out.append(stored)
-        else:
-            out.append(None if attempt.predicted is None else expected_success(attempt.predicted, *record, weight))
+        out.append(None if attempt.predicted is None else expected_success(attempt.predicted, *record, weight))
         record[0] += attempt.success
         record[1] += 1
     return out
@@ -715,12 +704,10 @@ class _Loop:
         s, seed = self.settings, self.world.seed
         # with jigs the side camera reads the stands facing the board (none facing it: the top camera alone)
         side = s.side_camera if job.jigs is not None else None
-        record = self.record_before(k, a) if checked else (0, 0)
         assembly = Assembly(job, self.scenario, camera=s.camera, side_camera=side, world=self.world,
                             physics=None if physics is None else str(physics), attempt=k * ATTEMPT_BLOCK + a,
                             samples=s.predict_samples, seed=_seed(seed, _PREDICT, k, a), workers=s.workers,
-                            scheduler=s.scheduler, highlighted=checked, station_camera=False, record=record,
-                            _profile=profile)
+                            scheduler=s.scheduler, highlighted=checked, station_camera=False, _profile=profile)
         assembly.placed()
         applied, left = [], []
         if checked:
@@ -733,32 +720,18 @@ class _Loop:
                 applied.append(assembly.fix())
         assembly.accept()
         run = assembly.run()
-        predicted = forecast = None
+        predicted = None
         if checked:
             words = f"loop {k}, attempt {a}: predicting its physical success as checked"
-            made = assembly.forecast(report=self.under(words))
-            predicted = float(made.prediction.probability)
-            forecast = predicted if made.with_record is None else float(made.with_record)
+            predicted = float(assembly.forecast(report=self.under(words)).prediction.probability)
         said = AttemptReport(k, a, 0, run.success, checked, _corrections(applied, job.guide.view), len(applied),
                              tuple(left), _failed_at(self.scenario, run.outcomes))
         side = assembly.check.report.measured_by_side if assembly.check is not None else ()
         notes = self.note(job, said, predicted, side)
         stored = self.store.add_attempt(self.run_id, k, a, assembly.trial(who=f"simulated maker ({self.world.url})",
                                                                           notes=notes),
-                                        predicted=predicted, check_rounds=len(applied), forecast=forecast)
+                                        predicted=predicted, check_rounds=len(applied))
         return stored, replace(said, trial_id=stored.trial_id)
-
-    def record_before(self, k: int, a: int) -> tuple[int, int]:
-        """The record of loop ``k``'s layout before its attempt ``a``: ``(successes, attempts)`` of the earlier
-        attempts of loops >= 1 that placed the same layout (as :func:`record_forecasts` counts it)."""
-        from station.services.layout_choice import same_layout
-
-        rows = {j: self.store.loop(self.run_id, j) for j in range(1, k + 1)}
-        if rows[k] is None:  # an attempt made outside a stored loop: nothing placed before it
-            return 0, 0
-        same = {j for j, row in rows.items() if row is not None and same_layout(row.layout, rows[k].layout)}
-        earlier = [x for x in self.store.attempts(self.run_id) if x.loop in same and (x.loop, x.attempt) < (k, a)]
-        return sum(x.success for x in earlier), len(earlier)
 
     def note(self, job, said: AttemptReport, predicted: float | None, side: Sequence[str] = ()) -> str:
         """An attempt's trial notes: the run, the jigs, the parameters the side camera measured (``side``), the

@@ -149,11 +149,6 @@ class PredictionRequest:
     set_sigma : mapping, optional
         ``{parameter: standard deviation}`` (real units) of how the guide tells the maker to set each
         (:func:`station.services.world.guide_sigma`).
-    record : (int, int)
-        The layout's successes and attempts logged before in the same workshop: the prediction's ``given_record``
-        weighs its material draws by it (:func:`calibration.sim_predict.given_record`).
-    per_physics : int
-        Simulations per material draw (:data:`calibration.sim_predict.PER_PHYSICS` when conditioned on a record).
     """
 
     profile: PhysicsProfile | None = None
@@ -165,8 +160,6 @@ class PredictionRequest:
     workers: int | None = None
     scheduler: str | None = None
     set_sigma: Mapping[str, float] | None = None
-    record: tuple[int, int] = (0, 0)
-    per_physics: int = 1
 
 
 @station_errors
@@ -180,8 +173,7 @@ def predict_layout(scenario: Scenario, x: np.ndarray, request: PredictionRequest
                                intervals=profile.intervals if profile else None,
                                position_sigma_m=request.position_sigma_m, angle_sigma_deg=request.angle_sigma_deg,
                                samples=request.samples, seed=request.seed, run=run,
-                               unmeasured=tuple(request.unmeasured), set_sigma=request.set_sigma,
-                               record=request.record, per_physics=request.per_physics)
+                               unmeasured=tuple(request.unmeasured), set_sigma=request.set_sigma)
 
 
 @station_errors

@@ -165,35 +165,6 @@ def test_predicted_success_with_interval_and_attempts(slide):
     assert attempts_of(0.0, (0.0, 0.1)) == (np.inf, (10.0, np.inf))
 
 
-def test_a_record_weighs_the_material_draws_by_its_likelihood():
-    # Half the draws of the physics always work, half never: 3 successes in 3 say the workshop's physics is among
-    # the first (the next attempt all but sure), 3 failures among the others; a mixed record keeps both.
-    from calibration.sim_predict import given_record
-
-    runs = [(2, 2), (0, 2)] * 4
-    assert given_record(0.5, runs, 0, 0) == 0.5 == given_record(0.5, [], 3, 3)
-    assert given_record(0.5, runs, 3, 3) == pytest.approx(1.0 / (1.0 + (1 / 5) ** 3))
-    assert given_record(0.5, runs, 0, 3) == pytest.approx(1.0 - 1.0 / (1.0 + (1 / 5) ** 3))
-    assert given_record(0.5, runs, 1, 2) == pytest.approx(0.5)
-    assert given_record(0.5, [(1, 2)] * 8, 3, 3) == pytest.approx(0.5)  # every draw alike: the record says nothing
-
-
-def test_a_prediction_with_a_record_simulates_each_material_draw_twice_and_weighs_them(slide):
-    # At 30 degrees the slide's success hangs on its friction within the interval: a record of successes moves the
-    # forecast above the plain prediction, failures below it; without a record the draws are the plain ones.
-    kwargs = dict(values={"wood.friction": 0.5}, intervals={"wood.friction": (0.45, 0.55)}, samples=24, seed=1)
-    plain = predict_success(slide, np.array([30.0]), **kwargs)
-    assert plain.given_record == plain.probability and len(plain.physics_runs) == 24
-    worked = predict_success(slide, np.array([30.0]), record=(4, 4), per_physics=2, **kwargs)
-    failed = predict_success(slide, np.array([30.0]), record=(0, 4), per_physics=2, **kwargs)
-    assert [r for _, r in worked.physics_runs] == [2] * 12 and worked.record == (4, 4)
-    assert 0.0 < worked.probability < 1.0
-    assert worked.given_record > worked.probability + 0.2 and failed.given_record < failed.probability - 0.2
-    assert predict_success(slide, np.array([30.0]), per_physics=1, record=(0, 0), **kwargs) == plain
-    with pytest.raises(CalibrationError, match="per_physics"):
-        predict_success(slide, np.array([30.0]), per_physics=0, **kwargs)
-
-
 def test_wilson_interval_matches_the_formula():
     lo, hi = wilson_interval(8, 10)
     assert (round(lo, 4), round(hi, 4)) == (0.4902, 0.9433)  # the textbook values for 8 of 10

@@ -30,7 +30,7 @@ def test_a_version_1_database_loses_the_unused_meta_table_and_keeps_its_jobs(tmp
     old.close()
     upgraded = open_database(path)
     try:
-        assert schema_version(upgraded) == len(MIGRATIONS) == 5
+        assert schema_version(upgraded) == len(MIGRATIONS) == 4
         assert _tables(upgraded) == {"jobs", *TRIAL_TABLES, *LOOP_TABLES}
         assert upgraded.execute("SELECT kind, device, status FROM jobs").fetchall() == [("run", "plotter", "done")]
     finally:

@@ -132,10 +132,6 @@ def test_the_loop_store_on_both_databases(where, request, tmp_path):
         assert first == again and (first.success, first.predicted, first.check_rounds) == (True, 0.75, 2)
         assert store.trials.count() == 1 and store.trial(first.trial_id)["success"] is True
         assert [a.attempt for a in store.attempts(run)] == [1] and store.attempts(run, 2) == []
-        assert first.forecast is None  # stored without one
-        later = store.add_attempt(run, 1, 2, _trial(last_stops="yes"), predicted=0.4, check_rounds=0, forecast=0.7)
-        assert (later.predicted, later.forecast) == (0.4, 0.7) == (store.attempts(run, 1)[1].predicted,
-                                                                   store.attempts(run, 1)[1].forecast)
         assert store.cached_layout("k") is None
         store.cache_layout("k", {"x": [3.0]})
         assert store.cached_layout("k") == {"x": [3.0]}

@@ -545,42 +545,6 @@ def test_an_attempts_forecast_is_its_prediction_updated_by_its_layouts_record_be
     ])
 
 
-def test_an_attempts_stored_forecast_is_its_forecast():
-    """An attempt stored with its forecast (its prediction's material draws weighted by the layout's record as the
-    attempt was made) keeps it; one stored without falls back on the record's Beta update."""
-    from station.loopstore import AttemptRow
-    from station.services.loop import record_forecasts
-
-    layouts = {1: {"parameters": [{"name": "a", "value": 1.0}]}}
-    attempts = [AttemptRow(1, 1, 0, True, 0.4, 0, 0.4), AttemptRow(1, 2, 0, True, 0.4, 0, 0.9),
-                AttemptRow(1, 3, 0, True, 0.4, 0)]
-    assert record_forecasts(layouts, attempts, 4.0) == pytest.approx([0.4, 0.9, (1.6 + 2) / 6])
-
-
-def test_a_forecast_with_a_record_weighs_its_material_draws_by_it():
-    """After a record, the forecast of an attempt is its prediction given the record (the draws under which the
-    layout worked here count more), not the Beta update the layout choice uses; a prediction without material draws
-    keeps the Beta update."""
-    from calibration.sim_predict import PhysicalPrediction
-    from station.services.assemble import Forecast
-    from station.services.layout_choice import expected_success
-
-    def prediction(runs):
-        return PhysicalPrediction(0.5, (0.3, 0.7), 2.0, (1.4, 3.3), 16, 8, {}, 1.0, 1.0, {}, (), runs, (3, 3))
-
-    drawn = Forecast("as placed", prediction(((2, 2), (0, 2)) * 4), (3, 3))
-    assert drawn.with_record == pytest.approx(drawn.prediction.given_record) == pytest.approx(1 / (1 + 0.2 ** 3))
-    assert Forecast("as placed", prediction(()), (3, 3)).with_record == pytest.approx(expected_success(0.5, 3, 3))
-    assert Forecast("as placed", prediction(((2, 2),)), (0, 0)).with_record is None
-
-
-def test_a_runs_identity_says_how_its_attempts_were_predicted():
-    """Runs whose attempts were predicted another way are other runs (their figures would not mix)."""
-    from station.services.loop import PREDICTION_REVISION, LoopSettings
-
-    assert LoopSettings().identity()["prediction_revision"] == PREDICTION_REVISION
-
-
 def test_a_layout_that_worked_on_the_table_is_kept_over_one_only_simulated_better(monkeypatch):
     """A placed layout's trials (matched by its values) update its prediction: 5/5 at 0.56 beats a new 0.75, 0/5 at
     0.9 loses to it; the record and the expected successes are in the choice."""
