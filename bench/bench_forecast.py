@@ -23,10 +23,17 @@ Every variant of an attempt draws the same placement noise and material draws (o
 not sampling noise. For each variant: the mean probability and the Brier score against the attempts' outcomes, per
 loop and overall.
 
+``worlds`` scores one captured attempt's layout and placement error under many worlds' hidden physics (how its
+success spreads over workshops, beside the station's prediction); ``replay`` forecasts attempts in those worlds the
+station's way (the prediction as a Beta prior of the layout choice's weight, updated by the layout's record) and by
+the record weighing the prediction's material draws (each simulated twice), beside the best any forecast could do
+there (each world's own success); ``sensitivity`` splits the station's predicted successes by the thirds of each
+drawn material value.
+
 Run: ``python -m bench.bench_forecast run --scenario causalityswitch_ball --seeds 11-13 --jigs --database DB
---capture rows.jsonl [--workers 2] [--predict-samples 16]`` then ``python -m bench.bench_forecast decompose --capture
-rows.jsonl [--samples 48] [--json out.json]``; ``--predictor new`` re-predicts with the station's current
-:func:`station.services.assemble.prediction_request` (the same captured attempts, the code's own request).
+--capture rows.jsonl [--workers 2]``, then ``python -m bench.bench_forecast decompose --capture rows.jsonl
+[--samples 32] [--json out.json]``, ``... worlds --capture rows.jsonl --row 0 --seeds 100-129 --json worlds.json``,
+``... replay --capture rows.jsonl --row 0 --worlds worlds.json``.
 """
 
 from __future__ import annotations
@@ -113,21 +120,7 @@ def variants(row: dict, samples: int) -> dict[str, dict]:
     }
 
 
-def new_request(row: dict, samples: int) -> dict:
-    """The station's current request for a captured attempt (:func:`station.services.assemble.prediction_request`,
-    when the code has one): what the prediction would be with the code as it stands, on the same attempt."""
-    from design.contraption.physics_profile import PhysicsProfile
-    from station.services.assemble import prediction_sigma
-
-    profile = None
-    if row["values"] is not None:
-        profile = PhysicsProfile(name="captured", values=row["values"],
-                                 intervals={k: tuple(v) for k, v in (row["intervals"] or {}).items()})
-    request = prediction_sigma(row, profile)
-    return dict(layout=np.array(row["x"], dtype=float), samples=samples, seed=row["seed"], **request)
-
-
-def decompose(rows: list[dict], samples: int, workers: int | None, predictor: str = "old", log=print) -> dict:
+def decompose(rows: list[dict], samples: int, workers: int | None, log=print) -> dict:
     """Every variant of every captured attempt; per variant the mean probability and Brier score, per loop and in
     all."""
     from calibration.sim_predict import predict_success
@@ -144,9 +137,6 @@ def decompose(rows: list[dict], samples: int, workers: int | None, predictor: st
             if scenario.content_hash != row["content_hash"]:
                 raise SystemExit(f"{row['scenario']}: the scenario changed since the capture")
             made = variants(row, samples)
-            if predictor == "new":
-                made = {"as made": made["as made"], "station": made["station"],
-                        "new": new_request(row, samples), "truth": made["truth"]}
             probabilities = {name: predict_success(scenario, run=run, **kwargs).probability
                              for name, kwargs in made.items()}
             entry = {"world": row["world"], "loop": row["attempt"] // ATTEMPT_BLOCK,
@@ -233,41 +223,84 @@ def worlds(row: dict, seeds: list[int], samples: int, station_samples: int, work
             "share_at_least_0.8": float(np.mean(rates >= 0.8)), "share_at_most_0.2": float(np.mean(rates <= 0.2))}
 
 
-def replay(row: dict, per_world: dict, attempts: int, samples: int, pool: int, repeats: int, workers: int | None,
-           seed: int = 0, log=print) -> dict:
-    """Forecasts of ``attempts`` attempts in each world of ``per_world`` (``{seed: the layout's success there}``,
-    from :func:`worlds`), the old way and the new: the outcomes drawn from each world's success (``repeats`` times,
-    seeded), each attempt's prediction ``samples`` simulations drawn from a pool of ``pool`` material draws of the
-    station's profile simulated twice each (as the loop simulates them with a record), its forecast the Beta of the
-    layout choice's weight over the plain mean (old) or the draws weighted by the record before it (new,
-    :func:`calibration.sim_predict.given_record`). The Brier scores of the plain prediction, the old and the new
-    forecast over every attempt."""
-    from calibration.sim_predict import PER_PHYSICS, given_record, predict_success
+def given_record(physics_runs, successes: int, attempts: int) -> float:
+    """The success of the next attempt given a layout's record, from material draws simulated a few times each
+    (``physics_runs``: ``(successes, simulations)`` per draw): each draw weighted by the record's likelihood under it,
+    ``p^k (1 - p)^(n - k)`` with ``p = (s + 1/2) / (r + 1)`` (never 0 or 1 from a few simulations). The alternative to
+    the station's Beta update that ``replay`` measures."""
+    runs = np.asarray(physics_runs, dtype=float).reshape(-1, 2)
+    s, r = runs[:, 0], runs[:, 1]
+    if not attempts:
+        return float(s.sum() / r.sum())
+    p = (s + 0.5) / (r + 1.0)
+    log_w = successes * np.log(p) + (attempts - successes) * np.log1p(-p)
+    w = np.exp(log_w - log_w.max())
+    return float(np.sum(w * s / r) / np.sum(w))
+
+
+def paired_pool(row: dict, pool: int, workers: int | None) -> np.ndarray:
+    """``pool`` material draws of a captured attempt's profile, each simulated twice at the attempt's layout with its
+    own placement error (:func:`calibration.sim_predict.predict_success`'s draws, each draw repeated): ``(pool, 2)``
+    of ``(successes, simulations)``."""
+    from calibration.sim_runs import OutcomeProblem, noisy_layouts
+    from design.contraption.validation import with_physics
     from station.services.contraption import open_scenario
-    from station.services.layout_choice import expected_success
     from station.services.sim_calibration import station_runner
 
     scenario = open_scenario(row["scenario"])
-    kwargs = {**variants(row, pool * PER_PHYSICS)["station"], "per_physics": PER_PHYSICS}
+    known = scenario.physics_parameters()
+    uncertain = scenario.uncertain_parameters()
+    centres = {k: float(v) for k, v in (row["values"] or {}).items() if k in known}
+    spread = {k: v for k, v in (row["intervals"] or {}).items() if k in centres and v[1] > v[0]}
+    names = list(spread)
+    ranges = {k: uncertain[k][1] if k in uncertain else (0.0, max(2.0 * centres[k], 1.0)) for k in names}
+    rng = np.random.default_rng(row["seed"])
+    layouts = noisy_layouts(scenario, np.array(row["x"]), 2 * pool, row["position_sigma_m"], row["angle_sigma_deg"],
+                            rng, tuple(row["unmeasured"]), row["set_sigma"])
+    thetas = np.column_stack([np.clip(np.repeat(rng.normal(centres[n], (spread[n][1] - spread[n][0]) / 3.919928,
+                                                           pool), 2), *ranges[n]) for n in names])
+    problem = OutcomeProblem(with_physics(scenario, {k: v for k, v in centres.items() if k not in spread}), names,
+                             ranges)
     with station_runner(workers=workers) as run:
-        runs = np.array(predict_success(scenario, run=run, **kwargs).physics_runs, dtype=float)
+        run.expect(2 * pool)
+        success, _, _ = problem.split(run(problem, problem.rows(thetas, layouts)))
+    pairs = (success > 0.5).reshape(pool, 2).sum(axis=1)
+    return np.column_stack([pairs, np.full(pool, 2)]).astype(float)
+
+
+def replay(row: dict, per_world: dict, attempts: int, samples: int, pool: int, repeats: int, workers: int | None,
+           seed: int = 0, log=print) -> dict:
+    """Forecasts of ``attempts`` attempts in each world of ``per_world`` (``{seed: the layout's success there}``,
+    from :func:`worlds`): the outcomes drawn from each world's success (``repeats`` times, seeded); each attempt's
+    prediction ``samples`` simulations (``samples / 2`` material draws of a pool of ``pool`` drawn from the station's
+    profile, each simulated twice); its forecast the station's (the plain prediction as a Beta prior of
+    :data:`station.services.layout_choice.PREDICTION_WEIGHT` attempts, updated by the layout's record before it),
+    the draws weighted by that record (:func:`given_record`), and the best any forecast could do (the world's own
+    success). The Brier scores over every attempt."""
+    from station.services.layout_choice import expected_success
+
+    runs = paired_pool(row, pool, workers)
     log(f"pool: {len(runs)} material draws, success {runs[:, 0].sum() / runs[:, 1].sum():.3f}")
     rng = np.random.default_rng(seed)
-    squares: dict[str, list[float]] = {"predicted": [], "old forecast": [], "new forecast": []}
+    squares: dict[str, list[float]] = {"predicted": [], "forecast (Beta)": [], "forecast (draws weighted)": [],
+                                       "the world's own success": []}
     for rate in per_world.values():
         for _ in range(repeats):
             successes = 0
             for a in range(attempts):
-                drawn = runs[rng.choice(len(runs), samples // PER_PHYSICS, replace=False)]
+                drawn = runs[rng.choice(len(runs), samples // 2, replace=False)]
                 plain = drawn[:, 0].sum() / drawn[:, 1].sum()
                 outcome = float(rng.random() < rate)
-                for name, forecast in (("predicted", plain), ("old forecast", expected_success(plain, successes, a)),
-                                       ("new forecast", given_record(plain, drawn, successes, a))):
+                for name, forecast in (("predicted", plain),
+                                       ("forecast (Beta)", expected_success(plain, successes, a)),
+                                       ("forecast (draws weighted)", given_record(drawn, successes, a)),
+                                       ("the world's own success", rate)):
                     squares[name].append((forecast - outcome) ** 2)
                 successes += int(outcome)
     return {"worlds": len(per_world), "attempts": attempts, "repeats": repeats, "samples": samples, "pool": pool,
             "world_mean": float(np.mean(list(per_world.values()))),
             "pool_success": float(runs[:, 0].sum() / runs[:, 1].sum()),
+            "draws": {f"{k} of 2": float(np.mean(runs[:, 0] == k)) for k in (0, 1, 2)},
             "brier": {name: float(np.mean(v)) for name, v in squares.items()}}
 
 
@@ -303,7 +336,6 @@ def main(argv: list[str] | None = None) -> int:
     again.add_argument("--capture", required=True)
     again.add_argument("--samples", type=int, default=48)
     again.add_argument("--workers", type=int, default=2)
-    again.add_argument("--predictor", choices=("old", "new"), default="old")
     again.add_argument("--json", default=None)
     shape = sub.add_parser("sensitivity", help="which drawn material value the predicted failures come from")
     shape.add_argument("--capture", required=True)
@@ -364,7 +396,7 @@ def main(argv: list[str] | None = None) -> int:
         if args.json:
             Path(args.json).write_text(json.dumps(figures, indent=2, default=str) + "\n", encoding="utf-8")
         return 0
-    result = decompose(read_rows(Path(args.capture)), args.samples, args.workers, args.predictor,
+    result = decompose(read_rows(Path(args.capture)), args.samples, args.workers,
                        log=lambda line: print(line, flush=True))
     print(json.dumps(result["summary"], indent=2))
     if args.json:
