@@ -22,9 +22,9 @@ board's plane to the tag: far off, a small error of the plane's tilt grows into 
 tags stand clear, as the camera sees them, of every part's and jig stand's footprint (:data:`CLEAR_MM` of room):
 nothing in front of them, whatever its height. Where no such place is, the one (every :data:`HIDDEN_STEP_MM`) that
 leaves the fewest board tags behind the parts themselves (their solids, a part on a stand carried down to the table
-by its plate) from the raised camera, then from the level one, then with the fewest parts within :data:`CLEAR_MM` of
-a tag, the nearest to the middle of the best; :attr:`SideBoard.hidden` and :attr:`SideBoard.hidden_raised` name
-what hides which tag, which the guide's words say.
+by its plate) from the raised camera, then from the level one, then with the fewest tags a part comes within
+:data:`CLEAR_MM` of (raised, then level), the nearest to the middle of the best; :attr:`SideBoard.hidden` and
+:attr:`SideBoard.hidden_raised` name what hides which tag, which the guide's words say.
 """
 
 from __future__ import annotations
@@ -208,8 +208,8 @@ def _least_hidden(centres, reach: float, half: float, heights, solids, line_v: f
     """The one of ``centres`` that leaves the fewest board tags behind the parts' ``solids`` (``(name, points (u, v,
     h) mm, on a stand)``) from a camera at ``camera_u(centre)`` raised :data:`SIDE_CAMERA_RISE_MM` over the board's
     middle (the station's own), then from one level with it, then the fewest with a part within :data:`CLEAR_MM` of
-    them seen level (a camera set up a little elsewhere), the first of the best; and which tags they hide there
-    from each: ``(centre, level, raised)``, each ``((tag id, names), ...)``."""
+    them seen from each in turn (a camera set up a little elsewhere, a part set a little higher), the first of the
+    best; and which tags they hide there from each: ``(centre, level, raised)``, each ``((tag id, names), ...)``."""
     points, names, starts = [], [], [0]
     for name, solid, on_stand in solids:
         if on_stand:  # its stand's plate fills the space under it down to the table
@@ -253,11 +253,11 @@ def _least_hidden(centres, reach: float, half: float, heights, solids, line_v: f
         eye = camera_u(centre)
         seen_u = eye + (u - eye) * scale
         low_u, high_u = np.minimum.reduceat(seen_u, starts), np.maximum.reduceat(seen_u, starts)
-        (raised, _), (level, near) = (hidden_from(centre, seen_u, low_u, high_u, *view) for view in views)
-        score = (len(raised), len(level), near)
+        (raised, near_raised), (level, near) = (hidden_from(centre, seen_u, low_u, high_u, *view) for view in views)
+        score = (len(raised), len(level), near_raised, near)
         if best is None or score < best[0]:
             best = (score, float(centre), level, raised)
-            if score == (0, 0, 0):
+            if score == (0, 0, 0, 0):
                 break
     return best[1], best[2], best[3]
 

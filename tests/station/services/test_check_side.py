@@ -451,7 +451,8 @@ def test_a_board_hidden_behind_dominoes_measures_nothing_and_says_what_hides_it_
     assert "track_joint.z" in report.not_measured and "track_joint.roll" in report.not_measured
     assert not any(view == "side" for view in report.measured_by.values())
     lines = check_side.side_lines(report)
-    names = " and ".join(f"`{n}`" for n in side.hidden[579])
+    names = [f"`{n}`" for n in side.hidden[579]]
+    names = names[0] if len(names) == 1 else ", ".join(names[:-1]) + " and " + names[-1]
     assert f"side view: board tag 579 hidden: {names} stand{'s' if len(side.hidden[579]) == 1 else ''} between " \
            "the side camera and it" in lines
     (no_plane,) = [line for line in lines if "no plane" in line]
