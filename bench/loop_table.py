@@ -8,8 +8,7 @@ scenario, with jigs and without, pooled over the world seeds whose runs are comp
 - the success after the first calibration (loops >= 2) with Wilson's 95 % interval, and loop 1's;
 - the median number of attempts to the first success (loop 1's first attempt is 1);
 - the Brier score of the predicted success and of the forecast (the prediction updated by its layout's record
-  before the attempt, :func:`station.services.loop.record_forecasts`: stored with the attempt, or recomputed from
-  the stored attempts where the database has none);
+  before the attempt, :func:`station.services.loop.record_forecasts`, recomputed from the stored attempts);
 - the thesis's workflow (the run's baseline) in the same worlds;
 - the ceiling at the same placement precision with the physics known (``bench_loop_bound``, the same jigs), pooled
   over the same worlds, and the loop's success after calibration as a fraction of it.
@@ -109,8 +108,7 @@ class StoredRun:
                          for k, n in sorted(self.planned(loops).items(), key=lambda item: (item[0] == 0, item[0])))
 
     def forecasts(self) -> list[float | None]:
-        """The loop attempts' forecasts, as the loop made them: stored with the attempt, or (a database from before
-        the loop stored them) from its prediction and its layout's record with the run's prediction weight."""
+        """The loop attempts' forecasts, as the loop made them (its prediction weight, its layouts)."""
         placed = [a for a in self.attempts if a.loop >= 1]
         weight = float(self.settings.get("prediction_weight", PREDICTION_WEIGHT))
         return record_forecasts(self.layouts, placed, weight)
@@ -148,21 +146,18 @@ def _database_runs(database: str) -> list[StoredRun]:
             connection.execute("BEGIN")  # one snapshot: the campaign may add attempts while this reads
             runs = connection.execute("SELECT id, run_key, scenario_name, content_hash, world, settings "
                                       "FROM loop_runs ORDER BY id").fetchall()
-            # a database the loop wrote before it stored each attempt's forecast has no such column
-            columns = {row[1] for row in connection.execute("PRAGMA table_info(loop_attempts)")}
-            forecast = "forecast" if "forecast" in columns else "NULL"
             attempts = connection.execute("SELECT run_id, loop_number, attempt, trial_id, success, predicted, "
-                                          f"check_rounds, {forecast} FROM loop_attempts ORDER BY run_id, "
-                                          "loop_number, attempt").fetchall()
+                                          "check_rounds FROM loop_attempts ORDER BY run_id, loop_number, "
+                                          "attempt").fetchall()
             layouts = connection.execute("SELECT run_id, loop_number, layout FROM loop_loops").fetchall()
     except sqlite3.DatabaseError as error:
         words = "not a bench_loop database (no loop_runs table)" if "no such table" in str(error) else str(error)
         raise TableError(f"database {database}: {words}") from None
     by_run: dict[int, list[AttemptRow]] = {}
-    for run_id, loop, attempt, trial, success, predicted, rounds, stored in attempts:
+    for run_id, loop, attempt, trial, success, predicted, rounds in attempts:
         by_run.setdefault(run_id, []).append(AttemptRow(int(loop), int(attempt), int(trial), bool(success),
                                                         None if predicted is None else float(predicted),
-                                                        int(rounds), None if stored is None else float(stored)))
+                                                        int(rounds)))
     placed: dict[int, dict[int, dict]] = {}
     for run_id, loop, text in layouts:
         placed.setdefault(run_id, {})[int(loop)] = json.loads(text)

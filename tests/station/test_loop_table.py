@@ -33,8 +33,7 @@ def _trial(scenario, success: bool) -> dict:
 
 def store_run(database, scenario, *, seed: int, jigs: bool, loops: dict, layouts: dict, baseline=(),
               commit: str | None = "abc1234", sizes=SIZES, world_options: str = "") -> int:
-    """A run as bench_loop stores it: ``loops`` {loop: [(success, predicted[, forecast])]}, the baseline's
-    successes."""
+    """A run as bench_loop stores it: ``loops`` {loop: [(success, predicted)]}, the baseline's successes."""
     world = f"sim://world?seed={seed}{world_options}"
     settings = {**sizes, "scenario": scenario.content_hash, "scenario_name": scenario.name, "world": world,
                 "jigs": jigs}
@@ -44,9 +43,8 @@ def store_run(database, scenario, *, seed: int, jigs: bool, loops: dict, layouts
         for k, layout in layouts.items():
             store.add_loop(run, LoopRow(k, layout, None, None, {}))
         for k, outcomes in loops.items():
-            for a, (success, predicted, *forecast) in enumerate(outcomes, 1):
-                store.add_attempt(run, k, a, _trial(scenario, success), predicted=predicted, check_rounds=0,
-                                  forecast=forecast[0] if forecast else None)
+            for a, (success, predicted) in enumerate(outcomes, 1):
+                store.add_attempt(run, k, a, _trial(scenario, success), predicted=predicted, check_rounds=0)
         for a, success in enumerate(baseline, 1):
             store.add_attempt(run, 0, a, _trial(scenario, success), predicted=None, check_rounds=0)
     return run
@@ -239,23 +237,3 @@ def test_per_world_a_line_per_counted_run(campaign):
     assert lines[2:] == ["| 1 | SIMPLE | yes | 1/2 | 2/2 | 0.50 / 0.85 | 0/2 | abc1234 |",
                          "| 1 | SIMPLE | no | 2/2 | 1/2 | 0.90 / 0.90 | 0/2 | abc1234 |",
                          "| 2 | SIMPLE | yes | 2/2 | 1/2 | 0.65 / 0.75 | 1/2 | abc1234 |"]
-
-
-def test_the_forecasts_stored_with_the_attempts_are_the_ones_scored(campaign, simple):
-    database, bounds = campaign
-    store_run(database, simple, seed=2, jigs=False, layouts={1: A, 2: A}, baseline=(True, True),
-              loops={1: [(True, 0.5, 0.6), (False, 0.5, 0.7)], 2: [(True, 0.5, 0.2), (True, 0.5, 0.9)]})
-    (table,) = _tables(database, bounds, seeds=(2,), scenarios=("simple",))
-    without = next(r for r in table.rows if not r["jigs"])
-    assert without["brier"] == pytest.approx(0.25)
-    assert without["brier_forecast"] == pytest.approx((0.4 ** 2 + 0.7 ** 2 + 0.8 ** 2 + 0.1 ** 2) / 4)
-
-
-def test_a_database_from_before_the_forecasts_were_stored_has_them_recomputed(campaign):
-    database, bounds = campaign
-    (before,) = _tables(database, bounds)
-    with sqlite3.connect(database) as connection:
-        connection.execute("ALTER TABLE loop_attempts DROP COLUMN forecast")
-    (after,) = _tables(database, bounds)
-    assert [r.get("brier_forecast") for r in after.rows] == [r.get("brier_forecast") for r in before.rows]
-    assert after.rows[0]["brier_forecast"] is not None
