@@ -200,7 +200,7 @@ def _measured_row(seed, known, hidden, run, layouts, scores, precisions, samples
     row = {"seed": seed, "best": best, "success": measured.probability, "interval": list(measured.interval),
            "successes": measured.successes, "samples": samples, "events": dict(measured.events), "hidden": hidden,
            "layout": dict(zip(known.design_space.names, map(float, layouts[best]))),
-           "precision": precisions[best].sigma, "how": precisions[best].how, "jigs": precisions[best].jigs}
+           "sigma": precisions[best].sigma, "how": precisions[best].how, "jigs": precisions[best].jigs}
     if limits:
         row["limits"] = _limits(known, hidden, run, layouts[best], samples, precisions[best], measured.probability)
     return row
@@ -209,7 +209,7 @@ def _measured_row(seed, known, hidden, run, layouts, scores, precisions, samples
 def world_bound(name: str, seed: int, *, budget: int | None, candidates: int, samples: int, workers: int,
                 precision: str = "loop", jigs: bool = False, limits: bool = True) -> dict:
     """The best optimizer candidate's success in world ``seed`` with its physics known: ``{"seed", "hidden",
-    "candidates", "best", "success", "interval", "events", "budget", "layout", "precision", "how", "jigs",
+    "candidates", "best", "success", "interval", "events", "budget", "layout", "sigma", "how", "jigs",
     "limits"}``."""
     from design.contraption.layout_io import layout_from_data
     from design.robust.contraption import ContraptionProblem
@@ -331,7 +331,7 @@ def _world_lines(name: str, row: dict, scan: bool, seconds: float) -> list[str]:
              f"    its layout {', '.join(f'{k} {v:.4g}' for k, v in row['layout'].items())}"
              + (f" ({row['chosen']}, screened {row['screened']:.2f})" if "screened" in row else "")
              + f"; the top {len(row['candidates'])} again: {', '.join(f'{c:.2f}' for c in row['candidates'])}",
-             "    placed with " + Precision(row["precision"], row["how"]).words()]
+             "    placed with " + Precision(row["sigma"], row["how"]).words()]
     for skipped in row.get("unguided", []):
         lines.append(f"    no guide for layout {', '.join(f'{k} {v:.4g}' for k, v in skipped['layout'].items())}: "
                      f"{skipped['error'][:120]}")
@@ -361,13 +361,20 @@ def print_table(table: list[tuple[str, bool | None, list[dict]]]) -> None:
                   f"{np.mean(by_eye):.2f} | {sum(b >= 0.9 for b in by_eye)}/{len(by_eye)} | - |")
 
 
+def flat_row(row: dict) -> bool:
+    """Whether an ``--out`` row was measured at ``--precision flat``: its ``"precision"`` label, or for a row whose
+    ``"precision"`` is no label (the per-parameter errors), every parameter's ``"how"`` being ``"flat"``."""
+    label = row.get("precision")
+    return label == "flat" if isinstance(label, str) else set(row.get("how", {}).values()) == {"flat"}
+
+
 def stored_table(path: str) -> list[tuple[str, bool | None, list[dict]]]:
     """The rows ``--out`` appended to ``path``, per scenario and precision (a world measured again: its last row)."""
     rows: dict[tuple, dict] = {}
     for line in Path(path).read_text(encoding="utf-8").splitlines():
         if line.strip():
             row = json.loads(line)
-            jigs = None if row["precision"] == "flat" else bool(row["jigs"])
+            jigs = None if flat_row(row) else bool(row["jigs"])
             rows[(row["scenario"], jigs, row["seed"])] = row
     table: dict[tuple, list[dict]] = {}
     for (name, jigs, _), row in sorted(rows.items(), key=lambda item: (item[0][0], item[0][1] is True, item[0][2])):

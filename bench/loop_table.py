@@ -42,6 +42,7 @@ from urllib.parse import parse_qsl, urlencode, urlsplit
 import numpy as np
 
 from bench.bench_loop import ALL, FULL, QUICK, _seeds, first_success
+from bench.bench_loop_bound import flat_row
 from calibration.sim_runs import wilson_interval
 from design.contraption.errors import ScenarioNotFoundError
 from station.errors import ServiceError
@@ -223,8 +224,7 @@ def read_bounds(paths: Sequence[str]) -> dict[tuple[str, bool], dict[int, dict]]
                 continue
             try:
                 row = json.loads(line)
-                flat = set(row.get("how", {}).values()) == {"flat"}
-                if not flat:
+                if not flat_row(row):
                     bounds.setdefault((str(row["scenario"]), bool(row["jigs"])), {})[int(row["seed"])] = row
             except (ValueError, KeyError, TypeError, AttributeError) as error:
                 raise TableError(f"--bounds {path}: line {number}: expected a row bench_loop_bound --out writes "

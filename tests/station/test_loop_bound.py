@@ -127,3 +127,23 @@ def test_what_the_top_camera_measured_stands_when_the_side_camera_reads_nothing(
     assert bound.checked_by(job, jigs=True) == {"lever.x": "top", "goblet.x": "top"}
     precision = bound.loop_precision(scenario, x, jigs=True)
     assert precision.how["lever.x"] == precision.how["goblet.x"] == "check (top)"
+
+
+def test_a_flat_rows_label_survives_out_and_its_table_files_it_as_flat(tmp_path, monkeypatch, capsys):
+    from types import SimpleNamespace
+
+    measured = SimpleNamespace(probability=0.5, interval=(0.33, 0.67), successes=16, events={"end": 0.5})
+    monkeypatch.setattr(bound, "_success", lambda *args: measured)
+    out = tmp_path / "rows.jsonl"
+    assert bound.main(["--scenarios", "simple", "--seeds", "1", "--precision", "flat", "--scan", "2", "--scan-top",
+                       "1", "--samples", "32", "--workers", "1", "--no-limits", "--out", str(out)]) == 0
+    (row,) = [json.loads(line) for line in out.read_text().splitlines()]
+    assert row["precision"] == "flat" and row["sigma"] == {"track.x": 0.0005, "track.z": 0.0005, "track.roll": 0.5}
+    assert bound.flat_row(row)
+    # a row that keeps the per-parameter errors under "precision" is flat by its "how"
+    assert bound.flat_row({"precision": row["sigma"], "how": row["how"], "jigs": False})
+    assert not bound.flat_row({"precision": row["sigma"], "how": {"track.x": "check (top)"}, "jigs": False})
+    assert [(name, jigs) for name, jigs, _ in bound.stored_table(str(out))] == [("simple", None)]
+    capsys.readouterr()
+    assert bound.main(["--table", str(out)]) == 0
+    assert capsys.readouterr().out.splitlines()[2].startswith("| simple | flat | 1: 0.50 |")
