@@ -147,13 +147,29 @@ def decompose(rows: list[dict], samples: int, workers: int | None, log=print) ->
     return {"samples": samples, "attempts": table, "summary": summarize(table)}
 
 
+class _Kept:
+    """A runner that keeps what it simulated (one call): the material values drawn (``names``), each simulation's
+    values (real units) and whether it succeeded."""
+
+    def __init__(self, run) -> None:
+        self.run = run
+
+    def expect(self, n: int) -> None:
+        self.run.expect(n)
+
+    def __call__(self, problem, rows: np.ndarray) -> np.ndarray:
+        out = self.run(problem, rows)
+        self.names, self.values = list(problem.physics), problem.to_real(rows)[:, :problem.n_physics]
+        self.success = problem.split(out)[0] > 0.5
+        return out
+
+
 def sensitivity(rows: list[dict], samples: int, workers: int | None, log=print) -> dict:
     """Which drawn material value the station's predicted failures come from: for each captured attempt, ``samples``
     simulations drawn as :func:`calibration.sim_predict.predict_success` draws them (the station's placement noise,
     the profile's material draws), each simulation's draws and outcome; per material value, the success rate of the
     simulations in each third of its draws, beside where the world's hidden value lies."""
-    from calibration.sim_runs import OutcomeProblem, noisy_layouts
-    from design.contraption.validation import with_physics
+    from calibration.sim_predict import predict_success
     from station.services.contraption import open_scenario
     from station.services.sim_calibration import station_runner
 
@@ -162,25 +178,12 @@ def sensitivity(rows: list[dict], samples: int, workers: int | None, log=print) 
     names: list[str] = []
     with station_runner(workers=workers) as run:
         for row in rows:
-            scenario = open_scenario(row["scenario"])
-            known = scenario.physics_parameters()
-            uncertain = scenario.uncertain_parameters()
-            centres = {k: float(v) for k, v in (row["values"] or {}).items() if k in known}
-            spread = {k: v for k, v in (row["intervals"] or {}).items() if k in centres and v[1] > v[0]}
-            names = list(spread)
-            ranges = {k: uncertain[k][1] if k in uncertain else (0.0, max(2.0 * centres[k], 1.0)) for k in names}
-            rng = np.random.default_rng(row["seed"])
-            layouts = noisy_layouts(scenario, np.array(row["x"]), samples, row["position_sigma_m"],
-                                    row["angle_sigma_deg"], rng, tuple(row["unmeasured"]), row["set_sigma"])
-            thetas = np.column_stack([np.clip(rng.normal(centres[n], (spread[n][1] - spread[n][0]) / 3.919928,
-                                                         samples), *ranges[n]) for n in names])
-            problem = OutcomeProblem(with_physics(scenario, {k: v for k, v in centres.items() if k not in spread}),
-                                     names, ranges)
-            run.expect(samples)
-            success, _, _ = problem.split(run(problem, problem.rows(thetas, layouts)))
-            draws.append(thetas)
-            outcomes.append(success > 0.5)
-            log(f"{row['world']} attempt {row['attempt']}: {int(np.sum(success > 0.5))}/{samples}")
+            kept = _Kept(run)
+            predicted = predict_success(open_scenario(row["scenario"]), run=kept, **variants(row, samples)["station"])
+            names = kept.names
+            draws.append(kept.values)
+            outcomes.append(kept.success)
+            log(f"{row['world']} attempt {row['attempt']}: {predicted.successes}/{samples}")
     thetas, success = np.vstack(draws), np.concatenate(outcomes)
     result = {"samples": int(len(success)), "success_rate": float(success.mean()), "parameters": {}}
     hidden = [row["hidden"] for row in rows]
