@@ -30,7 +30,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import math
 import sqlite3
 import sys
 from collections.abc import Iterable, Sequence
@@ -41,7 +40,7 @@ from urllib.parse import parse_qsl, urlencode, urlsplit
 
 import numpy as np
 
-from bench.bench_loop import ALL, FULL, QUICK, _seeds, first_success
+from bench.bench_loop import ALL, FULL, QUICK, _brier, _f, _seeds, first_success
 from bench.bench_loop_bound import flat_row
 from calibration.sim_runs import wilson_interval
 from design.contraption.errors import ScenarioNotFoundError
@@ -182,10 +181,6 @@ def _rate(successes: Iterable[bool]) -> dict:
 
 def _median(values: list[float]) -> float | None:
     return float(np.median(values)) if values else None
-
-
-def _brier(pairs: list[tuple[float, bool]]) -> float | None:
-    return float(np.mean([(p - s) ** 2 for p, s in pairs])) if pairs else None
 
 
 def figures(runs: Sequence[StoredRun]) -> dict:
@@ -343,14 +338,6 @@ def seed_words(seeds: Sequence[int]) -> str:
         parts.append(str(ordered[i]) if i == j else f"{ordered[i]}-{ordered[j]}")
         i = j + 1
     return ", ".join(parts)
-
-
-def _f(value: float | None, digits: int = 2) -> str:
-    if value is None:
-        return "-"
-    if math.isinf(value):
-        return "none"
-    return f"{value:.{digits}f}"
 
 
 def _rate_words(rate: dict) -> str:
@@ -520,7 +507,6 @@ def main(argv: list[str] | None = None) -> int:
             print(f"loop_table: --json {args.json}: cannot write ({error})", file=sys.stderr)
             return 2
     return 0
-
 
 
 if __name__ == "__main__":
