@@ -365,45 +365,32 @@ def main(argv: list[str] | None = None) -> int:
     again_worlds.add_argument("--workers", type=int, default=2)
     again_worlds.add_argument("--json", default=None)
     args = parser.parse_args(argv)
-    if args.command == "replay":
-        per_world = json.loads(Path(args.worlds).read_text(encoding="utf-8"))["worlds"]
-        result = replay(read_rows(Path(args.capture))[args.row], per_world, args.attempts, args.samples, args.pool,
-                        args.repeats, args.workers, log=lambda line: print(line, flush=True))
-        print(json.dumps(result, indent=2))
-        if args.json:
-            Path(args.json).write_text(json.dumps(result, indent=2) + "\n", encoding="utf-8")
-        return 0
-    if args.command == "worlds":
-        result = worlds(read_rows(Path(args.capture))[args.row], _seeds(args.seeds), args.samples,
-                        args.station_samples, args.workers, log=lambda line: print(line, flush=True))
-        print(json.dumps(result, indent=2))
-        if args.json:
-            Path(args.json).write_text(json.dumps(result, indent=2) + "\n", encoding="utf-8")
-        return 0
-    if args.command == "sensitivity":
-        from station.services.loop import ATTEMPT_BLOCK
-
-        rows = [r for r in read_rows(Path(args.capture))
-                if args.loop is None or r["attempt"] // ATTEMPT_BLOCK == args.loop]
-        result = sensitivity(rows, args.samples, args.workers, log=lambda line: print(line, flush=True))
-        print(json.dumps(result, indent=2))
-        if args.json:
-            Path(args.json).write_text(json.dumps(result, indent=2) + "\n", encoding="utf-8")
-        return 0
+    log = lambda line: print(line, flush=True)  # noqa: E731
     if args.command == "run":
         capture(Path(args.capture))
-        figures = run_bench([args.scenario], _seeds(args.seeds), dict(FULL), workers=args.workers,
-                            database=args.database, jigs=args.jigs, log=lambda line: print(line, flush=True))
-        print(json.dumps({k: {"brier": v["brier"], "brier_forecast": v["brier_forecast"]}
-                          for k, v in figures.items()}))
-        if args.json:
-            Path(args.json).write_text(json.dumps(figures, indent=2, default=str) + "\n", encoding="utf-8")
-        return 0
-    result = decompose(read_rows(Path(args.capture)), args.samples, args.workers,
-                       log=lambda line: print(line, flush=True))
-    print(json.dumps(result["summary"], indent=2))
+        result = run_bench([args.scenario], _seeds(args.seeds), dict(FULL), workers=args.workers,
+                           database=args.database, jigs=args.jigs, log=log)
+        print(json.dumps({k: {"brier": v["brier"], "brier_forecast": v["brier_forecast"]} for k, v in result.items()}))
+    elif args.command == "decompose":
+        result = decompose(read_rows(Path(args.capture)), args.samples, args.workers, log=log)
+        print(json.dumps(result["summary"], indent=2))
+    else:
+        rows = read_rows(Path(args.capture))
+        if args.command == "sensitivity":
+            from station.services.loop import ATTEMPT_BLOCK
+
+            rows = [r for r in rows if args.loop is None or r["attempt"] // ATTEMPT_BLOCK == args.loop]
+            result = sensitivity(rows, args.samples, args.workers, log=log)
+        elif args.command == "worlds":
+            result = worlds(rows[args.row], _seeds(args.seeds), args.samples, args.station_samples, args.workers,
+                            log=log)
+        else:  # replay
+            per_world = json.loads(Path(args.worlds).read_text(encoding="utf-8"))["worlds"]
+            result = replay(rows[args.row], per_world, args.attempts, args.samples, args.pool, args.repeats,
+                            args.workers, log=log)
+        print(json.dumps(result, indent=2))
     if args.json:
-        Path(args.json).write_text(json.dumps(result, indent=2) + "\n", encoding="utf-8")
+        Path(args.json).write_text(json.dumps(result, indent=2, default=str) + "\n", encoding="utf-8")
     return 0
 
 
