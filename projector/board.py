@@ -192,7 +192,7 @@ def _clear_centre(centres, reach: float, half: float, footprints, line_v: float,
         return centres[0] if centres else None
     starts = np.cumsum([0] + [len(c) for c in corners[:-1]])
     points = np.concatenate(corners)
-    scale = SIDE_CAMERA_MM / np.maximum(SIDE_CAMERA_MM - (line_v - points[:, 1]), 1.0)
+    scale = _magnified(points[:, 1], line_v)
     for centre in centres:
         eye = camera_u(centre)
         seen = eye + (points[:, 0] - eye) * scale
@@ -222,12 +222,12 @@ def _least_hidden(centres, reach: float, half: float, heights, solids, line_v: f
     points, starts = np.concatenate(points), starts[:-1]
     ends = [*starts[1:], len(points)]
     u = points[:, 0]
-    scale = SIDE_CAMERA_MM / np.maximum(SIDE_CAMERA_MM - (line_v - points[:, 1]), 1.0)
+    scale = _magnified(points[:, 1], line_v)
     tags = list(zip(BOARD_TAG_IDS, (-1, 1, 1, -1), (heights[0], heights[0], heights[1], heights[1])))
     room = half + CLEAR_MM
     views = []
     for camera_h in (board_height / 2.0 + SIDE_CAMERA_RISE_MM, board_height / 2.0):
-        seen_h = camera_h + (points[:, 2] - camera_h) * scale  # the same at every u: the camera's height is
+        seen_h = camera_h + (points[:, 2] - camera_h) * scale  # the same wherever along u the camera stands
         low_h, high_h = np.minimum.reduceat(seen_h, starts), np.maximum.reduceat(seen_h, starts)
         views.append((seen_h, {tag_id: (high_h >= h - room) & (low_h <= h + room) for tag_id, _, h in tags}))
 
@@ -262,12 +262,22 @@ def _least_hidden(centres, reach: float, half: float, heights, solids, line_v: f
     return best[1], best[2], best[3]
 
 
+def _magnified(v, line_v: float):
+    """How much larger than on the board a thing at ``v`` (mm, in front of the board's face at ``line_v``) looks
+    from the side camera :data:`SIDE_CAMERA_MM` in front of the board: what it hides of the board, from the
+    camera's place, is its outline scaled by this."""
+    return SIDE_CAMERA_MM / np.maximum(SIDE_CAMERA_MM - (line_v - v), 1.0)
+
+
 def _hiding(hidden) -> str:
     """``"`a` and `b` hide board tag 580"``: what hides which tags, in words."""
     hiders = list(dict.fromkeys(name for _, names in hidden for name in names))
-    tags = [str(tag_id) for tag_id, _ in hidden]
-    return (f"{_listed([f'`{n}`' for n in hiders])} hide{'s' if len(hiders) == 1 else ''} board "
-            f"tag{'s' if len(tags) > 1 else ''} {_listed(tags)}")
+    return f"{_listed([f'`{n}`' for n in hiders])} hide{'s' if len(hiders) == 1 else ''} {_board_tags(hidden)}"
+
+
+def _board_tags(hidden) -> str:
+    """``"board tags 579 and 580"``: the tags of ``hidden`` (``((tag id, names), ...)``)."""
+    return f"board tag{'s' if len(hidden) > 1 else ''} {_listed([str(tag_id) for tag_id, _ in hidden])}"
 
 
 def _listed(words) -> str:
@@ -306,13 +316,11 @@ def write_board_pdf(board: SideBoard, path: str | PathLike, title: str = "") -> 
              "lower edge of this sheet ON THE TABLE (heights are measured from it); the sheet upright and flat",
              "print at actual size (100 %), not \u201cfit to page\u201d; units: mm"]
     if board.hidden:  # what the guide could not place it clear of
-        tags = _listed([str(tag_id) for tag_id, _ in board.hidden])
-        lines.append(f"the parts hide board tag{'s' if len(board.hidden) > 1 else ''} {tags} from a camera level with "
-                     "this sheet's middle: raise the side camera to look over them")
+        lines.append(f"the parts hide {_board_tags(board.hidden)} from a camera level with this sheet's middle: "
+                     "raise the side camera to look over them")
     if board.hidden_raised:
-        tags = _listed([str(tag_id) for tag_id, _ in board.hidden_raised])
-        lines.append(f"even from the side camera raised {SIDE_CAMERA_RISE_MM:.0f} mm the parts hide board "
-                     f"tag{'s' if len(board.hidden_raised) > 1 else ''} {tags}")
+        lines.append(f"even from the side camera raised {SIDE_CAMERA_RISE_MM:.0f} mm the parts hide "
+                     f"{_board_tags(board.hidden_raised)}")
     for i, line in enumerate(lines):
         canvas.drawCentredString(w / 2.0, h - 28.0 - 4.0 * i, line)
     draw_scale_bar(canvas, w / 2.0 - 50.0, 20.0)
