@@ -298,7 +298,7 @@ def _piece(shape: BaseGeometry, what: str) -> Polygon:
     if shape.is_empty or shape.area <= 0.0:
         raise _NoJig(f"its {what} would be empty")
     if not isinstance(shape, Polygon):
-        raise _NoJig(f"its {what} would come out in {len(getattr(shape, 'geoms', [shape]))} pieces")
+        raise _NoJig(f"its {what} would come out in {len(shape.geoms)} pieces")
     if not shape.is_valid:
         raise _NoJig(f"its {what}'s outline would cross itself ({shapely.is_valid_reason(shape)})")
     return shape

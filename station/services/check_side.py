@@ -310,8 +310,8 @@ def hidden_as_built(job, side: SideView, layout, measured: Sequence[str]) -> Sid
     ``measured``), the design for every other part; its unread tags' instructions say so."""
     x = np.asarray(job.layout.x, float).copy()
     names = list(job.scenario.design_space.names)
-    for name in measured:
-        x[names.index(name)] = float(np.asarray(layout, float)[names.index(name)])
+    at = [names.index(name) for name in measured]
+    x[at] = np.asarray(layout, float)[at]
     placed = tuple(p.name for p in job.guide.parts if set(p.parameters) & set(measured))
     hidden = _hidden_tags(job, side.board, side.targets, side.pose, side.unread, x)
     return replace(side, hidden=hidden, checks=_side_checks(side.guide, side.measurement, side.targets, hidden),
