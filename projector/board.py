@@ -37,6 +37,7 @@ import numpy as np
 import shapely
 from shapely.geometry import box
 
+from common.words import listed
 from projector.errors import ProjectorError
 from projector.guide import REFERENCE_TAG_IDS, Guide, GuidePlane, ReferenceTag
 from projector.pdf_marks import BOLD, FONT, INK, draw_scale_bar, draw_tag
@@ -272,17 +273,12 @@ def _magnified(v, line_v: float):
 def _hiding(hidden) -> str:
     """``"`a` and `b` hide board tag 580"``: what hides which tags, in words."""
     hiders = list(dict.fromkeys(name for _, names in hidden for name in names))
-    return f"{_listed([f'`{n}`' for n in hiders])} hide{'s' if len(hiders) == 1 else ''} {_board_tags(hidden)}"
+    return f"{listed([f'`{n}`' for n in hiders])} hide{'s' if len(hiders) == 1 else ''} {_board_tags(hidden)}"
 
 
 def _board_tags(hidden) -> str:
     """``"board tags 579 and 580"``: the tags of ``hidden`` (``((tag id, names), ...)``)."""
-    return f"board tag{'s' if len(hidden) > 1 else ''} {_listed([str(tag_id) for tag_id, _ in hidden])}"
-
-
-def _listed(words) -> str:
-    words = list(words)
-    return words[0] if len(words) == 1 else ", ".join(words[:-1]) + " and " + words[-1]
+    return f"board tag{'s' if len(hidden) > 1 else ''} {listed([str(tag_id) for tag_id, _ in hidden])}"
 
 
 def write_board_pdf(board: SideBoard, path: str | PathLike, title: str = "") -> None:

@@ -13,6 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from common.words import listed
 from design.machines.parameters import Parameter
 
 #: The categories of constraints of Appendix A.1.2, in the order the thesis gives them.
@@ -156,9 +157,8 @@ def coprime_constraint(equation: str, *names: str) -> Constraint:
     def message(p: Mapping[str, float]) -> str:
         values = [int(round(p[n])) for n in names]
         shown = ", ".join(f"{p[n]:g}" for n in names)
-        listed = " and ".join(names) if len(names) == 2 else ", ".join(names[:-1]) + f" and {names[-1]}"
         rule = "be coprime" if len(names) == 2 else "share no common divisor"
-        return (f"{listed} must {rule}, got gcd({shown}) = {math.gcd(*values)} "
+        return (f"{listed(names)} must {rule}, got gcd({shown}) = {math.gcd(*values)} "
                 "(the same pattern exists with smaller gears)")
 
     return Constraint(

@@ -24,6 +24,7 @@ import numpy as np
 
 from calibration.intrinsics import to_gray
 from calibration.measure import measure
+from common.words import listed
 from drivers.sim.camera import parse_camera_options
 from drivers.sim.camera_scene import ImageItem, Occluder, PlaneScene, Solid, TagItem
 from station.errors import ServiceError, station_errors
@@ -365,7 +366,7 @@ def _board_lines(missing: Sequence[int], hidden: Mapping[int, Sequence[str]], no
 def _names(names, verb: str = "") -> str:
     """```a```, ```a`` and ``b``` and the verb, if any, agreeing with them (``stands``/``stand``)."""
     words = [n if n.startswith("jig ") else f"`{n}`" for n in names]
-    text = words[0] if len(words) == 1 else ", ".join(words[:-1]) + " and " + words[-1]
+    text = listed(words)
     if not verb:
         return text
     plural = {"stands": "stand"}
