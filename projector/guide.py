@@ -566,8 +566,12 @@ def where_word(part: PartDrawing) -> str:
     return "around" if len(getattr(part.outline, "geoms", [part.outline])) > 1 else "centre"
 
 
-def where_text(part: PartDrawing) -> str:
-    """``"centre (-60.0, 0.0) mm"`` or ``"around (35.0, 0.0) mm"``: :func:`where_point` in words, to 0.1 mm (a -0.04
-    reads "0.0", not "-0.0")."""
+def where_coords(part: PartDrawing) -> str:
+    """``"(-60.0, 0.0)"``: :func:`where_point` to 0.1 mm, in mm (a -0.04 reads "0.0", not "-0.0")."""
     u, v = (round(c, 1) + 0.0 for c in where_point(part))
-    return f"{where_word(part)} ({u:.1f}, {v:.1f}) mm"
+    return f"({u:.1f}, {v:.1f})"
+
+
+def where_text(part: PartDrawing) -> str:
+    """``"centre (-60.0, 0.0) mm"`` or ``"around (35.0, 0.0) mm"``: :func:`where_coords` in words."""
+    return f"{where_word(part)} {where_coords(part)} mm"

@@ -10,6 +10,8 @@ from __future__ import annotations
 from rich.text import Text
 from textual.widgets import DataTable, Static
 
+from projector.guide import where_coords
+
 #: How each care class of a part is coloured.
 CARE_STYLE = {"tight": "red", "normal": "dark_orange", "loose": "green"}
 #: How the parameters say each is set (the guide manifest's ``set_with``).
@@ -17,7 +19,8 @@ HOW_TEXT = {"sheet": "on the sheet", "ruler": "ruler", "jig": "jig", "check": "s
 
 
 class StepsTable(DataTable):
-    """A row per part of the guide, keyed by its name: step, part, kind, tag, centre, care."""
+    """A row per part of the guide, keyed by its name: step, part, kind, tag, centre (the point the steps give: a run
+    of pieces' centroid, :func:`projector.guide.where_coords`), care."""
 
     def on_mount(self) -> None:
         self.add_columns("step", "part", "kind", "tag", "centre mm", "care")
@@ -28,7 +31,7 @@ class StepsTable(DataTable):
             care = Text(part.care or "-", style=CARE_STYLE.get(part.care or "", ""))
             self.add_row(str(part.step), Text(part.name), str(part.kind),
                          "-" if part.tag_id is None else str(part.tag_id),
-                         f"({part.center_mm[0]:.1f}, {part.center_mm[1]:.1f})", care, key=part.name)
+                         where_coords(part), care, key=part.name)
 
 
 class PartParameters(Static):
