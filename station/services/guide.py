@@ -18,7 +18,7 @@ from design.contraption.layout_io import read_layout_data
 from projector.board import side_board, write_board_pdf
 from projector.build import build_guide, steps_text
 from projector.frames import render_calibrate, render_frames, render_step
-from projector.guide import Guide, ParameterTolerance
+from projector.guide import Guide, ParameterTolerance, where_coords
 from projector.parameters import check_set_with
 from projector.pdf import write_pdf
 from projector.svg import write_svg
@@ -32,7 +32,7 @@ from station.services.robust import check_count, check_seed
 from station.services.tolerances import tolerance_map as tolerances_of
 
 __all__ = ["PAPERS", "VIEWS", "GuideJob", "GuideRequest", "check_paper", "export_guide", "make_guide", "portable_name",
-           "projected_frames", "show_step"]
+           "projected_frames", "show_step", "where_coords"]
 
 PAPERS = ("a4", "letter", "a3")
 VIEWS = ("top", "side")

@@ -10,7 +10,7 @@ from __future__ import annotations
 from rich.text import Text
 from textual.widgets import DataTable, Static
 
-from projector.guide import where_coords
+from station.services.guide import where_coords
 
 #: How each care class of a part is coloured.
 CARE_STYLE = {"tight": "red", "normal": "dark_orange", "loose": "green"}
@@ -20,7 +20,7 @@ HOW_TEXT = {"sheet": "on the sheet", "ruler": "ruler", "jig": "jig", "check": "s
 
 class StepsTable(DataTable):
     """A row per part of the guide, keyed by its name: step, part, kind, tag, centre (the point the steps give: a run
-    of pieces' centroid, :func:`projector.guide.where_coords`), care."""
+    of pieces' centroid, :func:`station.services.guide.where_coords`), care."""
 
     def on_mount(self) -> None:
         self.add_columns("step", "part", "kind", "tag", "centre mm", "care")
