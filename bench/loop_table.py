@@ -22,8 +22,9 @@ complete (running, or stopped) are listed under the table, not counted. ``--per-
 run (each loop's successes and mean prediction, the baseline's, its commits).
 
 Run: ``python -m bench.loop_table [DATABASE ...] [--bounds ROWS.jsonl ...] [--scenarios all] [--seeds 1-5]
-[--loops 2] [--unstored-commit COMMIT] [--per-world] [--json OUT.json]`` (no database: ``bench_loop``'s default
-one).
+[--loops 2] [--unstored-commit COMMIT] [--per-world] [--json OUT.json] [--readme]`` (no database:
+``bench_loop``'s default one). ``--readme`` prints the README's short table instead, a row per scenario, rendered
+from the same figures as ``--json`` writes them (:func:`readme`), so a test can hold the README to a stored JSON.
 """
 
 from __future__ import annotations
@@ -442,6 +443,46 @@ def per_world(table: Table, *, unstored_commit: str | None = None) -> list[str]:
     return lines
 
 
+def _short_rate(rate: dict | None) -> str:
+    if not rate or not rate.get("attempts"):
+        return "-"
+    return f"{_f(rate['success_rate'])} ({rate['successes']}/{rate['attempts']})"
+
+
+def _short_worlds(row: dict) -> str:
+    """``""`` for a row with every asked world, else ``" (worlds 1-3)"``."""
+    if not row.get("partial") or not row.get("seeds"):
+        return ""
+    return f" (world{'s' if len(row['seeds']) > 1 else ''} {seed_words(row['seeds'])})"
+
+
+def readme(table: dict) -> list[str]:
+    """The README's short table from one table of :func:`to_json`'s output (``data["tables"][i]``): per scenario,
+    the success after the first calibration with jigs and without, the thesis's workflow in the jigs runs' worlds,
+    the median attempts to the first success and the forecasts' Brier score with jigs, and the ceiling with jigs
+    with the loop's share of it."""
+    rows: dict[str, dict[bool, dict]] = {}
+    for row in table["rows"]:
+        rows.setdefault(row["scenario"], {})[bool(row["jigs"])] = row
+    lines = ["| scenario | after the first calibration, with jigs | without jigs | thesis's workflow, same worlds | "
+             "median attempts to the first success | Brier of the forecasts | ceiling with jigs (loop / ceiling) |",
+             "| --- | --- | --- | --- | --- | --- | --- |"]
+    for name, by_jigs in rows.items():
+        jigs, plain = by_jigs.get(True, {}), by_jigs.get(False, {})
+        if not jigs.get("seeds"):
+            lines.append(f"| {name} | no complete run yet | {_short_rate(plain.get('after_calibration'))}"
+                         f"{_short_worlds(plain)} | | | | |")
+            continue
+        bound = jigs.get("ceiling")
+        ceiling_words = "not measured" if not bound else (f"{_f(bound['success_rate'])} "
+                                                          f"({_f(jigs.get('of_ceiling'))})")
+        lines.append(f"| {name} | {_short_rate(jigs['after_calibration'])}{_short_worlds(jigs)} | "
+                     f"{_short_rate(plain.get('after_calibration'))}{_short_worlds(plain)} | "
+                     f"{_short_rate(jigs['baseline'])} | {_f(jigs['median_attempts_to_first_success'], 1)} | "
+                     f"{_f(jigs['brier_forecast'], 3)} | {ceiling_words} |")
+    return lines
+
+
 def to_json(found: Sequence[Table], databases: Sequence[str], bounds: Sequence[str]) -> dict:
     return {"databases": list(databases), "bounds": list(bounds),
             "tables": [{"config": t.config, "commits": t.commits, "runs_without_commit": t.unstored,
@@ -473,6 +514,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--per-world", action="store_true",
                         help="also a line per counted run: each loop's successes and mean prediction")
     parser.add_argument("--json", default=None, metavar="OUT.json", help="also write the figures there")
+    parser.add_argument("--readme", action="store_true",
+                        help="print the README's short table (a row per scenario) instead of the full one")
     args = parser.parse_args([] if argv is None else argv)
     try:
         try:
@@ -492,16 +535,20 @@ def main(argv: list[str] | None = None) -> int:
     if not found:
         print(f"loop_table: no run of {', '.join(examples)} in world seeds {seed_words(seeds)} in "
               f"{', '.join(databases)}")
+    data = to_json(found, databases, args.bounds)
     for i, table in enumerate(found):
         if i:
             print()
+        if args.readme:
+            print("\n".join(readme(data["tables"][i])))
+            continue
         print("\n".join(markdown(table, unstored_commit=args.unstored_commit)))
         if args.per_world:
             print("\nPer world:\n")
             print("\n".join(per_world(table, unstored_commit=args.unstored_commit)))
     if args.json:
         try:
-            Path(args.json).write_text(json.dumps(to_json(found, databases, args.bounds), indent=2, default=str)
+            Path(args.json).write_text(json.dumps(data, indent=2, default=str)
                                        + "\n", encoding="utf-8")
         except OSError as error:
             print(f"loop_table: --json {args.json}: cannot write ({error})", file=sys.stderr)

@@ -237,3 +237,35 @@ def test_per_world_a_line_per_counted_run(campaign):
     assert lines[2:] == ["| 1 | SIMPLE | yes | 1/2 | 2/2 | 0.50 / 0.85 | 0/2 | abc1234 |",
                          "| 1 | SIMPLE | no | 2/2 | 1/2 | 0.90 / 0.90 | 0/2 | abc1234 |",
                          "| 2 | SIMPLE | yes | 2/2 | 1/2 | 0.65 / 0.75 | 1/2 | abc1234 |"]
+
+
+def test_the_readme_table_a_row_per_scenario_the_same_from_its_json(campaign, tmp_path, capsys):
+    database, bounds = campaign
+    out = tmp_path / "table.json"
+    assert loop_table.main([str(database), "--bounds", str(bounds), "--scenarios", "simple,ballrun", "--seeds",
+                            "1-3", "--json", str(out), "--readme"]) == 0
+    printed = capsys.readouterr().out.splitlines()
+    assert printed[0].startswith("| scenario | after the first calibration, with jigs | without jigs |")
+    # with jigs worlds 1-2 of 1-3 (world 3 not complete), without jigs world 1; the thesis's workflow and the
+    # ceiling from the jigs runs' worlds
+    brier = _tables(*campaign)[0].rows[0]["brier_forecast"]  # the full table's, checked above
+    assert printed[2] == (f"| SIMPLE | 0.75 (3/4) (worlds 1-2) | 0.50 (1/2) (world 1) | 0.25 (1/4) | 1.5 | "
+                          f"{brier:.3f} | {61 / 64:.2f} ({0.75 / (61 / 64):.2f}) |")
+    assert printed[3] == "| BALLRUN | no complete run yet | - | | | | |"
+    # the stored JSON renders the same lines
+    (table,) = json.loads(out.read_text(encoding="utf-8"))["tables"]
+    assert loop_table.readme(table) == printed
+
+
+README_TABLE = Path(__file__).resolve().parents[2] / "docs" / "results" / "loop-table.json"
+
+
+def test_the_readmes_loop_table_is_the_stored_campaigns():
+    """The README's table is rendered from the campaign's stored figures, row for row (it cannot drift from them)."""
+    readme = (README_TABLE.parents[2] / "README.md").read_text(encoding="utf-8")
+    if not README_TABLE.exists():
+        assert "loop_table" not in readme
+        return
+    data = json.loads(README_TABLE.read_text(encoding="utf-8"))
+    lines = [line for table in data["tables"] for line in loop_table.readme(table)]
+    assert "\n".join(lines) in readme
