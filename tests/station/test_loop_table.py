@@ -257,7 +257,7 @@ def test_the_readme_table_a_row_per_scenario_the_same_from_its_json(campaign, tm
     assert loop_table.readme(table) == printed
 
 
-README_TABLE = Path(__file__).resolve().parents[2] / "docs" / "results" / "loop-table.json"
+README_TABLE = Path(__file__).resolve().parents[2] / "docs" / "results" / "2026-12-05-loop-table.json"
 
 
 def test_the_readmes_loop_table_is_the_stored_campaigns():
