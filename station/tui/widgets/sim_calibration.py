@@ -78,6 +78,7 @@ class SimCalibrationPanel(Vertical):
         self.result = None
         self.calibrating = False
         self._work: Work | None = None
+        self._reveal_result = False  # a result was shown and no calibration started since
 
     def compose(self) -> ComposeResult:
         yield Label("[b]Simulator[/b] (material values fitted to the trial log)")
@@ -167,6 +168,7 @@ class SimCalibrationPanel(Vertical):
             self.status("give a trial export file (station trial export --out FILE.json)", style="red")
             return
         self.calibrating = True
+        self._reveal_result = False
         self.query_one("#sim-start", Button).disabled = True
         self.query_one("#sim-stop", Button).disabled = False
         self.query_one(ProgressPanel).start(None, "reading the trials ...")
@@ -244,8 +246,18 @@ class SimCalibrationPanel(Vertical):
             brier = f"held-out Brier {fit.brier_before:.3f} before, {fit.brier_after:.3f} after"
         self.query_one(ProgressPanel).say(f"{fit.simulations} simulations, {fit.candidates} candidate values")
         self.status(f"{fit.trials} trials fitted, {fit.held_out} held out; {brier}. w writes the profile.")
-        # the result, from the progress down, in view: the fields above it scroll out of the way
-        self.call_after_refresh(self.scroll_to_widget, self.query_one(ProgressPanel), top=True, animate=False)
+        self._reveal_result = True
+        self.call_after_refresh(self._reveal)
+
+    def _reveal(self) -> None:
+        """The result, from the progress down, in view: the fields above it scroll out of the way."""
+        self.scroll_to_widget(self.query_one(ProgressPanel), top=True, animate=False)
+
+    def on_resize(self) -> None:
+        # a table takes its rows' height a refresh or more after it is filled, and a scroll is clamped to the
+        # scrollable height of its moment: scroll again as that grows, until the next calibration starts
+        if self._reveal_result:
+            self._reveal()
 
 
 def _split(text: str) -> list[str]:
